@@ -1,0 +1,84 @@
+"""Env step throughput vs the cost of one bare vectorised particle update (issue: foundation).
+
+Prints env steps/s for ElectroLoc-v0 in belief mode at 2500 particles with the analytic and the
+calibrated sensor model, the cost of one bare particle update (sensor model on all particles,
+log-weight normalisation, systematic resampling, jitter), and their ratio. Numeric libraries are
+pinned to one thread (DESIGN §10).
+
+    python benchmarks/env_step.py [--steps 3000] [--particles 2500]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from electroloc_gym.belief import ParticleBelief  # noqa: E402
+from electroloc_gym.envs.localize import ElectroLocEnv  # noqa: E402
+
+
+def best_of(fn, n: int, repeats: int = 5) -> float:
+    """Best mean seconds per call over ``repeats`` blocks of ``n`` calls (robust to a busy machine)."""
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.perf_counter()
+        for _ in range(n):
+            fn()
+        best = min(best, (time.perf_counter() - t) / n)
+    return best
+
+
+def bare_update_cost(env: ElectroLocEnv, n: int) -> float:
+    """Seconds for one bare particle update with the env's sensor model and belief settings."""
+    rng = np.random.default_rng(0)
+    b = ParticleBelief(env.n_particles, *env.allowed_box_mm, dtype=np.float32)
+    b.reset(rng)
+    model = env.sensor_model
+    pos = env.position_mm.astype(np.float32)
+    reading = env.last_reading_V
+
+    def one() -> None:
+        b.assimilate(model.log_likelihood(reading, b.particles - pos), rng)
+
+    return best_of(one, n)
+
+
+def env_step_cost(env: ElectroLocEnv, n: int) -> float:
+    env.reset(seed=0)
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1, 1, size=(n, 2)).astype(np.float32)
+    i = 0
+
+    def one() -> None:
+        nonlocal i
+        env.step(actions[i % n])
+        i += 1
+
+    return best_of(one, n)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--particles", type=int, default=2500)
+    args = ap.parse_args()
+    print(f"{'sensor model':<12} {'env steps/s':>12} {'env step ms':>12} {'bare update ms':>15} {'ratio':>7}")
+    for model in ("analytic", "calibrated"):
+        # Never terminate, so every step does the full work.
+        env = ElectroLocEnv(sensor_model=model, n_particles=args.particles, max_observations=10**9,
+                            success_spread_mm=1e-9)
+        env.reset(seed=0)
+        bare = bare_update_cost(env, args.steps)
+        step = env_step_cost(env, args.steps)
+        print(f"{model:<12} {1 / step:>12.0f} {step * 1e3:>12.3f} {bare * 1e3:>15.3f} {step / bare:>7.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,26 @@
+"""electroloc-gym: the active-electrolocation robot of Solberg, Lynch & MacIver (IJRR 2008) as Gymnasium envs.
+
+Importing the package registers the environment ids (idempotent):
+
+* ``ElectroLoc-v0`` — localise a target sphere with a particle-filter belief.
+"""
+
+from __future__ import annotations
+
+from gymnasium.envs.registration import register, registry
+
+from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition
+
+__version__ = "0.1.0"
+
+__all__ = ["PRESET_NAMES", "Condition", "get_condition", "ENV_IDS", "__version__"]
+
+ENV_IDS: tuple[str, ...] = ("ElectroLoc-v0",)
+
+
+def _register() -> None:
+    if "ElectroLoc-v0" not in registry:
+        register(id="ElectroLoc-v0", entry_point="electroloc_gym.envs.localize:ElectroLocEnv")
+
+
+_register()

@@ -1,0 +1,325 @@
+"""Experimental conditions: frozen, validated parameter dataclasses and the paper's eight presets.
+
+Units are in every field name: mm, V, mV, µS/cm. Derived quantities (χ, target depth, noise at the
+amplifier output, ...) are properties, never stored defaults (DESIGN §9.5).
+
+The eight presets follow DESIGN §4 (paper §5.2–5.3, Fig. 9 caption, Table 3). Each preset's
+``signal_scale`` is *fitted* (DESIGN §3.3): the smallest scale at which the model's 2σ detection
+distance along the 45° line reaches the paper's measured detection distance (Table 3). Use
+``get_condition(name, signal="paper")`` for the paper's equations as they stand (scale 1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from electroloc_gym import physics
+
+__all__ = [
+    "MATERIAL_CONDUCTIVITY_uScm",
+    "Target",
+    "Water",
+    "Amplifier",
+    "Geometry",
+    "Condition",
+    "PRESET_NAMES",
+    "PAPER_TABLE3_MEASURED_MM",
+    "PAPER_TABLE3_THEORY_MM",
+    "get_condition",
+    "fitted_signal_scale",
+]
+
+#: Conductivities (µS/cm) of the paper's target materials. Steel ≈ 1.4·10⁶ S/m; Delrin (acetal) is
+#: an insulator (≈10⁻¹³ S/m). Only the contrast χ matters, which is +1 and −½ to many digits.
+MATERIAL_CONDUCTIVITY_uScm: dict[str, float] = {"steel": 1.4e10, "delrin": 1e-9}
+
+FRESH_WATER_uScm = 160.0
+SALT_WATER_uScm = 56_000.0
+
+
+def _check_finite(name: str, value: float, *, low: float | None = None, high: float | None = None,
+                  low_inclusive: bool = False) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    if low is not None and (value < low or (value == low and not low_inclusive)):
+        op = "≥" if low_inclusive else ">"
+        rng = f"{op} {low}" + (f" and ≤ {high}" if high is not None else "")
+        raise ValueError(f"{name} must be {rng}, got {value!r}")
+    if high is not None and value > high:
+        raise ValueError(f"{name} must be ≤ {high}, got {value!r}")
+
+
+def _from_dict(cls: type, data: Mapping[str, Any]) -> Any:
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ValueError(f"unknown {cls.__name__} field(s) {unknown}; allowed: {sorted(names)}")
+    return cls(**data)
+
+
+@dataclass(frozen=True)
+class Target:
+    """A spherical target.
+
+    Attributes:
+        radius_mm: sphere radius A, mm (> 0).
+        conductivity_uScm: target conductivity σ_t, µS/cm (≥ 0).
+        material: a label ("steel", "delrin" or "custom").
+    """
+
+    radius_mm: float
+    conductivity_uScm: float
+    material: str = "custom"
+
+    def __post_init__(self) -> None:
+        _check_finite("radius_mm", self.radius_mm, low=0.0)
+        _check_finite("conductivity_uScm", self.conductivity_uScm, low=0.0, low_inclusive=True)
+
+    @classmethod
+    def sphere(cls, diameter_mm: float, material: str) -> Target:
+        """A sphere of a named material ("steel" or "delrin")."""
+        key = material.lower()
+        if key not in MATERIAL_CONDUCTIVITY_uScm:
+            raise ValueError(f"material must be one of {sorted(MATERIAL_CONDUCTIVITY_uScm)}, got {material!r}")
+        _check_finite("diameter_mm", diameter_mm, low=0.0)
+        return cls(radius_mm=diameter_mm / 2.0, conductivity_uScm=MATERIAL_CONDUCTIVITY_uScm[key], material=key)
+
+    @property
+    def diameter_mm(self) -> float:
+        """Sphere diameter, mm."""
+        return 2.0 * self.radius_mm
+
+
+@dataclass(frozen=True)
+class Water:
+    """The tank's water. Attributes: conductivity_uScm, µS/cm (> 0)."""
+
+    conductivity_uScm: float
+
+    def __post_init__(self) -> None:
+        _check_finite("water conductivity_uScm", self.conductivity_uScm, low=0.0)
+
+
+@dataclass(frozen=True)
+class Amplifier:
+    """Differential amplifier and noise.
+
+    Attributes:
+        gain: differential gain G (dimensionless, > 0).
+        noise_rms_mV: RMS noise σ_s referred to the electrodes, mV (> 0) (Table 3).
+        saturation_V: the data-acquisition card clips the amplified reading at ±saturation_V, V.
+    """
+
+    gain: float
+    noise_rms_mV: float
+    saturation_V: float = 10.0
+
+    def __post_init__(self) -> None:
+        _check_finite("gain", self.gain, low=0.0)
+        _check_finite("noise_rms_mV", self.noise_rms_mV, low=0.0)
+        _check_finite("saturation_V", self.saturation_V, low=0.0)
+
+    @property
+    def noise_std_V(self) -> float:
+        """Standard deviation of the amplified reading, V: G·σ_s."""
+        return self.gain * self.noise_rms_mV * 1e-3
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Carriage geometry and emitter drive (DESIGN §3, §6.7).
+
+    Attributes:
+        spacing_mm: emitter spacing L = sensor spacing, mm.
+        electrode_radius_mm: electrode radius E, mm.
+        emitter_voltage_V: emitter drive V_e, V.
+        clearance_mm: gap O between the electrodes and the top of the target, mm.
+    """
+
+    spacing_mm: float = 50.0
+    electrode_radius_mm: float = 1.0
+    emitter_voltage_V: float = 2.0
+    clearance_mm: float = 2.0
+
+    def __post_init__(self) -> None:
+        _check_finite("spacing_mm", self.spacing_mm, low=0.0)
+        _check_finite("electrode_radius_mm", self.electrode_radius_mm, low=0.0)
+        _check_finite("emitter_voltage_V", self.emitter_voltage_V, low=0.0)
+        _check_finite("clearance_mm", self.clearance_mm, low=0.0, low_inclusive=True)
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One experimental condition: target, water, amplifier, carriage geometry and workspace.
+
+    Attributes:
+        name: a label.
+        target: the sphere.
+        water: the water.
+        amplifier: gain and noise.
+        start_half_width_mm: the carriage starts uniformly in ±this box around the tank centre, mm.
+        allowed_half_width_mm: the carriage (and the belief) stays within ±this box, mm.
+        target_xy_mm: true target centre (x, y), mm; must lie in the allowed box.
+        signal_scale: dimensionless factor on the noise-free amplified signal (DESIGN §3.3).
+        geometry: carriage geometry and emitter drive.
+    """
+
+    name: str
+    target: Target
+    water: Water
+    amplifier: Amplifier
+    start_half_width_mm: float
+    allowed_half_width_mm: float
+    target_xy_mm: tuple[float, float] = (0.0, 0.0)
+    signal_scale: float = 1.0
+    geometry: Geometry = field(default_factory=Geometry)
+
+    def __post_init__(self) -> None:
+        for fname, typ in (("target", Target), ("water", Water), ("amplifier", Amplifier), ("geometry", Geometry)):
+            if not isinstance(getattr(self, fname), typ):
+                raise TypeError(f"{fname} must be a {typ.__name__}, got {type(getattr(self, fname)).__name__}")
+        _check_finite("allowed_half_width_mm", self.allowed_half_width_mm, low=0.0)
+        _check_finite("start_half_width_mm", self.start_half_width_mm, low=0.0, high=self.allowed_half_width_mm)
+        _check_finite("signal_scale", self.signal_scale, low=0.0)
+        if len(self.target_xy_mm) != 2:
+            raise ValueError(f"target_xy_mm must be (x, y) in mm, got {self.target_xy_mm!r}")
+        for v in self.target_xy_mm:
+            _check_finite("target_xy_mm", v, low=-self.allowed_half_width_mm, high=self.allowed_half_width_mm,
+                          low_inclusive=True)
+        object.__setattr__(self, "target_xy_mm", (float(self.target_xy_mm[0]), float(self.target_xy_mm[1])))
+
+    # ---- derived values -------------------------------------------------------------------
+    @property
+    def chi(self) -> float:
+        """Contrast factor χ = (σ_t − σ_w)/(σ_t + 2σ_w) (Eq. 4)."""
+        return float(physics.contrast_factor_sphere(self.target.conductivity_uScm, self.water.conductivity_uScm))
+
+    @property
+    def depth_mm(self) -> float:
+        """Depth of the target centre below the electrode plane, mm: A + E + O (§6.7, App. A)."""
+        return self.target.radius_mm + self.geometry.electrode_radius_mm + self.geometry.clearance_mm
+
+    @property
+    def noise_std_V(self) -> float:
+        """Standard deviation of the amplified reading, V (G·σ_s)."""
+        return self.amplifier.noise_std_V
+
+    @property
+    def saturation_V(self) -> float:
+        """Clip level of the reading, V."""
+        return self.amplifier.saturation_V
+
+    def detection_distance_mm(self, threshold_sigmas: float = 2.0) -> float:
+        """Model detection distance (mm) along the 45° line with this condition's signal scale (§6.7)."""
+        g = self.geometry
+        return physics.layout_detection_distance(
+            self.target.radius_mm, self.chi, self.amplifier.noise_rms_mV * 1e-3, self.depth_mm,
+            signal_scale=self.signal_scale, threshold_sigmas=threshold_sigmas, spacing_mm=g.spacing_mm,
+            emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+
+    def replace(self, **changes: Any) -> Condition:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    # ---- (de)serialisation ---------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-dict form (JSON-serialisable)."""
+        d = dataclasses.asdict(self)
+        d["target_xy_mm"] = list(self.target_xy_mm)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Condition:
+        """Build from a dict as produced by :meth:`to_dict`; unknown keys are rejected."""
+        d = dict(data)
+        parts = {"target": Target, "water": Water, "amplifier": Amplifier, "geometry": Geometry}
+        for key, sub in parts.items():
+            if key in d and isinstance(d[key], Mapping):
+                d[key] = _from_dict(sub, d[key])
+        if "target_xy_mm" in d:
+            d["target_xy_mm"] = tuple(d["target_xy_mm"])
+        return _from_dict(cls, d)
+
+
+# ------------------------------------------------------------------------------------------
+# The paper's eight conditions (DESIGN §4), in the row order of Table 3.
+# ------------------------------------------------------------------------------------------
+# name: (water µS/cm, diameter mm, material, gain, σ_s mV, start ±mm, allowed ±mm)
+_PRESET_TABLE: dict[str, tuple[float, float, str, float, float, float, float]] = {
+    "fresh-steel-12.7": (FRESH_WATER_uScm, 12.7, "steel", 191.0, 0.25, 40.0, 50.0),
+    "fresh-delrin-12.7": (FRESH_WATER_uScm, 12.7, "delrin", 191.0, 0.23, 40.0, 50.0),
+    "fresh-steel-38.1": (FRESH_WATER_uScm, 38.1, "steel", 103.0, 0.92, 55.0, 60.0),
+    "fresh-delrin-38.1": (FRESH_WATER_uScm, 38.1, "delrin", 103.0, 0.86, 55.0, 60.0),
+    "salt-steel-12.7": (SALT_WATER_uScm, 12.7, "steel", 1977.0, 0.24, 40.0, 50.0),
+    "salt-delrin-12.7": (SALT_WATER_uScm, 12.7, "delrin", 1977.0, 0.35, 40.0, 50.0),
+    "salt-steel-38.1": (SALT_WATER_uScm, 38.1, "steel", 148.0, 0.49, 55.0, 60.0),
+    "salt-delrin-38.1": (SALT_WATER_uScm, 38.1, "delrin", 148.0, 0.31, 55.0, 60.0),
+}
+
+PRESET_NAMES: tuple[str, ...] = tuple(_PRESET_TABLE)
+
+#: Table 3, measured detection distance (mm), by preset.
+PAPER_TABLE3_MEASURED_MM: dict[str, float] = dict(zip(PRESET_NAMES, (32.7, 31.3, 41.1, 41.0, 25.3, 27.4, 39.6, 41.3)))
+#: Table 3, theoretical detection distance (mm), by preset.
+PAPER_TABLE3_THEORY_MM: dict[str, float] = dict(zip(PRESET_NAMES, (32.7, 29.5, 43.2, 39.3, 32.9, 26.6, 46.5, 45.3)))
+
+SIGNAL_CHOICES = ("fitted", "paper")
+
+
+def _paper_condition(name: str) -> Condition:
+    water, diam, material, gain, noise, start, allowed = _PRESET_TABLE[name]
+    return Condition(
+        name=name,
+        target=Target.sphere(diam, material),
+        water=Water(water),
+        amplifier=Amplifier(gain=gain, noise_rms_mV=noise),
+        start_half_width_mm=start,
+        allowed_half_width_mm=allowed,
+    )
+
+
+@functools.lru_cache(maxsize=None)
+def fitted_signal_scale(name: str) -> float:
+    """The preset's signal scale fitted to Table 3's measured detection distance (DESIGN §3.3)."""
+    if name not in _PRESET_TABLE:
+        raise ValueError(f"condition must be one of {list(PRESET_NAMES)}, got {name!r}")
+    c = _paper_condition(name)
+    g = c.geometry
+    return physics.fit_signal_scale(
+        PAPER_TABLE3_MEASURED_MM[name], c.target.radius_mm, c.chi, c.amplifier.noise_rms_mV * 1e-3, c.depth_mm,
+        spacing_mm=g.spacing_mm, emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+
+
+def get_condition(name_or_condition: str | Condition | Mapping[str, Any], signal: str | float = "fitted") -> Condition:
+    """Return a :class:`Condition` from a preset name, a Condition, or a dict.
+
+    Args:
+        name_or_condition: one of :data:`PRESET_NAMES`, a :class:`Condition` (returned unchanged), or a
+            dict for :meth:`Condition.from_dict`.
+        signal: for presets only: ``"fitted"`` (default, the scale fitted to the hardware),
+            ``"paper"`` (the paper's equations, scale 1) or a positive float.
+
+    Raises:
+        ValueError: unknown name or bad ``signal``.
+    """
+    if isinstance(name_or_condition, Condition):
+        return name_or_condition
+    if isinstance(name_or_condition, Mapping):
+        return Condition.from_dict(name_or_condition)
+    if not isinstance(name_or_condition, str) or name_or_condition not in _PRESET_TABLE:
+        raise ValueError(f"condition must be one of {list(PRESET_NAMES)} (or a Condition), got {name_or_condition!r}")
+    c = _paper_condition(name_or_condition)
+    if signal == "fitted":
+        scale = fitted_signal_scale(name_or_condition)
+    elif signal == "paper":
+        scale = 1.0
+    elif isinstance(signal, (int, float)) and not isinstance(signal, bool):
+        scale = float(signal)
+    else:
+        raise ValueError(f"signal must be 'fitted', 'paper' or a positive float, got {signal!r}")
+    return c.replace(signal_scale=scale)

@@ -1,0 +1,50 @@
+"""The robot's sensor: carriage geometry and the amplified, noisy, saturating reading (DESIGN §3.3).
+
+``Φ = clip(s·G·(δV(S1) − δV(S2)) + ε, −V_sat, +V_sat)``, ``ε ~ N(0, (G·σ_s)²)``, in volts, where
+``s`` is the condition's ``signal_scale``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from electroloc_gym import physics
+from electroloc_gym.conditions import Condition
+
+__all__ = ["expected_reading", "noisy_reading", "electrode_positions_mm"]
+
+
+def expected_reading(condition: Condition, offsets_mm: ArrayLike, *, saturate: bool = True) -> NDArray[np.floating]:
+    """Noise-free reading Φ (V) for targets at ``offsets_mm`` = target − carriage centre, shape (..., 2).
+
+    float32 input stays float32 (the belief's fast path); anything else is computed in float64.
+    """
+    g = condition.geometry
+    delta = physics.differential_perturbation(
+        offsets_mm, condition.target.radius_mm, condition.chi, condition.depth_mm,
+        spacing_mm=g.spacing_mm, emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+    phi = delta * delta.dtype.type(condition.signal_scale * condition.amplifier.gain)
+    if saturate:
+        sat = delta.dtype.type(condition.saturation_V)
+        np.clip(phi, -sat, sat, out=phi)
+    return phi
+
+
+def noisy_reading(condition: Condition, offsets_mm: ArrayLike, rng: np.random.Generator) -> NDArray[np.float64]:
+    """A noisy, saturated reading Φ (V) at ``offsets_mm`` (..., 2), noise drawn from ``rng``."""
+    mean = expected_reading(condition, np.asarray(offsets_mm, dtype=np.float64), saturate=False)
+    noise = rng.normal(0.0, condition.noise_std_V, size=mean.shape)
+    return np.clip(mean + noise, -condition.saturation_V, condition.saturation_V)
+
+
+def electrode_positions_mm(condition: Condition, carriage_xy_mm: ArrayLike) -> dict[str, NDArray[np.float64]]:
+    """World (x, y) of the emitters (``"emitter+"``, ``"emitter-"``) and sensors (``"S1"``, ``"S2"``), mm."""
+    p = np.asarray(carriage_xy_mm, dtype=float)
+    h = condition.geometry.spacing_mm / 2.0
+    return {
+        "emitter+": p + (h, 0.0),
+        "emitter-": p + (-h, 0.0),
+        "S1": p + (0.0, h),
+        "S2": p + (0.0, -h),
+    }
