@@ -283,7 +283,7 @@ def _paper_condition(name: str) -> Condition:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def fitted_signal_scale(name: str) -> float:
     """The preset's signal scale fitted to Table 3's measured detection distance (DESIGN §3.3)."""
     if name not in _PRESET_TABLE:

@@ -24,10 +24,10 @@ def expected_reading(condition: Condition, offsets_mm: ArrayLike, *, saturate: b
     delta = physics.differential_perturbation(
         offsets_mm, condition.target.radius_mm, condition.chi, condition.depth_mm,
         spacing_mm=g.spacing_mm, emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
-    phi = delta * delta.dtype.type(condition.signal_scale * condition.amplifier.gain)
+    phi = np.asarray(delta * delta.dtype.type(condition.signal_scale * condition.amplifier.gain))
     if saturate:
         sat = delta.dtype.type(condition.saturation_V)
-        np.clip(phi, -sat, sat, out=phi)
+        phi = np.clip(phi, -sat, sat, out=phi if phi.ndim else None)
     return phi
 
 

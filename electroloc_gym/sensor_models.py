@@ -38,7 +38,7 @@ SENSOR_MODEL_NAMES = ("analytic", "calibrated")
 
 
 def gaussian_log_likelihood(reading_V: ArrayLike, mean_V: NDArray, std_V: ArrayLike) -> NDArray:
-    """log N(reading; mean, std²) up to the constant −½ log 2π (broadcasting)."""
+    """Log N(reading; mean, std²) up to the constant −½ log 2π (broadcasting)."""
     z = (np.asarray(reading_V, dtype=mean_V.dtype) - mean_V) / std_V
     out = -0.5 * z * z
     if np.ndim(std_V) > 0:
@@ -62,7 +62,7 @@ class SensorModel(Protocol):
         ...
 
     def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
-        """log p(reading | offsets) up to a constant; ``reading_V`` broadcasts against offsets[..., 0]."""
+        """Log p(reading | offsets) up to a constant; ``reading_V`` broadcasts against offsets[..., 0]."""
         ...
 
 
@@ -154,8 +154,8 @@ class CalibratedSensorModel:
         inside = (fx >= 0) & (fx <= n1) & (fy >= 0) & (fy <= n1)
         ix = np.minimum(fx.astype(np.intp), n1 - 1)  # fx ≥ 0 where it matters; the top edge uses the last cell
         iy = np.minimum(fy.astype(np.intp), n1 - 1)
-        tx = fx - ix
-        ty = fy - iy
+        tx = fx - ix.astype(dtype)
+        ty = fy - iy.astype(dtype)
         cell = np.where(inside, ix * n1 + iy, n1 * n1)
         c = self._coef[cell].astype(dtype, copy=False)
         txy = tx * ty
