@@ -1,0 +1,243 @@
+"""Training callbacks: seeded evaluation (success, median steps, median error), checkpoints, atomic saves.
+
+The evaluation runs the *current* policy through :class:`train.policy.SB3Agent` — the very wrapper
+the benchmark uses — on a fixed list of seeded episodes, so the numbers in ``eval.csv`` are
+comparable across a run and with the benchmark's metric definitions (steps = ``info["n_observations"]``,
+the observations fused, as the paper counts them).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import pickle
+import tempfile
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+from stable_baselines3.common.callbacks import BaseCallback
+
+from train.policy import SB3Agent
+
+__all__ = [
+    "EvalResult",
+    "SeededEvalCallback",
+    "ModelDirCheckpoint",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "evaluate_agent",
+    "save_model_dir",
+]
+
+EVAL_CSV_FIELDS = ("timesteps", "wall_time_s", "episodes", "success_rate", "median_steps", "mean_steps",
+                   "median_steps_success", "median_error_mm", "mean_error_mm")
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_write_text(path: str | Path, text: str) -> None:
+    """Text version of :func:`atomic_write_bytes` (UTF-8)."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def save_model_dir(model: Any, folder: str | Path, config: Mapping[str, Any]) -> Path:
+    """Save ``model.zip``, ``vecnormalize.pkl`` (if the env is normalised) and ``config.yml``, atomically.
+
+    Returns:
+        The folder.
+    """
+    d = Path(folder)
+    d.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    model.save(buf)
+    atomic_write_bytes(d / "model.zip", buf.getvalue())
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        # VecNormalize.__getstate__ drops the wrapped env, so this pickles the statistics only.
+        atomic_write_bytes(d / "vecnormalize.pkl", pickle.dumps(vn))
+    atomic_write_text(d / "config.yml", yaml.safe_dump(dict(config), sort_keys=False))
+    return d
+
+
+@dataclass(frozen=True)
+class EvalResult:
+    """Aggregate of a seeded evaluation. Steps are observations fused (``info["n_observations"]``)."""
+
+    episodes: int
+    success_rate: float
+    median_steps: float
+    mean_steps: float
+    median_steps_success: float
+    median_error_mm: float
+    mean_error_mm: float
+
+
+def evaluate_agent(agent: Any, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int]) -> EvalResult:
+    """Run one episode per seed with ``agent`` (deterministic) and aggregate.
+
+    Args:
+        agent: anything with ``reset(env)``, ``predict(obs, ...)`` and ``env_kwargs``.
+        env_id: Gymnasium id.
+        env_kwargs: env kwargs (the agent's own ``env_kwargs`` are merged on top).
+        seeds: one reset seed per episode.
+    """
+    import electroloc_gym  # noqa: F401  (registers the ids)
+
+    env = gym.make(env_id, **{**dict(env_kwargs), **dict(getattr(agent, "env_kwargs", {}))})
+    steps, errors, success = [], [], []
+    try:
+        for s in seeds:
+            obs, info = env.reset(seed=int(s))
+            agent.reset(env)
+            done = False
+            while not done:
+                action, _ = agent.predict(obs, deterministic=True)
+                obs, _, term, trunc, info = env.step(action)
+                done = term or trunc
+            steps.append(int(info["n_observations"]))
+            errors.append(float(info["error_mm"]))
+            success.append(bool(info["success"]))
+    finally:
+        env.close()
+    st, er, ok = np.asarray(steps, float), np.asarray(errors, float), np.asarray(success, bool)
+    return EvalResult(
+        episodes=len(st),
+        success_rate=float(ok.mean()),
+        median_steps=float(np.median(st)),
+        mean_steps=float(st.mean()),
+        median_steps_success=float(np.median(st[ok])) if ok.any() else float("nan"),
+        median_error_mm=float(np.median(er)),
+        mean_error_mm=float(er.mean()),
+    )
+
+
+def _agent_from_training(model: Any, frame_stack: int, env_kwargs: Mapping[str, Any]) -> SB3Agent:
+    vn = model.get_vec_normalize_env()
+    obs_rms = None
+    if vn is not None and vn.norm_obs:
+        obs_rms = vn.obs_rms.copy()  # frozen copy: evaluation must not move the statistics
+    return SB3Agent(model, obs_rms=obs_rms, clip_obs=getattr(vn, "clip_obs", 10.0),
+                    epsilon=getattr(vn, "epsilon", 1e-8), frame_stack=frame_stack, env_kwargs=env_kwargs)
+
+
+class SeededEvalCallback(BaseCallback):
+    """Every ``eval_freq`` env steps: evaluate on fixed seeds, log, keep the best model.
+
+    Writes one row per evaluation to ``csv_path`` (always) and records ``eval/*`` in SB3's logger
+    (TensorBoard when it is installed and enabled). The best model (lowest mean steps, failures
+    counting as the observation cap — i.e. the highest return) is saved to ``best_dir``.
+
+    Args:
+        env_id: Gymnasium id.
+        env_kwargs: evaluation env kwargs (include the agent's observation/action kwargs).
+        seeds: reset seeds, one episode each (keep them disjoint from the benchmark's).
+        eval_freq: env steps between evaluations.
+        csv_path: where the rows go.
+        best_dir: model directory for the best model (None: do not save).
+        config: the resolved run config written beside saved models.
+        frame_stack: the policy's frame stack.
+        t0: wall-clock start of training (``time.time()``).
+    """
+
+    def __init__(self, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int], eval_freq: int,
+                 csv_path: str | Path, best_dir: str | Path | None, config: Mapping[str, Any],
+                 frame_stack: int = 1, t0: float | None = None, verbose: int = 1) -> None:
+        super().__init__(verbose)
+        if eval_freq < 1:
+            raise ValueError(f"eval_freq must be ≥ 1 env step, got {eval_freq}")
+        self.env_id = env_id
+        self.env_kwargs = dict(env_kwargs)
+        self.seeds = [int(s) for s in seeds]
+        self.eval_freq = int(eval_freq)
+        self.csv_path = Path(csv_path)
+        self.best_dir = None if best_dir is None else Path(best_dir)
+        self.config = dict(config)
+        self.frame_stack = frame_stack
+        self.t0 = time.time() if t0 is None else t0
+        self.best_mean_steps = float("inf")
+        self.history: list[dict[str, float]] = []
+        self._last = -1
+
+    def _on_training_start(self) -> None:
+        self._last = self.num_timesteps
+        if not self.csv_path.exists():
+            self.csv_path.parent.mkdir(parents=True, exist_ok=True)
+            with self.csv_path.open("w", newline="") as fh:
+                csv.writer(fh).writerow(EVAL_CSV_FIELDS)
+        if self.num_timesteps == 0:
+            self.evaluate()
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps - self._last >= self.eval_freq:
+            self._last = self.num_timesteps
+            self.evaluate()
+        return True
+
+    def _on_training_end(self) -> None:
+        if self.num_timesteps != self._last:
+            self._last = self.num_timesteps
+            self.evaluate()
+
+    def evaluate(self) -> EvalResult:
+        """Evaluate now, append a CSV row, log, and save the model if it is the best so far."""
+        agent = _agent_from_training(self.model, self.frame_stack, {})
+        res = evaluate_agent(agent, self.env_id, self.env_kwargs, self.seeds)
+        row = {"timesteps": int(self.num_timesteps), "wall_time_s": round(time.time() - self.t0, 1), **asdict(res)}
+        self.history.append(row)
+        with self.csv_path.open("a", newline="") as fh:
+            csv.writer(fh).writerow([row[k] for k in EVAL_CSV_FIELDS])
+        for k in ("success_rate", "median_steps", "mean_steps", "median_error_mm"):
+            self.logger.record(f"eval/{k}", row[k])
+        if self.verbose:
+            print(f"[eval] t={row['timesteps']:>8d}  success {res.success_rate:5.1%}  median steps "
+                  f"{res.median_steps:4.1f}  mean steps {res.mean_steps:5.2f}  median error "
+                  f"{res.median_error_mm:4.2f} mm  ({row['wall_time_s']:.0f} s)", flush=True)
+        if self.best_dir is not None and res.mean_steps <= self.best_mean_steps:
+            self.best_mean_steps = res.mean_steps
+            cfg = {**self.config, "eval": row}
+            save_model_dir(self.model, self.best_dir, cfg)
+        return res
+
+
+class ModelDirCheckpoint(BaseCallback):
+    """Every ``save_freq`` env steps save a model directory ``<folder>/step_<N>/`` (resumable)."""
+
+    def __init__(self, save_freq: int, folder: str | Path, config: Mapping[str, Any], verbose: int = 0) -> None:
+        super().__init__(verbose)
+        if save_freq < 1:
+            raise ValueError(f"checkpoint_freq must be ≥ 1 env step, got {save_freq}")
+        self.save_freq = int(save_freq)
+        self.folder = Path(folder)
+        self.config = dict(config)
+        self._last = 0
+
+    def _on_training_start(self) -> None:
+        self._last = self.num_timesteps
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps - self._last >= self.save_freq:
+            self._last = self.num_timesteps
+            d = save_model_dir(self.model, self.folder / f"step_{self.num_timesteps}", self.config)
+            if self.verbose:
+                print(f"[checkpoint] {d}", flush=True)
+        return True

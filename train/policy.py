@@ -1,0 +1,240 @@
+"""A saved SB3 model as an agent the benchmark can run beside the paper's controllers.
+
+The agent protocol (shared with ``baselines/agent.py``, DESIGN §9.9)::
+
+    agent.env_kwargs                       # kwargs the policy needs in gym.make (observation, action_type)
+    agent.reset(env)                       # after env.reset(), at each trial start
+    action, state = agent.predict(obs, state=None, episode_start=None, deterministic=True)
+
+The benchmark passes raw env observations, so the agent applies what training put between the env
+and the network itself: the flat frame stack (``frame_stack`` in the run's config.yml) and the
+frozen VecNormalize observation statistics (``vecnormalize.pkl``). A recurrent policy keeps its LSTM
+state across ``predict`` calls; ``reset(env)`` clears it.
+
+A *model directory* holds ``model.zip`` and, written by ``python -m train``, ``config.yml`` and
+``vecnormalize.pkl`` (if normalisation was used). :func:`load_policy` accepts that directory or the
+zip file itself.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+__all__ = ["SB3Agent", "load_policy", "resolve_model_path", "AGENT_ENV_KWARGS"]
+
+#: Env kwargs a policy depends on (the benchmark sets everything else: condition, target, seeds).
+AGENT_ENV_KWARGS = ("observation", "action_type")
+
+
+class SB3Agent:
+    """An SB3 model + its frozen observation pre-processing, behind the benchmark's agent protocol.
+
+    Args:
+        model: a loaded SB3 / sb3-contrib algorithm.
+        obs_rms: VecNormalize's observation statistics (``mean``, ``var``) or None.
+        clip_obs: VecNormalize's clip on normalised observations.
+        epsilon: VecNormalize's epsilon.
+        frame_stack: number of stacked observations the network expects (1 = none).
+        env_kwargs: env kwargs the policy needs (observation mode, action type).
+        name: a label for tables.
+    """
+
+    def __init__(
+        self,
+        model: Any,
+        *,
+        obs_rms: Any | None = None,
+        clip_obs: float = 10.0,
+        epsilon: float = 1e-8,
+        frame_stack: int = 1,
+        env_kwargs: Mapping[str, Any] | None = None,
+        name: str = "learned",
+    ) -> None:
+        if isinstance(frame_stack, bool) or not isinstance(frame_stack, int) or frame_stack < 1:
+            raise ValueError(f"frame_stack must be an integer ≥ 1, got {frame_stack!r}")
+        self.model = model
+        self.name = name
+        self.env_kwargs: dict[str, Any] = dict(env_kwargs or {})
+        self.frame_stack = frame_stack
+        self._obs_mean = None if obs_rms is None else np.asarray(obs_rms.mean, dtype=np.float64)
+        self._obs_std = None if obs_rms is None else np.sqrt(np.asarray(obs_rms.var, dtype=np.float64) + epsilon)
+        self._clip_obs = float(clip_obs)
+        self.recurrent = type(model).__name__ == "RecurrentPPO"
+        shape = model.observation_space.shape
+        if len(shape) != 1 or shape[0] % frame_stack:
+            raise ValueError(f"model observation shape {shape} does not fit frame_stack={frame_stack}")
+        self.obs_dim = shape[0] // frame_stack
+        self._stack: NDArray[np.float32] | None = None  # (n, k, d)
+        self._state: Any = None
+        self._fresh = True
+
+    def __repr__(self) -> str:
+        return (f"SB3Agent({type(self.model).__name__}, name={self.name!r}, frame_stack={self.frame_stack}, "
+                f"normalised={self._obs_mean is not None}, env_kwargs={self.env_kwargs})")
+
+    def reset(self, env: Any = None) -> None:
+        """Start of a trial: clear the frame stack and the recurrent state (``env`` is not used)."""
+        self._stack = None
+        self._state = None
+        self._fresh = True
+
+    def preprocess(self, observation: NDArray, episode_start: NDArray | None = None) -> NDArray[np.float32]:
+        """Raw env observation(s) (d,) or (n, d) → the network's input (n, k·d), updating the stack."""
+        obs = np.asarray(observation, dtype=np.float32)
+        if obs.ndim == 1:
+            obs = obs[None]
+        if obs.ndim != 2 or obs.shape[1] != self.obs_dim:
+            raise ValueError(f"observation must have shape ({self.obs_dim},) or (n, {self.obs_dim}), got {obs.shape}")
+        n = obs.shape[0]
+        if self._stack is None or self._stack.shape[0] != n:
+            self._stack = np.zeros((n, self.frame_stack, self.obs_dim), dtype=np.float32)
+        if episode_start is not None:
+            self._stack[np.asarray(episode_start, dtype=bool).reshape(n)] = 0.0
+        self._stack = np.roll(self._stack, -1, axis=1)
+        self._stack[:, -1] = obs
+        x = self._stack.reshape(n, -1)
+        if self._obs_mean is not None:
+            x = np.clip((x - self._obs_mean) / self._obs_std, -self._clip_obs, self._clip_obs)
+        return x.astype(np.float32)
+
+    def predict(
+        self,
+        observation: NDArray,
+        state: Any = None,
+        episode_start: NDArray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray, Any]:
+        """SB3-style decision for one observation (d,) or a batch (n, d).
+
+        The frame stack and the recurrent state live in the agent; pass ``episode_start`` (bool per row)
+        to clear them for some rows, or call :meth:`reset` at each trial start.
+
+        Returns:
+            (action, state): the action (batch dim removed for a single observation) and the recurrent
+            state (None for a feed-forward policy).
+        """
+        single = np.ndim(observation) == 1
+        x = self.preprocess(observation, episode_start)
+        n = x.shape[0]
+        if self.recurrent:
+            if episode_start is None:
+                episode_start = np.full(n, self._fresh, dtype=bool)
+            st = self._state if state is None else state
+            action, st = self.model.predict(x, state=st, episode_start=np.asarray(episode_start, dtype=bool),
+                                            deterministic=deterministic)
+            self._state = st
+        else:
+            action, st = self.model.predict(x, deterministic=deterministic)
+        self._fresh = False
+        return (action[0] if single else action), st
+
+
+def resolve_model_path(path: str | Path) -> Path:
+    """``path`` (a model directory or a .zip) → the model zip file.
+
+    Raises:
+        ValueError: no such file, or a directory without ``model.zip``.
+    """
+    p = Path(path)
+    if p.is_dir():
+        p = p / "model.zip"
+        if not p.is_file():
+            raise ValueError(f"model path {str(path)!r} is a directory without model.zip")
+        return p
+    if not p.is_file():
+        if p.suffix != ".zip" and Path(f"{p}.zip").is_file():
+            return Path(f"{p}.zip")
+        raise ValueError(f"model path {str(path)!r} does not exist (expected a .zip or a directory with model.zip)")
+    return p
+
+
+def _guess_algo(zip_path: Path) -> str:
+    """The algorithm of a saved SB3 zip from the module of its stored policy class."""
+    with zipfile.ZipFile(zip_path) as archive:
+        data = json.loads(archive.read("data").decode())
+    module = str(data.get("policy_class", {}).get("__module__", ""))
+    for key, algo in (("recurrent", "recurrentppo"), ("sac", "sac"), ("td3", "td3"), ("dqn", "dqn"),
+                      ("tqc", "tqc"), ("qrdqn", "qrdqn")):
+        if key in module:
+            return algo
+    return "ppo"
+
+
+def load_policy(path: str | Path, *, device: str = "cpu", num_threads: int | None = 1) -> SB3Agent:
+    """Load a trained model (+ config.yml, vecnormalize.pkl beside it) as an :class:`SB3Agent`.
+
+    Args:
+        path: a model directory (with ``model.zip``) or the zip file.
+        device: torch device for inference ("cpu" is fastest for these small networks).
+        num_threads: if not None, ``torch.set_num_threads(num_threads)`` (DESIGN §10: one thread).
+
+    Raises:
+        ValueError: missing path, or a file that is not a loadable SB3 model / its stats.
+    """
+    zip_path = resolve_model_path(path)
+    folder = zip_path.parent
+    cfg: dict[str, Any] = {}
+    cfg_path = folder / "config.yml"
+    if cfg_path.is_file():
+        try:
+            cfg = yaml.safe_load(cfg_path.read_text()) or {}
+        except yaml.YAMLError as exc:
+            raise ValueError(f"{cfg_path} is not valid YAML: {exc}") from exc
+        if not isinstance(cfg, dict):
+            raise ValueError(f"{cfg_path} must be a mapping, got {type(cfg).__name__}")
+    try:
+        algo = str(cfg.get("algo") or _guess_algo(zip_path))
+    except (zipfile.BadZipFile, KeyError, json.JSONDecodeError, OSError) as exc:
+        raise ValueError(f"{zip_path} is not a saved SB3 model (corrupt or not a zip): {exc}") from exc
+
+    if num_threads is not None:
+        import torch
+
+        torch.set_num_threads(num_threads)
+    from train.config import algo_class
+
+    cls = algo_class(algo)
+    # Schedules are only needed to train further; replace them so loading never unpickles lambdas.
+    custom = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
+    try:
+        model = cls.load(zip_path, device=device, custom_objects=custom)
+    except Exception as exc:  # SB3 raises many kinds (BadZipFile, KeyError, RuntimeError, pickle errors)
+        raise ValueError(f"cannot load {zip_path} as a {cls.__name__} model (corrupt file?): "
+                         f"{type(exc).__name__}: {exc}") from exc
+
+    obs_rms, clip_obs, eps = None, 10.0, 1e-8
+    vn_path = folder / "vecnormalize.pkl"
+    if vn_path.is_file():
+        try:
+            with vn_path.open("rb") as fh:
+                vn = pickle.load(fh)
+            if getattr(vn, "norm_obs", True):
+                obs_rms = vn.obs_rms
+            clip_obs, eps = float(vn.clip_obs), float(vn.epsilon)
+        except Exception as exc:
+            raise ValueError(f"cannot read the normalisation statistics {vn_path}: "
+                             f"{type(exc).__name__}: {exc}") from exc
+        if obs_rms is not None and np.shape(obs_rms.mean) != model.observation_space.shape:
+            raise ValueError(f"{vn_path} has statistics of shape {np.shape(obs_rms.mean)}, "
+                             f"the model expects {model.observation_space.shape}")
+
+    frame_stack = int(cfg.get("frame_stack", 1) or 1)
+    env_kwargs = {k: v for k, v in (cfg.get("env_kwargs") or {}).items() if k in AGENT_ENV_KWARGS}
+    if "observation" not in env_kwargs:  # a bare zip: infer from the network's input size
+        from electroloc_gym.envs.observation import RAW_OBS_DIM
+
+        env_kwargs["observation"] = "raw" if model.observation_space.shape[0] == RAW_OBS_DIM * frame_stack else "belief"
+    if "action_type" not in env_kwargs:
+        env_kwargs["action_type"] = "discrete" if hasattr(model.action_space, "n") else "continuous"
+    name = folder.name if zip_path.name == "model.zip" else zip_path.stem
+    return SB3Agent(model, obs_rms=obs_rms, clip_obs=clip_obs, epsilon=eps, frame_stack=frame_stack,
+                    env_kwargs=env_kwargs, name=name)
