@@ -3,6 +3,7 @@
 Importing the package registers the environment ids (idempotent):
 
 * ``ElectroLoc-v0`` — localise a target sphere with a particle-filter belief.
+* ``ElectroLocGlobal-v0`` — the robot localises itself in a mapped tank of six cylinders (§6.5).
 """
 
 from __future__ import annotations
@@ -15,12 +16,15 @@ __version__ = "0.1.0"
 
 __all__ = ["PRESET_NAMES", "Condition", "get_condition", "ENV_IDS", "__version__"]
 
-ENV_IDS: tuple[str, ...] = ("ElectroLoc-v0",)
+ENV_IDS: tuple[str, ...] = ("ElectroLoc-v0", "ElectroLocGlobal-v0")
 
 
 def _register() -> None:
     if "ElectroLoc-v0" not in registry:
-        register(id="ElectroLoc-v0", entry_point="electroloc_gym.envs.localize:ElectroLocEnv")
+        register(id="ElectroLoc-v0", entry_point="electroloc_gym.envs.localize:ElectroLocEnv",
+                 vector_entry_point="electroloc_gym.envs.vector:make_electroloc_vector_env")
+    if "ElectroLocGlobal-v0" not in registry:
+        register(id="ElectroLocGlobal-v0", entry_point="electroloc_gym.envs.self_localize:GlobalLocalizationEnv")
 
 
 _register()

@@ -17,6 +17,7 @@ Offsets are always ``target − carriage centre`` in mm, shape (..., 2).
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -67,21 +68,29 @@ class SensorModel(Protocol):
 
 
 class AnalyticSensorModel:
-    """Mean from the physics (§3.3, saturated), std = G·σ_s everywhere."""
+    """Mean from the physics (§3.3, saturated), std = G·σ_s everywhere.
+
+    Args:
+        condition: the condition (amplifier noise; and the target, unless ``expected_fn`` is given).
+        expected_fn: optional noise-free reading (V) of ``offsets_mm`` (..., 2); default the
+            condition's single sphere, :func:`electroloc_gym.sensor.expected_reading`. A multi-object
+            map passes its own (:func:`electroloc_gym.scene.make_map_sensor_model`).
+    """
 
     name = "analytic"
 
-    def __init__(self, condition: Condition) -> None:
+    def __init__(self, condition: Condition, expected_fn: Callable[[ArrayLike], NDArray] | None = None) -> None:
         self.condition = condition
         self.noise_std_V = float(condition.noise_std_V)
+        self._expected = functools.partial(expected_reading, condition) if expected_fn is None else expected_fn
 
     def mean_std(self, offsets_mm: ArrayLike) -> tuple[NDArray, NDArray]:
-        mean = expected_reading(self.condition, offsets_mm)
+        mean = self._expected(offsets_mm)
         return mean, np.full_like(mean, self.noise_std_V)
 
     def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
         # Constant std: the −log σ term is the same for every particle and is dropped.
-        return gaussian_log_likelihood(reading_V, expected_reading(self.condition, offsets_mm), self.noise_std_V)
+        return gaussian_log_likelihood(reading_V, self._expected(offsets_mm), self.noise_std_V)
 
 
 class CalibratedSensorModel:
@@ -97,12 +106,22 @@ class CalibratedSensorModel:
         min_std_fraction: floor on the calibrated std as a fraction of G·σ_s. Ten samples of a saturated
             reading have zero variance; a zero std would make the likelihood infinitely sharp, so the
             std is floored (default 0.25·G·σ_s, the 0.1 % quantile of a 10-sample std is ≈0.3·σ).
+        reading_fn: optional noisy reading (V) at ``offsets_mm`` (..., 2) drawn from a Generator;
+            default the condition's single sphere, :func:`electroloc_gym.sensor.noisy_reading`. A
+            multi-object map passes its own (offsets = map origin − carriage).
+        position_blur_mm: optional position uncertainty b, mm (default 0: off). The stored std
+            becomes ``sqrt(std² + (|∇mean|·b)²)`` (gradient of the mean table, central differences):
+            a particle then stands for a neighbourhood of radius ≈ b instead of a point, which keeps a
+            sparse particle cloud from collapsing on a very steep map (used by the multi-object map,
+            :mod:`electroloc_gym.scene`).
     """
 
     name = "calibrated"
 
     def __init__(self, condition: Condition, seed: int = 0, *, grid_step_mm: float = 4.0, samples_per_point: int = 10,
-                 half_span_mm: float | None = None, min_std_fraction: float = 0.25) -> None:
+                 half_span_mm: float | None = None, min_std_fraction: float = 0.25,
+                 reading_fn: Callable[[NDArray, np.random.Generator], NDArray] | None = None,
+                 position_blur_mm: float = 0.0) -> None:
         if not grid_step_mm > 0:
             raise ValueError(f"grid_step_mm must be > 0, got {grid_step_mm!r}")
         if int(samples_per_point) < 2:
@@ -117,10 +136,17 @@ class CalibratedSensorModel:
         rng = np.random.default_rng(self.seed)
         gx, gy = np.meshgrid(self.grid_mm, self.grid_mm, indexing="ij")
         offs = np.stack([gx, gy], axis=-1)
-        samples = noisy_reading(condition, np.broadcast_to(offs[None], (int(samples_per_point), n, n, 2)), rng)
+        draw = functools.partial(noisy_reading, condition) if reading_fn is None else reading_fn
+        samples = draw(np.broadcast_to(offs[None], (int(samples_per_point), n, n, 2)), rng)
         self.mean_table_V = samples.mean(axis=0)
         std = samples.std(axis=0, ddof=1)
         self.std_table_V = np.maximum(std, min_std_fraction * self.noise_std_V)
+        if not (np.isfinite(position_blur_mm) and position_blur_mm >= 0):
+            raise ValueError(f"position_blur_mm must be a finite number ≥ 0, got {position_blur_mm!r}")
+        self.position_blur_mm = float(position_blur_mm)
+        if self.position_blur_mm > 0:
+            gx, gy = np.gradient(self.mean_table_V, self.grid_step_mm)
+            self.std_table_V = np.hypot(self.std_table_V, np.hypot(gx, gy) * self.position_blur_mm)
         self._coef = self._bilinear_coefficients()
 
     def _bilinear_coefficients(self) -> NDArray[np.float64]:

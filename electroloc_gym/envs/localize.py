@@ -2,42 +2,22 @@
 
 from __future__ import annotations
 
-from typing import Any, SupportsFloat
+from typing import Any
 
-import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from numpy.typing import NDArray
 
-from electroloc_gym.belief import ParticleBelief
 from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition
-from electroloc_gym.envs.observation import (
-    BELIEF_OBS_DIM,
-    OBSERVATION_MODES,
-    RAW_OBS_DIM,
-    belief_observation,
-    condition_descriptor,
-    raw_observation,
-)
+from electroloc_gym.envs.base import ACTION_TYPES, DISCRETE_MOVES_MM, MAX_STEP_MM, ParticleFilterEnv
+from electroloc_gym.envs.base import check_int as _check_int  # noqa: F401  (kept for importers)
+from electroloc_gym.envs.observation import belief_observation, condition_descriptor, raw_observation
 from electroloc_gym.sensor import noisy_reading
-from electroloc_gym.sensor_models import SENSOR_MODEL_NAMES, make_sensor_model
+from electroloc_gym.sensor_models import make_sensor_model
 
 __all__ = ["ElectroLocEnv", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "ACTION_TYPES"]
 
-#: Largest move per axis per step, mm (paper §4.1.3).
-MAX_STEP_MM = 10.0
-#: The discrete action set: stay plus the 8 king moves of 10 mm per axis.
-DISCRETE_MOVES_MM = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.float64) * MAX_STEP_MM
-ACTION_TYPES = ("continuous", "discrete")
 
-
-def _check_int(name: str, value: Any, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"{name} must be an integer ≥ {low}, got {value!r}")
-    return int(value)
-
-
-class ElectroLocEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
+class ElectroLocEnv(ParticleFilterEnv):
     """
     ## Description
 
@@ -101,6 +81,15 @@ class ElectroLocEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
     ``spread_mm``, ``reading_V``, ``n_observations``, ``success``, ``condition`` (name). ``error_mm``
     uses the ground truth: it is for evaluation, agents must not act on it.
 
+    ## Accessors (read-only, on ``env.unwrapped``)
+
+    ``belief`` (ParticleBelief over the target position), ``sensor_model``, ``condition``,
+    ``position_mm`` (carriage), ``allowed_box_mm``, ``n_observations``, ``last_reading_V``, ``path_mm``;
+    ``predicted_reading_model(particles_mm, moves_mm)`` → (mean_V, std_V) of the reading each target
+    hypothesis predicts after a commanded move (offsets = particle − clip(carriage + move)), and
+    ``predicted_particles_mm`` (the target does not move: the particles unchanged). The same calls
+    exist on ``ElectroLocGlobal-v0`` (shared machinery, :mod:`electroloc_gym.envs.base`).
+
     ## Arguments
 
     ```python
@@ -123,8 +112,6 @@ class ElectroLocEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
     * v0: initial version.
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
-
     def __init__(
         self,
         condition: str | Condition = "fresh-steel-12.7",
@@ -143,65 +130,13 @@ class ElectroLocEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
             self._condition_pool: tuple[Condition, ...] = tuple(get_condition(n, signal) for n in PRESET_NAMES)
         else:
             self._condition_pool = (get_condition(condition, signal),)
-        if observation not in OBSERVATION_MODES:
-            raise ValueError(f"observation must be one of {list(OBSERVATION_MODES)}, got {observation!r}")
-        if sensor_model not in SENSOR_MODEL_NAMES:
-            raise ValueError(f"sensor_model must be one of {list(SENSOR_MODEL_NAMES)}, got {sensor_model!r}")
-        if action_type not in ACTION_TYPES:
-            raise ValueError(f"action_type must be one of {list(ACTION_TYPES)}, got {action_type!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.n_particles = _check_int("n_particles", n_particles, 1)
-        self.max_observations = _check_int("max_observations", max_observations, 1)
-        if isinstance(success_spread_mm, bool) or not (isinstance(success_spread_mm, (int, float)) and success_spread_mm > 0
-                                                       and np.isfinite(success_spread_mm)):
-            raise ValueError(f"success_spread_mm must be a finite number > 0, got {success_spread_mm!r}")
-        if calibration_seed is not None:
-            calibration_seed = _check_int("calibration_seed", calibration_seed, 0)
-        self.observation_mode = observation
-        self.sensor_model_name = sensor_model
-        self.success_spread_mm = float(success_spread_mm)
-        self.action_type = action_type
+        self._init_common(observation, sensor_model, n_particles, max_observations, success_spread_mm, action_type,
+                          calibration_seed, render_mode)
         self.randomize_target = bool(randomize_target)
-        self.calibration_seed = calibration_seed
-        self.render_mode = render_mode
-
-        if action_type == "continuous":
-            self.action_space: spaces.Space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        else:
-            self.action_space = spaces.Discrete(len(DISCRETE_MOVES_MM))
-        dim = BELIEF_OBS_DIM if observation == "belief" else RAW_OBS_DIM
-        self.observation_space = spaces.Box(-1.0, 1.0, shape=(dim,), dtype=np.float32)
-
-        # Episode state (set by reset).
         self._condition = self._condition_pool[0]
         self._sensor_model = make_sensor_model("analytic", self._condition)
-        self._belief: ParticleBelief | None = None
-        self._position = np.zeros(2)
         self._target = np.zeros(2)
-        self._reading = 0.0
-        self._n_obs = 0
-        self._path: list[tuple[float, float]] = []
         self._descriptor = condition_descriptor(self._condition)
-        self._renderer: Any = None
-
-    # ---- documented read-only accessors ------------------------------------------------------
-    @property
-    def belief(self) -> ParticleBelief:
-        """The particle belief over the target position (world frame, mm). Read-only for agents."""
-        if self._belief is None:
-            raise RuntimeError("call reset() before reading the belief")
-        return self._belief
-
-    @property
-    def sensor_model(self):
-        """The agent's sensor model (``mean_std``, ``log_likelihood``) for the current episode."""
-        return self._sensor_model
-
-    @property
-    def condition(self) -> Condition:
-        """The current episode's condition."""
-        return self._condition
 
     @property
     def position_mm(self) -> NDArray[np.float64]:
@@ -209,25 +144,12 @@ class ElectroLocEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
         return self._position.copy()
 
     @property
-    def allowed_box_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(low, high) corners of the allowed box, mm."""
-        h = self._condition.allowed_half_width_mm
-        return np.array([-h, -h]), np.array([h, h])
-
-    @property
-    def n_observations(self) -> int:
-        """Readings fused so far in this episode."""
-        return self._n_obs
-
-    @property
-    def last_reading_V(self) -> float:
-        """The last reading Φ, V."""
-        return self._reading
-
-    @property
-    def path_mm(self) -> NDArray[np.float64]:
-        """Carriage positions visited this episode (k, 2), mm."""
-        return np.asarray(self._path, dtype=float).reshape(-1, 2)
+    def move_bounds_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(lo, hi) moves, mm, within ±10 mm that keep the carriage in the allowed box (0 always inside)."""
+        low, high = self.allowed_box_mm
+        lo = np.minimum(np.maximum(-MAX_STEP_MM, low - self._position), 0.0)
+        hi = np.maximum(np.minimum(MAX_STEP_MM, high - self._position), 0.0)
+        return lo, hi
 
     # ---- gymnasium API ----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -245,9 +167,7 @@ class ElectroLocEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
         else:
             self._target = np.asarray(c.target_xy_mm, dtype=float)
         self._position = rng.uniform(-s, s, size=2)
-        low, high = self.allowed_box_mm
-        self._belief = ParticleBelief(self.n_particles, low, high, dtype=np.float32)
-        self._belief.reset(rng)
+        self._start_belief(rng)
         self._path = [tuple(map(float, self._position))]
         self._n_obs = 0
         self._observe()
@@ -255,58 +175,34 @@ class ElectroLocEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
             self.render()
         return self._get_obs(), self._get_info()
 
-    def step(self, action) -> tuple[NDArray[np.float32], SupportsFloat, bool, bool, dict[str, Any]]:
-        if self._belief is None:
-            raise RuntimeError("call reset() before step()")
-        move = self._action_to_move(action)
+    # ---- hooks of ParticleFilterEnv -----------------------------------------------------------
+    def _execute_move(self, move_mm: NDArray[np.float64]) -> None:
         low, high = self.allowed_box_mm
-        self._position = np.clip(self._position + move, low, high)
-        self._path.append(tuple(map(float, self._position)))
-        self._observe()
-        success = self._belief.spread() <= self.success_spread_mm
-        terminated = bool(success)
-        truncated = bool(not success and self._n_obs >= self.max_observations)
-        if self.render_mode == "human":
-            self.render()
-        return self._get_obs(), -1.0, terminated, truncated, self._get_info()
+        self._position = np.clip(self._position + move_mm, low, high)
 
-    def render(self):
-        if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'.")
-            return None
+    def _true_reading(self, rng: np.random.Generator) -> float:
+        return float(noisy_reading(self._condition, self._target - self._position, rng))
+
+    def _particle_offsets(self, particles: NDArray) -> NDArray:
+        # offsets = target hypothesis − carriage (the sensor models' convention)
+        return particles - self._position.astype(particles.dtype)
+
+    def _particles_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
+        # The target does not move.
+        return np.broadcast_to(particles, moves.shape[:-1] + particles.shape).copy()
+
+    def _offsets_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
+        low, high = self.allowed_box_mm
+        carriage = np.clip(self._position + moves, low, high).astype(particles.dtype)  # (..., 2)
+        return particles - carriage[..., None, :]
+
+    def _true_state_mm(self) -> NDArray[np.float64]:
+        return self._target
+
+    def _make_renderer(self) -> Any:
         from electroloc_gym.render import EpisodeRenderer
 
-        if self._renderer is None:
-            self._renderer = EpisodeRenderer(self.render_mode)
-        return self._renderer.draw(self)
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-
-    # ---- internals ----------------------------------------------------------------------------
-    def _action_to_move(self, action) -> NDArray[np.float64]:
-        if self.action_type == "discrete":
-            a = np.asarray(action)
-            if a.size != 1 or not np.issubdtype(a.dtype, np.integer) or not 0 <= int(a) < len(DISCRETE_MOVES_MM):
-                raise ValueError(f"action must be an integer in [0, {len(DISCRETE_MOVES_MM) - 1}], got {action!r}")
-            return DISCRETE_MOVES_MM[int(a)]
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (2,):
-            raise ValueError(f"action must have shape (2,) (dx, dy in [-1, 1]), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite (dx, dy in [-1, 1]), got {action!r}")
-        return np.clip(a, -1.0, 1.0) * MAX_STEP_MM
-
-    def _observe(self) -> None:
-        """Take a noisy reading at the carriage and fuse it into the belief (§4.1)."""
-        rng = self.np_random
-        self._reading = float(noisy_reading(self._condition, self._target - self._position, rng))
-        b = self._belief
-        offsets = b.particles - self._position.astype(b.dtype)
-        b.assimilate(self._sensor_model.log_likelihood(self._reading, offsets), rng)
-        self._n_obs += 1
+        return EpisodeRenderer(self.render_mode)
 
     def _get_obs(self) -> NDArray[np.float32]:
         c = self._condition
@@ -317,18 +213,3 @@ class ElectroLocEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
             self._position, np.asarray(self._reading), b.particles, None, self._n_obs, self.max_observations,
             c.allowed_half_width_mm, c.noise_std_V, c.saturation_V, self.success_spread_mm, self._descriptor,
             mean_cov=(b.mean(), b.covariance()))
-
-    def _get_info(self) -> dict[str, Any]:
-        b = self.belief
-        est = b.mean()
-        spread = b.spread()
-        return {
-            "position_mm": (float(self._position[0]), float(self._position[1])),
-            "estimate_mm": (float(est[0]), float(est[1])),
-            "error_mm": float(np.hypot(*(est - self._target))),
-            "spread_mm": float(spread),
-            "reading_V": float(self._reading),
-            "n_observations": int(self._n_obs),
-            "success": bool(spread <= self.success_spread_mm),
-            "condition": self._condition.name,
-        }

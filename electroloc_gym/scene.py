@@ -1,0 +1,587 @@
+"""A pre-mapped tank of several objects: the world of the global self-localisation task (paper §6.5).
+
+The paper's §6.5: "six cylinders of different diameters and conductivities were randomly dispersed
+with x and y coordinates within ±80 mm"; the robot localises itself relative to the map origin using
+the measured EEV of that layout (Fig. 14) as prior knowledge.
+
+Physics (DESIGN §3.2). Every object becomes an induced dipole in the emitters' field evaluated at one
+point ``c`` of the object, and the perturbations of all objects **superpose** (no mutual
+polarisation, no tank walls — the paper's uniform-field assumption):
+
+* sphere of radius a (paper Eq. 4): ``δV(s) = χ a³ E_f(c)·(s − c)/|s − c|³``, ``χ = (σ_t − σ_w)/(σ_t + 2σ_w)``,
+  centre ``c`` at depth ``a + E + O`` below the electrode plane (as the single-target presets).
+* vertical cylinder of radius a (the 2-D analogue, DESIGN §3.2): ``δV(s) = χ₂ a² E_f(c)·(s − c)/|s − c|²``,
+  ``χ₂ = (σ_t − σ_w)/(σ_t + σ_w)``, with ``c`` the point of the cylinder's axis closest to the sensor.
+  Modelling choice: the cylinders stand on the tank floor and end, like the spheres, 2 mm (O) below
+  the electrodes (radius E) with a rounded (hemispherical) top, so the top of the axis — the point
+  ``c`` — lies at the depth of an equal sphere's centre, ``a + E + O`` (the carriage can pass over
+  them). Why not a flat top at ``E + O = 3 mm``: the point-dipole formula is only valid at distances
+  ≳ a from the axis; with ``c`` 3 mm under the electrodes the map becomes nearly singular (99th
+  percentile of |∇Φ| ≈ 5.5 V/mm ≈ 115 σ per mm on the benchmark map, against 0.43 V/mm with the
+  rounded tops), far steeper than the paper's measured map (Fig. 14's 1 V contours are millimetres
+  apart), and a 2500-particle filter then converges on wrong places in about half of the trials.
+  An infinite cylinder through the electrode plane would be singular wherever an electrode crosses
+  an axis. With the dipole depth → 0 the formula reduces exactly to
+  :func:`electroloc_gym.physics.cylinder_perturbation` (tested).
+
+The reading is ``Φ = clip(s·G·Σ_k (δV_k(S1) − δV_k(S2)) + ε, ±V_sat)``, ε ~ N(0, (G·σ_s)²), exactly as
+for one sphere (DESIGN §3.3), with one ``signal_scale`` for the whole scene.
+
+Sensor models (DESIGN §5, "the map's EEV"). The agent's model of the map keeps the sensor models'
+convention ``offsets = target − carriage`` with the **map origin** as the target, i.e.
+``offsets = −carriage`` (carriage position in the map frame). :func:`make_map_sensor_model` builds the
+same :class:`~electroloc_gym.sensor_models.AnalyticSensorModel` /
+:class:`~electroloc_gym.sensor_models.CalibratedSensorModel` (4 mm grid of carriage positions over the
+allowed box, 10 noisy readings per point, bilinear interpolation) as the single-target env, fed by
+this scene's reading instead of one sphere's, plus a **position blur** (default
+:data:`DEFAULT_POSITION_BLUR_MM` = 2 mm): the model's std becomes ``sqrt(std² + (|∇mean|·b)²)``. The
+map is far steeper than a single sphere's EEV (median |∇Φ| ≈ 1.7 σ per mm, 90th percentile ≈ 4 σ
+per mm) while 2500 particles over the ±80 mm box sit ≈ 3.2 mm apart, so with the bare amplifier
+noise the likelihood band of a reading is much narrower than the particle spacing: resampling keeps
+a handful of particles, none near the truth, and the filter "succeeds" at a wrong place (rnd-wlk,
+40 trials at b = 0: 11 of 58 successes more than 10 mm off; b = 1 mm: 1 of 57; b = 2 mm: 0 of 57).
+b = 2 mm ≈ the particle spacing's reach and the paper's per-step jitter (1 mm per axis, √2 mm
+radial); ``position_blur_mm=0`` gives the bare model.
+
+The benchmark layout (:data:`BENCHMARK_SCENE`, ``layout="benchmark"``) is fixed in code: six cylinders
+drawn once by :func:`random_cylinder_layout` with seed :data:`BENCHMARK_LAYOUT_SEED` (a test checks the
+generator still reproduces it). Condition: fresh water (160 µS/cm) with the fresh-water 12.7 mm
+amplifier (G = 191, σ_s = 0.25 mV RMS, Table 3) and signal scale 1 (the paper's equations): the
+paper gives no measured detection distance for cylinders, so there is nothing to fit a scale to.
+The noise-free map spans −4.0 V to +3.2 V (71 % of the box above the 2σ level), below the ±10 V
+card limit, so unlike Fig. 14 it never saturates.
+The carriage's allowed box is ±80 mm (the region the cylinders were dispersed in), the start box
+±70 mm (the 10 mm margin of the 12.7 mm presets).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from electroloc_gym import physics
+from electroloc_gym.conditions import (
+    Amplifier,
+    Condition,
+    FRESH_WATER_uScm,
+    Geometry,
+    Target,
+    Water,
+)
+from electroloc_gym.sensor_models import (
+    SENSOR_MODEL_NAMES,
+    AnalyticSensorModel,
+    CalibratedSensorModel,
+    gaussian_log_likelihood,
+)
+
+__all__ = [
+    "SHAPES",
+    "SCENE_MATERIAL_CONDUCTIVITY_uScm",
+    "STOCK_DIAMETERS_MM",
+    "SceneObject",
+    "Scene",
+    "cylinder_differential_perturbation",
+    "random_cylinder_layout",
+    "BENCHMARK_LAYOUT_SEED",
+    "BENCHMARK_SCENE",
+    "benchmark_scene",
+    "make_map_sensor_model",
+    "MapAnalyticSensorModel",
+    "DEFAULT_POSITION_BLUR_MM",
+    "map_eev",
+    "plot_map_eev",
+]
+
+SHAPES = ("sphere", "cylinder")
+
+#: Conductivities (µS/cm) of the materials the layout generator draws from. Metals and plastics are
+#: perfect conductors / insulators for the contrast (χ₂ = ±1 to many digits); "agar" is a weakly
+#: conducting gel (1000 µS/cm, χ₂ = 0.72 in fresh water) so that contrasts really differ.
+SCENE_MATERIAL_CONDUCTIVITY_uScm: dict[str, float] = {
+    "steel": 1.4e10,
+    "brass": 1.5e11,
+    "aluminium": 3.5e11,
+    "delrin": 1e-9,
+    "pvc": 1e-10,
+    "agar": 1000.0,
+}
+
+#: Stock rod diameters (mm): 1/4" to 1 1/2" in 1/4" steps.
+STOCK_DIAMETERS_MM: tuple[float, ...] = (6.35, 12.7, 19.05, 25.4, 31.75, 38.1)
+
+_DEFAULT_GEOMETRY = Geometry()
+
+
+def _finite(name: str, value: Any, low: float | None = None, inclusive: bool = False) -> float:
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    if not number or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    if low is not None and (value < low or (value == low and not inclusive)):
+        raise ValueError(f"{name} must be {'≥' if inclusive else '>'} {low}, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One object of the map.
+
+    Attributes:
+        shape: "sphere" or "cylinder" (vertical, standing on the floor).
+        xy_mm: horizontal centre (sphere) / axis position (cylinder) in the map frame, mm.
+        radius_mm: radius, mm (> 0).
+        conductivity_uScm: conductivity σ_t, µS/cm (≥ 0).
+        material: a label.
+    """
+
+    shape: str
+    xy_mm: tuple[float, float]
+    radius_mm: float
+    conductivity_uScm: float
+    material: str = "custom"
+
+    def __post_init__(self) -> None:
+        if self.shape not in SHAPES:
+            raise ValueError(f"shape must be one of {list(SHAPES)}, got {self.shape!r}")
+        if len(self.xy_mm) != 2:
+            raise ValueError(f"xy_mm must be (x, y) in mm, got {self.xy_mm!r}")
+        object.__setattr__(self, "xy_mm", (_finite("xy_mm", self.xy_mm[0]), _finite("xy_mm", self.xy_mm[1])))
+        _finite("radius_mm", self.radius_mm, 0.0)
+        _finite("conductivity_uScm", self.conductivity_uScm, 0.0, inclusive=True)
+
+    @classmethod
+    def of_material(cls, shape: str, xy_mm: tuple[float, float], diameter_mm: float, material: str) -> SceneObject:
+        """An object of a named material (:data:`SCENE_MATERIAL_CONDUCTIVITY_uScm`)."""
+        key = material.lower()
+        if key not in SCENE_MATERIAL_CONDUCTIVITY_uScm:
+            raise ValueError(f"material must be one of {sorted(SCENE_MATERIAL_CONDUCTIVITY_uScm)}, got {material!r}")
+        return cls(shape, tuple(xy_mm), _finite("diameter_mm", diameter_mm, 0.0) / 2.0,
+                   SCENE_MATERIAL_CONDUCTIVITY_uScm[key], key)
+
+    @property
+    def diameter_mm(self) -> float:
+        """Diameter, mm."""
+        return 2.0 * self.radius_mm
+
+    def contrast(self, water_conductivity_uScm: float) -> float:
+        """χ (sphere, Eq. 4) or χ₂ (cylinder, 2-D analogue) in water of the given conductivity."""
+        f = physics.contrast_factor_sphere if self.shape == "sphere" else physics.contrast_factor_cylinder
+        return float(f(self.conductivity_uScm, water_conductivity_uScm))
+
+
+def cylinder_differential_perturbation(
+    offsets_mm: ArrayLike,
+    radius_mm: float,
+    chi2: float,
+    depth_mm: float,
+    spacing_mm: float = 50.0,
+    emitter_voltage_V: float = 2.0,
+    electrode_radius_mm: float = 1.0,
+) -> NDArray:
+    """δV(S1) − δV(S2) (V, before amplification) of a vertical cylinder at ``offsets_mm``.
+
+    The 2-D analogue of Eq. 4, ``χ₂ a² E_f(c)·(s − c)/|s − c|²``, with ``c`` the top of the axis,
+    ``depth_mm`` below the electrode plane (module docstring: ``a + E + O`` in a :class:`Scene`). Written
+    per coordinate column like :func:`electroloc_gym.physics.differential_perturbation` (hot path).
+
+    Args:
+        offsets_mm: (..., 2) cylinder axis position relative to the carriage centre, mm.
+        radius_mm: cylinder radius a, mm.
+        chi2: contrast χ₂ (dimensionless).
+        depth_mm: depth of the top of the axis below the electrode plane, mm (≥ 0; > 0 keeps it regular).
+        spacing_mm: emitter (= sensor) spacing L, mm.
+        emitter_voltage_V: emitter drive V_e, V.
+        electrode_radius_mm: emitter radius E, mm.
+
+    Returns:
+        (...) volts; float32 in, float32 out.
+    """
+    off = np.asarray(offsets_mm)
+    dtype = off.dtype if off.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+    x = off[..., 0].astype(dtype, copy=False)
+    y = off[..., 1].astype(dtype, copy=False)
+    h = dtype.type(spacing_mm / 2.0)
+    t2 = dtype.type(depth_mm * depth_mm)
+    # Emitter field at c = (x, y, −t) (App. A, Eq. 7): point charges at (±h, 0, 0).
+    xp = x - h
+    xn = x + h
+    y2t2 = y * y + t2
+    ip = (xp * xp + y2t2) ** dtype.type(-1.5)
+    inn = (xn * xn + y2t2) ** dtype.type(-1.5)
+    k = dtype.type(emitter_voltage_V * electrode_radius_mm)
+    ex = k * (xp * ip - xn * inn)
+    eyz = k * (ip - inn)  # E_y = eyz·y, E_z = eyz·(−t)
+    # Line-dipole potential at the sensors: (s − c) = (−x, ±h − y, +t), 1/|s − c|² (2-D analogue of Eq. 4).
+    x2t2 = x * x + t2
+    d1 = h - y
+    d2 = -h - y
+    r1 = 1.0 / (x2t2 + d1 * d1)
+    r2 = 1.0 / (x2t2 + d2 * d2)
+    common = -ex * x - eyz * t2
+    dot1 = common + eyz * y * d1
+    dot2 = common + eyz * y * d2
+    return dtype.type(chi2 * radius_mm**2) * (dot1 * r1 - dot2 * r2)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A map: objects in fresh or salt water, the amplifier and the carriage's workspace.
+
+    Attributes:
+        name: a label.
+        objects: the objects (any mix of spheres and cylinders, conductors and insulators).
+        water: the water.
+        amplifier: gain and noise (DESIGN §3.3).
+        allowed_half_width_mm: the carriage (and the belief over it) stays within ±this box, mm.
+        start_half_width_mm: the carriage starts uniformly within ±this box, mm.
+        signal_scale: dimensionless factor on the noise-free amplified signal (DESIGN §3.3).
+        geometry: carriage geometry and emitter drive; ``clearance_mm`` is the gap between the
+            electrodes and the top of every object.
+    """
+
+    name: str
+    objects: tuple[SceneObject, ...]
+    water: Water
+    amplifier: Amplifier
+    allowed_half_width_mm: float = 80.0
+    start_half_width_mm: float = 70.0
+    signal_scale: float = 1.0
+    geometry: Geometry = field(default_factory=Geometry)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "objects", tuple(self.objects))
+        if not self.objects:
+            raise ValueError("objects must hold at least one SceneObject")
+        for o in self.objects:
+            if not isinstance(o, SceneObject):
+                raise TypeError(f"objects must be SceneObject instances, got {type(o).__name__}")
+        for fname, typ in (("water", Water), ("amplifier", Amplifier), ("geometry", Geometry)):
+            if not isinstance(getattr(self, fname), typ):
+                raise TypeError(f"{fname} must be a {typ.__name__}, got {type(getattr(self, fname)).__name__}")
+        _finite("allowed_half_width_mm", self.allowed_half_width_mm, 0.0)
+        _finite("start_half_width_mm", self.start_half_width_mm, 0.0)
+        if self.start_half_width_mm > self.allowed_half_width_mm:
+            raise ValueError(f"start_half_width_mm must be ≤ allowed_half_width_mm ({self.allowed_half_width_mm}),"
+                             f" got {self.start_half_width_mm}")
+        _finite("signal_scale", self.signal_scale, 0.0)
+
+    # ---- derived values ---------------------------------------------------------------------
+    @property
+    def noise_std_V(self) -> float:
+        """Standard deviation of the amplified reading, V (G·σ_s)."""
+        return self.amplifier.noise_std_V
+
+    @property
+    def saturation_V(self) -> float:
+        """Clip level of the reading, V."""
+        return self.amplifier.saturation_V
+
+    def object_depth_mm(self, obj: SceneObject) -> float:
+        """Depth of an object's dipole point below the electrode plane, mm: a + E + O (§6.7).
+
+        The sphere's centre, or the top of a cylinder's axis (rounded top, module docstring).
+        """
+        return obj.radius_mm + self.geometry.electrode_radius_mm + self.geometry.clearance_mm
+
+    def contrasts(self) -> NDArray[np.float64]:
+        """χ (spheres) / χ₂ (cylinders) of every object, (K,)."""
+        return np.array([o.contrast(self.water.conductivity_uScm) for o in self.objects])
+
+    def replace(self, **changes: Any) -> Scene:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def as_condition(self) -> Condition:
+        """This scene's amplifier, water, geometry, boxes and signal scale as a :class:`Condition`.
+
+        The sensor models and the observation's condition descriptor take a Condition. Its ``target``
+        is a nominal stand-in (a sphere of the objects' mean radius and of the first object's
+        conductivity); it is never used to compute a reading of the scene.
+        """
+        r = float(np.mean([o.radius_mm for o in self.objects]))
+        return Condition(
+            name=self.name,
+            target=Target(radius_mm=r, conductivity_uScm=self.objects[0].conductivity_uScm,
+                          material=self.objects[0].material),
+            water=self.water, amplifier=self.amplifier, start_half_width_mm=self.start_half_width_mm,
+            allowed_half_width_mm=self.allowed_half_width_mm, signal_scale=self.signal_scale,
+            geometry=self.geometry)
+
+    # ---- the reading ------------------------------------------------------------------------
+    def object_perturbations(self, carriage_mm: ArrayLike) -> NDArray:
+        """δV_k(S1) − δV_k(S2) (V, unamplified) of each object alone, shape (..., K).
+
+        ``carriage_mm`` (..., 2) is the carriage centre in the map frame; float32 stays float32.
+        """
+        p = np.asarray(carriage_mm)
+        if p.dtype not in (np.float32, np.float64):
+            p = p.astype(np.float64)
+        return np.stack([self._one(o, p) for o in self.objects], axis=-1)
+
+    def perturbation(self, carriage_mm: ArrayLike) -> NDArray:
+        """Σ_k (δV_k(S1) − δV_k(S2)) (V, unamplified): the superposition (DESIGN §3.2), shape (...)."""
+        p = np.asarray(carriage_mm)
+        if p.dtype not in (np.float32, np.float64):
+            p = p.astype(np.float64)
+        total = self._one(self.objects[0], p)
+        for o in self.objects[1:]:
+            total += self._one(o, p)
+        return total
+
+    def _one(self, obj: SceneObject, p: NDArray) -> NDArray:
+        g = self.geometry
+        off = np.asarray(obj.xy_mm, dtype=p.dtype) - p  # object − carriage (the sensor's convention)
+        chi = obj.contrast(self.water.conductivity_uScm)
+        if obj.shape == "sphere":
+            return physics.differential_perturbation(
+                off, obj.radius_mm, chi, self.object_depth_mm(obj), spacing_mm=g.spacing_mm,
+                emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+        return cylinder_differential_perturbation(
+            off, obj.radius_mm, chi, self.object_depth_mm(obj), spacing_mm=g.spacing_mm,
+            emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+
+    def expected_reading(self, carriage_mm: ArrayLike, *, saturate: bool = True) -> NDArray:
+        """Noise-free reading Φ (V) with the carriage at ``carriage_mm`` (..., 2) in the map frame."""
+        delta = self.perturbation(carriage_mm)
+        phi = np.asarray(delta * delta.dtype.type(self.signal_scale * self.amplifier.gain))
+        if saturate:
+            sat = delta.dtype.type(self.saturation_V)
+            phi = np.clip(phi, -sat, sat, out=phi if phi.ndim else None)
+        return phi
+
+    def noisy_reading(self, carriage_mm: ArrayLike, rng: np.random.Generator) -> NDArray[np.float64]:
+        """A noisy, saturated reading Φ (V) at ``carriage_mm`` (..., 2); one normal draw per reading.
+
+        Same draw as :func:`electroloc_gym.sensor.noisy_reading` (``rng.normal`` of the output shape).
+        """
+        mean = self.expected_reading(np.asarray(carriage_mm, dtype=np.float64), saturate=False)
+        noise = rng.normal(0.0, self.noise_std_V, size=mean.shape)
+        return np.clip(mean + noise, -self.saturation_V, self.saturation_V)
+
+    # Sensor-model convention: offsets = map origin − carriage = −carriage.
+    def expected_reading_at_offsets(self, offsets_mm: ArrayLike) -> NDArray:
+        """:meth:`expected_reading` for ``offsets_mm`` = −carriage (the sensor models' convention)."""
+        return self.expected_reading(-np.asarray(offsets_mm))
+
+    def noisy_reading_at_offsets(self, offsets_mm: ArrayLike, rng: np.random.Generator) -> NDArray[np.float64]:
+        """:meth:`noisy_reading` for ``offsets_mm`` = −carriage (the sensor models' convention)."""
+        return self.noisy_reading(-np.asarray(offsets_mm, dtype=np.float64), rng)
+
+
+# ------------------------------------------------------------------------------------------
+# Layouts
+# ------------------------------------------------------------------------------------------
+def random_cylinder_layout(
+    rng: np.random.Generator | int,
+    n_objects: int = 6,
+    half_width_mm: float = 80.0,
+    diameters_mm: Sequence[float] = STOCK_DIAMETERS_MM,
+    materials: Sequence[str] = tuple(SCENE_MATERIAL_CONDUCTIVITY_uScm),
+    min_gap_mm: float = 5.0,
+    max_tries: int = 10_000,
+) -> tuple[SceneObject, ...]:
+    """Six (``n_objects``) vertical cylinders of different diameters and materials within ±80 mm (§6.5).
+
+    Diameters and materials are drawn without replacement (so all differ when there are enough of
+    them, with replacement otherwise); axes are uniform in ±``half_width_mm`` and rejected until the
+    cylinders are at least ``min_gap_mm`` apart surface to surface.
+
+    Args:
+        rng: a Generator or an integer seed.
+        n_objects: number of cylinders (≥ 1).
+        half_width_mm: axes lie within ±this, mm (> 0).
+        diameters_mm: diameters to draw from, mm.
+        materials: material names (:data:`SCENE_MATERIAL_CONDUCTIVITY_uScm`) to draw from.
+        min_gap_mm: least surface-to-surface distance, mm (≥ 0).
+        max_tries: give up after this many rejected placements.
+
+    Raises:
+        ValueError: bad arguments, or the cylinders do not fit.
+    """
+    if isinstance(n_objects, bool) or not isinstance(n_objects, (int, np.integer)) or n_objects < 1:
+        raise ValueError(f"n_objects must be an integer ≥ 1, got {n_objects!r}")
+    _finite("half_width_mm", half_width_mm, 0.0)
+    _finite("min_gap_mm", min_gap_mm, 0.0, inclusive=True)
+    if not diameters_mm or not materials:
+        raise ValueError("diameters_mm and materials must not be empty")
+    for m in materials:
+        if m not in SCENE_MATERIAL_CONDUCTIVITY_uScm:
+            raise ValueError(f"materials must be among {sorted(SCENE_MATERIAL_CONDUCTIVITY_uScm)}, got {m!r}")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+    diams = gen.choice(np.asarray(diameters_mm, float), size=n_objects, replace=n_objects > len(diameters_mm))
+    mats = gen.choice(np.asarray(materials), size=n_objects, replace=n_objects > len(materials))
+    placed: list[tuple[float, float, float]] = []
+    for d in diams:
+        for _ in range(max_tries):
+            xy = gen.uniform(-half_width_mm, half_width_mm, size=2)
+            if all(math.hypot(xy[0] - x, xy[1] - y) >= (d / 2 + r + min_gap_mm) for x, y, r in placed):
+                placed.append((float(xy[0]), float(xy[1]), float(d) / 2))
+                break
+        else:
+            raise ValueError(f"could not place {n_objects} cylinders within ±{half_width_mm} mm "
+                             f"with a gap of {min_gap_mm} mm")
+    return tuple(SceneObject.of_material("cylinder", (round(x, 1), round(y, 1)), 2 * r, str(m))
+                 for (x, y, r), m in zip(placed, mats))
+
+
+#: Seed of the benchmark layout (the paper's year); :data:`BENCHMARK_SCENE` is its output, frozen here.
+BENCHMARK_LAYOUT_SEED = 2008
+
+#: The fixed six-cylinder layout of ``ElectroLocGlobal-v0`` (map frame, mm; diameter mm; material).
+#: Produced by ``random_cylinder_layout(2008)`` and written out so the benchmark cannot drift.
+_BENCHMARK_OBJECTS: tuple[tuple[tuple[float, float], float, str], ...] = (
+    ((61.3, -73.1), 12.7, "delrin"),
+    ((-31.3, 59.3), 19.05, "pvc"),
+    ((41.4, 67.5), 25.4, "aluminium"),
+    ((6.2, -14.4), 31.75, "steel"),
+    ((-71.6, 52.4), 6.35, "brass"),
+    ((-7.3, -72.1), 38.1, "agar"),
+)
+
+
+def _fresh_scene(name: str, objects: tuple[SceneObject, ...]) -> Scene:
+    # Fresh water and the fresh-water 12.7 mm amplifier (Table 3, DESIGN §4): G = 191, σ_s = 0.25 mV.
+    return Scene(name=name, objects=objects, water=Water(FRESH_WATER_uScm),
+                 amplifier=Amplifier(gain=191.0, noise_rms_mV=0.25), allowed_half_width_mm=80.0,
+                 start_half_width_mm=70.0, signal_scale=1.0, geometry=_DEFAULT_GEOMETRY)
+
+
+def benchmark_scene() -> Scene:
+    """The fixed benchmark map of ``ElectroLocGlobal-v0`` (module docstring)."""
+    return BENCHMARK_SCENE
+
+
+def _benchmark() -> Scene:
+    objs = tuple(SceneObject.of_material("cylinder", xy, d, m) for xy, d, m in _BENCHMARK_OBJECTS)
+    return _fresh_scene("six-cylinders", objs)
+
+
+BENCHMARK_SCENE: Scene = _benchmark()
+
+
+# ------------------------------------------------------------------------------------------
+# The map's sensor models and EEV (Fig. 14)
+# ------------------------------------------------------------------------------------------
+#: Default position blur of the map's sensor models, mm (module docstring).
+DEFAULT_POSITION_BLUR_MM = 2.0
+
+
+class MapAnalyticSensorModel(AnalyticSensorModel):
+    """The map's analytic model: the scene's noise-free reading, std ``sqrt((G·σ_s)² + (|∇Φ|·b)²)``.
+
+    ``|∇Φ|`` (V/mm) by central differences of ±0.25 mm over carriage positions (4 extra map
+    evaluations; ``position_blur_mm=0`` skips them and gives the bare std G·σ_s).
+
+    Args:
+        scene: the map.
+        position_blur_mm: position blur b, mm (≥ 0).
+    """
+
+    _H_MM = 0.25
+
+    def __init__(self, scene: Scene, position_blur_mm: float = DEFAULT_POSITION_BLUR_MM) -> None:
+        super().__init__(scene.as_condition(), expected_fn=scene.expected_reading_at_offsets)
+        self.scene = scene
+        self.position_blur_mm = _finite("position_blur_mm", position_blur_mm, 0.0, inclusive=True)
+
+    def mean_std(self, offsets_mm: ArrayLike) -> tuple[NDArray, NDArray]:
+        off = np.asarray(offsets_mm)
+        if off.dtype not in (np.float32, np.float64):
+            off = off.astype(np.float64)
+        mean = self._expected(off)
+        if self.position_blur_mm == 0:
+            return mean, np.full_like(mean, self.noise_std_V)
+        h = off.dtype.type(self._H_MM)
+        ex = np.array([h, 0], dtype=off.dtype)
+        ey = np.array([0, h], dtype=off.dtype)
+        gx = (self._expected(off + ex) - self._expected(off - ex)) / (2 * h)
+        gy = (self._expected(off + ey) - self._expected(off - ey)) / (2 * h)
+        b = off.dtype.type(self.position_blur_mm)
+        std = np.sqrt(off.dtype.type(self.noise_std_V) ** 2 + (gx * gx + gy * gy) * (b * b))
+        return mean, std
+
+    def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
+        mean, std = self.mean_std(offsets_mm)
+        return gaussian_log_likelihood(reading_V, mean, std)
+
+
+@functools.lru_cache(maxsize=32)
+def _cached_map_calibration(scene: Scene, seed: int, position_blur_mm: float) -> CalibratedSensorModel:
+    return CalibratedSensorModel(scene.as_condition(), seed, reading_fn=scene.noisy_reading_at_offsets,
+                                 position_blur_mm=position_blur_mm)
+
+
+def make_map_sensor_model(kind: str, scene: Scene, seed: int = 0,
+                          position_blur_mm: float = DEFAULT_POSITION_BLUR_MM
+                          ) -> MapAnalyticSensorModel | CalibratedSensorModel:
+    """The agent's model of the map's reading, ``offsets_mm = −carriage`` (map origin − carriage).
+
+    ``"analytic"``: the scene's noise-free reading (:class:`MapAnalyticSensorModel`). ``"calibrated"``:
+    the paper's procedure (§5.3) over carriage positions — a 4 mm grid over the allowed box (41×41
+    for ±80 mm), 10 noisy readings per point, bilinear interpolation; seeded and cached per
+    (scene, seed, blur). Both widen the std by the position blur (module docstring).
+    """
+    blur = _finite("position_blur_mm", position_blur_mm, 0.0, inclusive=True)
+    if kind == "analytic":
+        return MapAnalyticSensorModel(scene, blur)
+    if kind == "calibrated":
+        return _cached_map_calibration(scene, int(seed), blur)
+    raise ValueError(f"sensor_model must be one of {list(SENSOR_MODEL_NAMES)}, got {kind!r}")
+
+
+def map_eev(scene: Scene, step_mm: float = 1.0, half_span_mm: float | None = None
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The map's EEV (Fig. 14): (grid_mm, Φ[ix, iy]) noise-free reading with the carriage at (grid[ix], grid[iy])."""
+    h = scene.allowed_half_width_mm if half_span_mm is None else float(half_span_mm)
+    grid = np.arange(-h, h + 1e-9, _finite("step_mm", step_mm, 0.0))
+    gx, gy = np.meshgrid(grid, grid, indexing="ij")
+    return grid, scene.expected_reading(np.stack([gx, gy], axis=-1))
+
+
+def plot_map_eev(scene: Scene, ax: Any = None, sensor_model: str = "analytic", seed: int = 0) -> Any:
+    """Draw the map's EEV like Fig. 14: ±10 V grey scale, 1 V contours, objects, origin; returns the axes.
+
+    Args:
+        scene: the map.
+        ax: matplotlib axes (a new figure if None).
+        sensor_model: "analytic" (noise-free physics on a 1 mm grid) or "calibrated" (the agent's
+            calibrated grid, interpolated on a 1 mm grid).
+        seed: calibration seed.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle
+
+    grid, phi = map_eev(scene)
+    if sensor_model == "calibrated":
+        gx, gy = np.meshgrid(grid, grid, indexing="ij")
+        phi = make_map_sensor_model("calibrated", scene, seed).mean_std(-np.stack([gx, gy], axis=-1))[0]
+    elif sensor_model != "analytic":
+        raise ValueError(f"sensor_model must be one of {list(SENSOR_MODEL_NAMES)}, got {sensor_model!r}")
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 5))
+    # Fig. 14: negative white to positive black (the paper's scale is ±10 V; ours is ±max|Φ| rounded
+    # up to a volt, so that a map that does not saturate stays visible); dotted contours every 1 V.
+    lim = float(min(scene.saturation_V, max(1.0, np.ceil(np.abs(phi).max()))))
+    im = ax.pcolormesh(grid, grid, phi.T, cmap="gray_r", vmin=-lim, vmax=lim, shading="auto")
+    levels = np.arange(-lim + 1.0, lim, 1.0)
+    ax.contour(grid, grid, phi.T, levels=levels, colors="tab:blue", linewidths=0.4, linestyles=":")
+    for o in scene.objects:
+        color = "tab:orange" if o.contrast(scene.water.conductivity_uScm) > 0 else "tab:cyan"
+        ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color=color, lw=1.2))
+        ax.annotate(f"{o.material} Ø{o.diameter_mm:g}", o.xy_mm, fontsize=6, ha="center", va="center", color=color)
+    ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=8, mew=1.5)
+    ax.set_xlim(grid[0], grid[-1])
+    ax.set_ylim(grid[0], grid[-1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("carriage x (mm, map frame)")
+    ax.set_ylabel("carriage y (mm, map frame)")
+    ax.set_title(f"map EEV {scene.name} ({sensor_model}); orange: conductors, cyan: insulators", fontsize=9)
+    ax.figure.colorbar(im, ax=ax, label="expected reading Φ (V)")
+    return ax
