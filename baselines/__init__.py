@@ -1,0 +1,24 @@
+"""The paper's three controllers as agents (Solberg, Lynch & MacIver 2008, §4.1.3, §4.2, Algorithm 1).
+
+* ``rnd-wlk`` — :class:`~baselines.random_walk.RandomWalkAgent`
+* ``min-var`` — :class:`~baselines.min_variance.MinVarianceAgent` (particle voting, Algorithm 1)
+* ``zero-crossing`` — :class:`~baselines.zero_crossing.ZeroCrossingAgent` (§4.2, no belief)
+
+All follow the protocol of :mod:`baselines.agent`; build them with :func:`make_agent`.
+"""
+
+from baselines.agent import AGENT_REGISTRY, Agent, BaselineAgent, make_agent, parse_agent_spec
+from baselines.min_variance import MinVarianceAgent
+from baselines.random_walk import RandomWalkAgent
+from baselines.zero_crossing import ZeroCrossingAgent
+
+__all__ = [
+    "AGENT_REGISTRY",
+    "Agent",
+    "BaselineAgent",
+    "make_agent",
+    "parse_agent_spec",
+    "RandomWalkAgent",
+    "MinVarianceAgent",
+    "ZeroCrossingAgent",
+]

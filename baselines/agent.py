@@ -1,0 +1,243 @@
+"""The agent protocol shared by the paper's controllers and learned policies, and the agent registry.
+
+Every agent the benchmark runs answers SB3's call (``PolicyPredictor``)::
+
+    action, state = agent.predict(observation, state=None, episode_start=None, deterministic=True)
+
+plus ``agent.reset(env)``, called at the start of each trial *after* ``env.reset(...)``, which binds
+the agent to the env (agents that need the belief or the sensor model read ``env.unwrapped.belief``
+and ``env.unwrapped.sensor_model``; none ever reads the true target). Actions are the env's
+continuous action, ``(dx, dy) ∈ [−1, 1]²`` = move / 10 mm (paper §4.1.3: at most 10 mm per axis).
+
+Attributes and optional hooks the benchmark runner understands:
+
+* ``env_kwargs: dict`` — extra keyword arguments for ``gym.make("ElectroLoc-v0", ...)`` for this
+  agent (``{}`` for the probabilistic baselines; a learned policy records its observation mode etc.).
+* ``seed(seed)`` (optional) — re-seed the agent's own generator; the runner calls it before every
+  trial with a seed derived from (condition, trial) so results do not depend on the worker count.
+* ``done: bool`` and ``estimate_mm`` (optional) — an agent that ends a trial itself (zero-crossing)
+  sets ``done = True`` in ``predict`` and reports its own target estimate ``(x, y)`` in mm (or
+  ``None`` when it gave up: a failure). The runner then stops without stepping the env.
+* ``adapt_condition(condition) -> Condition`` (optional) — the workspace layout the agent is
+  evaluated in (zero-crossing: the paper's Table-1 layout, §6.4).
+* ``layout: str`` (optional) — ``"table4"`` (default) or ``"table1"``: which of the paper's tables
+  the agent's results belong to.
+
+:func:`make_agent` builds an agent from a name (``rnd-wlk``, ``min-var``, ``zero-crossing``), a name
+with keyword options in brackets (``min-var[n_voters=2500]``), or a path to a learned policy
+(``PATH.zip`` or a directory holding ``model.zip``), loaded by ``train.policy.load_policy``.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "Agent",
+    "BaselineAgent",
+    "AGENT_REGISTRY",
+    "make_agent",
+    "parse_agent_spec",
+    "is_policy_path",
+    "sample_options_mm",
+    "MAX_STEP_MM",
+]
+
+#: Largest move per axis per step, mm (paper §4.1.3; equals the env's action scale).
+MAX_STEP_MM = 10.0
+
+
+@runtime_checkable
+class Agent(Protocol):
+    """What the benchmark runner calls. Learned policies (``train.policy``) implement the same."""
+
+    env_kwargs: dict[str, Any]
+
+    def reset(self, env: Any) -> None:
+        """Bind to ``env`` at the start of a trial (after ``env.reset``)."""
+        ...
+
+    def predict(self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None,
+                deterministic: bool = True) -> tuple[NDArray, Any]:
+        """The next action (2,) in [−1, 1]² and the recurrent state (``None`` for stateless agents)."""
+        ...
+
+
+class BaselineAgent:
+    """Common plumbing of the paper's controllers: binding, seeding, episode flags.
+
+    Args:
+        seed: seed or generator of the agent's own randomness (never the global ``np.random``).
+    """
+
+    #: Registry name.
+    name = "baseline"
+    #: Which paper table the agent's results belong to.
+    layout = "table4"
+
+    def __init__(self, seed: int | np.random.Generator | None = None) -> None:
+        self.env_kwargs: dict[str, Any] = {}
+        self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        self.done = False
+        self.estimate_mm: tuple[float, float] | None = None
+        self._env: Any = None
+
+    def seed(self, seed: int | None) -> None:
+        """Re-seed the agent's generator (the runner calls this before each trial)."""
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self, env: Any) -> None:
+        """Bind to ``env`` (its ``unwrapped`` core) at the start of a trial."""
+        self._env = env.unwrapped
+        self.done = False
+        self.estimate_mm = None
+
+    @property
+    def env(self) -> Any:
+        """The bound env core (``env.unwrapped``)."""
+        if self._env is None:
+            raise RuntimeError(f"{type(self).__name__}.reset(env) must be called before predict()")
+        return self._env
+
+    def predict(self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None,
+                deterministic: bool = True) -> tuple[NDArray[np.float32], Any]:
+        """SB3-style call; subclasses implement :meth:`choose_move_mm`."""
+        move = np.asarray(self.choose_move_mm(), dtype=np.float64)
+        return np.clip(move / MAX_STEP_MM, -1.0, 1.0).astype(np.float32), state
+
+    def choose_move_mm(self) -> NDArray[np.float64]:
+        """The carriage move (dx, dy) in mm for the next step."""
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+
+def sample_options_mm(rng: np.random.Generator, position_mm: NDArray, low_mm: NDArray, high_mm: NDArray,
+                      n_options: int = 16, max_step_mm: float = MAX_STEP_MM) -> NDArray[np.float64]:
+    """The paper's control options (§4.1.3): stay, plus ``n_options − 1`` uniform moves in ±10 mm.
+
+    The random moves are drawn uniformly from the part of the ±``max_step_mm`` square around the
+    carriage that lies inside the allowed box, so no option is wasted on a wall (the robot "was
+    permitted to move anywhere within" the box, §5.4).
+
+    Returns:
+        (n_options, 2) moves in mm; row 0 is the stay option (0, 0).
+    """
+    if n_options < 1:
+        raise ValueError(f"n_options must be ≥ 1, got {n_options!r}")
+    p = np.asarray(position_mm, dtype=np.float64)
+    lo = np.maximum(-max_step_mm, np.asarray(low_mm, dtype=np.float64) - p)
+    hi = np.minimum(max_step_mm, np.asarray(high_mm, dtype=np.float64) - p)
+    lo = np.minimum(lo, 0.0)  # the carriage is inside the box, so 0 ∈ [lo, hi]; guard round-off
+    hi = np.maximum(hi, 0.0)
+    moves = np.zeros((n_options, 2))
+    moves[1:] = lo + (hi - lo) * rng.random((n_options - 1, 2))
+    return moves
+
+
+# ---------------------------------------------------------------------------------------------
+# Registry
+# ---------------------------------------------------------------------------------------------
+def _registry() -> dict[str, type]:
+    from baselines.min_variance import MinVarianceAgent
+    from baselines.random_walk import RandomWalkAgent
+    from baselines.zero_crossing import ZeroCrossingAgent
+
+    return {"rnd-wlk": RandomWalkAgent, "min-var": MinVarianceAgent, "zero-crossing": ZeroCrossingAgent}
+
+
+#: Names of the built-in agents (classes resolved lazily by :func:`make_agent`).
+AGENT_REGISTRY: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
+
+_SPEC_RE = re.compile(r"^(?P<name>[A-Za-z0-9_\-]+)(\[(?P<opts>.*)\])?$")
+
+
+def is_policy_path(spec: str) -> bool:
+    """True when ``spec`` names a learned policy: ``*.zip`` or an existing directory (with model.zip)."""
+    return spec.endswith(".zip") or Path(spec).is_dir() or "/" in spec or spec.startswith(".")
+
+
+def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:
+    """Split ``"min-var[n_voters=2500,n_options=16]"`` into ``("min-var", {"n_voters": 2500, ...})``.
+
+    Raises:
+        ValueError: malformed spec or option value.
+    """
+    m = _SPEC_RE.match(spec.strip())
+    if m is None:
+        raise ValueError(f"agent spec {spec!r} is malformed; expected NAME or NAME[key=value,...] "
+                         f"with NAME in {list(AGENT_REGISTRY)}, or a path to a policy .zip")
+    kwargs: dict[str, Any] = {}
+    opts = m.group("opts")
+    if opts:
+        for item in opts.split(","):
+            if "=" not in item:
+                raise ValueError(f"agent option {item!r} in {spec!r} must be key=value")
+            key, val = (s.strip() for s in item.split("=", 1))
+            try:
+                kwargs[key] = ast.literal_eval(val)
+            except (ValueError, SyntaxError):
+                kwargs[key] = val
+    return m.group("name"), kwargs
+
+
+def _resolve_policy_path(spec: str) -> Path:
+    path = Path(spec).expanduser()
+    if path.is_dir():
+        zipped = path / "model.zip"
+        if not zipped.is_file():
+            raise ValueError(f"agent path {spec!r} is a directory without model.zip")
+        return zipped
+    if not path.is_file():
+        raise ValueError(f"agent path {spec!r} does not exist (expected a policy .zip or a directory "
+                         f"holding model.zip)")
+    return path
+
+
+def make_agent(spec: str, seed: int | np.random.Generator | None = None) -> Any:
+    """Build an agent from a registry name (optionally with options) or a learned-policy path.
+
+    Args:
+        spec: ``"rnd-wlk"``, ``"min-var"``, ``"zero-crossing"``, ``"min-var[n_voters=2500]"``, or a
+            path ``PATH.zip`` / a directory containing ``model.zip`` (loaded with
+            ``train.policy.load_policy``).
+        seed: seed of a baseline agent's own generator (ignored by learned policies).
+
+    Raises:
+        ValueError: unknown name, bad options, or a missing / unloadable policy path (the message
+            names the path).
+    """
+    if not isinstance(spec, str) or not spec.strip():
+        raise ValueError(f"agent must be a non-empty string, got {spec!r}")
+    spec = spec.strip()
+    m = _SPEC_RE.match(spec)
+    if not (m and m.group("name") in AGENT_REGISTRY) and is_policy_path(spec):
+        path = _resolve_policy_path(spec)
+        try:
+            from train.policy import load_policy
+        except ImportError as exc:
+            raise ValueError(f"cannot load policy {str(path)!r}: the training package is unavailable "
+                             f"(pip install 'electroloc-gym[train]'): {exc}") from exc
+        try:
+            agent = load_policy(str(path))
+        except Exception as exc:  # noqa: BLE001 - any loader failure is reported with the path
+            raise ValueError(f"cannot load policy {str(path)!r}: {type(exc).__name__}: {exc}") from exc
+        if not hasattr(agent, "env_kwargs"):
+            agent.env_kwargs = {}
+        return agent
+    name, kwargs = parse_agent_spec(spec)
+    registry = _registry()
+    if name not in registry:
+        raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_REGISTRY)} or give a path to a "
+                         f"policy .zip (or a directory holding model.zip)")
+    try:
+        return registry[name](seed=seed, **kwargs)
+    except TypeError as exc:
+        raise ValueError(f"bad options for agent {name!r} in {spec!r}: {exc}") from exc
