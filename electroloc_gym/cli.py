@@ -76,6 +76,17 @@ def _cmd_eev(args: argparse.Namespace) -> int:
 
     from electroloc_gym.render import plot_eev, save_figure_atomic
 
+    if getattr(args, "env", "target") == "global":
+        # Fig. 14: the six-cylinder map of ElectroLocGlobal-v0, physics and the calibrated grid side by side.
+        from electroloc_gym.scene import BENCHMARK_SCENE, plot_map_eev
+
+        fig, axes = plt.subplots(1, 2, figsize=(12, 5))
+        for ax, kind in zip(axes, ("analytic", "calibrated")):
+            plot_map_eev(BENCHMARK_SCENE, ax=ax, sensor_model=kind)
+        fig.tight_layout()
+        save_figure_atomic(fig, args.out, dpi=120)
+        print(f"wrote {args.out}")
+        return 0
     cond = get_condition(args.condition, args.signal)
     fig, ax = plt.subplots(figsize=(6, 5))
     plot_eev(cond, ax=ax)
@@ -131,6 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES))
     e.add_argument("--signal", default="fitted", choices=["fitted", "paper"])
     e.add_argument("--out", default="eev.png")
+    e.add_argument("--env", default="target", choices=["target", "global"],
+                   help="target: one sphere's EEV (ElectroLoc-v0); global: the six-cylinder map (Fig. 14)")
     e.set_defaults(func=_cmd_eev)
 
     m = sub.add_parser("demo", help="run one random-walk episode and save rendered frames to a PNG")
