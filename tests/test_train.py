@@ -325,3 +325,28 @@ def test_electroloc_train_forwards_to_the_training_script(tmp_path):
                           env=_subprocess_env(), capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "--hyperparams" in proc.stdout and "--vec-env" in proc.stdout
+
+
+# ------------------------------------------------------------------------ plots and evaluation
+def test_learning_curve_plot_from_a_run(tiny_run, tmp_path):
+    from train.plots import main as plots_main
+    from train.plots import read_eval_csv
+
+    cols = read_eval_csv(tiny_run)
+    assert cols["timesteps"][0] == 0 and len(cols["success_rate"]) == len(cols["median_steps"])
+    out = tmp_path / "lc.png"
+    assert plots_main([str(tiny_run), "--out", str(out), "--reference", "min-var=0.9,7"]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert plots_main([str(tmp_path / "none"), "--out", str(out)]) == 2
+
+
+def test_evaluate_runs_the_learned_policy_and_a_baseline_on_the_same_seeds(tiny_run):
+    pytest.importorskip("baselines.agent")
+    from train.evaluate import run_trials, summarise, trial_seed
+
+    assert trial_seed(0, 1) == trial_seed(0, 1) != trial_seed(1, 1)
+    learned = run_trials(str(tiny_run), "fresh-steel-12.7", 0, 2)
+    walk = run_trials("rnd-wlk", "fresh-steel-12.7", 0, 2)
+    assert [r["seed"] for r in learned] == [r["seed"] for r in walk]
+    s = summarise(learned)
+    assert s["trials"] == 2 and s["successes"] + s["failures"] == 2 and s["decision_ms"] > 0

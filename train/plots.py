@@ -1,0 +1,107 @@
+r"""Learning curves from run directories' ``eval.csv``: success rate and median steps vs timesteps.
+
+Usage::
+
+    python -m train.plots runs/ppo-s1000 runs/ppo-s2000 --labels "seed 1000" "seed 2000" \
+        --out models/ppo-belief/learning_curves.png [--reference min-var=0.58,7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+__all__ = ["read_eval_csv", "plot_learning_curves", "main"]
+
+
+def read_eval_csv(path: str | Path) -> dict[str, list[float]]:
+    """Columns of an ``eval.csv`` as float lists (a run directory or the file itself)."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / "eval.csv"
+    if not p.is_file():
+        raise ValueError(f"no eval.csv at {str(path)!r}")
+    with p.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        raise ValueError(f"{p} has no rows")
+    return {k: [float(r[k]) for r in rows] for k in rows[0]}
+
+
+def plot_learning_curves(runs: Sequence[str | Path], labels: Sequence[str] | None, out: str | Path,
+                         references: Mapping[str, tuple[float, float]] | None = None) -> Path:
+    """Two panels (success rate, median steps) vs env steps for each run; written atomically as PNG.
+
+    Args:
+        runs: run directories (or eval.csv files).
+        labels: one label per run (default: the directory names).
+        out: the PNG path.
+        references: optional horizontal lines, name → (success rate, median steps).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from train.callbacks import atomic_write_bytes
+
+    labels = list(labels) if labels else [Path(r).name for r in runs]
+    if len(labels) != len(runs):
+        raise ValueError(f"--labels needs one label per run ({len(runs)}), got {len(labels)}")
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.8))
+    for run, label in zip(runs, labels):
+        d = read_eval_csv(run)
+        ax1.plot(d["timesteps"], d["success_rate"], marker=".", label=label)
+        ax2.plot(d["timesteps"], d["median_steps"], marker=".", label=label)
+    for i, (name, (succ, steps)) in enumerate((references or {}).items()):
+        style = dict(color=f"C{7 + i % 3}", ls="--", lw=1)
+        ax1.axhline(succ, **style, label=name)
+        ax2.axhline(steps, **style, label=name)
+    ax1.set(xlabel="env steps", ylabel="success rate (spread ≤ 10 mm within 35 obs.)", ylim=(0, 1.02))
+    ax2.set(xlabel="env steps", ylabel="median observations to localise", ylim=(0, 36))
+    for ax in (ax1, ax2):
+        ax.grid(alpha=0.3)
+    ax2.legend(fontsize=8)
+    fig.suptitle("Seeded evaluation during training (ElectroLoc-v0, 8 conditions)", fontsize=10)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    atomic_write_bytes(out, buf.getvalue())
+    return Path(out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """CLI entry point."""
+    p = argparse.ArgumentParser(prog="python -m train.plots", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("runs", nargs="+", help="run directories (or eval.csv files)")
+    p.add_argument("--labels", nargs="*", default=None)
+    p.add_argument("--out", default="learning_curves.png")
+    p.add_argument("--reference", nargs="*", default=[], metavar="NAME=SUCCESS,STEPS",
+                   help="horizontal reference lines, e.g. min-var=0.58,7")
+    a = p.parse_args(argv)
+    refs = {}
+    for item in a.reference:
+        name, _, vals = item.partition("=")
+        try:
+            s, st = (float(v) for v in vals.split(","))
+        except ValueError:
+            print(f"error: --reference expects NAME=SUCCESS,STEPS, got {item!r}", file=sys.stderr)
+            return 2
+        refs[name] = (s, st)
+    try:
+        path = plot_learning_curves(a.runs, a.labels, a.out, refs)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
