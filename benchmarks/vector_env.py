@@ -1,0 +1,154 @@
+"""Throughput of ElectroLoc-v0: single env vs SyncVectorEnv vs the native batched vector env (issue 7).
+
+Prints, side by side in one run, env steps per second (every sub-env step counts; autoresets
+included, random actions, so episodes end and reset as in training) of
+
+* one single env (``gym.make``, reset on episode end),
+* ``gym.make_vec(..., vectorization_mode="sync")`` (SyncVectorEnv) at each N,
+* ``gym.make_vec(..., vectorization_mode="vector_entry_point")`` (native) at each N,
+
+and the native/sync ratio. A "sync+malloc" row shows SyncVectorEnv with the same glibc setting the
+native env applies (``electroloc_gym.envs.vector.tune_malloc``), so that its share of the gain is
+visible. Every row runs in a fresh interpreter. The machine is shared: each configuration is timed in several short
+rounds, interleaved, and the best round is kept; throughput is reported per CPU-second of this
+process (``time.process_time``, insensitive to other processes taking the cores) and per wall
+second. Numeric libraries are pinned to one thread (DESIGN §10).
+
+    python benchmarks/vector_env.py [--n-envs 16 64] [--particles 2500] [--observation belief]
+        [--sensor-model calibrated] [--seconds 1.5] [--rounds 3] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+from typing import Any  # noqa: E402
+
+import gymnasium as gym  # noqa: E402
+import numpy as np  # noqa: E402
+
+import electroloc_gym  # noqa: E402, F401  (registers the ids)
+
+
+class _Single:
+    """A single env driven like a vector env of one (reset on episode end)."""
+
+    def __init__(self, kwargs: dict[str, Any]) -> None:
+        self.env = gym.make("ElectroLoc-v0", **kwargs)
+        self.num_envs = 1
+
+    def reset(self, seed: int) -> None:
+        self.env.reset(seed=seed)
+
+    def step(self, actions: np.ndarray) -> None:
+        _, _, term, trunc, _ = self.env.step(actions[0])
+        if term or trunc:
+            self.env.reset()
+
+
+def _round(env: Any, n_steps: int, rng: np.random.Generator) -> tuple[float, float]:
+    """(CPU seconds, wall seconds) for ``n_steps`` vector steps with random actions."""
+    actions = rng.uniform(-1, 1, size=(n_steps, env.num_envs, 2)).astype(np.float32)
+    c0, w0 = time.process_time(), time.perf_counter()
+    for a in actions:
+        env.step(a)
+    return time.process_time() - c0, time.perf_counter() - w0
+
+
+def measure(make: Callable[[], Any], seconds: float, rounds: int, seed: int = 0) -> dict[str, float]:
+    """Best-of-``rounds`` env steps/s (CPU and wall) of a freshly made env."""
+    env = make()
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    _round(env, 3, rng)  # warm-up (first calibrations, caches)
+    cpu, _ = _round(env, 5, rng)
+    n_steps = max(5, int(seconds / max(cpu / 5, 1e-6)))
+    best_cpu = best_wall = float("inf")
+    for _ in range(rounds):
+        c, w = _round(env, n_steps, rng)
+        best_cpu, best_wall = min(best_cpu, c / n_steps), min(best_wall, w / n_steps)
+    if hasattr(env, "close"):
+        env.close()
+    n = env.num_envs
+    return {"steps_per_s_cpu": n / best_cpu, "steps_per_s_wall": n / best_wall, "vector_steps": n_steps}
+
+
+def _make(backend: str, n: int, kwargs: dict[str, Any]) -> Any:
+    if backend == "single":
+        return _Single(kwargs)
+    if backend in ("sync", "sync+malloc"):
+        if backend == "sync+malloc":
+            from electroloc_gym.envs.vector import tune_malloc
+
+            tune_malloc()
+        return gym.make_vec("ElectroLoc-v0", num_envs=n, vectorization_mode="sync", **kwargs)
+    return gym.make_vec("ElectroLoc-v0", num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+
+
+def measure_isolated(backend: str, n: int, kwargs: dict[str, Any], seconds: float, rounds: int) -> dict[str, float]:
+    """:func:`measure` in a fresh interpreter, so that allocator state (see
+    ``electroloc_gym.envs.vector.tune_malloc``) and caches of one configuration do not leak into another.
+    """
+    cmd = [sys.executable, __file__, "--_one", json.dumps({"backend": backend, "n": n, "kwargs": kwargs,
+                                                             "seconds": seconds, "rounds": rounds})]
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--n-envs", type=int, nargs="+", default=[16, 64])
+    ap.add_argument("--particles", type=int, default=2500)
+    ap.add_argument("--observation", default="belief", choices=["belief", "raw"])
+    ap.add_argument("--sensor-model", default="calibrated", choices=["calibrated", "analytic"])
+    ap.add_argument("--condition", default="fresh-steel-12.7")
+    ap.add_argument("--seconds", type=float, default=1.5, help="target CPU seconds per timed round")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--json", default=None, help="also write the results here")
+    ap.add_argument("--_one", default=None, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args._one:
+        spec = json.loads(args._one)
+        res = measure(lambda: _make(spec["backend"], spec["n"], spec["kwargs"]), spec["seconds"], spec["rounds"])
+        print(json.dumps(res))
+        return res
+    kwargs = {"n_particles": args.particles, "observation": args.observation, "sensor_model": args.sensor_model,
+              "condition": args.condition}
+    results: dict[str, Any] = {"kwargs": kwargs, "rows": []}
+    print(f"ElectroLoc-v0 {kwargs}, random actions, autoreset; best of {args.rounds} rounds; "
+          "each row in a fresh process")
+    print(f"{'backend':<12} {'N':>4} {'steps/s (CPU)':>14} {'steps/s (wall)':>15} {'vs sync (CPU)':>14}")
+
+    def row(backend: str, n: int, base: float | None) -> dict[str, Any]:
+        r = measure_isolated(backend, n, kwargs, args.seconds, args.rounds)
+        ratio = r["steps_per_s_cpu"] / base if base else None
+        rs = f"{ratio:>13.2f}x" if ratio else f"{'':>14}"
+        print(f"{backend:<12} {n:>4} {r['steps_per_s_cpu']:>14.0f} {r['steps_per_s_wall']:>15.0f} {rs}", flush=True)
+        out = {"backend": backend, "n_envs": n, **r, "ratio_vs_sync_cpu": ratio}
+        results["rows"].append(out)
+        return out
+
+    row("single", 1, None)
+    for n in args.n_envs:
+        sync = row("sync", n, None)["steps_per_s_cpu"]
+        row("sync+malloc", n, sync)
+        row("native", n, sync)
+    if args.json:
+        tmp = args.json + ".tmp"
+        with open(tmp, "w") as f:
+            json.dump(results, f, indent=2)
+        os.replace(tmp, args.json)
+    return results
+
+
+if __name__ == "__main__":
+    main()

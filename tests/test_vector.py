@@ -1,0 +1,219 @@
+"""The native batched vector env (issue 7): exact per-env equivalence with ElectroLoc-v0, API, bad inputs."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import electroloc_gym  # noqa: F401
+from electroloc_gym.belief import systematic_resample
+from electroloc_gym.conditions import PRESET_NAMES, get_condition
+from electroloc_gym.envs.vector import ElectroLocVectorEnv, fast_calibrated_model, systematic_indices
+from electroloc_gym.sensor_models import CalibratedSensorModel
+
+INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
+             "condition")
+
+
+def _native(n: int, **kw: Any) -> ElectroLocVectorEnv:
+    env = gym.make_vec("ElectroLoc-v0", num_envs=n, vectorization_mode="vector_entry_point", **kw)
+    return env
+
+
+def _reference(n: int, mode: AutoresetMode, **kw: Any) -> gym.vector.SyncVectorEnv:
+    return gym.vector.SyncVectorEnv([lambda: gym.make("ElectroLoc-v0", **kw) for _ in range(n)], autoreset_mode=mode)
+
+
+def _info_equal(a: dict[str, Any], b: dict[str, Any], where: str) -> None:
+    """Native info (arrays) vs SyncVectorEnv info (tuple-valued keys as object arrays)."""
+    for key in INFO_KEYS:
+        x, y = a[key], b[key]
+        if key in ("position_mm", "estimate_mm"):
+            y = np.array([list(t) for t in y], dtype=float)
+        assert np.array_equal(np.asarray(x), np.asarray(y)), f"{where}: info[{key!r}] differs"
+
+
+def _actions(space: gym.Space, n_steps: int, seed: int) -> list[Any]:
+    space.seed(seed)
+    return [space.sample() for _ in range(n_steps)]
+
+
+CASES = [
+    pytest.param({"n_particles": 400}, AutoresetMode.NEXT_STEP, 120, id="calibrated-next"),
+    pytest.param({"n_particles": 300, "sensor_model": "analytic", "condition": "random", "randomize_target": True},
+                 AutoresetMode.NEXT_STEP, 120, id="analytic-random-target"),
+    pytest.param({"n_particles": 300, "condition": "random"}, AutoresetMode.SAME_STEP, 120, id="random-same-step"),
+    pytest.param({"n_particles": 200, "observation": "raw", "action_type": "discrete", "max_observations": 6},
+                 AutoresetMode.NEXT_STEP, 80, id="raw-discrete"),
+    pytest.param({"n_particles": 250, "calibration_seed": 7, "signal": "paper", "condition": "salt-delrin-38.1",
+                  "success_spread_mm": 14.0}, AutoresetMode.SAME_STEP, 80, id="fixed-calibration-paper"),
+]
+
+
+@pytest.mark.parametrize(("kwargs", "mode", "n_steps"), CASES)
+def test_native_equals_sync_of_single_envs_bit_for_bit(kwargs: dict[str, Any], mode: AutoresetMode,
+                                                         n_steps: int) -> None:
+    n = 5
+    native = _native(n, autoreset_mode=mode, **kwargs)
+    native.unwrapped._block_envs = 2  # several cache blocks per step (the default block holds them all here)
+    ref = _reference(n, mode, **kwargs)
+    assert native.metadata["autoreset_mode"] is mode
+    assert native.single_observation_space == ref.single_observation_space
+    assert native.action_space == ref.action_space
+    o1, i1 = native.reset(seed=11)
+    o2, i2 = ref.reset(seed=11)
+    assert np.array_equal(o1, o2)
+    _info_equal(i1, i2, "reset")
+    ended = 0
+    for t, a in enumerate(_actions(ref.action_space, n_steps, seed=3)):
+        o1, r1, te1, tr1, i1 = native.step(a)
+        o2, r2, te2, tr2, i2 = ref.step(a)
+        assert o1.dtype == np.float32 and o1.shape == o2.shape
+        assert np.array_equal(o1, o2), f"step {t}: observations differ"
+        assert np.array_equal(r1, r2) and np.array_equal(te1, te2) and np.array_equal(tr1, tr2), f"step {t}"
+        _info_equal(i1, i2, f"step {t}")
+        if mode is AutoresetMode.SAME_STEP and (te1 | tr1).any():
+            done = te1 | tr1
+            assert np.array_equal(i1["_final_obs"], done) and np.array_equal(i1["_final_obs"], i2["_final_obs"])
+            for j in np.flatnonzero(done):
+                assert np.array_equal(i1["final_obs"][j], i2["final_obs"][j])
+                for key in ("spread_mm", "error_mm", "n_observations", "success"):
+                    assert i1["final_info"][key][j] == i2["final_info"][key][j]
+        ended += int((te1 | tr1).sum())
+    assert ended >= 3, "the rollout should cross several autoresets"
+
+
+def test_default_kwargs_match_single_env_at_2500_particles() -> None:
+    native = _native(3)
+    ref = _reference(3, AutoresetMode.NEXT_STEP)
+    assert np.array_equal(native.reset(seed=5)[0], ref.reset(seed=5)[0])
+    for a in _actions(ref.action_space, 40, seed=0):
+        r1, r2 = native.step(a), ref.step(a)
+        assert np.array_equal(r1[0], r2[0]) and np.array_equal(r1[2], r2[2]) and np.array_equal(r1[3], r2[3])
+
+
+def test_make_vec_entry_point_and_spaces() -> None:
+    env = gym.make_vec("ElectroLoc-v0", num_envs=4, vectorization_mode="vector_entry_point", n_particles=100)
+    assert isinstance(env.unwrapped, ElectroLocVectorEnv)
+    assert env.num_envs == 4
+    assert env.observation_space.shape == (4, 81) and env.action_space.shape == (4, 2)
+    assert isinstance(env.metadata["autoreset_mode"], AutoresetMode)
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert info["position_mm"].shape == (4, 2) and info["_spread_mm"].all()
+    u = env.unwrapped
+    assert u.particles_mm.shape == (4, 100, 2) and not u.particles_mm.flags.writeable
+    assert len(u.sensor_models) == 4 and all(isinstance(m, CalibratedSensorModel) for m in u.sensor_models)
+    assert np.array_equal(u.n_observations, np.ones(4))
+    env.close()
+
+
+def test_same_seed_same_rollout_and_seed_list() -> None:
+    a, b = _native(3, n_particles=150), _native(3, n_particles=150)
+    oa, _ = a.reset(seed=[4, 5, 6])
+    ob, _ = b.reset(seed=4)
+    assert np.array_equal(oa, ob)
+    for act in _actions(a.action_space, 30, seed=1):
+        ra, rb = a.step(act), b.step(act)
+        assert np.array_equal(ra[0], rb[0]) and np.array_equal(ra[2], rb[2])
+
+
+def test_reset_mask_resets_only_selected_envs() -> None:
+    env = _native(3, n_particles=150)
+    env.reset(seed=0)
+    for act in _actions(env.action_space, 3, seed=2):
+        env.step(act)
+    before = env.unwrapped.n_observations
+    mask = np.array([False, True, False])
+    obs, _ = env.reset(seed=[None, 42, None], options={"reset_mask": mask})
+    single = gym.make("ElectroLoc-v0", n_particles=150)
+    assert np.array_equal(obs[1], single.reset(seed=42)[0])
+    after = env.unwrapped.n_observations
+    assert after[1] == 1 and after[0] == before[0] and after[2] == before[2]
+
+
+def test_max_episode_steps_truncates_like_time_limit() -> None:
+    native = _native(2, n_particles=120, max_episode_steps=3, success_spread_mm=1e-6)
+    ref = gym.vector.SyncVectorEnv([lambda: gym.make("ElectroLoc-v0", n_particles=120, max_episode_steps=3,
+                                                     success_spread_mm=1e-6) for _ in range(2)])
+    native.reset(seed=1)
+    ref.reset(seed=1)
+    for act in _actions(ref.action_space, 8, seed=0):
+        r1, r2 = native.step(act), ref.step(act)
+        assert np.array_equal(r1[0], r2[0]) and np.array_equal(r1[3], r2[3]) and np.array_equal(r1[1], r2[1])
+
+
+def test_systematic_indices_equals_systematic_resample() -> None:
+    rng = np.random.default_rng(0)
+
+    class _Fixed:
+        def __init__(self, u: float) -> None:
+            self.u = u
+
+        def random(self, shape: tuple[int, ...]) -> np.ndarray:
+            return np.full(shape, self.u)
+
+    for trial in range(400):
+        n, m = int(rng.integers(1, 4)), int(rng.integers(1, 400))
+        kind = trial % 4
+        if kind == 0:
+            w = rng.random((n, m))
+        elif kind == 1:  # very peaked
+            w = np.exp(rng.normal(size=(n, m)) * rng.uniform(0, 40))
+        elif kind == 2:  # mostly zeros
+            w = (rng.random((n, m)) < 0.1) * 1.0
+            w[:, 0] += 1e-300
+        else:  # uniform: pointers land on the cumulative sums (ties)
+            w = np.ones((n, m))
+        w /= w.sum(axis=-1, keepdims=True)
+        u = np.zeros(n) if trial % 5 == 0 else rng.random(n)
+        flat = systematic_indices(w, u)
+        assert flat.shape == (n * m,)
+        for i in range(n):
+            assert np.array_equal(flat[i * m:(i + 1) * m] - i * m, systematic_resample(w[i], _Fixed(u[i])))
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_fast_calibrated_model_equals_calibrated_sensor_model(name: str) -> None:
+    c = get_condition(name)
+    for seed in (0, 123456789):
+        fast, ref = fast_calibrated_model(c, seed), CalibratedSensorModel(c, seed)
+        assert np.array_equal(fast.mean_table_V, ref.mean_table_V)
+        assert np.array_equal(fast.std_table_V, ref.std_table_V)
+        assert np.array_equal(fast._coef, ref._coef)
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"num_envs": 0}, "num_envs"),
+    ({"num_envs": 2, "autoreset_mode": "sometimes"}, "autoreset_mode"),
+    ({"num_envs": 2, "autoreset_mode": AutoresetMode.DISABLED}, "autoreset_mode"),
+    ({"num_envs": 2, "render_mode": "rgb_array"}, "render_mode"),
+    ({"num_envs": 2, "max_episode_steps": 0}, "max_episode_steps"),
+    ({"num_envs": 2, "n_particles": 0}, "n_particles"),
+    ({"num_envs": 2, "observation": "pixels"}, "observation"),
+    ({"num_envs": 2, "condition": "mud-steel-12.7"}, "mud"),
+])
+def test_bad_constructor_arguments(kwargs: dict[str, Any], match: str) -> None:
+    with pytest.raises((ValueError, KeyError), match=match):
+        ElectroLocVectorEnv(**kwargs)
+
+
+def test_bad_actions_and_step_before_reset() -> None:
+    env = ElectroLocVectorEnv(num_envs=2, n_particles=50)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros((2, 2), dtype=np.float32))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros((3, 2), dtype=np.float32))
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([[np.nan, 0.0], [0.0, 0.0]]))
+    with pytest.raises(ValueError, match="seed"):
+        env.reset(seed=[1, 2, 3])
+    denv = ElectroLocVectorEnv(num_envs=2, n_particles=50, action_type="discrete")
+    denv.reset(seed=0)
+    with pytest.raises(ValueError, match="integers"):
+        denv.step(np.array([0, 9]))
