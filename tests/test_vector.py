@@ -217,3 +217,51 @@ def test_bad_actions_and_step_before_reset() -> None:
     denv.reset(seed=0)
     with pytest.raises(ValueError, match="integers"):
         denv.step(np.array([0, 9]))
+
+
+# ---- SB3 adapter (train/native_vec.py) --------------------------------------------------------
+def test_sb3_adapter_equals_dummy_vec_env() -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from train.native_vec import make_native_vec_env
+
+    kw = {"n_particles": 200, "condition": "random"}
+    native = make_native_vec_env("ElectroLoc-v0", 4, seed=9, env_kwargs=kw)
+    dummy = DummyVecEnv([lambda: Monitor(gym.make("ElectroLoc-v0", **kw)) for _ in range(4)])
+    dummy.seed(9)
+    assert native.observation_space == dummy.observation_space and native.action_space == dummy.action_space
+    assert np.array_equal(native.reset(), dummy.reset())
+    rng = np.random.default_rng(0)
+    n_done = 0
+    for _ in range(60):
+        a = rng.uniform(-1, 1, size=(4, 2)).astype(np.float32)
+        o1, r1, d1, i1 = native.step(a)
+        o2, r2, d2, i2 = dummy.step(a)
+        assert np.array_equal(o1, o2) and np.array_equal(r1, r2) and np.array_equal(d1, d2)
+        for x, y in zip(i1, i2, strict=True):
+            assert x["TimeLimit.truncated"] == y["TimeLimit.truncated"]
+            assert x["spread_mm"] == y["spread_mm"] and x["position_mm"] == y["position_mm"]
+            if "terminal_observation" in y:
+                assert np.array_equal(x["terminal_observation"], y["terminal_observation"])
+                assert x["episode"]["r"] == y["episode"]["r"] and x["episode"]["l"] == y["episode"]["l"]
+                assert x["is_success"] == y["success"]
+        n_done += int(d1.sum())
+    assert n_done >= 3
+
+
+def test_sb3_ppo_learns_on_native_adapter_smoke() -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
+    from train.native_vec import NativeVecEnv, make_native_vec_env
+
+    venv = make_native_vec_env("ElectroLoc-v0", 2, seed=0, env_kwargs={"n_particles": 100})
+    model = PPO("MlpPolicy", venv, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
+    model.learn(64)
+    assert model.num_timesteps >= 64
+    with pytest.raises(ValueError, match="SAME_STEP"):
+        NativeVecEnv(ElectroLocVectorEnv(num_envs=2, n_particles=10))
+    with pytest.raises(ValueError, match="vector_entry_point"):
+        make_native_vec_env("Pendulum-v1", 2, seed=0)

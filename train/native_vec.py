@@ -1,0 +1,155 @@
+"""SB3 adapter for the native batched vector env (issue 7): train directly on N batched tanks.
+
+Stable-Baselines3 cannot consume a Gymnasium ``VectorEnv``; it wants its own ``VecEnv`` protocol
+(auto-reset in the same step, the final observation in ``infos[i]["terminal_observation"]``, a list
+of per-env info dicts). :class:`NativeVecEnv` speaks that protocol on top of
+:class:`electroloc_gym.envs.vector.ElectroLocVectorEnv` built with ``autoreset_mode=SAME_STEP``, so a
+training step is one batched env step — no Python loop over envs in the math.
+
+    from train.native_vec import make_native_vec_env
+    venv = make_native_vec_env("ElectroLoc-v0", n_envs=16, seed=1000, env_kwargs={"condition": "random"})
+    model = PPO("MlpPolicy", venv).learn(100_000)
+
+This lives in ``train/`` (not ``electroloc_gym``) because SB3 imports torch.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
+
+import electroloc_gym  # noqa: F401  (registers the ids)
+
+__all__ = ["NativeVecEnv", "make_native_vec_env"]
+
+#: Info keys of the single env copied into every per-env info dict.
+_INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
+              "condition")
+
+
+class NativeVecEnv(VecEnv):
+    """SB3 ``VecEnv`` over a native Gymnasium vector env that autoresets in the same step.
+
+    Per-env infos hold the single env's keys (``position_mm``/``estimate_mm`` as tuples, like
+    ElectroLoc-v0), ``"TimeLimit.truncated"`` (truncated and not terminated) and, for the envs
+    that finished this step, ``"terminal_observation"`` and ``"is_success"`` (the final ``success``).
+    Seeds set with :meth:`seed` apply at the next :meth:`reset` (env ``i`` gets ``seed + i``),
+    exactly as SB3's ``DummyVecEnv`` seeds its envs, so both train on identical episodes.
+
+    Args:
+        venv: a Gymnasium vector env with ``metadata["autoreset_mode"] == AutoresetMode.SAME_STEP``
+            (e.g. ``gym.make_vec("ElectroLoc-v0", ..., vectorization_mode="vector_entry_point",
+            autoreset_mode="same_step")``).
+    """
+
+    def __init__(self, venv: gym.vector.VectorEnv) -> None:
+        if venv.metadata.get("autoreset_mode") is not AutoresetMode.SAME_STEP:
+            raise ValueError(f"venv must autoreset in the same step (AutoresetMode.SAME_STEP), got "
+                             f"{venv.metadata.get('autoreset_mode')!r}")
+        self.venv = venv
+        super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
+        self._actions: np.ndarray | None = None
+        self._final_obs: np.ndarray | None = None
+
+    # ---- VecEnv protocol ----------------------------------------------------------------------
+    def reset(self) -> VecEnvObs:
+        seeds = None if all(s is None for s in self._seeds) else list(self._seeds)
+        options = self._options[0] if self._options and self._options[0] else None
+        obs, info = self.venv.reset(seed=seeds, options=options)
+        self.reset_infos = self._split_info(info)
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
+
+    def step_wait(self) -> VecEnvStepReturn:
+        if self._actions is None:
+            raise RuntimeError("step_async() must be called before step_wait()")
+        obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
+        self._actions = None
+        self._final_obs = info.get("final_obs")
+        dones = terminated | truncated
+        if dones.any():  # a finished env's info is its episode's last one (as DummyVecEnv), not the reset's
+            final_info = info["final_info"]
+            info = {k: np.where(dones.reshape((-1,) + (1,) * (np.ndim(v) - 1)), final_info[k], v)
+                    for k, v in info.items() if k in _INFO_KEYS}
+        infos = self._split_info(info)
+        timeout = (truncated & ~terminated).tolist()
+        for i, d in enumerate(infos):
+            d["TimeLimit.truncated"] = timeout[i]
+        for i in np.flatnonzero(dones):
+            infos[i]["terminal_observation"] = self._final_obs[i]
+            infos[i]["is_success"] = bool(infos[i]["success"])
+        return obs, rewards.astype(np.float32), dones, infos
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """The vector env's attribute, once per requested index (the sub-envs share one object)."""
+        value = getattr(self.venv, attr_name)
+        return [value for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set an attribute of the whole vector env (sub-envs cannot be set individually)."""
+        setattr(self.venv, attr_name, value)
+
+    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
+                   **method_kwargs: Any) -> list[Any]:
+        """Call a method of the whole vector env once; its result is repeated per requested index."""
+        result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
+        return [result for _ in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None for _ in range(self.num_envs)]
+
+    # ---- internals ----------------------------------------------------------------------------
+    def _split_info(self, info: dict[str, Any]) -> list[dict[str, Any]]:
+        """The vector env's dict of arrays as SB3's list of per-env dicts."""
+        cols: dict[str, Iterable[Any]] = {}
+        for key in _INFO_KEYS:
+            if key in info:
+                v = info[key]
+                cols[key] = [tuple(r) for r in v.tolist()] if v.ndim == 2 else v.tolist()
+        keys = list(cols)
+        return [dict(zip(keys, row, strict=True)) for row in zip(*cols.values(), strict=True)]
+
+
+def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: dict[str, Any] | None = None,
+                        monitor: bool = True) -> VecEnv:
+    """An SB3 ``VecEnv`` of ``n_envs`` sub-envs of ``env_id`` stepped by its native batched vector env.
+
+    Args:
+        env_id: a registered id with a ``vector_entry_point`` (ElectroLoc-v0).
+        n_envs: number of sub-envs (≥ 1).
+        seed: env ``i`` is reset with ``seed + i`` at the first reset (as ``DummyVecEnv.seed``); None:
+            unseeded.
+        env_kwargs: the single env's keyword arguments.
+        monitor: wrap in ``VecMonitor`` (episode return/length in ``info["episode"]``, like the
+            ``Monitor`` the dummy/subproc envs of ``train/__main__.py`` carry).
+
+    Raises:
+        ValueError: the id has no native vector env, or bad ``n_envs``/kwargs.
+    """
+    spec = gym.spec(env_id)
+    if spec.vector_entry_point is None:
+        raise ValueError(f"{env_id} has no native vector env (vector_entry_point); use --vec-env dummy or subproc")
+    if isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
+        raise ValueError(f"n_envs must be an integer ≥ 1, got {n_envs!r}")
+    venv = gym.make_vec(env_id, num_envs=int(n_envs), vectorization_mode="vector_entry_point",
+                        autoreset_mode=AutoresetMode.SAME_STEP, **dict(env_kwargs or {}))
+    wrapped: VecEnv = NativeVecEnv(venv)
+    if seed is not None:
+        wrapped.seed(int(seed))
+    return VecMonitor(wrapped) if monitor else wrapped
