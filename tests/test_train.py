@@ -350,3 +350,19 @@ def test_evaluate_runs_the_learned_policy_and_a_baseline_on_the_same_seeds(tiny_
     assert [r["seed"] for r in learned] == [r["seed"] for r in walk]
     s = summarise(learned)
     assert s["trials"] == 2 and s["successes"] + s["failures"] == 2 and s["decision_ms"] > 0
+
+
+def test_recurrent_policy_carries_and_resets_its_state(tmp_path):
+    sb3_contrib = pytest.importorskip("sb3_contrib")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    venv = DummyVecEnv([lambda: gym.make("ElectroLoc-v0", observation="raw", **FAST_ENV)])
+    model = sb3_contrib.RecurrentPPO("MlpLstmPolicy", venv, n_steps=16, batch_size=16, seed=0, device="cpu",
+                                     policy_kwargs={"lstm_hidden_size": 8, "net_arch": [8]})
+    save_model_dir(model, tmp_path, {"algo": "recurrentppo", "env_kwargs": {"observation": "raw"}})
+    agent = load_policy(tmp_path)
+    assert agent.recurrent and agent.env_kwargs["observation"] == "raw"
+    first = _rollout_actions(agent, 3, observation="raw")
+    assert agent._state is not None  # the LSTM state is kept between calls
+    np.testing.assert_array_equal(first, _rollout_actions(agent, 3, observation="raw"))  # reset() clears it
+    np.testing.assert_array_equal(first, _rollout_actions(load_policy(tmp_path), 3, observation="raw"))
