@@ -443,3 +443,27 @@ def test_cli_eev_global_writes_a_png(tmp_path) -> None:
                          capture_output=True, text=True, env=env, timeout=120)
     assert res.returncode == 0, res.stderr
     assert out.stat().st_size > 10_000 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_table2_statistics_with_the_paper_controllers() -> None:
+    """Table 2 (§6.5) in small: rnd-wlk and min-var, 20 seeded trials each, calibrated map model."""
+    agent_mod = pytest.importorskip("baselines.agent")
+    env = gym.make(GLOBAL_ID)
+    for name, min_success, max_median_err, max_median_steps in (("rnd-wlk", 17, 2.5, 20), ("min-var", 18, 3.0, 9)):
+        ok, errors, steps = 0, [], []
+        for k in range(20):
+            agent = agent_mod.make_agent(name)
+            obs, info = env.reset(seed=1000 + k)
+            agent.seed(k)
+            agent.reset(env)
+            term = trunc = False
+            while not (term or trunc):
+                action, _ = agent.predict(obs)
+                obs, _, term, trunc, info = env.step(action)
+            ok += bool(term and info["success"])
+            errors.append(info["error_mm"])
+            steps.append(info["n_observations"])
+        assert ok >= min_success, (name, ok)
+        assert np.median(errors) <= max_median_err, (name, np.median(errors))
+        assert np.median(steps) <= max_median_steps, (name, np.median(steps))
