@@ -46,6 +46,7 @@ __all__ = [
     "parse_agent_spec",
     "is_policy_path",
     "sample_options_mm",
+    "move_bounds_mm",
     "MAX_STEP_MM",
 ]
 
@@ -119,24 +120,39 @@ class BaselineAgent:
         return f"{type(self).__name__}()"
 
 
-def sample_options_mm(rng: np.random.Generator, position_mm: NDArray, low_mm: NDArray, high_mm: NDArray,
-                      n_options: int = 16, max_step_mm: float = MAX_STEP_MM) -> NDArray[np.float64]:
+def move_bounds_mm(env: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(lo, hi) moves per axis, mm, within ±10 mm that keep the carriage in the allowed box.
+
+    Uses the env's ``move_bounds_mm`` accessor when it has one (the global-localisation env, where the
+    robot cannot know where the walls are, answers ±10 mm), else derives it from ``position_mm`` and
+    ``allowed_box_mm``. 0 is always inside.
+    """
+    core = env.unwrapped if hasattr(env, "unwrapped") else env
+    if hasattr(core, "move_bounds_mm"):
+        lo, hi = core.move_bounds_mm
+        return np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    p = np.asarray(core.position_mm, dtype=np.float64)
+    low, high = core.allowed_box_mm
+    lo = np.minimum(np.maximum(-MAX_STEP_MM, np.asarray(low, dtype=np.float64) - p), 0.0)
+    hi = np.maximum(np.minimum(MAX_STEP_MM, np.asarray(high, dtype=np.float64) - p), 0.0)
+    return lo, hi
+
+
+def sample_options_mm(rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray,
+                      n_options: int = 16) -> NDArray[np.float64]:
     """The paper's control options (§4.1.3): stay, plus ``n_options − 1`` uniform moves in ±10 mm.
 
-    The random moves are drawn uniformly from the part of the ±``max_step_mm`` square around the
-    carriage that lies inside the allowed box, so no option is wasted on a wall (the robot "was
-    permitted to move anywhere within" the box, §5.4).
+    The random moves are drawn uniformly from the move bounds ``[lo_mm, hi_mm]`` per axis (the
+    ±10 mm square clipped to the allowed box, :func:`move_bounds_mm`), so no option is wasted on a
+    wall (the robot "was permitted to move anywhere within" the box, §5.4).
 
     Returns:
         (n_options, 2) moves in mm; row 0 is the stay option (0, 0).
     """
     if n_options < 1:
         raise ValueError(f"n_options must be ≥ 1, got {n_options!r}")
-    p = np.asarray(position_mm, dtype=np.float64)
-    lo = np.maximum(-max_step_mm, np.asarray(low_mm, dtype=np.float64) - p)
-    hi = np.minimum(max_step_mm, np.asarray(high_mm, dtype=np.float64) - p)
-    lo = np.minimum(lo, 0.0)  # the carriage is inside the box, so 0 ∈ [lo, hi]; guard round-off
-    hi = np.maximum(hi, 0.0)
+    lo = np.asarray(lo_mm, dtype=np.float64)
+    hi = np.asarray(hi_mm, dtype=np.float64)
     moves = np.zeros((n_options, 2))
     moves[1:] = lo + (hi - lo) * rng.random((n_options - 1, 2))
     return moves

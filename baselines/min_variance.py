@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agent import MAX_STEP_MM, BaselineAgent, sample_options_mm
+from baselines.agent import BaselineAgent, move_bounds_mm, sample_options_mm
 
 __all__ = [
     "MinVarianceAgent",
@@ -91,7 +91,8 @@ def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDA
       fitted signal; saturated, very sharp models fall back to ``"difference"``.
 
     Args:
-        particles: (M, 2) particle positions, mm.
+        particles: (M, 2) particle positions, mm, or (C, M, 2) positions after each option's move
+            (hypotheses that move with the robot, global localisation).
         weights: (M,) prior weights (None: uniform, as right after the env's resampling).
         mean_V: (C, M) sensor-model mean of each particle's reading under each option, V.
         std_V: (C, M) sensor-model std, V (> 0).
@@ -108,16 +109,16 @@ def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDA
         raise ValueError(f"kernel must be 'auto', 'difference' or 'expanded', got {kernel!r}")
     x = np.asarray(particles, dtype=np.float64)
     n_options, m = mean_V.shape
-    if x.shape != (m, 2) or np.shape(std_V) != mean_V.shape:
+    if x.shape not in ((m, 2), (n_options, m, 2)) or np.shape(std_V) != mean_V.shape:
         raise ValueError(f"shapes disagree: particles {x.shape}, mean_V {mean_V.shape}, std_V {np.shape(std_V)}")
     w = np.full(m, 1.0 / m) if weights is None else np.asarray(weights, dtype=np.float64)
-    centre = w @ x / w.sum()
-    xc = x - centre  # centred coordinates: float32 sums of |x|² do not cancel
-    r2 = np.einsum("ij,ij->i", xc, xc)
+    centre = np.einsum("m,...mi->...i", w, x) / w.sum()
+    xc = x - centre[..., None, :]  # centred coordinates: float32 sums of |x|² do not cancel
+    r2 = np.einsum("...i,...i->...", xc, xc)
     f32 = np.float32
     inv_s = 1.0 / np.asarray(std_V, dtype=np.float64)                          # (C, M)
     g = inv_s * w                                                             # prior × Gaussian 1/σ
-    feats = np.stack([g, g * xc[:, 0], g * xc[:, 1], g * r2], axis=-1).astype(f32)  # (C, M, 4)
+    feats = np.stack([g, g * xc[..., 0], g * xc[..., 1], g * r2], axis=-1).astype(f32)  # (C, M, 4)
     mu64 = np.asarray(mean_V, dtype=np.float64)
     mu64 = mu64 - 0.5 * (mu64.max(axis=1, keepdims=True) + mu64.min(axis=1, keepdims=True))  # z is shift-free
     half_k2 = 0.5 * inv_s**2                                                  # z²/2 = (a − b)²·k²/2
@@ -255,15 +256,20 @@ class MinVarianceAgent(BaselineAgent):
     def choose_move_mm(self) -> NDArray[np.float64]:
         env = self.env
         belief = env.belief
-        low, high = env.allowed_box_mm
-        position = env.position_mm
-        options = sample_options_mm(self.rng, position, low, high, self.n_options, MAX_STEP_MM)
+        options = sample_options_mm(self.rng, *move_bounds_mm(env), self.n_options)
         particles = belief.particles
         weights = belief.weights
         uniform = bool(np.all(weights == weights[0]))
         voters = choose_voters(self.rng, particles.shape[0], self.n_voters)
-        mean, std = option_means_stds(env.sensor_model, particles, position + options)
-        var = predicted_variances(particles, None if uniform else weights, mean, std, voters,
+        if hasattr(env, "predicted_reading_model"):
+            # The env's own motion rule and frame (ElectroLoc-v0: the target is static; the global
+            # env: the hypotheses are the robot's own position and move with it).
+            mean, std = env.predicted_reading_model(particles, options)
+            moved = env.predicted_particles_mm(particles, options)
+        else:
+            mean, std = option_means_stds(env.sensor_model, particles, env.position_mm + options)
+            moved = particles
+        var = predicted_variances(moved, None if uniform else weights, mean, std, voters,
                                   chunk_rows=self.chunk_rows, exp_floor=self.exp_floor)
         best, votes = count_votes(var)
         self.last_votes, self.last_options_mm = votes, options

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agent import MAX_STEP_MM, BaselineAgent, sample_options_mm
+from baselines.agent import BaselineAgent, move_bounds_mm, sample_options_mm
 
 __all__ = ["RandomWalkAgent"]
 
@@ -32,9 +32,7 @@ class RandomWalkAgent(BaselineAgent):
         self.n_options = n_options
 
     def choose_move_mm(self) -> NDArray[np.float64]:
-        env = self.env
-        low, high = env.allowed_box_mm
-        options = sample_options_mm(self.rng, env.position_mm, low, high, self.n_options, MAX_STEP_MM)
+        options = sample_options_mm(self.rng, *move_bounds_mm(self.env), self.n_options)
         return options[int(self.rng.integers(self.n_options))]
 
     def __repr__(self) -> str:

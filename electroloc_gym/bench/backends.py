@@ -1,0 +1,149 @@
+"""Where benchmark trials run: pluggable backends behind one small interface.
+
+A backend maps a picklable, module-level ``worker_fn`` over picklable trial specs and yields
+``(spec, result)`` pairs *as trials finish* (any order). Results never depend on the backend or the
+worker count: every trial carries its own seeds (``numpy.random.SeedSequence`` indexed by condition
+and trial, see :mod:`electroloc_gym.bench.runner`), and workers build their envs and agents
+themselves.
+
+Built in: ``"process"`` (default; a local ``concurrent.futures`` process pool, ``spawn`` start
+method, every worker pinned to one numeric thread — DESIGN §10) and ``"serial"`` (in-process, for
+debugging and tests). More backends (e.g. Ray) register with :func:`register_backend`::
+
+    class RayBackend(Backend):
+        name = "ray"
+        def __init__(self, workers=None, address=None): ...
+        def run_trials(self, specs, worker_fn): ...   # yield (spec, result) as they finish
+    register_backend(RayBackend)
+"""
+
+from __future__ import annotations
+
+import abc
+import concurrent.futures as cf
+import multiprocessing as mp
+import os
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, ClassVar
+
+__all__ = ["Backend", "SerialBackend", "ProcessBackend", "BACKENDS", "register_backend", "make_backend",
+           "pin_threads", "default_workers"]
+
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
+                "VECLIB_MAXIMUM_THREADS")
+
+
+def pin_threads() -> None:
+    """Pin numeric libraries of this process to one thread (DESIGN §10: parallelise by process)."""
+    for var in _THREAD_VARS:
+        os.environ[var] = "1"
+    try:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(1)
+    except ImportError:  # pragma: no cover - optional
+        pass
+    import sys
+
+    if "torch" in sys.modules:  # never import torch here; pin it only if a policy loaded it
+        sys.modules["torch"].set_num_threads(1)
+
+
+def default_workers() -> int:
+    """All cores available to this process."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - non-Linux
+        return max(1, os.cpu_count() or 1)
+
+
+class Backend(abc.ABC):
+    """Runs trial specs through a worker function.
+
+    Args:
+        workers: parallel workers (None: all cores); backends that have no notion of it ignore it.
+    """
+
+    #: Name used by ``--backend``.
+    name: ClassVar[str] = ""
+
+    def __init__(self, workers: int | None = None, **options: Any) -> None:
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise ValueError(f"workers must be an integer ≥ 1 or None (all cores), got {workers!r}")
+        if options:
+            raise ValueError(f"backend {self.name!r} takes no options, got {sorted(options)}")
+        self.workers = default_workers() if workers is None else workers
+
+    @abc.abstractmethod
+    def run_trials(self, specs: Sequence[Any], worker_fn: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
+        """Yield ``(spec, worker_fn(spec))`` for every spec as it finishes (any order).
+
+        A failing trial raises its exception from the iterator (after which no more results come).
+        """
+
+
+class SerialBackend(Backend):
+    """In-process, one trial after another (debugging, tests, tiny runs)."""
+
+    name = "serial"
+
+    def run_trials(self, specs: Sequence[Any], worker_fn: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
+        for spec in specs:
+            yield spec, worker_fn(spec)
+
+
+class ProcessBackend(Backend):
+    """A local process pool (``concurrent.futures.ProcessPoolExecutor``, spawn), one thread per worker."""
+
+    name = "process"
+
+    def run_trials(self, specs: Sequence[Any], worker_fn: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
+        if not specs:
+            return
+        if self.workers == 1:
+            pin_threads()
+            yield from SerialBackend(1).run_trials(specs, worker_fn)
+            return
+        ctx = mp.get_context("spawn")  # no inherited locks/threads (tqdm's monitor, BLAS pools)
+        saved = {v: os.environ.get(v) for v in _THREAD_VARS}
+        for v in _THREAD_VARS:  # children read these at numpy import, before the initializer runs
+            os.environ[v] = "1"
+        try:
+            with cf.ProcessPoolExecutor(max_workers=min(self.workers, len(specs)), mp_context=ctx,
+                                        initializer=pin_threads) as pool:
+                futures = {pool.submit(worker_fn, spec): spec for spec in specs}
+                try:
+                    for fut in cf.as_completed(futures):
+                        yield futures[fut], fut.result()
+                finally:
+                    for fut in futures:
+                        fut.cancel()
+        finally:
+            for v, val in saved.items():
+                if val is None:
+                    os.environ.pop(v, None)
+                else:
+                    os.environ[v] = val
+
+
+#: Backend name → class. Add more with :func:`register_backend`.
+BACKENDS: dict[str, type[Backend]] = {"process": ProcessBackend, "serial": SerialBackend}
+
+
+def register_backend(cls: type[Backend]) -> type[Backend]:
+    """Register a :class:`Backend` subclass under its ``name`` (usable as a decorator)."""
+    if not (isinstance(cls, type) and issubclass(cls, Backend)) or not cls.name:
+        raise ValueError(f"backend must be a Backend subclass with a name, got {cls!r}")
+    BACKENDS[cls.name] = cls
+    return cls
+
+
+def make_backend(name: str, workers: int | None = None, **options: Any) -> Backend:
+    """Build a backend by name.
+
+    Raises:
+        ValueError: unknown name (lists the known ones) or bad options.
+    """
+    if name not in BACKENDS:
+        raise ValueError(f"backend must be one of {sorted(BACKENDS)}, got {name!r}")
+    return BACKENDS[name](workers=workers, **options)

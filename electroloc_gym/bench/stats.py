@@ -1,0 +1,158 @@
+"""Statistics of benchmark trials, following the paper's Appendix B.
+
+Appendix B (Table 4):
+
+* **Success (failure)**: trials that reached √trace Σ ≤ 10 mm within 35 observations (and the rest).
+* **Mean error and mean steps** omit every start position on which *either* controller failed
+  ("if either controller yielded a failure trial, then data from these trials was omitted in
+  calculating the mean error and the mean number of steps"): here, a trial index counts for the
+  means only if every Table-4 agent of the run succeeded on it (``*_paired`` keys; with a single
+  Table-4 agent this is its own successes).
+* **Medians use all trials**, failures included (a failure's steps are the 35 observations it used,
+  its error is that of its final estimate).
+* **"All conditions"**: the paper's row averages the eight per-condition statistics (check: rnd-wlk
+  median steps (9 + 10 + 23.5 + 9.5 + 11 + 8.5 + 13 + 14.5)/8 = 12.4, min-var
+  (5 + 6 + 6.5 + 5 + 7 + 5 + 6.5 + 12.5)/8 = 6.7 — the paper's 12.4 and 6.7), with summed counts.
+  Pooled medians over all trials are given too (``*_pooled`` keys).
+
+``summary.json`` rows also carry the per-agent versions of the means (``error_mean_mm``,
+``steps_mean``: over the agent's own successful trials, App. B item 3's wording for steps), which do
+not change when other agents join the run.
+
+Table 1 (zero-crossing): mean absolute error in x and in y of the final estimates
+(``error_x_mean_abs_mm``, ``error_y_mean_abs_mm``, successful trials), and the repeatability the
+paper's text describes (mean distance of the estimates from their own mean, ``*_repeatability_mm``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = ["summarize", "RULES"]
+
+RULES = (
+    "Appendix B: success (failure) counts; mean error and mean steps over the start positions on which every "
+    "Table-4 agent succeeded (*_paired; error_mean_mm/steps_mean: the agent's own successes); medians over all "
+    "trials, failures included; 'all' rows average the per-condition statistics as the paper's 'All conditions' "
+    "row does (pooled medians in *_pooled). steps = observations fused (info['n_observations'])."
+)
+
+
+def _num(values: Iterable[Any]) -> np.ndarray:
+    return np.asarray([float(v) for v in values if v is not None], dtype=float)
+
+
+def _mean(values: Iterable[Any]) -> float | None:
+    a = _num(values)
+    return float(a.mean()) if a.size else None
+
+
+def _median(values: Iterable[Any]) -> float | None:
+    a = _num(values)
+    return float(np.median(a)) if a.size else None
+
+
+def _avg_of(rows: Sequence[dict[str, Any]], key: str) -> float | None:
+    return _mean(r[key] for r in rows)
+
+
+def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int]) -> dict[str, Any]:
+    ok = [r for r in recs if r["success"]]
+    pair = [r for r in recs if int(r["trial"]) in paired]
+    row: dict[str, Any] = {
+        "condition": condition,
+        "agent": agent,
+        "label": recs[0].get("agent_label", agent) if recs else agent,
+        "layout": recs[0].get("layout", "table4") if recs else "table4",
+        "trials": len(recs),
+        "successes": len(ok),
+        "failures": len(recs) - len(ok),
+        "error_mean_mm": _mean(r["error_mm"] for r in ok),
+        "error_median_mm": _median(r["error_mm"] for r in recs),
+        "steps_mean": _mean(r["observations"] for r in ok),
+        "steps_median": _median(r["observations"] for r in recs),
+        "decision_ms_median": _median(r.get("decision_ms_median") for r in recs),
+        "paired_trials": len(pair),
+        "error_mean_paired_mm": _mean(r["error_mm"] for r in pair),
+        "steps_mean_paired": _mean(r["observations"] for r in pair),
+        "error_x_mean_abs_mm": _mean(abs(r["error_x_mm"]) for r in ok if r.get("error_x_mm") is not None),
+        "error_y_mean_abs_mm": _mean(abs(r["error_y_mm"]) for r in ok if r.get("error_y_mm") is not None),
+    }
+    est = np.asarray([r["estimate"] for r in ok if r.get("estimate") is not None], dtype=float).reshape(-1, 2)
+    if est.shape[0]:
+        dev = np.abs(est - est.mean(axis=0))
+        row["error_x_repeatability_mm"] = float(dev[:, 0].mean())
+        row["error_y_repeatability_mm"] = float(dev[:, 1].mean())
+    else:
+        row["error_x_repeatability_mm"] = row["error_y_repeatability_mm"] = None
+    return row
+
+
+def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = None,
+              conditions: Sequence[str] | None = None) -> dict[str, Any]:
+    """Rows per condition × agent plus ``"condition": "all"`` rows (see the module docstring).
+
+    Args:
+        records: trial records (``run_trial`` output / trials.jsonl lines).
+        agents: agent order (default: order of first appearance).
+        conditions: condition order (default: order of first appearance).
+
+    Returns:
+        ``{"rules": ..., "rows": [...]}``; every row has the keys condition, agent, trials, successes,
+        failures, error_mean_mm, error_median_mm, steps_mean, steps_median, decision_ms_median (and
+        more, see the module docstring). Missing statistics are None (JSON null), never NaN.
+    """
+    agents = list(dict.fromkeys(agents if agents is not None else [r["agent"] for r in records]))
+    conditions = list(dict.fromkeys(conditions if conditions is not None else [r["condition"] for r in records]))
+    by: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in records:
+        by.setdefault((r["condition"], r["agent"]), []).append(r)
+    for recs in by.values():
+        recs.sort(key=lambda r: int(r["trial"]))
+    layout = {a: next((r.get("layout", "table4") for r in records if r["agent"] == a), "table4") for a in agents}
+    table4 = [a for a in agents if layout[a] == "table4"]
+    rows: list[dict[str, Any]] = []
+    per_agent: dict[str, list[dict[str, Any]]] = {a: [] for a in agents}
+    for c in conditions:
+        # App. B pairing: trial indices on which every Table-4 agent succeeded.
+        succ_sets = [{int(r["trial"]) for r in by.get((c, a), []) if r["success"]} for a in table4]
+        paired_t4 = set.intersection(*succ_sets) if succ_sets else set()
+        for a in agents:
+            recs = by.get((c, a), [])
+            if not recs:
+                continue
+            paired = paired_t4 if layout[a] == "table4" else {int(r["trial"]) for r in recs if r["success"]}
+            row = _row(c, a, recs, paired)
+            rows.append(row)
+            per_agent[a].append(row)
+    for a in agents:
+        crow = per_agent[a]
+        if not crow:
+            continue
+        recs = [r for c in conditions for r in by.get((c, a), [])]
+        rows.append({
+            "condition": "all",
+            "agent": a,
+            "label": crow[0]["label"],
+            "layout": layout[a],
+            "conditions": len(crow),
+            "trials": sum(r["trials"] for r in crow),
+            "successes": sum(r["successes"] for r in crow),
+            "failures": sum(r["failures"] for r in crow),
+            "error_mean_mm": _avg_of(crow, "error_mean_mm"),
+            "error_median_mm": _avg_of(crow, "error_median_mm"),
+            "steps_mean": _avg_of(crow, "steps_mean"),
+            "steps_median": _avg_of(crow, "steps_median"),
+            "decision_ms_median": _median(r.get("decision_ms_median") for r in recs),
+            "paired_trials": sum(r["paired_trials"] for r in crow),
+            "error_mean_paired_mm": _avg_of(crow, "error_mean_paired_mm"),
+            "steps_mean_paired": _avg_of(crow, "steps_mean_paired"),
+            "error_median_pooled_mm": _median(r["error_mm"] for r in recs),
+            "steps_median_pooled": _median(r["observations"] for r in recs),
+            "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
+            "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),
+        })
+    return {"rules": RULES, "agents": agents, "conditions": conditions, "rows": rows}

@@ -1,0 +1,145 @@
+"""Markdown tables in the paper's layouts (Table 4, Table 1) with the paper's numbers beside ours."""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "render_table_md", "paper_agent_key"]
+
+# Table 4 (App. B): (successes, failures, error mean, error median (mm), steps mean, steps median).
+PAPER_TABLE4: dict[tuple[str, str], tuple[int, int, float, float, float, float]] = {
+    ("fresh-steel-12.7", "rnd-wlk"): (41, 9, 2.0, 1.5, 10, 9),
+    ("fresh-steel-12.7", "min-var"): (50, 0, 1.7, 1.1, 10, 5),
+    ("fresh-delrin-12.7", "rnd-wlk"): (35, 15, 2.1, 2.0, 9, 10),
+    ("fresh-delrin-12.7", "min-var"): (50, 0, 1.5, 1.1, 10, 6),
+    ("fresh-steel-38.1", "rnd-wlk"): (32, 18, 2.2, 2.8, 15, 23.5),
+    ("fresh-steel-38.1", "min-var"): (44, 6, 1.4, 1.5, 9, 6.5),
+    ("fresh-delrin-38.1", "rnd-wlk"): (35, 15, 2.4, 2.8, 10, 9.5),
+    ("fresh-delrin-38.1", "min-var"): (49, 1, 2.2, 2.4, 9, 5),
+    ("salt-steel-12.7", "rnd-wlk"): (35, 15, 4.3, 4.9, 11, 11),
+    ("salt-steel-12.7", "min-var"): (49, 1, 3.9, 3.7, 10, 7),
+    ("salt-delrin-12.7", "rnd-wlk"): (41, 9, 2.3, 2.2, 10, 8.5),
+    ("salt-delrin-12.7", "min-var"): (50, 0, 2.7, 1.9, 7, 5),
+    ("salt-steel-38.1", "rnd-wlk"): (37, 13, 1.1, 1.0, 10, 13),
+    ("salt-steel-38.1", "min-var"): (45, 5, 1.3, 1.0, 11, 6.5),
+    ("salt-delrin-38.1", "rnd-wlk"): (31, 19, 3.1, 4.9, 11, 14.5),
+    ("salt-delrin-38.1", "min-var"): (44, 6, 2.9, 2.8, 11, 12.5),
+}
+#: Table 4's "All conditions" rows.
+PAPER_TABLE4_ALL: dict[str, tuple[int, int, float, float, float, float]] = {
+    "rnd-wlk": (287, 113, 2.4, 2.8, 10.8, 12.4),
+    "min-var": (381, 19, 2.2, 1.9, 9.7, 6.7),
+}
+#: Table 1: zero-crossing mean absolute error (x, y), mm, 50 trials per condition.
+PAPER_TABLE1: dict[str, tuple[float, float]] = {
+    "fresh-steel-12.7": (0.06, 0.39),
+    "fresh-delrin-12.7": (0.05, 0.64),
+    "fresh-steel-38.1": (0.05, 0.93),
+    "fresh-delrin-38.1": (0.06, 0.89),
+    "salt-steel-12.7": (0.23, 0.47),
+    "salt-delrin-12.7": (0.14, 0.59),
+    "salt-steel-38.1": (0.06, 0.78),
+    "salt-delrin-38.1": (0.05, 0.69),
+}
+
+_WATER = {"fresh": "Fresh", "salt": "Salt"}
+_MATERIAL = {"steel": "S", "delrin": "P"}
+
+
+def paper_agent_key(agent: str) -> str | None:
+    """The paper's controller an agent spec corresponds to (``min-var[n_voters=2500]`` → ``min-var``)."""
+    base = agent.split("[", 1)[0]
+    return base if base in ("rnd-wlk", "min-var", "zero-crossing") else None
+
+
+def _cond_label(name: str) -> tuple[str, str]:
+    water, material, diam = name.split("-")
+    return _WATER.get(water, water), f"{diam}/{_MATERIAL.get(material, material)}"
+
+
+def _f(x: Any, digits: int = 1) -> str:
+    return "–" if x is None else f"{x:.{digits}f}"
+
+
+def _pair(a: Any, b: Any, digits: int = 1) -> str:
+    return f"{_f(a, digits)}/{_f(b, digits)}"
+
+
+def render_table_md(summary: dict[str, Any]) -> str:
+    """table.md: Table 4 layout for the belief agents, Table 1 layout for zero-crossing agents."""
+    rows = summary["rows"]
+    cfg = summary.get("config", {})
+    t4 = [r for r in rows if r.get("layout", "table4") == "table4"]
+    t1 = [r for r in rows if r.get("layout") == "table1"]
+    out: list[str] = []
+    out.append(f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}")
+    out.append("")
+    if cfg:
+        out.append(f"{cfg.get('trials')} trials per condition and agent, seed {cfg.get('seed')}, sensor model "
+                   f"`{cfg.get('sensor_model')}`, signal `{cfg.get('signal')}`, {cfg.get('n_particles')} particles, "
+                   f"cap {cfg.get('max_observations')} observations. Paper values (Solberg, Lynch & MacIver 2008) "
+                   f"in the right-hand columns.")
+        out.append("")
+    if t4:
+        out.append("## Table 4 layout (particle-filter agents)")
+        out.append("")
+        out.append("Appendix B rules, followed here: *success (failure)* counts trials with √trace Σ ≤ 10 mm within "
+                   "the cap; the **mean** error and mean steps omit every start position on which either (here: any) "
+                   "Table-4 agent of the run failed; the **medians** use all trials, failures included; the "
+                   "*All conditions* row averages the per-condition values (as the paper's row does: its 12.4 and "
+                   "6.7 median steps are the averages of the eight medians). Steps = observations fused.")
+        out.append("")
+        out.append("| Water | Sphere (mm)/material | Agent | Success (failure) | Error (mm) mean/median "
+                   "| No. steps mean/median | Decision ms | Paper success (failure) | Paper error | Paper steps |")
+        out.append("|---|---|---|---|---|---|---|---|---|---|")
+        for r in t4:
+            if r["condition"] == "all":
+                water, sphere = "All conditions", ""
+                paper = PAPER_TABLE4_ALL.get(paper_agent_key(r["agent"]) or "")
+            else:
+                water, sphere = _cond_label(r["condition"])
+                paper = PAPER_TABLE4.get((r["condition"], paper_agent_key(r["agent"]) or ""))
+            ps = f"{paper[0]}({paper[1]})" if paper else ""
+            pe = _pair(paper[2], paper[3]) if paper else ""
+            pst = f"{paper[4]:g}/{paper[5]:g}" if paper else ""
+            out.append(f"| {water} | {sphere} | {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
+                       f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
+                       f"| {_pair(r['steps_mean_paired'], r['steps_median'])} | {_f(r['decision_ms_median'], 2)} "
+                       f"| {ps} | {pe} | {pst} |")
+        out.append("")
+        alls = [r for r in t4 if r["condition"] == "all"]
+        if alls:
+            out.append("Pooled over all trials (not the paper's convention): " + "; ".join(
+                f"{r.get('label', r['agent'])}: median steps {_f(r.get('steps_median_pooled'))}, median error "
+                f"{_f(r.get('error_median_pooled_mm'), 2)} mm, own-success means: error "
+                f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('steps_mean'))}" for r in alls) + ".")
+            out.append("")
+    if t1:
+        out.append("## Table 1 layout (zero-crossing)")
+        out.append("")
+        out.append("Workspace 160 × 160 mm centred at a random point within ±75 mm (paper §6.4); mean absolute error "
+                   "of the final estimate in x and y over successful trials. *Repeatability* is the mean distance "
+                   "of the estimates from their own mean (what the paper's text says its table measures). Steps = "
+                   "readings taken (the paper does not report them).")
+        out.append("")
+        out.append("| Condition | Agent | Success (failure) | Mean abs. error x (mm) | y (mm) "
+                   "| Repeatability x/y (mm) | Steps median | Paper x (mm) | Paper y (mm) |")
+        out.append("|---|---|---|---|---|---|---|---|---|")
+        for r in t1:
+            if r["condition"] == "all":
+                label, paper = "All conditions (average)", None
+                xs = [PAPER_TABLE1[c][0] for c in PAPER_TABLE1]
+                ys = [PAPER_TABLE1[c][1] for c in PAPER_TABLE1]
+                paper = (sum(xs) / len(xs), sum(ys) / len(ys))
+                rep = ""
+            else:
+                water, sphere = _cond_label(r["condition"])
+                label = f"{water} {sphere}"
+                paper = PAPER_TABLE1.get(r["condition"])
+                rep = _pair(r.get("error_x_repeatability_mm"), r.get("error_y_repeatability_mm"), 2)
+            out.append(f"| {label} | {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
+                       f"| {_f(r.get('error_x_mean_abs_mm'), 2)} | {_f(r.get('error_y_mean_abs_mm'), 2)} | {rep} "
+                       f"| {_f(r['steps_median'], 0)} | {_f(paper[0], 2) if paper else ''} "
+                       f"| {_f(paper[1], 2) if paper else ''} |")
+        out.append("")
+    return "\n".join(out)

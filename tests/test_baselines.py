@@ -1,0 +1,320 @@
+"""The paper's controllers: move limits, Algorithm 1 against a literal implementation, registry errors."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import electroloc_gym  # noqa: F401  (registers the ids)
+from baselines.agent import (
+    MAX_STEP_MM,
+    BaselineAgent,
+    make_agent,
+    move_bounds_mm,
+    parse_agent_spec,
+    sample_options_mm,
+)
+from baselines.min_variance import (
+    MinVarianceAgent,
+    choose_voters,
+    count_votes,
+    literal_predicted_variances,
+    option_means_stds,
+    predicted_variances,
+)
+from baselines.random_walk import RandomWalkAgent
+from baselines.zero_crossing import ZeroCrossingAgent
+from electroloc_gym.conditions import get_condition
+
+
+def _run(agent, condition="fresh-steel-12.7", seed=0, n_particles=300, max_steps=None, **env_kwargs):
+    """Run one trial; return (positions before each step, moves requested in mm, final info)."""
+    cond = get_condition(condition)
+    if hasattr(agent, "adapt_condition"):
+        cond = agent.adapt_condition(cond)
+    kwargs = {"condition": cond, "n_particles": n_particles, **env_kwargs, **agent.env_kwargs}
+    env = gym.make("ElectroLoc-v0", **kwargs)
+    obs, info = env.reset(seed=seed)
+    agent.reset(env)
+    positions, moves, boxes = [], [], []
+    steps = 0
+    while True:
+        action, _ = agent.predict(obs)
+        if getattr(agent, "done", False):
+            break
+        a = np.asarray(action, dtype=np.float64)
+        assert a.shape == (2,) and np.all(np.abs(a) <= 1.0 + 1e-7)
+        positions.append(env.unwrapped.position_mm)
+        moves.append(a * MAX_STEP_MM)
+        boxes.append(env.unwrapped.allowed_box_mm)
+        obs, _, term, trunc, info = env.step(action)
+        # the carriage went exactly where the agent asked (no move was clipped by a wall)
+        np.testing.assert_allclose(env.unwrapped.position_mm, positions[-1] + moves[-1], atol=1e-4)
+        steps += 1
+        if term or trunc or (max_steps is not None and steps >= max_steps):
+            break
+    return np.array(positions), np.array(moves), info, env
+
+
+# ---- options and registry ------------------------------------------------------------------------
+def test_sample_options_stay_first_and_inside_bounds() -> None:
+    rng = np.random.default_rng(0)
+    lo, hi = np.array([-10.0, -3.0]), np.array([4.0, 10.0])
+    opts = sample_options_mm(rng, lo, hi, 16)
+    assert opts.shape == (16, 2)
+    np.testing.assert_array_equal(opts[0], [0.0, 0.0])
+    assert np.all(opts >= lo) and np.all(opts <= hi)
+    with pytest.raises(ValueError, match="n_options"):
+        sample_options_mm(rng, lo, hi, 0)
+
+
+def test_move_bounds_clip_to_box() -> None:
+    env = gym.make("ElectroLoc-v0", n_particles=50)
+    env.reset(seed=1)
+    env.unwrapped._position = np.array([47.0, -50.0])  # test setup only: put the carriage near two walls
+    lo, hi = move_bounds_mm(env)
+    np.testing.assert_allclose(lo, [-10.0, 0.0])
+    np.testing.assert_allclose(hi, [3.0, 10.0])
+
+
+@pytest.mark.parametrize("name,cls", [("rnd-wlk", RandomWalkAgent), ("min-var", MinVarianceAgent),
+                                      ("zero-crossing", ZeroCrossingAgent)])
+def test_make_agent_builds_registry_agents(name: str, cls: type) -> None:
+    agent = make_agent(name, seed=3)
+    assert isinstance(agent, cls) and isinstance(agent, BaselineAgent)
+    assert isinstance(agent.env_kwargs, dict)
+
+
+def test_make_agent_options() -> None:
+    agent = make_agent("min-var[n_voters=64, n_options=8]")
+    assert agent.n_voters == 64 and agent.n_options == 8
+    assert make_agent("min-var[n_voters=None]").n_voters is None
+    assert parse_agent_spec("rnd-wlk") == ("rnd-wlk", {})
+
+
+@pytest.mark.parametrize("spec,match", [
+    ("nope", "unknown agent 'nope'"),
+    ("min-var[n_voters=0]", "n_voters"),
+    ("min-var[bogus=1]", "bad options for agent 'min-var'"),
+    ("min-var[n_voters]", "key=value"),
+    ("", "non-empty"),
+    ("rnd wlk!", "malformed"),
+])
+def test_make_agent_bad_names(spec: str, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        make_agent(spec)
+
+
+def test_make_agent_bad_paths(tmp_path) -> None:
+    missing = tmp_path / "nothing.zip"
+    with pytest.raises(ValueError, match="nothing.zip"):
+        make_agent(str(missing))
+    empty_dir = tmp_path / "run"
+    empty_dir.mkdir()
+    with pytest.raises(ValueError, match="without model.zip"):
+        make_agent(str(empty_dir))
+
+
+@pytest.mark.skipif(importlib.util.find_spec("train") is None or importlib.util.find_spec("train.policy") is None
+                    or importlib.util.find_spec("stable_baselines3") is None,
+                    reason="train.policy / stable-baselines3 not available")
+def test_make_agent_corrupt_policy_names_path(tmp_path) -> None:
+    bad = tmp_path / "corrupt.zip"
+    bad.write_bytes(b"this is not a zip file")
+    with pytest.raises(ValueError, match="corrupt.zip"):
+        make_agent(str(bad))
+
+
+# ---- every agent's moves: ≤ 10 mm per axis, never out of the box -----------------------------------
+@pytest.mark.parametrize("spec", ["rnd-wlk", "min-var[n_voters=32]"])
+@pytest.mark.parametrize("condition", ["fresh-steel-12.7", "salt-delrin-38.1"])
+def test_belief_agents_moves_within_limits(spec: str, condition: str) -> None:
+    agent = make_agent(spec, seed=5)
+    positions, moves, info, env = _run(agent, condition, seed=2, n_particles=300)
+    assert len(moves) >= 1
+    assert np.all(np.abs(moves) <= MAX_STEP_MM + 1e-6)
+    low, high = env.unwrapped.allowed_box_mm
+    path = env.unwrapped.path_mm
+    assert np.all(path >= low - 1e-9) and np.all(path <= high + 1e-9)
+
+
+def test_belief_agents_hug_the_wall_without_leaving() -> None:
+    # Start the carriage in a corner: options must stay inside (moves are never clipped, checked in _run).
+    agent = make_agent("rnd-wlk", seed=1)
+    env = gym.make("ElectroLoc-v0", n_particles=100)
+    env.reset(seed=0)
+    env.unwrapped._position = np.array([50.0, -50.0])  # test setup only
+    agent.reset(env)
+    for _ in range(30):
+        a, _ = agent.predict(None)
+        before = env.unwrapped.position_mm
+        env.step(a)
+        np.testing.assert_allclose(env.unwrapped.position_mm, before + np.asarray(a, float) * MAX_STEP_MM, atol=1e-4)
+
+
+def test_zero_crossing_moves_within_limits_and_workspace() -> None:
+    agent = make_agent("zero-crossing")
+    positions, moves, info, env = _run(agent, "fresh-steel-12.7", seed=4, n_particles=16)
+    assert agent.done and agent.estimate_mm is not None
+    assert np.all(np.abs(moves) <= MAX_STEP_MM + 1e-6)
+    lo, hi = agent.workspace_mm
+    path = env.unwrapped.path_mm
+    assert np.all(path >= lo - 1e-6) and np.all(path <= hi + 1e-6)
+    assert np.all(hi - lo <= 160.0 + 1e-9)
+
+
+def test_rnd_wlk_seeded_determinism() -> None:
+    a1 = _run(make_agent("rnd-wlk", seed=7), seed=1, max_steps=10)[1]
+    a2 = _run(make_agent("rnd-wlk", seed=7), seed=1, max_steps=10)[1]
+    a3 = _run(make_agent("rnd-wlk", seed=8), seed=1, max_steps=10)[1]
+    np.testing.assert_array_equal(a1, a2)
+    assert not np.array_equal(a1, a3)
+
+
+# ---- min-var: Algorithm 1 ----------------------------------------------------------------------------
+def _small_belief(condition: str, sensor_model: str, m: int, steps: int = 2, seed: int = 0):
+    env = gym.make("ElectroLoc-v0", condition=condition, sensor_model=sensor_model, n_particles=m)
+    env.reset(seed=seed)
+    for _ in range(steps):
+        env.step(np.array([0.7, -0.4], dtype=np.float32))
+    return env.unwrapped
+
+
+@pytest.mark.parametrize("condition,sensor_model", [("fresh-steel-12.7", "calibrated"),
+                                                    ("salt-delrin-38.1", "analytic")])
+@pytest.mark.parametrize("kernel", ["difference", "expanded"])
+@pytest.mark.parametrize("weighted", [False, True])
+def test_vectorised_vote_equals_literal(condition: str, sensor_model: str, kernel: str, weighted: bool) -> None:
+    core = _small_belief(condition, sensor_model, m=48)
+    rng = np.random.default_rng(11)
+    options = sample_options_mm(rng, *move_bounds_mm(core), 16)
+    particles = core.belief.particles
+    weights = rng.dirichlet(np.ones(particles.shape[0])) if weighted else None
+    voters = choose_voters(rng, particles.shape[0], 12)
+    positions = core.position_mm + options
+    mean, std = option_means_stds(core.sensor_model, particles, positions)
+    fast = predicted_variances(particles, weights, mean, std, voters, kernel=kernel, chunk_rows=5)
+    ref = literal_predicted_variances(core.sensor_model, particles, weights, positions, voters)
+    np.testing.assert_allclose(fast, ref, rtol=2e-4, atol=1e-6)
+    # Same ballots wherever the literal vote is not a float-rounding tie, and the same winner.
+    srt = np.sort(ref, axis=1)
+    clear = (srt[:, 1] - srt[:, 0]) > 1e-3 * srt[:, 0]
+    np.testing.assert_array_equal(fast.argmin(axis=1)[clear], ref.argmin(axis=1)[clear])
+    assert count_votes(fast)[0] == count_votes(ref)[0]
+
+
+def test_env_prediction_api_matches_direct_offsets() -> None:
+    core = _small_belief("fresh-delrin-12.7", "calibrated", m=64)
+    options = sample_options_mm(np.random.default_rng(0), *move_bounds_mm(core), 16)
+    a = core.predicted_reading_model(core.belief.particles, options)
+    b = option_means_stds(core.sensor_model, core.belief.particles, core.position_mm + options)
+    np.testing.assert_allclose(a[0], b[0], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(a[1], b[1], rtol=1e-5, atol=1e-6)
+
+
+def test_weighted_variance_is_the_expected_resampled_variance() -> None:
+    # Algorithm 1 step 4–5 resample; E[population variance of M multinomial draws] = (M−1)/M · weighted var.
+    rng = np.random.default_rng(0)
+    m = 40
+    x = rng.normal(size=(m, 2)) * [3.0, 1.0]
+    w = rng.dirichlet(np.ones(m))
+    mean = w @ x
+    wvar = float(np.sum(w * np.sum((x - mean) ** 2, axis=1)))
+    draws = rng.choice(m, size=(20000, m), p=w)
+    xs = x[draws]
+    pop = np.mean(np.sum((xs - xs.mean(axis=1, keepdims=True)) ** 2, axis=2), axis=1)
+    assert abs(pop.mean() - (m - 1) / m * wvar) < 4 * pop.std() / np.sqrt(pop.size)
+
+
+def test_particles_per_option_equal_shared_when_static() -> None:
+    core = _small_belief("fresh-steel-12.7", "analytic", m=80)
+    options = sample_options_mm(np.random.default_rng(2), *move_bounds_mm(core), 16)
+    p = core.belief.particles
+    mean, std = option_means_stds(core.sensor_model, p, core.position_mm + options)
+    voters = np.arange(80)
+    a = predicted_variances(p, None, mean, std, voters)
+    b = predicted_variances(np.broadcast_to(p, (16, *p.shape)), None, mean, std, voters)
+    np.testing.assert_allclose(a, b, rtol=1e-6)
+
+
+def test_count_votes_ties_go_to_lowest_option() -> None:
+    var = np.array([[1.0, 0.5, 0.5], [2.0, 1.0, 0.1], [0.2, 0.3, 0.4], [0.9, 0.1, 0.3]])
+    best, votes = count_votes(var)
+    np.testing.assert_array_equal(votes, [1, 2, 1])
+    assert best == 1
+    assert count_votes(np.array([[0.0, 1.0], [1.0, 0.0]]))[0] == 0
+
+
+def test_min_var_prefers_informative_move() -> None:
+    # A belief split in two clusters along x: moving toward one cluster separates them; staying does not.
+    class _Belief:
+        particles = np.concatenate([np.full((50, 2), [-20.0, 0.0]), np.full((50, 2), [20.0, 0.0])]).astype(np.float32)
+        particles += np.random.default_rng(0).normal(0, 1.0, particles.shape).astype(np.float32)
+        weights = np.full(100, 0.01)
+
+    cond = get_condition("fresh-steel-12.7")
+    from electroloc_gym.sensor_models import make_sensor_model
+
+    model = make_sensor_model("analytic", cond)
+    options = np.array([[0.0, 0.0], [10.0, 10.0], [-10.0, 10.0]])
+    pos = np.array([0.0, 40.0])  # far above both clusters: weak, nearly symmetric readings
+    mean, std = option_means_stds(model, _Belief.particles, pos + options)
+    var = predicted_variances(_Belief.particles, None, mean, std, np.arange(100))
+    assert var[:, 0].mean() > var[:, 1:].mean(axis=1).mean()
+
+
+def test_min_var_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="n_voters"):
+        MinVarianceAgent(n_voters=0)
+    with pytest.raises(ValueError, match="n_options"):
+        MinVarianceAgent(n_options=0)
+    with pytest.raises(ValueError, match="exp_floor"):
+        MinVarianceAgent(exp_floor=-200.0)
+    with pytest.raises(ValueError, match="kernel"):
+        predicted_variances(np.zeros((2, 2)), None, np.zeros((1, 2)), np.ones((1, 2)), np.arange(2), kernel="x")
+    with pytest.raises(RuntimeError, match="reset"):
+        MinVarianceAgent().predict(None)
+
+
+def test_min_var_seeded_determinism_and_voter_subset() -> None:
+    a1 = _run(make_agent("min-var[n_voters=16]", seed=3), seed=5, n_particles=200, max_steps=4)[1]
+    a2 = _run(make_agent("min-var[n_voters=16]", seed=3), seed=5, n_particles=200, max_steps=4)[1]
+    np.testing.assert_array_equal(a1, a2)
+    v = choose_voters(np.random.default_rng(0), 100, 10)
+    assert v.size == 10 and np.unique(v).size == 10
+    np.testing.assert_array_equal(choose_voters(np.random.default_rng(0), 100, None), np.arange(100))
+
+
+# ---- zero-crossing ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("condition", ["fresh-delrin-12.7", "fresh-steel-38.1"])
+def test_zero_crossing_localises_without_belief(condition: str) -> None:
+    agent = make_agent("zero-crossing")
+    _, _, info, env = _run(agent, condition, seed=1, n_particles=16)
+    assert agent.done and agent.estimate_mm is not None
+    err = np.abs(np.asarray(agent.estimate_mm) - np.asarray(env.unwrapped.condition.target_xy_mm))
+    assert np.all(err < 1.5), err
+    assert agent.env_kwargs["n_particles"] == 16  # the belief is not used
+
+
+def test_zero_crossing_gives_up_on_a_tiny_budget() -> None:
+    agent = ZeroCrossingAgent(max_observations=10)
+    _run(agent, "fresh-steel-12.7", seed=0, n_particles=16)
+    assert agent.estimate_mm is None
+
+
+def test_zero_crossing_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="n_average"):
+        ZeroCrossingAgent(n_average=0)
+    with pytest.raises(ValueError, match="k_sigma"):
+        ZeroCrossingAgent(k_sigma=-1.0)
+    with pytest.raises(ValueError, match="refine_offsets_mm"):
+        ZeroCrossingAgent(refine_offsets_mm=())
+
+
+def test_zero_crossing_table1_layout() -> None:
+    cond = ZeroCrossingAgent.adapt_condition(get_condition("salt-steel-38.1"))
+    assert cond.start_half_width_mm == 75.0 and cond.allowed_half_width_mm == 155.0
+    assert cond.target_xy_mm == (0.0, 0.0)

@@ -1,0 +1,255 @@
+"""Benchmark runner: seeds, worker-count independence, resume, Appendix-B statistics, files, CLI errors."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from electroloc_gym.bench.backends import BACKENDS, Backend, SerialBackend, make_backend, register_backend
+from electroloc_gym.bench.runner import (
+    TIMING_KEYS,
+    BenchConfig,
+    discover_models,
+    make_trial_specs,
+    read_trials,
+    resolve_conditions,
+    run_benchmark,
+    trial_seeds,
+)
+from electroloc_gym.bench.stats import summarize
+from electroloc_gym.bench.tables import PAPER_TABLE4, PAPER_TABLE4_ALL, render_table_md
+from electroloc_gym.cli import main as cli_main
+from electroloc_gym.conditions import PRESET_NAMES
+
+TINY = dict(conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=2, seed=3, n_particles=300,
+            max_observations=6, sensor_model="analytic")
+SUMMARY_KEYS = {"condition", "agent", "trials", "successes", "failures", "error_mean_mm", "error_median_mm",
+                "steps_mean", "steps_median", "decision_ms_median"}
+
+
+def _strip(records):
+    return sorted((tuple(sorted((k, json.dumps(v)) for k, v in r.items() if k not in TIMING_KEYS))
+                   for r in records))
+
+
+# ---- seeds ------------------------------------------------------------------------------------------
+def test_trial_seeds_are_spawned_per_condition_and_trial() -> None:
+    a = trial_seeds(0, "fresh-steel-12.7", 3)
+    assert a == trial_seeds(0, "fresh-steel-12.7", 3)
+    assert a != trial_seeds(0, "fresh-steel-12.7", 4)
+    assert a != trial_seeds(0, "fresh-delrin-12.7", 3)
+    assert a != trial_seeds(1, "fresh-steel-12.7", 3)
+    # exactly SeedSequence(seed).spawn(...)[condition].spawn(...)[trial]
+    child = np.random.SeedSequence(0).spawn(8)[0].spawn(5)[3]
+    assert a == tuple(int(v) for v in child.generate_state(2, dtype=np.uint32))
+
+
+def test_every_agent_in_a_condition_gets_the_same_seeds() -> None:
+    specs = make_trial_specs(BenchConfig(agents=("rnd-wlk", "min-var"), **TINY))
+    by = {}
+    for s in specs:
+        by.setdefault((s.condition, s.trial), set()).add((s.env_seed, s.agent_seed))
+    assert all(len(v) == 1 for v in by.values())
+    assert len(specs) == 2 * 2 * 2
+
+
+# ---- validation ---------------------------------------------------------------------------------------
+def test_resolve_conditions() -> None:
+    assert resolve_conditions("all") == list(PRESET_NAMES)
+    assert resolve_conditions("salt-steel-38.1, fresh-steel-12.7") == ["salt-steel-38.1", "fresh-steel-12.7"]
+    with pytest.raises(ValueError, match="unknown condition"):
+        resolve_conditions("fresh-steel-12.7,bogus")
+    with pytest.raises(ValueError, match="distinct"):
+        resolve_conditions("fresh-steel-12.7,fresh-steel-12.7")
+    with pytest.raises(ValueError, match="conditions must be"):
+        resolve_conditions("")
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"trials": 0}, "trials"), ({"sensor_model": "exact"}, "sensor_model"), ({"signal": "x"}, "signal"),
+    ({"agents": ()}, "at least one"), ({"agents": ("rnd-wlk", "rnd-wlk")}, "distinct"), ({"seed": -1}, "seed"),
+])
+def test_bench_config_rejects_bad_values(kwargs, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        BenchConfig(**kwargs)
+
+
+def test_bad_agents_fail_before_running(tmp_path) -> None:
+    with pytest.raises(ValueError, match="unknown agent 'nope'"):
+        run_benchmark(BenchConfig(agents=("rnd-wlk", "nope"), **TINY), tmp_path, backend="serial", progress=False,
+                      log=None)
+    with pytest.raises(ValueError, match="missing.zip"):
+        run_benchmark(BenchConfig(agents=(str(tmp_path / "missing.zip"),), **TINY), tmp_path, backend="serial",
+                      progress=False, log=None)
+    assert not (tmp_path / "trials.jsonl").exists()
+
+
+def test_cli_reports_bad_input(tmp_path, capsys) -> None:
+    assert cli_main(["bench", "--agents", "nope", "--out", str(tmp_path), "--no-progress"]) == 2
+    assert "unknown agent 'nope'" in capsys.readouterr().err
+    assert cli_main(["bench", "--conditions", "fresh-steel-12.7,bogus", "--out", str(tmp_path)]) == 2
+    assert "unknown condition" in capsys.readouterr().err
+    assert cli_main(["bench", "--agents", str(tmp_path / "x.zip"), "--out", str(tmp_path)]) == 2
+    assert "x.zip" in capsys.readouterr().err
+
+
+def test_backend_registry() -> None:
+    assert {"process", "serial"} <= set(BACKENDS)
+    with pytest.raises(ValueError, match="backend must be one of"):
+        make_backend("nowhere")
+    with pytest.raises(ValueError, match="workers"):
+        make_backend("serial", workers=0)
+
+    class Reversed(Backend):
+        name = "reversed-test"
+
+        def run_trials(self, specs, worker_fn):
+            yield from SerialBackend().run_trials(list(reversed(specs)), worker_fn)
+
+    register_backend(Reversed)
+    try:
+        out = list(make_backend("reversed-test").run_trials([1, 2, 3], lambda s: s * 10))
+        assert out == [(3, 30), (2, 20), (1, 10)]
+    finally:
+        BACKENDS.pop("reversed-test")
+
+
+def test_discover_models_is_robust(tmp_path) -> None:
+    assert discover_models([tmp_path / "absent"]) == []
+    (tmp_path / "models" / "empty").mkdir(parents=True)
+    assert discover_models([tmp_path / "models"]) == []
+
+
+# ---- runs -------------------------------------------------------------------------------------------
+AGENTS = ("rnd-wlk", "min-var[n_voters=16]", "zero-crossing[max_observations=60]")
+
+
+@pytest.fixture(scope="module")
+def serial_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    cfg = BenchConfig(agents=AGENTS, **TINY)
+    summary = run_benchmark(cfg, out, backend="serial", progress=False, log=None)
+    return cfg, out, summary
+
+
+def test_run_writes_all_files(serial_run) -> None:
+    cfg, out, summary = serial_run
+    records = read_trials(out / "trials.jsonl")
+    assert len(records) == len(cfg.agents) * len(cfg.conditions) * cfg.trials
+    for r in records:
+        assert {"condition", "agent", "trial", "seed", "success", "observations", "error_mm", "estimate", "start",
+                "decision_ms_median"} <= r.keys()
+        assert 1 <= r["observations"]
+    data = json.loads((out / "summary.json").read_text())  # strict JSON: no NaN
+    rows = data["rows"]
+    assert all(SUMMARY_KEYS <= r.keys() for r in rows)
+    assert {r["condition"] for r in rows} == {*cfg.conditions, "all"}
+    assert {r["agent"] for r in rows} == set(cfg.agents)
+    table = (out / "table.md").read_text()
+    assert "Table 4 layout" in table and "Table 1 layout" in table and "Appendix B" in table
+    assert (out / "steps.png").stat().st_size > 1000
+    assert json.loads((out / "config.json").read_text())["seed"] == cfg.seed
+
+
+def test_results_do_not_depend_on_workers(serial_run, tmp_path) -> None:
+    cfg, out, _ = serial_run
+    run_benchmark(cfg, tmp_path, backend="process", workers=2, progress=False, log=None)
+    assert _strip(read_trials(tmp_path / "trials.jsonl")) == _strip(read_trials(out / "trials.jsonl"))
+
+
+def test_same_start_for_every_agent(serial_run) -> None:
+    _, out, _ = serial_run
+    recs = read_trials(out / "trials.jsonl")
+    by = {}
+    for r in recs:
+        if r["layout"] == "table4":
+            by.setdefault((r["condition"], r["trial"]), set()).add(tuple(r["start"]))
+    assert by and all(len(v) == 1 for v in by.values())
+
+
+def test_resume_skips_finished_and_survives_a_torn_line(serial_run, tmp_path) -> None:
+    cfg, out, _ = serial_run
+    ref = read_trials(out / "trials.jsonl")
+    # A run "killed" after 5 trials, in the middle of writing the 6th line.
+    lines = (out / "trials.jsonl").read_text().splitlines(keepends=True)
+    (tmp_path / "trials.jsonl").write_text("".join(lines[:5]) + lines[5][: len(lines[5]) // 2])
+    (tmp_path / "config.json").write_text((out / "config.json").read_text())
+    with pytest.raises(ValueError, match="resume"):
+        run_benchmark(cfg, tmp_path, backend="serial", progress=False, log=None)
+    summary = run_benchmark(cfg, tmp_path, backend="serial", resume=True, progress=False, log=None)
+    assert summary["trials_run_this_time"] == len(ref) - 5
+    assert _strip(read_trials(tmp_path / "trials.jsonl")) == _strip(ref)
+    # Nothing left to do: a second resume runs nothing.
+    again = run_benchmark(cfg, tmp_path, backend="serial", resume=True, progress=False, log=None)
+    assert again["trials_run_this_time"] == 0
+
+
+def test_resume_refuses_different_settings(serial_run, tmp_path) -> None:
+    cfg, out, _ = serial_run
+    (tmp_path / "trials.jsonl").write_text((out / "trials.jsonl").read_text())
+    (tmp_path / "config.json").write_text((out / "config.json").read_text())
+    other = BenchConfig(agents=cfg.agents, **{**TINY, "seed": 99})
+    with pytest.raises(ValueError, match="settings differ"):
+        run_benchmark(other, tmp_path, backend="serial", resume=True, progress=False, log=None)
+
+
+# ---- Appendix B statistics -------------------------------------------------------------------------
+def _rec(cond, agent, trial, success, steps, err, layout="table4"):
+    return {"condition": cond, "agent": agent, "trial": trial, "success": success, "observations": steps,
+            "error_mm": err, "error_x_mm": err, "error_y_mm": 0.0, "estimate": [err, 0.0], "layout": layout,
+            "decision_ms_median": 1.0}
+
+
+def test_appendix_b_rules() -> None:
+    recs = [
+        _rec("c1", "a", 0, True, 5, 1.0), _rec("c1", "b", 0, True, 7, 3.0),
+        _rec("c1", "a", 1, True, 9, 2.0), _rec("c1", "b", 1, False, 35, 20.0),
+        _rec("c1", "a", 2, False, 35, 30.0), _rec("c1", "b", 2, True, 4, 5.0),
+        _rec("c2", "a", 0, True, 10, 4.0), _rec("c2", "b", 0, True, 2, 1.0),
+    ]
+    s = summarize(recs, agents=["a", "b"], conditions=["c1", "c2"])
+    row = {(r["condition"], r["agent"]): r for r in s["rows"]}
+    a1 = row[("c1", "a")]
+    assert (a1["successes"], a1["failures"]) == (2, 1)
+    assert a1["paired_trials"] == 1                                  # only trial 0: both succeeded
+    assert a1["error_mean_paired_mm"] == 1.0 and a1["steps_mean_paired"] == 5
+    assert a1["error_mean_mm"] == 1.5 and a1["steps_mean"] == 7      # own successes
+    assert a1["steps_median"] == 9 and a1["error_median_mm"] == 2.0  # all trials, failures included
+    all_a = row[("all", "a")]
+    assert all_a["successes"] == 3 and all_a["failures"] == 1
+    assert all_a["steps_median"] == (9 + 10) / 2                     # average of per-condition medians
+    assert all_a["steps_median_pooled"] == 9.5
+    assert math.isclose(all_a["error_mean_paired_mm"], (1.0 + 4.0) / 2)
+
+
+def test_paper_all_conditions_row_is_average_of_rows() -> None:
+    for agent in ("rnd-wlk", "min-var"):
+        med = [v[5] for (c, a), v in PAPER_TABLE4.items() if a == agent]
+        assert round(sum(med) / len(med), 1) == PAPER_TABLE4_ALL[agent][5]
+        assert sum(v[0] for (c, a), v in PAPER_TABLE4.items() if a == agent) == PAPER_TABLE4_ALL[agent][0]
+
+
+def test_table_renders_paper_numbers() -> None:
+    recs = [_rec("fresh-steel-12.7", "min-var", 0, True, 5, 1.0),
+            _rec("fresh-steel-12.7", "zero-crossing", 0, True, 300, 0.1, layout="table1")]
+    text = render_table_md(summarize(recs))
+    assert "50(0)" in text and "1.7/1.1" in text    # Table 4, fresh 12.7/S, min-var
+    assert "0.39" in text                            # Table 1, fresh 12.7/S, y
+
+
+# ---- the statistical reproduction (slow) ------------------------------------------------------------
+@pytest.mark.slow
+def test_statistical_min_var_vs_rnd_wlk_and_zero_crossing(tmp_path) -> None:
+    cfg = BenchConfig(agents=("rnd-wlk", "min-var", "zero-crossing"),
+                      conditions=("fresh-steel-12.7", "fresh-delrin-12.7"), trials=30, seed=0)
+    summary = run_benchmark(cfg, tmp_path, progress=False, log=None)
+    row = {(r["condition"], r["agent"]): r for r in summary["rows"]}
+    for c in cfg.conditions:
+        zc = row[(c, "zero-crossing")]
+        assert zc["failures"] == 0
+        assert zc["error_x_mean_abs_mm"] < 1.0 and zc["error_y_mean_abs_mm"] < 1.0
+        assert row[(c, "min-var")]["failures"] < row[(c, "rnd-wlk")]["failures"]
+        assert row[(c, "min-var")]["steps_median"] < row[(c, "rnd-wlk")]["steps_median"]
