@@ -12,7 +12,12 @@ from gymnasium.vector import AutoresetMode
 import electroloc_gym  # noqa: F401
 from electroloc_gym.belief import systematic_resample
 from electroloc_gym.conditions import PRESET_NAMES, get_condition
-from electroloc_gym.envs.vector import ElectroLocVectorEnv, fast_calibrated_model, systematic_indices
+from electroloc_gym.envs.vector import (
+    ElectroLocVectorEnv,
+    calibration_coefficients,
+    fast_calibrated_model,
+    systematic_indices,
+)
 from electroloc_gym.sensor_models import CalibratedSensorModel
 
 INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
@@ -94,6 +99,9 @@ def test_default_kwargs_match_single_env_at_2500_particles() -> None:
     for a in _actions(ref.action_space, 40, seed=0):
         r1, r2 = native.step(a), ref.step(a)
         assert np.array_equal(r1[0], r2[0]) and np.array_equal(r1[2], r2[2]) and np.array_equal(r1[3], r2[3])
+    # The per-episode calibrated models (built on demand) are the single envs' models.
+    for mine, theirs in zip(native.unwrapped.sensor_models, ref.get_attr("sensor_model"), strict=True):
+        assert mine.seed == theirs.seed and np.array_equal(mine.std_table_V, theirs.std_table_V)
 
 
 def test_make_vec_entry_point_and_spaces() -> None:
@@ -185,6 +193,10 @@ def test_fast_calibrated_model_equals_calibrated_sensor_model(name: str) -> None
         assert np.array_equal(fast.mean_table_V, ref.mean_table_V)
         assert np.array_equal(fast.std_table_V, ref.std_table_V)
         assert np.array_equal(fast._coef, ref._coef)
+        assert np.array_equal(calibration_coefficients(c, seed), ref._coef)
+        out32 = np.zeros((ref._coef.shape[0] + 3, 8), dtype=np.float32)
+        calibration_coefficients(c, seed, out=out32[:ref._coef.shape[0]])
+        assert np.array_equal(out32[:ref._coef.shape[0]], ref._coef.astype(np.float32))
 
 
 @pytest.mark.parametrize(("kwargs", "match"), [

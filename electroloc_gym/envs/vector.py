@@ -73,16 +73,17 @@ from electroloc_gym.sensor import expected_reading
 from electroloc_gym.sensor_models import (
     AnalyticSensorModel,
     CalibratedSensorModel,
-    gaussian_log_likelihood,
     make_sensor_model,
 )
 
 __all__ = ["ElectroLocVectorEnv", "make_electroloc_vector_env", "systematic_indices", "fast_calibrated_model",
+           "calibration_coefficients",
            "tune_malloc"]
 
 #: Readings per grid point of the paper's calibration (§5.3), as CalibratedSensorModel's default.
 _CAL_SAMPLES = 10
 _CAL_STEP_MM = 4.0
+_CAL_MIN_STD_FRACTION = 0.25
 #: Particles processed per block in a step's math (a few envs at a time): the ~20 temporaries of the
 #: sensor model and the resampling then stay in the L2 cache. Measured on this machine (2-core EPYC):
 #: one block of all 16×2500 particles is ≈3× slower per particle than blocks of 4–8 envs.
@@ -221,6 +222,36 @@ def fast_calibrated_model(condition: Condition, seed: int) -> CalibratedSensorMo
     return CalibratedSensorModel(condition, int(seed), reading_fn=reading_fn)
 
 
+def calibration_coefficients(condition: Condition, seed: int, out: NDArray | None = None) -> NDArray:
+    """``CalibratedSensorModel(condition, seed)._coef`` computed directly (tested equal), optionally into ``out``.
+
+    The per-cell bilinear coefficients (n1² + 1, 8) of the paper's calibration (§5.3) — the only part
+    of the model the batched lookup needs, without building the model object (a new calibration per
+    episode is ≈20 % of a step's cost at ~14 steps per episode). Same draws (``default_rng(seed)``,
+    one normal per sample), same reductions, same coefficient formulas as
+    :class:`~electroloc_gym.sensor_models.CalibratedSensorModel`; ``out`` (float32 or float64) receives
+    the values cast as ``astype`` would.
+    """
+    mean = _noise_free_calibration_grid(condition)
+    rng = np.random.default_rng(int(seed))
+    noise = rng.normal(0.0, condition.noise_std_V, size=mean.shape)
+    samples = np.clip(mean + noise, -condition.saturation_V, condition.saturation_V)
+    noise_std = float(condition.noise_std_V)
+    tables = (samples.mean(axis=0), np.maximum(samples.std(axis=0, ddof=1), _CAL_MIN_STD_FRACTION * noise_std))
+    n1 = mean.shape[-1] - 1
+    if out is None:
+        out = np.empty((n1 * n1 + 1, 8))
+    cells = out[:n1 * n1].reshape(n1, n1, 8)
+    for j, t in enumerate(tables):
+        v00, v10, v01, v11 = t[:-1, :-1], t[1:, :-1], t[:-1, 1:], t[1:, 1:]
+        cells[..., 4 * j] = v00
+        cells[..., 4 * j + 1] = v10 - v00
+        cells[..., 4 * j + 2] = v01 - v00
+        cells[..., 4 * j + 3] = v11 - v10 - v01 + v00
+    out[n1 * n1] = (0.0, 0.0, 0.0, 0.0, noise_std, 0.0, 0.0, 0.0)  # outside the grid: no target
+    return out
+
+
 class _StackedCalibratedLookup:
     """N calibrated sensor models (one per env, possibly different grids) as one float32 table.
 
@@ -238,35 +269,77 @@ class _StackedCalibratedLookup:
         self.n1f = np.ones((num_envs, 1), dtype=np.float32)
 
     def set(self, env: int, model: CalibratedSensorModel) -> None:
-        coef = model._coef  # (n1² + 1, 8): the model's own per-cell coefficients (last row = outside)
-        if coef.shape[0] > self.max_cells:
-            raise ValueError(f"calibration grid too large for the stacked table ({coef.shape[0]} > {self.max_cells})")
-        n1 = model.grid_mm.size - 1
+        """Env ``env`` uses ``model`` (its own coefficient table, last row = outside the grid)."""
+        coef = model._coef
+        self._set_grid(env, model.grid_mm, model.grid_step_mm)
         start = env * self.max_cells
         self.table[start:start + coef.shape[0]] = coef
-        self.lo[env] = np.float32(model.grid_mm[0])
-        self.inv[env] = np.float32(1.0 / model.grid_step_mm)
+
+    def calibrate(self, env: int, condition: Condition, seed: int) -> None:
+        """Env ``env`` uses ``CalibratedSensorModel(condition, seed)`` (its table, computed in place)."""
+        half = condition.allowed_half_width_mm
+        n = int(np.floor(2 * half / _CAL_STEP_MM + 1e-9)) + 1
+        self._set_grid(env, -half + _CAL_STEP_MM * np.arange(n), _CAL_STEP_MM)
+        start = env * self.max_cells
+        calibration_coefficients(condition, seed, out=self.table[start:start + (n - 1) ** 2 + 1])
+
+    def _set_grid(self, env: int, grid_mm: NDArray[np.float64], step_mm: float) -> None:
+        n1 = grid_mm.size - 1
+        if n1 * n1 + 1 > self.max_cells:
+            raise ValueError(f"calibration grid too large for the stacked table ({n1 * n1 + 1} > {self.max_cells})")
+        self.lo[env] = np.float32(grid_mm[0])
+        self.inv[env] = np.float32(1.0 / step_mm)
         self.n1[env] = n1
         self.n1f[env] = n1
 
     def log_likelihood(self, reading_V: NDArray[np.float64], off_x: NDArray[np.float32], off_y: NDArray[np.float32],
                        sel: slice | NDArray[np.intp]) -> NDArray[np.float32]:
-        """(k, M) log-likelihoods of readings (k,) at float32 offsets x, y (k, M) for envs ``sel``."""
+        """(k, M) log-likelihoods of readings (k,) at float32 offsets x, y (k, M) for envs ``sel``.
+
+        The operations of ``CalibratedSensorModel.mean_std`` + ``gaussian_log_likelihood``, in the same
+        float32 arithmetic, written in place into a few reused buffers (no per-step temporaries of
+        N·M elements). Only exact rewrites are used: ``a + b`` as ``b + a`` (IEEE addition and
+        multiplication are commutative), ``−½·z·z`` as ``(z·−½)·z``. ``off_x``/``off_y`` are overwritten.
+        """
         lo, inv, n1, n1f, base = self.lo[sel], self.inv[sel], self.n1[sel], self.n1f[sel], self.base[sel]
-        fx = (off_x - lo) * inv
-        fy = (off_y - lo) * inv
-        inside = (fx >= 0) & (fx <= n1f) & (fy >= 0) & (fy <= n1f)
-        ix = np.minimum(fx.astype(np.intp), n1 - 1)
-        iy = np.minimum(fy.astype(np.intp), n1 - 1)
-        tx = fx - ix.astype(np.float32)
-        ty = fy - iy.astype(np.float32)
-        cell = np.where(inside, ix * n1 + iy, n1 * n1)
+        k, m = off_x.shape
+        f32 = np.float32
+        fx = np.subtract(off_x, lo, out=off_x)
+        fx *= inv
+        fy = np.subtract(off_y, lo, out=off_y)
+        fy *= inv
+        inside = fx >= 0
+        inside &= fx <= n1f
+        inside &= fy >= 0
+        inside &= fy <= n1f
+        ix = fx.astype(np.intp)
+        np.minimum(ix, n1 - 1, out=ix)
+        iy = fy.astype(np.intp)
+        np.minimum(iy, n1 - 1, out=iy)
+        tx = np.subtract(fx, ix.astype(f32), out=fx)
+        ty = np.subtract(fy, iy.astype(f32), out=fy)
+        cell = np.multiply(ix, n1, out=ix)
+        cell += iy
+        np.copyto(cell, np.broadcast_to(n1 * n1, cell.shape), where=~inside)
         cell += base
         c = np.take(self.table, cell, axis=0)
         txy = tx * ty
-        mean = c[..., 0] + c[..., 1] * tx + c[..., 2] * ty + c[..., 3] * txy
-        std = c[..., 4] + c[..., 5] * tx + c[..., 6] * ty + c[..., 7] * txy
-        return gaussian_log_likelihood(reading_V[:, None], mean, std)
+        tmp = np.empty((k, m), dtype=f32)
+        mean = np.multiply(c[..., 1], tx)
+        mean += c[..., 0]
+        mean += np.multiply(c[..., 2], ty, out=tmp)
+        mean += np.multiply(c[..., 3], txy, out=tmp)
+        std = np.multiply(c[..., 5], tx, out=tx)
+        std += c[..., 4]
+        std += np.multiply(c[..., 6], ty, out=tmp)
+        std += np.multiply(c[..., 7], txy, out=tmp)
+        # gaussian_log_likelihood: z = (reading − mean)/std; −½ z² − log std (reading cast to float32).
+        z = np.subtract(np.asarray(reading_V, dtype=f32)[:, None], mean, out=mean)
+        z /= std
+        out = np.multiply(z, f32(-0.5), out=tmp)
+        out *= z
+        out -= np.log(std, out=std)
+        return out
 
 
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
@@ -400,6 +473,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._seeds: list[int | None] = [None] * n
         self._cidx = np.zeros(n, dtype=np.intp)
         self._models: list[Any] = [None] * n
+        self._cal_seeds: list[int] = [0] * n
         # Particles are stored coordinate-major, (N, 2, M), and handed to the shared (..., M, 2) functions
         # as the transposed view: numpy then iterates over M in its inner loops (contiguous), where an
         # (N, M, 2) array makes it iterate over the axis of length 2 — 3-4x slower for the broadcasts
@@ -454,6 +528,9 @@ class ElectroLocVectorEnv(VectorEnv):
     @property
     def sensor_models(self) -> tuple[Any, ...]:
         """Each sub-env's sensor model for its current episode."""
+        for i, model in enumerate(self._models):
+            if model is None and self._started:
+                self._models[i] = fast_calibrated_model(self._pool[self._cidx[i]], self._cal_seeds[i])
         return tuple(self._models)
 
     @property
@@ -583,13 +660,17 @@ class ElectroLocVectorEnv(VectorEnv):
             c = pool[ci]
             cal_seed = self.calibration_seed if self.calibration_seed is not None else int(g.integers(2**31 - 1))
             if self._cal is not None:
-                model = (make_sensor_model("calibrated", c, cal_seed) if self.calibration_seed is not None
-                         else fast_calibrated_model(c, cal_seed))
-                self._cal.set(int(i), model)
+                if self.calibration_seed is not None:  # one shared (cached) model
+                    model = make_sensor_model("calibrated", c, cal_seed)
+                    self._cal.set(int(i), model)
+                else:  # a new calibration per episode: only its table now, the model object on demand
+                    model = None
+                    self._cal.calibrate(int(i), c, cal_seed)
             else:
                 model = self._pool_analytic[ci]
             self._cidx[i] = ci
             self._models[i] = model
+            self._cal_seeds[i] = cal_seed
             s = c.start_half_width_mm
             self._target[i] = g.uniform(-s, s, size=2) if self.randomize_target else np.asarray(c.target_xy_mm, float)
             self._position[i] = g.uniform(-s, s, size=2)
