@@ -31,7 +31,17 @@ Where the batched version does less work than N single envs (all exact):
   and looked up in one gather; the calibration's noise-free grid, identical for every seed of a
   condition, is computed once per condition (the 10 noisy samples per grid point are still drawn
   from each episode's own calibration seed);
-* the analytic model is evaluated once per distinct condition (one call for a fixed condition).
+* the analytic model is evaluated once per distinct condition (one call for a fixed condition);
+* particles are stored coordinate-major (N, 2, M) so numpy's inner loops run over M, not over the
+  axis of length 2 (the single env's ``x.mean(axis=0)`` / ``p − carriage`` on (M, 2) arrays are
+  3–4× slower than the same operations on columns), and the calibrated lookup works in place;
+* glibc is told to keep freed memory mapped (:func:`tune_malloc`, on by default): otherwise every
+  step page-faults its N·M-element temporaries back in, which in this VM cost more than the math.
+
+What it cannot batch away, per env and step: the M·2 float32 normals of the jitter from each env's
+own generator (≈55 µs at M = 2500 on this machine, ≈1/15 of a single env step), the float64 ``exp``
+and ``cumsum`` of the weights, and the bilinear lookup's ~25 elementwise passes. These set the
+floor of a batched step at roughly 1/4–1/3 of a single env's cost here (see ``benchmarks/vector_env.py``).
 
 Autoreset
 ---------
@@ -84,10 +94,13 @@ __all__ = ["ElectroLocVectorEnv", "make_electroloc_vector_env", "systematic_indi
 _CAL_SAMPLES = 10
 _CAL_STEP_MM = 4.0
 _CAL_MIN_STD_FRACTION = 0.25
-#: Particles processed per block in a step's math (a few envs at a time): the ~20 temporaries of the
-#: sensor model and the resampling then stay in the L2 cache. Measured on this machine (2-core EPYC):
-#: one block of all 16×2500 particles is ≈3× slower per particle than blocks of 4–8 envs.
-BLOCK_PARTICLES = 16384
+#: Particles processed per block in a step's math (several envs at a time) — bounds the temporaries.
+#: Measured on this machine (2-core EPYC VM, N = 16 and 64, M = 2500): with :func:`tune_malloc`
+#: one block of all envs is fastest (blocks of 1/2/3/6/16 envs: 517/440/399/324/310 µs per env-step);
+#: without it every step page-faults its temporaries back in and blocks of ≈16k particles, whose
+#: temporaries stay under glibc's mmap threshold, are ≈3× faster than one big block.
+BLOCK_PARTICLES = 65536
+BLOCK_PARTICLES_UNTUNED = 16384
 
 
 _MALLOC_TUNED = False
@@ -482,7 +495,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._jitter = np.empty((n, m, 2), dtype=np.float32)
         self._xy_offset = np.array([0, m], dtype=np.intp).reshape(1, 2, 1)
         self._gather_bases: dict[int, NDArray[np.intp]] = {}
-        self._block_envs = max(1, BLOCK_PARTICLES // m)
+        self._block_envs = max(1, (BLOCK_PARTICLES if tune_malloc else BLOCK_PARTICLES_UNTUNED) // m)
         self._position = np.zeros((n, 2))
         self._target = np.zeros((n, 2))
         self._reading = np.zeros(n)
