@@ -467,3 +467,26 @@ def test_table2_statistics_with_the_paper_controllers() -> None:
         assert ok >= min_success, (name, ok)
         assert np.median(errors) <= max_median_err, (name, np.median(errors))
         assert np.median(steps) <= max_median_steps, (name, np.median(steps))
+
+
+def test_bench_runs_table2_layout(tmp_path) -> None:
+    """`electroloc bench --env global`: the runner's Table-2 path (serial backend, 2 trials of rnd-wlk)."""
+    pytest.importorskip("baselines.agent")
+    from electroloc_gym.bench.runner import GLOBAL_CONDITION, GLOBAL_ENV_ID, BenchConfig, run_benchmark, trial_seeds
+
+    config = BenchConfig(agents=("rnd-wlk",), conditions=("ignored",), trials=2, env_id=GLOBAL_ENV_ID)
+    assert config.conditions == (GLOBAL_CONDITION,)
+    assert trial_seeds(0, GLOBAL_CONDITION, 1) != trial_seeds(0, "salt-delrin-38.1", 1)
+    summary = run_benchmark(config, tmp_path, workers=1, backend="serial", progress=False, log=None)
+    row = next(r for r in summary["rows"] if r["condition"] == GLOBAL_CONDITION and r["agent"] == "rnd-wlk")
+    assert row["trials"] == 2
+    table = (tmp_path / "table.md").read_text()
+    assert "Table 2" in table and "48(2)" in table and "11.8/11" in table
+    recs = [line for line in (tmp_path / "trials.jsonl").read_text().splitlines() if line]
+    assert len(recs) == 2
+    import json
+
+    for rec in map(json.loads, recs):  # error is measured against the true final carriage position
+        if rec["estimate"] is not None:
+            est, tgt = np.asarray(rec["estimate"]), np.asarray(rec["target"])
+            assert rec["error_mm"] == pytest.approx(float(np.hypot(*(est - tgt))))

@@ -5,6 +5,7 @@ Example (the full Table-4 / Table-1 reproduction)::
     electroloc bench --trials 50 --out bench_full
     electroloc bench --agents rnd-wlk,min-var --conditions fresh-steel-12.7,salt-delrin-38.1 --trials 10
     electroloc bench --agents min-var,models/ppo_belief --out bench_learned --resume
+    electroloc bench --env global --trials 50 --out bench_global     # Table 2 (ElectroLocGlobal-v0)
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import sys
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.runner import (
     DEFAULT_AGENTS,
+    GLOBAL_CONDITION,
+    GLOBAL_ENV_ID,
     SENSOR_MODELS,
     SIGNALS,
     BenchConfig,
@@ -38,6 +41,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(e.g. min-var[n_voters=2500]), or a policy PATH.zip / directory with model.zip "
                              "(default: the three baselines plus models/*/model.zip if present)")
     parser.add_argument("--conditions", default="all", help="'all' or comma-separated preset names")
+    parser.add_argument("--env", default="target", choices=["target", "global"],
+                        help="target: ElectroLoc-v0 on the presets (Table 4/1); global: ElectroLocGlobal-v0, "
+                             "self-localisation among six cylinders (Table 2; default agents rnd-wlk,min-var; "
+                             "--conditions and --signal do not apply)")
     parser.add_argument("--trials", type=int, default=50, help="trials per condition and agent (paper: 50)")
     parser.add_argument("--seed", type=int, default=0, help="root seed of the per-trial seeds")
     parser.add_argument("--workers", type=int, default=None,
@@ -58,10 +65,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark described by ``args``; print table.md; 0 on success, 2 on bad input."""
     try:
-        agents = [a.strip() for a in args.agents.split(",") if a.strip()] if args.agents else default_agent_list()
-        config = BenchConfig(agents=tuple(agents), conditions=tuple(resolve_conditions(args.conditions)),
+        is_global = getattr(args, "env", "target") == "global"
+        agents = [a.strip() for a in args.agents.split(",") if a.strip()] if args.agents else (
+            ["rnd-wlk", "min-var"] if is_global else default_agent_list())
+        conditions = (GLOBAL_CONDITION,) if is_global else tuple(resolve_conditions(args.conditions))
+        config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=args.sensor_model, signal=args.signal,
-                             max_observations=args.max_observations, n_particles=args.n_particles)
+                             max_observations=args.max_observations, n_particles=args.n_particles,
+                             env_id=GLOBAL_ENV_ID if is_global else "ElectroLoc-v0")
         run_benchmark(config, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
                       progress=not args.no_progress)
     except ValueError as exc:

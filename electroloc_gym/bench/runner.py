@@ -58,6 +58,10 @@ SIGNALS = ("fitted", "paper")
 TIMING_KEYS = ("decision_ms_median", "decision_ms_mean", "wall_s")
 # The bench owns these env kwargs; an agent's env_kwargs cannot override them.
 _BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode")
+#: Global self-localisation (paper §6.5, Table 2): one fixed map, run as the single "condition"
+#: GLOBAL_CONDITION (the map's name, = info["condition"]); its trial seeds use condition index 8.
+GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
+GLOBAL_CONDITION = "six-cylinders"
 
 
 @dataclass(frozen=True)
@@ -91,7 +95,10 @@ class BenchConfig:
             raise ValueError("agents must name at least one agent")
         if len(set(self.agents)) != len(self.agents):
             raise ValueError(f"agents must be distinct, got {list(self.agents)}")
-        object.__setattr__(self, "conditions", tuple(resolve_conditions(list(self.conditions))))
+        if self.env_id == GLOBAL_ENV_ID:  # one map, no presets (signal does not apply)
+            object.__setattr__(self, "conditions", (GLOBAL_CONDITION,))
+        else:
+            object.__setattr__(self, "conditions", tuple(resolve_conditions(list(self.conditions))))
         for name, val, low in (("trials", self.trials, 1), ("seed", self.seed, 0),
                                ("max_observations", self.max_observations, 1), ("n_particles", self.n_particles, 1)):
             if isinstance(val, bool) or not isinstance(val, int) or val < low:
@@ -155,7 +162,8 @@ def trial_seeds(seed: int, condition: str, trial: int) -> tuple[int, int]:
     with ``i`` the condition's index among the presets: independent of the run's other conditions,
     agents, trial count and workers.
     """
-    ss = np.random.SeedSequence(seed, spawn_key=(PRESET_NAMES.index(condition), trial))
+    index = len(PRESET_NAMES) if condition == GLOBAL_CONDITION else PRESET_NAMES.index(condition)
+    ss = np.random.SeedSequence(seed, spawn_key=(index, trial))
     env_seed, agent_seed = (int(v) for v in ss.generate_state(2, dtype=np.uint32))
     return env_seed, agent_seed
 
@@ -192,12 +200,14 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
 
     import electroloc_gym  # noqa: F401  (registers the ids in a fresh worker)
 
-    condition = get_condition(spec.condition, spec.signal)
-    adapt = getattr(agent, "adapt_condition", None)
-    if callable(adapt):
-        condition = adapt(condition)
-    kwargs: dict[str, Any] = {"condition": condition, "sensor_model": spec.sensor_model,
-                              "n_particles": spec.n_particles, "max_observations": spec.max_observations}
+    kwargs: dict[str, Any] = {"sensor_model": spec.sensor_model, "n_particles": spec.n_particles,
+                              "max_observations": spec.max_observations}
+    if spec.env_id != GLOBAL_ENV_ID:  # the global env has one fixed map and no condition kwarg
+        condition = get_condition(spec.condition, spec.signal)
+        adapt = getattr(agent, "adapt_condition", None)
+        if callable(adapt):
+            condition = adapt(condition)
+        kwargs["condition"] = condition
     kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
                    if k not in _BENCH_ONLY_KWARGS})
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
@@ -246,7 +256,10 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
             ended_by = "success" if terminated else "cap"
             break
     core = env.unwrapped
-    target = np.asarray(core.condition.target_xy_mm, dtype=float)  # evaluation only
+    if spec.env_id == GLOBAL_ENV_ID:  # the hidden state is the robot's own (final) position
+        target = np.asarray(info["position_mm"], dtype=float)  # evaluation only
+    else:
+        target = np.asarray(core.condition.target_xy_mm, dtype=float)  # evaluation only
     self_ending = ended_by == "agent" or getattr(agent, "layout", "table4") == "table1"
     if self_ending:
         est = getattr(agent, "estimate_mm", None)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "render_table_md", "paper_agent_key"]
+__all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "PAPER_TABLE2", "render_table_md", "paper_agent_key"]
 
 # Table 4 (App. B): (successes, failures, error mean, error median (mm), steps mean, steps median).
 PAPER_TABLE4: dict[tuple[str, str], tuple[int, int, float, float, float, float]] = {
@@ -42,6 +42,13 @@ PAPER_TABLE1: dict[str, tuple[float, float]] = {
     "salt-delrin-38.1": (0.05, 0.69),
 }
 
+#: Table 2 (§6.5, global self-localisation among six cylinders): (successes, failures, error mean,
+#: error median (mm), steps mean, steps median).
+PAPER_TABLE2: dict[str, tuple[int, int, float, float, float, float]] = {
+    "rnd-wlk": (48, 2, 1.3, 1.0, 11.8, 11.0),
+    "min-var": (49, 1, 1.4, 0.8, 6.9, 6.0),
+}
+
 _WATER = {"fresh": "Fresh", "salt": "Salt"}
 _MATERIAL = {"steel": "S", "delrin": "P"}
 
@@ -53,6 +60,8 @@ def paper_agent_key(agent: str) -> str | None:
 
 
 def _cond_label(name: str) -> tuple[str, str]:
+    if name.count("-") != 2:  # not a preset (e.g. the global-localisation map "six-cylinders")
+        return name, ""
     water, material, diam = name.split("-")
     return _WATER.get(water, water), f"{diam}/{_MATERIAL.get(material, material)}"
 
@@ -71,6 +80,8 @@ def render_table_md(summary: dict[str, Any]) -> str:
     cfg = summary.get("config", {})
     t4 = [r for r in rows if r.get("layout", "table4") == "table4"]
     t1 = [r for r in rows if r.get("layout") == "table1"]
+    if cfg.get("env_id") == "ElectroLocGlobal-v0":
+        return _render_table2(summary)
     out: list[str] = []
     out.append(f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}")
     out.append("")
@@ -142,4 +153,31 @@ def render_table_md(summary: dict[str, Any]) -> str:
                        f"| {_f(r['steps_median'], 0)} | {_f(paper[0], 2) if paper else ''} "
                        f"| {_f(paper[1], 2) if paper else ''} |")
         out.append("")
+    return "\n".join(out)
+
+
+def _render_table2(summary: dict[str, Any]) -> str:
+    """table.md for ElectroLocGlobal-v0: the paper's Table 2 layout (§6.5), same Appendix-B rules."""
+    cfg = summary.get("config", {})
+    rows = [r for r in summary["rows"] if r["condition"] != "all"]
+    out = [f"# electroloc bench — {cfg.get('env_id')}", "",
+           (f"Global self-localisation among six cylinders (paper §6.5, Table 2): {cfg.get('trials')} trials per "
+           f"agent, seed {cfg.get('seed')}, sensor model `{cfg.get('sensor_model')}`, {cfg.get('n_particles')} "
+           f"particles, cap {cfg.get('max_observations')} observations; the map is "
+           f"`electroloc_gym.scene.BENCHMARK_SCENE`. Error = |belief mean − true carriage position|. Same "
+           f"Appendix-B rules as Table 4 (mean error/steps over the trials every agent solved, medians over all "
+           f"trials). Paper values in the right-hand columns."), "",
+           ("| Control type | Success (failure) | Error (mm) mean/median | No. steps mean/median | Decision ms "
+            "| Paper success (failure) | Paper error | Paper steps |"),
+           "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        paper = PAPER_TABLE2.get(paper_agent_key(r["agent"]) or "")
+        ps = f"{paper[0]}({paper[1]})" if paper else ""
+        pe = _pair(paper[2], paper[3]) if paper else ""
+        pst = f"{paper[4]:g}/{paper[5]:g}" if paper else ""
+        out.append(f"| {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
+                   f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
+                   f"| {_pair(r['steps_mean_paired'], r['steps_median'])} | {_f(r['decision_ms_median'], 2)} "
+                   f"| {ps} | {pe} | {pst} |")
+    out.append("")
     return "\n".join(out)
