@@ -70,8 +70,9 @@ class GlobalLocalizationEnv(ParticleFilterEnv):
     | 10    | log₁₀(spread / 10 mm) | clipped to [−1, 1] |
     | 11    | observations used / cap | — |
     | 12–75 | 8×8 histogram of the particles over the map box ±H (allocentric, map frame) | mass fraction |
-    | 76–80 | scene descriptor: mean object radius/25 mm, first object's χ₂, log₁₀ G / 4, G·σ_s (V), scale / 8 | — |
+    | 76–80 | descriptor of ``condition``: mean radius/25 mm, χ*, log₁₀ G / 4, G·σ_s (V), scale / 8 | — |
 
+    χ* is the sphere contrast of the first object's conductivity (``condition``'s stand-in target).
     H = 80 mm for the benchmark map. ``observation="raw"``: ``[odometry_x/H, odometry_y/H, Φ/10 V]``
     (no belief; the true position is never observed).
 
