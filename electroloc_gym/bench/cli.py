@@ -69,6 +69,12 @@ def run(args: argparse.Namespace) -> int:
         agents = [a.strip() for a in args.agents.split(",") if a.strip()] if args.agents else (
             ["rnd-wlk", "min-var"] if is_global else default_agent_list())
         conditions = (GLOBAL_CONDITION,) if is_global else tuple(resolve_conditions(args.conditions))
+        if is_global:  # zero-crossing looks for one sphere; it has no meaning on the six-cylinder map
+            from baselines.agent import make_agent
+
+            bad = [a for a in agents if getattr(make_agent(a), "layout", "table4") != "table4"]
+            if bad:
+                raise ValueError(f"--env global runs particle-filter agents (Table 2); not applicable: {bad}")
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=args.sensor_model, signal=args.signal,
                              max_observations=args.max_observations, n_particles=args.n_particles,
