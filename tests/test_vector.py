@@ -277,3 +277,32 @@ def test_sb3_ppo_learns_on_native_adapter_smoke() -> None:
         NativeVecEnv(ElectroLocVectorEnv(num_envs=2, n_particles=10))
     with pytest.raises(ValueError, match="vector_entry_point"):
         make_native_vec_env("Pendulum-v1", 2, seed=0)
+
+
+def test_sb3_adapter_shaping_equals_potential_shaping_wrapper() -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from train.native_vec import make_native_vec_env
+    from train.wrappers import PotentialShaping
+
+    kw = {"n_particles": 200, "max_observations": 8}
+    native = make_native_vec_env("ElectroLoc-v0", 3, seed=2, env_kwargs=kw, shaping_coef=1.0, gamma=0.9)
+    dummy = DummyVecEnv([lambda: PotentialShaping(Monitor(gym.make("ElectroLoc-v0", **kw)), 1.0, 0.9)
+                         for _ in range(3)])
+    dummy.seed(2)
+    assert np.array_equal(native.reset(), dummy.reset())
+    rng = np.random.default_rng(1)
+    n_done = 0
+    for _ in range(40):
+        a = rng.uniform(-1, 1, size=(3, 2)).astype(np.float32)
+        o1, r1, d1, i1 = native.step(a)
+        o2, r2, d2, i2 = dummy.step(a)
+        assert np.array_equal(o1, o2) and np.array_equal(d1, d2)
+        np.testing.assert_allclose(r1, r2, rtol=1e-6, atol=1e-6)
+        for x, y in zip(i1, i2, strict=True):
+            if "episode" in y:  # the logged return is the unshaped one in both stacks
+                assert x["episode"]["r"] == y["episode"]["r"]
+        n_done += int(d1.sum())
+    assert n_done >= 3

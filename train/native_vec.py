@@ -21,12 +21,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecMonitor
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 import electroloc_gym  # noqa: F401  (registers the ids)
 
-__all__ = ["NativeVecEnv", "make_native_vec_env"]
+__all__ = ["NativeVecEnv", "VecPotentialShaping", "make_native_vec_env"]
 
 #: Info keys of the single env copied into every per-env info dict.
 _INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
@@ -56,6 +56,8 @@ class NativeVecEnv(VecEnv):
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self._actions: np.ndarray | None = None
         self._final_obs: np.ndarray | None = None
+        #: Belief spread (mm) of every env's current state — after the autoreset for finished envs.
+        self.current_spread_mm = np.zeros(self.num_envs)
 
     # ---- VecEnv protocol ----------------------------------------------------------------------
     def reset(self) -> VecEnvObs:
@@ -63,6 +65,7 @@ class NativeVecEnv(VecEnv):
         options = self._options[0] if self._options and self._options[0] else None
         obs, info = self.venv.reset(seed=seeds, options=options)
         self.reset_infos = self._split_info(info)
+        self.current_spread_mm = np.asarray(info["spread_mm"], dtype=float).copy()
         self._reset_seeds()
         self._reset_options()
         return obs
@@ -76,6 +79,7 @@ class NativeVecEnv(VecEnv):
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         self._actions = None
         self._final_obs = info.get("final_obs")
+        self.current_spread_mm = np.asarray(info["spread_mm"], dtype=float).copy()
         dones = terminated | truncated
         if dones.any():  # a finished env's info is its episode's last one (as DummyVecEnv), not the reset's
             final_info = info["final_info"]
@@ -126,8 +130,55 @@ class NativeVecEnv(VecEnv):
         return [dict(zip(keys, row, strict=True)) for row in zip(*cols.values(), strict=True)]
 
 
+class VecPotentialShaping(VecEnvWrapper):
+    """``train.wrappers.PotentialShaping`` for a :class:`NativeVecEnv` stack, all envs at once.
+
+    Adds F = γ·Φ(s′) − Φ(s), Φ(s) = −c·ln(spread/success spread) (``train.wrappers.spread_potential``);
+    Φ of a terminal (success) state is 0, on truncation Φ(s′) is kept, and a finished env's next
+    episode starts from Φ of its reset state — exactly what ``PotentialShaping`` inside each env of a
+    ``DummyVecEnv`` does (tested). Put it *outside* ``VecMonitor`` so that the logged return is the
+    unshaped one, as the dummy/subproc stacks of ``train/__main__.py`` log it.
+
+    Args:
+        venv: a VecEnv whose ``unwrapped`` is a :class:`NativeVecEnv`.
+        coef: shaping coefficient c ≥ 0.
+        gamma: the algorithm's discount γ in [0, 1].
+    """
+
+    def __init__(self, venv: VecEnv, coef: float, gamma: float) -> None:
+        super().__init__(venv)
+        if not isinstance(venv.unwrapped, NativeVecEnv):
+            raise ValueError("VecPotentialShaping needs a NativeVecEnv stack (venv.unwrapped)")
+        if not (np.isfinite(coef) and coef >= 0):
+            raise ValueError(f"shaping_coef must be ≥ 0, got {coef!r}")
+        if not 0.0 <= gamma <= 1.0:
+            raise ValueError(f"gamma must be in [0, 1], got {gamma!r}")
+        self.coef = float(coef)
+        self.gamma = float(gamma)
+        self.success_spread_mm = float(venv.unwrapped.venv.success_spread_mm)
+        self._phi = np.zeros(self.num_envs)
+
+    def _potential(self, spread_mm: np.ndarray) -> np.ndarray:
+        return -self.coef * np.log(np.maximum(spread_mm, 1e-6) / self.success_spread_mm)
+
+    def reset(self) -> VecEnvObs:
+        obs = self.venv.reset()
+        self._phi = self._potential(self.venv.unwrapped.current_spread_mm)
+        return obs
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        spread = np.array([d["spread_mm"] for d in infos])  # a finished env's info is its final state's
+        timeout = np.array([d.get("TimeLimit.truncated", False) for d in infos], dtype=bool)
+        terminated = dones & ~timeout
+        phi_next = np.where(terminated, 0.0, self._potential(spread))
+        shaped = rewards.astype(np.float64) + self.gamma * phi_next - self._phi
+        self._phi = np.where(dones, self._potential(self.venv.unwrapped.current_spread_mm), phi_next)
+        return obs, shaped.astype(np.float32), dones, infos
+
+
 def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: dict[str, Any] | None = None,
-                        monitor: bool = True) -> VecEnv:
+                        monitor: bool = True, shaping_coef: float = 0.0, gamma: float = 0.99) -> VecEnv:
     """An SB3 ``VecEnv`` of ``n_envs`` sub-envs of ``env_id`` stepped by its native batched vector env.
 
     Args:
@@ -138,6 +189,9 @@ def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: 
         env_kwargs: the single env's keyword arguments.
         monitor: wrap in ``VecMonitor`` (episode return/length in ``info["episode"]``, like the
             ``Monitor`` the dummy/subproc envs of ``train/__main__.py`` carry).
+        shaping_coef: if > 0, add potential-based shaping on the belief spread
+            (:class:`VecPotentialShaping`, outside the monitor: the logged return stays unshaped).
+        gamma: discount of the shaping (the algorithm's γ).
 
     Raises:
         ValueError: the id has no native vector env, or bad ``n_envs``/kwargs.
@@ -152,4 +206,8 @@ def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: 
     wrapped: VecEnv = NativeVecEnv(venv)
     if seed is not None:
         wrapped.seed(int(seed))
-    return VecMonitor(wrapped) if monitor else wrapped
+    if monitor:
+        wrapped = VecMonitor(wrapped)
+    if shaping_coef > 0:
+        wrapped = VecPotentialShaping(wrapped, shaping_coef, gamma)
+    return wrapped
