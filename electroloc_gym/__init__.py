@@ -24,7 +24,8 @@ def _register() -> None:
         register(id="ElectroLoc-v0", entry_point="electroloc_gym.envs.localize:ElectroLocEnv",
                  vector_entry_point="electroloc_gym.envs.vector:make_electroloc_vector_env")
     if "ElectroLocGlobal-v0" not in registry:
-        register(id="ElectroLocGlobal-v0", entry_point="electroloc_gym.envs.self_localize:GlobalLocalizationEnv")
+        register(id="ElectroLocGlobal-v0", entry_point="electroloc_gym.envs.self_localize:GlobalLocalizationEnv",
+                 vector_entry_point="electroloc_gym.envs.vector:make_global_vector_env")
 
 
 _register()

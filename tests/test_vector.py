@@ -306,3 +306,40 @@ def test_sb3_adapter_shaping_equals_potential_shaping_wrapper() -> None:
                 assert x["episode"]["r"] == y["episode"]["r"]
         n_done += int(d1.sum())
     assert n_done >= 3
+
+
+# ---- ElectroLocGlobal-v0 (fixed map) ------------------------------------------------------------
+GLOBAL_CASES = [
+    pytest.param({"n_particles": 300}, AutoresetMode.NEXT_STEP, id="global-calibrated-next"),
+    pytest.param({"n_particles": 300, "sensor_model": "analytic", "observation": "raw"}, AutoresetMode.SAME_STEP,
+                 id="global-analytic-raw-same-step"),
+]
+
+
+@pytest.mark.parametrize(("kwargs", "mode"), GLOBAL_CASES)
+def test_global_native_equals_sync_of_single_envs(kwargs: dict[str, Any], mode: AutoresetMode) -> None:
+    n = 3
+    native = gym.make_vec("ElectroLocGlobal-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                          autoreset_mode=mode, **kwargs)
+    native.unwrapped._block_envs = 2
+    ref = gym.vector.SyncVectorEnv([lambda: gym.make("ElectroLocGlobal-v0", **kwargs) for _ in range(n)],
+                                   autoreset_mode=mode)
+    o1, _ = native.reset(seed=21)
+    o2, _ = ref.reset(seed=21)
+    assert np.array_equal(o1, o2)
+    ended = 0
+    for t, a in enumerate(_actions(ref.action_space, 70, seed=4)):
+        o1, r1, te1, tr1, i1 = native.step(a)
+        o2, r2, te2, tr2, i2 = ref.step(a)
+        assert np.array_equal(o1, o2), f"step {t}: observations differ"
+        assert np.array_equal(r1, r2) and np.array_equal(te1, te2) and np.array_equal(tr1, tr2), f"step {t}"
+        _info_equal(i1, i2, f"step {t}")
+        ended += int((te1 | tr1).sum())
+    assert ended >= 2
+
+
+def test_global_native_rejects_random_layout() -> None:
+    from electroloc_gym.envs.vector import GlobalLocalizationVectorEnv
+
+    with pytest.raises(ValueError, match="random"):
+        GlobalLocalizationVectorEnv(num_envs=2, layout="random")

@@ -86,7 +86,8 @@ from electroloc_gym.sensor_models import (
     make_sensor_model,
 )
 
-__all__ = ["ElectroLocVectorEnv", "make_electroloc_vector_env", "systematic_indices", "fast_calibrated_model",
+__all__ = ["ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "make_electroloc_vector_env", "make_global_vector_env",
+           "systematic_indices", "fast_calibrated_model",
            "calibration_coefficients",
            "tune_malloc"]
 
@@ -355,6 +356,23 @@ class _StackedCalibratedLookup:
         return out
 
 
+def _check_vector_args(num_envs: Any, render_mode: Any, autoreset_mode: Any, max_episode_steps: Any) -> AutoresetMode:
+    """Validate the vector-only arguments; returns the autoreset mode."""
+    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+        raise ValueError(f"num_envs must be an integer ≥ 1, got {num_envs!r}")
+    if render_mode is not None:
+        raise ValueError(f"render_mode must be None for the native vector env (got {render_mode!r}); "
+                         "render a single env instead")
+    mode = _AUTORESET_MODES.get(autoreset_mode if isinstance(autoreset_mode, (str, AutoresetMode)) else None)
+    if mode is None:
+        raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or 'next_step', "
+                         f"'same_step'), got {autoreset_mode!r}")
+    if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or not isinstance(
+            max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
+        raise ValueError(f"max_episode_steps must be None or an integer ≥ 1, got {max_episode_steps!r}")
+    return mode
+
+
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
     AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP: AutoresetMode.SAME_STEP,
     "next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP,
@@ -430,23 +448,23 @@ class ElectroLocVectorEnv(VectorEnv):
         max_episode_steps: int | None = None,
         tune_malloc: bool = True,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer ≥ 1, got {num_envs!r}")
-        if render_mode is not None:
-            raise ValueError(f"render_mode must be None for the native vector env (got {render_mode!r}); "
-                             "render a single ElectroLoc-v0 env instead")
-        mode = _AUTORESET_MODES.get(autoreset_mode if isinstance(autoreset_mode, (str, AutoresetMode)) else None)
-        if mode is None:
-            raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or 'next_step', "
-                             f"'same_step'), got {autoreset_mode!r}")
-        if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or not isinstance(
-                max_episode_steps, (int, np.integer)) or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps must be None or an integer ≥ 1, got {max_episode_steps!r}")
+        mode = _check_vector_args(num_envs, render_mode, autoreset_mode, max_episode_steps)
         # The single env validates every shared argument and defines the spaces.
         template = ElectroLocEnv(condition=condition, observation=observation, sensor_model=sensor_model,
                                  n_particles=n_particles, max_observations=max_observations,
                                  success_spread_mm=success_spread_mm, signal=signal, action_type=action_type,
                                  randomize_target=randomize_target, calibration_seed=calibration_seed)
+        self.randomize_target = bool(randomize_target)
+        if isinstance(condition, str) and condition == "random":
+            pool: tuple[Condition, ...] = tuple(get_condition(n, signal) for n in PRESET_NAMES)
+        else:
+            pool = (get_condition(condition, signal),)
+        self._init_common(template, int(num_envs), mode, max_episode_steps, tune_malloc, pool,
+                          tuple(AnalyticSensorModel(c) for c in pool))
+
+    def _init_common(self, template: Any, num_envs: int, mode: AutoresetMode, max_episode_steps: int | None,
+                     tune_malloc: bool, pool: tuple[Condition, ...], analytic_models: tuple[Any, ...]) -> None:
+        """State shared by the native vector envs; ``template`` is a validated single env."""
         self.num_envs = int(num_envs)
         self.n_particles = template.n_particles
         self.max_observations = template.max_observations
@@ -454,7 +472,6 @@ class ElectroLocVectorEnv(VectorEnv):
         self.observation_mode = template.observation_mode
         self.sensor_model_name = template.sensor_model_name
         self.action_type = template.action_type
-        self.randomize_target = bool(randomize_target)
         self.calibration_seed = template.calibration_seed
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.autoreset_mode = mode
@@ -468,17 +485,13 @@ class ElectroLocVectorEnv(VectorEnv):
         if tune_malloc:
             _tune_malloc()
 
-        if isinstance(condition, str) and condition == "random":
-            self._pool: tuple[Condition, ...] = tuple(get_condition(n, signal) for n in PRESET_NAMES)
-        else:
-            self._pool = (get_condition(condition, signal),)
-        pool = self._pool
+        self._pool = pool
         self._pool_half = np.array([c.allowed_half_width_mm for c in pool])
         self._pool_start = np.array([c.start_half_width_mm for c in pool])
         self._pool_noise = np.array([c.noise_std_V for c in pool])
         self._pool_sat = np.array([c.saturation_V for c in pool])
         self._pool_desc = np.stack([condition_descriptor(c) for c in pool])
-        self._pool_analytic = tuple(AnalyticSensorModel(c) for c in pool)
+        self._pool_analytic = analytic_models
         self._pool_names = np.array([c.name for c in pool], dtype=object)
 
         n, m = self.num_envs, self.n_particles
@@ -666,32 +679,35 @@ class ElectroLocVectorEnv(VectorEnv):
 
     def _reset_draws(self, ids: NDArray[np.intp]) -> None:
         """The per-env part of reset, in the single env's draw order (condition … particles)."""
-        pool, m = self._pool, self.n_particles
         for i in ids:
-            g = self._gen(int(i))
-            ci = int(g.integers(len(pool))) if len(pool) > 1 else 0
-            c = pool[ci]
-            cal_seed = self.calibration_seed if self.calibration_seed is not None else int(g.integers(2**31 - 1))
-            if self._cal is not None:
-                if self.calibration_seed is not None:  # one shared (cached) model
-                    model = make_sensor_model("calibrated", c, cal_seed)
-                    self._cal.set(int(i), model)
-                else:  # a new calibration per episode: only its table now, the model object on demand
-                    model = None
-                    self._cal.calibrate(int(i), c, cal_seed)
-            else:
-                model = self._pool_analytic[ci]
-            self._cidx[i] = ci
-            self._models[i] = model
-            self._cal_seeds[i] = cal_seed
-            s = c.start_half_width_mm
-            self._target[i] = g.uniform(-s, s, size=2) if self.randomize_target else np.asarray(c.target_xy_mm, float)
-            self._position[i] = g.uniform(-s, s, size=2)
-            h = c.allowed_half_width_mm
-            low = np.array([-h, -h])
-            self._soa[i] = g.uniform(low, -low, size=(m, 2)).astype(np.float32).T
-            self._n_obs[i] = 0
-            self._elapsed[i] = 0
+            self._reset_one(int(i), self._gen(int(i)))
+
+    def _reset_one(self, i: int, g: np.random.Generator) -> None:
+        """Env ``i``'s reset draws, in ElectroLocEnv.reset's order (condition … particles)."""
+        pool, m = self._pool, self.n_particles
+        ci = int(g.integers(len(pool))) if len(pool) > 1 else 0
+        c = pool[ci]
+        cal_seed = self.calibration_seed if self.calibration_seed is not None else int(g.integers(2**31 - 1))
+        if self._cal is not None:
+            if self.calibration_seed is not None:  # one shared (cached) model
+                model = make_sensor_model("calibrated", c, cal_seed)
+                self._cal.set(i, model)
+            else:  # a new calibration per episode: only its table now, the model object on demand
+                model = None
+                self._cal.calibrate(i, c, cal_seed)
+        else:
+            model = self._pool_analytic[ci]
+        self._cidx[i] = ci
+        self._models[i] = model
+        self._cal_seeds[i] = cal_seed
+        s = c.start_half_width_mm
+        self._target[i] = g.uniform(-s, s, size=2) if self.randomize_target else np.asarray(c.target_xy_mm, float)
+        self._position[i] = g.uniform(-s, s, size=2)
+        h = c.allowed_half_width_mm
+        low = np.array([-h, -h])
+        self._soa[i] = g.uniform(low, -low, size=(m, 2)).astype(np.float32).T
+        self._n_obs[i] = 0
+        self._elapsed[i] = 0
 
     def _reset_envs(self, ids: NDArray[np.intp]) -> None:
         self._reset_draws(ids)
@@ -716,9 +732,7 @@ class ElectroLocVectorEnv(VectorEnv):
             g.standard_normal(out=jitter[j], dtype=np.float32)
         # True readings (sensor.noisy_reading): float64 physics per distinct condition.
         position = self._position[sel]
-        offsets = self._target[sel] - position
-        mean = self._per_condition(cidx, lambda c, rows: expected_reading(self._pool[c], offsets[rows],
-                                                                          saturate=False), k)
+        mean = self._true_mean(position, self._target[sel], cidx, k)
         sat = self._pool_sat[cidx]
         reading = np.clip(mean + noise, -sat, sat)
         self._reading[sel] = reading
@@ -730,17 +744,32 @@ class ElectroLocVectorEnv(VectorEnv):
             esel = slice(s0, rows.stop) if full else ids[rows]
             self._fuse(esel, reading[rows], u0[rows], jitter[rows], cidx[rows], position[rows])
 
+    def _true_mean(self, position: NDArray[np.float64], target: NDArray[np.float64], cidx: NDArray[np.intp],
+                   k: int) -> NDArray[np.float64]:
+        """Noise-free, unsaturated true readings (k,), V (sensor.noisy_reading's mean, float64)."""
+        offsets = target - position
+        return self._per_condition(cidx, lambda c, rows: expected_reading(self._pool[c], offsets[rows],
+                                                                          saturate=False), k)
+
+    def _particle_offsets(self, soa: NDArray[np.float32], position: NDArray[np.float64]) -> NDArray[np.float32]:
+        """Sensor-model offsets (k, 2, M) float32: particle − carriage (``b.particles - position``)."""
+        posf = position.astype(np.float32)
+        p_off = np.empty(soa.shape, dtype=np.float32)
+        np.subtract(soa[:, 0], posf[:, 0:1], out=p_off[:, 0])
+        np.subtract(soa[:, 1], posf[:, 1:2], out=p_off[:, 1])
+        return p_off
+
+    def _true_state(self, sel: slice | NDArray[np.intp]) -> NDArray[np.float64]:
+        """What the belief estimates (for info["error_mm"]): the target."""
+        return self._target[sel]
+
     def _fuse(self, sel: slice | NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
               jitter: NDArray[np.float32], cidx: NDArray[np.intp], position: NDArray[np.float64]) -> None:
         """Weight, resample and jitter the clouds of envs ``sel`` (a block), then their mean and Σ."""
         m = self.n_particles
         k = len(reading)
         soa = self._soa[sel]
-        posf = position.astype(np.float32)
-        # Offsets particle − carriage, float32, as the single env's ``b.particles - position``.
-        p_off = np.empty((k, 2, m), dtype=np.float32)
-        np.subtract(soa[:, 0], posf[:, 0:1], out=p_off[:, 0])
-        np.subtract(soa[:, 1], posf[:, 1:2], out=p_off[:, 1])
+        p_off = self._particle_offsets(soa, position)
         if self._cal is not None:
             ll = self._cal.log_likelihood(reading, p_off[:, 0], p_off[:, 1], sel)
         else:
@@ -802,7 +831,7 @@ class ElectroLocVectorEnv(VectorEnv):
         est = self._mean[sel]
         cov = self._cov[sel]
         spread = spread_from_cov(cov)
-        d = est - self._target[sel]
+        d = est - self._true_state(sel)
         info = {
             "position_mm": self._position[sel].copy(),
             "estimate_mm": est.copy(),
@@ -817,6 +846,142 @@ class ElectroLocVectorEnv(VectorEnv):
         for key in list(info):
             info["_" + key] = np.ones(k, dtype=bool)
         return info
+
+
+class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
+    """
+    ## Description
+
+    ``num_envs`` copies of ElectroLocGlobal-v0
+    (:class:`~electroloc_gym.envs.self_localize.GlobalLocalizationEnv`, the robot localises itself in
+    a mapped tank, paper §6.5) stepped as arrays, with the same per-env behaviour as the single env
+    under the same seeds (tested bit for bit): the particles are the robot's own position
+    hypotheses, shifted by every commanded move; the sensor-model offsets are −particle; the reading
+    is the map's (several objects). A fixed map only (``layout="benchmark"`` or a ``Scene``): with
+    ``layout="random"`` every sub-env has its own map per episode, which cannot be evaluated as one
+    array — use ``vectorization_mode="sync"`` for it.
+
+    Spaces, rewards, episode end, info and autoreset as :class:`ElectroLocVectorEnv`; info
+    ``position_mm`` is the true carriage position (the hidden state), ``error_mm`` the estimate's
+    distance to it; the observation's entries 0–1 are the odometry (as the single env).
+
+    ## Arguments
+
+    ``num_envs``, ``layout``, ``observation``, ``sensor_model``, ``n_particles``,
+    ``max_observations``, ``success_spread_mm``, ``action_type``, ``calibration_seed``,
+    ``position_blur_mm`` (validated by GlobalLocalizationEnv), plus ``autoreset_mode``,
+    ``max_episode_steps`` and ``tune_malloc`` as for :class:`ElectroLocVectorEnv`.
+    """
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        layout: Any = "benchmark",
+        observation: str = "belief",
+        sensor_model: str = "calibrated",
+        n_particles: int = 2500,
+        max_observations: int = 35,
+        success_spread_mm: float = 10.0,
+        action_type: str = "continuous",
+        calibration_seed: int | None = None,
+        position_blur_mm: float | None = None,
+        render_mode: str | None = None,
+        autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        max_episode_steps: int | None = None,
+        tune_malloc: bool = True,
+    ) -> None:
+        from electroloc_gym.envs.self_localize import GlobalLocalizationEnv
+        from electroloc_gym.scene import BENCHMARK_SCENE, DEFAULT_POSITION_BLUR_MM, MapAnalyticSensorModel, Scene
+
+        mode = _check_vector_args(num_envs, render_mode, autoreset_mode, max_episode_steps)
+        if isinstance(layout, str) and layout == "random":
+            raise ValueError("layout='random' (a new map per sub-env and episode) is not supported by the native "
+                             "vector env; use gym.make_vec(..., vectorization_mode='sync') for it")
+        blur = DEFAULT_POSITION_BLUR_MM if position_blur_mm is None else position_blur_mm
+        template = GlobalLocalizationEnv(layout=layout, observation=observation, sensor_model=sensor_model,
+                                         n_particles=n_particles, max_observations=max_observations,
+                                         success_spread_mm=success_spread_mm, action_type=action_type,
+                                         calibration_seed=calibration_seed, position_blur_mm=blur)
+        self.scene: Scene = layout if isinstance(layout, Scene) else BENCHMARK_SCENE
+        self.position_blur_mm = float(template.position_blur_mm)
+        self.randomize_target = False
+        self._init_common(template, int(num_envs), mode, max_episode_steps, tune_malloc,
+                          (self.scene.as_condition(),), (MapAnalyticSensorModel(self.scene, self.position_blur_mm),))
+        self._odometry = np.zeros((self.num_envs, 2))
+        self._uniform_w = np.full((self.num_envs, self.n_particles), 1.0 / self.n_particles)
+
+    @property
+    def odometry_mm(self) -> NDArray[np.float64]:
+        """Sum of the commanded moves since each sub-env's reset (N, 2), mm (a copy)."""
+        return self._odometry.copy()
+
+    @property
+    def sensor_models(self) -> tuple[Any, ...]:
+        return tuple(self._models)
+
+    def _reset_one(self, i: int, g: np.random.Generator) -> None:
+        """GlobalLocalizationEnv.reset's draws: calibration seed, start position, particles."""
+        from electroloc_gym.scene import make_map_sensor_model
+
+        c = self._pool[0]
+        cal_seed = self.calibration_seed if self.calibration_seed is not None else int(g.integers(2**31 - 1))
+        model = make_map_sensor_model(self.sensor_model_name, self.scene, cal_seed,
+                                      position_blur_mm=self.position_blur_mm)
+        if self._cal is not None:
+            self._cal.set(i, model)
+        self._models[i] = model
+        self._cidx[i] = 0
+        s = self.scene.start_half_width_mm
+        self._position[i] = g.uniform(-s, s, size=2)
+        self._odometry[i] = 0.0
+        h = c.allowed_half_width_mm
+        low = np.array([-h, -h])
+        self._soa[i] = g.uniform(low, -low, size=(self.n_particles, 2)).astype(np.float32).T
+        self._n_obs[i] = 0
+        self._elapsed[i] = 0
+
+    def _move(self, ids: NDArray[np.intp] | None, moves: NDArray[np.float64]) -> None:
+        """The carriage moves (kept in the box); every hypothesis moves too (belief.predict)."""
+        sel = slice(None) if ids is None else ids
+        h = self._pool_half[self._cidx[sel]][:, None]
+        self._position[sel] = np.clip(self._position[sel] + moves, -h, h)
+        self._odometry[sel] = self._odometry[sel] + moves
+        soa = self._soa[sel]
+        soa += moves.astype(np.float32)[:, :, None]
+        hf = h.astype(np.float32)[:, :, None]
+        np.maximum(soa, -hf, out=soa)
+        np.minimum(soa, hf, out=soa)
+        self._soa[sel] = soa
+
+    def _true_mean(self, position: NDArray[np.float64], target: NDArray[np.float64], cidx: NDArray[np.intp],
+                   k: int) -> NDArray[np.float64]:
+        return self.scene.expected_reading(np.asarray(position, dtype=np.float64), saturate=False)
+
+    def _particle_offsets(self, soa: NDArray[np.float32], position: NDArray[np.float64]) -> NDArray[np.float32]:
+        return np.negative(soa)  # the map model's convention: map origin − carriage hypothesis
+
+    def _true_state(self, sel: slice | NDArray[np.intp]) -> NDArray[np.float64]:
+        return self._position[sel]
+
+    def _get_obs(self, ids: NDArray[np.intp] | None = None) -> NDArray[np.float32]:
+        sel = slice(None) if ids is None else ids
+        cidx = self._cidx[sel]
+        half = self._pool_half[cidx]
+        odo = self._odometry[sel]
+        if self.observation_mode == "raw":
+            return raw_observation(odo, self._reading[sel], half, self._pool_sat[cidx])
+        k = len(half)
+        obs = belief_observation(
+            np.zeros((k, 2)), self._reading[sel], self._soa[sel].transpose(0, 2, 1), self._uniform_w[:k],
+            self._n_obs[sel], self.max_observations, half, self._pool_noise[cidx], self._pool_sat[cidx],
+            self.success_spread_mm, self._pool_desc[cidx], mean_cov=(self._mean[sel], self._cov[sel]))
+        obs[:, 0:2] = np.clip(odo / half[:, None], -1.0, 1.0)
+        return obs
+
+
+def make_global_vector_env(num_envs: int = 1, **kwargs: Any) -> GlobalLocalizationVectorEnv:
+    """The ``vector_entry_point`` of ElectroLocGlobal-v0 (fixed maps; see :class:`GlobalLocalizationVectorEnv`)."""
+    return GlobalLocalizationVectorEnv(num_envs=num_envs, **kwargs)
 
 
 def make_electroloc_vector_env(num_envs: int = 1, **kwargs: Any) -> ElectroLocVectorEnv:
