@@ -1,4 +1,6 @@
-"""Throughput of ElectroLoc-v0: single env vs SyncVectorEnv vs the native batched vector env (issue 7).
+"""Env steps/s: single env vs SyncVectorEnv vs the native batched vector env (issue 7).
+
+ElectroLoc-v0 by default, ElectroLocGlobal-v0 with ``--env``.
 
 Prints, side by side in one run, env steps per second (every sub-env step counts; autoresets
 included, random actions, so episodes end and reset as in training) of
@@ -15,7 +17,7 @@ process (``time.process_time``, insensitive to other processes taking the cores)
 second. Numeric libraries are pinned to one thread (DESIGN §10).
 
     python benchmarks/vector_env.py [--n-envs 16 64] [--particles 2500] [--observation belief]
-        [--sensor-model calibrated] [--seconds 1.5] [--rounds 3] [--json out.json]
+        [--sensor-model calibrated] [--env ElectroLoc-v0] [--seconds 1.5] [--rounds 3] [--json out.json]
 """
 
 from __future__ import annotations
@@ -42,8 +44,8 @@ import electroloc_gym  # noqa: E402, F401  (registers the ids)
 class _Single:
     """A single env driven like a vector env of one (reset on episode end)."""
 
-    def __init__(self, kwargs: dict[str, Any]) -> None:
-        self.env = gym.make("ElectroLoc-v0", **kwargs)
+    def __init__(self, env_id: str, kwargs: dict[str, Any]) -> None:
+        self.env = gym.make(env_id, **kwargs)
         self.num_envs = 1
 
     def reset(self, seed: int) -> None:
@@ -82,24 +84,25 @@ def measure(make: Callable[[], Any], seconds: float, rounds: int, seed: int = 0)
     return {"steps_per_s_cpu": n / best_cpu, "steps_per_s_wall": n / best_wall, "vector_steps": n_steps}
 
 
-def _make(backend: str, n: int, kwargs: dict[str, Any]) -> Any:
+def _make(backend: str, n: int, kwargs: dict[str, Any], env_id: str = "ElectroLoc-v0") -> Any:
     if backend == "single":
-        return _Single(kwargs)
+        return _Single(env_id, kwargs)
     if backend in ("sync", "sync+malloc"):
         if backend == "sync+malloc":
             from electroloc_gym.envs.vector import tune_malloc
 
             tune_malloc()
-        return gym.make_vec("ElectroLoc-v0", num_envs=n, vectorization_mode="sync", **kwargs)
-    return gym.make_vec("ElectroLoc-v0", num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+        return gym.make_vec(env_id, num_envs=n, vectorization_mode="sync", **kwargs)
+    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
 
 
-def measure_isolated(backend: str, n: int, kwargs: dict[str, Any], seconds: float, rounds: int) -> dict[str, float]:
+def measure_isolated(backend: str, n: int, kwargs: dict[str, Any], seconds: float, rounds: int,
+                     env_id: str = "ElectroLoc-v0") -> dict[str, float]:
     """:func:`measure` in a fresh interpreter, so that allocator state (see
     ``electroloc_gym.envs.vector.tune_malloc``) and caches of one configuration do not leak into another.
     """
-    cmd = [sys.executable, __file__, "--_one", json.dumps({"backend": backend, "n": n, "kwargs": kwargs,
-                                                             "seconds": seconds, "rounds": rounds})]
+    spec = {"backend": backend, "n": n, "kwargs": kwargs, "env_id": env_id, "seconds": seconds, "rounds": rounds}
+    cmd = [sys.executable, __file__, "--_one", json.dumps(spec)]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
@@ -110,7 +113,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--particles", type=int, default=2500)
     ap.add_argument("--observation", default="belief", choices=["belief", "raw"])
     ap.add_argument("--sensor-model", default="calibrated", choices=["calibrated", "analytic"])
-    ap.add_argument("--condition", default="fresh-steel-12.7")
+    ap.add_argument("--condition", default="fresh-steel-12.7", help="ElectroLoc-v0 only")
+    ap.add_argument("--env", default="ElectroLoc-v0", choices=["ElectroLoc-v0", "ElectroLocGlobal-v0"])
     ap.add_argument("--seconds", type=float, default=1.5, help="target CPU seconds per timed round")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--json", default=None, help="also write the results here")
@@ -118,18 +122,20 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = ap.parse_args(argv)
     if args._one:
         spec = json.loads(args._one)
-        res = measure(lambda: _make(spec["backend"], spec["n"], spec["kwargs"]), spec["seconds"], spec["rounds"])
+        res = measure(lambda: _make(spec["backend"], spec["n"], spec["kwargs"], spec["env_id"]), spec["seconds"],
+                      spec["rounds"])
         print(json.dumps(res))
         return res
-    kwargs = {"n_particles": args.particles, "observation": args.observation, "sensor_model": args.sensor_model,
-              "condition": args.condition}
-    results: dict[str, Any] = {"kwargs": kwargs, "rows": []}
-    print(f"ElectroLoc-v0 {kwargs}, random actions, autoreset; best of {args.rounds} rounds; "
+    kwargs = {"n_particles": args.particles, "observation": args.observation, "sensor_model": args.sensor_model}
+    if args.env == "ElectroLoc-v0":
+        kwargs["condition"] = args.condition
+    results: dict[str, Any] = {"env": args.env, "kwargs": kwargs, "rows": []}
+    print(f"{args.env} {kwargs}, random actions, autoreset; best of {args.rounds} rounds; "
           "each row in a fresh process")
     print(f"{'backend':<12} {'N':>4} {'steps/s (CPU)':>14} {'steps/s (wall)':>15} {'vs sync (CPU)':>14}")
 
     def row(backend: str, n: int, base: float | None) -> dict[str, Any]:
-        r = measure_isolated(backend, n, kwargs, args.seconds, args.rounds)
+        r = measure_isolated(backend, n, kwargs, args.seconds, args.rounds, args.env)
         ratio = r["steps_per_s_cpu"] / base if base else None
         rs = f"{ratio:>13.2f}x" if ratio else f"{'':>14}"
         print(f"{backend:<12} {n:>4} {r['steps_per_s_cpu']:>14.0f} {r['steps_per_s_wall']:>15.0f} {rs}", flush=True)
