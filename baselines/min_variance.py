@@ -169,36 +169,33 @@ def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDA
 
 def literal_predicted_variances(sensor_model: Any, particles: NDArray, weights: NDArray | None,
                                 positions_mm: NDArray, voters: NDArray[np.intp]) -> NDArray[np.float64]:
-    """Reference: Algorithm 1 written as loops over voters, options and particles (slow; small M only).
+    """Reference: Algorithm 1 written as loops over options, voters and particles (slow; small M only).
 
-    One sensor-model call per particle and option, Gaussian likelihoods with ``math.exp``, the
-    weighted (expected post-resampling) variance in float64. Same inputs and result layout as
-    :func:`predicted_variances` (which takes precomputed means / stds).
+    Per option, one sensor-model call per particle (its predicted mean and std from that carriage
+    position); then, per voter, Gaussian likelihoods of the voter's predicted reading with
+    ``math.exp`` for every particle and the weighted (expected post-resampling) variance, in float64.
+    Same inputs and result layout as :func:`predicted_variances` (which takes precomputed means/stds).
     """
     x = np.asarray(particles)
     m = x.shape[0]
     w_prior = [1.0 / m] * m if weights is None else [float(v) for v in weights]
+    px = [float(v) for v in x[:, 0]]
+    py = [float(v) for v in x[:, 1]]
     out = np.zeros((len(voters), len(positions_mm)))
-    dtype = x.dtype
-    for vi, mi in enumerate(voters):
-        for c, pos in enumerate(positions_mm):
-            p = np.asarray(pos, dtype=dtype)
-            z_mean, _ = sensor_model.mean_std((x[mi] - p)[None, :])          # (2) simulated reading
-            z = float(z_mean[0])
-            ws, sx, sy = [], 0.0, 0.0
-            for i in range(m):                                               # (3) weights
-                mu_i, sd_i = sensor_model.mean_std((x[i] - p)[None, :])
-                mu_i, sd_i = float(mu_i[0]), float(sd_i[0])
-                wi = w_prior[i] * math.exp(-0.5 * ((z - mu_i) / sd_i) ** 2) / sd_i
-                ws.append(wi)
+    for c, pos in enumerate(positions_mm):
+        p = np.asarray(pos, dtype=x.dtype)
+        mus, sds = [], []
+        for i in range(m):                                                   # (1) move, per particle
+            mu_i, sd_i = sensor_model.mean_std((x[i] - p)[None, :])
+            mus.append(float(mu_i[0]))
+            sds.append(float(sd_i[0]))
+        for vi, mi in enumerate(voters):
+            z = mus[int(mi)]                                                  # (2) simulated reading
+            ws = [w_prior[i] * math.exp(-0.5 * ((z - mus[i]) / sds[i]) ** 2) / sds[i] for i in range(m)]  # (3)
             tot = sum(ws)
-            for i in range(m):
-                sx += ws[i] * float(x[i, 0])
-                sy += ws[i] * float(x[i, 1])
-            mx, my = sx / tot, sy / tot
-            var = 0.0
-            for i in range(m):                                               # (4–5) expected variance
-                var += ws[i] * ((float(x[i, 0]) - mx) ** 2 + (float(x[i, 1]) - my) ** 2)
+            mx = sum(ws[i] * px[i] for i in range(m)) / tot
+            my = sum(ws[i] * py[i] for i in range(m)) / tot
+            var = sum(ws[i] * ((px[i] - mx) ** 2 + (py[i] - my) ** 2) for i in range(m))  # (4–5) expected
             out[vi, c] = var / tot
     return out
 

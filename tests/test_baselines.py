@@ -72,7 +72,7 @@ def test_sample_options_stay_first_and_inside_bounds() -> None:
 
 
 def test_move_bounds_clip_to_box() -> None:
-    env = gym.make("ElectroLoc-v0", n_particles=50)
+    env = gym.make("ElectroLoc-v0", n_particles=50, sensor_model="analytic")
     env.reset(seed=1)
     env.unwrapped._position = np.array([47.0, -50.0])  # test setup only: put the carriage near two walls
     lo, hi = move_bounds_mm(env)
@@ -144,7 +144,7 @@ def test_belief_agents_moves_within_limits(spec: str, condition: str) -> None:
 def test_belief_agents_hug_the_wall_without_leaving() -> None:
     # Start the carriage in a corner: options must stay inside (moves are never clipped, checked in _run).
     agent = make_agent("rnd-wlk", seed=1)
-    env = gym.make("ElectroLoc-v0", n_particles=100)
+    env = gym.make("ElectroLoc-v0", n_particles=100, sensor_model="analytic")
     env.reset(seed=0)
     env.unwrapped._position = np.array([50.0, -50.0])  # test setup only
     agent.reset(env)
@@ -185,25 +185,25 @@ def _small_belief(condition: str, sensor_model: str, m: int, steps: int = 2, see
 
 @pytest.mark.parametrize("condition,sensor_model", [("fresh-steel-12.7", "calibrated"),
                                                     ("salt-delrin-38.1", "analytic")])
-@pytest.mark.parametrize("kernel", ["difference", "expanded"])
 @pytest.mark.parametrize("weighted", [False, True])
-def test_vectorised_vote_equals_literal(condition: str, sensor_model: str, kernel: str, weighted: bool) -> None:
-    core = _small_belief(condition, sensor_model, m=48)
+def test_vectorised_vote_equals_literal(condition: str, sensor_model: str, weighted: bool) -> None:
+    core = _small_belief(condition, sensor_model, m=40)
     rng = np.random.default_rng(11)
     options = sample_options_mm(rng, *move_bounds_mm(core), 16)
     particles = core.belief.particles
     weights = rng.dirichlet(np.ones(particles.shape[0])) if weighted else None
-    voters = choose_voters(rng, particles.shape[0], 12)
+    voters = choose_voters(rng, particles.shape[0], 10)
     positions = core.position_mm + options
-    mean, std = option_means_stds(core.sensor_model, particles, positions)
-    fast = predicted_variances(particles, weights, mean, std, voters, kernel=kernel, chunk_rows=5)
     ref = literal_predicted_variances(core.sensor_model, particles, weights, positions, voters)
-    np.testing.assert_allclose(fast, ref, rtol=2e-4, atol=1e-6)
-    # Same ballots wherever the literal vote is not a float-rounding tie, and the same winner.
-    srt = np.sort(ref, axis=1)
-    clear = (srt[:, 1] - srt[:, 0]) > 1e-3 * srt[:, 0]
-    np.testing.assert_array_equal(fast.argmin(axis=1)[clear], ref.argmin(axis=1)[clear])
-    assert count_votes(fast)[0] == count_votes(ref)[0]
+    mean, std = option_means_stds(core.sensor_model, particles, positions)
+    for kernel in ("difference", "expanded"):
+        fast = predicted_variances(particles, weights, mean, std, voters, kernel=kernel, chunk_rows=3)
+        np.testing.assert_allclose(fast, ref, rtol=1e-3, atol=1e-5)  # float32 sums
+        # Same ballots wherever the literal vote is not a float-rounding tie, and the same winner.
+        srt = np.sort(ref, axis=1)
+        clear = (srt[:, 1] - srt[:, 0]) > 1e-3 * srt[:, 0]
+        np.testing.assert_array_equal(fast.argmin(axis=1)[clear], ref.argmin(axis=1)[clear])
+        assert count_votes(fast)[0] == count_votes(ref)[0]
 
 
 def test_env_prediction_api_matches_direct_offsets() -> None:

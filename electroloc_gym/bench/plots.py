@@ -15,7 +15,8 @@ __all__ = ["plot_steps"]
 def plot_steps(summary: dict[str, Any], path: str | os.PathLike) -> None:
     """Two bar charts (failed trials; median steps) per condition, one bar per Table-4 agent.
 
-    The paper's Fig. 12 values (rnd-wlk, min-var) are drawn as black ticks on the matching bars.
+    The paper's Fig. 12 values (rnd-wlk, min-var) are drawn as black ticks on the matching bars (its
+    failure counts, out of 50 trials, scaled to this run's trial count).
     Written atomically.
     """
     import matplotlib
@@ -47,7 +48,9 @@ def plot_steps(summary: dict[str, Any], path: str | os.PathLike) -> None:
         axes[1].bar(xs, [np.nan if v is None else v for v in med], width, label=label)
         key = paper_agent_key(agent)
         if key in ("rnd-wlk", "min-var"):
-            pf = [PAPER_TABLE4.get((c, key), (None, np.nan))[1] for c in conditions]
+            n_trials = summary.get("config", {}).get("trials") or 50
+            # the paper ran 50 trials per condition: scale its failure counts to this run's trial count
+            pf = [PAPER_TABLE4.get((c, key), (None, np.nan))[1] * n_trials / 50 for c in conditions]
             pm = [PAPER_TABLE4.get((c, key), (None,) * 5 + (np.nan,))[5] for c in conditions]
             kw = {"marker": "_", "color": "k", "markersize": 14, "linestyle": "none", "markeredgewidth": 2}
             axes[0].plot(xs, pf, **kw, label="paper (Fig. 12)" if j == 0 else None)
@@ -55,7 +58,8 @@ def plot_steps(summary: dict[str, Any], path: str | os.PathLike) -> None:
     axes[0].set_ylabel("failed trials")
     axes[1].set_ylabel("median steps")
     n = summary.get("config", {}).get("trials")
-    axes[0].set_title(f"Failures and median steps per condition ({n} trials each; black ticks: paper)")
+    axes[0].set_title(f"Failed trials and median steps ({n} trials per condition and agent)\n"
+                      f"black ticks: paper's Fig. 12 (failures scaled to {n} trials)", fontsize=10)
     axes[1].set_xticks(x)
     axes[1].set_xticklabels([" ".join(_cond_label(c)) for c in conditions], rotation=30, ha="right")
     axes[0].legend(fontsize=8, ncol=min(4, len(agents) + 1))
