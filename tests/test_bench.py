@@ -255,9 +255,10 @@ def test_statistical_zero_crossing_is_submillimetre(tmp_path) -> None:
 # condition. With Algorithm 1 implemented literally (tested against a loop implementation above) it
 # does NOT hold in this simulation with the calibrated sensor model: the full 8 × 50 run gives min-var
 # 238 successes vs rnd-wlk 341, median steps 23.4 vs 15.6 (see the issue-4 report). Most particles
-# predict ≈ 0 V wherever the carriage goes (the simulated detection region covers ≈ 40 % of the start
-# box, the paper's 78 %), and for those voters any move that rules out particles near the cloud's mean
-# *raises* the variance, so they vote "stay" or "along the wall" en bloc. Kept as a strict=False xfail
+# predict ≈ 0 V at the start (75 % of particles on fresh-steel-12.7; the simulated detection region
+# covers ≈ 40 % of the start box, the paper's runs 78 %), and for those voters any move that rules out
+# particles near the cloud's mean *raises* the variance, so they vote en bloc for moves toward and
+# along the walls (or to stay), away from the target at the tank centre. Kept as a strict=False xfail
 # so the claim is re-checked on every slow run and an XPASS shows when the simulation matches.
 @pytest.mark.slow
 @pytest.mark.xfail(strict=False, reason="min-var loses to rnd-wlk in this simulation (see comment above)")

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["summarize", "RULES"]
+__all__ = ["summarize", "agent_label", "RULES"]
 
 RULES = (
     "Appendix B: success (failure) counts; mean error and mean steps over the start positions on which every "
@@ -59,13 +59,19 @@ def _avg_of(rows: Sequence[dict[str, Any]], key: str) -> float | None:
     return _mean(r[key] for r in rows)
 
 
+def agent_label(agent: str, recs: Sequence[dict[str, Any]]) -> str:
+    """Table label: the spec for built-in agents (``min-var[n_voters=None]``), the policy's name for paths."""
+    is_path = agent.endswith(".zip") or "/" in agent or "\\" in agent
+    return str(recs[0].get("agent_label", agent)) if (is_path and recs) else agent
+
+
 def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int]) -> dict[str, Any]:
     ok = [r for r in recs if r["success"]]
     pair = [r for r in recs if int(r["trial"]) in paired]
     row: dict[str, Any] = {
         "condition": condition,
         "agent": agent,
-        "label": recs[0].get("agent_label", agent) if recs else agent,
+        "label": agent_label(agent, recs),
         "layout": recs[0].get("layout", "table4") if recs else "table4",
         "trials": len(recs),
         "successes": len(ok),
