@@ -366,3 +366,31 @@ def test_recurrent_policy_carries_and_resets_its_state(tmp_path):
     assert agent._state is not None  # the LSTM state is kept between calls
     np.testing.assert_array_equal(first, _rollout_actions(agent, 3, observation="raw"))  # reset() clears it
     np.testing.assert_array_equal(first, _rollout_actions(load_policy(tmp_path), 3, observation="raw"))
+
+
+@pytest.mark.parametrize("action_type", ["continuous", "discrete"])
+def test_numpy_fast_path_equals_sb3_predict(action_type):
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    venv = DummyVecEnv([lambda: gym.make("ElectroLoc-v0", action_type=action_type, **FAST_ENV)])
+    model = PPO("MlpPolicy", venv, n_steps=16, batch_size=16, seed=1, device="cpu",
+                policy_kwargs={"net_arch": [32, 16], "log_std_init": 0.0})
+    with torch_no_grad():  # push the means outside [-1, 1] so the clip is exercised
+        model.policy.action_net.bias.add_(1.5 if action_type == "continuous" else 0.0)
+    agent = SB3Agent(model)
+    assert agent._numpy_actor is not None
+    obs = np.stack([gym.make("ElectroLoc-v0", **FAST_ENV).reset(seed=s)[0] for s in range(16)])
+    fast, _ = agent.predict(obs)
+    slow, _ = model.predict(obs, deterministic=True)
+    if action_type == "continuous":
+        np.testing.assert_allclose(fast, slow, atol=1e-5)
+        assert fast.max() == 1.0
+    else:
+        np.testing.assert_array_equal(fast, slow)
+
+
+def torch_no_grad():
+    import torch
+
+    return torch.no_grad()

@@ -48,6 +48,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+        os.chmod(tmp, 0o644)  # mkstemp creates 0600; saved models and logs are meant to be shared
         os.replace(tmp, p)
     except BaseException:
         if os.path.exists(tmp):
