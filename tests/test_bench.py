@@ -251,6 +251,21 @@ def test_statistical_zero_crossing_is_submillimetre(tmp_path) -> None:
         assert r["error_x_mean_abs_mm"] < 1.0 and r["error_y_mean_abs_mm"] < 1.0
 
 
+@pytest.mark.slow
+def test_statistical_min_var_beats_rnd_wlk_with_analytic_model(tmp_path) -> None:
+    # With a noise-free (analytic) sensor model, min-var's particle vote does what the paper reports on
+    # the large spheres: fewer failures and fewer steps than rnd-wlk (fixed seeds). These two conditions
+    # were picked from a 20-trial analytic run over all eight (issue-4 report), where min-var won on
+    # 3-4 of 8 and lost clearly on salt-steel-12.7: this is an existence check, not a claim for all.
+    cfg = BenchConfig(agents=("rnd-wlk", "min-var"), conditions=("fresh-delrin-38.1", "salt-steel-38.1"),
+                      trials=30, seed=0, sensor_model="analytic")
+    summary = run_benchmark(cfg, tmp_path, progress=False, log=None)
+    row = {(r["condition"], r["agent"]): r for r in summary["rows"]}
+    for c in cfg.conditions:
+        assert row[(c, "min-var")]["failures"] < row[(c, "rnd-wlk")]["failures"]
+        assert row[(c, "min-var")]["steps_median"] < row[(c, "rnd-wlk")]["steps_median"]
+
+
 # The paper's claim (Table 4, Fig. 12): min-var fails less and needs fewer steps than rnd-wlk in every
 # condition. With Algorithm 1 implemented literally (tested against a loop implementation above) it
 # does NOT hold in this simulation with the calibrated sensor model: the full 8 × 50 run gives min-var
