@@ -394,3 +394,28 @@ def torch_no_grad():
     import torch
 
     return torch.no_grad()
+
+
+def test_native_frame_stack_matches_the_flat_frame_stack():
+    """--vec-env native stacks with VecFrameStack; it must equal FlatFrameStack (what the agent rebuilds)."""
+    native_vec = pytest.importorskip("train.native_vec")
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack
+
+    from train.__main__ import make_env_fn
+
+    kw = {"observation": "raw", **FAST_ENV}
+    a = VecFrameStack(native_vec.make_native_vec_env("ElectroLoc-v0", 2, 5, kw), 4)
+    b = DummyVecEnv([make_env_fn("ElectroLoc-v0", kw, 4, 0.0, 0.99) for _ in range(2)])
+    b.seed(5)
+    oa, ob = a.reset(), b.reset()
+    np.testing.assert_allclose(oa, ob, atol=1e-6)
+    rng = np.random.default_rng(0)
+    dones = 0
+    for _ in range(60):
+        act = rng.uniform(-1, 1, (2, 2)).astype(np.float32)
+        oa, _, da, _ = a.step(act)
+        ob, _, db, _ = b.step(act)
+        np.testing.assert_array_equal(da, db)
+        np.testing.assert_allclose(oa, ob, atol=1e-5)
+        dones += int(da.sum())
+    assert dones > 0  # the comparison crossed episode boundaries

@@ -185,10 +185,14 @@ def make_vec_env(args: Args, cfg: dict[str, Any]) -> Any:
         except ImportError as exc:
             raise ConfigError(f"--vec-env native needs train/native_vec.py (make_native_vec_env), "
                               f"which is not available: {exc}") from exc
-        if cfg["frame_stack"] > 1 or cfg["shaping_coef"] > 0:
-            raise ConfigError("--vec-env native does not support frame_stack > 1 or shaping_coef > 0; "
-                              "use --vec-env dummy or subproc")
-        venv = make_native_vec_env(cfg["env_id"], n, args.seed, cfg["env_kwargs"])
+        venv = make_native_vec_env(cfg["env_id"], n, args.seed, cfg["env_kwargs"], shaping_coef=cfg["shaping_coef"],
+                                   gamma=gamma)
+        if cfg["frame_stack"] > 1:
+            from stable_baselines3.common.vec_env import VecFrameStack
+
+            # For 1-D observations VecFrameStack concatenates oldest → newest, zero-padded after a
+            # reset: the same vector as FlatFrameStack, which the loaded agent reproduces.
+            venv = VecFrameStack(venv, cfg["frame_stack"])
     else:
         fns = [make_env_fn(cfg["env_id"], cfg["env_kwargs"], cfg["frame_stack"], cfg["shaping_coef"], gamma)
                for _ in range(n)]
