@@ -51,6 +51,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"parallel worker processes (default: all cores = {default_workers()})")
     parser.add_argument("--backend", default="process", choices=sorted(BACKENDS),
                         help="where trials run (default: a local process pool)")
+    parser.add_argument("--address", default=None,
+                        help="cluster address for a distributed backend (e.g. --backend ray --address auto)")
     parser.add_argument("--sensor-model", default="calibrated", choices=list(SENSOR_MODELS),
                         help="the particle filter's sensor model (paper: calibrated)")
     parser.add_argument("--signal", default="fitted", choices=list(SIGNALS),
@@ -79,8 +81,9 @@ def run(args: argparse.Namespace) -> int:
                              trials=args.trials, seed=args.seed, sensor_model=args.sensor_model, signal=args.signal,
                              max_observations=args.max_observations, n_particles=args.n_particles,
                              env_id=GLOBAL_ENV_ID if is_global else "ElectroLoc-v0")
+        options = {} if args.address is None else {"address": args.address}
         run_benchmark(config, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
-                      progress=not args.no_progress)
+                      progress=not args.no_progress, backend_options=options)
     except ValueError as exc:
         print(f"electroloc bench: error: {exc}", file=sys.stderr)
         return 2
