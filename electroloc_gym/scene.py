@@ -207,31 +207,8 @@ def cylinder_differential_perturbation(
     Returns:
         (...) volts; float32 in, float32 out.
     """
-    off = np.asarray(offsets_mm)
-    dtype = off.dtype if off.dtype in (np.float32, np.float64) else np.dtype(np.float64)
-    x = off[..., 0].astype(dtype, copy=False)
-    y = off[..., 1].astype(dtype, copy=False)
-    h = dtype.type(spacing_mm / 2.0)
-    t2 = dtype.type(depth_mm * depth_mm)
-    # Emitter field at c = (x, y, −t) (App. A, Eq. 7): point charges at (±h, 0, 0).
-    xp = x - h
-    xn = x + h
-    y2t2 = y * y + t2
-    ip = (xp * xp + y2t2) ** dtype.type(-1.5)
-    inn = (xn * xn + y2t2) ** dtype.type(-1.5)
-    k = dtype.type(emitter_voltage_V * electrode_radius_mm)
-    ex = k * (xp * ip - xn * inn)
-    eyz = k * (ip - inn)  # E_y = eyz·y, E_z = eyz·(−t)
-    # Line-dipole potential at the sensors: (s − c) = (−x, ±h − y, +t), 1/|s − c|² (2-D analogue of Eq. 4).
-    x2t2 = x * x + t2
-    d1 = h - y
-    d2 = -h - y
-    r1 = 1.0 / (x2t2 + d1 * d1)
-    r2 = 1.0 / (x2t2 + d2 * d2)
-    common = -ex * x - eyz * t2
-    dot1 = common + eyz * y * d1
-    dot2 = common + eyz * y * d2
-    return dtype.type(chi2 * radius_mm**2) * (dot1 * r1 - dot2 * r2)
+    return physics.differential_line_perturbation(offsets_mm, radius_mm, chi2, depth_mm, spacing_mm,
+                                                  emitter_voltage_V, electrode_radius_mm)
 
 
 @dataclass(frozen=True)
