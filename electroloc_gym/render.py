@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from electroloc_gym.conditions import Condition
 from electroloc_gym.sensor import electrode_positions_mm, expected_reading
 
-__all__ = ["eev_map", "plot_eev", "EpisodeRenderer", "save_figure_atomic"]
+__all__ = ["eev_map", "plot_eev", "FrameRenderer", "EpisodeRenderer", "save_figure_atomic"]
 
 
 def eev_map(condition: Condition, half_span_mm: float | None = None, step_mm: float = 1.0
@@ -79,16 +79,10 @@ def _world_eev(condition: Condition, target: tuple[float, float], step_mm: float
     return grid, phi
 
 
-class EpisodeRenderer:
-    """Draws an :class:`~electroloc_gym.envs.localize.ElectroLocEnv` frame like the paper's Fig. 10.
-
-    EEV shading of the true target over carriage positions, the particles, the true target, the
-    estimate with its spread circle, the carriage electrodes and the path.
-    """
+class FrameRenderer:
+    """A 5×5-inch frame that env renderers draw into: off-screen (``rgb_array``) or a window (``human``)."""
 
     def __init__(self, render_mode: str) -> None:
-        import matplotlib
-
         if render_mode == "rgb_array":
             from matplotlib.backends.backend_agg import FigureCanvasAgg
             from matplotlib.figure import Figure
@@ -98,11 +92,34 @@ class EpisodeRenderer:
         else:
             import matplotlib.pyplot as plt
 
-            if matplotlib.get_backend().lower() == "agg":
-                pass  # headless: "human" still works (draws), there is just no window
-            self.fig = plt.figure(figsize=(5, 5), dpi=96)
+            self.fig = plt.figure(figsize=(5, 5), dpi=96)  # headless (Agg): draws, just no window
         self.render_mode = render_mode
         self.ax = self.fig.add_subplot(111)
+
+    def finish(self) -> NDArray[np.uint8] | None:
+        """Draw the canvas; the RGB array for ``rgb_array``, a short GUI pause for ``human``."""
+        self.fig.canvas.draw()
+        if self.render_mode == "rgb_array":
+            buf = np.asarray(self.fig.canvas.buffer_rgba())
+            return np.ascontiguousarray(buf[..., :3])
+        import matplotlib.pyplot as plt
+
+        plt.pause(1.0 / 30)
+        return None
+
+    def close(self) -> None:
+        """Release the figure."""
+        import matplotlib.pyplot as plt
+
+        plt.close(self.fig)
+
+
+class EpisodeRenderer(FrameRenderer):
+    """Draws an :class:`~electroloc_gym.envs.localize.ElectroLocEnv` frame like the paper's Fig. 10.
+
+    EEV shading of the true target over carriage positions, the particles, the true target, the
+    estimate with its spread circle, the carriage electrodes and the path.
+    """
 
     def draw(self, env: Any) -> NDArray[np.uint8] | None:
         """Draw the env's current state; returns an RGB array for ``rgb_array``."""
@@ -133,20 +150,7 @@ class EpisodeRenderer:
         ax.set_aspect("equal")
         ax.set_title(f"{c.name}: obs {env.n_observations}, spread {spread:.1f} mm", fontsize=9)
         ax.legend(loc="upper right", fontsize=7)
-        self.fig.canvas.draw()
-        if self.render_mode == "rgb_array":
-            buf = np.asarray(self.fig.canvas.buffer_rgba())
-            return np.ascontiguousarray(buf[..., :3])
-        import matplotlib.pyplot as plt
-
-        plt.pause(1.0 / 30)
-        return None
-
-    def close(self) -> None:
-        """Release the figure."""
-        import matplotlib.pyplot as plt
-
-        plt.close(self.fig)
+        return self.finish()
 
 
 def _circle(center: NDArray, radius: float, color: str):

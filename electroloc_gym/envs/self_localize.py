@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from electroloc_gym.envs.base import MAX_STEP_MM, ParticleFilterEnv
 from electroloc_gym.envs.observation import belief_observation, condition_descriptor, raw_observation
+from electroloc_gym.render import FrameRenderer
 from electroloc_gym.scene import (
     BENCHMARK_SCENE,
     DEFAULT_POSITION_BLUR_MM,
@@ -258,22 +259,8 @@ def _cached_map_eev(scene: Scene) -> tuple[NDArray[np.float64], NDArray[np.float
     return map_eev(scene, step_mm=1.5)
 
 
-class _GlobalRenderer:
+class _GlobalRenderer(FrameRenderer):
     """A Fig. 13-style frame: the map's EEV, the particles, the true path (asterisks), the estimate."""
-
-    def __init__(self, render_mode: str) -> None:
-        if render_mode == "rgb_array":
-            from matplotlib.backends.backend_agg import FigureCanvasAgg
-            from matplotlib.figure import Figure
-
-            self.fig = Figure(figsize=(5, 5), dpi=96)
-            FigureCanvasAgg(self.fig)
-        else:
-            import matplotlib.pyplot as plt
-
-            self.fig = plt.figure(figsize=(5, 5), dpi=96)
-        self.render_mode = render_mode
-        self.ax = self.fig.add_subplot(111)
 
     def draw(self, env: GlobalLocalizationEnv) -> NDArray[np.uint8] | None:
         from matplotlib.patches import Circle
@@ -305,16 +292,4 @@ class _GlobalRenderer:
         ax.set_aspect("equal")
         ax.set_title(f"{scene.name}: obs {env.n_observations}, spread {spread:.1f} mm", fontsize=9)
         ax.legend(loc="upper right", fontsize=7)
-        self.fig.canvas.draw()
-        if self.render_mode == "rgb_array":
-            buf = np.asarray(self.fig.canvas.buffer_rgba())
-            return np.ascontiguousarray(buf[..., :3])
-        import matplotlib.pyplot as plt
-
-        plt.pause(1.0 / 30)
-        return None
-
-    def close(self) -> None:
-        import matplotlib.pyplot as plt
-
-        plt.close(self.fig)
+        return self.finish()
