@@ -16,6 +16,7 @@ from electroloc_gym.conditions import (
     PAPER_TABLE3_MEASURED_MM,
     PAPER_TABLE3_THEORY_MM,
     PRESET_NAMES,
+    SIGNAL_CHOICES,
     get_condition,
 )
 
@@ -140,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("eev", help="plot the expected-electric-voltage map (Fig. 2 / Fig. 9) to a PNG")
     e.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES))
-    e.add_argument("--signal", default="fitted", choices=["fitted", "paper"])
+    e.add_argument("--signal", default="fitted", choices=list(SIGNAL_CHOICES))
     e.add_argument("--out", default="eev.png")
     e.add_argument("--env", default="target", choices=["target", "global"],
                    help="target: one sphere's EEV (ElectroLoc-v0); global: the six-cylinder map (Fig. 14)")

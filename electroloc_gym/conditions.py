@@ -18,6 +18,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from electroloc_gym import physics
 
 __all__ = [
@@ -32,6 +34,10 @@ __all__ = [
     "PAPER_TABLE3_THEORY_MM",
     "get_condition",
     "fitted_signal_scale",
+    "start_box_coverage",
+    "coverage_signal_multiplier",
+    "SIGNAL_CHOICES",
+    "PAPER_START_COVERAGE",
 ]
 
 #: Conductivities (µS/cm) of the paper's target materials. Steel ≈ 1.4·10⁶ S/m; Delrin (acetal) is
@@ -268,7 +274,11 @@ PAPER_TABLE3_MEASURED_MM: dict[str, float] = dict(zip(PRESET_NAMES, (32.7, 31.3,
 #: Table 3, theoretical detection distance (mm), by preset.
 PAPER_TABLE3_THEORY_MM: dict[str, float] = dict(zip(PRESET_NAMES, (32.7, 29.5, 43.2, 39.3, 32.9, 26.6, 46.5, 45.3)))
 
-SIGNAL_CHOICES = ("fitted", "paper")
+SIGNAL_CHOICES = ("fitted", "paper", "coverage")
+
+#: Paper §6.3: "In 22% of the electrolocation trials, the robot's starting position was outside the
+#: detection range of the target" (the 2σ contours of the measured EEVs, Fig. 9), over all 8 conditions.
+PAPER_START_COVERAGE = 0.78
 
 
 def _paper_condition(name: str) -> Condition:
@@ -295,14 +305,56 @@ def fitted_signal_scale(name: str) -> float:
         spacing_mm=g.spacing_mm, emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
 
 
+def start_box_coverage(condition: Condition, threshold_sigmas: float = 2.0, n_grid: int = 121) -> float:
+    """Fraction of start positions (uniform in the start box) inside the ±kσ detection region.
+
+    The detection region is where the noise-free reading exceeds ``threshold_sigmas`` times the noise
+    (the solid contours of the paper's Fig. 9); the target sits at ``target_xy_mm``.
+    """
+    s = condition.start_half_width_mm
+    g = np.linspace(-s, s, n_grid)
+    gx, gy = np.meshgrid(g, g, indexing="ij")
+    off = np.asarray(condition.target_xy_mm) - np.stack([gx, gy], axis=-1)
+    geo = condition.geometry
+    delta = physics.differential_perturbation(
+        off, condition.target.radius_mm, condition.chi, condition.depth_mm, spacing_mm=geo.spacing_mm,
+        emitter_voltage_V=geo.emitter_voltage_V, electrode_radius_mm=geo.electrode_radius_mm)
+    signal = np.minimum(np.abs(delta) * condition.signal_scale * condition.amplifier.gain, condition.saturation_V)
+    return float(np.mean(signal > threshold_sigmas * condition.noise_std_V))
+
+
+@functools.cache
+def coverage_signal_multiplier() -> float:
+    """One factor k on every preset's fitted scale so that the start-box coverage matches §6.3.
+
+    With the Table-3 fit alone the 2σ detection region covers on average ≈26 % of the start box,
+    while the paper's robot started inside it in 78 % of its 800 trials (§6.3) — and its measured EEVs
+    saturate at ±10 V (Fig. 9), which the fitted model never does. Both point to a signal about an order
+    of magnitude stronger than the 45° detection distances alone imply (the two are inconsistent under
+    the dipole model of Eq. 4). The ``"coverage"`` variant multiplies every fitted scale by the single k
+    (solved here, ≈10) at which the mean coverage over the eight presets is 78 %.
+    """
+    from scipy.optimize import brentq
+
+    base = [_paper_condition(n).replace(signal_scale=fitted_signal_scale(n)) for n in PRESET_NAMES]
+
+    def gap(k: float) -> float:
+        return float(np.mean([start_box_coverage(c.replace(signal_scale=c.signal_scale * k)) for c in base]))\
+            - PAPER_START_COVERAGE
+
+    return float(brentq(gap, 1.0, 1000.0, xtol=1e-3))
+
+
 def get_condition(name_or_condition: str | Condition | Mapping[str, Any], signal: str | float = "fitted") -> Condition:
     """Return a :class:`Condition` from a preset name, a Condition, or a dict.
 
     Args:
         name_or_condition: one of :data:`PRESET_NAMES`, a :class:`Condition` (returned unchanged), or a
             dict for :meth:`Condition.from_dict`.
-        signal: for presets only: ``"fitted"`` (default, the scale fitted to the hardware),
-            ``"paper"`` (the paper's equations, scale 1) or a positive float.
+        signal: for presets only: ``"fitted"`` (default, the scale fitted to Table 3's measured
+            detection distances), ``"paper"`` (the paper's equations, scale 1), ``"coverage"`` (the
+            fitted scale times :func:`coverage_signal_multiplier`, matching §6.3's 78 % of starts
+            inside the detection region) or a positive float.
 
     Raises:
         ValueError: unknown name or bad ``signal``.
@@ -318,8 +370,10 @@ def get_condition(name_or_condition: str | Condition | Mapping[str, Any], signal
         scale = fitted_signal_scale(name_or_condition)
     elif signal == "paper":
         scale = 1.0
+    elif signal == "coverage":
+        scale = fitted_signal_scale(name_or_condition) * coverage_signal_multiplier()
     elif isinstance(signal, (int, float)) and not isinstance(signal, bool):
         scale = float(signal)
     else:
-        raise ValueError(f"signal must be 'fitted', 'paper' or a positive float, got {signal!r}")
+        raise ValueError(f"signal must be 'fitted', 'paper', 'coverage' or a positive float, got {signal!r}")
     return c.replace(signal_scale=scale)

@@ -228,3 +228,26 @@ def test_calibrated_bad_args(kwargs, match) -> None:
 def test_unknown_sensor_model_name() -> None:
     with pytest.raises(ValueError, match="sensor_model"):
         make_sensor_model("psychic", get_condition("fresh-steel-12.7"))
+
+
+def test_coverage_signal_matches_paper_start_coverage() -> None:
+    """§6.3: 78 % of the paper's starts were inside the 2σ detection region; the Table-3 fit gives ≈26 %."""
+    from electroloc_gym.conditions import PAPER_START_COVERAGE, coverage_signal_multiplier, start_box_coverage
+
+    fitted = np.mean([start_box_coverage(get_condition(n)) for n in PRESET_NAMES])
+    assert 0.15 < fitted < 0.35
+    k = coverage_signal_multiplier()
+    assert 5.0 < k < 15.0
+    cov = [start_box_coverage(get_condition(n, "coverage")) for n in PRESET_NAMES]
+    assert np.mean(cov) == pytest.approx(PAPER_START_COVERAGE, abs=0.01)
+    for n in PRESET_NAMES:
+        assert get_condition(n, "coverage").signal_scale == pytest.approx(get_condition(n).signal_scale * k)
+
+
+def test_start_box_coverage_limits() -> None:
+    from electroloc_gym.conditions import start_box_coverage
+
+    c = get_condition("fresh-steel-12.7")
+    assert start_box_coverage(c.replace(signal_scale=1e-6)) == 0.0
+    # The EEV's zero lines (x = 0, y = 0 through the target) are never inside the region, so < 1.
+    assert 0.9 < start_box_coverage(c.replace(signal_scale=1e6)) < 1.0

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.bench.backends import make_backend
-from electroloc_gym.conditions import PRESET_NAMES, get_condition
+from electroloc_gym.conditions import PRESET_NAMES, SIGNAL_CHOICES, get_condition
 
 __all__ = [
     "BenchConfig",
@@ -53,7 +53,7 @@ __all__ = [
 #: The paper's three controllers.
 DEFAULT_AGENTS: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
 SENSOR_MODELS = ("calibrated", "analytic")
-SIGNALS = ("fitted", "paper")
+SIGNALS = SIGNAL_CHOICES
 #: Keys of a trial record that vary run to run (timings); everything else is deterministic.
 TIMING_KEYS = ("decision_ms_median", "decision_ms_mean", "wall_s")
 # The bench owns these env kwargs; an agent's env_kwargs cannot override them.
@@ -74,7 +74,8 @@ class BenchConfig:
         trials: trials per condition and agent.
         seed: root seed of the trial seeds.
         sensor_model: the filter's sensor model, "calibrated" (the paper's) or "analytic".
-        signal: "fitted" (presets' signal scale fitted to the hardware) or "paper" (scale 1).
+        signal: "fitted" (presets' signal scale fitted to Table 3), "paper" (scale 1) or "coverage"
+            (fitted × one factor matching the paper's §6.3 start coverage; see conditions.get_condition).
         max_observations: observation cap of a trial (paper: 35).
         n_particles: particles of the belief (paper: 2500).
         env_id: the environment id.
