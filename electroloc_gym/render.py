@@ -6,14 +6,13 @@ Everything renders off-screen with the Agg canvas unless ``render_mode="human"``
 from __future__ import annotations
 
 import functools
-import os
-import tempfile
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.conditions import Condition
+from electroloc_gym.fileio import save_figure_atomic
 from electroloc_gym.sensor import electrode_positions_mm, expected_reading
 
 __all__ = ["eev_map", "plot_eev", "FrameRenderer", "EpisodeRenderer", "save_figure_atomic"]
@@ -31,22 +30,6 @@ def eev_map(condition: Condition, half_span_mm: float | None = None, step_mm: fl
     gx, gy = np.meshgrid(grid, grid, indexing="ij")
     carriage = np.stack([gx, gy], axis=-1)
     return grid, expected_reading(condition, -carriage)
-
-
-def save_figure_atomic(fig: Any, path: str | os.PathLike, **kwargs: Any) -> None:
-    """Save a matplotlib figure to a temp file beside ``path``, then rename (nothing half-written)."""
-    path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    suffix = os.path.splitext(path)[1] or ".png"
-    fd, tmp = tempfile.mkstemp(dir=d, suffix=suffix + ".tmp")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format=suffix.lstrip(".") or "png", **kwargs)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def plot_eev(condition: Condition, ax: Any = None, threshold_sigmas: float = 2.0) -> Any:

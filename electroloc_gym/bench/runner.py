@@ -34,6 +34,7 @@ import numpy as np
 
 from electroloc_gym.bench.backends import make_backend
 from electroloc_gym.conditions import PRESET_NAMES, SIGNAL_CHOICES, get_condition
+from electroloc_gym.fileio import atomic_write_text
 
 __all__ = [
     "BenchConfig",
@@ -307,14 +308,8 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
 # Files
 # ---------------------------------------------------------------------------------------------
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (temp file in the same directory + os.replace)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    """Write ``text`` to ``path`` atomically (:func:`electroloc_gym.fileio.atomic_write_text`)."""
+    atomic_write_text(path, text)
 
 
 def write_json_atomic(path: str | os.PathLike, obj: Any) -> None:
