@@ -106,6 +106,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     env = gym.make("ElectroLoc-v0", condition=args.condition, render_mode="rgb_array",
                    sensor_model=args.sensor_model)
     obs, info = env.reset(seed=args.seed)
+    env.action_space.seed(args.seed)  # the random walk is part of the seeded demo
     frames = [env.render()]
     done = False
     while not done:
