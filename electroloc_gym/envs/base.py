@@ -246,6 +246,16 @@ class ParticleFilterEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int])
         self._belief = ParticleBelief(self.n_particles, low, high, dtype=np.float32)
         self._belief.reset(rng)
 
+    def _begin_episode(self, rng: np.random.Generator) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """The end of every reset, once the carriage is placed: fresh belief, first reading, (obs, info)."""
+        self._start_belief(rng)
+        self._path = [tuple(map(float, self._position))]
+        self._n_obs = 0
+        self._observe()
+        if self.render_mode == "human":
+            self.render()
+        return self._get_obs(), self._get_info()
+
     def _observe(self) -> None:
         """Take a noisy reading at the carriage and fuse it into the belief (§4.1)."""
         rng = self.np_random

@@ -200,13 +200,7 @@ class GlobalLocalizationEnv(ParticleFilterEnv):
         s = self._scene.start_half_width_mm
         self._position = rng.uniform(-s, s, size=2)
         self._odometry = np.zeros(2)
-        self._start_belief(rng)
-        self._path = [tuple(map(float, self._position))]
-        self._n_obs = 0
-        self._observe()
-        if self.render_mode == "human":
-            self.render()
-        return self._get_obs(), self._get_info()
+        return self._begin_episode(rng)
 
     # ---- hooks of ParticleFilterEnv --------------------------------------------------------------
     def _execute_move(self, move_mm: NDArray[np.float64]) -> None:
