@@ -340,18 +340,6 @@ def test_learning_curve_plot_from_a_run(tiny_run, tmp_path):
     assert plots_main([str(tmp_path / "none"), "--out", str(out)]) == 2
 
 
-def test_evaluate_runs_the_learned_policy_and_a_baseline_on_the_same_seeds(tiny_run):
-    pytest.importorskip("baselines.agent")
-    from train.evaluate import run_trials, summarise, trial_seed
-
-    assert trial_seed(0, 1) == trial_seed(0, 1) != trial_seed(1, 1)
-    learned = run_trials(str(tiny_run), "fresh-steel-12.7", 0, 2)
-    walk = run_trials("rnd-wlk", "fresh-steel-12.7", 0, 2)
-    assert [r["seed"] for r in learned] == [r["seed"] for r in walk]
-    s = summarise(learned)
-    assert s["trials"] == 2 and s["successes"] + s["failures"] == 2 and s["decision_ms"] > 0
-
-
 def test_recurrent_policy_carries_and_resets_its_state(tmp_path):
     sb3_contrib = pytest.importorskip("sb3_contrib")
     from stable_baselines3.common.vec_env import DummyVecEnv
