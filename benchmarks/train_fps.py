@@ -25,6 +25,8 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
+from electroloc_gym.fileio import atomic_write_text  # noqa: E402
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout: `train` importable
 
 
@@ -96,10 +98,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         print(f"{kind:<8} {r['fps_cpu']:>10.0f} {r['fps_wall']:>11.0f} {ratio:>8.2f}x", flush=True)
         results["rows"].append({"vec_env": kind, **r, "ratio_vs_dummy_cpu": ratio})
     if args.json:
-        tmp = args.json + ".tmp"
-        with open(tmp, "w") as f:
-            json.dump(results, f, indent=2)
-        os.replace(tmp, args.json)
+        atomic_write_text(args.json, json.dumps(results, indent=2))
     return results
 
 

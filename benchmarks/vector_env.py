@@ -39,6 +39,7 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
+from electroloc_gym.fileio import atomic_write_text  # noqa: E402
 
 
 class _Single:
@@ -149,10 +150,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         row("sync+malloc", n, sync)
         row("native", n, sync)
     if args.json:
-        tmp = args.json + ".tmp"
-        with open(tmp, "w") as f:
-            json.dump(results, f, indent=2)
-        os.replace(tmp, args.json)
+        atomic_write_text(args.json, json.dumps(results, indent=2))
     return results
 
 

@@ -70,6 +70,13 @@ def _f(x: Any, digits: int = 1) -> str:
     return "–" if x is None else f"{x:.{digits}f}"
 
 
+def _paper_cells(paper: tuple | None) -> tuple[str, str, str]:
+    """The paper's success (failure), error mean/median and steps mean/median cells ("" when absent)."""
+    if not paper:
+        return "", "", ""
+    return f"{paper[0]}({paper[1]})", _pair(paper[2], paper[3]), f"{paper[4]:g}/{paper[5]:g}"
+
+
 def _pair(a: Any, b: Any, digits: int = 1) -> str:
     return f"{_f(a, digits)}/{_f(b, digits)}"
 
@@ -110,9 +117,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
             else:
                 water, sphere = _cond_label(r["condition"])
                 paper = PAPER_TABLE4.get((r["condition"], paper_agent_key(r["agent"]) or ""))
-            ps = f"{paper[0]}({paper[1]})" if paper else ""
-            pe = _pair(paper[2], paper[3]) if paper else ""
-            pst = f"{paper[4]:g}/{paper[5]:g}" if paper else ""
+            ps, pe, pst = _paper_cells(paper)
             out.append(f"| {water} | {sphere} | {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
                        f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
                        f"| {_pair(r['steps_mean_paired'], r['steps_median'])} | {_f(r['decision_ms_median'], 2)} "
@@ -172,9 +177,7 @@ def _render_table2(summary: dict[str, Any]) -> str:
            "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         paper = PAPER_TABLE2.get(paper_agent_key(r["agent"]) or "")
-        ps = f"{paper[0]}({paper[1]})" if paper else ""
-        pe = _pair(paper[2], paper[3]) if paper else ""
-        pst = f"{paper[4]:g}/{paper[5]:g}" if paper else ""
+        ps, pe, pst = _paper_cells(paper)
         out.append(f"| {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
                    f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
                    f"| {_pair(r['steps_mean_paired'], r['steps_median'])} | {_f(r['decision_ms_median'], 2)} "
