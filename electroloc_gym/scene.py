@@ -180,35 +180,9 @@ class SceneObject:
         return float(f(self.conductivity_uScm, water_conductivity_uScm))
 
 
-def cylinder_differential_perturbation(
-    offsets_mm: ArrayLike,
-    radius_mm: float,
-    chi2: float,
-    depth_mm: float,
-    spacing_mm: float = 50.0,
-    emitter_voltage_V: float = 2.0,
-    electrode_radius_mm: float = 1.0,
-) -> NDArray:
-    """δV(S1) − δV(S2) (V, before amplification) of a vertical cylinder at ``offsets_mm``.
-
-    The 2-D analogue of Eq. 4, ``χ₂ a² E_f(c)·(s − c)/|s − c|²``, with ``c`` the top of the axis,
-    ``depth_mm`` below the electrode plane (module docstring: ``a + E + O`` in a :class:`Scene`). Written
-    per coordinate column like :func:`electroloc_gym.physics.differential_perturbation` (hot path).
-
-    Args:
-        offsets_mm: (..., 2) cylinder axis position relative to the carriage centre, mm.
-        radius_mm: cylinder radius a, mm.
-        chi2: contrast χ₂ (dimensionless).
-        depth_mm: depth of the top of the axis below the electrode plane, mm (≥ 0; > 0 keeps it regular).
-        spacing_mm: emitter (= sensor) spacing L, mm.
-        emitter_voltage_V: emitter drive V_e, V.
-        electrode_radius_mm: emitter radius E, mm.
-
-    Returns:
-        (...) volts; float32 in, float32 out.
-    """
-    return physics.differential_line_perturbation(offsets_mm, radius_mm, chi2, depth_mm, spacing_mm,
-                                                  emitter_voltage_V, electrode_radius_mm)
+#: δV(S1) − δV(S2) of a vertical cylinder (the 2-D analogue of Eq. 4); the column-wise fast path lives in
+#: physics, shared with the sphere's; ``depth_mm`` is the top of the axis (``a + E + O`` in a :class:`Scene`).
+cylinder_differential_perturbation = physics.differential_line_perturbation
 
 
 @dataclass(frozen=True)
