@@ -4,6 +4,13 @@ The belief is a cloud of ``M`` particles (positions in mm) inside an axis-aligne
 multiplies the weights by the likelihood of the reading, then the cloud is importance-resampled
 (systematic resampling) and jittered with N(0, jitter_std_mm²) per axis, and kept inside the box.
 
+Jitter draws: each N(0, 1) jitter value is one of 65536 equiprobable standard-normal quantiles
+(:func:`normal_table`) picked by 16 random bits taken straight from the generator's bit stream
+(:func:`table_standard_normal`). Measured here, numpy's float32 ziggurat took ≈52 µs for the 5000
+values of a step (half of what the rest of a batched step costs), the table ≈9 µs. The table is
+rescaled to unit variance; its tails stop at ±4.2σ (probability 2.7·10⁻⁵), which a roughening
+kernel does not need.
+
 The core is a set of functions over arrays with arbitrary leading (batch) dimensions, shape
 (..., M, 2), so the single environment and the batched vector environment share one code path;
 :class:`ParticleBelief` wraps them for one cloud.
@@ -17,16 +24,50 @@ valid distribution concentrated on the least-unlikely particles. If every log-li
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.special import ndtri
+
+from electroloc_gym._kernels import mean_cov_rows
 
 __all__ = [
     "ParticleBelief",
+    "normal_table",
+    "table_normal_indices",
+    "table_standard_normal",
     "normalise_log_weights",
     "systematic_resample",
     "weighted_mean_cov",
     "spread_from_cov",
 ]
+
+
+#: Bits per jitter draw: the table holds 2**16 quantiles.
+NORMAL_TABLE_BITS = 16
+
+
+@functools.cache
+def normal_table() -> NDArray[np.float32]:
+    """The 65536 standard-normal quantiles Φ⁻¹((k + ½)/65536), rescaled to unit variance (float32, read-only)."""
+    n = 1 << NORMAL_TABLE_BITS
+    q = ndtri((np.arange(n) + 0.5) / n)
+    q /= np.sqrt(np.mean(q * q))
+    table = q.astype(np.float32)
+    table.flags.writeable = False
+    return table
+
+
+def table_normal_indices(rng: np.random.Generator, n: int) -> NDArray[np.uint16]:
+    """``n`` indices into :func:`normal_table`: the 16-bit words of ⌈n/4⌉ raw 64-bit draws of ``rng``."""
+    return rng.bit_generator.random_raw((n + 3) // 4).view(np.uint16)[:n]
+
+
+def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float32]:
+    """Standard normals (float32) of ``shape`` from the quantile table (see the module docstring)."""
+    n = int(np.prod(shape))
+    return normal_table()[table_normal_indices(rng, n)].reshape(shape)
 
 
 def normalise_log_weights(log_w: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
@@ -41,8 +82,11 @@ def normalise_log_weights(log_w: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
         raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
     m = np.max(log_w, axis=-1, keepdims=True)
     degenerate = ~np.isfinite(m[..., 0])
-    m = np.where(np.isfinite(m), m, 0.0)
-    w = np.exp(log_w - m)
+    m = np.where(np.isfinite(m), m, 0.0).astype(log_w.dtype)
+    # exp in the log-weights' own dtype (float32 from the float32 sensor models: ≈4× faster than
+    # float64 here, and a relative error of 1e-7 on a weight is far below systematic resampling's
+    # resolution of 1/M), then everything in float64.
+    w = np.exp(log_w - m).astype(np.float64)
     w = np.where(degenerate[..., None], 1.0, w)
     w /= np.sum(w, axis=-1, keepdims=True)
     return w, degenerate
@@ -71,17 +115,25 @@ def weighted_mean_cov(particles: NDArray, weights: NDArray | None = None) -> tup
     """Weighted mean (..., 2) and covariance (..., 2, 2) of particle clouds (..., M, 2).
 
     Uses the population (biased) covariance, as a filter's spread should (``Σ wᵢ (xᵢ − μ)(xᵢ − μ)ᵀ``).
+    Without weights the sums are sequential float64 sums in particle order (a compiled kernel,
+    :func:`electroloc_gym._kernels.mean_cov_rows`), so one cloud gives the same bits whether it is
+    passed alone or in a batch, in any memory layout — the native vector env relies on it.
     """
-    x = np.asarray(particles, dtype=np.float64)
     if weights is None:
-        mean = x.mean(axis=-2)
-        d = x - mean[..., None, :]
-        cov = np.swapaxes(d, -1, -2) @ d / x.shape[-2]
-    else:
-        w = np.asarray(weights, dtype=np.float64)
-        mean = np.einsum("...m,...mi->...i", w, x)
-        d = x - mean[..., None, :]
-        cov = np.einsum("...m,...mi,...mj->...ij", w, d, d)
+        p = np.asarray(particles)
+        if p.dtype not in (np.float32, np.float64):
+            p = p.astype(np.float64)
+        batch, m = p.shape[:-2], p.shape[-2]
+        flat = p.reshape((-1, m, 2))
+        mean = np.empty((flat.shape[0], 2))
+        cov = np.empty((flat.shape[0], 2, 2))
+        mean_cov_rows(flat[..., 0], flat[..., 1], mean, cov)
+        return mean.reshape(batch + (2,)), cov.reshape(batch + (2, 2))
+    x = np.asarray(particles, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    mean = np.einsum("...m,...mi->...i", w, x)
+    d = x - mean[..., None, :]
+    cov = np.einsum("...m,...mi,...mj->...ij", w, d, d)
     return mean, cov
 
 
@@ -137,6 +189,11 @@ class ParticleBelief:
         v.flags.writeable = False
         return v
 
+    @property
+    def uniform_weights(self) -> bool:
+        """True when the weights are uniform (after every resampling; :attr:`weights` is then 1/M)."""
+        return self._uniform
+
     def set_state(self, particles: ArrayLike, weights: ArrayLike | None = None) -> None:
         """Replace the cloud (e.g. to restore a snapshot)."""
         p = np.asarray(particles, dtype=self.dtype)
@@ -164,7 +221,9 @@ class ParticleBelief:
 
     def update(self, log_likelihood: ArrayLike) -> NDArray:
         """Multiply the weights by ``exp(log_likelihood)`` (M,) and normalise; returns the weights."""
-        ll = np.asarray(log_likelihood, dtype=np.float64)
+        ll = np.asarray(log_likelihood)
+        if ll.dtype not in (np.float32, np.float64):
+            ll = ll.astype(np.float64)
         if ll.shape != (self.n_particles,):
             raise ValueError(f"log_likelihood must have shape ({self.n_particles},), got {ll.shape}")
         if self._uniform:
@@ -190,7 +249,7 @@ class ParticleBelief:
     def jitter(self, rng: np.random.Generator) -> None:
         """Add N(0, jitter_std_mm²) per axis and keep the particles inside the box."""
         if self.jitter_std_mm > 0:
-            noise = rng.standard_normal(size=self._particles.shape, dtype=self.dtype)
+            noise = table_standard_normal(rng, self._particles.shape).astype(self.dtype)
             noise *= self.dtype.type(self.jitter_std_mm)
             self._particles += noise
             self._clip_to_box()

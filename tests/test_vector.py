@@ -10,13 +10,13 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.belief import systematic_resample
+from electroloc_gym._kernels import resample_jitter_clip
+from electroloc_gym.belief import ParticleBelief, normal_table
 from electroloc_gym.conditions import PRESET_NAMES, get_condition
 from electroloc_gym.envs.vector import (
     ElectroLocVectorEnv,
     calibration_coefficients,
     fast_calibrated_model,
-    systematic_indices,
 )
 from electroloc_gym.sensor_models import CalibratedSensorModel
 
@@ -155,34 +155,56 @@ def test_max_episode_steps_truncates_like_time_limit() -> None:
         assert np.array_equal(r1[0], r2[0]) and np.array_equal(r1[3], r2[3]) and np.array_equal(r1[1], r2[1])
 
 
-def test_systematic_indices_equals_systematic_resample() -> None:
+def test_resample_kernel_equals_belief_resample_and_jitter() -> None:
+    """The compiled normalise + systematic resample + jitter + clip equals ParticleBelief's numpy steps."""
     rng = np.random.default_rng(0)
 
     class _Fixed:
-        def __init__(self, u: float) -> None:
-            self.u = u
+        """A generator whose resampling offset is ``u`` and whose raw bits are ``raw``."""
+
+        def __init__(self, u: float, raw: np.ndarray) -> None:
+            self.u, self.bit_generator = u, self
+
+            def random_raw(n: int) -> np.ndarray:
+                return raw[:n]
+
+            self.random_raw = random_raw
 
         def random(self, shape: tuple[int, ...]) -> np.ndarray:
             return np.full(shape, self.u)
 
-    for trial in range(400):
+    for trial in range(300):
         n, m = int(rng.integers(1, 4)), int(rng.integers(1, 400))
         kind = trial % 4
         if kind == 0:
-            w = rng.random((n, m))
+            e = rng.random((n, m))
         elif kind == 1:  # very peaked
-            w = np.exp(rng.normal(size=(n, m)) * rng.uniform(0, 40))
+            e = np.exp(rng.normal(size=(n, m)) * rng.uniform(0, 40))
         elif kind == 2:  # mostly zeros
-            w = (rng.random((n, m)) < 0.1) * 1.0
-            w[:, 0] += 1e-300
+            e = (rng.random((n, m)) < 0.1) * 1.0
+            e[:, 0] += 1e-300
         else:  # uniform: pointers land on the cumulative sums (ties)
-            w = np.ones((n, m))
-        w /= w.sum(axis=-1, keepdims=True)
+            e = np.ones((n, m))
+        with np.errstate(divide="ignore"):
+            ll = np.log(e)
+        e = np.exp(ll - ll.max(axis=-1, keepdims=True))  # what the env hands the kernel
         u = np.zeros(n) if trial % 5 == 0 else rng.random(n)
-        flat = systematic_indices(w, u)
-        assert flat.shape == (n * m,)
+        half = np.float32(rng.uniform(5, 60))
+        aos = rng.uniform(-half, half, (n, m, 2)).astype(np.float32)
+        raw = rng.integers(0, 2**64, size=(n, (2 * m + 3) // 4), dtype=np.uint64)
+        jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, :2 * m])
+        w, out = e.copy(), np.empty((n, 2, m), dtype=np.float32)
+        resample_jitter_clip(w, np.sum(e, axis=-1), u, np.ascontiguousarray(aos.transpose(0, 2, 1)), jitter_idx,
+                             normal_table(), np.full(n, half, dtype=np.float32), out, np.empty(m))
         for i in range(n):
-            assert np.array_equal(flat[i * m:(i + 1) * m] - i * m, systematic_resample(w[i], _Fixed(u[i])))
+            b = ParticleBelief(m, (-half, -half), (half, half), dtype=np.float32)
+            b.set_state(aos[i])
+            b.update(ll[i])
+            assert np.array_equal(w[i], b.weights)
+            fixed = _Fixed(u[i], raw[i])
+            b.resample(fixed)
+            b.jitter(fixed)
+            assert np.array_equal(out[i].T, b.particles), f"trial {trial}, cloud {i}"
 
 
 @pytest.mark.parametrize("name", PRESET_NAMES)

@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym._kernels import egocentric_counts
 from electroloc_gym.belief import spread_from_cov, weighted_mean_cov
 from electroloc_gym.conditions import Condition
 
@@ -134,18 +135,28 @@ def belief_observation(
 
 def _egocentric_histogram(particles_mm: NDArray, weights: NDArray | None, carriage: NDArray,
                           hw: NDArray) -> NDArray:
-    """Mass fraction of particles in an 8×8 grid of offsets ±H around the carriage, (..., 64)."""
+    """Mass fraction of particles in an 8×8 grid of offsets ±H around the carriage, (..., 64).
+
+    Without weights the cells are counted by a compiled kernel (:func:`electroloc_gym._kernels.egocentric_counts`,
+    the same float arithmetic as the weighted numpy path) — one pass instead of eight.
+    """
     p = np.asarray(particles_mm)
+    if p.dtype not in (np.float32, np.float64):
+        p = p.astype(np.float64)
     m = p.shape[-2]
+    batch = p.shape[:-2]
+    nb = HIST_BINS * HIST_BINS
+    if weights is None:
+        flat = p.reshape((-1, m, 2))
+        n_clouds = flat.shape[0]
+        counts = np.empty((n_clouds, nb))
+        egocentric_counts(flat[..., 0], flat[..., 1], np.asarray(carriage).reshape(n_clouds, 2).astype(p.dtype),
+                          (2 * hw).reshape(n_clouds).astype(p.dtype), HIST_BINS, counts)
+        return (counts / m).reshape(batch + (nb,))
     rel = (p - carriage[..., None, :].astype(p.dtype)) / (2 * hw[..., None, None]).astype(p.dtype) + 0.5
     ij = np.clip((rel * HIST_BINS).astype(np.intp), 0, HIST_BINS - 1)
     cell = ij[..., 0] * HIST_BINS + ij[..., 1]
-    nb = HIST_BINS * HIST_BINS
-    batch = p.shape[:-2]
     n_clouds = int(np.prod(batch)) if batch else 1
-    flat = (cell.reshape(n_clouds, m) + nb * np.arange(n_clouds)[:, None]).ravel()
-    w = None if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
-    counts = np.bincount(flat, weights=w, minlength=n_clouds * nb).reshape(batch + (nb,))
-    if weights is None:
-        counts = counts / m
-    return counts
+    flat_cells = (cell.reshape(n_clouds, m) + nb * np.arange(n_clouds)[:, None]).ravel()
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    return np.bincount(flat_cells, weights=w, minlength=n_clouds * nb).reshape(batch + (nb,))

@@ -75,7 +75,14 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from electroloc_gym.belief import normalise_log_weights, spread_from_cov, weighted_mean_cov
+from electroloc_gym._kernels import calibrated_zterm_std, resample_jitter_clip
+from electroloc_gym.belief import (
+    normal_table,
+    normalise_log_weights,
+    spread_from_cov,
+    table_normal_indices,
+    weighted_mean_cov,
+)
 from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition
 from electroloc_gym.envs.localize import DISCRETE_MOVES_MM, MAX_STEP_MM, ElectroLocEnv
 from electroloc_gym.envs.observation import belief_observation, condition_descriptor, raw_observation
@@ -87,7 +94,7 @@ from electroloc_gym.sensor_models import (
 )
 
 __all__ = ["ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "make_electroloc_vector_env", "make_global_vector_env",
-           "systematic_indices", "fast_calibrated_model",
+           "fast_calibrated_model",
            "calibration_coefficients",
            "tune_malloc"]
 
@@ -142,62 +149,25 @@ _tune_malloc = tune_malloc  # the constructor's keyword argument of the same nam
 # --------------------------------------------------------------------------------------------
 # Exact batched building blocks
 # --------------------------------------------------------------------------------------------
-def systematic_indices(weights: NDArray[np.float64], u0: NDArray[np.float64],
-                       values: NDArray[np.intp] | None = None) -> NDArray[np.intp]:
-    """Flat indices (N·M,) into (N·M, …) of the systematic resampling of each row of ``weights`` (N, M).
+def _unnormalised_weights(ll: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``exp(ll − max)`` per row (exp in ``ll``'s dtype, then float64) and the row sums:
+    :func:`electroloc_gym.belief.normalise_log_weights` before its final division (done in the
+    resampling kernel), with the same operations. ``ll`` (k, M) is overwritten.
 
-    Bit-identical to :func:`electroloc_gym.belief.systematic_resample` applied to each row with the
-    row's uniform ``u0[i]`` (which draws ``rng.random((1,))``): that function returns, for the
-    pointers ``u_j = (U + j)/M``, ``min(#{i: c_i ≤ u_j}, M − 1)`` with ``c`` the normalised cumulative
-    weights. Here the number of pointers below each ``c_i``, ``K_i = #{j: u_j < c_i}``, is computed
-    directly: ``ceil(M·c_i − U)`` is within ±1 of it (float64 rounding only matters when ``c_i`` is
-    within ~1e-13 of a pointer), and one comparison against the exactly recomputed pointers
-    ``u_{k−1}`` and ``u_k`` fixes it. Particle ``i`` then gets ``K_i − K_{i−1}`` copies (the last one
-    everything left, which is the ``min(·, M − 1)``). O(N·M) elementwise work instead of N·M binary
-    searches.
-
-    Args:
-        weights: (N, M) non-negative weights, each row with a positive sum.
-        u0: (N,) uniforms in [0, 1), one per row.
-        values: (N, M) what to return for particle (n, i) instead of its flat index n·M + i.
-    """
-    n, m = weights.shape
-    cum = np.cumsum(weights, axis=-1)
-    cum /= cum[:, -1:]
-    u = np.asarray(u0, dtype=np.float64).reshape(n, 1)
-    t = cum * m
-    t -= u
-    k = np.ceil(t)
-    # Only where M·c − U is within 1e-9 of an integer can rounding make the candidate off by one:
-    # recheck those few against the pointers computed exactly as systematic_resample does, (U + j)/M.
-    t -= k
-    near = np.flatnonzero((t > -1e-9) | (t < 1e-9 - 1.0))
-    if near.size:
-        kf, cf, uf = k.reshape(-1), cum.reshape(-1), np.broadcast_to(u, (n, m)).reshape(-1)
-        kn, cn, un = np.clip(kf[near], 0.0, float(m)), cf[near], uf[near]
-        kn -= (kn > 0) & ((un + (kn - 1.0)) / m >= cn)
-        kn += (kn < m) & ((un + kn) / m < cn)
-        kf[near] = kn
-    np.clip(k, 0.0, float(m), out=k)
-    k[:, -1] = m
-    counts = np.diff(k, axis=-1, prepend=0.0).astype(np.intp)
-    src = np.arange(n * m) if values is None else values.reshape(n * m)
-    return np.repeat(src, counts.ravel())
-
-
-def _normalised_weights(ll: NDArray[np.float64]) -> NDArray[np.float64]:
-    """:func:`electroloc_gym.belief.normalise_log_weights` (uniform prior) with a fast common path.
-
-    Identical results: the NaN check is done on the row maxima (``max`` propagates NaN), and the
-    "every log-weight is −inf" rows (rare) go through the shared function.
+    A NaN log-weight raises (the row maxima propagate NaN); a row whose log-weights are all −inf
+    gets weights 1 (uniform after the division), as there.
     """
     mx = np.max(ll, axis=-1, keepdims=True)
-    if np.isnan(mx).any() or not np.isfinite(mx).all():
-        return normalise_log_weights(ll)[0]
+    if np.isnan(mx).any():
+        normalise_log_weights(ll)  # raises the shared error message
+    bad = ~np.isfinite(mx)
+    if bad.any():
+        np.copyto(mx, 0.0, where=bad)
     np.subtract(ll, mx, out=ll)
-    np.exp(ll, out=ll)
-    ll /= np.sum(ll, axis=-1, keepdims=True)
-    return ll
+    w = np.exp(ll, out=ll).astype(np.float64)
+    if bad.any():
+        np.copyto(w, 1.0, where=bad)
+    return w, np.sum(w, axis=-1)
 
 
 @functools.lru_cache(maxsize=32)
@@ -276,11 +246,10 @@ class _StackedCalibratedLookup:
     def __init__(self, num_envs: int, max_cells: int) -> None:
         self.max_cells = max_cells
         self.table = np.zeros((num_envs * max_cells, 8), dtype=np.float32)
-        self.base = (np.arange(num_envs, dtype=np.intp) * max_cells)[:, None]
+        self.base = (np.arange(num_envs, dtype=np.int64) * max_cells)[:, None]
         self.lo = np.zeros((num_envs, 1), dtype=np.float32)
         self.inv = np.ones((num_envs, 1), dtype=np.float32)
-        self.n1 = np.ones((num_envs, 1), dtype=np.intp)
-        self.n1f = np.ones((num_envs, 1), dtype=np.float32)
+        self.n1 = np.ones((num_envs, 1), dtype=np.int64)
 
     def set(self, env: int, model: CalibratedSensorModel) -> None:
         """Env ``env`` uses ``model`` (its own coefficient table, last row = outside the grid)."""
@@ -304,56 +273,24 @@ class _StackedCalibratedLookup:
         self.lo[env] = np.float32(grid_mm[0])
         self.inv[env] = np.float32(1.0 / step_mm)
         self.n1[env] = n1
-        self.n1f[env] = n1
 
-    def log_likelihood(self, reading_V: NDArray[np.float64], off_x: NDArray[np.float32], off_y: NDArray[np.float32],
-                       sel: slice | NDArray[np.intp]) -> NDArray[np.float32]:
-        """(k, M) log-likelihoods of readings (k,) at float32 offsets x, y (k, M) for envs ``sel``.
+    def log_likelihood(self, reading_V: NDArray[np.float64], soa: NDArray[np.float32], pos: NDArray[np.float32],
+                       sign: float, sel: slice | NDArray[np.intp]) -> NDArray[np.float32]:
+        """(k, M) log-likelihoods of readings (k,) for envs ``sel``, particles ``soa`` (k, 2, M) float32.
 
-        The operations of ``CalibratedSensorModel.mean_std`` + ``gaussian_log_likelihood``, in the same
-        float32 arithmetic, written in place into a few reused buffers (no per-step temporaries of
-        N·M elements). Only exact rewrites are used: ``a + b`` as ``b + a`` (IEEE addition and
-        multiplication are commutative), ``−½·z·z`` as ``(z·−½)·z``. ``off_x``/``off_y`` are overwritten.
+        ``CalibratedSensorModel.log_likelihood`` at the offsets ``sign·particle − pos`` (pos (k, 2)
+        float32), in the same float32 arithmetic: one compiled pass
+        (:func:`~electroloc_gym._kernels.calibrated_zterm_std`), then numpy's ``log`` of the std.
         """
-        lo, inv, n1, n1f, base = self.lo[sel], self.inv[sel], self.n1[sel], self.n1f[sel], self.base[sel]
-        k, m = off_x.shape
-        f32 = np.float32
-        fx = np.subtract(off_x, lo, out=off_x)
-        fx *= inv
-        fy = np.subtract(off_y, lo, out=off_y)
-        fy *= inv
-        inside = fx >= 0
-        inside &= fx <= n1f
-        inside &= fy >= 0
-        inside &= fy <= n1f
-        ix = fx.astype(np.intp)
-        np.minimum(ix, n1 - 1, out=ix)
-        iy = fy.astype(np.intp)
-        np.minimum(iy, n1 - 1, out=iy)
-        tx = np.subtract(fx, ix.astype(f32), out=fx)
-        ty = np.subtract(fy, iy.astype(f32), out=fy)
-        cell = np.multiply(ix, n1, out=ix)
-        cell += iy
-        np.copyto(cell, np.broadcast_to(n1 * n1, cell.shape), where=~inside)
-        cell += base
-        c = np.take(self.table, cell, axis=0)
-        txy = tx * ty
-        tmp = np.empty((k, m), dtype=f32)
-        mean = np.multiply(c[..., 1], tx)
-        mean += c[..., 0]
-        mean += np.multiply(c[..., 2], ty, out=tmp)
-        mean += np.multiply(c[..., 3], txy, out=tmp)
-        std = np.multiply(c[..., 5], tx, out=tx)
-        std += c[..., 4]
-        std += np.multiply(c[..., 6], ty, out=tmp)
-        std += np.multiply(c[..., 7], txy, out=tmp)
-        # gaussian_log_likelihood: z = (reading − mean)/std; −½ z² − log std (reading cast to float32).
-        z = np.subtract(np.asarray(reading_V, dtype=f32)[:, None], mean, out=mean)
-        z /= std
-        out = np.multiply(z, f32(-0.5), out=tmp)
-        out *= z
-        out -= np.log(std, out=std)
-        return out
+        k, _, m = soa.shape
+        zterm = np.empty((k, m), dtype=np.float32)
+        std = np.empty((k, m), dtype=np.float32)
+        px, py = (soa[:, 0], soa[:, 1]) if sign > 0 else (np.negative(soa[:, 0]), np.negative(soa[:, 1]))
+        calibrated_zterm_std(px, py, pos, self.lo[sel].reshape(k), self.inv[sel].reshape(k), self.n1[sel].reshape(k),
+                             self.base[sel].reshape(k), self.table, np.asarray(reading_V, dtype=np.float32),
+                             zterm, std)
+        zterm -= np.log(std, out=std)
+        return zterm
 
 
 def _check_vector_args(num_envs: Any, render_mode: Any, autoreset_mode: Any, max_episode_steps: Any) -> AutoresetMode:
@@ -505,9 +442,9 @@ class ElectroLocVectorEnv(VectorEnv):
         # (N, M, 2) array makes it iterate over the axis of length 2 — 3-4x slower for the broadcasts
         # in the statistics and the histogram. Same elementwise operations, identical results (tested).
         self._soa = np.zeros((n, 2, m), dtype=np.float32)
-        self._jitter = np.empty((n, m, 2), dtype=np.float32)
-        self._xy_offset = np.array([0, m], dtype=np.intp).reshape(1, 2, 1)
-        self._gather_bases: dict[int, NDArray[np.intp]] = {}
+        self._jitter_idx = np.empty((n, 2 * m), dtype=np.uint16)
+        self._normal_table = normal_table()
+        self._cum = np.empty(m)  # the resampling kernel's scratch
         self._block_envs = max(1, (BLOCK_PARTICLES if tune_malloc else BLOCK_PARTICLES_UNTUNED) // m)
         self._position = np.zeros((n, 2))
         self._target = np.zeros((n, 2))
@@ -724,12 +661,13 @@ class ElectroLocVectorEnv(VectorEnv):
         # Per-env draws, in the single env's order (normal, uniform, M·2 float32 normals).
         noise = np.empty(k)
         u0 = np.empty(k)
-        jitter = self._jitter[:k]
+        jitter = self._jitter_idx[:k]
+        two_m = 2 * self.n_particles
         for j, i in enumerate(env_ids):
             g = self._gen(i)
             noise[j] = g.normal(0.0, noise_std[j])
             u0[j] = g.random()
-            g.standard_normal(out=jitter[j], dtype=np.float32)
+            jitter[j] = table_normal_indices(g, two_m)
         # True readings (sensor.noisy_reading): float64 physics per distinct condition.
         position = self._position[sel]
         mean = self._true_mean(position, self._target[sel], cidx, k)
@@ -759,42 +697,35 @@ class ElectroLocVectorEnv(VectorEnv):
         np.subtract(soa[:, 1], posf[:, 1:2], out=p_off[:, 1])
         return p_off
 
+    #: Sensor-model offsets are ``sign·particle − origin`` (the calibrated kernel's form of
+    #: :meth:`_particle_offsets`): here particle − carriage.
+    _offset_sign = 1.0
+
+    def _offset_origin(self, position: NDArray[np.float64]) -> NDArray[np.float32]:
+        return position.astype(np.float32)
+
     def _true_state(self, sel: slice | NDArray[np.intp]) -> NDArray[np.float64]:
         """What the belief estimates (for info["error_mm"]): the target."""
         return self._target[sel]
 
     def _fuse(self, sel: slice | NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
-              jitter: NDArray[np.float32], cidx: NDArray[np.intp], position: NDArray[np.float64]) -> None:
+              jitter: NDArray[np.uint16], cidx: NDArray[np.intp], position: NDArray[np.float64]) -> None:
         """Weight, resample and jitter the clouds of envs ``sel`` (a block), then their mean and Σ."""
         m = self.n_particles
         k = len(reading)
         soa = self._soa[sel]
-        p_off = self._particle_offsets(soa, position)
         if self._cal is not None:
-            ll = self._cal.log_likelihood(reading, p_off[:, 0], p_off[:, 1], sel)
+            ll = self._cal.log_likelihood(reading, soa, self._offset_origin(position), self._offset_sign, sel)
         else:
-            off = p_off.transpose(0, 2, 1)
+            off = self._particle_offsets(soa, position).transpose(0, 2, 1)
             ll = self._per_condition(cidx, lambda c, rows: self._pool_analytic[c].log_likelihood(
                 reading[rows][:, None], off[rows]), k, (m,), np.float32)
-        w = _normalised_weights(np.asarray(ll, dtype=np.float64))
-        # Resampled x of env e, particle i sits at flat 2·e·M + i of the (k, 2, M) block; y at + M.
-        src = systematic_indices(w, u0, self._gather_base(k)).reshape(k, 1, m) + self._xy_offset
-        new = np.take(soa.reshape(-1), src)
-        new += jitter.transpose(0, 2, 1)  # jitter_std_mm = 1: the single env's "noise *= 1.0" is the identity
-        h = self._pool_half[cidx].astype(np.float32)[:, None, None]
-        np.maximum(new, -h, out=new)
-        np.minimum(new, h, out=new)
+        w, total = _unnormalised_weights(ll)
+        new = np.empty_like(soa)
+        resample_jitter_clip(w, total, u0, soa, jitter, self._normal_table, self._pool_half[cidx].astype(np.float32), new, self._cum)
         self._soa[sel] = new
-        self._mean[sel], self._cov[sel] = weighted_mean_cov(new.transpose(0, 2, 1))
-
-    def _gather_base(self, k: int) -> NDArray[np.intp]:
-        """(k, M) flat positions 2·e·M + i of particle i's x in a (k, 2, M) block (cached per k)."""
-        base = self._gather_bases.get(k)
-        if base is None:
-            m = self.n_particles
-            base = (2 * m * np.arange(k, dtype=np.intp))[:, None] + np.arange(m, dtype=np.intp)
-            self._gather_bases[k] = base
-        return base
+        mean, cov = weighted_mean_cov(new.transpose(0, 2, 1))
+        self._mean[sel], self._cov[sel] = mean, cov
 
     def _per_condition(self, cidx: NDArray[np.intp], fn: Any, k: int, tail: tuple[int, ...] = (),
                        dtype: Any = np.float64) -> NDArray:
@@ -908,7 +839,6 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
         self._init_common(template, int(num_envs), mode, max_episode_steps, tune_malloc,
                           (self.scene.as_condition(),), (MapAnalyticSensorModel(self.scene, self.position_blur_mm),))
         self._odometry = np.zeros((self.num_envs, 2))
-        self._uniform_w = np.full((self.num_envs, self.n_particles), 1.0 / self.n_particles)
 
     @property
     def odometry_mm(self) -> NDArray[np.float64]:
@@ -960,6 +890,11 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
     def _particle_offsets(self, soa: NDArray[np.float32], position: NDArray[np.float64]) -> NDArray[np.float32]:
         return np.negative(soa)  # the map model's convention: map origin − carriage hypothesis
 
+    _offset_sign = -1.0
+
+    def _offset_origin(self, position: NDArray[np.float64]) -> NDArray[np.float32]:
+        return np.zeros((len(position), 2), dtype=np.float32)
+
     def _true_state(self, sel: slice | NDArray[np.intp]) -> NDArray[np.float64]:
         return self._position[sel]
 
@@ -972,7 +907,7 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
             return raw_observation(odo, self._reading[sel], half, self._pool_sat[cidx])
         k = len(half)
         obs = belief_observation(
-            np.zeros((k, 2)), self._reading[sel], self._soa[sel].transpose(0, 2, 1), self._uniform_w[:k],
+            np.zeros((k, 2)), self._reading[sel], self._soa[sel].transpose(0, 2, 1), None,
             self._n_obs[sel], self.max_observations, half, self._pool_noise[cidx], self._pool_sat[cidx],
             self.success_spread_mm, self._pool_desc[cidx], mean_cov=(self._mean[sel], self._cov[sel]))
         obs[:, 0:2] = np.clip(odo / half[:, None], -1.0, 1.0)
