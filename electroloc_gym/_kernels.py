@@ -30,6 +30,8 @@ __all__ = [
     "resample_jitter_clip",
     "mean_cov_rows",
     "egocentric_counts",
+    "calibration_tables",
+    "bilinear_coefficients",
 ]
 
 _F32_HALF_NEG = np.float32(-0.5)
@@ -105,7 +107,7 @@ def calibrated_zterm_std(px, py, pos, lo, inv, n1, base, table, reading, zterm, 
 
 
 @njit(**_JIT)
-def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out, cum):  # pragma: no cover - compiled
+def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out, cum, ptr, first):  # pragma: no cover
     """Normalise, systematically resample, jitter and clip k clouds (ParticleBelief.assimilate's tail).
 
     Stands for, per env (``w`` the unnormalised ``exp(log_w − max)``, ``total`` its ``np.sum``)::
@@ -118,7 +120,12 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
         p = particles[idx] + jitter                                 # resample, jitter (std 1 mm)
         p = np.minimum(np.maximum(p, −H), H)                        # _clip_to_box
 
-    ``searchsorted`` is a merge walk here (the pointers increase), with the same comparisons.
+    ``searchsorted`` without branches: particle ``i`` takes the pointers ``j`` with
+    ``cum[i−1] ≤ u[j] < cum[i]``, i.e. ``K(i−1) ≤ j < K(i)`` where ``K(i) = #{j: u[j] < cum[i]}``
+    (``K(M−1) = M``: the ``min(·, M − 1)``). ``K(i)`` is ``ceil(M·cum[i] − U)`` up to float rounding,
+    corrected by comparing with the pointers themselves (the same ``(U + j)/M`` values, so the same
+    comparisons as ``searchsorted``); then ``idx[j] = #{i: K(i) ≤ j}`` is a running sum of a histogram
+    of the ``K(i)`` — no data-dependent branch per particle.
 
     Args:
         w: (k, M) float64 unnormalised weights (overwritten with the normalised ones).
@@ -129,32 +136,45 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
         normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.belief.normal_table`).
         half: (k,) float32 half-width H of the box, mm.
         out: (k, 2, M) float32 new particles (must not alias ``src``).
-        cum: (M,) float64 scratch.
+        cum, ptr: (M,) float64 scratch; first: (M + 1,) int64 scratch.
     """
     k, m = w.shape
     fm = np.float64(m)
     for e in range(k):
         t = total[e]
-        acc = 0.0
         for i in range(m):
-            wi = w[e, i] / t
-            w[e, i] = wi
-            acc = wi if i == 0 else acc + wi
+            w[e, i] = w[e, i] / t
+        acc = w[e, 0]
+        cum[0] = acc
+        for i in range(1, m):
+            acc = acc + w[e, i]
             cum[i] = acc
         last = cum[m - 1]
         for i in range(m):
             cum[i] = cum[i] / last
         u = u0[e]
+        for j in range(m):
+            ptr[j] = (u + np.float64(j)) / fm
+        for j in range(m + 1):
+            first[j] = 0
+        for i in range(m - 1):
+            c = cum[i]
+            kk = np.ceil(c * fm - u)
+            kk = 0.0 if kk < 0.0 else (fm if kk > fm else kk)
+            ki = np.int64(kk)
+            while ki > 0 and ptr[ki - 1] >= c:
+                ki -= 1
+            while ki < m and ptr[ki] < c:
+                ki += 1
+            first[ki] += 1
+        first[m] += 1
         h = half[e]
         nh = -h
-        i = 0
+        idx = np.int64(0)
         for j in range(m):
-            p = (u + np.float64(j)) / fm
-            while i < m and cum[i] <= p:
-                i += 1
-            s = i if i < m else m - 1
-            x = src[e, 0, s] + normal_table[jitter_idx[e, 2 * j]]
-            y = src[e, 1, s] + normal_table[jitter_idx[e, 2 * j + 1]]
+            idx += first[j]
+            x = src[e, 0, idx] + normal_table[jitter_idx[e, 2 * j]]
+            y = src[e, 1, idx] + normal_table[jitter_idx[e, 2 * j + 1]]
             x = nh if x < nh else x
             x = h if x > h else x
             y = nh if y < nh else y
@@ -202,7 +222,7 @@ def mean_cov_rows(px, py, mean, cov):  # pragma: no cover - compiled
 
 
 @njit(**_JIT)
-def egocentric_counts(px, py, carriage, scale, bins, out):  # pragma: no cover - compiled
+def egocentric_counts(px, py, carriage, scale, bins, out, cells):  # pragma: no cover - compiled
     """Particle counts (k, bins²) on a bins×bins grid of offsets around each carriage.
 
     Stands for ``observation._egocentric_histogram`` without weights, in the particles' dtype::
@@ -216,20 +236,90 @@ def egocentric_counts(px, py, carriage, scale, bins, out):  # pragma: no cover -
         scale: (k,) 2·H in the particles' dtype, mm.
         bins: cells per axis.
         out: (k, bins²) float64 counts (zeroed here).
+        cells: (M,) int64 scratch.
     """
     k, m = px.shape
     fb = np.float32(bins)  # numpy's ``rel * 8`` keeps the particles' dtype (a Python int is weak)
+    top = bins - 1
     for e in range(k):
-        for c in range(bins * bins):
-            out[e, c] = 0.0
         cx = carriage[e, 0]
         cy = carriage[e, 1]
         s = scale[e]
+        for i in range(m):  # no scatter in this loop: it vectorises
+            a = np.int64(((px[e, i] - cx) / s + _F32_HALF) * fb)
+            b = np.int64(((py[e, i] - cy) / s + _F32_HALF) * fb)
+            a = min(max(a, 0), top)
+            b = min(max(b, 0), top)
+            cells[i] = a * bins + b
+        for c in range(bins * bins):
+            out[e, c] = 0.0
         for i in range(m):
-            rx = (px[e, i] - cx) / s + _F32_HALF
-            ry = (py[e, i] - cy) / s + _F32_HALF
-            a = int(rx * fb)
-            b = int(ry * fb)
-            a = 0 if a < 0 else (bins - 1 if a > bins - 1 else a)
-            b = 0 if b < 0 else (bins - 1 if b > bins - 1 else b)
-            out[e, a * bins + b] += 1.0
+            out[e, cells[i]] += 1.0
+
+
+@njit(**_JIT)
+def calibration_tables(samples, min_std, mean_out, std_out):  # pragma: no cover - compiled
+    """Per grid point mean and sample std (ddof = 1, floored at ``min_std``) of calibration readings.
+
+    Sequential float64 sums over the samples (the calibrated sensor model and the vector env's
+    per-episode calibration both call this, so both get the same bits).
+
+    Args:
+        samples: (S, n, n) float64 readings, V (S ≥ 2).
+        min_std: floor of the std, V.
+        mean_out, std_out: (n, n) float64 outputs, V.
+    """
+    s, nx, ny = samples.shape
+    fs = np.float64(s)
+    for a in range(nx):
+        for b in range(ny):
+            acc = samples[0, a, b]
+            for t in range(1, s):
+                acc += samples[t, a, b]
+            mu = acc / fs
+            ss = 0.0
+            for t in range(s):
+                d = samples[t, a, b] - mu
+                ss += d * d
+            sd = np.sqrt(ss / (fs - 1.0))
+            mean_out[a, b] = mu
+            std_out[a, b] = sd if sd > min_std else min_std
+
+
+@njit(**_JIT)
+def bilinear_coefficients(mean, std, outside_std, out):  # pragma: no cover - compiled
+    """Per-cell bilinear coefficients of the mean and std tables, and the "outside the grid" row.
+
+    Row ``a·n1 + b`` holds, for each table ``t`` (mean, then std), ``t00, t10 − t00, t01 − t00,
+    t11 − t10 − t01 + t00`` (value = c0 + c1·tx + c2·ty + c3·tx·ty in the cell); the last row is
+    ``(0, 0, 0, 0, outside_std, 0, 0, 0)`` (no target: mean 0 V). ``out`` may be float32 (cast on store).
+
+    Args:
+        mean, std: (n, n) float64 tables, V.
+        outside_std: std outside the grid, V.
+        out: (n1² + 1, 8) output, n1 = n − 1.
+    """
+    n1 = mean.shape[0] - 1
+    for a in range(n1):
+        for b in range(n1):
+            r = a * n1 + b
+            v00 = mean[a, b]
+            v10 = mean[a + 1, b]
+            v01 = mean[a, b + 1]
+            v11 = mean[a + 1, b + 1]
+            out[r, 0] = v00
+            out[r, 1] = v10 - v00
+            out[r, 2] = v01 - v00
+            out[r, 3] = v11 - v10 - v01 + v00
+            v00 = std[a, b]
+            v10 = std[a + 1, b]
+            v01 = std[a, b + 1]
+            v11 = std[a + 1, b + 1]
+            out[r, 4] = v00
+            out[r, 5] = v10 - v00
+            out[r, 6] = v01 - v00
+            out[r, 7] = v11 - v10 - v01 + v00
+    last = n1 * n1
+    for c in range(8):
+        out[last, c] = 0.0
+    out[last, 4] = outside_std

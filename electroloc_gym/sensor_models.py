@@ -23,6 +23,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from electroloc_gym._kernels import bilinear_coefficients, calibration_tables
 from electroloc_gym.conditions import Condition
 from electroloc_gym.sensor import expected_reading, noisy_reading
 
@@ -138,9 +139,10 @@ class CalibratedSensorModel:
         offs = np.stack([gx, gy], axis=-1)
         draw = functools.partial(noisy_reading, condition) if reading_fn is None else reading_fn
         samples = draw(np.broadcast_to(offs[None], (int(samples_per_point), n, n, 2)), rng)
-        self.mean_table_V = samples.mean(axis=0)
-        std = samples.std(axis=0, ddof=1)
-        self.std_table_V = np.maximum(std, min_std_fraction * self.noise_std_V)
+        self.mean_table_V = np.empty((n, n))
+        self.std_table_V = np.empty((n, n))
+        calibration_tables(np.ascontiguousarray(samples, dtype=np.float64), min_std_fraction * self.noise_std_V,
+                           self.mean_table_V, self.std_table_V)  # mean, floored std (ddof = 1) per point
         if not (np.isfinite(position_blur_mm) and position_blur_mm >= 0):
             raise ValueError(f"position_blur_mm must be a finite number ≥ 0, got {position_blur_mm!r}")
         self.position_blur_mm = float(position_blur_mm)
@@ -155,14 +157,10 @@ class CalibratedSensorModel:
         The extra last row is the "outside the grid" cell: constant no-target mean 0 V and std G·σ_s.
         One row gather per particle then replaces four corner gathers and a mask (hot path).
         """
-        rows = []
-        for t in (self.mean_table_V, self.std_table_V):
-            v00, v10, v01, v11 = t[:-1, :-1], t[1:, :-1], t[:-1, 1:], t[1:, 1:]
-            rows += [v00, v10 - v00, v01 - v00, v11 - v10 - v01 + v00]
         n1 = self.grid_mm.size - 1
-        coef = np.stack([r.reshape(n1 * n1) for r in rows], axis=-1)
-        outside = np.array([[0.0, 0.0, 0.0, 0.0, self.noise_std_V, 0.0, 0.0, 0.0]])
-        return np.ascontiguousarray(np.concatenate([coef, outside], axis=0))
+        coef = np.empty((n1 * n1 + 1, 8))
+        bilinear_coefficients(self.mean_table_V, self.std_table_V, self.noise_std_V, coef)
+        return coef
 
     @property
     def grid_shape(self) -> tuple[int, int]:

@@ -195,7 +195,8 @@ def test_resample_kernel_equals_belief_resample_and_jitter() -> None:
         jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, :2 * m])
         w, out = e.copy(), np.empty((n, 2, m), dtype=np.float32)
         resample_jitter_clip(w, np.sum(e, axis=-1), u, np.ascontiguousarray(aos.transpose(0, 2, 1)), jitter_idx,
-                             normal_table(), np.full(n, half, dtype=np.float32), out, np.empty(m))
+                             normal_table(), np.full(n, half, dtype=np.float32), out, np.empty(m), np.empty(m),
+                             np.empty(m + 1, dtype=np.int64))
         for i in range(n):
             b = ParticleBelief(m, (-half, -half), (half, half), dtype=np.float32)
             b.set_state(aos[i])

@@ -75,7 +75,12 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from electroloc_gym._kernels import calibrated_zterm_std, resample_jitter_clip
+from electroloc_gym._kernels import (
+    bilinear_coefficients,
+    calibrated_zterm_std,
+    calibration_tables,
+    resample_jitter_clip,
+)
 from electroloc_gym.belief import (
     normal_table,
     normalise_log_weights,
@@ -212,7 +217,7 @@ def calibration_coefficients(condition: Condition, seed: int, out: NDArray | Non
     The per-cell bilinear coefficients (n1² + 1, 8) of the paper's calibration (§5.3) — the only part
     of the model the batched lookup needs, without building the model object (a new calibration per
     episode is ≈20 % of a step's cost at ~14 steps per episode). Same draws (``default_rng(seed)``,
-    one normal per sample), same reductions, same coefficient formulas as
+    one normal per sample), the same compiled tables and coefficients (:mod:`electroloc_gym._kernels`) as
     :class:`~electroloc_gym.sensor_models.CalibratedSensorModel`; ``out`` (float32 or float64) receives
     the values cast as ``astype`` would.
     """
@@ -220,19 +225,12 @@ def calibration_coefficients(condition: Condition, seed: int, out: NDArray | Non
     rng = np.random.default_rng(int(seed))
     noise = rng.normal(0.0, condition.noise_std_V, size=mean.shape)
     samples = np.clip(mean + noise, -condition.saturation_V, condition.saturation_V)
-    noise_std = float(condition.noise_std_V)
-    tables = (samples.mean(axis=0), np.maximum(samples.std(axis=0, ddof=1), _CAL_MIN_STD_FRACTION * noise_std))
-    n1 = mean.shape[-1] - 1
+    n = mean.shape[-1]
+    tables = np.empty((2, n, n))
+    calibration_tables(samples, _CAL_MIN_STD_FRACTION * float(condition.noise_std_V), tables[0], tables[1])
     if out is None:
-        out = np.empty((n1 * n1 + 1, 8))
-    cells = out[:n1 * n1].reshape(n1, n1, 8)
-    for j, t in enumerate(tables):
-        v00, v10, v01, v11 = t[:-1, :-1], t[1:, :-1], t[:-1, 1:], t[1:, 1:]
-        cells[..., 4 * j] = v00
-        cells[..., 4 * j + 1] = v10 - v00
-        cells[..., 4 * j + 2] = v01 - v00
-        cells[..., 4 * j + 3] = v11 - v10 - v01 + v00
-    out[n1 * n1] = (0.0, 0.0, 0.0, 0.0, noise_std, 0.0, 0.0, 0.0)  # outside the grid: no target
+        out = np.empty(((n - 1) ** 2 + 1, 8))
+    bilinear_coefficients(tables[0], tables[1], float(condition.noise_std_V), out)
     return out
 
 
@@ -444,7 +442,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._soa = np.zeros((n, 2, m), dtype=np.float32)
         self._jitter_idx = np.empty((n, 2 * m), dtype=np.uint16)
         self._normal_table = normal_table()
-        self._cum = np.empty(m)  # the resampling kernel's scratch
+        self._scratch = (np.empty(m), np.empty(m), np.empty(m + 1, dtype=np.int64))  # the resampling kernel's
         self._block_envs = max(1, (BLOCK_PARTICLES if tune_malloc else BLOCK_PARTICLES_UNTUNED) // m)
         self._position = np.zeros((n, 2))
         self._target = np.zeros((n, 2))
@@ -722,7 +720,8 @@ class ElectroLocVectorEnv(VectorEnv):
                 reading[rows][:, None], off[rows]), k, (m,), np.float32)
         w, total = _unnormalised_weights(ll)
         new = np.empty_like(soa)
-        resample_jitter_clip(w, total, u0, soa, jitter, self._normal_table, self._pool_half[cidx].astype(np.float32), new, self._cum)
+        resample_jitter_clip(w, total, u0, soa, jitter, self._normal_table, self._pool_half[cidx].astype(np.float32), new,
+                             *self._scratch)
         self._soa[sel] = new
         mean, cov = weighted_mean_cov(new.transpose(0, 2, 1))
         self._mean[sel], self._cov[sel] = mean, cov
