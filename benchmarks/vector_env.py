@@ -9,9 +9,7 @@ included, random actions, so episodes end and reset as in training) of
 * ``gym.make_vec(..., vectorization_mode="sync")`` (SyncVectorEnv) at each N,
 * ``gym.make_vec(..., vectorization_mode="vector_entry_point")`` (native) at each N,
 
-and the native/sync ratio. A "sync+malloc" row shows SyncVectorEnv with the same glibc setting the
-native env applies (``electroloc_gym.envs.vector.tune_malloc``), so that its share of the gain is
-visible. Every row runs in a fresh interpreter. The machine is shared: each configuration is timed in several short
+and the native/sync ratio. Every row runs in a fresh interpreter. The machine is shared: each configuration is timed in several short
 rounds, interleaved, and the best round is kept; throughput is reported per CPU-second of this
 process (``time.process_time``, insensitive to other processes taking the cores) and per wall
 second. Numeric libraries are pinned to one thread (DESIGN §10).
@@ -88,19 +86,15 @@ def measure(make: Callable[[], Any], seconds: float, rounds: int, seed: int = 0)
 def _make(backend: str, n: int, kwargs: dict[str, Any], env_id: str = "ElectroLoc-v0") -> Any:
     if backend == "single":
         return _Single(env_id, kwargs)
-    if backend in ("sync", "sync+malloc"):
-        if backend == "sync+malloc":
-            from electroloc_gym.envs.vector import tune_malloc
-
-            tune_malloc()
+    if backend == "sync":
         return gym.make_vec(env_id, num_envs=n, vectorization_mode="sync", **kwargs)
     return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
 
 
 def measure_isolated(backend: str, n: int, kwargs: dict[str, Any], seconds: float, rounds: int,
                      env_id: str = "ElectroLoc-v0") -> dict[str, float]:
-    """:func:`measure` in a fresh interpreter, so that allocator state (see
-    ``electroloc_gym.envs.vector.tune_malloc``) and caches of one configuration do not leak into another.
+    """:func:`measure` in a fresh interpreter, so that allocator state and caches of one configuration
+    do not leak into another.
     """
     spec = {"backend": backend, "n": n, "kwargs": kwargs, "env_id": env_id, "seconds": seconds, "rounds": rounds}
     cmd = [sys.executable, __file__, "--_one", json.dumps(spec)]
@@ -147,7 +141,6 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     row("single", 1, None)
     for n in args.n_envs:
         sync = row("sync", n, None)["steps_per_s_cpu"]
-        row("sync+malloc", n, sync)
         row("native", n, sync)
     if args.json:
         atomic_write_text(args.json, json.dumps(results, indent=2))

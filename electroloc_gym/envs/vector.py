@@ -11,37 +11,33 @@ Same per-env behaviour as the single env (tested bit for bit)
 Every sub-env ``i`` owns its own ``np.random.Generator`` (``reset(seed=s)`` seeds env ``i`` with
 ``s + i``, exactly like :class:`gymnasium.vector.SyncVectorEnv`), and each generator is advanced in
 the single env's order: per step the reading noise (1 normal), the resampling offset (1 uniform) and
-the jitter (M·2 float32 standard normals); per reset the condition (``condition="random"``), the
-calibration seed, the target (``randomize_target``), the start (2 uniforms), the particles (M·2
-uniforms) and then the first reading's draws. Only these *draws* are made per env (3 generator calls
-per env per step; the M·2 normals are written in place into one (N, M, 2) buffer) — they are cheap
-next to the math, and they are what makes sub-env ``i`` produce exactly what ``gym.make("ElectroLoc-v0")``
-seeded alike produces: observations, rewards, terminations, truncations and infos, across autoresets.
-The batched math uses the same elementwise operations in the same dtypes as the single env
-(:mod:`electroloc_gym.sensor_models`, :mod:`electroloc_gym.belief`, :mod:`electroloc_gym.envs.observation`),
-so the results are identical, not merely close; a float32 shortcut would flip resampling indices
-within a step or two and the two runs would diverge.
+the jitter (M·2 16-bit table indices, :func:`electroloc_gym.belief.table_normal_indices`); per reset
+the condition (``condition="random"``), the calibration seed, the target (``randomize_target``), the
+start (2 uniforms), the particles (M·2 uniforms) and then the first reading's draws. Only these
+*draws* are made per env (3 generator calls per env per step, ≈3 µs) — they are what makes sub-env
+``i`` produce exactly what ``gym.make("ElectroLoc-v0")`` seeded alike produces: observations, rewards,
+terminations, truncations and infos, across autoresets.
 
-Where the batched version does less work than N single envs (all exact):
+The math runs in compiled kernels (:mod:`electroloc_gym._kernels`, numba) over all envs at once, one
+pass per stage instead of numpy's ~25 elementwise passes with their temporaries:
 
-* systematic resampling by counting (``K(c) = #{j: (U + j)/M < c}`` from ``ceil(M·c − U)`` with an
-  exact ±1 fix-up) instead of a binary search per particle (:func:`systematic_indices`);
-* the gathers use ``np.take`` (≈8× faster than fancy indexing with an index array on this machine);
-* per-env calibrated sensor models (a new calibration per episode) are stacked into one float32 table
-  and looked up in one gather; the calibration's noise-free grid, identical for every seed of a
-  condition, is computed once per condition (the 10 noisy samples per grid point are still drawn
-  from each episode's own calibration seed);
-* the analytic model is evaluated once per distinct condition (one call for a fixed condition);
-* particles are stored coordinate-major (N, 2, M) so numpy's inner loops run over M, not over the
-  axis of length 2 (the single env's ``x.mean(axis=0)`` / ``p − carriage`` on (M, 2) arrays are
-  3–4× slower than the same operations on columns), and the calibrated lookup works in place;
-* glibc is told to keep freed memory mapped (:func:`tune_malloc`, on by default): otherwise every
-  step page-faults its N·M-element temporaries back in, which in this VM cost more than the math.
+* the calibrated sensor model's bilinear lookup and Gaussian term (per env a new calibration per
+  episode, all stacked into one float32 coefficient table; the calibration's noise-free grid, the same
+  for every seed of a condition, is computed once per condition);
+* the weights' normalisation, systematic resampling (branch-free: each particle's pointer count from
+  ``ceil(M·c − U)`` checked against the pointers themselves), the jitter and the clip to the box;
+* the belief's mean/covariance and the observation's particle histogram.
 
-What it cannot batch away, per env and step: the M·2 float32 normals of the jitter from each env's
-own generator (≈55 µs at M = 2500 on this machine, ≈1/15 of a single env step), the float64 ``exp``
-and ``cumsum`` of the weights, and the bilinear lookup's ~25 elementwise passes. These set the
-floor of a batched step at roughly 1/4–1/3 of a single env's cost here (see ``benchmarks/vector_env.py``).
+They repeat the single env's float32/float64 operations in the same order (numpy's ``exp``/``log``
+are applied between them), and the statistics, histogram and calibration tables are kernels the single
+env calls too, so the results are identical, not merely close: a float rounding difference would flip
+a resampling index within a step or two and the two runs would diverge. Particles are stored
+coordinate-major, (N, 2, M), so every inner loop runs over contiguous particles.
+
+Per env-step, at M = 2500 on this machine (``benchmarks/vector_env.py``, profiled), roughly: the
+likelihood kernel 20–30 µs, the resampling kernel ≈20 µs, the statistics and histogram ≈15 µs, numpy's
+``log``/``exp`` ≈10 µs, the per-env draws ≈10 µs and the per-episode recalibration (9610 normals) 20–35 µs
+amortised over an episode; a single env step costs ≈1 ms.
 
 Autoreset
 ---------
@@ -101,54 +97,16 @@ from electroloc_gym.sensor_models import (
 __all__ = ["ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "make_electroloc_vector_env", "make_global_vector_env",
            "fast_calibrated_model",
            "calibration_coefficients",
-           "tune_malloc"]
+]
 
 #: Readings per grid point of the paper's calibration (§5.3), as CalibratedSensorModel's default.
 _CAL_SAMPLES = 10
 _CAL_STEP_MM = 4.0
 _CAL_MIN_STD_FRACTION = 0.25
-#: Particles processed per block in a step's math (several envs at a time) — bounds the temporaries.
-#: Measured on this machine (2-core EPYC VM, N = 16 and 64, M = 2500): with :func:`tune_malloc`
-#: one block of all envs is fastest (blocks of 1/2/3/6/16 envs: 517/440/399/324/310 µs per env-step);
-#: without it every step page-faults its temporaries back in and blocks of ≈16k particles, whose
-#: temporaries stay under glibc's mmap threshold, are ≈3× faster than one big block.
-BLOCK_PARTICLES = 65536
-BLOCK_PARTICLES_UNTUNED = 16384
-
-
-_MALLOC_TUNED = False
-
-
-def tune_malloc(trim_threshold_bytes: int = 256 << 20, mmap_threshold_bytes: int = 64 << 20) -> bool:
-    """Make glibc keep freed large blocks instead of returning them to the OS (process-wide).
-
-    A batched step allocates a few MB of numpy temporaries (arrays of N·M elements); with glibc's
-    defaults the blocks above the (dynamic, ≤ 32 MB) mmap threshold are unmapped on ``free`` and the
-    heap top is trimmed once more than 2× that threshold is free, so every step page-faults its
-    temporaries back in — in this VM that took ≈2/3 of the sensor-model time (285 → 85 µs per env).
-    Raising ``M_TRIM_THRESHOLD`` / ``M_MMAP_THRESHOLD`` keeps the memory mapped: the process's
-    resident memory may stay up to ``trim_threshold_bytes`` higher. The same effect as the
-    environment variables ``MALLOC_TRIM_THRESHOLD_`` / ``MALLOC_MMAP_THRESHOLD_``. Idempotent; a
-    no-op (returning False) where glibc's ``mallopt`` is unavailable.
-    """
-    global _MALLOC_TUNED
-    if _MALLOC_TUNED:
-        return True
-    try:
-        import ctypes
-        import ctypes.util
-
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        m_trim_threshold, m_mmap_threshold = -1, -3  # <malloc.h>
-        ok = bool(libc.mallopt(m_trim_threshold, int(trim_threshold_bytes)))
-        ok &= bool(libc.mallopt(m_mmap_threshold, int(mmap_threshold_bytes)))
-    except (OSError, AttributeError):
-        return False
-    _MALLOC_TUNED = ok
-    return ok
-
-
-_tune_malloc = tune_malloc  # the constructor's keyword argument of the same name shadows it
+#: Particles processed per block of a step (several envs at a time): bounds the step's temporaries
+#: (≈24 bytes per particle) so that they stay in cache and under glibc's mmap threshold. Measured on this
+#: machine at N = 64, M = 2500: blocks of 16 envs 141 µs per env-step, one block of 64 envs 157 µs.
+BLOCK_PARTICLES = 40000
 
 
 # --------------------------------------------------------------------------------------------
@@ -354,8 +312,7 @@ class ElectroLocVectorEnv(VectorEnv):
 
     The ElectroLoc-v0 keyword arguments (validated by the single env's constructor) plus
     ``num_envs`` (≥ 1), ``autoreset_mode`` (``AutoresetMode`` or its value: "next_step",
-    "same_step"), ``max_episode_steps`` (None or ≥ 1) and ``tune_malloc`` (default True: call
-    :func:`tune_malloc`, a process-wide glibc setting that keeps freed memory mapped — see there).
+    "same_step") and ``max_episode_steps`` (None or ≥ 1).
     ``render_mode`` must be None.
 
     ## Version History
@@ -381,7 +338,6 @@ class ElectroLocVectorEnv(VectorEnv):
         render_mode: str | None = None,
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         max_episode_steps: int | None = None,
-        tune_malloc: bool = True,
     ) -> None:
         mode = _check_vector_args(num_envs, render_mode, autoreset_mode, max_episode_steps)
         # The single env validates every shared argument and defines the spaces.
@@ -394,11 +350,11 @@ class ElectroLocVectorEnv(VectorEnv):
             pool: tuple[Condition, ...] = tuple(get_condition(n, signal) for n in PRESET_NAMES)
         else:
             pool = (get_condition(condition, signal),)
-        self._init_common(template, int(num_envs), mode, max_episode_steps, tune_malloc, pool,
+        self._init_common(template, int(num_envs), mode, max_episode_steps, pool,
                           tuple(AnalyticSensorModel(c) for c in pool))
 
     def _init_common(self, template: Any, num_envs: int, mode: AutoresetMode, max_episode_steps: int | None,
-                     tune_malloc: bool, pool: tuple[Condition, ...], analytic_models: tuple[Any, ...]) -> None:
+                     pool: tuple[Condition, ...], analytic_models: tuple[Any, ...]) -> None:
         """State shared by the native vector envs; ``template`` is a validated single env."""
         self.num_envs = int(num_envs)
         self.n_particles = template.n_particles
@@ -417,8 +373,6 @@ class ElectroLocVectorEnv(VectorEnv):
         self.single_observation_space = template.observation_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         template.close()
-        if tune_malloc:
-            _tune_malloc()
 
         self._pool = pool
         self._pool_half = np.array([c.allowed_half_width_mm for c in pool])
@@ -443,7 +397,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._jitter_idx = np.empty((n, 2 * m), dtype=np.uint16)
         self._normal_table = normal_table()
         self._scratch = (np.empty(m), np.empty(m), np.empty(m + 1, dtype=np.int64))  # the resampling kernel's
-        self._block_envs = max(1, (BLOCK_PARTICLES if tune_malloc else BLOCK_PARTICLES_UNTUNED) // m)
+        self._block_envs = max(1, BLOCK_PARTICLES // m)
         self._position = np.zeros((n, 2))
         self._target = np.zeros((n, 2))
         self._reading = np.zeros(n)
@@ -799,8 +753,8 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
 
     ``num_envs``, ``layout``, ``observation``, ``sensor_model``, ``n_particles``,
     ``max_observations``, ``success_spread_mm``, ``action_type``, ``calibration_seed``,
-    ``position_blur_mm`` (validated by GlobalLocalizationEnv), plus ``autoreset_mode``,
-    ``max_episode_steps`` and ``tune_malloc`` as for :class:`ElectroLocVectorEnv`.
+    ``position_blur_mm`` (validated by GlobalLocalizationEnv), plus ``autoreset_mode`` and
+    ``max_episode_steps`` as for :class:`ElectroLocVectorEnv`.
     """
 
     def __init__(
@@ -818,7 +772,6 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
         render_mode: str | None = None,
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         max_episode_steps: int | None = None,
-        tune_malloc: bool = True,
     ) -> None:
         from electroloc_gym.envs.self_localize import GlobalLocalizationEnv
         from electroloc_gym.scene import BENCHMARK_SCENE, DEFAULT_POSITION_BLUR_MM, MapAnalyticSensorModel, Scene
@@ -835,7 +788,7 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
         self.scene: Scene = layout if isinstance(layout, Scene) else BENCHMARK_SCENE
         self.position_blur_mm = float(template.position_blur_mm)
         self.randomize_target = False
-        self._init_common(template, int(num_envs), mode, max_episode_steps, tune_malloc,
+        self._init_common(template, int(num_envs), mode, max_episode_steps,
                           (self.scene.as_condition(),), (MapAnalyticSensorModel(self.scene, self.position_blur_mm),))
         self._odometry = np.zeros((self.num_envs, 2))
 
