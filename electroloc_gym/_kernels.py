@@ -107,8 +107,58 @@ def calibrated_zterm_std(px, py, pos, lo, inv, n1, base, table, reading, zterm, 
 
 
 @njit(**_JIT)
-def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out, cum, ptr, first):  # pragma: no cover
-    """Normalise, systematically resample, jitter and clip k clouds (ParticleBelief.assimilate's tail).
+def _mean_cov_one(x, y, mean, cov, e):  # pragma: no cover - compiled
+    """Mean and population covariance of one cloud (x, y: (M,)) into ``mean[e]``, ``cov[e]``."""
+    m = x.shape[0]
+    fm = np.float64(m)
+    sx = 0.0
+    sy = 0.0
+    for i in range(m):
+        sx += np.float64(x[i])
+        sy += np.float64(y[i])
+    mx = sx / fm
+    my = sy / fm
+    cxx = 0.0
+    cxy = 0.0
+    cyy = 0.0
+    for i in range(m):
+        dx = np.float64(x[i]) - mx
+        dy = np.float64(y[i]) - my
+        cxx += dx * dx
+        cxy += dx * dy
+        cyy += dy * dy
+    mean[e, 0] = mx
+    mean[e, 1] = my
+    cov[e, 0, 0] = cxx / fm
+    cov[e, 0, 1] = cxy / fm
+    cov[e, 1, 0] = cxy / fm
+    cov[e, 1, 1] = cyy / fm
+
+
+@njit(**_JIT)
+def _counts_one(x, y, cx, cy, scale, bins, out, e, cells):  # pragma: no cover - compiled
+    """Histogram counts of one cloud (x, y: (M,)) around (cx, cy) into ``out[e]`` (see egocentric_counts)."""
+    m = x.shape[0]
+    fb = np.float32(bins)  # numpy's ``rel * 8`` keeps the particles' dtype (a Python int is weak)
+    top = bins - 1
+    for i in range(m):  # no scatter in this loop: it vectorises
+        a = np.int64(((x[i] - cx) / scale + _F32_HALF) * fb)
+        b = np.int64(((y[i] - cy) / scale + _F32_HALF) * fb)
+        a = min(max(a, 0), top)
+        b = min(max(b, 0), top)
+        cells[i] = a * bins + b
+    for c in range(bins * bins):
+        out[e, c] = 0.0
+    for i in range(m):
+        out[e, cells[i]] += 1.0
+
+
+@njit(**_JIT)
+def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out, cum, ptr, first,  # pragma: no cover
+                         mean, cov, origin, scale, bins, counts):
+    """Normalise, systematically resample, jitter and clip k clouds (ParticleBelief.assimilate's tail),
+    then each new cloud's mean/covariance (:func:`mean_cov_rows`) and histogram counts
+    (:func:`egocentric_counts`) while it is still in cache.
 
     Stands for, per env (``w`` the unnormalised ``exp(log_w − max)``, ``total`` its ``np.sum``)::
 
@@ -136,7 +186,10 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
         normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.belief.normal_table`).
         half: (k,) float32 half-width H of the box, mm.
         out: (k, 2, M) float32 new particles (must not alias ``src``).
-        cum, ptr: (M,) float64 scratch; first: (M + 1,) int64 scratch.
+        cum, ptr: (M,) float64 scratch; first: (M + 1,) int64 scratch (also the histogram's).
+        mean, cov: (k, 2), (k, 2, 2) float64 outputs: the new clouds' statistics.
+        origin, scale, bins, counts: :func:`egocentric_counts`'s ``carriage``, ``scale``, ``bins`` and
+            ``out`` (float32 origin and scale).
     """
     k, m = w.shape
     fm = np.float64(m)
@@ -181,6 +234,8 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
             y = h if y > h else y
             out[e, 0, j] = x
             out[e, 1, j] = y
+        _mean_cov_one(out[e, 0], out[e, 1], mean, cov, e)
+        _counts_one(out[e, 0], out[e, 1], origin[e, 0], origin[e, 1], scale[e], bins, counts, e, first)
 
 
 @njit(**_JIT)
@@ -194,31 +249,8 @@ def mean_cov_rows(px, py, mean, cov):  # pragma: no cover - compiled
         mean: (k, 2) float64 output, mm.
         cov: (k, 2, 2) float64 output, mm².
     """
-    k, m = px.shape
-    fm = np.float64(m)
-    for e in range(k):
-        sx = 0.0
-        sy = 0.0
-        for i in range(m):
-            sx += np.float64(px[e, i])
-            sy += np.float64(py[e, i])
-        mx = sx / fm
-        my = sy / fm
-        cxx = 0.0
-        cxy = 0.0
-        cyy = 0.0
-        for i in range(m):
-            dx = np.float64(px[e, i]) - mx
-            dy = np.float64(py[e, i]) - my
-            cxx += dx * dx
-            cxy += dx * dy
-            cyy += dy * dy
-        mean[e, 0] = mx
-        mean[e, 1] = my
-        cov[e, 0, 0] = cxx / fm
-        cov[e, 0, 1] = cxy / fm
-        cov[e, 1, 0] = cxy / fm
-        cov[e, 1, 1] = cyy / fm
+    for e in range(px.shape[0]):
+        _mean_cov_one(px[e], py[e], mean, cov, e)
 
 
 @njit(**_JIT)
@@ -235,26 +267,11 @@ def egocentric_counts(px, py, carriage, scale, bins, out, cells):  # pragma: no 
         carriage: (k, 2) carriage centres cast to the particles' dtype, mm.
         scale: (k,) 2·H in the particles' dtype, mm.
         bins: cells per axis.
-        out: (k, bins²) float64 counts (zeroed here).
+        out: (k, bins²) float64 counts.
         cells: (M,) int64 scratch.
     """
-    k, m = px.shape
-    fb = np.float32(bins)  # numpy's ``rel * 8`` keeps the particles' dtype (a Python int is weak)
-    top = bins - 1
-    for e in range(k):
-        cx = carriage[e, 0]
-        cy = carriage[e, 1]
-        s = scale[e]
-        for i in range(m):  # no scatter in this loop: it vectorises
-            a = np.int64(((px[e, i] - cx) / s + _F32_HALF) * fb)
-            b = np.int64(((py[e, i] - cy) / s + _F32_HALF) * fb)
-            a = min(max(a, 0), top)
-            b = min(max(b, 0), top)
-            cells[i] = a * bins + b
-        for c in range(bins * bins):
-            out[e, c] = 0.0
-        for i in range(m):
-            out[e, cells[i]] += 1.0
+    for e in range(px.shape[0]):
+        _counts_one(px[e], py[e], carriage[e, 0], carriage[e, 1], scale[e], bins, out, e, cells)
 
 
 @njit(**_JIT)

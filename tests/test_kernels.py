@@ -103,3 +103,12 @@ def test_egocentric_counts_equal_the_weighted_numpy_path(dtype: type) -> None:
     assert unweighted.shape == (3, HIST_BINS * HIST_BINS)
     assert np.array_equal(unweighted, counts / 1500)
     np.testing.assert_allclose(unweighted.sum(axis=-1), 1.0)
+
+
+def test_uniform_in_box_is_numpy_uniform_bit_for_bit() -> None:
+    from electroloc_gym.belief import uniform_in_box
+
+    low, high = np.array([-60.0, -47.5]), np.array([60.0, 47.5])
+    a = np.random.default_rng(9).uniform(low, high, size=(2501, 2))
+    b = uniform_in_box(np.random.default_rng(9), low, high, 2501)
+    assert np.array_equal(a, b)

@@ -13,6 +13,7 @@ import electroloc_gym  # noqa: F401
 from electroloc_gym._kernels import resample_jitter_clip
 from electroloc_gym.belief import ParticleBelief, normal_table
 from electroloc_gym.conditions import PRESET_NAMES, get_condition
+from electroloc_gym.envs.observation import HIST_BINS, belief_observation
 from electroloc_gym.envs.vector import (
     ElectroLocVectorEnv,
     calibration_coefficients,
@@ -194,9 +195,12 @@ def test_resample_kernel_equals_belief_resample_and_jitter() -> None:
         raw = rng.integers(0, 2**64, size=(n, (2 * m + 3) // 4), dtype=np.uint64)
         jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, :2 * m])
         w, out = e.copy(), np.empty((n, 2, m), dtype=np.float32)
+        mean, cov, counts = np.empty((n, 2)), np.empty((n, 2, 2)), np.empty((n, HIST_BINS * HIST_BINS))
+        origin = rng.uniform(-half, half, (n, 2))
         resample_jitter_clip(w, np.sum(e, axis=-1), u, np.ascontiguousarray(aos.transpose(0, 2, 1)), jitter_idx,
                              normal_table(), np.full(n, half, dtype=np.float32), out, np.empty(m), np.empty(m),
-                             np.empty(m + 1, dtype=np.int64))
+                             np.empty(m + 1, dtype=np.int64), mean, cov, origin.astype(np.float32),
+                             np.full(n, 2 * half, dtype=np.float32), HIST_BINS, counts)
         for i in range(n):
             b = ParticleBelief(m, (-half, -half), (half, half), dtype=np.float32)
             b.set_state(aos[i])
@@ -206,6 +210,10 @@ def test_resample_kernel_equals_belief_resample_and_jitter() -> None:
             b.resample(fixed)
             b.jitter(fixed)
             assert np.array_equal(out[i].T, b.particles), f"trial {trial}, cloud {i}"
+            assert np.array_equal(mean[i], b.mean()) and np.array_equal(cov[i], b.covariance())
+            hist = belief_observation(origin[i], 0.0, b.particles, None, 1, 35, float(half), 0.1, 10.0, 10.0,
+                                      np.zeros(5, dtype=np.float32))[12:76]
+            assert np.array_equal((counts[i] / m).astype(np.float32), hist)
 
 
 @pytest.mark.parametrize("name", PRESET_NAMES)

@@ -87,6 +87,7 @@ def belief_observation(
     success_spread_mm: float,
     descriptor: NDArray,
     mean_cov: tuple[NDArray, NDArray] | None = None,
+    hist: NDArray | None = None,
 ) -> NDArray[np.float32]:
     """The belief observation (..., BELIEF_OBS_DIM); see the module docstring for the layout.
 
@@ -103,6 +104,7 @@ def belief_observation(
         success_spread_mm: the success threshold on √trace Σ, mm.
         descriptor: (..., 5) from :func:`condition_descriptor`.
         mean_cov: precomputed (mean, cov) of the particles, if the caller has them.
+        hist: precomputed (..., 64) histogram (entries 12–75), if the caller has it.
     """
     carriage = np.asarray(carriage_mm, dtype=np.float64)
     batch = carriage.shape[:-1]
@@ -127,7 +129,8 @@ def belief_observation(
         np.log10(np.maximum(spread, 1e-6) / success_spread_mm),
         np.asarray(n_observations, dtype=np.float64) / max_observations + np.zeros(batch),
     ], axis=-1)
-    hist = _egocentric_histogram(particles_mm, weights, carriage, hw)
+    if hist is None:
+        hist = _egocentric_histogram(particles_mm, weights, carriage, hw)
     desc = np.broadcast_to(descriptor, batch + (N_DESCRIPTOR,))
     out = np.concatenate([np.clip(scalars, -1.0, 1.0), hist, desc], axis=-1)
     return out.astype(np.float32)

@@ -82,11 +82,11 @@ from electroloc_gym.belief import (
     normalise_log_weights,
     spread_from_cov,
     table_normal_indices,
-    weighted_mean_cov,
+    uniform_in_box,
 )
 from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition
 from electroloc_gym.envs.localize import DISCRETE_MOVES_MM, MAX_STEP_MM, ElectroLocEnv
-from electroloc_gym.envs.observation import belief_observation, condition_descriptor, raw_observation
+from electroloc_gym.envs.observation import HIST_BINS, belief_observation, condition_descriptor, raw_observation
 from electroloc_gym.sensor import expected_reading
 from electroloc_gym.sensor_models import (
     AnalyticSensorModel,
@@ -405,6 +405,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._elapsed = np.zeros(n, dtype=np.int64)
         self._mean = np.zeros((n, 2))
         self._cov = np.zeros((n, 2, 2))
+        self._counts = np.zeros((n, HIST_BINS * HIST_BINS))  # the observation histogram's particle counts
         self._autoreset = np.zeros(n, dtype=bool)
         self._started = False
         self._cal: _StackedCalibratedLookup | None = None
@@ -594,7 +595,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._position[i] = g.uniform(-s, s, size=2)
         h = c.allowed_half_width_mm
         low = np.array([-h, -h])
-        self._soa[i] = g.uniform(low, -low, size=(m, 2)).astype(np.float32).T
+        self._soa[i] = uniform_in_box(g, low, -low, m).astype(np.float32).T
         self._n_obs[i] = 0
         self._elapsed[i] = 0
 
@@ -674,11 +675,18 @@ class ElectroLocVectorEnv(VectorEnv):
                 reading[rows][:, None], off[rows]), k, (m,), np.float32)
         w, total = _unnormalised_weights(ll)
         new = np.empty_like(soa)
-        resample_jitter_clip(w, total, u0, soa, jitter, self._normal_table, self._pool_half[cidx].astype(np.float32), new,
-                             *self._scratch)
+        mean, cov = np.empty((k, 2)), np.empty((k, 2, 2))
+        counts = np.empty((k, HIST_BINS * HIST_BINS))
+        half = self._pool_half[cidx]
+        resample_jitter_clip(w, total, u0, soa, jitter, self._normal_table, half.astype(np.float32), new,
+                             *self._scratch, mean, cov, self._hist_origin(position).astype(np.float32),
+                             (2 * half).astype(np.float32), HIST_BINS, counts)
         self._soa[sel] = new
-        mean, cov = weighted_mean_cov(new.transpose(0, 2, 1))
-        self._mean[sel], self._cov[sel] = mean, cov
+        self._mean[sel], self._cov[sel], self._counts[sel] = mean, cov, counts
+
+    def _hist_origin(self, position: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The observation histogram's centre (k, 2), mm: the carriage (egocentric)."""
+        return position
 
     def _per_condition(self, cidx: NDArray[np.intp], fn: Any, k: int, tail: tuple[int, ...] = (),
                        dtype: Any = np.float64) -> NDArray:
@@ -708,7 +716,7 @@ class ElectroLocVectorEnv(VectorEnv):
         return belief_observation(
             self._position[sel], self._reading[sel], self._soa[sel].transpose(0, 2, 1), None, self._n_obs[sel],
             self.max_observations, half, self._pool_noise[cidx], self._pool_sat[cidx], self.success_spread_mm,
-            self._pool_desc[cidx], mean_cov=(self._mean[sel], self._cov[sel]))
+            self._pool_desc[cidx], mean_cov=(self._mean[sel], self._cov[sel]), hist=self._counts[sel] / self.n_particles)
 
     def _get_info(self, ids: NDArray[np.intp] | None = None) -> dict[str, Any]:
         sel = slice(None) if ids is None else ids
@@ -818,7 +826,7 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
         self._odometry[i] = 0.0
         h = c.allowed_half_width_mm
         low = np.array([-h, -h])
-        self._soa[i] = g.uniform(low, -low, size=(self.n_particles, 2)).astype(np.float32).T
+        self._soa[i] = uniform_in_box(g, low, -low, self.n_particles).astype(np.float32).T
         self._n_obs[i] = 0
         self._elapsed[i] = 0
 
@@ -847,6 +855,9 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
     def _offset_origin(self, position: NDArray[np.float64]) -> NDArray[np.float32]:
         return np.zeros((len(position), 2), dtype=np.float32)
 
+    def _hist_origin(self, position: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.zeros((len(position), 2))  # the map origin (as the single env's observation)
+
     def _true_state(self, sel: slice | NDArray[np.intp]) -> NDArray[np.float64]:
         return self._position[sel]
 
@@ -861,7 +872,8 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
         obs = belief_observation(
             np.zeros((k, 2)), self._reading[sel], self._soa[sel].transpose(0, 2, 1), None,
             self._n_obs[sel], self.max_observations, half, self._pool_noise[cidx], self._pool_sat[cidx],
-            self.success_spread_mm, self._pool_desc[cidx], mean_cov=(self._mean[sel], self._cov[sel]))
+            self.success_spread_mm, self._pool_desc[cidx], mean_cov=(self._mean[sel], self._cov[sel]),
+            hist=self._counts[sel] / self.n_particles)
         obs[:, 0:2] = np.clip(odo / half[:, None], -1.0, 1.0)
         return obs
 
