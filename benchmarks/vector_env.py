@@ -16,6 +16,10 @@ second. Numeric libraries are pinned to one thread (DESIGN §10).
 
     python benchmarks/vector_env.py [--n-envs 16 64] [--particles 2500] [--observation belief]
         [--sensor-model calibrated] [--env ElectroLoc-v0] [--seconds 1.5] [--rounds 3] [--json out.json]
+        [--profile]
+
+``--profile`` instead prints where a native vector step's time goes (cProfile, the first N, sorted
+by own time, per env-step).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import json  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -102,6 +107,31 @@ def measure_isolated(backend: str, n: int, kwargs: dict[str, Any], seconds: floa
     return json.loads(out.strip().splitlines()[-1])
 
 
+def profile_native(env_id: str, n: int, kwargs: dict[str, Any], n_steps: int = 300) -> None:
+    """Print the native env's step profile: own time per env-step of the 15 costliest functions."""
+    import cProfile
+    import pstats
+
+    env = _make("native", n, kwargs, env_id)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    _round(env, 20, rng)  # warm-up: compiled kernels, first calibrations
+    actions = rng.uniform(-1, 1, size=(n_steps, n, 2)).astype(np.float32)
+    prof = cProfile.Profile()
+    prof.enable()
+    for a in actions:
+        env.step(a)
+    prof.disable()
+    st = pstats.Stats(prof)
+    rows = sorted(st.stats.items(), key=lambda kv: -kv[1][2])[:15]  # type: ignore[attr-defined]
+    total = sum(v[2] for v in st.stats.values())  # type: ignore[attr-defined]
+    per = 1e6 / (n_steps * n)
+    print(f"native {env_id} N={n}, {n_steps} steps under cProfile: {total * per:.0f} µs per env-step in all")
+    print(f"{'own µs/env-step':>16}  function")
+    for (file, line, name), v in rows:
+        print(f"{v[2] * per:>16.1f}  {name} ({Path(file).name}:{line})")
+
+
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n-envs", type=int, nargs="+", default=[16, 64])
@@ -113,6 +143,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--seconds", type=float, default=1.5, help="target CPU seconds per timed round")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--json", default=None, help="also write the results here")
+    ap.add_argument("--profile", action="store_true", help="profile the native env's step instead")
     ap.add_argument("--_one", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args._one:
@@ -124,6 +155,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     kwargs = {"n_particles": args.particles, "observation": args.observation, "sensor_model": args.sensor_model}
     if args.env == "ElectroLoc-v0":
         kwargs["condition"] = args.condition
+    if args.profile:
+        profile_native(args.env, args.n_envs[0], kwargs)
+        return {}
     results: dict[str, Any] = {"env": args.env, "kwargs": kwargs, "rows": []}
     print(f"{args.env} {kwargs}, random actions, autoreset; best of {args.rounds} rounds; "
           "each row in a fresh process")
