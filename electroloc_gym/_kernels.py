@@ -304,6 +304,19 @@ def calibration_tables(samples, min_std, mean_out, std_out):  # pragma: no cover
 
 
 @njit(**_JIT)
+def _cell_coefficients(t, a, b, out, r, col):  # pragma: no cover - compiled
+    """``t00, t10 − t00, t01 − t00, t11 − t10 − t01 + t00`` of cell (a, b) of table ``t`` into ``out[r, col:col + 4]``."""
+    v00 = t[a, b]
+    v10 = t[a + 1, b]
+    v01 = t[a, b + 1]
+    v11 = t[a + 1, b + 1]
+    out[r, col] = v00
+    out[r, col + 1] = v10 - v00
+    out[r, col + 2] = v01 - v00
+    out[r, col + 3] = v11 - v10 - v01 + v00
+
+
+@njit(**_JIT)
 def bilinear_coefficients(mean, std, outside_std, out):  # pragma: no cover - compiled
     """Per-cell bilinear coefficients of the mean and std tables, and the "outside the grid" row.
 
@@ -319,23 +332,8 @@ def bilinear_coefficients(mean, std, outside_std, out):  # pragma: no cover - co
     n1 = mean.shape[0] - 1
     for a in range(n1):
         for b in range(n1):
-            r = a * n1 + b
-            v00 = mean[a, b]
-            v10 = mean[a + 1, b]
-            v01 = mean[a, b + 1]
-            v11 = mean[a + 1, b + 1]
-            out[r, 0] = v00
-            out[r, 1] = v10 - v00
-            out[r, 2] = v01 - v00
-            out[r, 3] = v11 - v10 - v01 + v00
-            v00 = std[a, b]
-            v10 = std[a + 1, b]
-            v01 = std[a, b + 1]
-            v11 = std[a + 1, b + 1]
-            out[r, 4] = v00
-            out[r, 5] = v10 - v00
-            out[r, 6] = v01 - v00
-            out[r, 7] = v11 - v10 - v01 + v00
+            _cell_coefficients(mean, a, b, out, a * n1 + b, 0)
+            _cell_coefficients(std, a, b, out, a * n1 + b, 4)
     last = n1 * n1
     for c in range(8):
         out[last, c] = 0.0
