@@ -9,8 +9,8 @@ included, random actions, so episodes end and reset as in training) of
 * ``gym.make_vec(..., vectorization_mode="sync")`` (SyncVectorEnv) at each N,
 * ``gym.make_vec(..., vectorization_mode="vector_entry_point")`` (native) at each N,
 
-and the native/sync ratio. Every row runs in a fresh interpreter. The machine is shared: each configuration is timed in several short
-rounds, interleaved, and the best round is kept; throughput is reported per CPU-second of this
+and the native/sync ratio. Every row runs in a fresh interpreter. The machine is shared: each
+configuration is timed in several short rounds and the best round is kept; throughput is reported per CPU-second of this
 process (``time.process_time``, insensitive to other processes taking the cores) and per wall
 second. Numeric libraries are pinned to one thread (DESIGN §10).
 
@@ -34,8 +34,8 @@ import json  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 from collections.abc import Callable  # noqa: E402
+from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import gymnasium as gym  # noqa: E402

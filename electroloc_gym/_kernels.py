@@ -58,14 +58,17 @@ def calibrated_zterm_std(px, py, pos, lo, inv, n1, base, table, reading, zterm, 
     The caller finishes with ``zterm − np.log(std)``.
 
     Args:
-        px, py: (k, M) float32 particle coordinates, mm.
+        px: (k, M) float32 particle x, mm.
+        py: (k, M) float32 particle y, mm.
         pos: (k, 2) float32 carriage positions, mm.
-        lo, inv: (k,) float32 grid origin (mm) and inverse grid step (1/mm).
+        lo: (k,) float32 grid origin, mm.
+        inv: (k,) float32 inverse grid step, 1/mm.
         n1: (k,) int64 cells per axis.
         base: (k,) int64 first row of each env's coefficients in ``table``.
         table: (rows, 8) float32 stacked coefficients (each env's last row: outside the grid).
         reading: (k,) float32 readings, V.
-        zterm, std: (k, M) float32 outputs.
+        zterm: (k, M) float32 output, −½ z².
+        std: (k, M) float32 output, the model's std, V.
     """
     k, m = px.shape
     zero = np.float32(0.0)
@@ -186,10 +189,15 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
         normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.belief.normal_table`).
         half: (k,) float32 half-width H of the box, mm.
         out: (k, 2, M) float32 new particles (must not alias ``src``).
-        cum, ptr: (M,) float64 scratch; first: (M + 1,) int64 scratch (also the histogram's).
-        mean, cov: (k, 2), (k, 2, 2) float64 outputs: the new clouds' statistics.
-        origin, scale, bins, counts: :func:`egocentric_counts`'s ``carriage``, ``scale``, ``bins`` and
-            ``out`` (float32 origin and scale).
+        cum: (M,) float64 scratch.
+        ptr: (M,) float64 scratch.
+        first: (M + 1,) int64 scratch (also the histogram's).
+        mean: (k, 2) float64 output: the new clouds' means, mm.
+        cov: (k, 2, 2) float64 output: their covariances, mm².
+        origin: (k, 2) float32 histogram centres (:func:`egocentric_counts`'s ``carriage``), mm.
+        scale: (k,) float32 histogram widths 2·H, mm.
+        bins: histogram cells per axis.
+        counts: (k, bins²) float64 output: the histogram counts.
     """
     k, m = w.shape
     fm = np.float64(m)
@@ -245,7 +253,8 @@ def mean_cov_rows(px, py, mean, cov):  # pragma: no cover - compiled
     Two sequential float64 passes per cloud: ``μ = Σ x / M``, then ``Σ = Σ (x − μ)(x − μ)ᵀ / M``.
 
     Args:
-        px, py: (k, M) particle coordinates (float32 or float64, any strides), mm.
+        px: (k, M) particle x (float32 or float64, any strides), mm.
+        py: (k, M) particle y, mm.
         mean: (k, 2) float64 output, mm.
         cov: (k, 2, 2) float64 output, mm².
     """
@@ -263,7 +272,8 @@ def egocentric_counts(px, py, carriage, scale, bins, out, cells):  # pragma: no 
         ij = np.clip((rel · bins).astype(intp), 0, bins − 1);  cell = i·bins + j
 
     Args:
-        px, py: (k, M) particle coordinates, mm.
+        px: (k, M) particle x, mm.
+        py: (k, M) particle y, mm.
         carriage: (k, 2) carriage centres cast to the particles' dtype, mm.
         scale: (k,) 2·H in the particles' dtype, mm.
         bins: cells per axis.
@@ -284,7 +294,8 @@ def calibration_tables(samples, min_std, mean_out, std_out):  # pragma: no cover
     Args:
         samples: (S, n, n) float64 readings, V (S ≥ 2).
         min_std: floor of the std, V.
-        mean_out, std_out: (n, n) float64 outputs, V.
+        mean_out: (n, n) float64 output, mean per point, V.
+        std_out: (n, n) float64 output, floored std per point, V.
     """
     s, nx, ny = samples.shape
     fs = np.float64(s)
@@ -305,7 +316,7 @@ def calibration_tables(samples, min_std, mean_out, std_out):  # pragma: no cover
 
 @njit(**_JIT)
 def _cell_coefficients(t, a, b, out, r, col):  # pragma: no cover - compiled
-    """``t00, t10 − t00, t01 − t00, t11 − t10 − t01 + t00`` of cell (a, b) of table ``t`` into ``out[r, col:col + 4]``."""
+    """``t00, t10 − t00, t01 − t00, t11 − t10 − t01 + t00`` of cell (a, b) of ``t`` into ``out[r, col:col + 4]``."""
     v00 = t[a, b]
     v10 = t[a + 1, b]
     v01 = t[a, b + 1]
@@ -325,7 +336,8 @@ def bilinear_coefficients(mean, std, outside_std, out):  # pragma: no cover - co
     ``(0, 0, 0, 0, outside_std, 0, 0, 0)`` (no target: mean 0 V). ``out`` may be float32 (cast on store).
 
     Args:
-        mean, std: (n, n) float64 tables, V.
+        mean: (n, n) float64 mean table, V.
+        std: (n, n) float64 std table, V.
         outside_std: std outside the grid, V.
         out: (n1² + 1, 8) output, n1 = n − 1.
     """

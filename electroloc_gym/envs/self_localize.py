@@ -241,9 +241,9 @@ class GlobalLocalizationEnv(ParticleFilterEnv):
         # Reference point = the map origin: entries 4–5 are the estimated position, the histogram
         # covers the whole map box. Entries 0–1 (the carriage in ElectroLoc-v0) become the odometry.
         obs = belief_observation(
-            np.zeros(2), np.asarray(self._reading), b.particles, None if b.uniform_weights else b.weights, self._n_obs, self.max_observations,
-            h, c.noise_std_V, c.saturation_V, self.success_spread_mm, self._descriptor,
-            mean_cov=(b.mean(), b.covariance()))
+            np.zeros(2), np.asarray(self._reading), b.particles, None if b.uniform_weights else b.weights,
+            self._n_obs, self.max_observations, h, c.noise_std_V, c.saturation_V, self.success_spread_mm,
+            self._descriptor, mean_cov=(b.mean(), b.covariance()))
         obs[0:2] = np.clip(self._odometry / h, -1.0, 1.0)
         return obs
 

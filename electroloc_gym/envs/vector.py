@@ -34,10 +34,10 @@ env calls too, so the results are identical, not merely close: a float rounding 
 a resampling index within a step or two and the two runs would diverge. Particles are stored
 coordinate-major, (N, 2, M), so every inner loop runs over contiguous particles.
 
-Per env-step, at M = 2500 on this machine (``benchmarks/vector_env.py``, profiled), roughly: the
-likelihood kernel 20–30 µs, the resampling kernel ≈20 µs, the statistics and histogram ≈15 µs, numpy's
-``log``/``exp`` ≈10 µs, the per-env draws ≈10 µs and the per-episode recalibration (9610 normals) 20–35 µs
-amortised over an episode; a single env step costs ≈1 ms.
+Per env-step at M = 2500 on this machine (``python benchmarks/vector_env.py --profile``), roughly: the
+likelihood kernel 20–30 µs, the resampling kernel with the statistics and histogram ≈35 µs, numpy's
+``log``/``exp`` ≈10 µs, the per-env draws ≈10 µs and the per-episode recalibration (6760–9610 normals)
+≈25 µs amortised over an episode — ≈135 µs in all, against ≈1 ms for a single env step.
 
 Autoreset
 ---------
@@ -95,9 +95,7 @@ from electroloc_gym.sensor_models import (
 )
 
 __all__ = ["ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "make_electroloc_vector_env", "make_global_vector_env",
-           "fast_calibrated_model",
-           "calibration_coefficients",
-]
+           "fast_calibrated_model", "calibration_coefficients"]
 
 #: Readings per grid point of the paper's calibration (§5.3), as CalibratedSensorModel's default.
 _CAL_SAMPLES = 10
@@ -611,7 +609,7 @@ class ElectroLocVectorEnv(VectorEnv):
         k = self.num_envs if full else len(ids)
         cidx = self._cidx[sel]
         noise_std = self._pool_noise[cidx]
-        # Per-env draws, in the single env's order (normal, uniform, M·2 float32 normals).
+        # Per-env draws, in the single env's order (normal, uniform, M·2 jitter table indices).
         noise = np.empty(k)
         u0 = np.empty(k)
         jitter = self._jitter_idx[:k]
@@ -663,7 +661,7 @@ class ElectroLocVectorEnv(VectorEnv):
 
     def _fuse(self, sel: slice | NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
               jitter: NDArray[np.uint16], cidx: NDArray[np.intp], position: NDArray[np.float64]) -> None:
-        """Weight, resample and jitter the clouds of envs ``sel`` (a block), then their mean and Σ."""
+        """Weight, resample and jitter the clouds of envs ``sel`` (a block); their mean, Σ and histogram counts."""
         m = self.n_particles
         k = len(reading)
         soa = self._soa[sel]
@@ -716,7 +714,8 @@ class ElectroLocVectorEnv(VectorEnv):
         return belief_observation(
             self._position[sel], self._reading[sel], self._soa[sel].transpose(0, 2, 1), None, self._n_obs[sel],
             self.max_observations, half, self._pool_noise[cidx], self._pool_sat[cidx], self.success_spread_mm,
-            self._pool_desc[cidx], mean_cov=(self._mean[sel], self._cov[sel]), hist=self._counts[sel] / self.n_particles)
+            self._pool_desc[cidx], mean_cov=(self._mean[sel], self._cov[sel]),
+            hist=self._counts[sel] / self.n_particles)
 
     def _get_info(self, ids: NDArray[np.intp] | None = None) -> dict[str, Any]:
         sel = slice(None) if ids is None else ids
