@@ -8,7 +8,7 @@ Jitter draws: each N(0, 1) jitter value is one of 65536 equiprobable standard-no
 (:func:`normal_table`) picked by 16 random bits taken straight from the generator's bit stream
 (:func:`table_standard_normal`). Measured here, numpy's float32 ziggurat took ≈52 µs for the 5000
 values of a step (half of what the rest of a batched step costs), the table ≈9 µs. The table is
-rescaled to unit variance; its tails stop at ±4.2σ (probability 2.7·10⁻⁵), which a roughening
+rescaled to unit variance; its tails stop at ±4.3σ (probability 1.5·10⁻⁵), which a roughening
 kernel does not need.
 
 The core is a set of functions over arrays with arbitrary leading (batch) dimensions, shape
