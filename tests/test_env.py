@@ -154,6 +154,7 @@ def test_discrete_actions() -> None:
         (dict(render_mode="ascii"), "render_mode"),
     ],
 )
+@pytest.mark.filterwarnings("ignore:.*render_mode='ascii'.*:UserWarning")  # gymnasium's own warning, before ours
 def test_bad_kwargs_raise_clear_errors(kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
         gym.make("ElectroLoc-v0", **kwargs)
