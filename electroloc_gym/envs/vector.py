@@ -37,7 +37,7 @@ coordinate-major, (N, 2, M), so every inner loop runs over contiguous particles.
 Per env-step at M = 2500 on this machine (``python benchmarks/vector_env.py --profile``), roughly: the
 likelihood kernel 20–30 µs, the resampling kernel with the statistics and histogram ≈35 µs, numpy's
 ``log``/``exp`` ≈10 µs, the per-env draws ≈10 µs and the per-episode recalibration (6760–9610 normals)
-≈25 µs amortised over an episode — ≈135 µs in all, against ≈1 ms for a single env step.
+≈25 µs amortised over an episode — 130–165 µs in all, against ≈1 ms for a single env step.
 
 Autoreset
 ---------
