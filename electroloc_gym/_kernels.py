@@ -41,14 +41,13 @@ _JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
 
 
 @njit(**_JIT)
-def calibrated_zterm_std(px, py, pos, lo, inv, n1, base, table, reading, zterm, std):  # pragma: no cover - compiled
+def calibrated_zterm_std(ox, oy, lo, inv, n1, base, table, reading, zterm, std):  # pragma: no cover - compiled
     """The calibrated sensor model's bilinear lookup and Gaussian term for k envs at once.
 
     Stands for ``CalibratedSensorModel.mean_std`` and ``gaussian_log_likelihood`` in float32 (per env
     ``e``, particle ``i``)::
 
-        off = particle − position.astype(float32)
-        fx = (off_x − lo) · inv;  fy = (off_y − lo) · inv
+        fx = (off_x − lo) · inv;  fy = (off_y − lo) · inv     # off = particle − position.astype(float32)
         inside = (fx ≥ 0) & (fx ≤ n1) & (fy ≥ 0) & (fy ≤ n1)
         ix = min(int(fx), n1 − 1);  iy = min(int(fy), n1 − 1);  tx = fx − ix;  ty = fy − iy
         c = coef[ix·n1 + iy if inside else n1²]                       # 8 float32 coefficients
@@ -58,9 +57,8 @@ def calibrated_zterm_std(px, py, pos, lo, inv, n1, base, table, reading, zterm, 
     The caller finishes with ``zterm − np.log(std)``.
 
     Args:
-        px: (k, M) float32 particle x, mm.
-        py: (k, M) float32 particle y, mm.
-        pos: (k, 2) float32 carriage positions, mm.
+        ox: (k, M) float32 sensor-model offsets x (target hypothesis − carriage), mm.
+        oy: (k, M) float32 offsets y, mm.
         lo: (k,) float32 grid origin, mm.
         inv: (k,) float32 inverse grid step, 1/mm.
         n1: (k,) int64 cells per axis.
@@ -70,7 +68,7 @@ def calibrated_zterm_std(px, py, pos, lo, inv, n1, base, table, reading, zterm, 
         zterm: (k, M) float32 output, −½ z².
         std: (k, M) float32 output, the model's std, V.
     """
-    k, m = px.shape
+    k, m = ox.shape
     zero = np.float32(0.0)
     for e in range(k):
         n1e = n1[e]
@@ -80,11 +78,9 @@ def calibrated_zterm_std(px, py, pos, lo, inv, n1, base, table, reading, zterm, 
         r = reading[e]
         b = base[e]
         outside = b + n1e * n1e
-        x0 = pos[e, 0]
-        y0 = pos[e, 1]
         for i in range(m):
-            fx = ((px[e, i] - x0) - lo_e) * inv_e
-            fy = ((py[e, i] - y0) - lo_e) * inv_e
+            fx = (ox[e, i] - lo_e) * inv_e
+            fy = (oy[e, i] - lo_e) * inv_e
             ix = int(fx)
             if ix > n1e - 1:
                 ix = n1e - 1

@@ -39,6 +39,7 @@ __all__ = [
     "table_standard_normal",
     "uniform_in_box",
     "normalise_log_weights",
+    "shifted_exp_weights",
     "systematic_resample",
     "weighted_mean_cov",
     "spread_from_cov",
@@ -80,10 +81,9 @@ def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int
     return low + (high - low) * rng.random((n, 2))
 
 
-def normalise_log_weights(log_w: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
-    """Normalised weights from log-weights over the last axis, and a per-cloud "degenerate" flag.
-
-    A cloud whose log-weights are all −inf gets uniform weights and ``degenerate=True``.
+def shifted_exp_weights(log_w: NDArray) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """``exp(log_w − max)`` over the last axis (float64; weights 1 for a cloud whose log-weights are all
+    −inf) and a per-cloud "degenerate" flag: :func:`normalise_log_weights` before its division.
 
     Raises:
         ValueError: any log-weight is NaN.
@@ -97,7 +97,18 @@ def normalise_log_weights(log_w: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
     # float64 here, and a relative error of 1e-7 on a weight is far below systematic resampling's
     # resolution of 1/M), then everything in float64.
     w = np.exp(log_w - m).astype(np.float64)
-    w = np.where(degenerate[..., None], 1.0, w)
+    return np.where(degenerate[..., None], 1.0, w), degenerate
+
+
+def normalise_log_weights(log_w: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
+    """Normalised weights from log-weights over the last axis, and a per-cloud "degenerate" flag.
+
+    A cloud whose log-weights are all −inf gets uniform weights and ``degenerate=True``.
+
+    Raises:
+        ValueError: any log-weight is NaN.
+    """
+    w, degenerate = shifted_exp_weights(log_w)
     w /= np.sum(w, axis=-1, keepdims=True)
     return w, degenerate
 

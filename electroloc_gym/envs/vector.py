@@ -79,7 +79,7 @@ from electroloc_gym._kernels import (
 )
 from electroloc_gym.belief import (
     normal_table,
-    normalise_log_weights,
+    shifted_exp_weights,
     spread_from_cov,
     table_normal_indices,
     uniform_in_box,
@@ -110,27 +110,6 @@ BLOCK_PARTICLES = 40000
 # --------------------------------------------------------------------------------------------
 # Exact batched building blocks
 # --------------------------------------------------------------------------------------------
-def _unnormalised_weights(ll: NDArray[np.floating]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``exp(ll − max)`` per row (exp in ``ll``'s dtype, then float64) and the row sums:
-    :func:`electroloc_gym.belief.normalise_log_weights` before its final division (done in the
-    resampling kernel), with the same operations. ``ll`` (k, M) is overwritten.
-
-    A NaN log-weight raises (the row maxima propagate NaN); a row whose log-weights are all −inf
-    gets weights 1 (uniform after the division), as there.
-    """
-    mx = np.max(ll, axis=-1, keepdims=True)
-    if np.isnan(mx).any():
-        normalise_log_weights(ll)  # raises the shared error message
-    bad = ~np.isfinite(mx)
-    if bad.any():
-        np.copyto(mx, 0.0, where=bad)
-    np.subtract(ll, mx, out=ll)
-    w = np.exp(ll, out=ll).astype(np.float64)
-    if bad.any():
-        np.copyto(w, 1.0, where=bad)
-    return w, np.sum(w, axis=-1)
-
-
 @functools.lru_cache(maxsize=32)
 def _noise_free_calibration_grid(condition: Condition) -> NDArray[np.float64]:
     """The calibration's noise-free readings (10, n, n), V, unsaturated — the same for every seed.
@@ -228,21 +207,19 @@ class _StackedCalibratedLookup:
         self.inv[env] = np.float32(1.0 / step_mm)
         self.n1[env] = n1
 
-    def log_likelihood(self, reading_V: NDArray[np.float64], soa: NDArray[np.float32], pos: NDArray[np.float32],
-                       sign: float, sel: slice | NDArray[np.intp]) -> NDArray[np.float32]:
-        """(k, M) log-likelihoods of readings (k,) for envs ``sel``, particles ``soa`` (k, 2, M) float32.
+    def log_likelihood(self, reading_V: NDArray[np.float64], offsets: NDArray[np.float32],
+                       sel: slice | NDArray[np.intp]) -> NDArray[np.float32]:
+        """(k, M) log-likelihoods of readings (k,) for envs ``sel`` at float32 offsets (k, 2, M), mm.
 
-        ``CalibratedSensorModel.log_likelihood`` at the offsets ``sign·particle − pos`` (pos (k, 2)
-        float32), in the same float32 arithmetic: one compiled pass
+        ``CalibratedSensorModel.log_likelihood`` in the same float32 arithmetic: one compiled pass
         (:func:`~electroloc_gym._kernels.calibrated_zterm_std`), then numpy's ``log`` of the std.
         """
-        k, _, m = soa.shape
+        k, _, m = offsets.shape
         zterm = np.empty((k, m), dtype=np.float32)
         std = np.empty((k, m), dtype=np.float32)
-        px, py = (soa[:, 0], soa[:, 1]) if sign > 0 else (np.negative(soa[:, 0]), np.negative(soa[:, 1]))
-        calibrated_zterm_std(px, py, pos, self.lo[sel].reshape(k), self.inv[sel].reshape(k), self.n1[sel].reshape(k),
-                             self.base[sel].reshape(k), self.table, np.asarray(reading_V, dtype=np.float32),
-                             zterm, std)
+        calibrated_zterm_std(offsets[:, 0], offsets[:, 1], self.lo[sel].reshape(k), self.inv[sel].reshape(k),
+                             self.n1[sel].reshape(k), self.base[sel].reshape(k), self.table,
+                             np.asarray(reading_V, dtype=np.float32), zterm, std)
         zterm -= np.log(std, out=std)
         return zterm
 
@@ -648,13 +625,6 @@ class ElectroLocVectorEnv(VectorEnv):
         np.subtract(soa[:, 1], posf[:, 1:2], out=p_off[:, 1])
         return p_off
 
-    #: Sensor-model offsets are ``sign·particle − origin`` (the calibrated kernel's form of
-    #: :meth:`_particle_offsets`): here particle − carriage.
-    _offset_sign = 1.0
-
-    def _offset_origin(self, position: NDArray[np.float64]) -> NDArray[np.float32]:
-        return position.astype(np.float32)
-
     def _true_state(self, sel: slice | NDArray[np.intp]) -> NDArray[np.float64]:
         """What the belief estimates (for info["error_mm"]): the target."""
         return self._target[sel]
@@ -665,13 +635,15 @@ class ElectroLocVectorEnv(VectorEnv):
         m = self.n_particles
         k = len(reading)
         soa = self._soa[sel]
+        p_off = self._particle_offsets(soa, position)
         if self._cal is not None:
-            ll = self._cal.log_likelihood(reading, soa, self._offset_origin(position), self._offset_sign, sel)
+            ll = self._cal.log_likelihood(reading, p_off, sel)
         else:
-            off = self._particle_offsets(soa, position).transpose(0, 2, 1)
+            off = p_off.transpose(0, 2, 1)
             ll = self._per_condition(cidx, lambda c, rows: self._pool_analytic[c].log_likelihood(
                 reading[rows][:, None], off[rows]), k, (m,), np.float32)
-        w, total = _unnormalised_weights(ll)
+        w, _ = shifted_exp_weights(ll)  # normalise_log_weights without its division (the kernel divides)
+        total = np.sum(w, axis=-1)
         new = np.empty_like(soa)
         mean, cov = np.empty((k, 2)), np.empty((k, 2, 2))
         counts = np.empty((k, HIST_BINS * HIST_BINS))
@@ -848,11 +820,6 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
 
     def _particle_offsets(self, soa: NDArray[np.float32], position: NDArray[np.float64]) -> NDArray[np.float32]:
         return np.negative(soa)  # the map model's convention: map origin − carriage hypothesis
-
-    _offset_sign = -1.0
-
-    def _offset_origin(self, position: NDArray[np.float64]) -> NDArray[np.float32]:
-        return np.zeros((len(position), 2), dtype=np.float32)
 
     def _hist_origin(self, position: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.zeros((len(position), 2))  # the map origin (as the single env's observation)
