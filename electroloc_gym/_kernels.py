@@ -41,7 +41,7 @@ _JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
 
 
 @njit(**_JIT)
-def calibrated_zterm_std(ox, oy, lo, inv, n1, base, table, reading, zterm, std):  # pragma: no cover - compiled
+def calibrated_zterm_std(off, lo, inv, n1, base, table, reading, zterm, std):  # pragma: no cover - compiled
     """The calibrated sensor model's bilinear lookup and Gaussian term for k envs at once.
 
     Stands for ``CalibratedSensorModel.mean_std`` and ``gaussian_log_likelihood`` in float32 (per env
@@ -56,9 +56,15 @@ def calibrated_zterm_std(ox, oy, lo, inv, n1, base, table, reading, zterm, std):
 
     The caller finishes with ``zterm − np.log(std)``.
 
+    Three passes per env, so that the two without the table gather vectorise: the cell index and
+    (tx, ty) of every particle; the gather and the two bilinear sums; the division and the square.
+    ``fx`` is clamped to [−1, n1 + 1] before the integer conversion (the conversion is then in range;
+    ``ix`` is the same wherever the particle is inside, and outside the coefficients of ``tx``, ``ty``
+    are 0, so any finite value gives the same result).
+
     Args:
-        ox: (k, M) float32 sensor-model offsets x (target hypothesis − carriage), mm.
-        oy: (k, M) float32 offsets y, mm.
+        off: (k, 2, M) float32 sensor-model offsets (target hypothesis − carriage), coordinate-major
+            and C-contiguous (so that the first pass vectorises), mm.
         lo: (k,) float32 grid origin, mm.
         inv: (k,) float32 inverse grid step, 1/mm.
         n1: (k,) int64 cells per axis.
@@ -68,31 +74,38 @@ def calibrated_zterm_std(ox, oy, lo, inv, n1, base, table, reading, zterm, std):
         zterm: (k, M) float32 output, −½ z².
         std: (k, M) float32 output, the model's std, V.
     """
-    k, m = ox.shape
+    k, _, m = off.shape
     zero = np.float32(0.0)
+    below = np.float32(-1.0)
+    rows = np.empty(m, dtype=np.int32)
+    txs = np.empty(m, dtype=np.float32)
+    tys = np.empty(m, dtype=np.float32)
     for e in range(k):
-        n1e = n1[e]
-        n1f = np.float32(n1e)
+        n1i = np.int32(n1[e])
+        n1f = np.float32(n1[e])
+        above = np.float32(n1[e] + 1)
+        top = np.int32(n1[e] - 1)
         lo_e = lo[e]
         inv_e = inv[e]
-        r = reading[e]
-        b = base[e]
-        outside = b + n1e * n1e
+        b = np.int32(base[e])
+        outside = np.int32(base[e] + n1[e] * n1[e])
+        ox = off[e, 0]
+        oy = off[e, 1]
         for i in range(m):
-            fx = (ox[e, i] - lo_e) * inv_e
-            fy = (oy[e, i] - lo_e) * inv_e
-            ix = int(fx)
-            if ix > n1e - 1:
-                ix = n1e - 1
-            iy = int(fy)
-            if iy > n1e - 1:
-                iy = n1e - 1
-            tx = fx - np.float32(ix)
-            ty = fy - np.float32(iy)
-            if fx >= zero and fx <= n1f and fy >= zero and fy <= n1f:
-                row = b + ix * n1e + iy
-            else:
-                row = outside
+            fx = (ox[i] - lo_e) * inv_e
+            fy = (oy[i] - lo_e) * inv_e
+            ix = min(np.int32(min(max(fx, below), above)), top)
+            iy = min(np.int32(min(max(fy, below), above)), top)
+            txs[i] = fx - np.float32(ix)
+            tys[i] = fy - np.float32(iy)
+            inside = (fx >= zero) & (fx <= n1f) & (fy >= zero) & (fy <= n1f)
+            rows[i] = b + ix * n1i + iy if inside else outside
+        ze = zterm[e]
+        se = std[e]
+        for i in range(m):
+            row = rows[i]
+            tx = txs[i]
+            ty = tys[i]
             txy = tx * ty
             mean = table[row, 0] + table[row, 1] * tx
             mean = mean + table[row, 2] * ty
@@ -100,9 +113,32 @@ def calibrated_zterm_std(ox, oy, lo, inv, n1, base, table, reading, zterm, std):
             sd = table[row, 4] + table[row, 5] * tx
             sd = sd + table[row, 6] * ty
             sd = sd + table[row, 7] * txy
-            z = (r - mean) / sd
-            zterm[e, i] = (_F32_HALF_NEG * z) * z
-            std[e, i] = sd
+            ze[i] = mean
+            se[i] = sd
+        r = reading[e]
+        for i in range(m):
+            z = (r - ze[i]) / se[i]
+            ze[i] = (_F32_HALF_NEG * z) * z
+
+
+@njit(**_JIT)
+def _cov_about(x, y, mx, my, cov, e):  # pragma: no cover - compiled
+    """Population covariance of one cloud (x, y: (M,)) about the mean (mx, my) into ``cov[e]`` (sequential float64)."""
+    m = x.shape[0]
+    fm = np.float64(m)
+    cxx = 0.0
+    cxy = 0.0
+    cyy = 0.0
+    for i in range(m):
+        dx = np.float64(x[i]) - mx
+        dy = np.float64(y[i]) - my
+        cxx += dx * dx
+        cxy += dx * dy
+        cyy += dy * dy
+    cov[e, 0, 0] = cxx / fm
+    cov[e, 0, 1] = cxy / fm
+    cov[e, 1, 0] = cxy / fm
+    cov[e, 1, 1] = cyy / fm
 
 
 @njit(**_JIT)
@@ -115,45 +151,45 @@ def _mean_cov_one(x, y, mean, cov, e):  # pragma: no cover - compiled
     for i in range(m):
         sx += np.float64(x[i])
         sy += np.float64(y[i])
-    mx = sx / fm
-    my = sy / fm
-    cxx = 0.0
-    cxy = 0.0
-    cyy = 0.0
-    for i in range(m):
-        dx = np.float64(x[i]) - mx
-        dy = np.float64(y[i]) - my
-        cxx += dx * dx
-        cxy += dx * dy
-        cyy += dy * dy
-    mean[e, 0] = mx
-    mean[e, 1] = my
-    cov[e, 0, 0] = cxx / fm
-    cov[e, 0, 1] = cxy / fm
-    cov[e, 1, 0] = cxy / fm
-    cov[e, 1, 1] = cyy / fm
+    mean[e, 0] = sx / fm
+    mean[e, 1] = sy / fm
+    _cov_about(x, y, sx / fm, sy / fm, cov, e)
 
 
 @njit(**_JIT)
-def _counts_one(x, y, cx, cy, scale, bins, out, e, cells):  # pragma: no cover - compiled
-    """Histogram counts of one cloud (x, y: (M,)) around (cx, cy) into ``out[e]`` (see egocentric_counts)."""
+def _counts_one(x, y, cx, cy, scale, bins, out, e, cells, hist):  # pragma: no cover - compiled
+    """Histogram counts of one cloud (x, y: (M,)) around (cx, cy) into ``out[e]`` (see egocentric_counts).
+
+    ``cells`` (M,) int32 and ``hist`` (4, bins²) int32 are scratch: the cells are computed in a
+    vectorised pass (the float cell coordinate is clamped before its integer conversion, so the
+    conversion is always in range; in range it truncates as numpy's ``astype``), then counted into four
+    interleaved histograms, so that repeated cells do not chain one increment on the previous one.
+    """
     m = x.shape[0]
     fb = np.float32(bins)  # numpy's ``rel * 8`` keeps the particles' dtype (a Python int is weak)
-    top = bins - 1
-    for i in range(m):  # no scatter in this loop: it vectorises
-        a = np.int64(((x[i] - cx) / scale + _F32_HALF) * fb)
-        b = np.int64(((y[i] - cy) / scale + _F32_HALF) * fb)
-        a = min(max(a, 0), top)
-        b = min(max(b, 0), top)
-        cells[i] = a * bins + b
-    for c in range(bins * bins):
-        out[e, c] = 0.0
+    lo = np.float32(-1.0)
+    top = np.int32(bins - 1)
+    nb = np.int32(bins)
+    zero = np.int32(0)
     for i in range(m):
-        out[e, cells[i]] += 1.0
+        a = np.int32(min(max(((x[i] - cx) / scale + _F32_HALF) * fb, lo), fb))
+        b = np.int32(min(max(((y[i] - cy) / scale + _F32_HALF) * fb, lo), fb))
+        cells[i] = min(max(a, zero), top) * nb + min(max(b, zero), top)
+    hist[:] = 0
+    m4 = m - m % 4
+    for i in range(0, m4, 4):
+        hist[0, cells[i]] += 1
+        hist[1, cells[i + 1]] += 1
+        hist[2, cells[i + 2]] += 1
+        hist[3, cells[i + 3]] += 1
+    for i in range(m4, m):
+        hist[0, cells[i]] += 1
+    for c in range(bins * bins):
+        out[e, c] = np.float64(hist[0, c] + hist[1, c] + hist[2, c] + hist[3, c])
 
 
 @njit(**_JIT)
-def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out, cum, ptr, first,  # pragma: no cover
+def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,  # pragma: no cover - compiled
                          mean, cov, origin, scale, bins, counts):
     """Normalise, systematically resample, jitter and clip k clouds (ParticleBelief.assimilate's tail),
     then each new cloud's mean/covariance (:func:`mean_cov_rows`) and histogram counts
@@ -161,7 +197,7 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
 
     Stands for, per env (``w`` the unnormalised ``exp(log_w − max)``, ``total`` its ``np.sum``)::
 
-        w /= total                                                  # normalise_log_weights
+        w = w / total                                               # normalise_log_weights
         cum = np.cumsum(w); cum /= cum[-1]                          # systematic_resample
         u = (U + np.arange(M)) / M
         idx = np.minimum(np.searchsorted(cum, u, side="right"), M − 1)
@@ -171,13 +207,15 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
 
     ``searchsorted`` without branches: particle ``i`` takes the pointers ``j`` with
     ``cum[i−1] ≤ u[j] < cum[i]``, i.e. ``K(i−1) ≤ j < K(i)`` where ``K(i) = #{j: u[j] < cum[i]}``
-    (``K(M−1) = M``: the ``min(·, M − 1)``). ``K(i)`` is ``ceil(M·cum[i] − U)`` up to float rounding,
-    corrected by comparing with the pointers themselves (the same ``(U + j)/M`` values, so the same
-    comparisons as ``searchsorted``); then ``idx[j] = #{i: K(i) ≤ j}`` is a running sum of a histogram
-    of the ``K(i)`` — no data-dependent branch per particle.
+    (``K(M−1) = M``: the ``min(·, M − 1)``). ``K(i)`` is ``ceil(M·cum[i] − U)`` up to float rounding
+    (computed for all particles in a vectorised pass), corrected by comparing with the pointers
+    themselves (the same ``(U + j)/M`` values, so the same comparisons as ``searchsorted``); then
+    ``idx[j] = #{i: K(i) ≤ j}`` is a running sum of a histogram of the ``K(i)`` — no data-dependent
+    branch per particle. The mean's sums run in the resampling loop, in the same particle order as
+    :func:`mean_cov_rows`.
 
     Args:
-        w: (k, M) float64 unnormalised weights (overwritten with the normalised ones).
+        w: (k, M) float64 unnormalised weights (read only).
         total: (k,) float64 row sums of ``w``.
         u0: (k,) float64 resampling offsets U in [0, 1).
         src: (k, 2, M) float32 particles, coordinate-major.
@@ -185,9 +223,6 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
         normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.belief.normal_table`).
         half: (k,) float32 half-width H of the box, mm.
         out: (k, 2, M) float32 new particles (must not alias ``src``).
-        cum: (M,) float64 scratch.
-        ptr: (M,) float64 scratch.
-        first: (M + 1,) int64 scratch (also the histogram's).
         mean: (k, 2) float64 output: the new clouds' means, mm.
         cov: (k, 2, 2) float64 output: their covariances, mm².
         origin: (k, 2) float32 histogram centres (:func:`egocentric_counts`'s ``carriage``), mm.
@@ -197,37 +232,46 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
     """
     k, m = w.shape
     fm = np.float64(m)
+    cum = np.empty(m)
+    ptr = np.empty(m + 1)
+    kest = np.empty(m, dtype=np.int32)
+    first = np.empty(m + 1, dtype=np.int64)
+    cells = np.empty(m, dtype=np.int32)
+    hist = np.empty((4, bins * bins), dtype=np.int32)
+    ptr[m] = 2.0  # sentinel above every normalised cumulative weight (≤ 1)
     for e in range(k):
         t = total[e]
-        for i in range(m):
-            w[e, i] = w[e, i] / t
-        acc = w[e, 0]
+        acc = w[e, 0] / t
         cum[0] = acc
         for i in range(1, m):
-            acc = acc + w[e, i]
+            acc = acc + w[e, i] / t
             cum[i] = acc
         last = cum[m - 1]
-        for i in range(m):
-            cum[i] = cum[i] / last
         u = u0[e]
         for j in range(m):
             ptr[j] = (u + np.float64(j)) / fm
+        for i in range(m - 1):
+            c = cum[i] / last
+            cum[i] = c
+            kk = np.ceil(c * fm - u)
+            kk = kk if kk >= 0.0 else 0.0  # also NaN → 0: the index stays in range
+            kest[i] = np.int32(kk if kk <= fm else fm)
         for j in range(m + 1):
             first[j] = 0
         for i in range(m - 1):
             c = cum[i]
-            kk = np.ceil(c * fm - u)
-            kk = 0.0 if kk < 0.0 else (fm if kk > fm else kk)
-            ki = np.int64(kk)
+            ki = kest[i]
             while ki > 0 and ptr[ki - 1] >= c:
                 ki -= 1
-            while ki < m and ptr[ki] < c:
+            while ptr[ki] < c:
                 ki += 1
             first[ki] += 1
         first[m] += 1
         h = half[e]
         nh = -h
         idx = np.int64(0)
+        sx = 0.0
+        sy = 0.0
         for j in range(m):
             idx += first[j]
             x = src[e, 0, idx] + normal_table[jitter_idx[e, 2 * j]]
@@ -238,8 +282,12 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
             y = h if y > h else y
             out[e, 0, j] = x
             out[e, 1, j] = y
-        _mean_cov_one(out[e, 0], out[e, 1], mean, cov, e)
-        _counts_one(out[e, 0], out[e, 1], origin[e, 0], origin[e, 1], scale[e], bins, counts, e, first)
+            sx += np.float64(x)
+            sy += np.float64(y)
+        mean[e, 0] = sx / fm
+        mean[e, 1] = sy / fm
+        _cov_about(out[e, 0], out[e, 1], sx / fm, sy / fm, cov, e)
+        _counts_one(out[e, 0], out[e, 1], origin[e, 0], origin[e, 1], scale[e], bins, counts, e, cells, hist)
 
 
 @njit(**_JIT)
@@ -259,7 +307,7 @@ def mean_cov_rows(px, py, mean, cov):  # pragma: no cover - compiled
 
 
 @njit(**_JIT)
-def egocentric_counts(px, py, carriage, scale, bins, out, cells):  # pragma: no cover - compiled
+def egocentric_counts(px, py, carriage, scale, bins, out):  # pragma: no cover - compiled
     """Particle counts (k, bins²) on a bins×bins grid of offsets around each carriage.
 
     Stands for ``observation._egocentric_histogram`` without weights, in the particles' dtype::
@@ -274,10 +322,11 @@ def egocentric_counts(px, py, carriage, scale, bins, out, cells):  # pragma: no 
         scale: (k,) 2·H in the particles' dtype, mm.
         bins: cells per axis.
         out: (k, bins²) float64 counts.
-        cells: (M,) int64 scratch.
     """
+    cells = np.empty(px.shape[1], dtype=np.int32)
+    hist = np.empty((4, bins * bins), dtype=np.int32)
     for e in range(px.shape[0]):
-        _counts_one(px[e], py[e], carriage[e, 0], carriage[e, 1], scale[e], bins, out, e, cells)
+        _counts_one(px[e], py[e], carriage[e, 0], carriage[e, 1], scale[e], bins, out, e, cells, hist)
 
 
 @njit(**_JIT)

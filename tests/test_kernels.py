@@ -81,7 +81,7 @@ def test_calibrated_kernel_equals_sensor_model_log_likelihood() -> None:
     k, m = 2, particles.shape[1]
     zterm, std = np.empty((k, m), dtype=np.float32), np.empty((k, m), dtype=np.float32)
     off = np.ascontiguousarray((particles - position.astype(np.float32)[:, None]).transpose(0, 2, 1))
-    K.calibrated_zterm_std(off[:, 0], off[:, 1], np.full(k, model.grid_mm[0], dtype=np.float32),
+    K.calibrated_zterm_std(off, np.full(k, model.grid_mm[0], dtype=np.float32),
                            np.full(k, 1.0 / model.grid_step_mm, dtype=np.float32), np.full(k, n1, dtype=np.int64),
                            np.zeros(k, dtype=np.int64), table, reading.astype(np.float32), zterm, std)
     ll = zterm - np.log(std)

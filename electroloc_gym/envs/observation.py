@@ -154,7 +154,7 @@ def _egocentric_histogram(particles_mm: NDArray, weights: NDArray | None, carria
         n_clouds = flat.shape[0]
         counts = np.empty((n_clouds, nb))
         egocentric_counts(flat[..., 0], flat[..., 1], np.asarray(carriage).reshape(n_clouds, 2).astype(p.dtype),
-                          (2 * hw).reshape(n_clouds).astype(p.dtype), HIST_BINS, counts, np.empty(m, dtype=np.int64))
+                          (2 * hw).reshape(n_clouds).astype(p.dtype), HIST_BINS, counts)
         return (counts / m).reshape(batch + (nb,))
     rel = (p - carriage[..., None, :].astype(p.dtype)) / (2 * hw[..., None, None]).astype(p.dtype) + 0.5
     ij = np.clip((rel * HIST_BINS).astype(np.intp), 0, HIST_BINS - 1)

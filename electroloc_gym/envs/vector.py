@@ -217,7 +217,7 @@ class _StackedCalibratedLookup:
         k, _, m = offsets.shape
         zterm = np.empty((k, m), dtype=np.float32)
         std = np.empty((k, m), dtype=np.float32)
-        calibrated_zterm_std(offsets[:, 0], offsets[:, 1], self.lo[sel].reshape(k), self.inv[sel].reshape(k),
+        calibrated_zterm_std(offsets, self.lo[sel].reshape(k), self.inv[sel].reshape(k),
                              self.n1[sel].reshape(k), self.base[sel].reshape(k), self.table,
                              np.asarray(reading_V, dtype=np.float32), zterm, std)
         zterm -= np.log(std, out=std)
@@ -371,7 +371,6 @@ class ElectroLocVectorEnv(VectorEnv):
         self._soa = np.zeros((n, 2, m), dtype=np.float32)
         self._jitter_idx = np.empty((n, 2 * m), dtype=np.uint16)
         self._normal_table = normal_table()
-        self._scratch = (np.empty(m), np.empty(m), np.empty(m + 1, dtype=np.int64))  # the resampling kernel's
         self._block_envs = max(1, BLOCK_PARTICLES // m)
         self._position = np.zeros((n, 2))
         self._target = np.zeros((n, 2))
@@ -649,7 +648,7 @@ class ElectroLocVectorEnv(VectorEnv):
         counts = np.empty((k, HIST_BINS * HIST_BINS))
         half = self._pool_half[cidx]
         resample_jitter_clip(w, total, u0, soa, jitter, self._normal_table, half.astype(np.float32), new,
-                             *self._scratch, mean, cov, self._hist_origin(position).astype(np.float32),
+                             mean, cov, self._hist_origin(position).astype(np.float32),
                              (2 * half).astype(np.float32), HIST_BINS, counts)
         self._soa[sel] = new
         self._mean[sel], self._cov[sel], self._counts[sel] = mean, cov, counts
