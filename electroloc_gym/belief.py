@@ -4,12 +4,9 @@ The belief is a cloud of ``M`` particles (positions in mm) inside an axis-aligne
 multiplies the weights by the likelihood of the reading, then the cloud is importance-resampled
 (systematic resampling) and jittered with N(0, jitter_std_mm²) per axis, and kept inside the box.
 
-Jitter draws: each N(0, 1) jitter value is one of 65536 equiprobable standard-normal quantiles
-(:func:`normal_table`) picked by 16 random bits taken straight from the generator's bit stream
-(:func:`table_standard_normal`). Measured here, numpy's float32 ziggurat took ≈52 µs for the 5000
-values of a step (half of what the rest of a batched step costs), the table ≈9 µs. The table is
-rescaled to unit variance; its tails stop at ±4.3σ (probability 1.5·10⁻⁵), which a roughening
-kernel does not need.
+Jitter draws come from the normal quantile table of :mod:`electroloc_gym.draws`
+(:func:`table_standard_normal`: ≈9 µs for the 5000 values of a step, against ≈52 µs for numpy's
+float32 ziggurat); its names are re-exported here.
 
 The core is a set of functions over arrays with arbitrary leading (batch) dimensions, shape
 (..., M, 2), so the single environment and the batched vector environment share one code path;
@@ -24,13 +21,11 @@ valid distribution concentrated on the least-unlikely particles. If every log-li
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import ndtri
 
-from electroloc_gym._kernels import mean_cov_rows
+from electroloc_gym._kernels import exp_f32, mean_cov_rows, row_sums
+from electroloc_gym.draws import normal_table, table_normal_indices, table_standard_normal, uniform_in_box
 
 __all__ = [
     "ParticleBelief",
@@ -40,50 +35,23 @@ __all__ = [
     "uniform_in_box",
     "normalise_log_weights",
     "shifted_exp_weights",
+    "weight_sums",
     "systematic_resample",
     "weighted_mean_cov",
     "spread_from_cov",
 ]
 
 
-#: Bits per jitter draw: the table holds 2**16 quantiles.
-NORMAL_TABLE_BITS = 16
-
-
-@functools.cache
-def normal_table() -> NDArray[np.float32]:
-    """The 65536 standard-normal quantiles Φ⁻¹((k + ½)/65536), rescaled to unit variance (float32, read-only)."""
-    n = 1 << NORMAL_TABLE_BITS
-    q = ndtri((np.arange(n) + 0.5) / n)
-    q /= np.sqrt(np.mean(q * q))
-    table = q.astype(np.float32)
-    table.flags.writeable = False
-    return table
-
-
-def table_normal_indices(rng: np.random.Generator, n: int) -> NDArray[np.uint16]:
-    """``n`` indices into :func:`normal_table`: the 16-bit words of ⌈n/4⌉ raw 64-bit draws of ``rng``."""
-    return rng.bit_generator.random_raw((n + 3) // 4).view(np.uint16)[:n]
-
-
-def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float32]:
-    """Standard normals (float32) of ``shape`` from the quantile table (see the module docstring)."""
-    n = int(np.prod(shape))
-    return normal_table()[table_normal_indices(rng, n)].reshape(shape)
-
-
-def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int) -> NDArray[np.float64]:
-    """``rng.uniform(low, high, size=(n, 2))`` bit for bit, ≈7× faster.
-
-    With array bounds numpy's ``uniform`` takes its broadcasting path (≈23 ns per draw here); it
-    computes ``low + (high − low) · U`` with ``U = rng.random()``, which is what this does in bulk.
-    """
-    return low + (high - low) * rng.random((n, 2))
-
-
 def shifted_exp_weights(log_w: NDArray) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """``exp(log_w − max)`` over the last axis (float64; weights 1 for a cloud whose log-weights are all
     −inf) and a per-cloud "degenerate" flag: :func:`normalise_log_weights` before its division.
+
+    Float32 log-weights (those of the float32 sensor models) are exponentiated in float32 by the
+    compiled :func:`electroloc_gym._kernels.exp32` (within 1 ulp, ≈3× numpy's ``exp`` here; a relative
+    error of 1e-7 on a weight is far below systematic resampling's resolution of 1/M), then
+    everything is float64. The native vector env fuses the same operations into one kernel, and
+    numpy's SIMD ``exp`` differs between CPUs, so a compiled one is what keeps the two envs identical.
+    Float64 log-weights use numpy's ``exp``.
 
     Raises:
         ValueError: any log-weight is NaN.
@@ -93,11 +61,24 @@ def shifted_exp_weights(log_w: NDArray) -> tuple[NDArray[np.float64], NDArray[np
     m = np.max(log_w, axis=-1, keepdims=True)
     degenerate = ~np.isfinite(m[..., 0])
     m = np.where(np.isfinite(m), m, 0.0).astype(log_w.dtype)
-    # exp in the log-weights' own dtype (float32 from the float32 sensor models: ≈4× faster than
-    # float64 here, and a relative error of 1e-7 on a weight is far below systematic resampling's
-    # resolution of 1/M), then everything in float64.
-    w = np.exp(log_w - m).astype(np.float64)
+    d = log_w - m
+    if d.dtype == np.float32:
+        flat = d.reshape(-1)
+        exp_f32(flat, flat)
+    else:
+        np.exp(d, out=d)
+    w = d.astype(np.float64)
     return np.where(degenerate[..., None], 1.0, w), degenerate
+
+
+def weight_sums(w: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sums (...,) of float64 weights (..., M) over the last axis, in a fixed order
+    (:func:`electroloc_gym._kernels.row_sums`: the same bits alone or batched, on every machine).
+    """
+    flat = np.ascontiguousarray(w, dtype=np.float64).reshape(-1, w.shape[-1])
+    out = np.empty(flat.shape[0])
+    row_sums(flat, out)
+    return out.reshape(w.shape[:-1])
 
 
 def normalise_log_weights(log_w: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
@@ -109,7 +90,7 @@ def normalise_log_weights(log_w: NDArray) -> tuple[NDArray, NDArray[np.bool_]]:
         ValueError: any log-weight is NaN.
     """
     w, degenerate = shifted_exp_weights(log_w)
-    w /= np.sum(w, axis=-1, keepdims=True)
+    w /= weight_sums(w)[..., None]
     return w, degenerate
 
 

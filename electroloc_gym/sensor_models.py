@@ -23,9 +23,9 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym._kernels import bilinear_coefficients, calibration_tables
+from electroloc_gym._kernels import bilinear_coefficients, calibration_tables, log_f32
 from electroloc_gym.conditions import Condition
-from electroloc_gym.sensor import expected_reading, noisy_reading
+from electroloc_gym.sensor import calibration_readings, expected_reading
 
 __all__ = [
     "SensorModel",
@@ -40,11 +40,22 @@ SENSOR_MODEL_NAMES = ("analytic", "calibrated")
 
 
 def gaussian_log_likelihood(reading_V: ArrayLike, mean_V: NDArray, std_V: ArrayLike) -> NDArray:
-    """Log N(reading; mean, std²) up to the constant −½ log 2π (broadcasting)."""
+    """Log N(reading; mean, std²) up to the constant −½ log 2π (broadcasting).
+
+    With a scalar std the −log σ term is the same for every particle and is dropped. A float32 std
+    array's log is the compiled :func:`electroloc_gym._kernels.log32` (within 1 ulp), the one the
+    native vector env uses, so that both envs compute the same bits on every CPU.
+    """
     z = (np.asarray(reading_V, dtype=mean_V.dtype) - mean_V) / std_V
     out = -0.5 * z * z
     if np.ndim(std_V) > 0:
-        out -= np.log(std_V)
+        std = np.asarray(std_V)
+        if std.dtype == np.float32 and out.dtype == np.float32 and std.shape == out.shape:
+            log_std = np.empty(std.size, dtype=np.float32)
+            log_f32(np.ascontiguousarray(std).reshape(-1), log_std)
+            out -= log_std.reshape(std.shape)
+        else:
+            out -= np.log(std)
     return out
 
 
@@ -108,7 +119,7 @@ class CalibratedSensorModel:
             reading have zero variance; a zero std would make the likelihood infinitely sharp, so the
             std is floored (default 0.25·G·σ_s, the 0.1 % quantile of a 10-sample std is ≈0.3·σ).
         reading_fn: optional noisy reading (V) at ``offsets_mm`` (..., 2) drawn from a Generator;
-            default the condition's single sphere, :func:`electroloc_gym.sensor.noisy_reading`. A
+            default the condition's single sphere, :func:`electroloc_gym.sensor.calibration_readings`. A
             multi-object map passes its own (offsets = map origin − carriage).
         position_blur_mm: optional position uncertainty b, mm (default 0: off). The stored std
             becomes ``sqrt(std² + (|∇mean|·b)²)`` (gradient of the mean table, central differences):
@@ -137,7 +148,7 @@ class CalibratedSensorModel:
         rng = np.random.default_rng(self.seed)
         gx, gy = np.meshgrid(self.grid_mm, self.grid_mm, indexing="ij")
         offs = np.stack([gx, gy], axis=-1)
-        draw = functools.partial(noisy_reading, condition) if reading_fn is None else reading_fn
+        draw = functools.partial(calibration_readings, condition) if reading_fn is None else reading_fn
         samples = draw(np.broadcast_to(offs[None], (int(samples_per_point), n, n, 2)), rng)
         self.mean_table_V = np.empty((n, n))
         self.std_table_V = np.empty((n, n))

@@ -192,11 +192,13 @@ def test_calibrated_interpolation_equals_scipy_and_falls_back_outside() -> None:
 
 def test_calibration_is_a_noisy_estimate_of_the_truth() -> None:
     c = get_condition("fresh-steel-12.7")
-    m = CalibratedSensorModel(c, seed=5)
+    # Five calibrations pooled (3380 grid points): the mean's error is N(0, σ²/10).
+    models = [CalibratedSensorModel(c, seed=s) for s in range(5)]
+    m = models[0]
     gx, gy = np.meshgrid(m.grid_mm, m.grid_mm, indexing="ij")
     truth = expected_reading(c, np.stack([gx, gy], -1))
-    z = (m.mean_table_V - truth) / (c.noise_std_V / np.sqrt(10))
-    assert abs(z.mean()) < 0.15 and z.std() == pytest.approx(1.0, abs=0.1)
+    z = np.stack([(mm.mean_table_V - truth) / (c.noise_std_V / np.sqrt(10)) for mm in models])
+    assert abs(z.mean()) < 0.06 and z.std() == pytest.approx(1.0, abs=0.05)
     # Sample std of 10 readings is ≈ G·σ_s where unsaturated; floored where saturated.
     assert np.median(m.std_table_V) == pytest.approx(c.noise_std_V, rel=0.1)
     assert m.std_table_V.min() >= 0.25 * c.noise_std_V

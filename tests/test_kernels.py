@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -79,12 +81,11 @@ def test_calibrated_kernel_equals_sensor_model_log_likelihood() -> None:
     table = model._coef.astype(np.float32)
     n1 = model.grid_mm.size - 1
     k, m = 2, particles.shape[1]
-    zterm, std = np.empty((k, m), dtype=np.float32), np.empty((k, m), dtype=np.float32)
+    ll = np.empty((k, m), dtype=np.float32)
     off = np.ascontiguousarray((particles - position.astype(np.float32)[:, None]).transpose(0, 2, 1))
-    K.calibrated_zterm_std(off, np.full(k, model.grid_mm[0], dtype=np.float32),
-                           np.full(k, 1.0 / model.grid_step_mm, dtype=np.float32), np.full(k, n1, dtype=np.int64),
-                           np.zeros(k, dtype=np.int64), table, reading.astype(np.float32), zterm, std)
-    ll = zterm - np.log(std)
+    K.calibrated_log_likelihood(off, np.full(k, model.grid_mm[0], dtype=np.float32),
+                                np.full(k, 1.0 / model.grid_step_mm, dtype=np.float32), np.full(k, n1, dtype=np.int64),
+                                np.zeros(k, dtype=np.int64), table, reading.astype(np.float32), ll)
     for e in range(k):
         ref = model.log_likelihood(reading[e], particles[e] - position[e].astype(np.float32))
         assert ref.dtype == np.float32 and np.array_equal(ll[e], ref)
@@ -111,3 +112,120 @@ def test_uniform_in_box_is_numpy_uniform_bit_for_bit() -> None:
     a = np.random.default_rng(9).uniform(low, high, size=(2501, 2))
     b = uniform_in_box(np.random.default_rng(9), low, high, 2501)
     assert np.array_equal(a, b)
+
+
+def _ulp_error(approx: np.ndarray, x: np.ndarray, fn: Any) -> float:
+    """Largest error of float32 ``approx`` against float64 ``fn(x)``, in float32 ulps of the result."""
+    ref = fn(x.astype(np.float64))
+    with np.errstate(over="ignore"):
+        ref32 = ref.astype(np.float32)
+    ok = np.isfinite(ref32) & (np.abs(ref32) >= np.finfo(np.float32).tiny)
+    return float(np.max(np.abs(approx[ok].astype(np.float64) - ref[ok]) / np.spacing(np.abs(ref32[ok]))))
+
+
+def test_exp32_within_one_ulp_and_its_special_values() -> None:
+    rng = np.random.default_rng(6)
+    x = np.concatenate([-rng.random(400_000) * 104, rng.uniform(-88, 88, 200_000), rng.normal(0, 1, 100_000),
+                        -rng.random(10_000) * 1e-6]).astype(np.float32)
+    out = np.empty_like(x)
+    K.exp_f32(x, out)
+    assert _ulp_error(out, x, np.exp) <= 1.0
+    special = np.array([0.0, -0.0, -103.0, -104.0, -1e30, -np.inf, 89.0, 1e30, np.inf, np.nan], dtype=np.float32)
+    got = np.empty_like(special)
+    K.exp_f32(special, got)
+    assert got[0] == 1.0 and got[1] == 1.0  # the largest weight is exactly 1
+    assert 0 < got[2] < 1e-44 and np.all(got[3:6] == 0.0)
+    assert np.all(np.isinf(got[6:9])) and np.isnan(got[9])
+
+
+def test_log32_within_one_ulp_and_its_special_values() -> None:
+    rng = np.random.default_rng(7)
+    x = np.concatenate([np.exp(rng.uniform(-100, 88, 400_000)), rng.random(200_000),
+                        1.0 + rng.normal(0, 1e-3, 50_000)]).astype(np.float32)
+    out = np.empty_like(x)
+    K.log_f32(x, out)
+    assert _ulp_error(out, x, np.log) <= 1.0
+    sub = (np.float32(2.0) ** np.arange(-149, -126)).astype(np.float32)  # subnormals
+    got = np.empty_like(sub)
+    K.log_f32(sub, got)
+    np.testing.assert_allclose(got, np.log(sub.astype(np.float64)), rtol=1e-6)
+    special = np.array([1.0, 0.0, -0.0, -1.0, np.inf, np.nan], dtype=np.float32)
+    got = np.empty_like(special)
+    K.log_f32(special, got)
+    assert got[0] == 0.0 and got[1] == -np.inf and got[2] == -np.inf
+    assert np.isnan(got[3]) and got[4] == np.inf and np.isnan(got[5])
+
+
+def test_weight_sums_are_exact_enough_and_the_same_batched_or_alone() -> None:
+    from electroloc_gym.belief import normalise_log_weights, weight_sums
+
+    rng = np.random.default_rng(8)
+    for m in (1, 7, 8, 9, 2500, 2501):
+        w = rng.random((3, m))
+        s = weight_sums(w)
+        np.testing.assert_allclose(s, np.sum(w, axis=-1), rtol=1e-13)
+        assert all(weight_sums(w[i]) == s[i] for i in range(3))
+    ll = rng.normal(size=(2, 2500)).astype(np.float32) * 30
+    w, degenerate = normalise_log_weights(ll)
+    assert not degenerate.any() and np.all(np.abs(weight_sums(w) - 1.0) < 1e-12)
+    w, degenerate = normalise_log_weights(np.full((1, 5), -np.inf, dtype=np.float32))
+    assert degenerate.all() and np.array_equal(w, np.full((1, 5), 0.2))
+    with pytest.raises(ValueError, match="NaN"):
+        normalise_log_weights(np.array([0.0, np.nan], dtype=np.float32))
+
+
+def test_calibrated_assimilate_is_the_single_env_update() -> None:
+    """The fused kernel = CalibratedSensorModel.log_likelihood + ParticleBelief.assimilate, bit for bit."""
+    from electroloc_gym.belief import ParticleBelief
+    from electroloc_gym.envs.observation import belief_observation
+
+    c = get_condition("fresh-steel-12.7")
+    model = CalibratedSensorModel(c, seed=11)
+    h = np.float32(c.allowed_half_width_mm)
+    n1 = model.grid_mm.size - 1
+    rng = np.random.default_rng(11)
+    k, m = 3, 1000
+    particles = rng.uniform(-h, h, (k, m, 2)).astype(np.float32)
+    particles[1] = rng.normal(10.0, 3.0, (m, 2)).clip(-h, h)  # a tight cloud
+    position = rng.uniform(-20, 20, (k, 2))
+    reading = np.array([0.05, -0.2, 3.0])
+    u0 = rng.random(k)
+    raw = rng.integers(0, 2**64, size=(k, (2 * m + 3) // 4), dtype=np.uint64)
+    jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, :2 * m])
+    off = np.ascontiguousarray((particles - position.astype(np.float32)[:, None]).transpose(0, 2, 1))
+    src = np.ascontiguousarray(particles.transpose(0, 2, 1))
+    out = np.empty_like(src)
+    mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
+    bad = K.calibrated_assimilate(off, np.full(k, model.grid_mm[0], dtype=np.float32),
+                                  np.full(k, 1 / model.grid_step_mm, dtype=np.float32), np.full(k, n1),
+                                  np.zeros(k, dtype=np.int64), model._coef.astype(np.float32),
+                                  reading.astype(np.float32), u0, src, jitter_idx, normal_table(), np.full(k, h), out,
+                                  mean, cov, position.astype(np.float32), np.full(k, 2 * h), HIST_BINS, counts)
+    assert bad == -1
+
+    class _Fixed:  # replays the kernel's draws through the single env's calls
+        def __init__(self, u: float, raw: np.ndarray) -> None:
+            self.u, self.bit_generator = u, self
+            self.random_raw = lambda n: raw[:n]
+
+        def random(self, shape: tuple[int, ...]) -> np.ndarray:
+            return np.full(shape, self.u)
+
+    for e in range(k):
+        b = ParticleBelief(m, (-h, -h), (h, h), dtype=np.float32)
+        b.set_state(particles[e])
+        b.assimilate(model.log_likelihood(reading[e], b.particles - position[e].astype(np.float32)),
+                     _Fixed(u0[e], raw[e]))
+        assert np.array_equal(out[e].T, b.particles)
+        assert np.array_equal(mean[e], b.mean()) and np.array_equal(cov[e], b.covariance())
+        hist = belief_observation(position[e], 0.0, b.particles, None, 1, 35, float(h), 0.1, 10.0, 10.0,
+                                  np.zeros(5, dtype=np.float32))[12:76]
+        assert np.array_equal((counts[e] / m).astype(np.float32), hist)
+    # A NaN reading is reported, not resampled from.
+    bad = K.calibrated_assimilate(off, np.full(k, model.grid_mm[0], dtype=np.float32),
+                                  np.full(k, 1 / model.grid_step_mm, dtype=np.float32), np.full(k, n1),
+                                  np.zeros(k, dtype=np.int64), model._coef.astype(np.float32),
+                                  np.array([0.0, np.nan, 0.0], dtype=np.float32), u0, src, jitter_idx, normal_table(),
+                                  np.full(k, h), out, mean, cov, position.astype(np.float32), np.full(k, 2 * h),
+                                  HIST_BINS, counts)
+    assert bad == 1

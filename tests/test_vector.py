@@ -11,7 +11,7 @@ from gymnasium.vector import AutoresetMode
 
 import electroloc_gym  # noqa: F401
 from electroloc_gym._kernels import resample_jitter_clip
-from electroloc_gym.belief import ParticleBelief, normal_table
+from electroloc_gym.belief import ParticleBelief, normal_table, weight_sums
 from electroloc_gym.conditions import PRESET_NAMES, get_condition
 from electroloc_gym.envs.observation import HIST_BINS, belief_observation
 from electroloc_gym.envs.vector import (
@@ -115,7 +115,9 @@ def test_make_vec_entry_point_and_spaces() -> None:
     assert env.observation_space.contains(obs)
     assert info["position_mm"].shape == (4, 2) and info["_spread_mm"].all()
     u = env.unwrapped
-    assert u.particles_mm.shape == (4, 100, 2) and not u.particles_mm.flags.writeable
+    p = u.particles_mm
+    p[:] = 1e6  # a copy: writing to it does not touch the env
+    assert p.shape == (4, 100, 2) and np.all(u.particles_mm < 1e3)
     assert len(u.sensor_models) == 4 and all(isinstance(m, CalibratedSensorModel) for m in u.sensor_models)
     assert np.array_equal(u.n_observations, np.ones(4))
     env.close()
@@ -197,7 +199,7 @@ def test_resample_kernel_equals_belief_resample_and_jitter() -> None:
         w, out = e.copy(), np.empty((n, 2, m), dtype=np.float32)
         mean, cov, counts = np.empty((n, 2)), np.empty((n, 2, 2)), np.empty((n, HIST_BINS * HIST_BINS))
         origin = rng.uniform(-half, half, (n, 2))
-        resample_jitter_clip(w, np.sum(e, axis=-1), u, np.ascontiguousarray(aos.transpose(0, 2, 1)), jitter_idx,
+        resample_jitter_clip(w, weight_sums(e), u, np.ascontiguousarray(aos.transpose(0, 2, 1)), jitter_idx,
                              normal_table(), np.full(n, half, dtype=np.float32), out,
                              mean, cov, origin.astype(np.float32),
                              np.full(n, 2 * half, dtype=np.float32), HIST_BINS, counts)

@@ -73,7 +73,8 @@ from numpy.typing import NDArray
 
 from electroloc_gym._kernels import (
     bilinear_coefficients,
-    calibrated_zterm_std,
+    calibrated_assimilate,
+    calibrated_log_likelihood,
     calibration_tables,
     resample_jitter_clip,
 )
@@ -83,11 +84,12 @@ from electroloc_gym.belief import (
     spread_from_cov,
     table_normal_indices,
     uniform_in_box,
+    weight_sums,
 )
 from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition
 from electroloc_gym.envs.localize import DISCRETE_MOVES_MM, MAX_STEP_MM, ElectroLocEnv
 from electroloc_gym.envs.observation import HIST_BINS, belief_observation, condition_descriptor, raw_observation
-from electroloc_gym.sensor import expected_reading
+from electroloc_gym.sensor import add_calibration_noise, expected_reading
 from electroloc_gym.sensor_models import (
     AnalyticSensorModel,
     CalibratedSensorModel,
@@ -114,7 +116,7 @@ BLOCK_PARTICLES = 40000
 def _noise_free_calibration_grid(condition: Condition) -> NDArray[np.float64]:
     """The calibration's noise-free readings (10, n, n), V, unsaturated — the same for every seed.
 
-    Computed by exactly the call :func:`electroloc_gym.sensor.noisy_reading` makes inside
+    Computed by exactly the call :func:`electroloc_gym.sensor.calibration_readings` makes inside
     :class:`CalibratedSensorModel` (same broadcast array), so the values are identical.
     """
     half = condition.allowed_half_width_mm
@@ -131,17 +133,16 @@ def _noise_free_calibration_grid(condition: Condition) -> NDArray[np.float64]:
 def fast_calibrated_model(condition: Condition, seed: int) -> CalibratedSensorModel:
     """``CalibratedSensorModel(condition, seed)`` without recomputing the noise-free grid (tested equal).
 
-    The calibration's noisy readings are drawn exactly as :func:`electroloc_gym.sensor.noisy_reading`
-    draws them (one normal per sample from ``default_rng(seed)``, then the saturation clip), passed
-    through the model's ``reading_fn`` hook; only the deterministic noise-free part is cached.
+    The calibration's noisy readings are drawn exactly as :func:`electroloc_gym.sensor.calibration_readings`
+    draws them (:func:`~electroloc_gym.sensor.add_calibration_noise` from ``default_rng(seed)``),
+    passed through the model's ``reading_fn`` hook; only the deterministic noise-free part is cached.
     """
     mean = _noise_free_calibration_grid(condition)
 
     def reading_fn(offsets_mm: NDArray, rng: np.random.Generator) -> NDArray[np.float64]:
         if offsets_mm.shape[:-1] != mean.shape:  # pragma: no cover - guards a changed calibration layout
             raise RuntimeError("calibration grid layout changed; update electroloc_gym.envs.vector")
-        noise = rng.normal(0.0, condition.noise_std_V, size=mean.shape)
-        return np.clip(mean + noise, -condition.saturation_V, condition.saturation_V)
+        return add_calibration_noise(condition, mean, rng)
 
     return CalibratedSensorModel(condition, int(seed), reading_fn=reading_fn)
 
@@ -151,15 +152,13 @@ def calibration_coefficients(condition: Condition, seed: int, out: NDArray | Non
 
     The per-cell bilinear coefficients (n1² + 1, 8) of the paper's calibration (§5.3) — the only part
     of the model the batched lookup needs, without building the model object (a new calibration per
-    episode is ≈20 % of a step's cost at ~14 steps per episode). Same draws (``default_rng(seed)``,
-    one normal per sample), the same compiled tables and coefficients (:mod:`electroloc_gym._kernels`) as
+    episode). Same draws (:func:`~electroloc_gym.sensor.add_calibration_noise` from
+    ``default_rng(seed)``), the same compiled tables and coefficients (:mod:`electroloc_gym._kernels`) as
     :class:`~electroloc_gym.sensor_models.CalibratedSensorModel`; ``out`` (float32 or float64) receives
     the values cast as ``astype`` would.
     """
     mean = _noise_free_calibration_grid(condition)
-    rng = np.random.default_rng(int(seed))
-    noise = rng.normal(0.0, condition.noise_std_V, size=mean.shape)
-    samples = np.clip(mean + noise, -condition.saturation_V, condition.saturation_V)
+    samples = add_calibration_noise(condition, mean, np.random.default_rng(int(seed)))
     n = mean.shape[-1]
     tables = np.empty((2, n, n))
     calibration_tables(samples, _CAL_MIN_STD_FRACTION * float(condition.noise_std_V), tables[0], tables[1])
@@ -207,21 +206,23 @@ class _StackedCalibratedLookup:
         self.inv[env] = np.float32(1.0 / step_mm)
         self.n1[env] = n1
 
+    def grid_args(self, sel: slice | NDArray[np.intp]) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
+        """The calibrated kernels' per-env grid arguments (lo, inv, n1, base, table) for envs ``sel``."""
+        return (self.lo[sel].reshape(-1), self.inv[sel].reshape(-1), self.n1[sel].reshape(-1),
+                self.base[sel].reshape(-1), self.table)
+
     def log_likelihood(self, reading_V: NDArray[np.float64], offsets: NDArray[np.float32],
                        sel: slice | NDArray[np.intp]) -> NDArray[np.float32]:
         """(k, M) log-likelihoods of readings (k,) for envs ``sel`` at float32 offsets (k, 2, M), mm.
 
-        ``CalibratedSensorModel.log_likelihood`` in the same float32 arithmetic: one compiled pass
-        (:func:`~electroloc_gym._kernels.calibrated_zterm_std`), then numpy's ``log`` of the std.
+        ``CalibratedSensorModel.log_likelihood`` in the same float32 arithmetic
+        (:func:`~electroloc_gym._kernels.calibrated_log_likelihood`).
         """
         k, _, m = offsets.shape
-        zterm = np.empty((k, m), dtype=np.float32)
-        std = np.empty((k, m), dtype=np.float32)
-        calibrated_zterm_std(offsets, self.lo[sel].reshape(k), self.inv[sel].reshape(k),
-                             self.n1[sel].reshape(k), self.base[sel].reshape(k), self.table,
-                             np.asarray(reading_V, dtype=np.float32), zterm, std)
-        zterm -= np.log(std, out=std)
-        return zterm
+        ll = np.empty((k, m), dtype=np.float32)
+        calibrated_log_likelihood(np.ascontiguousarray(offsets), *self.grid_args(sel),
+                                  np.asarray(reading_V, dtype=np.float32), ll)
+        return ll
 
 
 def _check_vector_args(num_envs: Any, render_mode: Any, autoreset_mode: Any, max_episode_steps: Any) -> AutoresetMode:
@@ -383,6 +384,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._autoreset = np.zeros(n, dtype=bool)
         self._started = False
         self._cal: _StackedCalibratedLookup | None = None
+        self._soa_next = np.zeros_like(self._soa)  # the update writes here, then the two swap
         if self.sensor_model_name == "calibrated":
             cells = max((int(np.floor(2 * c.allowed_half_width_mm / _CAL_STEP_MM + 1e-9))) ** 2 + 1 for c in pool)
             self._cal = _StackedCalibratedLookup(n, cells)
@@ -400,10 +402,8 @@ class ElectroLocVectorEnv(VectorEnv):
 
     @property
     def particles_mm(self) -> NDArray[np.float32]:
-        """Particles (N, M, 2), mm (read-only view); weights are uniform after every update."""
-        v = self._soa.transpose(0, 2, 1)
-        v.flags.writeable = False
-        return v
+        """Particles (N, M, 2), mm (a copy); weights are uniform after every update."""
+        return self._soa.transpose(0, 2, 1).copy()
 
     @property
     def position_mm(self) -> NDArray[np.float64]:
@@ -603,11 +603,17 @@ class ElectroLocVectorEnv(VectorEnv):
         self._reading[sel] = reading
         self._n_obs[sel] += 1
         # Belief update, in blocks of ≈BLOCK_PARTICLES particles so that the temporaries stay in cache.
+        # A full update writes the new clouds into the spare buffer, which then becomes the current one.
         b = self._block_envs
+        new = self._soa_next if full else np.empty((k, 2, self.n_particles), dtype=np.float32)
         for s0 in range(0, k, b):
             rows = slice(s0, min(s0 + b, k))
             esel = slice(s0, rows.stop) if full else ids[rows]
-            self._fuse(esel, reading[rows], u0[rows], jitter[rows], cidx[rows], position[rows])
+            self._fuse(esel, reading[rows], u0[rows], jitter[rows], cidx[rows], position[rows], new[rows])
+        if full:
+            self._soa, self._soa_next = new, self._soa
+        else:
+            self._soa[ids] = new
 
     def _true_mean(self, position: NDArray[np.float64], target: NDArray[np.float64], cidx: NDArray[np.intp],
                    k: int) -> NDArray[np.float64]:
@@ -629,28 +635,30 @@ class ElectroLocVectorEnv(VectorEnv):
         return self._target[sel]
 
     def _fuse(self, sel: slice | NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
-              jitter: NDArray[np.uint16], cidx: NDArray[np.intp], position: NDArray[np.float64]) -> None:
-        """Weight, resample and jitter the clouds of envs ``sel`` (a block); their mean, Σ and histogram counts."""
+              jitter: NDArray[np.uint16], cidx: NDArray[np.intp], position: NDArray[np.float64],
+              new: NDArray[np.float32]) -> None:
+        """Weight, resample and jitter the clouds of envs ``sel`` (a block) into ``new`` (k, 2, M); their
+        mean, Σ and histogram counts.
+        """
         m = self.n_particles
         k = len(reading)
         soa = self._soa[sel]
         p_off = self._particle_offsets(soa, position)
-        if self._cal is not None:
-            ll = self._cal.log_likelihood(reading, p_off, sel)
+        mean, cov = np.empty((k, 2)), np.empty((k, 2, 2))
+        counts = np.empty((k, HIST_BINS * HIST_BINS))
+        half = self._pool_half[cidx].astype(np.float32)
+        hist_args = (mean, cov, self._hist_origin(position).astype(np.float32), 2 * half, HIST_BINS, counts)
+        if self._cal is not None:  # the whole update in one kernel, one env at a time in cache
+            bad = calibrated_assimilate(p_off, *self._cal.grid_args(sel), reading.astype(np.float32), u0, soa,
+                                        jitter, self._normal_table, half, new, *hist_args)
+            if bad >= 0:
+                raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
         else:
             off = p_off.transpose(0, 2, 1)
             ll = self._per_condition(cidx, lambda c, rows: self._pool_analytic[c].log_likelihood(
                 reading[rows][:, None], off[rows]), k, (m,), np.float32)
-        w, _ = shifted_exp_weights(ll)  # normalise_log_weights without its division (the kernel divides)
-        total = np.sum(w, axis=-1)
-        new = np.empty_like(soa)
-        mean, cov = np.empty((k, 2)), np.empty((k, 2, 2))
-        counts = np.empty((k, HIST_BINS * HIST_BINS))
-        half = self._pool_half[cidx]
-        resample_jitter_clip(w, total, u0, soa, jitter, self._normal_table, half.astype(np.float32), new,
-                             mean, cov, self._hist_origin(position).astype(np.float32),
-                             (2 * half).astype(np.float32), HIST_BINS, counts)
-        self._soa[sel] = new
+            w, _ = shifted_exp_weights(ll)  # normalise_log_weights without its division (the kernel divides)
+            resample_jitter_clip(w, weight_sums(w), u0, soa, jitter, self._normal_table, half, new, *hist_args)
         self._mean[sel], self._cov[sel], self._counts[sel] = mean, cov, counts
 
     def _hist_origin(self, position: NDArray[np.float64]) -> NDArray[np.float64]:

