@@ -38,6 +38,8 @@ __all__ = [
     "calibrated_assimilate",
     "shifted_exp_rows",
     "resample_jitter_clip",
+    "table_gather",
+    "noisy_saturated",
     "mean_cov_rows",
     "egocentric_counts",
     "calibration_tables",
@@ -530,6 +532,22 @@ def shifted_exp_rows(ll, w, total):  # pragma: no cover - compiled
     """
     for e in range(ll.shape[0]):
         total[e] = _shifted_exp_one(ll[e], w[e])
+
+
+@njit(**_JIT)
+def table_gather(table, idx, out):  # pragma: no cover - compiled
+    """``out[i] = table[idx[i]]`` (1-D; numpy's fancy indexing first converts uint16 indices to intp)."""
+    for i in range(idx.shape[0]):
+        out[i] = table[idx[i]]
+
+
+@njit(**_JIT)
+def noisy_saturated(mean, idx, table, std, sat, out):  # pragma: no cover - compiled
+    """``np.clip(mean + table[idx].astype(float64) · std, −sat, sat)`` over 1-D float64 arrays (same bits)."""
+    for i in range(mean.shape[0]):
+        v = mean[i] + np.float64(table[idx[i]]) * std
+        v = v if v >= -sat else -sat
+        out[i] = v if v <= sat else sat
 
 
 @njit(**_JIT)

@@ -17,6 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtri
 
+from electroloc_gym._kernels import table_gather
+
 __all__ = ["NORMAL_TABLE_BITS", "normal_table", "table_normal_indices", "table_standard_normal", "uniform_in_box"]
 
 #: Bits per jitter draw: the table holds 2**16 quantiles.
@@ -42,7 +44,9 @@ def table_normal_indices(rng: np.random.Generator, n: int) -> NDArray[np.uint16]
 def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float32]:
     """Standard normals (float32) of ``shape`` from the quantile table (see the module docstring)."""
     n = int(np.prod(shape))
-    return normal_table()[table_normal_indices(rng, n)].reshape(shape)
+    out = np.empty(n, dtype=np.float32)
+    table_gather(normal_table(), table_normal_indices(rng, n), out)
+    return out.reshape(shape)
 
 
 def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int) -> NDArray[np.float64]:

@@ -11,7 +11,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym import physics
 from electroloc_gym.conditions import Condition
-from electroloc_gym.draws import table_standard_normal
+from electroloc_gym._kernels import noisy_saturated
+from electroloc_gym.draws import normal_table, table_normal_indices
 
 __all__ = ["expected_reading", "noisy_reading", "calibration_readings", "add_calibration_noise",
            "electrode_positions_mm"]
@@ -47,8 +48,11 @@ def add_calibration_noise(condition: Condition, mean_V: NDArray[np.float64],
     (:func:`electroloc_gym.draws.table_standard_normal`, ≈10× faster than ``rng.normal`` for the
     ≈8000 readings of a calibration; a new calibration per episode is the default).
     """
-    noise = table_standard_normal(rng, mean_V.shape).astype(np.float64) * condition.noise_std_V
-    return np.clip(mean_V + noise, -condition.saturation_V, condition.saturation_V)
+    mean = np.ascontiguousarray(mean_V, dtype=np.float64).reshape(-1)
+    out = np.empty_like(mean)
+    noisy_saturated(mean, table_normal_indices(rng, mean.size), normal_table(), float(condition.noise_std_V),
+                    float(condition.saturation_V), out)  # clip(mean + z·σ, ±V_sat), z from the table
+    return out.reshape(np.shape(mean_V))
 
 
 def calibration_readings(condition: Condition, offsets_mm: ArrayLike, rng: np.random.Generator) -> NDArray[np.float64]:

@@ -229,3 +229,16 @@ def test_calibrated_assimilate_is_the_single_env_update() -> None:
                                   np.full(k, h), out, mean, cov, position.astype(np.float32), np.full(k, 2 * h),
                                   HIST_BINS, counts)
     assert bad == 1
+
+
+def test_table_gather_and_noisy_saturated_equal_their_numpy_expressions() -> None:
+    rng = np.random.default_rng(12)
+    idx = rng.integers(0, 65536, 5001).astype(np.uint16)
+    out = np.empty(5001, dtype=np.float32)
+    K.table_gather(normal_table(), idx, out)
+    assert np.array_equal(out, normal_table()[idx])
+    mean = rng.normal(0.0, 8.0, 5001)
+    got = np.empty_like(mean)
+    K.noisy_saturated(mean, idx, normal_table(), 0.3, 10.0, got)
+    ref = np.clip(mean + normal_table()[idx].astype(np.float64) * 0.3, -10.0, 10.0)
+    assert np.array_equal(got, ref) and got.max() == 10.0 and got.min() == -10.0
