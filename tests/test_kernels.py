@@ -242,3 +242,36 @@ def test_table_gather_and_noisy_saturated_equal_their_numpy_expressions() -> Non
     K.noisy_saturated(mean, idx, normal_table(), 0.3, 10.0, got)
     ref = np.clip(mean + normal_table()[idx].astype(np.float64) * 0.3, -10.0, 10.0)
     assert np.array_equal(got, ref) and got.max() == 10.0 and got.min() == -10.0
+
+
+def test_belief_observation_equals_its_numpy_formulas() -> None:
+    """The compiled observation assembly against the formulas of the observation table (numpy)."""
+    from electroloc_gym.envs.observation import belief_observation
+
+    rng = np.random.default_rng(13)
+    k = 6
+    carriage = rng.uniform(-60, 60, (k, 2))
+    reading = rng.normal(0, 4, k)
+    particles = rng.normal(rng.uniform(-40, 40, (k, 1, 2)), rng.uniform(0.5, 30, (k, 1, 2)), (k, 700, 2))
+    particles[0] = 5.0  # a collapsed cloud: zero spread, ρ = 0
+    n_obs = rng.integers(0, 36, k)
+    hw = rng.uniform(40, 60, k)
+    noise, sat = rng.uniform(0.01, 0.3, k), np.full(k, 10.0)
+    desc = rng.uniform(-1, 1, (k, 5)).astype(np.float32)
+    obs = belief_observation(carriage, reading, particles, None, n_obs, 35, hw, noise, sat, 10.0, desc)
+    mean, cov = weighted_mean_cov(particles)
+    sx, sy = np.sqrt(cov[:, 0, 0]), np.sqrt(cov[:, 1, 1])
+    rho = np.where(sx * sy > 1e-12, cov[:, 0, 1] / np.maximum(sx * sy, 1e-12), 0.0)
+    spread = np.sqrt(cov[:, 0, 0] + cov[:, 1, 1])
+    scalars = np.stack([carriage[:, 0] / hw, carriage[:, 1] / hw, reading / sat, np.tanh(reading / (3 * noise)),
+                        (mean[:, 0] - carriage[:, 0]) / (2 * hw), (mean[:, 1] - carriage[:, 1]) / (2 * hw),
+                        sx / hw, sy / hw, rho, spread / hw, np.log10(np.maximum(spread, 1e-6) / 10.0), n_obs / 35],
+                       axis=-1)
+    ref = np.concatenate([np.clip(scalars, -1, 1), _egocentric_histogram(particles, None, carriage, hw), desc],
+                         axis=-1).astype(np.float32)
+    assert obs.shape == (k, 81) and obs.dtype == np.float32
+    np.testing.assert_allclose(obs, ref, rtol=1e-6, atol=1e-7)
+    assert obs[0, 8] == 0.0 and obs[0, 10] == -1.0
+    single = belief_observation(carriage[2], reading[2], particles[2], None, int(n_obs[2]), 35, float(hw[2]),
+                                float(noise[2]), 10.0, 10.0, desc[2])
+    assert single.shape == (81,) and np.array_equal(single, obs[2])

@@ -28,11 +28,13 @@ The "raw" observation is ``[x/H, y/H, Φ/10 V]``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym._kernels import egocentric_counts
-from electroloc_gym.belief import spread_from_cov, weighted_mean_cov
+from electroloc_gym._kernels import belief_observation_rows, egocentric_counts
+from electroloc_gym.belief import weighted_mean_cov
 from electroloc_gym.conditions import Condition
 
 HIST_BINS = 8
@@ -108,32 +110,21 @@ def belief_observation(
     """
     carriage = np.asarray(carriage_mm, dtype=np.float64)
     batch = carriage.shape[:-1]
+    k = int(np.prod(batch)) if batch else 1
     hw = np.broadcast_to(np.asarray(half_width_mm, dtype=np.float64), batch)
-    reading = np.asarray(reading_V, dtype=np.float64)
     mean, cov = weighted_mean_cov(particles_mm, weights) if mean_cov is None else mean_cov
-    sx = np.sqrt(np.maximum(cov[..., 0, 0], 0.0))
-    sy = np.sqrt(np.maximum(cov[..., 1, 1], 0.0))
-    rho = np.where(sx * sy > 1e-12, cov[..., 0, 1] / np.maximum(sx * sy, 1e-12), 0.0)
-    spread = spread_from_cov(cov)
-    scalars = np.stack([
-        carriage[..., 0] / hw,
-        carriage[..., 1] / hw,
-        reading / np.asarray(saturation_V),
-        np.tanh(reading / (3.0 * np.asarray(noise_std_V))),
-        (mean[..., 0] - carriage[..., 0]) / (2 * hw),
-        (mean[..., 1] - carriage[..., 1]) / (2 * hw),
-        sx / hw,
-        sy / hw,
-        rho,
-        spread / hw,
-        np.log10(np.maximum(spread, 1e-6) / success_spread_mm),
-        np.asarray(n_observations, dtype=np.float64) / max_observations + np.zeros(batch),
-    ], axis=-1)
     if hist is None:
         hist = _egocentric_histogram(particles_mm, weights, carriage, hw)
-    desc = np.broadcast_to(descriptor, batch + (N_DESCRIPTOR,))
-    out = np.concatenate([np.clip(scalars, -1.0, 1.0), hist, desc], axis=-1)
-    return out.astype(np.float32)
+
+    def rows(x: Any, tail: tuple[int, ...] = (), dtype: Any = np.float64) -> NDArray:
+        return np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=dtype), batch + tail)).reshape((k,) + tail)
+
+    out = np.empty((k, BELIEF_OBS_DIM), dtype=np.float32)
+    belief_observation_rows(rows(carriage, (2,)), rows(reading_V), rows(mean, (2,)), rows(cov, (2, 2)),
+                            rows(n_observations), float(max_observations), rows(hw), rows(noise_std_V),
+                            rows(saturation_V), float(success_spread_mm), rows(hist, (HIST_BINS * HIST_BINS,)),
+                            rows(descriptor, (N_DESCRIPTOR,), np.float32), out)
+    return out.reshape(batch + (BELIEF_OBS_DIM,))
 
 
 def _egocentric_histogram(particles_mm: NDArray, weights: NDArray | None, carriage: NDArray,
