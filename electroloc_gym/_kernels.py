@@ -365,10 +365,10 @@ def _resample_one(w, t, u, src_x, src_y, jitter_idx, normal_table, h, out_x, out
     """
     m = w.shape[0]
     fm = np.float64(m)
-    acc = w[0] / t
+    acc = np.float64(w[0]) / t
     cum[0] = acc
     for i in range(1, m):
-        acc = acc + w[i] / t
+        acc = acc + np.float64(w[i]) / t
         cum[i] = acc
     last = cum[m - 1]
     for j in range(m):
@@ -471,8 +471,12 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
 
 @njit(**_JIT)
 def _shifted_exp_one(ll, w):  # pragma: no cover - compiled
-    """One cloud of ``belief.shifted_exp_weights`` (float32 log-weights) into ``w`` (M,) float64;
-    returns the weights' :func:`row_sums` total, or NaN if a log-weight is NaN.
+    """One cloud of ``belief.shifted_exp_weights`` (float32 log-weights ``ll``) into ``w`` (M,) (not
+    ``ll`` itself: the exp pass would not vectorise); returns the weights' :func:`row_sums` total, or NaN if a log-weight is NaN.
+
+    With a float32 ``w`` the weights stay float32 here and the consumers widen them to float64 as
+    they read them (``np.float64(w[i])`` is exact), which is what ``.astype(np.float64)`` gives the
+    single env; a float32 store halves the exp pass.
     """
     m = ll.shape[0]
     top = -_INF
@@ -486,7 +490,7 @@ def _shifted_exp_one(ll, w):  # pragma: no cover - compiled
     finite = (top > -_INF) & (top < _INF)
     shift = top if finite else _ZERO
     for i in range(m):
-        w[i] = np.float64(exp32(ll[i] - shift)) if finite else 1.0
+        w[i] = exp32(ll[i] - shift) if finite else _ONE
     return _sum8(w)
 
 
@@ -507,7 +511,7 @@ def calibrated_assimilate(off, lo, inv, n1, base, table, reading, u0, src, jitte
     rows = np.empty(m, dtype=np.int32)
     txs = np.empty(m, dtype=np.float32)
     tys = np.empty(m, dtype=np.float32)
-    w = np.empty(m)
+    w = np.empty(m, dtype=np.float32)
     cum = np.empty(m)
     ptr = np.empty(m + 1)
     kest = np.empty(m, dtype=np.int32)
@@ -517,8 +521,8 @@ def calibrated_assimilate(off, lo, inv, n1, base, table, reading, u0, src, jitte
     for e in range(k):
         _calibrated_ll_one(off[e, 0], off[e, 1], lo[e], inv[e], n1[e], base[e], table, reading[e], ll,
                            sd, rows, txs, tys)
-        total = _shifted_exp_one(ll, w)
-        if total != total:
+        total = _shifted_exp_one(ll, w)  # float32 weights (a separate buffer: in place, the exp pass
+        if total != total:             # fails LLVM's runtime overlap check and does not vectorise)
             return e
         _resample_one(w, total, u0[e], src[e, 0], src[e, 1], jitter_idx[e], normal_table, half[e],
                       out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,

@@ -111,13 +111,18 @@ def belief_observation(
     carriage = np.asarray(carriage_mm, dtype=np.float64)
     batch = carriage.shape[:-1]
     k = int(np.prod(batch)) if batch else 1
-    hw = np.broadcast_to(np.asarray(half_width_mm, dtype=np.float64), batch)
+    hw = np.asarray(half_width_mm, dtype=np.float64)
+    if hw.shape != batch:
+        hw = np.broadcast_to(hw, batch)
     mean, cov = weighted_mean_cov(particles_mm, weights) if mean_cov is None else mean_cov
     if hist is None:
         hist = _egocentric_histogram(particles_mm, weights, carriage, hw)
 
     def rows(x: Any, tail: tuple[int, ...] = (), dtype: Any = np.float64) -> NDArray:
-        return np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=dtype), batch + tail)).reshape((k,) + tail)
+        a = np.asarray(x, dtype=dtype)
+        if a.shape != batch + tail or not a.flags.c_contiguous:
+            a = np.ascontiguousarray(np.broadcast_to(a, batch + tail))
+        return a.reshape((k,) + tail)
 
     out = np.empty((k, BELIEF_OBS_DIM), dtype=np.float32)
     belief_observation_rows(rows(carriage, (2,)), rows(reading_V), rows(mean, (2,)), rows(cov, (2, 2)),
