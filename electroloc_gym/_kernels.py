@@ -472,7 +472,8 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
 @njit(**_JIT)
 def _shifted_exp_one(ll, w):  # pragma: no cover - compiled
     """One cloud of ``belief.shifted_exp_weights`` (float32 log-weights ``ll``) into ``w`` (M,) (not
-    ``ll`` itself: the exp pass would not vectorise); returns the weights' :func:`row_sums` total, or NaN if a log-weight is NaN.
+    ``ll`` itself: the exp pass would not vectorise); returns the weights' :func:`row_sums` total,
+    or NaN if a log-weight is NaN.
 
     With a float32 ``w`` the weights stay float32 here and the consumers widen them to float64 as
     they read them (``np.float64(w[i])`` is exact), which is what ``.astype(np.float64)`` gives the
