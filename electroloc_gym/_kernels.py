@@ -209,12 +209,15 @@ def row_sums(w, out):  # pragma: no cover - compiled
 
 
 @njit(**_JIT)
-def _calibrated_ll_one(ox, oy, lo, inv, n1, base, table, reading, ll, sd, rows, txs, tys):  # pragma: no cover
-    """One env's calibrated log-likelihoods into ``ll`` (M,) float32 (see :func:`calibrated_log_likelihood`).
+def _calibrated_ll_one(px, py, ox0, oy0, sign, lo, inv, n1, base, table, reading, ll, sd, rows,  # pragma: no cover
+                       txs, tys):
+    """One env's calibrated log-likelihoods into ``ll`` (M,) float32 (see :func:`calibrated_log_likelihood`)
+    at the offsets ``sign·(p − o)`` of the particles ``px``, ``py`` (M,) from the origin (ox0, oy0),
+    all float32 (sign ±1: exact).
 
     ``sd`` (M,) float32, ``rows`` (M,) int32, ``txs``/``tys`` (M,) float32 are scratch.
     """
-    m = ox.shape[0]
+    m = px.shape[0]
     n1i = np.int32(n1)
     n1f = np.float32(n1)
     above = np.float32(n1 + 1)
@@ -223,8 +226,8 @@ def _calibrated_ll_one(ox, oy, lo, inv, n1, base, table, reading, ll, sd, rows, 
     b = np.int32(base)
     outside = np.int32(base + n1 * n1)
     for i in range(m):
-        fx = (ox[i] - lo) * inv
-        fy = (oy[i] - lo) * inv
+        fx = ((px[i] - ox0) * sign - lo) * inv
+        fy = ((py[i] - oy0) * sign - lo) * inv
         ix = min(np.int32(min(max(fx, below), above)), top)
         iy = min(np.int32(min(max(fy, below), above)), top)
         txs[i] = fx - np.float32(ix)
@@ -286,8 +289,8 @@ def calibrated_log_likelihood(off, lo, inv, n1, base, table, reading, ll):  # pr
     txs = np.empty(m, dtype=np.float32)
     tys = np.empty(m, dtype=np.float32)
     for e in range(k):
-        _calibrated_ll_one(off[e, 0], off[e, 1], lo[e], inv[e], n1[e], base[e], table, reading[e], ll[e],
-                           sd, rows, txs, tys)
+        _calibrated_ll_one(off[e, 0], off[e, 1], _ZERO, _ZERO, _ONE, lo[e], inv[e], n1[e], base[e], table,
+                           reading[e], ll[e], sd, rows, txs, tys)
 
 
 @njit(**_JIT)
@@ -496,17 +499,46 @@ def _shifted_exp_one(ll, w):  # pragma: no cover - compiled
 
 
 @njit(**_JIT)
-def calibrated_assimilate(off, lo, inv, n1, base, table, reading, u0, src, jitter_idx,  # pragma: no cover
-                          normal_table, half, out, mean, cov, origin, scale, bins, counts):
+def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, u0, jitter_idx,  # pragma: no cover
+                          normal_table, half, out, mean, cov, scale, bins, counts):
     """One calibrated measurement update of k clouds, one env at a time in cache:
-    :func:`calibrated_log_likelihood`, ``belief.normalise_log_weights`` (the shifted ``exp32`` and
-    its :func:`row_sums` total), then :func:`resample_jitter_clip` — the single env's
-    ``assimilate(model.log_likelihood(...))`` in the same float operations.
+    :func:`calibrated_log_likelihood` at the offsets ``sign·(particle − origin)``,
+    ``belief.normalise_log_weights`` (the shifted ``exp32`` and its :func:`row_sums` total), then
+    :func:`resample_jitter_clip` — the single env's ``assimilate(model.log_likelihood(...))`` in the
+    same float operations.
 
-    Arguments as those two kernels'. Returns −1, or the first env whose log-likelihood is NaN (that
-    env and those after it are left unchanged).
+    Args:
+        src: (k, 2, M) float32 particles, coordinate-major, mm.
+        origin: (k, 2) float32 frame origin, mm: the carriage (target localisation, ``sign`` = 1:
+            offsets = target hypothesis − carriage) or the map origin (self-localisation, ``sign`` = −1:
+            offsets = − carriage hypothesis); also the histogram's centre.
+        sign: float32 ±1.
+        lo: as :func:`calibrated_log_likelihood`.
+        inv: as :func:`calibrated_log_likelihood`.
+        n1: as :func:`calibrated_log_likelihood`.
+        base: as :func:`calibrated_log_likelihood`.
+        table: as :func:`calibrated_log_likelihood`.
+        reading: as :func:`calibrated_log_likelihood`.
+        u0: as :func:`resample_jitter_clip`.
+        jitter_idx: as :func:`resample_jitter_clip`.
+        normal_table: as :func:`resample_jitter_clip`.
+        half: as :func:`resample_jitter_clip`.
+        out: as :func:`resample_jitter_clip`.
+        mean: as :func:`resample_jitter_clip`.
+        cov: as :func:`resample_jitter_clip`.
+        scale: as :func:`resample_jitter_clip`.
+        bins: as :func:`resample_jitter_clip`.
+        counts: as :func:`resample_jitter_clip`.
+
+    ``out`` may be ``src`` (an update in place: each cloud is first copied to a scratch buffer, and
+    the new cloud is written over the old one, whose cache lines the update has just read).
+
+    Returns −1, or the first env whose log-likelihood is NaN (that env and those after it are left
+    unchanged).
     """
-    k, _, m = off.shape
+    k, _, m = src.shape
+    px = np.empty(m, dtype=np.float32)
+    py = np.empty(m, dtype=np.float32)
     ll = np.empty(m, dtype=np.float32)
     sd = np.empty(m, dtype=np.float32)
     rows = np.empty(m, dtype=np.int32)
@@ -520,12 +552,14 @@ def calibrated_assimilate(off, lo, inv, n1, base, table, reading, u0, src, jitte
     cells = np.empty(m, dtype=np.int32)
     hist = np.empty((4, bins * bins), dtype=np.int32)
     for e in range(k):
-        _calibrated_ll_one(off[e, 0], off[e, 1], lo[e], inv[e], n1[e], base[e], table, reading[e], ll,
-                           sd, rows, txs, tys)
+        px[:] = src[e, 0]
+        py[:] = src[e, 1]
+        _calibrated_ll_one(px, py, origin[e, 0], origin[e, 1], sign, lo[e], inv[e], n1[e], base[e],
+                           table, reading[e], ll, sd, rows, txs, tys)
         total = _shifted_exp_one(ll, w)  # float32 weights (a separate buffer: in place, the exp pass
         if total != total:             # fails LLVM's runtime overlap check and does not vectorise)
             return e
-        _resample_one(w, total, u0[e], src[e, 0], src[e, 1], jitter_idx[e], normal_table, half[e],
+        _resample_one(w, total, u0[e], px, py, jitter_idx[e], normal_table, half[e],
                       out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
                       cum, ptr, kest, first, cells, hist)
     return -1

@@ -192,16 +192,20 @@ def test_calibrated_assimilate_is_the_single_env_update() -> None:
     u0 = rng.random(k)
     raw = rng.integers(0, 2**64, size=(k, (2 * m + 3) // 4), dtype=np.uint64)
     jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, :2 * m])
-    off = np.ascontiguousarray((particles - position.astype(np.float32)[:, None]).transpose(0, 2, 1))
     src = np.ascontiguousarray(particles.transpose(0, 2, 1))
     out = np.empty_like(src)
     mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
-    bad = K.calibrated_assimilate(off, np.full(k, model.grid_mm[0], dtype=np.float32),
-                                  np.full(k, 1 / model.grid_step_mm, dtype=np.float32), np.full(k, n1),
-                                  np.zeros(k, dtype=np.int64), model._coef.astype(np.float32),
-                                  reading.astype(np.float32), u0, src, jitter_idx, normal_table(), np.full(k, h), out,
-                                  mean, cov, position.astype(np.float32), np.full(k, 2 * h), HIST_BINS, counts)
+    grid = (np.full(k, model.grid_mm[0], dtype=np.float32), np.full(k, 1 / model.grid_step_mm, dtype=np.float32),
+            np.full(k, n1), np.zeros(k, dtype=np.int64), model._coef.astype(np.float32))
+    bad = K.calibrated_assimilate(src, position.astype(np.float32), np.float32(1.0), *grid, reading.astype(np.float32),
+                                  u0, jitter_idx, normal_table(), np.full(k, h), out, mean, cov, np.full(k, 2 * h),
+                                  HIST_BINS, counts)
     assert bad == -1
+    inplace, mean2, cov2, counts2 = src.copy(), np.empty_like(mean), np.empty_like(cov), np.empty_like(counts)
+    assert K.calibrated_assimilate(inplace, position.astype(np.float32), np.float32(1.0), *grid,
+                                   reading.astype(np.float32), u0, jitter_idx, normal_table(), np.full(k, h), inplace,
+                                   mean2, cov2, np.full(k, 2 * h), HIST_BINS, counts2) == -1
+    assert np.array_equal(inplace, out) and np.array_equal(mean2, mean) and np.array_equal(counts2, counts)
 
     class _Fixed:  # replays the kernel's draws through the single env's calls
         def __init__(self, u: float, raw: np.ndarray) -> None:
@@ -222,12 +226,9 @@ def test_calibrated_assimilate_is_the_single_env_update() -> None:
                                   np.zeros(5, dtype=np.float32))[12:76]
         assert np.array_equal((counts[e] / m).astype(np.float32), hist)
     # A NaN reading is reported, not resampled from.
-    bad = K.calibrated_assimilate(off, np.full(k, model.grid_mm[0], dtype=np.float32),
-                                  np.full(k, 1 / model.grid_step_mm, dtype=np.float32), np.full(k, n1),
-                                  np.zeros(k, dtype=np.int64), model._coef.astype(np.float32),
-                                  np.array([0.0, np.nan, 0.0], dtype=np.float32), u0, src, jitter_idx, normal_table(),
-                                  np.full(k, h), out, mean, cov, position.astype(np.float32), np.full(k, 2 * h),
-                                  HIST_BINS, counts)
+    bad = K.calibrated_assimilate(src, position.astype(np.float32), np.float32(1.0), *grid,
+                                  np.array([0.0, np.nan, 0.0], dtype=np.float32), u0, jitter_idx, normal_table(),
+                                  np.full(k, h), out, mean, cov, np.full(k, 2 * h), HIST_BINS, counts)
     assert bad == 1
 
 

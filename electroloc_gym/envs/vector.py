@@ -384,7 +384,6 @@ class ElectroLocVectorEnv(VectorEnv):
         self._autoreset = np.zeros(n, dtype=bool)
         self._started = False
         self._cal: _StackedCalibratedLookup | None = None
-        self._soa_next = np.zeros_like(self._soa)  # the update writes here, then the two swap
         if self.sensor_model_name == "calibrated":
             cells = max((int(np.floor(2 * c.allowed_half_width_mm / _CAL_STEP_MM + 1e-9))) ** 2 + 1 for c in pool)
             self._cal = _StackedCalibratedLookup(n, cells)
@@ -603,17 +602,11 @@ class ElectroLocVectorEnv(VectorEnv):
         self._reading[sel] = reading
         self._n_obs[sel] += 1
         # Belief update, in blocks of ≈BLOCK_PARTICLES particles so that the temporaries stay in cache.
-        # A full update writes the new clouds into the spare buffer, which then becomes the current one.
         b = self._block_envs
-        new = self._soa_next if full else np.empty((k, 2, self.n_particles), dtype=np.float32)
         for s0 in range(0, k, b):
             rows = slice(s0, min(s0 + b, k))
             esel = slice(s0, rows.stop) if full else ids[rows]
-            self._fuse(esel, reading[rows], u0[rows], jitter[rows], cidx[rows], position[rows], new[rows])
-        if full:
-            self._soa, self._soa_next = new, self._soa
-        else:
-            self._soa[ids] = new
+            self._fuse(esel, reading[rows], u0[rows], jitter[rows], cidx[rows], position[rows])
 
     def _true_mean(self, position: NDArray[np.float64], target: NDArray[np.float64], cidx: NDArray[np.intp],
                    k: int) -> NDArray[np.float64]:
@@ -622,48 +615,45 @@ class ElectroLocVectorEnv(VectorEnv):
         return self._per_condition(cidx, lambda c, rows: expected_reading(self._pool[c], offsets[rows],
                                                                           saturate=False), k)
 
-    def _particle_offsets(self, soa: NDArray[np.float32], position: NDArray[np.float64]) -> NDArray[np.float32]:
-        """Sensor-model offsets (k, 2, M) float32: particle − carriage (``b.particles - position``)."""
-        posf = position.astype(np.float32)
-        p_off = np.empty(soa.shape, dtype=np.float32)
-        np.subtract(soa[:, 0], posf[:, 0:1], out=p_off[:, 0])
-        np.subtract(soa[:, 1], posf[:, 1:2], out=p_off[:, 1])
-        return p_off
+    #: Offsets = sign·(particle − frame origin): target hypothesis − carriage here.
+    _OFFSET_SIGN = np.float32(1.0)
+
+    def _frame_origin(self, position: NDArray[np.float64]) -> NDArray[np.float32]:
+        """The sensor-model offsets' and the histogram's origin (k, 2), float32 mm: the carriage."""
+        return position.astype(np.float32)
 
     def _true_state(self, sel: slice | NDArray[np.intp]) -> NDArray[np.float64]:
         """What the belief estimates (for info["error_mm"]): the target."""
         return self._target[sel]
 
     def _fuse(self, sel: slice | NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
-              jitter: NDArray[np.uint16], cidx: NDArray[np.intp], position: NDArray[np.float64],
-              new: NDArray[np.float32]) -> None:
-        """Weight, resample and jitter the clouds of envs ``sel`` (a block) into ``new`` (k, 2, M); their
-        mean, Σ and histogram counts.
-        """
+              jitter: NDArray[np.uint16], cidx: NDArray[np.intp], position: NDArray[np.float64]) -> None:
+        """Weight, resample and jitter the clouds of envs ``sel`` (a block); their mean, Σ and histogram counts."""
         m = self.n_particles
         k = len(reading)
-        soa = self._soa[sel]
-        p_off = self._particle_offsets(soa, position)
+        soa = self._soa[sel]  # a view for a slice: updated in place
+        origin = self._frame_origin(position)
         mean, cov = np.empty((k, 2)), np.empty((k, 2, 2))
         counts = np.empty((k, HIST_BINS * HIST_BINS))
         half = self._pool_half[cidx].astype(np.float32)
-        hist_args = (mean, cov, self._hist_origin(position).astype(np.float32), 2 * half, HIST_BINS, counts)
-        if self._cal is not None:  # the whole update in one kernel, one env at a time in cache
-            bad = calibrated_assimilate(p_off, *self._cal.grid_args(sel), reading.astype(np.float32), u0, soa,
-                                        jitter, self._normal_table, half, new, *hist_args)
+        if self._cal is not None:  # the whole update in one kernel, one env at a time in cache, in place
+            bad = calibrated_assimilate(soa, origin, self._OFFSET_SIGN, *self._cal.grid_args(sel),
+                                        reading.astype(np.float32), u0, jitter, self._normal_table, half, soa,
+                                        mean, cov, 2 * half, HIST_BINS, counts)
             if bad >= 0:
                 raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
+            new = soa
         else:
-            off = p_off.transpose(0, 2, 1)
+            off = ((soa - origin[:, :, None]) * self._OFFSET_SIGN).transpose(0, 2, 1)
             ll = self._per_condition(cidx, lambda c, rows: self._pool_analytic[c].log_likelihood(
                 reading[rows][:, None], off[rows]), k, (m,), np.float32)
             w, _ = shifted_exp_weights(ll)  # normalise_log_weights without its division (the kernel divides)
-            resample_jitter_clip(w, weight_sums(w), u0, soa, jitter, self._normal_table, half, new, *hist_args)
+            new = np.empty_like(soa)
+            resample_jitter_clip(w, weight_sums(w), u0, soa, jitter, self._normal_table, half, new,
+                                 mean, cov, origin, 2 * half, HIST_BINS, counts)
+        if not isinstance(sel, slice) or new is not soa:
+            self._soa[sel] = new
         self._mean[sel], self._cov[sel], self._counts[sel] = mean, cov, counts
-
-    def _hist_origin(self, position: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The observation histogram's centre (k, 2), mm: the carriage (egocentric)."""
-        return position
 
     def _per_condition(self, cidx: NDArray[np.intp], fn: Any, k: int, tail: tuple[int, ...] = (),
                        dtype: Any = np.float64) -> NDArray:
@@ -825,11 +815,12 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
                    k: int) -> NDArray[np.float64]:
         return self.scene.expected_reading(np.asarray(position, dtype=np.float64), saturate=False)
 
-    def _particle_offsets(self, soa: NDArray[np.float32], position: NDArray[np.float64]) -> NDArray[np.float32]:
-        return np.negative(soa)  # the map model's convention: map origin − carriage hypothesis
+    #: The map model's convention: offsets = map origin − carriage hypothesis = −particle.
+    _OFFSET_SIGN = np.float32(-1.0)
 
-    def _hist_origin(self, position: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.zeros((len(position), 2))  # the map origin (as the single env's observation)
+    def _frame_origin(self, position: NDArray[np.float64]) -> NDArray[np.float32]:
+        """The map origin (also the single env's histogram centre)."""
+        return np.zeros((len(position), 2), dtype=np.float32)
 
     def _true_state(self, sel: slice | NDArray[np.intp]) -> NDArray[np.float64]:
         return self._position[sel]
