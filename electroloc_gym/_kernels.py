@@ -39,6 +39,7 @@ __all__ = [
     "shifted_exp_rows",
     "resample_jitter_clip",
     "table_gather",
+    "box_affine",
     "noisy_saturated",
     "mean_cov_rows",
     "egocentric_counts",
@@ -572,6 +573,22 @@ def shifted_exp_rows(ll, w, total):  # pragma: no cover - compiled
     """
     for e in range(ll.shape[0]):
         total[e] = _shifted_exp_one(ll[e], w[e])
+
+
+@njit(**_JIT)
+def box_affine(u, low, span, out_x, out_y):  # pragma: no cover - compiled
+    """``low + span · u`` for uniform draws ``u`` (n, 2) float64, column c into ``out_c`` (cast on store).
+
+    numpy's ``low + (high − low) * u`` with ``span = high − low`` (2,) — the same float64 operations —
+    without its slow broadcast over an inner axis of length 2.
+    """
+    lx = low[0]
+    ly = low[1]
+    sx = span[0]
+    sy = span[1]
+    for j in range(u.shape[0]):
+        out_x[j] = lx + sx * u[j, 0]
+        out_y[j] = ly + sy * u[j, 1]
 
 
 @njit(**_JIT)

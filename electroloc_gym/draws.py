@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtri
 
-from electroloc_gym._kernels import table_gather
+from electroloc_gym._kernels import box_affine, table_gather
 
 __all__ = ["NORMAL_TABLE_BITS", "normal_table", "table_normal_indices", "table_standard_normal", "uniform_in_box"]
 
@@ -49,10 +49,22 @@ def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> N
     return out.reshape(shape)
 
 
-def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int) -> NDArray[np.float64]:
-    """``rng.uniform(low, high, size=(n, 2))`` bit for bit, ≈7× faster.
+def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int,
+                   out_xy: tuple[NDArray, NDArray] | None = None) -> NDArray[np.float64] | None:
+    """``rng.uniform(low, high, size=(n, 2))`` bit for bit, ≈10× faster.
 
     With array bounds numpy's ``uniform`` takes its broadcasting path (≈23 ns per draw here); it
-    computes ``low + (high − low) · U`` with ``U = rng.random()``, which is what this does in bulk.
+    computes ``low + (high − low) · U`` with ``U = rng.random()``, which is what this does in bulk
+    (:func:`electroloc_gym._kernels.box_affine`). Returns the (n, 2) float64 points, or, with
+    ``out_xy`` (two (n,) arrays of any float dtype), writes x and y there (cast on store, as
+    ``astype``) and returns None.
     """
-    return low + (high - low) * rng.random((n, 2))
+    u = rng.random((n, 2))
+    low = np.asarray(low, dtype=np.float64).reshape(2)
+    span = np.asarray(high, dtype=np.float64).reshape(2) - low
+    if out_xy is not None:
+        box_affine(u, low, span, *out_xy)
+        return None
+    out = np.empty((n, 2))
+    box_affine(u, low, span, out[:, 0], out[:, 1])
+    return out

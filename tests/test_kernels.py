@@ -112,6 +112,9 @@ def test_uniform_in_box_is_numpy_uniform_bit_for_bit() -> None:
     a = np.random.default_rng(9).uniform(low, high, size=(2501, 2))
     b = uniform_in_box(np.random.default_rng(9), low, high, 2501)
     assert np.array_equal(a, b)
+    soa = np.empty((2, 2501), dtype=np.float32)
+    assert uniform_in_box(np.random.default_rng(9), low, high, 2501, out_xy=(soa[0], soa[1])) is None
+    assert np.array_equal(soa, a.astype(np.float32).T)
 
 
 def _ulp_error(approx: np.ndarray, x: np.ndarray, fn: Any) -> float:

@@ -568,7 +568,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._position[i] = g.uniform(-s, s, size=2)
         h = c.allowed_half_width_mm
         low = np.array([-h, -h])
-        self._soa[i] = uniform_in_box(g, low, -low, m).astype(np.float32).T
+        uniform_in_box(g, low, -low, m, out_xy=(self._soa[i, 0], self._soa[i, 1]))
         self._n_obs[i] = 0
         self._elapsed[i] = 0
 
@@ -589,9 +589,9 @@ class ElectroLocVectorEnv(VectorEnv):
         u0 = np.empty(k)
         jitter = self._jitter_idx[:k]
         two_m = 2 * self.n_particles
-        for j, i in enumerate(env_ids):
-            g = self._gen(i)
-            noise[j] = g.normal(0.0, noise_std[j])
+        for j, (i, sd) in enumerate(zip(env_ids, noise_std.tolist())):
+            g = self._gens[i] or self._gen(i)
+            noise[j] = g.normal(0.0, sd)
             u0[j] = g.random()
             jitter[j] = table_normal_indices(g, two_m)
         # True readings (sensor.noisy_reading): float64 physics per distinct condition.
@@ -794,7 +794,7 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
         self._odometry[i] = 0.0
         h = c.allowed_half_width_mm
         low = np.array([-h, -h])
-        self._soa[i] = uniform_in_box(g, low, -low, self.n_particles).astype(np.float32).T
+        uniform_in_box(g, low, -low, self.n_particles, out_xy=(self._soa[i, 0], self._soa[i, 1]))
         self._n_obs[i] = 0
         self._elapsed[i] = 0
 
