@@ -200,9 +200,9 @@ class Condition:
         object.__setattr__(self, "target_xy_mm", (float(self.target_xy_mm[0]), float(self.target_xy_mm[1])))
 
     # ---- derived values -------------------------------------------------------------------
-    @property
+    @functools.cached_property
     def chi(self) -> float:
-        """Contrast factor χ = (σ_t − σ_w)/(σ_t + 2σ_w) (Eq. 4)."""
+        """Contrast factor χ = (σ_t − σ_w)/(σ_t + 2σ_w) (Eq. 4); computed once (it is read per reading)."""
         return float(physics.contrast_factor_sphere(self.target.conductivity_uScm, self.water.conductivity_uScm))
 
     @property

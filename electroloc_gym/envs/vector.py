@@ -532,13 +532,13 @@ class ElectroLocVectorEnv(VectorEnv):
             raise ValueError(f"actions must have shape ({n}, 2) (dx, dy in [-1, 1]), got shape {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError("actions must be finite (dx, dy in [-1, 1])")
-        return np.clip(a, -1.0, 1.0) * MAX_STEP_MM
+        return np.minimum(np.maximum(a, -1.0), 1.0) * MAX_STEP_MM  # np.clip's values, less overhead
 
     def _move(self, ids: NDArray[np.intp] | None, moves: NDArray[np.float64]) -> None:
         """Carriage moves, kept inside each env's allowed box (the single env's np.clip)."""
         sel = slice(None) if ids is None else ids
         h = self._pool_half[self._cidx[sel]][:, None]
-        self._position[sel] = np.clip(self._position[sel] + moves, -h, h)
+        self._position[sel] = np.minimum(np.maximum(self._position[sel] + moves, -h), h)
 
     def _reset_draws(self, ids: NDArray[np.intp]) -> None:
         """The per-env part of reset, in the single env's draw order (condition … particles)."""
@@ -598,7 +598,7 @@ class ElectroLocVectorEnv(VectorEnv):
         position = self._position[sel]
         mean = self._true_mean(position, self._target[sel], cidx, k)
         sat = self._pool_sat[cidx]
-        reading = np.clip(mean + noise, -sat, sat)
+        reading = np.minimum(np.maximum(mean + noise, -sat), sat)
         self._reading[sel] = reading
         self._n_obs[sel] += 1
         # Belief update, in blocks of ≈BLOCK_PARTICLES particles so that the temporaries stay in cache.
@@ -702,9 +702,9 @@ class ElectroLocVectorEnv(VectorEnv):
             "success": spread <= self.success_spread_mm,
             "condition": self._pool_names[self._cidx[sel]],
         }
-        k = len(spread)
-        for key in list(info):
-            info["_" + key] = np.ones(k, dtype=bool)
+        masks = np.ones((len(info), len(spread)), dtype=bool)  # one allocation for the all-true masks
+        for key, mask in zip(list(info), masks):
+            info["_" + key] = mask
         return info
 
 
