@@ -1,21 +1,24 @@
 """Compiled (numba) loops of the particle filter's hot path, shared by the single and the vector env.
 
 Why compiled loops: at M = 2500 particles a numpy step is ~25 elementwise passes, each a separate
-C call with its own temporary; the batched env spends most of its time there. Each kernel below is
-one pass (or two) over the particles of every env, with no temporaries.
+C call with its own temporary; the batched env spends most of its time there. The vector env's whole
+calibrated update (:func:`calibrated_assimilate`: likelihood, weights, resampling, jitter, statistics,
+histogram) is one kernel call that takes one env at a time through a few passes over its particles,
+so that each cloud stays in cache.
 
-Why the results are *identical* to the numpy code they replace (the native vector env is tested bit
-for bit against the single env): every kernel performs the same IEEE operations, in the same dtype
-and the same order, as the numpy expression it stands for — quoted beside each kernel. Numba compiles
-without ``fastmath``, so LLVM neither reassociates nor contracts ``a*b + c`` into an FMA; float32
-constants are written as ``np.float32`` so no operation is silently promoted to float64.
-Transcendental functions (``exp``, ``log``) are *not* evaluated here: numpy's SIMD ``exp``/``log`` and
-libm's can differ in the last bit, so callers apply numpy's ufuncs between the kernels.
+Why the single and the vector env compute *identical* results (tested bit for bit): each kernel
+performs the same IEEE operations, in the same dtype and order, as the numpy expression it stands for
+(quoted beside it), and where the two envs would otherwise depend on how numpy evaluates something,
+both call the same kernel:
 
-The one place where the single env calls a kernel too is :func:`mean_cov_rows` (the belief's mean and
-covariance, :func:`electroloc_gym.belief.weighted_mean_cov` without weights): numpy's summation order
-there depends on the memory layout (pairwise along contiguous axes, sequential otherwise, BLAS for
-the matmul), so both envs use this sequential float64 sum instead.
+* numba compiles without ``fastmath``, so LLVM neither reassociates nor contracts ``a*b + c`` into an
+  FMA; float32 constants are written as ``np.float32`` so no operation is promoted to float64;
+* ``exp`` and ``log`` of the weights are :func:`exp32`/:func:`log32` (Cephes' polynomials, within
+  1 ulp, vectorisable) in both envs — numpy's SIMD ``exp``/``log`` differ between CPUs and from libm's
+  in the last bit, and were ≈3× slower here;
+* sums whose order numpy leaves open are fixed: the weights' total (:func:`row_sums`) and the belief's
+  mean and covariance (:func:`mean_cov_rows`);
+* the histogram, the observation's assembly and the calibration tables are kernels both envs call.
 
 Compiled on first use and cached on disk (``cache=True``: a few seconds once per machine).
 """

@@ -11,33 +11,37 @@ Same per-env behaviour as the single env (tested bit for bit)
 Every sub-env ``i`` owns its own ``np.random.Generator`` (``reset(seed=s)`` seeds env ``i`` with
 ``s + i``, exactly like :class:`gymnasium.vector.SyncVectorEnv`), and each generator is advanced in
 the single env's order: per step the reading noise (1 normal), the resampling offset (1 uniform) and
-the jitter (M·2 16-bit table indices, :func:`electroloc_gym.belief.table_normal_indices`); per reset
+the jitter (M·2 16-bit table indices, :func:`electroloc_gym.draws.table_normal_indices`); per reset
 the condition (``condition="random"``), the calibration seed, the target (``randomize_target``), the
 start (2 uniforms), the particles (M·2 uniforms) and then the first reading's draws. Only these
 *draws* are made per env (3 generator calls per env per step, ≈3 µs) — they are what makes sub-env
 ``i`` produce exactly what ``gym.make("ElectroLoc-v0")`` seeded alike produces: observations, rewards,
 terminations, truncations and infos, across autoresets.
 
-The math runs in compiled kernels (:mod:`electroloc_gym._kernels`, numba) over all envs at once, one
-pass per stage instead of numpy's ~25 elementwise passes with their temporaries:
+The math runs in compiled kernels (:mod:`electroloc_gym._kernels`, numba) instead of numpy's ~25
+elementwise passes with their temporaries. With the calibrated sensor model (the default) the whole
+update is one call, :func:`~electroloc_gym._kernels.calibrated_assimilate`, which takes one env at a
+time through a few passes over its particles while they are in cache, in place:
 
-* the calibrated sensor model's bilinear lookup and Gaussian term (per env a new calibration per
-  episode, all stacked into one float32 coefficient table; the calibration's noise-free grid, the same
-  for every seed of a condition, is computed once per condition);
-* the weights' normalisation, systematic resampling (branch-free: each particle's pointer count from
-  ``ceil(M·c − U)`` checked against the pointers themselves), the jitter and the clip to the box;
+* the calibrated sensor model's bilinear lookup and Gaussian log-likelihood (per env a new
+  calibration per episode, all stacked into one float32 coefficient table; the calibration's
+  noise-free grid, the same for every seed of a condition, is computed once per condition);
+* the weights (``exp32`` of the shifted log-likelihoods, their fixed-order total), systematic
+  resampling (branch-free: each particle's pointer count from ``ceil(M·c − U)`` checked against the
+  pointers themselves), the jitter and the clip to the box;
 * the belief's mean/covariance and the observation's particle histogram.
 
-They repeat the single env's float32/float64 operations in the same order (numpy's ``exp``/``log``
-are applied between them), and the statistics, histogram and calibration tables are kernels the single
-env calls too, so the results are identical, not merely close: a float rounding difference would flip
-a resampling index within a step or two and the two runs would diverge. Particles are stored
-coordinate-major, (N, 2, M), so every inner loop runs over contiguous particles.
+They repeat the single env's float32/float64 operations in the same order, and where the single env's
+result would depend on numpy's internals (``exp``/``log``, summation order) it calls the same kernels,
+so the results are identical, not merely close: a float rounding difference would flip a resampling
+index within a step or two and the two runs would diverge. Particles are stored coordinate-major,
+(N, 2, M), so every inner loop runs over contiguous particles.
 
 Per env-step at M = 2500 on this machine (``python benchmarks/vector_env.py --profile``), roughly: the
-likelihood kernel 20–30 µs, the resampling kernel with the statistics and histogram ≈35 µs, numpy's
-``log``/``exp`` ≈10 µs, the per-env draws ≈10 µs and the per-episode recalibration (6760–9610 normals)
-≈25 µs amortised over an episode — 130–165 µs in all, against ≈1 ms for a single env step.
+update kernel 40–60 µs (40 with a warm cache; the gather of 8 calibration coefficients per particle
+and the sequential cumulative sum dominate), the per-env draws ≈8 µs, the per-episode recalibration and
+reset draws ≈6 µs amortised, the rest (true readings, observations, infos) ≈20 µs — 85–100 µs in all,
+against ≈0.9 ms for a single env step.
 
 Autoreset
 ---------
