@@ -39,7 +39,6 @@ __all__ = [
     "row_sums",
     "calibrated_log_likelihood",
     "calibrated_assimilate",
-    "shifted_exp_rows",
     "resample_jitter_clip",
     "table_gather",
     "box_affine",
@@ -567,15 +566,6 @@ def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, 
                       out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
                       cum, ptr, kest, first, cells, hist)
     return -1
-
-
-@njit(**_JIT)
-def shifted_exp_rows(ll, w, total):  # pragma: no cover - compiled
-    """``belief.shifted_exp_weights`` of (k, M) float32 log-weights into ``w`` (k, M) float64 and
-    their :func:`row_sums` into ``total`` (k,) (NaN where a row has a NaN log-weight).
-    """
-    for e in range(ll.shape[0]):
-        total[e] = _shifted_exp_one(ll[e], w[e])
 
 
 @njit(**_JIT)

@@ -78,7 +78,6 @@ from numpy.typing import NDArray
 from electroloc_gym._kernels import (
     bilinear_coefficients,
     calibrated_assimilate,
-    calibrated_log_likelihood,
     calibration_tables,
     resample_jitter_clip,
 )
@@ -175,11 +174,15 @@ def calibration_coefficients(condition: Condition, seed: int, out: NDArray | Non
 class _StackedCalibratedLookup:
     """N calibrated sensor models (one per env, possibly different grids) as one float32 table.
 
-    :meth:`log_likelihood` is ``CalibratedSensorModel.log_likelihood`` for every env at once with the
-    same float32 operations (the coefficient gather is cast to float32 there too).
+    :meth:`grid_args` are the per-env arguments of the calibrated kernels
+    (:func:`~electroloc_gym._kernels.calibrated_assimilate`,
+    :func:`~electroloc_gym._kernels.calibrated_log_likelihood`), which compute
+    ``CalibratedSensorModel.log_likelihood`` for every env at once with the same float32 operations.
     """
 
     def __init__(self, num_envs: int, max_cells: int) -> None:
+        if num_envs * max_cells >= 2**31:  # the kernels index table rows with int32
+            raise ValueError(f"num_envs too large for the stacked calibration table ({num_envs} envs)")
         self.max_cells = max_cells
         self.table = np.zeros((num_envs * max_cells, 8), dtype=np.float32)
         self.base = (np.arange(num_envs, dtype=np.int64) * max_cells)[:, None]
@@ -214,19 +217,6 @@ class _StackedCalibratedLookup:
         """The calibrated kernels' per-env grid arguments (lo, inv, n1, base, table) for envs ``sel``."""
         return (self.lo[sel].reshape(-1), self.inv[sel].reshape(-1), self.n1[sel].reshape(-1),
                 self.base[sel].reshape(-1), self.table)
-
-    def log_likelihood(self, reading_V: NDArray[np.float64], offsets: NDArray[np.float32],
-                       sel: slice | NDArray[np.intp]) -> NDArray[np.float32]:
-        """(k, M) log-likelihoods of readings (k,) for envs ``sel`` at float32 offsets (k, 2, M), mm.
-
-        ``CalibratedSensorModel.log_likelihood`` in the same float32 arithmetic
-        (:func:`~electroloc_gym._kernels.calibrated_log_likelihood`).
-        """
-        k, _, m = offsets.shape
-        ll = np.empty((k, m), dtype=np.float32)
-        calibrated_log_likelihood(np.ascontiguousarray(offsets), *self.grid_args(sel),
-                                  np.asarray(reading_V, dtype=np.float32), ll)
-        return ll
 
 
 def _check_vector_args(num_envs: Any, render_mode: Any, autoreset_mode: Any, max_episode_steps: Any) -> AutoresetMode:
