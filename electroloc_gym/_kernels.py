@@ -74,33 +74,22 @@ def _pow2(typingctx, n):  # pragma: no cover - compiled
 
 
 @intrinsic
-def _exponent(typingctx, x):  # pragma: no cover - compiled
-    """The exponent e (float32) of x = f·2**e, f in [0.5, 1), for a normal float32 x > 0."""
+def _frexp32(typingctx, x):  # pragma: no cover - compiled
+    """(f, e), both float32, with x = f·2**e and f in [0.5, 1), for a normal float32 x > 0 (bit fields)."""
     if x != types.float32:
         return None
-
-    def codegen(context, builder, signature, args):
-        i32 = ir.IntType(32)
-        bits = builder.bitcast(args[0], i32)
-        e = builder.and_(builder.lshr(bits, ir.Constant(i32, 23)), ir.Constant(i32, 0xFF))
-        return builder.sitofp(builder.sub(e, ir.Constant(i32, 126)), ir.FloatType())
-
-    return types.float32(types.float32), codegen
-
-
-@intrinsic
-def _fraction(typingctx, x):  # pragma: no cover - compiled
-    """The fraction f (float32) in [0.5, 1) of x = f·2**e, for a normal float32 x > 0."""
-    if x != types.float32:
-        return None
+    sig = types.UniTuple(types.float32, 2)(types.float32)
 
     def codegen(context, builder, signature, args):
         i32 = ir.IntType(32)
         bits = builder.bitcast(args[0], i32)
         f = builder.or_(builder.and_(bits, ir.Constant(i32, 0x007FFFFF)), ir.Constant(i32, 0x3F000000))
-        return builder.bitcast(f, ir.FloatType())
+        e = builder.and_(builder.lshr(bits, ir.Constant(i32, 23)), ir.Constant(i32, 0xFF))
+        return context.make_tuple(builder, signature.return_type,
+                                  (builder.bitcast(f, ir.FloatType()),
+                                   builder.sitofp(builder.sub(e, ir.Constant(i32, 126)), ir.FloatType())))
 
-    return types.float32(types.float32), codegen
+    return sig, codegen
 
 
 _F = np.float32
@@ -153,8 +142,8 @@ def log32(x):  # pragma: no cover - compiled
     """
     small = x < _F32_MIN_NORMAL
     xs = x * _TWO23 if small else x
-    e = _exponent(xs) - (_TWENTY3 if small else _ZERO)
-    f = _fraction(xs)
+    f, e = _frexp32(xs)
+    e = e - (_TWENTY3 if small else _ZERO)
     low = f < _SQRT_HALF
     e = e - _ONE if low else e
     f = (f + f - _ONE) if low else (f - _ONE)
@@ -420,6 +409,13 @@ def _resample_one(w, t, u, src_x, src_y, jitter_idx, normal_table, h, out_x, out
 
 
 @njit(**_JIT)
+def _resample_scratch(m, bins):  # pragma: no cover - compiled
+    """Scratch of :func:`_resample_one` for M particles: cum, ptr (M + 1), kest, first (M + 1), cells, hist."""
+    return (np.empty(m), np.empty(m + 1), np.empty(m, dtype=np.int32), np.empty(m + 1, dtype=np.int64),
+            np.empty(m, dtype=np.int32), np.empty((4, bins * bins), dtype=np.int32))
+
+
+@njit(**_JIT)
 def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,  # pragma: no cover - compiled
                          mean, cov, origin, scale, bins, counts):
     """Normalise, systematically resample, jitter and clip k clouds (ParticleBelief.assimilate's tail),
@@ -463,16 +459,11 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
         counts: (k, bins²) float64 output: the histogram counts.
     """
     k, m = w.shape
-    cum = np.empty(m)
-    ptr = np.empty(m + 1)
-    kest = np.empty(m, dtype=np.int32)
-    first = np.empty(m + 1, dtype=np.int64)
-    cells = np.empty(m, dtype=np.int32)
-    hist = np.empty((4, bins * bins), dtype=np.int32)
+    scratch = _resample_scratch(m, bins)
     for e in range(k):
         _resample_one(w[e], total[e], u0[e], src[e, 0], src[e, 1], jitter_idx[e], normal_table, half[e],
                       out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
-                      cum, ptr, kest, first, cells, hist)
+                      *scratch)
 
 
 @njit(**_JIT)
@@ -548,12 +539,7 @@ def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, 
     txs = np.empty(m, dtype=np.float32)
     tys = np.empty(m, dtype=np.float32)
     w = np.empty(m, dtype=np.float32)
-    cum = np.empty(m)
-    ptr = np.empty(m + 1)
-    kest = np.empty(m, dtype=np.int32)
-    first = np.empty(m + 1, dtype=np.int64)
-    cells = np.empty(m, dtype=np.int32)
-    hist = np.empty((4, bins * bins), dtype=np.int32)
+    scratch = _resample_scratch(m, bins)
     for e in range(k):
         px[:] = src[e, 0]
         py[:] = src[e, 1]
@@ -564,7 +550,7 @@ def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, 
             return e
         _resample_one(w, total, u0[e], px, py, jitter_idx[e], normal_table, half[e],
                       out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
-                      cum, ptr, kest, first, cells, hist)
+                      *scratch)
     return -1
 
 
