@@ -4,9 +4,11 @@ Trains ``PPO("MlpPolicy")`` for a few short rollouts with each vector env at the
 numpy on one thread, DESIGN §10) and prints env steps per second of training (rollouts *and*
 gradient updates) side by side, per CPU-second of the process and per wall second, and the ratio.
 Each configuration runs in a fresh interpreter after one warm-up rollout; the best of ``--rounds``
-timed ``learn`` calls is kept (the machine is shared).
+timed ``learn`` calls is kept. The host's speed drifts by ±20 % over minutes, so the two rows are
+measured in ``--passes`` interleaved passes (dummy, native, dummy, native, ...) and each row's best
+pass is kept: then both rows see the same phases.
 
-    python benchmarks/train_fps.py [--n-envs 16] [--n-steps 64] [--rollouts 2] [--rounds 2]
+    python benchmarks/train_fps.py [--n-envs 16] [--n-steps 64] [--rollouts 2] [--rounds 2] [--passes 3]
         [--particles 2500] [--json out.json]
 """
 
@@ -72,7 +74,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--n-envs", type=int, default=16)
     ap.add_argument("--n-steps", type=int, default=64, help="PPO n_steps (per env per rollout)")
     ap.add_argument("--rollouts", type=int, default=2, help="rollouts per timed learn() call")
-    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--rounds", type=int, default=2, help="timed learn() calls per process (the best is kept)")
+    ap.add_argument("--passes", type=int, default=3, help="interleaved passes over the two rows (the best is kept)")
     ap.add_argument("--particles", type=int, default=2500)
     ap.add_argument("--condition", default="fresh-steel-12.7")
     ap.add_argument("--json", default=None)
@@ -84,16 +87,26 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         print(json.dumps(res))
         return res
     print(f"PPO MlpPolicy on ElectroLoc-v0 {kwargs}, N={args.n_envs}, n_steps={args.n_steps}, n_epochs=4, "
-          f"torch threads=1; best of {args.rounds} x {args.rollouts} rollouts, each row in a fresh process")
-    print(f"{'vec env':<8} {'fps (CPU)':>10} {'fps (wall)':>11} {'vs dummy':>9}")
+          f"torch threads=1; best of {args.rounds} x {args.rollouts} rollouts per process, each row in a fresh "
+          f"process, {args.passes} interleaved passes", flush=True)
     results: dict[str, Any] = {"kwargs": kwargs, "n_envs": args.n_envs, "rows": []}
-    base = None
+    best: dict[str, dict[str, float]] = {}
+    for _ in range(args.passes):
+        for kind in ("dummy", "native"):
+            cmd = [sys.executable, __file__, "--_one", kind, "--n-envs", str(args.n_envs), "--n-steps",
+                   str(args.n_steps), "--rollouts", str(args.rollouts), "--rounds", str(args.rounds),
+                   "--particles", str(args.particles), "--condition", args.condition]
+            out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+            r = json.loads(out.strip().splitlines()[-1])
+            old = best.get(kind)
+            if old is None or r["fps_cpu"] > old["fps_cpu"]:
+                best[kind] = {**r, "fps_wall": max(r["fps_wall"], old["fps_wall"] if old else 0.0)}
+            else:
+                old["fps_wall"] = max(old["fps_wall"], r["fps_wall"])
+    print(f"{'vec env':<8} {'fps (CPU)':>10} {'fps (wall)':>11} {'vs dummy':>9}")
+    base = best["dummy"]["fps_cpu"]
     for kind in ("dummy", "native"):
-        cmd = [sys.executable, __file__, "--_one", kind, "--n-envs", str(args.n_envs), "--n-steps", str(args.n_steps),
-               "--rollouts", str(args.rollouts), "--rounds", str(args.rounds), "--particles", str(args.particles),
-               "--condition", args.condition]
-        r = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
-        base = base or r["fps_cpu"]
+        r = best[kind]
         ratio = r["fps_cpu"] / base
         print(f"{kind:<8} {r['fps_cpu']:>10.0f} {r['fps_wall']:>11.0f} {ratio:>8.2f}x", flush=True)
         results["rows"].append({"vec_env": kind, **r, "ratio_vs_dummy_cpu": ratio})
