@@ -158,14 +158,14 @@ def log32(x):  # pragma: no cover - compiled
 
 @njit(**_JIT)
 def exp_f32(x, out):  # pragma: no cover - compiled
-    """``out[i] = exp32(x[i])`` over 1-D float32 arrays (may alias)."""
+    """``out[i] = exp32(x[i])`` over 1-D float32 arrays (in place works, but only a separate ``out`` vectorises)."""
     for i in range(x.shape[0]):
         out[i] = exp32(x[i])
 
 
 @njit(**_JIT)
 def log_f32(x, out):  # pragma: no cover - compiled
-    """``out[i] = log32(x[i])`` over 1-D float32 arrays (may alias)."""
+    """``out[i] = log32(x[i])`` over 1-D float32 arrays (in place works, but only a separate ``out`` vectorises)."""
     for i in range(x.shape[0]):
         out[i] = log32(x[i])
 

@@ -63,11 +63,11 @@ def shifted_exp_weights(log_w: NDArray) -> tuple[NDArray[np.float64], NDArray[np
     m = np.where(np.isfinite(m), m, 0.0).astype(log_w.dtype)
     d = log_w - m
     if d.dtype == np.float32:
-        flat = d.reshape(-1)
-        exp_f32(flat, flat)
+        e = np.empty_like(d)  # not in place: the compiled loop only vectorises without overlap
+        exp_f32(d.reshape(-1), e.reshape(-1))
     else:
-        np.exp(d, out=d)
-    w = d.astype(np.float64)
+        e = np.exp(d)
+    w = e.astype(np.float64)
     return np.where(degenerate[..., None], 1.0, w), degenerate
 
 
