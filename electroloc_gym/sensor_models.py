@@ -34,6 +34,7 @@ __all__ = [
     "make_sensor_model",
     "SENSOR_MODEL_NAMES",
     "gaussian_log_likelihood",
+    "calibration_grid_mm",
 ]
 
 SENSOR_MODEL_NAMES = ("analytic", "calibrated")
@@ -57,6 +58,14 @@ def gaussian_log_likelihood(reading_V: ArrayLike, mean_V: NDArray, std_V: ArrayL
         else:
             out -= np.log(std)
     return out
+
+
+def calibration_grid_mm(half_span_mm: float, grid_step_mm: float) -> NDArray[np.float64]:
+    """The calibration grid's coordinates per axis, mm: ``−H, −H + step, …`` up to ``+H`` (inclusive when
+    ``2H`` is a multiple of the step).
+    """
+    n = int(np.floor(2 * half_span_mm / grid_step_mm + 1e-9)) + 1
+    return -half_span_mm + grid_step_mm * np.arange(n)
 
 
 @runtime_checkable
@@ -141,8 +150,8 @@ class CalibratedSensorModel:
         self.condition = condition
         self.seed = int(seed)
         half = condition.allowed_half_width_mm if half_span_mm is None else float(half_span_mm)
-        n = int(np.floor(2 * half / grid_step_mm + 1e-9)) + 1
-        self.grid_mm = -half + grid_step_mm * np.arange(n)
+        self.grid_mm = calibration_grid_mm(half, grid_step_mm)
+        n = self.grid_mm.size
         self.grid_step_mm = float(grid_step_mm)
         self.noise_std_V = float(condition.noise_std_V)
         rng = np.random.default_rng(self.seed)

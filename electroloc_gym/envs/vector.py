@@ -96,6 +96,7 @@ from electroloc_gym.sensor import add_calibration_noise, expected_reading
 from electroloc_gym.sensor_models import (
     AnalyticSensorModel,
     CalibratedSensorModel,
+    calibration_grid_mm,
     make_sensor_model,
 )
 
@@ -122,9 +123,8 @@ def _noise_free_calibration_grid(condition: Condition) -> NDArray[np.float64]:
     Computed by exactly the call :func:`electroloc_gym.sensor.calibration_readings` makes inside
     :class:`CalibratedSensorModel` (same broadcast array), so the values are identical.
     """
-    half = condition.allowed_half_width_mm
-    n = int(np.floor(2 * half / _CAL_STEP_MM + 1e-9)) + 1
-    grid = -half + _CAL_STEP_MM * np.arange(n)
+    grid = calibration_grid_mm(condition.allowed_half_width_mm, _CAL_STEP_MM)
+    n = grid.size
     gx, gy = np.meshgrid(grid, grid, indexing="ij")
     offs = np.stack([gx, gy], axis=-1)
     mean = expected_reading(condition, np.asarray(np.broadcast_to(offs[None], (_CAL_SAMPLES, n, n, 2)),
@@ -199,11 +199,10 @@ class _StackedCalibratedLookup:
 
     def calibrate(self, env: int, condition: Condition, seed: int) -> None:
         """Env ``env`` uses ``CalibratedSensorModel(condition, seed)`` (its table, computed in place)."""
-        half = condition.allowed_half_width_mm
-        n = int(np.floor(2 * half / _CAL_STEP_MM + 1e-9)) + 1
-        self._set_grid(env, -half + _CAL_STEP_MM * np.arange(n), _CAL_STEP_MM)
+        grid = calibration_grid_mm(condition.allowed_half_width_mm, _CAL_STEP_MM)
+        self._set_grid(env, grid, _CAL_STEP_MM)
         start = env * self.max_cells
-        calibration_coefficients(condition, seed, out=self.table[start:start + (n - 1) ** 2 + 1])
+        calibration_coefficients(condition, seed, out=self.table[start:start + (grid.size - 1) ** 2 + 1])
 
     def _set_grid(self, env: int, grid_mm: NDArray[np.float64], step_mm: float) -> None:
         n1 = grid_mm.size - 1
@@ -379,7 +378,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._started = False
         self._cal: _StackedCalibratedLookup | None = None
         if self.sensor_model_name == "calibrated":
-            cells = max((int(np.floor(2 * c.allowed_half_width_mm / _CAL_STEP_MM + 1e-9))) ** 2 + 1 for c in pool)
+            cells = max((calibration_grid_mm(c.allowed_half_width_mm, _CAL_STEP_MM).size - 1) ** 2 + 1 for c in pool)
             self._cal = _StackedCalibratedLookup(n, cells)
 
     # ---- read-only accessors ------------------------------------------------------------------
