@@ -144,6 +144,11 @@ class ElectroLocEnv(ParticleFilterEnv):
         return self._position.copy()
 
     @property
+    def target_mm(self) -> NDArray[np.float64]:
+        """True target centre (x, y), mm (a copy): ground truth for evaluation and rendering, not for agents."""
+        return np.array(self._target, dtype=float)
+
+    @property
     def move_bounds_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(lo, hi) moves, mm, within ±10 mm that keep the carriage in the allowed box (0 always inside)."""
         low, high = self.allowed_box_mm
