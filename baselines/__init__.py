@@ -7,10 +7,10 @@
 All follow the protocol of :mod:`baselines.agent`; build them with :func:`make_agent`.
 """
 
-from baselines.agent import AGENT_REGISTRY, Agent, BaselineAgent, make_agent, parse_agent_spec
-from baselines.min_variance import MinVarianceAgent
-from baselines.random_walk import RandomWalkAgent
-from baselines.zero_crossing import ZeroCrossingAgent
+from electroloc_gym.baselines.agent import AGENT_REGISTRY, Agent, BaselineAgent, make_agent, parse_agent_spec
+from electroloc_gym.baselines.min_variance import MinVarianceAgent
+from electroloc_gym.baselines.random_walk import RandomWalkAgent
+from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 
 __all__ = [
     "AGENT_REGISTRY",

@@ -162,9 +162,9 @@ def sample_options_mm(rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray,
 # Registry
 # ---------------------------------------------------------------------------------------------
 def _registry() -> dict[str, type]:
-    from baselines.min_variance import MinVarianceAgent
-    from baselines.random_walk import RandomWalkAgent
-    from baselines.zero_crossing import ZeroCrossingAgent
+    from electroloc_gym.baselines.min_variance import MinVarianceAgent
+    from electroloc_gym.baselines.random_walk import RandomWalkAgent
+    from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 
     return {"rnd-wlk": RandomWalkAgent, "min-var": MinVarianceAgent, "zero-crossing": ZeroCrossingAgent}
 
@@ -237,7 +237,7 @@ def make_agent(spec: str, seed: int | np.random.Generator | None = None) -> Any:
     if not (m and m.group("name") in AGENT_REGISTRY) and is_policy_path(spec):
         path = _resolve_policy_path(spec)
         try:
-            from train.policy import load_policy
+            from electroloc_gym.train.policy import load_policy
         except ImportError as exc:
             raise ValueError(f"cannot load policy {str(path)!r}: the training package is unavailable "
                              f"(pip install 'electroloc-gym[train]'): {exc}") from exc

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agent import BaselineAgent, move_bounds_mm, sample_options_mm
+from electroloc_gym.baselines.agent import BaselineAgent, move_bounds_mm, sample_options_mm
 
 __all__ = [
     "MinVarianceAgent",

@@ -30,8 +30,8 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
-from baselines.agent import make_agent, move_bounds_mm, sample_options_mm  # noqa: E402
-from baselines.min_variance import (  # noqa: E402
+from electroloc_gym.baselines.agent import make_agent, move_bounds_mm, sample_options_mm  # noqa: E402
+from electroloc_gym.baselines.min_variance import (  # noqa: E402
     choose_voters,
     count_votes,
     literal_predicted_variances,

@@ -40,7 +40,7 @@ def _make_venv(kind: str, n: int, kwargs: dict[str, Any], seed: int) -> Any:
     import electroloc_gym  # noqa: F401
 
     if kind == "native":
-        from train.native_vec import make_native_vec_env
+        from electroloc_gym.train.native_vec import make_native_vec_env
 
         return make_native_vec_env("ElectroLoc-v0", n, seed, kwargs)
     venv = DummyVecEnv([lambda: Monitor(gym.make("ElectroLoc-v0", **kwargs)) for _ in range(n)])

@@ -175,7 +175,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "train":
         try:
-            from train.__main__ import main as train_main
+            from electroloc_gym.train.__main__ import main as train_main
         except ImportError as exc:  # torch / SB3 missing
             print(f"electroloc train needs the training extra: pip install 'electroloc-gym[train]' ({exc})",
                   file=sys.stderr)

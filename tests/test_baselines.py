@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import electroloc_gym  # noqa: F401  (registers the ids)
-from baselines.agent import (
+from electroloc_gym.baselines.agent import (
     MAX_STEP_MM,
     BaselineAgent,
     make_agent,
@@ -17,7 +17,7 @@ from baselines.agent import (
     parse_agent_spec,
     sample_options_mm,
 )
-from baselines.min_variance import (
+from electroloc_gym.baselines.min_variance import (
     MinVarianceAgent,
     choose_voters,
     count_votes,
@@ -25,8 +25,8 @@ from baselines.min_variance import (
     option_means_stds,
     predicted_variances,
 )
-from baselines.random_walk import RandomWalkAgent
-from baselines.zero_crossing import ZeroCrossingAgent
+from electroloc_gym.baselines.random_walk import RandomWalkAgent
+from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 from electroloc_gym.conditions import get_condition
 
 
@@ -118,7 +118,7 @@ def test_make_agent_bad_paths(tmp_path) -> None:
         make_agent(str(empty_dir))
 
 
-@pytest.mark.skipif(importlib.util.find_spec("train") is None or importlib.util.find_spec("train.policy") is None
+@pytest.mark.skipif(importlib.util.find_spec("electroloc_gym.train") is None or importlib.util.find_spec("electroloc_gym.train.policy") is None
                     or importlib.util.find_spec("stable_baselines3") is None,
                     reason="train.policy / stable-baselines3 not available")
 def test_make_agent_corrupt_policy_names_path(tmp_path) -> None:

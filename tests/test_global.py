@@ -448,7 +448,7 @@ def test_cli_eev_global_writes_a_png(tmp_path) -> None:
 @pytest.mark.slow
 def test_table2_statistics_with_the_paper_controllers() -> None:
     """Table 2 (§6.5) in small: rnd-wlk and min-var, 20 seeded trials each, calibrated map model."""
-    agent_mod = pytest.importorskip("baselines.agent")
+    agent_mod = pytest.importorskip("electroloc_gym.baselines.agent")
     env = gym.make(GLOBAL_ID)
     for name, min_success, max_median_err, max_median_steps in (("rnd-wlk", 17, 2.5, 20), ("min-var", 18, 3.0, 9)):
         ok, errors, steps = 0, [], []
@@ -471,7 +471,7 @@ def test_table2_statistics_with_the_paper_controllers() -> None:
 
 def test_bench_runs_table2_layout(tmp_path) -> None:
     """`electroloc bench --env global`: the runner's Table-2 path (serial backend, 2 trials of rnd-wlk)."""
-    pytest.importorskip("baselines.agent")
+    pytest.importorskip("electroloc_gym.baselines.agent")
     from electroloc_gym.bench.runner import GLOBAL_CONDITION, GLOBAL_ENV_ID, BenchConfig, run_benchmark, trial_seeds
 
     config = BenchConfig(agents=("rnd-wlk",), conditions=("ignored",), trials=2, env_id=GLOBAL_ENV_ID)

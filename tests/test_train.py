@@ -16,10 +16,10 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 import electroloc_gym  # noqa: E402,F401
-from train.callbacks import evaluate_agent, save_model_dir  # noqa: E402
-from train.config import ConfigError, algo_kwargs, load_hyperparams, resolve_hyperparams  # noqa: E402
-from train.policy import SB3Agent, load_policy  # noqa: E402
-from train.wrappers import FlatFrameStack, FrameStacker, PotentialShaping, spread_potential  # noqa: E402
+from electroloc_gym.train.callbacks import evaluate_agent, save_model_dir  # noqa: E402
+from electroloc_gym.train.config import ConfigError, algo_kwargs, load_hyperparams, resolve_hyperparams  # noqa: E402
+from electroloc_gym.train.policy import SB3Agent, load_policy  # noqa: E402
+from electroloc_gym.train.wrappers import FlatFrameStack, FrameStacker, PotentialShaping, spread_potential  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 FAST_ENV = {"condition": "random", "n_particles": 100, "sensor_model": "analytic"}
@@ -110,7 +110,7 @@ def test_algo_kwargs_builds_schedule_and_activation():
 
 
 def test_cli_rejects_malformed_env_kwargs(capsys):
-    from train.__main__ import main
+    from electroloc_gym.train.__main__ import main
 
     assert main(["--env-kwargs", "condition"]) == 2
     assert "key=value" in capsys.readouterr().err
@@ -296,7 +296,7 @@ def test_tiny_model_loads_and_plays_an_episode(tiny_run):
 
 
 def test_benchmark_accepts_the_tiny_model(tiny_run):
-    agent_mod = pytest.importorskip("baselines.agent")
+    agent_mod = pytest.importorskip("electroloc_gym.baselines.agent")
     if not hasattr(agent_mod, "make_agent"):
         pytest.skip("baselines.agent.make_agent not available")
     agent = agent_mod.make_agent(str(tiny_run))
@@ -305,7 +305,7 @@ def test_benchmark_accepts_the_tiny_model(tiny_run):
 
 
 def test_resume_continues_from_a_checkpoint(tiny_run, tmp_path):
-    from train.__main__ import main
+    from electroloc_gym.train.__main__ import main
 
     out = tmp_path / "resumed"
     rc = main(["--env-kwargs", "n_particles=100", "sensor_model=analytic", "--timesteps", "128", "--n-envs", "2",
@@ -329,8 +329,8 @@ def test_electroloc_train_forwards_to_the_training_script(tmp_path):
 
 # ------------------------------------------------------------------------ plots and evaluation
 def test_learning_curve_plot_from_a_run(tiny_run, tmp_path):
-    from train.plots import main as plots_main
-    from train.plots import read_eval_csv
+    from electroloc_gym.train.plots import main as plots_main
+    from electroloc_gym.train.plots import read_eval_csv
 
     cols = read_eval_csv(tiny_run)
     assert cols["timesteps"][0] == 0 and len(cols["success_rate"]) == len(cols["median_steps"])
@@ -386,10 +386,10 @@ def torch_no_grad():
 
 def test_native_frame_stack_matches_the_flat_frame_stack():
     """--vec-env native stacks with VecFrameStack; it must equal FlatFrameStack (what the agent rebuilds)."""
-    native_vec = pytest.importorskip("train.native_vec")
+    native_vec = pytest.importorskip("electroloc_gym.train.native_vec")
     from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack
 
-    from train.__main__ import make_env_fn
+    from electroloc_gym.train.__main__ import make_env_fn
 
     kw = {"observation": "raw", **FAST_ENV}
     a = VecFrameStack(native_vec.make_native_vec_env("ElectroLoc-v0", 2, 5, kw), 4)

@@ -270,7 +270,7 @@ def test_sb3_adapter_equals_dummy_vec_env() -> None:
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from train.native_vec import make_native_vec_env
+    from electroloc_gym.train.native_vec import make_native_vec_env
 
     kw = {"n_particles": 200, "condition": "random"}
     native = make_native_vec_env("ElectroLoc-v0", 4, seed=9, env_kwargs=kw)
@@ -300,7 +300,7 @@ def test_sb3_ppo_learns_on_native_adapter_smoke() -> None:
     pytest.importorskip("stable_baselines3")
     from stable_baselines3 import PPO
 
-    from train.native_vec import NativeVecEnv, make_native_vec_env
+    from electroloc_gym.train.native_vec import NativeVecEnv, make_native_vec_env
 
     venv = make_native_vec_env("ElectroLoc-v0", 2, seed=0, env_kwargs={"n_particles": 100})
     model = PPO("MlpPolicy", venv, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
@@ -317,8 +317,8 @@ def test_sb3_adapter_shaping_equals_potential_shaping_wrapper() -> None:
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from train.native_vec import make_native_vec_env
-    from train.wrappers import PotentialShaping
+    from electroloc_gym.train.native_vec import make_native_vec_env
+    from electroloc_gym.train.wrappers import PotentialShaping
 
     kw = {"n_particles": 200, "max_observations": 8}
     native = make_native_vec_env("ElectroLoc-v0", 3, seed=2, env_kwargs=kw, shaping_coef=1.0, gamma=0.9)

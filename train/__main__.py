@@ -27,7 +27,7 @@ from typing import Any
 
 import yaml
 
-from train.config import HYPERPARAMS_DIR, ConfigError, algo_class, algo_kwargs, resolve_hyperparams
+from electroloc_gym.train.config import HYPERPARAMS_DIR, ConfigError, algo_class, algo_kwargs, resolve_hyperparams
 
 __all__ = ["Args", "parse_args", "main", "train"]
 
@@ -161,7 +161,7 @@ def make_env_fn(env_id: str, env_kwargs: dict[str, Any], frame_stack: int, shapi
         from stable_baselines3.common.monitor import Monitor
 
         import electroloc_gym  # noqa: F401  (registers the ids)
-        from train.wrappers import FlatFrameStack, PotentialShaping
+        from electroloc_gym.train.wrappers import FlatFrameStack, PotentialShaping
 
         env = Monitor(gym.make(env_id, **env_kwargs))  # Monitor logs the unshaped return
         if shaping_coef > 0:
@@ -181,7 +181,7 @@ def make_vec_env(args: Args, cfg: dict[str, Any]) -> Any:
     gamma = float(cfg["hyperparams"].get("gamma", 0.99))
     if args.vec_env == "native":
         try:
-            from train.native_vec import make_native_vec_env
+            from electroloc_gym.train.native_vec import make_native_vec_env
         except ImportError as exc:
             raise ConfigError(f"--vec-env native needs train/native_vec.py (make_native_vec_env), "
                               f"which is not available: {exc}") from exc
@@ -209,7 +209,7 @@ def build_model(args: Args, cfg: dict[str, Any], venv: Any, tb_dir: str | None) 
     if args.resume:
         from stable_baselines3.common.vec_env import VecNormalize
 
-        from train.policy import resolve_model_path
+        from electroloc_gym.train.policy import resolve_model_path
 
         zip_path = resolve_model_path(args.resume)
         vn_path = zip_path.parent / "vecnormalize.pkl"
@@ -245,7 +245,7 @@ def _setup_torch(device: str) -> str:
 
 def train(args: Args, argv: Sequence[str] = ()) -> Path:
     """Run training as ``args`` says; returns the run directory."""
-    from train.callbacks import ModelDirCheckpoint, SeededEvalCallback, atomic_write_text, save_model_dir
+    from electroloc_gym.train.callbacks import ModelDirCheckpoint, SeededEvalCallback, atomic_write_text, save_model_dir
 
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")  # inherited by subprocess envs

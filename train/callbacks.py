@@ -23,7 +23,7 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
 from electroloc_gym.fileio import atomic_write_bytes, atomic_write_text  # noqa: F401  (re-exported)
-from train.policy import SB3Agent
+from electroloc_gym.train.policy import SB3Agent
 
 __all__ = [
     "EvalResult",

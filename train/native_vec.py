@@ -6,7 +6,7 @@ of per-env info dicts). :class:`NativeVecEnv` speaks that protocol on top of
 :class:`electroloc_gym.envs.vector.ElectroLocVectorEnv` built with ``autoreset_mode=SAME_STEP``, so a
 training step is one batched env step — no Python loop over envs in the math.
 
-    from train.native_vec import make_native_vec_env
+    from electroloc_gym.train.native_vec import make_native_vec_env
     venv = make_native_vec_env("ElectroLoc-v0", n_envs=16, seed=1000, env_kwargs={"condition": "random"})
     model = PPO("MlpPolicy", venv).learn(100_000)
 

@@ -47,7 +47,7 @@ def plot_learning_curves(runs: Sequence[str | Path], labels: Sequence[str] | Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from train.callbacks import atomic_write_bytes
+    from electroloc_gym.train.callbacks import atomic_write_bytes
 
     labels = list(labels) if labels else [Path(r).name for r in runs]
     if len(labels) != len(runs):

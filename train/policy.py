@@ -262,7 +262,7 @@ def load_policy(path: str | Path, *, device: str = "cpu", num_threads: int | Non
         import torch
 
         torch.set_num_threads(num_threads)
-    from train.config import algo_class
+    from electroloc_gym.train.config import algo_class
 
     cls = algo_class(algo)
     # Schedules are only needed to train further; replace them so loading never unpickles lambdas.

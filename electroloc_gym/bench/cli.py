@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
             ["rnd-wlk", "min-var"] if is_global else default_agent_list())
         conditions = (GLOBAL_CONDITION,) if is_global else tuple(resolve_conditions(args.conditions))
         if is_global:  # zero-crossing looks for one sphere; it has no meaning on the six-cylinder map
-            from baselines.agent import make_agent
+            from electroloc_gym.baselines.agent import make_agent
 
             bad = [a for a in agents if getattr(make_agent(a), "layout", "table4") != "table4"]
             if bad:

@@ -191,7 +191,7 @@ _ENVS: dict[tuple[Any, ...], Any] = {}
 
 def _agent(spec: str) -> Any:
     if spec not in _AGENTS:
-        from baselines.agent import make_agent
+        from electroloc_gym.baselines.agent import make_agent
 
         _AGENTS[spec] = make_agent(spec)
     return _AGENTS[spec]
@@ -371,7 +371,7 @@ def discover_models(roots: Sequence[str | os.PathLike] | None = None) -> list[st
     if found:
         try:
             ok = importlib.util.find_spec("stable_baselines3") is not None and \
-                importlib.util.find_spec("train.policy") is not None
+                importlib.util.find_spec("electroloc_gym.train.policy") is not None
         except (ImportError, ValueError):
             ok = False
         if not ok:
@@ -384,7 +384,7 @@ def discover_models(roots: Sequence[str | os.PathLike] | None = None) -> list[st
 # ---------------------------------------------------------------------------------------------
 def _check_agents(agents: Sequence[str]) -> None:
     """Fail fast (before any worker starts) on bad agent names or paths."""
-    from baselines.agent import make_agent
+    from electroloc_gym.baselines.agent import make_agent
 
     for spec in agents:
         make_agent(spec)
