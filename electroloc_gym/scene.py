@@ -80,6 +80,7 @@ from electroloc_gym.conditions import (
     Water,
 )
 from electroloc_gym.sensor_models import (
+    DEFAULT_CALIBRATION,
     SENSOR_MODEL_NAMES,
     AnalyticSensorModel,
     CalibratedSensorModel,
@@ -469,8 +470,8 @@ class MapAnalyticSensorModel(AnalyticSensorModel):
 
 @functools.lru_cache(maxsize=32)
 def _cached_map_calibration(scene: Scene, seed: int, position_blur_mm: float) -> CalibratedSensorModel:
-    return CalibratedSensorModel(scene.as_condition(), seed, reading_fn=scene.noisy_reading_at_offsets,
-                                 position_blur_mm=position_blur_mm)
+    protocol = DEFAULT_CALIBRATION.replace(position_blur_mm=position_blur_mm)
+    return CalibratedSensorModel(scene.as_condition(), seed, protocol, reading_fn=scene.noisy_reading_at_offsets)
 
 
 def make_map_sensor_model(kind: str, scene: Scene, seed: int = 0,

@@ -17,11 +17,13 @@ from electroloc_gym.conditions import (
     Water,
     get_condition,
 )
-from electroloc_gym.sensor import electrode_positions_mm, expected_reading, noisy_reading
+from electroloc_gym.sensor import calibration_readings, electrode_positions_mm, expected_reading, noisy_reading
 from electroloc_gym.sensor_models import (
     AnalyticSensorModel,
     CalibratedSensorModel,
+    CalibrationProtocol,
     SensorModel,
+    calibration_coefficients,
     make_sensor_model,
 )
 
@@ -221,10 +223,46 @@ def test_saturated_calibration_has_floored_std() -> None:
 
 
 @pytest.mark.parametrize("kwargs, match", [(dict(grid_step_mm=0), "grid_step_mm"),
-                                           (dict(samples_per_point=1), "samples_per_point")])
-def test_calibrated_bad_args(kwargs, match) -> None:
+                                           (dict(grid_step_mm=float("nan")), "grid_step_mm"),
+                                           (dict(samples_per_point=1), "samples_per_point"),
+                                           (dict(samples_per_point=2.5), "samples_per_point"),
+                                           (dict(half_span_mm=-1.0), "half_span_mm"),
+                                           (dict(std_estimator="median"), "std_estimator"),
+                                           (dict(min_std_fraction=0.0), "min_std_fraction"),
+                                           (dict(position_blur_mm=-0.1), "position_blur_mm")])
+def test_calibration_protocol_bad_args(kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
-        CalibratedSensorModel(get_condition("fresh-steel-12.7"), **kwargs)
+        CalibrationProtocol(**kwargs)
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_calibration_coefficients_equal_the_models(name: str) -> None:
+    """The batched path (cached noise-free grid, coefficients only) equals the model built from readings."""
+    c = get_condition(name)
+    for protocol in (CalibrationProtocol(), CalibrationProtocol(std_estimator="pooled", half_span_mm=70.0)):
+        for seed in (0, 123456789):
+            ref = CalibratedSensorModel(c, seed, protocol,
+                                        reading_fn=lambda offs, rng: calibration_readings(c, offs, rng))
+            fast = CalibratedSensorModel(c, seed, protocol)
+            assert np.array_equal(fast.mean_table_V, ref.mean_table_V)
+            assert np.array_equal(fast.std_table_V, ref.std_table_V)
+            assert np.array_equal(calibration_coefficients(c, seed, protocol), ref._coef)
+            out32 = np.zeros((ref._coef.shape[0] + 3, 8), dtype=np.float32)
+            calibration_coefficients(c, seed, protocol, out=out32[:ref._coef.shape[0]])
+            assert np.array_equal(out32[:ref._coef.shape[0]], ref._coef.astype(np.float32))
+
+
+def test_pooled_std_is_one_value_off_saturation() -> None:
+    c = get_condition("fresh-steel-12.7", 300.0)  # strong enough to saturate near the target
+    per_point = CalibratedSensorModel(c, 4)
+    pooled = CalibratedSensorModel(c, 4, CalibrationProtocol(std_estimator="pooled"))
+    np.testing.assert_array_equal(pooled.mean_table_V, per_point.mean_table_V)
+    saturated = np.abs(per_point.mean_table_V) > c.saturation_V - 6 * c.noise_std_V
+    clean = pooled.std_table_V[~saturated]
+    assert np.ptp(clean) == 0.0  # one value wherever no reading saturated
+    assert clean[0] == pytest.approx(c.noise_std_V, rel=0.03)  # ≈ 6000 points × 9 degrees of freedom
+    assert np.std(per_point.std_table_V[~saturated]) > 0.15 * c.noise_std_V  # the per-point estimate is noisy
+    assert pooled.std_table_V.min() >= 0.25 * c.noise_std_V
 
 
 def test_unknown_sensor_model_name() -> None:

@@ -12,13 +12,8 @@ from gymnasium.vector import AutoresetMode
 import electroloc_gym  # noqa: F401
 from electroloc_gym._kernels import resample_jitter_clip
 from electroloc_gym.belief import ParticleBelief, normal_table, weight_sums
-from electroloc_gym.conditions import PRESET_NAMES, get_condition
 from electroloc_gym.envs.observation import HIST_BINS, belief_observation
-from electroloc_gym.envs.vector import (
-    ElectroLocVectorEnv,
-    calibration_coefficients,
-    fast_calibrated_model,
-)
+from electroloc_gym.envs.vector import ElectroLocVectorEnv
 from electroloc_gym.sensor_models import CalibratedSensorModel
 
 INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
@@ -216,20 +211,6 @@ def test_resample_kernel_equals_belief_resample_and_jitter() -> None:
             hist = belief_observation(origin[i], 0.0, b.particles, None, 1, 35, float(half), 0.1, 10.0, 10.0,
                                       np.zeros(5, dtype=np.float32))[12:76]
             assert np.array_equal((counts[i] / m).astype(np.float32), hist)
-
-
-@pytest.mark.parametrize("name", PRESET_NAMES)
-def test_fast_calibrated_model_equals_calibrated_sensor_model(name: str) -> None:
-    c = get_condition(name)
-    for seed in (0, 123456789):
-        fast, ref = fast_calibrated_model(c, seed), CalibratedSensorModel(c, seed)
-        assert np.array_equal(fast.mean_table_V, ref.mean_table_V)
-        assert np.array_equal(fast.std_table_V, ref.std_table_V)
-        assert np.array_equal(fast._coef, ref._coef)
-        assert np.array_equal(calibration_coefficients(c, seed), ref._coef)
-        out32 = np.zeros((ref._coef.shape[0] + 3, 8), dtype=np.float32)
-        calibration_coefficients(c, seed, out=out32[:ref._coef.shape[0]])
-        assert np.array_equal(out32[:ref._coef.shape[0]], ref._coef.astype(np.float32))
 
 
 @pytest.mark.parametrize(("kwargs", "match"), [

@@ -65,7 +65,6 @@ Rendering is not supported (``render_mode`` must be None): render one sub-env wi
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -75,12 +74,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from electroloc_gym._kernels import (
-    bilinear_coefficients,
-    calibrated_assimilate,
-    calibration_tables,
-    resample_jitter_clip,
-)
+from electroloc_gym._kernels import calibrated_assimilate, resample_jitter_clip
 from electroloc_gym.belief import (
     normal_table,
     shifted_exp_weights,
@@ -92,21 +86,18 @@ from electroloc_gym.belief import (
 from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition
 from electroloc_gym.envs.localize import DISCRETE_MOVES_MM, MAX_STEP_MM, ElectroLocEnv
 from electroloc_gym.envs.observation import HIST_BINS, belief_observation, condition_descriptor, raw_observation
-from electroloc_gym.sensor import add_calibration_noise, expected_reading
+from electroloc_gym.sensor import expected_reading
 from electroloc_gym.sensor_models import (
+    DEFAULT_CALIBRATION,
     AnalyticSensorModel,
     CalibratedSensorModel,
-    calibration_grid_mm,
+    calibration_coefficients,
+    calibration_grid_for,
     make_sensor_model,
 )
 
-__all__ = ["ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "make_electroloc_vector_env", "make_global_vector_env",
-           "fast_calibrated_model", "calibration_coefficients"]
+__all__ = ["ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "make_electroloc_vector_env", "make_global_vector_env"]
 
-#: Readings per grid point of the paper's calibration (§5.3), as CalibratedSensorModel's default.
-_CAL_SAMPLES = 10
-_CAL_STEP_MM = 4.0
-_CAL_MIN_STD_FRACTION = 0.25
 #: Particles processed per block of a step (several envs at a time): bounds the step's temporaries
 #: (≈24 bytes per particle) so that they stay in cache and under glibc's mmap threshold. Measured on this
 #: machine at N = 64, M = 2500: blocks of 16 envs 141 µs per env-step, one block of 64 envs 157 µs.
@@ -116,61 +107,6 @@ BLOCK_PARTICLES = 40000
 # --------------------------------------------------------------------------------------------
 # Exact batched building blocks
 # --------------------------------------------------------------------------------------------
-@functools.lru_cache(maxsize=32)
-def _noise_free_calibration_grid(condition: Condition) -> NDArray[np.float64]:
-    """The calibration's noise-free readings (10, n, n), V, unsaturated — the same for every seed.
-
-    Computed by exactly the call :func:`electroloc_gym.sensor.calibration_readings` makes inside
-    :class:`CalibratedSensorModel` (same broadcast array), so the values are identical.
-    """
-    grid = calibration_grid_mm(condition.allowed_half_width_mm, _CAL_STEP_MM)
-    n = grid.size
-    gx, gy = np.meshgrid(grid, grid, indexing="ij")
-    offs = np.stack([gx, gy], axis=-1)
-    mean = expected_reading(condition, np.asarray(np.broadcast_to(offs[None], (_CAL_SAMPLES, n, n, 2)),
-                                                  dtype=np.float64), saturate=False)
-    mean.flags.writeable = False
-    return mean
-
-
-def fast_calibrated_model(condition: Condition, seed: int) -> CalibratedSensorModel:
-    """``CalibratedSensorModel(condition, seed)`` without recomputing the noise-free grid (tested equal).
-
-    The calibration's noisy readings are drawn exactly as :func:`electroloc_gym.sensor.calibration_readings`
-    draws them (:func:`~electroloc_gym.sensor.add_calibration_noise` from ``default_rng(seed)``),
-    passed through the model's ``reading_fn`` hook; only the deterministic noise-free part is cached.
-    """
-    mean = _noise_free_calibration_grid(condition)
-
-    def reading_fn(offsets_mm: NDArray, rng: np.random.Generator) -> NDArray[np.float64]:
-        if offsets_mm.shape[:-1] != mean.shape:  # pragma: no cover - guards a changed calibration layout
-            raise RuntimeError("calibration grid layout changed; update electroloc_gym.envs.vector")
-        return add_calibration_noise(condition, mean, rng)
-
-    return CalibratedSensorModel(condition, int(seed), reading_fn=reading_fn)
-
-
-def calibration_coefficients(condition: Condition, seed: int, out: NDArray | None = None) -> NDArray:
-    """``CalibratedSensorModel(condition, seed)._coef`` computed directly (tested equal), optionally into ``out``.
-
-    The per-cell bilinear coefficients (n1² + 1, 8) of the paper's calibration (§5.3) — the only part
-    of the model the batched lookup needs, without building the model object (a new calibration per
-    episode). Same draws (:func:`~electroloc_gym.sensor.add_calibration_noise` from
-    ``default_rng(seed)``), the same compiled tables and coefficients (:mod:`electroloc_gym._kernels`) as
-    :class:`~electroloc_gym.sensor_models.CalibratedSensorModel`; ``out`` (float32 or float64) receives
-    the values cast as ``astype`` would.
-    """
-    mean = _noise_free_calibration_grid(condition)
-    samples = add_calibration_noise(condition, mean, np.random.default_rng(int(seed)))
-    n = mean.shape[-1]
-    tables = np.empty((2, n, n))
-    calibration_tables(samples, _CAL_MIN_STD_FRACTION * float(condition.noise_std_V), tables[0], tables[1])
-    if out is None:
-        out = np.empty(((n - 1) ** 2 + 1, 8))
-    bilinear_coefficients(tables[0], tables[1], float(condition.noise_std_V), out)
-    return out
-
-
 class _StackedCalibratedLookup:
     """N calibrated sensor models (one per env, possibly different grids) as one float32 table.
 
@@ -199,10 +135,11 @@ class _StackedCalibratedLookup:
 
     def calibrate(self, env: int, condition: Condition, seed: int) -> None:
         """Env ``env`` uses ``CalibratedSensorModel(condition, seed)`` (its table, computed in place)."""
-        grid = calibration_grid_mm(condition.allowed_half_width_mm, _CAL_STEP_MM)
-        self._set_grid(env, grid, _CAL_STEP_MM)
+        grid = calibration_grid_for(condition, DEFAULT_CALIBRATION)
+        self._set_grid(env, grid, DEFAULT_CALIBRATION.grid_step_mm)
         start = env * self.max_cells
-        calibration_coefficients(condition, seed, out=self.table[start:start + (grid.size - 1) ** 2 + 1])
+        calibration_coefficients(condition, seed, DEFAULT_CALIBRATION,
+                                 out=self.table[start:start + (grid.size - 1) ** 2 + 1])
 
     def _set_grid(self, env: int, grid_mm: NDArray[np.float64], step_mm: float) -> None:
         n1 = grid_mm.size - 1
@@ -378,7 +315,7 @@ class ElectroLocVectorEnv(VectorEnv):
         self._started = False
         self._cal: _StackedCalibratedLookup | None = None
         if self.sensor_model_name == "calibrated":
-            cells = max((calibration_grid_mm(c.allowed_half_width_mm, _CAL_STEP_MM).size - 1) ** 2 + 1 for c in pool)
+            cells = max((calibration_grid_for(c, DEFAULT_CALIBRATION).size - 1) ** 2 + 1 for c in pool)
             self._cal = _StackedCalibratedLookup(n, cells)
 
     # ---- read-only accessors ------------------------------------------------------------------
@@ -412,7 +349,7 @@ class ElectroLocVectorEnv(VectorEnv):
         """Each sub-env's sensor model for its current episode."""
         for i, model in enumerate(self._models):
             if model is None and self._started:
-                self._models[i] = fast_calibrated_model(self._pool[self._cidx[i]], self._cal_seeds[i])
+                self._models[i] = CalibratedSensorModel(self._pool[self._cidx[i]], self._cal_seeds[i])
         return tuple(self._models)
 
     @property

@@ -1,0 +1,42 @@
+"""What an agent believes about the sensor: mean and standard deviation of Φ for a target offset.
+
+* :class:`AnalyticSensorModel` — the noise-free reading of the physics (§3.1, saturation included) and
+  the amplifier noise ``G·σ_s``.
+* :class:`CalibratedSensorModel` — what the paper did (§5.3): a grid of sample means and spreads taken
+  with the target in place, interpolated bilinearly (:class:`CalibrationProtocol` holds every choice).
+
+Offsets are always ``target − carriage centre`` in mm, shape (..., 2).
+"""
+
+from electroloc_gym.sensor_models.analytic import AnalyticSensorModel
+from electroloc_gym.sensor_models.calibrated import (
+    DEFAULT_CALIBRATION,
+    SENSOR_MODEL_NAMES,
+    STD_ESTIMATORS,
+    CalibratedSensorModel,
+    CalibrationProtocol,
+    calibration_coefficients,
+    calibration_grid_for,
+    calibration_grid_mm,
+    calibration_statistics,
+    make_sensor_model,
+    noise_free_calibration_grid,
+)
+from electroloc_gym.sensor_models.likelihood import SensorModel, gaussian_log_likelihood
+
+__all__ = [
+    "SensorModel",
+    "gaussian_log_likelihood",
+    "AnalyticSensorModel",
+    "CalibratedSensorModel",
+    "CalibrationProtocol",
+    "DEFAULT_CALIBRATION",
+    "SENSOR_MODEL_NAMES",
+    "STD_ESTIMATORS",
+    "calibration_coefficients",
+    "calibration_grid_for",
+    "calibration_grid_mm",
+    "calibration_statistics",
+    "make_sensor_model",
+    "noise_free_calibration_grid",
+]

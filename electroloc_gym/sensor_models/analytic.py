@@ -1,0 +1,41 @@
+"""The analytic sensor model: the noise-free reading of the physics and the amplifier noise (paper §3.1, §3.3)."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from electroloc_gym.conditions import Condition
+from electroloc_gym.sensor import expected_reading
+from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
+
+__all__ = ["AnalyticSensorModel"]
+
+
+class AnalyticSensorModel:
+    """Mean from the physics (§3.3, saturated), std = G·σ_s everywhere.
+
+    Args:
+        condition: the condition (amplifier noise; and the target, unless ``expected_fn`` is given).
+        expected_fn: optional noise-free reading (V) of ``offsets_mm`` (..., 2); default the
+            condition's single sphere, :func:`electroloc_gym.sensor.expected_reading`. A multi-object
+            map passes its own (:func:`electroloc_gym.scene.make_map_sensor_model`).
+    """
+
+    name = "analytic"
+
+    def __init__(self, condition: Condition, expected_fn: Callable[[ArrayLike], NDArray] | None = None) -> None:
+        self.condition = condition
+        self.noise_std_V = float(condition.noise_std_V)
+        self._expected = functools.partial(expected_reading, condition) if expected_fn is None else expected_fn
+
+    def mean_std(self, offsets_mm: ArrayLike) -> tuple[NDArray, NDArray]:
+        mean = self._expected(offsets_mm)
+        return mean, np.full_like(mean, self.noise_std_V)
+
+    def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
+        # Constant std: the −log σ term is the same for every particle and is dropped.
+        return gaussian_log_likelihood(reading_V, self._expected(offsets_mm), self.noise_std_V)
