@@ -98,36 +98,17 @@ def _cmd_eev(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    import gymnasium as gym
+    from electroloc_gym.demo import demo
 
-    import electroloc_gym  # noqa: F401  (registers the ids)
-    from electroloc_gym.render import save_figure_atomic
-
-    env = gym.make("ElectroLoc-v0", condition=args.condition, render_mode="rgb_array",
-                   sensor_model=args.sensor_model)
-    obs, info = env.reset(seed=args.seed)
-    env.action_space.seed(args.seed)  # the random walk is part of the seeded demo
-    frames = [env.render()]
-    done = False
-    while not done:
-        obs, _, term, trunc, info = env.step(env.action_space.sample())
-        frames.append(env.render())
-        done = term or trunc
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    k = min(len(frames), 8)
-    idx = sorted({int(round(i)) for i in [j * (len(frames) - 1) / max(k - 1, 1) for j in range(k)]})
-    fig, axes = plt.subplots(1, len(idx), figsize=(3 * len(idx), 3))
-    for ax, i in zip(list(axes) if len(idx) > 1 else [axes], idx):
-        ax.imshow(frames[i])
-        ax.set_axis_off()
-    fig.tight_layout()
-    save_figure_atomic(fig, args.out, dpi=100)
+    try:
+        ep = demo(condition=args.condition, sensor_model=args.sensor_model, seed=args.seed, out=args.out, gif=args.gif)
+    except (ValueError, OSError) as exc:
+        print(f"electroloc demo: error: {exc}", file=sys.stderr)
+        return 2
+    info = ep.final_info
+    wrote = " and ".join(str(p) for p in (args.out, args.gif) if p is not None)
     print(f"episode: {info['n_observations']} observations, success={info['success']}, "
-          f"error {info['error_mm']:.2f} mm; frames written to {args.out}")
+          f"error {info['error_mm']:.2f} mm; wrote {wrote}")
     return 0
 
 
@@ -148,11 +129,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="target: one sphere's EEV (ElectroLoc-v0); global: the six-cylinder map (Fig. 14)")
     e.set_defaults(func=_cmd_eev)
 
-    m = sub.add_parser("demo", help="run one random-walk episode and save rendered frames to a PNG")
+    m = sub.add_parser("demo", help="run one random-move episode; save its belief snapshots (PNG) and optionally a GIF")
     m.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES))
     m.add_argument("--sensor-model", default="calibrated", choices=["analytic", "calibrated"])
     m.add_argument("--seed", type=int, default=0)
-    m.add_argument("--out", default="demo.png")
+    m.add_argument("--out", default="demo.png", help="grid of belief snapshots (PNG)")
+    m.add_argument("--gif", default=None, metavar="PATH", help="also write the episode as an animated GIF")
     m.set_defaults(func=_cmd_demo)
 
     try:

@@ -1,11 +1,21 @@
-"""Matplotlib figures: EEV maps (Fig. 2 / Fig. 9), belief snapshots (Fig. 10) and episode frames.
+"""Matplotlib figures of the envs: EEV maps (paper Fig. 2, 9, 14) and episode frames (Fig. 10, 13).
 
-Everything renders off-screen with the Agg canvas unless ``render_mode="human"`` asks for a window.
+Renderers read only the env's public accessors (on ``env.unwrapped``): ``condition``, ``belief``,
+``position_mm``, ``path_mm``, ``n_observations``, ``last_reading_V``, and the ground truth a picture may
+show but an agent may not act on — ``target_mm`` (ElectroLoc-v0) or the map ``scene`` with the true
+carriage ``position_mm`` (ElectroLocGlobal-v0). :func:`snapshot` copies those values once; every
+drawing function takes a :class:`Snapshot`, so a frame, a grid panel (:mod:`electroloc_gym.demo`) and
+a GIF frame show the same thing.
+
+Markers follow the paper's figures: sensors are diamonds, emitters squares, the path asterisks; the
+particles are dots; the estimate is a plus inside a dashed circle of radius √trace Σ (the spread the
+success rule tests). Everything renders off-screen with the Agg canvas unless ``render_mode="human"``.
 """
 
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -15,9 +25,19 @@ from electroloc_gym.conditions import Condition
 from electroloc_gym.fileio import save_figure_atomic
 from electroloc_gym.sensor import electrode_positions_mm, expected_reading
 
-__all__ = ["eev_map", "plot_eev", "FrameRenderer", "EpisodeRenderer", "save_figure_atomic"]
+__all__ = [
+    "eev_map", "plot_eev", "plot_map_eev", "Snapshot", "snapshot", "draw_snapshot", "eev_colorbar",
+    "legend_handles", "FrameRenderer", "EpisodeRenderer", "GlobalEpisodeRenderer", "save_figure_atomic",
+]
+
+_SENSOR = dict(marker="D", color="k", ms=6, ls="none")
+_EMITTER_POS = dict(marker="s", color="tab:red", ms=6, ls="none")
+_EMITTER_NEG = dict(marker="s", color="tab:blue", ms=6, ls="none")
+_ESTIMATE = dict(marker="+", color="tab:green", ms=11, mew=2.2, ls="none")
+_CONDUCTOR, _INSULATOR = "tab:orange", "tab:cyan"
 
 
+# ---- EEV maps ---------------------------------------------------------------------------------------
 def eev_map(condition: Condition, half_span_mm: float | None = None, step_mm: float = 1.0
             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Expected reading (V) over carriage positions relative to the target: (grid_mm, Φ[ix, iy]).
@@ -48,36 +68,260 @@ def plot_eev(condition: Condition, ax: Any = None, threshold_sigmas: float = 2.0
     ax.set_aspect("equal")
     ax.set_xlabel("carriage x − target x (mm)")
     ax.set_ylabel("carriage y − target y (mm)")
-    ax.set_title(f"EEV {condition.name} (scale {condition.signal_scale:.2f}); black: ±{threshold_sigmas:g}σ")
+    ax.set_title(f"EEV {condition.name} (signal scale {condition.signal_scale:.2f})\n"
+                 f"black: |Φ| = {threshold_sigmas:g}σ detection contour; dotted: Φ = 0", fontsize=9)
     ax.figure.colorbar(im, ax=ax, label="expected reading Φ (V)")
     return ax
 
 
+def _map_eev_values(scene: Any, sensor_model: str, seed: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    from electroloc_gym.scene import make_map_sensor_model, map_eev
+
+    grid, phi = map_eev(scene)
+    if sensor_model == "calibrated":
+        gx, gy = np.meshgrid(grid, grid, indexing="ij")
+        phi = make_map_sensor_model("calibrated", scene, seed).mean_std(-np.stack([gx, gy], axis=-1))[0]
+    elif sensor_model != "analytic":
+        raise ValueError(f"sensor_model must be 'analytic' or 'calibrated', got {sensor_model!r}")
+    return grid, np.asarray(phi, dtype=float)
+
+
+def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", seed: int = 0) -> Any:
+    """Draw a map's EEV like the paper's Fig. 14; returns the axes.
+
+    Grey scale from negative (white) to positive (black) expected reading at each carriage position,
+    dotted contours every 1 V, every object outlined at its true size (orange: conductor, cyan:
+    insulator) with a numbered label explained in a key below the axes, and the map origin as a red
+    circle (the point the robot localises itself against, as in Fig. 14).
+
+    Args:
+        scene: the map (:class:`electroloc_gym.scene.Scene`).
+        ax: matplotlib axes (a new figure if None).
+        sensor_model: "analytic" (noise-free physics on a 1 mm grid) or "calibrated" (the agent's
+            calibrated grid, interpolated on a 1 mm grid).
+        seed: calibration seed.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Circle
+
+    grid, phi = _map_eev_values(scene, sensor_model, seed)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6.4, 6.6))
+    # Fig. 14's scale is ±10 V; ours is ±max|Φ| rounded up to a volt so that a map that does not
+    # saturate stays visible.
+    lim = float(min(scene.saturation_V, max(1.0, np.ceil(np.abs(phi).max()))))
+    im = ax.imshow(phi.T, origin="lower", extent=(grid[0], grid[-1], grid[0], grid[-1]), cmap="gray_r",
+                   vmin=-lim, vmax=lim, interpolation="nearest")
+    ax.contour(grid, grid, phi.T, levels=np.arange(-lim + 1.0, lim, 1.0), colors="tab:blue", linewidths=0.4,
+               linestyles=":")
+    water = scene.water.conductivity_uScm
+    key = []
+    for i, o in enumerate(scene.objects, start=1):
+        color = _CONDUCTOR if o.contrast(water) > 0 else _INSULATOR
+        ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color=color, lw=1.6))
+        ax.text(*o.xy_mm, str(i), fontsize=10, fontweight="bold", ha="center", va="center", color=color,
+                bbox=dict(boxstyle="circle,pad=0.15", fc="white", ec=color, lw=0.8, alpha=0.9))
+        key.append(f"{i}: {o.material} {o.shape} Ø{o.diameter_mm:g} mm at ({o.xy_mm[0]:.0f}, {o.xy_mm[1]:.0f})")
+    ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=9, mew=1.8)
+    ax.set_xlim(grid[0], grid[-1])
+    ax.set_ylim(grid[0], grid[-1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("carriage x (mm, map frame)")
+    ax.set_ylabel("carriage y (mm, map frame)")
+    ax.set_title(f"map EEV '{scene.name}' ({sensor_model} model)", fontsize=10)
+    ax.figure.colorbar(im, ax=ax, label="expected reading Φ (V)", shrink=0.8)
+    handles = [Line2D([], [], color=_CONDUCTOR, lw=1.6, label="conductor (outline = true size)"),
+               Line2D([], [], color=_INSULATOR, lw=1.6, label="insulator"),
+               Line2D([], [], marker="o", mfc="none", mec="tab:red", mew=1.8, ls="none", label="map origin (0, 0)"),
+               Line2D([], [], color="tab:blue", lw=0.6, ls=":", label="1 V contours")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=2, fontsize=7, frameon=False)
+    ax.text(0.5, -0.25, "\n".join(key), transform=ax.transAxes, ha="center", va="top", fontsize=7)
+    return ax
+
+
 @functools.lru_cache(maxsize=16)
-def _world_eev(condition: Condition, target: tuple[float, float], step_mm: float = 1.5):
-    h = condition.allowed_half_width_mm + 10.0
+def _target_eev(condition: Condition, target: tuple[float, float], step_mm: float = 1.0):
+    """EEV of a target at ``target`` over carriage positions in the world frame (grid, Φ[ix, iy])."""
+    h = _view_half_width_mm(condition)
     grid = np.arange(-h, h + 1e-9, step_mm)
     gx, gy = np.meshgrid(grid, grid, indexing="ij")
-    phi = expected_reading(condition, np.asarray(target) - np.stack([gx, gy], axis=-1))
-    return grid, phi
+    return grid, expected_reading(condition, np.asarray(target) - np.stack([gx, gy], axis=-1))
 
 
+def _view_half_width_mm(condition: Condition) -> float:
+    """Half-width of an episode picture, mm: the allowed box plus the carriage's arms (every electrode in view)."""
+    return condition.allowed_half_width_mm + condition.geometry.spacing_mm / 2.0 + 4.0
+
+
+@functools.lru_cache(maxsize=8)
+def _scene_eev(scene: Any, half_span_mm: float):
+    from electroloc_gym.scene import map_eev
+
+    return map_eev(scene, step_mm=1.0, half_span_mm=half_span_mm)
+
+
+# ---- snapshots of an env ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Snapshot:
+    """What a picture of an episode shows at one moment, copied from the env's public accessors.
+
+    Attributes:
+        condition: the episode's condition (geometry, noise, boxes).
+        scene: the map of ElectroLocGlobal-v0, or None for ElectroLoc-v0.
+        truth_mm: ground truth the belief estimates: the target centre (ElectroLoc-v0) or the true
+            carriage position (ElectroLocGlobal-v0), mm.
+        position_mm: true carriage position, mm.
+        path_mm: carriage positions visited so far, (k, 2) mm.
+        particles_mm: the belief's particles, (M, 2) mm.
+        estimate_mm: the belief's mean, mm.
+        spread_mm: √trace Σ of the belief, mm.
+        n_observations: readings fused so far.
+        reading_V: the last reading Φ, V.
+    """
+
+    condition: Condition
+    scene: Any
+    truth_mm: NDArray[np.float64]
+    position_mm: NDArray[np.float64]
+    path_mm: NDArray[np.float64]
+    particles_mm: NDArray[np.float64]
+    estimate_mm: NDArray[np.float64]
+    spread_mm: float
+    n_observations: int
+    reading_V: float
+
+    @property
+    def is_global(self) -> bool:
+        """True for a self-localisation (map) episode."""
+        return self.scene is not None
+
+
+def snapshot(env: Any) -> Snapshot:
+    """Copy what a picture needs from ``env`` (a Gymnasium env of this package, wrapped or not)."""
+    u = env.unwrapped
+    b = u.belief
+    scene = getattr(u, "scene", None)
+    position = np.array(u.position_mm, dtype=float)
+    truth = position if scene is not None else np.array(u.target_mm, dtype=float)
+    return Snapshot(condition=u.condition, scene=scene, truth_mm=truth, position_mm=position,
+                    path_mm=np.array(u.path_mm, dtype=float).reshape(-1, 2),
+                    particles_mm=np.array(b.particles, dtype=float), estimate_mm=np.array(b.mean(), dtype=float),
+                    spread_mm=float(b.spread()), n_observations=int(u.n_observations),
+                    reading_V=float(u.last_reading_V))
+
+
+def _background(snap: Snapshot) -> tuple[NDArray, NDArray, str, float]:
+    """(grid, Φ, colormap, limit) of the EEV drawn behind the snapshot."""
+    if snap.is_global:
+        grid, phi = _scene_eev(snap.scene, _view_half_width_mm(snap.condition))
+        lim = float(min(snap.scene.saturation_V, max(1.0, np.ceil(np.abs(phi).max()))))
+        return grid, phi, "gray_r", lim
+    grid, phi = _target_eev(snap.condition, (float(snap.truth_mm[0]), float(snap.truth_mm[1])))
+    return grid, phi, "RdBu_r", max(float(np.abs(phi).max()), 1e-12)
+
+
+def eev_colorbar(fig: Any, snap: Snapshot, cax: Any = None, ax: Any = None, **kwargs: Any) -> Any:
+    """A colorbar of the EEV shading :func:`draw_snapshot` uses for ``snap`` (into ``cax`` or beside ``ax``)."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    _, _, cmap, lim = _background(snap)
+    what = "map EEV" if snap.is_global else "EEV of the true target"
+    return fig.colorbar(ScalarMappable(Normalize(-lim, lim), cmap), cax=cax, ax=ax,
+                        label=f"{what}: expected reading Φ (V)\nwith the carriage at that point", **kwargs)
+
+
+def draw_snapshot(ax: Any, snap: Snapshot, *, title: bool = True, electrodes: bool = True) -> None:
+    """Draw one moment of an episode into ``ax``: EEV, box, objects, particles, truth, estimate, path."""
+    from matplotlib.patches import Circle
+
+    grid, phi, cmap, lim = _background(snap)
+    ax.imshow(phi.T, origin="lower", extent=(grid[0], grid[-1], grid[0], grid[-1]), cmap=cmap, vmin=-lim,
+              vmax=lim, alpha=0.75 if not snap.is_global else 0.6, interpolation="nearest")
+    h = snap.condition.allowed_half_width_mm
+    ax.plot([-h, h, h, -h, -h], [-h, -h, h, h, -h], color="0.35", lw=0.9)
+    p = snap.particles_mm
+    ax.scatter(p[:, 0], p[:, 1], s=2.0, c="tab:blue" if snap.is_global else "k", alpha=0.45, linewidths=0)
+    if snap.is_global:
+        water = snap.scene.water.conductivity_uScm
+        for o in snap.scene.objects:
+            color = _CONDUCTOR if o.contrast(water) > 0 else _INSULATOR
+            ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color=color, lw=1.0))
+        ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=7, mew=1.4)
+    else:
+        ax.add_patch(Circle(tuple(snap.truth_mm), snap.condition.target.radius_mm, fill=False, color=_CONDUCTOR,
+                            lw=2.0))
+    path = snap.path_mm
+    ax.plot(path[:, 0], path[:, 1], "*-", color="tab:purple", lw=1.0, ms=6, mec="tab:purple")
+    if electrodes:
+        el = electrode_positions_mm(snap.condition, snap.position_mm)
+        for a, b in (("emitter+", "emitter-"), ("S1", "S2")):  # the carriage's two arms
+            ax.plot([el[a][0], el[b][0]], [el[a][1], el[b][1]], color="0.25", lw=0.8)
+        ax.plot(*el["emitter+"], **_EMITTER_POS)
+        ax.plot(*el["emitter-"], **_EMITTER_NEG)
+        for s in ("S1", "S2"):
+            ax.plot(*el[s], **_SENSOR)
+    ax.add_patch(Circle(tuple(snap.estimate_mm), snap.spread_mm, fill=False, color="tab:green", lw=1.4, ls="--"))
+    ax.plot(*snap.estimate_mm, **_ESTIMATE)
+    m = _view_half_width_mm(snap.condition)
+    ax.set_xlim(-m, m)
+    ax.set_ylim(-m, m)
+    ax.set_aspect("equal")
+    ax.tick_params(labelsize=7)
+    if title:
+        ax.set_title(f"observation {snap.n_observations}: Φ = {snap.reading_V:+.2f} V, "
+                     f"spread {snap.spread_mm:.1f} mm", fontsize=8.5)
+
+
+def legend_handles(is_global: bool = False) -> list[Any]:
+    """Legend entries for every marker :func:`draw_snapshot` draws."""
+    from matplotlib.lines import Line2D
+
+    def mk(label: str, **style: Any) -> Any:
+        return Line2D([], [], label=label, **style)
+
+    handles = [
+        mk("sensors S1, S2", **_SENSOR),
+        mk("emitter +", **_EMITTER_POS),
+        mk("emitter −", **_EMITTER_NEG),
+        mk("particles (belief)", marker="o", color="tab:blue" if is_global else "k", ms=3, ls="none", alpha=0.6),
+        mk("true carriage path" if is_global else "carriage path", marker="*", color="tab:purple", ms=7, lw=1.0),
+        mk("estimate (belief mean)", **_ESTIMATE),
+        mk("spread √trace Σ (radius)", color="tab:green", lw=1.4, ls="--"),
+        mk("allowed box", color="0.35", lw=0.9),
+    ]
+    if is_global:
+        handles += [mk("conductor", color=_CONDUCTOR, lw=1.2), mk("insulator", color=_INSULATOR, lw=1.2),
+                    mk("map origin", marker="o", mfc="none", mec="tab:red", ms=7, ls="none")]
+    else:
+        handles.insert(4, mk("true target (sphere outline)", marker="o", mfc="none", mec=_CONDUCTOR, mew=2.0,
+                             ms=9, ls="none"))
+    return handles
+
+
+# ---- frames (env.render) ------------------------------------------------------------------------------
 class FrameRenderer:
-    """A 5×5-inch frame that env renderers draw into: off-screen (``rgb_array``) or a window (``human``)."""
+    """A frame that env renderers draw into: off-screen (``rgb_array``) or a window (``human``).
+
+    The frame holds the episode axes, an EEV colorbar beside them and a marker legend below.
+    """
 
     def __init__(self, render_mode: str) -> None:
+        size = (6.4, 6.4)
         if render_mode == "rgb_array":
             from matplotlib.backends.backend_agg import FigureCanvasAgg
             from matplotlib.figure import Figure
 
-            self.fig = Figure(figsize=(5, 5), dpi=96)
+            self.fig = Figure(figsize=size, dpi=100)
             FigureCanvasAgg(self.fig)
         else:
             import matplotlib.pyplot as plt
 
-            self.fig = plt.figure(figsize=(5, 5), dpi=96)  # headless (Agg): draws, just no window
+            self.fig = plt.figure(figsize=size, dpi=100)  # headless (Agg): draws, just no window
         self.render_mode = render_mode
-        self.ax = self.fig.add_subplot(111)
+        self.ax = self.fig.add_axes((0.08, 0.16, 0.72, 0.72))
+        self.cax = self.fig.add_axes((0.83, 0.16, 0.03, 0.72))
 
     def finish(self) -> NDArray[np.uint8] | None:
         """Draw the canvas; the RGB array for ``rgb_array``, a short GUI pause for ``human``."""
@@ -90,6 +334,24 @@ class FrameRenderer:
         plt.pause(1.0 / 30)
         return None
 
+    def draw(self, env: Any) -> NDArray[np.uint8] | None:
+        """Draw the env's current state; returns an RGB array for ``rgb_array``."""
+        snap = snapshot(env)
+        self.ax.clear()
+        self.cax.clear()
+        draw_snapshot(self.ax, snap)
+        eev_colorbar(self.fig, snap, cax=self.cax)
+        self.cax.tick_params(labelsize=7)
+        self.cax.yaxis.label.set_size(7)
+        name = snap.scene.name if snap.is_global else snap.condition.name
+        self.ax.set_title(f"{name} — observation {snap.n_observations}\nΦ = {snap.reading_V:+.2f} V, "
+                          f"spread {snap.spread_mm:.1f} mm", fontsize=9)
+        for leg in self.fig.legends:
+            leg.remove()
+        self.fig.legend(handles=legend_handles(snap.is_global), loc="lower center", ncol=3, fontsize=7,
+                        frameon=False, bbox_to_anchor=(0.5, 0.0))
+        return self.finish()
+
     def close(self) -> None:
         """Release the figure."""
         import matplotlib.pyplot as plt
@@ -98,45 +360,8 @@ class FrameRenderer:
 
 
 class EpisodeRenderer(FrameRenderer):
-    """Draws an :class:`~electroloc_gym.envs.localize.ElectroLocEnv` frame like the paper's Fig. 10.
-
-    EEV shading of the true target over carriage positions, the particles, the true target, the
-    estimate with its spread circle, the carriage electrodes and the path.
-    """
-
-    def draw(self, env: Any) -> NDArray[np.uint8] | None:
-        """Draw the env's current state; returns an RGB array for ``rgb_array``."""
-        ax = self.ax
-        ax.clear()
-        c = env.condition
-        target = env.unwrapped._target  # the renderer may show the truth; agents may not read it
-        grid, phi = _world_eev(c, (float(target[0]), float(target[1])))
-        vmax = max(float(np.abs(phi).max()), 1e-12)
-        ax.pcolormesh(grid, grid, phi.T, cmap="RdBu_r", vmin=-vmax, vmax=vmax, shading="auto", alpha=0.8)
-        h = c.allowed_half_width_mm
-        ax.plot([-h, h, h, -h, -h], [-h, -h, h, h, -h], color="0.3", lw=0.8)
-        p = env.belief.particles
-        ax.scatter(p[:, 0], p[:, 1], s=1.5, c="k", alpha=0.35, linewidths=0)
-        est = env.belief.mean()
-        spread = env.belief.spread()
-        ax.add_patch(_circle(est, spread, "tab:green"))
-        ax.plot(*est, "+", color="tab:green", ms=10, mew=2, label="estimate")
-        ax.plot(*target, "o", mfc="none", mec="tab:orange", ms=2 * c.target.radius_mm * 0.35 + 4, mew=2,
-                label="target")
-        path = env.path_mm
-        ax.plot(path[:, 0], path[:, 1], "-", color="tab:purple", lw=1.2)
-        el = electrode_positions_mm(c, env.position_mm)
-        for key, style in (("emitter+", "r^"), ("emitter-", "b^"), ("S1", "ks"), ("S2", "ks")):
-            ax.plot(*el[key], style, ms=6)
-        ax.set_xlim(-h - 10, h + 10)
-        ax.set_ylim(-h - 10, h + 10)
-        ax.set_aspect("equal")
-        ax.set_title(f"{c.name}: obs {env.n_observations}, spread {spread:.1f} mm", fontsize=9)
-        ax.legend(loc="upper right", fontsize=7)
-        return self.finish()
+    """Frames of ElectroLoc-v0 like the paper's Fig. 10 (EEV of the true target, particles, path)."""
 
 
-def _circle(center: NDArray, radius: float, color: str):
-    from matplotlib.patches import Circle
-
-    return Circle(tuple(center), radius, fill=False, color=color, lw=1.2, ls="--")
+class GlobalEpisodeRenderer(FrameRenderer):
+    """Frames of ElectroLocGlobal-v0 like the paper's Fig. 13 (map EEV, objects, position belief)."""

@@ -1,0 +1,243 @@
+"""One episode as pictures: a grid of belief snapshots (like the paper's Fig. 10 / 13) and an animated GIF.
+
+:func:`record_episode` runs one seeded episode and keeps a :class:`~electroloc_gym.render.Snapshot`
+after every observation (and the env's ``rgb_array`` frames if asked); :func:`plot_episode` lays the
+snapshots out as a grid with one EEV colorbar, one legend for every marker, and a last panel of the
+belief's spread and the estimate's error against the observations used; :func:`save_gif` writes the
+frames as a GIF with Pillow (matplotlib's own image dependency). ``electroloc demo`` calls :func:`demo`.
+
+Example::
+
+    import gymnasium as gym
+    import electroloc_gym
+    from electroloc_gym.demo import plot_episode, record_episode
+
+    env = gym.make("ElectroLocGlobal-v0", render_mode="rgb_array")
+    episode = record_episode(env, seed=3)
+    plot_episode(episode).savefig("global.png")
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from electroloc_gym.fileio import atomic_write_bytes, save_figure_atomic
+from electroloc_gym.render import Snapshot, draw_snapshot, eev_colorbar, legend_handles, snapshot
+
+__all__ = ["Episode", "record_episode", "plot_episode", "save_gif", "demo", "check_output_path", "MAX_PANELS"]
+
+#: Most belief snapshots in the grid (first and last always shown, the rest evenly spaced).
+MAX_PANELS = 7
+
+@dataclass
+class Episode:
+    """A recorded episode.
+
+    Attributes:
+        snapshots: one per observation fused (the first is taken by ``reset``).
+        infos: the ``info`` dict after each observation (``reset``'s first).
+        frames: the env's ``rgb_array`` frames, one per observation (empty unless recorded).
+        label: what ran (agent and seed), for titles.
+        success_spread_mm: the env's success threshold on the spread, mm.
+    """
+
+    snapshots: list[Snapshot] = field(default_factory=list)
+    infos: list[dict[str, Any]] = field(default_factory=list)
+    frames: list[NDArray[np.uint8]] = field(default_factory=list)
+    label: str = ""
+    success_spread_mm: float = 10.0
+
+    @property
+    def final_info(self) -> dict[str, Any]:
+        """The last info dict."""
+        return self.infos[-1]
+
+
+def record_episode(env: Any, seed: int = 0, agent: Any = None, frames: bool = False,
+                   label: str | None = None) -> Episode:
+    """Run one episode of ``env`` from ``reset(seed=seed)`` and record it.
+
+    Args:
+        env: an env of this package (``gym.make(...)``); ``render_mode="rgb_array"`` if ``frames``.
+        seed: reset seed; the default random agent's action space is seeded with it too.
+        agent: anything with the project's agent call, ``predict(obs, deterministic=True) -> (action, state)``
+            and optionally ``reset(env)`` (the paper's controllers from ``make_agent``, a loaded learned
+            policy, an SB3 model); default: uniform random moves (``env.action_space.sample()``).
+        frames: also keep ``env.render()`` after every observation (for :func:`save_gif`).
+        label: a title for the figures (default: the agent and the seed).
+
+    Raises:
+        ValueError: ``frames`` without ``render_mode="rgb_array"``.
+    """
+    if frames and env.render_mode != "rgb_array":
+        raise ValueError(f"frames=True needs an env made with render_mode='rgb_array', got {env.render_mode!r}")
+    name = "random moves" if agent is None else getattr(agent, "name", type(agent).__name__)
+    ep = Episode(label=label if label is not None else f"{name}, seed {seed}",
+                 success_spread_mm=float(env.unwrapped.success_spread_mm))
+    obs, info = env.reset(seed=seed)
+    if agent is None:
+        env.action_space.seed(seed)  # the random walk is part of the seeded episode
+    elif hasattr(agent, "reset"):
+        agent.reset(env)
+    state: Any = None
+    done = False
+    while True:
+        ep.snapshots.append(snapshot(env))
+        ep.infos.append(dict(info))
+        if frames:
+            ep.frames.append(env.render())
+        if done:
+            return ep
+        if agent is None:
+            action = env.action_space.sample()
+        else:
+            action, state = agent.predict(obs, state=state, deterministic=True)
+        obs, _, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+
+
+def _panel_indices(n: int, k: int) -> list[int]:
+    """Up to ``k`` indices in [0, n): the first, the last and evenly spaced ones between."""
+    if n <= k:
+        return list(range(n))
+    return sorted({int(round(j * (n - 1) / (k - 1))) for j in range(k)})
+
+
+def plot_episode(episode: Episode, max_panels: int = MAX_PANELS) -> Any:
+    """The episode as a grid: belief snapshots, then spread and error against the observations used.
+
+    Returns a matplotlib Figure (Agg canvas, no window).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    snaps = episode.snapshots
+    idx = _panel_indices(len(snaps), max_panels)
+    n_panels = len(idx) + 1
+    ncols = min(4, n_panels)
+    nrows = -(-n_panels // ncols)
+    fig = Figure(figsize=(3.3 * ncols + 1.2, 3.35 * nrows + 1.4), dpi=110)
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(nrows, ncols, left=0.05, right=0.88, top=1 - 0.75 / fig.get_figheight(),
+                            bottom=1.05 / fig.get_figheight(), wspace=0.22, hspace=0.32)
+    axes = [fig.add_subplot(grid[i // ncols, i % ncols]) for i in range(n_panels)]
+    for ax, i in zip(axes, idx):
+        draw_snapshot(ax, snaps[i], title=False)
+        ax.set_title(f"observation {snaps[i].n_observations}: Φ = {snaps[i].reading_V:+.2f} V\n"
+                     f"spread {snaps[i].spread_mm:.1f} mm", fontsize=8.5)
+    for ax in axes[:len(idx)]:
+        ax.set_xlabel("x (mm)", fontsize=7, labelpad=1)
+        ax.set_ylabel("y (mm)", fontsize=7, labelpad=0)
+    _plot_progress(axes[-1], episode)
+    cax = fig.add_axes((0.905, 1.05 / fig.get_figheight(), 0.012,
+                        1 - 1.8 / fig.get_figheight()))
+    eev_colorbar(fig, snaps[0], cax=cax)
+    cax.tick_params(labelsize=7)
+    cax.yaxis.label.set_size(8)
+    first = snaps[0]
+    info = episode.final_info
+    name = first.scene.name if first.is_global else first.condition.name
+    outcome = "success (spread ≤ threshold)" if info["success"] else "failure (observation cap)"
+    fig.suptitle(f"{name}, {episode.label}: {outcome} after {info['n_observations']} observations, "
+                 f"final error {info['error_mm']:.1f} mm", fontsize=11)
+    fig.legend(handles=legend_handles(first.is_global), loc="lower center", ncol=6 if ncols >= 4 else 4,
+               fontsize=8, frameon=False, bbox_to_anchor=(0.47, 0.0))
+    return fig
+
+
+def _plot_progress(ax: Any, episode: Episode) -> None:
+    """Spread and error (mm) against observations, with the success threshold."""
+    n = [i["n_observations"] for i in episode.infos]
+    ax.plot(n, [i["spread_mm"] for i in episode.infos], "o-", color="tab:green", ms=3,
+            label="spread √trace Σ")
+    ax.plot(n, [i["error_mm"] for i in episode.infos], "s-", color="tab:orange", ms=3,
+            label="error |estimate − truth|")
+    thr = episode.success_spread_mm
+    ax.axhline(thr, color="k", lw=0.8, ls=":", label=f"success: spread ≤ {thr:g} mm")
+    ax.set_yscale("log")
+    from matplotlib.ticker import FuncFormatter, LogLocator
+
+    ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 3.0, 5.0)))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(FuncFormatter(lambda _v, _pos: ""))
+    ax.set_xlabel("observations used", fontsize=8)
+    ax.set_ylabel("mm", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.set_title("belief spread and estimate error", fontsize=8.5)
+    ax.legend(fontsize=6.5, loc="lower left")
+    ax.set_box_aspect(1.0)
+
+
+def save_gif(frames: list[NDArray[np.uint8]], path: str | os.PathLike, fps: float = 3.0,
+             hold_last_s: float = 2.0) -> None:
+    """Write RGB frames (H, W, 3 uint8) as a looping GIF, atomically (temp file, then rename).
+
+    Args:
+        frames: the frames, all of one size.
+        path: output file.
+        fps: frames per second (> 0).
+        hold_last_s: how long the last frame stays before the loop restarts, s (≥ 0).
+    """
+    from PIL import Image
+
+    if not frames:
+        raise ValueError("frames must hold at least one frame")
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be a finite number > 0, got {fps!r}")
+    if not (np.isfinite(hold_last_s) and hold_last_s >= 0):
+        raise ValueError(f"hold_last_s must be a finite number ≥ 0, got {hold_last_s!r}")
+    images = [Image.fromarray(np.asarray(f, dtype=np.uint8)).quantize(colors=128, method=Image.Quantize.MEDIANCUT)
+              for f in frames]
+    dt = int(round(1000.0 / fps))
+    durations = [dt] * len(images)
+    durations[-1] = dt + int(round(1000.0 * hold_last_s))
+    buf = io.BytesIO()
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0,
+                   optimize=True)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def check_output_path(name: str, path: str | os.PathLike) -> None:
+    """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``)."""
+    p = Path(path)
+    if not str(path):
+        raise ValueError(f"{name} must be a file path, got an empty string")
+    if p.is_dir():
+        raise ValueError(f"{name} must be a file path, got the directory {str(p)!r}")
+    parent = p.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ValueError(f"{name}: cannot create {str(p)!r}, {str(parent)!r} is a file")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{name}: cannot write {str(p)!r}, folder {str(parent)!r} is not writable")
+
+
+def demo(condition: str = "fresh-steel-12.7", sensor_model: str = "calibrated", seed: int = 0,
+         out: str | os.PathLike | None = "demo.png", gif: str | os.PathLike | None = None) -> Episode:
+    """``electroloc demo``: one random-move episode of ElectroLoc-v0 as a snapshot grid and/or a GIF."""
+    import gymnasium as gym
+
+    import electroloc_gym  # noqa: F401  (registers the ids)
+
+    for name, path in (("out", out), ("gif", gif)):
+        if path is not None:
+            check_output_path(name, path)
+    env = gym.make("ElectroLoc-v0", condition=condition, sensor_model=sensor_model,
+                   render_mode="rgb_array" if gif is not None else None)
+    try:
+        episode = record_episode(env, seed=seed, frames=gif is not None)
+    finally:
+        env.close()
+    if out is not None:
+        save_figure_atomic(plot_episode(episode), out)
+    if gif is not None:
+        save_gif(episode.frames, gif)
+    return episode
