@@ -35,6 +35,7 @@ _EMITTER_POS = dict(marker="s", color="tab:red", ms=6, ls="none")
 _EMITTER_NEG = dict(marker="s", color="tab:blue", ms=6, ls="none")
 _ESTIMATE = dict(marker="+", color="tab:green", ms=11, mew=2.2, ls="none")
 _CONDUCTOR, _INSULATOR = "tab:orange", "tab:cyan"
+_MATERIAL_LABELS = {"delrin": "Delrin", "pvc": "PVC"}
 
 
 # ---- EEV maps ---------------------------------------------------------------------------------------
@@ -122,7 +123,8 @@ def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", see
         ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color=color, lw=1.6))
         ax.text(*o.xy_mm, str(i), fontsize=10, fontweight="bold", ha="center", va="center", color=color,
                 bbox=dict(boxstyle="circle,pad=0.15", fc="white", ec=color, lw=0.8, alpha=0.9))
-        key.append(f"{i}: {o.material} {o.shape} Ø{o.diameter_mm:g} mm at ({o.xy_mm[0]:.0f}, {o.xy_mm[1]:.0f})")
+        material = _MATERIAL_LABELS.get(o.material, o.material)
+        key.append(f"{i}: {material} {o.shape} Ø{o.diameter_mm:g} mm at ({o.xy_mm[0]:.0f}, {o.xy_mm[1]:.0f})")
     ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=9, mew=1.8)
     ax.set_xlim(grid[0], grid[-1])
     ax.set_ylim(grid[0], grid[-1])
