@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym._kernels import exp_f32, mean_cov_rows, row_sums
+from electroloc_gym.kernels import exp_f32, mean_cov_rows, row_sums
 from electroloc_gym.draws import normal_table, table_normal_indices, table_standard_normal, uniform_in_box
 
 __all__ = [
@@ -47,7 +47,7 @@ def shifted_exp_weights(log_w: NDArray) -> tuple[NDArray[np.float64], NDArray[np
     −inf) and a per-cloud "degenerate" flag: :func:`normalise_log_weights` before its division.
 
     Float32 log-weights (those of the float32 sensor models) are exponentiated in float32 by the
-    compiled :func:`electroloc_gym._kernels.exp32` (within 1 ulp, ≈3× numpy's ``exp`` here; a relative
+    compiled :func:`electroloc_gym.kernels.exp32` (within 1 ulp, ≈3× numpy's ``exp`` here; a relative
     error of 1e-7 on a weight is far below systematic resampling's resolution of 1/M), then
     everything is float64. The native vector env fuses the same operations into one kernel, and
     numpy's SIMD ``exp`` differs between CPUs, so a compiled one is what keeps the two envs identical.
@@ -73,7 +73,7 @@ def shifted_exp_weights(log_w: NDArray) -> tuple[NDArray[np.float64], NDArray[np
 
 def weight_sums(w: NDArray[np.float64]) -> NDArray[np.float64]:
     """Sums (...,) of float64 weights (..., M) over the last axis, in a fixed order
-    (:func:`electroloc_gym._kernels.row_sums`: the same bits alone or batched, on every machine).
+    (:func:`electroloc_gym.kernels.row_sums`: the same bits alone or batched, on every machine).
     """
     flat = np.ascontiguousarray(w, dtype=np.float64).reshape(-1, w.shape[-1])
     out = np.empty(flat.shape[0])
@@ -118,7 +118,7 @@ def weighted_mean_cov(particles: NDArray, weights: NDArray | None = None) -> tup
 
     Uses the population (biased) covariance, as a filter's spread should (``Σ wᵢ (xᵢ − μ)(xᵢ − μ)ᵀ``).
     Without weights the sums are sequential float64 sums in particle order (a compiled kernel,
-    :func:`electroloc_gym._kernels.mean_cov_rows`), so one cloud gives the same bits whether it is
+    :func:`electroloc_gym.kernels.mean_cov_rows`), so one cloud gives the same bits whether it is
     passed alone or in a batch, in any memory layout — the native vector env relies on it.
     """
     if weights is None:

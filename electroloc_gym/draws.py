@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtri
 
-from electroloc_gym._kernels import box_affine, table_gather
+from electroloc_gym.kernels import box_affine, table_gather
 
 __all__ = ["NORMAL_TABLE_BITS", "normal_table", "table_normal_indices", "table_standard_normal", "uniform_in_box"]
 
@@ -55,7 +55,7 @@ def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int
 
     With array bounds numpy's ``uniform`` takes its broadcasting path (≈23 ns per draw here); it
     computes ``low + (high − low) · U`` with ``U = rng.random()``, which is what this does in bulk
-    (:func:`electroloc_gym._kernels.box_affine`). Returns the (n, 2) float64 points, or, with
+    (:func:`electroloc_gym.kernels.box_affine`). Returns the (n, 2) float64 points, or, with
     ``out_xy`` (two (n,) arrays of any float dtype), writes x and y there (cast on store, as
     ``astype``) and returns None.
     """

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym import physics
-from electroloc_gym._kernels import noisy_saturated
+from electroloc_gym.kernels import noisy_saturated
 from electroloc_gym.conditions import Condition
 from electroloc_gym.draws import normal_table, table_normal_indices
 

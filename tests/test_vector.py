@@ -10,7 +10,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym._kernels import resample_jitter_clip
+from electroloc_gym.kernels import resample_jitter_clip
 from electroloc_gym.belief import ParticleBelief, normal_table, weight_sums
 from electroloc_gym.envs.observation import HIST_BINS, belief_observation
 from electroloc_gym.envs.vector import ElectroLocVectorEnv

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym._kernels import belief_observation_rows, egocentric_counts
+from electroloc_gym.kernels import belief_observation_rows, egocentric_counts
 from electroloc_gym.belief import weighted_mean_cov
 from electroloc_gym.conditions import Condition
 
@@ -136,7 +136,7 @@ def _egocentric_histogram(particles_mm: NDArray, weights: NDArray | None, carria
                           hw: NDArray) -> NDArray:
     """Mass fraction of particles in an 8×8 grid of offsets ±H around the carriage, (..., 64).
 
-    Without weights the cells are counted by a compiled kernel (:func:`electroloc_gym._kernels.egocentric_counts`,
+    Without weights the cells are counted by a compiled kernel (:func:`electroloc_gym.kernels.egocentric_counts`,
     the same float arithmetic as the weighted numpy path) — one pass instead of eight.
     """
     p = np.asarray(particles_mm)

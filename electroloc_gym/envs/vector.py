@@ -18,9 +18,9 @@ start (2 uniforms), the particles (M·2 uniforms) and then the first reading's d
 ``i`` produce exactly what ``gym.make("ElectroLoc-v0")`` seeded alike produces: observations, rewards,
 terminations, truncations and infos, across autoresets.
 
-The math runs in compiled kernels (:mod:`electroloc_gym._kernels`, numba) instead of numpy's ~25
+The math runs in compiled kernels (:mod:`electroloc_gym.kernels`, numba) instead of numpy's ~25
 elementwise passes with their temporaries. With the calibrated sensor model (the default) the whole
-update is one call, :func:`~electroloc_gym._kernels.calibrated_assimilate`, which takes one env at a
+update is one call, :func:`~electroloc_gym.kernels.calibrated_assimilate`, which takes one env at a
 time through a few passes over its particles while they are in cache, in place:
 
 * the calibrated sensor model's bilinear lookup and Gaussian log-likelihood (per env a new
@@ -74,7 +74,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from electroloc_gym._kernels import calibrated_assimilate, resample_jitter_clip
+from electroloc_gym.kernels import calibrated_assimilate, resample_jitter_clip
 from electroloc_gym.belief import (
     normal_table,
     shifted_exp_weights,
@@ -111,8 +111,8 @@ class _StackedCalibratedLookup:
     """N calibrated sensor models (one per env, possibly different grids) as one float32 table.
 
     :meth:`grid_args` are the per-env arguments of the calibrated kernels
-    (:func:`~electroloc_gym._kernels.calibrated_assimilate`,
-    :func:`~electroloc_gym._kernels.calibrated_log_likelihood`), which compute
+    (:func:`~electroloc_gym.kernels.calibrated_assimilate`,
+    :func:`~electroloc_gym.kernels.calibrated_log_likelihood`), which compute
     ``CalibratedSensorModel.log_likelihood`` for every env at once with the same float32 operations.
     """
 

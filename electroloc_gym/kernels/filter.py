@@ -1,0 +1,255 @@
+"""The particle filter's measurement update (paper §4.1, Algorithm 1): weights, systematic resampling, jitter.
+
+One env at a time, in a few passes over its particles while they are in cache, in place:
+
+* :func:`calibrated_assimilate`: the calibrated model's lookup (:mod:`.lookup`) and the update;
+* :func:`loglik_assimilate`: the update from given float32 log-likelihoods (the analytic models);
+* :func:`resample_jitter_clip`: the update from given float64 weights (a reference entry point).
+
+Each ends with the new cloud's mean, covariance and histogram counts (:mod:`.stats`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from electroloc_gym.kernels.lookup import _calibrated_ll_one
+from electroloc_gym.kernels.mathf32 import JIT, exp32, sum8
+from electroloc_gym.kernels.stats import _counts_one, _cov_about
+
+__all__ = ["calibrated_assimilate", "loglik_assimilate", "resample_jitter_clip"]
+
+_ZERO = np.float32(0.0)
+_ONE = np.float32(1.0)
+_INF = np.float32(np.inf)
+
+
+@njit(**JIT)
+def _resample_one(w, t, u, src_x, src_y, jitter_idx, normal_table, h, out_x, out_y,  # pragma: no cover - compiled
+                  mean, cov, cx, cy, scale, bins, counts, e, cum, ptr, kest, first, cells, hist):
+    """One env of :func:`resample_jitter_clip` (``cum``, ``ptr`` (M + 1), ``kest``, ``first`` (M + 1),
+    ``cells``, ``hist`` are scratch).
+    """
+    m = w.shape[0]
+    fm = np.float64(m)
+    acc = np.float64(w[0]) / t
+    cum[0] = acc
+    for i in range(1, m):
+        acc = acc + np.float64(w[i]) / t
+        cum[i] = acc
+    last = cum[m - 1]
+    for j in range(m):
+        ptr[j] = (u + np.float64(j)) / fm
+    ptr[m] = 2.0  # sentinel above every normalised cumulative weight (≤ 1)
+    for i in range(m - 1):
+        c = cum[i] / last
+        cum[i] = c
+        kk = np.ceil(c * fm - u)
+        kk = kk if kk >= 0.0 else 0.0  # also NaN → 0: the index stays in range
+        kest[i] = np.int32(kk if kk <= fm else fm)
+    for j in range(m + 1):
+        first[j] = 0
+    for i in range(m - 1):
+        c = cum[i]
+        ki = kest[i]
+        while ki > 0 and ptr[ki - 1] >= c:
+            ki -= 1
+        while ptr[ki] < c:
+            ki += 1
+        first[ki] += 1
+    first[m] += 1
+    nh = -h
+    idx = np.int64(0)
+    sx = 0.0
+    sy = 0.0
+    for j in range(m):
+        idx += first[j]
+        x = src_x[idx] + normal_table[jitter_idx[2 * j]]
+        y = src_y[idx] + normal_table[jitter_idx[2 * j + 1]]
+        x = nh if x < nh else x
+        x = h if x > h else x
+        y = nh if y < nh else y
+        y = h if y > h else y
+        out_x[j] = x
+        out_y[j] = y
+        sx += np.float64(x)
+        sy += np.float64(y)
+    mean[e, 0] = sx / fm
+    mean[e, 1] = sy / fm
+    _cov_about(out_x, out_y, sx / fm, sy / fm, cov, e)
+    _counts_one(out_x, out_y, cx, cy, scale, bins, counts, e, cells, hist)
+
+
+@njit(**JIT)
+def _resample_scratch(m, bins):  # pragma: no cover - compiled
+    """Scratch of :func:`_resample_one` for M particles: cum, ptr (M + 1), kest, first (M + 1), cells, hist."""
+    return (np.empty(m), np.empty(m + 1), np.empty(m, dtype=np.int32), np.empty(m + 1, dtype=np.int64),
+            np.empty(m, dtype=np.int32), np.empty((4, bins * bins), dtype=np.int32))
+
+
+@njit(**JIT)
+def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,  # pragma: no cover - compiled
+                         mean, cov, origin, scale, bins, counts):
+    """Normalise, systematically resample, jitter and clip k clouds (ParticleBelief.assimilate's tail),
+    then each new cloud's mean/covariance (:func:`mean_cov_rows`) and histogram counts
+    (:func:`egocentric_counts`) while it is still in cache.
+
+    Stands for, per env (``w`` the unnormalised ``exp(log_w − max)``, ``total`` its
+    :func:`row_sums`)::
+
+        w = w / total                                               # normalise_log_weights
+        cum = np.cumsum(w); cum /= cum[-1]                          # systematic_resample
+        u = (U + np.arange(M)) / M
+        idx = np.minimum(np.searchsorted(cum, u, side="right"), M − 1)
+        jitter = normal_table[jitter_idx].reshape(M, 2)             # belief.table_standard_normal
+        p = particles[idx] + jitter                                 # resample, jitter (std 1 mm)
+        p = np.minimum(np.maximum(p, −H), H)                        # _clip_to_box
+
+    ``searchsorted`` without branches: particle ``i`` takes the pointers ``j`` with
+    ``cum[i−1] ≤ u[j] < cum[i]``, i.e. ``K(i−1) ≤ j < K(i)`` where ``K(i) = #{j: u[j] < cum[i]}``
+    (``K(M−1) = M``: the ``min(·, M − 1)``). ``K(i)`` is ``ceil(M·cum[i] − U)`` up to float rounding
+    (computed for all particles in a vectorised pass), corrected by comparing with the pointers
+    themselves (the same ``(U + j)/M`` values, so the same comparisons as ``searchsorted``); then
+    ``idx[j] = #{i: K(i) ≤ j}`` is a running sum of a histogram of the ``K(i)`` — no data-dependent
+    branch per particle. The mean's sums run in the resampling loop, in the same particle order as
+    :func:`mean_cov_rows`.
+
+    Args:
+        w: (k, M) float64 unnormalised weights (read only).
+        total: (k,) float64 row sums of ``w``.
+        u0: (k,) float64 resampling offsets U in [0, 1).
+        src: (k, 2, M) float32 particles, coordinate-major.
+        jitter_idx: (k, 2·M) uint16 indices into ``normal_table`` (the single env's draw layout).
+        normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.belief.normal_table`).
+        half: (k,) float32 half-width H of the box, mm.
+        out: (k, 2, M) float32 new particles (must not alias ``src``).
+        mean: (k, 2) float64 output: the new clouds' means, mm.
+        cov: (k, 2, 2) float64 output: their covariances, mm².
+        origin: (k, 2) float32 histogram centres (:func:`egocentric_counts`'s ``carriage``), mm.
+        scale: (k,) float32 histogram widths 2·H, mm.
+        bins: histogram cells per axis.
+        counts: (k, bins²) float64 output: the histogram counts.
+    """
+    k, m = w.shape
+    scratch = _resample_scratch(m, bins)
+    for e in range(k):
+        _resample_one(w[e], total[e], u0[e], src[e, 0], src[e, 1], jitter_idx[e], normal_table, half[e],
+                      out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
+                      *scratch)
+
+
+@njit(**JIT)
+def _shifted_exp_one(ll, w):  # pragma: no cover - compiled
+    """One cloud of ``belief.shifted_exp_weights`` (float32 log-weights ``ll``) into ``w`` (M,) (not
+    ``ll`` itself: the exp pass would not vectorise); returns the weights' :func:`row_sums` total,
+    or NaN if a log-weight is NaN.
+
+    With a float32 ``w`` the weights stay float32 here and the consumers widen them to float64 as
+    they read them (``np.float64(w[i])`` is exact), which is what ``.astype(np.float64)`` gives the
+    single env; a float32 store halves the exp pass.
+    """
+    m = ll.shape[0]
+    top = -_INF
+    nan = False
+    for i in range(m):
+        v = ll[i]
+        nan |= v != v
+        top = v if v > top else top
+    if nan:
+        return np.nan
+    finite = (top > -_INF) & (top < _INF)
+    shift = top if finite else _ZERO
+    for i in range(m):
+        w[i] = exp32(ll[i] - shift) if finite else _ONE
+    return sum8(w)
+
+
+@njit(**JIT)
+def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, u0, jitter_idx,  # pragma: no cover
+                          normal_table, half, out, mean, cov, scale, bins, counts):
+    """One calibrated measurement update of k clouds, one env at a time in cache:
+    :func:`calibrated_log_likelihood` at the offsets ``sign·(particle − origin)``,
+    ``belief.normalise_log_weights`` (the shifted ``exp32`` and its :func:`row_sums` total), then
+    :func:`resample_jitter_clip` — the single env's ``assimilate(model.log_likelihood(...))`` in the
+    same float operations.
+
+    Args:
+        src: (k, 2, M) float32 particles, coordinate-major, mm.
+        origin: (k, 2) float32 frame origin, mm: the carriage (target localisation, ``sign`` = 1:
+            offsets = target hypothesis − carriage) or the map origin (self-localisation, ``sign`` = −1:
+            offsets = − carriage hypothesis); also the histogram's centre.
+        sign: float32 ±1.
+        lo: as :func:`calibrated_log_likelihood`.
+        inv: as :func:`calibrated_log_likelihood`.
+        n1: as :func:`calibrated_log_likelihood`.
+        base: as :func:`calibrated_log_likelihood`.
+        table: as :func:`calibrated_log_likelihood`.
+        reading: as :func:`calibrated_log_likelihood`.
+        u0: as :func:`resample_jitter_clip`.
+        jitter_idx: as :func:`resample_jitter_clip`.
+        normal_table: as :func:`resample_jitter_clip`.
+        half: as :func:`resample_jitter_clip`.
+        out: as :func:`resample_jitter_clip`.
+        mean: as :func:`resample_jitter_clip`.
+        cov: as :func:`resample_jitter_clip`.
+        scale: as :func:`resample_jitter_clip`.
+        bins: as :func:`resample_jitter_clip`.
+        counts: as :func:`resample_jitter_clip`.
+
+    ``out`` may be ``src`` (an update in place: each cloud is first copied to a scratch buffer, and
+    the new cloud is written over the old one, whose cache lines the update has just read).
+
+    Returns −1, or the first env whose log-likelihood is NaN (that env and those after it are left
+    unchanged).
+    """
+    k, _, m = src.shape
+    px = np.empty(m, dtype=np.float32)
+    py = np.empty(m, dtype=np.float32)
+    ll = np.empty(m, dtype=np.float32)
+    sd = np.empty(m, dtype=np.float32)
+    rows = np.empty(m, dtype=np.int32)
+    txs = np.empty(m, dtype=np.float32)
+    tys = np.empty(m, dtype=np.float32)
+    w = np.empty(m, dtype=np.float32)
+    scratch = _resample_scratch(m, bins)
+    for e in range(k):
+        px[:] = src[e, 0]
+        py[:] = src[e, 1]
+        _calibrated_ll_one(px, py, origin[e, 0], origin[e, 1], sign, lo[e], inv[e], n1[e], base[e],
+                           table, reading[e], ll, sd, rows, txs, tys)
+        total = _shifted_exp_one(ll, w)  # float32 weights (a separate buffer: in place, the exp pass
+        if total != total:             # fails LLVM's runtime overlap check and does not vectorise)
+            return e
+        _resample_one(w, total, u0[e], px, py, jitter_idx[e], normal_table, half[e],
+                      out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
+                      *scratch)
+    return -1
+
+
+@njit(**JIT)
+def loglik_assimilate(ll, src, origin, u0, jitter_idx, normal_table, half, out,  # pragma: no cover - compiled
+                      mean, cov, scale, bins, counts):
+    """One measurement update of k clouds from their float32 log-likelihoods ``ll`` (k, M): the shifted
+    ``exp32`` weights and their fixed-order total, then :func:`resample_jitter_clip`'s resampling,
+    jitter, clip, statistics and histogram, one env at a time in cache.
+
+    Arguments as :func:`calibrated_assimilate` (``origin`` is only the histogram's centre here);
+    ``out`` may be ``src``. Returns −1, or the first env whose log-likelihood is NaN (that env and
+    those after it are left unchanged).
+    """
+    k, _, m = src.shape
+    px = np.empty(m, dtype=np.float32)
+    py = np.empty(m, dtype=np.float32)
+    w = np.empty(m, dtype=np.float32)
+    scratch = _resample_scratch(m, bins)
+    for e in range(k):
+        px[:] = src[e, 0]
+        py[:] = src[e, 1]
+        total = _shifted_exp_one(ll[e], w)
+        if total != total:
+            return e
+        _resample_one(w, total, u0[e], px, py, jitter_idx[e], normal_table, half[e],
+                      out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
+                      *scratch)
+    return -1

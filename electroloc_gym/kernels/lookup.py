@@ -1,0 +1,173 @@
+"""Sensor-model lookups: the calibrated model's bilinear table and Gaussian log-likelihood (paper §5.3, §4.1).
+
+The calibration's statistics (:func:`calibration_tables`) and per-cell coefficients
+(:func:`bilinear_coefficients`) are built by :mod:`electroloc_gym.sensor_models.calibrated`; the
+simulation core evaluates the log-likelihood of every particle with :func:`calibrated_log_likelihood`
+or, fused with the filter update, :func:`electroloc_gym.kernels.filter.calibrated_assimilate`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from electroloc_gym.kernels.mathf32 import JIT, log32
+
+__all__ = ["calibrated_log_likelihood", "calibration_tables", "bilinear_coefficients"]
+
+_F32_HALF_NEG = np.float32(-0.5)
+_ZERO = np.float32(0.0)
+_ONE = np.float32(1.0)
+
+
+@njit(**JIT)
+def _calibrated_ll_one(px, py, ox0, oy0, sign, lo, inv, n1, base, table, reading, ll, sd, rows,  # pragma: no cover
+                       txs, tys):
+    """One env's calibrated log-likelihoods into ``ll`` (M,) float32 (see :func:`calibrated_log_likelihood`)
+    at the offsets ``sign·(p − o)`` of the particles ``px``, ``py`` (M,) from the origin (ox0, oy0),
+    all float32 (sign ±1: exact).
+
+    ``sd`` (M,) float32, ``rows`` (M,) int32, ``txs``/``tys`` (M,) float32 are scratch.
+    """
+    m = px.shape[0]
+    n1i = np.int32(n1)
+    n1f = np.float32(n1)
+    above = np.float32(n1 + 1)
+    below = np.float32(-1.0)
+    top = np.int32(n1 - 1)
+    b = np.int32(base)
+    outside = np.int32(base + n1 * n1)
+    for i in range(m):
+        fx = ((px[i] - ox0) * sign - lo) * inv
+        fy = ((py[i] - oy0) * sign - lo) * inv
+        ix = min(np.int32(min(max(fx, below), above)), top)
+        iy = min(np.int32(min(max(fy, below), above)), top)
+        txs[i] = fx - np.float32(ix)
+        tys[i] = fy - np.float32(iy)
+        inside = (fx >= _ZERO) & (fx <= n1f) & (fy >= _ZERO) & (fy <= n1f)
+        rows[i] = b + ix * n1i + iy if inside else outside
+    for i in range(m):
+        row = rows[i]
+        tx = txs[i]
+        ty = tys[i]
+        txy = tx * ty
+        mean = table[row, 0] + table[row, 1] * tx
+        mean = mean + table[row, 2] * ty
+        mean = mean + table[row, 3] * txy
+        std = table[row, 4] + table[row, 5] * tx
+        std = std + table[row, 6] * ty
+        std = std + table[row, 7] * txy
+        ll[i] = mean
+        sd[i] = std
+    for i in range(m):
+        z = (reading - ll[i]) / sd[i]
+        ll[i] = (_F32_HALF_NEG * z) * z - log32(sd[i])
+
+
+@njit(**JIT)
+def calibrated_log_likelihood(off, lo, inv, n1, base, table, reading, ll):  # pragma: no cover - compiled
+    """The calibrated sensor model's log-likelihoods for k envs at once (bilinear lookup, Gaussian term).
+
+    Stands for ``CalibratedSensorModel.log_likelihood`` (``mean_std``, then
+    ``gaussian_log_likelihood``) in float32 (per env ``e``, particle ``i``)::
+
+        fx = (off_x − lo) · inv;  fy = (off_y − lo) · inv     # off = particle − position.astype(float32)
+        inside = (fx ≥ 0) & (fx ≤ n1) & (fy ≥ 0) & (fy ≤ n1)
+        ix = min(int(fx), n1 − 1);  iy = min(int(fy), n1 − 1);  tx = fx − ix;  ty = fy − iy
+        c = coef[ix·n1 + iy if inside else n1²]                       # 8 float32 coefficients
+        mean = c0 + c1·tx + c2·ty + c3·tx·ty;  std = c4 + c5·tx + c6·ty + c7·tx·ty
+        z = (float32(reading) − mean) / std;  ll = −0.5·z·z − log32(std)
+
+    Three passes per env, so that the two without the table gather vectorise: the cell index and
+    (tx, ty) of every particle; the gather and the two bilinear sums; the Gaussian term. ``fx`` is
+    clamped to [−1, n1 + 1] before the integer conversion (the conversion is then in range; ``ix`` is
+    the same wherever the particle is inside, and outside the coefficients of ``tx``, ``ty`` are 0,
+    so any finite value gives the same result).
+
+    Args:
+        off: (k, 2, M) float32 sensor-model offsets (target hypothesis − carriage), coordinate-major
+            and C-contiguous (so that the first pass vectorises), mm.
+        lo: (k,) float32 grid origin, mm.
+        inv: (k,) float32 inverse grid step, 1/mm.
+        n1: (k,) int64 cells per axis.
+        base: (k,) int64 first row of each env's coefficients in ``table``.
+        table: (rows, 8) float32 stacked coefficients (each env's last row: outside the grid).
+        reading: (k,) float32 readings, V.
+        ll: (k, M) float32 output, log-likelihoods up to the constant −½ log 2π.
+    """
+    k, _, m = off.shape
+    sd = np.empty(m, dtype=np.float32)
+    rows = np.empty(m, dtype=np.int32)
+    txs = np.empty(m, dtype=np.float32)
+    tys = np.empty(m, dtype=np.float32)
+    for e in range(k):
+        _calibrated_ll_one(off[e, 0], off[e, 1], _ZERO, _ZERO, _ONE, lo[e], inv[e], n1[e], base[e], table,
+                           reading[e], ll[e], sd, rows, txs, tys)
+
+
+@njit(**JIT)
+def calibration_tables(samples, min_std, mean_out, std_out):  # pragma: no cover - compiled
+    """Per grid point mean and sample std (ddof = 1, floored at ``min_std``) of calibration readings.
+
+    Sequential float64 sums over the samples (the calibrated sensor model and the vector env's
+    per-episode calibration both call this, so both get the same bits).
+
+    Args:
+        samples: (S, n, n) float64 readings, V (S ≥ 2).
+        min_std: floor of the std, V.
+        mean_out: (n, n) float64 output, mean per point, V.
+        std_out: (n, n) float64 output, floored std per point, V.
+    """
+    s, nx, ny = samples.shape
+    fs = np.float64(s)
+    for a in range(nx):
+        for b in range(ny):
+            acc = samples[0, a, b]
+            for t in range(1, s):
+                acc += samples[t, a, b]
+            mu = acc / fs
+            ss = 0.0
+            for t in range(s):
+                d = samples[t, a, b] - mu
+                ss += d * d
+            sd = np.sqrt(ss / (fs - 1.0))
+            mean_out[a, b] = mu
+            std_out[a, b] = sd if sd > min_std else min_std
+
+
+@njit(**JIT)
+def _cell_coefficients(t, a, b, out, r, col):  # pragma: no cover - compiled
+    """``t00, t10 − t00, t01 − t00, t11 − t10 − t01 + t00`` of cell (a, b) of ``t`` into ``out[r, col:col + 4]``."""
+    v00 = t[a, b]
+    v10 = t[a + 1, b]
+    v01 = t[a, b + 1]
+    v11 = t[a + 1, b + 1]
+    out[r, col] = v00
+    out[r, col + 1] = v10 - v00
+    out[r, col + 2] = v01 - v00
+    out[r, col + 3] = v11 - v10 - v01 + v00
+
+
+@njit(**JIT)
+def bilinear_coefficients(mean, std, outside_std, out):  # pragma: no cover - compiled
+    """Per-cell bilinear coefficients of the mean and std tables, and the "outside the grid" row.
+
+    Row ``a·n1 + b`` holds, for each table ``t`` (mean, then std), ``t00, t10 − t00, t01 − t00,
+    t11 − t10 − t01 + t00`` (value = c0 + c1·tx + c2·ty + c3·tx·ty in the cell); the last row is
+    ``(0, 0, 0, 0, outside_std, 0, 0, 0)`` (no target: mean 0 V). ``out`` may be float32 (cast on store).
+
+    Args:
+        mean: (n, n) float64 mean table, V.
+        std: (n, n) float64 std table, V.
+        outside_std: std outside the grid, V.
+        out: (n1² + 1, 8) output, n1 = n − 1.
+    """
+    n1 = mean.shape[0] - 1
+    for a in range(n1):
+        for b in range(n1):
+            _cell_coefficients(mean, a, b, out, a * n1 + b, 0)
+            _cell_coefficients(std, a, b, out, a * n1 + b, 4)
+    last = n1 * n1
+    for c in range(8):
+        out[last, c] = 0.0
+    out[last, 4] = outside_std
