@@ -11,20 +11,35 @@ Algorithm 1 (paper): for every particle ``x_m`` (a target hypothesis) and every 
 
 Particle ``m`` votes for the option with the lowest variance; the option with the most votes wins.
 
-**Expectation instead of a random resample.** Step 4–5 as written give a random variance. We use
-its expectation: resampling ``M`` particles from the weighted cloud gives a population variance
-whose expectation is ``(M − 1)/M`` times the *weighted* variance ``Σ w_i |x_i − x̄_w|²`` (multinomial
-resampling; systematic resampling has the same mean and less spread). The factor is the same for
-every option, so ``argmin`` over options is that of the weighted variance, which we compute exactly
-(and the paper's post-resampling 1 mm jitter adds the same constant 2 mm² to every option). This is
-Algorithm 1 "exact in expectation", without the sampling noise of a single resample per vote.
+**The random resample per vote (step 4).** Resampling M particles from the re-weighted cloud
+("roulette wheel", §4.1.2) makes the variance of step 5 a random variable: each voter's ballot is the
+argmin over options of one draw per option. That randomness is part of the algorithm. Most voters of
+a wide belief are *blind* — their predicted reading is ≈ 0 V at every option, so their re-weighted
+clouds barely differ between options; with one resample each, their near-tied ballots scatter over
+the options and the few informed voters (near the sensor, whose options really differ) decide the
+plurality. Replacing the random variance by its expectation makes every blind voter vote alike, for
+whichever option has the marginally lowest expected variance (often "stay", or toward a wall), and
+they out-vote the informed ones. ``vote`` selects the form:
 
-**Vectorisation** (DESIGN §10). With ``z = (z_mc − μ_ic)/σ_ic`` the weight is
-``w_i/σ_ic · exp(−z²/2)`` (``w_i`` the belief's prior weights), so for each option the voters ×
-particles matrix ``E = exp(−z²/2)`` times the (M, 4) matrix
-``F = [g, g·x, g·y, g·|x|²]``, ``g = w/σ``, gives all the sums the weighted variance needs in one
-BLAS call: ``var = S₃/S₀ − (S₁² + S₂²)/S₀²`` (coordinates centred on the cloud mean first, so the
-float32 sums do not cancel). ``E`` is built in chunks of ``chunk_rows`` voters (a chunk stays in
+* ``"resample"`` (default): the resampled variance drawn from its distribution. The population
+  variance of M multinomial draws from weights ``w`` is ``s² = (1/M)Σ|d_j|² − |d̄|²`` (d = x − x̄_w);
+  it is a mean of M i.i.d. terms, so (central limit, M = 2500) ``s² ≈ (M−1)/M·v + √((μ₄ − v²)/M)·Z``,
+  ``Z ~ N(0, 1)`` per voter and option, with ``v = E_w|d|²`` and ``μ₄ = E_w|d|⁴`` computed exactly from
+  the same weighted sums. Its distribution matches the literal resample (tested against
+  :func:`~electroloc_gym.baselines.min_variance_reference.multinomial_resampled_variances`).
+* ``"multinomial"``: the literal roulette-wheel resample (``Generator.multinomial`` counts per voter
+  and option) — exact, ≈ 50× slower.
+* ``"expected"``: ``E[s²] = (M − 1)/M · v`` — the argmin of the expectation. Not Algorithm 1; kept for
+  comparison (``min-var[vote=expected]``).
+
+The 1 mm jitter after resampling adds the same 2 mm² to every option and is left out.
+
+**Vectorisation.** With ``z = (z_mc − μ_ic)/σ_ic`` the weight is ``w_i/σ_ic · exp(−z²/2)``
+(``w_i`` the belief's prior weights), so for each option the voters × particles matrix
+``E = exp(−z²/2)`` times the (M, K) matrix of moment features ``F = g·[1, x, y, x², y², xy, |x|²x,
+|x|²y, |x|⁴]``, ``g = w/σ``, gives every weighted moment up to the fourth in one BLAS call
+(coordinates centred on the cloud mean first, so the float32 sums do not cancel; ``"expected"``
+needs only the first four columns). ``E`` is built in chunks of ``chunk_rows`` voters (a chunk stays in
 cache), in float32, with the exponent clamped at ``exp_floor`` (−60): ``exp(−60) ≈ 10⁻²⁶`` is
 negligible beside the voter's own weight (its own ``z`` is exactly 0, so ``S₀ ≥ g_m > 0``), and the
 clamp keeps float32 ``exp`` out of denormals, which are many times slower. At M = 2500, C = 16 that
@@ -32,13 +47,12 @@ is 10⁸ exponentials per decision; ``n_voters`` lets a random subset of particl
 replacement from the agent's generator each step) vote, e.g. 256: every particle is still weighted,
 only fewer ballots are counted (``benchmarks/minvar.py`` shows the choice rarely changes).
 
-:func:`literal_predicted_variances` is a line-by-line loop implementation of the same quantity (one
-sensor-model call per particle, ``math.exp``), used by the tests on small M as the reference.
+:mod:`electroloc_gym.baselines.min_variance_reference` holds the line-by-line loop form and the literal
+resample, the tests' references.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -48,12 +62,19 @@ from electroloc_gym.baselines.agent import BaselineAgent, move_bounds_mm, sample
 
 __all__ = [
     "MinVarianceAgent",
+    "VOTES",
+    "weighted_moments",
     "predicted_variances",
-    "literal_predicted_variances",
+    "resampled_variances",
     "count_votes",
     "option_means_stds",
     "choose_voters",
 ]
+
+#: The forms of Algorithm 1's step 4–5 (see the module docstring).
+VOTES = ("resample", "multinomial", "expected")
+#: Columns of the moment features: 1, x, y, x², y², xy, |x|²x, |x|²y, |x|⁴.
+N_MOMENTS = 9
 
 
 def option_means_stds(sensor_model: Any, particles: NDArray, positions_mm: NDArray) -> tuple[NDArray, NDArray]:
@@ -76,19 +97,21 @@ def choose_voters(rng: np.random.Generator, n_particles: int, n_voters: int | No
     return np.sort(rng.choice(n_particles, size=n_voters, replace=False))
 
 
-def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDArray, std_V: NDArray,
-                        voters: NDArray[np.intp], *, chunk_rows: int = 128, exp_floor: float = -60.0,
-                        kernel: str = "auto", expanded_max_exponent: float = 1000.0) -> NDArray[np.float64]:
-    """Expected post-update variance (trace, mm²) for every voter and option — vectorised Algorithm 1.
+def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArray, std_V: NDArray,
+                     voters: NDArray[np.intp], *, n_moments: int = N_MOMENTS, chunk_rows: int = 128,
+                     exp_floor: float = -60.0, kernel: str = "auto",
+                     expanded_max_exponent: float = 1000.0) -> NDArray[np.float64]:
+    """Normalised weighted moments (V, C, K) of the cloud re-weighted by each voter's reading at each option.
 
-    Two float32 kernels build the (voters × M) exponent ``−z²/2`` of each option:
+    Step 3 of Algorithm 1, vectorised: the weights of particle i for voter v and option c are
+    ``w_i/σ_ci · exp(−(μ_cv − μ_ci)²/(2σ_ci²))``. Two float32 kernels build the (voters × M) exponent:
 
     * ``"difference"``: ``((a_v − b_i)·k_i)²`` element by element (6 passes over the block);
     * ``"expanded"``: ``−k_i²a_v² + 2k_i²b_i·a_v − k_i²b_i²`` as one rank-3 matrix product (3
       passes), ≈ 1.5× faster. Its float32 rounding error in the exponent is ≈ 3·ε₃₂·max(|a·k|²),
       so ``"auto"`` uses it only when max (|μ − centre|/σ)²/2 ≤ ``expanded_max_exponent`` (1000:
-      exponent error ≤ 2·10⁻⁴, i.e. weights within 0.02 %), which holds for every preset with the
-      fitted signal; saturated, very sharp models fall back to ``"difference"``.
+      exponent error ≤ 2·10⁻⁴, i.e. weights within 0.02 %); saturated, very sharp models fall back
+      to ``"difference"``.
 
     Args:
         particles: (M, 2) particle positions, mm, or (C, M, 2) positions after each option's move
@@ -97,16 +120,20 @@ def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDA
         mean_V: (C, M) sensor-model mean of each particle's reading under each option, V.
         std_V: (C, M) sensor-model std, V (> 0).
         voters: (V,) indices of the voting particles.
+        n_moments: 4 (1, x, y, |x|²: enough for the variance) or 9 (up to |x|⁴).
         chunk_rows: voters per block of the (voters × M) likelihood matrix.
         exp_floor: clamp of the exponent −z²/2 (keeps float32 exp out of denormals).
         kernel: ``"auto"``, ``"difference"`` or ``"expanded"``.
         expanded_max_exponent: the ``"auto"`` switch, see above.
 
     Returns:
-        (V, C) weighted variance of the cloud after option c's simulated reading z_vc = mean_V[c, v].
+        (V, C, K) moments E_w[f] of the features (1, x, y, |x|², …) with coordinates in mm relative to
+        the prior cloud's weighted mean; column 0 is the weights' total (not normalised).
     """
     if kernel not in ("auto", "difference", "expanded"):
         raise ValueError(f"kernel must be 'auto', 'difference' or 'expanded', got {kernel!r}")
+    if n_moments not in (4, N_MOMENTS):
+        raise ValueError(f"n_moments must be 4 or {N_MOMENTS}, got {n_moments!r}")
     x = np.asarray(particles, dtype=np.float64)
     n_options, m = mean_V.shape
     if x.shape not in ((m, 2), (n_options, m, 2)) or np.shape(std_V) != mean_V.shape:
@@ -118,7 +145,12 @@ def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDA
     f32 = np.float32
     inv_s = 1.0 / np.asarray(std_V, dtype=np.float64)                          # (C, M)
     g = inv_s * w                                                             # prior × Gaussian 1/σ
-    feats = np.stack([g, g * xc[..., 0], g * xc[..., 1], g * r2], axis=-1).astype(f32)  # (C, M, 4)
+    cx, cy = xc[..., 0], xc[..., 1]
+    if n_moments == 4:
+        cols = [g, g * cx, g * cy, g * r2]
+    else:
+        cols = [g, g * cx, g * cy, g * cx * cx, g * cy * cy, g * cx * cy, g * r2 * cx, g * r2 * cy, g * r2 * r2]
+    feats = np.stack(np.broadcast_arrays(*cols), axis=-1).astype(f32)         # (C, M, K)
     mu64 = np.asarray(mean_V, dtype=np.float64)
     mu64 = mu64 - 0.5 * (mu64.max(axis=1, keepdims=True) + mu64.min(axis=1, keepdims=True))  # z is shift-free
     half_k2 = 0.5 * inv_s**2                                                  # z²/2 = (a − b)²·k²/2
@@ -126,7 +158,7 @@ def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDA
         kernel = "expanded" if float(np.max(mu64**2 * half_k2)) <= expanded_max_exponent else "difference"
     voters = np.asarray(voters, dtype=np.intp)
     n_vot = voters.size
-    sums = np.empty((n_options, n_vot, 4), dtype=f32)
+    sums = np.empty((n_options, n_vot, n_moments), dtype=f32)
     rows = max(1, min(int(chunk_rows), n_vot))
     buf = np.empty((rows, m), dtype=f32)
     floor = f32(exp_floor)
@@ -161,43 +193,53 @@ def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDA
                 np.negative(d, out=d)
                 np.exp(d, out=d)
                 np.matmul(d, fc, out=sums[c, r0:r1])
-    s = sums.astype(np.float64)
-    s0 = s[..., 0]
-    var = s[..., 3] / s0 - (s[..., 1] ** 2 + s[..., 2] ** 2) / s0**2
-    return np.maximum(var, 0.0).T                                             # (V, C)
-
-
-def literal_predicted_variances(sensor_model: Any, particles: NDArray, weights: NDArray | None,
-                                positions_mm: NDArray, voters: NDArray[np.intp]) -> NDArray[np.float64]:
-    """Reference: Algorithm 1 written as loops over options, voters and particles (slow; small M only).
-
-    Per option, one sensor-model call per particle (its predicted mean and std from that carriage
-    position); then, per voter, Gaussian likelihoods of the voter's predicted reading with
-    ``math.exp`` for every particle and the weighted (expected post-resampling) variance, in float64.
-    Same inputs and result layout as :func:`predicted_variances` (which takes precomputed means/stds).
-    """
-    x = np.asarray(particles)
-    m = x.shape[0]
-    w_prior = [1.0 / m] * m if weights is None else [float(v) for v in weights]
-    px = [float(v) for v in x[:, 0]]
-    py = [float(v) for v in x[:, 1]]
-    out = np.zeros((len(voters), len(positions_mm)))
-    for c, pos in enumerate(positions_mm):
-        p = np.asarray(pos, dtype=x.dtype)
-        mus, sds = [], []
-        for i in range(m):                                                   # (1) move, per particle
-            mu_i, sd_i = sensor_model.mean_std((x[i] - p)[None, :])
-            mus.append(float(mu_i[0]))
-            sds.append(float(sd_i[0]))
-        for vi, mi in enumerate(voters):
-            z = mus[int(mi)]                                                  # (2) simulated reading
-            ws = [w_prior[i] * math.exp(-0.5 * ((z - mus[i]) / sds[i]) ** 2) / sds[i] for i in range(m)]  # (3)
-            tot = sum(ws)
-            mx = sum(ws[i] * px[i] for i in range(m)) / tot
-            my = sum(ws[i] * py[i] for i in range(m)) / tot
-            var = sum(ws[i] * ((px[i] - mx) ** 2 + (py[i] - my) ** 2) for i in range(m))  # (4–5) expected
-            out[vi, c] = var / tot
+    s = sums.astype(np.float64).transpose(1, 0, 2)                           # (V, C, K)
+    out = s / s[..., :1]
+    out[..., 0] = s[..., 0]
     return out
+
+
+def _variance(mom: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Trace of the covariance, mm², from the moments (either layout)."""
+    m2 = mom[..., 1] ** 2 + mom[..., 2] ** 2
+    second = mom[..., 3] if mom.shape[-1] == 4 else mom[..., 3] + mom[..., 4]
+    return np.maximum(second - m2, 0.0)
+
+
+def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDArray, std_V: NDArray,
+                        voters: NDArray[np.intp], **kwargs: Any) -> NDArray[np.float64]:
+    """Weighted variance (trace, mm²) of the re-weighted cloud (V, C): the ``"expected"`` vote's score.
+
+    ``E[s²]`` after resampling M particles is ``(M − 1)/M`` times this for every option, so the argmin
+    is the same. Arguments as :func:`weighted_moments` (``kwargs``: its keyword options).
+    """
+    return _variance(weighted_moments(particles, weights, mean_V, std_V, voters, n_moments=4, **kwargs))
+
+
+def resampled_variances(moments: NDArray[np.float64], n_resample: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    """One draw per voter and option of the variance (mm²) after resampling ``n_resample`` particles.
+
+    ``s² = (1/M)Σ|d_j|² − |d̄|²`` over M roulette-wheel draws is, to the central limit, normal with mean
+    ``(M − 1)/M·v`` and variance ``(μ₄ − v²)/M`` (``v = E_w|d|²``, ``μ₄ = E_w|d|⁴``, d = x − x̄_w).
+
+    Args:
+        moments: (V, C, 9) from :func:`weighted_moments`.
+        n_resample: M, the resampled cloud's size (the belief's particle count).
+        rng: the agent's generator (one standard normal per voter and option).
+    """
+    mom = np.asarray(moments, dtype=np.float64)
+    if mom.shape[-1] != N_MOMENTS:
+        raise ValueError(f"moments must have {N_MOMENTS} columns (weighted_moments(..., n_moments=9))")
+    mx, my = mom[..., 1], mom[..., 2]
+    exx, eyy, exy, erx, ery, er4 = (mom[..., k] for k in range(3, 9))
+    mm = mx * mx + my * my
+    v = np.maximum(exx + eyy - mm, 0.0)
+    # E|x − m|⁴ expanded in the centred moments: |d|⁴ = (|x|² − 2x·m + |m|²)².
+    mu4 = (er4 - 4.0 * (erx * mx + ery * my) + 4.0 * (mx * mx * exx + 2.0 * mx * my * exy + my * my * eyy)
+           + 2.0 * (exx + eyy) * mm - 3.0 * mm * mm)
+    sd = np.sqrt(np.maximum(mu4 - v * v, 0.0) / n_resample)
+    z = rng.standard_normal(v.shape)
+    return np.maximum((n_resample - 1) / n_resample * v + sd * z, 0.0)
 
 
 def count_votes(variances: NDArray) -> tuple[int, NDArray[np.int64]]:
@@ -211,17 +253,19 @@ def count_votes(variances: NDArray) -> tuple[int, NDArray[np.int64]]:
 
 
 class MinVarianceAgent(BaselineAgent):
-    """Greedy minimum expected variance by particle voting (paper §4.1.3 policy #2, Algorithm 1).
+    """Greedy minimum variance by particle voting (paper §4.1.3 policy #2, Algorithm 1).
 
     Reads ``env.unwrapped.belief`` (particles, weights), ``.sensor_model`` (``mean_std``),
     ``.position_mm`` and ``.allowed_box_mm``; never the true target.
 
     Args:
-        seed: seed or generator for the option draws and the voter subset.
+        seed: seed or generator for the option draws, the voter subset and the resampling draws.
         n_options: options per step including "stay" (paper: 16).
         n_voters: number of particles that vote (a random subset each step); None or ≥ M: all.
-            Default 256 (DESIGN §10: ≈ 35 ms instead of ≈ 330 ms per decision at M = 2500; the
-            benchmark statistics do not change beyond noise, see ``benchmarks/minvar.py``).
+            Default 256 (≈ 10× cheaper than all 2500; ``benchmarks/minvar.py`` measures how often the
+            choice changes).
+        vote: ``"resample"`` (Algorithm 1, default), ``"multinomial"`` (the literal resample, slow) or
+            ``"expected"`` (the argmin of the expected variance); see the module docstring.
         chunk_rows: voters per block of the vectorised vote.
         exp_floor: clamp of the Gaussian exponent.
 
@@ -233,18 +277,22 @@ class MinVarianceAgent(BaselineAgent):
     name = "min-var"
 
     def __init__(self, seed: int | np.random.Generator | None = None, n_options: int = 16,
-                 n_voters: int | None = 256, chunk_rows: int = 128, exp_floor: float = -60.0) -> None:
+                 n_voters: int | None = 256, vote: str = "resample", chunk_rows: int = 128,
+                 exp_floor: float = -60.0) -> None:
         super().__init__(seed)
         if isinstance(n_options, bool) or not isinstance(n_options, int) or n_options < 1:
             raise ValueError(f"n_options must be an integer ≥ 1, got {n_options!r}")
         if n_voters is not None and (isinstance(n_voters, bool) or not isinstance(n_voters, int) or n_voters < 1):
             raise ValueError(f"n_voters must be an integer ≥ 1 or None (all particles vote), got {n_voters!r}")
+        if vote not in VOTES:
+            raise ValueError(f"vote must be one of {list(VOTES)}, got {vote!r}")
         if isinstance(chunk_rows, bool) or not isinstance(chunk_rows, int) or chunk_rows < 1:
             raise ValueError(f"chunk_rows must be an integer ≥ 1, got {chunk_rows!r}")
         if not (isinstance(exp_floor, (int, float)) and -80.0 <= exp_floor < 0):
             raise ValueError(f"exp_floor must be in [-80, 0) (float32 exp underflows below ≈ -87), got {exp_floor!r}")
         self.n_options = n_options
         self.n_voters = n_voters
+        self.vote = vote
         self.chunk_rows = chunk_rows
         self.exp_floor = float(exp_floor)
         self.last_votes: NDArray[np.int64] | None = None
@@ -258,19 +306,24 @@ class MinVarianceAgent(BaselineAgent):
         weights = belief.weights
         uniform = bool(np.all(weights == weights[0]))
         voters = choose_voters(self.rng, particles.shape[0], self.n_voters)
-        if hasattr(env, "predicted_reading_model"):
-            # The env's own motion rule and frame (ElectroLoc-v0: the target is static; the global
-            # env: the hypotheses are the robot's own position and move with it).
-            mean, std = env.predicted_reading_model(particles, options)
-            moved = env.predicted_particles_mm(particles, options)
+        # The env's own motion rule and frame (ElectroLoc-v0: the target is static; the global env: the
+        # hypotheses are the robot's own position and move with it).
+        mean, std = env.predicted_reading_model(particles, options)
+        moved = env.predicted_particles_mm(particles, options)
+        prior = None if uniform else weights
+        opts = {"chunk_rows": self.chunk_rows, "exp_floor": self.exp_floor}
+        if self.vote == "expected":
+            var = predicted_variances(moved, prior, mean, std, voters, **opts)
+        elif self.vote == "resample":
+            var = resampled_variances(weighted_moments(moved, prior, mean, std, voters, **opts),
+                                      particles.shape[0], self.rng)
         else:
-            mean, std = option_means_stds(env.sensor_model, particles, env.position_mm + options)
-            moved = particles
-        var = predicted_variances(moved, None if uniform else weights, mean, std, voters,
-                                  chunk_rows=self.chunk_rows, exp_floor=self.exp_floor)
+            from electroloc_gym.baselines.min_variance_reference import multinomial_resampled_variances
+
+            var = multinomial_resampled_variances(moved, prior, mean, std, voters, self.rng)
         best, votes = count_votes(var)
         self.last_votes, self.last_options_mm = votes, options
         return options[best]
 
     def __repr__(self) -> str:
-        return f"MinVarianceAgent(n_options={self.n_options}, n_voters={self.n_voters})"
+        return f"MinVarianceAgent(n_options={self.n_options}, n_voters={self.n_voters}, vote={self.vote!r})"

@@ -5,7 +5,7 @@ Prints, for M = 2500 particles and C = 16 options on belief states taken from re
 * the decision time with all particles voting and with ``--voters`` (256) voting, for both float32
   kernels ("difference", "expanded"), beside the numpy float32 ``exp`` floor (M·C·voters
   exponentials at this machine's measured exp throughput) and their ratio to it;
-* the literal per-particle loop (:func:`baselines.min_variance.literal_predicted_variances`) timed on
+* the literal per-particle loop (:func:`electroloc_gym.baselines.min_variance_reference.literal_predicted_variances`) timed on
   a small M and scaled by (2500/M)² (M·M·C likelihoods in Python), and the speed-up;
 * how often 256 voters choose the same option as all 2500 (and, when they differ, how much worse the
   chosen option's all-voter vote count is).
@@ -34,10 +34,10 @@ from electroloc_gym.baselines.agent import make_agent, move_bounds_mm, sample_op
 from electroloc_gym.baselines.min_variance import (  # noqa: E402
     choose_voters,
     count_votes,
-    literal_predicted_variances,
     option_means_stds,
     predicted_variances,
 )
+from electroloc_gym.baselines.min_variance_reference import literal_predicted_variances  # noqa: E402
 
 
 def best_of(fn, repeats: int = 5) -> float:
