@@ -3,7 +3,13 @@
 Units: lengths in millimetres (mm), potentials in volts (V), fields in V/mm, conductivities in
 µS/cm. Every function is vectorised over arbitrary leading shapes.
 
-Geometry (DESIGN §3, paper §2.2, §6.7, Appendix A): the carriage carries two emitters at
+Numerical form: the array expressions use only IEEE-exact operations (+ − × ÷ and √, each correctly
+rounded), never ``pow``: ``r**-1.5`` is written ``1/(r·√r)``. numpy evaluates ``pow`` through
+CPU-specific SIMD code whose last bit differs between CPUs and between an array's SIMD body and its
+tail, so a reading would depend on the machine and on how many envs are stepped together; with
+exact operations every element gets the same bits however it is batched (docs/design.md).
+
+Geometry (paper §2.2, §6.7, Appendix A): the carriage carries two emitters at
 ``p + (±L/2, 0, 0)`` and two sensing electrodes ``S1 = p + (0, +L/2, 0)``,
 ``S2 = p + (0, -L/2, 0)``, all in the plane z = 0. A target sphere of radius A sits below with its
 centre at ``z = -(A + E + O)`` (electrode radius E = 1 mm, clearance O = 2 mm).
@@ -113,7 +119,7 @@ def emitter_field(
     """Electric field E_f = −∇φ (V/mm) at points ``x_mm`` (..., 3), App. A Eq. 7."""
     x = np.asarray(x_mm, dtype=float)
     dp, dn, rp, rn = _point_charges(x, np.asarray(emitter_pos_mm, float), np.asarray(emitter_neg_mm, float))
-    return emitter_voltage_V * electrode_radius_mm * (dp / rp**3 - dn / rn**3)
+    return emitter_voltage_V * electrode_radius_mm * (dp / (rp * rp * rp) - dn / (rn * rn * rn))
 
 
 def sphere_perturbation(
@@ -131,7 +137,7 @@ def sphere_perturbation(
     r2 = np.sum(d * d, axis=-1)
     dot = np.sum(np.asarray(field_at_center_V_per_mm, float) * d, axis=-1)
     a = np.asarray(radius_mm, float)
-    return np.asarray(chi, float) * a**3 * dot / r2**1.5
+    return np.asarray(chi, float) * (a * a * a) * dot / (r2 * np.sqrt(r2))
 
 
 def cylinder_perturbation(
@@ -141,7 +147,7 @@ def cylinder_perturbation(
     chi2: ArrayLike,
     field_at_axis_V_per_mm: ArrayLike,
 ) -> FloatArray:
-    """Perturbation δV (V) of a vertical infinite cylinder: the 2-D analogue of Eq. 4 (DESIGN §3.2).
+    """Perturbation δV (V) of a vertical infinite cylinder: the 2-D analogue of Eq. 4 (docs/design.md, "Physics").
 
     ``δV(s) = χ₂ a² E_f(c)·(s − c)/|s − c|²`` where c is the closest point of the (vertical) axis
     to s, i.e. only the horizontal (x, y) components enter.
@@ -151,7 +157,8 @@ def cylinder_perturbation(
     e = np.asarray(field_at_axis_V_per_mm, float)[..., :2]
     d = s - c
     r2 = np.sum(d * d, axis=-1)
-    return np.asarray(chi2, float) * np.asarray(radius_mm, float) ** 2 * np.sum(e * d, axis=-1) / r2
+    a = np.asarray(radius_mm, float)
+    return np.asarray(chi2, float) * (a * a) * np.sum(e * d, axis=-1) / r2
 
 
 def differential_perturbation(
@@ -165,8 +172,8 @@ def differential_perturbation(
 ) -> FloatArray:
     """δV(S1) − δV(S2) (V, at the electrodes, before amplification) for a sphere at ``offsets_mm``.
 
-    Fast path of Eq. 4 + Eq. 7 written per coordinate column (DESIGN §10): this is the hot loop of
-    every particle update.
+    Eq. 4 + Eq. 7 written per coordinate column (the analytic sensor model evaluates it on every
+    particle), with exact operations only (module docstring).
 
     Args:
         offsets_mm: (..., 2) horizontal target position relative to the carriage centre, mm.
@@ -180,8 +187,14 @@ def differential_perturbation(
     Returns:
         Array of shape (...) in volts.
     """
-    return _differential_dipole(offsets_mm, chi * radius_mm**3, depth_mm, 1.5, spacing_mm, emitter_voltage_V,
+    return _differential_dipole(offsets_mm, chi * (radius_mm * radius_mm * radius_mm), depth_mm, 1.5, spacing_mm, emitter_voltage_V,
                                 electrode_radius_mm)
+
+
+def _inverse_power(t: NDArray, power: float) -> NDArray:
+    """``t ** −power`` for ``power`` 1.5 (a point dipole) or 1 (a line dipole) with exact operations only."""
+    one = t.dtype.type(1.0)
+    return one / (t * np.sqrt(t)) if power == 1.5 else one / t
 
 
 def _differential_dipole(
@@ -208,8 +221,8 @@ def _differential_dipole(
     xp = x - h
     xn = x + h
     y2z2 = y * y + z2
-    ip = (xp * xp + y2z2) ** dtype.type(-1.5)
-    inn = (xn * xn + y2z2) ** dtype.type(-1.5)
+    ip = _inverse_power(xp * xp + y2z2, 1.5)
+    inn = _inverse_power(xn * xn + y2z2, 1.5)
     k = dtype.type(emitter_voltage_V * electrode_radius_mm)
     ex = k * (xp * ip - xn * inn)
     eyz = k * (ip - inn)  # E_y = eyz * y, E_z = eyz * (-depth)
@@ -217,8 +230,8 @@ def _differential_dipole(
     x2z2 = x * x + z2
     d1 = h - y
     d2 = -h - y
-    r1 = (x2z2 + d1 * d1) ** dtype.type(-power)
-    r2 = (x2z2 + d2 * d2) ** dtype.type(-power)
+    r1 = _inverse_power(x2z2 + d1 * d1, power)
+    r2 = _inverse_power(x2z2 + d2 * d2, power)
     common = -ex * x - eyz * z2  # E·(s-c) without the y term: E_x(-x) + E_z(+depth) = -ex x - eyz depth²
     dot1 = common + eyz * y * d1
     dot2 = common + eyz * y * d2
@@ -236,10 +249,10 @@ def differential_line_perturbation(
 ) -> FloatArray:
     """δV(S1) − δV(S2) (V) of a vertical cylinder whose axis top sits ``depth_mm`` below the electrodes.
 
-    The 2-D analogue of Eq. 4 (DESIGN §3.2), ``χ₂ a² E_f(c)·(s − c)/|s − c|²``, evaluated with the
+    The 2-D analogue of Eq. 4 (docs/design.md, "Physics"), ``χ₂ a² E_f(c)·(s − c)/|s − c|²``, evaluated with the
     same column-wise fast path as :func:`differential_perturbation`; float32 in, float32 out.
     """
-    return _differential_dipole(offsets_mm, chi2 * radius_mm**2, depth_mm, 1.0, spacing_mm, emitter_voltage_V,
+    return _differential_dipole(offsets_mm, chi2 * (radius_mm * radius_mm), depth_mm, 1.0, spacing_mm, emitter_voltage_V,
                                 electrode_radius_mm)
 
 
@@ -249,7 +262,7 @@ def differential_line_perturbation(
 
 
 def eq5_single_detector(r: ArrayLike, a: float, e: float, chi: float) -> FloatArray:
-    """Dimensionless perturbation ν = δV/V_e of Eq. 5 (clean form, DESIGN §3.4).
+    """Dimensionless perturbation ν = δV/V_e of Eq. 5 (paper §3.3, Eq. 5, in a cleaned-up form).
 
     Single detector at the origin, emitters at (±½, 0, 0), target at (r/√2, r/√2, 0); all lengths
     divided by the emitter spacing L.
@@ -258,10 +271,11 @@ def eq5_single_detector(r: ArrayLike, a: float, e: float, chi: float) -> FloatAr
     s2 = np.sqrt(2.0)
     P = 1.0 + 2.0 * s2 * r + 4.0 * r * r
     M = 1.0 - 2.0 * s2 * r + 4.0 * r * r
-    N1 = (s2 - 4.0 * s2 * r * r + 16.0 * r**3) * np.sqrt(M)
-    N2 = (-s2 + 4.0 * s2 * r * r + 16.0 * r**3) * np.sqrt(P)
-    D = r * r * P**1.5 * M**1.5
-    return -2.0 * a**3 * chi * e * (N1 - N2) / D
+    r3 = r * r * r
+    N1 = (s2 - 4.0 * s2 * r * r + 16.0 * r3) * np.sqrt(M)
+    N2 = (-s2 + 4.0 * s2 * r * r + 16.0 * r3) * np.sqrt(P)
+    D = r * r * (P * np.sqrt(P)) * (M * np.sqrt(M))
+    return -2.0 * (a * a * a) * chi * e * (N1 - N2) / D
 
 
 def _last_crossing(r: FloatArray, g: FloatArray, func) -> float:
@@ -359,7 +373,7 @@ def fit_signal_scale(
 ) -> float:
     """Smallest ``signal_scale`` whose model detection distance reaches ``measured_distance_mm``.
 
-    DESIGN §3.3. Because R_d(s) = max{R : s·|Δ(R)| ≥ kσ} is non-decreasing in s, the smallest such
+    Paper §6.7, Table 3. Because R_d(s) = max{R : s·|Δ(R)| ≥ kσ} is non-decreasing in s, the smallest such
     s is ``kσ / max_{R ≥ R_meas} |Δ(R)|``. When R_meas lies on a monotone part of the near branch the
     maximum is at R_meas itself; when R_meas lies in the gap around the EEV's zero crossing on the
     45° line, the maximum is the peak of the far branch, i.e. the scale at which the detection

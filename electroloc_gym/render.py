@@ -76,7 +76,8 @@ def plot_eev(condition: Condition, ax: Any = None, threshold_sigmas: float = 2.0
 
 
 def _map_eev_values(scene: Any, sensor_model: str, seed: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    from electroloc_gym.scene import make_map_sensor_model, map_eev
+    from electroloc_gym.scene import map_eev
+    from electroloc_gym.sensor_models.map import make_map_sensor_model
 
     grid, phi = map_eev(scene)
     if sensor_model == "calibrated":

@@ -4,13 +4,13 @@ The paper's §6.5: "six cylinders of different diameters and conductivities were
 with x and y coordinates within ±80 mm"; the robot localises itself relative to the map origin using
 the measured EEV of that layout (Fig. 14) as prior knowledge.
 
-Physics (DESIGN §3.2). Every object becomes an induced dipole in the emitters' field evaluated at one
-point ``c`` of the object, and the perturbations of all objects **superpose** (no mutual
-polarisation, no tank walls — the paper's uniform-field assumption):
+Physics (paper Eq. 4; docs/design.md, "Physics"). Every object becomes an induced dipole in the
+emitters' field evaluated at one point ``c`` of the object, and the perturbations of all objects
+**superpose** (no mutual polarisation, no tank walls — the paper's uniform-field assumption):
 
 * sphere of radius a (paper Eq. 4): ``δV(s) = χ a³ E_f(c)·(s − c)/|s − c|³``, ``χ = (σ_t − σ_w)/(σ_t + 2σ_w)``,
   centre ``c`` at depth ``a + E + O`` below the electrode plane (as the single-target presets).
-* vertical cylinder of radius a (the 2-D analogue, DESIGN §3.2): ``δV(s) = χ₂ a² E_f(c)·(s − c)/|s − c|²``,
+* vertical cylinder of radius a (the 2-D analogue of Eq. 4): ``δV(s) = χ₂ a² E_f(c)·(s − c)/|s − c|²``,
   ``χ₂ = (σ_t − σ_w)/(σ_t + σ_w)``, with ``c`` the point of the cylinder's axis closest to the sensor.
   Modelling choice: the cylinders stand on the tank floor and end, like the spheres, 2 mm (O) below
   the electrodes (radius E) with a rounded (hemispherical) top, so the top of the axis — the point
@@ -25,27 +25,10 @@ polarisation, no tank walls — the paper's uniform-field assumption):
   :func:`electroloc_gym.physics.cylinder_perturbation` (tested).
 
 The reading is ``Φ = clip(s·G·Σ_k (δV_k(S1) − δV_k(S2)) + ε, ±V_sat)``, ε ~ N(0, (G·σ_s)²), exactly as
-for one sphere (DESIGN §3.3), with one ``signal_scale`` for the whole scene.
+for one sphere (:mod:`electroloc_gym.sensor`), with one ``signal_scale`` for the whole scene.
 
-Sensor models (DESIGN §5, "the map's EEV"). The agent's model of the map keeps the sensor models'
-convention ``offsets = target − carriage`` with the **map origin** as the target, i.e.
-``offsets = −carriage`` (carriage position in the map frame). :func:`make_map_sensor_model` builds the
-same :class:`~electroloc_gym.sensor_models.AnalyticSensorModel` /
-:class:`~electroloc_gym.sensor_models.CalibratedSensorModel` (4 mm grid of carriage positions over the
-allowed box, 10 noisy readings per point, bilinear interpolation) as the single-target env, fed by
-this scene's reading instead of one sphere's, plus a **position blur** (default
-:data:`DEFAULT_POSITION_BLUR_MM` = 2 mm): the model's std becomes ``sqrt(std² + (|∇mean|·b)²)``. The
-map is far steeper than a single sphere's EEV (median |∇Φ| ≈ 1.7 σ per mm, 90th percentile ≈ 4 σ
-per mm) while 2500 particles over the ±80 mm box sit ≈ 3.2 mm apart, so with the bare amplifier
-noise the likelihood band of a reading is much narrower than the particle spacing: resampling keeps
-a handful of particles, none near the truth, and the filter "succeeds" at a wrong place (random
-actions, calibrated model, 60 trials: b = 0: 11 of 58 successes more than 10 mm off; b = 1 mm: 1 of
-57; b = 2 mm: 0 of 57). b = 2 mm was chosen from that run, before any Table-2 comparison; it is of
-the order of the particle spacing and of the paper's per-step jitter (1 mm per axis, √2 mm radial).
-Sensitivity (Table 2 protocol, 50 trials, calibrated; successes, mean/median error mm, mean/median
-steps): b = 1: rnd-wlk 49, 1.9/0.9, 10.7/9; min-var 50, 3.4/1.0, 5.6/5. b = 1.5: 49, 1.3/1.1,
-12.3/10; 50, 2.4/1.4, 6.2/5. b = 2: 48, 1.4/1.1, 13.3/11; 50, 3.9/2.0, 6.4/5. b = 3: 47, 1.9/1.6,
-14.6/14; 50, 3.7/2.4, 6.9/6. ``position_blur_mm=0`` gives the bare model.
+The agent's sensor models of the map (analytic and calibrated, with a position blur) are in
+:mod:`electroloc_gym.sensor_models.map`; the map's plots in :mod:`electroloc_gym.render`.
 
 The benchmark layout (:data:`BENCHMARK_SCENE`, ``layout="benchmark"``) is fixed in code: six cylinders
 drawn once by :func:`random_cylinder_layout` with seed :data:`BENCHMARK_LAYOUT_SEED` (a test checks the
@@ -61,7 +44,6 @@ The carriage's allowed box is ±80 mm (the region the cylinders were dispersed i
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -79,13 +61,6 @@ from electroloc_gym.conditions import (
     Target,
     Water,
 )
-from electroloc_gym.sensor_models import (
-    DEFAULT_CALIBRATION,
-    SENSOR_MODEL_NAMES,
-    AnalyticSensorModel,
-    CalibratedSensorModel,
-    gaussian_log_likelihood,
-)
 
 __all__ = [
     "SHAPES",
@@ -97,12 +72,7 @@ __all__ = [
     "random_cylinder_layout",
     "BENCHMARK_LAYOUT_SEED",
     "BENCHMARK_SCENE",
-    "benchmark_scene",
-    "make_map_sensor_model",
-    "MapAnalyticSensorModel",
-    "DEFAULT_POSITION_BLUR_MM",
     "map_eev",
-    "plot_map_eev",
 ]
 
 SHAPES = ("sphere", "cylinder")
@@ -194,10 +164,10 @@ class Scene:
         name: a label.
         objects: the objects (any mix of spheres and cylinders, conductors and insulators).
         water: the water.
-        amplifier: gain and noise (DESIGN §3.3).
+        amplifier: gain G and input noise σ_s (paper Table 3).
         allowed_half_width_mm: the carriage (and the belief over it) stays within ±this box, mm.
         start_half_width_mm: the carriage starts uniformly within ±this box, mm.
-        signal_scale: dimensionless factor on the noise-free amplified signal (DESIGN §3.3).
+        signal_scale: dimensionless factor on the noise-free amplified signal (:mod:`electroloc_gym.sensor`).
         geometry: carriage geometry and emitter drive; ``clearance_mm`` is the gap between the
             electrodes and the top of every object.
     """
@@ -246,10 +216,6 @@ class Scene:
         """
         return obj.radius_mm + self.geometry.electrode_radius_mm + self.geometry.clearance_mm
 
-    def contrasts(self) -> NDArray[np.float64]:
-        """χ (spheres) / χ₂ (cylinders) of every object, (K,)."""
-        return np.array([o.contrast(self.water.conductivity_uScm) for o in self.objects])
-
     def replace(self, **changes: Any) -> Scene:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
@@ -282,7 +248,7 @@ class Scene:
         return np.stack([self._one(o, p) for o in self.objects], axis=-1)
 
     def perturbation(self, carriage_mm: ArrayLike) -> NDArray:
-        """Σ_k (δV_k(S1) − δV_k(S2)) (V, unamplified): the superposition (DESIGN §3.2), shape (...)."""
+        """Σ_k (δV_k(S1) − δV_k(S2)) (V, unamplified): the superposition of the objects' dipoles, shape (...)."""
         p = np.asarray(carriage_mm)
         if p.dtype not in (np.float32, np.float64):
             p = p.astype(np.float64)
@@ -403,15 +369,10 @@ _BENCHMARK_OBJECTS: tuple[tuple[tuple[float, float], float, str], ...] = (
 
 
 def _fresh_scene(name: str, objects: tuple[SceneObject, ...]) -> Scene:
-    # Fresh water and the fresh-water 12.7 mm amplifier (Table 3, DESIGN §4): G = 191, σ_s = 0.25 mV.
+    # Fresh water and the fresh-water 12.7 mm amplifier (paper Table 3): G = 191, σ_s = 0.25 mV.
     return Scene(name=name, objects=objects, water=Water(FRESH_WATER_uScm),
                  amplifier=Amplifier(gain=191.0, noise_rms_mV=0.25), allowed_half_width_mm=80.0,
                  start_half_width_mm=70.0, signal_scale=1.0, geometry=_DEFAULT_GEOMETRY)
-
-
-def benchmark_scene() -> Scene:
-    """The fixed benchmark map of ``ElectroLocGlobal-v0`` (module docstring)."""
-    return BENCHMARK_SCENE
 
 
 def _benchmark() -> Scene:
@@ -423,75 +384,8 @@ BENCHMARK_SCENE: Scene = _benchmark()
 
 
 # ------------------------------------------------------------------------------------------
-# The map's sensor models and EEV (Fig. 14)
+# The map's EEV (Fig. 14)
 # ------------------------------------------------------------------------------------------
-#: Default position blur of the map's sensor models, mm (module docstring).
-DEFAULT_POSITION_BLUR_MM = 2.0
-
-
-class MapAnalyticSensorModel(AnalyticSensorModel):
-    """The map's analytic model: the scene's noise-free reading, std ``sqrt((G·σ_s)² + (|∇Φ|·b)²)``.
-
-    ``|∇Φ|`` (V/mm) by central differences of ±0.25 mm over carriage positions (4 extra map
-    evaluations; ``position_blur_mm=0`` skips them and gives the bare std G·σ_s).
-
-    Args:
-        scene: the map.
-        position_blur_mm: position blur b, mm (≥ 0).
-    """
-
-    _H_MM = 0.25
-
-    def __init__(self, scene: Scene, position_blur_mm: float = DEFAULT_POSITION_BLUR_MM) -> None:
-        super().__init__(scene.as_condition(), expected_fn=scene.expected_reading_at_offsets)
-        self.scene = scene
-        self.position_blur_mm = _finite("position_blur_mm", position_blur_mm, 0.0, inclusive=True)
-
-    def mean_std(self, offsets_mm: ArrayLike) -> tuple[NDArray, NDArray]:
-        off = np.asarray(offsets_mm)
-        if off.dtype not in (np.float32, np.float64):
-            off = off.astype(np.float64)
-        mean = self._expected(off)
-        if self.position_blur_mm == 0:
-            return mean, np.full_like(mean, self.noise_std_V)
-        h = off.dtype.type(self._H_MM)
-        ex = np.array([h, 0], dtype=off.dtype)
-        ey = np.array([0, h], dtype=off.dtype)
-        gx = (self._expected(off + ex) - self._expected(off - ex)) / (2 * h)
-        gy = (self._expected(off + ey) - self._expected(off - ey)) / (2 * h)
-        b = off.dtype.type(self.position_blur_mm)
-        std = np.sqrt(off.dtype.type(self.noise_std_V) ** 2 + (gx * gx + gy * gy) * (b * b))
-        return mean, std
-
-    def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
-        mean, std = self.mean_std(offsets_mm)
-        return gaussian_log_likelihood(reading_V, mean, std)
-
-
-@functools.lru_cache(maxsize=32)
-def _cached_map_calibration(scene: Scene, seed: int, position_blur_mm: float) -> CalibratedSensorModel:
-    protocol = DEFAULT_CALIBRATION.replace(position_blur_mm=position_blur_mm)
-    return CalibratedSensorModel(scene.as_condition(), seed, protocol, reading_fn=scene.noisy_reading_at_offsets)
-
-
-def make_map_sensor_model(kind: str, scene: Scene, seed: int = 0,
-                          position_blur_mm: float = DEFAULT_POSITION_BLUR_MM
-                          ) -> MapAnalyticSensorModel | CalibratedSensorModel:
-    """The agent's model of the map's reading, ``offsets_mm = −carriage`` (map origin − carriage).
-
-    ``"analytic"``: the scene's noise-free reading (:class:`MapAnalyticSensorModel`). ``"calibrated"``:
-    the paper's procedure (§5.3) over carriage positions — a 4 mm grid over the allowed box (41×41
-    for ±80 mm), 10 noisy readings per point, bilinear interpolation; seeded and cached per
-    (scene, seed, blur). Both widen the std by the position blur (module docstring).
-    """
-    blur = _finite("position_blur_mm", position_blur_mm, 0.0, inclusive=True)
-    if kind == "analytic":
-        return MapAnalyticSensorModel(scene, blur)
-    if kind == "calibrated":
-        return _cached_map_calibration(scene, int(seed), blur)
-    raise ValueError(f"sensor_model must be one of {list(SENSOR_MODEL_NAMES)}, got {kind!r}")
-
-
 def map_eev(scene: Scene, step_mm: float = 1.0, half_span_mm: float | None = None
             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The map's EEV (Fig. 14): (grid_mm, Φ[ix, iy]) noise-free reading with the carriage at (grid[ix], grid[iy])."""
@@ -499,45 +393,3 @@ def map_eev(scene: Scene, step_mm: float = 1.0, half_span_mm: float | None = Non
     grid = np.arange(-h, h + 1e-9, _finite("step_mm", step_mm, 0.0))
     gx, gy = np.meshgrid(grid, grid, indexing="ij")
     return grid, scene.expected_reading(np.stack([gx, gy], axis=-1))
-
-
-def plot_map_eev(scene: Scene, ax: Any = None, sensor_model: str = "analytic", seed: int = 0) -> Any:
-    """Draw the map's EEV like Fig. 14: ±10 V grey scale, 1 V contours, objects, origin; returns the axes.
-
-    Args:
-        scene: the map.
-        ax: matplotlib axes (a new figure if None).
-        sensor_model: "analytic" (noise-free physics on a 1 mm grid) or "calibrated" (the agent's
-            calibrated grid, interpolated on a 1 mm grid).
-        seed: calibration seed.
-    """
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle
-
-    grid, phi = map_eev(scene)
-    if sensor_model == "calibrated":
-        gx, gy = np.meshgrid(grid, grid, indexing="ij")
-        phi = make_map_sensor_model("calibrated", scene, seed).mean_std(-np.stack([gx, gy], axis=-1))[0]
-    elif sensor_model != "analytic":
-        raise ValueError(f"sensor_model must be one of {list(SENSOR_MODEL_NAMES)}, got {sensor_model!r}")
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6, 5))
-    # Fig. 14: negative white to positive black (the paper's scale is ±10 V; ours is ±max|Φ| rounded
-    # up to a volt, so that a map that does not saturate stays visible); dotted contours every 1 V.
-    lim = float(min(scene.saturation_V, max(1.0, np.ceil(np.abs(phi).max()))))
-    im = ax.pcolormesh(grid, grid, phi.T, cmap="gray_r", vmin=-lim, vmax=lim, shading="auto")
-    levels = np.arange(-lim + 1.0, lim, 1.0)
-    ax.contour(grid, grid, phi.T, levels=levels, colors="tab:blue", linewidths=0.4, linestyles=":")
-    for o in scene.objects:
-        color = "tab:orange" if o.contrast(scene.water.conductivity_uScm) > 0 else "tab:cyan"
-        ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color=color, lw=1.2))
-        ax.annotate(f"{o.material} Ø{o.diameter_mm:g}", o.xy_mm, fontsize=6, ha="center", va="center", color=color)
-    ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=8, mew=1.5)
-    ax.set_xlim(grid[0], grid[-1])
-    ax.set_ylim(grid[0], grid[-1])
-    ax.set_aspect("equal")
-    ax.set_xlabel("carriage x (mm, map frame)")
-    ax.set_ylabel("carriage y (mm, map frame)")
-    ax.set_title(f"map EEV {scene.name} ({sensor_model}); orange: conductors, cyan: insulators", fontsize=9)
-    ax.figure.colorbar(im, ax=ax, label="expected reading Φ (V)")
-    return ax

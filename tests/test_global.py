@@ -20,11 +20,11 @@ from electroloc_gym.scene import (
     Scene,
     SceneObject,
     cylinder_differential_perturbation,
-    make_map_sensor_model,
     map_eev,
     random_cylinder_layout,
 )
 from electroloc_gym.sensor import expected_reading
+from electroloc_gym.sensor_models.map import make_map_sensor_model
 
 GLOBAL_ID = "ElectroLocGlobal-v0"
 

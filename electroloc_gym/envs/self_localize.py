@@ -11,14 +11,8 @@ from numpy.typing import NDArray
 from electroloc_gym.envs.base import MAX_STEP_MM, ParticleFilterEnv
 from electroloc_gym.envs.observation import belief_observation, condition_descriptor, raw_observation
 from electroloc_gym.render import FrameRenderer
-from electroloc_gym.scene import (
-    BENCHMARK_SCENE,
-    DEFAULT_POSITION_BLUR_MM,
-    Scene,
-    make_map_sensor_model,
-    map_eev,
-    random_cylinder_layout,
-)
+from electroloc_gym.scene import BENCHMARK_SCENE, Scene, map_eev, random_cylinder_layout
+from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM, make_map_sensor_model
 from electroloc_gym.sensor import electrode_positions_mm
 
 __all__ = ["GlobalLocalizationEnv", "LAYOUTS"]

@@ -680,7 +680,8 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
         max_episode_steps: int | None = None,
     ) -> None:
         from electroloc_gym.envs.self_localize import GlobalLocalizationEnv
-        from electroloc_gym.scene import BENCHMARK_SCENE, DEFAULT_POSITION_BLUR_MM, MapAnalyticSensorModel, Scene
+        from electroloc_gym.scene import BENCHMARK_SCENE, Scene
+        from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM, MapAnalyticSensorModel
 
         mode = _check_vector_args(num_envs, render_mode, autoreset_mode, max_episode_steps)
         if isinstance(layout, str) and layout == "random":
@@ -709,7 +710,7 @@ class GlobalLocalizationVectorEnv(ElectroLocVectorEnv):
 
     def _reset_one(self, i: int, g: np.random.Generator) -> None:
         """GlobalLocalizationEnv.reset's draws: calibration seed, start position, particles."""
-        from electroloc_gym.scene import make_map_sensor_model
+        from electroloc_gym.sensor_models.map import make_map_sensor_model
 
         c = self._pool[0]
         cal_seed = self.calibration_seed if self.calibration_seed is not None else int(g.integers(2**31 - 1))

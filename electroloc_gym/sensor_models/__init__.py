@@ -23,6 +23,7 @@ from electroloc_gym.sensor_models.calibrated import (
     noise_free_calibration_grid,
 )
 from electroloc_gym.sensor_models.likelihood import SensorModel, gaussian_log_likelihood
+from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM, MapAnalyticSensorModel, make_map_sensor_model
 
 __all__ = [
     "SensorModel",
@@ -39,4 +40,7 @@ __all__ = [
     "calibration_statistics",
     "make_sensor_model",
     "noise_free_calibration_grid",
+    "DEFAULT_POSITION_BLUR_MM",
+    "MapAnalyticSensorModel",
+    "make_map_sensor_model",
 ]
