@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -192,7 +191,8 @@ def test_saved_model_reproduces_actions_after_reload(tmp_path, frame_stack, obse
     model, venv = _in_process_model(frame_stack, observation)
     cfg = {"algo": "ppo", "frame_stack": frame_stack, "env_kwargs": {"observation": observation, "n_particles": 100}}
     save_model_dir(model, tmp_path / "m", cfg)
-    assert {p.name for p in (tmp_path / "m").iterdir()} == {"model.zip", "vecnormalize.pkl", "config.yml"}
+    assert {p.name for p in (tmp_path / "m").iterdir()} == {"model.zip", "config.yml", "policy.json",
+                                                            "policy.safetensors"}
     live = SB3Agent(model, obs_rms=venv.obs_rms, clip_obs=venv.clip_obs, epsilon=venv.epsilon,
                     frame_stack=frame_stack)
     loaded = load_policy(tmp_path / "m")
@@ -228,27 +228,24 @@ def test_batch_predict_equals_single_predict(tmp_path):
 def test_missing_and_corrupt_model_paths_give_clear_errors(tmp_path):
     with pytest.raises(ValueError, match="does not exist"):
         load_policy(tmp_path / "nothing.zip")
-    with pytest.raises(ValueError, match="without model.zip"):
+    with pytest.raises(ValueError, match="no policy.json"):
         load_policy(tmp_path)
+    with pytest.raises(ValueError, match="without model.zip"):
+        load_policy(tmp_path, trust_pickle=True)
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "model.zip").write_bytes(b"this is not a zip file")
-    with pytest.raises(ValueError, match="corrupt"):
+    with pytest.raises(ValueError, match="trust_pickle"):
         load_policy(bad)
-    # A valid model with corrupt normalisation statistics.
-    model, _ = _in_process_model()
-    good = tmp_path / "good"
-    save_model_dir(model, good, {"algo": "ppo"})
-    (good / "vecnormalize.pkl").write_bytes(b"\x80\x04garbage")
-    with pytest.raises(ValueError, match="normalisation statistics"):
-        load_policy(good)
-    # A zip that is not an SB3 model.
+    with pytest.raises(ValueError, match="corrupt"):
+        load_policy(bad, trust_pickle=True)
+    # A zip that is not an SB3 model (only read with trust_pickle).
     import zipfile
 
     with zipfile.ZipFile(tmp_path / "other.zip", "w") as zf:
         zf.writestr("hello.txt", "hi")
     with pytest.raises(ValueError, match="not a saved SB3 model|cannot load"):
-        load_policy(tmp_path / "other.zip")
+        load_policy(tmp_path / "other.zip", trust_pickle=True)
 
 
 # -------------------------------------------------------------------------- a real tiny run
@@ -258,7 +255,7 @@ def tiny_run(tmp_path_factory) -> Path:
     hp = tmp / "tiny.yml"
     hp.write_text(TINY_YAML)
     out = tmp / "tiny"
-    cmd = [sys.executable, "-m", "train", "--algo", "ppo", "--env", "ElectroLoc-v0",
+    cmd = [sys.executable, "-m", "electroloc_gym.train", "--algo", "ppo", "--env", "ElectroLoc-v0",
            "--env-kwargs", "condition=random", "observation=belief", "randomize_target=true", "n_particles=100",
            "sensor_model=analytic", "--timesteps", "256", "--n-envs", "2", "--seed", "1000",
            "--hyperparams", str(hp), "--out", str(out), "--eval-freq", "128", "--eval-episodes", "3",
@@ -269,20 +266,22 @@ def tiny_run(tmp_path_factory) -> Path:
 
 
 def test_tiny_training_run_writes_a_complete_run_dir(tiny_run):
-    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "args.json", "command.txt", "eval.csv",
-                 "summary.json", "best/model.zip", "checkpoints/step_128/model.zip"):
+    for name in ("model.zip", "policy.json", "policy.safetensors", "config.yml", "args.json", "command.txt",
+                 "eval.csv", "summary.json", "best/policy.json", "best/model.zip", "checkpoints/step_128/policy.json"):
         assert (tiny_run / name).is_file(), name
-    assert "python -m train --algo ppo" in (tiny_run / "command.txt").read_text()
-    assert "# training wall time (s):" in (tiny_run / "command.txt").read_text()
-    args = json.loads((tiny_run / "args.json").read_text())
-    assert args["seed"] == 1000 and args["env_kwargs"]["n_particles"] == 100
+    assert not list(tiny_run.rglob("*.pkl"))  # nothing pickled beside SB3's own zip
+    assert "python -m electroloc_gym.train --algo ppo" in (tiny_run / "command.txt").read_text()
+    assert "training wall time (s): " in (tiny_run / "command.txt").read_text()
+    (segment,) = json.loads((tiny_run / "args.json").read_text())["segments"]
+    assert segment["args"]["seed"] == 1000 and segment["args"]["env_kwargs"]["n_particles"] == 100
+    assert segment["status"] == "finished" and segment["timesteps_end"] >= 256
     rows = (tiny_run / "eval.csv").read_text().strip().splitlines()
     assert rows[0].startswith("timesteps,wall_time_s,episodes,success_rate,median_steps")
     assert len(rows) >= 3  # t = 0, 128, 256
     summary = json.loads((tiny_run / "summary.json").read_text())
     assert summary["timesteps"] >= 256
-    with (tiny_run / "vecnormalize.pkl").open("rb") as fh:
-        assert pickle.load(fh).obs_rms.mean.shape == (81,)
+    norm = json.loads((tiny_run / "policy.json").read_text())["normalization"]
+    assert norm["norm_obs"] and len(norm["obs_mean"]) == 81
 
 
 def test_tiny_model_loads_and_plays_an_episode(tiny_run):
@@ -296,11 +295,11 @@ def test_tiny_model_loads_and_plays_an_episode(tiny_run):
 
 
 def test_benchmark_accepts_the_tiny_model(tiny_run):
-    agent_mod = pytest.importorskip("electroloc_gym.baselines.agent")
-    if not hasattr(agent_mod, "make_agent"):
-        pytest.skip("baselines.agent.make_agent not available")
-    agent = agent_mod.make_agent(str(tiny_run))
-    assert isinstance(agent, agent_mod.Agent)
+    from electroloc_gym.baselines.agent import Agent
+    from electroloc_gym.bench.agents import make_bench_agent
+
+    agent = make_bench_agent(str(tiny_run))
+    assert isinstance(agent, Agent)
     assert agent.env_kwargs["observation"] == "belief"
 
 

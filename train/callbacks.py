@@ -1,6 +1,6 @@
 """Training callbacks: seeded evaluation (success, median steps, median error), checkpoints, atomic saves.
 
-The evaluation runs the *current* policy through :class:`train.policy.SB3Agent` — the very wrapper
+The evaluation runs the *current* policy through :class:`electroloc_gym.train.policy.SB3Agent` — the very wrapper
 the benchmark uses — on a fixed list of seeded episodes, so the numbers in ``eval.csv`` are
 comparable across a run and with the benchmark's metric definitions (steps = ``info["n_observations"]``,
 the observations fused, as the paper counts them).
@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import csv
 import io
-import pickle
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +23,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from electroloc_gym.fileio import atomic_write_bytes, atomic_write_text  # noqa: F401  (re-exported)
 from electroloc_gym.train.policy import SB3Agent
+from electroloc_gym.train.policy_format import export_policy, normalization_from_vecnormalize
 
 __all__ = [
     "EvalResult",
@@ -39,8 +39,27 @@ EVAL_CSV_FIELDS = ("timesteps", "wall_time_s", "episodes", "success_rate", "medi
                    "median_steps_success", "median_error_mm", "mean_error_mm")
 
 
-def save_model_dir(model: Any, folder: str | Path, config: Mapping[str, Any]) -> Path:
-    """Save ``model.zip``, ``vecnormalize.pkl`` (if the env is normalised) and ``config.yml``, atomically.
+def _observation_info(model: Any, config: Mapping[str, Any]) -> dict[str, Any]:
+    """What ``policy.json`` records about the observation and action layout, from the run config."""
+    env_kwargs = dict(config.get("env_kwargs") or {})
+    frame_stack = int(config.get("frame_stack", 1) or 1)
+    mode = env_kwargs.get("observation")
+    if mode is None:  # the env's default; infer it from the network's input size
+        from electroloc_gym.envs.observation import RAW_OBS_DIM
+
+        mode = "raw" if model.observation_space.shape[0] == RAW_OBS_DIM * frame_stack else "belief"
+    action_type = env_kwargs.get("action_type") or ("discrete" if hasattr(model.action_space, "n") else "continuous")
+    return {"env_id": config.get("env_id", "ElectroLoc-v0"), "mode": mode, "action_type": action_type,
+            "frame_stack": frame_stack, "env_kwargs": env_kwargs, "algo": config.get("algo")}
+
+
+def save_model_dir(model: Any, folder: str | Path, config: Mapping[str, Any], *,
+                   provenance: Mapping[str, Any] | None = None, evaluation: Mapping[str, Any] | None = None) -> Path:
+    """Save a model directory atomically: ``policy.safetensors`` + ``policy.json``, ``model.zip``, ``config.yml``.
+
+    The pickle-free pair is what this project loads (:mod:`electroloc_gym.train.policy_format`);
+    ``model.zip`` is SB3's own (pickle-based) file for SB3 users. No ``vecnormalize.pkl`` is written:
+    the observation statistics are in ``policy.json``.
 
     Returns:
         The folder.
@@ -50,11 +69,13 @@ def save_model_dir(model: Any, folder: str | Path, config: Mapping[str, Any]) ->
     buf = io.BytesIO()
     model.save(buf)
     atomic_write_bytes(d / "model.zip", buf.getvalue())
-    vn = model.get_vec_normalize_env()
-    if vn is not None:
-        # VecNormalize.__getstate__ drops the wrapped env, so this pickles the statistics only.
-        atomic_write_bytes(d / "vecnormalize.pkl", pickle.dumps(vn))
     atomic_write_text(d / "config.yml", yaml.safe_dump(dict(config), sort_keys=False))
+    prov = {**dict(provenance or {}), "timesteps": int(model.num_timesteps),
+            "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    prov.setdefault("seed", config.get("seed"))
+    export_policy(model, d, observation=_observation_info(model, config),
+                  normalization=normalization_from_vecnormalize(model.get_vec_normalize_env()),
+                  provenance=prov, evaluation=evaluation)  # last: policy.json names the weights it goes with
     return d
 
 
@@ -135,12 +156,19 @@ class SeededEvalCallback(BaseCallback):
         best_dir: model directory for the best model (None: do not save).
         config: the resolved run config written beside saved models.
         frame_stack: the policy's frame stack.
-        t0: wall-clock start of training (``time.time()``).
+        t0: wall-clock start of training (``time.time()``; a resumed run passes its start shifted back by
+            the earlier segments' wall time, so that ``wall_time_s`` counts the whole run).
+        best_mean_steps: the best score so far (a resumed run's, so that a worse model never replaces
+            its ``best/``); ``inf`` for a new run.
+        provenance: written into each saved model's ``policy.json``.
+        on_evaluate: called with the number of timesteps after each evaluation (run records).
     """
 
     def __init__(self, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int], eval_freq: int,
                  csv_path: str | Path, best_dir: str | Path | None, config: Mapping[str, Any],
-                 frame_stack: int = 1, t0: float | None = None, verbose: int = 1) -> None:
+                 frame_stack: int = 1, t0: float | None = None, verbose: int = 1, *,
+                 best_mean_steps: float = float("inf"), provenance: Mapping[str, Any] | None = None,
+                 on_evaluate: Callable[[int], None] | None = None) -> None:
         super().__init__(verbose)
         if eval_freq < 1:
             raise ValueError(f"eval_freq must be ≥ 1 env step, got {eval_freq}")
@@ -153,7 +181,10 @@ class SeededEvalCallback(BaseCallback):
         self.config = dict(config)
         self.frame_stack = frame_stack
         self.t0 = time.time() if t0 is None else t0
-        self.best_mean_steps = float("inf")
+        self.best_mean_steps = float(best_mean_steps)
+        self.best_timesteps: int | None = None
+        self.provenance = dict(provenance or {})
+        self.on_evaluate = on_evaluate
         self.history: list[dict[str, float]] = []
         self._last = -1
 
@@ -193,21 +224,27 @@ class SeededEvalCallback(BaseCallback):
                   f"{res.median_error_mm:4.2f} mm  ({row['wall_time_s']:.0f} s)", flush=True)
         if self.best_dir is not None and res.mean_steps <= self.best_mean_steps:
             self.best_mean_steps = res.mean_steps
+            self.best_timesteps = row["timesteps"]
             cfg = {**self.config, "eval": row}
-            save_model_dir(self.model, self.best_dir, cfg)
+            save_model_dir(self.model, self.best_dir, cfg, provenance=self.provenance, evaluation=row)
+        if self.on_evaluate is not None:
+            self.on_evaluate(int(self.num_timesteps))
         return res
 
 
 class ModelDirCheckpoint(BaseCallback):
     """Every ``save_freq`` env steps save a model directory ``<folder>/step_<N>/`` (resumable)."""
 
-    def __init__(self, save_freq: int, folder: str | Path, config: Mapping[str, Any], verbose: int = 0) -> None:
+    def __init__(self, save_freq: int, folder: str | Path, config: Mapping[str, Any], verbose: int = 0, *,
+                 provenance: Mapping[str, Any] | None = None, on_save: Callable[[int], None] | None = None) -> None:
         super().__init__(verbose)
         if save_freq < 1:
             raise ValueError(f"checkpoint_freq must be ≥ 1 env step, got {save_freq}")
         self.save_freq = int(save_freq)
         self.folder = Path(folder)
         self.config = dict(config)
+        self.provenance = dict(provenance or {})
+        self.on_save = on_save
         self._last = 0
 
     def _on_training_start(self) -> None:
@@ -216,7 +253,10 @@ class ModelDirCheckpoint(BaseCallback):
     def _on_step(self) -> bool:
         if self.num_timesteps - self._last >= self.save_freq:
             self._last = self.num_timesteps
-            d = save_model_dir(self.model, self.folder / f"step_{self.num_timesteps}", self.config)
+            d = save_model_dir(self.model, self.folder / f"step_{self.num_timesteps}", self.config,
+                               provenance=self.provenance)
+            if self.on_save is not None:
+                self.on_save(int(self.num_timesteps))
             if self.verbose:
                 print(f"[checkpoint] {d}", flush=True)
         return True

@@ -1,4 +1,4 @@
-"""Hyper-parameter files for ``python -m train`` (rl-zoo3 style, strict).
+"""Hyper-parameter files for ``python -m electroloc_gym.train`` (strict YAML, one section per env id).
 
 A file ``train/hyperparams/<algo>.yml`` maps env ids to hyper-parameters and may hold a ``default:``
 section that every env id inherits from (the env's own section wins, key by key)::
@@ -11,11 +11,14 @@ section that every env id inherits from (the env's own section wins, key by key)
       normalize: {norm_obs: true, norm_reward: false}
       shaping_coef: 1.0
 
-Every key must be either a keyword of the algorithm's constructor (``PPO(n_steps=...)``) or one of
+This is the project's own format, close to rl-zoo3's but not the same (rl-zoo3 has no ``default:``
+inheritance and no ``shaping_coef``; for rl-zoo3 itself see ``train/hyperparams/rl_zoo3/``). Every
+key must be either a keyword of the algorithm's constructor (``PPO(n_steps=...)``) or one of
 :data:`EXTRA_KEYS`; anything else (a typo such as ``n_step``) is rejected with an error naming the
-file, the section and the allowed keys — never silently ignored (DESIGN §9.5).
+file, the section and the allowed keys — never silently ignored. Values are checked against their
+documented ranges and ``policy_kwargs`` against the policy class (:mod:`electroloc_gym.train.validation`).
 
-Value conventions borrowed from rl-zoo3:
+Value conventions:
 
 * ``learning_rate: lin_3e-4`` — a linear schedule from 3e-4 down to 0 over training.
 * ``policy_kwargs: {net_arch: [128, 128], activation_fn: tanh}`` — the activation by name.
@@ -76,7 +79,7 @@ NORMALIZE_KEYS = ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma",
 # Constructor keywords the training script sets itself (never from YAML).
 _RESERVED = {"self", "env", "seed", "device", "verbose", "tensorboard_log", "_init_setup_model"}
 
-_ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")
+_ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu", "gelu", "silu")  # = policy_format.ACTIVATIONS
 
 
 class ConfigError(ValueError):
@@ -141,6 +144,10 @@ def load_hyperparams(path: str | Path, algo: str) -> dict[str, dict[str, Any]]:
             raise ConfigError(f"{p}: section {section!r} has unknown key(s) {unknown} for --algo {algo}; "
                               f"allowed: {sorted(allowed)}")
         _check_values(body, f"{p}: section {section!r}")
+        from electroloc_gym.train.validation import check_algo_values
+
+        data[section] = {**body, **check_algo_values({k: v for k, v in body.items() if k not in EXTRA_KEYS}, algo,
+                                                     f"{p}: section {section!r}")}
     return data
 
 
@@ -156,6 +163,12 @@ def resolve_hyperparams(path: str | Path, algo: str, env_id: str) -> dict[str, A
                           f"(sections: {sorted(data)})")
     out = copy.deepcopy(data.get("default", {}))
     out.update(copy.deepcopy(data.get(env_id, {})))
+    from electroloc_gym.train.validation import check_algo_values, check_policy_kwargs
+
+    where = f"{path}: section {env_id if env_id in data else 'default'!r}"
+    check_algo_values({k: v for k, v in out.items() if k not in EXTRA_KEYS}, algo, where)
+    if out.get("policy_kwargs"):
+        check_policy_kwargs(out["policy_kwargs"], algo, out.get("policy", "MlpPolicy"), where)
     return out
 
 

@@ -1,24 +1,25 @@
-"""A saved SB3 model as an agent the benchmark can run beside the paper's controllers.
+"""A trained policy as an agent the benchmark can run beside the paper's controllers.
 
-The agent protocol (shared with ``baselines/agent.py``, DESIGN §9.9)::
+The agent protocol (shared with the baseline controllers in ``electroloc_gym.baselines.agent``)::
 
     agent.env_kwargs                       # kwargs the policy needs in gym.make (observation, action_type)
     agent.reset(env)                       # after env.reset(), at each trial start
     action, state = agent.predict(obs, state=None, episode_start=None, deterministic=True)
 
 The benchmark passes raw env observations, so the agent applies what training put between the env
-and the network itself: the flat frame stack (``frame_stack`` in the run's config.yml) and the
-frozen VecNormalize observation statistics (``vecnormalize.pkl``). A recurrent policy keeps its LSTM
-state across ``predict`` calls; ``reset(env)`` clears it.
+and the network itself: the flat frame stack and the frozen observation-normalisation statistics.
+A recurrent policy keeps its LSTM state across ``predict`` calls; ``reset(env)`` clears it.
 
-A *model directory* holds ``model.zip`` and, written by ``python -m train``, ``config.yml`` and
-``vecnormalize.pkl`` (if normalisation was used). :func:`load_policy` accepts that directory or the
-zip file itself.
+:func:`load_policy` reads the project's pickle-free format (``policy.json`` + ``policy.safetensors``,
+:mod:`electroloc_gym.train.policy_format`): nothing in the model directory is unpickled or executed.
+SB3's own ``model.zip`` (and ``vecnormalize.pkl``) contain pickles — loading a file made by someone
+else runs their code — so they are read only with ``trust_pickle=True``, with a logged warning.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import pickle
 import zipfile
 from collections.abc import Mapping
@@ -29,20 +30,31 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-__all__ = ["SB3Agent", "load_policy", "resolve_model_path", "AGENT_ENV_KWARGS"]
+from electroloc_gym.train.policy_format import (
+    POLICY_JSON,
+    ObsNormalization,
+    PolicyFormatError,
+    build_policy,
+    read_export,
+)
+
+__all__ = ["SB3Agent", "load_policy", "resolve_model_path", "read_run_config", "AGENT_ENV_KWARGS"]
+
+logger = logging.getLogger(__name__)
 
 #: Env kwargs a policy depends on (the benchmark sets everything else: condition, target, seeds).
 AGENT_ENV_KWARGS = ("observation", "action_type")
 
 
 class SB3Agent:
-    """An SB3 model + its frozen observation pre-processing, behind the benchmark's agent protocol.
+    """An SB3 policy + its frozen observation pre-processing, behind the benchmark's agent protocol.
 
     Args:
-        model: a loaded SB3 / sb3-contrib algorithm.
-        obs_rms: VecNormalize's observation statistics (``mean``, ``var``) or None.
-        clip_obs: VecNormalize's clip on normalised observations.
-        epsilon: VecNormalize's epsilon.
+        model: an SB3 / sb3-contrib algorithm, or its policy network (``model.policy``) alone.
+        normalization: frozen observation statistics, or None (raw observations).
+        obs_rms: alternatively, VecNormalize's ``RunningMeanStd`` (``mean``, ``var``) …
+        clip_obs: … with VecNormalize's clip on normalised observations …
+        epsilon: … and its epsilon.
         frame_stack: number of stacked observations the network expects (1 = none).
         env_kwargs: env kwargs the policy needs (observation mode, action type).
         name: a label for tables.
@@ -52,6 +64,7 @@ class SB3Agent:
         self,
         model: Any,
         *,
+        normalization: ObsNormalization | None = None,
         obs_rms: Any | None = None,
         clip_obs: float = 10.0,
         epsilon: float = 1e-8,
@@ -61,26 +74,35 @@ class SB3Agent:
     ) -> None:
         if isinstance(frame_stack, bool) or not isinstance(frame_stack, int) or frame_stack < 1:
             raise ValueError(f"frame_stack must be an integer ≥ 1, got {frame_stack!r}")
-        self.model = model
+        if normalization is None and obs_rms is not None:
+            normalization = ObsNormalization(np.asarray(obs_rms.mean), np.asarray(obs_rms.var),
+                                             clip_obs=float(clip_obs), epsilon=float(epsilon))
+        self.policy = getattr(model, "policy", model)
         self.name = name
         self.env_kwargs: dict[str, Any] = dict(env_kwargs or {})
         self.frame_stack = frame_stack
-        self._obs_mean = None if obs_rms is None else np.asarray(obs_rms.mean, dtype=np.float64)
-        self._obs_std = None if obs_rms is None else np.sqrt(np.asarray(obs_rms.var, dtype=np.float64) + epsilon)
-        self._clip_obs = float(clip_obs)
-        self.recurrent = type(model).__name__ == "RecurrentPPO"
-        shape = model.observation_space.shape
+        self.normalization = normalization
+        self.recurrent = any(c.__name__ == "RecurrentActorCriticPolicy" for c in type(self.policy).__mro__)
+        shape = self.policy.observation_space.shape
         if len(shape) != 1 or shape[0] % frame_stack:
             raise ValueError(f"model observation shape {shape} does not fit frame_stack={frame_stack}")
+        if normalization is not None and normalization.mean.shape != tuple(shape):
+            raise ValueError(f"normalisation statistics of shape {normalization.mean.shape} do not fit the "
+                             f"policy's observation shape {tuple(shape)}")
         self.obs_dim = shape[0] // frame_stack
         self._stack: NDArray[np.float32] | None = None  # (n, k, d)
         self._state: Any = None
         self._fresh = True
-        self._numpy_actor = None if self.recurrent else _numpy_actor(model)
+        self._numpy_actor = None if self.recurrent else _numpy_actor(self.policy)
+
+    @property
+    def model(self) -> Any:
+        """The policy network (kept under this name for code written against SB3 models)."""
+        return self.policy
 
     def __repr__(self) -> str:
-        return (f"SB3Agent({type(self.model).__name__}, name={self.name!r}, frame_stack={self.frame_stack}, "
-                f"normalised={self._obs_mean is not None}, env_kwargs={self.env_kwargs})")
+        return (f"SB3Agent({type(self.policy).__name__}, name={self.name!r}, frame_stack={self.frame_stack}, "
+                f"normalised={self.normalization is not None}, env_kwargs={self.env_kwargs})")
 
     def reset(self, env: Any = None) -> None:
         """Start of a trial: clear the frame stack and the recurrent state (``env`` is not used)."""
@@ -103,8 +125,8 @@ class SB3Agent:
         self._stack = np.roll(self._stack, -1, axis=1)
         self._stack[:, -1] = obs
         x = self._stack.reshape(n, -1)
-        if self._obs_mean is not None:
-            x = np.clip((x - self._obs_mean) / self._obs_std, -self._clip_obs, self._clip_obs)
+        if self.normalization is not None:
+            x = self.normalization.apply(x)
         return x.astype(np.float32)
 
     def predict(
@@ -130,13 +152,13 @@ class SB3Agent:
             if episode_start is None:
                 episode_start = np.full(n, self._fresh, dtype=bool)
             st = self._state if state is None else state
-            action, st = self.model.predict(x, state=st, episode_start=np.asarray(episode_start, dtype=bool),
-                                            deterministic=deterministic)
+            action, st = self.policy.predict(x, state=st, episode_start=np.asarray(episode_start, dtype=bool),
+                                             deterministic=deterministic)
             self._state = st
         elif deterministic and self._numpy_actor is not None:
             action, st = self._numpy_actor(x), None
         else:
-            action, st = self.model.predict(x, deterministic=deterministic)
+            action, st = self.policy.predict(x, deterministic=deterministic)
         self._fresh = False
         return (action[0] if single else action), st
 
@@ -167,7 +189,7 @@ class _NumpyActor:
         return np.clip(h, self.low, self.high).astype(np.float32)
 
 
-def _numpy_actor(model: Any) -> _NumpyActor | None:
+def _numpy_actor(pol: Any) -> _NumpyActor | None:
     """A :class:`_NumpyActor` for a plain PPO/A2C MlpPolicy, or None when the policy is anything else."""
     try:
         import torch.nn as nn
@@ -176,7 +198,6 @@ def _numpy_actor(model: Any) -> _NumpyActor | None:
         from stable_baselines3.common.torch_layers import FlattenExtractor
     except ImportError:  # pragma: no cover
         return None
-    pol = getattr(model, "policy", None)
     if type(pol) is not ActorCriticPolicy or pol.squash_output or getattr(pol, "use_sde", False):
         return None
     if not isinstance(pol.pi_features_extractor, FlattenExtractor):
@@ -201,7 +222,7 @@ def _numpy_actor(model: Any) -> _NumpyActor | None:
 
 
 def resolve_model_path(path: str | Path) -> Path:
-    """``path`` (a model directory or a .zip) → the model zip file.
+    """``path`` (a model directory or a .zip) → SB3's model zip file.
 
     Raises:
         ValueError: no such file, or a directory without ``model.zip``.
@@ -219,8 +240,33 @@ def resolve_model_path(path: str | Path) -> Path:
     return p
 
 
+def read_run_config(folder: str | Path) -> dict[str, Any]:
+    """``folder/config.yml`` as a mapping ({} when absent), read with ``yaml.safe_load``.
+
+    Raises:
+        ValueError: not valid YAML or not a mapping.
+    """
+    cfg_path = Path(folder) / "config.yml"
+    if not cfg_path.is_file():
+        return {}
+    try:
+        cfg = yaml.safe_load(cfg_path.read_text(encoding="utf-8")) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{cfg_path} is not valid YAML: {exc}") from exc
+    if not isinstance(cfg, dict):
+        raise ValueError(f"{cfg_path} must be a mapping, got {type(cfg).__name__}")
+    return cfg
+
+
+def _config_normalises(cfg: Mapping[str, Any]) -> bool:
+    norm = cfg.get("normalize")
+    if norm is None or norm is False:
+        return False
+    return not (isinstance(norm, Mapping) and norm.get("norm_obs", True) is False)
+
+
 def _guess_algo(zip_path: Path) -> str:
-    """The algorithm of a saved SB3 zip from the module of its stored policy class."""
+    """The algorithm of a saved SB3 zip from the module of its stored policy class (plain JSON, no pickle)."""
     with zipfile.ZipFile(zip_path) as archive:
         data = json.loads(archive.read("data").decode())
     module = str(data.get("policy_class", {}).get("__module__", ""))
@@ -231,64 +277,115 @@ def _guess_algo(zip_path: Path) -> str:
     return "ppo"
 
 
-def load_policy(path: str | Path, *, device: str = "cpu", num_threads: int | None = 1) -> SB3Agent:
-    """Load a trained model (+ config.yml, vecnormalize.pkl beside it) as an :class:`SB3Agent`.
-
-    Args:
-        path: a model directory (with ``model.zip``) or the zip file.
-        device: torch device for inference ("cpu" is fastest for these small networks).
-        num_threads: if not None, ``torch.set_num_threads(num_threads)`` (DESIGN §10: one thread).
-
-    Raises:
-        ValueError: missing path, or a file that is not a loadable SB3 model / its stats.
-    """
-    zip_path = resolve_model_path(path)
-    folder = zip_path.parent
-    cfg: dict[str, Any] = {}
-    cfg_path = folder / "config.yml"
-    if cfg_path.is_file():
-        try:
-            cfg = yaml.safe_load(cfg_path.read_text()) or {}
-        except yaml.YAMLError as exc:
-            raise ValueError(f"{cfg_path} is not valid YAML: {exc}") from exc
-        if not isinstance(cfg, dict):
-            raise ValueError(f"{cfg_path} must be a mapping, got {type(cfg).__name__}")
-    try:
-        algo = str(cfg.get("algo") or _guess_algo(zip_path))
-    except (zipfile.BadZipFile, KeyError, json.JSONDecodeError, OSError) as exc:
-        raise ValueError(f"{zip_path} is not a saved SB3 model (corrupt or not a zip): {exc}") from exc
-
+def _set_threads(num_threads: int | None) -> None:
     if num_threads is not None:
         import torch
 
         torch.set_num_threads(num_threads)
+
+
+def _pickle_refusal(path: Path, what: str) -> ValueError:
+    return ValueError(
+        f"{what}: {path} has no {POLICY_JSON} (the pickle-free policy format). SB3's model.zip and "
+        f"vecnormalize.pkl contain pickles, which run code when loaded, so they are read only with "
+        f"trust_pickle=True (--trust-pickle) for files you trust; or convert a model you trust with "
+        f"`python -m electroloc_gym.train.export {path}`")
+
+
+def load_policy(path: str | Path, *, trust_pickle: bool = False, device: str = "cpu",
+                num_threads: int | None = 1) -> SB3Agent:
+    """Load a trained policy as an :class:`SB3Agent`.
+
+    By default only the pickle-free format is read: a model directory holding ``policy.json`` and
+    ``policy.safetensors`` (or the ``policy.json`` file, or the directory's ``model.zip``, which then
+    stands for its directory). Nothing is unpickled. A bare SB3 zip — and a directory with only
+    ``model.zip`` — needs ``trust_pickle=True``; it is then loaded by SB3 (pickle) with its
+    ``vecnormalize.pkl`` beside it, and a warning is logged.
+
+    Args:
+        path: a model directory, its ``policy.json``, or an SB3 ``.zip``.
+        trust_pickle: allow SB3's pickle-based files (only for files you trust: loading runs their code).
+        device: torch device for inference ("cpu" is fastest for these small networks).
+        num_threads: if not None, ``torch.set_num_threads(num_threads)`` (one thread per process).
+
+    Raises:
+        ValueError: missing path; a pickle-based model without ``trust_pickle``; a malformed
+            ``policy.json`` or weights file; or a model whose config says observations were
+            normalised while the statistics are missing.
+    """
+    p = Path(path)
+    if p.is_file() and p.name == POLICY_JSON:
+        p = p.parent
+    if not p.exists() and p.suffix != ".zip" and Path(f"{p}.zip").is_file():
+        p = Path(f"{p}.zip")
+    if not p.exists():
+        raise ValueError(f"model path {str(path)!r} does not exist (expected a model directory with "
+                         f"{POLICY_JSON}, or an SB3 .zip with trust_pickle=True)")
+    if p.is_file() and p.name == "model.zip" and (p.parent / POLICY_JSON).is_file():
+        p = p.parent  # our own model directory: its pickle-free files stand for the zip
+    if p.is_dir() and (p / POLICY_JSON).is_file():
+        return _load_export(p, device, num_threads)
+    if not trust_pickle:
+        raise _pickle_refusal(p, f"refusing to load {str(path)!r}")
+    return _load_pickled(resolve_model_path(p), device, num_threads)
+
+
+def _load_export(folder: Path, device: str, num_threads: int | None) -> SB3Agent:
+    export = read_export(folder)
+    cfg = read_run_config(folder)
+    if export.normalization is None:
+        if _config_normalises(cfg):
+            raise PolicyFormatError(f"{folder}/config.yml says observations were normalised, but {POLICY_JSON} "
+                                    f"has no normalisation statistics — refusing to run on raw observations")
+        if (folder / "vecnormalize.pkl").exists():
+            raise PolicyFormatError(f"{folder} has a vecnormalize.pkl (observations were normalised), but "
+                                    f"{POLICY_JSON} has no normalisation statistics — refusing to run on raw "
+                                    f"observations; re-export the model")
+    _set_threads(num_threads)
+    policy = build_policy(export, device)
+    return SB3Agent(policy, normalization=export.normalization, frame_stack=export.frame_stack,
+                    env_kwargs=export.env_kwargs, name=folder.name)
+
+
+def _load_pickled(zip_path: Path, device: str, num_threads: int | None) -> SB3Agent:
+    """SB3's own loader (cloudpickle) and ``vecnormalize.pkl`` (pickle): only for trusted files."""
+    logger.warning("loading %s with pickle (trust_pickle=True): a pickle-based model runs code from the file; "
+                   "load only files you trust", zip_path)
+    folder = zip_path.parent
+    cfg = read_run_config(folder) if zip_path.name == "model.zip" else {}
+    try:
+        algo = str(cfg.get("algo") or _guess_algo(zip_path))
+    except (zipfile.BadZipFile, KeyError, json.JSONDecodeError, UnicodeDecodeError, OSError) as exc:
+        raise ValueError(f"{zip_path} is not a saved SB3 model (corrupt or not a zip): {exc}") from exc
+    _set_threads(num_threads)
     from electroloc_gym.train.config import algo_class
 
     cls = algo_class(algo)
-    # Schedules are only needed to train further; replace them so loading never unpickles lambdas.
+    # Schedules are only needed to train further; replace them rather than unpickle them.
     custom = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
     try:
         model = cls.load(zip_path, device=device, custom_objects=custom)
     except Exception as exc:  # SB3 raises many kinds (BadZipFile, KeyError, RuntimeError, pickle errors)
         raise ValueError(f"cannot load {zip_path} as a {cls.__name__} model (corrupt file?): "
                          f"{type(exc).__name__}: {exc}") from exc
-
-    obs_rms, clip_obs, eps = None, 10.0, 1e-8
+    normalization = None
     vn_path = folder / "vecnormalize.pkl"
     if vn_path.is_file():
         try:
             with vn_path.open("rb") as fh:
-                vn = pickle.load(fh)
+                vn = pickle.load(fh)  # noqa: S301 - trust_pickle=True was given
             if getattr(vn, "norm_obs", True):
-                obs_rms = vn.obs_rms
-            clip_obs, eps = float(vn.clip_obs), float(vn.epsilon)
-        except Exception as exc:
+                normalization = ObsNormalization(np.asarray(vn.obs_rms.mean), np.asarray(vn.obs_rms.var),
+                                                 clip_obs=float(vn.clip_obs), epsilon=float(vn.epsilon))
+        except Exception as exc:  # noqa: BLE001
             raise ValueError(f"cannot read the normalisation statistics {vn_path}: "
                              f"{type(exc).__name__}: {exc}") from exc
-        if obs_rms is not None and np.shape(obs_rms.mean) != model.observation_space.shape:
-            raise ValueError(f"{vn_path} has statistics of shape {np.shape(obs_rms.mean)}, "
+        if normalization is not None and normalization.mean.shape != model.observation_space.shape:
+            raise ValueError(f"{vn_path} has statistics of shape {normalization.mean.shape}, "
                              f"the model expects {model.observation_space.shape}")
-
+    elif _config_normalises(cfg):
+        raise ValueError(f"{folder}/config.yml says observations were normalised, but {vn_path.name} is missing "
+                         f"— refusing to run on raw observations")
     frame_stack = int(cfg.get("frame_stack", 1) or 1)
     env_kwargs = {k: v for k, v in (cfg.get("env_kwargs") or {}).items() if k in AGENT_ENV_KWARGS}
     if "observation" not in env_kwargs:  # a bare zip: infer from the network's input size
@@ -298,5 +395,4 @@ def load_policy(path: str | Path, *, device: str = "cpu", num_threads: int | Non
     if "action_type" not in env_kwargs:
         env_kwargs["action_type"] = "discrete" if hasattr(model.action_space, "n") else "continuous"
     name = folder.name if zip_path.name == "model.zip" else zip_path.stem
-    return SB3Agent(model, obs_rms=obs_rms, clip_obs=clip_obs, epsilon=eps, frame_stack=frame_stack,
-                    env_kwargs=env_kwargs, name=name)
+    return SB3Agent(model, normalization=normalization, frame_stack=frame_stack, env_kwargs=env_kwargs, name=name)
