@@ -23,16 +23,16 @@ Attributes and optional hooks the benchmark runner understands:
 * ``layout: str`` (optional) — ``"table4"`` (default) or ``"table1"``: which of the paper's tables
   the agent's results belong to.
 
-:func:`make_agent` builds an agent from a name (``rnd-wlk``, ``min-var``, ``zero-crossing``), a name
-with keyword options in brackets (``min-var[n_voters=2500]``), or a path to a learned policy
-(``PATH.zip`` or a directory holding ``model.zip``), loaded by ``train.policy.load_policy``.
+:func:`make_agent` builds one of the paper's controllers from a name (``rnd-wlk``, ``min-var``,
+``zero-crossing``), optionally with keyword options in brackets (``min-var[n_voters=2500]``). Learned
+policies follow the same protocol; the benchmark's agent registry (:mod:`electroloc_gym.bench.agents`)
+loads them — the controllers never import the training package.
 """
 
 from __future__ import annotations
 
 import ast
 import re
-from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -44,7 +44,6 @@ __all__ = [
     "AGENT_REGISTRY",
     "make_agent",
     "parse_agent_spec",
-    "is_policy_path",
     "sample_options_mm",
     "move_bounds_mm",
     "MAX_STEP_MM",
@@ -56,7 +55,7 @@ MAX_STEP_MM = 10.0
 
 @runtime_checkable
 class Agent(Protocol):
-    """What the benchmark runner calls. Learned policies (``train.policy``) implement the same."""
+    """What the benchmark runner calls. Learned policies (``electroloc_gym.train.policy``) implement the same."""
 
     env_kwargs: dict[str, Any]
 
@@ -175,11 +174,6 @@ AGENT_REGISTRY: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
 _SPEC_RE = re.compile(r"^(?P<name>[A-Za-z0-9_\-]+)(\[(?P<opts>.*)\])?$")
 
 
-def is_policy_path(spec: str) -> bool:
-    """True when ``spec`` names a learned policy: ``*.zip`` or an existing directory (with model.zip)."""
-    return spec.endswith(".zip") or Path(spec).is_dir() or "/" in spec or spec.startswith(".")
-
-
 def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:
     """Split ``"min-var[n_voters=2500,n_options=16]"`` into ``("min-var", {"n_voters": 2500, ...})``.
 
@@ -189,7 +183,7 @@ def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:
     m = _SPEC_RE.match(spec.strip())
     if m is None:
         raise ValueError(f"agent spec {spec!r} is malformed; expected NAME or NAME[key=value,...] "
-                         f"with NAME in {list(AGENT_REGISTRY)}, or a path to a policy .zip")
+                         f"with NAME in {list(AGENT_REGISTRY)}")
     kwargs: dict[str, Any] = {}
     opts = m.group("opts")
     if opts:
@@ -204,55 +198,22 @@ def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:
     return m.group("name"), kwargs
 
 
-def _resolve_policy_path(spec: str) -> Path:
-    path = Path(spec).expanduser()
-    if path.is_dir():
-        zipped = path / "model.zip"
-        if not zipped.is_file():
-            raise ValueError(f"agent path {spec!r} is a directory without model.zip")
-        return zipped
-    if not path.is_file():
-        raise ValueError(f"agent path {spec!r} does not exist (expected a policy .zip or a directory "
-                         f"holding model.zip)")
-    return path
-
-
-def make_agent(spec: str, seed: int | np.random.Generator | None = None) -> Any:
-    """Build an agent from a registry name (optionally with options) or a learned-policy path.
+def make_agent(spec: str, seed: int | np.random.Generator | None = None) -> BaselineAgent:
+    """Build one of the paper's controllers from its name, optionally with options.
 
     Args:
-        spec: ``"rnd-wlk"``, ``"min-var"``, ``"zero-crossing"``, ``"min-var[n_voters=2500]"``, or a
-            path ``PATH.zip`` / a directory containing ``model.zip`` (loaded with
-            ``train.policy.load_policy``).
-        seed: seed of a baseline agent's own generator (ignored by learned policies).
+        spec: ``"rnd-wlk"``, ``"min-var"``, ``"zero-crossing"`` or e.g. ``"min-var[n_voters=2500]"``.
+        seed: seed of the agent's own generator.
 
     Raises:
-        ValueError: unknown name, bad options, or a missing / unloadable policy path (the message
-            names the path).
+        ValueError: an unknown name or bad options (the message lists the names).
     """
     if not isinstance(spec, str) or not spec.strip():
         raise ValueError(f"agent must be a non-empty string, got {spec!r}")
-    spec = spec.strip()
-    m = _SPEC_RE.match(spec)
-    if not (m and m.group("name") in AGENT_REGISTRY) and is_policy_path(spec):
-        path = _resolve_policy_path(spec)
-        try:
-            from electroloc_gym.train.policy import load_policy
-        except ImportError as exc:
-            raise ValueError(f"cannot load policy {str(path)!r}: the training package is unavailable "
-                             f"(pip install 'electroloc-gym[train]'): {exc}") from exc
-        try:
-            agent = load_policy(str(path))
-        except Exception as exc:  # noqa: BLE001 - any loader failure is reported with the path
-            raise ValueError(f"cannot load policy {str(path)!r}: {type(exc).__name__}: {exc}") from exc
-        if not hasattr(agent, "env_kwargs"):
-            agent.env_kwargs = {}
-        return agent
     name, kwargs = parse_agent_spec(spec)
     registry = _registry()
     if name not in registry:
-        raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_REGISTRY)} or give a path to a "
-                         f"policy .zip (or a directory holding model.zip)")
+        raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_REGISTRY)}")
     try:
         return registry[name](seed=seed, **kwargs)
     except TypeError as exc:

@@ -1,7 +1,8 @@
 """The ``electroloc`` console script: bench, train, eev, detect, demo.
 
 Sub-commands are small; heavy modules (the benchmark runner, training with torch) are imported only
-when their sub-command runs, so ``electroloc detect`` starts fast and never imports torch.
+when their sub-command runs, so ``electroloc detect`` starts fast and never imports torch. Help texts
+are plain text and show every option's default.
 """
 
 from __future__ import annotations
@@ -10,7 +11,9 @@ import argparse
 import json
 import os
 import sys
+import textwrap
 from collections.abc import Sequence
+from typing import Any
 
 from electroloc_gym.conditions import (
     PAPER_TABLE3_MEASURED_MM,
@@ -20,7 +23,19 @@ from electroloc_gym.conditions import (
     get_condition,
 )
 
-__all__ = ["main", "detection_table"]
+__all__ = ["main", "detection_table", "build_parser", "HelpFormatter"]
+
+DESCRIPTION = ("Gymnasium environments of the active-electrolocation robot of Solberg, Lynch & MacIver (IJRR 2008): "
+               "benchmark the paper's controllers and learned policies, train agents, and draw the paper's figures.")
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Shows every option's default (except None and on/off flags) and keeps the epilog's line breaks."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default is None or isinstance(action.default, bool):
+            return action.help
+        return super()._get_help_string(action)
 
 
 def _pin_threads() -> None:
@@ -79,7 +94,8 @@ def _cmd_eev(args: argparse.Namespace) -> int:
 
     if getattr(args, "env", "target") == "global":
         # Fig. 14: the six-cylinder map of ElectroLocGlobal-v0, physics and the calibrated grid side by side.
-        from electroloc_gym.scene import BENCHMARK_SCENE, plot_map_eev
+        from electroloc_gym.render import plot_map_eev
+        from electroloc_gym.scene import BENCHMARK_SCENE
 
         fig, axes = plt.subplots(1, 2, figsize=(12, 5))
         for ax, kind in zip(axes, ("analytic", "calibrated")):
@@ -114,39 +130,43 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``electroloc``."""
-    p = argparse.ArgumentParser(prog="electroloc", description=__doc__)
+    from electroloc_gym.bench import cli as bench_cli
+
+    p = argparse.ArgumentParser(prog="electroloc", description=textwrap.fill(DESCRIPTION, 100),
+                                formatter_class=HelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
 
-    d = sub.add_parser("detect", help="detection-distance table beside the paper's Table 3")
+    def command(name: str, help: str, **kwargs: Any) -> argparse.ArgumentParser:
+        description = kwargs.pop("description", help[0].upper() + help[1:] + ".")
+        return sub.add_parser(name, help=help, description=textwrap.fill(description, 100),
+                              formatter_class=HelpFormatter, **kwargs)
+
+    d = command("detect", "detection-distance table beside the paper's Table 3")
     d.add_argument("--json", action="store_true", help="print JSON rows instead of a table")
     d.set_defaults(func=_cmd_detect)
 
-    e = sub.add_parser("eev", help="plot the expected-electric-voltage map (Fig. 2 / Fig. 9) to a PNG")
-    e.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES))
-    e.add_argument("--signal", default="fitted", choices=list(SIGNAL_CHOICES))
-    e.add_argument("--out", default="eev.png")
+    e = command("eev", "plot the expected-electric-voltage map (Fig. 2 / Fig. 9) to a PNG")
+    e.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES), help="the preset")
+    e.add_argument("--signal", default="fitted", choices=list(SIGNAL_CHOICES), help="signal scale of the preset")
+    e.add_argument("--out", default="eev.png", help="the PNG to write")
     e.add_argument("--env", default="target", choices=["target", "global"],
                    help="target: one sphere's EEV (ElectroLoc-v0); global: the six-cylinder map (Fig. 14)")
     e.set_defaults(func=_cmd_eev)
 
-    m = sub.add_parser("demo", help="run one random-move episode; save its belief snapshots (PNG) and optionally a GIF")
-    m.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES))
-    m.add_argument("--sensor-model", default="calibrated", choices=["analytic", "calibrated"])
-    m.add_argument("--seed", type=int, default=0)
-    m.add_argument("--out", default="demo.png", help="grid of belief snapshots (PNG)")
-    m.add_argument("--gif", default=None, metavar="PATH", help="also write the episode as an animated GIF")
+    m = command("demo", "run one random-walk episode and save rendered frames to a PNG")
+    m.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES), help="the preset")
+    m.add_argument("--sensor-model", default="calibrated", choices=["analytic", "calibrated"],
+                   help="the particle filter's sensor model")
+    m.add_argument("--seed", type=int, default=0, help="seed of the episode")
+    m.add_argument("--out", default="demo.png", help="the PNG to write")
     m.set_defaults(func=_cmd_demo)
 
-    try:
-        from electroloc_gym.bench import cli as bench_cli
-    except ImportError:  # pragma: no cover - the runner ships with the package
-        bench_cli = None
-    if bench_cli is not None:
-        b = sub.add_parser("bench", help="benchmark agents on the paper's conditions (Table 4 / Table 1 layout)")
-        bench_cli.add_arguments(b)
-        b.set_defaults(func=bench_cli.run)
+    b = command("bench", "benchmark agents on the paper's conditions (Table 4 / Table 1 layout)",
+                description=bench_cli.DESCRIPTION, epilog=bench_cli.EPILOG)
+    bench_cli.add_arguments(b)
+    b.set_defaults(func=bench_cli.run)
 
-    t = sub.add_parser("train", help="train an SB3 agent (same as `python -m train ...`)", add_help=False)
+    t = sub.add_parser("train", help="train an SB3 agent (electroloc train --help for its options)", add_help=False)
     t.set_defaults(func=None)
     return p
 

@@ -9,18 +9,12 @@ import numpy as np
 import pytest
 
 from electroloc_gym.bench.backends import BACKENDS, Backend, SerialBackend, make_backend, register_backend
-from electroloc_gym.bench.runner import (
-    TIMING_KEYS,
-    BenchConfig,
-    discover_models,
-    make_trial_specs,
-    read_trials,
-    resolve_conditions,
-    run_benchmark,
-    trial_seeds,
-)
+from electroloc_gym.bench.config import BenchConfig, make_trial_specs, resolve_conditions, trial_seeds
+from electroloc_gym.bench.records import read_trials
+from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.bench.stats import summarize
 from electroloc_gym.bench.tables import PAPER_TABLE4, PAPER_TABLE4_ALL, render_table_md
+from electroloc_gym.bench.trials import TIMING_KEYS
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.conditions import PRESET_NAMES
 
@@ -115,12 +109,6 @@ def test_backend_registry() -> None:
         assert out == [(3, 30), (2, 20), (1, 10)]
     finally:
         BACKENDS.pop("reversed-test")
-
-
-def test_discover_models_is_robust(tmp_path) -> None:
-    assert discover_models([tmp_path / "absent"]) == []
-    (tmp_path / "models" / "empty").mkdir(parents=True)
-    assert discover_models([tmp_path / "models"]) == []
 
 
 # ---- runs -------------------------------------------------------------------------------------------

@@ -7,7 +7,8 @@ and trial, see :mod:`electroloc_gym.bench.runner`), and workers build their envs
 themselves.
 
 Built in: ``"process"`` (default; a local ``concurrent.futures`` process pool, ``spawn`` start
-method, every worker pinned to one numeric thread — DESIGN §10) and ``"serial"`` (in-process, for
+method, every worker pinned to one numeric thread, and every worker exits when the process that
+started it dies — :func:`exit_with_parent`) and ``"serial"`` (in-process, for
 debugging and tests). More backends (e.g. Ray) register with :func:`register_backend`::
 
     class RayBackend(Backend):
@@ -23,18 +24,22 @@ import abc
 import concurrent.futures as cf
 import multiprocessing as mp
 import os
+import signal
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, ClassVar
 
 __all__ = ["Backend", "SerialBackend", "ProcessBackend", "BACKENDS", "register_backend", "make_backend",
-           "pin_threads", "default_workers"]
+           "pin_threads", "default_workers", "exit_with_parent"]
 
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
                 "VECLIB_MAXIMUM_THREADS")
 
 
 def pin_threads() -> None:
-    """Pin numeric libraries of this process to one thread (DESIGN §10: parallelise by process)."""
+    """Pin numeric libraries of this process to one thread (parallelise by process, not by BLAS thread)."""
     for var in _THREAD_VARS:
         os.environ[var] = "1"
     try:
@@ -43,10 +48,40 @@ def pin_threads() -> None:
         threadpool_limits(1)
     except ImportError:  # pragma: no cover - optional
         pass
-    import sys
-
     if "torch" in sys.modules:  # never import torch here; pin it only if a policy loaded it
         sys.modules["torch"].set_num_threads(1)
+
+
+def exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
+    """Make this (worker) process exit when ``parent_pid``, the process that started it, dies.
+
+    Two mechanisms: on Linux the kernel's parent-death signal (``prctl(PR_SET_PDEATHSIG, SIGKILL)``),
+    and everywhere a daemon thread that polls ``os.getppid()`` every ``poll_s`` seconds (a worker is
+    re-parented when its parent dies). A worker whose parent died before this ran exits at once.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # pragma: no cover - exotic libc; the poller still works
+            pass
+    if os.getppid() != parent_pid:
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_s)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+def _init_worker(parent_pid: int) -> None:
+    """Initializer of a process-pool worker."""
+    exit_with_parent(parent_pid)
+    pin_threads()
 
 
 def default_workers() -> int:
@@ -110,7 +145,7 @@ class ProcessBackend(Backend):
             os.environ[v] = "1"
         try:
             with cf.ProcessPoolExecutor(max_workers=min(self.workers, len(specs)), mp_context=ctx,
-                                        initializer=pin_threads) as pool:
+                                        initializer=_init_worker, initargs=(os.getpid(),)) as pool:
                 futures = {pool.submit(worker_fn, spec): spec for spec in specs}
                 try:
                     for fut in cf.as_completed(futures):

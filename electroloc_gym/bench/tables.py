@@ -1,10 +1,18 @@
-"""Markdown tables in the paper's layouts (Table 4, Table 1) with the paper's numbers beside ours."""
+"""Markdown tables in the paper's layouts (Table 4, Table 1) with the paper's numbers beside ours.
+
+The aggregate row of an agent is the paper's *All conditions* row (with the paper's totals beside
+it) only when the agent ran all eight of the paper's conditions; over fewer it is labelled
+*Subset (k conditions)* and has no paper values, since the paper's totals are over all eight.
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "PAPER_TABLE2", "render_table_md", "paper_agent_key"]
+from electroloc_gym.conditions import PRESET_NAMES
+
+__all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "PAPER_TABLE2", "render_table_md", "paper_agent_key",
+           "aggregate_label", "is_all_conditions"]
 
 # Table 4 (App. B): (successes, failures, error mean, error median (mm), steps mean, steps median).
 PAPER_TABLE4: dict[tuple[str, str], tuple[int, int, float, float, float, float]] = {
@@ -77,6 +85,16 @@ def _paper_cells(paper: tuple | None) -> tuple[str, str, str]:
     return f"{paper[0]}({paper[1]})", _pair(paper[2], paper[3]), f"{paper[4]:g}/{paper[5]:g}"
 
 
+def is_all_conditions(row: dict[str, Any]) -> bool:
+    """True when an aggregate (``"condition": "all"``) row covers all eight of the paper's conditions."""
+    return row.get("conditions") == len(PRESET_NAMES)
+
+
+def aggregate_label(row: dict[str, Any]) -> str:
+    """"All conditions" for an aggregate row over the paper's eight conditions, else "Subset (k conditions)"."""
+    return "All conditions" if is_all_conditions(row) else f"Subset ({row.get('conditions')} conditions)"
+
+
 def _pair(a: Any, b: Any, digits: int = 1) -> str:
     return f"{_f(a, digits)}/{_f(b, digits)}"
 
@@ -104,16 +122,17 @@ def render_table_md(summary: dict[str, Any]) -> str:
         out.append("Appendix B rules, followed here: *success (failure)* counts trials with √trace Σ ≤ 10 mm within "
                    "the cap; the **mean** error and mean steps omit every start position on which either (here: any) "
                    "Table-4 agent of the run failed; the **medians** use all trials, failures included; the "
-                   "*All conditions* row averages the per-condition values (as the paper's row does: its 12.4 and "
-                   "6.7 median steps are the averages of the eight medians). Steps = observations fused.")
+                   "*All conditions* row (or *Subset* row, over fewer than the paper's eight conditions, without "
+                   "paper values) averages the per-condition values (as the paper's row does: its 12.4 and 6.7 "
+                   "median steps are the averages of the eight medians). Steps = observations fused.")
         out.append("")
         out.append("| Water | Sphere (mm)/material | Agent | Success (failure) | Error (mm) mean/median "
                    "| No. steps mean/median | Decision ms | Paper success (failure) | Paper error | Paper steps |")
         out.append("|---|---|---|---|---|---|---|---|---|---|")
         for r in t4:
             if r["condition"] == "all":
-                water, sphere = "All conditions", ""
-                paper = PAPER_TABLE4_ALL.get(paper_agent_key(r["agent"]) or "")
+                water, sphere = aggregate_label(r), ""
+                paper = PAPER_TABLE4_ALL.get(paper_agent_key(r["agent"]) or "") if is_all_conditions(r) else None
             else:
                 water, sphere = _cond_label(r["condition"])
                 paper = PAPER_TABLE4.get((r["condition"], paper_agent_key(r["agent"]) or ""))
@@ -143,11 +162,11 @@ def render_table_md(summary: dict[str, Any]) -> str:
         out.append("|---|---|---|---|---|---|---|---|---|")
         for r in t1:
             if r["condition"] == "all":
-                label, paper = "All conditions (average)", None
-                xs = [PAPER_TABLE1[c][0] for c in PAPER_TABLE1]
-                ys = [PAPER_TABLE1[c][1] for c in PAPER_TABLE1]
-                paper = (sum(xs) / len(xs), sum(ys) / len(ys))
-                rep = ""
+                label, paper, rep = f"{aggregate_label(r)} (average)", None, ""
+                if is_all_conditions(r):
+                    xs = [PAPER_TABLE1[c][0] for c in PAPER_TABLE1]
+                    ys = [PAPER_TABLE1[c][1] for c in PAPER_TABLE1]
+                    paper = (sum(xs) / len(xs), sum(ys) / len(ys))
             else:
                 water, sphere = _cond_label(r["condition"])
                 label = f"{water} {sphere}"

@@ -1,0 +1,165 @@
+"""What a benchmark run is: its settings (:class:`BenchConfig`), its trials (:class:`TrialSpec`), their seeds.
+
+Protocol (paper §5.4, Appendix B): every agent runs ``trials`` trials per condition. Trial ``k`` of
+condition ``c`` gets its seeds from ``numpy.random.SeedSequence(seed).spawn(...)`` indexed by
+(condition, trial) — i.e. ``SeedSequence(seed, spawn_key=(preset index of c, k))`` — so
+
+* every agent in a condition starts from the same seeded start position and sees the same noise
+  stream (the paper did this for its two probabilistic controllers), and
+* results depend neither on the worker count, nor on the backend, nor on which other agents or
+  conditions are in the run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from electroloc_gym.conditions import PRESET_NAMES, SIGNAL_CHOICES
+
+__all__ = [
+    "BenchConfig",
+    "TrialSpec",
+    "trial_seeds",
+    "make_trial_specs",
+    "resolve_conditions",
+    "DEFAULT_AGENTS",
+    "SENSOR_MODELS",
+    "SIGNALS",
+    "GLOBAL_ENV_ID",
+    "GLOBAL_CONDITION",
+    "IDENTITY_KEYS",
+]
+
+#: The paper's three controllers.
+DEFAULT_AGENTS: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
+SENSOR_MODELS = ("calibrated", "analytic")
+SIGNALS = SIGNAL_CHOICES
+#: Global self-localisation (paper §6.5, Table 2): one fixed map, run as the single "condition"
+#: GLOBAL_CONDITION (the map's name, = info["condition"]); its trial seeds use condition index 8.
+GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
+GLOBAL_CONDITION = "six-cylinders"
+#: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
+IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id")
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """What a benchmark run is (stored in ``config.json``; ``--resume`` checks it).
+
+    Attributes:
+        agents: agent specs (names, ``name[opts]``, shipped model names or policy paths).
+        conditions: preset names.
+        trials: trials per condition and agent.
+        seed: root seed of the trial seeds.
+        sensor_model: the filter's sensor model, "calibrated" (the paper's) or "analytic".
+        signal: "fitted" (presets' signal scale fitted to Table 3), "paper" (scale 1) or "coverage"
+            (fitted × one factor matching the paper's §6.3 start coverage; see conditions.get_condition).
+        max_observations: observation cap of a trial (paper: 35).
+        n_particles: particles of the belief (paper: 2500).
+        env_id: the environment id.
+    """
+
+    agents: tuple[str, ...] = DEFAULT_AGENTS
+    conditions: tuple[str, ...] = PRESET_NAMES
+    trials: int = 50
+    seed: int = 0
+    sensor_model: str = "calibrated"
+    signal: str = "fitted"
+    max_observations: int = 35
+    n_particles: int = 2500
+    env_id: str = "ElectroLoc-v0"
+
+    def __post_init__(self) -> None:
+        if not self.agents:
+            raise ValueError("agents must name at least one agent")
+        if len(set(self.agents)) != len(self.agents):
+            raise ValueError(f"agents must be distinct, got {list(self.agents)}")
+        if self.env_id == GLOBAL_ENV_ID:  # one map, no presets (signal does not apply)
+            object.__setattr__(self, "conditions", (GLOBAL_CONDITION,))
+        else:
+            object.__setattr__(self, "conditions", tuple(resolve_conditions(list(self.conditions))))
+        for name, val, low in (("trials", self.trials, 1), ("seed", self.seed, 0),
+                               ("max_observations", self.max_observations, 1), ("n_particles", self.n_particles, 1)):
+            if isinstance(val, bool) or not isinstance(val, int) or val < low:
+                raise ValueError(f"{name} must be an integer ≥ {low}, got {val!r}")
+        if self.sensor_model not in SENSOR_MODELS:
+            raise ValueError(f"sensor_model must be one of {list(SENSOR_MODELS)}, got {self.sensor_model!r}")
+        if self.signal not in SIGNALS:
+            raise ValueError(f"signal must be one of {list(SIGNALS)}, got {self.signal!r}")
+
+    def identity(self) -> dict[str, Any]:
+        """The fields that must match for ``--resume`` to append to an existing run."""
+        return {"seed": self.seed, **{k: getattr(self, k) for k in IDENTITY_KEYS}}
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One trial, self-contained and picklable (what a worker receives)."""
+
+    condition: str
+    agent: str
+    trial: int
+    env_seed: int
+    agent_seed: int
+    sensor_model: str
+    signal: str
+    max_observations: int
+    n_particles: int
+    env_id: str = "ElectroLoc-v0"
+    #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
+    trust_pickle: bool = False
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def key(self) -> tuple[str, str, int]:
+        """(condition, agent, trial): the identity of a trial in trials.jsonl."""
+        return (self.condition, self.agent, self.trial)
+
+
+def resolve_conditions(spec: str | Sequence[str]) -> list[str]:
+    """``"all"`` or comma-separated preset names → list of preset names (validated).
+
+    Raises:
+        ValueError: unknown or repeated condition names (the message lists the valid ones).
+    """
+    names = [s.strip() for s in spec.split(",")] if isinstance(spec, str) else [str(s).strip() for s in spec]
+    if names == ["all"]:
+        return list(PRESET_NAMES)
+    if not names or any(not n for n in names):
+        raise ValueError(f"conditions must be 'all' or comma-separated names from {list(PRESET_NAMES)}, got {spec!r}")
+    bad = [n for n in names if n not in PRESET_NAMES]
+    if bad:
+        raise ValueError(f"unknown condition(s) {bad}; choose 'all' or names from {list(PRESET_NAMES)}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"conditions must be distinct, got {names}")
+    return names
+
+
+def trial_seeds(seed: int, condition: str, trial: int) -> tuple[int, int]:
+    """(env seed, agent seed) of trial ``trial`` of ``condition``.
+
+    ``SeedSequence(seed, spawn_key=(i, trial))`` is exactly ``SeedSequence(seed).spawn(n)[i].spawn(m)[trial]``
+    with ``i`` the condition's index among the presets: independent of the run's other conditions,
+    agents, trial count and workers.
+    """
+    index = len(PRESET_NAMES) if condition == GLOBAL_CONDITION else PRESET_NAMES.index(condition)
+    ss = np.random.SeedSequence(seed, spawn_key=(index, trial))
+    env_seed, agent_seed = (int(v) for v in ss.generate_state(2, dtype=np.uint32))
+    return env_seed, agent_seed
+
+
+def make_trial_specs(config: BenchConfig, *, trust_pickle: bool = False) -> list[TrialSpec]:
+    """All trials of a run, condition-major."""
+    specs = []
+    for cond in config.conditions:
+        for k in range(config.trials):
+            env_seed, agent_seed = trial_seeds(config.seed, cond, k)
+            for agent in config.agents:
+                specs.append(TrialSpec(cond, agent, k, env_seed, agent_seed, config.sensor_model, config.signal,
+                                       config.max_observations, config.n_particles, config.env_id,
+                                       trust_pickle=trust_pickle))
+    return specs

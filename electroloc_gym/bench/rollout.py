@@ -1,0 +1,84 @@
+"""One episode of an agent in an env: the rollout loop shared by the benchmark and the training evaluation.
+
+The loop is the agent protocol of :mod:`electroloc_gym.baselines.agent` and nothing else::
+
+    obs, info = env.reset(seed=seed)
+    agent.seed(agent_seed)            # if given and the agent has its own generator
+    agent.reset(env)                  # bind to the env after the reset
+    repeat: action, state = agent.predict(obs, state, episode_start, deterministic)
+            stop if agent.done        # an agent that ends the episode itself (zero-crossing)
+            obs, ..., terminated, truncated, info = env.step(action)
+    until terminated or truncated
+
+so an episode counted by ``electroloc bench`` and one counted by the training's seeded evaluation
+are the same episode.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Episode", "run_episode"]
+
+
+@dataclass
+class Episode:
+    """What :func:`run_episode` saw.
+
+    Attributes:
+        start_info: the ``info`` of ``env.reset``.
+        info: the last ``info`` (of the last ``env.step``; ``start_info`` if the agent stopped first).
+        terminated: the env terminated (the belief is tight: the paper's success criterion).
+        truncated: the env hit its observation cap.
+        ended_by: ``"success"`` (terminated), ``"cap"`` (truncated) or ``"agent"`` (the agent set ``done``).
+        decision_s: wall time of every ``agent.predict`` call, seconds.
+    """
+
+    start_info: dict[str, Any]
+    info: dict[str, Any]
+    terminated: bool = False
+    truncated: bool = False
+    ended_by: str = "cap"
+    decision_s: list[float] = field(default_factory=list)
+
+
+def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = None,
+                deterministic: bool = True) -> Episode:
+    """Run one seeded episode of ``agent`` in ``env``.
+
+    Args:
+        env: a Gymnasium env (single, not vectorised).
+        agent: anything with ``reset(env)`` and SB3's ``predict(obs, state, episode_start, deterministic)``;
+            optional ``seed(int)`` and ``done`` (see :mod:`electroloc_gym.baselines.agent`).
+        seed: the ``env.reset`` seed.
+        agent_seed: re-seeds the agent's own generator before the episode (ignored when None or when
+            the agent has no ``seed`` method).
+        deterministic: passed to ``predict``.
+
+    Returns:
+        The :class:`Episode`.
+    """
+    obs, info = env.reset(seed=int(seed))
+    if agent_seed is not None and hasattr(agent, "seed"):
+        agent.seed(int(agent_seed))
+    agent.reset(env)
+    episode = Episode(start_info=info, info=info)
+    state = None
+    episode_start = np.ones((1,), dtype=bool)
+    while True:
+        t0 = time.perf_counter()
+        action, state = agent.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
+        episode.decision_s.append(time.perf_counter() - t0)
+        episode_start = np.zeros((1,), dtype=bool)
+        if getattr(agent, "done", False):
+            episode.ended_by = "agent"
+            return episode
+        obs, _, terminated, truncated, episode.info = env.step(action)
+        if terminated or truncated:
+            episode.terminated, episode.truncated = bool(terminated), bool(truncated)
+            episode.ended_by = "success" if terminated else "cap"
+            return episode

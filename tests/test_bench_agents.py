@@ -1,0 +1,176 @@
+"""The benchmark's agent registry (controllers, shipped models by name, paths) and the shared rollout loop."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import pickle
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import electroloc_gym  # noqa: F401  (registers the ids)
+from electroloc_gym.baselines.agent import make_agent
+from electroloc_gym.bench import agents as registry
+from electroloc_gym.bench.agents import (
+    agent_display_name,
+    agent_kind,
+    default_agents,
+    make_bench_agent,
+    shipped_models,
+)
+from electroloc_gym.bench.config import BenchConfig, make_trial_specs
+from electroloc_gym.bench.rollout import run_episode
+from electroloc_gym.bench.trials import run_trial
+from electroloc_gym.cli import main as cli_main
+from electroloc_gym.conditions import get_condition
+
+HAS_TRAIN = all(importlib.util.find_spec(m) is not None for m in ("torch", "stable_baselines3"))
+ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+FAST = ["--conditions", "fresh-steel-12.7", "--trials", "1", "--n-particles", "100", "--max-observations", "4",
+        "--sensor-model", "analytic", "--no-progress"]
+
+
+# ---- names, kinds, labels ------------------------------------------------------------------------------------
+def test_shipped_models_are_found_by_name() -> None:
+    models = shipped_models()
+    assert {"ppo-belief", "ppo-raw-framestack"} <= set(models)
+    assert all(p.is_dir() and (p / "model.zip").is_file() for p in models.values())
+    assert agent_kind("ppo-belief") == "shipped"
+    assert agent_kind("min-var[n_voters=16]") == "baseline"
+    assert agent_kind("runs/x") == "path" and agent_kind("x.zip") == "path" and agent_kind("./x") == "path"
+
+
+def test_unknown_agent_lists_every_choice() -> None:
+    with pytest.raises(ValueError, match=r"unknown agent 'nope'.*rnd-wlk.*ppo-belief"):
+        make_bench_agent("nope")
+    with pytest.raises(ValueError, match="non-empty"):
+        agent_kind(" ")
+    with pytest.raises(ValueError, match="does not exist"):
+        make_bench_agent("runs/missing-model")
+
+
+@pytest.mark.parametrize("spec,name", [("rnd-wlk", "rnd-wlk"), ("min-var[n_voters=16]", "min-var[n_voters=16]"),
+                                       ("ppo-belief", "ppo-belief"), ("/tmp/runs/ppo-s1000/", "ppo-s1000"),
+                                       ("/tmp/runs/ppo-s1000/model.zip", "ppo-s1000"), ("a/best.zip", "best")])
+def test_display_names_are_short(spec, name) -> None:
+    assert agent_display_name(spec) == name
+
+
+def test_controllers_do_not_import_the_training_package() -> None:
+    code = ("import sys, electroloc_gym.baselines as b; b.make_agent('min-var'); import electroloc_gym.bench.cli\n"
+            "bad = [m for m in sys.modules if m.startswith(('electroloc_gym.train', 'torch', 'stable_baselines3'))]\n"
+            "assert not bad, bad")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+
+
+# ---- learned policies ----------------------------------------------------------------------------------------
+@pytest.mark.skipif(not HAS_TRAIN, reason="the training extra is not installed")
+def test_shipped_model_loads_by_name_without_pickle() -> None:
+    agent = make_bench_agent("ppo-belief")
+    assert agent.name == "ppo-belief"
+    assert agent.env_kwargs["observation"] == "belief"
+
+
+@pytest.mark.skipif(not HAS_TRAIN, reason="the training extra is not installed")
+def test_cli_runs_a_shipped_model_by_name(tmp_path, capsys) -> None:
+    assert cli_main(["bench", "--agents", "ppo-belief", *FAST, "--backend", "serial", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "agents: ppo-belief (learned policy: shipped, belief observation)" in out
+    assert "| ppo-belief |" in (tmp_path / "table.md").read_text()
+
+
+class _Payload:
+    """Unpickling this creates ``marker``: a stand-in for a command run by a crafted model file."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (os.makedirs, (str(self.marker),))
+
+
+def _crafted_model(folder: Path, marker: Path) -> Path:
+    folder.mkdir(parents=True)
+    (folder / "vecnormalize.pkl").write_bytes(pickle.dumps(_Payload(marker)))
+    with zipfile.ZipFile(folder / "model.zip", "w") as z:
+        z.writestr("data", '{"policy_class": {":type:": "<class \'abc.ABCMeta\'>", ":serialized:": "gAR9lC4="}}')
+        z.writestr("policy.pth", b"")
+    return folder
+
+
+def test_crafted_model_files_run_no_code_by_default(tmp_path) -> None:
+    marker = tmp_path / "PWNED"
+    _crafted_model(tmp_path / "models" / "evil", marker)
+    # A plain run in a downloaded folder ignores ./models (only the installed models are defaults) ...
+    proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", *FAST, "--workers", "1",
+                           "--out", str(tmp_path / "out")], capture_output=True, text=True, env=ENV, cwd=tmp_path,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "evil" not in proc.stdout + proc.stderr and not marker.exists()
+    # ... and naming the folder, or its zip, is refused without --trust-pickle.
+    for spec in ("models/evil", "models/evil/model.zip", str(tmp_path / "models" / "evil")):
+        proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", "--agents", spec, *FAST,
+                               "--out", str(tmp_path / "out2")], capture_output=True, text=True, env=ENV,
+                              cwd=tmp_path, timeout=300)
+        assert proc.returncode == 2, proc.stderr
+        assert "Traceback" not in proc.stderr and "trust" in proc.stderr and len(proc.stderr.splitlines()) == 1
+        assert not marker.exists()
+
+
+def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys) -> None:
+    monkeypatch.setattr(registry, "_training_extra_missing", lambda: "the training extra is not installed (test)")
+    choices = default_agents()
+    assert [c.spec for c in choices if not c.skipped] == ["rnd-wlk", "min-var", "zero-crossing"]
+    assert {c.spec: c.skipped for c in choices if c.skipped} == {
+        name: "the training extra is not installed (test)" for name in shipped_models()}
+    assert cli_main(["bench", *FAST, "--backend", "serial", "--out", str(tmp_path)]) == 0
+    captured = capsys.readouterr()
+    assert "electroloc bench: skipping ppo-belief: the training extra is not installed (test)" in captured.err
+    assert "agents: rnd-wlk; min-var; zero-crossing" in captured.out
+    assert [c.spec for c in default_agents(table4_only=True)] == ["rnd-wlk", "min-var"]
+
+
+def test_global_env_refuses_learned_policies_and_zero_crossing(tmp_path, capsys) -> None:
+    for spec in ("zero-crossing", "ppo-belief"):
+        assert cli_main(["bench", "--env", "global", "--agents", f"rnd-wlk,{spec}", *FAST[2:], "--out",
+                         str(tmp_path)]) == 2
+        assert f"not applicable: ['{spec}']" in capsys.readouterr().err
+
+
+# ---- one rollout loop -----------------------------------------------------------------------------------------
+def test_run_episode_ends_by_env_or_by_agent() -> None:
+    env = gym.make("ElectroLoc-v0", condition="fresh-steel-12.7", n_particles=200, sensor_model="analytic",
+                   max_observations=5)
+    ep = run_episode(env, make_agent("rnd-wlk"), seed=4, agent_seed=9)
+    assert ep.ended_by in ("success", "cap") and (ep.terminated or ep.truncated)
+    assert len(ep.decision_s) == ep.info["n_observations"] - 1  # the first reading is taken by reset
+    again = run_episode(env, make_agent("rnd-wlk"), seed=4, agent_seed=9)
+    np.testing.assert_array_equal(again.info["estimate_mm"], ep.info["estimate_mm"])
+    env.close()
+    zc = make_agent("zero-crossing")
+    env = gym.make("ElectroLoc-v0", condition=zc.adapt_condition(get_condition("fresh-steel-12.7")), **zc.env_kwargs)
+    ep = run_episode(env, zc, seed=4)
+    assert ep.ended_by == "agent" and not ep.terminated and zc.done and len(ep.decision_s) >= 2
+    env.close()
+
+
+def test_run_trial_is_run_episode_plus_the_record() -> None:
+    spec = make_trial_specs(BenchConfig(agents=("rnd-wlk",), conditions=("salt-steel-12.7",), trials=1,
+                                        n_particles=200, sensor_model="analytic", max_observations=8))[0]
+    rec = run_trial(spec)
+    env = gym.make("ElectroLoc-v0", condition="salt-steel-12.7", n_particles=200, sensor_model="analytic",
+                   max_observations=8)
+    ep = run_episode(env, make_agent("rnd-wlk"), seed=spec.env_seed, agent_seed=spec.agent_seed)
+    assert rec["observations"] == ep.info["n_observations"] and rec["ended_by"] == ep.ended_by
+    assert rec["estimate"] == [float(v) for v in ep.info["estimate_mm"]]
+    assert rec["start"] == [float(v) for v in ep.start_info["position_mm"]]
+    assert (rec["seed"], rec["agent_seed"], rec["env_id"], rec["n_particles"]) == \
+        (spec.env_seed, spec.agent_seed, "ElectroLoc-v0", 200)
+    env.close()
