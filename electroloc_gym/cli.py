@@ -153,12 +153,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="target: one sphere's EEV (ElectroLoc-v0); global: the six-cylinder map (Fig. 14)")
     e.set_defaults(func=_cmd_eev)
 
-    m = command("demo", "run one random-walk episode and save rendered frames to a PNG")
+    m = command("demo", "run one random-move episode; save its belief snapshots (PNG) and optionally a GIF")
     m.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES), help="the preset")
     m.add_argument("--sensor-model", default="calibrated", choices=["analytic", "calibrated"],
                    help="the particle filter's sensor model")
     m.add_argument("--seed", type=int, default=0, help="seed of the episode")
-    m.add_argument("--out", default="demo.png", help="the PNG to write")
+    m.add_argument("--out", default="demo.png", help="the PNG of belief snapshots to write")
+    m.add_argument("--gif", default=None, metavar="PATH", help="also write the episode as an animated GIF")
     m.set_defaults(func=_cmd_demo)
 
     b = command("bench", "benchmark agents on the paper's conditions (Table 4 / Table 1 layout)",
