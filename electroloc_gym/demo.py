@@ -121,7 +121,7 @@ def plot_episode(episode: Episode, max_panels: int = MAX_PANELS) -> Any:
     snaps = episode.snapshots
     idx = _panel_indices(len(snaps), max_panels)
     n_panels = len(idx) + 1
-    ncols = min(4, n_panels)
+    ncols = 3 if n_panels in (5, 6) else min(4, n_panels)
     nrows = -(-n_panels // ncols)
     fig = Figure(figsize=(3.3 * ncols + 1.2, 3.35 * nrows + 1.4), dpi=110)
     FigureCanvasAgg(fig)

@@ -93,8 +93,9 @@ def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", see
 
     Grey scale from negative (white) to positive (black) expected reading at each carriage position,
     dotted contours every 1 V, every object outlined at its true size (orange: conductor, cyan:
-    insulator) with a numbered label explained in a key below the axes, and the map origin as a red
-    circle (the point the robot localises itself against, as in Fig. 14).
+    insulator) and numbered, and the map origin as a red
+    circle (the point the robot localises itself against, as in Fig. 14); one legend below the axes
+    explains every number and marker.
 
     Args:
         scene: the map (:class:`electroloc_gym.scene.Scene`).
@@ -118,14 +119,16 @@ def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", see
     ax.contour(grid, grid, phi.T, levels=np.arange(-lim + 1.0, lim, 1.0), colors="tab:blue", linewidths=0.4,
                linestyles=":")
     water = scene.water.conductivity_uScm
-    key = []
+    handles = []
     for i, o in enumerate(scene.objects, start=1):
         color = _CONDUCTOR if o.contrast(water) > 0 else _INSULATOR
         ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color=color, lw=1.6))
-        ax.text(*o.xy_mm, str(i), fontsize=10, fontweight="bold", ha="center", va="center", color=color,
+        ax.text(*o.xy_mm, str(i), fontsize=9, fontweight="bold", ha="center", va="center", color=color,
                 bbox=dict(boxstyle="circle,pad=0.15", fc="white", ec=color, lw=0.8, alpha=0.9))
         material = _MATERIAL_LABELS.get(o.material, o.material)
-        key.append(f"{i}: {material} {o.shape} Ø{o.diameter_mm:g} mm at ({o.xy_mm[0]:.0f}, {o.xy_mm[1]:.0f})")
+        where = f"({o.xy_mm[0]:.0f}, {o.xy_mm[1]:.0f})"
+        handles.append(Line2D([], [], marker=f"${i}$", color=color, ms=7, ls="none",
+                              label=f"{material} {o.shape} Ø{o.diameter_mm:g} mm at {where}"))
     ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=9, mew=1.8)
     ax.set_xlim(grid[0], grid[-1])
     ax.set_ylim(grid[0], grid[-1])
@@ -134,12 +137,12 @@ def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", see
     ax.set_ylabel("carriage y (mm, map frame)")
     ax.set_title(f"map EEV '{scene.name}' ({sensor_model} model)", fontsize=10)
     ax.figure.colorbar(im, ax=ax, label="expected reading Φ (V)", shrink=0.8)
-    handles = [Line2D([], [], color=_CONDUCTOR, lw=1.6, label="conductor (outline = true size)"),
-               Line2D([], [], color=_INSULATOR, lw=1.6, label="insulator"),
-               Line2D([], [], marker="o", mfc="none", mec="tab:red", mew=1.8, ls="none", label="map origin (0, 0)"),
-               Line2D([], [], color="tab:blue", lw=0.6, ls=":", label="1 V contours")]
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=2, fontsize=7, frameon=False)
-    ax.text(0.5, -0.25, "\n".join(key), transform=ax.transAxes, ha="center", va="top", fontsize=7)
+    handles += [Line2D([], [], color=_CONDUCTOR, lw=1.6, label="conductor (outline: true size)"),
+                Line2D([], [], color=_INSULATOR, lw=1.6, label="insulator (outline: true size)"),
+                Line2D([], [], marker="o", mfc="none", mec="tab:red", mew=1.8, ls="none", label="map origin (0, 0)"),
+                Line2D([], [], color="tab:blue", lw=0.6, ls=":", label="1 V contours")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=3, fontsize=7,
+              frameon=False, handlelength=1.5, columnspacing=1.0)
     return ax
 
 

@@ -199,11 +199,10 @@ def test_map_eev_labels_every_object() -> None:
     from electroloc_gym.scene import BENCHMARK_SCENE
 
     ax = plot_map_eev(BENCHMARK_SCENE)
-    texts = [t.get_text() for t in ax.texts]
     n = len(BENCHMARK_SCENE.objects)
-    assert [str(i) for i in range(1, n + 1)] == texts[:n]  # numbered markers on the map
-    key = texts[n]
-    for o in BENCHMARK_SCENE.objects:
-        assert f"Ø{o.diameter_mm:g} mm" in key
-    assert "map origin (0, 0)" in [t.get_text() for t in ax.get_legend().get_texts()]
+    assert [t.get_text() for t in ax.texts] == [str(i) for i in range(1, n + 1)]  # numbered on the map
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    for o, label in zip(BENCHMARK_SCENE.objects, legend):  # the legend explains every number, in order
+        assert f"Ø{o.diameter_mm:g} mm" in label and o.shape in label
+    assert "map origin (0, 0)" in legend and any("conductor" in t for t in legend)
     plt.close(ax.figure)
