@@ -35,6 +35,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--env-id", default="ElectroLoc-v0")
     p.add_argument("--condition", default="fresh-steel-12.7", help="a preset name, or 'random' (all eight)")
+    p.add_argument("--randomize-target", action=argparse.BooleanOptionalAction, default=True,
+                   help="train with the target anywhere in the start box (else the policy can memorise the "
+                        "paper's centred target); evaluation always uses the paper's fixed target")
     p.add_argument("--num-envs", type=int, default=8)
     p.add_argument("--total-timesteps", type=int, default=300_000)
     p.add_argument("--num-steps", type=int, default=128, help="steps per env per rollout")
@@ -85,16 +88,16 @@ class Agent(nn.Module):
         return action, dist.log_prob(action).sum(-1), dist.entropy().sum(-1), self.value(x)
 
 
-def make_envs(args: argparse.Namespace, num_envs: int) -> gym.vector.VectorEnv:
+def make_envs(args: argparse.Namespace, num_envs: int, randomize_target: bool) -> gym.vector.VectorEnv:
     """The native vector env: ``num_envs`` tanks and particle filters stepped as arrays."""
     return gym.make_vec(args.env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        condition=args.condition)
+                        condition=args.condition, randomize_target=randomize_target)
 
 
 def train(args: argparse.Namespace) -> Agent:
     """Collect ``num_steps`` × ``num_envs`` transitions, update with clipped PPO, repeat."""
     torch.manual_seed(args.seed)
-    envs = make_envs(args, args.num_envs)
+    envs = make_envs(args, args.num_envs, args.randomize_target)
     obs_dim, act_dim = envs.single_observation_space.shape[0], envs.single_action_space.shape[0]
     agent = Agent(obs_dim, act_dim)
     optim = torch.optim.Adam(agent.parameters(), lr=args.learning_rate, eps=1e-5)
@@ -172,7 +175,7 @@ def train(args: argparse.Namespace) -> Agent:
 
 def evaluate(agent: Agent, args: argparse.Namespace) -> tuple[float, float]:
     """Success rate and median observations of the mean action over ``eval_episodes`` fresh episodes."""
-    envs = make_envs(args, min(args.num_envs, args.eval_episodes))
+    envs = make_envs(args, min(args.num_envs, args.eval_episodes), randomize_target=False)
     obs, _ = envs.reset(seed=10_000 + args.seed)  # seeds disjoint from training's
     lengths: list[int] = []
     successes: list[bool] = []
