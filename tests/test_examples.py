@@ -61,3 +61,19 @@ def test_ppo_minimal_rejects_a_budget_below_one_rollout(capsys) -> None:
     with pytest.raises(SystemExit):
         ppo.parse_args(["--total-timesteps", "10"])
     assert "total_timesteps" in capsys.readouterr().err
+
+
+def test_training_page_shows_the_example_verbatim() -> None:
+    page = (ROOT / "docs" / "training.md").read_text(encoding="utf-8")
+    code = (EXAMPLES / "ppo_minimal.py").read_text(encoding="utf-8")
+    assert f"```python\n{code}```" in page, "docs/training.md's copy of examples/ppo_minimal.py is out of date"
+
+
+def test_episode_pictures_example(tmp_path, capsys) -> None:
+    pictures = _load("episode_pictures")
+    png, gif = tmp_path / "e.png", tmp_path / "e.gif"
+    info = pictures.main(["--agent", "rnd-wlk", "--seed", "2", "--out", str(png), "--gif", str(gif)])
+    assert png.stat().st_size > 10_000 and gif.stat().st_size > 10_000
+    assert f"{info['n_observations']} observations" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        pictures.main(["--agent", "no-such-agent"])
