@@ -243,7 +243,7 @@ def test_statistical_zero_crossing_is_submillimetre(tmp_path) -> None:
 def test_statistical_min_var_beats_rnd_wlk_with_analytic_model(tmp_path) -> None:
     # With a noise-free (analytic) sensor model, min-var's particle vote does what the paper reports on
     # the large spheres: fewer failures and fewer steps than rnd-wlk (fixed seeds). These two conditions
-    # were picked from a 20-trial analytic run over all eight (issue-4 report), where min-var won on
+    # were picked from a 20-trial analytic run over all eight, where min-var won on
     # 3-4 of 8 and lost clearly on salt-steel-12.7: this is an existence check, not a claim for all.
     cfg = BenchConfig(agents=("rnd-wlk", "min-var"), conditions=("fresh-delrin-38.1", "salt-steel-38.1"),
                       trials=30, seed=0, sensor_model="analytic")
@@ -257,7 +257,7 @@ def test_statistical_min_var_beats_rnd_wlk_with_analytic_model(tmp_path) -> None
 # The paper's claim (Table 4, Fig. 12): min-var fails less and needs fewer steps than rnd-wlk in every
 # condition. With Algorithm 1 implemented literally (tested against a loop implementation above) it
 # does NOT hold in this simulation with the calibrated sensor model: the full 8 × 50 run gives min-var
-# 238 successes vs rnd-wlk 341, median steps 23.4 vs 15.6 (see the issue-4 report). Most particles
+# 238 successes vs rnd-wlk 341, median steps 23.4 vs 15.6. Most particles
 # predict ≈ 0 V at the start (75 % of particles on fresh-steel-12.7; the simulated detection region
 # covers ≈ 40 % of the start box, the paper's runs 78 %), and for those voters any move that rules out
 # particles near the cloud's mean *raises* the variance, so they vote en bloc for moves toward and
@@ -273,3 +273,61 @@ def test_statistical_min_var_beats_rnd_wlk(tmp_path) -> None:
     for c in cfg.conditions:
         assert row[(c, "min-var")]["failures"] < row[(c, "rnd-wlk")]["failures"]
         assert row[(c, "min-var")]["steps_median"] < row[(c, "rnd-wlk")]["steps_median"]
+
+
+# ---- tables: the paper's totals only beside all eight conditions ----------------------------------------------
+def _eight_condition_records(conditions):
+    return [_rec(c, a, k, k != 2, 5 + k, 1.0 + k) for c in conditions for a in ("rnd-wlk", "min-var")
+            for k in range(3)] + [_rec(c, "zero-crossing", 0, True, 300, 0.2, layout="table1") for c in conditions]
+
+
+def test_all_conditions_row_only_over_the_papers_eight() -> None:
+    full = render_table_md(summarize(_eight_condition_records(PRESET_NAMES)))
+    assert "| All conditions |  | rnd-wlk | 16(8) |" in full and "287(113)" in full and "381(19)" in full
+    assert "All conditions (average)" in full and "Subset" not in full
+    two = PRESET_NAMES[:2]
+    subset = render_table_md(summarize(_eight_condition_records(two)))
+    assert "All conditions |" not in subset and "All conditions (average)" not in subset
+    assert "| Subset (2 conditions) |  | rnd-wlk | 4(2) | " in subset
+    assert "287(113)" not in subset and "381(19)" not in subset
+    sub_row = [ln for ln in subset.splitlines() if ln.startswith("| Subset (2 conditions) |  | min-var")][0]
+    assert sub_row.endswith("|  |  |  |")  # no paper cells
+    t1 = [ln for ln in subset.splitlines() if ln.startswith("| Subset (2 conditions) (average) | zero-crossing")][0]
+    assert t1.endswith("|  |  |")
+
+
+def test_cli_subset_run_prints_no_paper_totals(serial_run) -> None:
+    _, out, _ = serial_run
+    table = (out / "table.md").read_text()
+    assert "Subset (2 conditions)" in table and "All conditions |" not in table and "287(113)" not in table
+
+
+# ---- progress --------------------------------------------------------------------------------------------------
+def test_eta_is_measured_after_every_worker_warmed_up() -> None:
+    from electroloc_gym.bench.progress import eta_s
+
+    # 4 workers, 100 trials: start-up takes 60 s, then a trial every 0.5 s (2 trials/s).
+    times = [60.0, 60.1, 60.2, 60.3] + [60.3 + 0.5 * i for i in range(1, 11)]
+    assert eta_s(times[:4], 100, warm=4) is None  # only warm-up results so far
+    eta = eta_s(times, 100, warm=4)
+    assert eta == pytest.approx((100 - 14) * 0.5)  # 43 s, not (100 - 14) × 65 s / 14
+    assert eta_s([1.0], 1, warm=4) is None
+
+
+def test_progress_bar_names_the_agent(tmp_path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1"}
+    model = tmp_path / "runs" / "my-policy"  # a learned policy by path: the bar shows its folder's name
+    proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", "--agents", "rnd-wlk",
+                           "--conditions", "fresh-steel-12.7", "--trials", "3", "--n-particles", "100",
+                           "--sensor-model", "analytic", "--max-observations", "4", "--workers", "1",
+                           "--out", str(tmp_path / "out")], capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "ETA after warm-up" in proc.stderr and "last: rnd-wlk on fresh-steel-12.7" in proc.stderr
+    assert "agents: rnd-wlk" in proc.stdout
+    from electroloc_gym.bench.agents import agent_display_name
+
+    assert agent_display_name(str(model)) == "my-policy"

@@ -67,3 +67,21 @@ def test_console_script_entry_point() -> None:
     from electroloc_gym.cli import main
 
     assert main(["detect", "--json"]) == 0
+
+
+@pytest.mark.parametrize("command", [[], ["bench"], ["detect"], ["eev"], ["demo"]])
+def test_help_is_plain_text_with_defaults(command) -> None:
+    out = run_cli(*command, "--help")
+    assert out.returncode == 0, out.stderr
+    text = " ".join(out.stdout.split())  # line wrapping depends on the terminal width
+    assert "``" not in text and ":func:" not in text and ":mod:" not in text
+    assert "(default: None)" not in text and "(default: False)" not in text
+    if command == ["bench"]:
+        for default in ("--trials TRIALS", "(default: 50)", "(default: 0)", "(default: bench_out)",
+                        "(default: calibrated)", "(default: 2500)", "(default: 35)", "(default: all)",
+                        "(default: process)", "examples:", "ppo-belief"):
+            assert default in text, default
+    if command == ["eev"]:
+        assert "(default: eev.png)" in text and "(default: fresh-steel-12.7)" in text
+    if command == ["demo"]:
+        assert "(default: demo.png)" in text

@@ -1,4 +1,4 @@
-"""The optional Ray benchmark backend (issue 7): same trials as the process backend; skipped without Ray."""
+"""The optional Ray benchmark backend: same trials as the process backend; skipped without Ray."""
 
 from __future__ import annotations
 
@@ -31,7 +31,8 @@ def test_ray_backend_is_registered_and_validates_options() -> None:
 
 def test_ray_backend_gives_the_process_backends_trials(tmp_path: Path) -> None:
     pytest.importorskip("ray")
-    from electroloc_gym.bench.runner import BenchConfig, run_benchmark
+    from electroloc_gym.bench.config import BenchConfig
+    from electroloc_gym.bench.runner import run_benchmark
 
     config = BenchConfig(agents=("rnd-wlk",), conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=3,
                          n_particles=300, max_observations=12)

@@ -1,13 +1,27 @@
-"""Benchmark runner: the paper's controllers and learned policies on seeded trials (Tables 1 and 4).
+"""The benchmark: the paper's controllers and learned policies on seeded trials (Tables 1, 2 and 4).
 
-See :func:`electroloc_gym.bench.runner.run_benchmark` and the ``electroloc bench`` command
-(:mod:`electroloc_gym.bench.cli`). Heavy modules (matplotlib, agents, policies) load lazily.
+Modules, in the order a run uses them:
+
+* :mod:`~electroloc_gym.bench.config` — what a run is (:class:`BenchConfig`), its trials and their seeds;
+* :mod:`~electroloc_gym.bench.agents` — agent specs → agents (controllers, shipped models, paths);
+* :mod:`~electroloc_gym.bench.records` — the output folder: checked, locked, records keyed and validated;
+* :mod:`~electroloc_gym.bench.backends` (and :mod:`~electroloc_gym.bench.ray_backend`) — where trials run;
+* :mod:`~electroloc_gym.bench.trials` and :mod:`~electroloc_gym.bench.rollout` — one trial, one episode;
+* :mod:`~electroloc_gym.bench.runner` — :func:`run_benchmark`, which ties them together;
+* :mod:`~electroloc_gym.bench.stats`, :mod:`~electroloc_gym.bench.tables`, :mod:`~electroloc_gym.bench.plots`
+  — Appendix-B statistics, the paper's table layouts, Fig. 12;
+* :mod:`~electroloc_gym.bench.cli` — ``electroloc bench``.
+
+Heavy modules (matplotlib, learned policies with torch) load lazily.
 """
 
 from electroloc_gym.bench import ray_backend as _ray_backend  # noqa: F401  (registers "ray"; imports Ray lazily)
 from electroloc_gym.bench.backends import BACKENDS, Backend, make_backend, register_backend
-from electroloc_gym.bench.runner import BenchConfig, TrialSpec, run_benchmark, run_trial, trial_seeds
+from electroloc_gym.bench.config import BenchConfig, TrialSpec, trial_seeds
+from electroloc_gym.bench.rollout import Episode, run_episode
+from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.bench.stats import summarize
+from electroloc_gym.bench.trials import run_trial
 
 __all__ = [
     "BACKENDS",
@@ -18,6 +32,8 @@ __all__ = [
     "TrialSpec",
     "run_benchmark",
     "run_trial",
+    "run_episode",
+    "Episode",
     "trial_seeds",
     "summarize",
 ]

@@ -3,7 +3,7 @@
 A backend maps a picklable, module-level ``worker_fn`` over picklable trial specs and yields
 ``(spec, result)`` pairs *as trials finish* (any order). Results never depend on the backend or the
 worker count: every trial carries its own seeds (``numpy.random.SeedSequence`` indexed by condition
-and trial, see :mod:`electroloc_gym.bench.runner`), and workers build their envs and agents
+and trial, see :mod:`electroloc_gym.bench.config`), and workers build their envs and agents
 themselves.
 
 Built in: ``"process"`` (default; a local ``concurrent.futures`` process pool, ``spawn`` start

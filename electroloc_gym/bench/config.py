@@ -13,7 +13,7 @@ condition ``c`` gets its seeds from ``numpy.random.SeedSequence(seed).spawn(...)
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -112,7 +112,6 @@ class TrialSpec:
     env_id: str = "ElectroLoc-v0"
     #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
     trust_pickle: bool = False
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def key(self) -> tuple[str, str, int]:

@@ -1,4 +1,4 @@
-"""The ``ray`` benchmark backend: trials as Ray tasks, on this machine or a cluster (issue 7).
+"""The ``ray`` benchmark backend: trials as Ray tasks, on this machine or a cluster.
 
 ``electroloc bench --backend ray [--address ray://head:10001 | auto]`` (optional extra:
 ``pip install .[ray]``). Without an address a local Ray runtime with ``workers`` CPUs is started
@@ -6,9 +6,9 @@
 installed on every node (or ship it with a Ray ``runtime_env``).
 
 Results do not depend on the backend: every trial spec carries its own seeds
-(``numpy.random.SeedSequence``, :mod:`electroloc_gym.bench.runner`), and each Ray worker imports
+(``numpy.random.SeedSequence``, :mod:`electroloc_gym.bench.config`), and each Ray worker imports
 ``electroloc_gym`` itself — which registers the env ids in that worker — and pins its numeric
-libraries to one thread (DESIGN §10) before running the trial. Ray is imported only when a run
+libraries to one thread before running the trial. Ray is imported only when a run
 starts, so registering this backend costs nothing when Ray is absent.
 """
 
