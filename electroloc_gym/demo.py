@@ -167,6 +167,9 @@ def _plot_progress(ax: Any, episode: Episode) -> None:
     ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 3.0, 5.0)))
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
     ax.yaxis.set_minor_formatter(FuncFormatter(lambda _v, _pos: ""))
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("observations used", fontsize=8)
     ax.set_ylabel("mm", fontsize=8)
     ax.tick_params(labelsize=7)
