@@ -228,6 +228,7 @@ def test_saturated_calibration_has_floored_std() -> None:
                                            (dict(samples_per_point=2.5), "samples_per_point"),
                                            (dict(half_span_mm=-1.0), "half_span_mm"),
                                            (dict(std_estimator="median"), "std_estimator"),
+                                           (dict(grid_extent="everything"), "grid_extent"),
                                            (dict(min_std_fraction=0.0), "min_std_fraction"),
                                            (dict(position_blur_mm=-0.1), "position_blur_mm")])
 def test_calibration_protocol_bad_args(kwargs, match) -> None:
@@ -250,6 +251,19 @@ def test_calibration_coefficients_equal_the_models(name: str) -> None:
             out32 = np.zeros((ref._coef.shape[0] + 3, 8), dtype=np.float32)
             calibration_coefficients(c, seed, protocol, out=out32[:ref._coef.shape[0]])
             assert np.array_equal(out32[:ref._coef.shape[0]], ref._coef.astype(np.float32))
+
+
+@pytest.mark.parametrize("name, n", [("fresh-steel-12.7", 51), ("salt-delrin-38.1", 61)])
+def test_all_offsets_grid_covers_every_particle_carriage_offset(name: str, n: int) -> None:
+    c = get_condition(name)
+    m = CalibratedSensorModel(c, 0, CalibrationProtocol(grid_extent="all-offsets"))
+    assert m.grid_shape == (n, n) and m.grid_mm[0] == -2 * c.allowed_half_width_mm
+    paper = CalibratedSensorModel(c, 0)
+    # the two grids agree where both have readings (same draws only for the same grid: compare the truth)
+    edge = np.array([[c.allowed_half_width_mm + 6.0, 0.5 * c.allowed_half_width_mm]])
+    assert paper.mean_std(edge)[0][0] == 0.0  # beyond the paper's square: "no target"
+    truth = expected_reading(c, edge)[0]
+    assert abs(m.mean_std(edge)[0][0] - truth) < 3 * c.noise_std_V / np.sqrt(10) + 0.05 * abs(truth)
 
 
 def test_pooled_std_is_one_value_off_saturation() -> None:

@@ -37,6 +37,7 @@ __all__ = [
     "make_sensor_model",
     "SENSOR_MODEL_NAMES",
     "STD_ESTIMATORS",
+    "GRID_EXTENTS",
     "calibration_grid_mm",
     "calibration_grid_for",
     "calibration_statistics",
@@ -45,6 +46,9 @@ __all__ = [
 ]
 
 SENSOR_MODEL_NAMES = ("analytic", "calibrated")
+
+#: Which offsets the calibration grid covers.
+GRID_EXTENTS = ("allowed-box", "all-offsets")
 
 #: How the calibration turns a grid point's readings into the model's standard deviation.
 STD_ESTIMATORS = ("per-point", "pooled")
@@ -57,8 +61,11 @@ class CalibrationProtocol:
     Attributes:
         grid_step_mm: grid pitch, mm (paper: 4 mm).
         samples_per_point: readings per grid point (paper: 10).
-        half_span_mm: the grid covers offsets ±this, mm; None: the condition's allowed box (the paper's
-            100 mm / 120 mm squares).
+        grid_extent: the offsets the grid covers when ``half_span_mm`` is None: ``"allowed-box"``, ±the
+            condition's allowed half width (the paper's 100 mm / 120 mm squares; offsets beyond it read
+            as "no target"), or ``"all-offsets"``, ±twice it (every offset a particle in the allowed box
+            can have from a carriage in it, so no hypothesis gets the false "no target" prediction).
+        half_span_mm: the grid covers offsets ±this, mm (overrides ``grid_extent``).
         std_estimator: ``"per-point"``: each point's own sample std (ddof = 1, floored);
             ``"pooled"``: one std, the root of the mean sample variance over the points none of whose
             readings saturated (the amplifier noise is the same everywhere), and the per-point std
@@ -74,6 +81,7 @@ class CalibrationProtocol:
 
     grid_step_mm: float = 4.0
     samples_per_point: int = 10
+    grid_extent: str = "allowed-box"
     half_span_mm: float | None = None
     std_estimator: str = "per-point"
     min_std_fraction: float = 0.25
@@ -91,6 +99,8 @@ class CalibrationProtocol:
         if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 2 or s > 10_000:
             raise ValueError(f"samples_per_point must be an integer in [2, 10000], got {s!r}")
         object.__setattr__(self, "samples_per_point", int(s))
+        if self.grid_extent not in GRID_EXTENTS:
+            raise ValueError(f"grid_extent must be one of {list(GRID_EXTENTS)}, got {self.grid_extent!r}")
         if self.half_span_mm is not None:
             object.__setattr__(self, "half_span_mm", number("half_span_mm", self.half_span_mm, 0.0, False))
         if self.std_estimator not in STD_ESTIMATORS:
@@ -118,7 +128,10 @@ def calibration_grid_mm(half_span_mm: float, grid_step_mm: float) -> NDArray[np.
 def calibration_grid_for(condition: Condition, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
                          ) -> NDArray[np.float64]:
     """The grid coordinates per axis (mm) that ``protocol`` visits for ``condition``."""
-    half = condition.allowed_half_width_mm if protocol.half_span_mm is None else protocol.half_span_mm
+    if protocol.half_span_mm is not None:
+        half = protocol.half_span_mm
+    else:
+        half = condition.allowed_half_width_mm * (2.0 if protocol.grid_extent == "all-offsets" else 1.0)
     return calibration_grid_mm(half, protocol.grid_step_mm)
 
 
