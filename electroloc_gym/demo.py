@@ -196,7 +196,8 @@ def save_gif(frames: list[NDArray[np.uint8]], path: str | os.PathLike, fps: floa
         raise ValueError(f"fps must be a finite number > 0, got {fps!r}")
     if not (np.isfinite(hold_last_s) and hold_last_s >= 0):
         raise ValueError(f"hold_last_s must be a finite number ≥ 0, got {hold_last_s!r}")
-    images = [Image.fromarray(np.asarray(f, dtype=np.uint8)).quantize(colors=128, method=Image.Quantize.MEDIANCUT)
+    palette = _shared_palette(frames)
+    images = [Image.fromarray(np.asarray(f, dtype=np.uint8)).quantize(palette=palette, dither=Image.Dither.NONE)
               for f in frames]
     dt = int(round(1000.0 / fps))
     durations = [dt] * len(images)
@@ -221,6 +222,27 @@ def check_output_path(name: str, path: str | os.PathLike) -> None:
         raise ValueError(f"{name}: cannot create {str(p)!r}, {str(parent)!r} is a file")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"{name}: cannot write {str(p)!r}, folder {str(parent)!r} is not writable")
+
+
+#: Marker colours every GIF palette keeps (matplotlib's tab colours, black, grey), RGB.
+_MARKER_RGB = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (23, 190, 207),
+               (0, 0, 0), (89, 89, 89), (255, 255, 255))
+
+
+def _shared_palette(frames: list[NDArray[np.uint8]]) -> Any:
+    """One 255-colour palette for every frame (same colours throughout; smaller GIF deltas).
+
+    Built from up to six evenly spaced frames plus swatches of the marker colours, so that small
+    markers (the estimate, the path) keep their colour instead of being merged into the background.
+    """
+    from PIL import Image
+
+    idx = sorted({int(round(j * (len(frames) - 1) / 5)) for j in range(6)})
+    sample = [np.asarray(frames[i], dtype=np.uint8)[::2, ::2] for i in idx]
+    width = sample[0].shape[1]
+    rows = max(1, sum(a.shape[0] for a in sample) // 50)  # each swatch ≈ 2 % of the sample's pixels
+    swatches = [np.broadcast_to(np.array(c, dtype=np.uint8), (rows, width, 3)) for c in _MARKER_RGB]
+    return Image.fromarray(np.concatenate([*sample, *swatches], axis=0)).quantize(255, method=Image.Quantize.MEDIANCUT)
 
 
 def demo(condition: str = "fresh-steel-12.7", sensor_model: str = "calibrated", seed: int = 0,

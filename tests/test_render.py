@@ -140,7 +140,15 @@ def test_gif_has_one_frame_per_observation(tmp_path) -> None:
         assert im.format == "GIF"
         assert im.n_frames == len(ep.snapshots)
         assert im.size == (ep.frames[0].shape[1], ep.frames[0].shape[0])
+        im.seek(im.n_frames - 1)
+        last = np.asarray(im.convert("RGB")).astype(int)
     assert [p.name for p in tmp_path.iterdir()] == ["ep.gif"]  # no temp file left behind
+
+    def green(a):  # the estimate and its spread circle (tab:green): small markers the palette must keep
+        return int((np.abs(a.astype(int) - (44, 160, 44)).sum(-1) < 40).sum())
+
+    assert green(ep.frames[-1]) > 50
+    assert green(last) >= 0.8 * green(ep.frames[-1])
 
 
 @pytest.mark.parametrize("kwargs, match", [({"frames": []}, "at least one"), ({"fps": 0}, "fps"),
