@@ -114,9 +114,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--vec-env", default=d.vec_env, choices=VEC_ENVS)
     p.add_argument("--device", default=d.device, choices=DEVICES)
     p.add_argument("--eval-freq", type=int, default=d.eval_freq, help="env steps between evaluations")
-    p.add_argument("--eval-episodes", type=int, default=d.eval_episodes, help="seeded episodes per evaluation")
-    p.add_argument("--eval-seed", type=int, default=d.eval_seed, help="evaluation episode i uses reset seed S+i")
-    p.add_argument("--eval-env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
+    p.add_argument("--eval-episodes", type=int, default=None,
+                   help=f"seeded episodes per evaluation (default {d.eval_episodes})")
+    p.add_argument("--eval-seed", type=int, default=None,
+                   help=f"evaluation episode i uses reset seed S+i (default {d.eval_seed})")
+    p.add_argument("--eval-env-kwargs", nargs="*", default=None, metavar="KEY=VALUE",
                    help="overrides of the training env kwargs for evaluation (e.g. randomize_target=false)")
     p.add_argument("--checkpoint-freq", type=int, default=d.checkpoint_freq, help="env steps between checkpoints")
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
@@ -130,14 +132,16 @@ def build_parser() -> argparse.ArgumentParser:
 def parse_args(argv: Sequence[str] | None = None) -> Args:
     """Parse the command line into :class:`Args` (raises ConfigError for malformed or out-of-range values)."""
     ns = build_parser().parse_args(argv)
-    explicit = [k for k in ("algo", "env", "env_kwargs", "n_envs", "seed", "hyperparams")
-                if getattr(ns, k) is not None]
+    explicit = [k for k in ("algo", "env", "env_kwargs", "n_envs", "seed", "hyperparams", "eval_episodes",
+                            "eval_seed", "eval_env_kwargs") if getattr(ns, k) is not None]
+    d = Args()
     args = Args(
         algo=(ns.algo or _DEFAULTS["algo"]).lower(), env=ns.env or _DEFAULTS["env"],
         env_kwargs=_parse_kwargs(ns.env_kwargs, "--env-kwargs"), timesteps=ns.timesteps, n_envs=ns.n_envs,
         seed=_DEFAULTS["seed"] if ns.seed is None else ns.seed, hyperparams=ns.hyperparams, out=ns.out,
         resume=ns.resume, force=ns.force, vec_env=ns.vec_env, device=ns.device, eval_freq=ns.eval_freq,
-        eval_episodes=ns.eval_episodes, eval_seed=ns.eval_seed,
+        eval_episodes=d.eval_episodes if ns.eval_episodes is None else ns.eval_episodes,
+        eval_seed=d.eval_seed if ns.eval_seed is None else ns.eval_seed,
         eval_env_kwargs=_parse_kwargs(ns.eval_env_kwargs, "--eval-env-kwargs"),
         checkpoint_freq=ns.checkpoint_freq,
         progress=sys.stderr.isatty() if ns.progress is None else ns.progress,
@@ -164,8 +168,8 @@ def check_config(args: Args, cfg: dict[str, Any]) -> None:
     from electroloc_gym.train.validation import check_env
 
     check_env(cfg["env_id"], cfg["env_kwargs"], "--env-kwargs / env_kwargs")
-    if args.eval_env_kwargs:
-        check_env(cfg["env_id"], {**cfg["env_kwargs"], **args.eval_env_kwargs}, "--eval-env-kwargs")
+    if cfg["evaluation"]["env_kwargs"]:
+        check_env(cfg["env_id"], {**cfg["env_kwargs"], **cfg["evaluation"]["env_kwargs"]}, "--eval-env-kwargs")
     n_steps = cfg["hyperparams"].get("n_steps")
     if cfg["algo"] in ("ppo", "a2c", "recurrentppo") and n_steps is not None and n_steps * cfg["n_envs"] < 2:
         raise ConfigError(f"n_steps × n_envs must be ≥ 2 (a rollout of one step cannot be learned from), "
@@ -264,15 +268,24 @@ def _setup_torch(device: str) -> str:
 
 def train(args: Args, argv: Sequence[str] = ()) -> Path:
     """Run training as ``args`` says; returns the run directory."""
-    from electroloc_gym.train.callbacks import ModelDirCheckpoint, SeededEvalCallback
-    from electroloc_gym.train.rundir import git_commit, strict_json, versions
-
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")  # inherited by subprocess envs
     plan = plan_run(args)  # every check before anything is written
-    cfg, rd, out = plan.config, plan.run_dir, plan.run_dir.path
-    check_config(args, cfg)
+    check_config(args, plan.config)
+    rd = plan.run_dir
     rd.lock()
+    try:
+        return _train_locked(args, argv, plan)
+    finally:
+        rd.unlock()
+
+
+def _train_locked(args: Args, argv: Sequence[str], plan: Any) -> Path:
+    """The run itself, with the folder's lock held."""
+    from electroloc_gym.train.callbacks import ModelDirCheckpoint, SeededEvalCallback, save_model_dir
+    from electroloc_gym.train.rundir import git_commit, strict_json, versions
+
+    cfg, rd, out = plan.config, plan.run_dir, plan.run_dir.path
     if args.force:
         rd.wipe()
     set_aside = rd.set_aside_after(plan.timesteps_done) if plan.continues_out else None
@@ -299,8 +312,9 @@ def train(args: Args, argv: Sequence[str] = ()) -> Path:
     provenance = {"commands": rd.commands(), "seed": cfg["seed"], "run": str(out), **git_commit(),
                   "versions": versions()}
     t0 = time.time() - rd.previous_wall_time_s()  # eval.csv's wall_time_s counts the whole run
-    eval_kwargs = {**cfg["env_kwargs"], **args.eval_env_kwargs}
-    seeds = [args.eval_seed + i for i in range(args.eval_episodes)]
+    ev = cfg["evaluation"]
+    eval_kwargs = {**cfg["env_kwargs"], **ev["env_kwargs"]}
+    seeds = [ev["seed"] + i for i in range(ev["episodes"])]
     eval_cb = SeededEvalCallback(cfg["env_id"], eval_kwargs, seeds, args.eval_freq, out / "eval.csv", out / "best",
                                  cfg, frame_stack=cfg["frame_stack"], t0=t0, verbose=args.verbose,
                                  best_mean_steps=plan.best_mean_steps, provenance=provenance,
@@ -313,8 +327,6 @@ def train(args: Args, argv: Sequence[str] = ()) -> Path:
                     progress_bar=args.progress, reset_num_timesteps=plan.resume_zip is None, tb_log_name="run")
         status = "finished"
     finally:
-        from electroloc_gym.train.callbacks import save_model_dir
-
         save_model_dir(model, out, cfg, provenance=provenance)
         rd.update_segment(int(model.num_timesteps), status)
         wall = rd.total_wall_time_s()

@@ -143,11 +143,11 @@ def load_hyperparams(path: str | Path, algo: str) -> dict[str, dict[str, Any]]:
         if unknown:
             raise ConfigError(f"{p}: section {section!r} has unknown key(s) {unknown} for --algo {algo}; "
                               f"allowed: {sorted(allowed)}")
-        _check_values(body, f"{p}: section {section!r}")
         from electroloc_gym.train.validation import check_algo_values
 
-        data[section] = {**body, **check_algo_values({k: v for k, v in body.items() if k not in EXTRA_KEYS}, algo,
-                                                     f"{p}: section {section!r}")}
+        data[section] = body = {**body, **check_algo_values({k: v for k, v in body.items() if k not in EXTRA_KEYS},
+                                                            algo, f"{p}: section {section!r}")}
+        _check_values(body, f"{p}: section {section!r}")
     return data
 
 

@@ -1,4 +1,4 @@
-"""SB3 adapter for the native batched vector env (issue 7): train directly on N batched tanks.
+"""SB3 adapter for the native batched vector env: train directly on N batched tanks.
 
 Stable-Baselines3 cannot consume a Gymnasium ``VectorEnv``; it wants its own ``VecEnv`` protocol
 (auto-reset in the same step, the final observation in ``infos[i]["terminal_observation"]``, a list

@@ -149,6 +149,12 @@ class RunDir:
                               f"held); wait for it to finish or choose another --out") from exc
         self._lock_fd = fd
 
+    def unlock(self) -> None:
+        """Release the lock (also released when the process ends)."""
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)
+            self._lock_fd = None
+
     def wipe(self) -> None:
         """Delete everything in the (locked) folder but the lock file (``--force``)."""
         for p in self.path.iterdir():

@@ -73,7 +73,13 @@ def resolve_config(args: Args) -> dict[str, Any]:
                         if k not in ("env_kwargs", "n_envs", "n_timesteps", "frame_stack", "shaping_coef",
                                      "normalize")},
         "hyperparams_file": str(args.hyperparams),
+        "evaluation": _evaluation(args),
     }
+
+
+def _evaluation(args: Args) -> dict[str, Any]:
+    """The evaluation protocol: part of the run, since best/ compares scores measured with it."""
+    return {"episodes": args.eval_episodes, "seed": args.eval_seed, "env_kwargs": dict(args.eval_env_kwargs)}
 
 
 def latest_state(folder: Path) -> Path:
@@ -161,6 +167,11 @@ def _conflicts(args: Args, saved: dict[str, Any]) -> list[str]:
         for k, v in args.env_kwargs.items():
             if saved["env_kwargs"].get(k, "<unset>") != v:
                 out.append(f"--env-kwargs {k}={v} (the run: {saved['env_kwargs'].get(k, '<unset>')})")
+    ev = saved.get("evaluation") or {}
+    for key, flag in (("episodes", "eval_episodes"), ("seed", "eval_seed"), ("env_kwargs", "eval_env_kwargs")):
+        if flag in given and key in ev and getattr(args, flag) != ev[key]:
+            out.append(f"--{flag.replace('_', '-')} {getattr(args, flag)} (the run evaluates with {ev[key]}; "
+                       f"best/ compares scores of that protocol)")
     if "hyperparams" in given:
         new = resolve_config(replace(args, algo=saved["algo"], env=saved["env_id"], env_kwargs={}))
         for key in _YAML_KEYS:
@@ -242,6 +253,7 @@ def plan_run(args: Args) -> RunPlan:
                           f"--timesteps N to train N more")
     if "seed" in args.explicit:
         cfg["seed"] = args.seed
+    cfg["evaluation"] = {**_evaluation(args), **(saved.get("evaluation") or {})}
     best, best_t = best_so_far(rd.path) if continues_out else (math.inf, None)
     return RunPlan(run_dir=rd, config=cfg, resume_zip=resume_zip, continues_out=continues_out, timesteps_done=done,
                    normalization=_saved_normalization(folder, cfg), best_mean_steps=best, best_timesteps=best_t)

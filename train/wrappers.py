@@ -19,7 +19,7 @@ __all__ = ["FrameStacker", "FlatFrameStack", "PotentialShaping", "spread_potenti
 class FrameStacker:
     """The last ``k`` observations, oldest first, as one flat vector; zeros before the first one.
 
-    Shared by :class:`FlatFrameStack` (training) and the loaded agent (:mod:`train.policy`), so the
+    Shared by :class:`FlatFrameStack` (training) and the loaded agent (:mod:`electroloc_gym.train.policy`), so the
     policy sees at decision time exactly what it saw in training.
 
     >>> s = FrameStacker(3, 2)
