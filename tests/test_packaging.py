@@ -20,14 +20,13 @@ ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 
 
 def _packages_on_disk() -> set[str]:
+    """Every folder holding Python modules, as a dotted package name (with or without ``__init__.py``)."""
     found = set()
-    for init in (ROOT / "electroloc_gym").rglob("__init__.py"):
-        if "__pycache__" not in init.parts:
-            found.add(".".join(init.parent.relative_to(ROOT).parts))
-    for name, folder in MAPPED.items():
-        for init in (ROOT / folder).rglob("__init__.py"):
-            rel = init.parent.relative_to(ROOT / folder).parts
-            found.add(".".join((name, *rel)))
+    roots = {"electroloc_gym": ROOT / "electroloc_gym", **{name: ROOT / folder for name, folder in MAPPED.items()}}
+    for name, root in roots.items():
+        for module in root.rglob("*.py"):
+            if "__pycache__" not in module.parts:
+                found.add(".".join((name, *module.parent.relative_to(root).parts)))
     return found
 
 
