@@ -241,3 +241,33 @@ def test_summary_json_is_strict_even_without_successes(run):
     _strict(out / "args.json")
     text = strict_json({"median_steps_success": float("nan"), "best": float("inf")})
     assert json.loads(text) == {"median_steps_success": None, "best": None}
+
+
+@pytest.mark.slow
+def test_sigkill_then_resume_finishes_the_run_without_mixing(tmp_path):
+    """Kill a real training process after its first checkpoint, resume, and check the records."""
+    import signal
+    import time
+
+    hp = tmp_path / "tiny.yml"
+    hp.write_text(TINY_YAML)
+    out = tmp_path / "run"
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(REPO))
+    cmd = [sys.executable, "-m", "electroloc_gym.train", *_args(hp, out, "--timesteps", "2048")]
+    cmd[cmd.index("--checkpoint-freq") + 1] = "256"
+    proc = subprocess.Popen(cmd, env=env, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.time() + 300
+        while not list(out.glob("checkpoints/step_*/policy.json")) and time.time() < deadline:
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.stderr.read().decode()[-2000:]
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert not (out / "summary.json").exists()
+    assert main(["--out", str(out), "--resume", *QUIET]) == 0
+    segs = _strict(out / "args.json")["segments"]
+    assert [s["status"] for s in segs] == ["killed", "finished"] and segs[1]["timesteps_end"] >= 2048
+    rows = _eval_rows(out)
+    assert rows == sorted(set(rows)) and rows[0] == 0 and rows[-1] >= 2048  # no evaluation twice, in order
+    assert _strict(out / "summary.json")["timesteps"] >= 2048
