@@ -1,9 +1,9 @@
-"""Env step throughput vs the cost of one bare vectorised particle update (issue: foundation).
+"""Single-env step throughput vs the cost of the core's bare reading-and-update.
 
 Prints env steps/s for ElectroLoc-v0 in belief mode at 2500 particles with the analytic and the
-calibrated sensor model, the cost of one bare particle update (sensor model on all particles,
-log-weight normalisation, systematic resampling, jitter), and their ratio. Numeric libraries are
-pinned to one thread (DESIGN §10).
+calibrated sensor model, the cost of the simulation core's bare reading and belief update for the
+env (draws, true reading, sensor model on all particles, weights, resampling, jitter, statistics:
+``Simulation._observe``), and their ratio. Numeric libraries are pinned to one thread.
 
     python benchmarks/env_step.py [--steps 3000] [--particles 2500]
 """
@@ -20,7 +20,6 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from electroloc_gym.belief import ParticleBelief  # noqa: E402
 from electroloc_gym.envs.localize import ElectroLocEnv  # noqa: E402
 
 
@@ -36,18 +35,10 @@ def best_of(fn, n: int, repeats: int = 5) -> float:
 
 
 def bare_update_cost(env: ElectroLocEnv, n: int) -> float:
-    """Seconds for one bare particle update with the env's sensor model and belief settings."""
-    rng = np.random.default_rng(0)
-    b = ParticleBelief(env.n_particles, *env.allowed_box_mm, dtype=np.float32)
-    b.reset(rng)
-    model = env.sensor_model
-    pos = env.position_mm.astype(np.float32)
-    reading = env.last_reading_V
-
-    def one() -> None:
-        b.assimilate(model.log_likelihood(reading, b.particles - pos), rng)
-
-    return best_of(one, n)
+    """Seconds for the core's reading and belief update of the env (no motion, observation or info)."""
+    sim = env._sim
+    ids = np.arange(1)
+    return best_of(lambda: sim._observe(ids), n)
 
 
 def env_step_cost(env: ElectroLocEnv, n: int) -> float:

@@ -1,13 +1,16 @@
-"""Pure-numpy physics of the electrolocation robot (no Gymnasium, no randomness).
+"""The physics of the electrolocation robot (no Gymnasium, no randomness).
 
 Units: lengths in millimetres (mm), potentials in volts (V), fields in V/mm, conductivities in
 µS/cm. Every function is vectorised over arbitrary leading shapes.
 
 Numerical form: the array expressions use only IEEE-exact operations (+ − × ÷ and √, each correctly
-rounded), never ``pow``: ``r**-1.5`` is written ``1/(r·√r)``. numpy evaluates ``pow`` through
-CPU-specific SIMD code whose last bit differs between CPUs and between an array's SIMD body and its
-tail, so a reading would depend on the machine and on how many envs are stepped together; with
-exact operations every element gets the same bits however it is batched (docs/design.md).
+rounded), never ``pow``: ``r**-1.5`` is written ``1/(r·√r)``; the hot one (the two-sensor difference
+of a dipole, evaluated on every particle by the analytic models and on every carriage by the true
+reading) is one compiled elementwise pass (numba, no ``fastmath``, so no reassociation or FMA).
+numpy evaluates ``pow`` through CPU-specific SIMD code whose last bit differs between CPUs and
+between an array's SIMD body and its tail, so a reading would depend on the machine and on how many
+envs are stepped together; with exact operations every element gets the same bits however it is
+batched (docs/design.md).
 
 Geometry (paper §2.2, §6.7, Appendix A): the carriage carries two emitters at
 ``p + (±L/2, 0, 0)`` and two sensing electrodes ``S1 = p + (0, +L/2, 0)``,
@@ -38,6 +41,7 @@ the electrodes. We report both numbers side by side (``electroloc detect``) inst
 from __future__ import annotations
 
 import numpy as np
+from numba import vectorize
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
@@ -187,14 +191,41 @@ def differential_perturbation(
     Returns:
         Array of shape (...) in volts.
     """
-    return _differential_dipole(offsets_mm, chi * (radius_mm * radius_mm * radius_mm), depth_mm, 1.5, spacing_mm, emitter_voltage_V,
-                                electrode_radius_mm)
+    return _differential_dipole(offsets_mm, chi * (radius_mm * radius_mm * radius_mm), depth_mm, 1.5, spacing_mm,
+                                emitter_voltage_V, electrode_radius_mm)
 
 
-def _inverse_power(t: NDArray, power: float) -> NDArray:
-    """``t ** −power`` for ``power`` 1.5 (a point dipole) or 1 (a line dipole) with exact operations only."""
-    one = t.dtype.type(1.0)
-    return one / (t * np.sqrt(t)) if power == 1.5 else one / t
+_DIPOLE_SIGNATURES = ["float32(float32, float32, float32, float32, float32, float32, float32, boolean)",
+                      "float64(float64, float64, float64, float64, float64, float64, float64, boolean)"]
+
+
+@vectorize(_DIPOLE_SIGNATURES, cache=True)
+def _dipole_difference(x, y, h, z2, k, strength, one, point):  # pragma: no cover - compiled
+    """One offset's ``strength · E_f(c)·[(S1 − c)/|S1 − c|^p − (S2 − c)/|S2 − c|^p]``, p = 3 (``point``)
+    or 2, in the input's precision (``one`` = 1 in it), exact operations only (module docstring).
+    """
+    # Emitter field at the object centre c = (x, y, -depth) (Eq. 7).
+    xp = x - h
+    xn = x + h
+    y2z2 = y * y + z2
+    tp = xp * xp + y2z2
+    tn = xn * xn + y2z2
+    ip = one / (tp * np.sqrt(tp))
+    inn = one / (tn * np.sqrt(tn))
+    ex = k * (xp * ip - xn * inn)
+    eyz = k * (ip - inn)  # E_y = eyz * y, E_z = eyz * (-depth)
+    # Dipole potential at the sensors, (s - c) = (-x, ±h - y, +depth) (Eq. 4).
+    x2z2 = x * x + z2
+    d1 = h - y
+    d2 = -h - y
+    t1 = x2z2 + d1 * d1
+    t2 = x2z2 + d2 * d2
+    r1 = one / (t1 * np.sqrt(t1)) if point else one / t1
+    r2 = one / (t2 * np.sqrt(t2)) if point else one / t2
+    common = -ex * x - eyz * z2  # E·(s-c) without the y term: E_x(-x) + E_z(+depth) = -ex x - eyz depth²
+    dot1 = common + eyz * y * d1
+    dot2 = common + eyz * y * d2
+    return strength * (dot1 * r1 - dot2 * r2)
 
 
 def _differential_dipole(
@@ -206,36 +237,19 @@ def _differential_dipole(
     emitter_voltage_V: float,
     electrode_radius_mm: float,
 ) -> NDArray:
-    """``strength · E_f(c)·[(S1 − c)/|S1 − c|^(2·power) − (S2 − c)/|S2 − c|^(2·power)]`` per column.
+    """``strength · E_f(c)·[(S1 − c)/|S1 − c|^(2·power) − (S2 − c)/|S2 − c|^(2·power)]`` per offset.
 
     ``power = 1.5``: a sphere's point dipole (Eq. 4, strength χa³); ``power = 1``: a vertical
     cylinder's line dipole (2-D analogue, strength χ₂a²), c at ``depth_mm`` below the electrodes.
+    float32 offsets are computed in float32, anything else in float64; one compiled pass per offset.
     """
     off = np.asarray(offsets_mm)
     dtype = off.dtype if off.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+    t = dtype.type
     x = off[..., 0].astype(dtype, copy=False)
     y = off[..., 1].astype(dtype, copy=False)
-    h = dtype.type(spacing_mm / 2.0)
-    z2 = dtype.type(depth_mm * depth_mm)
-    # Emitter field at the object centre c = (x, y, -depth) (Eq. 7).
-    xp = x - h
-    xn = x + h
-    y2z2 = y * y + z2
-    ip = _inverse_power(xp * xp + y2z2, 1.5)
-    inn = _inverse_power(xn * xn + y2z2, 1.5)
-    k = dtype.type(emitter_voltage_V * electrode_radius_mm)
-    ex = k * (xp * ip - xn * inn)
-    eyz = k * (ip - inn)  # E_y = eyz * y, E_z = eyz * (-depth)
-    # Dipole potential at the sensors, (s - c) = (-x, ±h - y, +depth) (Eq. 4).
-    x2z2 = x * x + z2
-    d1 = h - y
-    d2 = -h - y
-    r1 = _inverse_power(x2z2 + d1 * d1, power)
-    r2 = _inverse_power(x2z2 + d2 * d2, power)
-    common = -ex * x - eyz * z2  # E·(s-c) without the y term: E_x(-x) + E_z(+depth) = -ex x - eyz depth²
-    dot1 = common + eyz * y * d1
-    dot2 = common + eyz * y * d2
-    return dtype.type(strength) * (dot1 * r1 - dot2 * r2)
+    return _dipole_difference(x, y, t(spacing_mm / 2.0), t(depth_mm * depth_mm),
+                              t(emitter_voltage_V * electrode_radius_mm), t(strength), t(1.0), power == 1.5)
 
 
 def differential_line_perturbation(
@@ -252,8 +266,8 @@ def differential_line_perturbation(
     The 2-D analogue of Eq. 4 (docs/design.md, "Physics"), ``χ₂ a² E_f(c)·(s − c)/|s − c|²``, evaluated with the
     same column-wise fast path as :func:`differential_perturbation`; float32 in, float32 out.
     """
-    return _differential_dipole(offsets_mm, chi2 * (radius_mm * radius_mm), depth_mm, 1.0, spacing_mm, emitter_voltage_V,
-                                electrode_radius_mm)
+    return _differential_dipole(offsets_mm, chi2 * (radius_mm * radius_mm), depth_mm, 1.0, spacing_mm,
+                                emitter_voltage_V, electrode_radius_mm)
 
 
 # --------------------------------------------------------------------------------------------

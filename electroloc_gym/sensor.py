@@ -10,9 +10,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym import physics
-from electroloc_gym.kernels import noisy_saturated
 from electroloc_gym.conditions import Condition
 from electroloc_gym.draws import normal_table, table_normal_indices
+from electroloc_gym.kernels import noisy_saturated
 
 __all__ = ["expected_reading", "noisy_reading", "calibration_readings", "add_calibration_noise",
            "electrode_positions_mm"]

@@ -77,7 +77,7 @@ def test_sample_options_stay_first_and_inside_bounds() -> None:
 def test_move_bounds_clip_to_box() -> None:
     env = gym.make("ElectroLoc-v0", n_particles=50, sensor_model="analytic")
     env.reset(seed=1)
-    env.unwrapped._position = np.array([47.0, -50.0])  # test setup only: put the carriage near two walls
+    env.unwrapped._state.position_mm[0] = [47.0, -50.0]  # test setup only: put the carriage near two walls
     lo, hi = move_bounds_mm(env)
     np.testing.assert_allclose(lo, [-10.0, 0.0])
     np.testing.assert_allclose(hi, [3.0, 10.0])

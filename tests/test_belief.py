@@ -1,16 +1,12 @@
-"""ParticleBelief and the batched filter functions."""
+"""The belief accessor of the envs, the core's update edge cases, and the numpy reference filter the kernels are
+tested against (tests/reference_filter.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from reference_filter import ParticleBelief, spread_from_cov, systematic_resample, weighted_mean_cov
 
-from electroloc_gym.belief import (
-    ParticleBelief,
-    spread_from_cov,
-    systematic_resample,
-    weighted_mean_cov,
-)
 from electroloc_gym.conditions import get_condition
 from electroloc_gym.sensor import noisy_reading
 from electroloc_gym.sensor_models import AnalyticSensorModel
@@ -129,3 +125,50 @@ def test_filter_converges_on_true_target() -> None:
         b.assimilate(model.log_likelihood(z, b.particles - pos), rng)
     assert np.linalg.norm(b.mean() - target) < 3.0
     assert b.spread() < 5.0
+
+
+def test_belief_view_is_a_read_only_view_of_the_core_cloud() -> None:
+    import gymnasium as gym
+
+    import electroloc_gym  # noqa: F401
+
+    env = gym.make("ElectroLoc-v0", n_particles=300)
+    env.reset(seed=1)
+    b = env.unwrapped.belief
+    p = b.particles
+    assert p.shape == (300, 2) and p.dtype == np.float32
+    with pytest.raises(ValueError):
+        p[0, 0] = 1.0
+    np.testing.assert_allclose(b.mean(), p.astype(np.float64).mean(axis=0), rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(b.covariance(), np.cov(p.T.astype(np.float64), bias=True), rtol=1e-9, atol=1e-9)
+    assert b.spread() == pytest.approx(float(np.sqrt(np.trace(b.covariance()))))
+    assert b.uniform_weights and np.all(b.weights == 1 / 300)
+    env.step(np.zeros(2, np.float32))  # a live view: it shows the updated cloud
+    np.testing.assert_allclose(b.mean(), b.particles.astype(np.float64).mean(axis=0), rtol=1e-12, atol=1e-9)
+
+
+def _update(ll: np.ndarray) -> tuple[np.ndarray, int]:
+    """The core's update kernel on one cloud of 3 particles at 0, 1, 2 mm (u0 = 0.5, no jitter)."""
+    from electroloc_gym.draws import normal_table
+    from electroloc_gym.kernels import loglik_assimilate
+
+    src = np.array([[[0.0, 1.0, 2.0], [0.0, 0.0, 0.0]]], dtype=np.float32)
+    table = normal_table()
+    zero = np.full((1, 6), np.searchsorted(table, 0.0), dtype=np.uint16)  # the quantiles nearest 0
+    mean, cov, counts = np.empty((1, 2)), np.empty((1, 2, 2)), np.empty((1, 64))
+    bad = loglik_assimilate(ll[None].astype(np.float32), src, np.zeros((1, 2), np.float32), np.full(1, 0.5), zero,
+                            table, np.full(1, 10.0, np.float32), src, mean, cov, np.full(1, 20.0, np.float32), 8,
+                            counts)
+    return np.round(src[0, 0]).astype(int), bad
+
+
+def test_core_update_edge_cases() -> None:
+    # Every likelihood underflowing in linear space: the log-domain weights still pick the best particle.
+    x, bad = _update(np.array([-2000.0, -1990.0, -5000.0]))
+    assert bad == -1 and np.all(x == 1)
+    # All −inf: the weights stay uniform (each particle kept once).
+    x, bad = _update(np.full(3, -np.inf))
+    assert bad == -1 and sorted(x.tolist()) == [0, 1, 2]
+    # A NaN log-likelihood is reported (the env raises).
+    _, bad = _update(np.array([0.0, np.nan, 0.0]))
+    assert bad == 0

@@ -310,12 +310,13 @@ def test_motion_shifts_particles_and_keeps_carriage_in_the_box() -> None:
     env.reset(seed=4)
     before = env.belief.particles.copy()
     pos = env.position_mm
-    env._execute_move(np.array([10.0, -10.0]))  # the motion half of step() (no reading)
+    core = env._sim  # the motion half of a step (no reading)
+    core.task.move(core.state, slice(None), np.array([[10.0, -10.0]]))
     np.testing.assert_allclose(env.belief.particles, np.clip(before + [10.0, -10.0], -80, 80), atol=1e-5)
     np.testing.assert_allclose(env.position_mm, np.clip(pos + [10.0, -10.0], -80, 80))
     for _ in range(30):  # drive into the corner: truth and particles stay inside the box
-        env.step(np.array([1.0, 1.0], np.float32))
-        if env.n_observations >= env.max_observations:
+        _, _, term, trunc, _ = env.step(np.array([1.0, 1.0], np.float32))
+        if term or trunc:
             break
     assert np.all(env.position_mm <= 80.0) and np.all(env.belief.particles <= 80.0)
 
@@ -385,19 +386,14 @@ def test_multimodal_belief_spread_and_no_crash() -> None:
     rng = np.random.default_rng(0)
     a = rng.normal([-50.0, -50.0], 1.0, size=(500, 2))
     b = rng.normal([50.0, 50.0], 1.0, size=(500, 2))
-    env.belief.set_state(np.concatenate([a, b]))
+    env._sim.set_particles(0, np.concatenate([a, b]))
     # Equal clusters at ±50 mm per axis: var per axis = 50² + 1 → √trace Σ ≈ √(2·2501) ≈ 70.7 mm.
     assert env.belief.spread() == pytest.approx(np.sqrt(2 * 2501.0), rel=0.01)
-    # Unequal weights 0.9/0.1: Σ = mixture covariance, var per axis = 0.9·0.1·100² + 1.
-    w = np.r_[np.full(500, 0.9 / 500), np.full(500, 0.1 / 500)]
-    env.belief.set_state(np.concatenate([a, b]), w)
-    assert env.belief.spread() == pytest.approx(np.sqrt(2 * (0.09 * 100.0**2 + 1.0)), rel=0.02)
-    obs = env._get_obs()
+    obs = env._sim.observation()[0]
     assert env.observation_space.contains(obs)
-    hist = obs[12:76].reshape(8, 8)  # allocentric 20 mm cells over ±80 mm, weighted by the belief
-    assert hist[1, 1] == pytest.approx(0.9, abs=0.02) and hist[6, 6] == pytest.approx(0.1, abs=0.02)
-    assert not env._get_info()["success"]
-    env.belief.set_state(np.concatenate([a, b]))
+    hist = obs[12:76].reshape(8, 8)  # allocentric 20 mm cells over ±80 mm
+    assert hist[1, 1] == pytest.approx(0.5, abs=0.02) and hist[6, 6] == pytest.approx(0.5, abs=0.02)
+    assert not env._sim.info()["success"][0]
     for _ in range(5):
         obs, _, term, trunc, info = env.step(np.array([0.3, -0.2], np.float32))
         assert np.all(np.isfinite(obs)) and env.observation_space.contains(obs)

@@ -1,4 +1,4 @@
-"""The compiled kernels (electroloc_gym._kernels) against the numpy expressions they stand for."""
+"""The compiled kernels (electroloc_gym.kernels) against the numpy expressions they stand for."""
 
 from __future__ import annotations
 
@@ -6,13 +6,22 @@ from typing import Any
 
 import numpy as np
 import pytest
+from reference_filter import ParticleBelief, egocentric_histogram, normalise_log_weights, weight_sums
 from scipy import stats
 
-from electroloc_gym import _kernels as K
-from electroloc_gym.belief import normal_table, table_standard_normal, weighted_mean_cov
+from electroloc_gym import kernels as K
 from electroloc_gym.conditions import get_condition
-from electroloc_gym.envs.observation import HIST_BINS, _egocentric_histogram
+from electroloc_gym.draws import normal_table, table_standard_normal, uniform_in_box
+from electroloc_gym.envs.observation import HIST_BINS, belief_observation
 from electroloc_gym.sensor_models import CalibratedSensorModel
+
+
+def _mean_cov(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """K.mean_cov_rows of clouds (..., M, 2), any layout."""
+    flat = p.reshape((-1,) + p.shape[-2:])
+    mean, cov = np.empty((flat.shape[0], 2)), np.empty((flat.shape[0], 2, 2))
+    K.mean_cov_rows(flat[..., 0], flat[..., 1], mean, cov)
+    return mean.reshape(p.shape[:-2] + (2,)), cov.reshape(p.shape[:-2] + (2, 2))
 
 
 def test_normal_table_is_a_unit_normal() -> None:
@@ -34,7 +43,7 @@ def test_normal_table_is_a_unit_normal() -> None:
 def test_mean_cov_rows_matches_numpy_and_is_layout_independent() -> None:
     rng = np.random.default_rng(1)
     p = rng.normal([10.0, -5.0], [3.0, 7.0], size=(4, 999, 2)).astype(np.float32)
-    mean, cov = weighted_mean_cov(p)
+    mean, cov = _mean_cov(p)
     x = p.astype(np.float64)
     ref_mean = x.mean(axis=1)
     d = x - ref_mean[:, None]
@@ -42,9 +51,9 @@ def test_mean_cov_rows_matches_numpy_and_is_layout_independent() -> None:
     np.testing.assert_allclose(mean, ref_mean, rtol=1e-12)
     np.testing.assert_allclose(cov, ref_cov, rtol=1e-10)
     soa = np.ascontiguousarray(p.transpose(0, 2, 1))
-    m2, c2 = weighted_mean_cov(soa.transpose(0, 2, 1))
+    m2, c2 = _mean_cov(soa.transpose(0, 2, 1))
     assert np.array_equal(m2, mean) and np.array_equal(c2, cov)
-    m3, c3 = weighted_mean_cov(p[2])
+    m3, c3 = _mean_cov(p[2])
     assert np.array_equal(m3, mean[2]) and np.array_equal(c3, cov[2])
 
 
@@ -97,17 +106,14 @@ def test_egocentric_counts_equal_the_weighted_numpy_path(dtype: type) -> None:
     p = rng.uniform(-80, 80, size=(3, 1500, 2)).astype(dtype)
     carriage = rng.uniform(-40, 40, size=(3, 2))
     hw = np.array([60.0, 75.0, 40.0])
-    unweighted = _egocentric_histogram(p, None, carriage, hw)
+    counts = np.empty((3, HIST_BINS * HIST_BINS))
+    K.egocentric_counts(p[..., 0], p[..., 1], carriage.astype(dtype), (2 * hw).astype(dtype), HIST_BINS, counts)
     ones = np.ones((3, 1500))  # the numpy path counts with weight 1 per particle
-    counts = _egocentric_histogram(p, ones, carriage, hw)
-    assert unweighted.shape == (3, HIST_BINS * HIST_BINS)
-    assert np.array_equal(unweighted, counts / 1500)
-    np.testing.assert_allclose(unweighted.sum(axis=-1), 1.0)
+    assert np.array_equal(counts, egocentric_histogram(p, ones, carriage, hw))
+    np.testing.assert_allclose(counts.sum(axis=-1), 1500)
 
 
 def test_uniform_in_box_is_numpy_uniform_bit_for_bit() -> None:
-    from electroloc_gym.belief import uniform_in_box
-
     low, high = np.array([-60.0, -47.5]), np.array([60.0, 47.5])
     a = np.random.default_rng(9).uniform(low, high, size=(2501, 2))
     b = uniform_in_box(np.random.default_rng(9), low, high, 2501)
@@ -160,8 +166,6 @@ def test_log32_within_one_ulp_and_its_special_values() -> None:
 
 
 def test_weight_sums_are_exact_enough_and_the_same_batched_or_alone() -> None:
-    from electroloc_gym.belief import normalise_log_weights, weight_sums
-
     rng = np.random.default_rng(8)
     for m in (1, 7, 8, 9, 2500, 2501):
         w = rng.random((3, m))
@@ -178,9 +182,7 @@ def test_weight_sums_are_exact_enough_and_the_same_batched_or_alone() -> None:
 
 
 def test_calibrated_assimilate_is_the_single_env_update() -> None:
-    """The fused kernel = CalibratedSensorModel.log_likelihood + ParticleBelief.assimilate, bit for bit."""
-    from electroloc_gym.belief import ParticleBelief
-    from electroloc_gym.envs.observation import belief_observation
+    """The fused kernel = CalibratedSensorModel.log_likelihood + the numpy reference filter, bit for bit."""
 
     c = get_condition("fresh-steel-12.7")
     model = CalibratedSensorModel(c, seed=11)
@@ -225,9 +227,8 @@ def test_calibrated_assimilate_is_the_single_env_update() -> None:
                      _Fixed(u0[e], raw[e]))
         assert np.array_equal(out[e].T, b.particles)
         assert np.array_equal(mean[e], b.mean()) and np.array_equal(cov[e], b.covariance())
-        hist = belief_observation(position[e], 0.0, b.particles, None, 1, 35, float(h), 0.1, 10.0, 10.0,
-                                  np.zeros(5, dtype=np.float32))[12:76]
-        assert np.array_equal((counts[e] / m).astype(np.float32), hist)
+        hist = egocentric_histogram(b.particles, None, position[e].astype(np.float32), np.asarray(float(h)))
+        assert np.array_equal(counts[e] / m, hist)
     # A NaN reading is reported, not resampled from.
     bad = K.calibrated_assimilate(src, position.astype(np.float32), np.float32(1.0), *grid,
                                   np.array([0.0, np.nan, 0.0], dtype=np.float32), u0, jitter_idx, normal_table(),
@@ -250,7 +251,6 @@ def test_table_gather_and_noisy_saturated_equal_their_numpy_expressions() -> Non
 
 def test_belief_observation_equals_its_numpy_formulas() -> None:
     """The compiled observation assembly against the formulas of the observation table (numpy)."""
-    from electroloc_gym.envs.observation import belief_observation
 
     rng = np.random.default_rng(13)
     k = 6
@@ -262,8 +262,9 @@ def test_belief_observation_equals_its_numpy_formulas() -> None:
     hw = rng.uniform(40, 60, k)
     noise, sat = rng.uniform(0.01, 0.3, k), np.full(k, 10.0)
     desc = rng.uniform(-1, 1, (k, 5)).astype(np.float32)
-    obs = belief_observation(carriage, reading, particles, None, n_obs, 35, hw, noise, sat, 10.0, desc)
-    mean, cov = weighted_mean_cov(particles)
+    mean, cov = _mean_cov(particles)
+    hist = egocentric_histogram(particles, None, carriage, hw)
+    obs = belief_observation(carriage, reading, mean, cov, hist, n_obs, 35, hw, noise, sat, 10.0, desc)
     sx, sy = np.sqrt(cov[:, 0, 0]), np.sqrt(cov[:, 1, 1])
     rho = np.where(sx * sy > 1e-12, cov[:, 0, 1] / np.maximum(sx * sy, 1e-12), 0.0)
     spread = np.sqrt(cov[:, 0, 0] + cov[:, 1, 1])
@@ -271,11 +272,7 @@ def test_belief_observation_equals_its_numpy_formulas() -> None:
                         (mean[:, 0] - carriage[:, 0]) / (2 * hw), (mean[:, 1] - carriage[:, 1]) / (2 * hw),
                         sx / hw, sy / hw, rho, spread / hw, np.log10(np.maximum(spread, 1e-6) / 10.0), n_obs / 35],
                        axis=-1)
-    ref = np.concatenate([np.clip(scalars, -1, 1), _egocentric_histogram(particles, None, carriage, hw), desc],
-                         axis=-1).astype(np.float32)
+    ref = np.concatenate([np.clip(scalars, -1, 1), hist, desc], axis=-1).astype(np.float32)
     assert obs.shape == (k, 81) and obs.dtype == np.float32
     np.testing.assert_allclose(obs, ref, rtol=1e-6, atol=1e-7)
     assert obs[0, 8] == 0.0 and obs[0, 10] == -1.0
-    single = belief_observation(carriage[2], reading[2], particles[2], None, int(n_obs[2]), 35, float(hw[2]),
-                                float(noise[2]), 10.0, 10.0, desc[2])
-    assert single.shape == (81,) and np.array_equal(single, obs[2])

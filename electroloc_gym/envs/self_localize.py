@@ -1,27 +1,25 @@
-"""ElectroLocGlobal-v0: the robot localises itself in a pre-mapped tank of six cylinders (paper §6.5)."""
+"""ElectroLocGlobal-v0: the robot localises itself in a pre-mapped tank of six cylinders (paper §6.5).
+
+A thin adapter (:class:`~electroloc_gym.envs.adapter.CoreEnv`) over the simulation core with one env
+of the ``"global"`` task (:mod:`electroloc_gym.core`).
+"""
 
 from __future__ import annotations
 
-import functools
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.envs.base import MAX_STEP_MM, ParticleFilterEnv
-from electroloc_gym.envs.observation import belief_observation, condition_descriptor, raw_observation
-from electroloc_gym.render import FrameRenderer
-from electroloc_gym.scene import BENCHMARK_SCENE, Scene, map_eev, random_cylinder_layout
-from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM, make_map_sensor_model
-from electroloc_gym.sensor import electrode_positions_mm
+from electroloc_gym.conditions import Condition
+from electroloc_gym.core.params import LAYOUTS, MAX_STEP_MM
+from electroloc_gym.envs.adapter import CoreEnv
+from electroloc_gym.scene import Scene
 
 __all__ = ["GlobalLocalizationEnv", "LAYOUTS"]
 
-#: Named layouts: the fixed benchmark map, or a fresh seeded six-cylinder map every episode.
-LAYOUTS = ("benchmark", "random")
 
-
-class GlobalLocalizationEnv(ParticleFilterEnv):
+class GlobalLocalizationEnv(CoreEnv):
     """
     ## Description
 
@@ -33,13 +31,14 @@ class GlobalLocalizationEnv(ParticleFilterEnv):
     by the move (deterministic motion, ``ParticleBelief.predict``: clipped at the walls exactly as the
     true carriage is); every reading reweights them with the map's sensor model. The agent moves the
     carriage until the belief is tight: √trace Σ ≤ 10 mm. The filter, sensor-model machinery, action
-    space, success rule, observation cap and observation layout are those of ``ElectroLoc-v0``
-    (shared code in :mod:`electroloc_gym.envs.base`): the hidden state differs, the machinery does not.
+    space, success rule, observation cap and observation layout are those of ``ElectroLoc-v0`` (the
+    same simulation core, :mod:`electroloc_gym.core`): the hidden state differs, the machinery does not.
 
     The map (``layout="benchmark"``): :data:`electroloc_gym.scene.BENCHMARK_SCENE`, six cylinders
     (Ø 6.35–38.1 mm; steel, brass, aluminium, Delrin, PVC and a 1000 µS/cm gel) in fresh water
     (160 µS/cm) with the fresh-water amplifier (G = 191, σ_s = 0.25 mV RMS) and signal scale 1;
-    carriage box ±80 mm, start box ±70 mm. See :mod:`electroloc_gym.scene` for the physics.
+    carriage box ±80 mm, start box ±70 mm. See :mod:`electroloc_gym.scene` for the physics and
+    :mod:`electroloc_gym.sensor_models.map` for the map's sensor models.
 
     ## Action Space
 
@@ -50,7 +49,7 @@ class GlobalLocalizationEnv(ParticleFilterEnv):
     ## Observation Space
 
     ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``, the layout of ``ElectroLoc-v0``
-    built by the same function (:func:`electroloc_gym.envs.observation.belief_observation`) with the
+    built by the same code (:mod:`electroloc_gym.envs.observation`) with the
     *map origin* as the reference point instead of the (here unknown) carriage:
 
     | index | feature (ElectroLocGlobal-v0) | unit / normalisation |
@@ -110,8 +109,12 @@ class GlobalLocalizationEnv(ParticleFilterEnv):
     gym.make("ElectroLocGlobal-v0", layout="benchmark", observation="belief",
              sensor_model="calibrated", n_particles=2500, max_observations=35,
              success_spread_mm=10.0, action_type="continuous", calibration_seed=None,
-             position_blur_mm=2.0, render_mode=None)
+             calibration=DEFAULT_CALIBRATION, position_blur_mm=2.0, max_episode_steps=None,
+             render_mode=None)
     ```
+
+    Every argument is a field of :class:`electroloc_gym.core.params.EnvParams`; any other argument
+    (``condition``, for instance), or a value out of range, is a ValueError naming it.
 
     * ``layout``: ``"benchmark"`` (the fixed map), ``"random"`` (a new six-cylinder map per episode,
       drawn from the env's seeded generator by :func:`electroloc_gym.scene.random_cylinder_layout`),
@@ -120,97 +123,52 @@ class GlobalLocalizationEnv(ParticleFilterEnv):
       the carriage box, drawn per episode from ``calibration_seed`` or the env's generator).
     * ``position_blur_mm``: the map sensor model's position blur b (std ⊕ |∇Φ|·b), 2 mm by default;
       0 gives the bare model, with which 2500 particles often converge on a wrong place (see
-      :mod:`electroloc_gym.scene`).
+      :mod:`electroloc_gym.sensor_models.map`).
 
     ## Version History
 
     * v0: initial version.
     """
 
-    def __init__(
-        self,
-        layout: str | Scene = "benchmark",
-        observation: str = "belief",
-        sensor_model: str = "calibrated",
-        n_particles: int = 2500,
-        max_observations: int = 35,
-        success_spread_mm: float = 10.0,
-        action_type: str = "continuous",
-        calibration_seed: int | None = None,
-        position_blur_mm: float = DEFAULT_POSITION_BLUR_MM,
-        render_mode: str | None = None,
-    ) -> None:
-        if isinstance(layout, Scene):
-            self._fixed_scene: Scene | None = layout
-        elif isinstance(layout, str) and layout in LAYOUTS:
-            self._fixed_scene = BENCHMARK_SCENE if layout == "benchmark" else None
-        else:
-            raise ValueError(f"layout must be one of {list(LAYOUTS)} or a Scene, got {layout!r}")
-        self.layout = layout if isinstance(layout, str) else "custom"
-        self._init_common(observation, sensor_model, n_particles, max_observations, success_spread_mm, action_type,
-                          calibration_seed, render_mode)
-        self._scene = self._fixed_scene if self._fixed_scene is not None else BENCHMARK_SCENE
-        self._condition = self._scene.as_condition()
-        self.position_blur_mm = float(position_blur_mm)
-        self._sensor_model = make_map_sensor_model("analytic", self._scene, position_blur_mm=self.position_blur_mm)
-        self._descriptor = condition_descriptor(self._condition)
-        self._odometry = np.zeros(2)
+    _TASK = "global"
+    _ENV_ID = "ElectroLocGlobal-v0"
 
-    # ---- accessors -----------------------------------------------------------------------------
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        super().__init__(render_mode, **kwargs)
+
+    @property
+    def layout(self) -> str:
+        """``"benchmark"``, ``"random"`` or ``"custom"`` (a Scene)."""
+        return self.params.layout if isinstance(self.params.layout, str) else "custom"
+
+    @property
+    def position_blur_mm(self) -> float:
+        """The map sensor models' position blur b, mm."""
+        return self.params.position_blur_mm
+
+    @property
+    def calibration_seed(self) -> int | None:
+        """The fixed calibration seed, or None (a new calibration per episode)."""
+        return self.params.calibration_seed
+
+    def _default_condition(self) -> Condition:
+        return self._task.scene_template.as_condition()
+
     @property
     def scene(self) -> Scene:
         """The current episode's map."""
-        return self._scene
-
-    @property
-    def position_mm(self) -> NDArray[np.float64]:
-        """TRUE carriage position in the map frame, mm (a copy) — ground truth for evaluation only."""
-        return self._position.copy()
+        w = self._state.world[0]
+        return self._task.scene_template if w is None else w
 
     @property
     def odometry_mm(self) -> NDArray[np.float64]:
         """Sum of the commanded moves since reset, mm (what the robot knows of its own motion)."""
-        return self._odometry.copy()
+        return self._state.odometry_mm[0].copy()
 
     @property
     def move_bounds_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(−10, −10), (10, 10) mm: the robot does not know where it is, hence not where the walls are."""
         return np.full(2, -MAX_STEP_MM), np.full(2, MAX_STEP_MM)
-
-    # ---- gymnasium API -------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
-        rng = self.np_random
-        # Draw order: layout (if random), calibration seed, start position, particles, first reading.
-        if self._fixed_scene is None:
-            self._scene = BENCHMARK_SCENE.replace(name="random-six-cylinders", objects=random_cylinder_layout(rng))
-        else:
-            self._scene = self._fixed_scene
-        self._condition = self._scene.as_condition()
-        cal_seed = self.calibration_seed if self.calibration_seed is not None else int(rng.integers(2**31 - 1))
-        self._sensor_model = make_map_sensor_model(self.sensor_model_name, self._scene, cal_seed,
-                                                   position_blur_mm=self.position_blur_mm)
-        self._descriptor = condition_descriptor(self._condition)
-        s = self._scene.start_half_width_mm
-        self._position = rng.uniform(-s, s, size=2)
-        self._odometry = np.zeros(2)
-        return self._begin_episode(rng)
-
-    # ---- hooks of ParticleFilterEnv --------------------------------------------------------------
-    def _execute_move(self, move_mm: NDArray[np.float64]) -> None:
-        low, high = self.allowed_box_mm
-        self._position = np.clip(self._position + move_mm, low, high)
-        self._odometry = self._odometry + move_mm
-        # Deterministic motion model: every position hypothesis moves by the commanded move and is
-        # kept in the box, as the true carriage is (paper §4.1, "motion is deterministic").
-        self.belief.predict(move_mm)
-
-    def _true_reading(self, rng: np.random.Generator) -> float:
-        return float(self._scene.noisy_reading(self._position, rng))
-
-    def _particle_offsets(self, particles: NDArray) -> NDArray:
-        # The map model's convention: offsets = map origin − carriage hypothesis.
-        return -particles
 
     def _particles_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
         low, high = self.allowed_box_mm
@@ -218,66 +176,9 @@ class GlobalLocalizationEnv(ParticleFilterEnv):
         return np.clip(moved, low.astype(particles.dtype), high.astype(particles.dtype))
 
     def _offsets_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
-        return -self._particles_after_move(particles, moves)
-
-    def _true_state_mm(self) -> NDArray[np.float64]:
-        return self._position
+        return -self._particles_after_move(particles, moves)  # offsets = map origin − carriage hypothesis
 
     def _make_renderer(self) -> Any:
-        return _GlobalRenderer(self.render_mode)
+        from electroloc_gym.render import GlobalEpisodeRenderer
 
-    def _get_obs(self) -> NDArray[np.float32]:
-        c = self._condition
-        h = c.allowed_half_width_mm
-        if self.observation_mode == "raw":
-            return raw_observation(self._odometry, np.asarray(self._reading), h, c.saturation_V)
-        b = self.belief
-        # Reference point = the map origin: entries 4–5 are the estimated position, the histogram
-        # covers the whole map box. Entries 0–1 (the carriage in ElectroLoc-v0) become the odometry.
-        obs = belief_observation(
-            np.zeros(2), np.asarray(self._reading), b.particles, None if b.uniform_weights else b.weights,
-            self._n_obs, self.max_observations, h, c.noise_std_V, c.saturation_V, self.success_spread_mm,
-            self._descriptor, mean_cov=(b.mean(), b.covariance()))
-        obs[0:2] = np.clip(self._odometry / h, -1.0, 1.0)
-        return obs
-
-
-@functools.lru_cache(maxsize=8)
-def _cached_map_eev(scene: Scene) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    return map_eev(scene, step_mm=1.5)
-
-
-class _GlobalRenderer(FrameRenderer):
-    """A Fig. 13-style frame: the map's EEV, the particles, the true path (asterisks), the estimate."""
-
-    def draw(self, env: GlobalLocalizationEnv) -> NDArray[np.uint8] | None:
-        from matplotlib.patches import Circle
-
-        ax = self.ax
-        ax.clear()
-        scene = env.scene
-        grid, phi = _cached_map_eev(scene)
-        sat = scene.saturation_V
-        ax.pcolormesh(grid, grid, phi.T, cmap="gray_r", vmin=-sat, vmax=sat, shading="auto", alpha=0.6)
-        h = scene.allowed_half_width_mm
-        ax.plot([-h, h, h, -h, -h], [-h, -h, h, h, -h], color="0.3", lw=0.8)
-        for o in scene.objects:
-            ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color="tab:orange", lw=1.0))
-        p = env.belief.particles
-        ax.scatter(p[:, 0], p[:, 1], s=1.5, c="tab:blue", alpha=0.4, linewidths=0)
-        est = env.belief.mean()
-        spread = env.belief.spread()
-        ax.add_patch(Circle(tuple(est), spread, fill=False, color="tab:green", lw=1.2, ls="--"))
-        ax.plot(*est, "+", color="tab:green", ms=10, mew=2, label="estimate")
-        path = env.path_mm
-        ax.plot(path[:, 0], path[:, 1], "*-", color="tab:red", lw=1.0, ms=5, label="true path")
-        el = electrode_positions_mm(env.condition, env.position_mm)  # ground truth, for the picture only
-        for key, style in (("emitter+", "rs"), ("emitter-", "bs"), ("S1", "kD"), ("S2", "kD")):
-            ax.plot(*el[key], style, ms=5)
-        ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:purple", ms=8, mew=1.5)
-        ax.set_xlim(-h - 10, h + 10)
-        ax.set_ylim(-h - 10, h + 10)
-        ax.set_aspect("equal")
-        ax.set_title(f"{scene.name}: obs {env.n_observations}, spread {spread:.1f} mm", fontsize=9)
-        ax.legend(loc="upper right", fontsize=7)
-        return self.finish()
+        return GlobalEpisodeRenderer(self.render_mode)

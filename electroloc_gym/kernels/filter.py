@@ -102,7 +102,7 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
         cum = np.cumsum(w); cum /= cum[-1]                          # systematic_resample
         u = (U + np.arange(M)) / M
         idx = np.minimum(np.searchsorted(cum, u, side="right"), M − 1)
-        jitter = normal_table[jitter_idx].reshape(M, 2)             # belief.table_standard_normal
+        jitter = normal_table[jitter_idx].reshape(M, 2)             # draws.table_standard_normal
         p = particles[idx] + jitter                                 # resample, jitter (std 1 mm)
         p = np.minimum(np.maximum(p, −H), H)                        # _clip_to_box
 
@@ -121,7 +121,7 @@ def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,
         u0: (k,) float64 resampling offsets U in [0, 1).
         src: (k, 2, M) float32 particles, coordinate-major.
         jitter_idx: (k, 2·M) uint16 indices into ``normal_table`` (the single env's draw layout).
-        normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.belief.normal_table`).
+        normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.draws.normal_table`).
         half: (k,) float32 half-width H of the box, mm.
         out: (k, 2, M) float32 new particles (must not alias ``src``).
         mean: (k, 2) float64 output: the new clouds' means, mm.

@@ -1,0 +1,226 @@
+"""The simulation's frozen parameters: every keyword argument of the envs, declared once, validated once.
+
+:class:`EnvParams` holds every argument of ``ElectroLoc-v0``, ``ElectroLocGlobal-v0`` and their native
+vector envs (units in the names or the field docs). :meth:`EnvParams.from_kwargs` is how every env
+builds it: an argument the task does not take, or a value outside its range, is one ``ValueError``
+naming the argument and what is allowed. Defaults of the sensor model's calibration and of the
+preset signal scale are those of :mod:`electroloc_gym.sensor_models` and
+:func:`electroloc_gym.conditions.get_condition`, so a change there flows through unchanged.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from electroloc_gym.conditions import Condition, get_condition
+from electroloc_gym.scene import Scene
+from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, CalibrationProtocol
+from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM
+
+__all__ = ["EnvParams", "TASKS", "TASK_ARGUMENTS", "OBSERVATION_MODES", "ACTION_TYPES", "SENSOR_MODELS",
+           "LAYOUTS", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "memory_limit_bytes", "check_int", "check_bool"]
+
+#: ``"localize"``: ElectroLoc-v0 (the particles are target hypotheses); ``"global"``: ElectroLocGlobal-v0
+#: (the particles are hypotheses of the robot's own position in a mapped tank, paper §6.5).
+TASKS = ("localize", "global")
+OBSERVATION_MODES = ("belief", "raw")
+ACTION_TYPES = ("continuous", "discrete")
+#: The sensor models the core implements (any other name is refused, never run as another model).
+SENSOR_MODELS = ("analytic", "calibrated")
+#: Named maps of the global task: the fixed benchmark map, or a new seeded six-cylinder map per episode.
+LAYOUTS = ("benchmark", "random")
+
+#: Largest move per axis per step, mm (paper §4.1.3).
+MAX_STEP_MM = 10.0
+#: The discrete action set: stay plus the 8 king moves of 10 mm per axis (index = 3·(dx+1) + (dy+1)).
+DISCRETE_MOVES_MM = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.float64) * MAX_STEP_MM
+DISCRETE_MOVES_MM.flags.writeable = False
+
+_COMMON = ("observation", "sensor_model", "n_particles", "max_observations", "success_spread_mm", "action_type",
+           "calibration_seed", "calibration", "max_episode_steps")
+#: The arguments each task takes (the others belong to the other task).
+TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
+    "localize": ("condition", "signal", "randomize_target") + _COMMON,
+    "global": ("layout", "position_blur_mm") + _COMMON,
+}
+
+#: Bytes of state and scratch per particle and env (particles, jitter draws, the kernels' scratch).
+BYTES_PER_PARTICLE = 96
+
+
+def _default_signal() -> Any:
+    return inspect.signature(get_condition).parameters["signal"].default
+
+
+def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
+    """``value`` as an int in [low, high], or a ValueError naming ``name`` and the range (bools refused)."""
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    if not ok or value < low or (high is not None and value > high):
+        rng = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
+        raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
+    return int(value)
+
+
+def check_float(name: str, value: Any, low: float, *, inclusive: bool = False) -> float:
+    """A finite real ``value`` (Python or numpy float/int, not bool) above ``low`` as a float."""
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not ok or not math.isfinite(value) or value < low or (value == low and not inclusive):
+        raise ValueError(f"{name} must be a finite number {'≥' if inclusive else '>'} {low:g}, got {value!r}")
+    return float(value)
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` if it is a real boolean (``True``/``False`` or a numpy bool), else a ValueError."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
+    return value
+
+
+def memory_limit_bytes() -> int:
+    """The memory the simulation may plan to use: this machine's physical memory, bytes."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        return 16 * 2**30
+
+
+@dataclass(frozen=True)
+class EnvParams:
+    """Every argument of the envs (frozen; validated on construction).
+
+    Attributes:
+        task: ``"localize"`` (ElectroLoc-v0) or ``"global"`` (ElectroLocGlobal-v0).
+        condition: localize: a preset name (``electroloc_gym.PRESET_NAMES``), a ``Condition``, a dict of
+            one, or ``"random"`` (one of the eight presets per episode).
+        signal: localize, presets only: the signal scale, ``"fitted"``, ``"paper"``, ``"coverage"`` or a
+            positive float (:func:`~electroloc_gym.conditions.get_condition`; default: its default).
+        randomize_target: localize: the target uniform in the start box per episode (else the
+            condition's ``target_xy_mm``).
+        layout: global: ``"benchmark"`` (the fixed map), ``"random"`` (a new six-cylinder map per
+            episode) or a :class:`~electroloc_gym.scene.Scene`.
+        position_blur_mm: global: the map sensor models' position blur b, mm (≥ 0).
+        observation: ``"belief"`` (81 features) or ``"raw"`` (3).
+        sensor_model: the filter's and the agent's sensor model, ``"analytic"`` or ``"calibrated"``.
+        n_particles: particles M per env (≥ 1; paper: 2500).
+        max_observations: readings per episode before truncation (≥ 1; paper §5.4: 35).
+        success_spread_mm: success when √trace Σ ≤ this, mm (> 0; paper: 10 mm).
+        action_type: ``"continuous"`` (Box(−1, 1, (2,)) × 10 mm) or ``"discrete"`` (Discrete(9)).
+        calibration_seed: seed of every episode's calibration (≥ 0), or None: a new calibration per
+            episode drawn from the env's generator.
+        calibration: how the calibrated model is taken (a ``CalibrationProtocol`` or a dict of its
+            fields; default ``DEFAULT_CALIBRATION``).
+        max_episode_steps: truncate after this many steps (≥ 1), or None (a ``TimeLimit`` in the env).
+    """
+
+    task: str = "localize"
+    condition: Any = "fresh-steel-12.7"
+    signal: Any = dataclasses.field(default_factory=_default_signal)
+    randomize_target: bool = False
+    layout: Any = "benchmark"
+    position_blur_mm: float = DEFAULT_POSITION_BLUR_MM
+    observation: str = "belief"
+    sensor_model: str = "calibrated"
+    n_particles: int = 2500
+    max_observations: int = 35
+    success_spread_mm: float = 10.0
+    action_type: str = "continuous"
+    calibration_seed: int | None = None
+    calibration: Any = DEFAULT_CALIBRATION
+    max_episode_steps: int | None = None
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
+        _check_choice("task", self.task, TASKS)
+        _check_choice("observation", self.observation, OBSERVATION_MODES)
+        _check_choice("sensor_model", self.sensor_model, SENSOR_MODELS)
+        _check_choice("action_type", self.action_type, ACTION_TYPES)
+        put("n_particles", check_int("n_particles", self.n_particles, 1, 2**31 - 2))
+        put("max_observations", check_int("max_observations", self.max_observations, 1))
+        put("success_spread_mm", check_float("success_spread_mm", self.success_spread_mm, 0.0))
+        put("randomize_target", check_bool("randomize_target", self.randomize_target))
+        put("position_blur_mm", check_float("position_blur_mm", self.position_blur_mm, 0.0, inclusive=True))
+        if self.calibration_seed is not None:
+            put("calibration_seed", check_int("calibration_seed", self.calibration_seed, 0, 2**63 - 1))
+        if self.max_episode_steps is not None:
+            put("max_episode_steps", check_int("max_episode_steps", self.max_episode_steps, 1))
+        cal = self.calibration
+        if isinstance(cal, Mapping):
+            fields = {f.name for f in dataclasses.fields(CalibrationProtocol)}
+            unknown = sorted(set(cal) - fields)
+            if unknown:
+                raise ValueError(f"calibration has unknown fields {unknown}; allowed: {sorted(fields)}")
+            cal = CalibrationProtocol(**cal)
+        if not isinstance(cal, CalibrationProtocol):
+            raise ValueError(f"calibration must be a CalibrationProtocol or a dict of its fields, got {cal!r}")
+        put("calibration", cal)
+        if self.task == "localize":
+            if not (isinstance(self.condition, str) and self.condition == "random"):
+                get_condition(self.condition, self.signal)  # raises for an unknown name or a bad signal
+            elif self.signal is not None:
+                get_condition("fresh-steel-12.7", self.signal)
+        elif not isinstance(self.layout, Scene):
+            _check_choice("layout", self.layout, LAYOUTS)
+
+    @classmethod
+    def from_kwargs(cls, task: str, kwargs: Mapping[str, Any], env_id: str) -> EnvParams:
+        """The params of ``task`` from an env's keyword arguments; an argument the task does not take is
+        a ValueError naming it and listing the allowed ones.
+        """
+        allowed = TASK_ARGUMENTS[task]
+        unknown = [k for k in kwargs if k not in allowed]
+        if unknown:
+            raise ValueError(f"{env_id} got unexpected argument(s) {unknown}; its arguments are "
+                             f"{sorted(allowed)}")
+        return cls(task=task, **kwargs)
+
+    def replace(self, **changes: Any) -> EnvParams:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def conditions(self) -> tuple[Condition, ...]:
+        """The localize task's condition pool (one, or the eight presets for ``condition="random"``)."""
+        from electroloc_gym.conditions import PRESET_NAMES
+
+        if isinstance(self.condition, str) and self.condition == "random":
+            return tuple(get_condition(n, self.signal) for n in PRESET_NAMES)
+        return (get_condition(self.condition, self.signal),)
+
+    def check_memory(self, num_envs: int, calibration_points: int) -> None:
+        """Refuse sizes that cannot fit in memory, naming the limit.
+
+        Args:
+            num_envs: envs simulated together.
+            calibration_points: the largest calibration grid's points per axis (0 for analytic).
+        """
+        limit = memory_limit_bytes()
+        need = num_envs * self.n_particles * BYTES_PER_PARTICLE
+        if need > limit:
+            raise ValueError(f"n_particles × num_envs = {self.n_particles} × {num_envs} needs ≈{need / 2**30:.3g} GiB "
+                             f"({BYTES_PER_PARTICLE} bytes per particle), more than this machine's "
+                             f"{limit / 2**30:.3g} GiB: at most {limit // (BYTES_PER_PARTICLE * num_envs)} "
+                             f"particles per env")
+        n = calibration_points
+        cal = 8 * self.calibration.samples_per_point * n * n + num_envs * 32 * n * n
+        if n and cal > limit:
+            raise ValueError(f"calibration grid of {n}×{n} points × {self.calibration.samples_per_point} "
+                             f"readings needs ≈{cal / 2**30:.3g} GiB, more than this machine's "
+                             f"{limit / 2**30:.3g} GiB: choose a coarser calibration grid_step_mm")
+        if n and num_envs * ((n - 1) ** 2 + 1) >= 2**31:
+            raise ValueError(f"calibration tables of {num_envs} envs × {(n - 1) ** 2 + 1} cells exceed the "
+                             f"kernels' int32 row index (2**31 rows): fewer envs or a coarser grid_step_mm")

@@ -1,0 +1,297 @@
+"""What differs between the two tasks: the hidden state, the world, the motion and the sensor-model offsets.
+
+=====================  =======================================  ==========================================
+task                   hidden state (particles)                 sensor-model offsets of particle i
+=====================  =======================================  ==========================================
+``localize``           target position (world frame), static    particle_i − carriage (carriage known)
+(ElectroLoc-v0)
+``global``             the robot's own carriage position (map   −particle_i (map origin − carriage); every
+(ElectroLocGlobal-v0)  frame), moves with every commanded move  commanded move shifts the particles
+=====================  =======================================  ==========================================
+
+A task draws an env's episode (:meth:`~TargetTask.begin_episode`, in the documented draw order),
+gives the noise-free true reading (:meth:`~TargetTask.true_mean_V`), moves the carriage
+(:meth:`~TargetTask.move`) and builds the sensor models. Everything else — draws per step, the
+belief update, observation, reward, termination, info, autoreset — is the same for both and lives
+in :mod:`electroloc_gym.core.step`. Batched numpy work here is grouped by world (one call for all
+envs sharing a condition or map) and uses only exact operations, so every env's values are those
+it would get alone (docs/design.md).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from electroloc_gym.conditions import Condition
+from electroloc_gym.core.params import EnvParams
+from electroloc_gym.core.state import State
+from electroloc_gym.draws import uniform_in_box
+from electroloc_gym.envs.observation import condition_descriptor
+from electroloc_gym.kernels import bilinear_coefficients
+from electroloc_gym.scene import BENCHMARK_SCENE, Scene, random_cylinder_layout
+from electroloc_gym.sensor import expected_reading
+from electroloc_gym.sensor_models import (
+    AnalyticSensorModel,
+    CalibrationProtocol,
+    calibration_coefficients,
+    calibration_grid_for,
+    make_sensor_model,
+)
+from electroloc_gym.sensor_models.map import make_map_sensor_model
+
+__all__ = ["TargetTask", "MapTask", "make_task", "group_by_world"]
+
+_SEED_BOUND = 2**31 - 1  # calibration seeds are drawn in [0, 2**31 − 1)
+
+
+def group_by_world(state: State, ids: NDArray[np.intp]) -> list[tuple[Any, NDArray[np.intp]]]:
+    """``[(world, positions in ids)]``: the envs of ``ids`` sharing one world object, in first-seen order."""
+    worlds = state.world
+    if len(ids) == 1:
+        return [(worlds[int(ids[0])], np.zeros(1, dtype=np.intp))]
+    groups: dict[int, tuple[Any, list[int]]] = {}
+    for j, i in enumerate(ids.tolist()):
+        w = worlds[i]
+        groups.setdefault(id(w), (w, []))[1].append(j)
+    return [(w, np.asarray(rows, dtype=np.intp)) for w, rows in groups.values()]
+
+
+@functools.lru_cache(maxsize=256)
+def _descriptor(condition: Condition) -> NDArray[np.float32]:
+    return condition_descriptor(condition)
+
+
+@functools.lru_cache(maxsize=64)
+def _grid(condition: Condition, protocol: CalibrationProtocol) -> NDArray[np.float64]:
+    return calibration_grid_for(condition, protocol)
+
+
+@functools.lru_cache(maxsize=64)
+def _fixed_coefficients(condition: Condition, seed: int, protocol: CalibrationProtocol) -> NDArray[np.float32]:
+    coef = calibration_coefficients(condition, seed, protocol, out=np.empty((_cells(_grid(condition, protocol)), 8),
+                                                                           dtype=np.float32))
+    coef.flags.writeable = False
+    return coef
+
+
+@functools.lru_cache(maxsize=64)
+def _scene_condition(scene: Scene) -> Condition:
+    return scene.as_condition()
+
+
+def _cells(grid_mm: NDArray[np.float64]) -> int:
+    return (grid_mm.size - 1) ** 2 + 1
+
+
+def _grid_points_bound(half_span_mm: float, step_mm: float) -> int:
+    """An upper bound of a calibration grid's points per axis, computed without building the grid."""
+    return int(min(2.0 * half_span_mm / step_mm, 2.0**62)) + 2
+
+
+class _Task:
+    """The shared part of the two tasks (see the module docstring)."""
+
+    #: Offsets = sign · (particle − origin): +1 target hypothesis − carriage, −1 −(carriage hypothesis).
+    offset_sign = np.float32(1.0)
+
+    def __init__(self, params: EnvParams) -> None:
+        self.params = params
+        self.protocol: CalibrationProtocol = params.calibration
+        self.calibrated = params.sensor_model == "calibrated"
+
+    def _set_world(self, state: State, i: int, world: Any, condition: Condition) -> None:
+        state.world[i] = world
+        state.half_mm[i] = condition.allowed_half_width_mm
+        state.noise_V[i] = condition.noise_std_V
+        state.saturation_V[i] = condition.saturation_V
+        state.descriptor[i] = _descriptor(condition)
+        state.names[i] = world.name
+
+    def _cal_seed(self, g: np.random.Generator) -> int:
+        s = self.params.calibration_seed
+        return s if s is not None else int(g.integers(_SEED_BOUND))
+
+    def _set_grid(self, state: State, i: int, grid_mm: NDArray[np.float64], step_mm: float) -> NDArray[np.float32]:
+        """Env ``i``'s grid arguments of the lookup kernel; returns its rows of the coefficient table."""
+        state.grid_lo_mm[i] = np.float32(grid_mm[0])
+        state.grid_inv_mm[i] = np.float32(1.0 / step_mm)
+        state.grid_cells[i] = grid_mm.size - 1
+        start = int(state.table_row[i])
+        return state.table[start:start + _cells(grid_mm)]
+
+    def _place(self, state: State, i: int, g: np.random.Generator, start_half_mm: float) -> None:
+        """The start position (2 uniforms) and the uniform particle cloud (M·2 uniforms)."""
+        state.position_mm[i] = g.uniform(-start_half_mm, start_half_mm, size=2)
+        state.odometry_mm[i] = 0.0
+        h = state.half_mm[i]
+        uniform_in_box(g, np.array([-h, -h]), np.array([h, h]), state.n_particles,
+                       out_xy=(state.particles_mm[i, 0], state.particles_mm[i, 1]))
+        state.n_observations[i] = 0
+        state.elapsed[i] = 0
+
+    def move(self, state: State, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
+        """The carriage moves by the commanded moves (k, 2), kept inside the allowed box (truncated at the walls)."""
+        h = state.half_mm[ids][:, None]
+        state.position_mm[ids] = np.minimum(np.maximum(state.position_mm[ids] + moves_mm, -h), h)
+
+    def histogram_origin(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float32]:
+        """(k, 2) float32: the offsets' origin and the histogram's centre (the carriage here)."""
+        return state.position_mm[ids].astype(np.float32)
+
+
+class TargetTask(_Task):
+    """ElectroLoc-v0: a target sphere (or a pool of conditions) whose position the particles estimate."""
+
+    name = "localize"
+
+    def __init__(self, params: EnvParams) -> None:
+        super().__init__(params)
+        self.pool: tuple[Condition, ...] = params.conditions()
+        self._analytic = {c: AnalyticSensorModel(c) for c in self.pool}
+
+    def calibration_points(self) -> int:
+        """The largest calibration grid's points per axis (0 without a calibrated model)."""
+        if not self.calibrated:
+            return 0
+        p = self.protocol
+        return max(_grid_points_bound(c.allowed_half_width_mm if p.half_span_mm is None else p.half_span_mm,
+                                      p.grid_step_mm) for c in self.pool)
+
+    def table_cells(self) -> int:
+        """Coefficient rows per env (0 without a calibrated model)."""
+        return max(_cells(_grid(c, self.protocol)) for c in self.pool) if self.calibrated else 0
+
+    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+        """Env ``i``'s reset draws, in order: condition (pool of several), calibration seed (unless
+        fixed), target (``randomize_target``), start position, particles.
+        """
+        pool = self.pool
+        c = pool[int(g.integers(len(pool)))] if len(pool) > 1 else pool[0]
+        self._set_world(state, i, c, c)
+        seed = self._cal_seed(g)
+        state.cal_seed[i] = seed
+        state.model[i] = None if self.calibrated else self._analytic[c]
+        if self.calibrated:
+            rows = self._set_grid(state, i, _grid(c, self.protocol), self.protocol.grid_step_mm)
+            if self.params.calibration_seed is not None:
+                rows[:] = _fixed_coefficients(c, seed, self.protocol)
+            else:
+                calibration_coefficients(c, seed, self.protocol, out=rows)
+        s = c.start_half_width_mm
+        if self.params.randomize_target:
+            state.target_mm[i] = g.uniform(-s, s, size=2)
+        else:
+            state.target_mm[i] = c.target_xy_mm
+        self._place(state, i, g, s)
+
+    def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
+        """(k,) noise-free, unsaturated true readings of envs ``ids``, V (float64)."""
+        offsets = state.target_mm[ids] - state.position_mm[ids]
+        groups = group_by_world(state, ids)
+        if len(groups) == 1:
+            return expected_reading(groups[0][0], offsets, saturate=False)
+        out = np.empty(len(ids))
+        for c, rows in groups:
+            out[rows] = expected_reading(c, offsets[rows], saturate=False)
+        return out
+
+    def truth_mm(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
+        """(k, 2) what the belief estimates: the target centre, mm."""
+        return state.target_mm[ids]
+
+    def sensor_model(self, state: State, i: int) -> Any:
+        """Env ``i``'s sensor model object for the agent (the calibrated one built on first use)."""
+        if state.model[i] is None:
+            state.model[i] = make_sensor_model("calibrated", state.world[i], int(state.cal_seed[i]), self.protocol)
+        return state.model[i]
+
+
+class MapTask(_Task):
+    """ElectroLocGlobal-v0: the robot localises itself in a mapped tank (paper §6.5)."""
+
+    name = "global"
+    offset_sign = np.float32(-1.0)
+
+    def __init__(self, params: EnvParams) -> None:
+        super().__init__(params)
+        layout = params.layout
+        self.fixed_scene: Scene | None = layout if isinstance(layout, Scene) else (
+            BENCHMARK_SCENE if layout == "benchmark" else None)
+        self.scene_template = self.fixed_scene if self.fixed_scene is not None else BENCHMARK_SCENE
+        self.blur_mm = params.position_blur_mm
+
+    def calibration_points(self) -> int:
+        """The calibration grid's points per axis (0 without a calibrated model)."""
+        if not self.calibrated:
+            return 0
+        p = self.protocol
+        half = self.scene_template.allowed_half_width_mm if p.half_span_mm is None else p.half_span_mm
+        return _grid_points_bound(half, p.grid_step_mm)
+
+    def table_cells(self) -> int:
+        """Coefficient rows per env (0 without a calibrated model)."""
+        return _cells(_grid(_scene_condition(self.scene_template), self.protocol)) if self.calibrated else 0
+
+    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+        """Env ``i``'s reset draws, in order: layout (``"random"``), calibration seed (unless fixed),
+        start position, particles.
+        """
+        if self.fixed_scene is None:
+            scene = BENCHMARK_SCENE.replace(name="random-six-cylinders", objects=random_cylinder_layout(g))
+        else:
+            scene = self.fixed_scene
+        self._set_world(state, i, scene, _scene_condition(scene))
+        seed = self._cal_seed(g)
+        state.cal_seed[i] = seed
+        model = make_map_sensor_model(self.params.sensor_model, scene, seed, self.blur_mm, self.protocol)
+        state.model[i] = model
+        if self.calibrated:
+            rows = self._set_grid(state, i, model.grid_mm, model.grid_step_mm)
+            bilinear_coefficients(model.mean_table_V, model.std_table_V, model.noise_std_V, rows)
+        self._place(state, i, g, scene.start_half_width_mm)
+
+    def move(self, state: State, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
+        """The carriage moves (kept in the box); the odometry adds the commanded move; every position
+        hypothesis moves by it and is kept in the box, as the true carriage is (deterministic motion,
+        paper §4.1).
+        """
+        super().move(state, ids, moves_mm)
+        state.odometry_mm[ids] = state.odometry_mm[ids] + moves_mm
+        p = state.particles_mm[ids]
+        p += moves_mm.astype(np.float32)[:, :, None]
+        h = state.half_mm[ids].astype(np.float32)[:, None, None]
+        np.maximum(p, -h, out=p)
+        np.minimum(p, h, out=p)
+        state.particles_mm[ids] = p
+
+    def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
+        """(k,) noise-free, unsaturated true readings of envs ``ids`` (the map's superposition), V."""
+        position = state.position_mm[ids]
+        groups = group_by_world(state, ids)
+        if len(groups) == 1:
+            return groups[0][0].expected_reading(position, saturate=False)
+        out = np.empty(len(ids))
+        for scene, rows in groups:
+            out[rows] = scene.expected_reading(position[rows], saturate=False)
+        return out
+
+    def histogram_origin(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float32]:
+        """(k, 2) float32 zeros: the map origin (the histogram covers the whole map box)."""
+        return np.zeros((len(state.half_mm[ids]), 2), dtype=np.float32)
+
+    def truth_mm(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
+        """(k, 2) what the belief estimates: the true carriage position, mm."""
+        return state.position_mm[ids]
+
+    def sensor_model(self, state: State, i: int) -> Any:
+        """Env ``i``'s map sensor model (built at reset)."""
+        return state.model[i]
+
+
+def make_task(params: EnvParams) -> TargetTask | MapTask:
+    """The task object of ``params.task``."""
+    return TargetTask(params) if params.task == "localize" else MapTask(params)

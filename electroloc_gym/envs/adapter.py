@@ -1,0 +1,241 @@
+"""The Gymnasium single-env adapter: the simulation core with N = 1.
+
+:class:`CoreEnv` turns ``gym.Env`` calls into the core's (:class:`~electroloc_gym.core.step.Simulation`
+with one env): ``reset`` hands the env's seeded ``np_random`` to the core and resets it; ``step``
+converts the action, steps the core with autoreset disabled (stepping after the episode ended,
+terminated or truncated, is an error: call reset) and returns row 0 of its arrays as Python
+scalars. It adds only what a single env has and a batch has not: the carriage path for plots,
+rendering, and the read-only accessors agents use (``belief``, ``sensor_model``, ``condition``,
+``position_mm``, ``allowed_box_mm``, ``move_bounds_mm``, ``n_observations``, ``last_reading_V``,
+``path_mm``, ``predicted_reading_model``, ``predicted_particles_mm``). ``ElectroLoc-v0``
+(:mod:`.localize`) and ``ElectroLocGlobal-v0`` (:mod:`.self_localize`) are this class with a task.
+"""
+
+from __future__ import annotations
+
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import ArrayLike, NDArray
+
+from electroloc_gym.belief import BeliefView
+from electroloc_gym.conditions import Condition
+from electroloc_gym.core.params import DISCRETE_MOVES_MM, MAX_STEP_MM, EnvParams
+from electroloc_gym.core.step import Simulation
+
+__all__ = ["CoreEnv", "spaces_of"]
+
+
+def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space, spaces.Box]:
+    """(action space, observation space) of one env."""
+    if params.action_type == "continuous":
+        action: spaces.Space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+    else:
+        action = spaces.Discrete(len(DISCRETE_MOVES_MM))
+    return action, spaces.Box(-1.0, 1.0, shape=(obs_dim,), dtype=np.float32)
+
+
+class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
+    """One env of the simulation core (see the module docstring); subclasses set the task."""
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
+    _TASK = "localize"
+    _ENV_ID = "ElectroLoc-v0"
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.params = EnvParams.from_kwargs(self._TASK, kwargs, self._ENV_ID)
+        self._sim = Simulation(self.params, 1)
+        self._state = self._sim.state
+        self._task = self._sim.task
+        self.action_space, self.observation_space = spaces_of(self.params, self._sim.obs_dim)
+        self._belief = BeliefView(self._state, 0)
+        self._path: list[tuple[float, float]] = []
+        self._renderer: Any = None
+
+    # ---- parameters ---------------------------------------------------------------------------
+    @property
+    def n_particles(self) -> int:
+        """Particles M of the belief."""
+        return self.params.n_particles
+
+    @property
+    def max_observations(self) -> int:
+        """Readings per episode before truncation."""
+        return self.params.max_observations
+
+    @property
+    def success_spread_mm(self) -> float:
+        """Success when √trace Σ ≤ this, mm."""
+        return self.params.success_spread_mm
+
+    @property
+    def observation_mode(self) -> str:
+        """``"belief"`` or ``"raw"``."""
+        return self.params.observation
+
+    @property
+    def sensor_model_name(self) -> str:
+        """``"analytic"`` or ``"calibrated"``."""
+        return self.params.sensor_model
+
+    @property
+    def action_type(self) -> str:
+        """``"continuous"`` or ``"discrete"``."""
+        return self.params.action_type
+
+    # ---- read-only accessors ------------------------------------------------------------------
+    def _require_reset(self) -> None:
+        if not self._state.started:
+            raise RuntimeError("call reset() first")
+
+    @property
+    def belief(self) -> BeliefView:
+        """The particle belief over the hidden position (mm), read-only."""
+        self._require_reset()
+        return self._belief
+
+    @property
+    def sensor_model(self) -> Any:
+        """The agent's sensor model (``mean_std``, ``log_likelihood``) of the current episode."""
+        self._require_reset()
+        return self._task.sensor_model(self._state, 0)
+
+    @property
+    def condition(self) -> Condition:
+        """The current episode's condition (before the first reset: the first of the pool)."""
+        w = self._state.world[0]
+        if w is None:
+            return self._default_condition()
+        return w if isinstance(w, Condition) else w.as_condition()
+
+    def _default_condition(self) -> Condition:
+        raise NotImplementedError
+
+    @property
+    def position_mm(self) -> NDArray[np.float64]:
+        """The true carriage centre (x, y), mm (a copy)."""
+        return self._state.position_mm[0].copy()
+
+    @property
+    def allowed_box_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(low, high) corners of the carriage's allowed box, mm."""
+        h = self.condition.allowed_half_width_mm
+        return np.array([-h, -h]), np.array([h, h])
+
+    @property
+    def n_observations(self) -> int:
+        """Readings fused so far in this episode."""
+        return int(self._state.n_observations[0])
+
+    @property
+    def last_reading_V(self) -> float:
+        """The last reading Φ, V."""
+        return float(self._state.reading_V[0])
+
+    @property
+    def path_mm(self) -> NDArray[np.float64]:
+        """Carriage positions visited this episode (k, 2), mm."""
+        return np.asarray(self._path, dtype=float).reshape(-1, 2)
+
+    # ---- what min-var needs -------------------------------------------------------------------
+    def predicted_particles_mm(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> NDArray:
+        """The hypotheses after a commanded move: (M, 2) for a (2,) move, (C, M, 2) for (C, 2) moves.
+
+        Args:
+            particles_mm: (M, 2) hypotheses in the belief's frame (normally ``belief.particles``), mm.
+            moves_mm: (2,) or (C, 2) commanded moves, mm (clipped to ±``MAX_STEP_MM`` like ``step``).
+        """
+        p, u = self._check_prediction_args(particles_mm, moves_mm)
+        return self._particles_after_move(p, u)
+
+    def predicted_reading_model(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
+        """Sensor-model mean and std (V) of the reading each hypothesis predicts after a commanded move
+        (the env's motion rule applied; the noise-free reading "that particle predicts" of min-var,
+        paper Algorithm 1).
+
+        Args:
+            particles_mm: (M, 2) hypotheses (normally ``belief.particles``), mm; float32 stays float32.
+            moves_mm: (2,) or (C, 2) commanded moves, mm (clipped to ±``MAX_STEP_MM`` like ``step``).
+
+        Returns:
+            ``(mean_V, std_V)``, each (M,) for a (2,) move and (C, M) for (C, 2) moves.
+        """
+        p, u = self._check_prediction_args(particles_mm, moves_mm)
+        return self.sensor_model.mean_std(self._offsets_after_move(p, u))
+
+    def _check_prediction_args(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
+        if not self._state.started:
+            raise RuntimeError("call reset() before predicting readings")
+        p = np.asarray(particles_mm)
+        if p.dtype not in (np.float32, np.float64):
+            p = p.astype(np.float64)
+        if p.ndim != 2 or p.shape[-1] != 2:
+            raise ValueError(f"particles_mm must have shape (M, 2), got {p.shape}")
+        u = np.asarray(moves_mm, dtype=np.float64)
+        if u.ndim not in (1, 2) or u.shape[-1] != 2:
+            raise ValueError(f"moves_mm must have shape (2,) or (C, 2), got {u.shape}")
+        if not np.all(np.isfinite(u)):
+            raise ValueError("moves_mm must be finite")
+        return p, np.clip(u, -MAX_STEP_MM, MAX_STEP_MM)
+
+    def _particles_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
+        raise NotImplementedError
+
+    def _offsets_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
+        raise NotImplementedError
+
+    # ---- gymnasium API ------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        super().reset(seed=seed)
+        self._sim.set_generator(0, self.np_random)
+        self._sim.reset()
+        self._path = [tuple(self._state.position_mm[0].tolist())]
+        if self.render_mode == "human":
+            self.render()
+        return self._sim.observation()[0], self._info_row(self._sim.info())
+
+    def step(self, action: Any) -> tuple[NDArray[np.float32], SupportsFloat, bool, bool, dict[str, Any]]:
+        if not self._state.started:
+            raise RuntimeError("call reset() before step()")
+        moves = self._sim.moves_from_actions(action, single=True)
+        obs, reward, terminated, truncated, info = self._sim.step(moves, autoreset="disabled")
+        self._path.append(tuple(self._state.position_mm[0].tolist()))
+        if self.render_mode == "human":
+            self.render()
+        return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), self._info_row(info)
+
+    @staticmethod
+    def _info_row(info: dict[str, NDArray]) -> dict[str, Any]:
+        """Row 0 of the core's info arrays as Python values (positions as tuples of float)."""
+        return {
+            "position_mm": tuple(info["position_mm"][0].tolist()),
+            "estimate_mm": tuple(info["estimate_mm"][0].tolist()),
+            "error_mm": float(info["error_mm"][0]),
+            "spread_mm": float(info["spread_mm"][0]),
+            "reading_V": float(info["reading_V"][0]),
+            "n_observations": int(info["n_observations"][0]),
+            "success": bool(info["success"][0]),
+            "condition": str(info["condition"][0]),
+        }
+
+    def render(self) -> NDArray[np.uint8] | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'.")
+            return None
+        if self._renderer is None:
+            self._renderer = self._make_renderer()
+        return self._renderer.draw(self)
+
+    def _make_renderer(self) -> Any:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
