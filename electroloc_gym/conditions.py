@@ -37,6 +37,7 @@ __all__ = [
     "start_box_coverage",
     "coverage_signal_multiplier",
     "SIGNAL_CHOICES",
+    "DEFAULT_SIGNAL",
     "PAPER_START_COVERAGE",
 ]
 
@@ -274,7 +275,10 @@ PAPER_TABLE3_MEASURED_MM: dict[str, float] = dict(zip(PRESET_NAMES, (32.7, 31.3,
 #: Table 3, theoretical detection distance (mm), by preset.
 PAPER_TABLE3_THEORY_MM: dict[str, float] = dict(zip(PRESET_NAMES, (32.7, 29.5, 43.2, 39.3, 32.9, 26.6, 46.5, 45.3)))
 
-SIGNAL_CHOICES = ("fitted", "paper", "coverage")
+SIGNAL_CHOICES = ("coverage", "fitted", "paper")
+
+#: The signal every env and the benchmark use unless told otherwise (docs/fidelity.md says why).
+DEFAULT_SIGNAL = "coverage"
 
 #: Paper §6.3: "In 22% of the electrolocation trials, the robot's starting position was outside the
 #: detection range of the target" (the 2σ contours of the measured EEVs, Fig. 9), over all 8 conditions.
@@ -345,16 +349,17 @@ def coverage_signal_multiplier() -> float:
     return float(brentq(gap, 1.0, 1000.0, xtol=1e-3))
 
 
-def get_condition(name_or_condition: str | Condition | Mapping[str, Any], signal: str | float = "fitted") -> Condition:
+def get_condition(name_or_condition: str | Condition | Mapping[str, Any], signal: str | float = DEFAULT_SIGNAL
+                  ) -> Condition:
     """Return a :class:`Condition` from a preset name, a Condition, or a dict.
 
     Args:
         name_or_condition: one of :data:`PRESET_NAMES`, a :class:`Condition` (returned unchanged), or a
             dict for :meth:`Condition.from_dict`.
-        signal: for presets only: ``"fitted"`` (default, the scale fitted to Table 3's measured
-            detection distances), ``"paper"`` (the paper's equations, scale 1), ``"coverage"`` (the
-            fitted scale times :func:`coverage_signal_multiplier`, matching §6.3's 78 % of starts
-            inside the detection region) or a positive float.
+        signal: for presets only: ``"coverage"`` (default: the fitted scale times
+            :func:`coverage_signal_multiplier`, so that 78 % of the starts lie inside the 2σ detection
+            region, as §6.3 reports for the robot), ``"fitted"`` (the scale fitted to Table 3's measured
+            detection distances), ``"paper"`` (the paper's equations, scale 1) or a positive float.
 
     Raises:
         ValueError: unknown name or bad ``signal``.

@@ -21,6 +21,7 @@ from electroloc_gym.sensor import calibration_readings, electrode_positions_mm, 
 from electroloc_gym.sensor_models import (
     AnalyticSensorModel,
     CalibratedSensorModel,
+    PAPER_CALIBRATION,
     CalibrationProtocol,
     SensorModel,
     calibration_coefficients,
@@ -166,7 +167,7 @@ def test_analytic_model() -> None:
 
 @pytest.mark.parametrize("name, n", [("fresh-steel-12.7", 26), ("fresh-delrin-38.1", 31)])
 def test_calibrated_grid_is_the_papers(name: str, n: int) -> None:
-    m = CalibratedSensorModel(get_condition(name), seed=0)
+    m = CalibratedSensorModel(get_condition(name), 0, PAPER_CALIBRATION)
     assert m.grid_shape == (n, n)
     assert m.grid_mm[1] - m.grid_mm[0] == 4.0
     assert m.grid_mm[-1] - m.grid_mm[0] == 4.0 * (n - 1)
@@ -174,7 +175,7 @@ def test_calibrated_grid_is_the_papers(name: str, n: int) -> None:
 
 def test_calibrated_interpolation_equals_scipy_and_falls_back_outside() -> None:
     c = get_condition("fresh-steel-38.1")
-    m = CalibratedSensorModel(c, seed=3)
+    m = CalibratedSensorModel(c, 3, PAPER_CALIBRATION)
     rgi_m = RegularGridInterpolator((m.grid_mm, m.grid_mm), m.mean_table_V)
     rgi_s = RegularGridInterpolator((m.grid_mm, m.grid_mm), m.std_table_V)
     rng = np.random.default_rng(1)
@@ -258,7 +259,7 @@ def test_all_offsets_grid_covers_every_particle_carriage_offset(name: str, n: in
     c = get_condition(name)
     m = CalibratedSensorModel(c, 0, CalibrationProtocol(grid_extent="all-offsets"))
     assert m.grid_shape == (n, n) and m.grid_mm[0] == -2 * c.allowed_half_width_mm
-    paper = CalibratedSensorModel(c, 0)
+    paper = CalibratedSensorModel(c, 0, PAPER_CALIBRATION)
     # the two grids agree where both have readings (same draws only for the same grid: compare the truth)
     edge = np.array([[c.allowed_half_width_mm + 6.0, 0.5 * c.allowed_half_width_mm]])
     assert paper.mean_std(edge)[0][0] == 0.0  # beyond the paper's square: "no target"
@@ -268,7 +269,7 @@ def test_all_offsets_grid_covers_every_particle_carriage_offset(name: str, n: in
 
 def test_pooled_std_is_one_value_off_saturation() -> None:
     c = get_condition("fresh-steel-12.7", 300.0)  # strong enough to saturate near the target
-    per_point = CalibratedSensorModel(c, 4)
+    per_point = CalibratedSensorModel(c, 4, CalibrationProtocol(std_estimator="per-point"))
     pooled = CalibratedSensorModel(c, 4, CalibrationProtocol(std_estimator="pooled"))
     np.testing.assert_array_equal(pooled.mean_table_V, per_point.mean_table_V)
     saturated = np.abs(per_point.mean_table_V) > c.saturation_V - 6 * c.noise_std_V
@@ -288,14 +289,14 @@ def test_coverage_signal_matches_paper_start_coverage() -> None:
     """§6.3: 78 % of the paper's starts were inside the 2σ detection region; the Table-3 fit gives ≈26 %."""
     from electroloc_gym.conditions import PAPER_START_COVERAGE, coverage_signal_multiplier, start_box_coverage
 
-    fitted = np.mean([start_box_coverage(get_condition(n)) for n in PRESET_NAMES])
+    fitted = np.mean([start_box_coverage(get_condition(n, "fitted")) for n in PRESET_NAMES])
     assert 0.15 < fitted < 0.35
     k = coverage_signal_multiplier()
     assert 5.0 < k < 15.0
     cov = [start_box_coverage(get_condition(n, "coverage")) for n in PRESET_NAMES]
     assert np.mean(cov) == pytest.approx(PAPER_START_COVERAGE, abs=0.01)
     for n in PRESET_NAMES:
-        assert get_condition(n, "coverage").signal_scale == pytest.approx(get_condition(n).signal_scale * k)
+        assert get_condition(n, "coverage").signal_scale == pytest.approx(get_condition(n, "fitted").signal_scale * k)
 
 
 def test_start_box_coverage_limits() -> None:

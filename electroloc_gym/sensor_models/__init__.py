@@ -11,6 +11,8 @@ Offsets are always ``target − carriage centre`` in mm, shape (..., 2).
 from electroloc_gym.sensor_models.analytic import AnalyticSensorModel
 from electroloc_gym.sensor_models.calibrated import (
     DEFAULT_CALIBRATION,
+    GRID_EXTENTS,
+    PAPER_CALIBRATION,
     SENSOR_MODEL_NAMES,
     STD_ESTIMATORS,
     CalibratedSensorModel,
@@ -32,6 +34,8 @@ __all__ = [
     "CalibratedSensorModel",
     "CalibrationProtocol",
     "DEFAULT_CALIBRATION",
+    "PAPER_CALIBRATION",
+    "GRID_EXTENTS",
     "SENSOR_MODEL_NAMES",
     "STD_ESTIMATORS",
     "calibration_coefficients",

@@ -108,11 +108,13 @@ def make_map_sensor_model(kind: str, scene: Scene, seed: int = 0, position_blur_
     the paper's procedure (§5.3) over carriage positions — ``protocol``'s grid over the allowed box
     (41×41 for ±80 mm at 4 mm), its readings per point, bilinear interpolation; seeded and cached per
     (scene, seed, protocol). Both widen the std by the position blur (module docstring), which
-    replaces ``protocol.position_blur_mm``.
+    replaces ``protocol.position_blur_mm``. The map's offsets are the carriage positions themselves, all
+    inside the allowed box, so the grid always covers the allowed box (``grid_extent`` does not apply).
     """
     blur = _blur(position_blur_mm)
     if kind == "analytic":
         return MapAnalyticSensorModel(scene, blur)
     if kind == "calibrated":
-        return _cached_map_calibration(scene, int(seed), protocol.replace(position_blur_mm=blur))
+        return _cached_map_calibration(scene, int(seed),
+                                       protocol.replace(position_blur_mm=blur, grid_extent="allowed-box"))
     raise ValueError(f"sensor_model must be one of {list(SENSOR_MODEL_NAMES)}, got {kind!r}")
