@@ -19,9 +19,9 @@ from electroloc_gym.conditions import (
 )
 from electroloc_gym.sensor import calibration_readings, electrode_positions_mm, expected_reading, noisy_reading
 from electroloc_gym.sensor_models import (
+    PAPER_CALIBRATION,
     AnalyticSensorModel,
     CalibratedSensorModel,
-    PAPER_CALIBRATION,
     CalibrationProtocol,
     SensorModel,
     calibration_coefficients,
