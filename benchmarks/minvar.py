@@ -5,8 +5,12 @@ Prints, for M = 2500 particles and C = 16 options on belief states taken from re
 * the decision time with all particles voting and with ``--voters`` (256) voting, for both float32
   kernels ("difference", "expanded"), beside the numpy float32 ``exp`` floor (M·C·voters
   exponentials at this machine's measured exp throughput) and their ratio to it;
-* the literal per-particle loop (:func:`electroloc_gym.baselines.min_variance_reference.literal_predicted_variances`) timed on
-  a small M and scaled by (2500/M)² (M·M·C likelihoods in Python), and the speed-up;
+* the decision time of each vote form at ``--voters`` (Algorithm 1's resample, drawn from its
+  central-limit distribution; the literal roulette-wheel resample; the expected variance), the
+  whole decision as the agent makes it (options, sensor-model means, vote);
+* the literal per-particle loop
+  (:func:`electroloc_gym.baselines.min_variance_reference.literal_predicted_variances`) timed on a
+  small M and scaled by (2500/M)² (M·M·C likelihoods in Python), and the speed-up;
 * how often 256 voters choose the same option as all 2500 (and, when they differ, how much worse the
   chosen option's all-voter vote count is).
 
@@ -28,16 +32,17 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
-
-import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent, move_bounds_mm, sample_options_mm  # noqa: E402
 from electroloc_gym.baselines.min_variance import (  # noqa: E402
+    VOTES,  # noqa: E402
     choose_voters,
     count_votes,
     option_means_stds,
     predicted_variances,
 )
 from electroloc_gym.baselines.min_variance_reference import literal_predicted_variances  # noqa: E402
+
+import electroloc_gym  # noqa: E402,F401
 
 
 def best_of(fn, repeats: int = 5) -> float:
@@ -108,6 +113,17 @@ def main() -> None:
             t = best_of(call, repeats=3 if n_vot == m else 7)
             results[(n_vot, kernel)] = t
             print(f"{n_vot:>7} {kernel:>11} {t * 1e3:>12.1f} {floor * 1e3:>13.1f} {t / floor:>15.2f}")
+
+    # The whole decision per vote form, as the agent makes it, on the collected belief states.
+    print(f"\nWhole min-var decision at {args.voters} voters (median over {len(states)} belief states; floor = "
+          f"the exponentials alone, {args.voters * m * c * t_exp * 1e3:.1f} ms)")
+    for vote in VOTES:
+        agent = make_agent(f"min-var[vote={vote!r},n_voters={args.voters}]", seed=0)
+        times = []
+        for s in states[: (5 if vote == "multinomial" else len(states))]:
+            agent._env = s["core"]  # bind without resetting the env: the state's belief is kept
+            times.append(best_of(agent.choose_move_mm, repeats=1 if vote == "multinomial" else 3))
+        print(f"  vote={vote:<12} {np.median(times) * 1e3:8.1f} ms")
 
     # Literal loop on a small M, scaled by (M / m_small)² (voters × particles × options calls).
     ms = args.literal_m
