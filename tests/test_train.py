@@ -119,18 +119,21 @@ def test_cli_rejects_malformed_env_kwargs(capsys):
 # -------------------------------------------------------------------------------------- wrappers
 def test_frame_stack_wrapper_matches_the_agent_stacker():
     env = FlatFrameStack(gym.make("ElectroLoc-v0", observation="raw", **FAST_ENV), 4)
+    plain = gym.make("ElectroLoc-v0", observation="raw", **FAST_ENV)  # same seed, same actions: same frames
     assert env.observation_space.shape == (12,)
     stacker = FrameStacker(4, 3)
     obs, _ = env.reset(seed=3)
-    raw = env.unwrapped._sim.observation()[0]
+    raw, _ = plain.reset(seed=3)
     stacker.reset()
     np.testing.assert_array_equal(obs, stacker.push(raw))
     np.testing.assert_array_equal(obs[:9], 0.0)
     for _ in range(5):
-        obs, _, terminated, truncated, _ = env.step(np.array([0.5, -0.5], dtype=np.float32))
-        np.testing.assert_array_equal(obs, stacker.push(env.unwrapped._sim.observation()[0]))
+        action = np.array([0.5, -0.5], dtype=np.float32)
+        obs, _, term, trunc, _ = env.step(action)
+        raw, *_ = plain.step(action)
+        np.testing.assert_array_equal(obs, stacker.push(raw))
         assert env.observation_space.contains(obs)
-        if terminated or truncated:  # stepping an ended episode is an error
+        if term or trunc:
             break
     obs, _ = env.reset(seed=4)
     np.testing.assert_array_equal(obs[:9], 0.0)

@@ -29,6 +29,16 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.fileio import atomic_write_bytes, atomic_write_text
+from electroloc_gym.train.json_codec import (
+    PolicyFormatError,
+    dump_json,
+    finite_or_none,
+    floats_from_json,
+    floats_to_json,
+    json_value,
+    space_from_json,
+    space_to_json,
+)
 
 __all__ = [
     "ACTIVATIONS",
@@ -71,11 +81,6 @@ ACTIVATIONS: dict[str, str] = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "le
 
 # Constructor keywords that only matter for training (the optimiser) or are rebuilt here.
 _DROPPED_KWARGS = ("optimizer_class", "optimizer_kwargs", "features_extractor_class", "features_extractor_kwargs")
-_JSON_SCALARS = (bool, int, float, str, type(None))
-
-
-class PolicyFormatError(ValueError):
-    """A policy directory or file is missing, malformed, or does not describe a loadable policy."""
 
 
 @dataclass(frozen=True)
@@ -136,81 +141,12 @@ class PolicyExport:
         return self.meta["architecture"]["recurrent"] is not None
 
 
-# --------------------------------------------------------------------------------------- spaces
-def _floats_to_json(a: np.ndarray) -> list[Any]:
-    return [v if math.isfinite(v) else ("inf" if v > 0 else "-inf" if v < 0 else "nan") for v in
-            np.asarray(a, dtype=np.float64).reshape(-1).tolist()]
-
-
-def _floats_from_json(values: Any, where: str) -> np.ndarray:
-    if not isinstance(values, list):
-        raise PolicyFormatError(f"{where} must be a list of numbers")
-    out = []
-    for v in values:
-        if isinstance(v, str) and v in ("inf", "-inf", "nan"):
-            out.append(float(v))
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            out.append(float(v))
-        else:
-            raise PolicyFormatError(f"{where} must hold numbers, got {v!r}")
-    return np.asarray(out, dtype=np.float64)
-
-
-def space_to_json(space: Any) -> dict[str, Any]:
-    """A Gymnasium ``Box`` or ``Discrete`` as plain JSON (±inf bounds as the strings "inf"/"-inf")."""
-    from gymnasium import spaces
-
-    if isinstance(space, spaces.Box):
-        return {"type": "Box", "shape": list(space.shape), "dtype": str(space.dtype),
-                "low": _floats_to_json(space.low), "high": _floats_to_json(space.high)}
-    if isinstance(space, spaces.Discrete):
-        return {"type": "Discrete", "n": int(space.n), "start": int(space.start)}
-    raise PolicyFormatError(f"cannot export a {type(space).__name__} space (only Box and Discrete)")
-
-
-def space_from_json(d: Any, where: str = "space") -> Any:
-    """Inverse of :func:`space_to_json`."""
-    from gymnasium import spaces
-
-    if not isinstance(d, dict) or d.get("type") not in ("Box", "Discrete"):
-        raise PolicyFormatError(f"{where} must be an object with type 'Box' or 'Discrete', got {d!r}")
-    if d["type"] == "Discrete":
-        n, start = d.get("n"), d.get("start", 0)
-        if not (isinstance(n, int) and not isinstance(n, bool) and n >= 1 and isinstance(start, int)):
-            raise PolicyFormatError(f"{where}: Discrete needs an integer n ≥ 1 and an integer start")
-        return spaces.Discrete(n, start=start)
-    shape = d.get("shape")
-    if not (isinstance(shape, list) and shape and all(isinstance(s, int) and s >= 1 for s in shape)):
-        raise PolicyFormatError(f"{where}: Box shape must be a list of positive integers, got {shape!r}")
-    if d.get("dtype") not in ("float32", "float64"):
-        raise PolicyFormatError(f"{where}: Box dtype must be float32 or float64, got {d.get('dtype')!r}")
-    low = _floats_from_json(d.get("low"), f"{where}.low")
-    high = _floats_from_json(d.get("high"), f"{where}.high")
-    size = int(np.prod(shape))
-    if low.size != size or high.size != size:
-        raise PolicyFormatError(f"{where}: low/high must have {size} values for shape {shape}")
-    dtype = np.dtype(d["dtype"])
-    return spaces.Box(low.reshape(shape).astype(dtype), high.reshape(shape).astype(dtype), dtype=dtype)
-
-
 # --------------------------------------------------------------------------------- architecture
 def _activation_name(cls: Any) -> str:
     for name, attr in ACTIVATIONS.items():
         if getattr(cls, "__name__", None) == attr and getattr(cls, "__module__", "").startswith("torch.nn"):
             return name
     raise PolicyFormatError(f"cannot export activation_fn {cls!r}; supported: {list(ACTIVATIONS)}")
-
-
-def _json_value(value: Any, where: str) -> Any:
-    if isinstance(value, _JSON_SCALARS):
-        if isinstance(value, float) and not math.isfinite(value):
-            raise PolicyFormatError(f"cannot export {where} = {value!r} (not finite)")
-        return value
-    if isinstance(value, (list, tuple)):
-        return [_json_value(v, where) for v in value]
-    if isinstance(value, Mapping):
-        return {str(k): _json_value(v, f"{where}.{k}") for k, v in value.items()}
-    raise PolicyFormatError(f"cannot export {where} = {value!r} (not plain data)")
 
 
 def _architecture(model: Any) -> dict[str, Any]:
@@ -243,7 +179,7 @@ def _architecture(model: Any) -> dict[str, Any]:
         kwargs.update(recurrent)
     if "activation_fn" in kwargs:
         kwargs["activation_fn"] = _activation_name(kwargs["activation_fn"])
-    return {"policy_class": name, "policy_kwargs": _json_value(kwargs, "policy_kwargs"), "recurrent": recurrent}
+    return {"policy_class": name, "policy_kwargs": json_value(kwargs, "policy_kwargs"), "recurrent": recurrent}
 
 
 def normalization_from_vecnormalize(vn: Any) -> dict[str, Any] | None:
@@ -265,7 +201,7 @@ def normalization_from_vecnormalize(vn: Any) -> dict[str, Any] | None:
         rms = vn.obs_rms
         if isinstance(rms, dict):
             raise PolicyFormatError("cannot export normalisation of a Dict observation space")
-        out.update(obs_mean=_floats_to_json(rms.mean), obs_var=_floats_to_json(rms.var), obs_count=float(rms.count))
+        out.update(obs_mean=floats_to_json(rms.mean), obs_var=floats_to_json(rms.var), obs_count=float(rms.count))
     return out
 
 
@@ -323,29 +259,14 @@ def export_policy(model: Any, folder: str | Path, *, observation: Mapping[str, A
                         "frame_stack": frame_stack, "frame_dim": obs_shape[0] // frame_stack,
                         "shape": obs_shape, "space": space_to_json(obs_space)},
         "action": {"action_type": str(observation["action_type"]), "space": space_to_json(act_space)},
-        "normalization": None if normalization is None else _json_value(dict(normalization), "normalization"),
-        "env_kwargs": _json_value(dict(observation.get("env_kwargs") or {}), "env_kwargs"),
-        "provenance": _json_value(dict(provenance), "provenance"),
-        "evaluation": None if evaluation is None else _json_value(_finite_or_none(evaluation), "evaluation"),
+        "normalization": None if normalization is None else json_value(dict(normalization), "normalization"),
+        "env_kwargs": json_value(dict(observation.get("env_kwargs") or {}), "env_kwargs"),
+        "provenance": json_value(dict(provenance), "provenance"),
+        "evaluation": None if evaluation is None else json_value(finite_or_none(evaluation), "evaluation"),
     }
     atomic_write_bytes(d / WEIGHTS_FILE, blob)
     atomic_write_text(d / POLICY_JSON, dump_json(meta) + "\n")
     return d
-
-
-def dump_json(obj: Any, indent: int = 0) -> str:
-    """Strict JSON (no NaN), objects one key per line, lists of plain values on one line."""
-    pad = " " * (indent + 2)
-    if isinstance(obj, dict) and obj:
-        items = [f"{pad}{json.dumps(str(k))}: {dump_json(v, indent + 2)}" for k, v in obj.items()]
-        return "{\n" + ",\n".join(items) + "\n" + " " * indent + "}"
-    if isinstance(obj, list) and any(isinstance(v, (dict, list)) for v in obj):
-        return "[\n" + ",\n".join(pad + dump_json(v, indent + 2) for v in obj) + "\n" + " " * indent + "]"
-    return json.dumps(obj, allow_nan=False, ensure_ascii=False)
-
-
-def _finite_or_none(row: Mapping[str, Any]) -> dict[str, Any]:
-    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}
 
 
 # ------------------------------------------------------------------------------------- reading
@@ -414,8 +335,8 @@ def read_export(folder: str | Path) -> PolicyExport:
             if norm.get("obs_mean") is None or norm.get("obs_var") is None:
                 raise PolicyFormatError(f"{where}: normalization.norm_obs is true but the observation statistics "
                                         f"(obs_mean, obs_var) are missing — refusing to run on raw observations")
-            stats = ObsNormalization(_floats_from_json(norm["obs_mean"], f"{where} obs_mean"),
-                                     _floats_from_json(norm["obs_var"], f"{where} obs_var"),
+            stats = ObsNormalization(floats_from_json(norm["obs_mean"], f"{where} obs_mean"),
+                                     floats_from_json(norm["obs_var"], f"{where} obs_var"),
                                      clip_obs=norm.get("clip_obs", 10.0), epsilon=norm.get("epsilon", 1e-8))
             if stats.mean.shape[0] != obs["shape"][0]:
                 raise PolicyFormatError(f"{where}: normalisation statistics have {stats.mean.shape[0]} features, "

@@ -153,8 +153,12 @@ def _saved_config(folder: Path) -> dict[str, Any]:
     return cfg
 
 
-def _conflicts(args: Args, saved: dict[str, Any]) -> list[str]:
-    """Options given on the command line that contradict the resumed run's own configuration."""
+def _conflicts(args: Args, saved: dict[str, Any], same_run: bool) -> list[str]:
+    """Options given on the command line that contradict the resumed run's own configuration.
+
+    The evaluation protocol only matters when the same run goes on (``same_run``): its ``best/`` holds a
+    score measured with it. A run branched into a new folder may evaluate differently.
+    """
     out = []
     given = set(args.explicit)
     if "algo" in given and args.algo != saved["algo"]:
@@ -167,7 +171,7 @@ def _conflicts(args: Args, saved: dict[str, Any]) -> list[str]:
         for k, v in args.env_kwargs.items():
             if saved["env_kwargs"].get(k, "<unset>") != v:
                 out.append(f"--env-kwargs {k}={v} (the run: {saved['env_kwargs'].get(k, '<unset>')})")
-    ev = saved.get("evaluation") or {}
+    ev = (saved.get("evaluation") or {}) if same_run else {}
     for key, flag in (("episodes", "eval_episodes"), ("seed", "eval_seed"), ("env_kwargs", "eval_env_kwargs")):
         if flag in given and key in ev and getattr(args, flag) != ev[key]:
             out.append(f"--{flag.replace('_', '-')} {getattr(args, flag)} (the run evaluates with {ev[key]}; "
@@ -239,7 +243,7 @@ def plan_run(args: Args) -> RunPlan:
 
     folder = resume_zip.parent
     saved = _saved_config(folder)
-    bad = _conflicts(args, saved)
+    bad = _conflicts(args, saved, continues_out)
     if bad:
         raise ConfigError("--resume continues the run with its own configuration (" + str(folder / "config.yml") +
                           "); these options contradict it: " + "; ".join(bad) +
@@ -253,7 +257,7 @@ def plan_run(args: Args) -> RunPlan:
                           f"--timesteps N to train N more")
     if "seed" in args.explicit:
         cfg["seed"] = args.seed
-    cfg["evaluation"] = {**_evaluation(args), **(saved.get("evaluation") or {})}
+    cfg["evaluation"] = {**_evaluation(args), **((saved.get("evaluation") or {}) if continues_out else {})}
     best, best_t = best_so_far(rd.path) if continues_out else (math.inf, None)
     return RunPlan(run_dir=rd, config=cfg, resume_zip=resume_zip, continues_out=continues_out, timesteps_done=done,
                    normalization=_saved_normalization(folder, cfg), best_mean_steps=best, best_timesteps=best_t)
