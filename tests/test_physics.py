@@ -144,7 +144,7 @@ EXPECTED_SCALES = dict(zip(PRESET_NAMES, (0.88, 1.23, 3.8, 7.1, 0.26, 0.97, 1.58
 def test_fitted_signal_scale_reaches_measured_distance(name: str) -> None:
     s = fitted_signal_scale(name)
     assert s == pytest.approx(EXPECTED_SCALES[name], rel=0.03)
-    c = get_condition(name)
+    c = get_condition(name, signal="fitted")
     assert c.signal_scale == s
     measured = PAPER_TABLE3_MEASURED_MM[name]
     assert c.detection_distance_mm() >= measured - 1e-6
