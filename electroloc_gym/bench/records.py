@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.bench.config import GLOBAL_CONDITION, IDENTITY_KEYS, BenchConfig, trial_seeds
+from electroloc_gym.bench.config import GLOBAL_CONDITION, GLOBAL_ENV_ID, IDENTITY_KEYS, BenchConfig, trial_seeds
 from electroloc_gym.bench.trials import RECORD_KEYS, TIMING_KEYS
 from electroloc_gym.conditions import PRESET_NAMES
 from electroloc_gym.fileio import atomic_write_text
@@ -181,8 +181,7 @@ def foreign_reason(rec: dict[str, Any], config: BenchConfig) -> str | None:
     for key in IDENTITY_KEYS:
         if rec[key] != getattr(config, key):
             return f"{key} {rec[key]!r}, this run {getattr(config, key)!r}"
-    if config.env_id != "ElectroLocGlobal-v0" and rec["condition"] == GLOBAL_CONDITION or \
-            config.env_id == "ElectroLocGlobal-v0" and rec["condition"] != GLOBAL_CONDITION:
+    if (rec["condition"] == GLOBAL_CONDITION) != (config.env_id == GLOBAL_ENV_ID):
         return f"condition {rec['condition']!r} does not belong to env {config.env_id}"
     env_seed, agent_seed = trial_seeds(config.seed, rec["condition"], rec["trial"])
     if (rec["seed"], rec["agent_seed"]) != (env_seed, agent_seed):

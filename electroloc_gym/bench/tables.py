@@ -92,7 +92,10 @@ def is_all_conditions(row: dict[str, Any]) -> bool:
 
 def aggregate_label(row: dict[str, Any]) -> str:
     """"All conditions" for an aggregate row over the paper's eight conditions, else "Subset (k conditions)"."""
-    return "All conditions" if is_all_conditions(row) else f"Subset ({row.get('conditions')} conditions)"
+    if is_all_conditions(row):
+        return "All conditions"
+    k = row.get("conditions")
+    return f"Subset ({k} condition{'' if k == 1 else 's'})"
 
 
 def _pair(a: Any, b: Any, digits: int = 1) -> str:
