@@ -250,10 +250,12 @@ def _lawnmower(half: float, step: float = 10.0) -> list[np.ndarray]:
 
 
 def test_fixed_lawnmower_path_localises_target() -> None:
-    """Analytic model, fresh-steel-12.7: a lawn-mower path localises (error < 5 mm) in most of 20 seeds."""
+    """Analytic model, fresh-steel-12.7 (fitted signal): a lawn-mower path localises (error < 5 mm) in most of 20
+    seeds."""
     good = 0
     for seed in range(20):
-        env = ElectroLocEnv(condition="fresh-steel-12.7", sensor_model="analytic", max_observations=200)
+        env = ElectroLocEnv(condition="fresh-steel-12.7", signal="fitted", sensor_model="analytic",
+                            max_observations=200)
         env.reset(seed=seed)
         info: dict = {}
         for wp in _lawnmower(40.0):
@@ -269,3 +271,79 @@ def test_fixed_lawnmower_path_localises_target() -> None:
                 break
         good += bool(info.get("success")) and info["error_mm"] < 5.0
     assert good >= 15, good
+
+
+# ---- parameters: one declaration, one clear error ------------------------------------------------
+@pytest.mark.parametrize(("env_id", "kwargs", "match"), [
+    ("ElectroLoc-v0", {"layout": "random"}, "layout"),
+    ("ElectroLoc-v0", {"n_particle": 100}, "n_particle"),
+    ("ElectroLocGlobal-v0", {"condition": "random"}, "condition"),
+    ("ElectroLocGlobal-v0", {"randomize_target": True}, "randomize_target"),
+    ("ElectroLoc-v0", {"randomize_target": "false"}, "randomize_target"),
+    ("ElectroLoc-v0", {"randomize_target": 1}, "randomize_target"),
+    ("ElectroLoc-v0", {"sensor_model": "pooled"}, "sensor_model"),
+    ("ElectroLoc-v0", {"calibration": {"grid_pitch_mm": 4.0}}, "grid_pitch_mm"),
+    ("ElectroLoc-v0", {"calibration": "fine"}, "calibration"),
+    ("ElectroLoc-v0", {"calibration_seed": -1}, "calibration_seed"),
+    ("ElectroLoc-v0", {"max_episode_steps": 0}, "max_episode_steps"),
+    ("ElectroLoc-v0", {"n_particles": 10**9}, "n_particles"),
+    ("ElectroLoc-v0", {"calibration": {"grid_step_mm": 1e-5}}, "grid_step_mm"),
+    ("ElectroLocGlobal-v0", {"calibration": {"grid_step_mm": 1e-5}}, "grid_step_mm"),
+])
+@pytest.mark.parametrize("vector", [False, True])
+def test_every_bad_argument_is_one_clear_error_in_single_and_vector_env(env_id, kwargs, match, vector) -> None:
+    with pytest.raises(ValueError, match=match):
+        if vector:
+            gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+        else:
+            env_cls = gym.spec(env_id).entry_point
+            module, name = env_cls.split(":")
+            getattr(__import__(module, fromlist=[name]), name)(**kwargs)
+
+
+def test_sizes_that_cannot_fit_are_refused_at_construction_naming_the_limit() -> None:
+    with pytest.raises(ValueError, match=r"GiB.*at most \d+ particles per env"):
+        ElectroLocEnv(n_particles=10**9)
+    with pytest.raises(ValueError, match="calibration grid.*GiB"):
+        ElectroLocEnv(calibration={"grid_step_mm": 1e-5})
+
+
+def test_numpy_scalars_are_accepted_where_numbers_are() -> None:
+    env = ElectroLocEnv(n_particles=np.int64(100), success_spread_mm=np.float32(12.5), randomize_target=np.bool_(True),
+                        max_observations=np.int32(5), calibration={"grid_step_mm": np.float32(5.0)})
+    assert env.success_spread_mm == 12.5 and isinstance(env.success_spread_mm, float)
+    assert env.randomize_target is True and env.n_particles == 100
+    env.reset(seed=0)
+
+
+def test_calibration_protocol_reaches_the_sensor_model() -> None:
+    from electroloc_gym.sensor_models import DEFAULT_CALIBRATION
+
+    env = ElectroLocEnv(n_particles=100, calibration={"grid_step_mm": 5.0, "samples_per_point": 4})
+    env.reset(seed=0)
+    model = env.sensor_model
+    assert model.protocol.grid_step_mm == 5.0 and model.protocol.samples_per_point == 4
+    assert ElectroLocEnv(n_particles=100).params.calibration is DEFAULT_CALIBRATION
+
+
+def test_default_signal_is_get_conditions_default() -> None:
+    from electroloc_gym.conditions import get_condition
+
+    env = ElectroLocEnv(n_particles=100)
+    env.reset(seed=0)
+    assert env.condition == get_condition("fresh-steel-12.7")
+
+
+@pytest.mark.parametrize("kwargs", [{"max_observations": 2, "success_spread_mm": 1e-6}, {"success_spread_mm": 1e3}])
+def test_stepping_an_ended_episode_raises_call_reset(kwargs) -> None:
+    """Truncation and termination alike: the next step is an error until reset."""
+    env = ElectroLocEnv(n_particles=100, **kwargs)
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(np.zeros(2, np.float32))
+        done = terminated or truncated
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(np.zeros(2, np.float32))
+    env.reset()
+    env.step(np.zeros(2, np.float32))
