@@ -93,7 +93,8 @@ def test_config_missing_file_and_section_and_algo(tmp_path):
 
 def test_shipped_hyperparams_are_valid():
     hp_dir = REPO / "train" / "hyperparams"
-    for name, algo in (("ppo.yml", "ppo"), ("sac.yml", "sac"), ("ppo_framestack.yml", "ppo")):
+    for name, algo in (("ppo.yml", "ppo"), ("sac.yml", "sac"), ("ppo_framestack.yml", "ppo"),
+                       ("recurrentppo.yml", "recurrentppo")):
         hp = resolve_hyperparams(hp_dir / name, algo, "ElectroLoc-v0")
         assert hp["env_kwargs"]["condition"] == "random"
         algo_kwargs(hp)  # builds (schedules, activations) without error
