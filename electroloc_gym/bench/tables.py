@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from electroloc_gym.bench.fidelity import PAPER_TRIALS, paper_count_interval
 from electroloc_gym.conditions import PRESET_NAMES
 
 __all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "PAPER_TABLE2", "render_table_md", "paper_agent_key",
@@ -78,11 +79,45 @@ def _f(x: Any, digits: int = 1) -> str:
     return "–" if x is None else f"{x:.{digits}f}"
 
 
-def _paper_cells(paper: tuple | None) -> tuple[str, str, str]:
-    """The paper's success (failure), error mean/median and steps mean/median cells ("" when absent)."""
+def _paper_cells(paper: tuple | None, row: dict[str, Any] | None = None) -> tuple[str, str, str]:
+    """The paper's success (failure), error mean/median and steps mean/median cells ("" when absent).
+
+    With the run's ``row``, the success cell also gives the counts (of the run's trials) inside the
+    paper's 90 % binomial interval and marks the run's count ✓ (inside) or ✗ (outside).
+    """
     if not paper:
         return "", "", ""
-    return f"{paper[0]}({paper[1]})", _pair(paper[2], paper[3]), f"{paper[4]:g}/{paper[5]:g}"
+    success = f"{paper[0]}({paper[1]})"
+    if row is not None:
+        mark = _interval_mark(paper, row)
+        if mark:
+            success += f" {mark}"
+    return success, _pair(paper[2], paper[3]), f"{paper[4]:g}/{paper[5]:g}"
+
+
+def _interval_mark(paper: tuple, row: dict[str, Any]) -> str:
+    """"[lo–hi] ✓/✗": the paper's 90 % interval as counts of the run's trials, and whether the run is in it."""
+    n = int(row["successes"]) + int(row["failures"])
+    paper_n = int(paper[0]) + int(paper[1])
+    if n <= 0 or paper_n <= 0:
+        return ""
+    lo, hi = paper_count_interval(int(paper[0]), n, paper_n)
+    return f"[{lo}–{hi}] {'✓' if lo <= int(row['successes']) <= hi else '✗'}"
+
+
+def _inside_counts(rows: list[dict[str, Any]]) -> str:
+    """One line: per paper controller, in how many conditions the run's count is inside the paper's interval."""
+    parts = []
+    for agent in dict.fromkeys(r["agent"] for r in rows if r["condition"] != "all"):
+        key = paper_agent_key(agent) or ""
+        cells = [(PAPER_TABLE4[(r["condition"], key)], r) for r in rows
+                 if r["agent"] == agent and (r["condition"], key) in PAPER_TABLE4]
+        if cells:
+            inside = sum(_interval_mark(p, r).endswith("✓") for p, r in cells)
+            parts.append(f"{agent} {inside} of {len(cells)}")
+    return ("Success counts inside the paper's 90 % binomial interval (Wilson, of its "
+            f"{PAPER_TRIALS} trials; [lo–hi] = that interval in this run's trials): " + "; ".join(parts) + "."
+            if parts else "")
 
 
 def is_all_conditions(row: dict[str, Any]) -> bool:
@@ -143,12 +178,16 @@ def render_table_md(summary: dict[str, Any]) -> str:
             else:
                 water, sphere = _cond_label(r["condition"])
                 paper = PAPER_TABLE4.get((r["condition"], paper_agent_key(r["agent"]) or ""))
-            ps, pe, pst = _paper_cells(paper)
+            ps, pe, pst = _paper_cells(paper, r)
             out.append(f"| {water} | {sphere} | {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
                        f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
                        f"| {_pair(r['steps_mean_paired'], r['steps_median'])} | {_f(r['decision_ms_median'], 2)} "
                        f"| {ps} | {pe} | {pst} |")
         out.append("")
+        inside = _inside_counts(t4)
+        if inside:
+            out.append(inside)
+            out.append("")
         alls = [r for r in t4 if r["condition"] == "all"]
         if alls:
             out.append("Pooled over all trials (not the paper's convention): " + "; ".join(
@@ -203,7 +242,7 @@ def _render_table2(summary: dict[str, Any]) -> str:
            "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         paper = PAPER_TABLE2.get(paper_agent_key(r["agent"]) or "")
-        ps, pe, pst = _paper_cells(paper)
+        ps, pe, pst = _paper_cells(paper, r)
         out.append(f"| {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
                    f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
                    f"| {_pair(r['steps_mean_paired'], r['steps_median'])} | {_f(r['decision_ms_median'], 2)} "
