@@ -165,8 +165,8 @@ def test_run_trial_is_run_episode_plus_the_record() -> None:
     spec = make_trial_specs(BenchConfig(agents=("rnd-wlk",), conditions=("salt-steel-12.7",), trials=1,
                                         n_particles=200, sensor_model="analytic", max_observations=8))[0]
     rec = run_trial(spec)
-    env = gym.make("ElectroLoc-v0", condition="salt-steel-12.7", n_particles=200, sensor_model="analytic",
-                   max_observations=8)
+    env = gym.make("ElectroLoc-v0", condition=get_condition("salt-steel-12.7", spec.signal), n_particles=200,
+                   sensor_model="analytic", max_observations=8)
     ep = run_episode(env, make_agent("rnd-wlk"), seed=spec.env_seed, agent_seed=spec.agent_seed)
     assert rec["observations"] == ep.info["n_observations"] and rec["ended_by"] == ep.ended_by
     assert rec["estimate"] == [float(v) for v in ep.info["estimate_mm"]]

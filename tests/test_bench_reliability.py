@@ -189,6 +189,14 @@ def test_resume_without_config_refuses_records_of_other_settings(reference, tmp_
         _run(run, resume=True)
 
 
+def test_a_global_map_record_is_not_a_trial_of_a_target_run(reference) -> None:
+    from electroloc_gym.bench.config import GLOBAL_CONDITION
+    from electroloc_gym.bench.records import foreign_reason
+
+    rec = {**json.loads(reference[1][0]), "condition": GLOBAL_CONDITION}
+    assert "does not belong to env ElectroLoc-v0" in foreign_reason(rec, BenchConfig(agents=AGENTS, **TINY))
+
+
 def test_resume_refuses_a_config_of_other_settings(reference, tmp_path) -> None:
     run = _copy_run(reference, tmp_path)
     with pytest.raises(ValueError, match="settings differ"):

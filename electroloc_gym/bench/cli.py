@@ -17,6 +17,7 @@ from electroloc_gym.bench.config import (
 )
 from electroloc_gym.bench.records import prepare_out_dir
 from electroloc_gym.bench.runner import run_benchmark
+from electroloc_gym.conditions import DEFAULT_SIGNAL
 
 __all__ = ["add_arguments", "run", "DESCRIPTION", "EPILOG"]
 
@@ -53,10 +54,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="cluster address for a distributed backend (e.g. --backend ray --address auto)")
     parser.add_argument("--sensor-model", default="calibrated", choices=list(SENSOR_MODELS),
                         help="the particle filter's sensor model (paper: calibrated)")
-    parser.add_argument("--signal", default="fitted", choices=list(SIGNALS),
-                        help="signal scale of the presets: fitted to Table 3's measured detection distances, "
-                             "the paper's equations (scale 1), or coverage (fitted × ≈10, matching §6.3's 78%% of "
-                             "starts inside the detection region)")
+    parser.add_argument("--signal", default=DEFAULT_SIGNAL, choices=list(SIGNALS),
+                        help="signal scale of the presets: coverage (matching §6.3's 78%% of starts inside the "
+                             "detection region), fitted to Table 3's measured detection distances, or the paper's "
+                             "equations (scale 1)")
     parser.add_argument("--max-observations", type=int, default=35, help="observation cap of a trial (paper: 35)")
     parser.add_argument("--n-particles", type=int, default=2500, help="particles of the belief (paper: 2500)")
     parser.add_argument("--out", default="bench_out", help="output folder (locked while the run writes to it)")

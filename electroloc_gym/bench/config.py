@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym.conditions import PRESET_NAMES, SIGNAL_CHOICES
+from electroloc_gym.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOICES
 
 __all__ = [
     "BenchConfig",
@@ -56,8 +56,9 @@ class BenchConfig:
         trials: trials per condition and agent.
         seed: root seed of the trial seeds.
         sensor_model: the filter's sensor model, "calibrated" (the paper's) or "analytic".
-        signal: "fitted" (presets' signal scale fitted to Table 3), "paper" (scale 1) or "coverage"
-            (fitted × one factor matching the paper's §6.3 start coverage; see conditions.get_condition).
+        signal: the presets' signal scale (:data:`electroloc_gym.conditions.DEFAULT_SIGNAL` by default):
+            "coverage" (fitted × one factor matching the paper's §6.3 start coverage), "fitted" (fitted to
+            Table 3's measured detection distances) or "paper" (scale 1); see conditions.get_condition.
         max_observations: observation cap of a trial (paper: 35).
         n_particles: particles of the belief (paper: 2500).
         env_id: the environment id.
@@ -68,7 +69,7 @@ class BenchConfig:
     trials: int = 50
     seed: int = 0
     sensor_model: str = "calibrated"
-    signal: str = "fitted"
+    signal: str = DEFAULT_SIGNAL
     max_observations: int = 35
     n_particles: int = 2500
     env_id: str = "ElectroLoc-v0"
