@@ -1,10 +1,10 @@
 """The paper's three controllers as agents (Solberg, Lynch & MacIver 2008, §4.1.3, §4.2, Algorithm 1).
 
-* ``rnd-wlk`` — :class:`~baselines.random_walk.RandomWalkAgent`
-* ``min-var`` — :class:`~baselines.min_variance.MinVarianceAgent` (particle voting, Algorithm 1)
-* ``zero-crossing`` — :class:`~baselines.zero_crossing.ZeroCrossingAgent` (§4.2, no belief)
+* ``rnd-wlk`` — :class:`~electroloc_gym.baselines.random_walk.RandomWalkAgent`
+* ``min-var`` — :class:`~electroloc_gym.baselines.min_variance.MinVarianceAgent` (particle voting, Algorithm 1)
+* ``zero-crossing`` — :class:`~electroloc_gym.baselines.zero_crossing.ZeroCrossingAgent` (§4.2, no belief)
 
-All follow the protocol of :mod:`baselines.agent`; build them with :func:`make_agent`.
+All follow the protocol of :mod:`electroloc_gym.baselines.agent`; build them with :func:`make_agent`.
 """
 
 from electroloc_gym.baselines.agent import AGENT_REGISTRY, Agent, BaselineAgent, make_agent, parse_agent_spec
