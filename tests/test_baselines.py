@@ -31,6 +31,7 @@ from electroloc_gym.baselines.min_variance_reference import (
 from electroloc_gym.baselines.random_walk import RandomWalkAgent
 from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 from electroloc_gym.conditions import get_condition
+from electroloc_gym.sensor import expected_reading
 
 
 def _run(agent, condition="fresh-steel-12.7", seed=0, n_particles=300, max_steps=None, **env_kwargs):
@@ -134,15 +135,17 @@ def test_belief_agents_moves_within_limits(spec: str, condition: str) -> None:
 def test_belief_agents_hug_the_wall_without_leaving() -> None:
     # Start the carriage in a corner: options must stay inside (moves are never clipped, checked in _run).
     agent = make_agent("rnd-wlk", seed=1)
-    env = gym.make("ElectroLoc-v0", n_particles=100, sensor_model="analytic")
+    env = gym.make("ElectroLoc-v0", n_particles=100, sensor_model="analytic", signal="paper")
     env.reset(seed=0)
-    env.unwrapped._position = np.array([50.0, -50.0])  # test setup only
+    env.unwrapped._state.position_mm[0] = [50.0, -50.0]  # test setup only: the carriage in a corner
     agent.reset(env)
     for _ in range(30):
         a, _ = agent.predict(None)
         before = env.unwrapped.position_mm
-        env.step(a)
+        *_, term, trunc, _ = env.step(a)
         np.testing.assert_allclose(env.unwrapped.position_mm, before + np.asarray(a, float) * MAX_STEP_MM, atol=1e-4)
+        if term or trunc:
+            break
 
 
 def test_zero_crossing_moves_within_limits_and_workspace() -> None:
@@ -165,11 +168,14 @@ def test_rnd_wlk_seeded_determinism() -> None:
 
 
 # ---- min-var: Algorithm 1 ----------------------------------------------------------------------------
-def _small_belief(condition: str, sensor_model: str, m: int, steps: int = 2, seed: int = 0):
-    env = gym.make("ElectroLoc-v0", condition=condition, sensor_model=sensor_model, n_particles=m)
+def _small_belief(condition: str, sensor_model: str, m: int, steps: int = 2, seed: int = 0, signal: str = "fitted"):
+    """A belief after ``steps`` fixed moves; the weak fitted signal keeps it wide (many distinct options)."""
+    env = gym.make("ElectroLoc-v0", condition=condition, sensor_model=sensor_model, n_particles=m, signal=signal)
     env.reset(seed=seed)
     for _ in range(steps):
-        env.step(np.array([0.7, -0.4], dtype=np.float32))
+        *_, term, trunc, _ = env.step(np.array([0.7, -0.4], dtype=np.float32))
+        if term or trunc:
+            break
     return env.unwrapped
 
 
@@ -188,7 +194,8 @@ def test_vectorised_vote_equals_literal(condition: str, sensor_model: str, weigh
     mean, std = option_means_stds(core.sensor_model, particles, positions)
     for kernel in ("difference", "expanded"):
         fast = predicted_variances(particles, weights, mean, std, voters, kernel=kernel, chunk_rows=3)
-        np.testing.assert_allclose(fast, ref, rtol=1e-3, atol=1e-5)  # float32 sums
+        # float32 sums of |x|² (x ≈ ±50 mm) leave ≈ 1e-4 mm² of cancellation in E|x|² − |E x|²
+        np.testing.assert_allclose(fast, ref, rtol=1e-3, atol=1e-3)
         # Same ballots wherever the literal vote is not a float-rounding tie, and the same winner.
         srt = np.sort(ref, axis=1)
         clear = (srt[:, 1] - srt[:, 0]) > 1e-3 * srt[:, 0]
@@ -265,7 +272,7 @@ def test_resampled_variance_has_the_distribution_of_a_literal_resample() -> None
 
 def test_blind_voters_scatter_with_the_resample_and_agree_with_the_expectation() -> None:
     """The mechanism that separates Algorithm 1 from the argmin of the expected variance."""
-    cond = get_condition("fresh-steel-12.7")
+    cond = get_condition("fresh-steel-12.7", "fitted")  # a small detection region: most voters are blind
     env = gym.make("ElectroLoc-v0", condition=cond, n_particles=2500, sensor_model="calibrated")
     env.reset(seed=2)
     core = env.unwrapped
@@ -273,8 +280,9 @@ def test_blind_voters_scatter_with_the_resample_and_agree_with_the_expectation()
     options = sample_options_mm(rng, *move_bounds_mm(core), 16)
     p = core.belief.particles
     mean, std = core.predicted_reading_model(p, options)
-    spread = np.ptp(mean, axis=0)  # how much a particle's predicted reading changes between options
-    blind = np.flatnonzero(spread < 0.1 * cond.noise_std_V)
+    # blind: hypotheses whose true (noise-free) reading is below half the noise at every option
+    offsets = p[None, :, :].astype(np.float64) - (core.position_mm + options)[:, None, :]
+    blind = np.flatnonzero(np.all(np.abs(expected_reading(cond, offsets)) < 0.5 * cond.noise_std_V, axis=0))
     assert blind.size > 200
     voters = blind[:200]
     exp_ballots = np.argmin(predicted_variances(p, None, mean, std, voters), axis=1)
