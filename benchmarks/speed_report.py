@@ -1,4 +1,4 @@
-"""Issue 7's speed figures side by side in one run, each against its target.
+"""The speed figures side by side in one run, each against its target (docs/performance.md).
 
 Runs, one after the other on this machine (each measurement in fresh processes, numeric libraries on
 one thread):
@@ -11,7 +11,7 @@ one thread):
 
 and prints one table: figure, measured value, target, met or not. ``--json`` also writes it.
 
-    python benchmarks/speed_report.py [--skip-table4] [--trials 50] [--json out.json]
+    python benchmarks/speed_report.py [--skip-table4] [--trials 50] [--before DIR] [--json out.json]
 
 Takes about 2 minutes, plus about 4 for the Table-4 run. The machine may be shared: the env and fps
 ratios are per CPU-second, best of several rounds (see the two scripts).
@@ -58,10 +58,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--skip-table4", action="store_true", help="do not time the Table-4 benchmark")
     ap.add_argument("--trials", type=int, default=50, help="trials per condition and agent in the Table-4 run")
     ap.add_argument("--json", default=None, help="also write the report here")
+    ap.add_argument("--before", default=None, metavar="DIR",
+                    help="a checkout of the previous code: its env rows are measured interleaved with these, and "
+                         "the single env's and the native env's steps/s must be at least its")
     args = ap.parse_args(argv)
 
     print("== env steps/s (benchmarks/vector_env.py)", flush=True)
-    env = vector_env.main(["--n-envs", "16", "64"])
+    env = vector_env.main(["--n-envs", "16", "64"] + (["--before", args.before] if args.before else []))
     fps = {}
     for n in (16, 64):
         print(f"== PPO training fps, N = {n} (benchmarks/train_fps.py)", flush=True)
@@ -73,11 +76,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         met = None if target is None else (value >= target if higher_is_better else value <= target)
         rows.append({"figure": figure, "value": value, "unit": unit, "target": target, "met": met})
 
-    by = {(r["backend"], r["n_envs"]): r["steps_per_s_cpu"] for r in env["rows"]}
-    add("single env steps/s", by[("single", 1)], "steps/s", None)
+    by = {(r["backend"], r["n_envs"]): r["steps_per_s_cpu"] for r in env["rows"] if r["code"] == "now"}
+    before = {(r["backend"], r["n_envs"]): r["steps_per_s_cpu"] for r in env["rows"] if r["code"] == "before"}
+    if before:
+        add("single env steps/s, previous code", before[("single", 1)], "steps/s", None)
+    add("single env steps/s", by[("single", 1)], "steps/s", before.get(("single", 1)))
     for n in (16, 64):
         add(f"SyncVectorEnv steps/s, N={n}", by[("sync", n)], "steps/s", None)
-        add(f"native vector env steps/s, N={n}", by[("native", n)], "steps/s", None)
+        if before:
+            add(f"native vector env steps/s, N={n}, previous code", before[("native", n)], "steps/s", None)
+        add(f"native vector env steps/s, N={n}", by[("native", n)], "steps/s", before.get(("native", n)))
         add(f"native / sync, N={n}", by[("native", n)] / by[("sync", n)], "x", 10.0 if n == 16 else None)
     for n in (16, 64):
         d = {r["vec_env"]: r["fps_cpu"] for r in fps[n]["rows"]}
@@ -89,7 +97,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         add(f"Table-4 benchmark (8 x 3 x {args.trials} trials) wall time", table4_wall_s(args.trials) / 60.0,
             "min", 10.0, higher_is_better=False)
 
-    print("\n== issue 7 targets")
+    print("\n== targets")
     print(f"{'figure':<48} {'measured':>10}  {'target':>8}  met")
     for r in rows:
         tgt = "" if r["target"] is None else (f"≥ {r['target']:g}" if r["unit"] != "min" else f"≤ {r['target']:g}")

@@ -1,7 +1,7 @@
-"""SB3 PPO training throughput on ElectroLoc-v0: DummyVecEnv vs the native batched adapter (issue 7).
+"""SB3 PPO training throughput on ElectroLoc-v0: DummyVecEnv vs the native batched adapter.
 
 Trains ``PPO("MlpPolicy")`` for a few short rollouts with each vector env at the same N (torch and
-numpy on one thread, DESIGN §10) and prints env steps per second of training (rollouts *and*
+numpy on one thread, docs/performance.md) and prints env steps per second of training (rollouts *and*
 gradient updates) side by side, per CPU-second of the process and per wall second, and the ratio.
 Each configuration runs in a fresh interpreter after one warm-up rollout; the best of ``--rounds``
 timed ``learn`` calls is kept. The host's speed drifts by ±20 % over minutes, so the two rows are

@@ -1,4 +1,4 @@
-"""Env steps/s: single env vs SyncVectorEnv vs the native batched vector env (issue 7).
+"""Env steps/s: single env vs SyncVectorEnv vs the native batched vector env.
 
 ElectroLoc-v0 by default, ElectroLocGlobal-v0 with ``--env``.
 
@@ -13,11 +13,11 @@ and the native/sync ratio. Every row runs in a fresh interpreter. The host's spe
 over minutes, so the rows are measured in interleaved passes (all rows, then all rows again; each
 a fresh process timing a few short rounds) and each row's best is kept. Throughput is reported per
 CPU-second of the measuring process (``time.process_time``, insensitive to other processes taking
-the cores) and per wall second. Numeric libraries are pinned to one thread (DESIGN §10).
+the cores) and per wall second. Numeric libraries are pinned to one thread.
 
     python benchmarks/vector_env.py [--n-envs 16 64] [--particles 2500] [--observation belief]
         [--sensor-model calibrated] [--env ElectroLoc-v0] [--seconds 1.5] [--rounds 2] [--passes 3] [--json out.json]
-        [--profile]
+        [--before DIR] [--now-kwargs JSON] [--profile]
 
 ``--profile`` instead prints where a native vector step's time goes (cProfile, the first N, sorted
 by own time, per env-step).
@@ -99,13 +99,16 @@ def _make(backend: str, n: int, kwargs: dict[str, Any], env_id: str = "ElectroLo
 
 
 def measure_isolated(backend: str, n: int, kwargs: dict[str, Any], seconds: float, rounds: int,
-                     env_id: str = "ElectroLoc-v0") -> dict[str, float]:
+                     env_id: str = "ElectroLoc-v0", tree: str | None = None) -> dict[str, float]:
     """:func:`measure` in a fresh interpreter, so that allocator state and caches of one configuration
-    do not leak into another.
+    do not leak into another; ``tree``: a checkout of other code to measure instead (its own copy of
+    this script, its package first on ``PYTHONPATH``).
     """
     spec = {"backend": backend, "n": n, "kwargs": kwargs, "env_id": env_id, "seconds": seconds, "rounds": rounds}
-    cmd = [sys.executable, __file__, "--_one", json.dumps(spec)]
-    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    script = __file__ if tree is None else str(Path(tree) / "benchmarks" / "vector_env.py")
+    env = None if tree is None else dict(os.environ, PYTHONPATH=str(Path(tree).resolve()))
+    cmd = [sys.executable, script, "--_one", json.dumps(spec)]
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
@@ -147,6 +150,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--passes", type=int, default=3, help="interleaved passes over the rows (the best is kept)")
     ap.add_argument("--json", default=None, help="also write the results here")
     ap.add_argument("--profile", action="store_true", help="profile the native env's step instead")
+    ap.add_argument("--before", default=None, metavar="DIR",
+                    help="also measure the code of this checkout (e.g. a `git worktree` of an older commit), "
+                         "interleaved with the current code's rows")
+    ap.add_argument("--now-kwargs", default="{}", metavar="JSON",
+                    help="extra env arguments for the current code's rows only (e.g. an older default)")
     ap.add_argument("--_one", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args._one:
@@ -162,27 +170,33 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         profile_native(args.env, args.n_envs[0], kwargs)
         return {}
     results: dict[str, Any] = {"env": args.env, "kwargs": kwargs, "rows": []}
-    configs = [("single", 1)] + [(b, n) for n in args.n_envs for b in ("sync", "native")]
+    now_kwargs = dict(kwargs, **json.loads(args.now_kwargs))
+    trees: list[tuple[str, str | None]] = [("now", None)] + ([("before", args.before)] if args.before else [])
+    rows = [("single", 1)] + [(b, n) for n in args.n_envs for b in ("sync", "native")]
+    configs = [(code, tree, b, n) for code, tree in trees for b, n in rows]
     print(f"{args.env} {kwargs}, random actions, autoreset; {args.passes} interleaved passes over the rows, each "
           f"row in a fresh process timing the best of {args.rounds} rounds; the best pass is kept", flush=True)
     # The host's speed drifts by ±20 % over minutes: the rows are measured in interleaved passes
     # (single, sync 16, native 16, sync 64, ... , then again), so that every row sees the same phases.
-    best: dict[tuple[str, int], dict[str, float]] = {}
+    best: dict[tuple[str, str, int], dict[str, float]] = {}
     for _ in tqdm(range(args.passes), desc="passes", leave=False, disable=None):
-        for backend, n in configs:
-            r = measure_isolated(backend, n, kwargs, args.seconds, args.rounds, args.env)
-            old = best.get((backend, n))
-            best[(backend, n)] = {"steps_per_s_cpu": max(r["steps_per_s_cpu"], old["steps_per_s_cpu"] if old else 0),
-                                  "steps_per_s_wall": max(r["steps_per_s_wall"], old["steps_per_s_wall"] if old else 0),
-                                  "vector_steps": r["vector_steps"]}
-    print(f"{'backend':<12} {'N':>4} {'steps/s (CPU)':>14} {'steps/s (wall)':>15} {'vs sync (CPU)':>14}")
-    for backend, n in configs:
-        r = best[(backend, n)]
-        base = best[("sync", n)]["steps_per_s_cpu"] if backend == "native" else None
+        for code, tree, backend, n in configs:
+            r = measure_isolated(backend, n, now_kwargs if tree is None else kwargs, args.seconds, args.rounds,
+                                 args.env, tree)
+            old = best.get((code, backend, n))
+            best[(code, backend, n)] = {
+                "steps_per_s_cpu": max(r["steps_per_s_cpu"], old["steps_per_s_cpu"] if old else 0),
+                "steps_per_s_wall": max(r["steps_per_s_wall"], old["steps_per_s_wall"] if old else 0),
+                "vector_steps": r["vector_steps"]}
+    print(f"{'code':<7} {'backend':<8} {'N':>4} {'steps/s (CPU)':>14} {'steps/s (wall)':>15} {'vs sync (CPU)':>14}")
+    for code, _, backend, n in configs:
+        r = best[(code, backend, n)]
+        base = best[(code, "sync", n)]["steps_per_s_cpu"] if backend == "native" else None
         ratio = r["steps_per_s_cpu"] / base if base else None
         rs = f"{ratio:>13.2f}x" if ratio else f"{'':>14}"
-        print(f"{backend:<12} {n:>4} {r['steps_per_s_cpu']:>14.0f} {r['steps_per_s_wall']:>15.0f} {rs}", flush=True)
-        results["rows"].append({"backend": backend, "n_envs": n, **r, "ratio_vs_sync_cpu": ratio})
+        print(f"{code:<7} {backend:<8} {n:>4} {r['steps_per_s_cpu']:>14.0f} {r['steps_per_s_wall']:>15.0f} {rs}",
+              flush=True)
+        results["rows"].append({"code": code, "backend": backend, "n_envs": n, **r, "ratio_vs_sync_cpu": ratio})
     if args.json:
         atomic_write_text(args.json, json.dumps(results, indent=2))
     return results

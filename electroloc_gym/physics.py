@@ -228,6 +228,10 @@ def _dipole_difference(x, y, h, z2, k, strength, one, point):  # pragma: no cove
     return strength * (dot1 * r1 - dot2 * r2)
 
 
+#: The compiled numpy ufunc itself (float32 and float64 loops), without numba's Python-level dispatcher.
+_DIPOLE_UFUNC = _dipole_difference.ufunc
+
+
 def _differential_dipole(
     offsets_mm: ArrayLike,
     strength: float,
@@ -248,8 +252,8 @@ def _differential_dipole(
     t = dtype.type
     x = off[..., 0].astype(dtype, copy=False)
     y = off[..., 1].astype(dtype, copy=False)
-    return _dipole_difference(x, y, t(spacing_mm / 2.0), t(depth_mm * depth_mm),
-                              t(emitter_voltage_V * electrode_radius_mm), t(strength), t(1.0), power == 1.5)
+    return _DIPOLE_UFUNC(x, y, t(spacing_mm / 2.0), t(depth_mm * depth_mm), t(emitter_voltage_V * electrode_radius_mm),
+                         t(strength), t(1.0), power == 1.5)
 
 
 def differential_line_perturbation(

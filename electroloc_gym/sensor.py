@@ -1,4 +1,4 @@
-"""The robot's sensor: carriage geometry and the amplified, noisy, saturating reading (DESIGN §3.3).
+"""The robot's sensor: carriage geometry and the amplified, noisy, saturating reading (paper §3.1–3.2, Fig. 6).
 
 ``Φ = clip(s·G·(δV(S1) − δV(S2)) + ε, −V_sat, +V_sat)``, ``ε ~ N(0, (G·σ_s)²)``, in volts, where
 ``s`` is the condition's ``signal_scale``.

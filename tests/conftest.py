@@ -1,4 +1,4 @@
-"""Test configuration: one numeric thread per process (DESIGN §10), headless matplotlib."""
+"""Test configuration: one numeric thread per process (docs/performance.md), headless matplotlib."""
 
 import os
 

@@ -1,4 +1,4 @@
-"""Issue 6: the multi-object scene, the map's sensor models and ElectroLocGlobal-v0 (paper §6.5)."""
+"""The multi-object scene, the map's sensor models and ElectroLocGlobal-v0 (paper §6.5)."""
 
 from __future__ import annotations
 
@@ -53,7 +53,7 @@ def test_superposition_equals_sum_of_single_object_perturbations() -> None:
     singles = [scene.replace(objects=(o,)).perturbation(p) for o in scene.objects]
     np.testing.assert_allclose(scene.perturbation(p), np.sum(singles, axis=0), rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(scene.object_perturbations(p).sum(axis=-1), scene.perturbation(p), rtol=1e-12)
-    # The reading is the amplified, scaled sum (DESIGN §3.3), saturated at ±10 V.
+    # The reading is the amplified, scaled sum (docs/design.md, "Physics"), saturated at ±10 V.
     g = scene.amplifier.gain * scene.signal_scale
     np.testing.assert_allclose(scene.expected_reading(p, saturate=False), g * np.sum(singles, axis=0), rtol=1e-12)
     loud = scene.replace(signal_scale=500.0)

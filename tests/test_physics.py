@@ -153,7 +153,7 @@ def test_fitted_signal_scale_reaches_measured_distance(name: str) -> None:
 
 
 def test_noise_free_peak_reading_matches_design_note() -> None:
-    # DESIGN §3.3: the stated equations alone peak at ≈0.5 V (fresh, 12.7 mm steel, G = 191).
+    # docs/design.md, "Physics": the stated equations alone peak at ≈0.5 V (fresh, 12.7 mm steel, G = 191).
     c = get_condition("fresh-steel-12.7", "paper")
     g = np.linspace(-60, 60, 241)
     off = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1)

@@ -1,4 +1,4 @@
-"""The native batched vector env (issue 7): exact per-env equivalence with ElectroLoc-v0, API, bad inputs."""
+"""The native vector env: exact per-env equivalence with ElectroLoc-v0, API, bad inputs."""
 
 from __future__ import annotations
 

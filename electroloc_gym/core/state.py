@@ -28,6 +28,7 @@ class State:
         gens: each env's random generator (None until seeded or first used).
         seeds: the seed each generator was last created from.
         world: each env's episode world: its ``Condition`` (localize) or ``Scene`` (global).
+        world_key: (N,) an integer naming each env's world (equal keys: the same world object).
         model: each env's sensor-model object for the agent (built on demand; None until asked for).
         cal_seed: (N,) each episode's calibration seed.
         half_mm: (N,) allowed half-width H of each env's box [−H, H]², mm.
@@ -58,6 +59,7 @@ class State:
     gens: list[np.random.Generator | None]
     seeds: list[int | None]
     world: list[Any]
+    world_key: NDArray[np.int64]
     model: list[Any]
     cal_seed: NDArray[np.int64]
     half_mm: NDArray[np.float64]
@@ -91,7 +93,8 @@ class State:
         """
         n, m = num_envs, n_particles
         return cls(
-            gens=[None] * n, seeds=[None] * n, world=[None] * n, model=[None] * n,
+            gens=[None] * n, seeds=[None] * n, world=[None] * n, world_key=np.full(n, -1, dtype=np.int64),
+            model=[None] * n,
             cal_seed=np.zeros(n, dtype=np.int64), half_mm=np.ones(n), noise_V=np.ones(n), saturation_V=np.ones(n),
             descriptor=np.zeros((n, 5), dtype=np.float32), names=np.full(n, "", dtype=object),
             position_mm=np.zeros((n, 2)), target_mm=np.zeros((n, 2)), odometry_mm=np.zeros((n, 2)),

@@ -235,25 +235,29 @@ class Simulation:
         """Envs ``ids`` take a noisy reading and fuse it into their beliefs (steps 2–4 of the docstring)."""
         s = self.state
         k = len(ids)
+        full = k == self.num_envs
+        sel: Any = _ALL if full else ids
         noise = np.empty(k)
         u0 = np.empty(k)
-        full = k == self.num_envs
         jitter = s.jitter_idx if full else s.jitter_idx[:k]
         two_m = 2 * s.n_particles
-        for j, (i, sd) in enumerate(zip(ids.tolist(), s.noise_V[ids].tolist(), strict=True)):
-            g = self.generator(i)
+        gens = s.gens
+        for j, (i, sd) in enumerate(zip(ids.tolist(), s.noise_V[sel].tolist(), strict=True)):
+            g = gens[i] or self.generator(i)
             noise[j] = g.normal(0.0, sd)
             u0[j] = g.random()
             jitter[j] = table_normal_indices(g, two_m)
-        sat = s.saturation_V[ids]
+        sat = s.saturation_V[sel]
         reading = np.minimum(np.maximum(self.task.true_mean_V(s, ids) + noise, -sat), sat)
-        s.reading_V[ids] = reading
-        s.n_observations[ids] += 1
-        sel: Any = _ALL if full else ids
+        s.reading_V[sel] = reading
+        s.n_observations[sel] += 1
         src = s.particles_mm if full else s.particles_mm[ids]  # full: updated in place
         origin = self.task.histogram_origin(s, sel)
-        half = s.half_mm[ids].astype(np.float32)
-        mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
+        half = s.half_mm[sel].astype(np.float32)
+        if full:  # the kernels write the statistics in place
+            mean, cov, counts = s.mean_mm, s.cov_mm2, s.counts
+        else:
+            mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         if self.task.calibrated:
             bad = calibrated_assimilate(src, origin, self._sign, s.grid_lo_mm[sel], s.grid_inv_mm[sel],
                                         s.grid_cells[sel], s.table_row[sel], s.table, reading.astype(np.float32), u0,
@@ -266,7 +270,7 @@ class Simulation:
             raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
         if not full:
             s.particles_mm[ids] = src
-        s.mean_mm[sel], s.cov_mm2[sel], s.counts[sel] = mean, cov, counts
+            s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
 
     def _analytic_log_likelihood(self, ids: NDArray[np.intp], src: NDArray[np.float32], origin: NDArray[np.float32],
                                  reading: NDArray[np.float64]) -> NDArray[np.float32]:

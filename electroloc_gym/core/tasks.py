@@ -49,15 +49,15 @@ _SEED_BOUND = 2**31 - 1  # calibration seeds are drawn in [0, 2**31 − 1)
 
 
 def group_by_world(state: State, ids: NDArray[np.intp]) -> list[tuple[Any, NDArray[np.intp]]]:
-    """``[(world, positions in ids)]``: the envs of ``ids`` sharing one world object, in first-seen order."""
-    worlds = state.world
-    if len(ids) == 1:
-        return [(worlds[int(ids[0])], np.zeros(1, dtype=np.intp))]
-    groups: dict[int, tuple[Any, list[int]]] = {}
-    for j, i in enumerate(ids.tolist()):
-        w = worlds[i]
-        groups.setdefault(id(w), (w, []))[1].append(j)
-    return [(w, np.asarray(rows, dtype=np.intp)) for w, rows in groups.values()]
+    """``[(world, positions in ids)]``: the envs of ``ids`` sharing one world, in order of the world keys."""
+    keys = state.world_key[ids]
+    if len(ids) == 1 or (keys == keys[0]).all():
+        return [(state.world[int(ids[0])], np.arange(len(ids)))]
+    out = []
+    for key in np.unique(keys):
+        rows = np.flatnonzero(keys == key)
+        out.append((state.world[int(ids[rows[0]])], rows))
+    return out
 
 
 @functools.lru_cache(maxsize=256)
@@ -66,14 +66,9 @@ def _descriptor(condition: Condition) -> NDArray[np.float32]:
 
 
 @functools.lru_cache(maxsize=64)
-def _grid(condition: Condition, protocol: CalibrationProtocol) -> NDArray[np.float64]:
-    return calibration_grid_for(condition, protocol)
-
-
-@functools.lru_cache(maxsize=64)
 def _fixed_coefficients(condition: Condition, seed: int, protocol: CalibrationProtocol) -> NDArray[np.float32]:
-    coef = calibration_coefficients(condition, seed, protocol, out=np.empty((_cells(_grid(condition, protocol)), 8),
-                                                                           dtype=np.float32))
+    cells = _cells(calibration_grid_for(condition, protocol))
+    coef = calibration_coefficients(condition, seed, protocol, out=np.empty((cells, 8), dtype=np.float32))
     coef.flags.writeable = False
     return coef
 
@@ -87,9 +82,12 @@ def _cells(grid_mm: NDArray[np.float64]) -> int:
     return (grid_mm.size - 1) ** 2 + 1
 
 
-def _grid_points_bound(half_span_mm: float, step_mm: float) -> int:
-    """An upper bound of a calibration grid's points per axis, computed without building the grid."""
-    return int(min(2.0 * half_span_mm / step_mm, 2.0**62)) + 2
+def _grid_points_bound(protocol: CalibrationProtocol, allowed_half_width_mm: float) -> int:
+    """An upper bound of a calibration grid's points per axis, computed without building the grid (any
+    ``grid_extent`` covers at most twice the allowed box).
+    """
+    half = 2.0 * allowed_half_width_mm if protocol.half_span_mm is None else protocol.half_span_mm
+    return int(min(2.0 * half / protocol.grid_step_mm, 2.0**62)) + 2
 
 
 class _Task:
@@ -103,12 +101,14 @@ class _Task:
         self.protocol: CalibrationProtocol = params.calibration
         self.calibrated = params.sensor_model == "calibrated"
 
-    def _set_world(self, state: State, i: int, world: Any, condition: Condition) -> None:
+    def _set_world(self, state: State, i: int, world: Any, key: int, condition: Condition,
+                   descriptor: NDArray[np.float32]) -> None:
         state.world[i] = world
+        state.world_key[i] = key
         state.half_mm[i] = condition.allowed_half_width_mm
         state.noise_V[i] = condition.noise_std_V
         state.saturation_V[i] = condition.saturation_V
-        state.descriptor[i] = _descriptor(condition)
+        state.descriptor[i] = descriptor
         state.names[i] = world.name
 
     def _cal_seed(self, g: np.random.Generator) -> int:
@@ -151,32 +151,36 @@ class TargetTask(_Task):
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
         self.pool: tuple[Condition, ...] = params.conditions()
-        self._analytic = {c: AnalyticSensorModel(c) for c in self.pool}
+        self._analytic = [AnalyticSensorModel(c) for c in self.pool]
+        self._descriptors = [condition_descriptor(c) for c in self.pool]
+        self._grids: list[NDArray[np.float64]] = []  # built after the memory check (table_cells)
 
     def calibration_points(self) -> int:
         """The largest calibration grid's points per axis (0 without a calibrated model)."""
         if not self.calibrated:
             return 0
-        p = self.protocol
-        return max(_grid_points_bound(c.allowed_half_width_mm if p.half_span_mm is None else p.half_span_mm,
-                                      p.grid_step_mm) for c in self.pool)
+        return max(_grid_points_bound(self.protocol, c.allowed_half_width_mm) for c in self.pool)
 
     def table_cells(self) -> int:
         """Coefficient rows per env (0 without a calibrated model)."""
-        return max(_cells(_grid(c, self.protocol)) for c in self.pool) if self.calibrated else 0
+        if not self.calibrated:
+            return 0
+        self._grids = [calibration_grid_for(c, self.protocol) for c in self.pool]
+        return max(_cells(g) for g in self._grids)
 
     def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
         """Env ``i``'s reset draws, in order: condition (pool of several), calibration seed (unless
         fixed), target (``randomize_target``), start position, particles.
         """
         pool = self.pool
-        c = pool[int(g.integers(len(pool)))] if len(pool) > 1 else pool[0]
-        self._set_world(state, i, c, c)
+        k = int(g.integers(len(pool))) if len(pool) > 1 else 0
+        c = pool[k]
+        self._set_world(state, i, c, k, c, self._descriptors[k])
         seed = self._cal_seed(g)
         state.cal_seed[i] = seed
-        state.model[i] = None if self.calibrated else self._analytic[c]
+        state.model[i] = None if self.calibrated else self._analytic[k]
         if self.calibrated:
-            rows = self._set_grid(state, i, _grid(c, self.protocol), self.protocol.grid_step_mm)
+            rows = self._set_grid(state, i, self._grids[k], self.protocol.grid_step_mm)
             if self.params.calibration_seed is not None:
                 rows[:] = _fixed_coefficients(c, seed, self.protocol)
             else:
@@ -223,18 +227,19 @@ class MapTask(_Task):
             BENCHMARK_SCENE if layout == "benchmark" else None)
         self.scene_template = self.fixed_scene if self.fixed_scene is not None else BENCHMARK_SCENE
         self.blur_mm = params.position_blur_mm
+        self._episodes = 0  # world keys of random layouts: one per episode
 
     def calibration_points(self) -> int:
         """The calibration grid's points per axis (0 without a calibrated model)."""
         if not self.calibrated:
             return 0
-        p = self.protocol
-        half = self.scene_template.allowed_half_width_mm if p.half_span_mm is None else p.half_span_mm
-        return _grid_points_bound(half, p.grid_step_mm)
+        return _grid_points_bound(self.protocol, self.scene_template.allowed_half_width_mm)
 
     def table_cells(self) -> int:
         """Coefficient rows per env (0 without a calibrated model)."""
-        return _cells(_grid(_scene_condition(self.scene_template), self.protocol)) if self.calibrated else 0
+        if not self.calibrated:
+            return 0
+        return _cells(calibration_grid_for(_scene_condition(self.scene_template), self.protocol))
 
     def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
         """Env ``i``'s reset draws, in order: layout (``"random"``), calibration seed (unless fixed),
@@ -242,9 +247,12 @@ class MapTask(_Task):
         """
         if self.fixed_scene is None:
             scene = BENCHMARK_SCENE.replace(name="random-six-cylinders", objects=random_cylinder_layout(g))
+            self._episodes += 1
+            key = self._episodes
         else:
-            scene = self.fixed_scene
-        self._set_world(state, i, scene, _scene_condition(scene))
+            scene, key = self.fixed_scene, 0
+        condition = _scene_condition(scene)
+        self._set_world(state, i, scene, key, condition, _descriptor(condition))
         seed = self._cal_seed(g)
         state.cal_seed[i] = seed
         model = make_map_sensor_model(self.params.sensor_model, scene, seed, self.blur_mm, self.protocol)
