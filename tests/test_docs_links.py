@@ -80,3 +80,19 @@ def test_link_extraction_skips_code_and_urls(tmp_path) -> None:
     page.write_text("[a](x.md) ![i](img.png) [u](https://e.org) `[c](no.md)`\n```\n[d](no2.md)\n```\n"
                     "<img src=\"pic.gif\" width=\"300\">\n", encoding="utf-8")
     assert relative_links(page) == ["x.md", "img.png", "pic.gif"]
+
+
+def test_tests_named_in_the_docs_exist() -> None:
+    """`test_x.py::test_name` (or `::test_name`, of the last file named) in docs/*.md is a real test."""
+    missing = []
+    for page in PAGES:
+        current = None
+        for m in re.finditer(r"`(?:(test_\w+\.py)(?:::(\w+))?|::(test_\w+))`", page.read_text(encoding="utf-8")):
+            current = m.group(1) or current
+            name = m.group(2) or m.group(3)
+            path = ROOT / "tests" / current if current else None
+            if path is None or not path.exists():
+                missing.append(f"{page.name}: {current}")
+            elif name and not re.search(rf"^(?:async )?def {name}\(", path.read_text(encoding="utf-8"), re.M):
+                missing.append(f"{page.name}: {current}::{name}")
+    assert not missing, missing
