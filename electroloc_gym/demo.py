@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.bench.rollout import run_episode
 from electroloc_gym.fileio import atomic_write_bytes, save_figure_atomic
 from electroloc_gym.render import Snapshot, draw_snapshot, eev_colorbar, legend_handles, snapshot
 
@@ -64,6 +65,9 @@ def record_episode(env: Any, seed: int = 0, agent: Any = None, frames: bool = Fa
                    label: str | None = None) -> Episode:
     """Run one episode of ``env`` from ``reset(seed=seed)`` and record it.
 
+    The episode is the benchmark's (:func:`electroloc_gym.bench.rollout.run_episode`): an agent that
+    sets ``done`` ends it.
+
     Args:
         env: an env of this package (``gym.make(...)``); ``render_mode="rgb_array"`` if ``frames``.
         seed: reset seed; the default random agent's action space is seeded with it too.
@@ -81,26 +85,53 @@ def record_episode(env: Any, seed: int = 0, agent: Any = None, frames: bool = Fa
     name = "random moves" if agent is None else getattr(agent, "name", type(agent).__name__)
     ep = Episode(label=label if label is not None else f"{name}, seed {seed}",
                  success_spread_mm=float(env.unwrapped.success_spread_mm))
-    obs, info = env.reset(seed=seed)
     if agent is None:
-        env.action_space.seed(seed)  # the random walk is part of the seeded episode
-    elif hasattr(agent, "reset"):
-        agent.reset(env)
-    state: Any = None
-    done = False
-    while True:
+        agent = _RandomMoves(seed)  # the random walk is part of the seeded episode
+    elif not hasattr(agent, "reset"):
+        agent = _Unbound(agent)
+
+    def record(info: dict[str, Any]) -> None:
         ep.snapshots.append(snapshot(env))
         ep.infos.append(dict(info))
         if frames:
             ep.frames.append(env.render())
-        if done:
-            return ep
-        if agent is None:
-            action = env.action_space.sample()
-        else:
-            action, state = agent.predict(obs, state=state, deterministic=True)
-        obs, _, terminated, truncated, info = env.step(action)
-        done = terminated or truncated
+
+    run_episode(env, agent, seed, on_step=record)
+    return ep
+
+
+class _RandomMoves:
+    """Uniform random moves from the env's action space, seeded at the start of the episode."""
+
+    def __init__(self, seed: int) -> None:
+        self._seed = int(seed)
+        self._space: Any = None
+
+    def reset(self, env: Any) -> None:
+        self._space = env.action_space
+        self._space.seed(self._seed)
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[Any, Any]:
+        return self._space.sample(), state
+
+
+class _Unbound:
+    """An agent without ``reset(env)`` (e.g. a bare SB3 model), given a no-op one."""
+
+    def __init__(self, agent: Any) -> None:
+        self._agent = agent
+
+    @property
+    def done(self) -> bool:
+        return bool(getattr(self._agent, "done", False))
+
+    def reset(self, env: Any) -> None:
+        pass
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[Any, Any]:
+        return self._agent.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
 
 
 def _panel_indices(n: int, k: int) -> list[int]:

@@ -14,6 +14,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
+from train_fixtures import TINY_YAML  # noqa: E402
+
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.train.callbacks import evaluate_agent, save_model_dir  # noqa: E402
 from electroloc_gym.train.config import ConfigError, algo_kwargs, load_hyperparams, resolve_hyperparams  # noqa: E402
@@ -22,19 +24,6 @@ from electroloc_gym.train.wrappers import FlatFrameStack, FrameStacker, Potentia
 
 REPO = Path(__file__).resolve().parents[1]
 FAST_ENV = {"condition": "random", "n_particles": 100, "sensor_model": "analytic"}
-
-TINY_YAML = """
-default:
-  policy: MlpPolicy
-  normalize: {norm_obs: true, norm_reward: false}
-ElectroLoc-v0:
-  n_steps: 64
-  batch_size: 64
-  n_epochs: 1
-  learning_rate: lin_3e-4
-  shaping_coef: 1.0
-  policy_kwargs: {net_arch: [16], activation_fn: tanh}
-"""
 
 
 def _subprocess_env() -> dict[str, str]:
@@ -330,6 +319,9 @@ def test_electroloc_train_forwards_to_the_training_script(tmp_path):
                           env=_subprocess_env(), capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "--hyperparams" in proc.stdout and "--vec-env" in proc.stdout
+    assert "``" not in proc.stdout  # plain text, not reST
+    for shown in ("(default: dummy)", "(default: 20000)", "(default: ppo)", "(default: 1000)"):
+        assert shown in " ".join(proc.stdout.split()), shown
 
 
 # ------------------------------------------------------------------------ plots and evaluation
@@ -390,25 +382,65 @@ def torch_no_grad():
 
 
 def test_native_frame_stack_matches_the_flat_frame_stack():
-    """--vec-env native stacks with VecFrameStack; it must equal FlatFrameStack (what the agent rebuilds)."""
+    """--vec-env native stacks with VecFlatFrameStack; it must equal FlatFrameStack (what the agent rebuilds)."""
     native_vec = pytest.importorskip("electroloc_gym.train.native_vec")
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecFrameStack
+    from stable_baselines3.common.vec_env import DummyVecEnv
 
     from electroloc_gym.train.__main__ import make_env_fn
 
     kw = {"observation": "raw", **FAST_ENV}
-    a = VecFrameStack(native_vec.make_native_vec_env("ElectroLoc-v0", 2, 5, kw), 4)
+    a = native_vec.make_native_vec_env("ElectroLoc-v0", 2, 5, kw, frame_stack=4)
     b = DummyVecEnv([make_env_fn("ElectroLoc-v0", kw, 4, 0.0, 0.99) for _ in range(2)])
     b.seed(5)
+    assert a.observation_space == b.observation_space
     oa, ob = a.reset(), b.reset()
     np.testing.assert_allclose(oa, ob, atol=1e-6)
     rng = np.random.default_rng(0)
     dones = 0
     for _ in range(60):
         act = rng.uniform(-1, 1, (2, 2)).astype(np.float32)
-        oa, _, da, _ = a.step(act)
-        ob, _, db, _ = b.step(act)
+        oa, _, da, ia = a.step(act)
+        ob, _, db, ib = b.step(act)
         np.testing.assert_array_equal(da, db)
         np.testing.assert_allclose(oa, ob, atol=1e-5)
+        for i in np.flatnonzero(da):  # the final observation is stacked like the others
+            np.testing.assert_allclose(ia[i]["terminal_observation"], ib[i]["terminal_observation"], atol=1e-5)
+            assert np.any(ia[i]["terminal_observation"][:-3] != 0.0)
         dones += int(da.sum())
     assert dones > 0  # the comparison crossed episode boundaries
+
+
+def test_frame_stacker_rows_reset_independently():
+    s = FrameStacker(2, 1, n_envs=2)
+    s.push(np.array([[1.0], [2.0]]))
+    s.reset(np.array([False, True]))
+    np.testing.assert_array_equal(s.peek(np.array([[5.0], [6.0]])), [[1.0, 5.0], [0.0, 6.0]])
+    np.testing.assert_array_equal(s.push(np.array([[3.0], [4.0]])), [[1.0, 3.0], [0.0, 4.0]])
+    with pytest.raises(ValueError, match="frame_stack"):
+        FrameStacker(0, 3)
+
+
+def test_evaluation_metrics_are_those_of_the_plain_episode_loop():
+    """evaluate_agent (the benchmark's rollout) gives what a plain reset/predict/step loop gives."""
+    model, _ = _in_process_model(3, "raw")
+    agent = SB3Agent(model, frame_stack=3, env_kwargs={"observation": "raw"})
+    kw = {**FAST_ENV, "max_observations": 12}
+    seeds = [11, 12, 13]
+    env = gym.make("ElectroLoc-v0", **kw, observation="raw")
+    steps, errors, success = [], [], []
+    for s in seeds:
+        obs, info = env.reset(seed=s)
+        agent.reset(env)
+        done = False
+        while not done:
+            action, _ = agent.predict(obs, deterministic=True)
+            obs, _, term, trunc, info = env.step(action)
+            done = term or trunc
+        steps.append(info["n_observations"])
+        errors.append(info["error_mm"])
+        success.append(info["success"])
+    res = evaluate_agent(agent, "ElectroLoc-v0", kw, seeds)
+    assert res.episodes == 3
+    assert res.median_steps == np.median(steps) and res.mean_steps == np.mean(steps)
+    assert res.success_rate == np.mean(success)
+    assert res.median_error_mm == np.median(errors) and res.mean_error_mm == np.mean(errors)

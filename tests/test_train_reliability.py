@@ -14,21 +14,11 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
+from train_fixtures import TINY_YAML  # noqa: E402
+
 from electroloc_gym.train.__main__ import main  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-TINY_YAML = """
-default:
-  policy: MlpPolicy
-  normalize: {norm_obs: true, norm_reward: false}
-ElectroLoc-v0:
-  n_steps: 64
-  batch_size: 64
-  n_epochs: 1
-  learning_rate: lin_3e-4
-  shaping_coef: 1.0
-  policy_kwargs: {net_arch: [16], activation_fn: tanh}
-"""
 ENV = ["--env-kwargs", "condition=random", "n_particles=100", "sensor_model=analytic"]
 QUIET = ["--no-progress", "--no-tensorboard", "--verbose", "0"]
 

@@ -92,41 +92,53 @@ def _parse_kwargs(items: Sequence[str] | None, flag: str) -> dict[str, Any]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser (defaults come from :class:`Args`)."""
+    """The argument parser (defaults come from :class:`Args`); plain-text help with every default."""
+    from electroloc_gym.cli import HelpFormatter
+
     d = Args()
-    p = argparse.ArgumentParser(prog="python -m electroloc_gym.train", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(prog="python -m electroloc_gym.train", description=_plain(__doc__),
+                                formatter_class=HelpFormatter)
     p.add_argument("--algo", default=None, help="ppo | sac | a2c | td3 | ddpg | dqn | recurrentppo | tqc | qrdqn "
-                                                "(default ppo)")
-    p.add_argument("--env", default=None, help="Gymnasium env id (default ElectroLoc-v0)")
+                                                f"(default: {_DEFAULTS['algo']})")
+    p.add_argument("--env", default=None, help=f"Gymnasium env id (default: {_DEFAULTS['env']})")
     p.add_argument("--env-kwargs", nargs="*", default=None, metavar="KEY=VALUE",
-                   help="env kwargs, e.g. condition=random observation=belief n_particles=500")
+                   help="env kwargs, e.g. condition=random observation=belief n_particles=500 "
+                        "(given ones override the YAML's env_kwargs; default: the YAML's)")
     p.add_argument("--timesteps", type=int, default=None,
                    help="env steps to train (default: n_timesteps in the YAML; when resuming: additional steps, "
                         "default the rest of the run's budget)")
     p.add_argument("--n-envs", type=int, default=None, help="parallel envs (default: n_envs in the YAML, else 1)")
-    p.add_argument("--seed", type=int, default=None, help="training seed; env i is seeded seed+i (default 1000)")
-    p.add_argument("--hyperparams", default=None, help="YAML file (default train/hyperparams/<algo>.yml)")
-    p.add_argument("--out", default=None, help="run directory (default runs/<algo>-<env>-s<seed>)")
+    p.add_argument("--seed", type=int, default=None,
+                   help=f"training seed; env i is seeded seed+i (default: {_DEFAULTS['seed']})")
+    p.add_argument("--hyperparams", default=None, help="YAML file (default: train/hyperparams/<algo>.yml)")
+    p.add_argument("--out", default=None, help="run directory (default: runs/<algo>-<env>-s<seed>)")
     p.add_argument("--resume", nargs="?", const="", default=None, metavar="MODEL_DIR",
                    help="continue the run in --out from its latest state, or from MODEL_DIR (e.g. a checkpoint)")
     p.add_argument("--force", action="store_true", help="delete the run in --out first and start over")
-    p.add_argument("--vec-env", default=d.vec_env, choices=VEC_ENVS)
-    p.add_argument("--device", default=d.device, choices=DEVICES)
+    p.add_argument("--vec-env", default=d.vec_env, choices=VEC_ENVS,
+                   help="vector env: one process (dummy), a process per env (subproc), or the batched core (native)")
+    p.add_argument("--device", default=d.device, choices=DEVICES, help="torch device")
     p.add_argument("--eval-freq", type=int, default=d.eval_freq, help="env steps between evaluations")
     p.add_argument("--eval-episodes", type=int, default=None,
-                   help=f"seeded episodes per evaluation (default {d.eval_episodes})")
+                   help=f"seeded episodes per evaluation (default: {d.eval_episodes})")
     p.add_argument("--eval-seed", type=int, default=None,
-                   help=f"evaluation episode i uses reset seed S+i (default {d.eval_seed})")
+                   help=f"evaluation episode i uses reset seed S+i (default: {d.eval_seed})")
     p.add_argument("--eval-env-kwargs", nargs="*", default=None, metavar="KEY=VALUE",
-                   help="overrides of the training env kwargs for evaluation (e.g. randomize_target=false)")
+                   help="overrides of the training env kwargs for evaluation (e.g. randomize_target=false; "
+                        "default: none)")
     p.add_argument("--checkpoint-freq", type=int, default=d.checkpoint_freq, help="env steps between checkpoints")
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="progress bar (default: on when stderr is a terminal)")
     p.add_argument("--tensorboard", action=argparse.BooleanOptionalAction, default=d.tensorboard,
-                   help="TensorBoard logs in <out>/tb when tensorboard is installed")
-    p.add_argument("--verbose", type=int, default=d.verbose)
+                   help="TensorBoard logs in <out>/tb when tensorboard is installed (default: on)")
+    p.add_argument("--verbose", type=int, default=d.verbose,
+                   help="0: quiet; 1: a line per evaluation and SB3's training log")
     return p
+
+
+def _plain(doc: str | None) -> str:
+    """A reST docstring as plain help text: without the double backticks of inline literals."""
+    return (doc or "").replace("``", "").strip()
 
 
 def parse_args(argv: Sequence[str] | None = None) -> Args:
@@ -216,13 +228,7 @@ def make_vec_env(args: Args, cfg: dict[str, Any], normalization: dict[str, Any] 
         from electroloc_gym.train.native_vec import make_native_vec_env
 
         venv = make_native_vec_env(cfg["env_id"], n, seed, cfg["env_kwargs"], shaping_coef=cfg["shaping_coef"],
-                                   gamma=gamma)
-        if cfg["frame_stack"] > 1:
-            from stable_baselines3.common.vec_env import VecFrameStack
-
-            # For 1-D observations VecFrameStack concatenates oldest → newest, zero-padded after a
-            # reset: the same vector as FlatFrameStack, which the loaded agent reproduces.
-            venv = VecFrameStack(venv, cfg["frame_stack"])
+                                   gamma=gamma, frame_stack=cfg["frame_stack"])
     else:
         fns = [make_env_fn(cfg["env_id"], cfg["env_kwargs"], cfg["frame_stack"], cfg["shaping_coef"], gamma)
                for _ in range(n)]

@@ -21,6 +21,7 @@ import numpy as np
 import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
+from electroloc_gym.bench.rollout import run_episode
 from electroloc_gym.fileio import atomic_write_bytes, atomic_write_text  # noqa: F401  (re-exported)
 from electroloc_gym.train.policy import SB3Agent
 from electroloc_gym.train.policy_format import export_policy, normalization_from_vecnormalize
@@ -95,6 +96,8 @@ class EvalResult:
 def evaluate_agent(agent: Any, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int]) -> EvalResult:
     """Run one episode per seed with ``agent`` (deterministic) and aggregate.
 
+    Each episode is the benchmark's (:func:`electroloc_gym.bench.rollout.run_episode`).
+
     Args:
         agent: anything with ``reset(env)``, ``predict(obs, ...)`` and ``env_kwargs``.
         env_id: Gymnasium id.
@@ -107,13 +110,7 @@ def evaluate_agent(agent: Any, env_id: str, env_kwargs: Mapping[str, Any], seeds
     steps, errors, success = [], [], []
     try:
         for s in seeds:
-            obs, info = env.reset(seed=int(s))
-            agent.reset(env)
-            done = False
-            while not done:
-                action, _ = agent.predict(obs, deterministic=True)
-                obs, _, term, trunc, info = env.step(action)
-                done = term or trunc
+            info = run_episode(env, agent, int(s), deterministic=True).info
             steps.append(int(info["n_observations"]))
             errors.append(float(info["error_mm"]))
             success.append(bool(info["success"]))

@@ -25,8 +25,9 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecMonitor
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 import electroloc_gym  # noqa: F401  (registers the ids)
+from electroloc_gym.train.wrappers import FrameStacker, check_shaping, shaped_reward, spread_potential, stacked_space
 
-__all__ = ["NativeVecEnv", "VecPotentialShaping", "make_native_vec_env"]
+__all__ = ["NativeVecEnv", "VecFlatFrameStack", "VecPotentialShaping", "make_native_vec_env"]
 
 #: Info keys of the single env copied into every per-env info dict.
 _INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
@@ -131,12 +132,11 @@ class NativeVecEnv(VecEnv):
 
 
 class VecPotentialShaping(VecEnvWrapper):
-    """``train.wrappers.PotentialShaping`` for a :class:`NativeVecEnv` stack, all envs at once.
+    """:class:`electroloc_gym.train.wrappers.PotentialShaping` for a :class:`NativeVecEnv` stack, all envs at once.
 
-    Adds F = γ·Φ(s′) − Φ(s), Φ(s) = −c·ln(spread/success spread) (``train.wrappers.spread_potential``);
-    Φ of a terminal (success) state is 0, on truncation Φ(s′) is kept, and a finished env's next
-    episode starts from Φ of its reset state — exactly what ``PotentialShaping`` inside each env of a
-    ``DummyVecEnv`` does (tested). Put it *outside* ``VecMonitor`` so that the logged return is the
+    The same step arithmetic (:func:`electroloc_gym.train.wrappers.shaped_reward`) on arrays; a finished
+    env's next episode starts from Φ of its reset state — exactly what ``PotentialShaping`` inside
+    each env of a ``DummyVecEnv`` does (tested). Put it *outside* ``VecMonitor`` so that the logged return is the
     unshaped one, as the dummy/subproc stacks of ``train/__main__.py`` log it.
 
     Args:
@@ -149,17 +149,14 @@ class VecPotentialShaping(VecEnvWrapper):
         super().__init__(venv)
         if not isinstance(venv.unwrapped, NativeVecEnv):
             raise ValueError("VecPotentialShaping needs a NativeVecEnv stack (venv.unwrapped)")
-        if not (np.isfinite(coef) and coef >= 0):
-            raise ValueError(f"shaping_coef must be ≥ 0, got {coef!r}")
-        if not 0.0 <= gamma <= 1.0:
-            raise ValueError(f"gamma must be in [0, 1], got {gamma!r}")
+        check_shaping(coef, gamma)
         self.coef = float(coef)
         self.gamma = float(gamma)
         self.success_spread_mm = float(venv.unwrapped.venv.success_spread_mm)
         self._phi = np.zeros(self.num_envs)
 
     def _potential(self, spread_mm: np.ndarray) -> np.ndarray:
-        return -self.coef * np.log(np.maximum(spread_mm, 1e-6) / self.success_spread_mm)
+        return spread_potential(spread_mm, self.success_spread_mm, self.coef)
 
     def reset(self) -> VecEnvObs:
         obs = self.venv.reset()
@@ -170,15 +167,53 @@ class VecPotentialShaping(VecEnvWrapper):
         obs, rewards, dones, infos = self.venv.step_wait()
         spread = np.array([d["spread_mm"] for d in infos])  # a finished env's info is its final state's
         timeout = np.array([d.get("TimeLimit.truncated", False) for d in infos], dtype=bool)
-        terminated = dones & ~timeout
-        phi_next = np.where(terminated, 0.0, self._potential(spread))
-        shaped = rewards.astype(np.float64) + self.gamma * phi_next - self._phi
+        shaped, phi_next = shaped_reward(rewards, self._phi, spread, dones & ~timeout, coef=self.coef,
+                                         gamma=self.gamma, success_spread_mm=self.success_spread_mm)
         self._phi = np.where(dones, self._potential(self.venv.unwrapped.current_spread_mm), phi_next)
         return obs, shaped.astype(np.float32), dones, infos
 
 
+class VecFlatFrameStack(VecEnvWrapper):
+    """:class:`electroloc_gym.train.wrappers.FlatFrameStack` for a VecEnv, all envs in one
+    :class:`~electroloc_gym.train.wrappers.FrameStacker`.
+
+    Each env's observation is its last ``k`` observations, oldest first, zero-padded after a reset;
+    a finished env's ``infos[i]["terminal_observation"]`` is stacked the same way (its episode's last
+    ``k``), and its next observation starts a new stack — what ``FlatFrameStack`` inside each env of
+    a ``DummyVecEnv`` gives (tested).
+
+    Args:
+        venv: a VecEnv with a 1-D Box observation space.
+        k: number of frames (≥ 1).
+    """
+
+    def __init__(self, venv: VecEnv, k: int) -> None:
+        space = stacked_space(venv.observation_space, k)
+        super().__init__(venv, observation_space=space)
+        self._stacker = FrameStacker(k, venv.observation_space.shape[0], venv.num_envs)
+
+    def reset(self) -> VecEnvObs:
+        obs = self.venv.reset()
+        self._stacker.reset()
+        return self._stacker.push(obs)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        done_rows = np.flatnonzero(dones)
+        if done_rows.size:
+            last = np.array(obs, dtype=np.float32)
+            for i in done_rows:
+                last[i] = infos[i]["terminal_observation"]
+            final = self._stacker.peek(last)
+            for i in done_rows:
+                infos[i]["terminal_observation"] = final[i]
+            self._stacker.reset(dones)
+        return self._stacker.push(obs), rewards, dones, infos
+
+
 def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: dict[str, Any] | None = None,
-                        monitor: bool = True, shaping_coef: float = 0.0, gamma: float = 0.99) -> VecEnv:
+                        monitor: bool = True, shaping_coef: float = 0.0, gamma: float = 0.99,
+                        frame_stack: int = 1) -> VecEnv:
     """An SB3 ``VecEnv`` of ``n_envs`` sub-envs of ``env_id`` stepped by its native batched vector env.
 
     Args:
@@ -192,6 +227,8 @@ def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: 
         shaping_coef: if > 0, add potential-based shaping on the belief spread
             (:class:`VecPotentialShaping`, outside the monitor: the logged return stays unshaped).
         gamma: discount of the shaping (the algorithm's γ).
+        frame_stack: if > 1, the policy sees the last ``frame_stack`` observations
+            (:class:`VecFlatFrameStack`, outermost).
 
     Raises:
         ValueError: the id has no native vector env, or bad ``n_envs``/kwargs.
@@ -210,4 +247,6 @@ def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: 
         wrapped = VecMonitor(wrapped)
     if shaping_coef > 0:
         wrapped = VecPotentialShaping(wrapped, shaping_coef, gamma)
+    if frame_stack != 1:
+        wrapped = VecFlatFrameStack(wrapped, frame_stack)
     return wrapped

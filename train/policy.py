@@ -37,6 +37,7 @@ from electroloc_gym.train.policy_format import (
     build_policy,
     read_export,
 )
+from electroloc_gym.train.wrappers import FrameStacker
 
 __all__ = ["SB3Agent", "load_policy", "resolve_model_path", "read_run_config", "AGENT_ENV_KWARGS"]
 
@@ -90,7 +91,7 @@ class SB3Agent:
             raise ValueError(f"normalisation statistics of shape {normalization.mean.shape} do not fit the "
                              f"policy's observation shape {tuple(shape)}")
         self.obs_dim = shape[0] // frame_stack
-        self._stack: NDArray[np.float32] | None = None  # (n, k, d)
+        self._stacker: FrameStacker | None = None  # one row per observation of a batch
         self._state: Any = None
         self._fresh = True
         self._numpy_actor = None if self.recurrent else _numpy_actor(self.policy)
@@ -106,7 +107,7 @@ class SB3Agent:
 
     def reset(self, env: Any = None) -> None:
         """Start of a trial: clear the frame stack and the recurrent state (``env`` is not used)."""
-        self._stack = None
+        self._stacker = None
         self._state = None
         self._fresh = True
 
@@ -118,13 +119,11 @@ class SB3Agent:
         if obs.ndim != 2 or obs.shape[1] != self.obs_dim:
             raise ValueError(f"observation must have shape ({self.obs_dim},) or (n, {self.obs_dim}), got {obs.shape}")
         n = obs.shape[0]
-        if self._stack is None or self._stack.shape[0] != n:
-            self._stack = np.zeros((n, self.frame_stack, self.obs_dim), dtype=np.float32)
+        if self._stacker is None or self._stacker.n_envs != n:
+            self._stacker = FrameStacker(self.frame_stack, self.obs_dim, n)
         if episode_start is not None:
-            self._stack[np.asarray(episode_start, dtype=bool).reshape(n)] = 0.0
-        self._stack = np.roll(self._stack, -1, axis=1)
-        self._stack[:, -1] = obs
-        x = self._stack.reshape(n, -1)
+            self._stacker.reset(episode_start)
+        x = self._stacker.push(obs)
         if self.normalization is not None:
             x = self.normalization.apply(x)
         return x.astype(np.float32)

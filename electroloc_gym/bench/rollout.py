@@ -17,6 +17,7 @@ are the same episode.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -47,7 +48,7 @@ class Episode:
 
 
 def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = None,
-                deterministic: bool = True) -> Episode:
+                deterministic: bool = True, on_step: Callable[[dict[str, Any]], None] | None = None) -> Episode:
     """Run one seeded episode of ``agent`` in ``env``.
 
     Args:
@@ -58,6 +59,8 @@ def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = Non
         agent_seed: re-seeds the agent's own generator before the episode (ignored when None or when
             the agent has no ``seed`` method).
         deterministic: passed to ``predict``.
+        on_step: called with the ``info`` of ``env.reset`` and then of every ``env.step``, right after
+            it (the env is in that state: for snapshots and rendered frames).
 
     Returns:
         The :class:`Episode`.
@@ -67,6 +70,8 @@ def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = Non
         agent.seed(int(agent_seed))
     agent.reset(env)
     episode = Episode(start_info=info, info=info)
+    if on_step is not None:
+        on_step(info)
     state = None
     episode_start = np.ones((1,), dtype=bool)
     while True:
@@ -78,6 +83,8 @@ def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = Non
             episode.ended_by = "agent"
             return episode
         obs, _, terminated, truncated, episode.info = env.step(action)
+        if on_step is not None:
+            on_step(episode.info)
         if terminated or truncated:
             episode.terminated, episode.truncated = bool(terminated), bool(truncated)
             episode.ended_by = "success" if terminated else "cap"
