@@ -66,7 +66,7 @@ def main() -> None:
     print(f"\nseed {args.seed}, {args.trials} trials per condition ({n} per agent)\n")
     print(f"| k × fitted | start coverage | {head} | ratio {agents[-1]}/{agents[0]} "
           f"| per-condition medians ({agents[-1]}) |")
-    print("|---" * (3 + 2 * len(agents)) + "|")
+    print("|---" * (4 + 2 * len(agents)) + "|")
     for k, cov, res in rows:
         cells = " | ".join(f"{res[a][0]}/{n} | {res[a][1]:.1f}" for a in agents)
         ratio = res[agents[-1]][1] / res[agents[0]][1]
