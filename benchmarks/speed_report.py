@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     fps = {}
     for n in (16, 64):
         print(f"== PPO training fps, N = {n} (benchmarks/train_fps.py)", flush=True)
-        fps[n] = train_fps.main(["--n-envs", str(n)])
+        fps[n] = train_fps.main(["--n-envs", str(n)] + (["--before", args.before] if args.before else []))
 
     rows: list[dict[str, Any]] = []
 
@@ -88,9 +88,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         add(f"native vector env steps/s, N={n}", by[("native", n)], "steps/s", before.get(("native", n)))
         add(f"native / sync, N={n}", by[("native", n)] / by[("sync", n)], "x", 10.0 if n == 16 else None)
     for n in (16, 64):
-        d = {r["vec_env"]: r["fps_cpu"] for r in fps[n]["rows"]}
+        d = {r["vec_env"]: r["fps_cpu"] for r in fps[n]["rows"] if r["code"] == "now"}
+        prev = {r["vec_env"]: r["fps_cpu"] for r in fps[n]["rows"] if r["code"] == "before"}
+        if prev:
+            add(f"PPO fps native adapter, N={n}, previous code", prev["native"], "fps", None)
         add(f"PPO fps DummyVecEnv, N={n}", d["dummy"], "fps", None)
-        add(f"PPO fps native adapter, N={n}", d["native"], "fps", None)
+        add(f"PPO fps native adapter, N={n}", d["native"], "fps", prev.get("native") if prev else None)
         add(f"PPO native / dummy, N={n}", d["native"] / d["dummy"], "x", 3.0)
     if not args.skip_table4:
         print(f"== Table-4 reproduction: electroloc bench --agents {TABLE4_AGENTS} --trials {args.trials}", flush=True)

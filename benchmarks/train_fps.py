@@ -9,7 +9,7 @@ measured in ``--passes`` interleaved passes (dummy, native, dummy, native, ...) 
 pass is kept: then both rows see the same phases.
 
     python benchmarks/train_fps.py [--n-envs 16] [--n-steps 64] [--rollouts 2] [--rounds 2] [--passes 3]
-        [--particles 2500] [--json out.json]
+        [--particles 2500] [--before DIR] [--json out.json]
 """
 
 from __future__ import annotations
@@ -79,6 +79,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--particles", type=int, default=2500)
     ap.add_argument("--condition", default="fresh-steel-12.7")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--before", default=None, metavar="DIR",
+                    help="also measure the code of this checkout, interleaved with the current code's rows")
     ap.add_argument("--_one", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     kwargs = {"n_particles": args.particles, "condition": args.condition}
@@ -90,26 +92,31 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
           f"torch threads=1; best of {args.rounds} x {args.rollouts} rollouts per process, each row in a fresh "
           f"process, {args.passes} interleaved passes", flush=True)
     results: dict[str, Any] = {"kwargs": kwargs, "n_envs": args.n_envs, "rows": []}
-    best: dict[str, dict[str, float]] = {}
+    trees: list[tuple[str, str | None]] = [("now", None)] + ([("before", args.before)] if args.before else [])
+    best: dict[tuple[str, str], dict[str, float]] = {}
     for _ in range(args.passes):
+        for code, tree in trees:
+            for kind in ("dummy", "native"):
+                script = __file__ if tree is None else str(Path(tree) / "benchmarks" / "train_fps.py")
+                env = None if tree is None else dict(os.environ, PYTHONPATH=str(Path(tree).resolve()))
+                cmd = [sys.executable, script, "--_one", kind, "--n-envs", str(args.n_envs), "--n-steps",
+                       str(args.n_steps), "--rollouts", str(args.rollouts), "--rounds", str(args.rounds),
+                       "--particles", str(args.particles), "--condition", args.condition]
+                out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env).stdout
+                r = json.loads(out.strip().splitlines()[-1])
+                old = best.get((code, kind))
+                if old is None or r["fps_cpu"] > old["fps_cpu"]:
+                    best[(code, kind)] = {**r, "fps_wall": max(r["fps_wall"], old["fps_wall"] if old else 0.0)}
+                else:
+                    old["fps_wall"] = max(old["fps_wall"], r["fps_wall"])
+    print(f"{'code':<7} {'vec env':<8} {'fps (CPU)':>10} {'fps (wall)':>11} {'vs dummy':>9}")
+    for code, _ in trees:
+        base = best[(code, "dummy")]["fps_cpu"]
         for kind in ("dummy", "native"):
-            cmd = [sys.executable, __file__, "--_one", kind, "--n-envs", str(args.n_envs), "--n-steps",
-                   str(args.n_steps), "--rollouts", str(args.rollouts), "--rounds", str(args.rounds),
-                   "--particles", str(args.particles), "--condition", args.condition]
-            out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-            r = json.loads(out.strip().splitlines()[-1])
-            old = best.get(kind)
-            if old is None or r["fps_cpu"] > old["fps_cpu"]:
-                best[kind] = {**r, "fps_wall": max(r["fps_wall"], old["fps_wall"] if old else 0.0)}
-            else:
-                old["fps_wall"] = max(old["fps_wall"], r["fps_wall"])
-    print(f"{'vec env':<8} {'fps (CPU)':>10} {'fps (wall)':>11} {'vs dummy':>9}")
-    base = best["dummy"]["fps_cpu"]
-    for kind in ("dummy", "native"):
-        r = best[kind]
-        ratio = r["fps_cpu"] / base
-        print(f"{kind:<8} {r['fps_cpu']:>10.0f} {r['fps_wall']:>11.0f} {ratio:>8.2f}x", flush=True)
-        results["rows"].append({"vec_env": kind, **r, "ratio_vs_dummy_cpu": ratio})
+            r = best[(code, kind)]
+            ratio = r["fps_cpu"] / base
+            print(f"{code:<7} {kind:<8} {r['fps_cpu']:>10.0f} {r['fps_wall']:>11.0f} {ratio:>8.2f}x", flush=True)
+            results["rows"].append({"code": code, "vec_env": kind, **r, "ratio_vs_dummy_cpu": ratio})
     if args.json:
         atomic_write_text(args.json, json.dumps(results, indent=2))
     return results

@@ -2,11 +2,11 @@
 
 Normal draws from a quantile table: each N(0, 1) value is one of 65536 equiprobable standard-normal
 quantiles (:func:`normal_table`) picked by 16 random bits taken straight from the generator's bit
-stream (:func:`table_standard_normal`). Measured here, numpy's ziggurat takes ≈10–20 ns per value
-(≈52 µs for the 5000 float32 jitter values of a filter step, ≈100 µs for the ≈8000 readings of a
-calibration), the table ≈1–2 ns. The table is rescaled to unit variance; its tails stop at ±4.3σ
-(probability 1.5·10⁻⁵), which neither a roughening kernel nor the noise of a 10-sample calibration
-average needs.
+stream (:func:`table_normal_indices`; the filter's kernels and the calibration look the values up).
+Measured here, numpy's ziggurat takes ≈10–20 ns per value (≈52 µs for the 5000 float32 jitter values
+of a filter step, ≈100 µs for the ≈8000 readings of a calibration), the table ≈1–2 ns. The table is
+rescaled to unit variance; its tails stop at ±4.3σ (probability 1.5·10⁻⁵), which neither a
+roughening kernel nor the noise of a 10-sample calibration average needs.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtri
 
-from electroloc_gym.kernels import box_affine, table_gather
+from electroloc_gym.kernels import box_affine
 
-__all__ = ["NORMAL_TABLE_BITS", "normal_table", "table_normal_indices", "table_standard_normal", "uniform_in_box"]
+__all__ = ["NORMAL_TABLE_BITS", "normal_table", "table_normal_indices", "uniform_in_box"]
 
 #: Bits per jitter draw: the table holds 2**16 quantiles.
 NORMAL_TABLE_BITS = 16
@@ -39,14 +39,6 @@ def normal_table() -> NDArray[np.float32]:
 def table_normal_indices(rng: np.random.Generator, n: int) -> NDArray[np.uint16]:
     """``n`` indices into :func:`normal_table`: the 16-bit words of ⌈n/4⌉ raw 64-bit draws of ``rng``."""
     return rng.bit_generator.random_raw((n + 3) // 4).view(np.uint16)[:n]
-
-
-def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float32]:
-    """Standard normals (float32) of ``shape`` from the quantile table (see the module docstring)."""
-    n = int(np.prod(shape))
-    out = np.empty(n, dtype=np.float32)
-    table_gather(normal_table(), table_normal_indices(rng, n), out)
-    return out.reshape(shape)
 
 
 def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int,

@@ -61,6 +61,7 @@ from electroloc_gym.conditions import (
     Target,
     Water,
 )
+from electroloc_gym.sensor import saturated_reading
 
 __all__ = [
     "SHAPES",
@@ -284,8 +285,7 @@ class Scene:
         Same draw as :func:`electroloc_gym.sensor.noisy_reading` (``rng.normal`` of the output shape).
         """
         mean = self.expected_reading(np.asarray(carriage_mm, dtype=np.float64), saturate=False)
-        noise = rng.normal(0.0, self.noise_std_V, size=mean.shape)
-        return np.clip(mean + noise, -self.saturation_V, self.saturation_V)
+        return saturated_reading(mean, rng.normal(0.0, self.noise_std_V, size=mean.shape), self.saturation_V)
 
     # Sensor-model convention: offsets = map origin − carriage = −carriage.
     def expected_reading_at_offsets(self, offsets_mm: ArrayLike) -> NDArray:

@@ -14,7 +14,7 @@ from electroloc_gym.conditions import Condition
 from electroloc_gym.draws import normal_table, table_normal_indices
 from electroloc_gym.kernels import noisy_saturated
 
-__all__ = ["expected_reading", "noisy_reading", "calibration_readings", "add_calibration_noise",
+__all__ = ["expected_reading", "saturated_reading", "noisy_reading", "calibration_readings", "add_calibration_noise",
            "electrode_positions_mm"]
 
 
@@ -34,18 +34,25 @@ def expected_reading(condition: Condition, offsets_mm: ArrayLike, *, saturate: b
     return phi
 
 
+def saturated_reading(mean_V: ArrayLike, noise_V: ArrayLike, saturation_V: ArrayLike) -> NDArray[np.float64]:
+    """The reading Φ = clip(mean + noise, −V_sat, V_sat) (V) from its noise-free, unsaturated value and
+    its noise (every env and the map's calibration build their readings here).
+    """
+    sat = np.asarray(saturation_V)
+    return np.minimum(np.maximum(np.asarray(mean_V) + noise_V, -sat), sat)
+
+
 def noisy_reading(condition: Condition, offsets_mm: ArrayLike, rng: np.random.Generator) -> NDArray[np.float64]:
     """A noisy, saturated reading Φ (V) at ``offsets_mm`` (..., 2), noise drawn from ``rng``."""
     mean = expected_reading(condition, np.asarray(offsets_mm, dtype=np.float64), saturate=False)
-    noise = rng.normal(0.0, condition.noise_std_V, size=mean.shape)
-    return np.clip(mean + noise, -condition.saturation_V, condition.saturation_V)
+    return saturated_reading(mean, rng.normal(0.0, condition.noise_std_V, size=mean.shape), condition.saturation_V)
 
 
 def add_calibration_noise(condition: Condition, mean_V: NDArray[np.float64],
                           rng: np.random.Generator) -> NDArray[np.float64]:
     """Calibration readings from their noise-free, unsaturated values ``mean_V`` (V): add
     N(0, (G·σ_s)²) noise and saturate, the noise from the normal quantile table
-    (:func:`electroloc_gym.draws.table_standard_normal`, ≈10× faster than ``rng.normal`` for the
+    (:mod:`electroloc_gym.draws`, ≈10× faster than ``rng.normal`` for the
     ≈8000 readings of a calibration; a new calibration per episode is the default).
     """
     mean = np.ascontiguousarray(mean_V, dtype=np.float64).reshape(-1)

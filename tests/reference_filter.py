@@ -11,8 +11,14 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.draws import table_standard_normal, uniform_in_box
+from electroloc_gym.draws import normal_table, table_normal_indices, uniform_in_box
 from electroloc_gym.kernels import exp_f32, mean_cov_rows, row_sums
+
+
+def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float32]:
+    """Standard normals (float32) of ``shape`` from the quantile table: the kernels' jitter draws."""
+    n = int(np.prod(shape))
+    return normal_table()[table_normal_indices(rng, n)].reshape(shape)
 
 
 def shifted_exp_weights(log_w: NDArray) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:

@@ -40,6 +40,7 @@ from electroloc_gym.core.tasks import group_by_world, make_task
 from electroloc_gym.draws import normal_table, table_normal_indices
 from electroloc_gym.envs.observation import BELIEF_OBS_DIM, HIST_BINS, RAW_OBS_DIM, belief_observation, raw_observation
 from electroloc_gym.kernels import calibrated_assimilate, egocentric_counts, loglik_assimilate, mean_cov_rows
+from electroloc_gym.sensor import saturated_reading
 
 __all__ = ["Simulation", "AUTORESET_MODES", "INFO_KEYS"]
 
@@ -247,8 +248,7 @@ class Simulation:
             noise[j] = g.normal(0.0, sd)
             u0[j] = g.random()
             jitter[j] = table_normal_indices(g, two_m)
-        sat = s.saturation_V[sel]
-        reading = np.minimum(np.maximum(self.task.true_mean_V(s, ids) + noise, -sat), sat)
+        reading = saturated_reading(self.task.true_mean_V(s, ids), noise, s.saturation_V[sel])
         s.reading_V[sel] = reading
         s.n_observations[sel] += 1
         src = s.particles_mm if full else s.particles_mm[ids]  # full: updated in place

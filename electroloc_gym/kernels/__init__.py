@@ -15,9 +15,9 @@ plus the fixed polynomials and summation orders of :mod:`.mathf32` (docs/design.
 not depend on the CPU"). Compiled on first use and cached on disk (a few seconds once per machine).
 """
 
-from electroloc_gym.kernels.draws import box_affine, noisy_saturated, table_gather
-from electroloc_gym.kernels.filter import calibrated_assimilate, loglik_assimilate, resample_jitter_clip
-from electroloc_gym.kernels.lookup import bilinear_coefficients, calibrated_log_likelihood, calibration_tables
+from electroloc_gym.kernels.draws import box_affine, noisy_saturated
+from electroloc_gym.kernels.filter import calibrated_assimilate, loglik_assimilate
+from electroloc_gym.kernels.lookup import bilinear_coefficients, calibration_tables
 from electroloc_gym.kernels.mathf32 import exp32, exp_f32, log32, log_f32, row_sums
 from electroloc_gym.kernels.observation import belief_observation_rows
 from electroloc_gym.kernels.stats import egocentric_counts, mean_cov_rows
@@ -28,11 +28,8 @@ __all__ = [
     "exp_f32",
     "log_f32",
     "row_sums",
-    "calibrated_log_likelihood",
     "calibrated_assimilate",
     "loglik_assimilate",
-    "resample_jitter_clip",
-    "table_gather",
     "box_affine",
     "noisy_saturated",
     "mean_cov_rows",

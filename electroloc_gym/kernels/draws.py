@@ -1,4 +1,4 @@
-"""Bulk random-draw transforms: uniform points in a box, quantile-table normals, noisy saturated readings.
+"""Bulk random-draw transforms: uniform points in a box, noisy saturated readings.
 
 Each is the numpy expression quoted in its docstring, with the same float64 operations (so the same
 bits), without numpy's slow broadcasting over an inner axis of length 2.
@@ -11,7 +11,7 @@ from numba import njit
 
 from electroloc_gym.kernels.mathf32 import JIT
 
-__all__ = ["box_affine", "table_gather", "noisy_saturated"]
+__all__ = ["box_affine", "noisy_saturated"]
 
 
 @njit(**JIT)
@@ -28,13 +28,6 @@ def box_affine(u, low, span, out_x, out_y):  # pragma: no cover - compiled
     for j in range(u.shape[0]):
         out_x[j] = lx + sx * u[j, 0]
         out_y[j] = ly + sy * u[j, 1]
-
-
-@njit(**JIT)
-def table_gather(table, idx, out):  # pragma: no cover - compiled
-    """``out[i] = table[idx[i]]`` (1-D; numpy's fancy indexing first converts uint16 indices to intp)."""
-    for i in range(idx.shape[0]):
-        out[i] = table[idx[i]]
 
 
 @njit(**JIT)

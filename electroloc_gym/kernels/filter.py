@@ -3,8 +3,7 @@
 One env at a time, in a few passes over its particles while they are in cache, in place:
 
 * :func:`calibrated_assimilate`: the calibrated model's lookup (:mod:`.lookup`) and the update;
-* :func:`loglik_assimilate`: the update from given float32 log-likelihoods (the analytic models);
-* :func:`resample_jitter_clip`: the update from given float64 weights (a reference entry point).
+* :func:`loglik_assimilate`: the update from given float32 log-likelihoods (the analytic models).
 
 Each ends with the new cloud's mean, covariance and histogram counts (:mod:`.stats`).
 """
@@ -18,7 +17,7 @@ from electroloc_gym.kernels.lookup import _calibrated_ll_one
 from electroloc_gym.kernels.mathf32 import JIT, exp32, sum8
 from electroloc_gym.kernels.stats import _counts_one, _cov_about
 
-__all__ = ["calibrated_assimilate", "loglik_assimilate", "resample_jitter_clip"]
+__all__ = ["calibrated_assimilate", "loglik_assimilate"]
 
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
@@ -28,8 +27,32 @@ _INF = np.float32(np.inf)
 @njit(**JIT)
 def _resample_one(w, t, u, src_x, src_y, jitter_idx, normal_table, h, out_x, out_y,  # pragma: no cover - compiled
                   mean, cov, cx, cy, scale, bins, counts, e, cum, ptr, kest, first, cells, hist):
-    """One env of :func:`resample_jitter_clip` (``cum``, ``ptr`` (M + 1), ``kest``, ``first`` (M + 1),
-    ``cells``, ``hist`` are scratch).
+    """Normalise, systematically resample, jitter and clip one cloud, then the new cloud's mean,
+    covariance (:func:`~electroloc_gym.kernels.mean_cov_rows`'s sums) and histogram counts
+    (:func:`~electroloc_gym.kernels.egocentric_counts`'s cells) while it is still in cache.
+
+    Stands for (``w`` the unnormalised ``exp(log_w − max)``, ``t`` its fixed-order total)::
+
+        w = w / t                                                   # normalised weights
+        cum = np.cumsum(w); cum /= cum[-1]                          # systematic_resample
+        u = (U + np.arange(M)) / M
+        idx = np.minimum(np.searchsorted(cum, u, side="right"), M − 1)
+        jitter = normal_table[jitter_idx].reshape(M, 2)             # draws.table_standard_normal
+        p = particles[idx] + jitter                                 # resample, jitter (std 1 mm)
+        p = np.minimum(np.maximum(p, −H), H)                        # the clip to the box
+
+    ``searchsorted`` without branches: particle ``i`` takes the pointers ``j`` with
+    ``cum[i−1] ≤ u[j] < cum[i]``, i.e. ``K(i−1) ≤ j < K(i)`` where ``K(i) = #{j: u[j] < cum[i]}``
+    (``K(M−1) = M``: the ``min(·, M − 1)``). ``K(i)`` is ``ceil(M·cum[i] − U)`` up to float rounding
+    (computed for all particles in a vectorised pass), corrected by comparing with the pointers
+    themselves (the same ``(U + j)/M`` values, so the same comparisons as ``searchsorted``); then
+    ``idx[j] = #{i: K(i) ≤ j}`` is a running sum of a histogram of the ``K(i)`` — no data-dependent
+    branch per particle. The mean's sums run in the resampling loop, in the same particle order as
+    :func:`mean_cov_rows`.
+
+    ``cum``, ``ptr`` (M + 1), ``kest``, ``first`` (M + 1), ``cells``, ``hist`` are scratch
+    (:func:`_resample_scratch`); the results go to ``out_x``, ``out_y`` (must not alias the sources)
+    and row ``e`` of ``mean``, ``cov``, ``counts``.
     """
     m = w.shape[0]
     fm = np.float64(m)
@@ -89,57 +112,6 @@ def _resample_scratch(m, bins):  # pragma: no cover - compiled
 
 
 @njit(**JIT)
-def resample_jitter_clip(w, total, u0, src, jitter_idx, normal_table, half, out,  # pragma: no cover - compiled
-                         mean, cov, origin, scale, bins, counts):
-    """Normalise, systematically resample, jitter and clip k clouds (ParticleBelief.assimilate's tail),
-    then each new cloud's mean/covariance (:func:`mean_cov_rows`) and histogram counts
-    (:func:`egocentric_counts`) while it is still in cache.
-
-    Stands for, per env (``w`` the unnormalised ``exp(log_w − max)``, ``total`` its
-    :func:`row_sums`)::
-
-        w = w / total                                               # normalise_log_weights
-        cum = np.cumsum(w); cum /= cum[-1]                          # systematic_resample
-        u = (U + np.arange(M)) / M
-        idx = np.minimum(np.searchsorted(cum, u, side="right"), M − 1)
-        jitter = normal_table[jitter_idx].reshape(M, 2)             # draws.table_standard_normal
-        p = particles[idx] + jitter                                 # resample, jitter (std 1 mm)
-        p = np.minimum(np.maximum(p, −H), H)                        # _clip_to_box
-
-    ``searchsorted`` without branches: particle ``i`` takes the pointers ``j`` with
-    ``cum[i−1] ≤ u[j] < cum[i]``, i.e. ``K(i−1) ≤ j < K(i)`` where ``K(i) = #{j: u[j] < cum[i]}``
-    (``K(M−1) = M``: the ``min(·, M − 1)``). ``K(i)`` is ``ceil(M·cum[i] − U)`` up to float rounding
-    (computed for all particles in a vectorised pass), corrected by comparing with the pointers
-    themselves (the same ``(U + j)/M`` values, so the same comparisons as ``searchsorted``); then
-    ``idx[j] = #{i: K(i) ≤ j}`` is a running sum of a histogram of the ``K(i)`` — no data-dependent
-    branch per particle. The mean's sums run in the resampling loop, in the same particle order as
-    :func:`mean_cov_rows`.
-
-    Args:
-        w: (k, M) float64 unnormalised weights (read only).
-        total: (k,) float64 row sums of ``w``.
-        u0: (k,) float64 resampling offsets U in [0, 1).
-        src: (k, 2, M) float32 particles, coordinate-major.
-        jitter_idx: (k, 2·M) uint16 indices into ``normal_table`` (the single env's draw layout).
-        normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.draws.normal_table`).
-        half: (k,) float32 half-width H of the box, mm.
-        out: (k, 2, M) float32 new particles (must not alias ``src``).
-        mean: (k, 2) float64 output: the new clouds' means, mm.
-        cov: (k, 2, 2) float64 output: their covariances, mm².
-        origin: (k, 2) float32 histogram centres (:func:`egocentric_counts`'s ``carriage``), mm.
-        scale: (k,) float32 histogram widths 2·H, mm.
-        bins: histogram cells per axis.
-        counts: (k, bins²) float64 output: the histogram counts.
-    """
-    k, m = w.shape
-    scratch = _resample_scratch(m, bins)
-    for e in range(k):
-        _resample_one(w[e], total[e], u0[e], src[e, 0], src[e, 1], jitter_idx[e], normal_table, half[e],
-                      out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
-                      *scratch)
-
-
-@njit(**JIT)
 def _shifted_exp_one(ll, w):  # pragma: no cover - compiled
     """One cloud of ``belief.shifted_exp_weights`` (float32 log-weights ``ll``) into ``w`` (M,) (not
     ``ll`` itself: the exp pass would not vectorise); returns the weights' :func:`row_sums` total,
@@ -169,9 +141,9 @@ def _shifted_exp_one(ll, w):  # pragma: no cover - compiled
 def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, u0, jitter_idx,  # pragma: no cover
                           normal_table, half, out, mean, cov, scale, bins, counts):
     """One calibrated measurement update of k clouds, one env at a time in cache:
-    :func:`calibrated_log_likelihood` at the offsets ``sign·(particle − origin)``,
+    the calibrated model's log-likelihood (:mod:`.lookup`) at the offsets ``sign·(particle − origin)``,
     ``belief.normalise_log_weights`` (the shifted ``exp32`` and its :func:`row_sums` total), then
-    :func:`resample_jitter_clip` — the single env's ``assimilate(model.log_likelihood(...))`` in the
+    ``_resample_one`` — the reference filter's ``assimilate(model.log_likelihood(...))`` in the
     same float operations.
 
     Args:
@@ -180,22 +152,22 @@ def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, 
             offsets = target hypothesis − carriage) or the map origin (self-localisation, ``sign`` = −1:
             offsets = − carriage hypothesis); also the histogram's centre.
         sign: float32 ±1.
-        lo: as :func:`calibrated_log_likelihood`.
-        inv: as :func:`calibrated_log_likelihood`.
-        n1: as :func:`calibrated_log_likelihood`.
-        base: as :func:`calibrated_log_likelihood`.
-        table: as :func:`calibrated_log_likelihood`.
-        reading: as :func:`calibrated_log_likelihood`.
-        u0: as :func:`resample_jitter_clip`.
-        jitter_idx: as :func:`resample_jitter_clip`.
-        normal_table: as :func:`resample_jitter_clip`.
-        half: as :func:`resample_jitter_clip`.
-        out: as :func:`resample_jitter_clip`.
-        mean: as :func:`resample_jitter_clip`.
-        cov: as :func:`resample_jitter_clip`.
-        scale: as :func:`resample_jitter_clip`.
-        bins: as :func:`resample_jitter_clip`.
-        counts: as :func:`resample_jitter_clip`.
+        lo: (k,) float32 calibration grid origins, mm.
+        inv: (k,) float32 inverse grid steps, 1/mm.
+        n1: (k,) int64 cells per axis.
+        base: (k,) int64 first row of each env's coefficients in ``table``.
+        table: (rows, 8) float32 stacked bilinear coefficients (each env's last row: outside the grid).
+        reading: (k,) float32 readings, V.
+        u0: (k,) float64 resampling offsets U in [0, 1).
+        jitter_idx: (k, 2·M) uint16 indices into ``normal_table`` (x, y of particle j at 2j, 2j + 1).
+        normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.draws.normal_table`).
+        half: (k,) float32 half-width H of the box, mm.
+        out: (k, 2, M) float32 new particles.
+        mean: (k, 2) float64 output: the new clouds' means, mm.
+        cov: (k, 2, 2) float64 output: their covariances, mm².
+        scale: (k,) float32 histogram widths 2·H, mm.
+        bins: histogram cells per axis.
+        counts: (k, bins²) float64 output: the histogram counts.
 
     ``out`` may be ``src`` (an update in place: each cloud is first copied to a scratch buffer, and
     the new cloud is written over the old one, whose cache lines the update has just read).
@@ -231,7 +203,7 @@ def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, 
 def loglik_assimilate(ll, src, origin, u0, jitter_idx, normal_table, half, out,  # pragma: no cover - compiled
                       mean, cov, scale, bins, counts):
     """One measurement update of k clouds from their float32 log-likelihoods ``ll`` (k, M): the shifted
-    ``exp32`` weights and their fixed-order total, then :func:`resample_jitter_clip`'s resampling,
+    ``exp32`` weights and their fixed-order total, then ``_resample_one``'s resampling,
     jitter, clip, statistics and histogram, one env at a time in cache.
 
     Arguments as :func:`calibrated_assimilate` (``origin`` is only the histogram's centre here);

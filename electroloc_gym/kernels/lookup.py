@@ -2,8 +2,8 @@
 
 The calibration's statistics (:func:`calibration_tables`) and per-cell coefficients
 (:func:`bilinear_coefficients`) are built by :mod:`electroloc_gym.sensor_models.calibrated`; the
-simulation core evaluates the log-likelihood of every particle with :func:`calibrated_log_likelihood`
-or, fused with the filter update, :func:`electroloc_gym.kernels.filter.calibrated_assimilate`.
+simulation core evaluates the log-likelihood of every particle inside the filter update
+(:func:`electroloc_gym.kernels.filter.calibrated_assimilate`, one env at a time: ``_calibrated_ll_one``).
 """
 
 from __future__ import annotations
@@ -13,21 +13,38 @@ from numba import njit
 
 from electroloc_gym.kernels.mathf32 import JIT, log32
 
-__all__ = ["calibrated_log_likelihood", "calibration_tables", "bilinear_coefficients"]
+__all__ = ["calibration_tables", "bilinear_coefficients"]
 
 _F32_HALF_NEG = np.float32(-0.5)
 _ZERO = np.float32(0.0)
-_ONE = np.float32(1.0)
 
 
 @njit(**JIT)
 def _calibrated_ll_one(px, py, ox0, oy0, sign, lo, inv, n1, base, table, reading, ll, sd, rows,  # pragma: no cover
                        txs, tys):
-    """One env's calibrated log-likelihoods into ``ll`` (M,) float32 (see :func:`calibrated_log_likelihood`)
-    at the offsets ``sign·(p − o)`` of the particles ``px``, ``py`` (M,) from the origin (ox0, oy0),
-    all float32 (sign ±1: exact).
+    """One env's calibrated log-likelihoods into ``ll`` (M,) float32 at the offsets ``off = sign·(p − o)``
+    of the particles ``px``, ``py`` (M,) from the origin (ox0, oy0), all float32 (sign ±1: exact).
 
-    ``sd`` (M,) float32, ``rows`` (M,) int32, ``txs``/``tys`` (M,) float32 are scratch.
+    Stands for ``CalibratedSensorModel.log_likelihood`` (``mean_std``, then ``gaussian_log_likelihood``)
+    in float32, per particle::
+
+        fx = (off_x − lo) · inv;  fy = (off_y − lo) · inv
+        inside = (fx ≥ 0) & (fx ≤ n1) & (fy ≥ 0) & (fy ≤ n1)
+        ix = min(int(fx), n1 − 1);  iy = min(int(fy), n1 − 1);  tx = fx − ix;  ty = fy − iy
+        c = table[base + (ix·n1 + iy if inside else n1²)]              # 8 float32 coefficients
+        mean = c0 + c1·tx + c2·ty + c3·tx·ty;  std = c4 + c5·tx + c6·ty + c7·tx·ty
+        z = (reading − mean) / std;  ll = −0.5·z·z − log32(std)       # up to the constant −½ log 2π
+
+    Three passes, so that the two without the table gather vectorise: the cell index and (tx, ty) of
+    every particle; the gather and the two bilinear sums; the Gaussian term. ``fx`` is clamped to
+    [−1, n1 + 1] before the integer conversion (the conversion is then in range; ``ix`` is the same
+    wherever the particle is inside, and outside the coefficients of ``tx``, ``ty`` are 0, so any
+    finite value gives the same result).
+
+    Arguments: ``lo`` float32 grid origin, mm; ``inv`` float32 inverse grid step, 1/mm; ``n1`` cells
+    per axis; ``base`` the first row of this env's coefficients in ``table`` ((rows, 8) float32, the
+    env's last row: outside the grid); ``reading`` float32, V; ``sd``, ``rows``, ``txs``, ``tys``
+    (M,) scratch (float32, int32, float32, float32).
     """
     m = px.shape[0]
     n1i = np.int32(n1)
@@ -62,47 +79,6 @@ def _calibrated_ll_one(px, py, ox0, oy0, sign, lo, inv, n1, base, table, reading
     for i in range(m):
         z = (reading - ll[i]) / sd[i]
         ll[i] = (_F32_HALF_NEG * z) * z - log32(sd[i])
-
-
-@njit(**JIT)
-def calibrated_log_likelihood(off, lo, inv, n1, base, table, reading, ll):  # pragma: no cover - compiled
-    """The calibrated sensor model's log-likelihoods for k envs at once (bilinear lookup, Gaussian term).
-
-    Stands for ``CalibratedSensorModel.log_likelihood`` (``mean_std``, then
-    ``gaussian_log_likelihood``) in float32 (per env ``e``, particle ``i``)::
-
-        fx = (off_x − lo) · inv;  fy = (off_y − lo) · inv     # off = particle − position.astype(float32)
-        inside = (fx ≥ 0) & (fx ≤ n1) & (fy ≥ 0) & (fy ≤ n1)
-        ix = min(int(fx), n1 − 1);  iy = min(int(fy), n1 − 1);  tx = fx − ix;  ty = fy − iy
-        c = coef[ix·n1 + iy if inside else n1²]                       # 8 float32 coefficients
-        mean = c0 + c1·tx + c2·ty + c3·tx·ty;  std = c4 + c5·tx + c6·ty + c7·tx·ty
-        z = (float32(reading) − mean) / std;  ll = −0.5·z·z − log32(std)
-
-    Three passes per env, so that the two without the table gather vectorise: the cell index and
-    (tx, ty) of every particle; the gather and the two bilinear sums; the Gaussian term. ``fx`` is
-    clamped to [−1, n1 + 1] before the integer conversion (the conversion is then in range; ``ix`` is
-    the same wherever the particle is inside, and outside the coefficients of ``tx``, ``ty`` are 0,
-    so any finite value gives the same result).
-
-    Args:
-        off: (k, 2, M) float32 sensor-model offsets (target hypothesis − carriage), coordinate-major
-            and C-contiguous (so that the first pass vectorises), mm.
-        lo: (k,) float32 grid origin, mm.
-        inv: (k,) float32 inverse grid step, 1/mm.
-        n1: (k,) int64 cells per axis.
-        base: (k,) int64 first row of each env's coefficients in ``table``.
-        table: (rows, 8) float32 stacked coefficients (each env's last row: outside the grid).
-        reading: (k,) float32 readings, V.
-        ll: (k, M) float32 output, log-likelihoods up to the constant −½ log 2π.
-    """
-    k, _, m = off.shape
-    sd = np.empty(m, dtype=np.float32)
-    rows = np.empty(m, dtype=np.int32)
-    txs = np.empty(m, dtype=np.float32)
-    tys = np.empty(m, dtype=np.float32)
-    for e in range(k):
-        _calibrated_ll_one(off[e, 0], off[e, 1], _ZERO, _ZERO, _ONE, lo[e], inv[e], n1[e], base[e], table,
-                           reading[e], ll[e], sd, rows, txs, tys)
 
 
 @njit(**JIT)
