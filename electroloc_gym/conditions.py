@@ -51,7 +51,8 @@ SALT_WATER_uScm = 56_000.0
 
 def _check_finite(name: str, value: float, *, low: float | None = None, high: float | None = None,
                   low_inclusive: bool = False) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not number or not math.isfinite(value):
         raise ValueError(f"{name} must be a finite number, got {value!r}")
     if low is not None and (value < low or (value == low and not low_inclusive)):
         op = "≥" if low_inclusive else ">"
@@ -59,6 +60,12 @@ def _check_finite(name: str, value: float, *, low: float | None = None, high: fl
         raise ValueError(f"{name} must be {rng}, got {value!r}")
     if high is not None and value > high:
         raise ValueError(f"{name} must be ≤ {high}, got {value!r}")
+
+
+def _as_floats(obj: Any, *names: str) -> None:
+    """Store the (checked) numeric fields ``names`` of a frozen dataclass as Python floats (numpy scalars in)."""
+    for n in names:
+        object.__setattr__(obj, n, float(getattr(obj, n)))
 
 
 def _from_dict(cls: type, data: Mapping[str, Any]) -> Any:
@@ -86,6 +93,7 @@ class Target:
     def __post_init__(self) -> None:
         _check_finite("radius_mm", self.radius_mm, low=0.0)
         _check_finite("conductivity_uScm", self.conductivity_uScm, low=0.0, low_inclusive=True)
+        _as_floats(self, "radius_mm", "conductivity_uScm")
 
     @classmethod
     def sphere(cls, diameter_mm: float, material: str) -> Target:
@@ -110,6 +118,7 @@ class Water:
 
     def __post_init__(self) -> None:
         _check_finite("water conductivity_uScm", self.conductivity_uScm, low=0.0)
+        _as_floats(self, "conductivity_uScm")
 
 
 @dataclass(frozen=True)
@@ -130,6 +139,7 @@ class Amplifier:
         _check_finite("gain", self.gain, low=0.0)
         _check_finite("noise_rms_mV", self.noise_rms_mV, low=0.0)
         _check_finite("saturation_V", self.saturation_V, low=0.0)
+        _as_floats(self, "gain", "noise_rms_mV", "saturation_V")
 
     @property
     def noise_std_V(self) -> float:
@@ -158,6 +168,7 @@ class Geometry:
         _check_finite("electrode_radius_mm", self.electrode_radius_mm, low=0.0)
         _check_finite("emitter_voltage_V", self.emitter_voltage_V, low=0.0)
         _check_finite("clearance_mm", self.clearance_mm, low=0.0, low_inclusive=True)
+        _as_floats(self, "spacing_mm", "electrode_radius_mm", "emitter_voltage_V", "clearance_mm")
 
 
 @dataclass(frozen=True)
@@ -199,6 +210,7 @@ class Condition:
             _check_finite("target_xy_mm", v, low=-self.allowed_half_width_mm, high=self.allowed_half_width_mm,
                           low_inclusive=True)
         object.__setattr__(self, "target_xy_mm", (float(self.target_xy_mm[0]), float(self.target_xy_mm[1])))
+        _as_floats(self, "start_half_width_mm", "allowed_half_width_mm", "signal_scale")
 
     # ---- derived values -------------------------------------------------------------------
     @functools.cached_property

@@ -347,3 +347,17 @@ def test_stepping_an_ended_episode_raises_call_reset(kwargs) -> None:
         env.step(np.zeros(2, np.float32))
     env.reset()
     env.step(np.zeros(2, np.float32))
+
+
+def test_numpy_floats_in_a_custom_condition_are_stored_as_floats() -> None:
+    target = Target(radius_mm=np.float32(6.35), conductivity_uScm=np.float64(1e10))
+    assert isinstance(target.radius_mm, float) and target.radius_mm == float(np.float32(6.35))
+    cond = Condition(name="np", target=target, water=Water(np.float32(160.0)),
+                     amplifier=Amplifier(gain=np.int64(191), noise_rms_mV=np.float32(0.25)),
+                     allowed_half_width_mm=np.float32(50.0), start_half_width_mm=np.float32(40.0))
+    values = (cond.allowed_half_width_mm, cond.amplifier.gain, cond.water.conductivity_uScm)
+    assert all(isinstance(v, float) for v in values)
+    env = ElectroLocEnv(condition=cond, n_particles=100)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="radius_mm"):
+        Target(radius_mm=np.bool_(True), conductivity_uScm=1.0)
