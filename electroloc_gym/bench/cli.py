@@ -55,9 +55,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sensor-model", default="calibrated", choices=list(SENSOR_MODELS),
                         help="the particle filter's sensor model (paper: calibrated)")
     parser.add_argument("--signal", default=DEFAULT_SIGNAL, choices=list(SIGNALS),
-                        help="signal scale of the presets: coverage (matching §6.3's 78%% of starts inside the "
-                             "detection region), fitted to Table 3's measured detection distances, or the paper's "
-                             "equations (scale 1)")
+                        help="signal scale of the presets: fitted to Table 3's measured detection distances, "
+                             "coverage (fitted × one factor matching §6.3's 78%% of starts inside the detection "
+                             "region), or the paper's equations (scale 1); docs/fidelity.md compares them")
     parser.add_argument("--max-observations", type=int, default=35, help="observation cap of a trial (paper: 35)")
     parser.add_argument("--n-particles", type=int, default=2500, help="particles of the belief (paper: 2500)")
     parser.add_argument("--out", default="bench_out", help="output folder (locked while the run writes to it)")

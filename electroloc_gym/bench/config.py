@@ -57,8 +57,8 @@ class BenchConfig:
         seed: root seed of the trial seeds.
         sensor_model: the filter's sensor model, "calibrated" (the paper's) or "analytic".
         signal: the presets' signal scale (:data:`electroloc_gym.conditions.DEFAULT_SIGNAL` by default):
-            "coverage" (fitted × one factor matching the paper's §6.3 start coverage), "fitted" (fitted to
-            Table 3's measured detection distances) or "paper" (scale 1); see conditions.get_condition.
+            "fitted" (fitted to Table 3's measured detection distances), "coverage" (fitted × one factor
+            matching the paper's §6.3 start coverage) or "paper" (scale 1); see conditions.get_condition.
         max_observations: observation cap of a trial (paper: 35).
         n_particles: particles of the belief (paper: 2500).
         env_id: the environment id.
