@@ -2,11 +2,11 @@
 
 Normal draws from a quantile table: each N(0, 1) value is one of 65536 equiprobable standard-normal
 quantiles (:func:`normal_table`) picked by 16 random bits taken straight from the generator's bit
-stream (:func:`table_normal_indices`; the filter's kernels and the calibration look the values up).
-Measured here, numpy's ziggurat takes ≈10–20 ns per value (≈52 µs for the 5000 float32 jitter values
-of a filter step, ≈100 µs for the ≈8000 readings of a calibration), the table ≈1–2 ns. The table is
-rescaled to unit variance; its tails stop at ±4.3σ (probability 1.5·10⁻⁵), which neither a
-roughening kernel nor the noise of a 10-sample calibration average needs.
+stream (:func:`table_normal_indices`; the filter's kernels and the calibration look the values up):
+an order of magnitude cheaper per value than numpy's ziggurat, for the 5000 jitter values of every
+filter step and the thousands of readings of every calibration. The table is rescaled to unit
+variance; its tails stop at ±4.3σ (probability 1.5·10⁻⁵), which neither a roughening kernel nor the
+noise of a 10-sample calibration average needs.
 """
 
 from __future__ import annotations
@@ -43,9 +43,9 @@ def table_normal_indices(rng: np.random.Generator, n: int) -> NDArray[np.uint16]
 
 def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int,
                    out_xy: tuple[NDArray, NDArray] | None = None) -> NDArray[np.float64] | None:
-    """``rng.uniform(low, high, size=(n, 2))`` bit for bit, ≈10× faster.
+    """``rng.uniform(low, high, size=(n, 2))`` bit for bit, without numpy's slow broadcasting.
 
-    With array bounds numpy's ``uniform`` takes its broadcasting path (≈23 ns per draw here); it
+    With array bounds numpy's ``uniform`` takes its broadcasting path; it
     computes ``low + (high − low) · U`` with ``U = rng.random()``, which is what this does in bulk
     (:func:`electroloc_gym.kernels.box_affine`). Returns the (n, 2) float64 points, or, with
     ``out_xy`` (two (n,) arrays of any float dtype), writes x and y there (cast on store, as

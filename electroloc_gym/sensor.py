@@ -52,8 +52,8 @@ def add_calibration_noise(condition: Condition, mean_V: NDArray[np.float64],
                           rng: np.random.Generator) -> NDArray[np.float64]:
     """Calibration readings from their noise-free, unsaturated values ``mean_V`` (V): add
     N(0, (G·σ_s)²) noise and saturate, the noise from the normal quantile table
-    (:mod:`electroloc_gym.draws`, ≈10× faster than ``rng.normal`` for the
-    ≈8000 readings of a calibration; a new calibration per episode is the default).
+    (:mod:`electroloc_gym.draws`, far cheaper than ``rng.normal`` for the thousands of readings of a
+    calibration; a new calibration per episode is the default).
     """
     mean = np.ascontiguousarray(mean_V, dtype=np.float64).reshape(-1)
     out = np.empty_like(mean)

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym._kernels import bilinear_coefficients, calibration_tables
 from electroloc_gym.conditions import Condition
+from electroloc_gym.kernels import bilinear_coefficients, calibration_tables
 from electroloc_gym.sensor import add_calibration_noise, expected_reading
 from electroloc_gym.sensor_models.analytic import AnalyticSensorModel
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood

@@ -11,8 +11,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym._kernels import log_f32
 from electroloc_gym.conditions import Condition
+from electroloc_gym.kernels import log_f32
 
 __all__ = ["SensorModel", "gaussian_log_likelihood"]
 
@@ -21,7 +21,7 @@ def gaussian_log_likelihood(reading_V: ArrayLike, mean_V: NDArray, std_V: ArrayL
     """Log N(reading; mean, std²) up to the constant −½ log 2π (broadcasting).
 
     With a scalar std the −log σ term is the same for every particle and is dropped. A float32 std
-    array's log is the compiled :func:`electroloc_gym._kernels.log32` (within 1 ulp), the one the
+    array's log is the compiled :func:`electroloc_gym.kernels.log32` (within 1 ulp), the one the
     native vector env uses, so that both envs compute the same bits on every CPU.
     """
     z = (np.asarray(reading_V, dtype=mean_V.dtype) - mean_V) / std_V
