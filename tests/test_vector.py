@@ -347,3 +347,21 @@ def test_global_native_equals_sync_of_single_envs(kwargs: dict[str, Any], mode: 
         _info_equal(i1, i2, f"step {t}")
         ended += int((te1 | tr1).sum())
     assert ended >= 2
+
+
+@pytest.mark.parametrize("kwargs", [{"n_particles": 257}, {"n_particles": 257, "sensor_model": "analytic",
+                                                              "condition": "random"}])
+def test_sub_env_values_do_not_depend_on_the_batch_size(kwargs: dict[str, Any]) -> None:
+    """Sub-env i of N = 1, 3 and 17 native envs seeded alike: the same bits (SIMD body vs tail of every array)."""
+    envs = {n: _native(n, **kwargs) for n in (1, 3, 17)}
+    obs = {n: e.reset(seed=40)[0] for n, e in envs.items()}
+    assert np.array_equal(obs[3][0], obs[1][0]) and np.array_equal(obs[17][:3], obs[3])
+    rng = np.random.default_rng(2)
+    for _ in range(25):
+        a = rng.uniform(-1, 1, (17, 2)).astype(np.float32)
+        out = {n: e.step(a[:n]) for n, e in envs.items()}
+        for n_small, n_big in ((1, 3), (3, 17)):
+            small, big = out[n_small], out[n_big]
+            assert np.array_equal(big[0][:n_small], small[0])
+            assert np.array_equal(big[4]["reading_V"][:n_small], small[4]["reading_V"])
+            assert np.array_equal(big[4]["estimate_mm"][:n_small], small[4]["estimate_mm"])
