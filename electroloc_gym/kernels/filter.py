@@ -37,7 +37,7 @@ def _resample_one(w, t, u, src_x, src_y, jitter_idx, normal_table, h, out_x, out
         cum = np.cumsum(w); cum /= cum[-1]                          # systematic_resample
         u = (U + np.arange(M)) / M
         idx = np.minimum(np.searchsorted(cum, u, side="right"), M − 1)
-        jitter = normal_table[jitter_idx].reshape(M, 2)             # draws.table_standard_normal
+        jitter = normal_table[jitter_idx].reshape(M, 2)             # the quantile-table draws (draws.py)
         p = particles[idx] + jitter                                 # resample, jitter (std 1 mm)
         p = np.minimum(np.maximum(p, −H), H)                        # the clip to the box
 
