@@ -29,8 +29,8 @@ class GlobalLocalizationEnv(CoreEnv):
     *not* know where it is: the particle belief (2500 particles, uniform over the tank box at start)
     is over the carriage's own position in the map frame. Every commanded move shifts all particles
     by the move (deterministic motion, :meth:`electroloc_gym.core.tasks.MapTask.move`: clipped at the
-    walls exactly as the true carriage is); every reading reweights them with the map's sensor model. The agent moves the
-    carriage until the belief is tight: √trace Σ ≤ 10 mm. The filter, sensor-model machinery, action
+    walls exactly as the true carriage is); every reading reweights them with the map's sensor model.
+    The agent moves the carriage until the belief is tight: √trace Σ ≤ 10 mm. The filter, sensor-model machinery, action
     space, success rule, observation cap and observation layout are those of ``ElectroLoc-v0`` (the
     same simulation core, :mod:`electroloc_gym.core`): the hidden state differs, the machinery does not.
 
