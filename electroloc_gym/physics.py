@@ -3,14 +3,9 @@
 Units: lengths in millimetres (mm), potentials in volts (V), fields in V/mm, conductivities in
 µS/cm. Every function is vectorised over arbitrary leading shapes.
 
-Numerical form: the array expressions use only IEEE-exact operations (+ − × ÷ and √, each correctly
-rounded), never ``pow``: ``r**-1.5`` is written ``1/(r·√r)``; the hot one (the two-sensor difference
-of a dipole, evaluated on every particle by the analytic models and on every carriage by the true
-reading) is one compiled elementwise pass (numba, no ``fastmath``, so no reassociation or FMA).
-numpy evaluates ``pow`` through CPU-specific SIMD code whose last bit differs between CPUs and
-between an array's SIMD body and its tail, so a reading would depend on the machine and on how many
-envs are stepped together; with exact operations every element gets the same bits however it is
-batched (docs/design.md).
+Numerical form: array expressions use only IEEE-exact operations (+ − × ÷, √), never ``pow``
+(``r**-1.5`` is ``1/(r·√r)``), so every element gets the same bits on every CPU however it is batched;
+the hot two-sensor dipole difference is one compiled elementwise pass (docs/design.md).
 
 Geometry (paper §2.2, §6.7, Appendix A): the carriage carries two emitters at
 ``p + (±L/2, 0, 0)`` and two sensing electrodes ``S1 = p + (0, +L/2, 0)``,
@@ -26,16 +21,8 @@ Model (paper Eq. 4 and Eq. 7):
 * The robot reads the amplified difference ``G·(δV(S1) - δV(S2))``; the unperturbed potentials at
   S1 and S2 are equal (both lie on the emitters' mid-plane), so only the perturbation is seen.
 
-Known discrepancy with the paper's Table 3 (theoretical column). Following §6.7 with A = diameter/2,
-target centre at -(A + 3 mm), V_e = 2 V, 2σ threshold and the 3-D distance from the carriage centre
-to the target centre along the 45° direction, the four 12.7 mm rows come out within ≈1 mm of the
-paper (33.3, 30.2, 33.5, 27.6 mm vs 32.7, 29.5, 32.9, 26.6 mm). The four 38.1 mm rows (paper 43.2,
-39.3, 46.5, 45.3 mm) are *not* reproduced by these equations under any depth / amplitude reading we
-tried: the model gives ≈30–38 mm, and the paper's values lie close to the zero-crossing singularity
-of the EEV on the 45° line, where the detection distance jumps discontinuously with noise. A likely
-cause is that the uniform-field dipole approximation of Eq. 4 breaks down for a sphere whose
-diameter (38.1 mm) is comparable to the emitter spacing (50 mm) and whose surface passes 2 mm under
-the electrodes. We report both numbers side by side (``electroloc detect``) instead of fudging them.
+Table 3's theoretical detection distances: the four 12.7 mm rows are reproduced within ≈1 mm, the
+four 38.1 mm rows are not (docs/design.md, "Physics", says why); ``electroloc detect`` shows both.
 """
 
 from __future__ import annotations
