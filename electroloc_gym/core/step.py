@@ -121,7 +121,7 @@ class Simulation:
         n = self.num_envs
         if self.params.action_type == "discrete":
             a = np.asarray(actions)
-            ok = a.shape == (() if single else (n,)) and np.issubdtype(a.dtype, np.integer)
+            ok = (a.size == 1 if single else a.shape == (n,)) and np.issubdtype(a.dtype, np.integer)
             if not (ok and np.all((a >= 0) & (a < len(DISCRETE_MOVES_MM)))):
                 what = "action must be an integer" if single else f"actions must be {n} integers"
                 raise ValueError(f"{what} in [0, {len(DISCRETE_MOVES_MM) - 1}], got {actions!r}")
