@@ -142,6 +142,16 @@ class _Task:
         """(k, 2) float32: the offsets' origin and the histogram's centre (the carriage here)."""
         return state.position_mm[ids].astype(np.float32)
 
+    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """Sensor-model offsets (…, M, 2) of env ``i``'s hypotheses ``particles`` (M, 2) after commanded
+        moves (2,) or (C, 2), mm, by the env's own motion rule (what an agent predicts, paper Algorithm 1).
+        """
+        raise NotImplementedError
+
+    def particles_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """Env ``i``'s hypotheses (…, M, 2) after commanded moves (2,) or (C, 2), mm."""
+        raise NotImplementedError
+
 
 class TargetTask(_Task):
     """ElectroLoc-v0: a target sphere (or a pool of conditions) whose position the particles estimate."""
@@ -207,6 +217,16 @@ class TargetTask(_Task):
         """(k, 2) what the belief estimates: the target centre, mm."""
         return state.target_mm[ids]
 
+    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """Target hypothesis − the carriage after the move (kept in the box, as :meth:`move`)."""
+        h = state.half_mm[i]
+        carriage = np.minimum(np.maximum(state.position_mm[i] + moves_mm, -h), h).astype(particles.dtype)
+        return particles - carriage[..., None, :]
+
+    def particles_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """The target does not move: the hypotheses unchanged, once per move."""
+        return np.broadcast_to(particles, moves_mm.shape[:-1] + particles.shape).copy()
+
     def sensor_model(self, state: State, i: int) -> Any:
         """Env ``i``'s sensor model object for the agent (the calibrated one built on first use)."""
         if state.model[i] is None:
@@ -269,12 +289,17 @@ class MapTask(_Task):
         """
         super().move(state, ids, moves_mm)
         state.odometry_mm[ids] = state.odometry_mm[ids] + moves_mm
-        p = state.particles_mm[ids]
-        p += moves_mm.astype(np.float32)[:, :, None]
         h = state.half_mm[ids].astype(np.float32)[:, None, None]
-        np.maximum(p, -h, out=p)
-        np.minimum(p, h, out=p)
-        state.particles_mm[ids] = p
+        state.particles_mm[ids] = _shift_in_box(state.particles_mm[ids], moves_mm.astype(np.float32)[:, :, None], h)
+
+    def particles_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """Every position hypothesis moved by the commanded move and kept in the box (as :meth:`move`)."""
+        t = particles.dtype.type
+        return _shift_in_box(particles, moves_mm.astype(particles.dtype)[..., None, :], t(state.half_mm[i]))
+
+    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """Map origin − carriage hypothesis after the move."""
+        return -self.particles_after_move(state, i, particles, moves_mm)
 
     def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
         """(k,) noise-free, unsaturated true readings of envs ``ids`` (the map's superposition), V."""
@@ -298,6 +323,11 @@ class MapTask(_Task):
     def sensor_model(self, state: State, i: int) -> Any:
         """Env ``i``'s map sensor model (built at reset)."""
         return state.model[i]
+
+
+def _shift_in_box(points: NDArray, shift: NDArray, half: Any) -> NDArray:
+    """``min(max(points + shift, −half), half)``: the deterministic motion of position hypotheses."""
+    return np.minimum(np.maximum(points + shift, -half), half)
 
 
 def make_task(params: EnvParams) -> TargetTask | MapTask:

@@ -151,7 +151,7 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
             moves_mm: (2,) or (C, 2) commanded moves, mm (clipped to ±``MAX_STEP_MM`` like ``step``).
         """
         p, u = self._check_prediction_args(particles_mm, moves_mm)
-        return self._particles_after_move(p, u)
+        return self._task.particles_after_move(self._state, 0, p, u)
 
     def predicted_reading_model(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
         """Sensor-model mean and std (V) of the reading each hypothesis predicts after a commanded move
@@ -166,7 +166,7 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
             ``(mean_V, std_V)``, each (M,) for a (2,) move and (C, M) for (C, 2) moves.
         """
         p, u = self._check_prediction_args(particles_mm, moves_mm)
-        return self.sensor_model.mean_std(self._offsets_after_move(p, u))
+        return self.sensor_model.mean_std(self._task.offsets_after_move(self._state, 0, p, u))
 
     def _check_prediction_args(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
         if not self._state.started:
@@ -182,12 +182,6 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
         if not np.all(np.isfinite(u)):
             raise ValueError("moves_mm must be finite")
         return p, np.clip(u, -MAX_STEP_MM, MAX_STEP_MM)
-
-    def _particles_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
-        raise NotImplementedError
-
-    def _offsets_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
-        raise NotImplementedError
 
     # ---- gymnasium API ------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None

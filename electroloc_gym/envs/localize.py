@@ -154,14 +154,6 @@ class ElectroLocEnv(CoreEnv):
         hi = np.maximum(np.minimum(MAX_STEP_MM, high - p), 0.0)
         return lo, hi
 
-    def _particles_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
-        return np.broadcast_to(particles, moves.shape[:-1] + particles.shape).copy()  # the target does not move
-
-    def _offsets_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
-        low, high = self.allowed_box_mm
-        carriage = np.clip(self._state.position_mm[0] + moves, low, high).astype(particles.dtype)  # (..., 2)
-        return particles - carriage[..., None, :]
-
     def _make_renderer(self) -> Any:
         from electroloc_gym.render import EpisodeRenderer
 

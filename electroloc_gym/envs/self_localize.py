@@ -170,14 +170,6 @@ class GlobalLocalizationEnv(CoreEnv):
         """(−10, −10), (10, 10) mm: the robot does not know where it is, hence not where the walls are."""
         return np.full(2, -MAX_STEP_MM), np.full(2, MAX_STEP_MM)
 
-    def _particles_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
-        low, high = self.allowed_box_mm
-        moved = particles + moves.astype(particles.dtype)[..., None, :]
-        return np.clip(moved, low.astype(particles.dtype), high.astype(particles.dtype))
-
-    def _offsets_after_move(self, particles: NDArray, moves: NDArray) -> NDArray:
-        return -self._particles_after_move(particles, moves)  # offsets = map origin − carriage hypothesis
-
     def _make_renderer(self) -> Any:
         from electroloc_gym.render import GlobalEpisodeRenderer
 
