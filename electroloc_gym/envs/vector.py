@@ -124,6 +124,8 @@ class CoreVectorEnv(VectorEnv):
     @property
     def conditions(self) -> tuple[Condition, ...]:
         """Each sub-env's current condition."""
+        if not self._state.started:
+            raise RuntimeError("call reset() first")
         return tuple(w if isinstance(w, Condition) else w.as_condition() for w in self._state.world)
 
     @property
