@@ -126,9 +126,8 @@ def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", see
         ax.text(*o.xy_mm, str(i), fontsize=9, fontweight="bold", ha="center", va="center", color=color,
                 bbox=dict(boxstyle="circle,pad=0.15", fc="white", ec=color, lw=0.8, alpha=0.9))
         material = _MATERIAL_LABELS.get(o.material, o.material)
-        where = f"({o.xy_mm[0]:.0f}, {o.xy_mm[1]:.0f})"
         handles.append(Line2D([], [], marker=f"${i}$", color=color, ms=7, ls="none",
-                              label=f"{material} {o.shape} Ø{o.diameter_mm:g} mm at {where}"))
+                              label=f"{material} {o.shape} Ø{o.diameter_mm:g} mm"))
     ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=9, mew=1.8)
     ax.set_xlim(grid[0], grid[-1])
     ax.set_ylim(grid[0], grid[-1])
@@ -137,8 +136,8 @@ def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", see
     ax.set_ylabel("carriage y (mm, map frame)")
     ax.set_title(f"map EEV '{scene.name}' ({sensor_model} model)", fontsize=10)
     ax.figure.colorbar(im, ax=ax, label="expected reading Φ (V)", shrink=0.8)
-    handles += [Line2D([], [], color=_CONDUCTOR, lw=1.6, label="conductor (outline: true size)"),
-                Line2D([], [], color=_INSULATOR, lw=1.6, label="insulator (outline: true size)"),
+    handles += [Line2D([], [], color=_CONDUCTOR, lw=1.6, label="conductor (true size)"),
+                Line2D([], [], color=_INSULATOR, lw=1.6, label="insulator (true size)"),
                 Line2D([], [], marker="o", mfc="none", mec="tab:red", mew=1.8, ls="none", label="map origin (0, 0)"),
                 Line2D([], [], color="tab:blue", lw=0.6, ls=":", label="1 V contours")]
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=3, fontsize=7,
