@@ -3,7 +3,7 @@ r"""Every number the paper reports beside the simulation's, as the markdown tabl
 Physics-only rows (Table 3 detection distances, start coverage, Fig. 5 slopes) are computed here;
 controller rows (Tables 4, 1, 2, Fig. 12) are read from finished ``electroloc bench`` folders::
 
-    python benchmarks/fidelity_report.py --bench results/bench --fitted results/bench-fitted \\
+    python benchmarks/fidelity_report.py --bench results/bench --other results/bench-coverage \\
         --expected results/bench-expected --global results/bench-global > /tmp/fidelity_tables.md
 
 Success counts carry the paper's 90 % binomial interval (Wilson; about ±4 of 50) and ✓/✗ for
@@ -116,7 +116,7 @@ def table4(rows: list[dict[str, Any]], label: str) -> list[str]:
             else:
                 cell, p_s, p_steps, p_err = f"{r['successes']}", "", "", ""
             out.append(f"| {'All conditions' if n == 'all' else n} | {r.get('label', r['agent'])} | {cell} | {p_s} "
-                       f"| {r['steps_median']:g} | {p_steps} | {r['error_median_mm']:.1f} | {p_err} |")
+                       f"| {r['steps_median']:.3g} | {p_steps} | {r['error_median_mm']:.1f} | {p_err} |")
     return out
 
 
@@ -131,7 +131,7 @@ def fig12(rows: list[dict[str, Any]]) -> list[str]:
             f"| conditions where min-var needs fewer median steps | 8 of 8 | {fewer_steps} of 8 |",
             f"| conditions where min-var fails no more often | 8 of 8 | {fewer_fail} of 8 |",
             f"| min-var / rnd-wlk, mean of the 8 median steps | 6.7 / 12.4 = 0.54 | "
-            f"{a['steps_median'] if a else float('nan'):g} / {b['steps_median'] if b else float('nan'):g} "
+            f"{a['steps_median'] if a else float('nan'):.3g} / {b['steps_median'] if b else float('nan'):.3g} "
             f"= {ratio:.2f} |",
             f"| failures min-var / rnd-wlk | 19 / 113 "
             f"| {a['failures'] if a else '–'} / {b['failures'] if b else '–'} |"]
@@ -184,7 +184,7 @@ def table2(rows: list[dict[str, Any]]) -> list[str]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bench", default="results/bench", help="the default main-job run")
-    ap.add_argument("--fitted", default=None, help="the same agents with --signal fitted")
+    ap.add_argument("--other", nargs="*", default=[], help="runs with other settings (e.g. --signal coverage)")
     ap.add_argument("--expected", default=None, help="min-var[vote=expected] with the default settings")
     ap.add_argument("--global", dest="global_", default=None, help="an --env global run")
     args = ap.parse_args()
@@ -193,12 +193,18 @@ def main() -> None:
         ("Start coverage: share of the start box inside the 2σ detection region (§6.3)", coverage()),
         ("Fig. 5: slopes of log r_d against log n", fig5_slopes()),
     ]
-    for folder, label in ((args.bench, "default simulation"), (args.fitted, "fitted signal"),
-                          (args.expected, "min-var with the expected-variance vote")):
+    runs = [(args.bench, "default simulation"), (args.expected, "min-var with the expected-variance vote")]
+    runs += [(folder, "other settings") for folder in args.other]
+    for folder, label in runs:
         loaded = _load(folder)
         if loaded is None:
             continue
         rows, records, cfg = loaded
+        if folder == args.expected:  # only what the default run does not already show
+            rows = [r for r in rows if "vote=" in r["agent"]]
+            records = [r for r in records if "vote=" in r["agent"]]
+        if label == "other settings":
+            label = f"signal `{cfg.get('signal')}`"
         sections.append((f"Table 4, {label} (`{folder}`, seed {cfg.get('seed')}, {cfg.get('trials')} trials)",
                          table4(rows, f"signal `{cfg.get('signal')}`")))
         if any(r["agent"] == "min-var" for r in rows) and any(r["agent"] == "rnd-wlk" for r in rows):

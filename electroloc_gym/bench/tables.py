@@ -59,7 +59,7 @@ PAPER_TABLE2: dict[str, tuple[int, int, float, float, float, float]] = {
 }
 
 _WATER = {"fresh": "Fresh", "salt": "Salt"}
-_MATERIAL = {"steel": "S", "delrin": "P"}
+_MATERIAL = {"steel": "steel", "delrin": "Delrin"}
 
 
 def paper_agent_key(agent: str) -> str | None:
