@@ -130,7 +130,7 @@ def test_shipped_models_load_without_pickle_and_act_as_their_sb3_zip():
         np.testing.assert_array_equal(agent.policy.predict(x, deterministic=True)[0],
                                       model.predict(x, deterministic=True)[0])
         assert export.meta["provenance"]["timesteps"] == model.num_timesteps
-        assert export.meta["provenance"]["commands"][0].startswith("python -m train --algo ppo")
+        assert export.meta["provenance"]["commands"][0].startswith("python -m electroloc_gym.train --algo ppo")
 
 
 # -------------------------------------------------------------------------------------- refusals
