@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import textwrap
 from collections.abc import Sequence
+from fractions import Fraction
 from typing import Any
 
 from electroloc_gym.conditions import (
@@ -23,7 +25,7 @@ from electroloc_gym.conditions import (
     get_condition,
 )
 
-__all__ = ["main", "detection_table", "build_parser", "HelpFormatter"]
+__all__ = ["main", "detection_table", "quiet_tank_table", "parse_noise_factor", "build_parser", "HelpFormatter"]
 
 DESCRIPTION = ("Gymnasium environments of the active-electrolocation robot of Solberg, Lynch & MacIver (IJRR 2008): "
                "benchmark the paper's controllers and learned policies, train agents, and draw the paper's figures.")
@@ -61,7 +63,164 @@ def detection_table() -> list[dict[str, float | str]]:
     return rows
 
 
+#: §7: shielding the tank cuts the ambient noise by "more than a factor of 32".
+QUIET_TANK_FACTOR = 1.0 / 32.0
+
+
+def parse_noise_factor(text: str) -> float:
+    """``--noise-factor``: a positive finite number written as a fraction ("1/32") or a decimal ("0.03125")."""
+    try:
+        value = float(Fraction(text.strip()))
+    except (ValueError, ZeroDivisionError, OverflowError):
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"noise factor must be a positive finite number such as 1/32 or 0.03125, "
+                                         f"got {text!r}")
+    return value
+
+
+def zero_crossing_mm(condition: Any, r_max_mm: float = 400.0) -> float:
+    """3-D distance (mm) along the 45° line where the noise-free differential reading changes sign.
+
+    Inside it lies the near field (the 0 V contour of Fig. 4a / Fig. 9), beyond it the far field; near
+    it the signal vanishes, so the detection distance jumps across a gap as the noise falls (§2.3).
+    NaN if the reading keeps its sign out to ``r_max_mm``.
+    """
+    import numpy as np
+    from scipy.optimize import brentq
+
+    from electroloc_gym import physics
+
+    geo = condition.geometry
+    depth = condition.depth_mm
+
+    def signed(R: Any) -> Any:
+        h = np.sqrt(np.maximum(np.asarray(R, float) ** 2 - depth * depth, 0.0)) / np.sqrt(2.0)
+        return physics.differential_perturbation(
+            np.stack([h, h], axis=-1), condition.target.radius_mm, condition.chi, depth, spacing_mm=geo.spacing_mm,
+            emitter_voltage_V=geo.emitter_voltage_V, electrode_radius_mm=geo.electrode_radius_mm)
+
+    R = np.linspace(depth, r_max_mm, 4001)[1:]
+    v = signed(R)
+    flips = np.nonzero(np.sign(v[:-1]) * np.sign(v[1:]) < 0)[0]
+    if flips.size == 0:
+        return float("nan")
+    i = int(flips[0])
+    return float(brentq(lambda r: float(signed(r)), R[i], R[i + 1], xtol=1e-9))
+
+
+def quiet_tank_table(noise_factor: float = QUIET_TANK_FACTOR) -> list[dict[str, float | str]]:
+    """Detection distance (mm, 45° line, 2σ) at noise factor 1 and ``noise_factor`` for the eight presets.
+
+    Two signals: the paper's equations (scale 1 — §7 says it used the §6.7 technique of Table 3's
+    theory column) and the fitted scale of the default simulation. ``branch_*`` says whether the
+    distance lies inside ("near") or beyond ("far") the 45° line's zero crossing.
+    """
+    rows: list[dict[str, float | str]] = []
+    for name in PRESET_NAMES:
+        row: dict[str, float | str] = {"condition": name, "noise_factor": noise_factor}
+        for signal in ("paper", "fitted"):
+            base = get_condition(name, signal)
+            zero = zero_crossing_mm(base)
+            d1 = base.detection_distance_mm()
+            df = base.with_noise_factor(noise_factor).detection_distance_mm()
+            row["zero_crossing_mm"] = round(zero, 2)
+            row[f"{signal}_mm"] = round(d1, 2)
+            row[f"{signal}_quiet_mm"] = round(df, 2)
+            row[f"{signal}_ratio"] = round(df / d1, 3)
+            row[f"{signal}_branch"] = ("near" if d1 < zero else "far") + "→" + ("near" if df < zero else "far")
+        rows.append(row)
+    return rows
+
+
+def _quiet_tank_report(factor: float, as_json: bool) -> None:
+    rows = quiet_tank_table(factor)
+    k = 1.0 / factor
+    pred = {"far_eq5": k ** 0.2, "near_eq5": k ** 0.5, "far_layout": k ** (1 / 6)}
+    if as_json:
+        print(json.dumps({"noise_factor": factor, "paper_claim": "roughly doubled", "predicted_ratio": pred,
+                          "rows": rows}, indent=2))
+        return
+    print(f"Detection distance along the 45° line, 2σ threshold, mm: the paper's tank (noise factor 1) and a"
+          f" noise factor of {factor:g} (1/{k:g})")
+    hdr = (f"{'condition':<18} {'zero':>5} | {'paper eqs':>9} {'quiet':>6} {'ratio':>5} {'branch':>9} |"
+           f" {'fitted':>6} {'quiet':>6} {'ratio':>5} {'branch':>9}")
+    print(hdr)
+    print("-" * len(hdr))
+    for r in rows:
+        print(f"{r['condition']:<18} {r['zero_crossing_mm']:>5.1f} | {r['paper_mm']:>9.1f} {r['paper_quiet_mm']:>6.1f}"
+              f" {r['paper_ratio']:>5.2f} {r['paper_branch']:>9} | {r['fitted_mm']:>6.1f} {r['fitted_quiet_mm']:>6.1f}"
+              f" {r['fitted_ratio']:>5.2f} {r['fitted_branch']:>9}")
+    gm = {s: math.exp(sum(math.log(float(r[f"{s}_ratio"])) for r in rows) / len(rows)) for s in ("paper", "fitted")}
+    print(f"{'geometric mean':<18} {'':>5} | {'':>9} {'':>6} {gm['paper']:>5.2f} {'':>9} | {'':>6} {'':>6}"
+          f" {gm['fitted']:>5.2f}")
+    print("\nPaper §7: detection distance \"roughly doubled\" for a noise cut of more than 32×.")
+    print(f"Eq. 5–6 (§2.3, Fig. 5, one detector): far field r_d ∝ n^(-1/5) → ×{pred['far_eq5']:.2f};"
+          f" near field r_d ∝ n^(-1/2) → ×{pred['near_eq5']:.2f}.")
+    print(f"This layout (differential pair, §6.7) far field: signal ∝ R^-6, r_d ∝ n^(-1/6)"
+          f" → ×{pred['far_layout']:.2f}.")
+    print("zero: where the 45° reading changes sign (mm); branch near/far: inside/beyond it at factor 1 → quiet.")
+    print("A near→far row jumps the zero-crossing gap; a near→near row stays where the signal falls steeply.")
+
+
+def _plot_quiet_tank(path: str, factor: float) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from electroloc_gym.fileio import save_figure_atomic
+
+    factors = np.geomspace(min(factor, QUIET_TANK_FACTOR) / 4.0, 4.0, 49)
+    fig, (ax_mm, ax_ratio) = plt.subplots(1, 2, figsize=(12, 5))
+    colours = plt.get_cmap("tab10")
+    for i, name in enumerate(PRESET_NAMES):
+        for signal, style in (("paper", "-"), ("fitted", "--")):
+            base = get_condition(name, signal)
+            d = np.array([base.with_noise_factor(float(f)).detection_distance_mm() for f in factors])
+            d1 = base.detection_distance_mm()
+            label = name if signal == "paper" else None
+            ax_mm.loglog(factors, d, style, color=colours(i), lw=1.3, label=label)
+            ax_ratio.loglog(factors, d / d1, style, color=colours(i), lw=1.3, label=label)
+    for zero in sorted({round(zero_crossing_mm(get_condition(n, "paper")), 1) for n in PRESET_NAMES}):
+        ax_mm.axhline(zero, color="0.5", lw=0.8, ls=":")
+        ax_mm.annotate(f"zero crossing {zero:.1f} mm", (factors[-1], zero), ha="right", va="bottom", fontsize=7)
+    ref = factors[factors <= 1.0]
+    for expo, text, colour in ((0.5, "near field n^(-1/2)", "0.6"), (0.2, "far field n^(-1/5): 2× at 1/32", "k"),
+                               (1 / 6, "layout far field n^(-1/6)", "0.3")):
+        ax_ratio.loglog(ref, ref ** -expo, color=colour, lw=2.2, alpha=0.45, label=text)
+    ax_ratio.axhline(2.0, color="k", lw=0.8, ls="-.", label="2× (\"roughly doubled\")")
+    for ax in (ax_mm, ax_ratio):
+        ax.axvline(factor, color="r", lw=0.8, ls=":", label=f"noise factor {factor:g}" if ax is ax_ratio else None)
+        ax.set_xlabel("noise factor (σ_s multiplier; 1 = the paper's tank)")
+        ax.grid(True, which="both", alpha=0.25)
+    ax_mm.set_ylabel("detection distance, 45° line, 2σ (mm)")
+    ax_mm.set_title("solid: paper's equations (§6.7); dashed: fitted signal", fontsize=9)
+    ax_ratio.set_ylabel("detection distance / distance at noise factor 1")
+    ax_ratio.set_ylim(0.5, 12)
+    ax_mm.legend(fontsize=7, loc="upper right")
+    ax_ratio.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    save_figure_atomic(fig, path, dpi=110)
+    plt.close(fig)
+
+
 def _cmd_detect(args: argparse.Namespace) -> int:
+    factor = args.noise_factor
+    if factor is None and args.plot is not None:
+        factor = QUIET_TANK_FACTOR
+    if factor is not None:
+        _quiet_tank_report(factor, args.json)
+        if args.plot is not None:
+            try:
+                _plot_quiet_tank(args.plot, factor)
+            except OSError as exc:
+                print(f"electroloc detect: error: cannot write --plot {args.plot}: {exc}", file=sys.stderr)
+                return 2
+            if not args.json:
+                print(f"wrote {args.plot}")
+        return 0
     rows = detection_table()
     if args.json:
         print(json.dumps(rows, indent=2))
@@ -141,8 +300,17 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, help=help, description=textwrap.fill(description, 100),
                               formatter_class=HelpFormatter, **kwargs)
 
-    d = command("detect", "detection-distance table beside the paper's Table 3")
+    d = command("detect", "detection-distance table beside the paper's Table 3",
+                description="Detection-distance table beside the paper's Table 3. With --noise-factor F: the "
+                            "detection distance of the eight conditions at noise factor 1 and F (§7's shielded "
+                            "tank: F = 1/32), with the ratio beside the paper's 'roughly doubled'.")
     d.add_argument("--json", action="store_true", help="print JSON rows instead of a table")
+    d.add_argument("--noise-factor", type=parse_noise_factor, default=None, metavar="F",
+                   help="multiply the noise σ_s by F > 0 (a fraction such as 1/32 or a decimal) and compare the "
+                        "detection distances at factor 1 and F")
+    d.add_argument("--plot", default=None, metavar="PATH",
+                   help="write a figure of detection distance vs noise factor (log-log) to PATH "
+                        "(implies --noise-factor 1/32 unless given)")
     d.set_defaults(func=_cmd_detect)
 
     e = command("eev", "plot the expected-electric-voltage map (Fig. 2 / Fig. 9) to a PNG")

@@ -127,24 +127,36 @@ class Amplifier:
 
     Attributes:
         gain: differential gain G (dimensionless, > 0).
-        noise_rms_mV: RMS noise σ_s referred to the electrodes, mV (> 0) (Table 3).
+        noise_rms_mV: RMS noise σ_s referred to the electrodes, mV (> 0), as measured in the paper's
+            unshielded tank (Table 3).
         saturation_V: the data-acquisition card clips the amplified reading at ±saturation_V, V.
+        noise_factor: dimensionless multiplier (> 0) on σ_s, default 1 (the paper's tank). §7 reports
+            that shielding the tank cuts the ambient noise by more than 32×: ``noise_factor=1/32``.
+            It applies wherever the noise enters: the readings, the calibration, the sensor models'
+            likelihoods and the detection distance (:attr:`effective_noise_rms_mV`).
     """
 
     gain: float
     noise_rms_mV: float
     saturation_V: float = 10.0
+    noise_factor: float = 1.0
 
     def __post_init__(self) -> None:
         _check_finite("gain", self.gain, low=0.0)
         _check_finite("noise_rms_mV", self.noise_rms_mV, low=0.0)
         _check_finite("saturation_V", self.saturation_V, low=0.0)
-        _as_floats(self, "gain", "noise_rms_mV", "saturation_V")
+        _check_finite("noise_factor", self.noise_factor, low=0.0)
+        _as_floats(self, "gain", "noise_rms_mV", "saturation_V", "noise_factor")
+
+    @property
+    def effective_noise_rms_mV(self) -> float:
+        """RMS noise referred to the electrodes after the noise factor, mV: σ_s·noise_factor."""
+        return self.noise_rms_mV * self.noise_factor
 
     @property
     def noise_std_V(self) -> float:
-        """Standard deviation of the amplified reading, V: G·σ_s."""
-        return self.gain * self.noise_rms_mV * 1e-3
+        """Standard deviation of the amplified reading, V: G·σ_s·noise_factor."""
+        return self.gain * self.effective_noise_rms_mV * 1e-3
 
 
 @dataclass(frozen=True)
@@ -225,7 +237,7 @@ class Condition:
 
     @property
     def noise_std_V(self) -> float:
-        """Standard deviation of the amplified reading, V (G·σ_s)."""
+        """Standard deviation of the amplified reading, V (G·σ_s·noise_factor)."""
         return self.amplifier.noise_std_V
 
     @property
@@ -234,16 +246,20 @@ class Condition:
         return self.amplifier.saturation_V
 
     def detection_distance_mm(self, threshold_sigmas: float = 2.0) -> float:
-        """Model detection distance (mm) along the 45° line with this condition's signal scale (§6.7)."""
+        """Model detection distance (mm) along the 45° line (§6.7), signal scale and σ_s·noise_factor applied."""
         g = self.geometry
         return physics.layout_detection_distance(
-            self.target.radius_mm, self.chi, self.amplifier.noise_rms_mV * 1e-3, self.depth_mm,
+            self.target.radius_mm, self.chi, self.amplifier.effective_noise_rms_mV * 1e-3, self.depth_mm,
             signal_scale=self.signal_scale, threshold_sigmas=threshold_sigmas, spacing_mm=g.spacing_mm,
             emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
 
     def replace(self, **changes: Any) -> Condition:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+    def with_noise_factor(self, noise_factor: float) -> Condition:
+        """A copy with ``amplifier.noise_factor`` set (> 0; replaces, not compounds); signal scale kept."""
+        return self.replace(amplifier=dataclasses.replace(self.amplifier, noise_factor=noise_factor))
 
     # ---- (de)serialisation ---------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
