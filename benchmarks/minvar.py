@@ -14,8 +14,8 @@ Prints, for M = 2500 particles and C = 16 options on belief states taken from re
 * how often 256 voters choose the same option as all 2500 (and, when they differ, how much worse the
   chosen option's all-voter vote count is).
 
-Numeric libraries are pinned to one thread (DESIGN §10). Timings are best-of-N to resist a busy
-machine.
+Numeric libraries are pinned to one thread (two threads on a busy 2-core machine run slower).
+Timings are best-of-N to resist a busy machine.
 
     python benchmarks/minvar.py [--states 30] [--voters 256] [--literal-m 40]
 """

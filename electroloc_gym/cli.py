@@ -18,6 +18,7 @@ from fractions import Fraction
 from typing import Any
 
 from electroloc_gym.conditions import (
+    DEFAULT_SIGNAL,
     PAPER_TABLE3_MEASURED_MM,
     PAPER_TABLE3_THEORY_MM,
     PRESET_NAMES,
@@ -260,7 +261,7 @@ def _cmd_eev(args: argparse.Namespace) -> int:
         for ax, kind in zip(axes, ("analytic", "calibrated")):
             plot_map_eev(BENCHMARK_SCENE, ax=ax, sensor_model=kind)
         fig.tight_layout()
-        save_figure_atomic(fig, args.out, dpi=120)
+        save_figure_atomic(fig, args.out, dpi=120, bbox_inches="tight")  # the legend sits below the maps
         print(f"wrote {args.out}")
         return 0
     cond = get_condition(args.condition, args.signal)
@@ -315,7 +316,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = command("eev", "plot the expected-electric-voltage map (Fig. 2 / Fig. 9) to a PNG")
     e.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES), help="the preset")
-    e.add_argument("--signal", default="fitted", choices=list(SIGNAL_CHOICES), help="signal scale of the preset")
+    e.add_argument("--signal", default=DEFAULT_SIGNAL, choices=list(SIGNAL_CHOICES), help="signal scale of the preset")
     e.add_argument("--out", default="eev.png", help="the PNG to write")
     e.add_argument("--env", default="target", choices=["target", "global"],
                    help="target: one sphere's EEV (ElectroLoc-v0); global: the six-cylinder map (Fig. 14)")

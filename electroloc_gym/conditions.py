@@ -1,12 +1,13 @@
 """Experimental conditions: frozen, validated parameter dataclasses and the paper's eight presets.
 
 Units are in every field name: mm, V, mV, µS/cm. Derived quantities (χ, target depth, noise at the
-amplifier output, ...) are properties, never stored defaults (DESIGN §9.5).
+amplifier output, ...) are properties, never stored defaults.
 
-The eight presets follow DESIGN §4 (paper §5.2–5.3, Fig. 9 caption, Table 3). Each preset's
-``signal_scale`` is *fitted* (DESIGN §3.3): the smallest scale at which the model's 2σ detection
-distance along the 45° line reaches the paper's measured detection distance (Table 3). Use
-``get_condition(name, signal="paper")`` for the paper's equations as they stand (scale 1).
+The eight presets are the paper's (§5.2–5.3, Fig. 9 caption, Table 3). Each preset's ``signal_scale``
+is *fitted* (docs/physics.md): the smallest scale at which the model's 2σ detection distance along the
+45° line reaches the paper's measured detection distance (Table 3). Use
+``get_condition(name, signal="paper")`` for the paper's equations as they stand (scale 1), and
+``signal="coverage"`` for §6.3's start coverage (docs/fidelity.md compares them).
 """
 
 from __future__ import annotations
@@ -161,7 +162,7 @@ class Amplifier:
 
 @dataclass(frozen=True)
 class Geometry:
-    """Carriage geometry and emitter drive (DESIGN §3, §6.7).
+    """Carriage geometry and emitter drive (paper §6.7, Appendix A; docs/design.md).
 
     Attributes:
         spacing_mm: emitter spacing L = sensor spacing, mm.
@@ -195,7 +196,7 @@ class Condition:
         start_half_width_mm: the carriage starts uniformly in ±this box around the tank centre, mm.
         allowed_half_width_mm: the carriage (and the belief) stays within ±this box, mm.
         target_xy_mm: true target centre (x, y), mm; must lie in the allowed box.
-        signal_scale: dimensionless factor on the noise-free amplified signal (DESIGN §3.3).
+        signal_scale: dimensionless factor on the noise-free amplified signal (docs/physics.md).
         geometry: carriage geometry and emitter drive.
     """
 
@@ -282,7 +283,7 @@ class Condition:
 
 
 # ------------------------------------------------------------------------------------------
-# The paper's eight conditions (DESIGN §4), in the row order of Table 3.
+# The paper's eight conditions (§5.2–5.3, Table 3), in the row order of Table 3.
 # ------------------------------------------------------------------------------------------
 # name: (water µS/cm, diameter mm, material, gain, σ_s mV, start ±mm, allowed ±mm)
 _PRESET_TABLE: dict[str, tuple[float, float, str, float, float, float, float]] = {
@@ -327,7 +328,7 @@ def _paper_condition(name: str) -> Condition:
 
 @functools.cache
 def fitted_signal_scale(name: str) -> float:
-    """The preset's signal scale fitted to Table 3's measured detection distance (DESIGN §3.3)."""
+    """The preset's signal scale fitted to Table 3's measured detection distance (docs/physics.md)."""
     if name not in _PRESET_TABLE:
         raise ValueError(f"condition must be one of {list(PRESET_NAMES)}, got {name!r}")
     c = _paper_condition(name)

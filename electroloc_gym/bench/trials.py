@@ -81,7 +81,7 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
     if spec.env_id == GLOBAL_ENV_ID:  # the hidden state is the robot's own (final) position
         target = np.asarray(info["position_mm"], dtype=float)  # evaluation only
     else:
-        target = np.asarray(core.condition.target_xy_mm, dtype=float)  # evaluation only
+        target = np.asarray(core.target_mm, dtype=float)  # evaluation only (the documented ground-truth accessor)
     layout = str(getattr(agent, "layout", "table4"))
     if ep.ended_by == "agent" or layout == "table1":  # an agent that ends trials itself reports its estimate
         est = getattr(agent, "estimate_mm", None)
