@@ -25,6 +25,7 @@ from electroloc_gym.sensor_models import (
     CalibrationProtocol,
     SensorModel,
     calibration_coefficients,
+    calibration_statistics,
     make_sensor_model,
 )
 
@@ -265,6 +266,22 @@ def test_all_offsets_grid_covers_every_particle_carriage_offset(name: str, n: in
     assert paper.mean_std(edge)[0][0] == 0.0  # beyond the paper's square: "no target"
     truth = expected_reading(c, edge)[0]
     assert abs(m.mean_std(edge)[0][0] - truth) < 3 * c.noise_std_V / np.sqrt(10) + 0.05 * abs(truth)
+
+
+def test_pooled_statistics_equal_their_numpy_form() -> None:
+    """The one-pass kernel against the estimator written out with numpy (mean variance over clean points)."""
+    c = get_condition("fresh-steel-12.7", 300.0)
+    protocol = CalibrationProtocol(std_estimator="pooled")
+    samples = calibration_readings(c, np.zeros((10, 51, 51, 2)) + np.linspace(-40, 40, 51)[None, :, None, None]
+                                   * np.array([1.0, 0.6]), np.random.default_rng(3))
+    mean, std = calibration_statistics(samples, protocol, c.noise_std_V, c.saturation_V)
+    clean = np.all(np.abs(samples) < c.saturation_V, axis=0)
+    assert 0 < clean.sum() < clean.size  # both kinds of point present
+    np.testing.assert_allclose(mean, samples.mean(axis=0), rtol=1e-13, atol=1e-15)
+    pooled = np.sqrt(samples.var(axis=0, ddof=1)[clean].mean())
+    np.testing.assert_allclose(std[clean], pooled, rtol=1e-12)
+    per_point = np.maximum(samples.std(axis=0, ddof=1), 0.25 * c.noise_std_V)
+    np.testing.assert_allclose(std[~clean], per_point[~clean], rtol=1e-12)
 
 
 def test_pooled_std_is_one_value_off_saturation() -> None:

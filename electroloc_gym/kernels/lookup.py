@@ -13,7 +13,7 @@ from numba import njit
 
 from electroloc_gym.kernels.mathf32 import JIT, log32
 
-__all__ = ["calibration_tables", "bilinear_coefficients"]
+__all__ = ["calibration_tables", "pooled_calibration_tables", "bilinear_coefficients"]
 
 _F32_HALF_NEG = np.float32(-0.5)
 _ZERO = np.float32(0.0)
@@ -109,6 +109,60 @@ def calibration_tables(samples, min_std, mean_out, std_out):  # pragma: no cover
             sd = np.sqrt(ss / (fs - 1.0))
             mean_out[a, b] = mu
             std_out[a, b] = sd if sd > min_std else min_std
+
+
+@njit(**JIT)
+def pooled_calibration_tables(samples, min_std, saturation, mean_out, std_out):  # pragma: no cover - compiled
+    """Per grid point mean, and the pooled std wherever no reading saturated (one pass, fixed order).
+
+    The mean and, at points with a reading at ±``saturation``, the floored sample std are those of
+    :func:`calibration_tables` (same operations). At every other ("clean") point the std is
+    ``max(√(Σ var / n_clean), min_std)``: the root of the mean sample variance (ddof = 1) over the clean
+    points, summed sequentially in grid order.
+
+    Args:
+        samples: (S, n, n) float64 readings, V (S ≥ 2).
+        min_std: floor of the std, V.
+        saturation: clip level of the readings, V (> 0).
+        mean_out: (n, n) float64 output, mean per point, V.
+        std_out: (n, n) float64 output, std per point, V.
+
+    Returns:
+        The number of clean points (0: every point saturated; then every std is per point).
+    """
+    s, nx, ny = samples.shape
+    fs = np.float64(s)
+    total = 0.0
+    clean = 0
+    for a in range(nx):
+        for b in range(ny):
+            acc = samples[0, a, b]
+            sat = abs(samples[0, a, b]) >= saturation
+            for t in range(1, s):
+                acc += samples[t, a, b]
+                sat = sat or abs(samples[t, a, b]) >= saturation
+            mu = acc / fs
+            ss = 0.0
+            for t in range(s):
+                d = samples[t, a, b] - mu
+                ss += d * d
+            var = ss / (fs - 1.0)
+            sd = np.sqrt(var)
+            mean_out[a, b] = mu
+            if sat:
+                std_out[a, b] = sd if sd > min_std else min_std
+            else:
+                std_out[a, b] = -1.0  # marks a clean point until the pooled value is known
+                total += var
+                clean += 1
+    if clean > 0:
+        pooled = np.sqrt(total / np.float64(clean))
+        pooled = pooled if pooled > min_std else min_std
+        for a in range(nx):
+            for b in range(ny):
+                if std_out[a, b] < 0.0:
+                    std_out[a, b] = pooled
+    return clean
 
 
 @njit(**JIT)

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym.conditions import Condition
-from electroloc_gym.kernels import bilinear_coefficients, calibration_tables
+from electroloc_gym.kernels import bilinear_coefficients, calibration_tables, pooled_calibration_tables
 from electroloc_gym.sensor import add_calibration_noise, expected_reading
 from electroloc_gym.sensor_models.analytic import AnalyticSensorModel
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
@@ -168,12 +168,10 @@ def calibration_statistics(samples_V: NDArray, protocol: CalibrationProtocol, no
     mean = np.empty((n, n))
     std = np.empty((n, n))
     floor = protocol.min_std_fraction * noise_std_V
-    calibration_tables(samples, floor, mean, std)  # mean, floored std (ddof = 1) per point
     if protocol.std_estimator == "pooled":
-        clean = np.all(np.abs(samples) < saturation_V, axis=0)
-        if np.any(clean):
-            var = samples.var(axis=0, ddof=1)
-            std[clean] = max(math.sqrt(float(np.mean(var[clean]))), floor)
+        pooled_calibration_tables(samples, floor, float(saturation_V), mean, std)  # one pass, fixed order
+    else:
+        calibration_tables(samples, floor, mean, std)  # mean, floored std (ddof = 1) per point
     if protocol.position_blur_mm > 0:
         gx, gy = np.gradient(mean, protocol.grid_step_mm)
         std = np.hypot(std, np.hypot(gx, gy) * protocol.position_blur_mm)
