@@ -25,7 +25,7 @@ from electroloc_gym.conditions import Condition
 from electroloc_gym.core.params import DISCRETE_MOVES_MM, MAX_STEP_MM, EnvParams
 from electroloc_gym.core.step import Simulation
 
-__all__ = ["CoreEnv", "spaces_of"]
+__all__ = ["CoreEnv", "ParamAccessors", "spaces_of"]
 
 
 def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space, spaces.Box]:
@@ -37,27 +37,11 @@ def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space, spaces.Box
     return action, spaces.Box(-1.0, 1.0, shape=(obs_dim,), dtype=np.float32)
 
 
-class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
-    """One env of the simulation core (see the module docstring); subclasses set the task."""
+class ParamAccessors:
+    """Read-only views of the env's :class:`~electroloc_gym.core.params.EnvParams` (single and vector env)."""
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
-    _TASK = "localize"
-    _ENV_ID = "ElectroLoc-v0"
+    params: EnvParams
 
-    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
-        self.params = EnvParams.from_kwargs(self._TASK, kwargs, self._ENV_ID)
-        self._sim = Simulation(self.params, 1)
-        self._state = self._sim.state
-        self._task = self._sim.task
-        self.action_space, self.observation_space = spaces_of(self.params, self._sim.obs_dim)
-        self._belief = BeliefView(self._state, 0)
-        self._path: list[tuple[float, float]] = []
-        self._renderer: Any = None
-
-    # ---- parameters ---------------------------------------------------------------------------
     @property
     def n_particles(self) -> int:
         """Particles M of the belief."""
@@ -87,6 +71,27 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
     def action_type(self) -> str:
         """``"continuous"`` or ``"discrete"``."""
         return self.params.action_type
+
+
+class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
+    """One env of the simulation core (see the module docstring); subclasses set the task."""
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
+    _TASK = "localize"
+    _ENV_ID = "ElectroLoc-v0"
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.params = EnvParams.from_kwargs(self._TASK, kwargs, self._ENV_ID)
+        self._sim = Simulation(self.params, 1)
+        self._state = self._sim.state
+        self._task = self._sim.task
+        self.action_space, self.observation_space = spaces_of(self.params, self._sim.obs_dim)
+        self._belief = BeliefView(self._state, 0)
+        self._path: list[tuple[float, float]] = []
+        self._renderer: Any = None
 
     # ---- read-only accessors ------------------------------------------------------------------
     def _require_reset(self) -> None:

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from electroloc_gym.conditions import Condition
 from electroloc_gym.core.params import EnvParams, check_int
 from electroloc_gym.core.step import Simulation
-from electroloc_gym.envs.adapter import spaces_of
+from electroloc_gym.envs.adapter import ParamAccessors, spaces_of
 
 __all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "make_electroloc_vector_env",
            "make_global_vector_env"]
@@ -49,7 +49,7 @@ _AUTORESET_MODES: dict[Any, AutoresetMode] = {
 _CORE_MODE = {AutoresetMode.NEXT_STEP: "next_step", AutoresetMode.SAME_STEP: "same_step"}
 
 
-class CoreVectorEnv(VectorEnv):
+class CoreVectorEnv(ParamAccessors, VectorEnv):
     """N envs of the simulation core (see the module docstring); subclasses set the task.
 
     Args:
@@ -86,21 +86,6 @@ class CoreVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, n)
 
     # ---- parameters and read-only accessors ---------------------------------------------------
-    @property
-    def success_spread_mm(self) -> float:
-        """Success when √trace Σ ≤ this, mm."""
-        return self.params.success_spread_mm
-
-    @property
-    def n_particles(self) -> int:
-        """Particles M per env."""
-        return self.params.n_particles
-
-    @property
-    def max_observations(self) -> int:
-        """Readings per episode before truncation."""
-        return self.params.max_observations
-
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:
         """The sub-envs' generators (created unseeded on first use, as a single env's)."""
