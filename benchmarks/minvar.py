@@ -32,6 +32,8 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
+
+import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent, move_bounds_mm, sample_options_mm  # noqa: E402
 from electroloc_gym.baselines.min_variance import (  # noqa: E402
     VOTES,  # noqa: E402
@@ -41,8 +43,6 @@ from electroloc_gym.baselines.min_variance import (  # noqa: E402
     predicted_variances,
 )
 from electroloc_gym.baselines.min_variance_reference import literal_predicted_variances  # noqa: E402
-
-import electroloc_gym  # noqa: E402,F401
 
 
 def best_of(fn, repeats: int = 5) -> float:
