@@ -267,7 +267,7 @@ def differential_line_perturbation(
 
 
 def eq5_single_detector(r: ArrayLike, a: float, e: float, chi: float) -> FloatArray:
-    """Dimensionless perturbation ν = δV/V_e of Eq. 5 (paper §3.3, Eq. 5, in a cleaned-up form).
+    """Dimensionless perturbation ν = δV/V_e of Eq. 5 (paper §2.3, Eq. 5, in a cleaned-up form).
 
     Single detector at the origin, emitters at (±½, 0, 0), target at (r/√2, r/√2, 0); all lengths
     divided by the emitter spacing L.

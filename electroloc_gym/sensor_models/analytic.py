@@ -1,4 +1,4 @@
-"""The analytic sensor model: the noise-free reading of the physics and the amplifier noise (paper §3.1, §3.3)."""
+"""The analytic sensor model: the noise-free reading of the physics and the amplifier noise (paper §2.2, §3.2)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ __all__ = ["AnalyticSensorModel"]
 
 
 class AnalyticSensorModel:
-    """Mean from the physics (§3.3, saturated), std = G·σ_s everywhere.
+    """Mean from the physics (Eq. 4, saturated at ±10 V, §6.1), std = G·σ_s everywhere.
 
     Args:
         condition: the condition (amplifier noise; and the target, unless ``expected_fn`` is given).
