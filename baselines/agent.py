@@ -42,6 +42,7 @@ __all__ = [
     "Agent",
     "BaselineAgent",
     "AGENT_REGISTRY",
+    "EXTRA_AGENTS",
     "make_agent",
     "parse_agent_spec",
     "sample_options_mm",
@@ -161,15 +162,19 @@ def sample_options_mm(rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray,
 # Registry
 # ---------------------------------------------------------------------------------------------
 def _registry() -> dict[str, type]:
+    from electroloc_gym.baselines.lookahead import LookaheadAgent
     from electroloc_gym.baselines.min_variance import MinVarianceAgent
     from electroloc_gym.baselines.random_walk import RandomWalkAgent
     from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 
-    return {"rnd-wlk": RandomWalkAgent, "min-var": MinVarianceAgent, "zero-crossing": ZeroCrossingAgent}
+    return {"rnd-wlk": RandomWalkAgent, "min-var": MinVarianceAgent, "zero-crossing": ZeroCrossingAgent,
+            "lookahead": LookaheadAgent}
 
 
 #: Names of the built-in agents (classes resolved lazily by :func:`make_agent`).
 AGENT_REGISTRY: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
+#: Agents beyond the paper's controllers, built by :func:`make_agent` but not in default benchmark runs.
+EXTRA_AGENTS: tuple[str, ...] = ("lookahead",)
 
 _SPEC_RE = re.compile(r"^(?P<name>[A-Za-z0-9_\-]+)(\[(?P<opts>.*)\])?$")
 
@@ -213,7 +218,7 @@ def make_agent(spec: str, seed: int | np.random.Generator | None = None) -> Base
     name, kwargs = parse_agent_spec(spec)
     registry = _registry()
     if name not in registry:
-        raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_REGISTRY)}")
+        raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_REGISTRY + EXTRA_AGENTS)}")
     try:
         return registry[name](seed=seed, **kwargs)
     except TypeError as exc:

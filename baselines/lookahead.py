@@ -1,0 +1,243 @@
+"""lookahead: a belief-space look-ahead planner over sequences of moves (beyond the paper, §7).
+
+The paper's controllers never look past one step; §7 asks for a controller that does, with "a limited
+number of lookahead steps" and "heuristics to select which paths to evaluate". This agent is a
+sparse-sampling planner over the particle belief that uses only the env's public accessors (as
+min-var does): ``belief.particles``/``weights``, ``predicted_reading_model``,
+``predicted_particles_mm``, ``position_mm``/``allowed_box_mm`` and the move bounds.
+
+**One decision.**
+
+1. Subsample ``n_particles`` hypotheses from the belief (by weight; the subsample then has uniform
+   weights) — the planner's cloud ``X`` (S, 2), mm.
+2. Draw ``n_options`` first moves as the paper does (stay + uniform moves in the ±10 mm square within
+   the move bounds, :func:`~electroloc_gym.baselines.agent.sample_options_mm`) and ``continuations``
+   continuation sequences of ``depth − 1`` further moves, uniform in ±10 mm, shared by every first move
+   (every first move is judged on the same continuations). A sequence is a first move plus one
+   continuation: C·K sequences of ``depth`` moves.
+3. Draw ``branches`` hypothetical futures: a hypothesis ``h`` from ``X`` and one standard-normal
+   noise draw per step; in the future ``b`` of a sequence the readings are ``μ_t(x_h) + σ_t(x_h)·ε_bt``
+   (the sensor model's mean and std of that hypothesis after the t-th move). The same futures serve
+   every sequence (common random numbers: the sequences are compared on equal draws).
+4. Re-weight ``X`` by the likelihood of each future's readings, ``Π_t N(z_t; μ_t(x_i), σ_t(x_i)²)``,
+   and compute the **posterior spread** ``√trace Σ`` (mm, the env's success measure) of the
+   re-weighted cloud (the hypotheses after the sequence's moves where they move with the robot).
+5. The objective of a sequence is its posterior spread averaged over the futures; a first move's score
+   is the best (lowest) objective of its continuations; the move with the lowest score is taken
+   (ties broken at random).
+
+**Budget.** One *round* is steps 2–5 with fresh continuations and futures; a first move's score is
+averaged over rounds. ``rounds`` is the simulation budget (deterministic: decisions depend only on the
+agent's seed). With ``budget_s`` set, further rounds run while the decision's wall time is below it
+(at most ``max_rounds``); the number of rounds then depends on the machine, so decisions are
+reproducible only with ``budget_s=None``.
+
+**Motion rule.** In ElectroLoc-v0 the target is static: the reading after a sequence is the reading of
+hypothesis ``x`` from the carriage at ``p + D`` (D the cumulative move, the carriage kept in the allowed
+box as the env keeps it), which the sensor models (functions of the offset target − carriage) give
+as ``predicted_reading_model(x − D, 0)``. In ElectroLocGlobal-v0 the hypotheses are the robot's own
+position and move with it: each step applies ``predicted_particles_mm`` and asks
+``predicted_reading_model`` of the moved hypotheses. The agent tells the two apart by whether
+``predicted_particles_mm`` moves the hypotheses.
+
+**Vectorisation.** Readings of all C·K sequences × S hypotheses come from one accessor call per step
+(static target: one call in all); the likelihoods and spreads are (B, C, K, S) array operations; the
+only Python loops are over the continuations of the third and later steps of the global env.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from electroloc_gym.baselines.agent import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_options_mm
+
+__all__ = ["LookaheadAgent", "posterior_spreads", "MAX_DEPTH"]
+
+#: Longest sequence the planner evaluates.
+MAX_DEPTH = 3
+
+
+def _int_option(name: str, value: Any, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
+    return int(value)
+
+
+def posterior_spreads(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray, hyp: NDArray[np.intp],
+                      eps: NDArray) -> NDArray[np.float64]:
+    """Posterior spread √trace Σ (mm) of a uniform cloud after each sequence's sampled readings.
+
+    Args:
+        mean_V: (T, N, S) sensor-model mean of each hypothesis' reading after the t-th move of each of N
+            sequences, V.
+        std_V: (T, N, S) its std, V (> 0).
+        particles_mm: (S, 2) or (N, S, 2) hypotheses after the sequence (uniform prior weights), mm.
+        hyp: (B,) index of the hypothesis that generates each future's readings.
+        eps: (B, T) standard-normal noise of each future's readings.
+
+    Returns:
+        (B, N) spread of the re-weighted cloud for every future and sequence, mm.
+    """
+    mu = np.asarray(mean_V, dtype=np.float64)
+    sd = np.asarray(std_V, dtype=np.float64)
+    z = mu[:, :, hyp] + sd[:, :, hyp] * np.asarray(eps, dtype=np.float64).T[:, None, :]     # (T, N, B)
+    r = (z[..., None] - mu[:, :, None, :]) / sd[:, :, None, :]                              # (T, N, B, S)
+    ll = -0.5 * np.einsum("tnbs,tnbs->nbs", r, r) - np.log(sd).sum(axis=0)[:, None, :]       # (N, B, S)
+    ll -= ll.max(axis=-1, keepdims=True)
+    w = np.exp(ll)
+    w /= w.sum(axis=-1, keepdims=True)
+    x = np.asarray(particles_mm, dtype=np.float64)
+    x = x - x.reshape(-1, 2).mean(axis=0)                 # centred: the float sums do not cancel
+    if x.ndim == 2:
+        x = x[None]
+    m = np.einsum("nbs,nsi->nbi", w, x)
+    second = np.einsum("nbs,ns->nb", w, np.einsum("nsi,nsi->ns", x, x))
+    var = np.maximum(second - np.einsum("nbi,nbi->nb", m, m), 0.0)
+    return np.sqrt(var).T
+
+
+class LookaheadAgent(BaselineAgent):
+    """Belief-space look-ahead over sequences of ``depth`` moves (see the module docstring).
+
+    Args:
+        seed: seed or generator of every draw (subsample, moves, futures).
+        depth: moves per evaluated sequence, 1–3 (1: a greedy expected-spread controller).
+        n_options: first moves per decision including "stay" (paper: 16).
+        continuations: continuation sequences per round (shared by all first moves).
+        branches: sampled futures (hypothesis + reading noise) per round.
+        n_particles: size of the planner's subsample of the belief (its cloud).
+        rounds: rounds per decision (the simulation budget).
+        budget_s: wall-time budget per decision, s: further rounds while below it (None: ``rounds`` only).
+        max_rounds: cap on the rounds a time budget may run.
+
+    Attributes:
+        last_scores_mm: each first move's score (expected posterior spread, mm) of the last decision.
+        last_options_mm: the first moves (C, 2) of the last decision, mm.
+        last_rounds: rounds run in the last decision.
+    """
+
+    name = "lookahead"
+
+    def __init__(self, seed: int | np.random.Generator | None = None, depth: int = 2, n_options: int = 16,
+                 continuations: int = 4, branches: int = 8, n_particles: int = 300, rounds: int = 1,
+                 budget_s: float | None = None, max_rounds: int = 64) -> None:
+        super().__init__(seed)
+        self.depth = _int_option("depth", depth, 1, MAX_DEPTH)
+        self.n_options = _int_option("n_options", n_options, 1, 256)
+        self.continuations = _int_option("continuations", continuations, 1, 256)
+        self.branches = _int_option("branches", branches, 1, 1024)
+        self.n_particles = _int_option("n_particles", n_particles, 2, 100_000)
+        self.rounds = _int_option("rounds", rounds, 1, 1024)
+        self.max_rounds = _int_option("max_rounds", max_rounds, 1, 4096)
+        if budget_s is not None and (isinstance(budget_s, bool) or not isinstance(budget_s, (int, float))
+                                     or not math.isfinite(budget_s) or not 0 < budget_s <= 60):
+            raise ValueError(f"budget_s must be a number of seconds in (0, 60] or None, got {budget_s!r}")
+        self.budget_s = None if budget_s is None else float(budget_s)
+        self.last_scores_mm: NDArray[np.float64] | None = None
+        self.last_options_mm: NDArray[np.float64] | None = None
+        self.last_rounds = 0
+
+    # ---- the planner's cloud and motion ---------------------------------------------------------
+    def _subsample(self) -> NDArray[np.float64]:
+        belief = self.env.belief
+        x = np.asarray(belief.particles, dtype=np.float64)
+        w = np.asarray(belief.weights, dtype=np.float64)
+        m = x.shape[0]
+        if np.all(w == w[0]):
+            if self.n_particles >= m:
+                return x
+            return x[np.sort(self.rng.choice(m, size=self.n_particles, replace=False))]
+        return x[np.sort(self.rng.choice(m, size=self.n_particles, replace=True, p=w / w.sum()))]
+
+    def _moves_with_robot(self, x: NDArray) -> bool:
+        env = self.env
+        moved = env.predicted_particles_mm(x, np.array([1.0, 1.0]))
+        return bool(np.any(np.abs(np.asarray(moved, dtype=np.float64) - x) > 1e-6))
+
+    def _readings_static(self, x: NDArray, first: NDArray, cont: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """Static target: (T, C·K, S) mean/std from the carriage at p + D_t (kept in the box)."""
+        env = self.env
+        p = np.asarray(env.position_mm, dtype=np.float64)
+        low, high = (np.asarray(b, dtype=np.float64) for b in env.allowed_box_mm)
+        c, k = first.shape[0], cont.shape[0]
+        steps = [np.broadcast_to(first[:, None, :], (c, k, 2))]
+        steps += [np.broadcast_to(cont[None, :, t, :], (c, k, 2)) for t in range(cont.shape[1])]
+        carriage, d = p, []
+        for u in steps:                                   # a handful of steps (≤ MAX_DEPTH)
+            carriage = np.clip(carriage + u, low, high)
+            d.append(carriage - p)
+        disp = np.stack(d).reshape(len(steps), c * k, 1, 2)                       # (T, N, 1, 2)
+        shifted = (x[None, None, :, :] - disp).reshape(-1, 2).astype(np.float32)
+        mean, std = env.predicted_reading_model(shifted, np.zeros(2))
+        shape = (len(steps), c * k, x.shape[0])
+        return np.asarray(mean).reshape(shape), np.asarray(std).reshape(shape), x
+
+    def _readings_moving(self, x: NDArray, first: NDArray, cont: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """Hypotheses that move with the robot: (T, C·K, S) mean/std and the (C·K, S, 2) moved cloud."""
+        env = self.env
+        c, k, s = first.shape[0], cont.shape[0], x.shape[0]
+        xf = x.astype(np.float32)
+        m0, s0 = (np.asarray(a) for a in env.predicted_reading_model(xf, first))           # (C, S)
+        q = np.asarray(env.predicted_particles_mm(xf, first))                              # (C, S, 2)
+        means = [np.repeat(m0, k, axis=0)]
+        stds = [np.repeat(s0, k, axis=0)]
+        if cont.shape[1] == 0:
+            return np.stack(means), np.stack(stds), np.repeat(q, k, axis=0)
+        qf = q.reshape(c * s, 2)
+        m1, s1 = (np.asarray(a).reshape(k, c, s) for a in env.predicted_reading_model(qf, cont[:, 0]))
+        q = np.asarray(env.predicted_particles_mm(qf, cont[:, 0])).reshape(k, c, s, 2)
+        means.append(m1.transpose(1, 0, 2).reshape(c * k, s))
+        stds.append(s1.transpose(1, 0, 2).reshape(c * k, s))
+        for t in range(1, cont.shape[1]):                 # later steps: one call per continuation
+            mt, st, qt = [], [], []
+            for j in range(k):
+                a, b = env.predicted_reading_model(q[j].reshape(c * s, 2), cont[j, t])
+                mt.append(np.asarray(a).reshape(c, s))
+                st.append(np.asarray(b).reshape(c, s))
+                qt.append(np.asarray(env.predicted_particles_mm(q[j].reshape(c * s, 2), cont[j, t])).reshape(c, s, 2))
+            means.append(np.stack(mt, axis=1).reshape(c * k, s))
+            stds.append(np.stack(st, axis=1).reshape(c * k, s))
+            q = np.stack(qt)
+        return np.stack(means), np.stack(stds), q.transpose(1, 0, 2, 3).reshape(c * k, s, 2)
+
+    # ---- one decision ---------------------------------------------------------------------------
+    def _round(self, x: NDArray, first: NDArray, moving: bool) -> NDArray[np.float64]:
+        """One round: each first move's best expected posterior spread (C,), mm."""
+        k = self.continuations if self.depth > 1 else 1
+        cont = self.rng.uniform(-MAX_STEP_MM, MAX_STEP_MM, size=(k, self.depth - 1, 2))
+        hyp = self.rng.integers(0, x.shape[0], size=self.branches)
+        eps = self.rng.standard_normal((self.branches, self.depth))
+        reader = self._readings_moving if moving else self._readings_static
+        mean, std, final = reader(x, first, cont)
+        spread = posterior_spreads(mean, std, final, hyp, eps)                   # (B, C·K)
+        return spread.mean(axis=0).reshape(first.shape[0], k).min(axis=1)
+
+    def choose_move_mm(self) -> NDArray[np.float64]:
+        t0 = time.perf_counter()
+        env = self.env
+        x = self._subsample()
+        first = sample_options_mm(self.rng, *move_bounds_mm(env), self.n_options)
+        moving = self._moves_with_robot(x)
+        total = np.zeros(first.shape[0])
+        n = 0
+        while True:
+            total += self._round(x, first, moving)
+            n += 1
+            if n >= self.max_rounds or (n >= self.rounds and (
+                    self.budget_s is None or time.perf_counter() - t0 >= self.budget_s)):
+                break
+        scores = total / n
+        best = np.flatnonzero(scores <= scores.min() * (1.0 + 1e-9) + 1e-12)
+        choice = int(best[0]) if best.size == 1 else int(self.rng.choice(best))
+        self.last_scores_mm, self.last_options_mm, self.last_rounds = scores, first, n
+        return first[choice]
+
+    def __repr__(self) -> str:
+        return (f"LookaheadAgent(depth={self.depth}, n_options={self.n_options}, continuations={self.continuations}, "
+                f"branches={self.branches}, n_particles={self.n_particles}, rounds={self.rounds}, "
+                f"budget_s={self.budget_s})")
