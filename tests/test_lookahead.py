@@ -152,3 +152,10 @@ def test_posterior_spreads_uninformative_and_exact_readings() -> None:
     sharp = np.array([[[-1.0, 1.0]]])
     spread = posterior_spreads(sharp, np.full((1, 1, 2), 1e-3), x, np.array([0, 1]), np.zeros((2, 1)))
     np.testing.assert_allclose(spread, 0.0, atol=1e-6)     # distinct, exact readings: collapsed
+
+
+def test_bench_accepts_the_planner_by_name() -> None:
+    from electroloc_gym.bench.agents import agent_kind, default_agents
+
+    assert agent_kind("lookahead[depth=1,branches=4]") == "baseline"
+    assert "lookahead" not in [c.spec for c in default_agents()]  # beyond the paper: asked for by name

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.baselines.agent import AGENT_REGISTRY, make_agent
+from electroloc_gym.baselines.agent import AGENT_REGISTRY, EXTRA_AGENTS, make_agent
 
 __all__ = [
     "AgentChoice",
@@ -71,13 +71,14 @@ def agent_kind(spec: str) -> str:
         raise ValueError(f"agent must be a non-empty string, got {spec!r}")
     spec = spec.strip()
     name = spec.split("[", 1)[0]
-    if name in AGENT_REGISTRY:
+    if name in AGENT_REGISTRY or name in EXTRA_AGENTS:  # the paper's controllers, and ours beyond the paper
         return "baseline"
     if spec in shipped_models():
         return "shipped"
     if is_policy_path(spec):
         return "path"
-    raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_REGISTRY)} (options as NAME[key=value]), "
+    raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_REGISTRY + EXTRA_AGENTS)} (options as "
+                     f"NAME[key=value]), "
                      f"a shipped model {sorted(shipped_models())}, or a path to a model folder / policy file")
 
 
