@@ -82,6 +82,22 @@ def _calibrated_ll_one(px, py, ox0, oy0, sign, lo, inv, n1, base, table, reading
 
 
 @njit(**JIT)
+def _point_mean_var(samples, a, b):  # pragma: no cover - compiled
+    """Mean and sample variance (ddof = 1) of the readings at grid point (a, b): sequential float64 sums."""
+    s = samples.shape[0]
+    fs = np.float64(s)
+    acc = samples[0, a, b]
+    for t in range(1, s):
+        acc += samples[t, a, b]
+    mu = acc / fs
+    ss = 0.0
+    for t in range(s):
+        d = samples[t, a, b] - mu
+        ss += d * d
+    return mu, ss / (fs - 1.0)
+
+
+@njit(**JIT)
 def calibration_tables(samples, min_std, mean_out, std_out):  # pragma: no cover - compiled
     """Per grid point mean and sample std (ddof = 1, floored at ``min_std``) of calibration readings.
 
@@ -94,19 +110,11 @@ def calibration_tables(samples, min_std, mean_out, std_out):  # pragma: no cover
         mean_out: (n, n) float64 output, mean per point, V.
         std_out: (n, n) float64 output, floored std per point, V.
     """
-    s, nx, ny = samples.shape
-    fs = np.float64(s)
+    _, nx, ny = samples.shape
     for a in range(nx):
         for b in range(ny):
-            acc = samples[0, a, b]
-            for t in range(1, s):
-                acc += samples[t, a, b]
-            mu = acc / fs
-            ss = 0.0
-            for t in range(s):
-                d = samples[t, a, b] - mu
-                ss += d * d
-            sd = np.sqrt(ss / (fs - 1.0))
+            mu, var = _point_mean_var(samples, a, b)
+            sd = np.sqrt(var)
             mean_out[a, b] = mu
             std_out[a, b] = sd if sd > min_std else min_std
 
@@ -131,22 +139,14 @@ def pooled_calibration_tables(samples, min_std, saturation, mean_out, std_out): 
         The number of clean points (0: every point saturated; then every std is per point).
     """
     s, nx, ny = samples.shape
-    fs = np.float64(s)
     total = 0.0
     clean = 0
     for a in range(nx):
         for b in range(ny):
-            acc = samples[0, a, b]
-            sat = abs(samples[0, a, b]) >= saturation
-            for t in range(1, s):
-                acc += samples[t, a, b]
-                sat = sat or abs(samples[t, a, b]) >= saturation
-            mu = acc / fs
-            ss = 0.0
+            mu, var = _point_mean_var(samples, a, b)
+            sat = False
             for t in range(s):
-                d = samples[t, a, b] - mu
-                ss += d * d
-            var = ss / (fs - 1.0)
+                sat = sat or abs(samples[t, a, b]) >= saturation
             sd = np.sqrt(var)
             mean_out[a, b] = mu
             if sat:
