@@ -4,27 +4,42 @@ The paper's controllers never look past one step; §7 asks for a controller that
 number of lookahead steps" and "heuristics to select which paths to evaluate". This agent is a
 sparse-sampling planner over the particle belief that uses only the env's public accessors (as
 min-var does): ``belief.particles``/``weights``, ``predicted_reading_model``,
-``predicted_particles_mm``, ``position_mm``/``allowed_box_mm`` and the move bounds.
+``predicted_particles_mm``, ``position_mm``/``allowed_box_mm``, ``success_spread_mm`` and the move
+bounds.
 
 **One decision.**
 
 1. Subsample ``n_particles`` hypotheses from the belief (by weight; the subsample then has uniform
-   weights) — the planner's cloud ``X`` (S, 2), mm.
-2. Draw ``n_options`` first moves as the paper does (stay + uniform moves in the ±10 mm square within
-   the move bounds, :func:`~electroloc_gym.baselines.agent.sample_options_mm`) and ``continuations``
-   continuation sequences of ``depth − 1`` further moves, uniform in ±10 mm, shared by every first move
-   (every first move is judged on the same continuations). A sequence is a first move plus one
-   continuation: C·K sequences of ``depth`` moves.
+   weights): the planner's cloud ``X`` (S, 2), mm.
+2. Draw ``n_options`` first moves: stay, the eight full-range *compass* moves (±10 mm on one or both
+   axes, clipped to the move bounds; ``compass=True``), and uniform moves in the ±10 mm square within
+   the move bounds for the rest (:func:`~electroloc_gym.baselines.agent.sample_options_mm`;
+   ``compass=False`` gives the paper's stay + uniform options). Draw ``continuations`` continuation
+   sequences of ``depth − 1`` further moves, shared by every first move (every first move is judged
+   on the same continuations). ``cont="compass"``: distinct sequences of compass moves, as many of
+   the 8^(depth−1) as ``continuations`` allows; ``cont="uniform"``: uniform in ±10 mm. A sequence is
+   a first move plus one continuation: C·K sequences of ``depth`` moves.
 3. Draw ``branches`` hypothetical futures: a hypothesis ``h`` from ``X`` and one standard-normal
    noise draw per step; in the future ``b`` of a sequence the readings are ``μ_t(x_h) + σ_t(x_h)·ε_bt``
    (the sensor model's mean and std of that hypothesis after the t-th move). The same futures serve
    every sequence (common random numbers: the sequences are compared on equal draws).
 4. Re-weight ``X`` by the likelihood of each future's readings, ``Π_t N(z_t; μ_t(x_i), σ_t(x_i)²)``,
-   and compute the **posterior spread** ``√trace Σ`` (mm, the env's success measure) of the
-   re-weighted cloud (the hypotheses after the sequence's moves where they move with the robot).
-5. The objective of a sequence is its posterior spread averaged over the futures; a first move's score
-   is the best (lowest) objective of its continuations; the move with the lowest score is taken
-   (ties broken at random).
+   and score the future with the ``objective``
+   (:mod:`~electroloc_gym.baselines.lookahead_objectives`): ``"steps"`` (default), the expected
+   number of further readings until the env's success rule (posterior spread √trace Σ ≤
+   ``success_spread_mm``) holds, with a tail of ``1 + tail·ln(s_T / success_spread_mm)`` readings
+   for a future still short of it after the last move; ``"spread"``, the posterior spread after the
+   sequence (mm); ``"logspread"``, its logarithm; ``"entropy"``, the entropy of the re-weighted
+   cloud's weights.
+5. A sequence's objective is its mean over the futures; a first move's score is the best (lowest)
+   objective of its continuations; the move with the lowest score is taken (ties broken at random).
+
+Why these defaults (measured in the global env, where §6.5 says greedy min-var "had trouble
+disambiguating the multiple hypotheses"; docs/baselines.md has the figures): the readings of the
+mapped tank carry information only near the cylinders, so a short move from a flat region learns
+little, and the full-range compass moves are what let the planner separate the modes of the belief.
+``"steps"`` counts a sequence that succeeds after its first move as better than one that merely ends
+narrower, which the posterior spread after the last move does not see.
 
 **Budget.** One *round* is steps 2–5 with fresh continuations and futures; a first move's score is
 averaged over rounds. ``rounds`` is the simulation budget (deterministic: decisions depend only on the
@@ -41,8 +56,9 @@ position and move with it: each step applies ``predicted_particles_mm`` and asks
 ``predicted_particles_mm`` moves the hypotheses.
 
 **Vectorisation.** Readings of all C·K sequences × S hypotheses come from one accessor call per step
-(static target: one call in all); the likelihoods and spreads are (B, C, K, S) array operations; the
-only Python loops are over the continuations of the third and later steps of the global env.
+(static target: one call in all); the likelihoods and objectives are (B, C, K, S) array operations; the
+only Python loops are over the ≤ 3 steps and over the continuations of the third step of the global
+env.
 """
 
 from __future__ import annotations
@@ -55,11 +71,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.baselines.agent import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_options_mm
+from electroloc_gym.baselines.lookahead_objectives import OBJECTIVES, posterior_spreads, sequence_costs
 
-__all__ = ["LookaheadAgent", "posterior_spreads", "MAX_DEPTH"]
+__all__ = ["LookaheadAgent", "posterior_spreads", "MAX_DEPTH", "COMPASS_MM", "CONTINUATIONS", "OBJECTIVES"]
 
 #: Longest sequence the planner evaluates.
 MAX_DEPTH = 3
+#: How continuation moves are drawn: uniform in ±10 mm, or one of the compass moves per step.
+CONTINUATIONS = ("uniform", "compass")
+#: The eight full-range moves (``compass=True``), mm: the four diagonals first, then the four axes.
+COMPASS_MM = MAX_STEP_MM * np.array([[1, 1], [-1, 1], [-1, -1], [1, -1], [1, 0], [0, 1], [-1, 0], [0, -1]],
+                                    dtype=np.float64)
 
 
 def _int_option(name: str, value: Any, low: int, high: int) -> int:
@@ -68,64 +90,38 @@ def _int_option(name: str, value: Any, low: int, high: int) -> int:
     return int(value)
 
 
-def posterior_spreads(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray, hyp: NDArray[np.intp],
-                      eps: NDArray) -> NDArray[np.float64]:
-    """Posterior spread √trace Σ (mm) of a uniform cloud after each sequence's sampled readings.
-
-    Args:
-        mean_V: (T, N, S) sensor-model mean of each hypothesis' reading after the t-th move of each of N
-            sequences, V.
-        std_V: (T, N, S) its std, V (> 0).
-        particles_mm: (S, 2) or (N, S, 2) hypotheses after the sequence (uniform prior weights), mm.
-        hyp: (B,) index of the hypothesis that generates each future's readings.
-        eps: (B, T) standard-normal noise of each future's readings.
-
-    Returns:
-        (B, N) spread of the re-weighted cloud for every future and sequence, mm.
-    """
-    mu = np.asarray(mean_V, dtype=np.float64)
-    sd = np.asarray(std_V, dtype=np.float64)
-    z = mu[:, :, hyp] + sd[:, :, hyp] * np.asarray(eps, dtype=np.float64).T[:, None, :]     # (T, N, B)
-    r = (z[..., None] - mu[:, :, None, :]) / sd[:, :, None, :]                              # (T, N, B, S)
-    ll = -0.5 * np.einsum("tnbs,tnbs->nbs", r, r) - np.log(sd).sum(axis=0)[:, None, :]       # (N, B, S)
-    ll -= ll.max(axis=-1, keepdims=True)
-    w = np.exp(ll)
-    w /= w.sum(axis=-1, keepdims=True)
-    x = np.asarray(particles_mm, dtype=np.float64)
-    x = x - x.reshape(-1, 2).mean(axis=0)                 # centred: the float sums do not cancel
-    if x.ndim == 2:
-        x = x[None]
-    m = np.einsum("nbs,nsi->nbi", w, x)
-    second = np.einsum("nbs,ns->nb", w, np.einsum("nsi,nsi->ns", x, x))
-    var = np.maximum(second - np.einsum("nbi,nbi->nb", m, m), 0.0)
-    return np.sqrt(var).T
-
-
 class LookaheadAgent(BaselineAgent):
     """Belief-space look-ahead over sequences of ``depth`` moves (see the module docstring).
 
     Args:
         seed: seed or generator of every draw (subsample, moves, futures).
-        depth: moves per evaluated sequence, 1–3 (1: a greedy expected-spread controller).
-        n_options: first moves per decision including "stay" (paper: 16).
+        depth: moves per evaluated sequence, 1–3 (1: a greedy controller on the same objective).
+        n_options: first moves per decision including "stay" (paper: 16; default 9: stay + the compass).
         continuations: continuation sequences per round (shared by all first moves).
         branches: sampled futures (hypothesis + reading noise) per round.
         n_particles: size of the planner's subsample of the belief (its cloud).
         rounds: rounds per decision (the simulation budget).
         budget_s: wall-time budget per decision, s: further rounds while below it (None: ``rounds`` only).
         max_rounds: cap on the rounds a time budget may run.
+        objective: ``"steps"``, ``"spread"``, ``"logspread"`` or ``"entropy"``
+            (:data:`~electroloc_gym.baselines.lookahead_objectives.OBJECTIVES`).
+        tail: ``"steps"``' tail, readings per unit of ln(spread / success spread) (0–100).
+        compass: include the eight full-range moves among the first moves.
+        cont: continuation moves, ``"compass"`` or ``"uniform"`` (:data:`CONTINUATIONS`).
 
     Attributes:
-        last_scores_mm: each first move's score (expected posterior spread, mm) of the last decision.
+        last_scores: each first move's score of the last decision, in the objective's unit
+            (readings, mm, ln mm or nats).
         last_options_mm: the first moves (C, 2) of the last decision, mm.
         last_rounds: rounds run in the last decision.
     """
 
     name = "lookahead"
 
-    def __init__(self, seed: int | np.random.Generator | None = None, depth: int = 2, n_options: int = 16,
-                 continuations: int = 4, branches: int = 8, n_particles: int = 300, rounds: int = 1,
-                 budget_s: float | None = None, max_rounds: int = 64) -> None:
+    def __init__(self, seed: int | np.random.Generator | None = None, depth: int = 2, n_options: int = 9,
+                 continuations: int = 8, branches: int = 8, n_particles: int = 300, rounds: int = 1,
+                 budget_s: float | None = None, max_rounds: int = 64, objective: str = "steps",
+                 tail: float = 0.5, compass: bool = True, cont: str = "compass") -> None:
         super().__init__(seed)
         self.depth = _int_option("depth", depth, 1, MAX_DEPTH)
         self.n_options = _int_option("n_options", n_options, 1, 256)
@@ -138,9 +134,25 @@ class LookaheadAgent(BaselineAgent):
                                      or not math.isfinite(budget_s) or not 0 < budget_s <= 60):
             raise ValueError(f"budget_s must be a number of seconds in (0, 60] or None, got {budget_s!r}")
         self.budget_s = None if budget_s is None else float(budget_s)
-        self.last_scores_mm: NDArray[np.float64] | None = None
+        if objective not in OBJECTIVES:
+            raise ValueError(f"objective must be one of {list(OBJECTIVES)}, got {objective!r}")
+        self.objective = objective
+        if (isinstance(tail, bool) or not isinstance(tail, (int, float)) or not math.isfinite(tail)
+                or not 0 <= tail <= 100):
+            raise ValueError(f"tail must be a number of readings in [0, 100], got {tail!r}")
+        self.tail = float(tail)
+        if not isinstance(compass, bool):
+            raise ValueError(f"compass must be True or False, got {compass!r}")
+        self.compass = compass
+        if cont not in CONTINUATIONS:
+            raise ValueError(f"cont must be one of {list(CONTINUATIONS)}, got {cont!r}")
+        self.cont = cont
+        self.last_scores: NDArray[np.float64] | None = None
         self.last_options_mm: NDArray[np.float64] | None = None
         self.last_rounds = 0
+
+    def _success_spread_mm(self) -> float:
+        return float(getattr(self.env, "success_spread_mm", 10.0))
 
     # ---- the planner's cloud and motion ---------------------------------------------------------
     def _subsample(self) -> NDArray[np.float64]:
@@ -177,8 +189,8 @@ class LookaheadAgent(BaselineAgent):
         shape = (len(steps), c * k, x.shape[0])
         return np.asarray(mean).reshape(shape), np.asarray(std).reshape(shape), x
 
-    def _readings_moving(self, x: NDArray, first: NDArray, cont: NDArray) -> tuple[NDArray, NDArray, NDArray]:
-        """Hypotheses that move with the robot: (T, C·K, S) mean/std and the (C·K, S, 2) moved cloud."""
+    def _readings_moving(self, x: NDArray, first: NDArray, cont: NDArray) -> tuple[NDArray, NDArray, list[NDArray]]:
+        """Hypotheses that move with the robot: (T, C·K, S) mean/std and the (C·K, S, 2) cloud after each move."""
         env = self.env
         c, k, s = first.shape[0], cont.shape[0], x.shape[0]
         xf = x.astype(np.float32)
@@ -186,13 +198,15 @@ class LookaheadAgent(BaselineAgent):
         q = np.asarray(env.predicted_particles_mm(xf, first))                              # (C, S, 2)
         means = [np.repeat(m0, k, axis=0)]
         stds = [np.repeat(s0, k, axis=0)]
+        clouds = [np.repeat(q, k, axis=0)]
         if cont.shape[1] == 0:
-            return np.stack(means), np.stack(stds), np.repeat(q, k, axis=0)
+            return np.stack(means), np.stack(stds), clouds
         qf = q.reshape(c * s, 2)
         m1, s1 = (np.asarray(a).reshape(k, c, s) for a in env.predicted_reading_model(qf, cont[:, 0]))
         q = np.asarray(env.predicted_particles_mm(qf, cont[:, 0])).reshape(k, c, s, 2)
         means.append(m1.transpose(1, 0, 2).reshape(c * k, s))
         stds.append(s1.transpose(1, 0, 2).reshape(c * k, s))
+        clouds.append(q.transpose(1, 0, 2, 3).reshape(c * k, s, 2))
         for t in range(1, cont.shape[1]):                 # later steps: one call per continuation
             mt, st, qt = [], [], []
             for j in range(k):
@@ -203,25 +217,41 @@ class LookaheadAgent(BaselineAgent):
             means.append(np.stack(mt, axis=1).reshape(c * k, s))
             stds.append(np.stack(st, axis=1).reshape(c * k, s))
             q = np.stack(qt)
-        return np.stack(means), np.stack(stds), q.transpose(1, 0, 2, 3).reshape(c * k, s, 2)
+            clouds.append(q.transpose(1, 0, 2, 3).reshape(c * k, s, 2))
+        return np.stack(means), np.stack(stds), clouds
+
+    def _first_moves(self) -> NDArray[np.float64]:
+        """The first-move options (C, 2), mm: stay, the compass moves if asked, then uniform moves."""
+        lo, hi = move_bounds_mm(self.env)
+        first = sample_options_mm(self.rng, lo, hi, self.n_options)
+        if self.compass and self.n_options > 1:
+            n = min(len(COMPASS_MM), self.n_options - 1)
+            first[1:1 + n] = np.clip(COMPASS_MM[:n], lo, hi)
+        return first
 
     # ---- one decision ---------------------------------------------------------------------------
     def _round(self, x: NDArray, first: NDArray, moving: bool) -> NDArray[np.float64]:
-        """One round: each first move's best expected posterior spread (C,), mm."""
+        """One round: each first move's best expected objective (C,)."""
         k = self.continuations if self.depth > 1 else 1
-        cont = self.rng.uniform(-MAX_STEP_MM, MAX_STEP_MM, size=(k, self.depth - 1, 2))
+        if self.cont == "compass":
+            n_seq = len(COMPASS_MM) ** (self.depth - 1)      # every compass sequence once, as far as k allows
+            pick = self.rng.permutation(n_seq)[:k] if k <= n_seq else self.rng.integers(0, n_seq, size=k)
+            digits = (pick[:, None] // len(COMPASS_MM) ** np.arange(self.depth - 1)) % len(COMPASS_MM)
+            cont = COMPASS_MM[digits]
+        else:
+            cont = self.rng.uniform(-MAX_STEP_MM, MAX_STEP_MM, size=(k, self.depth - 1, 2))
         hyp = self.rng.integers(0, x.shape[0], size=self.branches)
         eps = self.rng.standard_normal((self.branches, self.depth))
         reader = self._readings_moving if moving else self._readings_static
-        mean, std, final = reader(x, first, cont)
-        spread = posterior_spreads(mean, std, final, hyp, eps)                   # (B, C·K)
-        return spread.mean(axis=0).reshape(first.shape[0], k).min(axis=1)
+        mean, std, clouds = reader(x, first, cont)
+        cost = sequence_costs(mean, std, clouds, hyp, eps, self.objective,
+                              success_spread_mm=self._success_spread_mm(), tail=self.tail)          # (B, C·K)
+        return cost.mean(axis=0).reshape(first.shape[0], k).min(axis=1)
 
     def choose_move_mm(self) -> NDArray[np.float64]:
         t0 = time.perf_counter()
-        env = self.env
         x = self._subsample()
-        first = sample_options_mm(self.rng, *move_bounds_mm(env), self.n_options)
+        first = self._first_moves()
         moving = self._moves_with_robot(x)
         total = np.zeros(first.shape[0])
         n = 0
@@ -234,10 +264,11 @@ class LookaheadAgent(BaselineAgent):
         scores = total / n
         best = np.flatnonzero(scores <= scores.min() * (1.0 + 1e-9) + 1e-12)
         choice = int(best[0]) if best.size == 1 else int(self.rng.choice(best))
-        self.last_scores_mm, self.last_options_mm, self.last_rounds = scores, first, n
+        self.last_scores, self.last_options_mm, self.last_rounds = scores, first, n
         return first[choice]
 
     def __repr__(self) -> str:
         return (f"LookaheadAgent(depth={self.depth}, n_options={self.n_options}, continuations={self.continuations}, "
                 f"branches={self.branches}, n_particles={self.n_particles}, rounds={self.rounds}, "
-                f"budget_s={self.budget_s})")
+                f"budget_s={self.budget_s}, objective={self.objective!r}, tail={self.tail}, "
+                f"compass={self.compass}, cont={self.cont!r})")

@@ -91,7 +91,7 @@ def test_runs_an_episode_on_both_envs(env_id: str) -> None:
     ep = run_episode(env, agent, seed=2, agent_seed=1)
     assert ep.ended_by in ("success", "cap")
     assert 1 <= len(ep.decision_s) <= 5
-    assert agent.last_scores_mm is not None and np.all(np.isfinite(agent.last_scores_mm))
+    assert agent.last_scores is not None and np.all(np.isfinite(agent.last_scores))
     assert agent.last_rounds == 1
 
 
@@ -138,7 +138,7 @@ def test_prefers_a_move_that_separates_the_modes() -> None:
         agent = make_agent("lookahead[depth=2,branches=16,n_particles=200]", seed=seed)
         agent.reset(env)
         move = agent.choose_move_mm()
-        scores = agent.last_scores_mm
+        scores = agent.last_scores
         assert scores[0] > scores.min()                    # "stay" is not the best option
         wins += bool(np.any(move != 0))
     assert wins == 3
