@@ -57,8 +57,8 @@ position and move with it: each step applies ``predicted_particles_mm`` and asks
 
 **Vectorisation.** Readings of all C·K sequences × S hypotheses come from one accessor call per step
 (static target: one call in all); the likelihoods and objectives are (B, C, K, S) array operations; the
-only Python loops are over the ≤ 3 steps and over the continuations of the third step of the global
-env.
+only Python loops are over the ≤ 3 steps and, in the third step of the global env, over its distinct
+moves (one accessor call per move: ≤ 8 with compass continuations).
 """
 
 from __future__ import annotations
@@ -207,16 +207,19 @@ class LookaheadAgent(BaselineAgent):
         means.append(m1.transpose(1, 0, 2).reshape(c * k, s))
         stds.append(s1.transpose(1, 0, 2).reshape(c * k, s))
         clouds.append(q.transpose(1, 0, 2, 3).reshape(c * k, s, 2))
-        for t in range(1, cont.shape[1]):                 # later steps: one call per continuation
-            mt, st, qt = [], [], []
-            for j in range(k):
-                a, b = env.predicted_reading_model(q[j].reshape(c * s, 2), cont[j, t])
-                mt.append(np.asarray(a).reshape(c, s))
-                st.append(np.asarray(b).reshape(c, s))
-                qt.append(np.asarray(env.predicted_particles_mm(q[j].reshape(c * s, 2), cont[j, t])).reshape(c, s, 2))
-            means.append(np.stack(mt, axis=1).reshape(c * k, s))
-            stds.append(np.stack(st, axis=1).reshape(c * k, s))
-            q = np.stack(qt)
+        for t in range(1, cont.shape[1]):                 # later steps: one call per distinct move
+            moves, group = np.unique(cont[:, t], axis=0, return_inverse=True)
+            mt, st, qt = np.empty((k, c, s)), np.empty((k, c, s)), np.empty((k, c, s, 2))
+            for g, u in enumerate(moves):                 # ≤ 8 compass moves (≤ K uniform ones)
+                js = np.flatnonzero(group.ravel() == g)
+                pts = q[js].reshape(-1, 2)
+                a, b = env.predicted_reading_model(pts, u)
+                mt[js] = np.asarray(a).reshape(js.size, c, s)
+                st[js] = np.asarray(b).reshape(js.size, c, s)
+                qt[js] = np.asarray(env.predicted_particles_mm(pts, u)).reshape(js.size, c, s, 2)
+            means.append(mt.transpose(1, 0, 2).reshape(c * k, s))
+            stds.append(st.transpose(1, 0, 2).reshape(c * k, s))
+            q = qt
             clouds.append(q.transpose(1, 0, 2, 3).reshape(c * k, s, 2))
         return np.stack(means), np.stack(stds), clouds
 
