@@ -168,9 +168,9 @@ def differential_perturbation(
 
     Args:
         offsets_mm: (..., 2) horizontal target position relative to the carriage centre, mm.
-        radius_mm: sphere radius A, mm.
-        chi: contrast factor χ (dimensionless).
-        depth_mm: depth of the sphere centre below the electrode plane, mm (> 0).
+        radius_mm: sphere radius A, mm (or an array, one sphere per offset, broadcasting).
+        chi: contrast factor χ (dimensionless; or an array, as ``radius_mm``).
+        depth_mm: depth of the sphere centre below the electrode plane, mm (> 0; or an array).
         spacing_mm: emitter spacing L (= sensor spacing), mm.
         emitter_voltage_V: emitter voltage V_e, V.
         electrode_radius_mm: emitter radius E, mm.
@@ -221,8 +221,8 @@ _DIPOLE_UFUNC = _dipole_difference.ufunc
 
 def _differential_dipole(
     offsets_mm: ArrayLike,
-    strength: float,
-    depth_mm: float,
+    strength: ArrayLike,
+    depth_mm: ArrayLike,
     power: float,
     spacing_mm: float,
     emitter_voltage_V: float,
@@ -233,14 +233,16 @@ def _differential_dipole(
     ``power = 1.5``: a sphere's point dipole (Eq. 4, strength χa³); ``power = 1``: a vertical
     cylinder's line dipole (2-D analogue, strength χ₂a²), c at ``depth_mm`` below the electrodes.
     float32 offsets are computed in float32, anything else in float64; one compiled pass per offset.
+    ``strength`` and ``depth_mm`` may be arrays broadcasting against the offsets (one object each).
     """
     off = np.asarray(offsets_mm)
     dtype = off.dtype if off.dtype in (np.float32, np.float64) else np.dtype(np.float64)
     t = dtype.type
     x = off[..., 0].astype(dtype, copy=False)
     y = off[..., 1].astype(dtype, copy=False)
-    return _DIPOLE_UFUNC(x, y, t(spacing_mm / 2.0), t(depth_mm * depth_mm), t(emitter_voltage_V * electrode_radius_mm),
-                         t(strength), t(1.0), power == 1.5)
+    z2 = np.asarray(depth_mm * depth_mm, dtype=dtype)  # arrays (per-object depth and strength) broadcast
+    return _DIPOLE_UFUNC(x, y, t(spacing_mm / 2.0), z2, t(emitter_voltage_V * electrode_radius_mm),
+                         np.asarray(strength, dtype=dtype), t(1.0), power == 1.5)
 
 
 def differential_line_perturbation(

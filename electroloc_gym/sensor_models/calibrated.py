@@ -139,6 +139,32 @@ def calibration_grid_for(condition: Condition, protocol: CalibrationProtocol = D
     return calibration_grid_mm(half, protocol.grid_step_mm)
 
 
+def bilinear_cells(offsets_mm: ArrayLike, grid_mm: NDArray[np.float64], grid_step_mm: float
+                   ) -> tuple[NDArray[np.intp], NDArray, NDArray]:
+    """(cell, tx, ty) of offsets (..., 2) on a calibration grid: the coefficient row (the extra last
+    row ``n1²`` outside the grid) and the fractional position in the cell, in the offsets' precision.
+    """
+    off = np.asarray(offsets_mm)
+    dtype = off.dtype if off.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+    n1 = grid_mm.size - 1
+    inv = dtype.type(1.0 / grid_step_mm)
+    lo = dtype.type(grid_mm[0])
+    fx = (off[..., 0] - lo) * inv
+    fy = (off[..., 1] - lo) * inv
+    inside = (fx >= 0) & (fx <= n1) & (fy >= 0) & (fy <= n1)
+    ix = np.minimum(fx.astype(np.intp), n1 - 1)  # fx ≥ 0 where it matters; the top edge uses the last cell
+    iy = np.minimum(fy.astype(np.intp), n1 - 1)
+    return np.where(inside, ix * n1 + iy, n1 * n1), fx - ix.astype(dtype), fy - iy.astype(dtype)
+
+
+def bilinear_mean_std(c: NDArray, tx: NDArray, ty: NDArray) -> tuple[NDArray, NDArray]:
+    """Mean and std from gathered coefficient rows ``c`` (..., 8): c0 + c1·tx + c2·ty + c3·tx·ty each."""
+    txy = tx * ty
+    mean = c[..., 0] + c[..., 1] * tx + c[..., 2] * ty + c[..., 3] * txy
+    std = c[..., 4] + c[..., 5] * tx + c[..., 6] * ty + c[..., 7] * txy
+    return mean, std
+
+
 def _grid_offsets(grid_mm: NDArray[np.float64], samples: int) -> NDArray[np.float64]:
     """The (samples, n, n, 2) offsets of a calibration, every grid point repeated ``samples`` times."""
     gx, gy = np.meshgrid(grid_mm, grid_mm, indexing="ij")
@@ -248,24 +274,8 @@ class CalibratedSensorModel:
         return (self.grid_mm.size, self.grid_mm.size)
 
     def mean_std(self, offsets_mm: ArrayLike) -> tuple[NDArray, NDArray]:
-        off = np.asarray(offsets_mm)
-        dtype = off.dtype if off.dtype in (np.float32, np.float64) else np.float64
-        n1 = self.grid_mm.size - 1
-        inv = dtype.type(1.0 / self.grid_step_mm)
-        lo = dtype.type(self.grid_mm[0])
-        fx = (off[..., 0] - lo) * inv
-        fy = (off[..., 1] - lo) * inv
-        inside = (fx >= 0) & (fx <= n1) & (fy >= 0) & (fy <= n1)
-        ix = np.minimum(fx.astype(np.intp), n1 - 1)  # fx ≥ 0 where it matters; the top edge uses the last cell
-        iy = np.minimum(fy.astype(np.intp), n1 - 1)
-        tx = fx - ix.astype(dtype)
-        ty = fy - iy.astype(dtype)
-        cell = np.where(inside, ix * n1 + iy, n1 * n1)
-        c = self._coef[cell].astype(dtype, copy=False)
-        txy = tx * ty
-        mean = c[..., 0] + c[..., 1] * tx + c[..., 2] * ty + c[..., 3] * txy
-        std = c[..., 4] + c[..., 5] * tx + c[..., 6] * ty + c[..., 7] * txy
-        return mean, std
+        cell, tx, ty = bilinear_cells(offsets_mm, self.grid_mm, self.grid_step_mm)
+        return bilinear_mean_std(self._coef[cell].astype(tx.dtype, copy=False), tx, ty)
 
     def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
         mean, std = self.mean_std(offsets_mm)
