@@ -309,7 +309,9 @@ class MinVarianceAgent(BaselineAgent):
         # The env's own motion rule and frame (ElectroLoc-v0: the target is static; the global env: the
         # hypotheses are the robot's own position and move with it).
         mean, std = env.predicted_reading_model(particles, options)
-        moved = env.predicted_particles_mm(particles, options)
+        # the vote is on the position variance: columns 0–1 (an unknown target's hypotheses also carry
+        # a radius and a contrast, which enter only through the predicted readings)
+        moved = env.predicted_particles_mm(particles, options)[..., :2]
         prior = None if uniform else weights
         opts = {"chunk_rows": self.chunk_rows, "exp_floor": self.exp_floor}
         if self.vote == "expected":

@@ -41,8 +41,12 @@ class BeliefView:
 
     @property
     def particles(self) -> NDArray[np.float32]:
-        """Particle positions (M, 2) float32, mm (a read-only view of the live cloud)."""
-        v = self._state.particles_mm[self._index].T
+        """Particle positions (M, 2) float32, mm (a read-only view of the live cloud); in the
+        unknown-target env (M, 4) hypotheses (x mm, y mm, radius mm, χ), a read-only copy.
+        """
+        s, i = self._state, self._index
+        v = s.particles_mm[i].T if s.shape_particles.shape[1] == 0 else \
+            np.concatenate([s.particles_mm[i], s.shape_particles[i]]).T
         v.flags.writeable = False
         return v
 

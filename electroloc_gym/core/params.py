@@ -24,17 +24,28 @@ from electroloc_gym.conditions import Condition, get_condition
 from electroloc_gym.scene import Scene
 from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, CalibrationProtocol
 from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM
+from electroloc_gym.sensor_models.shape import DEFAULT_EEV_RADII_MM
 
 __all__ = ["EnvParams", "TASKS", "TASK_ARGUMENTS", "OBSERVATION_MODES", "ACTION_TYPES", "SENSOR_MODELS",
+           "TASK_SENSOR_MODELS", "TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM",
            "LAYOUTS", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "memory_limit_bytes", "check_int", "check_bool"]
 
 #: ``"localize"``: ElectroLoc-v0 (the particles are target hypotheses); ``"global"``: ElectroLocGlobal-v0
-#: (the particles are hypotheses of the robot's own position in a mapped tank, paper §6.5).
-TASKS = ("localize", "global")
+#: (the particles are hypotheses of the robot's own position in a mapped tank, paper §6.5);
+#: ``"unknown"``: ElectroLocUnknownTarget-v0 (target hypotheses with a radius and a contrast, §7).
+TASKS = ("localize", "global", "unknown")
 OBSERVATION_MODES = ("belief", "raw")
 ACTION_TYPES = ("continuous", "discrete")
-#: The sensor models the core implements (any other name is refused, never run as another model).
+#: The sensor models the core implements per task (any other name is refused, never run as another model).
 SENSOR_MODELS = ("analytic", "calibrated")
+TASK_SENSOR_MODELS = {"localize": SENSOR_MODELS, "global": SENSOR_MODELS, "unknown": ("analytic", "interpolated")}
+#: The unknown-target env: how the episode's sphere is drawn (``"prior"``: radius uniform in
+#: ``radius_range_mm``, material or contrast from ``contrast``; ``"condition"``: the condition's own sphere).
+TARGET_DRAWS = ("prior", "condition")
+#: ``"binary"``: a conductor (χ = +1) or an insulator (χ = −½); ``"continuous"``: χ uniform in [−½, 1].
+CONTRASTS = ("binary", "continuous")
+#: The unknown-target env's default radius range (prior of the belief and of the draws), mm.
+DEFAULT_RADIUS_RANGE_MM = (5.0, 20.0)
 #: Named maps of the global task: the fixed benchmark map, or a new seeded six-cylinder map per episode.
 LAYOUTS = ("benchmark", "random")
 
@@ -50,7 +61,14 @@ _COMMON = ("observation", "sensor_model", "n_particles", "max_observations", "su
 TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
     "localize": ("condition", "signal", "randomize_target") + _COMMON,
     "global": ("layout", "position_blur_mm") + _COMMON,
+    "unknown": ("condition", "signal", "randomize_target", "target_draw", "radius_range_mm", "contrast",
+                "eev_radii_mm") + _COMMON,
 }
+#: Defaults that differ by task (the unknown-target env: the eight tanks, the theoretical EEV, and 5000
+#: particles for its 4-D belief — with the paper's 2500 a tenth of its successes were on a wrong place,
+#: measured on validation seeds, docs/extensions.md).
+TASK_DEFAULTS: dict[str, dict[str, Any]] = {"unknown": {"condition": "random", "sensor_model": "analytic",
+                                                        "n_particles": 5000}}
 
 #: Bytes of state and scratch per particle and env (particles, jitter draws, the kernels' scratch).
 BYTES_PER_PARTICLE = 96
@@ -84,6 +102,15 @@ def check_bool(name: str, value: Any) -> bool:
     return bool(value)
 
 
+def _radii(name: str, value: Any, count: int | None) -> tuple[float, ...]:
+    """A tuple of positive finite radii, mm (``count`` of them, or at least one)."""
+    items = tuple(value) if isinstance(value, (tuple, list, np.ndarray)) else None
+    if items is None or not items or (count is not None and len(items) != count):
+        want = f"{count}" if count is not None else "one or more"
+        raise ValueError(f"{name} must be a tuple of {want} radii in mm, got {value!r}")
+    return tuple(check_float(name, v, 0.0) for v in items)
+
+
 def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value not in choices:
         raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
@@ -114,7 +141,8 @@ class EnvParams:
             episode) or a :class:`~electroloc_gym.scene.Scene`.
         position_blur_mm: global: the map sensor models' position blur b, mm (≥ 0).
         observation: ``"belief"`` (81 features) or ``"raw"`` (3).
-        sensor_model: the filter's and the agent's sensor model, ``"analytic"`` or ``"calibrated"``.
+        sensor_model: the filter's and the agent's sensor model, ``"analytic"`` or ``"calibrated"``; unknown
+            target: ``"analytic"`` (the theoretical EEV of each hypothesis) or ``"interpolated"``.
         n_particles: particles M per env (≥ 1; paper: 2500).
         max_observations: readings per episode before truncation (≥ 1; paper §5.4: 35).
         success_spread_mm: success when √trace Σ ≤ this, mm (> 0; paper: 10 mm).
@@ -124,6 +152,12 @@ class EnvParams:
         calibration: how the calibrated model is taken (a ``CalibrationProtocol`` or a dict of its
             fields; default ``DEFAULT_CALIBRATION``).
         max_episode_steps: truncate after this many steps (≥ 1), or None (a ``TimeLimit`` in the env).
+        target_draw: unknown target: ``"prior"`` (the sphere drawn from the prior) or ``"condition"``
+            (the condition's own sphere, hidden from the agent: the benchmark over the paper's pairs).
+        radius_range_mm: unknown target: (low, high) radius range of the prior, mm (0 < low < high).
+        contrast: unknown target: ``"binary"`` (conductor or insulator) or ``"continuous"`` (χ ∈ [−½, 1]).
+        eev_radii_mm: unknown target, ``sensor_model="interpolated"``: the radii of the calibrated
+            EEVs (mm, positive, distinct) the model interpolates between.
     """
 
     task: str = "localize"
@@ -141,6 +175,10 @@ class EnvParams:
     calibration_seed: int | None = None
     calibration: Any = DEFAULT_CALIBRATION
     max_episode_steps: int | None = None
+    target_draw: str = "prior"
+    radius_range_mm: Any = DEFAULT_RADIUS_RANGE_MM
+    contrast: str = "binary"
+    eev_radii_mm: Any = DEFAULT_EEV_RADII_MM
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -148,7 +186,15 @@ class EnvParams:
 
         _check_choice("task", self.task, TASKS)
         _check_choice("observation", self.observation, OBSERVATION_MODES)
-        _check_choice("sensor_model", self.sensor_model, SENSOR_MODELS)
+        _check_choice("sensor_model", self.sensor_model, TASK_SENSOR_MODELS[self.task])
+        _check_choice("target_draw", self.target_draw, TARGET_DRAWS)
+        _check_choice("contrast", self.contrast, CONTRASTS)
+        put("radius_range_mm", _radii("radius_range_mm", self.radius_range_mm, 2))
+        if self.radius_range_mm[0] >= self.radius_range_mm[1]:
+            raise ValueError(f"radius_range_mm must be (low, high) with low < high, got {self.radius_range_mm!r}")
+        put("eev_radii_mm", tuple(sorted(_radii("eev_radii_mm", self.eev_radii_mm, None))))
+        if len(set(self.eev_radii_mm)) != len(self.eev_radii_mm):
+            raise ValueError(f"eev_radii_mm must be distinct, got {self.eev_radii_mm!r}")
         _check_choice("action_type", self.action_type, ACTION_TYPES)
         put("n_particles", check_int("n_particles", self.n_particles, 1, 2**31 - 2))
         put("max_observations", check_int("max_observations", self.max_observations, 1))
@@ -169,7 +215,7 @@ class EnvParams:
         if not isinstance(cal, CalibrationProtocol):
             raise ValueError(f"calibration must be a CalibrationProtocol or a dict of its fields, got {cal!r}")
         put("calibration", cal)
-        if self.task == "localize":
+        if self.task in ("localize", "unknown"):
             if not (isinstance(self.condition, str) and self.condition == "random"):
                 get_condition(self.condition, self.signal)  # raises for an unknown name or a bad signal
             elif self.signal is not None:
@@ -187,7 +233,7 @@ class EnvParams:
         if unknown:
             raise ValueError(f"{env_id} got unexpected argument(s) {unknown}; its arguments are "
                              f"{sorted(allowed)}")
-        return cls(task=task, **kwargs)
+        return cls(task=task, **{**TASK_DEFAULTS.get(task, {}), **kwargs})
 
     def replace(self, **changes: Any) -> EnvParams:
         """A copy with some fields changed (validated again)."""

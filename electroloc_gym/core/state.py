@@ -53,7 +53,13 @@ class State:
         grid_cells: (N,) int64 calibration cells per axis.
         table_row: (N,) int64 first row of each env's coefficients in ``table``.
         table: (N·cells + …, 8) float32 stacked bilinear coefficients of the calibrated models.
-        jitter_idx: (N, 2M) uint16 scratch: each step's jitter draws.
+        jitter_idx: (N, D·M) uint16 scratch: each step's jitter draws (D = 2, or 4 with shapes).
+        shape_particles: (N, S, M) float32: each particle's shape (unknown target, S = 2: radius mm, χ;
+            S = 0 elsewhere).
+        target_shape: (N, 2) the true sphere's radius (mm) and χ (unknown target).
+        shape_mean: (N, 2) the belief's mean radius (mm) and mean χ (unknown target).
+        shape_std: (N, 2) their standard deviations (mm, —).
+        p_conductor: (N,) the belief's fraction of particles with χ > 0 (unknown target).
     """
 
     gens: list[np.random.Generator | None]
@@ -84,12 +90,17 @@ class State:
     table_row: NDArray[np.int64]
     table: NDArray[np.float32]
     jitter_idx: NDArray[np.uint16]
+    shape_particles: NDArray[np.float32]
+    target_shape: NDArray[np.float64]
+    shape_mean: NDArray[np.float64]
+    shape_std: NDArray[np.float64]
+    p_conductor: NDArray[np.float64]
     started: bool = field(default=False)
 
     @classmethod
-    def empty(cls, num_envs: int, n_particles: int, table_cells: int) -> State:
+    def empty(cls, num_envs: int, n_particles: int, table_cells: int, shape_dims: int = 0) -> State:
         """A state of ``num_envs`` envs of ``n_particles`` particles, room for ``table_cells`` calibration
-        rows per env (0: no calibrated model).
+        rows per env (0: no calibrated model) and ``shape_dims`` shape coordinates per particle.
         """
         n, m = num_envs, n_particles
         return cls(
@@ -105,7 +116,9 @@ class State:
             grid_lo_mm=np.zeros(n, dtype=np.float32), grid_inv_mm=np.ones(n, dtype=np.float32),
             grid_cells=np.ones(n, dtype=np.int64), table_row=np.arange(n, dtype=np.int64) * table_cells,
             table=np.zeros((max(n * table_cells, 1), 8), dtype=np.float32),
-            jitter_idx=np.empty((n, 2 * m), dtype=np.uint16),
+            jitter_idx=np.empty((n, (2 + shape_dims) * m), dtype=np.uint16),
+            shape_particles=np.zeros((n, shape_dims, m), dtype=np.float32), target_shape=np.zeros((n, 2)),
+            shape_mean=np.zeros((n, 2)), shape_std=np.zeros((n, 2)), p_conductor=np.zeros(n),
         )
 
     @property

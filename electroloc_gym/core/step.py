@@ -67,7 +67,8 @@ class Simulation:
         self.num_envs = int(num_envs)
         self.task = make_task(params)
         params.check_memory(self.num_envs, self.task.calibration_points())
-        self.state = State.empty(self.num_envs, params.n_particles, self.task.table_cells())
+        self.state = State.empty(self.num_envs, params.n_particles, self.task.table_cells(),
+                                 getattr(self.task, "shape_dims", 0))
         self.obs_dim = BELIEF_OBS_DIM if params.observation == "belief" else RAW_OBS_DIM
         self._normal_table = normal_table()
         self._all_ids = np.arange(self.num_envs)
@@ -198,7 +199,7 @@ class Simulation:
     def _reference_mm(self, sel: Any) -> NDArray[np.float64]:
         """The observation's entries 0–1: the carriage (localize) or the odometry (global)."""
         s = self.state
-        return s.position_mm[sel] if self.task.name == "localize" else s.odometry_mm[sel]
+        return s.odometry_mm[sel] if self.task.name == "global" else s.position_mm[sel]
 
     def observation(self, ids: NDArray[np.intp] | None = None) -> NDArray[np.float32]:
         """(k, obs_dim) float32 observations of envs ``ids`` (all if None)."""
@@ -206,7 +207,7 @@ class Simulation:
         half, sat = s.half_mm[sel], s.saturation_V[sel]
         if self.params.observation == "raw":
             return raw_observation(self._reference_mm(sel), s.reading_V[sel], half, sat)
-        origin = s.position_mm[sel] if self.task.name == "localize" else np.zeros((len(half), 2))
+        origin = np.zeros((len(half), 2)) if self.task.name == "global" else s.position_mm[sel]
         obs = belief_observation(origin, s.reading_V[sel], s.mean_mm[sel], s.cov_mm2[sel],
                                  s.counts[sel] / s.n_particles, s.n_observations[sel], self.params.max_observations,
                                  half, s.noise_V[sel], sat, self.params.success_spread_mm, s.descriptor[sel])
@@ -220,6 +221,7 @@ class Simulation:
         est = s.mean_mm[sel]
         spread = np.sqrt(np.maximum(s.cov_mm2[sel, 0, 0] + s.cov_mm2[sel, 1, 1], 0.0))
         d = est - self.task.truth_mm(s, sel)
+        extra = self.task.shape_info(s, sel) if self.task.name == "unknown" else {}
         return {
             "position_mm": s.position_mm[sel].copy(),
             "estimate_mm": est.copy(),
@@ -229,6 +231,7 @@ class Simulation:
             "n_observations": s.n_observations[sel].copy(),
             "success": spread <= self.params.success_spread_mm,
             "condition": s.names[sel].copy(),
+            **extra,
         }
 
     # ---- the reading and the belief update -----------------------------------------------------
@@ -241,16 +244,20 @@ class Simulation:
         noise = np.empty(k)
         u0 = np.empty(k)
         jitter = s.jitter_idx if full else s.jitter_idx[:k]
-        two_m = 2 * s.n_particles
+        draws = s.jitter_idx.shape[1]  # 2·M (4·M with shapes)
         gens = s.gens
         for j, (i, sd) in enumerate(zip(ids.tolist(), s.noise_V[sel].tolist(), strict=True)):
             g = gens[i] or self.generator(i)
             noise[j] = g.normal(0.0, sd)
             u0[j] = g.random()
-            jitter[j] = table_normal_indices(g, two_m)
+            jitter[j] = table_normal_indices(g, draws)
         reading = saturated_reading(self.task.true_mean_V(s, ids), noise, s.saturation_V[sel])
         s.reading_V[sel] = reading
         s.n_observations[sel] += 1
+        if self.task.name == "unknown":  # position and shape resampled together (core.unknown)
+            if self.task.assimilate(s, ids, reading, u0, jitter, self._normal_table, HIST_BINS) >= 0:
+                raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
+            return
         src = s.particles_mm if full else s.particles_mm[ids]  # full: updated in place
         origin = self.task.histogram_origin(s, sel)
         half = s.half_mm[sel].astype(np.float32)

@@ -152,6 +152,14 @@ class _Task:
         """Env ``i``'s hypotheses (…, M, 2) after commanded moves (2,) or (C, 2), mm."""
         raise NotImplementedError
 
+    #: Coordinates of a hypothesis an agent passes to the predictions (position only here).
+    particle_dims = 2
+
+    def predicted_mean_std(self, state: State, i: int, particles: NDArray,
+                           moves_mm: NDArray) -> tuple[NDArray, NDArray]:
+        """Sensor-model mean and std (V) of the reading each hypothesis predicts after the moves."""
+        return self.sensor_model(state, i).mean_std(self.offsets_after_move(state, i, particles, moves_mm))
+
 
 class TargetTask(_Task):
     """ElectroLoc-v0: a target sphere (or a pool of conditions) whose position the particles estimate."""
@@ -332,4 +340,8 @@ def _shift_in_box(points: NDArray, shift: NDArray, half: Any) -> NDArray:
 
 def make_task(params: EnvParams) -> TargetTask | MapTask:
     """The task object of ``params.task``."""
+    if params.task == "unknown":
+        from electroloc_gym.core.unknown import UnknownTargetTask
+
+        return UnknownTargetTask(params)
     return TargetTask(params) if params.task == "localize" else MapTask(params)

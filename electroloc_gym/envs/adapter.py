@@ -27,6 +27,9 @@ from electroloc_gym.core.step import Simulation
 
 __all__ = ["CoreEnv", "ParamAccessors", "spaces_of"]
 
+_INFO_ROW_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
+                  "condition")
+
 
 def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space, spaces.Box]:
     """(action space, observation space) of one env."""
@@ -171,7 +174,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
             ``(mean_V, std_V)``, each (M,) for a (2,) move and (C, M) for (C, 2) moves.
         """
         p, u = self._check_prediction_args(particles_mm, moves_mm)
-        return self.sensor_model.mean_std(self._task.offsets_after_move(self._state, 0, p, u))
+        return self._task.predicted_mean_std(self._state, 0, p, u)
 
     def _check_prediction_args(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
         if not self._state.started:
@@ -179,8 +182,9 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         p = np.asarray(particles_mm)
         if p.dtype not in (np.float32, np.float64):
             p = p.astype(np.float64)
-        if p.ndim != 2 or p.shape[-1] != 2:
-            raise ValueError(f"particles_mm must have shape (M, 2), got {p.shape}")
+        d = self._task.particle_dims
+        if p.ndim != 2 or p.shape[-1] != d:
+            raise ValueError(f"particles_mm must have shape (M, {d}), got {p.shape}")
         u = np.asarray(moves_mm, dtype=np.float64)
         if u.ndim not in (1, 2) or u.shape[-1] != 2:
             raise ValueError(f"moves_mm must have shape (2,) or (C, 2), got {u.shape}")
@@ -212,6 +216,8 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     @staticmethod
     def _info_row(info: dict[str, NDArray]) -> dict[str, Any]:
         """Row 0 of the core's info arrays as Python values (positions as tuples of float)."""
+        extra = {k: v[0].item() if isinstance(v[0], np.generic) else v[0] for k, v in info.items()
+                 if k not in _INFO_ROW_KEYS}
         return {
             "position_mm": tuple(info["position_mm"][0].tolist()),
             "estimate_mm": tuple(info["estimate_mm"][0].tolist()),
@@ -221,6 +227,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
             "n_observations": int(info["n_observations"][0]),
             "success": bool(info["success"][0]),
             "condition": str(info["condition"][0]),
+            **extra,
         }
 
     def render(self) -> NDArray[np.uint8] | None:

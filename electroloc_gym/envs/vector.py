@@ -37,8 +37,8 @@ from electroloc_gym.core.params import EnvParams, check_int
 from electroloc_gym.core.step import Simulation
 from electroloc_gym.envs.adapter import ParamAccessors, spaces_of
 
-__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "make_electroloc_vector_env",
-           "make_global_vector_env"]
+__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "UnknownTargetVectorEnv",
+           "make_electroloc_vector_env", "make_global_vector_env", "make_unknown_target_vector_env"]
 
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
     AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP: AutoresetMode.SAME_STEP,
@@ -213,6 +213,15 @@ class GlobalLocalizationVectorEnv(CoreVectorEnv):
         return self._state.odometry_mm.copy()
 
 
+class UnknownTargetVectorEnv(CoreVectorEnv):
+    """``num_envs`` copies of ElectroLocUnknownTarget-v0 stepped as one core (module docstring); the info
+    adds the unknown-target keys (size and material estimates, their truth) as (N,) arrays.
+    """
+
+    _TASK = "unknown"
+    _ENV_ID = "ElectroLocUnknownTarget-v0"
+
+
 def make_electroloc_vector_env(num_envs: int = 1, **kwargs: Any) -> ElectroLocVectorEnv:
     """The ``vector_entry_point`` of ElectroLoc-v0."""
     return ElectroLocVectorEnv(num_envs=num_envs, **kwargs)
@@ -221,3 +230,8 @@ def make_electroloc_vector_env(num_envs: int = 1, **kwargs: Any) -> ElectroLocVe
 def make_global_vector_env(num_envs: int = 1, **kwargs: Any) -> GlobalLocalizationVectorEnv:
     """The ``vector_entry_point`` of ElectroLocGlobal-v0."""
     return GlobalLocalizationVectorEnv(num_envs=num_envs, **kwargs)
+
+
+def make_unknown_target_vector_env(num_envs: int = 1, **kwargs: Any) -> UnknownTargetVectorEnv:
+    """The ``vector_entry_point`` of ElectroLocUnknownTarget-v0."""
+    return UnknownTargetVectorEnv(num_envs=num_envs, **kwargs)

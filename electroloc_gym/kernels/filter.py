@@ -17,7 +17,7 @@ from electroloc_gym.kernels.lookup import _calibrated_ll_one
 from electroloc_gym.kernels.mathf32 import JIT, exp32, sum8
 from electroloc_gym.kernels.stats import _counts_one, _cov_about
 
-__all__ = ["calibrated_assimilate", "loglik_assimilate"]
+__all__ = ["calibrated_assimilate", "loglik_assimilate", "resample_indices"]
 
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
@@ -224,4 +224,37 @@ def loglik_assimilate(ll, src, origin, u0, jitter_idx, normal_table, half, out, 
         _resample_one(w, total, u0[e], px, py, jitter_idx[e], normal_table, half[e],
                       out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
                       *scratch)
+    return -1
+
+
+@njit(**JIT)
+def resample_indices(ll, u0, idx):  # pragma: no cover - compiled
+    """Systematic-resampling indices of k clouds from their float32 log-likelihoods ``ll`` (k, M)
+    (uniform prior weights): the shifted ``exp32`` weights and their fixed-order total, as in
+    :func:`loglik_assimilate`, then ``idx[e] = min(searchsorted(cum, (U + arange(M))/M, "right"), M − 1)``
+    as one merge of the sorted pointers with the cumulative weights (exact comparisons only).
+
+    For clouds whose particles carry more than the two position coordinates (the unknown-target env
+    resamples position and shape with the same indices). ``u0``: (k,) float64 offsets U in [0, 1);
+    ``idx``: (k, M) int64 output. Returns −1, or the first env whose log-likelihood is NaN.
+    """
+    k, m = ll.shape
+    fm = np.float64(m)
+    w = np.empty(m, dtype=np.float32)
+    cum = np.empty(m)
+    for e in range(k):
+        t = _shifted_exp_one(ll[e], w)
+        if t != t:
+            return e
+        acc = 0.0
+        for i in range(m):
+            acc = acc + np.float64(w[i]) / t
+            cum[i] = acc
+        last = cum[m - 1]
+        i = 0
+        for j in range(m):
+            u = (u0[e] + np.float64(j)) / fm
+            while i < m - 1 and cum[i] / last <= u:
+                i += 1
+            idx[e, j] = i
     return -1

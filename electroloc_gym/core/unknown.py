@@ -1,0 +1,234 @@
+"""The unknown-target task (ElectroLocUnknownTarget-v0): the belief estimates the sphere's position,
+radius and contrast together (paper §7).
+
+Each particle is a hypothesis (x, y, a, χ): position (mm), radius a (mm) and contrast χ (Eq. 4). The
+position is stored as in the other tasks (``State.particles_mm``), the shape beside it
+(``State.shape_particles``: radius, χ). The tank of an episode — water, amplifier, workspace, signal
+scale — is a condition of the pool (by default the eight presets); its sphere is hidden: with
+``target_draw="condition"`` the true sphere is the condition's own (the benchmark over the paper's
+eight pairs), with ``"prior"`` it is drawn from the belief's prior (radius uniform in
+``radius_range_mm``; ``contrast="binary"``: a conductor, χ = +1, or an insulator, χ = −½, with equal
+probability; ``"continuous"``: χ uniform in [−½, 1]).
+
+**Measurement update.** The log-likelihood of every hypothesis comes from the shape sensor model
+(:mod:`electroloc_gym.sensor_models.shape`; exact elementwise numpy operations), the systematic
+resampling indices from the compiled kernel :func:`~electroloc_gym.kernels.resample_indices`, and
+position and shape are resampled with the same indices. Jitter: N(0, 1 mm²) per position axis (as
+the other tasks), N(0, (0.5 mm)²) on the radius, N(0, 0.02²) on a continuous χ (none on a binary
+one); each coordinate is clipped to its range (the box, the radius range, [−½, 1]). The draws per
+step: the reading's noise, U, then 4·M normal-table indices (x, y of particle j at 2j, 2j + 1; radius,
+χ at 2M + 2j, 2M + 2j + 1). The statistics — position mean and covariance, histogram, the shape's
+means and stds, the conductor fraction — come from the kernels' fixed-order sums, so every env's
+values are those it gets alone, whatever N and the CPU.
+
+**Reported estimates.** Radius: the particles' mean radius; material: conductor if more than half of
+the particles have χ > 0. Success stays the position criterion (√trace Σ of x–y ≤ 10 mm).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from electroloc_gym.conditions import Condition
+from electroloc_gym.core.params import EnvParams
+from electroloc_gym.core.state import State
+from electroloc_gym.core.tasks import TargetTask, group_by_world
+from electroloc_gym.kernels import egocentric_counts, mean_cov_rows, resample_indices, row_sums
+from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel, shape_expected_reading
+
+__all__ = ["UnknownTargetTask", "CONDUCTOR_CHI", "INSULATOR_CHI", "RADIUS_JITTER_MM", "CHI_JITTER", "SHAPE_INFO_KEYS"]
+
+#: The contrasts of a perfect conductor and a perfect insulator (Eq. 4).
+CONDUCTOR_CHI = 1.0
+INSULATOR_CHI = -0.5
+#: Jitter of the radius after resampling, mm; of a continuous χ. (0.5 mm with 5000 particles: chosen on
+#: validation seeds 101 and 102 over 0.25 mm with 2500 and 10 000 particles, docs/extensions.md.)
+RADIUS_JITTER_MM = 0.5
+CHI_JITTER = 0.02
+#: The info keys the unknown-target env adds.
+SHAPE_INFO_KEYS = ("radius_estimate_mm", "radius_spread_mm", "chi_estimate", "chi_spread", "p_conductor",
+                   "material_estimate", "target_radius_mm", "target_chi", "radius_error_frac", "material_correct")
+
+
+def _material(chi: NDArray) -> NDArray[np.object_]:
+    return np.where(np.asarray(chi) > 0, "conductor", "insulator").astype(object)
+
+
+class UnknownTargetTask(TargetTask):
+    """ElectroLocUnknownTarget-v0 (module docstring)."""
+
+    name = "unknown"
+    #: Shape coordinates per particle (radius, χ); a hypothesis is (x, y, a, χ).
+    shape_dims = 2
+    particle_dims = 4
+
+    def __init__(self, params: EnvParams) -> None:
+        super().__init__(params)
+        self.calibrated = False  # the interpolated model's tables are its own, not the kernels' table
+        self.radius_range_mm = params.radius_range_mm
+        self.continuous = params.contrast == "continuous"
+        self._theoretical = [TheoreticalShapeModel(c) for c in self.pool]
+
+    def calibration_points(self) -> int:
+        return 0
+
+    def table_cells(self) -> int:
+        return 0
+
+    # ---- the episode ------------------------------------------------------------------------------
+    def _draw_chi(self, g: np.random.Generator, size: int | None = None) -> Any:
+        if self.continuous:
+            return g.uniform(INSULATOR_CHI, CONDUCTOR_CHI, size=size)
+        return np.where(g.random(size) < 0.5, CONDUCTOR_CHI, INSULATOR_CHI)
+
+    def _draw_radius(self, g: np.random.Generator, size: int | None = None) -> Any:
+        lo, hi = self.radius_range_mm
+        return g.uniform(lo, hi, size=size)
+
+    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+        """Env ``i``'s reset draws, in order: condition (pool of several), calibration seed (unless fixed),
+        the sphere (``target_draw="prior"``: radius, then material or χ), target position
+        (``randomize_target``), start position, particle positions, particle radii, particle χ.
+        """
+        pool = self.pool
+        k = int(g.integers(len(pool))) if len(pool) > 1 else 0
+        c = pool[k]
+        self._set_world(state, i, c, k, c, self._descriptors[k])
+        state.cal_seed[i] = self._cal_seed(g)
+        state.model[i] = None
+        lo, hi = self.radius_range_mm
+        if self.params.target_draw == "prior":
+            radius = float(self._draw_radius(g))
+            state.target_shape[i] = (radius, float(self._draw_chi(g)))
+        else:
+            state.target_shape[i] = (c.target.radius_mm, c.chi)
+        s = c.start_half_width_mm
+        state.target_mm[i] = g.uniform(-s, s, size=2) if self.params.randomize_target else c.target_xy_mm
+        self._place(state, i, g, s)
+        m = state.n_particles
+        state.shape_particles[i, 0] = self._draw_radius(g, m)
+        state.shape_particles[i, 1] = self._draw_chi(g, m)
+
+    def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
+        """(k,) noise-free, unsaturated true readings of the hidden spheres, V (float64)."""
+        offsets = state.target_mm[ids] - state.position_mm[ids]
+        shape = state.target_shape[ids]
+        out = np.empty(len(ids))
+        for c, rows in group_by_world(state, ids):
+            out[rows] = shape_expected_reading(c, offsets[rows], shape[rows, 0], shape[rows, 1], saturate=False)
+        return out
+
+    def sensor_model(self, state: State, i: int) -> Any:
+        """Env ``i``'s shape sensor model (``mean_std(offsets, radius_mm, chi)``; interpolated: built on first use)."""
+        if state.model[i] is None:
+            c = state.world[i]
+            if self.params.sensor_model == "analytic":
+                state.model[i] = self._theoretical[int(state.world_key[i])]
+            else:
+                state.model[i] = InterpolatedShapeModel(c, self.params.eev_radii_mm, int(state.cal_seed[i]),
+                                                        self.protocol)
+        return state.model[i]
+
+    def true_condition(self, state: State, i: int) -> Condition:
+        """Env ``i``'s tank with its hidden sphere (ground truth, for evaluation only)."""
+        from electroloc_gym.conditions import Target
+
+        c: Condition = state.world[i]
+        radius, chi = state.target_shape[i]
+        if c.target.radius_mm == radius and c.chi == chi:
+            return c
+        # χ = (σ_t − σ_w)/(σ_t + 2σ_w)  ⇔  σ_t = σ_w (1 + 2χ)/(1 − χ) (χ = 1: a perfect conductor)
+        sw = c.water.conductivity_uScm
+        sigma = 1.4e10 if chi >= 1.0 else sw * (1.0 + 2.0 * chi) / (1.0 - chi)
+        material = "steel" if chi >= 1.0 else ("delrin" if chi <= -0.5 else "custom")
+        return c.replace(target=Target(radius_mm=float(radius), conductivity_uScm=max(float(sigma), 0.0),
+                                       material=material))
+
+    # ---- predictions for agents ------------------------------------------------------------------
+    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """Target position hypothesis (columns 0–1 of (M, 4) particles) − the carriage after the move."""
+        return super().offsets_after_move(state, i, particles[..., :2], moves_mm)
+
+    def predicted_mean_std(self, state: State, i: int, particles: NDArray,
+                           moves_mm: NDArray) -> tuple[NDArray, NDArray]:
+        """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves."""
+        off = self.offsets_after_move(state, i, particles, moves_mm)
+        return self.sensor_model(state, i).mean_std(off, particles[..., 2], particles[..., 3])
+
+    # ---- the measurement update ------------------------------------------------------------------
+    def assimilate(self, state: State, ids: NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
+                   jitter: NDArray[np.uint16], normal_table: NDArray[np.float32], bins: int) -> int:
+        """Fuse each env's reading into its 4-D cloud (module docstring); returns −1 or the first env whose
+        log-likelihood is NaN.
+        """
+        s = state
+        k, m = len(ids), s.n_particles
+        xy = s.particles_mm[ids]
+        shape = s.shape_particles[ids]
+        origin = s.position_mm[ids].astype(np.float32)
+        off = (xy - origin[:, :, None]).transpose(0, 2, 1)
+        ll = np.empty((k, m), dtype=np.float32)
+        for e, i in enumerate(ids.tolist()):
+            ll[e] = self.sensor_model(s, i).log_likelihood(np.float32(reading[e]), off[e], shape[e, 0], shape[e, 1])
+        idx = np.empty((k, m), dtype=np.int64)
+        bad = resample_indices(ll, u0, idx)
+        if bad >= 0:
+            return bad
+        z = normal_table[jitter[:k]]                                             # (k, 4M) standard normals
+        half = s.half_mm[ids].astype(np.float32)[:, None]
+        lo, hi = (np.float32(v) for v in self.radius_range_mm)
+        rows = np.arange(k)[:, None]
+        x = np.minimum(np.maximum(xy[:, 0][rows, idx] + z[:, 0:2 * m:2], -half), half)
+        y = np.minimum(np.maximum(xy[:, 1][rows, idx] + z[:, 1:2 * m:2], -half), half)
+        radius = np.minimum(np.maximum(shape[:, 0][rows, idx] + np.float32(RADIUS_JITTER_MM) * z[:, 2 * m::2], lo), hi)
+        chi = shape[:, 1][rows, idx]
+        if self.continuous:
+            chi = np.minimum(np.maximum(chi + np.float32(CHI_JITTER) * z[:, 2 * m + 1::2],
+                                        np.float32(INSULATOR_CHI)), np.float32(CONDUCTOR_CHI))
+        s.particles_mm[ids, 0], s.particles_mm[ids, 1] = x, y
+        s.shape_particles[ids, 0], s.shape_particles[ids, 1] = radius, chi
+        mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, bins * bins))
+        x, y = s.particles_mm[ids, 0], s.particles_mm[ids, 1]
+        mean_cov_rows(x, y, mean, cov)
+        egocentric_counts(x, y, origin, 2 * half[:, 0], bins, counts)
+        s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
+        self._shape_statistics(s, ids)
+        return -1
+
+    def _shape_statistics(self, s: State, ids: NDArray[np.intp]) -> None:
+        """The shape's means and stds (fixed-order sums) and the conductor fraction of envs ``ids``."""
+        m = s.n_particles
+        for d in range(2):
+            v = s.shape_particles[ids, d].astype(np.float64)
+            total = np.empty(len(ids))
+            row_sums(v, total)
+            mu = total / m
+            dev = v - mu[:, None]
+            row_sums(dev * dev, total)
+            s.shape_mean[ids, d] = mu
+            s.shape_std[ids, d] = np.sqrt(total / m)
+        s.p_conductor[ids] = np.count_nonzero(s.shape_particles[ids, 1] > 0, axis=1) / m
+        # the observation's condition entries 76–77: the belief's radius / 25 mm and χ instead of the truth
+        s.descriptor[ids, 0] = (s.shape_mean[ids, 0] / 25.0).astype(np.float32)
+        s.descriptor[ids, 1] = s.shape_mean[ids, 1].astype(np.float32)
+
+    def shape_info(self, state: State, sel: Any) -> dict[str, NDArray]:
+        """The info arrays :data:`SHAPE_INFO_KEYS` of envs ``sel``."""
+        s = state
+        est_r, true_r = s.shape_mean[sel, 0], s.target_shape[sel, 0]
+        material = _material(s.p_conductor[sel] - 0.5)
+        return {
+            "radius_estimate_mm": est_r.copy(),
+            "radius_spread_mm": s.shape_std[sel, 0].copy(),
+            "chi_estimate": s.shape_mean[sel, 1].copy(),
+            "chi_spread": s.shape_std[sel, 1].copy(),
+            "p_conductor": s.p_conductor[sel].copy(),
+            "material_estimate": material,
+            "target_radius_mm": true_r.copy(),
+            "target_chi": s.target_shape[sel, 1].copy(),
+            "radius_error_frac": np.abs(est_r - true_r) / true_r,
+            "material_correct": material == _material(s.target_shape[sel, 1]),
+        }
