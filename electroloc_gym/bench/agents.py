@@ -18,6 +18,7 @@ Nothing is picked up from the working directory: a default run uses the shipped 
 from __future__ import annotations
 
 import importlib.util
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -155,23 +156,40 @@ def _training_extra_missing() -> str | None:
     return None
 
 
-def default_agents(*, table4_only: bool = False, trust_pickle: bool = False) -> list[AgentChoice]:
-    """What a run without ``--agents`` considers: the paper's controllers, then every shipped model.
+def shipped_model_env(folder: Path) -> str | None:
+    """The env id a shipped policy was trained on (its policy.json's ``observation.env_id``; plain JSON)."""
+    try:
+        with open(folder / "policy.json", encoding="utf-8") as f:
+            env_id = json.load(f)["observation"]["env_id"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return env_id if isinstance(env_id, str) else None
+
+
+def default_agents(*, table4_only: bool = False, trust_pickle: bool = False,
+                   env_id: str = "ElectroLoc-v0") -> list[AgentChoice]:
+    """What a run without ``--agents`` considers: the paper's controllers, then every shipped model
+    trained on ``env_id``.
 
     A shipped model that cannot run here is listed with the reason it is skipped (the training
-    extra missing, or its files not loading).
+    extra missing, its files not loading, or another env).
 
     Args:
         table4_only: only particle-filter agents (the global env: rnd-wlk, min-var; no learned policies,
             which were trained on ElectroLoc-v0).
         trust_pickle: passed to the policy loader.
+        env_id: the run's env.
     """
     if table4_only:
         return [AgentChoice("rnd-wlk"), AgentChoice("min-var")]
     choices = [AgentChoice(name) for name in AGENT_REGISTRY]
     models = shipped_models()
     missing = _training_extra_missing() if models else None
-    for name in models:
+    for name, folder in models.items():
+        trained_on = shipped_model_env(folder)
+        if trained_on is not None and trained_on != env_id:
+            choices.append(AgentChoice(name, skipped=f"trained on {trained_on}, not {env_id}"))
+            continue
         if missing:
             choices.append(AgentChoice(name, skipped=missing))
             continue

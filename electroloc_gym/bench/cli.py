@@ -8,6 +8,9 @@ import sys
 from electroloc_gym.bench.agents import agent_kind, cached_agent, default_agents
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.config import (
+    ENV_CHOICES,
+    ENV_N_PARTICLES,
+    ENV_SENSOR_MODELS,
     GLOBAL_CONDITION,
     GLOBAL_ENV_ID,
     SENSOR_MODELS,
@@ -22,13 +25,15 @@ from electroloc_gym.conditions import DEFAULT_SIGNAL
 __all__ = ["add_arguments", "run", "DESCRIPTION", "EPILOG"]
 
 DESCRIPTION = ("Benchmark agents on the paper's eight conditions (Solberg, Lynch & MacIver 2008, Tables 4 and 1; "
-               "--env global: Table 2) with seeded trials, and write trials.jsonl, summary.json, table.md and "
+               "--env global: Table 2; --env unknown-target: the eight pairs with the sphere hidden, paper §7) "
+               "with seeded trials, and write trials.jsonl, summary.json, table.md and "
                "steps.png to the output folder.")
 EPILOG = """examples:
   electroloc bench --trials 50 --out bench_full                         the full reproduction
   electroloc bench --agents rnd-wlk,min-var --conditions fresh-steel-12.7,salt-delrin-38.1 --trials 10
   electroloc bench --agents min-var,ppo-belief --out bench_learned --resume
   electroloc bench --env global --trials 50 --out bench_global         Table 2 (ElectroLocGlobal-v0)
+  electroloc bench --env unknown-target --out bench_unknown            size and material unknown (§7)
 """
 
 
@@ -40,10 +45,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "path to a model folder (default: the three controllers plus every shipped model "
                              "that runs here; the run says which and why one is skipped)")
     parser.add_argument("--conditions", default="all", help="'all' or comma-separated preset names")
-    parser.add_argument("--env", default="target", choices=["target", "global"],
+    parser.add_argument("--env", default="target", choices=list(ENV_CHOICES),
                         help="target: ElectroLoc-v0 on the presets (Tables 4 and 1); global: ElectroLocGlobal-v0, "
                              "self-localisation among six cylinders (Table 2; default agents rnd-wlk,min-var; "
-                             "--conditions and --signal do not apply)")
+                             "--conditions and --signal do not apply); unknown-target: ElectroLocUnknownTarget-v0 "
+                             "on the presets' sphere/water pairs, the sphere's size and material hidden (§7), with "
+                             "the identification results beside the Table-4 layout")
     parser.add_argument("--trials", type=int, default=50, help="trials per condition and agent (paper: 50)")
     parser.add_argument("--seed", type=int, default=0, help="root seed of the per-trial seeds")
     parser.add_argument("--workers", type=int, default=None,
@@ -52,14 +59,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="where trials run: a local process pool, in-process (serial), or Ray")
     parser.add_argument("--address", default=None,
                         help="cluster address for a distributed backend (e.g. --backend ray --address auto)")
-    parser.add_argument("--sensor-model", default="calibrated", choices=list(SENSOR_MODELS),
-                        help="the particle filter's sensor model (paper: calibrated)")
+    parser.add_argument("--sensor-model", default=None, choices=list(SENSOR_MODELS),
+                        help="the particle filter's sensor model (default: calibrated, the paper's; "
+                             "unknown-target: analytic, the theoretical EEV, or interpolated)")
     parser.add_argument("--signal", default=DEFAULT_SIGNAL, choices=list(SIGNALS),
                         help="signal scale of the presets: fitted to Table 3's measured detection distances, "
                              "coverage (fitted × one factor matching §6.3's 78%% of starts inside the detection "
                              "region), or the paper's equations (scale 1); docs/fidelity.md compares them")
     parser.add_argument("--max-observations", type=int, default=35, help="observation cap of a trial (paper: 35)")
-    parser.add_argument("--n-particles", type=int, default=2500, help="particles of the belief (paper: 2500)")
+    parser.add_argument("--n-particles", type=int, default=None,
+                        help="particles of the belief (default: the env's, 2500 as the paper; unknown-target: 5000)")
     parser.add_argument("--out", default="bench_out", help="output folder (locked while the run writes to it)")
     parser.add_argument("--resume", action="store_true",
                         help="continue the run in --out: run only the trials not yet in its trials.jsonl (each "
@@ -70,11 +79,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _agents(args: argparse.Namespace, is_global: bool) -> list[str]:
+def _agents(args: argparse.Namespace, env_id: str) -> list[str]:
     """The run's agent specs; a default list says what it skipped and why."""
     if args.agents:
         return [a.strip() for a in args.agents.split(",") if a.strip()]
-    choices = default_agents(table4_only=is_global, trust_pickle=args.trust_pickle)
+    choices = default_agents(table4_only=env_id == GLOBAL_ENV_ID, trust_pickle=args.trust_pickle, env_id=env_id)
     for c in choices:
         if c.skipped:
             print(f"electroloc bench: skipping {c.spec}: {c.skipped}", file=sys.stderr)
@@ -85,8 +94,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark described by ``args``; print table.md; 0 on success, 2 on bad input."""
     try:
         prepare_out_dir(args.out)
-        is_global = getattr(args, "env", "target") == "global"
-        agents = _agents(args, is_global)
+        env_id = ENV_CHOICES[getattr(args, "env", "target")]
+        is_global = env_id == GLOBAL_ENV_ID
+        agents = _agents(args, env_id)
+        sensor_model = args.sensor_model or ENV_SENSOR_MODELS[env_id][0]
+        n_particles = ENV_N_PARTICLES[env_id] if args.n_particles is None else args.n_particles
         if not agents:
             raise ValueError("--agents names no agent")
         conditions = (GLOBAL_CONDITION,) if is_global else tuple(resolve_conditions(args.conditions))
@@ -96,9 +108,9 @@ def run(args: argparse.Namespace) -> int:
             if bad:
                 raise ValueError(f"--env global runs the particle-filter controllers (Table 2); not applicable: {bad}")
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
-                             trials=args.trials, seed=args.seed, sensor_model=args.sensor_model, signal=args.signal,
-                             max_observations=args.max_observations, n_particles=args.n_particles,
-                             env_id=GLOBAL_ENV_ID if is_global else "ElectroLoc-v0")
+                             trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
+                             max_observations=args.max_observations, n_particles=n_particles,
+                             env_id=env_id)
         options = {} if args.address is None else {"address": args.address}
         run_benchmark(config, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
                       progress=not args.no_progress, backend_options=options, trust_pickle=args.trust_pickle)

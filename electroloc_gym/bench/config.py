@@ -31,17 +31,30 @@ __all__ = [
     "SIGNALS",
     "GLOBAL_ENV_ID",
     "GLOBAL_CONDITION",
+    "UNKNOWN_ENV_ID",
+    "ENV_CHOICES",
+    "ENV_SENSOR_MODELS",
+    "ENV_N_PARTICLES",
     "IDENTITY_KEYS",
 ]
 
 #: The paper's three controllers.
 DEFAULT_AGENTS: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
-SENSOR_MODELS = ("calibrated", "analytic")
+SENSOR_MODELS = ("calibrated", "analytic", "interpolated")
 SIGNALS = SIGNAL_CHOICES
 #: Global self-localisation (paper §6.5, Table 2): one fixed map, run as the single "condition"
 #: GLOBAL_CONDITION (the map's name, = info["condition"]); its trial seeds use condition index 8.
 GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
 GLOBAL_CONDITION = "six-cylinders"
+#: The unknown-target env (paper §7): the eight presets' sphere/water pairs, the sphere hidden from the agent.
+UNKNOWN_ENV_ID = "ElectroLocUnknownTarget-v0"
+#: ``electroloc bench --env`` names → environment ids.
+ENV_CHOICES = {"target": "ElectroLoc-v0", "global": GLOBAL_ENV_ID, "unknown-target": UNKNOWN_ENV_ID}
+#: The bench's default particle count per env (the env's own default).
+ENV_N_PARTICLES = {"ElectroLoc-v0": 2500, GLOBAL_ENV_ID: 2500, UNKNOWN_ENV_ID: 5000}
+#: The sensor models of each env (the first is the bench's default there).
+ENV_SENSOR_MODELS = {"ElectroLoc-v0": ("calibrated", "analytic"), GLOBAL_ENV_ID: ("calibrated", "analytic"),
+                     UNKNOWN_ENV_ID: ("analytic", "interpolated")}
 #: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
 IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id")
 
@@ -55,7 +68,8 @@ class BenchConfig:
         conditions: preset names.
         trials: trials per condition and agent.
         seed: root seed of the trial seeds.
-        sensor_model: the filter's sensor model, "calibrated" (the paper's) or "analytic".
+        sensor_model: the filter's sensor model, "calibrated" (the paper's) or "analytic"; the unknown-target
+            env: "analytic" (the theoretical EEV) or "interpolated" (:data:`ENV_SENSOR_MODELS`).
         signal: the presets' signal scale (:data:`electroloc_gym.conditions.DEFAULT_SIGNAL` by default):
             "fitted" (fitted to Table 3's measured detection distances), "coverage" (fitted × one factor
             matching the paper's §6.3 start coverage) or "paper" (scale 1); see conditions.get_condition.
@@ -87,8 +101,11 @@ class BenchConfig:
                                ("max_observations", self.max_observations, 1), ("n_particles", self.n_particles, 1)):
             if isinstance(val, bool) or not isinstance(val, int) or val < low:
                 raise ValueError(f"{name} must be an integer ≥ {low}, got {val!r}")
-        if self.sensor_model not in SENSOR_MODELS:
-            raise ValueError(f"sensor_model must be one of {list(SENSOR_MODELS)}, got {self.sensor_model!r}")
+        if self.env_id not in ENV_SENSOR_MODELS:
+            raise ValueError(f"env_id must be one of {list(ENV_SENSOR_MODELS)}, got {self.env_id!r}")
+        allowed = ENV_SENSOR_MODELS[self.env_id]
+        if self.sensor_model not in allowed:
+            raise ValueError(f"sensor_model of {self.env_id} must be one of {list(allowed)}, got {self.sensor_model!r}")
         if self.signal not in SIGNALS:
             raise ValueError(f"signal must be one of {list(SIGNALS)}, got {self.signal!r}")
 

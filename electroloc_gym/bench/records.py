@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.bench.config import GLOBAL_CONDITION, GLOBAL_ENV_ID, IDENTITY_KEYS, BenchConfig, trial_seeds
-from electroloc_gym.bench.trials import RECORD_KEYS, TIMING_KEYS
+from electroloc_gym.bench.trials import OPTIONAL_RECORD_KEYS, RECORD_KEYS, TIMING_KEYS
 from electroloc_gym.conditions import PRESET_NAMES
 from electroloc_gym.fileio import atomic_write_text
 
@@ -159,6 +159,7 @@ _CHECKS: dict[str, tuple[Callable[[Any], bool], str]] = {
     "n_particles": (lambda v: _is_int(v) and v >= 1, "an integer ≥ 1"),
     "env_id": (lambda v: isinstance(v, str), "a string"),
     "wall_s": (_is_num_or_none, "a number or null"),
+    "shape": (lambda v: v is None or isinstance(v, dict), "an object or null"),
 }
 assert set(_CHECKS) == set(RECORD_KEYS)
 
@@ -167,11 +168,11 @@ def validate_record(rec: Any) -> str | None:
     """Why ``rec`` is not a trial record (None: it is one)."""
     if not isinstance(rec, dict):
         return f"not a JSON object ({type(rec).__name__})"
-    missing = [k for k in RECORD_KEYS if k not in rec]
+    missing = [k for k in RECORD_KEYS if k not in rec and k not in OPTIONAL_RECORD_KEYS]
     if missing:
         return f"missing key(s) {missing}"
     for key, (ok, what) in _CHECKS.items():
-        if not ok(rec[key]):
+        if not ok(rec.get(key)):
             return f"{key!r} must be {what}, got {rec[key]!r}"
     return None
 

@@ -94,6 +94,11 @@ def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int
         row["error_y_repeatability_mm"] = float(dev[:, 1].mean())
     else:
         row["error_x_repeatability_mm"] = row["error_y_repeatability_mm"] = None
+    shapes = [r["shape"] for r in ok if r.get("shape")]  # the unknown-target env's identification
+    if shapes:
+        row["identified_trials"] = len(shapes)
+        row["material_correct_frac"] = _mean(float(s["material_correct"]) for s in shapes)
+        row["radius_error_median_frac"] = _median(s["radius_error_frac"] for s in shapes)
     return row
 
 

@@ -195,6 +195,9 @@ def render_table_md(summary: dict[str, Any]) -> str:
                 f"{_f(r.get('error_median_pooled_mm'), 2)} mm, own-success means: error "
                 f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('steps_mean'))}" for r in alls) + ".")
             out.append("")
+    ident = [r for r in t4 if r.get("identified_trials") and r["condition"] != "all"]
+    if ident:
+        out.extend(_identification_rows(t4))
     if t1:
         out.append("## Table 1 layout (zero-crossing)")
         out.append("")
@@ -224,6 +227,25 @@ def render_table_md(summary: dict[str, Any]) -> str:
                        f"| {_f(paper[1], 2) if paper else ''} |")
         out.append("")
     return "\n".join(out)
+
+
+def _identification_rows(t4: list[dict[str, Any]]) -> list[str]:
+    """The unknown-target env's size and material identification, over each agent's successes."""
+    out = ["## Identification (unknown target, §7)", "",
+           "Over each agent's successful trials: the material estimate (conductor when more than half the particles "
+           "have χ > 0) against the true one, and the median relative error of the radius estimate (the particles' "
+           "mean radius). The paper has no such numbers.", "",
+           "| Water | Sphere (mm)/material | Agent | Successes | Material correct | Radius error median |",
+           "|---|---|---|---|---|---|"]
+    for r in t4:
+        if r["condition"] == "all" or not r.get("identified_trials"):
+            continue
+        water, sphere = _cond_label(r["condition"])
+        frac, rad = (r.get(k) for k in ("material_correct_frac", "radius_error_median_frac"))
+        out.append(f"| {water} | {sphere} | {r.get('label', r['agent'])} | {r['successes']} "
+                   f"| {_f(None if frac is None else 100 * frac)} % | {_f(None if rad is None else 100 * rad)} % |")
+    out.append("")
+    return out
 
 
 def _render_table2(summary: dict[str, Any]) -> str:

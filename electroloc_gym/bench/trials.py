@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.bench.agents import cached_agent
-from electroloc_gym.bench.config import GLOBAL_ENV_ID, TrialSpec
+from electroloc_gym.bench.config import GLOBAL_ENV_ID, UNKNOWN_ENV_ID, TrialSpec
 from electroloc_gym.bench.rollout import run_episode
 from electroloc_gym.conditions import get_condition
 
@@ -30,7 +30,12 @@ TIMING_KEYS = ("decision_ms_median", "decision_ms_mean", "wall_s")
 RECORD_KEYS = ("condition", "agent", "agent_label", "layout", "trial", "seed", "agent_seed", "success", "ended_by",
                "observations", "error_mm", "error_x_mm", "error_y_mm", "estimate", "target", "start", "spread_mm",
                "decisions", "decision_ms_median", "decision_ms_mean", "sensor_model", "signal", "max_observations",
-               "n_particles", "env_id", "wall_s")
+               "n_particles", "env_id", "wall_s", "shape")
+#: Keys a record may lack (records written before the key existed read as None).
+OPTIONAL_RECORD_KEYS = ("shape",)
+#: The unknown-target env's identification results in a record's ``"shape"`` (None elsewhere).
+SHAPE_RECORD_KEYS = ("radius_estimate_mm", "radius_spread_mm", "target_radius_mm", "radius_error_frac",
+                     "p_conductor", "material_estimate", "material_correct", "chi_estimate", "target_chi")
 # The bench owns these env kwargs; an agent's env_kwargs cannot override them.
 _BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode")
 _ENVS: dict[tuple[Any, ...], Any] = {}
@@ -49,6 +54,8 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
         if callable(adapt):
             condition = adapt(condition)
         kwargs["condition"] = condition
+    if spec.env_id == UNKNOWN_ENV_ID:  # the paper's sphere/water pairs, the sphere hidden from the agent
+        kwargs["target_draw"] = "condition"
     kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
                    if k not in _BENCH_ONLY_KWARGS})
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
@@ -125,4 +132,14 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
         "n_particles": spec.n_particles,
         "env_id": spec.env_id,
         "wall_s": time.perf_counter() - t_start,
+        "shape": _shape_record(info) if spec.env_id == UNKNOWN_ENV_ID else None,
     }
+
+
+def _shape_record(info: dict[str, Any]) -> dict[str, Any]:
+    """The unknown-target env's final size and material estimates and their truth (JSON values)."""
+    out: dict[str, Any] = {}
+    for k in SHAPE_RECORD_KEYS:
+        v = info[k]
+        out[k] = str(v) if isinstance(v, str) else (bool(v) if isinstance(v, (bool, np.bool_)) else _finite_or_none(v))
+    return out
