@@ -20,6 +20,8 @@ CASES = [
                        "randomize_target": True}),
     ("ElectroLocGlobal-v0", {"n_particles": 300}),
     ("ElectroLocGlobal-v0", {"n_particles": 200, "sensor_model": "analytic", "layout": "random"}),
+    ("ElectroLocUnknownTarget-v0", {"n_particles": 400}),
+    ("ElectroLocUnknownTarget-v0", {"n_particles": 300, "sensor_model": "interpolated", "contrast": "continuous"}),
 ]
 
 
