@@ -32,7 +32,11 @@ bounds.
    sequence (mm); ``"logspread"``, its logarithm; ``"entropy"``, the entropy of the re-weighted
    cloud's weights.
 5. A sequence's objective is its mean over the futures; a first move's score is the best (lowest)
-   objective of its continuations; the move with the lowest score is taken (ties broken at random).
+   objective of its continuations (open loop: one continuation for all futures); the move with the
+   lowest score is taken (ties broken at random). ``closed=True`` (depth 2) chooses the second move
+   after the first reading instead: for each first move and future, ``inner`` further futures draw a
+   hypothesis from the posterior after the first reading, and the first move scores
+   ``E_{z₁}[c₁ + min_{u₂} E_{z₂|z₁}[c₂]]`` (:func:`~electroloc_gym.baselines.lookahead_objectives.adaptive_costs`).
 
 Why these defaults (measured in the global env, where §6.5 says greedy min-var "had trouble
 disambiguating the multiple hypotheses"; docs/baselines.md has the figures): the readings of the
@@ -71,7 +75,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.baselines.agent import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_options_mm
-from electroloc_gym.baselines.lookahead_objectives import OBJECTIVES, posterior_spreads, sequence_costs
+from electroloc_gym.baselines.lookahead_objectives import OBJECTIVES, adaptive_costs, posterior_spreads, sequence_costs
 
 __all__ = ["LookaheadAgent", "posterior_spreads", "MAX_DEPTH", "COMPASS_MM", "CONTINUATIONS", "OBJECTIVES"]
 
@@ -108,6 +112,8 @@ class LookaheadAgent(BaselineAgent):
         tail: ``"steps"``' tail, readings per unit of ln(spread / success spread) (0–100).
         compass: include the eight full-range moves among the first moves.
         cont: continuation moves, ``"compass"`` or ``"uniform"`` (:data:`CONTINUATIONS`).
+        closed: depth 2 only: choose the second move after the first reading (closed loop).
+        inner: ``closed``'s futures per first reading (1–256).
 
     Attributes:
         last_scores: each first move's score of the last decision, in the objective's unit
@@ -121,7 +127,8 @@ class LookaheadAgent(BaselineAgent):
     def __init__(self, seed: int | np.random.Generator | None = None, depth: int = 2, n_options: int = 9,
                  continuations: int = 8, branches: int = 8, n_particles: int = 300, rounds: int = 1,
                  budget_s: float | None = None, max_rounds: int = 64, objective: str = "steps",
-                 tail: float = 0.5, compass: bool = True, cont: str = "compass") -> None:
+                 tail: float = 0.5, compass: bool = True, cont: str = "compass", closed: bool = False,
+                 inner: int = 8) -> None:
         super().__init__(seed)
         self.depth = _int_option("depth", depth, 1, MAX_DEPTH)
         self.n_options = _int_option("n_options", n_options, 1, 256)
@@ -147,6 +154,12 @@ class LookaheadAgent(BaselineAgent):
         if cont not in CONTINUATIONS:
             raise ValueError(f"cont must be one of {list(CONTINUATIONS)}, got {cont!r}")
         self.cont = cont
+        if not isinstance(closed, bool):
+            raise ValueError(f"closed must be True or False, got {closed!r}")
+        if closed and self.depth != 2:
+            raise ValueError(f"closed=True needs depth=2, got depth={self.depth}")
+        self.closed = closed
+        self.inner = _int_option("inner", inner, 1, 256)
         self.last_scores: NDArray[np.float64] | None = None
         self.last_options_mm: NDArray[np.float64] | None = None
         self.last_rounds = 0
@@ -247,6 +260,11 @@ class LookaheadAgent(BaselineAgent):
         eps = self.rng.standard_normal((self.branches, self.depth))
         reader = self._readings_moving if moving else self._readings_static
         mean, std, clouds = reader(x, first, cont)
+        if self.closed:
+            u_inner = self.rng.random((self.branches, self.inner))
+            eps2 = self.rng.standard_normal((self.branches, self.inner))
+            return adaptive_costs(mean, std, clouds, first.shape[0], hyp, eps[:, 0], u_inner, eps2, self.objective,
+                                  success_spread_mm=self._success_spread_mm(), tail=self.tail)
         cost = sequence_costs(mean, std, clouds, hyp, eps, self.objective,
                               success_spread_mm=self._success_spread_mm(), tail=self.tail)          # (B, C·K)
         return cost.mean(axis=0).reshape(first.shape[0], k).min(axis=1)

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["OBJECTIVES", "LOG_FLOOR_MM", "posterior_spreads", "sequence_costs"]
+__all__ = ["OBJECTIVES", "LOG_FLOOR_MM", "posterior_spreads", "sequence_costs", "adaptive_costs"]
 
 #: The planner's objectives (see the module docstring).
 OBJECTIVES = ("spread", "logspread", "entropy", "steps")
@@ -116,6 +116,86 @@ def sequence_costs(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray | list
             tail_readings = 1.0 + tail * np.log(np.maximum(spread, success_spread_mm) / success_spread_mm)
             cost += alive * tail_readings
     return cost.T
+
+
+def _final_cost(w: NDArray, entropy: NDArray, x: NDArray, objective: str, success_spread_mm: float,
+                tail: float) -> NDArray[np.float64]:
+    """The objective of clouds x weighted by w (…, S) after the last move (``"steps"``: the tail if alive)."""
+    if objective == "entropy":
+        return entropy
+    spread = _weighted_spread(w.reshape(w.shape[0], -1, w.shape[-1]), x).reshape(w.shape[:-1])
+    if objective == "spread":
+        return spread
+    if objective == "logspread":
+        return np.log(spread + LOG_FLOOR_MM)
+    alive = spread > success_spread_mm
+    return alive * (1.0 + tail * np.log(np.maximum(spread, success_spread_mm) / success_spread_mm))
+
+
+def adaptive_costs(mean_V: NDArray, std_V: NDArray, clouds: list[NDArray] | NDArray, n_first: int,
+                   hyp: NDArray[np.intp], eps1: NDArray, u_inner: NDArray, eps2: NDArray, objective: str = "steps",
+                   *, success_spread_mm: float = 10.0, tail: float = 1.0) -> NDArray[np.float64]:
+    """Each first move's expected objective (C,) when the second move is chosen after the first reading.
+
+    Depth 2, closed loop: ``Q(u₁) = E_{z₁}[c₁ + min_{u₂} E_{z₂ | z₁}[c₂]]``. The outer futures are
+    as in :func:`sequence_costs` (hypothesis ``hyp[b]``, noise ``eps1[b]``); for each first move and
+    outer future the inner futures draw a hypothesis from the posterior after ``z₁`` (inverse CDF of
+    the re-weighted cloud at the uniforms ``u_inner``) and a noise ``eps2``, so the second move is
+    judged on what the first reading left open. ``c₁`` is ``"steps"``' first reading after the first
+    move (1 while the spread is above ``success_spread_mm``, 0 after success, when ``c₂`` is 0 too);
+    the other objectives have ``c₁ = 0`` and ``c₂`` their value after the second move.
+
+    Args:
+        mean_V: (2, C·K, S) sensor-model mean, V, as in :func:`sequence_costs`; the K continuations of
+            first move c at rows c·K … c·K + K − 1.
+        std_V: (2, C·K, S) its std, V.
+        clouds: the hypotheses after each move ((S, 2), (C·K, S, 2) or a list of two).
+        n_first: C.
+        hyp: (B,) outer hypotheses.
+        eps1: (B,) their first-reading noise (standard normal).
+        u_inner: (B, M) uniforms in [0, 1) of the inner hypotheses.
+        eps2: (B, M) the inner futures' second-reading noise (standard normal).
+        objective: one of :data:`OBJECTIVES`.
+        success_spread_mm: the env's success spread, mm.
+        tail: ``"steps"``' tail (readings per unit of ln spread ratio).
+
+    Returns:
+        (C,) expected cost of each first move.
+    """
+    if objective not in OBJECTIVES:
+        raise ValueError(f"objective must be one of {list(OBJECTIVES)}, got {objective!r}")
+    mu = np.asarray(mean_V, dtype=np.float64)
+    sd = np.asarray(std_V, dtype=np.float64)
+    c = n_first
+    k, s = mu.shape[1] // c, mu.shape[2]
+    xs = list(clouds) if isinstance(clouds, list) else [clouds] * 2
+    mu1, sd1 = mu[0].reshape(c, k, s)[:, 0], sd[0].reshape(c, k, s)[:, 0]                  # (C, S)
+    z1 = mu1[:, hyp] + sd1[:, hyp] * np.asarray(eps1, dtype=np.float64)[None, :]              # (C, B)
+    r1 = (z1[..., None] - mu1[:, None, :]) / sd1[:, None, :]
+    ll1 = -0.5 * r1 * r1 - np.log(sd1)[:, None, :]                                           # (C, B, S)
+    w1, _ = _normalise(ll1)
+    inner = (np.cumsum(w1, axis=-1)[:, :, None, :] <= u_inner[None, :, :, None]).sum(axis=-1)
+    inner = np.minimum(inner, s - 1)                                                         # (C, B, M)
+    mu2, sd2 = mu[1].reshape(c, k, s), sd[1].reshape(c, k, s)
+    ci = np.arange(c)[:, None, None, None]
+    ki = np.arange(k)[None, :, None, None]
+    h2 = inner[:, None, :, :]                                                                # (C, 1, B, M)
+    z2 = mu2[ci, ki, h2] + sd2[ci, ki, h2] * eps2[None, None]                                # (C, K, B, M)
+    r2 = (z2[..., None] - mu2[:, :, None, None, :]) / sd2[:, :, None, None, :]
+    ll2 = ll1[:, None, :, None, :] - 0.5 * r2 * r2 - np.log(sd2)[:, :, None, None, :]       # (C, K, B, M, S)
+    w2, entropy2 = _normalise(ll2)
+    x2 = np.asarray(xs[1], dtype=np.float64)
+    if x2.ndim == 3:                                      # (C·K, S, 2) → one cloud per (c, k), repeated over B·M
+        x2 = x2.reshape(c * k, s, 2)
+    cost2 = _final_cost(w2.reshape(c * k, -1, s), entropy2.reshape(c * k, -1), x2, objective,
+                        success_spread_mm, tail).reshape(c, k, *inner.shape[1:])             # (C, K, B, M)
+    best2 = cost2.mean(axis=-1).min(axis=1)                                                  # (C, B)
+    if objective != "steps":
+        return best2.mean(axis=-1)
+    x1 = np.asarray(xs[0], dtype=np.float64)
+    x1 = x1.reshape(c, k, s, 2)[:, 0] if x1.ndim == 3 else x1
+    alive1 = _weighted_spread(w1, x1) > success_spread_mm                                   # (C, B)
+    return (alive1 * (1.0 + best2)).mean(axis=-1)
 
 
 def posterior_spreads(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray, hyp: NDArray[np.intp],

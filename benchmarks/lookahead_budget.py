@@ -12,8 +12,9 @@ per-condition medians), mean steps and the median decision time; saves a figure 
 steps against median decision time.
 
 The budgets are the planner's own defaults with more or less search: greedy (``depth=1``), the default
-(depth 2, the eight compass continuations), depth 3 with 16 compass continuations, and depth 3 with 64
-continuations and 16 futures. The default settings were chosen on validation seeds 101–104
+(depth 2, open loop over the eight compass continuations, 8 futures), depth 2 closed loop (the second
+move chosen after the first reading, 16 × 8 futures) and depth 3 open loop over all 64 compass
+continuations with 16 futures. The default settings were chosen on validation seeds 101–104
 (docs/baselines.md), not on the seeds of this sweep.
 
     python benchmarks/lookahead_budget.py [--trials 8] [--global-trials 50] [--seed 0] [--conditions all]
@@ -45,7 +46,7 @@ AGENTS = (
     "min-var",
     "lookahead[depth=1]",
     "lookahead",
-    "lookahead[depth=3,continuations=16]",
+    "lookahead[closed=True,branches=16]",
     "lookahead[depth=3,continuations=64,branches=16]",
 )
 

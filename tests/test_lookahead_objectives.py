@@ -9,7 +9,7 @@ import pytest
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.baselines.agent import MAX_STEP_MM, make_agent
 from electroloc_gym.baselines.lookahead import COMPASS_MM
-from electroloc_gym.baselines.lookahead_objectives import LOG_FLOOR_MM, OBJECTIVES, sequence_costs
+from electroloc_gym.baselines.lookahead_objectives import LOG_FLOOR_MM, OBJECTIVES, adaptive_costs, sequence_costs
 
 #: Two hypotheses 20 mm apart: prior spread 10 mm.
 X = np.array([[-10.0, 0.0], [10.0, 0.0]])
@@ -59,6 +59,36 @@ def test_costs_per_future_and_sequence_shape() -> None:
         assert c.shape == (b, n) and np.all(np.isfinite(c))
 
 
+def _adaptive(first, second, objective="steps", **kw):
+    """One first move with two continuations: the second reading flat, or as ``second``."""
+    (m1, s1), (m2, s2) = first, second
+    mean = np.stack([np.stack([m1, m1]), np.stack([np.zeros(2), m2])])           # (T=2, C·K=2, S=2)
+    std = np.stack([np.stack([s1, s1]), np.stack([np.ones(2), s2])])
+    u = np.random.default_rng(0).random((2, 4))
+    return adaptive_costs(mean, std, X, 1, np.array([0, 1]), np.zeros(2), u, np.zeros((2, 4)), objective, **kw)
+
+
+def test_adaptive_steps_and_the_second_move_chosen_after_the_first_reading() -> None:
+    sharp, flat = (SHARP[0], TIGHT[0]), (FLAT[0], np.ones(2))
+    np.testing.assert_allclose(_adaptive(sharp, flat, success_spread_mm=5.0), 0.0)       # done after move 1
+    np.testing.assert_allclose(_adaptive(flat, sharp, success_spread_mm=5.0), 1.0)       # the sharp continuation
+    got = _adaptive(flat, flat, success_spread_mm=5.0, tail=2.0)                         # never done
+    np.testing.assert_allclose(got, 2.0 + 2.0 * np.log(2.0))
+    np.testing.assert_allclose(_adaptive(flat, sharp, "spread"), 0.0, atol=1e-6)
+    np.testing.assert_allclose(_adaptive(flat, flat, "entropy"), np.log(2.0))
+
+
+def test_closed_loop_runs_on_both_envs() -> None:
+    for env_id in ("ElectroLoc-v0", "ElectroLocGlobal-v0"):
+        env = gym.make(env_id, n_particles=200)
+        env.reset(seed=1)
+        agent = make_agent("lookahead[closed=True,branches=4,inner=4]", seed=0)
+        agent.reset(env)
+        move = agent.choose_move_mm()
+        assert move.shape == (2,) and np.all(np.abs(move) <= MAX_STEP_MM)
+        assert agent.last_scores.shape == (9,) and np.all(np.isfinite(agent.last_scores))
+
+
 def test_unknown_objective() -> None:
     with pytest.raises(ValueError, match="objective"):
         sequence_costs(np.zeros((1, 1, 2)), np.ones((1, 1, 2)), X, np.array([0]), np.zeros((1, 1)), "variance")
@@ -67,6 +97,7 @@ def test_unknown_objective() -> None:
 @pytest.mark.parametrize("spec, option", [
     ("lookahead[objective='bits']", "objective"), ("lookahead[tail=-1]", "tail"), ("lookahead[tail=True]", "tail"),
     ("lookahead[compass=1]", "compass"), ("lookahead[cont='grid']", "cont"),
+    ("lookahead[closed=True,depth=3]", "closed"), ("lookahead[closed=1]", "closed"), ("lookahead[inner=0]", "inner"),
 ])
 def test_bad_options_name_the_option(spec: str, option: str) -> None:
     with pytest.raises(ValueError, match=option):
