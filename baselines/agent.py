@@ -87,6 +87,8 @@ class BaselineAgent:
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
         self.done = False
         self.estimate_mm: tuple[float, float] | None = None
+        #: Dynamic gain: the gain level the agent chose for the next reading (None: the preset gain).
+        self.gain_level: int | None = None
         self._env: Any = None
 
     def seed(self, seed: int | None) -> None:
@@ -108,9 +110,21 @@ class BaselineAgent:
 
     def predict(self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None,
                 deterministic: bool = True) -> tuple[NDArray[np.float32], Any]:
-        """SB3-style call; subclasses implement :meth:`choose_move_mm`."""
-        move = np.asarray(self.choose_move_mm(), dtype=np.float64)
-        return np.clip(move / MAX_STEP_MM, -1.0, 1.0).astype(np.float32), state
+        """SB3-style call; subclasses implement :meth:`choose_move_mm` (and may set :attr:`gain_level`).
+
+        With dynamic gain (the env's ``gain_levels``) the action's third entry selects the gain: the
+        agent's :attr:`gain_level`, or the preset gain's level (the factor nearest to 1).
+        """
+        return self.action_of(self.choose_move_mm()), state
+
+    def action_of(self, move_mm: Any) -> NDArray[np.float32]:
+        """The env action of a carriage move (dx, dy), mm, with the gain entry under dynamic gain."""
+        action = np.clip(np.asarray(move_mm, dtype=np.float64) / MAX_STEP_MM, -1.0, 1.0)
+        levels = getattr(self.env, "gain_levels", None)
+        if levels is not None:
+            level = preset_gain_level(levels) if self.gain_level is None else self.gain_level
+            action = np.append(action, self.env.gain_action(level))
+        return action.astype(np.float32)
 
     def choose_move_mm(self) -> NDArray[np.float64]:
         """The carriage move (dx, dy) in mm for the next step."""
@@ -118,6 +132,11 @@ class BaselineAgent:
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
+
+
+def preset_gain_level(levels: tuple[float, ...]) -> int:
+    """The level of the factor nearest to 1 (on a log scale): the preset amplifier gain."""
+    return int(np.argmin(np.abs(np.log(np.asarray(levels, dtype=np.float64)))))
 
 
 def move_bounds_mm(env: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -268,6 +268,9 @@ class MinVarianceAgent(BaselineAgent):
             ``"expected"`` (the argmin of the expected variance); see the module docstring.
         chunk_rows: voters per block of the vectorised vote.
         exp_floor: clamp of the Gaussian exponent.
+        gain: with dynamic gain (the env's ``gain_levels``): ``"choose"`` (default) votes over the options
+            × the gain levels, each reading predicted by the sensor model at that gain; ``"preset"``
+            reads at the preset gain (the level nearest to 1).
 
     Attributes:
         last_votes: votes per option of the last decision.
@@ -278,7 +281,7 @@ class MinVarianceAgent(BaselineAgent):
 
     def __init__(self, seed: int | np.random.Generator | None = None, n_options: int = 16,
                  n_voters: int | None = 256, vote: str = "resample", chunk_rows: int = 128,
-                 exp_floor: float = -60.0) -> None:
+                 exp_floor: float = -60.0, gain: str = "choose") -> None:
         super().__init__(seed)
         if isinstance(n_options, bool) or not isinstance(n_options, int) or n_options < 1:
             raise ValueError(f"n_options must be an integer ≥ 1, got {n_options!r}")
@@ -290,6 +293,9 @@ class MinVarianceAgent(BaselineAgent):
             raise ValueError(f"chunk_rows must be an integer ≥ 1, got {chunk_rows!r}")
         if not (isinstance(exp_floor, (int, float)) and -80.0 <= exp_floor < 0):
             raise ValueError(f"exp_floor must be in [-80, 0) (float32 exp underflows below ≈ -87), got {exp_floor!r}")
+        if gain not in ("choose", "preset"):
+            raise ValueError(f"gain must be 'choose' or 'preset', got {gain!r}")
+        self.gain = gain
         self.n_options = n_options
         self.n_voters = n_voters
         self.vote = vote
@@ -308,10 +314,18 @@ class MinVarianceAgent(BaselineAgent):
         voters = choose_voters(self.rng, particles.shape[0], self.n_voters)
         # The env's own motion rule and frame (ElectroLoc-v0: the target is static; the global env: the
         # hypotheses are the robot's own position and move with it).
-        mean, std = env.predicted_reading_model(particles, options)
         # the vote is on the position variance: columns 0–1 (an unknown target's hypotheses also carry
         # a radius and a contrast, which enter only through the predicted readings)
         moved = env.predicted_particles_mm(particles, options)[..., :2]
+        levels = getattr(env, "gain_levels", None)
+        n_moves = len(options)
+        if levels is not None and self.gain == "choose":  # options × gain levels (§7's dynamic gain)
+            preds = [env.predicted_reading_model(particles, options, gain_level=j) for j in range(len(levels))]
+            mean = np.concatenate([m for m, _ in preds])
+            std = np.concatenate([s for _, s in preds])
+            moved = np.concatenate([moved] * len(levels)) if moved.ndim == 3 else moved
+        else:
+            mean, std = env.predicted_reading_model(particles, options)
         prior = None if uniform else weights
         opts = {"chunk_rows": self.chunk_rows, "exp_floor": self.exp_floor}
         if self.vote == "expected":
@@ -325,7 +339,10 @@ class MinVarianceAgent(BaselineAgent):
             var = multinomial_resampled_variances(moved, prior, mean, std, voters, self.rng)
         best, votes = count_votes(var)
         self.last_votes, self.last_options_mm = votes, options
-        return options[best]
+        if levels is not None and self.gain == "choose":
+            self.gain_level = best // n_moves
+        return options[best % n_moves]
 
     def __repr__(self) -> str:
-        return f"MinVarianceAgent(n_options={self.n_options}, n_voters={self.n_voters}, vote={self.vote!r})"
+        return (f"MinVarianceAgent(n_options={self.n_options}, n_voters={self.n_voters}, vote={self.vote!r}, "
+                f"gain={self.gain!r})")

@@ -162,7 +162,7 @@ class ZeroCrossingAgent(BaselineAgent):
                 deterministic: bool = True) -> tuple[NDArray[np.float32], Any]:
         core = self.env
         if self.done or self._program is None:
-            return np.zeros(2, dtype=np.float32), state
+            return self.action_of(np.zeros(2)), state
         pos = core.position_mm
         try:
             if not self._started:
@@ -173,9 +173,9 @@ class ZeroCrossingAgent(BaselineAgent):
         except StopIteration as stop:
             self.done = True
             self.estimate_mm = stop.value
-            return np.zeros(2, dtype=np.float32), state
+            return self.action_of(np.zeros(2)), state
         move = np.clip(np.asarray(waypoint, dtype=np.float64) - pos, -MAX_STEP_MM, MAX_STEP_MM)
-        return np.clip(move / MAX_STEP_MM, -1.0, 1.0).astype(np.float32), state
+        return self.action_of(move), state
 
     # ---- the search programme (a generator: yields waypoints ≤ 10 mm away, receives readings) ------
     def _search(self) -> Generator[NDArray[np.float64], _Obs, tuple[float, float] | None]:

@@ -135,29 +135,47 @@ class Amplifier:
             that shielding the tank cuts the ambient noise by more than 32×: ``noise_factor=1/32``.
             It applies wherever the noise enters: the readings, the calibration, the sensor models'
             likelihoods and the detection distance (:attr:`effective_noise_rms_mV`).
+        output_noise_mV: RMS noise added after the amplifier (the data-acquisition card's own), mV (≥ 0),
+            which does not scale with the gain; default 0: the paper refers all its noise to the
+            electrodes (§6.1: "divide σ_nt by G"). It is what makes the gain matter beyond saturation
+            (dynamic gain, §7; docs/extensions.md).
     """
 
     gain: float
     noise_rms_mV: float
     saturation_V: float = 10.0
     noise_factor: float = 1.0
+    output_noise_mV: float = 0.0
 
     def __post_init__(self) -> None:
         _check_finite("gain", self.gain, low=0.0)
         _check_finite("noise_rms_mV", self.noise_rms_mV, low=0.0)
         _check_finite("saturation_V", self.saturation_V, low=0.0)
         _check_finite("noise_factor", self.noise_factor, low=0.0)
-        _as_floats(self, "gain", "noise_rms_mV", "saturation_V", "noise_factor")
+        _check_finite("output_noise_mV", self.output_noise_mV, low=0.0, low_inclusive=True)
+        _as_floats(self, "gain", "noise_rms_mV", "saturation_V", "noise_factor", "output_noise_mV")
 
     @property
     def effective_noise_rms_mV(self) -> float:
-        """RMS noise referred to the electrodes after the noise factor, mV: σ_s·noise_factor."""
-        return self.noise_rms_mV * self.noise_factor
+        """RMS noise referred to the electrodes, mV: σ_s·noise_factor, with the output noise referred back
+        through the gain (√((σ_s·f)² + (σ_out/G)²)) when there is one.
+        """
+        if self.output_noise_mV == 0.0:
+            return self.noise_rms_mV * self.noise_factor
+        return float(np.hypot(self.noise_rms_mV * self.noise_factor, self.output_noise_mV / self.gain))
 
     @property
     def noise_std_V(self) -> float:
-        """Standard deviation of the amplified reading, V: G·σ_s·noise_factor."""
-        return self.gain * self.effective_noise_rms_mV * 1e-3
+        """Standard deviation of the amplified reading, V: G·σ_s·noise_factor (⊕ the output noise)."""
+        if self.output_noise_mV == 0.0:
+            return self.gain * self.effective_noise_rms_mV * 1e-3
+        return float(np.hypot(self.gain * self.noise_rms_mV * self.noise_factor, self.output_noise_mV)) * 1e-3
+
+    def with_gain(self, gain: float) -> Amplifier:
+        """The same amplifier at another gain G (> 0): signal and input noise scale, saturation and the
+        output noise do not.
+        """
+        return dataclasses.replace(self, gain=gain)
 
 
 @dataclass(frozen=True)

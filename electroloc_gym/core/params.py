@@ -27,7 +27,7 @@ from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM
 from electroloc_gym.sensor_models.shape import DEFAULT_EEV_RADII_MM
 
 __all__ = ["EnvParams", "TASKS", "TASK_ARGUMENTS", "OBSERVATION_MODES", "ACTION_TYPES", "SENSOR_MODELS",
-           "TASK_SENSOR_MODELS", "TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM",
+           "TASK_SENSOR_MODELS", "DEFAULT_GAIN_LEVELS", "TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM",
            "LAYOUTS", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "memory_limit_bytes", "check_int", "check_bool"]
 
 #: ``"localize"``: ElectroLoc-v0 (the particles are target hypotheses); ``"global"``: ElectroLocGlobal-v0
@@ -59,11 +59,13 @@ _COMMON = ("observation", "sensor_model", "n_particles", "max_observations", "su
            "calibration_seed", "calibration", "max_episode_steps")
 #: The arguments each task takes (the others belong to the other task).
 TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
-    "localize": ("condition", "signal", "randomize_target") + _COMMON,
+    "localize": ("condition", "signal", "randomize_target", "gain_levels") + _COMMON,
     "global": ("layout", "position_blur_mm") + _COMMON,
     "unknown": ("condition", "signal", "randomize_target", "target_draw", "radius_range_mm", "contrast",
-                "eev_radii_mm") + _COMMON,
+                "eev_radii_mm", "gain_levels") + _COMMON,
 }
+#: A dynamic-gain example (§7): a quarter, the preset and four times the preset amplifier gain.
+DEFAULT_GAIN_LEVELS = (0.25, 1.0, 4.0)
 #: Defaults that differ by task (the unknown-target env: the eight tanks, the theoretical EEV, and 5000
 #: particles for its 4-D belief — with the paper's 2500 a tenth of its successes were on a wrong place,
 #: measured on validation seeds, docs/extensions.md).
@@ -103,11 +105,11 @@ def check_bool(name: str, value: Any) -> bool:
 
 
 def _radii(name: str, value: Any, count: int | None) -> tuple[float, ...]:
-    """A tuple of positive finite radii, mm (``count`` of them, or at least one)."""
+    """A tuple of positive finite numbers (radii in mm, or gain factors): ``count`` of them, or at least one."""
     items = tuple(value) if isinstance(value, (tuple, list, np.ndarray)) else None
     if items is None or not items or (count is not None and len(items) != count):
         want = f"{count}" if count is not None else "one or more"
-        raise ValueError(f"{name} must be a tuple of {want} radii in mm, got {value!r}")
+        raise ValueError(f"{name} must be a tuple of {want} positive numbers, got {value!r}")
     return tuple(check_float(name, v, 0.0) for v in items)
 
 
@@ -158,6 +160,9 @@ class EnvParams:
         contrast: unknown target: ``"binary"`` (conductor or insulator) or ``"continuous"`` (χ ∈ [−½, 1]).
         eev_radii_mm: unknown target, ``sensor_model="interpolated"``: the radii of the calibrated
             EEVs (mm, positive, distinct) the model interpolates between.
+        gain_levels: dynamic gain (§7): factors (positive, distinct) of the condition's amplifier gain G
+            among which the agent picks the gain of every reading (the action gets a gain component);
+            None: every reading at G. Reset reads at the level nearest to 1.
     """
 
     task: str = "localize"
@@ -179,6 +184,7 @@ class EnvParams:
     radius_range_mm: Any = DEFAULT_RADIUS_RANGE_MM
     contrast: str = "binary"
     eev_radii_mm: Any = DEFAULT_EEV_RADII_MM
+    gain_levels: Any = None
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -195,6 +201,10 @@ class EnvParams:
         put("eev_radii_mm", tuple(sorted(_radii("eev_radii_mm", self.eev_radii_mm, None))))
         if len(set(self.eev_radii_mm)) != len(self.eev_radii_mm):
             raise ValueError(f"eev_radii_mm must be distinct, got {self.eev_radii_mm!r}")
+        if self.gain_levels is not None:
+            put("gain_levels", _radii("gain_levels", self.gain_levels, None))
+            if len(set(self.gain_levels)) != len(self.gain_levels):
+                raise ValueError(f"gain_levels must be distinct factors of the gain, got {self.gain_levels!r}")
         _check_choice("action_type", self.action_type, ACTION_TYPES)
         put("n_particles", check_int("n_particles", self.n_particles, 1, 2**31 - 2))
         put("max_observations", check_int("max_observations", self.max_observations, 1))
@@ -234,6 +244,16 @@ class EnvParams:
             raise ValueError(f"{env_id} got unexpected argument(s) {unknown}; its arguments are "
                              f"{sorted(allowed)}")
         return cls(task=task, **{**TASK_DEFAULTS.get(task, {}), **kwargs})
+
+    @property
+    def gains(self) -> tuple[float, ...]:
+        """The gain factors of the readings (``gain_levels``, or (1,) without dynamic gain)."""
+        return (1.0,) if self.gain_levels is None else self.gain_levels
+
+    @property
+    def reset_gain_index(self) -> int:
+        """The level reset reads at: the one nearest to the preset gain (factor 1, on a log scale)."""
+        return int(np.argmin([abs(math.log(f)) for f in self.gains]))
 
     def replace(self, **changes: Any) -> EnvParams:
         """A copy with some fields changed (validated again)."""

@@ -60,6 +60,7 @@ class State:
         shape_mean: (N, 2) the belief's mean radius (mm) and mean χ (unknown target).
         shape_std: (N, 2) their standard deviations (mm, —).
         p_conductor: (N,) the belief's fraction of particles with χ > 0 (unknown target).
+        gain_index: (N,) the gain level of each env's last reading (dynamic gain; 0 without).
     """
 
     gens: list[np.random.Generator | None]
@@ -95,6 +96,7 @@ class State:
     shape_mean: NDArray[np.float64]
     shape_std: NDArray[np.float64]
     p_conductor: NDArray[np.float64]
+    gain_index: NDArray[np.int64]
     started: bool = field(default=False)
 
     @classmethod
@@ -119,6 +121,7 @@ class State:
             jitter_idx=np.empty((n, (2 + shape_dims) * m), dtype=np.uint16),
             shape_particles=np.zeros((n, shape_dims, m), dtype=np.float32), target_shape=np.zeros((n, 2)),
             shape_mean=np.zeros((n, 2)), shape_std=np.zeros((n, 2)), p_conductor=np.zeros(n),
+            gain_index=np.zeros(n, dtype=np.int64),
         )
 
     @property

@@ -69,7 +69,10 @@ class Simulation:
         params.check_memory(self.num_envs, self.task.calibration_points())
         self.state = State.empty(self.num_envs, params.n_particles, self.task.table_cells(),
                                  getattr(self.task, "shape_dims", 0))
-        self.obs_dim = BELIEF_OBS_DIM if params.observation == "belief" else RAW_OBS_DIM
+        self.n_gains = len(params.gains)
+        self.dynamic_gain = params.gain_levels is not None
+        # the raw observation gets the gain level of its reading as a fourth entry with dynamic gain
+        self.obs_dim = BELIEF_OBS_DIM if params.observation == "belief" else RAW_OBS_DIM + int(self.dynamic_gain)
         self._normal_table = normal_table()
         self._all_ids = np.arange(self.num_envs)
         self._sign = self.task.offset_sign
@@ -113,12 +116,46 @@ class Simulation:
         ids = self._all_ids if ids is None else np.asarray(ids, dtype=np.intp)
         for i in ids.tolist():
             self.task.begin_episode(self.state, i, self.generator(i))
+        self.task.set_gain(self.state, ids, self.params.reset_gain_index)
         self._observe(ids)
         self.state.done[ids] = False
         self.state.started = True
 
     def moves_from_actions(self, actions: Any, single: bool = False) -> NDArray[np.float64]:
         """The commanded moves (N, 2), mm, of a batch of actions (or of one action with ``single``)."""
+        if self.dynamic_gain:
+            return self._split_gain_actions(actions, single)[0]
+        return self._moves(actions, single)
+
+    def gains_from_actions(self, actions: Any, single: bool = False) -> NDArray[np.int64] | None:
+        """The gain levels (N,) of a batch of actions (dynamic gain), else None."""
+        return self._split_gain_actions(actions, single)[1] if self.dynamic_gain else None
+
+    def _split_gain_actions(self, actions: Any, single: bool) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """Dynamic gain: continuous (dx, dy, g), g ∈ [−1, 1] cut into K equal bins (level ⌊(g + 1)/2·K⌋);
+        discrete (move index, level) of MultiDiscrete([9, K]).
+        """
+        n, k = self.num_envs, self.n_gains
+        a = np.asarray(actions)
+        shape = (2,) if single else (n, 2)
+        if self.params.action_type == "discrete":
+            if a.shape != shape or not np.issubdtype(a.dtype, np.integer) or np.any((a[..., 1] < 0) | (a[..., 1] >= k)):
+                what = "action" if single else f"actions of {n} envs"
+                raise ValueError(f"{what} must be (move index in [0, 8], gain level in [0, {k - 1}]) integers, "
+                                 f"got {actions!r}")
+            a = a.reshape(n, 2)
+            return self._moves(a[:, 0], False), a[:, 1].astype(np.int64)
+        a = np.asarray(actions, dtype=np.float64)
+        shape = (3,) if single else (n, 3)
+        if a.shape != shape or not np.all(np.isfinite(a)):
+            what = "action" if single else "actions"
+            raise ValueError(f"{what} must be finite with shape {shape} (dx, dy, gain in [-1, 1]), got {actions!r}")
+        a = a.reshape(n, 3)
+        g = np.minimum(np.maximum(a[:, 2], -1.0), 1.0)
+        levels = np.minimum(np.floor((g + 1.0) * 0.5 * k), k - 1).astype(np.int64)
+        return self._moves(a[:, :2], False), levels
+
+    def _moves(self, actions: Any, single: bool) -> NDArray[np.float64]:
         n = self.num_envs
         if self.params.action_type == "discrete":
             a = np.asarray(actions)
@@ -136,9 +173,11 @@ class Simulation:
             raise ValueError(f"action{'' if single else 's'} must be finite (dx, dy in [-1, 1]), got {actions!r}")
         return np.minimum(np.maximum(a.reshape(n, 2), -1.0), 1.0) * MAX_STEP_MM
 
-    def step(self, moves_mm: NDArray[np.float64], autoreset: str = "next_step"
+    def step(self, moves_mm: NDArray[np.float64], autoreset: str = "next_step",
+             gains: NDArray[np.int64] | None = None
              ) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
-        """One step of every env: (observations, rewards, terminated, truncated, info).
+        """One step of every env: (observations, rewards, terminated, truncated, info); ``gains``: each
+        env's gain level of this step's reading (dynamic gain; None: unchanged).
 
         With ``autoreset="same_step"`` the info also holds ``final_obs`` ((N,) object, the ended envs'
         last observations, else None), ``final_info`` (the step's info before the resets) and ``done``.
@@ -158,6 +197,9 @@ class Simulation:
                 step_ids = np.flatnonzero(~s.done)
                 for i in reset_ids.tolist():
                     self.task.begin_episode(s, i, self.generator(i))
+                self.task.set_gain(s, reset_ids, self.params.reset_gain_index)
+                if gains is not None:
+                    self.task.set_gain(s, step_ids, gains[step_ids])
                 self.task.move(s, step_ids, moves_mm[step_ids])
                 self._observe(self._all_ids)  # every env reads once: the stepped and the fresh ones
                 s.elapsed[step_ids] += 1
@@ -167,6 +209,8 @@ class Simulation:
                 rewards[reset_ids] = 0.0
                 s.done = terminated | truncated
                 return self.observation(), rewards, terminated, truncated, self.info()
+        if gains is not None:
+            self.task.set_gain(s, self._all_ids, gains)
         self.task.move(s, _ALL, moves_mm)
         self._observe(self._all_ids)
         s.elapsed += 1
@@ -206,7 +250,11 @@ class Simulation:
         s, sel = self.state, _ALL if ids is None else ids
         half, sat = s.half_mm[sel], s.saturation_V[sel]
         if self.params.observation == "raw":
-            return raw_observation(self._reference_mm(sel), s.reading_V[sel], half, sat)
+            obs = raw_observation(self._reference_mm(sel), s.reading_V[sel], half, sat)
+            if self.dynamic_gain:  # the reading's gain level, in [−1, 1]
+                level = s.gain_index[sel] * (2.0 / max(self.n_gains - 1, 1)) - 1.0
+                obs = np.concatenate([obs, level.astype(np.float32)[:, None]], axis=1)
+            return obs
         origin = np.zeros((len(half), 2)) if self.task.name == "global" else s.position_mm[sel]
         obs = belief_observation(origin, s.reading_V[sel], s.mean_mm[sel], s.cov_mm2[sel],
                                  s.counts[sel] / s.n_particles, s.n_observations[sel], self.params.max_observations,
@@ -222,6 +270,9 @@ class Simulation:
         spread = np.sqrt(np.maximum(s.cov_mm2[sel, 0, 0] + s.cov_mm2[sel, 1, 1], 0.0))
         d = est - self.task.truth_mm(s, sel)
         extra = self.task.shape_info(s, sel) if self.task.name == "unknown" else {}
+        if self.dynamic_gain:  # the amplifier gain G of the last reading
+            extra["gain"] = np.array([w.amplifier.gain for w in s.world], dtype=np.float64)[sel] * \
+                np.asarray(self.params.gains)[s.gain_index[sel]]
         return {
             "position_mm": s.position_mm[sel].copy(),
             "estimate_mm": est.copy(),
@@ -267,7 +318,7 @@ class Simulation:
             mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         if self.task.calibrated:
             bad = calibrated_assimilate(src, origin, self._sign, s.grid_lo_mm[sel], s.grid_inv_mm[sel],
-                                        s.grid_cells[sel], s.table_row[sel], s.table, reading.astype(np.float32), u0,
+                                        s.grid_cells[sel], self.task.table_rows(s, sel), s.table, reading.astype(np.float32), u0,
                                         jitter, self._normal_table, half, src, mean, cov, 2 * half, HIST_BINS, counts)
         else:
             ll = self._analytic_log_likelihood(ids, src, origin, reading)
@@ -283,7 +334,10 @@ class Simulation:
                                  reading: NDArray[np.float64]) -> NDArray[np.float32]:
         """(k, M) float32 log-likelihoods of the analytic models, one numpy evaluation per world."""
         off = ((src - origin[:, :, None]) * self._sign).transpose(0, 2, 1)  # (k, M, 2) offsets
-        groups = group_by_world(self.state, ids)
+        if self.dynamic_gain:  # each env's own gain level
+            groups = [(None, np.array([e])) for e in range(len(ids))]
+        else:
+            groups = group_by_world(self.state, ids)
         if len(groups) == 1:
             model = self.task.sensor_model(self.state, int(ids[0]))
             return np.ascontiguousarray(model.log_likelihood(reading[:, None], off), dtype=np.float32)

@@ -100,6 +100,35 @@ class _Task:
         self.params = params
         self.protocol: CalibrationProtocol = params.calibration
         self.calibrated = params.sensor_model == "calibrated"
+        #: The gain factors of the readings (dynamic gain; (1,) without).
+        self.gains = params.gains
+        self._gain_array = np.asarray(self.gains, dtype=np.float64)
+        #: Calibration rows per gain level (each level has its own calibration; set by ``table_cells``).
+        self.cells_per_gain = 0
+
+    def set_gain(self, state: State, ids: NDArray[np.intp], levels: NDArray[np.intp] | int) -> None:
+        """Envs ``ids`` read at gain level(s) ``levels`` from now on: the reading noise and the
+        observation's amplifier entries (78–79) follow the level's gain.
+        """
+        state.gain_index[ids] = levels
+        if len(self.gains) == 1:
+            return
+        for i in np.asarray(ids).tolist():
+            c = self.at_gain(state.world[i], int(state.gain_index[i]))
+            state.noise_V[i] = c.noise_std_V
+            state.descriptor[i, 2:4] = _descriptor(c)[2:4]
+
+    @functools.lru_cache(maxsize=256)  # noqa: B019 - one task per env, few (condition, level) pairs
+    def at_gain(self, condition: Condition, level: int) -> Condition:
+        """``condition`` with its amplifier at gain level ``level`` (G times the level's factor)."""
+        f = self.gains[level]
+        if f == 1.0:
+            return condition
+        return condition.replace(amplifier=condition.amplifier.with_gain(condition.amplifier.gain * f))
+
+    def gain_seed(self, seed: int, level: int) -> int:
+        """The calibration seed of gain level ``level`` (each level is calibrated with its own draws)."""
+        return seed if level == 0 else (seed + 7919 * level) % _SEED_BOUND
 
     def _set_world(self, state: State, i: int, world: Any, key: int, condition: Condition,
                    descriptor: NDArray[np.float32]) -> None:
@@ -115,13 +144,20 @@ class _Task:
         s = self.params.calibration_seed
         return s if s is not None else int(g.integers(_SEED_BOUND))
 
-    def _set_grid(self, state: State, i: int, grid_mm: NDArray[np.float64], step_mm: float) -> NDArray[np.float32]:
-        """Env ``i``'s grid arguments of the lookup kernel; returns its rows of the coefficient table."""
+    def _set_grid(self, state: State, i: int, grid_mm: NDArray[np.float64], step_mm: float,
+                  level: int = 0) -> NDArray[np.float32]:
+        """Env ``i``'s grid arguments of the lookup kernel; returns its rows of the coefficient table
+        (those of gain level ``level``).
+        """
         state.grid_lo_mm[i] = np.float32(grid_mm[0])
         state.grid_inv_mm[i] = np.float32(1.0 / step_mm)
         state.grid_cells[i] = grid_mm.size - 1
-        start = int(state.table_row[i])
+        start = int(state.table_row[i]) + level * self.cells_per_gain
         return state.table[start:start + _cells(grid_mm)]
+
+    def table_rows(self, state: State, sel: Any) -> NDArray[np.int64]:
+        """(k,) first coefficient row of each env's current gain level (the lookup kernel's ``base``)."""
+        return state.table_row[sel] + state.gain_index[sel] * self.cells_per_gain
 
     def _place(self, state: State, i: int, g: np.random.Generator, start_half_mm: float) -> None:
         """The start position (2 uniforms) and the uniform particle cloud (M·2 uniforms)."""
@@ -155,10 +191,12 @@ class _Task:
     #: Coordinates of a hypothesis an agent passes to the predictions (position only here).
     particle_dims = 2
 
-    def predicted_mean_std(self, state: State, i: int, particles: NDArray,
-                           moves_mm: NDArray) -> tuple[NDArray, NDArray]:
-        """Sensor-model mean and std (V) of the reading each hypothesis predicts after the moves."""
-        return self.sensor_model(state, i).mean_std(self.offsets_after_move(state, i, particles, moves_mm))
+    def predicted_mean_std(self, state: State, i: int, particles: NDArray, moves_mm: NDArray,
+                           level: int | None = None) -> tuple[NDArray, NDArray]:
+        """Sensor-model mean and std (V) of the reading each hypothesis predicts after the moves (at gain
+        level ``level``; default the current one).
+        """
+        return self.sensor_model(state, i, level).mean_std(self.offsets_after_move(state, i, particles, moves_mm))
 
 
 class TargetTask(_Task):
@@ -169,7 +207,8 @@ class TargetTask(_Task):
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
         self.pool: tuple[Condition, ...] = params.conditions()
-        self._analytic = [AnalyticSensorModel(c) for c in self.pool]
+        self._analytic = [[AnalyticSensorModel(self.at_gain(c, j)) for j in range(len(self.gains))]
+                          for c in self.pool]
         self._descriptors = [condition_descriptor(c) for c in self.pool]
         self._grids: list[NDArray[np.float64]] = []  # built after the memory check (table_cells)
 
@@ -184,7 +223,8 @@ class TargetTask(_Task):
         if not self.calibrated:
             return 0
         self._grids = [calibration_grid_for(c, self.protocol) for c in self.pool]
-        return max(_cells(g) for g in self._grids)
+        self.cells_per_gain = max(_cells(g) for g in self._grids)
+        return self.cells_per_gain * len(self.gains)
 
     def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
         """Env ``i``'s reset draws, in order: condition (pool of several), calibration seed (unless
@@ -196,13 +236,15 @@ class TargetTask(_Task):
         self._set_world(state, i, c, k, c, self._descriptors[k])
         seed = self._cal_seed(g)
         state.cal_seed[i] = seed
-        state.model[i] = None if self.calibrated else self._analytic[k]
+        state.model[i] = [None] * len(self.gains) if self.calibrated else self._analytic[k]
         if self.calibrated:
-            rows = self._set_grid(state, i, self._grids[k], self.protocol.grid_step_mm)
-            if self.params.calibration_seed is not None:
-                rows[:] = _fixed_coefficients(c, seed, self.protocol)
-            else:
-                calibration_coefficients(c, seed, self.protocol, out=rows)
+            for j in range(len(self.gains)):  # the robot calibrates at every gain level
+                rows = self._set_grid(state, i, self._grids[k], self.protocol.grid_step_mm, j)
+                cj, sj = self.at_gain(c, j), self.gain_seed(seed, j)
+                if self.params.calibration_seed is not None:
+                    rows[:] = _fixed_coefficients(cj, sj, self.protocol)
+                else:
+                    calibration_coefficients(cj, sj, self.protocol, out=rows)
         s = c.start_half_width_mm
         if self.params.randomize_target:
             state.target_mm[i] = g.uniform(-s, s, size=2)
@@ -215,11 +257,12 @@ class TargetTask(_Task):
         offsets = state.target_mm[ids] - state.position_mm[ids]
         groups = group_by_world(state, ids)
         if len(groups) == 1:
-            return expected_reading(groups[0][0], offsets, saturate=False)
-        out = np.empty(len(ids))
-        for c, rows in groups:
-            out[rows] = expected_reading(c, offsets[rows], saturate=False)
-        return out
+            out = expected_reading(groups[0][0], offsets, saturate=False)
+        else:
+            out = np.empty(len(ids))
+            for c, rows in groups:
+                out[rows] = expected_reading(c, offsets[rows], saturate=False)
+        return out if len(self.gains) == 1 else out * self._gain_array[state.gain_index[ids]]
 
     def truth_mm(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
         """(k, 2) what the belief estimates: the target centre, mm."""
@@ -235,11 +278,16 @@ class TargetTask(_Task):
         """The target does not move: the hypotheses unchanged, once per move."""
         return np.broadcast_to(particles, moves_mm.shape[:-1] + particles.shape).copy()
 
-    def sensor_model(self, state: State, i: int) -> Any:
-        """Env ``i``'s sensor model object for the agent (the calibrated one built on first use)."""
-        if state.model[i] is None:
-            state.model[i] = make_sensor_model("calibrated", state.world[i], int(state.cal_seed[i]), self.protocol)
-        return state.model[i]
+    def sensor_model(self, state: State, i: int, level: int | None = None) -> Any:
+        """Env ``i``'s sensor model object for the agent at gain level ``level`` (default: the current
+        one; the calibrated ones built on first use).
+        """
+        j = int(state.gain_index[i]) if level is None else level
+        models = state.model[i]
+        if models[j] is None:
+            models[j] = make_sensor_model("calibrated", self.at_gain(state.world[i], j),
+                                          self.gain_seed(int(state.cal_seed[i]), j), self.protocol)
+        return models[j]
 
 
 class MapTask(_Task):
@@ -267,7 +315,8 @@ class MapTask(_Task):
         """Coefficient rows per env (0 without a calibrated model)."""
         if not self.calibrated:
             return 0
-        return _cells(calibration_grid_for(_scene_condition(self.scene_template), self.protocol))
+        self.cells_per_gain = _cells(calibration_grid_for(_scene_condition(self.scene_template), self.protocol))
+        return self.cells_per_gain
 
     def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
         """Env ``i``'s reset draws, in order: layout (``"random"``), calibration seed (unless fixed),
@@ -328,8 +377,8 @@ class MapTask(_Task):
         """(k, 2) what the belief estimates: the true carriage position, mm."""
         return state.position_mm[ids]
 
-    def sensor_model(self, state: State, i: int) -> Any:
-        """Env ``i``'s map sensor model (built at reset)."""
+    def sensor_model(self, state: State, i: int, level: int | None = None) -> Any:
+        """Env ``i``'s map sensor model (built at reset; the map has one gain)."""
         return state.model[i]
 
 

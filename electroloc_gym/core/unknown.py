@@ -70,7 +70,8 @@ class UnknownTargetTask(TargetTask):
         self.calibrated = False  # the interpolated model's tables are its own, not the kernels' table
         self.radius_range_mm = params.radius_range_mm
         self.continuous = params.contrast == "continuous"
-        self._theoretical = [TheoreticalShapeModel(c) for c in self.pool]
+        self._theoretical = [[TheoreticalShapeModel(self.at_gain(c, j)) for j in range(len(self.gains))]
+                             for c in self.pool]
 
     def calibration_points(self) -> int:
         return 0
@@ -98,7 +99,7 @@ class UnknownTargetTask(TargetTask):
         c = pool[k]
         self._set_world(state, i, c, k, c, self._descriptors[k])
         state.cal_seed[i] = self._cal_seed(g)
-        state.model[i] = None
+        state.model[i] = [None] * len(self.gains)
         lo, hi = self.radius_range_mm
         if self.params.target_draw == "prior":
             radius = float(self._draw_radius(g))
@@ -119,18 +120,21 @@ class UnknownTargetTask(TargetTask):
         out = np.empty(len(ids))
         for c, rows in group_by_world(state, ids):
             out[rows] = shape_expected_reading(c, offsets[rows], shape[rows, 0], shape[rows, 1], saturate=False)
-        return out
+        return out if len(self.gains) == 1 else out * self._gain_array[state.gain_index[ids]]
 
-    def sensor_model(self, state: State, i: int) -> Any:
-        """Env ``i``'s shape sensor model (``mean_std(offsets, radius_mm, chi)``; interpolated: built on first use)."""
-        if state.model[i] is None:
-            c = state.world[i]
+    def sensor_model(self, state: State, i: int, level: int | None = None) -> Any:
+        """Env ``i``'s shape sensor model (``mean_std(offsets, radius_mm, chi)``) at gain level ``level``
+        (default: the current one; interpolated: built on first use).
+        """
+        j = int(state.gain_index[i]) if level is None else level
+        models = state.model[i]
+        if models[j] is None:
             if self.params.sensor_model == "analytic":
-                state.model[i] = self._theoretical[int(state.world_key[i])]
+                models[j] = self._theoretical[int(state.world_key[i])][j]
             else:
-                state.model[i] = InterpolatedShapeModel(c, self.params.eev_radii_mm, int(state.cal_seed[i]),
-                                                        self.protocol)
-        return state.model[i]
+                models[j] = InterpolatedShapeModel(self.at_gain(state.world[i], j), self.params.eev_radii_mm,
+                                                   self.gain_seed(int(state.cal_seed[i]), j), self.protocol)
+        return models[j]
 
     def true_condition(self, state: State, i: int) -> Condition:
         """Env ``i``'s tank with its hidden sphere (ground truth, for evaluation only)."""
@@ -152,11 +156,11 @@ class UnknownTargetTask(TargetTask):
         """Target position hypothesis (columns 0–1 of (M, 4) particles) − the carriage after the move."""
         return super().offsets_after_move(state, i, particles[..., :2], moves_mm)
 
-    def predicted_mean_std(self, state: State, i: int, particles: NDArray,
-                           moves_mm: NDArray) -> tuple[NDArray, NDArray]:
+    def predicted_mean_std(self, state: State, i: int, particles: NDArray, moves_mm: NDArray,
+                           level: int | None = None) -> tuple[NDArray, NDArray]:
         """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves."""
         off = self.offsets_after_move(state, i, particles, moves_mm)
-        return self.sensor_model(state, i).mean_std(off, particles[..., 2], particles[..., 3])
+        return self.sensor_model(state, i, level).mean_std(off, particles[..., 2], particles[..., 3])
 
     # ---- the measurement update ------------------------------------------------------------------
     def assimilate(self, state: State, ids: NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],

@@ -32,9 +32,18 @@ _INFO_ROW_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "readin
 
 
 def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space, spaces.Box]:
-    """(action space, observation space) of one env."""
+    """(action space, observation space) of one env.
+
+    Dynamic gain (``gain_levels``) adds the gain to the action in the two forms SB3 trains (it has no
+    Dict or Tuple actions): a third Box coordinate cut into K equal bins (continuous), or
+    ``MultiDiscrete([9, K])`` (discrete).
+    """
+    k = len(params.gains)
     if params.action_type == "continuous":
-        action: spaces.Space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        dims = 3 if params.gain_levels is not None else 2
+        action: spaces.Space = spaces.Box(-1.0, 1.0, shape=(dims,), dtype=np.float32)
+    elif params.gain_levels is not None:
+        action = spaces.MultiDiscrete([len(DISCRETE_MOVES_MM), k])
     else:
         action = spaces.Discrete(len(DISCRETE_MOVES_MM))
     return action, spaces.Box(-1.0, 1.0, shape=(obs_dim,), dtype=np.float32)
@@ -74,6 +83,11 @@ class ParamAccessors:
     def action_type(self) -> str:
         """``"continuous"`` or ``"discrete"``."""
         return self.params.action_type
+
+    @property
+    def gain_levels(self) -> tuple[float, ...] | None:
+        """The dynamic-gain factors of the amplifier gain, or None (every reading at the preset gain)."""
+        return self.params.gain_levels
 
 
 class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
@@ -161,7 +175,20 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         p, u = self._check_prediction_args(particles_mm, moves_mm)
         return self._task.particles_after_move(self._state, 0, p, u)
 
-    def predicted_reading_model(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
+    @property
+    def gain_index(self) -> int:
+        """The gain level of the last reading (0 without dynamic gain)."""
+        return int(self._state.gain_index[0])
+
+    def gain_action(self, level: int) -> Any:
+        """The action component that selects gain level ``level`` (continuous: its bin's centre)."""
+        k = len(self.params.gains)
+        if not (isinstance(level, (int, np.integer)) and 0 <= level < k):
+            raise ValueError(f"level must be an integer in [0, {k - 1}], got {level!r}")
+        return int(level) if self.params.action_type == "discrete" else -1.0 + (2 * int(level) + 1) / k
+
+    def predicted_reading_model(self, particles_mm: ArrayLike, moves_mm: ArrayLike,
+                                gain_level: int | None = None) -> tuple[NDArray, NDArray]:
         """Sensor-model mean and std (V) of the reading each hypothesis predicts after a commanded move
         (the env's motion rule applied; the noise-free reading "that particle predicts" of min-var,
         paper Algorithm 1).
@@ -170,11 +197,15 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
             particles_mm: (M, 2) hypotheses (normally ``belief.particles``), mm; float32 stays float32.
             moves_mm: (2,) or (C, 2) commanded moves, mm (clipped to ±``MAX_STEP_MM`` like ``step``).
 
+            gain_level: dynamic gain: the level of the reading (default: the last reading's).
+
         Returns:
             ``(mean_V, std_V)``, each (M,) for a (2,) move and (C, M) for (C, 2) moves.
         """
         p, u = self._check_prediction_args(particles_mm, moves_mm)
-        return self._task.predicted_mean_std(self._state, 0, p, u)
+        if gain_level is not None:
+            self.gain_action(gain_level)  # validates the level
+        return self._task.predicted_mean_std(self._state, 0, p, u, gain_level)
 
     def _check_prediction_args(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
         if not self._state.started:
@@ -207,7 +238,8 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         if not self._state.started:
             raise RuntimeError("call reset() before step()")
         moves = self._sim.moves_from_actions(action, single=True)
-        obs, reward, terminated, truncated, info = self._sim.step(moves, autoreset="disabled")
+        gains = self._sim.gains_from_actions(action, single=True)
+        obs, reward, terminated, truncated, info = self._sim.step(moves, autoreset="disabled", gains=gains)
         self._path.append(tuple(self._state.position_mm[0].tolist()))
         if self.render_mode == "human":
             self.render()

@@ -165,7 +165,8 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         if not self._state.started:
             raise RuntimeError("call reset() before step()")
         moves = self._sim.moves_from_actions(actions)
-        obs, rewards, terminated, truncated, info = self._sim.step(moves, self._mode)
+        gains = self._sim.gains_from_actions(actions)
+        obs, rewards, terminated, truncated, info = self._sim.step(moves, self._mode, gains)
         if "done" in info:
             done = info.pop("done")
             info["final_info"] = self._with_masks(info["final_info"], done)
