@@ -156,18 +156,24 @@ def _training_extra_missing() -> str | None:
     return None
 
 
-def shipped_model_env(folder: Path) -> str | None:
-    """The env id a shipped policy was trained on (its policy.json's ``observation.env_id``; plain JSON)."""
+def shipped_model_env(folder: Path) -> tuple[str, tuple[float, ...] | None] | None:
+    """(env id, gain levels) a shipped policy was trained on (its policy.json's ``observation.env_id``
+    and ``env_kwargs.gain_levels``; plain JSON), or None if the file does not say.
+    """
     try:
         with open(folder / "policy.json", encoding="utf-8") as f:
-            env_id = json.load(f)["observation"]["env_id"]
-    except (OSError, ValueError, KeyError, TypeError):
+            meta = json.load(f)
+        env_id = meta["observation"]["env_id"]
+        gains = (meta.get("env_kwargs") or {}).get("gain_levels")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return None
-    return env_id if isinstance(env_id, str) else None
+    if not isinstance(env_id, str):
+        return None
+    return env_id, None if gains is None else tuple(float(g) for g in gains)
 
 
-def default_agents(*, table4_only: bool = False, trust_pickle: bool = False,
-                   env_id: str = "ElectroLoc-v0") -> list[AgentChoice]:
+def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env_id: str = "ElectroLoc-v0",
+                   gain_levels: tuple[float, ...] | None = None) -> list[AgentChoice]:
     """What a run without ``--agents`` considers: the paper's controllers, then every shipped model
     trained on ``env_id``.
 
@@ -179,16 +185,22 @@ def default_agents(*, table4_only: bool = False, trust_pickle: bool = False,
             which were trained on ElectroLoc-v0).
         trust_pickle: passed to the policy loader.
         env_id: the run's env.
+        gain_levels: the run's dynamic-gain levels (then min-var runs twice: choosing the gain, and at the
+            preset gain).
     """
     if table4_only:
         return [AgentChoice("rnd-wlk"), AgentChoice("min-var")]
     choices = [AgentChoice(name) for name in AGENT_REGISTRY]
+    if gain_levels is not None:
+        choices.insert(2, AgentChoice("min-var[gain=preset]"))
     models = shipped_models()
     missing = _training_extra_missing() if models else None
     for name, folder in models.items():
         trained_on = shipped_model_env(folder)
-        if trained_on is not None and trained_on != env_id:
-            choices.append(AgentChoice(name, skipped=f"trained on {trained_on}, not {env_id}"))
+        if trained_on is not None and trained_on != (env_id, gain_levels):
+            what = trained_on[0] + ("" if trained_on[1] is None else f" with gain_levels={list(trained_on[1])}")
+            here = env_id + ("" if gain_levels is None else f" with gain_levels={list(gain_levels)}")
+            choices.append(AgentChoice(name, skipped=f"trained on {what}, not {here}"))
             continue
         if missing:
             choices.append(AgentChoice(name, skipped=missing))

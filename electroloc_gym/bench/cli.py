@@ -8,6 +8,7 @@ import sys
 from electroloc_gym.bench.agents import agent_kind, cached_agent, default_agents
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.config import (
+    DYNAMIC_GAIN_LEVELS,
     ENV_CHOICES,
     ENV_N_PARTICLES,
     ENV_SENSOR_MODELS,
@@ -34,6 +35,7 @@ EPILOG = """examples:
   electroloc bench --agents min-var,ppo-belief --out bench_learned --resume
   electroloc bench --env global --trials 50 --out bench_global         Table 2 (ElectroLocGlobal-v0)
   electroloc bench --env unknown-target --out bench_unknown            size and material unknown (§7)
+  electroloc bench --env dynamic-gain --out bench_gain                 the gain in the action (§7)
 """
 
 
@@ -50,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "self-localisation among six cylinders (Table 2; default agents rnd-wlk,min-var; "
                              "--conditions and --signal do not apply); unknown-target: ElectroLocUnknownTarget-v0 "
                              "on the presets' sphere/water pairs, the sphere's size and material hidden (§7), with "
-                             "the identification results beside the Table-4 layout")
+                             "the identification results beside the Table-4 layout); dynamic-gain: ElectroLoc-v0 "
+                             "with the amplifier gain (×1/4, ×1, ×4 the preset) in every action (§7)")
     parser.add_argument("--trials", type=int, default=50, help="trials per condition and agent (paper: 50)")
     parser.add_argument("--seed", type=int, default=0, help="root seed of the per-trial seeds")
     parser.add_argument("--workers", type=int, default=None,
@@ -79,11 +82,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _agents(args: argparse.Namespace, env_id: str) -> list[str]:
+def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...] | None) -> list[str]:
     """The run's agent specs; a default list says what it skipped and why."""
     if args.agents:
         return [a.strip() for a in args.agents.split(",") if a.strip()]
-    choices = default_agents(table4_only=env_id == GLOBAL_ENV_ID, trust_pickle=args.trust_pickle, env_id=env_id)
+    choices = default_agents(table4_only=env_id == GLOBAL_ENV_ID, trust_pickle=args.trust_pickle, env_id=env_id,
+                             gain_levels=gain_levels)
     for c in choices:
         if c.skipped:
             print(f"electroloc bench: skipping {c.spec}: {c.skipped}", file=sys.stderr)
@@ -94,9 +98,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark described by ``args``; print table.md; 0 on success, 2 on bad input."""
     try:
         prepare_out_dir(args.out)
-        env_id = ENV_CHOICES[getattr(args, "env", "target")]
+        env_name = getattr(args, "env", "target")
+        env_id = ENV_CHOICES[env_name]
+        gain_levels = DYNAMIC_GAIN_LEVELS if env_name == "dynamic-gain" else None
         is_global = env_id == GLOBAL_ENV_ID
-        agents = _agents(args, env_id)
+        agents = _agents(args, env_id, gain_levels)
         sensor_model = args.sensor_model or ENV_SENSOR_MODELS[env_id][0]
         n_particles = ENV_N_PARTICLES[env_id] if args.n_particles is None else args.n_particles
         if not agents:
@@ -110,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
                              max_observations=args.max_observations, n_particles=n_particles,
-                             env_id=env_id)
+                             env_id=env_id, gain_levels=gain_levels)
         options = {} if args.address is None else {"address": args.address}
         run_benchmark(config, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
                       progress=not args.no_progress, backend_options=options, trust_pickle=args.trust_pickle)

@@ -35,6 +35,7 @@ __all__ = [
     "ENV_CHOICES",
     "ENV_SENSOR_MODELS",
     "ENV_N_PARTICLES",
+    "DYNAMIC_GAIN_LEVELS",
     "IDENTITY_KEYS",
 ]
 
@@ -48,15 +49,19 @@ GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
 GLOBAL_CONDITION = "six-cylinders"
 #: The unknown-target env (paper §7): the eight presets' sphere/water pairs, the sphere hidden from the agent.
 UNKNOWN_ENV_ID = "ElectroLocUnknownTarget-v0"
-#: ``electroloc bench --env`` names → environment ids.
-ENV_CHOICES = {"target": "ElectroLoc-v0", "global": GLOBAL_ENV_ID, "unknown-target": UNKNOWN_ENV_ID}
+#: ``electroloc bench --env`` names → environment ids (``dynamic-gain``: ElectroLoc-v0 with
+#: :data:`DYNAMIC_GAIN_LEVELS`, the gain part of every action).
+ENV_CHOICES = {"target": "ElectroLoc-v0", "global": GLOBAL_ENV_ID, "unknown-target": UNKNOWN_ENV_ID,
+               "dynamic-gain": "ElectroLoc-v0"}
+#: The gain factors of ``--env dynamic-gain`` (a quarter, the preset and four times the preset gain).
+DYNAMIC_GAIN_LEVELS = (0.25, 1.0, 4.0)
 #: The bench's default particle count per env (the env's own default).
 ENV_N_PARTICLES = {"ElectroLoc-v0": 2500, GLOBAL_ENV_ID: 2500, UNKNOWN_ENV_ID: 5000}
 #: The sensor models of each env (the first is the bench's default there).
 ENV_SENSOR_MODELS = {"ElectroLoc-v0": ("calibrated", "analytic"), GLOBAL_ENV_ID: ("calibrated", "analytic"),
                      UNKNOWN_ENV_ID: ("analytic", "interpolated")}
 #: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
-IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id")
+IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id", "gain_levels")
 
 
 @dataclass(frozen=True)
@@ -76,6 +81,7 @@ class BenchConfig:
         max_observations: observation cap of a trial (paper: 35).
         n_particles: particles of the belief (paper: 2500).
         env_id: the environment id.
+        gain_levels: dynamic gain: the factors of the amplifier gain in the action (None: the preset gain).
     """
 
     agents: tuple[str, ...] = DEFAULT_AGENTS
@@ -87,8 +93,11 @@ class BenchConfig:
     max_observations: int = 35
     n_particles: int = 2500
     env_id: str = "ElectroLoc-v0"
+    gain_levels: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
+        if self.gain_levels is not None:
+            object.__setattr__(self, "gain_levels", tuple(float(g) for g in self.gain_levels))
         if not self.agents:
             raise ValueError("agents must name at least one agent")
         if len(set(self.agents)) != len(self.agents):
@@ -111,7 +120,10 @@ class BenchConfig:
 
     def identity(self) -> dict[str, Any]:
         """The fields that must match for ``--resume`` to append to an existing run."""
-        return {"seed": self.seed, **{k: getattr(self, k) for k in IDENTITY_KEYS}}
+        plain = {k: getattr(self, k) for k in IDENTITY_KEYS}
+        if plain["gain_levels"] is not None:  # as JSON stores it
+            plain["gain_levels"] = list(plain["gain_levels"])
+        return {"seed": self.seed, **plain}
 
 
 @dataclass(frozen=True)
@@ -128,6 +140,7 @@ class TrialSpec:
     max_observations: int
     n_particles: int
     env_id: str = "ElectroLoc-v0"
+    gain_levels: tuple[float, ...] | None = None
     #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
     trust_pickle: bool = False
 
@@ -178,5 +191,5 @@ def make_trial_specs(config: BenchConfig, *, trust_pickle: bool = False) -> list
             for agent in config.agents:
                 specs.append(TrialSpec(cond, agent, k, env_seed, agent_seed, config.sensor_model, config.signal,
                                        config.max_observations, config.n_particles, config.env_id,
-                                       trust_pickle=trust_pickle))
+                                       gain_levels=config.gain_levels, trust_pickle=trust_pickle))
     return specs

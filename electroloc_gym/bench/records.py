@@ -160,6 +160,8 @@ _CHECKS: dict[str, tuple[Callable[[Any], bool], str]] = {
     "env_id": (lambda v: isinstance(v, str), "a string"),
     "wall_s": (_is_num_or_none, "a number or null"),
     "shape": (lambda v: v is None or isinstance(v, dict), "an object or null"),
+    "gain_levels": (lambda v: v is None or (isinstance(v, list) and all(_is_num_or_none(g) for g in v)),
+                    "a list of numbers or null"),
 }
 assert set(_CHECKS) == set(RECORD_KEYS)
 
@@ -177,11 +179,16 @@ def validate_record(rec: Any) -> str | None:
     return None
 
 
+def _plain(value: Any) -> Any:
+    return list(value) if isinstance(value, tuple) else value
+
+
 def foreign_reason(rec: dict[str, Any], config: BenchConfig) -> str | None:
     """Why a valid record does not belong to ``config``'s run (None: it does)."""
     for key in IDENTITY_KEYS:
-        if rec[key] != getattr(config, key):
-            return f"{key} {rec[key]!r}, this run {getattr(config, key)!r}"
+        mine, theirs = _plain(getattr(config, key)), _plain(rec.get(key))  # JSON: tuples come back as lists
+        if theirs != mine:
+            return f"{key} {theirs!r}, this run {mine!r}"
     if (rec["condition"] == GLOBAL_CONDITION) != (config.env_id == GLOBAL_ENV_ID):
         return f"condition {rec['condition']!r} does not belong to env {config.env_id}"
     env_seed, agent_seed = trial_seeds(config.seed, rec["condition"], rec["trial"])

@@ -66,7 +66,7 @@ def _config_problem(stored: Any) -> str | None:
     """Why a parsed config.json cannot describe a run (None: it can)."""
     if not isinstance(stored, dict):
         return f"not a JSON object ({type(stored).__name__})"
-    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored]
+    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k != "gain_levels"]  # (added later)
     if missing:
         return f"missing key(s) {missing}"
     if isinstance(stored["seed"], bool) or not isinstance(stored["seed"], int):
@@ -100,7 +100,7 @@ def _resume(config: BenchConfig, out: Path, log: _Log) -> tuple[LoadedRecords, d
     """Check a stored run against ``config``; set damaged lines aside. Returns its records and config."""
     stored = read_config(out / "config.json", log)
     if stored is not None:
-        mismatch = {k: (stored[k], v) for k, v in config.identity().items() if stored[k] != v}
+        mismatch = {k: (stored.get(k), v) for k, v in config.identity().items() if stored.get(k) != v}
         if mismatch:
             raise ValueError(f"cannot resume {out}: settings differ from the stored run (stored, now): {mismatch}")
     loaded = load_records(out / TRIALS_FILE, config)

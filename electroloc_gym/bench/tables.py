@@ -154,6 +154,11 @@ def render_table_md(summary: dict[str, Any]) -> str:
                    f"cap {cfg.get('max_observations')} observations. Paper values (Solberg, Lynch & MacIver 2008) "
                    f"in the right-hand columns.")
         out.append("")
+        if cfg.get("gain_levels"):
+            out.append(f"Dynamic gain (§7): every reading's amplifier gain is part of the action, factors "
+                       f"{', '.join(f'{g:g}' for g in cfg['gain_levels'])} of the preset gain; `min-var` votes over "
+                       f"moves × gains, `min-var[gain=preset]` and the other controllers read at the preset gain.")
+            out.append("")
     if t4:
         out.append("## Table 4 layout (particle-filter agents)")
         out.append("")

@@ -30,14 +30,14 @@ TIMING_KEYS = ("decision_ms_median", "decision_ms_mean", "wall_s")
 RECORD_KEYS = ("condition", "agent", "agent_label", "layout", "trial", "seed", "agent_seed", "success", "ended_by",
                "observations", "error_mm", "error_x_mm", "error_y_mm", "estimate", "target", "start", "spread_mm",
                "decisions", "decision_ms_median", "decision_ms_mean", "sensor_model", "signal", "max_observations",
-               "n_particles", "env_id", "wall_s", "shape")
+               "n_particles", "env_id", "wall_s", "shape", "gain_levels")
 #: Keys a record may lack (records written before the key existed read as None).
-OPTIONAL_RECORD_KEYS = ("shape",)
+OPTIONAL_RECORD_KEYS = ("shape", "gain_levels")
 #: The unknown-target env's identification results in a record's ``"shape"`` (None elsewhere).
 SHAPE_RECORD_KEYS = ("radius_estimate_mm", "radius_spread_mm", "target_radius_mm", "radius_error_frac",
                      "p_conductor", "material_estimate", "material_correct", "chi_estimate", "target_chi")
 # The bench owns these env kwargs; an agent's env_kwargs cannot override them.
-_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode")
+_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels")
 _ENVS: dict[tuple[Any, ...], Any] = {}
 
 
@@ -56,6 +56,8 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
         kwargs["condition"] = condition
     if spec.env_id == UNKNOWN_ENV_ID:  # the paper's sphere/water pairs, the sphere hidden from the agent
         kwargs["target_draw"] = "condition"
+    if spec.gain_levels is not None:
+        kwargs["gain_levels"] = tuple(spec.gain_levels)
     kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
                    if k not in _BENCH_ONLY_KWARGS})
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
@@ -133,6 +135,7 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
         "env_id": spec.env_id,
         "wall_s": time.perf_counter() - t_start,
         "shape": _shape_record(info) if spec.env_id == UNKNOWN_ENV_ID else None,
+        "gain_levels": None if spec.gain_levels is None else list(spec.gain_levels),
     }
 
 
