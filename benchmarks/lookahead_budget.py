@@ -9,7 +9,8 @@ sensor model, default signal, 2500 particles, 35-observation cap). So with ``--s
 agent: trials, successes, median steps (observations fused, the first reading included, as the paper
 counts; capped trials count as the cap; the median over all trials of the env, not Table 4's median of
 per-condition medians), mean steps and the median decision time; saves a figure of median and mean
-steps against median decision time.
+steps against median decision time, and its numbers beside it (``FILE.json``; ``--replot FILE.json``
+redraws the figure from them).
 
 The budgets are the planner's own defaults with more or less search: greedy (``depth=1``), the default
 (depth 2, open loop over the eight compass continuations, 8 futures), depth 2 closed loop (the second
@@ -24,8 +25,10 @@ continuations with 16 futures. The default settings were chosen on validation se
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
+from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -95,7 +98,13 @@ def main() -> None:
     p.add_argument("--n-particles", type=int, default=2500)
     p.add_argument("--max-observations", type=int, default=35)
     p.add_argument("--out", default="lookahead_budget.png", help="figure path (default lookahead_budget.png)")
+    p.add_argument("--replot", metavar="JSON", help="only redraw the figure from a run's saved numbers")
     args = p.parse_args()
+    if args.replot:
+        with open(args.replot, encoding="utf-8") as f:
+            plot(json.load(f), args.out)
+        print(f"figure: {args.out}")
+        return
     if args.trials < 0 or args.global_trials < 0 or args.trials + args.global_trials == 0:
         p.error("--trials and --global-trials must be ≥ 0, and one of them ≥ 1")
     try:
@@ -118,33 +127,74 @@ def main() -> None:
         lines += table(env_id, res)[(0 if not lines else 2):]
     print("\n".join(lines))
 
+    summary = {"title": f"lookahead budgets, seed {args.seed}: ElectroLoc-v0 {len(conditions)} conditions × "
+                        f"{args.trials} trials, {GLOBAL_ENV_ID} {args.global_trials} trials",
+               "envs": {env_id: summarise(res) for env_id, res in results.items()}}
+    write_json(os.path.splitext(args.out)[0] + ".json", summary)
+    plot(summary, args.out)
+    print(f"\nfigure: {args.out} (numbers: {os.path.splitext(args.out)[0]}.json)")
+
+
+def summarise(res: dict[str, dict[str, list[float]]]) -> dict[str, dict[str, float]]:
+    """Per agent: trials, successes, median and mean steps, median decision time (ms)."""
+    return {a: {"trials": len(r["steps"]), "successes": int(sum(r["success"])),
+                "median_steps": float(np.median(r["steps"])), "mean_steps": float(np.mean(r["steps"])),
+                "decision_ms": float(1000 * np.median(r["decision_s"]))} for a, r in res.items()}
+
+
+def write_json(path: str, obj: Any) -> None:
+    """Write ``obj`` as JSON, temp-then-rename."""
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        json.dump(obj, f, indent=1, ensure_ascii=False)
+    os.replace(tmp, path)
+
+
+def short_label(spec: str) -> str:
+    """``lookahead[depth=3,continuations=64,branches=16]`` → ``depth 3, 64 cont., 16 futures``."""
+    opts = spec.partition("[")[2].rstrip("]")
+    if not opts:
+        return "default"
+    names = {"depth": "depth {}", "continuations": "{} cont.", "branches": "{} futures", "closed": "closed loop"}
+    parts = []
+    for item in opts.split(","):
+        key, _, val = item.partition("=")
+        parts.append(names.get(key, f"{key}={{}}").format(val) if key != "closed" else names["closed"])
+    return ", ".join(parts)
+
+
+def plot(summary: dict[str, Any], out: str) -> None:
+    """Median and mean steps against median decision time, one line per env (min-var as a square)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
-    for ax, stat, label in ((axes[0], np.median, "median"), (axes[1], np.mean, "mean")):
-        for (env_id, res), colour in zip(results.items(), ("C0", "C1")):
-            xs = [1000 * np.median(r["decision_s"]) for r in res.values()]
-            ys = [stat(r["steps"]) for r in res.values()]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.4), sharex=True)
+    for ax, key, label in ((axes[0], "median_steps", "median"), (axes[1], "mean_steps", "mean")):
+        for (env_id, res), colour in zip(summary["envs"].items(), ("C0", "C1")):
+            agents = list(res)
+            xs = [res[a]["decision_ms"] for a in agents]
+            ys = [res[a][key] for a in agents]
             ax.plot(xs[1:], ys[1:], "o-", color=colour, label=f"lookahead, {env_id}")
             ax.plot(xs[:1], ys[:1], "s", ms=9, color=colour, mfc="none", label=f"min-var, {env_id}")
-            for x, y, a in zip(xs[1:], ys[1:], list(res)[1:]):
-                ax.annotate(a.replace("lookahead", "").strip("[]") or "default", (x, y), fontsize=6,
-                            xytext=(3, 3), textcoords="offset points")
+            for x, y, a in zip(xs[1:], ys[1:], agents[1:]):
+                ax.annotate(short_label(a), (x, y), fontsize=6.5, rotation=20, color=colour,
+                            xytext=(4, 4 if colour == "C1" else -10), textcoords="offset points")
         ax.set_xscale("log")
+        times = [r["decision_ms"] for res in summary["envs"].values() for r in res.values()]
+        ax.set_xlim(min(times) / 2, max(times) * 8)                  # room for the labels
         ax.set_xlabel("median decision time (ms, one core)")
-        ax.set_ylabel(f"{label} readings to localise")
-        ax.legend(fontsize=7)
-    n_target = f"{len(conditions)} conditions × {args.trials}" if args.trials else "—"
-    fig.suptitle(f"lookahead budgets, seed {args.seed}: ElectroLoc-v0 {n_target} trials, "
-                 f"{GLOBAL_ENV_ID} {args.global_trials} trials", fontsize=9)
-    fig.tight_layout()
-    tmp = args.out + ".tmp.png"
+        ax.set_ylabel(f"{label} readings to localise (first included)")
+        ax.grid(alpha=0.3)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.suptitle(summary["title"], fontsize=9)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    tmp = out + ".tmp.png"
     fig.savefig(tmp, dpi=120)
-    os.replace(tmp, args.out)
-    print(f"\nfigure: {args.out}")
+    plt.close(fig)
+    os.replace(tmp, out)
 
 
 if __name__ == "__main__":
