@@ -128,8 +128,10 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
     monkeypatch.setattr(registry, "_training_extra_missing", lambda: "the training extra is not installed (test)")
     choices = default_agents()
     assert [c.spec for c in choices if not c.skipped] == ["rnd-wlk", "min-var", "zero-crossing"]
+    other_env = {"ppo-belief-unknown": "trained on ElectroLocUnknownTarget-v0, not ElectroLoc-v0",
+                 "ppo-belief-gain": "trained on ElectroLoc-v0 with gain_levels=[0.25, 1.0, 4.0], not ElectroLoc-v0"}
     assert {c.spec: c.skipped for c in choices if c.skipped} == {
-        name: "the training extra is not installed (test)" for name in shipped_models()}
+        name: other_env.get(name, "the training extra is not installed (test)") for name in shipped_models()}
     assert cli_main(["bench", *FAST, "--backend", "serial", "--out", str(tmp_path)]) == 0
     captured = capsys.readouterr()
     assert "electroloc bench: skipping ppo-belief: the training extra is not installed (test)" in captured.err
@@ -174,3 +176,11 @@ def test_run_trial_is_run_episode_plus_the_record() -> None:
     assert (rec["seed"], rec["agent_seed"], rec["env_id"], rec["n_particles"]) == \
         (spec.env_seed, spec.agent_seed, "ElectroLoc-v0", 200)
     env.close()
+
+
+def test_agents_list_splits_only_outside_brackets() -> None:
+    from electroloc_gym.bench.cli import split_agents
+
+    assert split_agents("lookahead[depth=3,branches=16],min-var") == ["lookahead[depth=3,branches=16]", "min-var"]
+    assert split_agents("rnd-wlk") == ["rnd-wlk"]
+    assert split_agents("a[x=1,y=2],b[z=3],c") == ["a[x=1,y=2]", "b[z=3]", "c"]

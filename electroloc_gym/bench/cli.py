@@ -82,10 +82,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def split_agents(text: str) -> list[str]:
+    """``--agents`` split at the commas outside brackets (``lookahead[depth=3,branches=16],min-var``)."""
+    out, depth, start = [], 0, 0
+    for i, ch in enumerate(text):
+        depth += (ch == "[") - (ch == "]")
+        if ch == "," and depth == 0:
+            out.append(text[start:i])
+            start = i + 1
+    out.append(text[start:])
+    return out
+
+
 def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...] | None) -> list[str]:
     """The run's agent specs; a default list says what it skipped and why."""
     if args.agents:
-        return [a.strip() for a in args.agents.split(",") if a.strip()]
+        return [a.strip() for a in split_agents(args.agents) if a.strip()]
     choices = default_agents(table4_only=env_id == GLOBAL_ENV_ID, trust_pickle=args.trust_pickle, env_id=env_id,
                              gain_levels=gain_levels)
     for c in choices:
