@@ -87,7 +87,8 @@ def main() -> None:
         print("| condition | " + " | ".join(AGENTS) + " |")
         print("|---|" + "---|" * len(AGENTS))
         for name in PRESET_NAMES:
-            cells = [f"{np.median([n for _, n in res[a][name]]):.1f} ({sum(s for s, _ in res[a][name])})" for a in AGENTS]
+            cells = [f"{np.median([n for _, n in res[a][name]]):.1f} ({sum(s for s, _ in res[a][name])})"
+                     for a in AGENTS]
             print(f"| {name} | " + " | ".join(cells) + " |")
         means = [np.mean([np.median([n for _, n in res[a][c]]) for c in PRESET_NAMES]) for a in AGENTS]
         succ = [sum(s for c in PRESET_NAMES for s, _ in res[a][c]) for a in AGENTS]

@@ -1,4 +1,7 @@
-"""Experimental conditions: frozen, validated parameter dataclasses and the paper's eight presets.
+"""Experimental conditions: the :class:`Condition` dataclass and the paper's eight presets.
+
+A condition is the apparatus (:mod:`electroloc_gym.apparatus`: sphere, water, amplifier, carriage
+geometry; re-exported here) plus the workspace and the signal scale.
 
 Units are in every field name: mm, V, mV, µS/cm. Derived quantities (χ, target depth, noise at the
 amplifier output, ...) are properties, never stored defaults.
@@ -14,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,6 +24,16 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym import physics
+from electroloc_gym.apparatus import (
+    Amplifier,
+    Geometry,
+    MATERIAL_CONDUCTIVITY_uScm,
+    Target,
+    Water,
+    as_floats,
+    check_finite,
+    from_dict,
+)
 
 __all__ = [
     "MATERIAL_CONDUCTIVITY_uScm",
@@ -42,164 +54,8 @@ __all__ = [
     "PAPER_START_COVERAGE",
 ]
 
-#: Conductivities (µS/cm) of the paper's target materials. Steel ≈ 1.4·10⁶ S/m; Delrin (acetal) is
-#: an insulator (≈10⁻¹³ S/m). Only the contrast χ matters, which is +1 and −½ to many digits.
-MATERIAL_CONDUCTIVITY_uScm: dict[str, float] = {"steel": 1.4e10, "delrin": 1e-9}
-
 FRESH_WATER_uScm = 160.0
 SALT_WATER_uScm = 56_000.0
-
-
-def _check_finite(name: str, value: float, *, low: float | None = None, high: float | None = None,
-                  low_inclusive: bool = False) -> None:
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not number or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    if low is not None and (value < low or (value == low and not low_inclusive)):
-        op = "≥" if low_inclusive else ">"
-        rng = f"{op} {low}" + (f" and ≤ {high}" if high is not None else "")
-        raise ValueError(f"{name} must be {rng}, got {value!r}")
-    if high is not None and value > high:
-        raise ValueError(f"{name} must be ≤ {high}, got {value!r}")
-
-
-def _as_floats(obj: Any, *names: str) -> None:
-    """Store the (checked) numeric fields ``names`` of a frozen dataclass as Python floats (numpy scalars in)."""
-    for n in names:
-        object.__setattr__(obj, n, float(getattr(obj, n)))
-
-
-def _from_dict(cls: type, data: Mapping[str, Any]) -> Any:
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - names)
-    if unknown:
-        raise ValueError(f"unknown {cls.__name__} field(s) {unknown}; allowed: {sorted(names)}")
-    return cls(**data)
-
-
-@dataclass(frozen=True)
-class Target:
-    """A spherical target.
-
-    Attributes:
-        radius_mm: sphere radius A, mm (> 0).
-        conductivity_uScm: target conductivity σ_t, µS/cm (≥ 0).
-        material: a label ("steel", "delrin" or "custom").
-    """
-
-    radius_mm: float
-    conductivity_uScm: float
-    material: str = "custom"
-
-    def __post_init__(self) -> None:
-        _check_finite("radius_mm", self.radius_mm, low=0.0)
-        _check_finite("conductivity_uScm", self.conductivity_uScm, low=0.0, low_inclusive=True)
-        _as_floats(self, "radius_mm", "conductivity_uScm")
-
-    @classmethod
-    def sphere(cls, diameter_mm: float, material: str) -> Target:
-        """A sphere of a named material ("steel" or "delrin")."""
-        key = material.lower()
-        if key not in MATERIAL_CONDUCTIVITY_uScm:
-            raise ValueError(f"material must be one of {sorted(MATERIAL_CONDUCTIVITY_uScm)}, got {material!r}")
-        _check_finite("diameter_mm", diameter_mm, low=0.0)
-        return cls(radius_mm=diameter_mm / 2.0, conductivity_uScm=MATERIAL_CONDUCTIVITY_uScm[key], material=key)
-
-    @property
-    def diameter_mm(self) -> float:
-        """Sphere diameter, mm."""
-        return 2.0 * self.radius_mm
-
-
-@dataclass(frozen=True)
-class Water:
-    """The tank's water. Attributes: conductivity_uScm, µS/cm (> 0)."""
-
-    conductivity_uScm: float
-
-    def __post_init__(self) -> None:
-        _check_finite("water conductivity_uScm", self.conductivity_uScm, low=0.0)
-        _as_floats(self, "conductivity_uScm")
-
-
-@dataclass(frozen=True)
-class Amplifier:
-    """Differential amplifier and noise.
-
-    Attributes:
-        gain: differential gain G (dimensionless, > 0).
-        noise_rms_mV: RMS noise σ_s referred to the electrodes, mV (> 0), as measured in the paper's
-            unshielded tank (Table 3).
-        saturation_V: the data-acquisition card clips the amplified reading at ±saturation_V, V.
-        noise_factor: dimensionless multiplier (> 0) on σ_s, default 1 (the paper's tank). §7 reports
-            that shielding the tank cuts the ambient noise by more than 32×: ``noise_factor=1/32``.
-            It applies wherever the noise enters: the readings, the calibration, the sensor models'
-            likelihoods and the detection distance (:attr:`effective_noise_rms_mV`).
-        output_noise_mV: RMS noise added after the amplifier (the data-acquisition card's own), mV (≥ 0),
-            which does not scale with the gain; default 0: the paper refers all its noise to the
-            electrodes (§6.1: "divide σ_nt by G"). It is what makes the gain matter beyond saturation
-            (dynamic gain, §7; docs/extensions.md).
-    """
-
-    gain: float
-    noise_rms_mV: float
-    saturation_V: float = 10.0
-    noise_factor: float = 1.0
-    output_noise_mV: float = 0.0
-
-    def __post_init__(self) -> None:
-        _check_finite("gain", self.gain, low=0.0)
-        _check_finite("noise_rms_mV", self.noise_rms_mV, low=0.0)
-        _check_finite("saturation_V", self.saturation_V, low=0.0)
-        _check_finite("noise_factor", self.noise_factor, low=0.0)
-        _check_finite("output_noise_mV", self.output_noise_mV, low=0.0, low_inclusive=True)
-        _as_floats(self, "gain", "noise_rms_mV", "saturation_V", "noise_factor", "output_noise_mV")
-
-    @property
-    def effective_noise_rms_mV(self) -> float:
-        """RMS noise referred to the electrodes, mV: σ_s·noise_factor, with the output noise referred back
-        through the gain (√((σ_s·f)² + (σ_out/G)²)) when there is one.
-        """
-        if self.output_noise_mV == 0.0:
-            return self.noise_rms_mV * self.noise_factor
-        return float(np.hypot(self.noise_rms_mV * self.noise_factor, self.output_noise_mV / self.gain))
-
-    @property
-    def noise_std_V(self) -> float:
-        """Standard deviation of the amplified reading, V: G·σ_s·noise_factor (⊕ the output noise)."""
-        if self.output_noise_mV == 0.0:
-            return self.gain * self.effective_noise_rms_mV * 1e-3
-        return float(np.hypot(self.gain * self.noise_rms_mV * self.noise_factor, self.output_noise_mV)) * 1e-3
-
-    def with_gain(self, gain: float) -> Amplifier:
-        """The same amplifier at another gain G (> 0): signal and input noise scale, saturation and the
-        output noise do not.
-        """
-        return dataclasses.replace(self, gain=gain)
-
-
-@dataclass(frozen=True)
-class Geometry:
-    """Carriage geometry and emitter drive (paper §6.7, Appendix A; docs/design.md).
-
-    Attributes:
-        spacing_mm: emitter spacing L = sensor spacing, mm.
-        electrode_radius_mm: electrode radius E, mm.
-        emitter_voltage_V: emitter drive V_e, V.
-        clearance_mm: gap O between the electrodes and the top of the target, mm.
-    """
-
-    spacing_mm: float = 50.0
-    electrode_radius_mm: float = 1.0
-    emitter_voltage_V: float = 2.0
-    clearance_mm: float = 2.0
-
-    def __post_init__(self) -> None:
-        _check_finite("spacing_mm", self.spacing_mm, low=0.0)
-        _check_finite("electrode_radius_mm", self.electrode_radius_mm, low=0.0)
-        _check_finite("emitter_voltage_V", self.emitter_voltage_V, low=0.0)
-        _check_finite("clearance_mm", self.clearance_mm, low=0.0, low_inclusive=True)
-        _as_floats(self, "spacing_mm", "electrode_radius_mm", "emitter_voltage_V", "clearance_mm")
 
 
 @dataclass(frozen=True)
@@ -232,16 +88,16 @@ class Condition:
         for fname, typ in (("target", Target), ("water", Water), ("amplifier", Amplifier), ("geometry", Geometry)):
             if not isinstance(getattr(self, fname), typ):
                 raise TypeError(f"{fname} must be a {typ.__name__}, got {type(getattr(self, fname)).__name__}")
-        _check_finite("allowed_half_width_mm", self.allowed_half_width_mm, low=0.0)
-        _check_finite("start_half_width_mm", self.start_half_width_mm, low=0.0, high=self.allowed_half_width_mm)
-        _check_finite("signal_scale", self.signal_scale, low=0.0)
+        check_finite("allowed_half_width_mm", self.allowed_half_width_mm, low=0.0)
+        check_finite("start_half_width_mm", self.start_half_width_mm, low=0.0, high=self.allowed_half_width_mm)
+        check_finite("signal_scale", self.signal_scale, low=0.0)
         if len(self.target_xy_mm) != 2:
             raise ValueError(f"target_xy_mm must be (x, y) in mm, got {self.target_xy_mm!r}")
         for v in self.target_xy_mm:
-            _check_finite("target_xy_mm", v, low=-self.allowed_half_width_mm, high=self.allowed_half_width_mm,
+            check_finite("target_xy_mm", v, low=-self.allowed_half_width_mm, high=self.allowed_half_width_mm,
                           low_inclusive=True)
         object.__setattr__(self, "target_xy_mm", (float(self.target_xy_mm[0]), float(self.target_xy_mm[1])))
-        _as_floats(self, "start_half_width_mm", "allowed_half_width_mm", "signal_scale")
+        as_floats(self, "start_half_width_mm", "allowed_half_width_mm", "signal_scale")
 
     # ---- derived values -------------------------------------------------------------------
     @functools.cached_property
@@ -294,10 +150,10 @@ class Condition:
         parts = {"target": Target, "water": Water, "amplifier": Amplifier, "geometry": Geometry}
         for key, sub in parts.items():
             if key in d and isinstance(d[key], Mapping):
-                d[key] = _from_dict(sub, d[key])
+                d[key] = from_dict(sub, d[key])
         if "target_xy_mm" in d:
             d["target_xy_mm"] = tuple(d["target_xy_mm"])
-        return _from_dict(cls, d)
+        return from_dict(cls, d)
 
 
 # ------------------------------------------------------------------------------------------

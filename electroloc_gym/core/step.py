@@ -317,8 +317,9 @@ class Simulation:
         else:
             mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         if self.task.calibrated:
+            rows = self.task.table_rows(s, sel)  # each env's rows at its current gain level
             bad = calibrated_assimilate(src, origin, self._sign, s.grid_lo_mm[sel], s.grid_inv_mm[sel],
-                                        s.grid_cells[sel], self.task.table_rows(s, sel), s.table, reading.astype(np.float32), u0,
+                                        s.grid_cells[sel], rows, s.table, reading.astype(np.float32), u0,
                                         jitter, self._normal_table, half, src, mean, cov, 2 * half, HIST_BINS, counts)
         else:
             ll = self._analytic_log_likelihood(ids, src, origin, reading)
