@@ -171,6 +171,9 @@ class LookaheadAgent(BaselineAgent):
     def _subsample(self) -> NDArray[np.float64]:
         belief = self.env.belief
         x = np.asarray(belief.particles, dtype=np.float64)
+        if x.shape[1] != 2:
+            raise ValueError(f"lookahead plans over position hypotheses (M, 2); this env's are {x.shape} "
+                             "(ElectroLocUnknownTarget-v0 carries a radius and a contrast): use min-var there")
         w = np.asarray(belief.weights, dtype=np.float64)
         m = x.shape[0]
         if np.all(w == w[0]):

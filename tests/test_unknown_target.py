@@ -260,3 +260,12 @@ def test_bench_unknown_target_records_identification_and_prints_its_table(tmp_pa
     assert summary["rows"]
     with pytest.raises(ValueError, match="sensor_model of ElectroLocUnknownTarget-v0"):
         BenchConfig(env_id=UNKNOWN_ENV_ID, sensor_model="calibrated")
+
+
+def test_lookahead_refuses_shape_hypotheses_with_a_clear_error() -> None:
+    env = gym.make(ENV_ID, n_particles=200)
+    obs, _ = env.reset(seed=0)
+    agent = make_agent("lookahead")
+    agent.reset(env.unwrapped)
+    with pytest.raises(ValueError, match="position hypotheses"):
+        agent.predict(obs)
