@@ -94,12 +94,18 @@ def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int
         row["error_y_repeatability_mm"] = float(dev[:, 1].mean())
     else:
         row["error_x_repeatability_mm"] = row["error_y_repeatability_mm"] = None
-    shapes = [r["shape"] for r in ok if r.get("shape")]  # the unknown-target env's identification
-    if shapes:
-        row["identified_trials"] = len(shapes)
-        row["material_correct_frac"] = _mean(float(s["material_correct"]) for s in shapes)
-        row["radius_error_median_frac"] = _median(s["radius_error_frac"] for s in shapes)
+    row.update(_identification(ok))
     return row
+
+
+def _identification(successes: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """The unknown-target env's identification over successful trials (empty for the other envs)."""
+    shapes = [r["shape"] for r in successes if r.get("shape")]
+    if not shapes:
+        return {}
+    return {"identified_trials": len(shapes),
+            "material_correct_frac": _mean(float(s["material_correct"]) for s in shapes),
+            "radius_error_median_frac": _median(s["radius_error_frac"] for s in shapes)}
 
 
 def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = None,
@@ -165,5 +171,6 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
             "steps_median_pooled": _median(r["observations"] for r in recs),
             "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
             "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),
+            **_identification([r for r in recs if r["success"]]),  # pooled over the conditions' successes
         })
     return {"rules": RULES, "agents": agents, "conditions": conditions, "rows": rows}
