@@ -127,8 +127,11 @@ class _Task:
         return condition.replace(amplifier=condition.amplifier.with_gain(condition.amplifier.gain * f))
 
     def gain_seed(self, seed: int, level: int) -> int:
-        """The calibration seed of gain level ``level`` (each level is calibrated with its own draws)."""
-        return seed if level == 0 else (seed + 7919 * level) % _SEED_BOUND
+        """The calibration seed of gain level ``level``: the episode's own at the preset level (so that
+        reading at the preset gain reproduces the env without dynamic gain), its own draws at the others.
+        """
+        preset = self.params.reset_gain_index
+        return seed if level == preset else (seed + 7919 * (level + 1)) % _SEED_BOUND
 
     def _set_world(self, state: State, i: int, world: Any, key: int, condition: Condition,
                    descriptor: NDArray[np.float32]) -> None:
