@@ -181,16 +181,15 @@ def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env
     extra missing, its files not loading, or another env).
 
     Args:
-        table4_only: only particle-filter agents (the global env: rnd-wlk, min-var; no learned policies,
-            which were trained on ElectroLoc-v0).
+        table4_only: only particle-filter controllers (the global env: rnd-wlk, min-var), then the
+            shipped models trained on ``env_id``.
         trust_pickle: passed to the policy loader.
         env_id: the run's env.
         gain_levels: the run's dynamic-gain levels (then min-var runs twice: choosing the gain, and at the
             preset gain).
     """
-    if table4_only:
-        return [AgentChoice("rnd-wlk"), AgentChoice("min-var")]
-    choices = [AgentChoice(name) for name in AGENT_REGISTRY]
+    choices = [AgentChoice("rnd-wlk"), AgentChoice("min-var")] if table4_only else \
+        [AgentChoice(name) for name in AGENT_REGISTRY]
     if gain_levels is not None:
         choices.insert(2, AgentChoice("min-var[gain=preset]"))
     models = shipped_models()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from electroloc_gym.bench.agents import agent_kind, cached_agent, default_agents
+from electroloc_gym.bench.agents import agent_kind, cached_agent, default_agents, shipped_model_env, shipped_models
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.config import (
     DYNAMIC_GAIN_LEVELS,
@@ -82,6 +82,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def _runs_on_global(spec: str) -> bool:
+    """A particle-filter controller, or a shipped policy trained on the global env."""
+    kind = agent_kind(spec)
+    if kind == "baseline":
+        return getattr(cached_agent(spec), "layout", "table4") == "table4"
+    return kind == "shipped" and shipped_model_env(shipped_models()[spec]) == (GLOBAL_ENV_ID, None)
+
+
 def split_agents(text: str) -> list[str]:
     """``--agents`` split at the commas outside brackets (``lookahead[depth=3,branches=16],min-var``)."""
     out, depth, start = [], 0, 0
@@ -120,11 +128,11 @@ def run(args: argparse.Namespace) -> int:
         if not agents:
             raise ValueError("--agents names no agent")
         conditions = (GLOBAL_CONDITION,) if is_global else tuple(resolve_conditions(args.conditions))
-        if is_global:  # zero-crossing looks for one sphere; learned policies were trained on ElectroLoc-v0
-            bad = [a for a in agents if agent_kind(a) != "baseline"
-                   or getattr(cached_agent(a), "layout", "table4") != "table4"]
+        if is_global:  # zero-crossing looks for one sphere; a learned policy must have been trained on this env
+            bad = [a for a in agents if not _runs_on_global(a)]
             if bad:
-                raise ValueError(f"--env global runs the particle-filter controllers (Table 2); not applicable: {bad}")
+                raise ValueError(f"--env global runs the particle-filter controllers (Table 2) and policies trained "
+                                 f"on {GLOBAL_ENV_ID}; not applicable: {bad}")
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
                              max_observations=args.max_observations, n_particles=n_particles,
