@@ -10,7 +10,9 @@ high gain. This script runs both controllers on the paper's eight conditions in 
 
 * ``paper``: the default simulation (noise factor 1, no output noise);
 * ``quiet``: noise factor 1/32, no output noise;
-* ``quiet+daq``: noise factor 1/32 and an output noise of ``--daq-mV`` (default 1 mV RMS).
+* ``quiet+daq``: noise factor 1/32 and an output noise of ``--daq-mV`` (default 1 mV RMS);
+* ``paper+daq``: noise factor 1 and an output noise of ``--daq-mV`` (e.g. 100 mV, comparable to the
+  amplified tank noise G·σ_s = 24–475 mV of the presets: a hypothetical card, where the gain matters).
 
     python benchmarks/dynamic_gain.py --trials 20 --seed 0 --plot docs/dynamic_gain.png
 
@@ -44,8 +46,8 @@ def tank(condition: Condition, setting: str, daq_mV: float) -> Condition:
     """The condition in one of the three tanks of the module docstring."""
     if setting == "paper":
         return condition
-    amp = dataclasses.replace(condition.amplifier, noise_factor=1.0 / 32.0,
-                              output_noise_mV=daq_mV if setting == "quiet+daq" else 0.0)
+    amp = dataclasses.replace(condition.amplifier, noise_factor=1.0 if setting == "paper+daq" else 1.0 / 32.0,
+                              output_noise_mV=daq_mV if setting.endswith("+daq") else 0.0)
     return condition.replace(amplifier=amp)
 
 
