@@ -160,6 +160,8 @@ class _Task:
 
     def table_rows(self, state: State, sel: Any) -> NDArray[np.int64]:
         """(k,) first coefficient row of each env's current gain level (the lookup kernel's ``base``)."""
+        if len(self.gains) == 1:
+            return state.table_row[sel]
         return state.table_row[sel] + state.gain_index[sel] * self.cells_per_gain
 
     def _place(self, state: State, i: int, g: np.random.Generator, start_half_mm: float) -> None:

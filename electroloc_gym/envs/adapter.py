@@ -238,7 +238,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         if not self._state.started:
             raise RuntimeError("call reset() before step()")
         moves = self._sim.moves_from_actions(action, single=True)
-        gains = self._sim.gains_from_actions(action, single=True)
+        gains = self._sim.gains_from_actions(action, single=True) if self._sim.dynamic_gain else None
         obs, reward, terminated, truncated, info = self._sim.step(moves, autoreset="disabled", gains=gains)
         self._path.append(tuple(self._state.position_mm[0].tolist()))
         if self.render_mode == "human":
@@ -249,7 +249,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     def _info_row(info: dict[str, NDArray]) -> dict[str, Any]:
         """Row 0 of the core's info arrays as Python values (positions as tuples of float)."""
         extra = {k: v[0].item() if isinstance(v[0], np.generic) else v[0] for k, v in info.items()
-                 if k not in _INFO_ROW_KEYS}
+                 if k not in _INFO_ROW_KEYS} if len(info) > len(_INFO_ROW_KEYS) else {}
         return {
             "position_mm": tuple(info["position_mm"][0].tolist()),
             "estimate_mm": tuple(info["estimate_mm"][0].tolist()),
