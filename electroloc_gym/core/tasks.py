@@ -73,6 +73,11 @@ def _fixed_coefficients(condition: Condition, seed: int, protocol: CalibrationPr
     return coef
 
 
+@functools.lru_cache(maxsize=256)
+def _with_gain_factor(condition: Condition, factor: float) -> Condition:
+    return condition.replace(amplifier=condition.amplifier.with_gain(condition.amplifier.gain * factor))
+
+
 @functools.lru_cache(maxsize=64)
 def _scene_condition(scene: Scene) -> Condition:
     return scene.as_condition()
@@ -118,13 +123,10 @@ class _Task:
             state.noise_V[i] = c.noise_std_V
             state.descriptor[i, 2:4] = _descriptor(c)[2:4]
 
-    @functools.lru_cache(maxsize=256)  # noqa: B019 - one task per env, few (condition, level) pairs
     def at_gain(self, condition: Condition, level: int) -> Condition:
         """``condition`` with its amplifier at gain level ``level`` (G times the level's factor)."""
         f = self.gains[level]
-        if f == 1.0:
-            return condition
-        return condition.replace(amplifier=condition.amplifier.with_gain(condition.amplifier.gain * f))
+        return condition if f == 1.0 else _with_gain_factor(condition, f)
 
     def gain_seed(self, seed: int, level: int) -> int:
         """The calibration seed of gain level ``level``: the episode's own at the preset level (so that
