@@ -20,7 +20,7 @@ class UnknownTargetEnv(ElectroLocEnv):
 
     ElectroLoc-v0 with a hidden target: §7 of the paper proposes that "the conductivity and diameter
     of the target could be two more dimensions in the search space". Each episode's sphere has a
-    radius and a material the agent is not told; the belief's 2500 particles are hypotheses
+    radius and a material the agent is not told; the belief's particles (5000 by default) are hypotheses
     (x, y, radius, χ) and the sensor model is the theoretical EEV of each hypothesis' sphere (§7's
     proposal that a theoretical EEV replace calibration) or, with ``sensor_model="interpolated"``,
     an EEV interpolated from calibrated EEVs at a few known radii
@@ -70,7 +70,7 @@ class UnknownTargetEnv(ElectroLocEnv):
     ```python
     gym.make("ElectroLocUnknownTarget-v0", condition="random", target_draw="prior",
              radius_range_mm=(5.0, 20.0), contrast="binary", sensor_model="analytic",
-             eev_radii_mm=(6.35, 19.05), observation="belief", n_particles=2500,
+             eev_radii_mm=(5.0, 7.5, …, 20.0), observation="belief", n_particles=5000,
              max_observations=35, success_spread_mm=10.0, signal=<get_condition's default>,
              action_type="continuous", randomize_target=False, calibration_seed=None,
              calibration=DEFAULT_CALIBRATION, max_episode_steps=None, render_mode=None)
