@@ -185,3 +185,10 @@ def test_agents_list_splits_only_outside_brackets() -> None:
     assert split_agents("lookahead[depth=3,branches=16],min-var") == ["lookahead[depth=3,branches=16]", "min-var"]
     assert split_agents("rnd-wlk") == ["rnd-wlk"]
     assert split_agents("a[x=1,y=2],b[z=3],c") == ["a[x=1,y=2]", "b[z=3]", "c"]
+
+
+def test_global_env_runs_the_policy_trained_on_it() -> None:
+    from electroloc_gym.bench.cli import _runs_on_global
+
+    assert _runs_on_global("ppo-belief-global") and _runs_on_global("min-var")
+    assert not _runs_on_global("ppo-belief") and not _runs_on_global("zero-crossing")
