@@ -14,8 +14,15 @@ from electroloc_gym.conditions import Condition
 from electroloc_gym.draws import normal_table, table_normal_indices
 from electroloc_gym.kernels import noisy_saturated
 
-__all__ = ["expected_reading", "saturated_reading", "noisy_reading", "calibration_readings", "add_calibration_noise",
-           "electrode_positions_mm"]
+__all__ = [
+    "expected_reading",
+    "sphere_reading",
+    "saturated_reading",
+    "noisy_reading",
+    "calibration_readings",
+    "add_calibration_noise",
+    "electrode_positions_mm",
+]
 
 
 def expected_reading(condition: Condition, offsets_mm: ArrayLike, *, saturate: bool = True) -> NDArray[np.floating]:
@@ -23,13 +30,31 @@ def expected_reading(condition: Condition, offsets_mm: ArrayLike, *, saturate: b
 
     float32 input stays float32 (the belief's fast path); anything else is computed in float64.
     """
+    return sphere_reading(condition, offsets_mm, condition.target.radius_mm, condition.chi, saturate=saturate)
+
+
+def sphere_reading(condition: Condition, offsets_mm: ArrayLike, radius_mm: ArrayLike, chi: ArrayLike, *,
+                   saturate: bool = True) -> NDArray[np.floating]:
+    """Noise-free reading Φ (V) of spheres of radius ``radius_mm`` (mm) and contrast ``chi`` at
+    ``offsets_mm`` (..., 2), in the tank of ``condition`` (its own sphere is :func:`expected_reading`'s).
+
+    ``radius_mm`` and ``chi`` may be arrays broadcasting against ``offsets[..., 0]`` (one sphere per
+    offset: the unknown-target env's hypotheses). The sphere's centre lies A + E + O below the
+    electrodes (§6.7). Strength and depth are computed in float64 and rounded once to the offsets'
+    precision; float32 offsets are computed in float32, anything else in float64.
+    """
+    off = np.asarray(offsets_mm)
+    dtype = off.dtype if off.dtype in (np.float32, np.float64) else np.dtype(np.float64)
+    t = dtype.type
+    a = np.asarray(radius_mm, dtype=np.float64)
     g = condition.geometry
+    depth = (a + g.electrode_radius_mm) + g.clearance_mm
     delta = physics.differential_perturbation(
-        offsets_mm, condition.target.radius_mm, condition.chi, condition.depth_mm,
-        spacing_mm=g.spacing_mm, emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
-    phi = np.asarray(delta * delta.dtype.type(condition.signal_scale * condition.amplifier.gain))
+        off.astype(dtype, copy=False), a, np.asarray(chi, dtype=np.float64), depth, spacing_mm=g.spacing_mm,
+        emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+    phi = np.asarray(delta * t(condition.signal_scale * condition.amplifier.gain))
     if saturate:
-        sat = delta.dtype.type(condition.saturation_V)
+        sat = t(condition.saturation_V)
         phi = np.clip(phi, -sat, sat, out=phi if phi.ndim else None)
     return phi
 

@@ -16,9 +16,9 @@ from electroloc_gym.baselines import make_agent
 from electroloc_gym.conditions import PRESET_NAMES, Target, get_condition
 from electroloc_gym.core.unknown import CONDUCTOR_CHI, INSULATOR_CHI, SHAPE_INFO_KEYS
 from electroloc_gym.kernels import resample_indices
-from electroloc_gym.sensor import expected_reading
+from electroloc_gym.sensor import expected_reading, sphere_reading
 from electroloc_gym.sensor_models import CalibratedSensorModel
-from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel, shape_expected_reading
+from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
 
 ENV_ID = "ElectroLocUnknownTarget-v0"
 _GRID = np.stack(np.meshgrid(np.linspace(-60, 60, 41), np.linspace(-60, 60, 37), indexing="ij"), axis=-1)
@@ -27,13 +27,21 @@ _GRID = np.stack(np.meshgrid(np.linspace(-60, 60, 41), np.linspace(-60, 60, 37),
 # ---- the shape sensor models -------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", PRESET_NAMES)
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_shape_reading_of_the_condition_sphere_is_the_condition_reading_bit_for_bit(name: str, dtype: type) -> None:
+def test_sphere_reading_of_the_condition_sphere_is_eq4_at_its_depth_bit_for_bit(name: str, dtype: type) -> None:
+    """The per-hypothesis reading (and ElectroLoc-v0's, which is it for the condition's own sphere) is
+    Eq. 4 with the condition's depth A + E + O and the signal scale times the gain, to the bit.
+    """
     c = get_condition(name)
     off = _GRID.astype(dtype)
-    a = shape_expected_reading(c, off, c.target.radius_mm, c.chi, saturate=False)
-    b = expected_reading(c, off, saturate=False)
+    a = sphere_reading(c, off, c.target.radius_mm, c.chi, saturate=False)
+    g = c.geometry
+    delta = physics.differential_perturbation(off, c.target.radius_mm, c.chi, c.depth_mm, spacing_mm=g.spacing_mm,
+                                              emitter_voltage_V=g.emitter_voltage_V,
+                                              electrode_radius_mm=g.electrode_radius_mm)
+    b = delta * delta.dtype.type(c.signal_scale * c.amplifier.gain)
     assert a.dtype == b.dtype == dtype
     assert np.array_equal(a, b)
+    assert np.array_equal(expected_reading(c, off, saturate=False), a)
 
 
 def test_theoretical_model_is_linear_in_chi_and_grows_with_the_radius() -> None:

@@ -245,7 +245,8 @@ def _identification_rows(t4: list[dict[str, Any]]) -> list[str]:
     for r in t4:
         if not r.get("identified_trials"):
             continue
-        water, sphere = (f"{aggregate_label(r)} (pooled)", "") if r["condition"] == "all" else _cond_label(r["condition"])
+        pooled = r["condition"] == "all"
+        water, sphere = (f"{aggregate_label(r)} (pooled)", "") if pooled else _cond_label(r["condition"])
         frac, rad = (r.get(k) for k in ("material_correct_frac", "radius_error_median_frac"))
         out.append(f"| {water} | {sphere} | {r.get('label', r['agent'])} | {r['successes']} "
                    f"| {_f(None if frac is None else 100 * frac)} % | {_f(None if rad is None else 100 * rad)} % |")

@@ -37,7 +37,8 @@ from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.state import State
 from electroloc_gym.core.tasks import TargetTask, group_by_world
 from electroloc_gym.kernels import egocentric_counts, mean_cov_rows, resample_indices, row_sums
-from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel, shape_expected_reading
+from electroloc_gym.sensor import sphere_reading
+from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
 
 __all__ = ["UnknownTargetTask", "CONDUCTOR_CHI", "INSULATOR_CHI", "RADIUS_JITTER_MM", "CHI_JITTER", "SHAPE_INFO_KEYS"]
 
@@ -67,17 +68,10 @@ class UnknownTargetTask(TargetTask):
 
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
-        self.calibrated = False  # the interpolated model's tables are its own, not the kernels' table
         self.radius_range_mm = params.radius_range_mm
         self.continuous = params.contrast == "continuous"
         self._theoretical = [[TheoreticalShapeModel(self.at_gain(c, j)) for j in range(len(self.gains))]
                              for c in self.pool]
-
-    def calibration_points(self) -> int:
-        return 0
-
-    def table_cells(self) -> int:
-        return 0
 
     # ---- the episode ------------------------------------------------------------------------------
     def _draw_chi(self, g: np.random.Generator, size: int | None = None) -> Any:
@@ -119,7 +113,7 @@ class UnknownTargetTask(TargetTask):
         shape = state.target_shape[ids]
         out = np.empty(len(ids))
         for c, rows in group_by_world(state, ids):
-            out[rows] = shape_expected_reading(c, offsets[rows], shape[rows, 0], shape[rows, 1], saturate=False)
+            out[rows] = sphere_reading(c, offsets[rows], shape[rows, 0], shape[rows, 1], saturate=False)
         return out if len(self.gains) == 1 else out * self._gain_array[state.gain_index[ids]]
 
     def sensor_model(self, state: State, i: int, level: int | None = None) -> Any:

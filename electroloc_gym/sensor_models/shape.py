@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym import physics
 from electroloc_gym.conditions import Condition, MATERIAL_CONDUCTIVITY_uScm, Target
+from electroloc_gym.sensor import sphere_reading
 from electroloc_gym.sensor_models.calibrated import (
     DEFAULT_CALIBRATION,
     CalibratedSensorModel,
@@ -38,7 +39,7 @@ from electroloc_gym.sensor_models.calibrated import (
 )
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
 
-__all__ = ["shape_expected_reading", "TheoreticalShapeModel", "InterpolatedShapeModel", "SHAPE_SENSOR_MODELS",
+__all__ = ["TheoreticalShapeModel", "InterpolatedShapeModel", "SHAPE_SENSOR_MODELS",
            "DEFAULT_EEV_RADII_MM"]
 
 #: The unknown-target env's sensor models.
@@ -48,36 +49,6 @@ SHAPE_SENSOR_MODELS = ("analytic", "interpolated")
 #: paper's two sizes the interpolation errs by up to 11 noise σ; with these, by at most 0.34 σ (RMS over
 #: the grid, all eight tanks; the calibration's own noise is ≈ 0.3 σ).
 DEFAULT_EEV_RADII_MM = (5.0, 7.5, 10.0, 12.5, 15.0, 17.5, 20.0)
-
-
-def _dtype_of(offsets: NDArray) -> np.dtype:
-    return offsets.dtype if offsets.dtype in (np.float32, np.float64) else np.dtype(np.float64)
-
-
-def shape_expected_reading(condition: Condition, offsets_mm: ArrayLike, radius_mm: ArrayLike, chi: ArrayLike, *,
-                           saturate: bool = True) -> NDArray[np.floating]:
-    """Noise-free reading Φ (V) of spheres of radius ``radius_mm`` (mm) and contrast ``chi`` at
-    ``offsets_mm`` (..., 2) = target − carriage, in the tank of ``condition`` (its sphere ignored).
-
-    The same operations as :func:`electroloc_gym.sensor.expected_reading`, so for the condition's own
-    sphere (``radius_mm = condition.target.radius_mm``, ``chi = condition.chi``) the two agree to the bit.
-    float32 offsets are computed in float32, anything else in float64.
-    """
-    off = np.asarray(offsets_mm)
-    dtype = _dtype_of(off)
-    t = dtype.type
-    # strength and depth in float64, rounded once to the offsets' precision (as for a scalar sphere)
-    a = np.asarray(radius_mm, dtype=np.float64)
-    g = condition.geometry
-    depth = (a + g.electrode_radius_mm) + g.clearance_mm  # the sphere's centre: A + E + O below (§6.7)
-    delta = physics.differential_perturbation(
-        off.astype(dtype, copy=False), a, np.asarray(chi, dtype=np.float64), depth, spacing_mm=g.spacing_mm,
-        emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
-    phi = np.asarray(delta * t(condition.signal_scale * condition.amplifier.gain))
-    if saturate:
-        sat = t(condition.saturation_V)
-        phi = np.clip(phi, -sat, sat, out=phi if phi.ndim else None)
-    return phi
 
 
 class TheoreticalShapeModel:
@@ -95,13 +66,13 @@ class TheoreticalShapeModel:
 
     def mean_std(self, offsets_mm: ArrayLike, radius_mm: ArrayLike, chi: ArrayLike) -> tuple[NDArray, NDArray]:
         """Mean and std (V) of the reading of each hypothesis (offsets (..., 2), radius mm and χ (...))."""
-        mean = shape_expected_reading(self.condition, offsets_mm, radius_mm, chi)
+        mean = sphere_reading(self.condition, offsets_mm, radius_mm, chi)
         return mean, np.full_like(mean, self.noise_std_V)
 
     def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike, radius_mm: ArrayLike,
                        chi: ArrayLike) -> NDArray:
         """Log p(reading | hypothesis) up to a constant (the −log σ term is the same for all and dropped)."""
-        return gaussian_log_likelihood(reading_V, shape_expected_reading(self.condition, offsets_mm, radius_mm, chi),
+        return gaussian_log_likelihood(reading_V, sphere_reading(self.condition, offsets_mm, radius_mm, chi),
                                        self.noise_std_V)
 
 
