@@ -104,7 +104,7 @@ def check_bool(name: str, value: Any) -> bool:
     return bool(value)
 
 
-def _radii(name: str, value: Any, count: int | None) -> tuple[float, ...]:
+def _positive_numbers(name: str, value: Any, count: int | None) -> tuple[float, ...]:
     """A tuple of positive finite numbers (radii in mm, or gain factors): ``count`` of them, or at least one."""
     items = tuple(value) if isinstance(value, (tuple, list, np.ndarray)) else None
     if items is None or not items or (count is not None and len(items) != count):
@@ -195,14 +195,14 @@ class EnvParams:
         _check_choice("sensor_model", self.sensor_model, TASK_SENSOR_MODELS[self.task])
         _check_choice("target_draw", self.target_draw, TARGET_DRAWS)
         _check_choice("contrast", self.contrast, CONTRASTS)
-        put("radius_range_mm", _radii("radius_range_mm", self.radius_range_mm, 2))
+        put("radius_range_mm", _positive_numbers("radius_range_mm", self.radius_range_mm, 2))
         if self.radius_range_mm[0] >= self.radius_range_mm[1]:
             raise ValueError(f"radius_range_mm must be (low, high) with low < high, got {self.radius_range_mm!r}")
-        put("eev_radii_mm", tuple(sorted(_radii("eev_radii_mm", self.eev_radii_mm, None))))
+        put("eev_radii_mm", tuple(sorted(_positive_numbers("eev_radii_mm", self.eev_radii_mm, None))))
         if len(set(self.eev_radii_mm)) != len(self.eev_radii_mm):
             raise ValueError(f"eev_radii_mm must be distinct, got {self.eev_radii_mm!r}")
         if self.gain_levels is not None:
-            put("gain_levels", _radii("gain_levels", self.gain_levels, None))
+            put("gain_levels", _positive_numbers("gain_levels", self.gain_levels, None))
             if len(set(self.gain_levels)) != len(self.gain_levels):
                 raise ValueError(f"gain_levels must be distinct factors of the gain, got {self.gain_levels!r}")
         _check_choice("action_type", self.action_type, ACTION_TYPES)
