@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode
+from vector_equivalence import assert_native_equals_sync
 
 import electroloc_gym  # noqa: F401
 from electroloc_gym.baselines import make_agent
@@ -139,23 +140,7 @@ CASES = [
 
 @pytest.mark.parametrize(("kwargs", "mode"), CASES)
 def test_native_equals_sync_of_single_envs(kwargs: dict[str, Any], mode: AutoresetMode) -> None:
-    n = 3
-    native = gym.make_vec("ElectroLoc-v0", num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode=mode,
-                          **kwargs)
-    ref = gym.vector.SyncVectorEnv([lambda: gym.make("ElectroLoc-v0", **kwargs) for _ in range(n)],
-                                   autoreset_mode=mode)
-    assert native.action_space == ref.action_space
-    o1, _ = native.reset(seed=9)
-    o2, _ = ref.reset(seed=9)
-    assert np.array_equal(o1, o2)
-    ref.action_space.seed(4)
-    for t in range(40):
-        a = ref.action_space.sample()
-        o1, r1, te1, tr1, i1 = native.step(a)
-        o2, r2, te2, tr2, i2 = ref.step(a)
-        assert np.array_equal(o1, o2), f"step {t}"
-        assert np.array_equal(te1, te2) and np.array_equal(tr1, tr2) and np.array_equal(r1, r2)
-        assert np.array_equal(i1["reading_V"], i2["reading_V"]) and np.array_equal(i1["gain"], i2["gain"])
+    assert_native_equals_sync("ElectroLoc-v0", kwargs, mode, ("reading_V", "gain"), seed=9, action_seed=4)
 
 
 @pytest.mark.parametrize(("env_id", "kwargs", "match"), [

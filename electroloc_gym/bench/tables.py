@@ -239,7 +239,7 @@ def _identification_rows(t4: list[dict[str, Any]]) -> list[str]:
     out = ["## Identification (unknown target, §7)", "",
            "Over each agent's successful trials: the material estimate (conductor when more than half the particles "
            "have χ > 0) against the true one, and the median relative error of the radius estimate (the particles' "
-           "mean radius). The paper has no such numbers.", "",
+           "median radius). The paper has no such numbers.", "",
            "| Water | Sphere (mm)/material | Agent | Successes | Material correct | Radius error median |",
            "|---|---|---|---|---|---|"]
     for r in t4:

@@ -34,8 +34,9 @@ RECORD_KEYS = ("condition", "agent", "agent_label", "layout", "trial", "seed", "
 #: Keys a record may lack (records written before the key existed read as None).
 OPTIONAL_RECORD_KEYS = ("shape", "gain_levels")
 #: The unknown-target env's identification results in a record's ``"shape"`` (None elsewhere).
-SHAPE_RECORD_KEYS = ("radius_estimate_mm", "radius_spread_mm", "target_radius_mm", "radius_error_frac",
-                     "p_conductor", "material_estimate", "material_correct", "chi_estimate", "target_chi")
+SHAPE_RECORD_KEYS = ("radius_estimate_mm", "radius_mean_mm", "radius_spread_mm", "target_radius_mm",
+                     "radius_error_frac", "p_conductor", "material_estimate", "material_correct", "chi_estimate",
+                     "target_chi")
 # The bench owns these env kwargs; an agent's env_kwargs cannot override them.
 _BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels")
 _ENVS: dict[tuple[Any, ...], Any] = {}

@@ -59,6 +59,7 @@ class State:
         target_shape: (N, 2) the true sphere's radius (mm) and χ (unknown target).
         shape_mean: (N, 2) the belief's mean radius (mm) and mean χ (unknown target).
         shape_std: (N, 2) their standard deviations (mm, —).
+        radius_median_mm: (N,) the belief's median radius, mm (unknown target: the reported estimate).
         p_conductor: (N,) the belief's fraction of particles with χ > 0 (unknown target).
         gain_index: (N,) the gain level of each env's last reading (dynamic gain; 0 without).
     """
@@ -95,6 +96,7 @@ class State:
     target_shape: NDArray[np.float64]
     shape_mean: NDArray[np.float64]
     shape_std: NDArray[np.float64]
+    radius_median_mm: NDArray[np.float64]
     p_conductor: NDArray[np.float64]
     gain_index: NDArray[np.int64]
     started: bool = field(default=False)
@@ -120,7 +122,8 @@ class State:
             table=np.zeros((max(n * table_cells, 1), 8), dtype=np.float32),
             jitter_idx=np.empty((n, (2 + shape_dims) * m), dtype=np.uint16),
             shape_particles=np.zeros((n, shape_dims, m), dtype=np.float32), target_shape=np.zeros((n, 2)),
-            shape_mean=np.zeros((n, 2)), shape_std=np.zeros((n, 2)), p_conductor=np.zeros(n),
+            shape_mean=np.zeros((n, 2)), shape_std=np.zeros((n, 2)), radius_median_mm=np.zeros(n),
+            p_conductor=np.zeros(n),
             gain_index=np.zeros(n, dtype=np.int64),
         )
 

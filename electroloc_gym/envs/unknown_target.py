@@ -52,8 +52,9 @@ class UnknownTargetEnv(ElectroLocEnv):
 
     ## Info
 
-    ElectroLoc-v0's keys plus ``radius_estimate_mm`` (the particles' mean radius), ``radius_spread_mm``,
-    ``chi_estimate``, ``chi_spread``, ``p_conductor`` (fraction of particles with χ > 0),
+    ElectroLoc-v0's keys plus ``radius_estimate_mm`` (the particles' median radius), ``radius_mean_mm``,
+    ``radius_spread_mm`` (their std), ``chi_estimate``, ``chi_spread``, ``p_conductor`` (fraction of
+    particles with χ > 0),
     ``material_estimate`` (``"conductor"`` if ``p_conductor`` > ½, else ``"insulator"``), and the ground
     truth for evaluation (agents must not act on it): ``target_radius_mm``, ``target_chi``,
     ``radius_error_frac`` (|estimate − true| / true) and ``material_correct``.
