@@ -12,7 +12,7 @@ high gain. This script runs both controllers on the paper's eight conditions in 
 * ``quiet``: noise factor 1/32, no output noise;
 * ``quiet+daq``: noise factor 1/32 and an output noise of ``--daq-mV`` (default 1 mV RMS);
 * ``paper+daq``: noise factor 1 and an output noise of ``--daq-mV`` (e.g. 100 mV, comparable to the
-  amplified tank noise G·σ_s = 24–475 mV of the presets: a hypothetical card, where the gain matters).
+  amplified tank noise G·σ_s = 44–692 mV of the presets: a hypothetical card, where the gain matters).
 
     python benchmarks/dynamic_gain.py --trials 20 --seed 0 --plot docs/dynamic_gain.png
 
