@@ -333,12 +333,11 @@ class Simulation:
 
     def _analytic_log_likelihood(self, ids: NDArray[np.intp], src: NDArray[np.float32], origin: NDArray[np.float32],
                                  reading: NDArray[np.float64]) -> NDArray[np.float32]:
-        """(k, M) float32 log-likelihoods of the analytic models, one numpy evaluation per world."""
+        """(k, M) float32 log-likelihoods of the analytic models, one numpy evaluation per world (and gain
+        level, with dynamic gain).
+        """
         off = ((src - origin[:, :, None]) * self._sign).transpose(0, 2, 1)  # (k, M, 2) offsets
-        if self.dynamic_gain:  # each env's own gain level
-            groups = [(None, np.array([e])) for e in range(len(ids))]
-        else:
-            groups = group_by_world(self.state, ids)
+        groups = group_by_world(self.state, ids, by_gain=self.dynamic_gain)
         if len(groups) == 1:
             model = self.task.sensor_model(self.state, int(ids[0]))
             return np.ascontiguousarray(model.log_likelihood(reading[:, None], off), dtype=np.float32)

@@ -48,9 +48,14 @@ __all__ = ["TargetTask", "MapTask", "make_task", "group_by_world"]
 _SEED_BOUND = 2**31 - 1  # calibration seeds are drawn in [0, 2**31 − 1)
 
 
-def group_by_world(state: State, ids: NDArray[np.intp]) -> list[tuple[Any, NDArray[np.intp]]]:
-    """``[(world, positions in ids)]``: the envs of ``ids`` sharing one world, in order of the world keys."""
+def group_by_world(state: State, ids: NDArray[np.intp], by_gain: bool = False) -> list[tuple[Any, NDArray[np.intp]]]:
+    """``[(world, positions in ids)]``: the envs of ``ids`` sharing one world (and, ``by_gain``, one gain
+    level), in order of the keys.
+    """
     keys = state.world_key[ids]
+    if by_gain:  # (world, level) as one key: world · (levels in use) + level
+        levels = state.gain_index[ids]
+        keys = keys * (int(levels.max()) + 1) + levels
     if len(ids) == 1 or (keys == keys[0]).all():
         return [(state.world[int(ids[0])], np.arange(len(ids)))]
     out = []
