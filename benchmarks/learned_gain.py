@@ -44,7 +44,7 @@ TRAIN_SEED = 7000
 def floor_tank(name: str, output_noise_mV: float, factor: float = 1.0) -> Condition:
     """Preset ``name`` with a gain-independent output noise, its amplifier gain × ``factor``."""
     c = get_condition(name)
-    amp = dataclasses.replace(c.amplifier, gain=c.amplifier.gain * factor, output_noise_mV=output_noise_mV)
+    amp = dataclasses.replace(c.amplifier.with_gain(c.amplifier.gain * factor), output_noise_mV=output_noise_mV)
     suffix = f"-out{output_noise_mV:g}mV" + (f"-x{factor:g}" if factor != 1.0 else "")
     return c.replace(name=c.name + suffix, amplifier=amp)
 

@@ -43,13 +43,12 @@ def grid_posterior(env: gym.Env, history: list[tuple[np.ndarray, float]], step_m
     half = float(np.asarray(core.allowed_box_mm[1])[0])
     xs = np.arange(-half, half + 1e-9, step_mm)
     x, y, r = np.meshgrid(xs, xs, RADII_MM, indexing="ij")
-    logs = []
-    for chi in (CONDUCTOR_CHI, INSULATOR_CHI):
-        ll = np.zeros(x.shape)
-        for pos, reading in history:
-            off = np.stack([x - pos[0], y - pos[1]], axis=-1)
+    chis = (CONDUCTOR_CHI, INSULATOR_CHI)
+    logs = [np.zeros(x.shape) for _ in chis]
+    for pos, reading in history:
+        off = np.stack([x - pos[0], y - pos[1]], axis=-1)
+        for ll, chi in zip(logs, chis, strict=True):
             ll += model.log_likelihood(reading, off, r, np.full(r.shape, chi))
-        logs.append(ll)
     top = max(v.max() for v in logs)
     p = sum(np.exp(v - top).sum(axis=(0, 1)) for v in logs)
     return p / p.sum()
