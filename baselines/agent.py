@@ -120,9 +120,8 @@ class BaselineAgent:
     def action_of(self, move_mm: Any) -> NDArray[np.float32]:
         """The env action of a carriage move (dx, dy), mm, with the gain entry under dynamic gain."""
         action = np.clip(np.asarray(move_mm, dtype=np.float64) / MAX_STEP_MM, -1.0, 1.0)
-        levels = getattr(self.env, "gain_levels", None)
-        if levels is not None:
-            level = preset_gain_level(levels) if self.gain_level is None else self.gain_level
+        if getattr(self.env, "gain_levels", None) is not None:
+            level = self.env.preset_gain_level if self.gain_level is None else self.gain_level
             action = np.append(action, self.env.gain_action(level))
         return action.astype(np.float32)
 
@@ -132,11 +131,6 @@ class BaselineAgent:
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
-
-
-def preset_gain_level(levels: tuple[float, ...]) -> int:
-    """The level of the factor nearest to 1 (on a log scale): the preset amplifier gain."""
-    return int(np.argmin(np.abs(np.log(np.asarray(levels, dtype=np.float64)))))
 
 
 def move_bounds_mm(env: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

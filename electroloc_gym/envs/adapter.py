@@ -89,6 +89,13 @@ class ParamAccessors:
         """The dynamic-gain factors of the amplifier gain, or None (every reading at the preset gain)."""
         return self.params.gain_levels
 
+    @property
+    def preset_gain_level(self) -> int:
+        """The level of the preset amplifier gain (the factor nearest to 1), the one reset reads at (0
+        without dynamic gain).
+        """
+        return self.params.reset_gain_index
+
 
 class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
     """One env of the simulation core (see the module docstring); subclasses set the task."""
