@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import textwrap
 from collections.abc import Sequence
@@ -25,6 +24,7 @@ from electroloc_gym.conditions import (
     SIGNAL_CHOICES,
     get_condition,
 )
+from electroloc_gym.runtime import pin_threads
 
 __all__ = ["main", "detection_table", "quiet_tank_table", "parse_noise_factor", "build_parser", "HelpFormatter"]
 
@@ -39,11 +39,6 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescript
         if action.default is None or isinstance(action.default, bool):
             return action.help
         return super()._get_help_string(action)
-
-
-def _pin_threads() -> None:
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
 
 
 def detection_table() -> list[dict[str, float | str]]:
@@ -343,7 +338,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the console script."""
-    _pin_threads()
+    pin_threads()
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "train":
         try:

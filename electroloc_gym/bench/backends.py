@@ -31,26 +31,10 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, ClassVar
 
+from electroloc_gym.runtime import THREAD_VARS, pin_threads
+
 __all__ = ["Backend", "SerialBackend", "ProcessBackend", "BACKENDS", "register_backend", "make_backend",
-           "pin_threads", "default_workers", "exit_with_parent"]
-
-_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
-                "VECLIB_MAXIMUM_THREADS")
-
-
-def pin_threads() -> None:
-    """Pin numeric libraries of this process to one thread (parallelise by process, not by BLAS thread)."""
-    for var in _THREAD_VARS:
-        os.environ[var] = "1"
-    try:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(1)
-    except ImportError:  # pragma: no cover - optional
-        pass
-    if "torch" in sys.modules:  # never import torch here; pin it only if a policy loaded it
-        sys.modules["torch"].set_num_threads(1)
-
+           "default_workers", "exit_with_parent"]
 
 def exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
     """Make this (worker) process exit when ``parent_pid``, the process that started it, dies.
@@ -140,8 +124,8 @@ class ProcessBackend(Backend):
             yield from SerialBackend(1).run_trials(specs, worker_fn)
             return
         ctx = mp.get_context("spawn")  # no inherited locks/threads (tqdm's monitor, BLAS pools)
-        saved = {v: os.environ.get(v) for v in _THREAD_VARS}
-        for v in _THREAD_VARS:  # children read these at numpy import, before the initializer runs
+        saved = {v: os.environ.get(v) for v in THREAD_VARS}
+        for v in THREAD_VARS:  # children read these at numpy import, before the initializer runs
             os.environ[v] = "1"
         try:
             with cf.ProcessPoolExecutor(max_workers=min(self.workers, len(specs)), mp_context=ctx,

@@ -17,7 +17,8 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-from electroloc_gym.bench.backends import _THREAD_VARS, Backend, pin_threads, register_backend
+from electroloc_gym.bench.backends import Backend, register_backend
+from electroloc_gym.runtime import THREAD_VARS, pin_threads
 
 __all__ = ["RayBackend"]
 
@@ -67,7 +68,7 @@ class RayBackend(Backend):
         ray = self._import_ray()
         started = False
         if not ray.is_initialized():
-            env_vars = {v: "1" for v in _THREAD_VARS}  # workers read these at numpy import
+            env_vars = {v: "1" for v in THREAD_VARS}  # workers read these at numpy import
             kwargs: dict[str, Any] = {"runtime_env": {"env_vars": env_vars}, "log_to_driver": False,
                                       "include_dashboard": False}
             if self.address is None:
