@@ -1,8 +1,9 @@
 """The simulation's frozen parameters: every keyword argument of the envs, declared once, validated once.
 
-:class:`EnvParams` holds every argument of ``ElectroLoc-v0``, ``ElectroLocGlobal-v0`` and their native
-vector envs (units in the names or the field docs). :meth:`EnvParams.from_kwargs` is how every env
-builds it: an argument the task does not take, or a value outside its range, is one ``ValueError``
+:class:`EnvParams` holds every argument of every env of :data:`electroloc_gym.registry.ENVS` and their
+native vector envs (units in the names or the field docs). :meth:`EnvParams.from_kwargs` is how every
+env builds it: which arguments a task takes, its sensor models and its defaults come from its entry in
+the env table; an argument the task does not take, or a value outside its range, is one ``ValueError``
 naming the argument and what is allowed. Defaults of the sensor model's calibration and of the
 preset signal scale are those of :mod:`electroloc_gym.sensor_models` and
 :func:`electroloc_gym.conditions.get_condition`, so a change there flows through unchanged.
@@ -21,24 +22,18 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.conditions import Condition, get_condition
+from electroloc_gym.core.observation import OBSERVATION_MODES
+from electroloc_gym.registry import TASKS, task_entry
 from electroloc_gym.scene import Scene
 from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, CalibrationProtocol
 from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM
 from electroloc_gym.sensor_models.shape import DEFAULT_EEV_RADII_MM
 
-__all__ = ["EnvParams", "TASKS", "TASK_ARGUMENTS", "OBSERVATION_MODES", "ACTION_TYPES", "SENSOR_MODELS",
-           "TASK_SENSOR_MODELS", "DEFAULT_GAIN_LEVELS", "TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM",
-           "LAYOUTS", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "memory_limit_bytes", "check_int", "check_bool"]
+__all__ = ["EnvParams", "OBSERVATION_MODES", "ACTION_TYPES", "TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM",
+           "LAYOUTS", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "memory_limit_bytes", "check_int", "check_float",
+           "check_bool"]
 
-#: ``"localize"``: ElectroLoc-v0 (the particles are target hypotheses); ``"global"``: ElectroLocGlobal-v0
-#: (the particles are hypotheses of the robot's own position in a mapped tank, paper §6.5);
-#: ``"unknown"``: ElectroLocUnknownTarget-v0 (target hypotheses with a radius and a contrast, §7).
-TASKS = ("localize", "global", "unknown")
-OBSERVATION_MODES = ("belief", "raw")
 ACTION_TYPES = ("continuous", "discrete")
-#: The sensor models the core implements per task (any other name is refused, never run as another model).
-SENSOR_MODELS = ("analytic", "calibrated")
-TASK_SENSOR_MODELS = {"localize": SENSOR_MODELS, "global": SENSOR_MODELS, "unknown": ("analytic", "interpolated")}
 #: The unknown-target env: how the episode's sphere is drawn (``"prior"``: radius uniform in
 #: ``radius_range_mm``, material or contrast from ``contrast``; ``"condition"``: the condition's own sphere).
 TARGET_DRAWS = ("prior", "condition")
@@ -54,23 +49,6 @@ MAX_STEP_MM = 10.0
 #: The discrete action set: stay plus the 8 king moves of 10 mm per axis (index = 3·(dx+1) + (dy+1)).
 DISCRETE_MOVES_MM = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.float64) * MAX_STEP_MM
 DISCRETE_MOVES_MM.flags.writeable = False
-
-_COMMON = ("observation", "sensor_model", "n_particles", "max_observations", "success_spread_mm", "action_type",
-           "calibration_seed", "calibration", "max_episode_steps")
-#: The arguments each task takes (the others belong to the other task).
-TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
-    "localize": ("condition", "signal", "randomize_target", "gain_levels") + _COMMON,
-    "global": ("layout", "position_blur_mm") + _COMMON,
-    "unknown": ("condition", "signal", "randomize_target", "target_draw", "radius_range_mm", "contrast",
-                "eev_radii_mm", "gain_levels") + _COMMON,
-}
-#: A dynamic-gain example (§7): a quarter, the preset and four times the preset amplifier gain.
-DEFAULT_GAIN_LEVELS = (0.25, 1.0, 4.0)
-#: Defaults that differ by task (the unknown-target env: the eight tanks, the theoretical EEV, and 5000
-#: particles for its 4-D belief — with the paper's 2500 one success in seven was more than 10 mm off,
-#: measured on validation seeds, docs/extensions.md).
-TASK_DEFAULTS: dict[str, dict[str, Any]] = {"unknown": {"condition": "random", "sensor_model": "analytic",
-                                                        "n_particles": 5000}}
 
 #: Bytes of state and scratch per particle and env (particles, jitter draws, the kernels' scratch).
 BYTES_PER_PARTICLE = 96
@@ -132,7 +110,8 @@ class EnvParams:
     """Every argument of the envs (frozen; validated on construction).
 
     Attributes:
-        task: ``"localize"`` (ElectroLoc-v0) or ``"global"`` (ElectroLocGlobal-v0).
+        task: the core's task, one of :data:`electroloc_gym.registry.TASKS` (``"localize"``: ElectroLoc-v0,
+            ``"global"``: ElectroLocGlobal-v0, ``"unknown"``: ElectroLocUnknownTarget-v0).
         condition: localize: a preset name (``electroloc_gym.PRESET_NAMES``), a ``Condition``, a dict of
             one, or ``"random"`` (one of the eight presets per episode).
         signal: localize, presets only: the signal scale, ``"fitted"``, ``"paper"``, ``"coverage"`` or a
@@ -192,7 +171,7 @@ class EnvParams:
 
         _check_choice("task", self.task, TASKS)
         _check_choice("observation", self.observation, OBSERVATION_MODES)
-        _check_choice("sensor_model", self.sensor_model, TASK_SENSOR_MODELS[self.task])
+        _check_choice("sensor_model", self.sensor_model, task_entry(self.task).sensor_models)
         _check_choice("target_draw", self.target_draw, TARGET_DRAWS)
         _check_choice("contrast", self.contrast, CONTRASTS)
         put("radius_range_mm", _positive_numbers("radius_range_mm", self.radius_range_mm, 2))
@@ -225,7 +204,7 @@ class EnvParams:
         if not isinstance(cal, CalibrationProtocol):
             raise ValueError(f"calibration must be a CalibrationProtocol or a dict of its fields, got {cal!r}")
         put("calibration", cal)
-        if self.task in ("localize", "unknown"):
+        if "condition" in task_entry(self.task).arguments:
             if not (isinstance(self.condition, str) and self.condition == "random"):
                 get_condition(self.condition, self.signal)  # raises for an unknown name or a bad signal
             elif self.signal is not None:
@@ -235,15 +214,17 @@ class EnvParams:
 
     @classmethod
     def from_kwargs(cls, task: str, kwargs: Mapping[str, Any], env_id: str) -> EnvParams:
-        """The params of ``task`` from an env's keyword arguments; an argument the task does not take is
-        a ValueError naming it and listing the allowed ones.
+        """The params of ``task`` from an env's keyword arguments, over the defaults of its entry in the env
+        table (its first sensor model, its ``defaults``); an argument the task does not take is a ValueError
+        naming it and listing the allowed ones.
         """
-        allowed = TASK_ARGUMENTS[task]
+        entry = task_entry(task)
+        allowed = entry.all_arguments
         unknown = [k for k in kwargs if k not in allowed]
         if unknown:
             raise ValueError(f"{env_id} got unexpected argument(s) {unknown}; its arguments are "
                              f"{sorted(allowed)}")
-        return cls(task=task, **{**TASK_DEFAULTS.get(task, {}), **kwargs})
+        return cls(task=task, **{"sensor_model": entry.sensor_models[0], **entry.defaults, **kwargs})
 
     @property
     def gains(self) -> tuple[float, ...]:

@@ -36,10 +36,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.conditions import Condition
+from electroloc_gym.conditions import Condition, Target
+from electroloc_gym.core.localize import LocalizeTask
+from electroloc_gym.core.observation import HIST_BINS
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.state import State
-from electroloc_gym.core.tasks import TargetTask, group_by_world
+from electroloc_gym.core.worlds import group_by_world
 from electroloc_gym.kernels import egocentric_counts, mean_cov_rows, resample_indices, row_sums
 from electroloc_gym.sensor import sphere_reading
 from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
@@ -63,13 +65,12 @@ def _material(chi: NDArray) -> NDArray[np.object_]:
     return np.where(np.asarray(chi) > 0, "conductor", "insulator").astype(object)
 
 
-class UnknownTargetTask(TargetTask):
+class UnknownTargetTask(LocalizeTask):
     """ElectroLocUnknownTarget-v0 (module docstring)."""
 
-    name = "unknown"
-    #: Shape coordinates per particle (radius, χ); a hypothesis is (x, y, a, χ).
-    shape_dims = 2
+    #: A hypothesis is (x, y, a, χ): two shape coordinates (radius, χ) per particle.
     particle_dims = 4
+    info_keys = SHAPE_INFO_KEYS
 
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
@@ -93,13 +94,9 @@ class UnknownTargetTask(TargetTask):
         the sphere (``target_draw="prior"``: radius, then material or χ), target position
         (``randomize_target``), start position, particle positions, particle radii, particle χ.
         """
-        pool = self.pool
-        k = int(g.integers(len(pool))) if len(pool) > 1 else 0
-        c = pool[k]
-        self._set_world(state, i, c, k, c, self._descriptors[k])
+        c = self._draw_condition(state, i, g)
         state.cal_seed[i] = self._cal_seed(g)
         state.model[i] = [None] * len(self.gains)
-        lo, hi = self.radius_range_mm
         if self.params.target_draw == "prior":
             radius = float(self._draw_radius(g))
             state.target_shape[i] = (radius, float(self._draw_chi(g)))
@@ -137,8 +134,6 @@ class UnknownTargetTask(TargetTask):
 
     def true_condition(self, state: State, i: int) -> Condition:
         """Env ``i``'s tank with its hidden sphere (ground truth, for evaluation only)."""
-        from electroloc_gym.conditions import Target
-
         c: Condition = state.world[i]
         radius, chi = state.target_shape[i]
         if c.target.radius_mm == radius and c.chi == chi:
@@ -151,19 +146,17 @@ class UnknownTargetTask(TargetTask):
                                        material=material))
 
     # ---- predictions for agents ------------------------------------------------------------------
-    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
-        """Target position hypothesis (columns 0–1 of (M, 4) particles) − the carriage after the move."""
-        return super().offsets_after_move(state, i, particles[..., :2], moves_mm)
-
     def predicted_mean_std(self, state: State, i: int, particles: NDArray, moves_mm: NDArray,
                            level: int | None = None) -> tuple[NDArray, NDArray]:
-        """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves."""
+        """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves (the
+        offsets from columns 0–1, :meth:`LocalizeTask.offsets_after_move`).
+        """
         off = self.offsets_after_move(state, i, particles, moves_mm)
         return self.sensor_model(state, i, level).mean_std(off, particles[..., 2], particles[..., 3])
 
     # ---- the measurement update ------------------------------------------------------------------
     def assimilate(self, state: State, ids: NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
-                   jitter: NDArray[np.uint16], normal_table: NDArray[np.float32], bins: int) -> int:
+                   jitter: NDArray[np.uint16], normal_table: NDArray[np.float32]) -> int:
         """Fuse each env's reading into its 4-D cloud (module docstring); returns −1 or the first env whose
         log-likelihood is NaN.
         """
@@ -193,13 +186,18 @@ class UnknownTargetTask(TargetTask):
                                         np.float32(INSULATOR_CHI)), np.float32(CONDUCTOR_CHI))
         s.particles_mm[ids, 0], s.particles_mm[ids, 1] = x, y
         s.shape_particles[ids, 0], s.shape_particles[ids, 1] = radius, chi
-        mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, bins * bins))
+        mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         x, y = s.particles_mm[ids, 0], s.particles_mm[ids, 1]
         mean_cov_rows(x, y, mean, cov)
-        egocentric_counts(x, y, origin, 2 * half[:, 0], bins, counts)
+        egocentric_counts(x, y, origin, 2 * half[:, 0], HIST_BINS, counts)
         s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
         self._shape_statistics(s, ids)
         return -1
+
+    def update_statistics(self, state: State, ids: NDArray[np.intp] | slice) -> None:
+        """The x–y statistics and the shape's (:meth:`_shape_statistics`)."""
+        super().update_statistics(state, ids)
+        self._shape_statistics(state, np.arange(state.num_envs)[ids])
 
     def _shape_statistics(self, s: State, ids: NDArray[np.intp]) -> None:
         """The shape's means and stds (fixed-order sums) and the conductor fraction of envs ``ids``."""
@@ -221,7 +219,7 @@ class UnknownTargetTask(TargetTask):
         s.descriptor[ids, 0] = (s.shape_mean[ids, 0] / 25.0).astype(np.float32)
         s.descriptor[ids, 1] = s.shape_mean[ids, 1].astype(np.float32)
 
-    def shape_info(self, state: State, sel: Any) -> dict[str, NDArray]:
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
         """The info arrays :data:`SHAPE_INFO_KEYS` of envs ``sel``."""
         s = state
         est_r, true_r = s.radius_median_mm[sel], s.target_shape[sel, 0]

@@ -1,7 +1,7 @@
 """ElectroLoc-v0: move the sensing carriage until the particle belief pins the target down.
 
 A thin adapter (:class:`~electroloc_gym.envs.adapter.CoreEnv`) over the simulation core with one env
-of the ``"localize"`` task (:mod:`electroloc_gym.core`).
+of the ``"localize"`` task (:mod:`electroloc_gym.core.localize`).
 """
 
 from __future__ import annotations
@@ -11,11 +11,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.conditions import Condition
-from electroloc_gym.core.params import ACTION_TYPES, DISCRETE_MOVES_MM, MAX_STEP_MM
+from electroloc_gym.core.params import MAX_STEP_MM
 from electroloc_gym.envs.adapter import CoreEnv
 
-__all__ = ["ElectroLocEnv", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "ACTION_TYPES"]
+__all__ = ["ElectroLocEnv"]
 
 
 class ElectroLocEnv(CoreEnv):
@@ -121,7 +120,6 @@ class ElectroLocEnv(CoreEnv):
     * v0: initial version.
     """
 
-    _TASK = "localize"
     _ENV_ID = "ElectroLoc-v0"
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
@@ -136,9 +134,6 @@ class ElectroLocEnv(CoreEnv):
     def calibration_seed(self) -> int | None:
         """The fixed calibration seed, or None (a new calibration per episode)."""
         return self.params.calibration_seed
-
-    def _default_condition(self) -> Condition:
-        return self._task.pool[0]
 
     @property
     def target_mm(self) -> NDArray[np.float64]:

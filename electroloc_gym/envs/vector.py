@@ -1,7 +1,8 @@
 """The native vector envs: the simulation core with N envs behind Gymnasium's ``VectorEnv``.
 
 ``gym.make_vec("ElectroLoc-v0", num_envs=N, vectorization_mode="vector_entry_point")`` builds an
-:class:`ElectroLocVectorEnv`, ``"ElectroLocGlobal-v0"`` a :class:`GlobalLocalizationVectorEnv`: one
+:class:`ElectroLocVectorEnv`, ``"ElectroLocGlobal-v0"`` a :class:`GlobalVectorEnv` (each entry's
+``vector_entry_point`` in :mod:`electroloc_gym.registry`): one
 :class:`~electroloc_gym.core.step.Simulation` of N envs, whose every step is one batched core step —
 the same code, with the same per-env arithmetic, as the single env (:mod:`.adapter`, N = 1). Sub-env
 ``i`` reset with seed ``s + i`` (``reset(seed=s)``, as :class:`gymnasium.vector.SyncVectorEnv`) therefore
@@ -35,10 +36,11 @@ from numpy.typing import NDArray
 from electroloc_gym.conditions import Condition
 from electroloc_gym.core.params import EnvParams, check_int
 from electroloc_gym.core.step import Simulation
-from electroloc_gym.envs.adapter import ParamAccessors, spaces_of
+from electroloc_gym.envs.actions import ActionParser, spaces_of
+from electroloc_gym.envs.adapter import ParamAccessors
+from electroloc_gym.registry import env_entry
 
-__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "UnknownTargetVectorEnv",
-           "make_electroloc_vector_env", "make_global_vector_env", "make_unknown_target_vector_env"]
+__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalVectorEnv", "UnknownTargetVectorEnv"]
 
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
     AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP: AutoresetMode.SAME_STEP,
@@ -60,7 +62,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
-    _TASK = "localize"
+    #: The env's id in the env table (its task, arguments and defaults come from the entry).
     _ENV_ID = "ElectroLoc-v0"
 
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
@@ -73,8 +75,9 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         if mode is None:
             raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or 'next_step', "
                              f"'same_step'), got {autoreset_mode!r}")
-        self.params = EnvParams.from_kwargs(self._TASK, kwargs, self._ENV_ID)
+        self.params = EnvParams.from_kwargs(env_entry(self._ENV_ID).task, kwargs, self._ENV_ID)
         self._sim = Simulation(self.params, n)
+        self._actions = ActionParser(self.params, n)
         self._state = self._sim.state
         self.num_envs = n
         self.autoreset_mode = mode
@@ -111,7 +114,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         """Each sub-env's current condition."""
         if not self._state.started:
             raise RuntimeError("call reset() first")
-        return tuple(w if isinstance(w, Condition) else w.as_condition() for w in self._state.world)
+        return tuple(self._sim.task.world_condition(w) for w in self._state.world)
 
     @property
     def sensor_models(self) -> tuple[Any, ...]:
@@ -164,8 +167,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
                                           NDArray[np.bool_], dict[str, Any]]:
         if not self._state.started:
             raise RuntimeError("call reset() before step()")
-        moves = self._sim.moves_from_actions(actions)
-        gains = self._sim.gains_from_actions(actions)
+        moves, gains = self._actions(actions)
         obs, rewards, terminated, truncated, info = self._sim.step(moves, self._mode, gains)
         if "done" in info:
             done = info.pop("done")
@@ -196,16 +198,14 @@ class ElectroLocVectorEnv(CoreVectorEnv):
     ``num_envs`` and ``autoreset_mode``.
     """
 
-    _TASK = "localize"
     _ENV_ID = "ElectroLoc-v0"
 
 
-class GlobalLocalizationVectorEnv(CoreVectorEnv):
+class GlobalVectorEnv(CoreVectorEnv):
     """``num_envs`` copies of ElectroLocGlobal-v0 stepped as one core (module docstring); any layout,
     ``"random"`` included (every sub-env draws its own map per episode).
     """
 
-    _TASK = "global"
     _ENV_ID = "ElectroLocGlobal-v0"
 
     @property
@@ -219,20 +219,4 @@ class UnknownTargetVectorEnv(CoreVectorEnv):
     adds the unknown-target keys (size and material estimates, their truth) as (N,) arrays.
     """
 
-    _TASK = "unknown"
     _ENV_ID = "ElectroLocUnknownTarget-v0"
-
-
-def make_electroloc_vector_env(num_envs: int = 1, **kwargs: Any) -> ElectroLocVectorEnv:
-    """The ``vector_entry_point`` of ElectroLoc-v0."""
-    return ElectroLocVectorEnv(num_envs=num_envs, **kwargs)
-
-
-def make_global_vector_env(num_envs: int = 1, **kwargs: Any) -> GlobalLocalizationVectorEnv:
-    """The ``vector_entry_point`` of ElectroLocGlobal-v0."""
-    return GlobalLocalizationVectorEnv(num_envs=num_envs, **kwargs)
-
-
-def make_unknown_target_vector_env(num_envs: int = 1, **kwargs: Any) -> UnknownTargetVectorEnv:
-    """The ``vector_entry_point`` of ElectroLocUnknownTarget-v0."""
-    return UnknownTargetVectorEnv(num_envs=num_envs, **kwargs)
