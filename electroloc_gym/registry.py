@@ -10,8 +10,8 @@
   agents from the entries' :class:`BenchEnv` rows (:mod:`electroloc_gym.bench.config`).
 
 Adding an environment is one :class:`EnvEntry` here plus its task module (docs/design.md, "How to add
-an environment"). This module is plain data: it imports nothing of the package, so every layer may
-read it.
+an environment"). This module is data: it imports only the sensor models' names, so every layer
+above them may read it.
 """
 
 from __future__ import annotations
@@ -20,6 +20,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
+
+from electroloc_gym.sensor_models.calibrated import SENSOR_MODEL_NAMES
+from electroloc_gym.sensor_models.shape import SHAPE_SENSOR_MODELS
 
 __all__ = ["EnvEntry", "BenchEnv", "ENVS", "ENV_IDS", "TASKS", "BENCH_ENVS", "COMMON_ARGUMENTS", "env_entry",
            "task_entry", "bench_env", "DYNAMIC_GAIN_LEVELS"]
@@ -98,7 +101,7 @@ ENVS: tuple[EnvEntry, ...] = (
         entry_point="electroloc_gym.envs.localize:ElectroLocEnv",
         vector_entry_point="electroloc_gym.envs.vector:ElectroLocVectorEnv",
         arguments=("condition", "signal", "randomize_target", "gain_levels"),
-        sensor_models=("calibrated", "analytic"),
+        sensor_models=SENSOR_MODEL_NAMES,
         bench=(BenchEnv("target"), BenchEnv("dynamic-gain", _frozen({"gain_levels": DYNAMIC_GAIN_LEVELS}))),
         summary="localise a target sphere with a particle-filter belief",
     ),
@@ -108,7 +111,7 @@ ENVS: tuple[EnvEntry, ...] = (
         entry_point="electroloc_gym.envs.global_env:GlobalEnv",
         vector_entry_point="electroloc_gym.envs.vector:GlobalVectorEnv",
         arguments=("layout", "position_blur_mm"),
-        sensor_models=("calibrated", "analytic"),
+        sensor_models=SENSOR_MODEL_NAMES,
         bench=(BenchEnv("global", agents=("rnd-wlk", "min-var"), condition="six-cylinders"),),
         summary="the robot localises itself in a mapped tank of six cylinders (§6.5)",
     ),
@@ -119,7 +122,7 @@ ENVS: tuple[EnvEntry, ...] = (
         vector_entry_point="electroloc_gym.envs.vector:UnknownTargetVectorEnv",
         arguments=("condition", "signal", "randomize_target", "target_draw", "radius_range_mm", "contrast",
                    "eev_radii_mm", "gain_levels"),
-        sensor_models=("analytic", "interpolated"),
+        sensor_models=SHAPE_SENSOR_MODELS,
         # the eight tanks, the theoretical EEV, and 5000 particles for the 4-D belief (with the paper's 2500
         # one success in seven was more than 10 mm off, measured on validation seeds, docs/extensions.md)
         defaults=_frozen({"condition": "random", "n_particles": 5000}),

@@ -11,9 +11,13 @@ eight pairs), with ``"prior"`` it is drawn from the belief's prior (radius unifo
 probability; ``"continuous"``: χ uniform in [−½, 1]).
 
 **Measurement update.** The log-likelihood of every hypothesis comes from the shape sensor model
-(:mod:`electroloc_gym.sensor_models.shape`; exact elementwise numpy operations), the systematic
-resampling indices from the compiled kernel :func:`~electroloc_gym.kernels.resample_indices`, and
-position and shape are resampled with the same indices. Jitter: N(0, 1 mm²) per position axis (as
+(:mod:`electroloc_gym.sensor_models.shape`; exact elementwise numpy operations, as the analytic
+models' of the other tasks), then the kernel layer does the rest as for the x–y clouds: the systematic
+resampling indices (:func:`~electroloc_gym.kernels.resample_indices`), the resampling of position and
+shape with the same indices, the jitter and the clip (:func:`~electroloc_gym.kernels.jitter_resampled`),
+the statistics (:func:`~electroloc_gym.kernels.mean_cov_rows`, ``egocentric_counts``, ``row_sums``).
+The one-pass x–y kernels (``loglik_assimilate``) are not used because they carry two coordinates
+per particle; the two passes here carry any number. Jitter: N(0, 1 mm²) per position axis (as
 the other tasks), N(0, (0.5 mm)²) on the radius, N(0, 0.02²) on a continuous χ (none on a binary
 one); each coordinate is clipped to its range (the box, the radius range, [−½, 1]). The draws per
 step: the reading's noise, U, then 4·M normal-table indices (x, y of particle j at 2j, 2j + 1; radius,
@@ -42,7 +46,7 @@ from electroloc_gym.core.observation import HIST_BINS
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.state import State
 from electroloc_gym.core.worlds import group_by_world
-from electroloc_gym.kernels import egocentric_counts, mean_cov_rows, resample_indices, row_sums
+from electroloc_gym.kernels import egocentric_counts, jitter_resampled, mean_cov_rows, resample_indices, row_sums
 from electroloc_gym.sensor import sphere_reading
 from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
 
@@ -76,6 +80,9 @@ class UnknownTargetTask(LocalizeTask):
         super().__init__(params)
         self.radius_range_mm = params.radius_range_mm
         self.continuous = params.contrast == "continuous"
+        #: The jitter's std per coordinate (x, y mm; radius mm; χ, none for a binary contrast).
+        self._jitter_scale = np.array([1.0, 1.0, RADIUS_JITTER_MM, CHI_JITTER if self.continuous else 0.0],
+                                      dtype=np.float32)
         self._theoretical = [[TheoreticalShapeModel(self.at_gain(c, j)) for j in range(len(self.gains))]
                              for c in self.pool]
 
@@ -173,23 +180,21 @@ class UnknownTargetTask(LocalizeTask):
         bad = resample_indices(ll, u0, idx)
         if bad >= 0:
             return bad
-        z = normal_table[jitter[:k]]                                             # (k, 4M) standard normals
-        half = s.half_mm[ids].astype(np.float32)[:, None]
-        lo, hi = (np.float32(v) for v in self.radius_range_mm)
-        rows = np.arange(k)[:, None]
-        x = np.minimum(np.maximum(xy[:, 0][rows, idx] + z[:, 0:2 * m:2], -half), half)
-        y = np.minimum(np.maximum(xy[:, 1][rows, idx] + z[:, 1:2 * m:2], -half), half)
-        radius = np.minimum(np.maximum(shape[:, 0][rows, idx] + np.float32(RADIUS_JITTER_MM) * z[:, 2 * m::2], lo), hi)
-        chi = shape[:, 1][rows, idx]
-        if self.continuous:
-            chi = np.minimum(np.maximum(chi + np.float32(CHI_JITTER) * z[:, 2 * m + 1::2],
-                                        np.float32(INSULATOR_CHI)), np.float32(CONDUCTOR_CHI))
-        s.particles_mm[ids, 0], s.particles_mm[ids, 1] = x, y
-        s.shape_particles[ids, 0], s.shape_particles[ids, 1] = radius, chi
+        cloud = np.concatenate([xy, shape], axis=1)                             # (k, 4, M): x, y, radius, χ
+        half = s.half_mm[ids].astype(np.float32)
+        lo = np.empty((k, 4), dtype=np.float32)
+        hi = np.empty((k, 4), dtype=np.float32)
+        lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1] = -half, -half, half, half
+        lo[:, 2], hi[:, 2] = self.radius_range_mm
+        lo[:, 3], hi[:, 3] = INSULATOR_CHI, CONDUCTOR_CHI
+        out = np.empty_like(cloud)
+        jitter_resampled(idx, cloud, jitter[:k], normal_table, self._jitter_scale, lo, hi, out)
+        s.particles_mm[ids] = out[:, :2]
+        s.shape_particles[ids] = out[:, 2:]
         mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         x, y = s.particles_mm[ids, 0], s.particles_mm[ids, 1]
         mean_cov_rows(x, y, mean, cov)
-        egocentric_counts(x, y, origin, 2 * half[:, 0], HIST_BINS, counts)
+        egocentric_counts(x, y, origin, 2 * half, HIST_BINS, counts)
         s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
         self._shape_statistics(s, ids)
         return -1
@@ -215,8 +220,9 @@ class UnknownTargetTask(LocalizeTask):
         v = np.partition(s.shape_particles[ids, 0].astype(np.float64), (m - 1) // 2 + np.arange(2 - m % 2), axis=1)
         s.radius_median_mm[ids] = 0.5 * (v[:, (m - 1) // 2] + v[:, m // 2])
         s.p_conductor[ids] = np.count_nonzero(s.shape_particles[ids, 1] > 0, axis=1) / m
-        # the observation's condition entries 76–77: the belief's radius / 25 mm and χ instead of the truth
-        s.descriptor[ids, 0] = (s.shape_mean[ids, 0] / 25.0).astype(np.float32)
+        # the observation's condition entries 76–77: the belief's radius / 25 mm (clipped to 1, as the condition
+        # descriptor's: radii above 25 mm read 1) and χ instead of the truth
+        s.descriptor[ids, 0] = np.minimum(s.shape_mean[ids, 0] / 25.0, 1.0).astype(np.float32)
         s.descriptor[ids, 1] = s.shape_mean[ids, 1].astype(np.float32)
 
     def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:

@@ -80,17 +80,29 @@ class ParamAccessors:
         return self.params.reset_gain_index
 
 
+class RenderModes(list):
+    """The render modes (a list), refusing a non-string mode in a membership test with one ValueError:
+    ``gym.make`` tests ``render_mode in metadata["render_modes"]`` before it builds the env, and would
+    otherwise fail inside Gymnasium on ``render_mode=1``.
+    """
+
+    def __contains__(self, mode: object) -> bool:
+        if mode is not None and not isinstance(mode, str):
+            raise ValueError(f"render_mode must be one of {list(self)} or None, got {mode!r}")
+        return super().__contains__(mode)
+
+
 class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
     """One env of the simulation core (see the module docstring); subclasses set the task."""
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
+    metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 4}
     #: The env's id in the env table (its task, arguments and defaults come from the entry).
     _ENV_ID = "ElectroLoc-v0"
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         modes = self.metadata["render_modes"]
-        if render_mode is not None and not (isinstance(render_mode, str) and render_mode in modes):
-            raise ValueError(f"render_mode must be one of {modes} or None, got {render_mode!r}")
+        if render_mode is not None and render_mode not in modes:
+            raise ValueError(f"render_mode must be one of {list(modes)} or None, got {render_mode!r}")
         self.render_mode = render_mode
         self.params = EnvParams.from_kwargs(env_entry(self._ENV_ID).task, kwargs, self._ENV_ID)
         self._sim = Simulation(self.params, 1)

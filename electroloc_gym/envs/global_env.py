@@ -48,22 +48,12 @@ class GlobalEnv(CoreEnv):
     ## Observation Space
 
     ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``, the layout of ``ElectroLoc-v0``
-    built by the same code (:mod:`electroloc_gym.core.observation`) with the
-    *map origin* as the reference point instead of the (here unknown) carriage:
-
-    | index | feature (ElectroLocGlobal-v0) | unit / normalisation |
-    |-------|---------|----------------------|
-    | 0–1   | odometry: sum of the commanded moves since reset (start = 0) | mm / H (clipped) |
-    | 2     | last reading Φ | V / 10 V |
-    | 3     | last reading in noise units | tanh(Φ / 3·G·σ_s) |
-    | 4–5   | belief mean = estimated carriage position in the map frame | mm / 2H |
-    | 6–7   | belief std x, y | mm / H |
-    | 8     | belief correlation | — |
-    | 9     | spread √trace Σ | mm / H |
-    | 10    | log₁₀(spread / 10 mm) | clipped to [−1, 1] |
-    | 11    | observations used / cap | — |
-    | 12–75 | 8×8 histogram of the particles over the map box ±H (allocentric, map frame) | mass fraction |
-    | 76–80 | descriptor of ``condition``: mean radius/25 mm, χ*, log₁₀ G / 4, G·σ_s (V), scale / 8 | — |
+    (:mod:`electroloc_gym.core.observation`) built by the same code with the *map origin* as the
+    reference point instead of the (here unknown) carriage. What differs: entries 0–1 are the odometry
+    (the sum of the commanded moves since reset, start = 0) / H, clipped; entries 4–5 the belief mean,
+    i.e. the estimated carriage position in the map frame, / 2H; entries 12–75 the histogram of the
+    particles over the map box ±H (allocentric); entries 76–80 the descriptor of ``condition`` (mean
+    radius, χ*, gain, noise, scale).
 
     χ* is the sphere contrast of the first object's conductivity (``condition``'s stand-in target).
     H = 80 mm for the benchmark map. ``observation="raw"``: ``[odometry_x/H, odometry_y/H, Φ/10 V]``

@@ -37,21 +37,10 @@ class ElectroLocEnv(CoreEnv):
 
     ## Observation Space
 
-    ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``:
-
-    | index | feature | unit / normalisation |
-    |-------|---------|----------------------|
-    | 0–1   | carriage position x, y | mm / H (allowed half-width) |
-    | 2     | last reading Φ | V / 10 V |
-    | 3     | last reading in noise units | tanh(Φ / 3·G·σ_s) |
-    | 4–5   | belief mean − carriage | mm / 2H |
-    | 6–7   | belief std x, y | mm / H |
-    | 8     | belief correlation | — |
-    | 9     | spread √trace Σ | mm / H |
-    | 10    | log₁₀(spread / 10 mm) | clipped to [−1, 1] |
-    | 11    | observations used / cap | — |
-    | 12–75 | 8×8 egocentric particle histogram over ±H | mass fraction |
-    | 76–80 | condition: radius/25 mm, χ, log₁₀ G / 4, G·σ_s (V), signal scale / 8 | — |
+    ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``: the carriage position, the last
+    reading, the belief's mean, spread, correlation and 8×8 egocentric histogram, the observations used
+    and a condition descriptor; the layout table is :mod:`electroloc_gym.core.observation`'s (also in
+    docs/environments.md).
 
     ``observation="raw"``: ``Box(-1, 1, (3,), float32)`` = [x/H, y/H, Φ/10 V] (no belief).
 

@@ -25,7 +25,7 @@ plain float arrays. Rendering is not supported (``render_mode`` must be None): r
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -49,6 +49,28 @@ _AUTORESET_MODES: dict[Any, AutoresetMode] = {
 }
 #: The core's name of each mode.
 _CORE_MODE = {AutoresetMode.NEXT_STEP: "next_step", AutoresetMode.SAME_STEP: "same_step"}
+
+
+def _is_seed(value: Any) -> bool:
+    """A seed: an integer ≥ 0 (Python or numpy; not a bool)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0
+
+
+def _check_seed(seed: Any, n: int) -> None:
+    """``reset``'s ``seed``: None, an integer ≥ 0, or a sequence of ``n`` entries each None or an integer ≥ 0;
+    anything else is one ValueError naming it.
+    """
+    if seed is None or _is_seed(seed):
+        return
+    what = f"seed must be None, an integer ≥ 0 or a sequence of {n} seeds (each None or an integer ≥ 0)"
+    if isinstance(seed, (str, bytes, Mapping)) or not isinstance(seed, (Sequence, np.ndarray)) or \
+            (isinstance(seed, np.ndarray) and seed.ndim != 1):
+        raise ValueError(f"{what}, got {seed!r}")
+    if len(seed) != n:
+        raise ValueError(f"{what}, got {len(seed)} seeds")
+    bad = [s for s in seed if not (s is None or _is_seed(s))]
+    if bad:
+        raise ValueError(f"{what}, got {list(seed)!r} (bad: {bad!r})")
 
 
 class CoreVectorEnv(ParamAccessors, VectorEnv):
@@ -143,14 +165,13 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
         """Reset all sub-envs (or those in ``options["reset_mask"]``); seeds as SyncVectorEnv."""
         n = self.num_envs
+        _check_seed(seed, n)  # everything is checked before any sub-env changes
         if seed is None:
             seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
+        elif isinstance(seed, (int, np.integer)):
             seeds = [int(seed) + i for i in range(n)]
         else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"seed must be None, an int or a sequence of {n} seeds, got {len(seeds)} seeds")
+            seeds = [None if s is None else int(s) for s in seed]
         mask = np.ones(n, dtype=bool)
         if options is not None and "reset_mask" in options:
             mask = options["reset_mask"]
