@@ -40,6 +40,8 @@ def _as_real_array(actions: Any, what: str, shape: tuple[int, ...]) -> NDArray:
     """``actions`` as a numeric (integer or real) numpy array, or a ValueError: strings, bytes, objects,
     complex numbers and dicts are not actions.
     """
+    if type(actions) is np.ndarray and actions.dtype.kind in "fiu":  # the common case, at no cost
+        return actions
     if isinstance(actions, (str, bytes, dict)):
         raise ValueError(f"{what} must be a number array of shape {shape}, got {actions!r}")
     try:
@@ -91,7 +93,7 @@ class ActionParser:
             return self._moves(a[:, 0], False), a[:, 1].astype(np.int64)
         shape = (3,) if single else (n, 3)
         what = "action" if single else "actions"
-        a = _as_real_array(actions, what, shape).astype(np.float64)
+        a = np.asarray(_as_real_array(actions, what, shape), dtype=np.float64)
         if a.shape != shape or not np.all(np.isfinite(a)):
             raise ValueError(f"{what} must be finite with shape {shape} (dx, dy, gain in [-1, 1]), got {actions!r}")
         a = a.reshape(n, 3)
@@ -110,7 +112,7 @@ class ActionParser:
             return DISCRETE_MOVES_MM[a.reshape(n)]
         shape = (2,) if single else (n, 2)
         what = "action" if single else "actions"
-        a = _as_real_array(actions, what, shape).astype(np.float64)
+        a = np.asarray(_as_real_array(actions, what, shape), dtype=np.float64)
         if a.shape != shape:
             raise ValueError(f"{what} must have shape {shape} (dx, dy in [-1, 1]), got shape {a.shape}")
         if not np.all(np.isfinite(a)):
