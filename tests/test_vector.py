@@ -11,14 +11,11 @@ from gymnasium.vector import AutoresetMode
 from reference_filter import ParticleBelief, egocentric_histogram
 
 import electroloc_gym  # noqa: F401
+from electroloc_gym.core.observation import HIST_BINS, INFO_KEYS
 from electroloc_gym.draws import normal_table
-from electroloc_gym.envs.observation import HIST_BINS
 from electroloc_gym.envs.vector import ElectroLocVectorEnv
 from electroloc_gym.kernels import loglik_assimilate
 from electroloc_gym.sensor_models import CalibratedSensorModel
-
-INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
-             "condition")
 
 
 def _native(n: int, **kw: Any) -> ElectroLocVectorEnv:
