@@ -74,7 +74,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.agent import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_options_mm
+from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_options_mm
 from electroloc_gym.baselines.lookahead_objectives import OBJECTIVES, adaptive_costs, posterior_spreads, sequence_costs
 
 __all__ = ["LookaheadAgent", "posterior_spreads", "MAX_DEPTH", "COMPASS_MM", "CONTINUATIONS", "OBJECTIVES"]

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.agent import BaselineAgent, move_bounds_mm, sample_options_mm
+from electroloc_gym.baselines.base import BaselineAgent, move_bounds_mm, sample_options_mm
 
 __all__ = ["RandomWalkAgent"]
 

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.agent import MAX_STEP_MM, BaselineAgent
+from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent
 
 __all__ = ["ZeroCrossingAgent", "TABLE1_WORKSPACE_HALF_MM", "TABLE1_CENTRE_HALF_MM"]
 

@@ -8,7 +8,6 @@ are plain text and show every option's default.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import textwrap
@@ -24,6 +23,7 @@ from electroloc_gym.conditions import (
     SIGNAL_CHOICES,
     get_condition,
 )
+from electroloc_gym.fileio import strict_json
 from electroloc_gym.runtime import pin_threads
 from electroloc_gym.sensor import zero_crossing_mm
 
@@ -31,6 +31,24 @@ __all__ = ["main", "detection_table", "quiet_tank_table", "parse_noise_factor", 
 
 DESCRIPTION = ("Gymnasium environments of the active-electrolocation robot of Solberg, Lynch & MacIver (IJRR 2008): "
                "benchmark the paper's controllers and learned policies, train agents, and draw the paper's figures.")
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``electroloc CMD: error: …`` and exit 2 (``--help`` shows the usage)."""
+
+    def error(self, message: str) -> Any:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def seed_int(text: str) -> int:
+    """``--seed``: an integer in [0, 2**63)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer in [0, 2**63), got {text!r}") from None
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"must be an integer in [0, 2**63), got {text}")
+    return value
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
@@ -95,7 +113,9 @@ def quiet_tank_table(noise_factor: float = QUIET_TANK_FACTOR) -> list[dict[str, 
             row[f"{signal}_mm"] = round(d1, 2)
             row[f"{signal}_quiet_mm"] = round(df, 2)
             row[f"{signal}_ratio"] = round(df / d1, 3)
-            row[f"{signal}_branch"] = ("near" if d1 < zero else "far") + "→" + ("near" if df < zero else "far")
+            known = all(math.isfinite(v) for v in (zero, d1, df))  # no zero crossing / no detection: no label
+            row[f"{signal}_branch"] = (("near" if d1 < zero else "far") + "→" + ("near" if df < zero else "far")
+                                       if known else "n/a")
         rows.append(row)
     return rows
 
@@ -105,8 +125,8 @@ def _quiet_tank_report(factor: float, as_json: bool) -> None:
     k = 1.0 / factor
     pred = {"far_eq5": k ** 0.2, "near_eq5": k ** 0.5, "far_layout": k ** (1 / 6)}
     if as_json:
-        print(json.dumps({"noise_factor": factor, "paper_claim": "roughly doubled", "predicted_ratio": pred,
-                          "rows": rows}, indent=2))
+        print(strict_json({"noise_factor": factor, "paper_claim": "roughly doubled", "predicted_ratio": pred,
+                           "rows": rows}), end="")
         return
     print(f"Detection distance along the 45° line, 2σ threshold, mm: the paper's tank (noise factor 1) and a"
           f" noise factor of {factor:g} (1/{k:g})")
@@ -174,6 +194,14 @@ def _plot_quiet_tank(path: str, factor: float) -> None:
 
 
 def _cmd_detect(args: argparse.Namespace) -> int:
+    if args.plot is not None:
+        from electroloc_gym.demo import check_output_path, figure_suffixes
+
+        try:
+            check_output_path("--plot", args.plot, figure_suffixes())
+        except ValueError as exc:
+            print(f"electroloc detect: error: {exc}", file=sys.stderr)
+            return 2
     factor = args.noise_factor
     if factor is None and args.plot is not None:
         factor = QUIET_TANK_FACTOR
@@ -190,7 +218,7 @@ def _cmd_detect(args: argparse.Namespace) -> int:
         return 0
     rows = detection_table()
     if args.json:
-        print(json.dumps(rows, indent=2))
+        print(strict_json(rows), end="")
         return 0
     print("Detection distance along the 45° line, 2σ threshold (paper Table 3 beside this model), mm")
     hdr = (f"{'condition':<18} {'σ mV':>5} {'paper theory':>13} {'model (scale 1)':>16} {'Δ':>6}"
@@ -211,6 +239,13 @@ def _cmd_detect(args: argparse.Namespace) -> int:
 
 
 def _cmd_eev(args: argparse.Namespace) -> int:
+    from electroloc_gym.demo import check_output_path, figure_suffixes
+
+    try:
+        check_output_path("--out", args.out, figure_suffixes())
+    except ValueError as exc:
+        print(f"electroloc eev: error: {exc}", file=sys.stderr)
+        return 2
     import matplotlib
 
     matplotlib.use("Agg")
@@ -258,8 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``electroloc``."""
     from electroloc_gym.bench import cli as bench_cli
 
-    p = argparse.ArgumentParser(prog="electroloc", description=textwrap.fill(DESCRIPTION, 100),
-                                formatter_class=HelpFormatter)
+    p = Parser(prog="electroloc", description=textwrap.fill(DESCRIPTION, 100), formatter_class=HelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
 
     def command(name: str, help: str, **kwargs: Any) -> argparse.ArgumentParser:
@@ -292,9 +326,10 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES), help="the preset")
     m.add_argument("--sensor-model", default="calibrated", choices=["analytic", "calibrated"],
                    help="the particle filter's sensor model")
-    m.add_argument("--seed", type=int, default=0, help="seed of the episode")
+    m.add_argument("--seed", type=seed_int, default=0, help="seed of the episode (an integer ≥ 0)")
     m.add_argument("--out", default="demo.png", help="the PNG of belief snapshots to write")
-    m.add_argument("--gif", default=None, metavar="PATH", help="also write the episode as an animated GIF")
+    m.add_argument("--gif", default=None, metavar="PATH",
+                   help="also write the episode as an animated GIF (a .gif path other than --out)")
     m.set_defaults(func=_cmd_demo)
 
     b = command("bench", "benchmark agents on the paper's conditions (Table 4 / Table 1 layout)",

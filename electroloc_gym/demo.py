@@ -239,10 +239,23 @@ def save_gif(frames: list[NDArray[np.uint8]], path: str | os.PathLike, fps: floa
     atomic_write_bytes(path, buf.getvalue())
 
 
-def check_output_path(name: str, path: str | os.PathLike) -> None:
-    """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``)."""
+def figure_suffixes() -> tuple[str, ...]:
+    """The file suffixes matplotlib can write a figure to (``png``, ``pdf``, ``svg`` …)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
+
+
+def check_output_path(name: str, path: str | os.PathLike, suffixes: tuple[str, ...] | None = None) -> None:
+    """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``).
+
+    Args:
+        name: the option or argument, for the message.
+        path: the file to write.
+        suffixes: the allowed suffixes without the dot (None: any); a path without a suffix is refused too.
+    """
     p = Path(path)
-    if not str(path):
+    if not str(path).strip():
         raise ValueError(f"{name} must be a file path, got an empty string")
     if p.is_dir():
         raise ValueError(f"{name} must be a file path, got the directory {str(p)!r}")
@@ -253,6 +266,9 @@ def check_output_path(name: str, path: str | os.PathLike) -> None:
         raise ValueError(f"{name}: cannot create {str(p)!r}, {str(parent)!r} is a file")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"{name}: cannot write {str(p)!r}, folder {str(parent)!r} is not writable")
+    if suffixes is not None and p.suffix.lower().lstrip(".") not in suffixes:
+        raise ValueError(f"{name} {str(p)!r}: the format {p.suffix or '(none)'!r} is not supported; "
+                         f"use one of {', '.join('.' + x for x in suffixes)}")
 
 
 #: Marker colours every GIF palette keeps (matplotlib's tab colours, black, grey), RGB.
@@ -283,9 +299,14 @@ def demo(condition: str = "fresh-steel-12.7", sensor_model: str = "calibrated", 
 
     import electroloc_gym  # noqa: F401  (registers the ids)
 
-    for name, path in (("out", out), ("gif", gif)):
-        if path is not None:
-            check_output_path(name, path)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
+        raise ValueError(f"seed must be an integer in [0, 2**63), got {seed!r}")
+    if out is not None:
+        check_output_path("out", out, figure_suffixes())
+    if gif is not None:
+        check_output_path("gif", gif, ("gif",))
+    if out is not None and gif is not None and Path(out).resolve() == Path(gif).resolve():
+        raise ValueError(f"out and gif name the same file {str(out)!r}; one would overwrite the other")
     env = gym.make("ElectroLoc-v0", condition=condition, sensor_model=sensor_model,
                    render_mode="rgb_array" if gif is not None else None)
     try:

@@ -180,7 +180,7 @@ def test_run_trial_is_run_episode_plus_the_record() -> None:
 
 
 def test_agents_list_splits_only_outside_brackets() -> None:
-    from electroloc_gym.bench.cli import split_agents
+    from electroloc_gym.agentspec import split_specs as split_agents
 
     assert split_agents("lookahead[depth=3,branches=16],min-var") == ["lookahead[depth=3,branches=16]", "min-var"]
     assert split_agents("rnd-wlk") == ["rnd-wlk"]

@@ -18,13 +18,13 @@ from electroloc_gym.bench.records import (
     LOCK_FILE,
     REJECTED_FILE,
     FolderBusyError,
-    FolderLock,
     load_records,
+    run_lock,
     prepare_out_dir,
     read_trials,
 )
 from electroloc_gym.bench.runner import run_benchmark
-from electroloc_gym.bench.trials import TIMING_KEYS
+from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.cli import main as cli_main
 
 TINY = dict(conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=2, seed=3, n_particles=300,
@@ -102,10 +102,10 @@ def test_read_only_out_folder(tmp_path) -> None:
 
 # ---- the lock ----------------------------------------------------------------------------------------------
 def test_a_second_run_on_a_locked_folder_refuses(tmp_path, capsys) -> None:
-    with FolderLock(tmp_path):
+    with run_lock(tmp_path):
         with pytest.raises(FolderBusyError, match="in use by another electroloc bench run"):
-            FolderLock(tmp_path).acquire()
-        with pytest.raises(ValueError, match=f"pid {os.getpid()}"):
+            run_lock(tmp_path).acquire()
+        with pytest.raises(ValueError, match="in use by another electroloc bench run"):
             _run(tmp_path)
         assert cli_main(["bench", *TINY_CLI, "--out", str(tmp_path)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
@@ -116,20 +116,20 @@ def test_a_second_run_on_a_locked_folder_refuses(tmp_path, capsys) -> None:
 
 
 def test_the_lock_dies_with_its_holder(tmp_path) -> None:
-    code = ("import time\nfrom electroloc_gym.bench.records import FolderLock\n"
-            f"FolderLock({str(tmp_path)!r}).acquire(); print('locked', flush=True); time.sleep(120)")
+    code = ("import time\nfrom electroloc_gym.bench.records import run_lock\n"
+            f"lock = run_lock({str(tmp_path)!r}).acquire(); print('locked', flush=True); time.sleep(120)")
     holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=ENV)
     try:
         assert holder.stdout.readline().strip() == "locked"
         proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", *TINY_CLI, "--out", str(tmp_path)],
                               capture_output=True, text=True, env=ENV, timeout=120)
         assert proc.returncode == 2
-        assert f"in use by another electroloc bench run (pid {holder.pid})" in proc.stderr
+        assert "in use by another electroloc bench run" in proc.stderr
         assert "Traceback" not in proc.stderr and not (tmp_path / "trials.jsonl").exists()
     finally:
         holder.kill()
         holder.wait()
-    FolderLock(tmp_path).acquire().release()  # SIGKILL released the flock
+    run_lock(tmp_path).acquire().release()  # SIGKILL released the lock
     assert (tmp_path / LOCK_FILE).exists()
 
 
@@ -154,11 +154,11 @@ def test_duplicate_lines_are_never_counted_twice(reference, tmp_path, capsys) ->
 def test_a_conflicting_second_result_is_set_aside(reference, tmp_path) -> None:
     _, lines, _ = reference
     other = json.loads(lines[0])
-    other["success"] = not other["success"]
+    other["start"] = [other["start"][0] + 1.0, other["start"][1]]  # a valid record with another result
     loaded = load_records(_copy_run(reference, tmp_path, lines=[*lines, json.dumps(other) + "\n"]) / "trials.jsonl")
     assert len(loaded.records) == len(lines)
     assert loaded.rejected[0][0] == len(lines) + 1 and "a second, different result of line 1" in loaded.rejected[0][1]
-    assert loaded.records[(other["condition"], other["agent"], other["trial"])]["success"] != other["success"]
+    assert loaded.records[(other["condition"], other["agent"], other["trial"])]["start"] != other["start"]
 
 
 # ---- resume checks every record ------------------------------------------------------------------------------

@@ -7,7 +7,17 @@ An agent *spec* (what ``--agents`` takes, and the ``agent`` key of every trial r
 * the name of a shipped learned policy, ``ppo-belief`` — a folder of ``electroloc_gym.models``
   (the repository's ``models/``, installed with the package);
 * a path to a model folder or a policy file (anything with a ``/``, starting with ``.`` or ``~``,
-  ending in ``.zip``, or an existing folder).
+  ending in ``.zip``, or an existing folder);
+* a user's factory, ``package.module:factory[key=value,...]``: the module is imported (it must be
+  importable: installed, or on ``PYTHONPATH`` — nothing is picked up from the working directory), the
+  factory called with the options, and the object it returns must have the agent protocol
+  (:func:`protocol_problem`). Importing the module runs its code, as ``import`` would.
+
+Specs are parsed by the package's one parser (:mod:`electroloc_gym.agentspec`). Every failure —
+an unknown name, a bad option, a module that does not import, a factory that raises or returns
+something without ``reset``/``predict``, a policy recorded for another env, observation layout or
+action space (:func:`policy_env_problem`) — is one ``ValueError`` naming the spec, raised before any
+trial runs.
 
 Learned policies load through :func:`electroloc_gym.train.policy.load_policy`, which reads the
 project's pickle-free policy files; a bare SB3 ``.zip`` (pickle inside) loads only with
@@ -17,13 +27,18 @@ Nothing is picked up from the working directory: a default run uses the shipped 
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+import inspect
 import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from electroloc_gym.agentspec import AgentSpec, is_path_like, parse_agent_spec
 from electroloc_gym.baselines.agent import AGENT_REGISTRY, EXTRA_AGENTS, make_agent
+from electroloc_gym.bench.config import GLOBAL_ENV_ID, UNKNOWN_ENV_ID
+from electroloc_gym.conditions import get_condition
 
 __all__ = [
     "AgentChoice",
@@ -32,7 +47,12 @@ __all__ = [
     "agent_kind",
     "agent_display_name",
     "make_bench_agent",
+    "make_factory_agent",
+    "protocol_problem",
+    "policy_env_problem",
     "cached_agent",
+    "bench_env_kwargs",
+    "planner_memory_bytes",
     "default_agents",
     "TRAIN_EXTRA_HINT",
 ]
@@ -58,29 +78,87 @@ def shipped_models() -> dict[str, Path]:
 
 def is_policy_path(spec: str) -> bool:
     """True when ``spec`` is written as a path (``/``, leading ``.`` or ``~``, ``.zip``) or is a folder."""
-    return ("/" in spec or "\\" in spec or spec.startswith((".", "~")) or spec.endswith(".zip")
-            or Path(spec).is_dir())
+    return is_path_like(spec) or Path(spec).is_dir()
 
 
 def agent_kind(spec: str) -> str:
-    """``"baseline"``, ``"shipped"`` or ``"path"``.
+    """``"baseline"``, ``"factory"``, ``"shipped"`` or ``"path"``.
 
     Raises:
-        ValueError: a spec that is none of them (the message lists the choices).
+        ValueError: a spec that is none of them (the message lists the choices), or a malformed one.
     """
     if not isinstance(spec, str) or not spec.strip():
         raise ValueError(f"agent must be a non-empty string, got {spec!r}")
     spec = spec.strip()
-    name = spec.split("[", 1)[0]
-    if name in AGENT_REGISTRY or name in EXTRA_AGENTS:  # the paper's controllers, and ours beyond the paper
+    if is_path_like(spec):
+        return "path"
+    parsed = parse_agent_spec(spec)
+    if parsed.name in AGENT_REGISTRY or parsed.name in EXTRA_AGENTS:  # the paper's controllers, and ours
         return "baseline"
+    if parsed.is_factory:
+        return "factory"
     if spec in shipped_models():
         return "shipped"
     if is_policy_path(spec):
         return "path"
-    raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_REGISTRY + EXTRA_AGENTS)} (options as "
-                     f"NAME[key=value]), "
-                     f"a shipped model {sorted(shipped_models())}, or a path to a model folder / policy file")
+    raise ValueError(f"unknown agent {parsed.name!r}; choose from {list(AGENT_REGISTRY + EXTRA_AGENTS)} (options "
+                     f"as NAME[key=value]), a shipped model {sorted(shipped_models())}, a path to a model folder / "
+                     f"policy file, or package.module:factory[key=value,...]")
+
+
+def protocol_problem(agent: Any) -> str | None:
+    """What ``agent`` lacks of the agent protocol (None: nothing).
+
+    The protocol (:mod:`electroloc_gym.baselines.base`): ``reset(env)`` and
+    ``predict(observation, state=..., episode_start=..., deterministic=...)`` returning ``(action, state)``;
+    optional ``env_kwargs``, ``seed(int)``, ``done``/``estimate_mm``.
+    """
+    missing = []
+    for name, args, kwargs in (("reset", (None,), {}),
+                               ("predict", (None,), {"state": None, "episode_start": None, "deterministic": True})):
+        method = getattr(agent, name, None)
+        if not callable(method):
+            missing.append(f"a {name}() method")
+            continue
+        try:
+            inspect.signature(method).bind(*args, **kwargs)
+        except TypeError as exc:
+            call = "reset(env)" if name == "reset" else "predict(obs, state=, episode_start=, deterministic=)"
+            missing.append(f"{name}() callable as {call} ({exc})")
+        except ValueError:  # no signature (a builtin): trust it
+            pass
+    kwargs_attr = getattr(agent, "env_kwargs", {})
+    if kwargs_attr is not None and not isinstance(kwargs_attr, dict):
+        missing.append(f"env_kwargs as a dict (got {type(kwargs_attr).__name__})")
+    return None if not missing else "; ".join(missing)
+
+
+def make_factory_agent(spec: str | AgentSpec) -> Any:
+    """Import ``package.module``, call ``factory(**options)`` and check the agent protocol.
+
+    Raises:
+        ValueError: the module does not import, has no such callable, the factory raises, or its
+            object lacks the protocol — one line naming the spec.
+    """
+    parsed = spec if isinstance(spec, AgentSpec) else parse_agent_spec(spec)
+    try:
+        module = importlib.import_module(parsed.module)
+    except Exception as exc:  # noqa: BLE001 - any import failure is the user's module's, reported in one line
+        raise ValueError(f"agent {parsed.text!r}: cannot import module {parsed.module!r} "
+                         f"({type(exc).__name__}: {exc}); it must be installed or on PYTHONPATH") from None
+    factory = getattr(module, parsed.factory, None)
+    if not callable(factory):
+        raise ValueError(f"agent {parsed.text!r}: module {parsed.module!r} has no callable {parsed.factory!r}")
+    try:
+        agent = factory(**parsed.options)
+    except Exception as exc:  # noqa: BLE001 - the user's factory: any failure is reported in one line
+        call = f"{parsed.name}({', '.join(f'{k}={v!r}' for k, v in parsed.options.items())})"
+        raise ValueError(f"agent {parsed.text!r}: {call} raised {type(exc).__name__}: {exc}") from None
+    why = protocol_problem(agent)
+    if why is not None:
+        raise ValueError(f"agent {parsed.text!r}: the {type(agent).__name__} object {parsed.name} returned is not an "
+                         f"agent: it lacks {why}")
+    return agent
 
 
 def agent_display_name(spec: str) -> str:
@@ -117,6 +195,8 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
     spec = spec.strip()
     if kind == "baseline":
         return make_agent(spec, seed=seed)
+    if kind == "factory":
+        return make_factory_agent(spec)
     path = _policy_path(spec)
     try:
         from electroloc_gym.train.policy import load_policy
@@ -132,6 +212,51 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
     if kind == "shipped":
         agent.name = spec
     return agent
+
+
+# The bench owns these env kwargs; an agent's env_kwargs cannot override them.
+_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels")
+def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | None, *, condition: str | None = None,
+                     signal: str | None = None, sensor_model: str | None = None, n_particles: int | None = None,
+                     max_observations: int | None = None) -> dict[str, Any]:
+    """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``
+    (never overriding what the bench owns).
+    """
+    kwargs: dict[str, Any] = {k: v for k, v in (("sensor_model", sensor_model), ("n_particles", n_particles),
+                                                ("max_observations", max_observations)) if v is not None}
+    if env_id != GLOBAL_ENV_ID and condition is not None:  # the global env has one fixed map, no condition kwarg
+        cond = get_condition(condition, signal)
+        adapt = getattr(agent, "adapt_condition", None)
+        if callable(adapt):
+            cond = adapt(cond)
+        kwargs["condition"] = cond
+    if env_id == UNKNOWN_ENV_ID:  # the paper's sphere/water pairs, the sphere hidden from the agent
+        kwargs["target_draw"] = "condition"
+    if gain_levels is not None:
+        kwargs["gain_levels"] = tuple(gain_levels)
+    kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
+                   if k not in _BENCH_ONLY_KWARGS})
+    return kwargs
+
+
+def planner_memory_bytes(agent: Any, n_particles: int) -> int:
+    """Estimated peak memory of one decision, bytes (0 for agents that plan nothing large).
+
+    An agent may say itself (``memory_bytes(n_particles)``); a look-ahead planner (``depth`` T,
+    ``n_options`` K, ``continuations`` C, ``branches`` B, ``n_particles`` attributes) holds its T·C·K·S
+    predicted readings (float32 (x, y) pairs, float64 means and deviations: ≈ 24 bytes each) and about
+    four (C·K, B, S) float64 arrays of the futures' weights (``lookahead_objectives.sequence_costs``),
+    with S its subsample of the run's particles.
+    """
+    own = getattr(agent, "memory_bytes", None)
+    if callable(own):
+        return int(own(n_particles))
+    try:
+        depth, k, c, b = int(agent.depth), int(agent.n_options), int(agent.continuations), int(agent.branches)
+        s = min(int(agent.n_particles), int(n_particles))
+    except (AttributeError, TypeError, ValueError):
+        return 0
+    return k * c * s * (24 * depth + 32 * b)
 
 
 _CACHE: dict[tuple[str, bool], Any] = {}
@@ -170,6 +295,78 @@ def shipped_model_env(folder: Path) -> tuple[str, tuple[float, ...] | None] | No
     if not isinstance(env_id, str):
         return None
     return env_id, None if gains is None else tuple(float(g) for g in gains)
+
+
+def _policy_meta(spec: str) -> dict[str, Any] | None:
+    """The ``policy.json`` of a shipped model or a policy path (None: none, or not readable as JSON)."""
+    if spec in shipped_models():
+        path = shipped_models()[spec]
+    else:
+        path = Path(spec).expanduser()
+    if path.is_file():
+        path = path if path.name == "policy.json" else path.parent
+    try:
+        with open(path / "policy.json", encoding="utf-8") as f:
+            meta = json.load(f)
+    except (OSError, ValueError):
+        return None
+    return meta if isinstance(meta, dict) else None
+
+
+def _space_text(space: Any) -> str:
+    shape = getattr(space, "shape", None)
+    n = getattr(space, "n", None)
+    return f"Discrete({int(n)})" if n is not None and not shape else f"{type(space).__name__}{tuple(shape or ())}"
+
+
+def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[float, ...] | None) -> str | None:
+    """Why a learned policy cannot run on the run's env (None: it can, or it records nothing to check).
+
+    Compares what the policy's ``policy.json`` records — the env id it was trained on, its dynamic-gain
+    levels, its observation frame (``observation.frame_dim``, else the last axis of ``observation.shape``)
+    and its action space — with the run's env built with the policy's own ``env_kwargs`` (its
+    observation mode). A policy trained on one env and benchmarked on another gives meaningless numbers,
+    so this is refused before any trial; there is no override.
+    """
+    meta = _policy_meta(spec)
+    if meta is None:
+        return None
+    obs = meta.get("observation") if isinstance(meta.get("observation"), dict) else {}
+    act = meta.get("action") if isinstance(meta.get("action"), dict) else {}
+    trained = obs.get("env_id")
+    if isinstance(trained, str) and trained != env_id:
+        return f"it was trained on {trained}, this run is on {env_id}"
+    recorded = (meta.get("env_kwargs") or {}).get("gain_levels") if isinstance(meta.get("env_kwargs"), dict) else None
+    mine = None if gain_levels is None else [float(g) for g in gain_levels]
+    theirs = None if recorded is None else [float(g) for g in recorded]
+    if theirs != mine:
+        return f"it was trained with gain_levels={theirs}, this run has gain_levels={mine}"
+    import gymnasium as gym
+
+    import electroloc_gym  # noqa: F401  (registers the ids)
+
+    try:
+        env = gym.make(env_id, **bench_env_kwargs(env_id, agent, gain_levels))
+    except (TypeError, ValueError) as exc:
+        return f"its env_kwargs do not build {env_id}: {exc}"
+    try:
+        frame = obs.get("frame_dim") or (obs.get("shape") or [None])[-1]
+        env_frame = env.observation_space.shape[-1] if env.observation_space.shape else None
+        if frame is not None and env_frame is not None and int(frame) != int(env_frame):
+            return (f"its observation frame has {frame} entries, {env_id}'s "
+                    f"({getattr(agent, 'env_kwargs', {}).get('observation', 'default')} observation) has {env_frame}")
+        space = act.get("space") if isinstance(act.get("space"), dict) else {}
+        want = space.get("shape")
+        have = env.action_space.shape
+        if space.get("type") == "Discrete" or act.get("action_type") == "discrete":
+            n = space.get("n")
+            if getattr(env.action_space, "n", None) != n:
+                return f"its action space is Discrete({n}), {env_id}'s is {_space_text(env.action_space)}"
+        elif want is not None and tuple(want) != tuple(have or ()):
+            return f"its action space has shape {tuple(want)}, {env_id}'s is {_space_text(env.action_space)}"
+    finally:
+        env.close()
+    return None
 
 
 def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env_id: str = "ElectroLoc-v0",

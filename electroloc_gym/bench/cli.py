@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from electroloc_gym.agentspec import split_specs
 from electroloc_gym.bench.agents import agent_kind, cached_agent, default_agents, shipped_model_env, shipped_models
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.config import (
@@ -19,11 +20,18 @@ from electroloc_gym.bench.config import (
     BenchConfig,
     resolve_conditions,
 )
-from electroloc_gym.bench.records import prepare_out_dir
-from electroloc_gym.bench.runner import run_benchmark
+from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
 
-__all__ = ["add_arguments", "run", "DESCRIPTION", "EPILOG"]
+__all__ = ["add_arguments", "run", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS", "MAX_OBSERVATIONS",
+           "MAX_PARTICLES"]
+
+#: Bounds of the numeric options: far beyond the paper (50 trials, 35 observations, 2500 particles), short
+#: of what cannot run (the plan is held in memory: at most MAX_PLANNED_TRIALS trials in all).
+MAX_TRIALS = 100_000
+MAX_WORKERS = 1024
+MAX_OBSERVATIONS = 100_000
+MAX_PARTICLES = 1_000_000
 
 DESCRIPTION = ("Benchmark agents on the paper's eight conditions (Solberg, Lynch & MacIver 2008, Tables 4 and 1; "
                "--env global: Table 2; --env unknown-target: the eight pairs with the sphere hidden, paper §7) "
@@ -44,8 +52,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--agents", default=None,
                         help="comma-separated agents: rnd-wlk, min-var, zero-crossing, NAME[key=value,...] "
                              "(e.g. min-var[n_voters=2500]), a shipped model by name (e.g. ppo-belief), or a "
-                             "path to a model folder (default: the three controllers plus every shipped model "
-                             "that runs here; the run says which and why one is skipped)")
+                             "path to a model folder, or package.module:factory[key=value,...] (a factory of your "
+                             "own, imported like any module: it runs your code) (default: the three controllers "
+                             "plus every shipped model that runs here; the run says which and why one is skipped)")
     parser.add_argument("--conditions", default="all", help="'all' or comma-separated preset names")
     parser.add_argument("--env", default="target", choices=list(ENV_CHOICES),
                         help="target: ElectroLoc-v0 on the presets (Tables 4 and 1); global: ElectroLocGlobal-v0, "
@@ -54,7 +63,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "on the presets' sphere/water pairs, the sphere's size and material hidden (§7), with "
                              "the identification results beside the Table-4 layout); dynamic-gain: ElectroLoc-v0 "
                              "with the amplifier gain (×1/4, ×1, ×4 the preset) in every action (§7)")
-    parser.add_argument("--trials", type=int, default=50, help="trials per condition and agent (paper: 50)")
+    parser.add_argument("--trials", type=int, default=50,
+                        help=f"trials per condition and agent (paper: 50; at most {MAX_TRIALS:,}, and "
+                             f"{MAX_PLANNED_TRIALS:,} in all)")
     parser.add_argument("--seed", type=int, default=0, help="root seed of the per-trial seeds")
     parser.add_argument("--workers", type=int, default=None,
                         help=f"parallel worker processes (default: all cores, here {default_workers()})")
@@ -90,22 +101,23 @@ def _runs_on_global(spec: str) -> bool:
     return kind == "shipped" and shipped_model_env(shipped_models()[spec]) == (GLOBAL_ENV_ID, None)
 
 
-def split_agents(text: str) -> list[str]:
-    """``--agents`` split at the commas outside brackets (``lookahead[depth=3,branches=16],min-var``)."""
-    out, depth, start = [], 0, 0
-    for i, ch in enumerate(text):
-        depth += (ch == "[") - (ch == "]")
-        if ch == "," and depth == 0:
-            out.append(text[start:i])
-            start = i + 1
-    out.append(text[start:])
-    return out
-
-
 def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...] | None) -> list[str]:
     """The run's agent specs; a default list says what it skipped and why."""
-    if args.agents:
-        return [a.strip() for a in split_agents(args.agents) if a.strip()]
+    if args.agents is not None:
+        try:
+            specs = split_specs(args.agents)
+        except ValueError as exc:
+            raise ValueError(f"--agents: {exc}") from None
+        if not any(specs):
+            raise ValueError(f"--agents names no agent (got {args.agents!r}); leave it out for the default set")
+        if not all(specs):
+            raise ValueError(f"--agents has an empty item in {args.agents!r}")
+        for spec in specs:
+            try:
+                agent_kind(spec)
+            except ValueError as exc:
+                raise ValueError(f"--agents: {exc}") from None
+        return specs
     choices = default_agents(table4_only=env_id == GLOBAL_ENV_ID, trust_pickle=args.trust_pickle, env_id=env_id,
                              gain_levels=gain_levels)
     for c in choices:
@@ -114,10 +126,25 @@ def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...
     return [c.spec for c in choices if not c.skipped]
 
 
+def _check_ranges(args: argparse.Namespace) -> None:
+    """Every numeric option in its range (one line naming the option)."""
+    for option, value, low, high in (("--trials", args.trials, 1, MAX_TRIALS),
+                                     ("--seed", args.seed, 0, 2**63 - 1),
+                                     ("--workers", args.workers, 1, MAX_WORKERS),
+                                     ("--max-observations", args.max_observations, 1, MAX_OBSERVATIONS),
+                                     ("--n-particles", args.n_particles, 2, MAX_PARTICLES)):
+        if value is not None and not low <= value <= high:
+            raise ValueError(f"{option} must be an integer in [{low}, {high}], got {value}")
+    if args.address is not None and args.backend != "ray":
+        raise ValueError(f"--address applies to --backend ray only (got --backend {args.backend})")
+    if not str(args.out).strip():
+        raise ValueError(f"--out must name a folder, got {args.out!r}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark described by ``args``; print table.md; 0 on success, 2 on bad input."""
     try:
-        prepare_out_dir(args.out)
+        _check_ranges(args)
         env_name = getattr(args, "env", "target")
         env_id = ENV_CHOICES[env_name]
         gain_levels = DYNAMIC_GAIN_LEVELS if env_name == "dynamic-gain" else None

@@ -8,7 +8,8 @@ draw of a binomial; the 90 % Wilson score interval of its success probability,
 (about ±4 successes at 50 trials) is the range of rates the robot's result is consistent with. A run
 of ``N`` trials is *inside* when its own rate lies in that range, i.e. its count in
 ``[⌈lo·N⌉, ⌊hi·N⌋]``. The run's own sampling noise is not added: the test is strict, and a run of the
-robot itself would fall outside about one time in ten.
+robot itself would fall outside about one time in ten. The interval is scipy's
+(``scipy.stats.binomtest(k, n).proportion_ci(confidence_level, method="wilson")``).
 """
 
 from __future__ import annotations
@@ -19,18 +20,18 @@ __all__ = ["PAPER_TRIALS", "wilson_interval", "paper_count_interval", "inside_pa
 
 #: Trials per condition and controller in the paper (§5.4).
 PAPER_TRIALS = 50
-_Z90 = 1.6448536269514722  # two-sided 90 %
+#: Two-sided confidence of the paper's intervals.
+CONFIDENCE = 0.90
 
 
-def wilson_interval(successes: int, trials: int, z: float = _Z90) -> tuple[float, float]:
-    """Wilson score interval (lo, hi) of a binomial success probability."""
+def wilson_interval(successes: int, trials: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
+    """Wilson score interval (lo, hi) of a binomial success probability (scipy's ``binomtest``)."""
     if trials <= 0 or not 0 <= successes <= trials:
         raise ValueError(f"need 0 ≤ successes ≤ trials and trials > 0, got {successes}/{trials}")
-    n = float(trials)
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(successes), int(trials)).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
 
 
 def paper_count_interval(paper_successes: int, n_trials: int, paper_trials: int = PAPER_TRIALS) -> tuple[int, int]:

@@ -9,23 +9,30 @@ import numpy as np
 
 from electroloc_gym.bench.tables import PAPER_TABLE4, _cond_label, paper_agent_key
 
-__all__ = ["plot_steps"]
+__all__ = ["plot_steps", "steps_png"]
 
 
 def plot_steps(summary: dict[str, Any], path: str | os.PathLike) -> None:
-    """Two bar charts (failed trials; median steps) per condition, one bar per Table-4 agent.
+    """:func:`steps_png` written atomically to ``path``."""
+    from electroloc_gym.fileio import atomic_write_bytes
+
+    atomic_write_bytes(path, steps_png(summary))
+
+
+def steps_png(summary: dict[str, Any]) -> bytes:
+    """Two bar charts (failed trials; median steps) per condition, one bar per Table-4 agent, as PNG bytes.
 
     The paper's Fig. 12 values (rnd-wlk, min-var) are drawn as black ticks on the matching bars (its
     failure counts, out of 50 trials, scaled to this run's trial count).
-    Written atomically.
     """
+    import io
+
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from electroloc_gym.render import save_figure_atomic
-
+    buf = io.BytesIO()
     rows = [r for r in summary["rows"] if r.get("layout", "table4") == "table4" and r["condition"] != "all"]
     conditions = list(dict.fromkeys(r["condition"] for r in rows))
     agents = list(dict.fromkeys(r["agent"] for r in rows))
@@ -33,9 +40,9 @@ def plot_steps(summary: dict[str, Any], path: str | os.PathLike) -> None:
     if not rows:
         for ax in axes:
             ax.text(0.5, 0.5, "no Table-4 agents in this run", ha="center", va="center", transform=ax.transAxes)
-        save_figure_atomic(fig, path, dpi=110)
+        fig.savefig(buf, format="png", dpi=110)
         plt.close(fig)
-        return
+        return buf.getvalue()
     x = np.arange(len(conditions))
     width = 0.8 / max(1, len(agents))
     lookup = {(r["condition"], r["agent"]): r for r in rows}
@@ -66,5 +73,6 @@ def plot_steps(summary: dict[str, Any], path: str | os.PathLike) -> None:
     for ax in axes:
         ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    save_figure_atomic(fig, path, dpi=110)
+    fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
+    return buf.getvalue()

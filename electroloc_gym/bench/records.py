@@ -2,13 +2,18 @@
 
 * :func:`prepare_out_dir` — ``--out`` must be a folder that can be created and written (an empty
   path, an existing file, a path under a file or an unwritable folder is one clear error).
-* :class:`FolderLock` — an exclusive ``fcntl.flock`` on ``OUT/.bench.lock`` held for the whole run:
-  a second run on the same folder refuses at once (the kernel releases the lock when a run dies).
-* :func:`load_records` — reads ``trials.jsonl`` keyed by (condition, agent, trial): a damaged line
-  (not UTF-8, not JSON, not an object, a missing key or a wrong type) and a second line for a key
-  already present are reported by file and line and *set aside* (moved to ``trials.rejected.jsonl``,
-  so those trials run again); a record whose seeds or settings are not the run's is *foreign* (the
-  runner refuses to resume). No record is ever counted twice.
+* :func:`run_lock` — an exclusive lock on ``OUT/.bench.lock`` (``filelock``, through
+  :class:`electroloc_gym.fileio.FolderLock`) held for the whole run: a second run on the same folder
+  refuses at once (the lock goes with the process that holds it).
+* :func:`load_records` — reads ``trials.jsonl`` keyed by (condition, agent, trial), each line parsed
+  within bounds (:func:`parse_line`: length, nesting depth, digits) and checked field by field
+  through the one schema (:class:`~electroloc_gym.bench.schema.TrialRecord`) and against the run
+  (:class:`~electroloc_gym.bench.schema.RecordRules`): a damaged or impossible line (not UTF-8, not
+  JSON, over a bound, a missing key, a wrong type, a value out of range, fields that contradict each
+  other or the run) and a second line for a key already present are reported by file and line and
+  *set aside* (moved to ``trials.rejected.jsonl``, so those trials run again); a record whose seeds
+  or settings are not the run's is *foreign* (the runner refuses to resume). No record is ever
+  counted twice.
 * :class:`RecordWriter` — appends one line per finished trial, flushed and fsync'ed at once (a killed
   run loses no finished trial).
 """
@@ -16,27 +21,29 @@
 from __future__ import annotations
 
 import json
-import math
 import os
+import re
 import tempfile
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from electroloc_gym.bench.config import GLOBAL_CONDITION, GLOBAL_ENV_ID, IDENTITY_KEYS, BenchConfig, trial_seeds
-from electroloc_gym.bench.trials import OPTIONAL_RECORD_KEYS, RECORD_KEYS, TIMING_KEYS
-from electroloc_gym.conditions import PRESET_NAMES
-from electroloc_gym.fileio import atomic_write_text
+from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules, TrialRecord
+from electroloc_gym.fileio import FolderBusyError, FolderLock, atomic_write_text, strict_json
 
-__all__ = ["prepare_out_dir", "FolderLock", "FolderBusyError", "LoadedRecords", "load_records", "read_trials",
-           "RecordWriter", "set_aside", "record_key", "validate_record", "foreign_reason", "TRIALS_FILE",
-           "REJECTED_FILE", "LOCK_FILE"]
+__all__ = ["prepare_out_dir", "run_lock", "FolderBusyError", "LoadedRecords", "load_records", "read_trials",
+           "parse_line", "RecordWriter", "set_aside", "record_key", "validate_record", "foreign_reason",
+           "TRIALS_FILE", "REJECTED_FILE", "LOCK_FILE", "MAX_LINE_CHARS", "MAX_DEPTH", "MAX_DIGITS"]
 
 TRIALS_FILE = "trials.jsonl"
 REJECTED_FILE = "trials.rejected.jsonl"
 LOCK_FILE = ".bench.lock"
-_CONDITIONS = (*PRESET_NAMES, GLOBAL_CONDITION)
+#: Bounds of a trials.jsonl line (a record is about 700 characters, 3 levels deep, numbers of ≤ 20 digits).
+MAX_LINE_CHARS = 16_384
+MAX_DEPTH = 8
+MAX_DIGITS = 24
+MAX_NUMBER_CHARS = 40
 
 
 def prepare_out_dir(out: str | os.PathLike | None) -> Path:
@@ -69,50 +76,14 @@ def prepare_out_dir(out: str | os.PathLike | None) -> Path:
     return path
 
 
-class FolderBusyError(ValueError):
-    """Another run holds the folder's lock."""
-
-
-class FolderLock:
-    """Exclusive, non-blocking ``flock`` on ``folder/.bench.lock`` (a context manager).
+def run_lock(folder: str | os.PathLike) -> FolderLock:
+    """The exclusive lock a run holds on its output folder (``OUT/.bench.lock``, a :class:`FolderLock`).
 
     Raises:
-        FolderBusyError: on ``acquire`` when another process holds the lock.
+        FolderBusyError: on ``acquire`` when another run holds it.
     """
-
-    def __init__(self, folder: str | os.PathLike) -> None:
-        self.path = Path(folder) / LOCK_FILE
-        self._fd: int | None = None
-
-    def acquire(self) -> FolderLock:
-        import fcntl
-
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            try:
-                holder = os.read(fd, 64).decode("ascii", "replace").strip()
-            finally:
-                os.close(fd)
-            who = f" (pid {holder})" if holder.isdigit() else ""
-            raise FolderBusyError(f"--out {str(self.path.parent)!r} is in use by another electroloc bench run{who}; "
-                                  f"wait for it to finish or choose another --out") from None
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
-        self._fd = fd
-        return self
-
-    def release(self) -> None:
-        if self._fd is not None:
-            os.close(self._fd)  # closing the descriptor drops the flock
-            self._fd = None
-
-    def __enter__(self) -> FolderLock:
-        return self.acquire()
-
-    def __exit__(self, *exc: Any) -> None:
-        self.release()
+    return FolderLock(folder, LOCK_FILE, f"--out {os.fspath(folder)!r} is in use by another electroloc bench run; "
+                                         f"wait for it to finish or choose another --out")
 
 
 def record_key(rec: dict[str, Any]) -> tuple[str, str, int]:
@@ -120,63 +91,13 @@ def record_key(rec: dict[str, Any]) -> tuple[str, str, int]:
     return (rec["condition"], rec["agent"], rec["trial"])
 
 
-def _is_int(v: Any) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _is_num_or_none(v: Any) -> bool:
-    return v is None or (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v))
-
-
-def _is_xy(v: Any) -> bool:
-    return isinstance(v, list) and len(v) == 2 and all(_is_num_or_none(x) and x is not None for x in v)
-
-
-_CHECKS: dict[str, tuple[Callable[[Any], bool], str]] = {
-    "condition": (lambda v: v in _CONDITIONS, "a condition name"),
-    "agent": (lambda v: isinstance(v, str) and bool(v.strip()), "a non-empty string"),
-    "agent_label": (lambda v: isinstance(v, str), "a string"),
-    "layout": (lambda v: v in ("table4", "table1"), "'table4' or 'table1'"),
-    "trial": (lambda v: _is_int(v) and v >= 0, "an integer ≥ 0"),
-    "seed": (lambda v: _is_int(v) and v >= 0, "an integer ≥ 0"),
-    "agent_seed": (lambda v: _is_int(v) and v >= 0, "an integer ≥ 0"),
-    "success": (lambda v: isinstance(v, bool), "true or false"),
-    "ended_by": (lambda v: v in ("success", "cap", "agent"), "'success', 'cap' or 'agent'"),
-    "observations": (lambda v: _is_int(v) and v >= 0, "an integer ≥ 0"),
-    "error_mm": (_is_num_or_none, "a number or null"),
-    "error_x_mm": (_is_num_or_none, "a number or null"),
-    "error_y_mm": (_is_num_or_none, "a number or null"),
-    "estimate": (lambda v: v is None or _is_xy(v), "[x, y] or null"),
-    "target": (_is_xy, "[x, y]"),
-    "start": (_is_xy, "[x, y]"),
-    "spread_mm": (_is_num_or_none, "a number or null"),
-    "decisions": (lambda v: _is_int(v) and v >= 0, "an integer ≥ 0"),
-    "decision_ms_median": (_is_num_or_none, "a number or null"),
-    "decision_ms_mean": (_is_num_or_none, "a number or null"),
-    "sensor_model": (lambda v: isinstance(v, str), "a string"),
-    "signal": (lambda v: isinstance(v, str), "a string"),
-    "max_observations": (lambda v: _is_int(v) and v >= 1, "an integer ≥ 1"),
-    "n_particles": (lambda v: _is_int(v) and v >= 1, "an integer ≥ 1"),
-    "env_id": (lambda v: isinstance(v, str), "a string"),
-    "wall_s": (_is_num_or_none, "a number or null"),
-    "shape": (lambda v: v is None or isinstance(v, dict), "an object or null"),
-    "gain_levels": (lambda v: v is None or (isinstance(v, list) and all(_is_num_or_none(g) for g in v)),
-                    "a list of numbers or null"),
-}
-assert set(_CHECKS) == set(RECORD_KEYS)
-
-
-def validate_record(rec: Any) -> str | None:
-    """Why ``rec`` is not a trial record (None: it is one)."""
-    if not isinstance(rec, dict):
-        return f"not a JSON object ({type(rec).__name__})"
-    missing = [k for k in RECORD_KEYS if k not in rec and k not in OPTIONAL_RECORD_KEYS]
-    if missing:
-        return f"missing key(s) {missing}"
-    for key, (ok, what) in _CHECKS.items():
-        if not ok(rec.get(key)):
-            return f"{key!r} must be {what}, got {rec[key]!r}"
-    return None
+def validate_record(rec: Any, rules: RecordRules | None = None) -> str | None:
+    """Why ``rec`` (a parsed line) is not a trial record — of the run ``rules`` describes, if given (None: it is)."""
+    try:
+        record = TrialRecord.from_json(rec)
+    except ValueError as exc:
+        return str(exc)
+    return None if rules is None else record.problem(rules)
 
 
 def _plain(value: Any) -> Any:
@@ -201,6 +122,49 @@ def _same_result(a: dict[str, Any], b: dict[str, Any]) -> bool:
     return {k: v for k, v in a.items() if k not in TIMING_KEYS} == {k: v for k, v in b.items() if k not in TIMING_KEYS}
 
 
+def _bounded_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_DIGITS:
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits (at most {MAX_DIGITS})")
+    return int(text)
+
+
+def _bounded_float(text: str) -> float:
+    if len(text) > MAX_NUMBER_CHARS:
+        raise ValueError(f"a number of {len(text)} characters (at most {MAX_NUMBER_CHARS})")
+    return float(text)
+
+
+def _no_constant(text: str) -> Any:
+    raise ValueError(f"{text} (not strict JSON)")
+
+
+_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+def parse_line(text: str) -> Any:
+    """One JSON line, parsed within bounds: length, nesting depth, digits; no NaN/Infinity.
+
+    Raises:
+        ValueError: over a bound, or not JSON (the message says which).
+    """
+    if len(text) > MAX_LINE_CHARS:
+        raise ValueError(f"a line of {len(text)} characters (at most {MAX_LINE_CHARS})")
+    depth = deepest = 0
+    for m in _TOKENS.finditer(text):
+        tok = m.group()
+        if tok in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+            if deepest > MAX_DEPTH:
+                raise ValueError(f"nested deeper than {MAX_DEPTH} levels")
+        elif tok in "]}":
+            depth -= 1
+    try:
+        return json.loads(text, parse_int=_bounded_int, parse_float=_bounded_float, parse_constant=_no_constant)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"not JSON ({exc.msg})") from None
+
+
 @dataclass
 class LoadedRecords:
     """What :func:`load_records` found.
@@ -221,20 +185,32 @@ class LoadedRecords:
         return [f"{self.path}:{n}: {why}" for n, why, _ in self.rejected]
 
 
-def load_records(path: str | os.PathLike, config: BenchConfig | None = None) -> LoadedRecords:
+def load_records(path: str | os.PathLike, config: BenchConfig | None = None,
+                 rules: RecordRules | None = None) -> LoadedRecords:
     """Read a trials.jsonl (missing file: no records), keyed by (condition, agent, trial).
 
     Args:
         path: the file.
         config: if given, every valid record is also checked against the run (seeds, settings);
             those that do not match are listed in ``foreign`` (and not in ``records``).
+        rules: if given, every record is also checked against what the run allows (conditions,
+            agents, trial range, caps, success criterion, the env's keys); a record that breaks them
+            is rejected (set aside and run again), like a damaged line.
     """
     out = LoadedRecords(Path(path))
     if not out.path.exists():
         return out
     seen: dict[tuple[str, str, int], tuple[int, dict[str, Any]]] = {}
     with open(out.path, "rb") as fh:
-        for n, raw in enumerate(fh, start=1):
+        for n, raw in enumerate(iter(lambda: fh.readline(MAX_LINE_CHARS * 4 + 2), b""), start=1):
+            if len(raw) > MAX_LINE_CHARS * 4 + 1:  # a line longer than any record: read it to its end, reject it
+                while raw[-1:] != b"\n":
+                    more = fh.readline(1 << 20)
+                    if not more:
+                        break
+                    raw = raw[:64] + more[-1:]
+                out.rejected.append((n, f"a line longer than {MAX_LINE_CHARS} characters", raw[:64] + b"...\n"))
+                continue
             if not raw.strip():
                 continue
             try:
@@ -243,12 +219,12 @@ def load_records(path: str | os.PathLike, config: BenchConfig | None = None) -> 
                 out.rejected.append((n, f"not UTF-8 ({exc.reason} at byte {exc.start})", raw))
                 continue
             try:
-                rec = json.loads(text)
-            except json.JSONDecodeError as exc:
+                rec = parse_line(text)
+            except ValueError as exc:
                 torn = "" if raw.endswith(b"\n") else ", the last line torn (a run killed mid-write)"
-                out.rejected.append((n, f"not JSON ({exc.msg}){torn}", raw))
+                out.rejected.append((n, f"{exc}{torn}", raw))
                 continue
-            why = validate_record(rec)
+            why = validate_record(rec, rules)
             if why is not None:
                 out.rejected.append((n, why, raw))
                 continue
@@ -287,7 +263,7 @@ def set_aside(loaded: LoadedRecords) -> Path | None:
             fh.write(raw if raw.endswith(b"\n") else raw + b"\n")
         fh.flush()
         os.fsync(fh.fileno())
-    atomic_write_text(loaded.path, "".join(json.dumps(r, allow_nan=False) + "\n" for r in loaded.records.values()))
+    atomic_write_text(loaded.path, "".join(strict_json(r, indent=None) for r in loaded.records.values()))
     return rejected
 
 
@@ -299,7 +275,7 @@ class RecordWriter:
         self._fh = open(self.path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()/__exit__
 
     def write(self, rec: dict[str, Any]) -> None:
-        self._fh.write(json.dumps(rec, allow_nan=False) + "\n")
+        self._fh.write(strict_json(rec, indent=None))
         self._fh.flush()
         os.fsync(self._fh.fileno())
 

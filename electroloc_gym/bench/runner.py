@@ -21,13 +21,21 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.bench.agents import agent_display_name, agent_kind, cached_agent
+from electroloc_gym.bench.agents import (
+    agent_display_name,
+    agent_kind,
+    bench_env_kwargs,
+    cached_agent,
+    planner_memory_bytes,
+    policy_env_problem,
+)
 from electroloc_gym.bench.backends import make_backend
 from electroloc_gym.bench.config import (
     DEFAULT_AGENTS,
     GLOBAL_CONDITION,
     GLOBAL_ENV_ID,
     IDENTITY_KEYS,
+    UNKNOWN_ENV_ID,
     BenchConfig,
     TrialSpec,
     make_trial_specs,
@@ -38,28 +46,28 @@ from electroloc_gym.bench.progress import TrialProgress
 from electroloc_gym.bench.records import (
     REJECTED_FILE,
     TRIALS_FILE,
-    FolderLock,
     LoadedRecords,
     RecordWriter,
     load_records,
     prepare_out_dir,
     read_trials,
+    run_lock,
     set_aside,
 )
-from electroloc_gym.bench.trials import TIMING_KEYS, run_trial
-from electroloc_gym.fileio import atomic_write_text
+from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules
+from electroloc_gym.bench.trials import run_trial
+from electroloc_gym.fileio import atomic_write_bytes, strict_json, write_json_atomic
 
 # The run, plus the names a caller of the runner needs (defined in config, records and trials).
-__all__ = ["run_benchmark", "write_json_atomic", "read_config", "BenchConfig", "TrialSpec", "DEFAULT_AGENTS",
+__all__ = ["run_benchmark", "read_config", "record_rules", "OUTPUT_FILES", "BenchConfig", "TrialSpec", "DEFAULT_AGENTS",
            "GLOBAL_CONDITION", "GLOBAL_ENV_ID", "resolve_conditions", "trial_seeds", "make_trial_specs",
            "read_trials", "TIMING_KEYS", "run_trial"]
 
 _Log = Callable[[str], None] | None
-
-
-def write_json_atomic(path: str | os.PathLike, obj: Any) -> None:
-    """JSON-dump ``obj`` to ``path`` atomically (strict JSON: no NaN)."""
-    atomic_write_text(path, json.dumps(obj, indent=2, allow_nan=False) + "\n")
+#: Most trials a run plans (agents × conditions × trials; the plan is held in memory, ≈1 KB a trial).
+MAX_PLANNED_TRIALS = 1_000_000
+#: The files a run derives from its records, written together (:func:`_write_outputs`).
+OUTPUT_FILES = ("summary.json", "table.md", "steps.png")
 
 
 def _config_problem(stored: Any) -> str | None:
@@ -96,14 +104,15 @@ def read_config(path: Path, log: _Log) -> dict[str, Any] | None:
     return None
 
 
-def _resume(config: BenchConfig, out: Path, log: _Log) -> tuple[LoadedRecords, dict[str, Any] | None]:
+def _resume(config: BenchConfig, out: Path, log: _Log,
+            trust_pickle: bool) -> tuple[LoadedRecords, dict[str, Any] | None]:
     """Check a stored run against ``config``; set damaged lines aside. Returns its records and config."""
     stored = read_config(out / "config.json", log)
     if stored is not None:
         mismatch = {k: (stored.get(k), v) for k, v in config.identity().items() if stored.get(k) != v}
         if mismatch:
             raise ValueError(f"cannot resume {out}: settings differ from the stored run (stored, now): {mismatch}")
-    loaded = load_records(out / TRIALS_FILE, config)
+    loaded = load_records(out / TRIALS_FILE, config, record_rules(config, stored, trust_pickle=trust_pickle))
     if loaded.foreign:
         n, why = loaded.foreign[0]
         more = f" (and {len(loaded.foreign) - 1} more)" if len(loaded.foreign) > 1 else ""
@@ -119,18 +128,110 @@ def _resume(config: BenchConfig, out: Path, log: _Log) -> tuple[LoadedRecords, d
 
 
 def _check_agents(config: BenchConfig, trust_pickle: bool, log: _Log) -> None:
-    """Fail fast (before any worker starts) on bad agent names, paths or policy files; say what runs."""
+    """Fail fast (before any worker starts) on bad agent names, paths, factories or policy files, and on a
+    learned policy recorded for another env, observation layout or action space; say what runs.
+    """
     described = []
     for spec in config.agents:
         agent = cached_agent(spec, trust_pickle=trust_pickle)
         kind = agent_kind(spec)
-        if kind == "baseline":
+        need = planner_memory_bytes(agent, config.n_particles)
+        if need > _memory_budget():
+            raise ValueError(f"agent {spec!r} needs ≈{need / 2**30:.3g} GiB per decision with {config.n_particles} "
+                             f"particles; this machine has ≈{_memory_budget() / 2**30:.3g} GiB to spare: choose "
+                             f"smaller options")
+        probe_env(config, spec, agent)
+        if kind in ("baseline", "factory"):
             described.append(spec)
-        else:
-            described.append(f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
-                             f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)")
+            continue
+        why = policy_env_problem(spec, agent, config.env_id, config.gain_levels)
+        if why is not None:
+            raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
+        described.append(f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
+                         f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)")
     if log is not None:
         log("agents: " + "; ".join(described))
+
+
+def _memory_budget() -> int:
+    """Half the physical memory available now, bytes (8 GiB where the OS does not say)."""
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2)
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        return 8 * 2**30
+
+
+def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
+    """Build the env a trial of ``spec`` runs in (first condition), so the env's own argument checks
+    (particle count, cap, sensor model, the agent's env_kwargs) fail before any trial.
+
+    Raises:
+        ValueError: the env refuses the run's settings with this agent (the message names the agent).
+    """
+    import gymnasium as gym
+
+    import electroloc_gym  # noqa: F401  (registers the ids)
+
+    kwargs = bench_env_kwargs(config.env_id, agent, config.gain_levels, condition=config.conditions[0],
+                              signal=config.signal, sensor_model=config.sensor_model, n_particles=config.n_particles,
+                              max_observations=config.max_observations)
+    try:
+        gym.make(config.env_id, **kwargs).close()
+    except (TypeError, ValueError, MemoryError) as exc:
+        raise ValueError(f"agent {spec!r}: {config.env_id} refuses this run's settings: {exc}") from None
+
+
+def _agent_limits(spec: str, trust_pickle: bool) -> tuple[int | None, float | None]:
+    """(observation cap, success criterion) an agent sets itself through its ``env_kwargs`` (None: the run's)."""
+    try:
+        kwargs = dict(getattr(cached_agent(spec, trust_pickle=trust_pickle), "env_kwargs", {}) or {})
+    except ValueError:  # an agent of the stored run that does not build here: its records keep the run's limits
+        return None, None
+    return kwargs.get("max_observations"), kwargs.get("success_spread_mm")
+
+
+def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
+                 trust_pickle: bool = False) -> RecordRules:
+    """What a record of ``config``'s run (continuing ``stored``, a config.json) may hold."""
+    import gymnasium as gym
+
+    import electroloc_gym  # noqa: F401  (registers the ids)
+
+    stored = stored or {}
+    agents = frozenset([*config.agents, *(a for a in stored.get("agents", []) if isinstance(a, str))])
+    conditions = frozenset([*config.conditions, *(c for c in stored.get("conditions", []) if isinstance(c, str))])
+    trials = max(config.trials, stored["trials"] if isinstance(stored.get("trials"), int) else 0)
+    env = gym.make(config.env_id)
+    criterion = float(env.unwrapped.success_spread_mm)
+    env.close()
+    caps, criteria = {}, {}
+    for spec in agents:
+        cap, crit = _agent_limits(spec, trust_pickle)
+        caps[spec] = int(cap) if cap is not None else config.max_observations
+        if crit is not None:
+            criteria[spec] = float(crit)
+    return RecordRules(conditions=conditions, agents=agents, trials=trials, success_spread_mm=criterion,
+                       shape=config.env_id == UNKNOWN_ENV_ID, caps=caps, criteria=criteria)
+
+
+def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
+    """summary.json, table.md and steps.png, all rendered before any is written: together or not at all.
+
+    If writing fails part-way, the files already replaced are removed, so no folder holds a summary and a
+    table of different records.
+    """
+    from electroloc_gym.bench.plots import steps_png
+    from electroloc_gym.bench.tables import render_table_md
+
+    content = {"summary.json": strict_json(summary).encode("utf-8"),
+               "table.md": render_table_md(summary).encode("utf-8"), "steps.png": steps_png(summary)}
+    try:
+        for name in OUTPUT_FILES:
+            atomic_write_bytes(out / name, content[name])
+    except BaseException:
+        for name in OUTPUT_FILES:
+            (out / name).unlink(missing_ok=True)
+        raise
 
 
 def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: int | None = None,
@@ -155,12 +256,15 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
         ValueError: a bad output folder, a folder in use by another run, bad agents, an existing
             run without ``resume``, or a stored run whose seed or settings differ.
     """
-    from electroloc_gym.bench.plots import plot_steps
     from electroloc_gym.bench.stats import summarize
-    from electroloc_gym.bench.tables import render_table_md
 
+    planned = len(config.agents) * len(config.conditions) * config.trials
+    if planned > MAX_PLANNED_TRIALS:
+        raise ValueError(f"--trials {config.trials} × {len(config.agents)} agent(s) × {len(config.conditions)} "
+                         f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run")
+    _check_agents(config, trust_pickle, log)  # before the folder is touched: a bad agent writes nothing
     out = prepare_out_dir(out_dir)
-    with FolderLock(out):
+    with run_lock(out):
         trials_path, config_path = out / TRIALS_FILE, out / "config.json"
         stored: dict[str, Any] | None = None
         loaded = LoadedRecords(trials_path)
@@ -168,8 +272,7 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
             if not resume:
                 raise ValueError(f"{trials_path} already holds trials; pass --resume to continue that run "
                                  f"or choose another --out")
-            loaded, stored = _resume(config, out, log)
-        _check_agents(config, trust_pickle, log)
+            loaded, stored = _resume(config, out, log, trust_pickle)
         be = make_backend(backend, workers, **(backend_options or {}))
 
         stored_cfg = asdict(config)
@@ -206,9 +309,7 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
         summary["config"] = asdict(config)
         summary["wall_s_this_run"] = wall
         summary["trials_run_this_time"] = len(specs)
-        write_json_atomic(out / "summary.json", summary)
-        atomic_write_text(out / "table.md", render_table_md(summary))
-        plot_steps(summary, out / "steps.png")
+        _write_outputs(out, summary)
     if log is not None:
         log(f"{len(specs)} trials in {wall:.1f} s; wrote {trials_path}, summary.json, table.md, steps.png")
     return summary

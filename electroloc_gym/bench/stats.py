@@ -31,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.agentspec import is_path_like
+
 __all__ = ["summarize", "agent_label", "RULES"]
 
 RULES = (
@@ -61,8 +63,7 @@ def _avg_of(rows: Sequence[dict[str, Any]], key: str) -> float | None:
 
 def agent_label(agent: str, recs: Sequence[dict[str, Any]]) -> str:
     """Table label: the spec for built-in agents (``min-var[n_voters=None]``), the policy's name for paths."""
-    is_path = agent.endswith(".zip") or "/" in agent or "\\" in agent
-    return str(recs[0].get("agent_label", agent)) if (is_path and recs) else agent
+    return str(recs[0].get("agent_label", agent)) if (is_path_like(agent) and recs) else agent
 
 
 def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int]) -> dict[str, Any]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from electroloc_gym.agentspec import parse_agent_spec
 from electroloc_gym.bench.fidelity import PAPER_TRIALS, paper_count_interval
 from electroloc_gym.conditions import PRESET_NAMES
 
@@ -64,7 +65,10 @@ _MATERIAL = {"steel": "steel", "delrin": "Delrin"}
 
 def paper_agent_key(agent: str) -> str | None:
     """The paper's controller an agent spec corresponds to (``min-var[n_voters=2500]`` → ``min-var``)."""
-    base = agent.split("[", 1)[0]
+    try:
+        base = parse_agent_spec(agent).name
+    except ValueError:  # a policy path
+        return None
     return base if base in ("rnd-wlk", "min-var", "zero-crossing") else None
 
 

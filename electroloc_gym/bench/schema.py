@@ -1,0 +1,264 @@
+"""The trial record: one dataclass that is the schema of every line of ``trials.jsonl``.
+
+:class:`TrialRecord` declares each field once with its type and range; :func:`~TrialRecord.from_json`
+checks a line read back field by field (types, ranges, finiteness, the consistency of the fields
+with each other), and :meth:`TrialRecord.problem` checks it against the run it is read into
+(:class:`RecordRules`: the run's conditions, agents, trial index range, each agent's observation
+cap and success criterion, the env's own keys). The worker (:func:`~electroloc_gym.bench.trials.run_trial`)
+builds a record through the same class, so what is written and what is accepted are one declaration.
+
+Consistency, for every record:
+
+* Table-4 layout (the belief decides): ``ended_by == "success"`` ⇔ the env terminated: ``success``
+  is true and ``spread_mm`` ≤ the success criterion; ``"cap"``: ``success`` is false,
+  ``observations`` is the cap and ``spread_mm`` is above the criterion. An agent that ends trials
+  itself (``"agent"``, and every Table-1 trial): ``success`` ⇔ it ended the trial with an estimate.
+* ``decisions`` = ``observations − 1`` when the env ended the trial (the first reading comes with the
+  reset), ``observations`` when the agent did (its last decision ends the trial).
+* ``error_mm`` = ‖estimate − target‖ and ``error_x_mm``/``error_y_mm`` its components; no estimate,
+  no error.
+* ``shape`` (the unknown-target env's identification): exactly :data:`SHAPE_RECORD_KEYS`, on that
+  env only.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+from electroloc_gym.agentspec import is_path_like, parse_agent_spec
+
+__all__ = ["TrialRecord", "RecordRules", "RECORD_KEYS", "OPTIONAL_RECORD_KEYS", "TIMING_KEYS", "SHAPE_RECORD_KEYS",
+           "POSITION_BOUND_MM", "MAX_TEXT_CHARS"]
+
+#: Largest |coordinate| of a position in a record, mm (the tank is well under a metre across).
+POSITION_BOUND_MM = 1000.0
+#: Longest string field (agent spec, label), characters.
+MAX_TEXT_CHARS = 2000
+#: Largest per-decision or per-trial time accepted, ms / s (a day).
+_MAX_TIME = 86_400e3
+_CONDITION_CHARS = 64
+#: The unknown-target env's identification results in a record's ``"shape"``.
+SHAPE_RECORD_KEYS = ("radius_estimate_mm", "radius_mean_mm", "radius_spread_mm", "target_radius_mm",
+                     "radius_error_frac", "p_conductor", "material_estimate", "material_correct", "chi_estimate",
+                     "target_chi")
+_MATERIALS = ("conductor", "insulator")
+Check = Callable[[Any], bool]
+
+
+def _int(low: int, high: int | None = None) -> Check:
+    return lambda v: (isinstance(v, int) and not isinstance(v, bool) and v >= low
+                      and (high is None or v <= high))
+
+
+def _num(low: float = -math.inf, high: float = math.inf, none: bool = True) -> Check:
+    def ok(v: Any) -> bool:
+        if v is None:
+            return none
+        return (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                and low <= v <= high)
+    return ok
+
+
+def _text(v: Any) -> bool:
+    return isinstance(v, str) and 0 < len(v) <= MAX_TEXT_CHARS
+
+
+def _agent(v: Any) -> bool:
+    if not _text(v):
+        return False
+    if is_path_like(v):
+        return True
+    try:
+        parse_agent_spec(v)
+    except ValueError:
+        return False
+    return True
+
+
+def _xy(none: bool) -> Check:
+    coord = _num(-POSITION_BOUND_MM, POSITION_BOUND_MM, none=False)
+    return lambda v: (none and v is None) or (isinstance(v, list) and len(v) == 2 and all(coord(x) for x in v))
+
+
+def _gains(v: Any) -> bool:
+    return v is None or (isinstance(v, list) and 0 < len(v) <= 64 and all(_num(0.0, 1e12, none=False)(g) and g > 0
+                                                                            for g in v))
+
+
+_SHAPE_CHECKS: dict[str, tuple[Check, str]] = {
+    "radius_estimate_mm": (_num(0.0, POSITION_BOUND_MM), "a length in [0, 1000] mm or null"),
+    "radius_mean_mm": (_num(0.0, POSITION_BOUND_MM), "a length in [0, 1000] mm or null"),
+    "radius_spread_mm": (_num(0.0, POSITION_BOUND_MM), "a length in [0, 1000] mm or null"),
+    "target_radius_mm": (_num(0.0, POSITION_BOUND_MM, none=False), "a length in [0, 1000] mm"),
+    "radius_error_frac": (_num(0.0, 1e6), "a fraction ≥ 0 or null"),
+    "p_conductor": (_num(0.0, 1.0), "a probability in [0, 1] or null"),
+    "material_estimate": (lambda v: v in _MATERIALS, f"one of {list(_MATERIALS)}"),
+    "material_correct": (lambda v: isinstance(v, bool), "true or false"),
+    "chi_estimate": (_num(-1.0, 1.0), "a contrast in [-1, 1] or null"),
+    "target_chi": (_num(-1.0, 1.0, none=False), "a contrast in [-1, 1]"),
+}
+
+
+def _shape(v: Any) -> bool:
+    return v is None or (isinstance(v, dict) and set(v) == set(SHAPE_RECORD_KEYS)
+                         and all(ok(v[k]) for k, (ok, _) in _SHAPE_CHECKS.items()))
+
+
+def _f(check: Check, what: str, optional: bool = False, timing: bool = False) -> Any:
+    """A schema field: its check, what the check wants (for messages), whether old records may lack it,
+    whether it is a timing (varies run to run).
+    """
+    return field(metadata={"check": check, "what": what, "optional": optional, "timing": timing})
+
+
+@dataclass(frozen=True)
+class TrialRecord:
+    """One trial's result: a line of trials.jsonl (JSON types; positions ``[x, y]`` in mm)."""
+
+    condition: str = _f(lambda v: isinstance(v, str) and 0 < len(v) <= _CONDITION_CHARS, "a condition name")
+    agent: str = _f(_agent, "an agent spec")
+    agent_label: str = _f(_text, "a non-empty string")
+    layout: str = _f(lambda v: v in ("table4", "table1"), "'table4' or 'table1'")
+    trial: int = _f(_int(0), "an integer ≥ 0")
+    seed: int = _f(_int(0, 2**32 - 1), "an integer in [0, 2³²)")
+    agent_seed: int = _f(_int(0, 2**32 - 1), "an integer in [0, 2³²)")
+    success: bool = _f(lambda v: isinstance(v, bool), "true or false")
+    ended_by: str = _f(lambda v: v in ("success", "cap", "agent"), "'success', 'cap' or 'agent'")
+    observations: int = _f(_int(1), "an integer ≥ 1")
+    error_mm: float | None = _f(_num(0.0, 2 * POSITION_BOUND_MM), "a distance in [0, 2000] mm or null")
+    error_x_mm: float | None = _f(_num(-2 * POSITION_BOUND_MM, 2 * POSITION_BOUND_MM), "a number (mm) or null")
+    error_y_mm: float | None = _f(_num(-2 * POSITION_BOUND_MM, 2 * POSITION_BOUND_MM), "a number (mm) or null")
+    estimate: list[float] | None = _f(_xy(none=True), "[x, y] in ±1000 mm or null")
+    target: list[float] = _f(_xy(none=False), "[x, y] in ±1000 mm")
+    start: list[float] = _f(_xy(none=False), "[x, y] in ±1000 mm")
+    spread_mm: float | None = _f(_num(0.0, 1e6), "a spread ≥ 0 mm or null")
+    decisions: int = _f(_int(0), "an integer ≥ 0")
+    decision_ms_median: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 ms or null", timing=True)
+    decision_ms_mean: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 ms or null", timing=True)
+    sensor_model: str = _f(_text, "a sensor-model name")
+    signal: str = _f(_text, "a signal name")
+    max_observations: int = _f(_int(1), "an integer ≥ 1")
+    n_particles: int = _f(_int(1), "an integer ≥ 1")
+    env_id: str = _f(_text, "an env id")
+    wall_s: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 s or null", timing=True)
+    shape: dict[str, Any] | None = _f(_shape, f"null or an object with exactly the keys {list(SHAPE_RECORD_KEYS)} "
+                                              f"in their ranges", optional=True)
+    gain_levels: list[float] | None = _f(_gains, "null or a list of positive gain factors", optional=True)
+
+    @classmethod
+    def from_json(cls, obj: Any) -> TrialRecord:
+        """Check a parsed line field by field and build the record.
+
+        Raises:
+            ValueError: the first problem found, naming the field and what it must be.
+        """
+        if not isinstance(obj, dict):
+            raise ValueError(f"not a JSON object ({type(obj).__name__})")
+        unknown = sorted(set(obj) - set(RECORD_KEYS))
+        if unknown:
+            raise ValueError(f"unknown key(s) {unknown[:5]}")
+        missing = [k for k in RECORD_KEYS if k not in obj and k not in OPTIONAL_RECORD_KEYS]
+        if missing:
+            raise ValueError(f"missing key(s) {missing}")
+        for f in fields(cls):
+            value = obj.get(f.name)
+            if not f.metadata["check"](value):
+                raise ValueError(f"{f.name!r} must be {f.metadata['what']}, got {_short(value)}")
+        rec = cls(**{k: obj.get(k) for k in RECORD_KEYS})
+        why = rec._inconsistency()
+        if why is not None:
+            raise ValueError(why)
+        return rec
+
+    def to_json(self) -> dict[str, Any]:
+        """The record as the JSON object written to trials.jsonl."""
+        return asdict(self)
+
+    def _inconsistency(self) -> str | None:
+        if self.estimate is None:
+            if (self.error_mm, self.error_x_mm, self.error_y_mm) != (None, None, None):
+                return "an error without an estimate"
+        else:
+            dx, dy = self.estimate[0] - self.target[0], self.estimate[1] - self.target[1]
+            for name, got, want in (("error_x_mm", self.error_x_mm, dx), ("error_y_mm", self.error_y_mm, dy),
+                                    ("error_mm", self.error_mm, math.hypot(dx, dy))):
+                if got is None or not math.isclose(got, want, rel_tol=1e-9, abs_tol=1e-9):
+                    return f"{name!r} is {got!r}, but estimate − target gives {want!r}"
+        if self.ended_by == "agent":
+            if self.decisions != self.observations:
+                return f"'decisions' {self.decisions} ≠ 'observations' {self.observations} (the agent ended the trial)"
+        elif self.decisions != self.observations - 1:
+            return (f"'decisions' {self.decisions} ≠ 'observations' − 1 = {self.observations - 1} "
+                    f"(the env ended the trial)")
+        if self.ended_by == "agent" or self.layout == "table1":  # the agent's own estimate decides
+            if self.success != (self.ended_by == "agent" and self.estimate is not None):
+                return "'success' must be true exactly when an agent that ended the trial reported an estimate"
+            return None
+        if self.success != (self.ended_by == "success"):
+            return f"'success' {self.success} contradicts 'ended_by' {self.ended_by!r}"
+        if self.estimate is None or self.spread_mm is None:
+            return "a trial the env ended has the belief's estimate and spread"
+        return None
+
+    def problem(self, rules: RecordRules) -> str | None:
+        """Why this record cannot belong to the run ``rules`` describes (None: it can)."""
+        if self.condition not in rules.conditions:
+            return f"condition {self.condition!r} is not one of the run's {sorted(rules.conditions)}"
+        if self.agent not in rules.agents:
+            return f"agent {self.agent!r} is not one of the run's {sorted(rules.agents)}"
+        if self.trial >= rules.trials:
+            return f"trial {self.trial} is outside the run's range 0–{rules.trials - 1}"
+        cap = rules.caps.get(self.agent, self.max_observations)
+        if self.observations > cap:
+            return f"'observations' {self.observations} exceeds the cap of {cap}"
+        if self.ended_by == "cap" and self.observations != cap:
+            return f"ended by the cap of {cap} after {self.observations} observations"
+        if self.ended_by != "agent" and self.layout == "table4":
+            criterion = rules.criteria.get(self.agent, rules.success_spread_mm)
+            assert self.spread_mm is not None  # checked by from_json
+            if (self.spread_mm <= criterion) != self.success:
+                return (f"'success' {self.success} but 'spread_mm' {self.spread_mm} vs the criterion "
+                        f"{criterion} mm")
+        if (self.shape is not None) != rules.shape:
+            return ("'shape' must be " + ("the identification results (unknown-target env)" if rules.shape else
+                                          "null (only the unknown-target env identifies the target)"))
+        return None
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+#: Every key of a trial record, in the order written.
+RECORD_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord))
+#: Keys a record may lack (records written before the key existed read as None).
+OPTIONAL_RECORD_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord) if f.metadata["optional"])
+#: Keys of a trial record that vary run to run (timings); everything else is deterministic.
+TIMING_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord) if f.metadata["timing"])
+
+
+@dataclass(frozen=True)
+class RecordRules:
+    """What a record of one run may hold (built by the runner from its config and the stored run).
+
+    Attributes:
+        conditions: the run's conditions (and those of the stored run it continues).
+        agents: the run's agent specs (and those of the stored run).
+        trials: trial indices run from 0 to ``trials − 1``.
+        success_spread_mm: the env's success criterion, mm.
+        shape: the env identifies the target (records carry ``shape``).
+        caps: each agent's observation cap (default: the record's ``max_observations``).
+        criteria: each agent's success criterion, where it sets its own (default: ``success_spread_mm``).
+    """
+
+    conditions: frozenset[str]
+    agents: frozenset[str]
+    trials: int
+    success_spread_mm: float
+    shape: bool = False
+    caps: Mapping[str, int] = field(default_factory=dict)
+    criteria: Mapping[str, float] = field(default_factory=dict)
