@@ -337,7 +337,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench_cli.add_arguments(b)
     b.set_defaults(func=bench_cli.run)
 
-    t = sub.add_parser("train", help="train an SB3 agent (electroloc train --help for its options)", add_help=False)
+    t = sub.add_parser("train", help="train through rl-zoo3 on the native vector env (electroloc train --help)",
+                       add_help=False)
     t.set_defaults(func=None)
     return p
 
