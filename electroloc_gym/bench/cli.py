@@ -19,6 +19,7 @@ from electroloc_gym.bench.config import (
     BenchConfig,
     resolve_conditions,
 )
+from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.records import prepare_out_dir
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
@@ -117,6 +118,8 @@ def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark described by ``args``; print table.md; 0 on success, 2 on bad input."""
     try:
+        if args.backend == "ray":  # Ray installed and the cluster reachable, before --out is touched
+            check_ray_address(args.address)
         prepare_out_dir(args.out)
         env_name = getattr(args, "env", "target")
         env_id = ENV_CHOICES[env_name]
