@@ -103,19 +103,24 @@ def main() -> None:
     args = p.parse_args()
     pin_threads()
     erl.warm_kernels({})
-    res: dict[str, float | int | str] = {"num_envs_per_runner": args.num_envs, "cpus": os.cpu_count() or 0}
+    res: dict[str, float | int | str] = {"num_envs_per_runner": args.num_envs, "cpus": os.cpu_count() or 0,
+                                         "load_average_1min_before": os.getloadavg()[0]}
     with tempfile.TemporaryDirectory() as cache:
         res["startup_s_cold_cache"] = startup_s(args.num_envs, cache)
         res["startup_s_warm_cache"] = startup_s(args.num_envs, cache)
     res["native_steps_per_s"] = native_steps_per_s(args.num_envs, args.seconds)
     res.update(rllib_steps_per_s(args.num_envs, args.seconds))
+    res["load_average_1min_after"] = os.getloadavg()[0]
     print(f"| sampler ({args.num_envs} tanks per runner) | env steps/s |\n|---|---|")
     print(f"| native vector env, this process (no RLlib) | {res['native_steps_per_s']:,.0f} |")
     print(f"| RLlib, 1 env runner | {res['rllib_1_runner_steps_per_s']:,.0f} |")
     print(f"| RLlib, 2 env runners at once | {res['rllib_2_runner_steps_per_s']:,.0f} |")
     print(f"\nrunner env start-up (fresh process: import, build, reset, step): cold numba cache "
           f"{res['startup_s_cold_cache']:.1f} s, warm {res['startup_s_warm_cache']:.1f} s; "
-          f"PPO build with 2 runners (warm cache) {res['algo_build_s_2_runners_warm_cache']:.1f} s")
+          f"PPO build with 2 runners (warm cache) {res['algo_build_s_2_runners_warm_cache']:.1f} s; "
+          f"1-min load average {res['load_average_1min_before']:.1f} before, "
+          f"{res['load_average_1min_after']:.1f} after "
+          f"(on {res['cpus']} CPUs; above that, others share the cores)")
     if args.out:
         write_json_atomic(args.out, res)
 

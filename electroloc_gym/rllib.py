@@ -146,6 +146,8 @@ def plot_progress(csv_path: str | Path, png_path: str | Path, title: str = "RLli
     a.set(xlabel="env steps", ylabel="success rate (last 100 episodes)", ylim=(0, 1.02))
     b.plot(steps, [float(r["length_mean"]) for r in rows], color="tab:blue")
     b.set(xlabel="env steps", ylabel="mean episode length (readings)")
+    for ax in (a, b):
+        ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:.0f}k")
     fig.suptitle(title)
     fig.savefig(png_path, dpi=110)
     plt.close(fig)
