@@ -180,3 +180,15 @@ def test_rllib_ppo_iteration_in_a_worker_exports_a_policy_bench_runs(ray_local, 
         np.testing.assert_allclose(ours, mean, atol=1e-5)
     finally:
         algo.stop()
+
+
+def test_rllib_progress_plot_skips_iterations_without_episodes(tmp_path: Path) -> None:
+    head = "iteration,env_steps,wall_s,episodes,return_mean,length_mean,success_mean\n"
+    good = tmp_path / "progress.csv"
+    good.write_text(head + "1,100,1.0,5,-9.0,9.0,0.4\n2,200,2.0,5,nan,nan,nan\n3,300,3.0,12,-6.0,6.0,0.9\n")
+    png = erl.plot_progress(good, tmp_path / "curve.png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    empty = tmp_path / "empty.csv"
+    empty.write_text(head + "1,0,1.0,0,nan,nan,nan\n")
+    with pytest.raises(ValueError, match="no iteration with finished episodes"):
+        erl.plot_progress(empty, tmp_path / "x.png")
