@@ -5,9 +5,14 @@
 ``vector_entry_point`` in :mod:`electroloc_gym.registry`): one
 :class:`~electroloc_gym.core.step.Simulation` of N envs, whose every step is one batched core step —
 the same code, with the same per-env arithmetic, as the single env (:mod:`.adapter`, N = 1). Sub-env
-``i`` reset with seed ``s + i`` (``reset(seed=s)``, as :class:`gymnasium.vector.SyncVectorEnv`) therefore
-produces exactly what the single env reset with ``s + i`` produces: observations, rewards,
-terminations, truncations and infos, across autoresets (docs/design.md).
+``i`` reset with seed ``t`` (the i-th of ``reset(seed=[...])``, or ``t = sub_env_seeds(s, N)[i]`` for
+``reset(seed=s)``) therefore produces exactly what the single env reset with ``t`` produces: observations,
+rewards, terminations, truncations and infos, across autoresets (docs/design.md).
+
+Seeds: an int ``s`` is spread over the sub-envs with :class:`numpy.random.SeedSequence` (child ``i`` of
+``SeedSequence(s)``, :func:`sub_env_seeds`), not as ``s + i``: vector envs seeded ``s`` and ``s + 1`` —
+RLlib seeds env runner k with ``seed + k`` — then share no sub-env (with ``s + i``, sub-env ``i`` of the
+second would repeat sub-env ``i + 1`` of the first).
 
 Autoreset: ``metadata["autoreset_mode"]`` is :attr:`gymnasium.vector.AutoresetMode.NEXT_STEP` by
 default, like Gymnasium's built-in vector envs; ``autoreset_mode="same_step"`` resets an ending
@@ -40,7 +45,7 @@ from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.envs.adapter import ParamAccessors
 from electroloc_gym.registry import env_entry
 
-__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalVectorEnv", "UnknownTargetVectorEnv"]
+__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalVectorEnv", "UnknownTargetVectorEnv", "sub_env_seeds"]
 
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
     AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP: AutoresetMode.SAME_STEP,
@@ -71,6 +76,18 @@ def _check_seed(seed: Any, n: int) -> None:
     bad = [s for s in seed if not (s is None or _is_seed(s))]
     if bad:
         raise ValueError(f"{what}, got {list(seed)!r} (bad: {bad!r})")
+
+
+def sub_env_seeds(seed: int, num_envs: int) -> list[int]:
+    """The seed of each sub-env of a vector env reset with the int ``seed``: the 128-bit state of child
+    ``i`` of ``numpy.random.SeedSequence(seed)`` (depends on ``seed`` and ``i`` only, not on ``num_envs``).
+
+    Raises:
+        ValueError: ``seed`` not an int ≥ 0 or ``num_envs`` not an int ≥ 1 (names the argument).
+    """
+    root = np.random.SeedSequence(check_int("seed", seed, 0))
+    return [int.from_bytes(child.generate_state(4, np.uint32).tobytes(), "little")
+            for child in root.spawn(check_int("num_envs", num_envs, 1))]
 
 
 class CoreVectorEnv(ParamAccessors, VectorEnv):
@@ -163,13 +180,13 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
     # ---- gymnasium API ------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        """Reset all sub-envs (or those in ``options["reset_mask"]``); seeds as SyncVectorEnv."""
+        """Reset all sub-envs (or those in ``options["reset_mask"]``); an int seed as :func:`sub_env_seeds`."""
         n = self.num_envs
         _check_seed(seed, n)  # everything is checked before any sub-env changes
         if seed is None:
             seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)):
-            seeds = [int(seed) + i for i in range(n)]
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
+            seeds = list(sub_env_seeds(int(seed), n))
         else:
             seeds = [None if s is None else int(s) for s in seed]
         mask = np.ones(n, dtype=bool)
