@@ -175,19 +175,21 @@ def sample_options_mm(rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray,
 # Registry
 # ---------------------------------------------------------------------------------------------
 def _registry() -> dict[str, type]:
+    from electroloc_gym.baselines.eedi import EEDIAgent
+    from electroloc_gym.baselines.infotaxis import InfotaxisAgent
     from electroloc_gym.baselines.lookahead import LookaheadAgent
     from electroloc_gym.baselines.min_variance import MinVarianceAgent
     from electroloc_gym.baselines.random_walk import RandomWalkAgent
     from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 
     return {"rnd-wlk": RandomWalkAgent, "min-var": MinVarianceAgent, "zero-crossing": ZeroCrossingAgent,
-            "lookahead": LookaheadAgent}
+            "lookahead": LookaheadAgent, "infotaxis": InfotaxisAgent, "eedi": EEDIAgent}
 
 
 #: Names of the built-in agents (classes resolved lazily by :func:`make_agent`).
 AGENT_REGISTRY: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
 #: Agents beyond the paper's controllers, built by :func:`make_agent` but not in default benchmark runs.
-EXTRA_AGENTS: tuple[str, ...] = ("lookahead",)
+EXTRA_AGENTS: tuple[str, ...] = ("lookahead", "infotaxis", "eedi")
 
 _SPEC_RE = re.compile(r"^(?P<name>[A-Za-z0-9_\-]+)(\[(?P<opts>.*)\])?$")
 
