@@ -34,8 +34,8 @@ I_s, whose determinant is 0 everywhere. The sensor models are functions of the o
 
 The workspace is a grid of G cell centres covering the box (midpoint rule: Σ φ(q_g)·cell area = 1).
 Everything is array arithmetic over (grid points × hypotheses × coefficients); no Python loop runs
-over particles or grid points. No library offers these pieces for numpy (the ergodic-control code
-in public repositories are notebooks and research scripts), so they are written out here.
+over particles or grid points. No maintained library offers these pieces for numpy (the ergodic-control
+code in public repositories is notebooks and research scripts), so they are written out here.
 """
 
 from __future__ import annotations
