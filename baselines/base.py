@@ -36,10 +36,10 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.core.params import MAX_STEP_MM  # the largest move per axis per step, mm (paper §4.1.3)
+
 __all__ = ["Agent", "BaselineAgent", "sample_options_mm", "move_bounds_mm", "MAX_STEP_MM"]
 
-#: Largest move per axis per step, mm (paper §4.1.3; equals the env's action scale).
-MAX_STEP_MM = 10.0
 
 
 @runtime_checkable
