@@ -214,6 +214,76 @@ def figures(analyses: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     return paths
 
 
+def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
+    """Per algorithm: the validation evaluations of its seeds (``eval.csv`` of each rl-zoo3 run) on a common
+    step grid, and the training wall times (``summary.json``).
+
+    Returns:
+        ``{algo: {"timesteps": (T,), "success_rate": (seeds, T), "mean_readings": (seeds, T),
+        "wall_time_s": [per seed]}}``; the grid is the steps every seed evaluated at.
+    """
+    import csv
+
+    out: dict[str, dict[str, Any]] = {}
+    env_dir = results / env_id
+    for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
+        runs = []
+        for seed_dir in sorted(algo_dir.glob("seed-*")):
+            found = sorted(seed_dir.glob("zoo/*/*/eval.csv"))
+            if not found:
+                continue
+            with open(found[-1], encoding="utf-8", newline="") as fh:
+                rows = list(csv.DictReader(fh))
+            summary = found[-1].parent / "summary.json"
+            wall = json.loads(summary.read_text(encoding="utf-8")).get("wall_time_s") if summary.is_file() else None
+            runs.append(({int(r["timesteps"]): r for r in rows}, wall))
+        if not runs:
+            continue
+        grid = sorted(set.intersection(*(set(r) for r, _ in runs)))
+        out[algo_dir.name] = {
+            "timesteps": np.array(grid),
+            **{k: np.array([[float(r[t][k]) for t in grid] for r, _ in runs])
+               for k in ("success_rate", "mean_readings")},
+            "wall_time_s": [w for _, w in runs],
+        }
+    return out
+
+
+def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) -> Path | None:
+    """Success rate and mean readings on validation episodes against env steps: the mean over seeds and its
+    95 % t-interval (scipy), every algorithm of the env in one figure; saved atomically.
+    """
+    if not curves:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy import stats
+
+    from electroloc_gym.fileio import save_figure_atomic
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for algo, c in curves.items():
+        for ax, key in zip(axes, ("success_rate", "mean_readings")):
+            y = c[key]
+            m = y.mean(axis=0)
+            if y.shape[0] > 1:
+                half = stats.t.ppf(0.975, y.shape[0] - 1) * y.std(axis=0, ddof=1) / np.sqrt(y.shape[0])
+                ax.fill_between(c["timesteps"], m - half, m + half, alpha=0.2)
+            ax.plot(c["timesteps"], m, marker=".", label=f"{algo} ({y.shape[0]} seeds)")
+    axes[0].set_ylabel("success rate (validation episodes)")
+    axes[1].set_ylabel("mean readings to localise (failure = cap)")
+    for ax in axes:
+        ax.set_xlabel("env steps")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"{env_id}: learning curves, mean and 95 % interval over training seeds")
+    path = results / f"curves_{env_id}.png"
+    save_figure_atomic(fig, path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("results", type=Path, help="the results folder (RESULTS/<env-id>/<algo>/seed-<k>/)")
@@ -232,6 +302,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     analyses = [analyse(args.results, env, args.reps, args.seed) for env in envs]
     text = table(analyses)
     figures(analyses, args.results)
+    compute = ["", "| env | algorithm | training wall time per seed, s (2-core CPU) |", "|---|---|---|"]
+    for env in envs:
+        curves = eval_curves(args.results, env)
+        curve_figure(args.results, env, curves)
+        for algo, c in curves.items():
+            walls = [w for w in c["wall_time_s"] if w is not None]
+            compute.append(f"| {env} | {algo} | {', '.join(f'{w:.0f}' for w in walls) or '–'} |")
+    text += "\n".join(compute) + "\n"
     atomic_write_text(args.results / "report.md", text)
     write_json_atomic(args.results / "report.json",
                       [{k: v for k, v in a.items() if not k.startswith("_")} for a in analyses])
