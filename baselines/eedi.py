@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, move_bounds_mm
+from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_belief
 from electroloc_gym.baselines.ergodic import (
     CRITERIA,
     CosineBasis,
@@ -120,15 +120,7 @@ class EEDIAgent(BaselineAgent):
 
     # ---- the EID ------------------------------------------------------------------------------
     def _hypotheses(self) -> NDArray:
-        belief = self.env.belief
-        x = np.asarray(belief.particles)
-        w = np.asarray(belief.weights, dtype=np.float64)
-        m = x.shape[0]
-        if np.all(w == w[0]):
-            if self.n_particles >= m:
-                return x
-            return x[np.sort(self.rng.choice(m, size=self.n_particles, replace=False))]
-        return x[np.sort(self.rng.choice(m, size=self.n_particles, replace=True, p=w / w.sum()))]
+        return sample_belief(self.env.belief, self.n_particles, self.rng)[0]
 
     def _reading_fn(self, x: NDArray) -> Any:
         """The reading function: carriages (N, 2) → (mean, std) (N, S) of the hypotheses ``x`` (S, d) read there."""

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.base import BaselineAgent, move_bounds_mm, sample_options_mm
+from electroloc_gym.baselines.base import BaselineAgent, move_bounds_mm, sample_belief, sample_options_mm
 
 __all__ = [
     "InfotaxisAgent",
@@ -196,17 +196,7 @@ class InfotaxisAgent(BaselineAgent):
 
     def _cloud(self) -> tuple[NDArray, NDArray[np.float64] | None]:
         """The hypotheses the entropy is measured over: the belief, or ``n_particles`` drawn from it."""
-        belief = self.env.belief
-        x = np.asarray(belief.particles)
-        w = np.asarray(belief.weights, dtype=np.float64)
-        m = x.shape[0]
-        if np.all(w == w[0]):
-            if self.n_particles is None or self.n_particles >= m:
-                return x, None
-            return x[np.sort(self.rng.choice(m, size=self.n_particles, replace=False))], None
-        if self.n_particles is None or self.n_particles >= m:
-            return x, w
-        return x[np.sort(self.rng.choice(m, size=self.n_particles, replace=True, p=w / w.sum()))], None
+        return sample_belief(self.env.belief, self.n_particles, self.rng, keep_weights=True)
 
     def choose_move_mm(self) -> NDArray[np.float64]:
         env = self.env
