@@ -74,6 +74,9 @@ def _split_config(config: Mapping[str, Any]) -> tuple[str, int | None, dict[str,
 def make_env(config: Mapping[str, Any]) -> gym.Env | gym.vector.VectorEnv:
     """The creator for ``register_env``: a single env, or the native vector env when RLlib passes ``num_envs``.
 
+    It runs in the env runner's process and first pins that process's numeric libraries to one thread
+    (:func:`~electroloc_gym.runtime.pin_threads`; called in a driver, it pins the driver too).
+
     Args:
         config: the env kwargs (:class:`~electroloc_gym.core.params.EnvParams`), plus ``env_id`` (one of
             :data:`ENV_IDS`, default ElectroLoc-v0) and, from RLlib's vector entry point, ``num_envs``.

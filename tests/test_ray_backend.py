@@ -97,3 +97,17 @@ def test_ray_check_auto_without_a_cluster_names_the_option(monkeypatch: pytest.M
     monkeypatch.setattr(services, "canonicalize_bootstrap_address_or_die", no_cluster)
     with pytest.raises(ValueError, match=r"^--address 'auto': no running Ray cluster found .*ray start --head"):
         check_ray_address("auto")
+
+
+def test_ray_check_a_port_that_is_not_ray_names_the_option(monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("ray")
+    import electroloc_gym.bench.ray_backend as rb
+
+    monkeypatch.setattr(rb, "PROBE_TIMEOUT_S", 3.0)
+    with socket.socket() as server:  # accepts TCP connections (kernel backlog), speaks no Ray
+        server.bind(("127.0.0.1", 0))
+        server.listen(8)
+        address = f"127.0.0.1:{server.getsockname()[1]}"
+        with pytest.raises(ValueError, match=r"^--address '127\.0\.0\.1:\d+': (no Ray cluster answered within 3 s|"
+                                             r"could not join a Ray cluster there)"):
+            check_ray_address(address)

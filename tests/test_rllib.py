@@ -38,10 +38,19 @@ def _runner_config(seed: int, num_envs: int, **env_kwargs):
             .debugging(seed=seed))
 
 
-def _runner(seed: int, num_envs: int, worker_index: int = 0, **env_kwargs):
+def _runner(seed: int, num_envs: int, worker_index: int = 0, mode: str = "vector_entry_point", **env_kwargs):
     from ray.rllib.env.single_agent_env_runner import SingleAgentEnvRunner
 
-    return SingleAgentEnvRunner(config=_runner_config(seed, num_envs, **env_kwargs), worker_index=worker_index)
+    config = _runner_config(seed, num_envs, **env_kwargs).env_runners(gym_env_vectorize_mode=mode)
+    return SingleAgentEnvRunner(config=config, worker_index=worker_index)
+
+
+@pytest.mark.parametrize(("mode", "vector_class"), [("vector_entry_point", "ElectroLocVectorEnv"),
+                                                     ("sync", "SyncVectorEnv")])
+def test_rllib_runner_builds_the_registered_creator_in_both_modes(mode: str, vector_class: str) -> None:
+    runner = _runner(seed=1, num_envs=2, mode=mode)
+    assert type(runner.env.unwrapped).__name__ == vector_class and runner.env.num_envs == 2
+    assert sum(len(ep) for ep in runner.sample(num_timesteps=4, random_actions=True)) >= 4
 
 
 def test_rllib_creator_serves_both_entry_points_and_refuses_same_step() -> None:

@@ -17,6 +17,8 @@ starts, so registering this backend costs nothing when Ray is absent.
 from __future__ import annotations
 
 import socket
+import subprocess
+import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -27,6 +29,12 @@ __all__ = ["RayBackend", "check_ray_address"]
 
 #: Seconds to wait for a cluster's port to accept a connection.
 CONNECT_TIMEOUT_S = 3.0
+#: Seconds the connection probe (a child process that joins the cluster and leaves) may take.
+PROBE_TIMEOUT_S = 60.0
+#: The probe: join the cluster at argv[1] and leave. In a child process, so that Ray's retry messages (printed
+#: by its C++ core while it waits for an address that is not a Ray cluster) never reach the user's terminal.
+_PROBE = ("import logging, sys\nimport ray\n"
+          "ray.init(address=sys.argv[1], logging_level=logging.ERROR, log_to_driver=False)\nray.shutdown()\n")
 _INSTALL = "pip install 'electroloc-gym[ray]' (or pip install ray)"
 
 
@@ -79,13 +87,29 @@ def check_ray_address(address: str | None) -> None:
     hp = _host_port(target)
     if hp is None:
         raise ValueError(f"--address {address!r} is not a Ray address ('auto', 'host:6379', 'ray://host:10001')")
-    try:
+    try:  # a refused or unroutable port: a clear answer within seconds
         with socket.create_connection(hp, timeout=CONNECT_TIMEOUT_S):
             pass
     except OSError as exc:
         raise ValueError(f"--address {address!r}: no Ray cluster answers at {hp[0]}:{hp[1]} "
                          f"({exc.strerror or exc}); start one with `ray start --head` or omit --address") from None
-    del ray
+    _probe(address, ray)
+
+
+def _probe(address: str, ray: Any) -> None:
+    """Join the cluster at ``address`` from a child process (something else may listen on that port)."""
+    if ray.is_initialized():
+        return
+    try:
+        proc = subprocess.run([sys.executable, "-c", _PROBE, address], capture_output=True, text=True,
+                              timeout=PROBE_TIMEOUT_S, check=False)
+    except subprocess.TimeoutExpired:
+        raise ValueError(f"--address {address!r}: no Ray cluster answered within {PROBE_TIMEOUT_S:g} s; start one "
+                         f"with `ray start --head` or omit --address") from None
+    if proc.returncode != 0:
+        lines = [ln for ln in proc.stderr.splitlines() if "Error" in ln] or proc.stderr.splitlines() or ["no answer"]
+        raise ValueError(f"--address {address!r}: could not join a Ray cluster there ({lines[-1].strip()}); "
+                         f"start one with `ray start --head` or omit --address")
 
 
 def _run_in_worker(worker_fn: Callable[[Any], Any], spec: Any) -> Any:
