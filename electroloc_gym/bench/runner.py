@@ -141,7 +141,7 @@ def _check_agents(config: BenchConfig, trust_pickle: bool, log: _Log) -> None:
                              f"particles; this machine has ≈{_memory_budget() / 2**30:.3g} GiB to spare: choose "
                              f"smaller options")
         probe_env(config, spec, agent)
-        if kind in ("baseline", "factory"):
+        if kind in ("baseline", "factory", "object"):
             described.append(spec)
             continue
         why = policy_env_problem(spec, agent, config.env_id, config.gain_levels)
