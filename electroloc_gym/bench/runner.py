@@ -181,13 +181,14 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
         raise ValueError(f"agent {spec!r}: {config.env_id} refuses this run's settings: {exc}") from None
 
 
-def _agent_limits(spec: str, trust_pickle: bool) -> tuple[int | None, float | None]:
-    """(observation cap, success criterion) an agent sets itself through its ``env_kwargs`` (None: the run's)."""
+def _agent_limits(spec: str, trust_pickle: bool) -> tuple[int | None, float | None, str | None]:
+    """(observation cap, success criterion, layout) an agent sets itself (None: the run's / unknown)."""
     try:
-        kwargs = dict(getattr(cached_agent(spec, trust_pickle=trust_pickle), "env_kwargs", {}) or {})
+        agent = cached_agent(spec, trust_pickle=trust_pickle)
     except ValueError:  # an agent of the stored run that does not build here: its records keep the run's limits
-        return None, None
-    return kwargs.get("max_observations"), kwargs.get("success_spread_mm")
+        return None, None, None
+    kwargs = dict(getattr(agent, "env_kwargs", {}) or {})
+    return kwargs.get("max_observations"), kwargs.get("success_spread_mm"), str(getattr(agent, "layout", "table4"))
 
 
 def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
@@ -204,14 +205,16 @@ def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
     env = gym.make(config.env_id)
     criterion = float(env.unwrapped.success_spread_mm)
     env.close()
-    caps, criteria = {}, {}
+    caps, criteria, layouts = {}, {}, {}
     for spec in agents:
-        cap, crit = _agent_limits(spec, trust_pickle)
+        cap, crit, layout = _agent_limits(spec, trust_pickle)
         caps[spec] = int(cap) if cap is not None else config.max_observations
         if crit is not None:
             criteria[spec] = float(crit)
+        if layout is not None:
+            layouts[spec] = layout
     return RecordRules(conditions=conditions, agents=agents, trials=trials, success_spread_mm=criterion,
-                       shape=config.env_id == UNKNOWN_ENV_ID, caps=caps, criteria=criteria)
+                       shape=config.env_id == UNKNOWN_ENV_ID, caps=caps, criteria=criteria, layouts=layouts)
 
 
 def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
@@ -223,8 +226,13 @@ def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
     from electroloc_gym.bench.plots import steps_png
     from electroloc_gym.bench.tables import render_table_md
 
-    content = {"summary.json": strict_json(summary).encode("utf-8"),
-               "table.md": render_table_md(summary).encode("utf-8"), "steps.png": steps_png(summary)}
+    try:
+        content = {"summary.json": strict_json(summary).encode("utf-8"),
+                   "table.md": render_table_md(summary).encode("utf-8"), "steps.png": steps_png(summary)}
+    except BaseException:  # the old files describe other records: none stays beside trials.jsonl
+        for name in OUTPUT_FILES:
+            (out / name).unlink(missing_ok=True)
+        raise
     try:
         for name in OUTPUT_FILES:
             atomic_write_bytes(out / name, content[name])
