@@ -220,7 +220,10 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
     kind = agent_kind(spec)
     spec = spec.strip()
     if kind == "baseline":
-        return make_agent(spec, seed=seed)
+        try:
+            return make_agent(spec, seed=seed)
+        except ValueError as exc:
+            raise ValueError(str(exc) if repr(spec) in str(exc) else f"agent {spec!r}: {exc}") from None
     if kind == "factory":
         return make_factory_agent(spec)
     if kind == "object":

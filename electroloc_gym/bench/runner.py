@@ -127,7 +127,7 @@ def _resume(config: BenchConfig, out: Path, log: _Log,
     return loaded, stored
 
 
-def _check_agents(config: BenchConfig, trust_pickle: bool, log: _Log) -> None:
+def _check_agents(config: BenchConfig, trust_pickle: bool) -> str:
     """Fail fast (before any worker starts) on bad agent names, paths, factories or policy files, and on a
     learned policy recorded for another env, observation layout or action space; say what runs.
     """
@@ -149,8 +149,7 @@ def _check_agents(config: BenchConfig, trust_pickle: bool, log: _Log) -> None:
             raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
         described.append(f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
                          f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)")
-    if log is not None:
-        log("agents: " + "; ".join(described))
+    return "agents: " + "; ".join(described)
 
 
 def _memory_budget() -> int:
@@ -270,9 +269,11 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
     if planned > MAX_PLANNED_TRIALS:
         raise ValueError(f"--trials {config.trials} × {len(config.agents)} agent(s) × {len(config.conditions)} "
                          f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run")
-    _check_agents(config, trust_pickle, log)  # before the folder is touched: a bad agent writes nothing
+    described = _check_agents(config, trust_pickle)  # before the folder is touched: a bad agent writes nothing
     out = prepare_out_dir(out_dir)
     with run_lock(out):
+        if log is not None:
+            log(described)
         trials_path, config_path = out / TRIALS_FILE, out / "config.json"
         stored: dict[str, Any] | None = None
         loaded = LoadedRecords(trials_path)
