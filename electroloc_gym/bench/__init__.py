@@ -4,7 +4,10 @@ Modules, in the order a run uses them:
 
 * :mod:`~electroloc_gym.bench.config` — what a run is (:class:`BenchConfig`), its trials and their seeds;
 * :mod:`~electroloc_gym.bench.agents` — agent specs → agents (controllers, shipped models, paths);
-* :mod:`~electroloc_gym.bench.records` — the output folder: checked, locked, records keyed and validated;
+* :mod:`~electroloc_gym.bench.schema` — the trial record (:class:`~electroloc_gym.bench.schema.TrialRecord`),
+  the one declaration of what a line of trials.jsonl holds and how it is checked;
+* :mod:`~electroloc_gym.bench.records` — the output folder: checked, locked, records parsed within bounds,
+  keyed and validated against the run;
 * :mod:`~electroloc_gym.bench.backends` (and :mod:`~electroloc_gym.bench.ray_backend`) — where trials run;
 * :mod:`~electroloc_gym.bench.trials` and :mod:`~electroloc_gym.bench.rollout` — one trial, one episode;
 * :mod:`~electroloc_gym.bench.runner` — :func:`run_benchmark`, which ties them together;
