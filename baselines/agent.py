@@ -38,19 +38,21 @@ __all__ = [
 
 def _registry() -> dict[str, type]:
     """Name → controller class (imported when first needed: min-var and lookahead load scipy's kernels)."""
+    from electroloc_gym.baselines.eedi import EEDIAgent
+    from electroloc_gym.baselines.infotaxis import InfotaxisAgent
     from electroloc_gym.baselines.lookahead import LookaheadAgent
     from electroloc_gym.baselines.min_variance import MinVarianceAgent
     from electroloc_gym.baselines.random_walk import RandomWalkAgent
     from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 
     return {"rnd-wlk": RandomWalkAgent, "min-var": MinVarianceAgent, "zero-crossing": ZeroCrossingAgent,
-            "lookahead": LookaheadAgent}
+            "lookahead": LookaheadAgent, "infotaxis": InfotaxisAgent, "eedi": EEDIAgent}
 
 
 #: Names of the built-in agents (classes resolved lazily by :func:`make_agent`).
 AGENT_REGISTRY: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
 #: Agents beyond the paper's controllers, built by :func:`make_agent` but not in default benchmark runs.
-EXTRA_AGENTS: tuple[str, ...] = ("lookahead",)
+EXTRA_AGENTS: tuple[str, ...] = ("lookahead", "infotaxis", "eedi")
 
 
 def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:

@@ -36,10 +36,10 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Agent", "BaselineAgent", "sample_options_mm", "move_bounds_mm", "MAX_STEP_MM"]
+from electroloc_gym.core.params import MAX_STEP_MM  # the largest move per axis per step, mm (paper §4.1.3)
 
-#: Largest move per axis per step, mm (paper §4.1.3; equals the env's action scale).
-MAX_STEP_MM = 10.0
+__all__ = ["Agent", "BaselineAgent", "sample_options_mm", "move_bounds_mm", "sample_belief", "MAX_STEP_MM"]
+
 
 
 @runtime_checkable
@@ -157,3 +157,31 @@ def sample_options_mm(rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray,
     moves = np.zeros((n_options, 2))
     moves[1:] = lo + (hi - lo) * rng.random((n_options - 1, 2))
     return moves
+
+
+def sample_belief(belief: Any, n: int | None, rng: np.random.Generator,
+                  keep_weights: bool = False) -> tuple[NDArray, NDArray[np.float64] | None]:
+    """A planner's hypotheses: the belief's particles, or ``n`` of them drawn from its weights.
+
+    Args:
+        belief: the env's ``belief`` accessor (``particles`` (M, d), ``weights`` (M,)).
+        n: how many hypotheses (None or ≥ M: the whole belief when it is equally weighted).
+        rng: the agent's generator.
+        keep_weights: with unequal weights and ``n`` None or ≥ M, return the whole belief with its weights
+            (the caller weighs them) instead of ``n`` draws.
+
+    Returns:
+        (hypotheses (S, d), their weights or None when they are equally weighted). With equal weights a
+        subset is drawn without replacement; with unequal weights ``n`` are drawn with replacement by weight
+        (then equally weighted), both kept in the belief's order.
+    """
+    x = np.asarray(belief.particles)
+    w = np.asarray(belief.weights, dtype=np.float64)
+    m = x.shape[0]
+    if np.all(w == w[0]):
+        if n is None or n >= m:
+            return x, None
+        return x[np.sort(rng.choice(m, size=n, replace=False))], None
+    if keep_weights and (n is None or n >= m):
+        return x, w
+    return x[np.sort(rng.choice(m, size=m if n is None else n, replace=True, p=w / w.sum()))], None

@@ -74,7 +74,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_options_mm
+from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_belief, sample_options_mm
 from electroloc_gym.baselines.lookahead_objectives import OBJECTIVES, adaptive_costs, posterior_spreads, sequence_costs
 
 __all__ = ["LookaheadAgent", "posterior_spreads", "MAX_DEPTH", "COMPASS_MM", "CONTINUATIONS", "OBJECTIVES"]
@@ -174,13 +174,7 @@ class LookaheadAgent(BaselineAgent):
         if x.shape[1] != 2:
             raise ValueError(f"lookahead plans over position hypotheses (M, 2); this env's are {x.shape} "
                              "(ElectroLocUnknownTarget-v0 carries a radius and a contrast): use min-var there")
-        w = np.asarray(belief.weights, dtype=np.float64)
-        m = x.shape[0]
-        if np.all(w == w[0]):
-            if self.n_particles >= m:
-                return x
-            return x[np.sort(self.rng.choice(m, size=self.n_particles, replace=False))]
-        return x[np.sort(self.rng.choice(m, size=self.n_particles, replace=True, p=w / w.sum()))]
+        return sample_belief(belief, self.n_particles, self.rng)[0].astype(np.float64, copy=False)
 
     def _moves_with_robot(self, x: NDArray) -> bool:
         env = self.env

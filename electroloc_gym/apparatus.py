@@ -44,11 +44,16 @@ def as_floats(obj: Any, *names: str) -> None:
 
 
 def from_dict(cls: type, data: Mapping[str, Any]) -> Any:
-    """``cls(**data)`` for a dataclass, refusing unknown fields by name."""
-    names = {f.name for f in dataclasses.fields(cls)}
+    """``cls(**data)`` for a dataclass, refusing unknown and missing fields by name."""
+    fields = dataclasses.fields(cls)
+    names = {f.name for f in fields}
     unknown = sorted(set(data) - names)
     if unknown:
         raise ValueError(f"unknown {cls.__name__} field(s) {unknown}; allowed: {sorted(names)}")
+    missing = sorted(f.name for f in fields if f.name not in data and f.default is dataclasses.MISSING
+                     and f.default_factory is dataclasses.MISSING)
+    if missing:
+        raise ValueError(f"missing {cls.__name__} field(s) {missing}; required: {sorted(f.name for f in fields)}")
     return cls(**data)
 
 

@@ -25,6 +25,7 @@ from electroloc_gym.conditions import (
 )
 from electroloc_gym.fileio import strict_json
 from electroloc_gym.runtime import pin_threads
+from electroloc_gym.sensor import zero_crossing_mm
 
 __all__ = ["main", "detection_table", "quiet_tank_table", "parse_noise_factor", "build_parser", "HelpFormatter"]
 
@@ -91,36 +92,6 @@ def parse_noise_factor(text: str) -> float:
         raise argparse.ArgumentTypeError(f"noise factor must be a positive finite number such as 1/32 or 0.03125, "
                                          f"got {text!r}")
     return value
-
-
-def zero_crossing_mm(condition: Any, r_max_mm: float = 400.0) -> float:
-    """3-D distance (mm) along the 45° line where the noise-free differential reading changes sign.
-
-    Inside it lies the near field (the 0 V contour of Fig. 4a / Fig. 9), beyond it the far field; near
-    it the signal vanishes, so the detection distance jumps across a gap as the noise falls (§2.3).
-    NaN if the reading keeps its sign out to ``r_max_mm``.
-    """
-    import numpy as np
-    from scipy.optimize import brentq
-
-    from electroloc_gym import physics
-
-    geo = condition.geometry
-    depth = condition.depth_mm
-
-    def signed(R: Any) -> Any:
-        h = np.sqrt(np.maximum(np.asarray(R, float) ** 2 - depth * depth, 0.0)) / np.sqrt(2.0)
-        return physics.differential_perturbation(
-            np.stack([h, h], axis=-1), condition.target.radius_mm, condition.chi, depth, spacing_mm=geo.spacing_mm,
-            emitter_voltage_V=geo.emitter_voltage_V, electrode_radius_mm=geo.electrode_radius_mm)
-
-    R = np.linspace(depth, r_max_mm, 4001)[1:]
-    v = signed(R)
-    flips = np.nonzero(np.sign(v[:-1]) * np.sign(v[1:]) < 0)[0]
-    if flips.size == 0:
-        return float("nan")
-    i = int(flips[0])
-    return float(brentq(lambda r: float(signed(r)), R[i], R[i + 1], xtol=1e-9))
 
 
 def quiet_tank_table(noise_factor: float = QUIET_TANK_FACTOR) -> list[dict[str, float | str]]:
@@ -366,7 +337,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench_cli.add_arguments(b)
     b.set_defaults(func=bench_cli.run)
 
-    t = sub.add_parser("train", help="train an SB3 agent (electroloc train --help for its options)", add_help=False)
+    t = sub.add_parser("train", help="train through rl-zoo3 on the native vector env (electroloc train --help)",
+                       add_help=False)
     t.set_defaults(func=None)
     return p
 

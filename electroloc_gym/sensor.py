@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import brentq
 
 from electroloc_gym import physics
 from electroloc_gym.conditions import Condition
@@ -22,6 +23,7 @@ __all__ = [
     "calibration_readings",
     "add_calibration_noise",
     "electrode_positions_mm",
+    "zero_crossing_mm",
 ]
 
 
@@ -105,3 +107,28 @@ def electrode_positions_mm(condition: Condition, carriage_xy_mm: ArrayLike) -> d
         "S1": p + (0.0, h),
         "S2": p + (0.0, -h),
     }
+
+
+def zero_crossing_mm(condition: Condition, r_max_mm: float = 400.0) -> float:
+    """3-D distance (mm) along the 45° line where the noise-free differential reading changes sign.
+
+    Inside it lies the near field (the 0 V contour of Fig. 4a / Fig. 9), beyond it the far field; near
+    it the signal vanishes, so the detection distance jumps across a gap as the noise falls (§2.3).
+    NaN if the reading keeps its sign out to ``r_max_mm``.
+    """
+    geo = condition.geometry
+    depth = condition.depth_mm
+
+    def signed(R: ArrayLike) -> NDArray[np.float64]:
+        h = np.sqrt(np.maximum(np.asarray(R, float) ** 2 - depth * depth, 0.0)) / np.sqrt(2.0)
+        return physics.differential_perturbation(
+            np.stack([h, h], axis=-1), condition.target.radius_mm, condition.chi, depth, spacing_mm=geo.spacing_mm,
+            emitter_voltage_V=geo.emitter_voltage_V, electrode_radius_mm=geo.electrode_radius_mm)
+
+    R = np.linspace(depth, r_max_mm, 4001)[1:]
+    v = signed(R)
+    flips = np.nonzero(np.sign(v[:-1]) * np.sign(v[1:]) < 0)[0]
+    if flips.size == 0:
+        return float("nan")
+    i = int(flips[0])
+    return float(brentq(lambda r: float(signed(r)), R[i], R[i + 1], xtol=1e-9))

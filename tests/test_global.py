@@ -10,7 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import electroloc_gym
-from electroloc_gym.envs.self_localize import GlobalLocalizationEnv
+from electroloc_gym.envs.global_env import GlobalEnv
 from electroloc_gym.scene import BENCHMARK_SCENE
 
 GLOBAL_ID = "ElectroLocGlobal-v0"
@@ -24,7 +24,7 @@ def test_registered_and_idempotent() -> None:
     electroloc_gym._register()
     assert GLOBAL_ID in gym.registry
     env = gym.make(f"electroloc_gym:{GLOBAL_ID}", n_particles=100)
-    assert isinstance(env.unwrapped, GlobalLocalizationEnv)
+    assert isinstance(env.unwrapped, GlobalEnv)
 
 
 @pytest.mark.parametrize("observation", ["belief", "raw"])
@@ -78,7 +78,7 @@ def test_seeded_rollouts_are_identical(kwargs) -> None:
 
 
 def test_random_layout_changes_with_the_seed_only() -> None:
-    env = GlobalLocalizationEnv(layout="random", n_particles=100, sensor_model="analytic")
+    env = GlobalEnv(layout="random", n_particles=100, sensor_model="analytic")
     env.reset(seed=1)
     s1 = env.scene
     env.reset(seed=1)
@@ -88,7 +88,7 @@ def test_random_layout_changes_with_the_seed_only() -> None:
 
 
 def test_info_contract_truth_and_odometry() -> None:
-    env = GlobalLocalizationEnv(n_particles=500, observation="raw")
+    env = GlobalEnv(n_particles=500, observation="raw")
     obs, info = env.reset(seed=3)
     assert set(info) == {"position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations",
                          "success", "condition"}
@@ -106,7 +106,7 @@ def test_info_contract_truth_and_odometry() -> None:
 
 
 def test_motion_shifts_particles_and_keeps_carriage_in_the_box() -> None:
-    env = GlobalLocalizationEnv(n_particles=400, sensor_model="analytic")
+    env = GlobalEnv(n_particles=400, sensor_model="analytic")
     env.reset(seed=4)
     before = env.belief.particles.copy()
     pos = env.position_mm
@@ -122,7 +122,7 @@ def test_motion_shifts_particles_and_keeps_carriage_in_the_box() -> None:
 
 
 def test_predicted_reading_model_matches_the_map_and_the_v0_convention() -> None:
-    env = GlobalLocalizationEnv(n_particles=200, sensor_model="analytic")
+    env = GlobalEnv(n_particles=200, sensor_model="analytic")
     env.reset(seed=5)
     parts = np.array([[0.0, 0.0], [75.0, -78.0], [-30.0, 44.0]], dtype=np.float32)
     moves = np.array([[0.0, 0.0], [10.0, -10.0], [-3.0, 7.0]])
@@ -166,7 +166,7 @@ def test_belief_converges_on_a_fixed_informative_path(sensor_model: str) -> None
     good = 0
     seeds = range(8)
     for seed in seeds:
-        env = GlobalLocalizationEnv(sensor_model=sensor_model)
+        env = GlobalEnv(sensor_model=sensor_model)
         _, info = env.reset(seed=seed)
         spreads = [info["spread_mm"]]
         for a in _square_spiral(34):
@@ -181,7 +181,7 @@ def test_belief_converges_on_a_fixed_informative_path(sensor_model: str) -> None
 
 def test_multimodal_belief_spread_and_no_crash() -> None:
     """Two far-apart clusters: the spread is the mixture's √trace Σ, not a cluster's, and steps work."""
-    env = GlobalLocalizationEnv(n_particles=1000, sensor_model="calibrated")
+    env = GlobalEnv(n_particles=1000, sensor_model="calibrated")
     env.reset(seed=6)
     rng = np.random.default_rng(0)
     a = rng.normal([-50.0, -50.0], 1.0, size=(500, 2))
@@ -216,7 +216,7 @@ def test_multimodal_belief_spread_and_no_crash() -> None:
 ])
 def test_bad_kwargs_raise_clear_errors(kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
-        GlobalLocalizationEnv(**kwargs)
+        GlobalEnv(**kwargs)
 
 
 def test_rgb_render_returns_frame() -> None:

@@ -17,8 +17,8 @@ from scipy import stats
 
 from electroloc_gym import kernels as K
 from electroloc_gym.conditions import get_condition
+from electroloc_gym.core.observation import HIST_BINS, belief_observation
 from electroloc_gym.draws import normal_table, uniform_in_box
-from electroloc_gym.envs.observation import HIST_BINS, belief_observation
 from electroloc_gym.sensor_models import CalibratedSensorModel
 
 
@@ -282,3 +282,26 @@ def test_belief_observation_equals_its_numpy_formulas() -> None:
     assert obs.shape == (k, 81) and obs.dtype == np.float32
     np.testing.assert_allclose(obs, ref, rtol=1e-6, atol=1e-7)
     assert obs[0, 8] == 0.0 and obs[0, 10] == -1.0
+
+
+def test_jitter_resampled_is_the_numpy_gather_jitter_and_clip() -> None:
+    """The D-coordinate resampling kernel against its numpy statement, bit for bit (float32 throughout)."""
+    rng = np.random.default_rng(5)
+    k, m = 3, 257
+    src = rng.uniform(-60, 60, (k, 4, m)).astype(np.float32)
+    src[:, 3] = np.where(rng.random((k, m)) < 0.5, 1.0, -0.5)
+    idx = np.sort(rng.integers(0, m, (k, m)), axis=1)
+    jitter = rng.integers(0, 2**16, (k, 4 * m)).astype(np.uint16)
+    table = normal_table()
+    scale = np.array([1.0, 1.0, 0.5, 0.0], dtype=np.float32)
+    lo = np.tile(np.array([-50, -50, 5, -0.5], dtype=np.float32), (k, 1))
+    hi = np.tile(np.array([50, 50, 20, 1], dtype=np.float32), (k, 1))
+    out = np.empty_like(src)
+    K.jitter_resampled(idx, src, jitter, table, scale, lo, hi, out)
+    z = table[jitter]
+    rows = np.arange(k)[:, None]
+    draws = (z[:, 0:2 * m:2], z[:, 1:2 * m:2], z[:, 2 * m::2], z[:, 2 * m + 1::2])
+    for d in range(4):
+        want = np.minimum(np.maximum(src[:, d][rows, idx] + scale[d] * draws[d], lo[:, d:d + 1]), hi[:, d:d + 1])
+        np.testing.assert_array_equal(out[:, d], want)
+    assert set(np.unique(out[:, 3])) <= {np.float32(-0.5), np.float32(1.0)}  # scale 0: the contrast unjittered

@@ -74,7 +74,7 @@ def test_wheel_ships_the_namespaced_packages_and_the_models(tmp_path) -> None:
     names = zipfile.ZipFile(wheel).namelist()
     tops = {n.split("/", 1)[0] for n in names}
     assert {t for t in tops if not t.endswith(".dist-info")} == {"electroloc_gym"}
-    for needed in ("electroloc_gym/baselines/agent.py", "electroloc_gym/train/policy.py",
+    for needed in ("electroloc_gym/baselines/agent.py", "electroloc_gym/policy/load.py",
                    "electroloc_gym/train/hyperparams/ppo.yml", "electroloc_gym/bench/records.py",
                    "electroloc_gym/models/__init__.py"):
         assert needed in names, needed

@@ -1,14 +1,24 @@
-"""The optional Ray benchmark backend: same trials as the process backend; skipped without Ray."""
+"""The Ray benchmark backend: the process backend's trials; without Ray or a cluster, one line and exit 2."""
 
 from __future__ import annotations
 
 import json
+import socket
+import sys
 from pathlib import Path
 
 import pytest
 
 from electroloc_gym.bench.backends import BACKENDS, make_backend
-from electroloc_gym.bench.ray_backend import RayBackend
+from electroloc_gym.bench.ray_backend import RayBackend, check_ray_address
+from electroloc_gym.cli import main
+
+
+def _closed_port() -> int:
+    """A local TCP port nobody listens on (bound, then released)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def _records(out: Path) -> dict[tuple[str, str, int], dict]:
@@ -42,3 +52,48 @@ def test_ray_backend_gives_the_process_backends_trials(tmp_path: Path) -> None:
     assert len(a) == 6 and a.keys() == b.keys()
     for key in a:
         assert a[key] == b[key], key
+
+
+def test_ray_check_without_ray_names_the_backend(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray → ImportError
+    with pytest.raises(ValueError, match=r"--backend ray needs Ray.*pip install"):
+        check_ray_address(None)
+
+
+def test_ray_check_unreachable_address_names_the_option() -> None:
+    pytest.importorskip("ray")
+    port = _closed_port()
+    for address in (f"127.0.0.1:{port}", f"ray://127.0.0.1:{port}"):
+        with pytest.raises(ValueError, match=r"^--address .*no Ray cluster answers at 127\.0\.0\.1"):
+            check_ray_address(address)
+    with pytest.raises(ValueError, match="--address"):
+        check_ray_address("no-port-here:abc")
+    check_ray_address(None)  # a local Ray: nothing to check beyond the import
+
+
+@pytest.mark.parametrize("without_ray", [False, True])
+def test_ray_bench_bad_paths_exit_2_with_one_line_and_nothing_written(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, without_ray: bool) -> None:
+    if without_ray:
+        monkeypatch.setitem(sys.modules, "ray", None)
+        option = "--backend ray"
+    else:
+        pytest.importorskip("ray")
+        option = "--address"
+    out = tmp_path / "out"
+    code = main(["bench", "--agents", "rnd-wlk", "--conditions", "fresh-steel-12.7", "--trials", "1",
+                 "--backend", "ray", "--address", f"127.0.0.1:{_closed_port()}", "--out", str(out), "--no-progress"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and option in err[0] and "Traceback" not in err[0]
+    assert not out.exists()
+
+
+def test_ray_check_auto_without_a_cluster_names_the_option(monkeypatch: pytest.MonkeyPatch) -> None:
+    services = pytest.importorskip("ray._private.services")
+
+    def no_cluster(*_args: object, **_kwargs: object) -> str:
+        raise ConnectionError("Could not find any running Ray instance. Please specify the one to connect to.")
+
+    monkeypatch.setattr(services, "canonicalize_bootstrap_address_or_die", no_cluster)
+    with pytest.raises(ValueError, match=r"^--address 'auto': no running Ray cluster found .*ray start --head"):
+        check_ray_address("auto")

@@ -1,71 +1,51 @@
-"""rl-zoo3 trains ElectroLoc-v0 from the shipped hyper-parameter file, read unchanged (``--conf-file``)."""
+"""rl-zoo3 drives training: each algorithm's shipped file trains a few hundred steps on the native vector env,
+exports pickle-free, and the export runs in ``electroloc bench``."""
 
 from __future__ import annotations
 
-import ast
-import os
-import subprocess
-import sys
-from pathlib import Path
+import json
 
 import pytest
-import yaml
 
-REPO = Path(__file__).resolve().parents[1]
-ZOO_FILE = REPO / "train" / "hyperparams" / "rl_zoo3" / "ppo.yml"
+pytest.importorskip("rl_zoo3")
+pytest.importorskip("sb3_contrib")
 
+from train_fixtures import run_zoo, zoo_argv  # noqa: E402
 
-def test_the_zoo_file_mirrors_the_shipped_ppo_belief():
-    section = yaml.safe_load(ZOO_FILE.read_text())["ElectroLoc-v0"]
-    shipped = yaml.safe_load((REPO / "models" / "ppo-belief" / "config.yml").read_text())
-    assert "default" not in yaml.safe_load(ZOO_FILE.read_text())  # rl-zoo3 has no inheritance
-    assert section["env_kwargs"] == shipped["env_kwargs"]
-    assert section["n_envs"] == shipped["n_envs"] and section["n_timesteps"] == shipped["n_timesteps"]
-    for key, value in shipped["hyperparams"].items():
-        if key != "policy_kwargs":
-            assert section[key] == value, key
-    assert ast.literal_eval(section["normalize"]) == shipped["normalize"]
-    kwargs = section["policy_kwargs"]
-    assert isinstance(kwargs, str)  # rl-zoo3 evaluates it as Python
-    for part in ("net_arch=[128, 128]", "activation_fn=nn.Tanh", "log_std_init=-0.5"):
-        assert part in kwargs
-    (wrapper,) = section["env_wrapper"]
-    assert wrapper == {"electroloc_gym.train.wrappers.PotentialShaping": {"coef": shipped["shaping_coef"],
-                                                                          "gamma": shipped["hyperparams"]["gamma"]}}
+from electroloc_gym.cli import main as cli_main  # noqa: E402
+from electroloc_gym.policy import load_policy  # noqa: E402
+from electroloc_gym.train.export import export_run  # noqa: E402
 
 
-def test_rl_zoo3_trains_with_the_file_and_the_result_exports(tmp_path):
-    pytest.importorskip("rl_zoo3")
-    pytest.importorskip("stable_baselines3")
-    env = dict(os.environ, OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")])
-    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "ElectroLoc-v0",
-           "--gym-packages", "electroloc_gym", "--conf-file", str(ZOO_FILE), "-n", "256", "--seed", "0",
-           "--log-folder", str(tmp_path / "logs"), "--eval-freq", "-1", "--device", "cpu",
-           # A small filter and one short rollout keep the test fast; the file itself is read unchanged.
-           "--env-kwargs", "condition:'random'", "observation:'belief'", "randomize_target:True", "n_particles:100",
-           "sensor_model:'analytic'", "--hyperparams", "n_envs:2", "n_steps:64", "batch_size:64", "n_epochs:2"]
-    proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
-    run = tmp_path / "logs" / "ppo" / "ElectroLoc-v0_1"
-    zip_path, vn = run / "ElectroLoc-v0.zip", run / "ElectroLoc-v0" / "vecnormalize.pkl"
-    assert zip_path.is_file() and vn.is_file()
-    monitor = (run / "0.monitor.csv").read_text().splitlines()
-    assert monitor[1] == "r,l,t,success,n_observations"
+@pytest.mark.parametrize("algo", ["ppo", "a2c", "sac", "ppo_lstm", "qrdqn"])
+def test_each_algorithm_file_trains_exports_and_benches(algo, tmp_path, monkeypatch, capsys):
+    run = run_zoo(zoo_argv(algo, tmp_path / "logs"), monkeypatch)
+    out = capsys.readouterr().out
+    assert "reward shaping on" in out and "NativeVecEnv" not in out
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["finished"] and summary["timesteps"] >= 256
+    assert summary["algo"] == {"ppo_lstm": "recurrentppo"}.get(algo, algo)
+    assert summary["best"]["episodes"] == 2 and summary["wall_time_s"] > 0
+    rows = (run / "eval.csv").read_text().splitlines()
+    assert rows[0].startswith("timesteps,") and len(rows) == 3  # at the start and at the end
+    dest = export_run(run, tmp_path / "policy")
+    agent = load_policy(dest)
+    expected_mode = "raw" if algo == "ppo_lstm" else "belief"
+    assert agent.env_kwargs == {"observation": expected_mode,
+                                "action_type": "discrete" if algo == "qrdqn" else "continuous"}
+    assert "rl_zoo3.train" in (dest / "command.txt").read_text()
+    bench = tmp_path / "bench"
+    assert cli_main(["bench", "--agents", str(dest), "--conditions", "fresh-steel-12.7", "--trials", "2",
+                     "--n-particles", "300", "--backend", "serial", "--no-progress", "--out", str(bench)]) == 0
+    table = json.loads((bench / "summary.json").read_text())
+    assert "policy" in json.dumps(table)
 
-    # The rl-zoo3 model (trusted: we just trained it) converts to the pickle-free format and plays.
-    import gymnasium as gym
 
-    from electroloc_gym.train.export import export_model_dir
-    from electroloc_gym.train.policy import load_policy
-
-    out = export_model_dir(zip_path, out=tmp_path / "policy", vecnormalize=vn,
-                           overrides={"env_kwargs": {"observation": "belief", "n_particles": 100,
-                                                     "sensor_model": "analytic"}})
-    agent = load_policy(out)
-    assert agent.normalization is not None and agent.env_kwargs["observation"] == "belief"
-    e = gym.make("ElectroLoc-v0", n_particles=100, sensor_model="analytic", **agent.env_kwargs)
-    obs, _ = e.reset(seed=1)
-    agent.reset(e)
-    action, _ = agent.predict(obs)
-    assert e.action_space.contains(action)
+def test_the_hook_swaps_dummy_vec_env_for_the_native_vector_env(tmp_path, monkeypatch):
+    """One VecMonitor file (native batched env) with the hook; one Monitor file per env without it (DummyVecEnv)."""
+    native = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=64), monkeypatch)
+    assert sorted(p.name for p in native.glob("*.monitor.csv")) == ["0.monitor.csv"]
+    monkeypatch.setattr("rl_zoo3.exp_manager.ExperimentManager.default_vec_env_cls", None)
+    dummy = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=64, native=False), monkeypatch)
+    assert sorted(p.name for p in dummy.glob("*.monitor.csv")) == [f"{i}.monitor.csv" for i in range(4)]
+    assert (dummy / "best" / "policy.json").is_file()  # the callback and the shaping work on DummyVecEnv too

@@ -11,14 +11,11 @@ from gymnasium.vector import AutoresetMode
 from reference_filter import ParticleBelief, egocentric_histogram
 
 import electroloc_gym  # noqa: F401
+from electroloc_gym.core.observation import HIST_BINS, INFO_KEYS
 from electroloc_gym.draws import normal_table
-from electroloc_gym.envs.observation import HIST_BINS
-from electroloc_gym.envs.vector import ElectroLocVectorEnv
+from electroloc_gym.envs.vector import ElectroLocVectorEnv, sub_env_seeds
 from electroloc_gym.kernels import loglik_assimilate
 from electroloc_gym.sensor_models import CalibratedSensorModel
-
-INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
-             "condition")
 
 
 def _native(n: int, **kw: Any) -> ElectroLocVectorEnv:
@@ -66,7 +63,7 @@ def test_native_equals_sync_of_single_envs_bit_for_bit(kwargs: dict[str, Any], m
     assert native.single_observation_space == ref.single_observation_space
     assert native.action_space == ref.action_space
     o1, i1 = native.reset(seed=11)
-    o2, i2 = ref.reset(seed=11)
+    o2, i2 = ref.reset(seed=sub_env_seeds(11, n))
     assert np.array_equal(o1, o2)
     _info_equal(i1, i2, "reset")
     ended = 0
@@ -91,7 +88,7 @@ def test_native_equals_sync_of_single_envs_bit_for_bit(kwargs: dict[str, Any], m
 def test_default_kwargs_match_single_env_at_2500_particles() -> None:
     native = _native(3)
     ref = _reference(3, AutoresetMode.NEXT_STEP)
-    assert np.array_equal(native.reset(seed=5)[0], ref.reset(seed=5)[0])
+    assert np.array_equal(native.reset(seed=5)[0], ref.reset(seed=sub_env_seeds(5, 3))[0])
     for a in _actions(ref.action_space, 40, seed=0):
         r1, r2 = native.step(a), ref.step(a)
         assert np.array_equal(r1[0], r2[0]) and np.array_equal(r1[2], r2[2]) and np.array_equal(r1[3], r2[3])
@@ -120,7 +117,7 @@ def test_make_vec_entry_point_and_spaces() -> None:
 
 def test_same_seed_same_rollout_and_seed_list() -> None:
     a, b = _native(3, n_particles=150), _native(3, n_particles=150)
-    oa, _ = a.reset(seed=[4, 5, 6])
+    oa, _ = a.reset(seed=sub_env_seeds(4, 3))
     ob, _ = b.reset(seed=4)
     assert np.array_equal(oa, ob)
     for act in _actions(a.action_space, 30, seed=1):
@@ -147,7 +144,7 @@ def test_max_episode_steps_truncates_like_time_limit() -> None:
     ref = gym.vector.SyncVectorEnv([lambda: gym.make("ElectroLoc-v0", n_particles=120, max_episode_steps=3,
                                                      success_spread_mm=1e-6) for _ in range(2)])
     native.reset(seed=1)
-    ref.reset(seed=1)
+    ref.reset(seed=sub_env_seeds(1, 2))
     for act in _actions(ref.action_space, 8, seed=0):
         r1, r2 = native.step(act), ref.step(act)
         assert np.array_equal(r1[0], r2[0]) and np.array_equal(r1[3], r2[3]) and np.array_equal(r1[1], r2[1])
@@ -336,7 +333,7 @@ def test_global_native_equals_sync_of_single_envs(kwargs: dict[str, Any], mode: 
     ref = gym.vector.SyncVectorEnv([lambda: gym.make("ElectroLocGlobal-v0", **kwargs) for _ in range(n)],
                                    autoreset_mode=mode)
     o1, _ = native.reset(seed=21)
-    o2, _ = ref.reset(seed=21)
+    o2, _ = ref.reset(seed=sub_env_seeds(21, n))
     assert np.array_equal(o1, o2)
     ended = 0
     for t, a in enumerate(_actions(ref.action_space, 70, seed=4)):

@@ -8,6 +8,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
+from electroloc_gym.envs.vector import sub_env_seeds
+
 
 def assert_native_equals_sync(env_id: str, kwargs: dict[str, Any], mode: AutoresetMode, info_keys: tuple[str, ...],
                               *, n: int = 3, seed: int = 5, action_seed: int = 2, steps: int = 40,
@@ -19,7 +21,7 @@ def assert_native_equals_sync(env_id: str, kwargs: dict[str, Any], mode: Autores
     ref = gym.vector.SyncVectorEnv([lambda: gym.make(env_id, **kwargs) for _ in range(n)], autoreset_mode=mode)
     assert native.action_space == ref.action_space
     o1, _ = native.reset(seed=seed)
-    o2, _ = ref.reset(seed=seed)
+    o2, _ = ref.reset(seed=sub_env_seeds(seed, n))
     assert np.array_equal(o1, o2)
     ref.action_space.seed(action_seed)
     ended = 0

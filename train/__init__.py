@@ -1,12 +1,12 @@
-"""SB3 training for electroloc-gym: ``python -m electroloc_gym.train`` / ``electroloc train``.
+"""Training on rl-zoo3 with the project's additions (needs the ``zoo`` extra).
 
-Modules: ``config`` (the project's strict YAML hyper-parameter files), ``validation`` (value, policy
-and env checks before training), ``runplan`` / ``rundir`` (new, resumed or forced runs; one run per
-folder; segment records), ``wrappers`` (frame stack, potential shaping), ``native_vec`` (SB3 adapter
-of the native batched vector env), ``callbacks`` (seeded evaluation, checkpoints, atomic saves),
-``policy_format`` (the pickle-free ``policy.json`` + ``policy.safetensors``), ``policy``
-(``load_policy``: a saved model as a benchmark agent), ``resume`` (continuing a run without
-unpickling), ``export`` (converting a trusted SB3 model). Importing this package does not import torch.
+``zoo`` (the ``--gym-packages`` hook: the native vector env under rl-zoo3), ``native_vec`` (SB3
+``VecEnv`` of the native batched env), ``wrappers`` (potential-based shaping), ``callbacks``
+(the benchmark's metrics on validation episodes, the chosen checkpoint exported pickle-free),
+``export`` (an rl-zoo3 run folder → a policy folder), ``run`` (one call or command from algorithm,
+env, seed and budget to run folder and export), ``plots`` (learning curves). Hyper-parameter files,
+one per algorithm in rl-zoo3's format: ``hyperparams/``. Loading a policy lives in
+:mod:`electroloc_gym.policy`. Importing this package imports nothing heavy.
 """
 
 __all__: list[str] = []

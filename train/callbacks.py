@@ -1,198 +1,156 @@
-"""Training callbacks: seeded evaluation (success, median steps, median error), checkpoints, atomic saves.
+"""The evaluation callback of every rl-zoo3 run: the benchmark's metrics on validation episodes.
 
-The evaluation runs the *current* policy through :class:`electroloc_gym.train.policy.SB3Agent` — the very wrapper
-the benchmark uses — on a fixed list of seeded episodes, so the numbers in ``eval.csv`` are
-comparable across a run and with the benchmark's metric definitions (steps = ``info["n_observations"]``,
-the observations fused, as the paper counts them).
+rl-zoo3's own ``EvalCallback`` scores a checkpoint by its mean return. :class:`BenchEvalCallback`
+(named under ``callback:`` in every file of ``train/hyperparams/``) also runs the *current* policy
+the way the benchmark runs a policy — exported in memory to the pickle-free format, loaded as the
+benchmark's agent (:mod:`electroloc_gym.policy`), one seeded episode per validation seed through
+:func:`electroloc_gym.bench.rollout.run_episode` — and records what the benchmark reports:
+successes, readings to localise (``info["n_observations"]``; a failure counts as the cap) and the
+final error, plus the task's own (unshaped) return. It also switches on the reward shaping of the
+training env (:func:`electroloc_gym.train.wrappers.activate_shaping`).
+
+In the run folder rl-zoo3 made (``logs/<algo>/<env>_<n>/``, found from the training monitor's file)
+it writes, each atomically: ``eval.csv`` (one row per evaluation), ``best/`` (the pickle-free export
+of the checkpoint with the fewest mean readings on the validation episodes — the checkpoint the
+export ships) and ``summary.json`` (wall time, fps, the chosen row). The run folder is locked while
+the run writes, and a folder that already holds another run's ``eval.csv`` is refused.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import shlex
+import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import yaml
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper, VecFrameStack, VecMonitor
 
 from electroloc_gym.bench.rollout import run_episode
-from electroloc_gym.fileio import atomic_write_bytes, atomic_write_text  # noqa: F401  (re-exported)
-from electroloc_gym.train.policy import SB3Agent
-from electroloc_gym.train.policy_format import export_policy, normalization_from_vecnormalize
+from electroloc_gym.fileio import FolderLock, atomic_write_text, write_json_atomic
+from electroloc_gym.policy.format import write_export
+from electroloc_gym.policy.sb3 import agent_from_model, export_meta, model_weights
+from electroloc_gym.train.native_vec import NativeVecEnv
+from electroloc_gym.train.wrappers import activate_shaping
 
-__all__ = [
-    "EvalResult",
-    "SeededEvalCallback",
-    "ModelDirCheckpoint",
-    "atomic_write_bytes",
-    "atomic_write_text",
-    "evaluate_agent",
-    "save_model_dir",
-]
+__all__ = ["BenchEvalCallback", "EVAL_FIELDS", "evaluate_agent"]
 
-EVAL_CSV_FIELDS = ("timesteps", "wall_time_s", "episodes", "success_rate", "median_steps", "mean_steps",
-                   "median_steps_success", "median_error_mm", "mean_error_mm")
+EVAL_FIELDS = ("timesteps", "wall_time_s", "episodes", "success_rate", "mean_readings", "median_readings",
+               "median_error_mm", "mean_error_mm", "mean_return")
+
+#: First reset seed of the validation episodes (the benchmark's trials are drawn from seed 0's stream).
+VALIDATION_SEED = 100_000
 
 
-def _observation_info(model: Any, config: Mapping[str, Any]) -> dict[str, Any]:
-    """What ``policy.json`` records about the observation and action layout, from the run config."""
-    env_kwargs = dict(config.get("env_kwargs") or {})
-    frame_stack = int(config.get("frame_stack", 1) or 1)
-    mode = env_kwargs.get("observation")
-    if mode is None:  # the env's default; infer it from the network's input size
-        from electroloc_gym.envs.observation import RAW_OBS_DIM
-
-        mode = "raw" if model.observation_space.shape[0] == RAW_OBS_DIM * frame_stack else "belief"
-    action_type = env_kwargs.get("action_type") or ("discrete" if hasattr(model.action_space, "n") else "continuous")
-    return {"env_id": config.get("env_id", "ElectroLoc-v0"), "mode": mode, "action_type": action_type,
-            "frame_stack": frame_stack, "env_kwargs": env_kwargs, "algo": config.get("algo")}
-
-
-def save_model_dir(model: Any, folder: str | Path, config: Mapping[str, Any], *,
-                   provenance: Mapping[str, Any] | None = None, evaluation: Mapping[str, Any] | None = None) -> Path:
-    """Save a model directory atomically: ``policy.safetensors`` + ``policy.json``, ``model.zip``, ``config.yml``.
-
-    The pickle-free pair is what this project loads (:mod:`electroloc_gym.train.policy_format`);
-    ``model.zip`` is SB3's own (pickle-based) file for SB3 users. No ``vecnormalize.pkl`` is written:
-    the observation statistics are in ``policy.json``.
-
-    Returns:
-        The folder.
-    """
-    d = Path(folder)
-    d.mkdir(parents=True, exist_ok=True)
-    buf = io.BytesIO()
-    model.save(buf)
-    atomic_write_bytes(d / "model.zip", buf.getvalue())
-    atomic_write_text(d / "config.yml", yaml.safe_dump(dict(config), sort_keys=False))
-    prov = {**dict(provenance or {}), "timesteps": int(model.num_timesteps),
-            "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    prov.setdefault("seed", config.get("seed"))
-    export_policy(model, d, observation=_observation_info(model, config),
-                  normalization=normalization_from_vecnormalize(model.get_vec_normalize_env()),
-                  provenance=prov, evaluation=evaluation)  # last: policy.json names the weights it goes with
-    return d
-
-
-@dataclass(frozen=True)
-class EvalResult:
-    """Aggregate of a seeded evaluation. Steps are observations fused (``info["n_observations"]``)."""
-
-    episodes: int
-    success_rate: float
-    median_steps: float
-    mean_steps: float
-    median_steps_success: float
-    median_error_mm: float
-    mean_error_mm: float
-
-
-def evaluate_agent(agent: Any, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int]) -> EvalResult:
-    """Run one episode per seed with ``agent`` (deterministic) and aggregate.
-
-    Each episode is the benchmark's (:func:`electroloc_gym.bench.rollout.run_episode`).
-
-    Args:
-        agent: anything with ``reset(env)``, ``predict(obs, ...)`` and ``env_kwargs``.
-        env_id: Gymnasium id.
-        env_kwargs: env kwargs (the agent's own ``env_kwargs`` are merged on top).
-        seeds: one reset seed per episode.
-    """
-    import electroloc_gym  # noqa: F401  (registers the ids)
-
-    env = gym.make(env_id, **{**dict(env_kwargs), **dict(getattr(agent, "env_kwargs", {}))})
-    steps, errors, success = [], [], []
+def evaluate_agent(agent: Any, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int]) -> dict[str, float]:
+    """One deterministic benchmark episode per seed; the aggregate row (readings = ``n_observations``)."""
+    env = gym.wrappers.RecordEpisodeStatistics(gym.make(env_id, **{**dict(env_kwargs), **agent.env_kwargs}))
+    readings, errors, success, returns = [], [], [], []
     try:
         for s in seeds:
-            info = run_episode(env, agent, int(s), deterministic=True).info
-            steps.append(int(info["n_observations"]))
-            errors.append(float(info["error_mm"]))
-            success.append(bool(info["success"]))
+            ep = run_episode(env, agent, int(s), deterministic=True)
+            readings.append(int(ep.info["n_observations"]))
+            errors.append(float(ep.info["error_mm"]))
+            success.append(bool(ep.info["success"]))
+            returns.append(float(ep.info["episode"]["r"]))
     finally:
         env.close()
-    st, er, ok = np.asarray(steps, float), np.asarray(errors, float), np.asarray(success, bool)
-    return EvalResult(
-        episodes=len(st),
-        success_rate=float(ok.mean()),
-        median_steps=float(np.median(st)),
-        mean_steps=float(st.mean()),
-        median_steps_success=float(np.median(st[ok])) if ok.any() else float("nan"),
-        median_error_mm=float(np.median(er)),
-        mean_error_mm=float(er.mean()),
-    )
+    r, e = np.asarray(readings, float), np.asarray(errors, float)
+    return {"episodes": len(r), "success_rate": float(np.mean(success)), "mean_readings": float(r.mean()),
+            "median_readings": float(np.median(r)), "median_error_mm": float(np.median(e)),
+            "mean_error_mm": float(e.mean()), "mean_return": float(np.mean(returns))}
 
 
-def _agent_from_training(model: Any, frame_stack: int, env_kwargs: Mapping[str, Any]) -> SB3Agent:
-    vn = model.get_vec_normalize_env()
-    obs_rms = None
-    if vn is not None and vn.norm_obs:
-        obs_rms = vn.obs_rms.copy()  # frozen copy: evaluation must not move the statistics
-    return SB3Agent(model, obs_rms=obs_rms, clip_obs=getattr(vn, "clip_obs", 10.0),
-                    epsilon=getattr(vn, "epsilon", 1e-8), frame_stack=frame_stack, env_kwargs=env_kwargs)
+def _zoo_argv() -> list[str]:
+    """This process's ``rl_zoo3.train`` arguments as run from a shell (``-m rl_zoo3.train …``)."""
+    return ["-m", "rl_zoo3.train", *sys.argv[1:]]
 
 
-class SeededEvalCallback(BaseCallback):
-    """Every ``eval_freq`` env steps: evaluate on fixed seeds, log, keep the best model.
+def _chain(venv: VecEnv) -> list[VecEnv]:
+    out = [venv]
+    while isinstance(out[-1], VecEnvWrapper):
+        out.append(out[-1].venv)
+    return out
 
-    Writes one row per evaluation to ``csv_path`` (always) and records ``eval/*`` in SB3's logger
-    (TensorBoard when it is installed and enabled). The best model (lowest mean steps, failures
-    counting as the observation cap — i.e. the highest return) is saved to ``best_dir``.
+
+def env_of(venv: VecEnv) -> tuple[str, dict[str, Any], int, Path | None]:
+    """(env id, env kwargs, frames stacked, run folder) of an rl-zoo3 training env."""
+    chain = _chain(venv)
+    stack = next((w.n_stack for w in chain if isinstance(w, VecFrameStack)), 1)
+    base = chain[-1]
+    monitor_file = None
+    mon = next((w for w in chain if isinstance(w, VecMonitor)), None)
+    if isinstance(base, NativeVecEnv):
+        env_id, kwargs = base.env_id, dict(base.env_kwargs)
+        writer = getattr(mon, "results_writer", None)
+    elif isinstance(base, DummyVecEnv):
+        spec = base.envs[0].unwrapped.spec
+        env_id, kwargs = spec.id, dict(spec.kwargs)
+        m = base.envs[0]
+        while not isinstance(m, Monitor) and isinstance(m, gym.Wrapper):
+            m = m.env
+        writer = getattr(m, "results_writer", None)
+    else:
+        raise ValueError(f"BenchEvalCallback needs a NativeVecEnv or DummyVecEnv, got {type(base).__name__}")
+    if writer is not None:
+        monitor_file = writer.file_handler.name
+    kwargs.pop("render_mode", None)
+    return env_id, kwargs, int(stack), None if monitor_file is None else Path(monitor_file).parent
+
+
+class BenchEvalCallback(BaseCallback):
+    """Every ``eval_freq`` env steps: the benchmark's metrics on ``n_episodes`` validation episodes.
 
     Args:
-        env_id: Gymnasium id.
-        env_kwargs: evaluation env kwargs (include the agent's observation/action kwargs).
-        seeds: reset seeds, one episode each (keep them disjoint from the benchmark's).
-        eval_freq: env steps between evaluations.
-        csv_path: where the rows go.
-        best_dir: model directory for the best model (None: do not save).
-        config: the resolved run config written beside saved models.
-        frame_stack: the policy's frame stack.
-        t0: wall-clock start of training (``time.time()``; a resumed run passes its start shifted back by
-            the earlier segments' wall time, so that ``wall_time_s`` counts the whole run).
-        best_mean_steps: the best score so far (a resumed run's, so that a worse model never replaces
-            its ``best/``); ``inf`` for a new run.
-        provenance: written into each saved model's ``policy.json``.
-        on_evaluate: called with the number of timesteps after each evaluation (run records).
+        eval_freq: env steps between evaluations (≥ 1); also one at the start and one at the end.
+        n_episodes: validation episodes (reset seeds ``seed``, ``seed + 1``, …; ≥ 1).
+        seed: first validation reset seed (keep it away from the benchmark's seed-0 trials).
+        env_kwargs: evaluation env kwargs on top of the training env's (e.g. ``randomize_target: false``).
+        verbose: 1 prints one line per evaluation.
     """
 
-    def __init__(self, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int], eval_freq: int,
-                 csv_path: str | Path, best_dir: str | Path | None, config: Mapping[str, Any],
-                 frame_stack: int = 1, t0: float | None = None, verbose: int = 1, *,
-                 best_mean_steps: float = float("inf"), provenance: Mapping[str, Any] | None = None,
-                 on_evaluate: Callable[[int], None] | None = None) -> None:
+    def __init__(self, eval_freq: int = 50_000, n_episodes: int = 64, seed: int = VALIDATION_SEED,
+                 env_kwargs: Mapping[str, Any] | None = None, verbose: int = 1) -> None:
         super().__init__(verbose)
-        if eval_freq < 1:
-            raise ValueError(f"eval_freq must be ≥ 1 env step, got {eval_freq}")
-        self.env_id = env_id
-        self.env_kwargs = dict(env_kwargs)
-        self.seeds = [int(s) for s in seeds]
-        self.eval_freq = int(eval_freq)
-        self.csv_path = Path(csv_path)
-        self.best_dir = None if best_dir is None else Path(best_dir)
-        self.config = dict(config)
-        self.frame_stack = frame_stack
-        self.t0 = time.time() if t0 is None else t0
-        self.best_mean_steps = float(best_mean_steps)
-        self.best_timesteps: int | None = None
-        self.provenance = dict(provenance or {})
-        self.on_evaluate = on_evaluate
+        for name, v in (("eval_freq", eval_freq), ("n_episodes", n_episodes)):
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"BenchEvalCallback {name} must be an integer ≥ 1, got {v!r}")
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ValueError(f"BenchEvalCallback seed must be an integer ≥ 0, got {seed!r}")
+        self.eval_freq, self.n_episodes, self.seed = eval_freq, n_episodes, seed
+        self.eval_env_kwargs = dict(env_kwargs or {})
         self.history: list[dict[str, float]] = []
-        self._last = -1
+        self.best: dict[str, float] | None = None
+        self.run_dir: Path | None = None
+        self._lock: FolderLock | None = None
+        self._last = 0
+        self._t0 = 0.0
+        self._eval_s = 0.0
 
+    # ---- SB3 hooks ----------------------------------------------------------------------------
     def _on_training_start(self) -> None:
+        n = activate_shaping(self.training_env)
+        self.env_id, self.env_kwargs, self.frame_stack, self.run_dir = env_of(self.training_env)
+        if self.verbose:
+            print(f"[bench-eval] {self.env_id}: reward shaping {'on' if n else 'absent'}; evaluating every "
+                  f"{self.eval_freq} steps on {self.n_episodes} validation episodes (seeds {self.seed}…)", flush=True)
+        if self.run_dir is not None:
+            self._lock = FolderLock(self.run_dir, ".bench_eval.lock",
+                                    f"another training run writes into {self.run_dir}").acquire()
+            if (self.run_dir / "eval.csv").exists():
+                self._lock.release()
+                raise ValueError(f"run folder {self.run_dir} already holds another run's eval.csv; "
+                                 f"rl-zoo3 gives every run a fresh folder — start a new run")
+        self._t0 = time.time()
         self._last = self.num_timesteps
-        if not self.csv_path.exists():
-            self.csv_path.parent.mkdir(parents=True, exist_ok=True)
-            with self.csv_path.open("w", newline="") as fh:
-                csv.writer(fh).writerow(EVAL_CSV_FIELDS)
-        if self.num_timesteps == 0:
-            self.evaluate()
+        self.evaluate()
 
     def _on_step(self) -> bool:
         if self.num_timesteps - self._last >= self.eval_freq:
@@ -201,59 +159,65 @@ class SeededEvalCallback(BaseCallback):
         return True
 
     def _on_training_end(self) -> None:
-        if self.num_timesteps != self._last:
-            self._last = self.num_timesteps
-            self.evaluate()
+        try:
+            if self.num_timesteps != self._last:
+                self._last = self.num_timesteps
+                self.evaluate()
+            self._write_summary(finished=self.num_timesteps >= getattr(self.model, "_total_timesteps", 0))
+        finally:
+            if self._lock is not None:
+                self._lock.release()
 
-    def evaluate(self) -> EvalResult:
-        """Evaluate now, append a CSV row, log, and save the model if it is the best so far."""
-        agent = _agent_from_training(self.model, self.frame_stack, {})
-        res = evaluate_agent(agent, self.env_id, self.env_kwargs, self.seeds)
-        row = {"timesteps": int(self.num_timesteps), "wall_time_s": round(time.time() - self.t0, 1), **asdict(res)}
+    # ---- evaluation ---------------------------------------------------------------------------
+    def _meta(self, row: Mapping[str, Any] | None) -> dict[str, Any]:
+        return export_meta(self.model, env_id=self.env_id, env_kwargs=self.env_kwargs, frame_stack=self.frame_stack,
+                           vecnormalize=self.model.get_vec_normalize_env(), evaluation=row,
+                           provenance={"command": shlex.join(["python", *_zoo_argv()]), "seed": self.model.seed,
+                                       "timesteps": int(self.num_timesteps), "run": str(self.run_dir)})
+
+    def evaluate(self) -> dict[str, float]:
+        """Evaluate the current policy now; log, write eval.csv, export it to ``best/`` if it is the best."""
+        t = time.time()
+        agent = agent_from_model(self.model, self._meta(None))
+        seeds = range(self.seed, self.seed + self.n_episodes)
+        res = evaluate_agent(agent, self.env_id, {**self.env_kwargs, **self.eval_env_kwargs}, seeds)
+        self._eval_s += time.time() - t
+        row = {"timesteps": int(self.num_timesteps), "wall_time_s": round(time.time() - self._t0, 1), **res}
         self.history.append(row)
-        with self.csv_path.open("a", newline="") as fh:
-            csv.writer(fh).writerow([row[k] for k in EVAL_CSV_FIELDS])
-        for k in ("success_rate", "median_steps", "mean_steps", "median_error_mm"):
-            self.logger.record(f"eval/{k}", row[k])
+        for k in ("success_rate", "mean_readings", "median_readings", "median_error_mm", "mean_return"):
+            self.logger.record(f"bench_eval/{k}", row[k])
         if self.verbose:
-            print(f"[eval] t={row['timesteps']:>8d}  success {res.success_rate:5.1%}  median steps "
-                  f"{res.median_steps:4.1f}  mean steps {res.mean_steps:5.2f}  median error "
-                  f"{res.median_error_mm:4.2f} mm  ({row['wall_time_s']:.0f} s)", flush=True)
-        if self.best_dir is not None and res.mean_steps <= self.best_mean_steps:
-            self.best_mean_steps = res.mean_steps
-            self.best_timesteps = row["timesteps"]
-            cfg = {**self.config, "eval": row}
-            save_model_dir(self.model, self.best_dir, cfg, provenance=self.provenance, evaluation=row)
-        if self.on_evaluate is not None:
-            self.on_evaluate(int(self.num_timesteps))
+            print(f"[bench-eval] t={row['timesteps']:>8d}  success {res['success_rate']:6.1%}  readings mean "
+                  f"{res['mean_readings']:5.2f} median {res['median_readings']:4.1f}  error median "
+                  f"{res['median_error_mm']:4.1f} mm  return {res['mean_return']:6.2f} (unshaped)  "
+                  f"({row['wall_time_s']:.0f} s)", flush=True)
+        new_best = self.best is None or res["mean_readings"] <= self.best["mean_readings"]  # ties: the later checkpoint
+        if new_best:
+            self.best = row
+        if self.run_dir is not None:
+            buf = io.StringIO()
+            w = csv.writer(buf)
+            w.writerow(EVAL_FIELDS)
+            w.writerows([[r[k] for k in EVAL_FIELDS] for r in self.history])
+            atomic_write_text(self.run_dir / "eval.csv", buf.getvalue())
+            if new_best:
+                write_export(self.run_dir / "best", self._meta(row), model_weights(self.model))
+            self._write_summary(finished=False)
         return res
 
-
-class ModelDirCheckpoint(BaseCallback):
-    """Every ``save_freq`` env steps save a model directory ``<folder>/step_<N>/`` (resumable)."""
-
-    def __init__(self, save_freq: int, folder: str | Path, config: Mapping[str, Any], verbose: int = 0, *,
-                 provenance: Mapping[str, Any] | None = None, on_save: Callable[[int], None] | None = None) -> None:
-        super().__init__(verbose)
-        if save_freq < 1:
-            raise ValueError(f"checkpoint_freq must be ≥ 1 env step, got {save_freq}")
-        self.save_freq = int(save_freq)
-        self.folder = Path(folder)
-        self.config = dict(config)
-        self.provenance = dict(provenance or {})
-        self.on_save = on_save
-        self._last = 0
-
-    def _on_training_start(self) -> None:
-        self._last = self.num_timesteps
-
-    def _on_step(self) -> bool:
-        if self.num_timesteps - self._last >= self.save_freq:
-            self._last = self.num_timesteps
-            d = save_model_dir(self.model, self.folder / f"step_{self.num_timesteps}", self.config,
-                               provenance=self.provenance)
-            if self.on_save is not None:
-                self.on_save(int(self.num_timesteps))
-            if self.verbose:
-                print(f"[checkpoint] {d}", flush=True)
-        return True
+    def _write_summary(self, finished: bool) -> None:
+        if self.run_dir is None:
+            return
+        wall = time.time() - self._t0
+        steps = int(self.num_timesteps)
+        write_json_atomic(self.run_dir / "summary.json", {
+            "env_id": self.env_id, "algo": type(self.model).__name__.lower(), "seed": self.model.seed,
+            "command": shlex.join(["python", *_zoo_argv()]), "argv": _zoo_argv(), "finished": finished,
+            "timesteps": steps,
+            "wall_time_s": round(wall, 1), "evaluation_time_s": round(self._eval_s, 1),
+            "fps_with_evaluation": round(steps / wall, 1) if wall > 0 else None,
+            "fps_training_only": round(steps / (wall - self._eval_s), 1) if wall > self._eval_s else None,
+            "validation": {"episodes": self.n_episodes, "first_seed": self.seed, "env_kwargs": self.eval_env_kwargs},
+            "chosen_by": "fewest mean readings to localise (failures count as the cap) on the validation episodes",
+            "best": self.best, "evaluations": len(self.history),
+        })

@@ -1,24 +1,28 @@
-r"""Convert a trusted SB3 model to the pickle-free policy format, and check it acts the same.
+r"""Export an rl-zoo3 run folder to a shipped policy folder (pickle-free), with its provenance.
 
-    python -m electroloc_gym.train.export models/ppo-belief [--remove-pickle]
-    python -m electroloc_gym.train.export logs/ppo/ElectroLoc-v0_1/ElectroLoc-v0.zip \
-        --vecnormalize logs/ppo/ElectroLoc-v0_1/ElectroLoc-v0/vecnormalize.pkl --observation belief
+    python -m electroloc_gym.train.export logs/ppo/ElectroLoc-v0_1 --out models/ppo-belief
+    python -m electroloc_gym.train.export logs/ppo/ElectroLoc-v0_1 --out /tmp/last --trust-pickle \
+        --zip logs/ppo/ElectroLoc-v0_1/ElectroLoc-v0.zip
 
-``SRC`` is a model folder of this project (``model.zip``, ``config.yml``, ``vecnormalize.pkl``) or
-any SB3 zip (e.g. one trained by rl-zoo3) with its layout given by options. Conversion *unpickles*
-``SRC`` — run it only on files you trust (your own runs); afterwards nothing needs to be unpickled
-again. The converted policy is loaded back through :func:`~electroloc_gym.train.policy.load_policy`
-and must give bit-identical deterministic actions to SB3's ``model.predict`` on a batch of env
-observations (normalised with the pickled statistics), else the export is refused.
+The default path reads only plain files: ``<run>/best/policy.json`` + ``policy.safetensors`` (the
+checkpoint :class:`~electroloc_gym.train.callbacks.BenchEvalCallback` chose on the validation
+episodes), ``summary.json``, ``eval.csv`` and rl-zoo3's ``config.yml`` / ``args.yml`` (YAML read
+with a loader that builds nothing but plain data and ``OrderedDict``). No pickle in the run folder
+is ever opened. ``--trust-pickle --zip Z`` converts an SB3 zip of the run instead (it *unpickles*
+the zip and ``vecnormalize.pkl``: only for your own runs) and checks that the exported numpy policy
+acts as SB3's ``predict`` on sampled observations.
+
+The output folder gets ``policy.json`` (provenance: the exact rl-zoo3 command, seed, timesteps,
+wall time, how the checkpoint was chosen), ``policy.safetensors``, ``eval.csv``, ``summary.json``,
+``config.yml`` and ``command.txt``, each written atomically.
 """
 
 from __future__ import annotations
 
 import argparse
-import pickle
-import shutil
+import json
+import shlex
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -26,21 +30,36 @@ from typing import Any
 import numpy as np
 import yaml
 
-from electroloc_gym.fileio import atomic_write_text
+from electroloc_gym.fileio import atomic_write_text, write_json_atomic
+from electroloc_gym.policy.format import read_export, read_weights, write_export
+from electroloc_gym.policy.load import agent_from_export
 
-__all__ = ["export_model_dir", "verify_export", "main"]
+__all__ = ["export_run", "main"]
+
+
+def _run_files(run: Path) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """(summary.json, config.yml, args.yml) of an rl-zoo3 run folder made through the project's hook."""
+    from electroloc_gym.policy.sb3 import read_zoo_yaml
+
+    if not run.is_dir():
+        raise ValueError(f"run folder {str(run)!r} does not exist")
+    summary_path = run / "summary.json"
+    if not summary_path.is_file():
+        raise ValueError(f"run folder {run} has no summary.json (not trained with BenchEvalCallback)")
+    summary = json.loads(summary_path.read_text(encoding="utf-8"))
+    env_dirs = [d for d in run.iterdir() if d.is_dir() and (d / "config.yml").is_file()]
+    if len(env_dirs) != 1:
+        raise ValueError(f"run folder {run} must hold exactly one <env>/config.yml (rl-zoo3's layout)")
+    args = read_zoo_yaml(env_dirs[0] / "args.yml") if (env_dirs[0] / "args.yml").is_file() else {}
+    return summary, read_zoo_yaml(env_dirs[0] / "config.yml"), args
 
 
 def _sample_observations(env_id: str, env_kwargs: dict[str, Any], n: int = 64, seed: int = 0) -> np.ndarray:
-    """Raw env observations from seeded episodes under random actions (one frame each)."""
     import gymnasium as gym
-
-    import electroloc_gym  # noqa: F401
 
     env = gym.make(env_id, **env_kwargs)
     env.action_space.seed(seed)
-    out = []
-    obs, _ = env.reset(seed=seed)
+    out, (obs, _) = [], env.reset(seed=seed)
     while len(out) < n:
         out.append(np.asarray(obs, dtype=np.float32))
         obs, _, term, trunc, _ = env.step(env.action_space.sample())
@@ -50,170 +69,109 @@ def _sample_observations(env_id: str, env_kwargs: dict[str, Any], n: int = 64, s
     return np.stack(out)
 
 
-def verify_export(model: Any, vn: Any, folder: Path, env_kwargs: dict[str, Any], frame_stack: int,
-                  env_id: str = "ElectroLoc-v0", n: int = 64) -> dict[str, Any]:
-    """Compare the exported policy with the SB3 model on ``n`` observations; raise if any action differs.
+def _from_zip(zip_path: Path, out: Path, summary: dict[str, Any]) -> dict[str, Any]:
+    """Convert a TRUSTED SB3 zip (unpickles) and check the numpy policy against SB3's predict."""
+    from electroloc_gym.policy.sb3 import export_meta, load_zoo_run, model_weights
 
-    The network input is built as training built it (frame stack, then VecNormalize's statistics);
-    the comparison is exact (``np.array_equal``) for the torch policy and for the agent the
-    benchmark runs.
-
-    Returns:
-        ``{"observations": n, "identical": True, "max_abs_diff_agent": float}``.
-    """
-    from electroloc_gym.train.policy import SB3Agent, load_policy
-
-    agent = load_policy(folder)
-    old = SB3Agent(model, obs_rms=None if vn is None or not vn.norm_obs else vn.obs_rms,
-                   clip_obs=getattr(vn, "clip_obs", 10.0), epsilon=getattr(vn, "epsilon", 1e-8),
-                   frame_stack=frame_stack, env_kwargs=agent.env_kwargs)
-    frames = _sample_observations(env_id, {**env_kwargs, **agent.env_kwargs}, n * frame_stack)
-    raw = frames.reshape(n, frame_stack * frames.shape[1]) if frame_stack > 1 else frames
-    x = raw if vn is None or not vn.norm_obs else vn.normalize_obs(raw).astype(np.float32)
-    a_sb3, _ = model.predict(x, deterministic=True)
-    a_new, _ = agent.policy.predict(x, deterministic=True)
-    if not np.array_equal(a_sb3, a_new):
-        raise ValueError(f"{folder}: the exported policy's actions differ from SB3's (max |Δ| "
-                         f"{np.abs(np.asarray(a_sb3, float) - np.asarray(a_new, float)).max():.3g})")
-    old.reset(None)
-    agent.reset(None)
-    single = frames[:n]
-    a_old, _ = old.predict(single)
-    a_agent, _ = agent.predict(single)
-    if not np.array_equal(a_old, a_agent):
-        raise ValueError(f"{folder}: the loaded agent's actions differ from the pickle-loaded agent's")
-    return {"observations": int(n), "identical": True,
-            "max_abs_diff_agent_vs_sb3": float(np.abs(np.asarray(agent._numpy_actor(x), float)
-                                                      - np.asarray(a_sb3, float)).max())
-            if agent._numpy_actor is not None else 0.0}
+    model, vn, run = load_zoo_run(zip_path)
+    cfg, args = run["config"], run["args"]
+    env_id = str(args.get("env", summary.get("env_id")))
+    env_kwargs = dict(args.get("env_kwargs") or cfg.get("env_kwargs") or {})
+    stack = int(cfg.get("frame_stack") or 1)
+    meta = export_meta(model, env_id=env_id, env_kwargs=env_kwargs, frame_stack=stack, vecnormalize=vn,
+                       provenance={"timesteps": int(model.num_timesteps), "converted_from": zip_path.name})
+    write_export(out, meta, model_weights(model))
+    agent = agent_from_export(read_export(out))
+    frames = _sample_observations(env_id, {**env_kwargs, **agent.env_kwargs}, 64 * stack)
+    x = frames.reshape(64, -1)
+    if vn is not None and vn.norm_obs:  # rl-zoo3: VecNormalize inside VecFrameStack, per frame
+        x = vn.normalize_obs(frames).reshape(64, -1).astype(np.float32)
+    expected, _ = model.predict(x, deterministic=True)
+    got, _ = agent.actor(x, None, np.ones(64, dtype=bool))
+    if not np.allclose(np.asarray(got, float), np.asarray(expected, float), atol=1e-5):
+        raise ValueError(f"{out}: the exported policy's actions differ from SB3's predict (max |Δ| "
+                         f"{np.abs(np.asarray(got, float) - np.asarray(expected, float)).max():.3g})")
+    print(f"{out}: actions match SB3's predict on 64 observations (|Δ| ≤ 1e-5)")
+    return meta
 
 
-def _read_command(folder: Path) -> list[str]:
-    p = folder / "command.txt"
-    if not p.is_file():
-        return []
-    return [ln.strip() for ln in p.read_text(encoding="utf-8").splitlines() if ln.startswith("python -m")]
-
-
-def _zip_versions(zip_path: Path) -> dict[str, str]:
-    """The versions SB3 wrote into the zip's plain-text ``system_info.txt`` ("- Python: 3.11.7 ...")."""
-    import zipfile
-
-    try:
-        with zipfile.ZipFile(zip_path) as archive:
-            text = archive.read("system_info.txt").decode("utf-8", "replace")
-    except (KeyError, zipfile.BadZipFile, OSError):
-        return {}
-    out = {}
-    for line in text.splitlines():
-        key, sep, value = line.lstrip("- ").partition(":")
-        if sep and key.strip() in ("Python", "Stable-Baselines3", "PyTorch", "Numpy", "Gymnasium"):
-            out[key.strip()] = value.strip().split(" ")[0]
-    return out
-
-
-def export_model_dir(src: str | Path, *, out: str | Path | None = None, vecnormalize: str | Path | None = None,
-                     overrides: dict[str, Any] | None = None, remove_pickle: bool = False,
-                     verify: bool = True) -> Path:
-    """Write ``policy.json`` + ``policy.safetensors`` for the trusted SB3 model ``src``.
-
-    Args:
-        src: a model folder (``model.zip`` + ``config.yml`` [+ ``vecnormalize.pkl``]) or an SB3 zip.
-        out: the folder to write (default: the model's own folder). ``model.zip`` is copied there.
-        vecnormalize: the VecNormalize pickle (default: ``vecnormalize.pkl`` beside the zip, if any).
-        overrides: config entries for a bare zip: ``algo``, ``env_id``, ``frame_stack``, ``env_kwargs``.
-        remove_pickle: delete the ``vecnormalize.pkl`` beside the export once it is verified.
-        verify: compare actions with the SB3 model (refuse the export if any differs).
+def export_run(run: str | Path, out: str | Path, *, zip_path: str | Path | None = None,
+               trust_pickle: bool = False) -> Path:
+    """Export ``run``'s chosen checkpoint (``best/``) — or, trusted, an SB3 zip of it — to ``out``.
 
     Raises:
-        ValueError: unreadable model, or the exported policy does not act as the SB3 model.
+        ValueError: not a run folder of this path, no ``best/`` export, a zip without ``trust_pickle``,
+            or an export that does not load.
     """
-    import torch
-
-    from electroloc_gym.train.callbacks import _observation_info
-    from electroloc_gym.train.config import algo_class
-    from electroloc_gym.train.policy import _guess_algo, read_run_config, resolve_model_path
-    from electroloc_gym.train.policy_format import export_policy, normalization_from_vecnormalize
-    from electroloc_gym.train.rundir import git_commit, versions
-
-    torch.set_num_threads(1)
-    zip_path = resolve_model_path(src)
-    folder = zip_path.parent
-    cfg = dict(read_run_config(folder)) if zip_path.name == "model.zip" else {}
-    for k, v in (overrides or {}).items():
-        cfg[k] = {**cfg.get(k, {}), **v} if k == "env_kwargs" else v
-    cfg.setdefault("env_id", "ElectroLoc-v0")
-    algo = str(cfg.get("algo") or _guess_algo(zip_path))
-    cfg["algo"] = algo
-    model = algo_class(algo).load(zip_path, device="cpu")  # trusted: this unpickles
-    vn_path = Path(vecnormalize) if vecnormalize else folder / "vecnormalize.pkl"
-    vn = None
-    if vn_path.is_file():
-        with vn_path.open("rb") as fh:
-            vn = pickle.load(fh)  # noqa: S301 - trusted conversion
-    elif vecnormalize:
-        raise ValueError(f"--vecnormalize: no such file {str(vn_path)!r}")
-    dest = Path(out) if out else folder
+    run, dest = Path(run), Path(out)
+    summary, config, args = _run_files(run)
+    if zip_path is not None and not trust_pickle:
+        raise ValueError("--zip unpickles an SB3 file: pass --trust-pickle for a run you trust")
     dest.mkdir(parents=True, exist_ok=True)
-    if dest.resolve() != folder.resolve():
-        shutil.copyfile(zip_path, dest / "model.zip")
-    if not (dest / "config.yml").is_file() or dest.resolve() != folder.resolve():
-        atomic_write_text(dest / "config.yml", yaml.safe_dump(cfg, sort_keys=False))
-    evaluation = cfg.get("eval")
-    provenance = {
-        "commands": _read_command(folder), "seed": cfg.get("seed", getattr(model, "seed", None)),
-        "timesteps": int(model.num_timesteps), "git_commit": None, "git_dirty": None,  # not recorded by SB3
-        "versions": _zip_versions(zip_path),
-        "converted": {"from": zip_path.name, "utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                      **git_commit(), "versions": versions()},
-    }
-    export_policy(model, dest, observation=_observation_info(model, cfg),
-                  normalization=normalization_from_vecnormalize(vn), provenance=provenance, evaluation=evaluation)
-    report = verify_export(model, vn, dest, dict(cfg.get("env_kwargs") or {}), int(cfg.get("frame_stack", 1)),
-                           env_id=cfg["env_id"]) if verify else None
-    if remove_pickle and (dest / "vecnormalize.pkl").is_file():
-        (dest / "vecnormalize.pkl").unlink()
-    if report is not None:
-        print(f"{dest}: exported and verified — identical deterministic actions on {report['observations']} "
-              f"observations (numpy fast path within {report['max_abs_diff_agent_vs_sb3']:.1e} of SB3)")
+    if zip_path is not None:
+        _from_zip(Path(zip_path), dest, summary)
+        chosen = f"the SB3 zip {Path(zip_path).name} (converted with --trust-pickle)"
+    else:
+        best = read_export(run / "best")
+        write_export(dest, {k: v for k, v in best.meta.items() if k not in ("format", "format_version", "weights")},
+                     read_weights(best))
+        chosen = summary.get("chosen_by", "")
+    export = read_export(dest)
+    meta = {k: v for k, v in export.meta.items() if k not in ("format", "format_version", "weights")}
+    argv = summary.get("argv") or shlex.split(summary.get("command", ""))[1:]  # without the interpreter
+    command = shlex.join(["python", *argv]) if argv else ""
+    meta["provenance"] = {**dict(meta.get("provenance") or {}), "command": command, "seed": summary.get("seed"),
+                          "run_timesteps": summary.get("timesteps"), "wall_time_s": summary.get("wall_time_s"),
+                          "evaluation_time_s": summary.get("evaluation_time_s"),
+                          "fps_training_only": summary.get("fps_training_only"), "checkpoint_chosen_by": chosen,
+                          "validation": summary.get("validation")}
+    write_export(dest, meta, read_weights(export))
+    agent_from_export(read_export(dest))  # loads as the benchmark loads it
+    if (run / "eval.csv").is_file():
+        atomic_write_text(dest / "eval.csv", (run / "eval.csv").read_text(encoding="utf-8"))
+    write_json_atomic(dest / "summary.json", summary)
+    atomic_write_text(dest / "config.yml", yaml.safe_dump({"args": _plain(args), "hyperparams": _plain(config)},
+                                                           sort_keys=False))
+    best_row = summary.get("best") or {}
+    atomic_write_text(dest / "command.txt", (
+        f"# {dest.name}: {meta['algo']} on {meta['observation']['env_id']} ({meta['observation']['mode']} "
+        f"observation), trained by rl-zoo3 through electroloc_gym.train.zoo. Exact command (repository root):\n"
+        f"{command}\n"
+        f"# seed: {summary.get('seed')}; {summary.get('timesteps')} env steps in {summary.get('wall_time_s')} s wall "
+        f"time ({summary.get('evaluation_time_s')} s of it validation; {summary.get('fps_training_only')} steps/s "
+        f"training only), CPU, torch 1 thread\n"
+        f"# checkpoint: {chosen}: the evaluation at {best_row.get('timesteps')} steps "
+        f"({best_row.get('success_rate')} success rate, {best_row.get('mean_readings')} mean and "
+        f"{best_row.get('median_readings')} median readings, median error {best_row.get('median_error_mm')} mm) on "
+        f"{(summary.get('validation') or {}).get('episodes')} validation episodes (reset seeds from "
+        f"{(summary.get('validation') or {}).get('first_seed')}; the benchmark's trials are seed 0's)\n"))
     return dest
 
 
+def _plain(d: Any) -> Any:
+    """rl-zoo3's config/args as plain YAML data (anything else as its string)."""
+    if isinstance(d, dict):
+        return {str(k): _plain(v) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [_plain(v) for v in d]
+    return d if isinstance(d, (str, int, float, bool, type(None))) else str(d)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m electroloc_gym.train.export SRC [SRC ...]``; returns the exit status."""
+    """``python -m electroloc_gym.train.export RUN --out FOLDER``; returns the exit status."""
     p = argparse.ArgumentParser(prog="python -m electroloc_gym.train.export", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("src", nargs="+", help="model folders or SB3 zips (trusted: they are unpickled)")
-    p.add_argument("--out", default=None, help="output folder (one SRC only; default: the model's folder)")
-    p.add_argument("--vecnormalize", default=None, help="VecNormalize pickle (default: vecnormalize.pkl beside)")
-    p.add_argument("--algo", default=None, help="algorithm of a bare zip (default: from the zip)")
-    p.add_argument("--env-id", default=None, help="env id of a bare zip (default ElectroLoc-v0)")
-    p.add_argument("--observation", choices=("belief", "raw"), default=None, help="observation mode of a bare zip")
-    p.add_argument("--action-type", choices=("continuous", "discrete"), default=None)
-    p.add_argument("--frame-stack", type=int, default=None, help="frames stacked in training (bare zip)")
-    p.add_argument("--remove-pickle", action="store_true", help="delete vecnormalize.pkl once verified")
-    p.add_argument("--no-verify", action="store_true", help="skip the action comparison")
-    ns = p.parse_args(argv)
-    if ns.out and len(ns.src) > 1:
-        print("error: --out takes one SRC", file=sys.stderr)
-        return 2
-    overrides: dict[str, Any] = {}
-    if ns.algo:
-        overrides["algo"] = ns.algo
-    if ns.env_id:
-        overrides["env_id"] = ns.env_id
-    if ns.frame_stack:
-        overrides["frame_stack"] = ns.frame_stack
-    kw = {k: v for k, v in (("observation", ns.observation), ("action_type", ns.action_type)) if v}
-    if kw:
-        overrides["env_kwargs"] = kw
+    p.add_argument("run", help="an rl-zoo3 run folder (logs/<algo>/<env>_<n>)")
+    p.add_argument("--out", required=True, help="the policy folder to write")
+    p.add_argument("--zip", default=None, help="convert this SB3 zip of the run instead of best/ (unpickles)")
+    p.add_argument("--trust-pickle", action="store_true", help="allow --zip (only for runs you trust)")
+    a = p.parse_args(argv)
     try:
-        for src in ns.src:
-            export_model_dir(src, out=ns.out, vecnormalize=ns.vecnormalize, overrides=overrides,
-                             remove_pickle=ns.remove_pickle, verify=not ns.no_verify)
+        dest = export_run(a.run, a.out, zip_path=a.zip, trust_pickle=a.trust_pickle)
     except (ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    print(f"exported {a.run} → {dest}")
     return 0
 
 

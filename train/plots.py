@@ -47,7 +47,7 @@ def plot_learning_curves(runs: Sequence[str | Path], labels: Sequence[str] | Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from electroloc_gym.train.callbacks import atomic_write_bytes
+    from electroloc_gym.fileio import atomic_write_bytes
 
     labels = list(labels) if labels else [Path(r).name for r in runs]
     if len(labels) != len(runs):
@@ -56,13 +56,13 @@ def plot_learning_curves(runs: Sequence[str | Path], labels: Sequence[str] | Non
     for run, label in zip(runs, labels):
         d = read_eval_csv(run)
         ax1.plot(d["timesteps"], d["success_rate"], marker=".", label=label)
-        ax2.plot(d["timesteps"], d["median_steps"], marker=".", label=label)
+        ax2.plot(d["timesteps"], d["median_readings"], marker=".", label=label)
     for i, (name, (succ, steps)) in enumerate((references or {}).items()):
         style = dict(color=f"C{7 + i % 3}", ls="--", lw=1)
         ax1.axhline(succ, **style, label=name)
         ax2.axhline(steps, **style, label=name)
     ax1.set(xlabel="env steps", ylabel="success rate (spread ≤ 10 mm within 35 obs.)", ylim=(0, 1.02))
-    ax2.set(xlabel="env steps", ylabel="median observations to localise", ylim=(0, 36))
+    ax2.set(xlabel="env steps", ylabel="median readings to localise", ylim=(0, 36))
     for ax in (ax1, ax2):
         ax.grid(alpha=0.3)
     ax2.legend(fontsize=8)

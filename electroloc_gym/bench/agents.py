@@ -230,7 +230,7 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
         return _OBJECTS[spec]
     path = _policy_path(spec)
     try:
-        from electroloc_gym.train.policy import load_policy
+        from electroloc_gym.policy import load_policy
     except ImportError as exc:
         raise ValueError(f"cannot load policy {str(path)!r}: the training extra is not installed "
                          f"({TRAIN_EXTRA_HINT}): {exc}") from exc
@@ -303,7 +303,7 @@ def cached_agent(spec: str, *, trust_pickle: bool = False) -> Any:
 
 def _training_extra_missing() -> str | None:
     """Why learned policies cannot run here (None: they can)."""
-    for module in ("torch", "stable_baselines3", "electroloc_gym.train.policy"):
+    for module in ("electroloc_gym.policy",):
         try:
             if importlib.util.find_spec(module) is None:
                 return f"the training extra is not installed ({module} missing; {TRAIN_EXTRA_HINT})"

@@ -20,6 +20,7 @@ from electroloc_gym.bench.config import (
     BenchConfig,
     resolve_conditions,
 )
+from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
 
@@ -145,6 +146,8 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark described by ``args``; print table.md; 0 on success, 2 on bad input."""
     try:
         _check_ranges(args)
+        if args.backend == "ray":  # Ray installed and the cluster reachable, before --out is touched
+            check_ray_address(args.address)
         env_name = getattr(args, "env", "target")
         env_id = ENV_CHOICES[env_name]
         gain_levels = DYNAMIC_GAIN_LEVELS if env_name == "dynamic-gain" else None

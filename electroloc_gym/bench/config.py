@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOICES
+from electroloc_gym.core.params import EnvParams
+from electroloc_gym.registry import BENCH_ENVS, DYNAMIC_GAIN_LEVELS, ENVS
 
 __all__ = [
     "BenchConfig",
@@ -36,30 +38,30 @@ __all__ = [
     "ENV_SENSOR_MODELS",
     "ENV_N_PARTICLES",
     "DYNAMIC_GAIN_LEVELS",
+    "ENV_DEFAULT_AGENTS",
     "IDENTITY_KEYS",
 ]
 
 #: The paper's three controllers.
 DEFAULT_AGENTS: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
-SENSOR_MODELS = ("calibrated", "analytic", "interpolated")
 SIGNALS = SIGNAL_CHOICES
-#: Global self-localisation (paper §6.5, Table 2): one fixed map, run as the single "condition"
-#: GLOBAL_CONDITION (the map's name, = info["condition"]); its trial seeds use condition index 8.
-GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
-GLOBAL_CONDITION = "six-cylinders"
-#: The unknown-target env (paper §7): the eight presets' sphere/water pairs, the sphere hidden from the agent.
-UNKNOWN_ENV_ID = "ElectroLocUnknownTarget-v0"
+# The per-env settings below are read from the env table (electroloc_gym.registry), not declared here.
 #: ``electroloc bench --env`` names → environment ids (``dynamic-gain``: ElectroLoc-v0 with
 #: :data:`DYNAMIC_GAIN_LEVELS`, the gain part of every action).
-ENV_CHOICES = {"target": "ElectroLoc-v0", "global": GLOBAL_ENV_ID, "unknown-target": UNKNOWN_ENV_ID,
-               "dynamic-gain": "ElectroLoc-v0"}
-#: The gain factors of ``--env dynamic-gain`` (a quarter, the preset and four times the preset gain).
-DYNAMIC_GAIN_LEVELS = (0.25, 1.0, 4.0)
+ENV_CHOICES = {name: entry.env_id for name, (entry, _) in BENCH_ENVS.items()}
 #: The bench's default particle count per env (the env's own default).
-ENV_N_PARTICLES = {"ElectroLoc-v0": 2500, GLOBAL_ENV_ID: 2500, UNKNOWN_ENV_ID: 5000}
+ENV_N_PARTICLES = {e.env_id: e.defaults.get("n_particles", EnvParams.n_particles) for e in ENVS}
 #: The sensor models of each env (the first is the bench's default there).
-ENV_SENSOR_MODELS = {"ElectroLoc-v0": ("calibrated", "analytic"), GLOBAL_ENV_ID: ("calibrated", "analytic"),
-                     UNKNOWN_ENV_ID: ("analytic", "interpolated")}
+ENV_SENSOR_MODELS = {e.env_id: e.sensor_models for e in ENVS}
+#: Every sensor model some env takes (``--sensor-model`` choices).
+SENSOR_MODELS = tuple(dict.fromkeys(m for e in ENVS for m in e.sensor_models))
+#: ``--env`` names → the default agents' names (None: every registered controller).
+ENV_DEFAULT_AGENTS = {name: bench.agents for name, (_, bench) in BENCH_ENVS.items()}
+#: Global self-localisation (paper §6.5, Table 2): one fixed map, run as the single "condition"
+#: GLOBAL_CONDITION (the map's name, = info["condition"]); its trial seeds use condition index 8.
+GLOBAL_ENV_ID, GLOBAL_CONDITION = next((e.env_id, b.condition) for e, b in BENCH_ENVS.values() if b.condition)
+#: The unknown-target env (paper §7): the eight presets' sphere/water pairs, the sphere hidden from the agent.
+UNKNOWN_ENV_ID = BENCH_ENVS["unknown-target"][0].env_id
 #: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
 IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id", "gain_levels")
 

@@ -1,9 +1,11 @@
 """The ``ray`` benchmark backend: trials as Ray tasks, on this machine or a cluster.
 
 ``electroloc bench --backend ray [--address ray://head:10001 | auto]`` (optional extra:
-``pip install .[ray]``). Without an address a local Ray runtime with ``workers`` CPUs is started
-(and shut down afterwards); with one, the run joins that cluster, which must have electroloc-gym
-installed on every node (or ship it with a Ray ``runtime_env``).
+``pip install .[ray]``). :func:`check_ray_address` runs before anything is written to ``--out``: without
+Ray, or with an address where no Ray cluster answers, the command ends with one line naming the option.
+Without an address a local Ray runtime with ``workers`` CPUs is started (and shut down afterwards); with
+one, the run joins that cluster, which must have electroloc-gym installed on every node (or ship it with a
+Ray ``runtime_env``).
 
 Results do not depend on the backend: every trial spec carries its own seeds
 (``numpy.random.SeedSequence``, :mod:`electroloc_gym.bench.config`), and each Ray worker imports
@@ -14,13 +16,76 @@ starts, so registering this backend costs nothing when Ray is absent.
 
 from __future__ import annotations
 
+import socket
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from electroloc_gym.bench.backends import Backend, register_backend
 from electroloc_gym.runtime import THREAD_VARS, pin_threads
 
-__all__ = ["RayBackend"]
+__all__ = ["RayBackend", "check_ray_address"]
+
+#: Seconds to wait for a cluster's port to accept a connection.
+CONNECT_TIMEOUT_S = 3.0
+_INSTALL = "pip install 'electroloc-gym[ray]' (or pip install ray)"
+
+
+def _import_ray() -> Any:
+    try:
+        import ray
+    except ImportError as exc:
+        raise ValueError(f"--backend ray needs Ray, which is not installed here: {_INSTALL}") from exc
+    return ray
+
+
+def _host_port(text: str) -> tuple[str, int] | None:
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        return None
+    return host.strip("[]"), int(port)
+
+
+def check_ray_address(address: str | None) -> None:
+    """Check that the ray backend can run: Ray is installed and, for an ``address``, a cluster answers there.
+
+    ``"auto"`` (or None with ``RAY_ADDRESS`` set) is resolved as ``ray.init`` resolves it; a
+    ``"ray://host:port"`` or ``"host:port"`` address must accept a TCP connection within
+    :data:`CONNECT_TIMEOUT_S`. Nothing is started and nothing is written.
+
+    Raises:
+        ValueError: one line naming ``--backend ray`` (Ray missing) or ``--address`` (malformed or no
+            cluster answers there).
+    """
+    ray = _import_ray()
+    if address is None:
+        return
+    if not isinstance(address, str) or not address.strip():
+        raise ValueError(f"--address must be a Ray cluster address ('auto', 'host:6379', 'ray://host:10001'), "
+                         f"got {address!r}")
+    target = address.strip()
+    if target.startswith("ray://"):
+        target = target[len("ray://"):]
+    elif target in ("auto", "local") or _host_port(target) is None:
+        try:
+            from ray._private.services import canonicalize_bootstrap_address_or_die
+        except ImportError:  # pragma: no cover - Ray moved its resolver; ray.init reports instead
+            return
+        try:
+            target = canonicalize_bootstrap_address_or_die(None if target == "local" else target)
+        except (ConnectionError, ValueError) as exc:
+            raise ValueError(f"--address {address!r}: no running Ray cluster found (start one with "
+                             f"`ray start --head`, or omit --address for a local Ray); Ray says: "
+                             f"{str(exc).splitlines()[0]}") from None
+    hp = _host_port(target)
+    if hp is None:
+        raise ValueError(f"--address {address!r} is not a Ray address ('auto', 'host:6379', 'ray://host:10001')")
+    try:
+        with socket.create_connection(hp, timeout=CONNECT_TIMEOUT_S):
+            pass
+    except OSError as exc:
+        raise ValueError(f"--address {address!r}: no Ray cluster answers at {hp[0]}:{hp[1]} "
+                         f"({exc.strerror or exc}); start one with `ray start --head` or omit --address") from None
+    del ray
 
 
 def _run_in_worker(worker_fn: Callable[[Any], Any], spec: Any) -> Any:
@@ -53,19 +118,10 @@ class RayBackend(Backend):
             raise ValueError(f"address must be None (local Ray) or a non-empty Ray address string, got {address!r}")
         self.address = address
 
-    @staticmethod
-    def _import_ray() -> Any:
-        try:
-            import ray
-        except ImportError as exc:
-            raise ValueError("the ray backend needs Ray: pip install 'electroloc-gym[ray]' "
-                             "(or pip install ray)") from exc
-        return ray
-
     def run_trials(self, specs: Sequence[Any], worker_fn: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
         if not specs:
             return
-        ray = self._import_ray()
+        ray = _import_ray()
         started = False
         if not ray.is_initialized():
             env_vars = {v: "1" for v in THREAD_VARS}  # workers read these at numpy import
@@ -73,7 +129,10 @@ class RayBackend(Backend):
                                       "include_dashboard": False}
             if self.address is None:
                 kwargs["num_cpus"] = self.workers
-            ray.init(address=self.address, **kwargs)
+            try:
+                ray.init(address=self.address, **kwargs)
+            except ConnectionError as exc:
+                raise ValueError(f"--address {self.address!r}: {str(exc).splitlines()[0]}") from None
             started = True
         try:
             task = ray.remote(num_cpus=1)(_run_in_worker)

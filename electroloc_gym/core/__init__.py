@@ -2,7 +2,12 @@
 
 * :mod:`~electroloc_gym.core.params` — :class:`EnvParams`, every env argument declared and validated once;
 * :mod:`~electroloc_gym.core.state` — the explicit state arrays of N envs;
-* :mod:`~electroloc_gym.core.tasks` — what differs between the tasks (one target, the mapped tank);
-* :mod:`~electroloc_gym.core.unknown` — the unknown-target task (position, radius and contrast, §7);
-* :mod:`~electroloc_gym.core.step` — reset and step of N envs.
+* :mod:`~electroloc_gym.core.observation` — the observation layouts and the info keys;
+* :mod:`~electroloc_gym.core.task` — the task interface (what a task provides to the step) and the
+  machinery the tasks share; :mod:`~electroloc_gym.core.worlds` — grouping envs by world, cached values;
+* one module per task: :mod:`~electroloc_gym.core.localize` (one target), :mod:`~electroloc_gym.core.global_task`
+  (the mapped tank), :mod:`~electroloc_gym.core.unknown` (the unknown target: position, radius, contrast);
+* :mod:`~electroloc_gym.core.step` — reset and step of N envs, through the task interface.
+
+The core imports nothing from :mod:`electroloc_gym.envs` (the adapters import the core).
 """

@@ -1,8 +1,9 @@
 """The simulation's frozen parameters: every keyword argument of the envs, declared once, validated once.
 
-:class:`EnvParams` holds every argument of ``ElectroLoc-v0``, ``ElectroLocGlobal-v0`` and their native
-vector envs (units in the names or the field docs). :meth:`EnvParams.from_kwargs` is how every env
-builds it: an argument the task does not take, or a value outside its range, is one ``ValueError``
+:class:`EnvParams` holds every argument of every env of :data:`electroloc_gym.registry.ENVS` and their
+native vector envs (units in the names or the field docs). :meth:`EnvParams.from_kwargs` is how every
+env builds it: which arguments a task takes, its sensor models and its defaults come from its entry in
+the env table; an argument the task does not take, or a value outside its range, is one ``ValueError``
 naming the argument and what is allowed. Defaults of the sensor model's calibration and of the
 preset signal scale are those of :mod:`electroloc_gym.sensor_models` and
 :func:`electroloc_gym.conditions.get_condition`, so a change there flows through unchanged.
@@ -21,24 +22,18 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.conditions import Condition, get_condition
+from electroloc_gym.core.observation import OBSERVATION_MODES
+from electroloc_gym.registry import TASKS, task_entry
 from electroloc_gym.scene import Scene
-from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, CalibrationProtocol
+from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, SENSOR_MODEL_NAMES, CalibrationProtocol
 from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM
 from electroloc_gym.sensor_models.shape import DEFAULT_EEV_RADII_MM
 
-__all__ = ["EnvParams", "TASKS", "TASK_ARGUMENTS", "OBSERVATION_MODES", "ACTION_TYPES", "SENSOR_MODELS",
-           "TASK_SENSOR_MODELS", "DEFAULT_GAIN_LEVELS", "TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM",
-           "LAYOUTS", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "memory_limit_bytes", "check_int", "check_bool"]
+__all__ = ["EnvParams", "OBSERVATION_MODES", "ACTION_TYPES", "TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM",
+           "LAYOUTS", "RADIUS_LIMITS_MM", "GAIN_FACTOR_LIMITS", "MAX_POSITION_BLUR_MM", "SIGNAL_LIMITS", "MAX_STEP_MM",
+           "DISCRETE_MOVES_MM", "memory_limit_bytes", "check_int", "check_float", "check_bool"]
 
-#: ``"localize"``: ElectroLoc-v0 (the particles are target hypotheses); ``"global"``: ElectroLocGlobal-v0
-#: (the particles are hypotheses of the robot's own position in a mapped tank, paper §6.5);
-#: ``"unknown"``: ElectroLocUnknownTarget-v0 (target hypotheses with a radius and a contrast, §7).
-TASKS = ("localize", "global", "unknown")
-OBSERVATION_MODES = ("belief", "raw")
 ACTION_TYPES = ("continuous", "discrete")
-#: The sensor models the core implements per task (any other name is refused, never run as another model).
-SENSOR_MODELS = ("analytic", "calibrated")
-TASK_SENSOR_MODELS = {"localize": SENSOR_MODELS, "global": SENSOR_MODELS, "unknown": ("analytic", "interpolated")}
 #: The unknown-target env: how the episode's sphere is drawn (``"prior"``: radius uniform in
 #: ``radius_range_mm``, material or contrast from ``contrast``; ``"condition"``: the condition's own sphere).
 TARGET_DRAWS = ("prior", "condition")
@@ -49,28 +44,22 @@ DEFAULT_RADIUS_RANGE_MM = (5.0, 20.0)
 #: Named maps of the global task: the fixed benchmark map, or a new seeded six-cylinder map per episode.
 LAYOUTS = ("benchmark", "random")
 
+#: The sphere radii an env may hypothesise or calibrate (``radius_range_mm``, ``eev_radii_mm``), mm: from a
+#: 1 mm bead to a 100 mm ball, as large as the paper's smallest allowed box (±50 mm) allows.
+RADIUS_LIMITS_MM = (1.0, 50.0)
+#: The dynamic-gain factors of the amplifier gain G (``gain_levels``): a thousandth to a thousand times the
+#: preset (the paper's gains span 103–1977, a factor of 20).
+GAIN_FACTOR_LIMITS = (1e-3, 1e3)
+#: The map sensor models' largest position blur, mm (the map's box is ±80 mm).
+MAX_POSITION_BLUR_MM = 100.0
+#: The presets' signal scale as a number (``signal``): a thousandth to a thousand (the fitted scales are ≈1–8).
+SIGNAL_LIMITS = (1e-3, 1e3)
+
 #: Largest move per axis per step, mm (paper §4.1.3).
 MAX_STEP_MM = 10.0
 #: The discrete action set: stay plus the 8 king moves of 10 mm per axis (index = 3·(dx+1) + (dy+1)).
 DISCRETE_MOVES_MM = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.float64) * MAX_STEP_MM
 DISCRETE_MOVES_MM.flags.writeable = False
-
-_COMMON = ("observation", "sensor_model", "n_particles", "max_observations", "success_spread_mm", "action_type",
-           "calibration_seed", "calibration", "max_episode_steps")
-#: The arguments each task takes (the others belong to the other task).
-TASK_ARGUMENTS: dict[str, tuple[str, ...]] = {
-    "localize": ("condition", "signal", "randomize_target", "gain_levels") + _COMMON,
-    "global": ("layout", "position_blur_mm") + _COMMON,
-    "unknown": ("condition", "signal", "randomize_target", "target_draw", "radius_range_mm", "contrast",
-                "eev_radii_mm", "gain_levels") + _COMMON,
-}
-#: A dynamic-gain example (§7): a quarter, the preset and four times the preset amplifier gain.
-DEFAULT_GAIN_LEVELS = (0.25, 1.0, 4.0)
-#: Defaults that differ by task (the unknown-target env: the eight tanks, the theoretical EEV, and 5000
-#: particles for its 4-D belief — with the paper's 2500 one success in seven was more than 10 mm off,
-#: measured on validation seeds, docs/extensions.md).
-TASK_DEFAULTS: dict[str, dict[str, Any]] = {"unknown": {"condition": "random", "sensor_model": "analytic",
-                                                        "n_particles": 5000}}
 
 #: Bytes of state and scratch per particle and env (particles, jitter draws, the kernels' scratch).
 BYTES_PER_PARTICLE = 96
@@ -89,11 +78,15 @@ def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
     return int(value)
 
 
-def check_float(name: str, value: Any, low: float, *, inclusive: bool = False) -> float:
-    """A finite real ``value`` (Python or numpy float/int, not bool) above ``low`` as a float."""
+def check_float(name: str, value: Any, low: float, *, inclusive: bool = False, high: float | None = None) -> float:
+    """A finite real ``value`` (Python or numpy float/int, not bool) above ``low`` (and at most ``high``) as a
+    float, or a ValueError naming ``name`` and the range.
+    """
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not ok or not math.isfinite(value) or value < low or (value == low and not inclusive):
-        raise ValueError(f"{name} must be a finite number {'≥' if inclusive else '>'} {low:g}, got {value!r}")
+    if not ok or not math.isfinite(value) or value < low or (value == low and not inclusive) or \
+            (high is not None and value > high):
+        rng = f"{'≥' if inclusive else '>'} {low:g}" + ("" if high is None else f" and ≤ {high:g}")
+        raise ValueError(f"{name} must be a finite number {rng}, got {value!r}")
     return float(value)
 
 
@@ -104,13 +97,17 @@ def check_bool(name: str, value: Any) -> bool:
     return bool(value)
 
 
-def _positive_numbers(name: str, value: Any, count: int | None) -> tuple[float, ...]:
-    """A tuple of positive finite numbers (radii in mm, or gain factors): ``count`` of them, or at least one."""
-    items = tuple(value) if isinstance(value, (tuple, list, np.ndarray)) else None
+def _numbers_in(name: str, value: Any, count: int | None, low: float, high: float, unit: str = "") -> tuple[float, ...]:
+    """A tuple of finite numbers in [low, high] (radii in mm, or gain factors): ``count`` of them, or at least
+    one, given as a tuple, a list or a 1-d array.
+    """
+    items = None
+    if isinstance(value, (tuple, list)) or (isinstance(value, np.ndarray) and value.ndim == 1):
+        items = tuple(value)
+    want = f"{count}" if count is not None else "one or more"
     if items is None or not items or (count is not None and len(items) != count):
-        want = f"{count}" if count is not None else "one or more"
-        raise ValueError(f"{name} must be a tuple of {want} positive numbers, got {value!r}")
-    return tuple(check_float(name, v, 0.0) for v in items)
+        raise ValueError(f"{name} must be a tuple of {want} numbers in [{low:g}, {high:g}]{unit}, got {value!r}")
+    return tuple(check_float(name, v, low, inclusive=True, high=high) for v in items)
 
 
 def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
@@ -132,7 +129,8 @@ class EnvParams:
     """Every argument of the envs (frozen; validated on construction).
 
     Attributes:
-        task: ``"localize"`` (ElectroLoc-v0) or ``"global"`` (ElectroLocGlobal-v0).
+        task: the core's task, one of :data:`electroloc_gym.registry.TASKS` (``"localize"``: ElectroLoc-v0,
+            ``"global"``: ElectroLocGlobal-v0, ``"unknown"``: ElectroLocUnknownTarget-v0).
         condition: localize: a preset name (``electroloc_gym.PRESET_NAMES``), a ``Condition``, a dict of
             one, or ``"random"`` (one of the eight presets per episode).
         signal: localize, presets only: the signal scale, ``"fitted"``, ``"paper"``, ``"coverage"`` or a
@@ -165,14 +163,14 @@ class EnvParams:
             None: every reading at G. Reset reads at the level nearest to 1.
     """
 
-    task: str = "localize"
+    task: str = TASKS[0]
     condition: Any = "fresh-steel-12.7"
     signal: Any = dataclasses.field(default_factory=_default_signal)
     randomize_target: bool = False
     layout: Any = "benchmark"
     position_blur_mm: float = DEFAULT_POSITION_BLUR_MM
     observation: str = "belief"
-    sensor_model: str = "calibrated"
+    sensor_model: str = SENSOR_MODEL_NAMES[0]
     n_particles: int = 2500
     max_observations: int = 35
     success_spread_mm: float = 10.0
@@ -192,17 +190,18 @@ class EnvParams:
 
         _check_choice("task", self.task, TASKS)
         _check_choice("observation", self.observation, OBSERVATION_MODES)
-        _check_choice("sensor_model", self.sensor_model, TASK_SENSOR_MODELS[self.task])
+        _check_choice("sensor_model", self.sensor_model, task_entry(self.task).sensor_models)
         _check_choice("target_draw", self.target_draw, TARGET_DRAWS)
         _check_choice("contrast", self.contrast, CONTRASTS)
-        put("radius_range_mm", _positive_numbers("radius_range_mm", self.radius_range_mm, 2))
+        put("radius_range_mm", _numbers_in("radius_range_mm", self.radius_range_mm, 2, *RADIUS_LIMITS_MM, " mm"))
         if self.radius_range_mm[0] >= self.radius_range_mm[1]:
             raise ValueError(f"radius_range_mm must be (low, high) with low < high, got {self.radius_range_mm!r}")
-        put("eev_radii_mm", tuple(sorted(_positive_numbers("eev_radii_mm", self.eev_radii_mm, None))))
+        put("eev_radii_mm", tuple(sorted(_numbers_in("eev_radii_mm", self.eev_radii_mm, None, *RADIUS_LIMITS_MM,
+                                                     " mm"))))
         if len(set(self.eev_radii_mm)) != len(self.eev_radii_mm):
             raise ValueError(f"eev_radii_mm must be distinct, got {self.eev_radii_mm!r}")
         if self.gain_levels is not None:
-            put("gain_levels", _positive_numbers("gain_levels", self.gain_levels, None))
+            put("gain_levels", _numbers_in("gain_levels", self.gain_levels, None, *GAIN_FACTOR_LIMITS))
             if len(set(self.gain_levels)) != len(self.gain_levels):
                 raise ValueError(f"gain_levels must be distinct factors of the gain, got {self.gain_levels!r}")
         _check_choice("action_type", self.action_type, ACTION_TYPES)
@@ -210,7 +209,8 @@ class EnvParams:
         put("max_observations", check_int("max_observations", self.max_observations, 1))
         put("success_spread_mm", check_float("success_spread_mm", self.success_spread_mm, 0.0))
         put("randomize_target", check_bool("randomize_target", self.randomize_target))
-        put("position_blur_mm", check_float("position_blur_mm", self.position_blur_mm, 0.0, inclusive=True))
+        put("position_blur_mm", check_float("position_blur_mm", self.position_blur_mm, 0.0, inclusive=True,
+                                            high=MAX_POSITION_BLUR_MM))
         if self.calibration_seed is not None:
             put("calibration_seed", check_int("calibration_seed", self.calibration_seed, 0, 2**63 - 1))
         if self.max_episode_steps is not None:
@@ -225,8 +225,16 @@ class EnvParams:
         if not isinstance(cal, CalibrationProtocol):
             raise ValueError(f"calibration must be a CalibrationProtocol or a dict of its fields, got {cal!r}")
         put("calibration", cal)
-        if self.task in ("localize", "unknown"):
-            if not (isinstance(self.condition, str) and self.condition == "random"):
+        if "condition" in task_entry(self.task).arguments:
+            signal = self.signal
+            if isinstance(signal, (int, float, np.integer, np.floating)) and not isinstance(signal, (bool, np.bool_)):
+                put("signal", check_float("signal", signal, SIGNAL_LIMITS[0], inclusive=True, high=SIGNAL_LIMITS[1]))
+            if isinstance(self.condition, Mapping):
+                try:
+                    get_condition(self.condition, self.signal)
+                except (TypeError, ValueError) as exc:
+                    raise ValueError(f"condition (a dict of Condition fields) is invalid: {exc}") from None
+            elif not (isinstance(self.condition, str) and self.condition == "random"):
                 get_condition(self.condition, self.signal)  # raises for an unknown name or a bad signal
             elif self.signal is not None:
                 get_condition("fresh-steel-12.7", self.signal)
@@ -235,15 +243,17 @@ class EnvParams:
 
     @classmethod
     def from_kwargs(cls, task: str, kwargs: Mapping[str, Any], env_id: str) -> EnvParams:
-        """The params of ``task`` from an env's keyword arguments; an argument the task does not take is
-        a ValueError naming it and listing the allowed ones.
+        """The params of ``task`` from an env's keyword arguments, over the defaults of its entry in the env
+        table (its first sensor model, its ``defaults``); an argument the task does not take is a ValueError
+        naming it and listing the allowed ones.
         """
-        allowed = TASK_ARGUMENTS[task]
+        entry = task_entry(task)
+        allowed = entry.all_arguments
         unknown = [k for k in kwargs if k not in allowed]
         if unknown:
             raise ValueError(f"{env_id} got unexpected argument(s) {unknown}; its arguments are "
                              f"{sorted(allowed)}")
-        return cls(task=task, **{**TASK_DEFAULTS.get(task, {}), **kwargs})
+        return cls(task=task, **{"sensor_model": entry.sensor_models[0], **entry.defaults, **kwargs})
 
     @property
     def gains(self) -> tuple[float, ...]:

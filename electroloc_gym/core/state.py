@@ -1,8 +1,8 @@
 """The simulation's explicit state: N envs as arrays (units in the field names).
 
 Everything that changes during an episode lives in one :class:`State`; the parameters
-(:class:`~electroloc_gym.core.params.EnvParams`) and the task (:mod:`electroloc_gym.core.tasks`) never
-change. Particles are stored coordinate-major, (N, 2, M), so that every kernel's inner loop runs over
+(:class:`~electroloc_gym.core.params.EnvParams`) and the task (:class:`~electroloc_gym.core.task.Task`)
+never change. Particles are stored coordinate-major, (N, 2, M), so that every kernel's inner loop runs over
 contiguous particles; the belief's weights are uniform after every update, so they are not stored.
 """
 
@@ -14,10 +14,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["State", "HIST_CELLS"]
+from electroloc_gym.core.observation import HIST_BINS
 
-#: Cells of the observation's particle histogram (8 × 8).
-HIST_CELLS = 64
+__all__ = ["State"]
 
 
 @dataclass
@@ -27,7 +26,7 @@ class State:
     Attributes:
         gens: each env's random generator (None until seeded or first used).
         seeds: the seed each generator was last created from.
-        world: each env's episode world: its ``Condition`` (localize) or ``Scene`` (global).
+        world: each env's episode world: its ``Condition`` (localize, unknown) or ``Scene`` (global).
         world_key: (N,) an integer naming each env's world (equal keys: the same world object).
         model: each env's sensor-model object for the agent (built on demand; None until asked for).
         cal_seed: (N,) each episode's calibration seed.
@@ -40,12 +39,12 @@ class State:
         target_mm: (N, 2) true target centre (localize), mm.
         odometry_mm: (N, 2) sum of the commanded moves since reset (global), mm.
         particles_mm: (N, 2, M) float32 particles, coordinate-major, mm.
-        reading_V: (N,) last reading Φ, V.
+        reading_V: (N,) last reading Φ, V ((N, K) with K readings per step).
         n_observations: (N,) readings fused this episode.
         elapsed: (N,) steps this episode.
         mean_mm: (N, 2) belief mean, mm.
         cov_mm2: (N, 2, 2) belief covariance, mm².
-        counts: (N, 64) the observation histogram's particle counts.
+        counts: (N, 64) the observation histogram's particle counts (8 × 8 cells).
         done: (N,) the episode ended (terminated or truncated) at the last step.
         started: reset has been called.
         grid_lo_mm: (N,) float32 first calibration grid coordinate, mm.
@@ -62,6 +61,8 @@ class State:
         radius_median_mm: (N,) the belief's median radius, mm (unknown target: the reported estimate).
         p_conductor: (N,) the belief's fraction of particles with χ > 0 (unknown target).
         gain_index: (N,) the gain level of each env's last reading (dynamic gain; 0 without).
+        worlds_drawn: worlds drawn per episode so far (the global task's random maps: each new map's
+            ``world_key``).
     """
 
     gens: list[np.random.Generator | None]
@@ -100,11 +101,14 @@ class State:
     p_conductor: NDArray[np.float64]
     gain_index: NDArray[np.int64]
     started: bool = field(default=False)
+    worlds_drawn: int = field(default=0)
 
     @classmethod
-    def empty(cls, num_envs: int, n_particles: int, table_cells: int, shape_dims: int = 0) -> State:
+    def empty(cls, num_envs: int, n_particles: int, table_cells: int, shape_dims: int = 0,
+              n_readings: int = 1) -> State:
         """A state of ``num_envs`` envs of ``n_particles`` particles, room for ``table_cells`` calibration
-        rows per env (0: no calibrated model) and ``shape_dims`` shape coordinates per particle.
+        rows per env (0: no calibrated model), ``shape_dims`` shape coordinates per particle and
+        ``n_readings`` readings per step (``reading_V`` is (N,) for one, (N, K) for K).
         """
         n, m = num_envs, n_particles
         return cls(
@@ -113,9 +117,10 @@ class State:
             cal_seed=np.zeros(n, dtype=np.int64), half_mm=np.ones(n), noise_V=np.ones(n), saturation_V=np.ones(n),
             descriptor=np.zeros((n, 5), dtype=np.float32), names=np.full(n, "", dtype=object),
             position_mm=np.zeros((n, 2)), target_mm=np.zeros((n, 2)), odometry_mm=np.zeros((n, 2)),
-            particles_mm=np.zeros((n, 2, m), dtype=np.float32), reading_V=np.zeros(n),
+            particles_mm=np.zeros((n, 2, m), dtype=np.float32),
+            reading_V=np.zeros(n) if n_readings == 1 else np.zeros((n, n_readings)),
             n_observations=np.zeros(n, dtype=np.int64), elapsed=np.zeros(n, dtype=np.int64),
-            mean_mm=np.zeros((n, 2)), cov_mm2=np.zeros((n, 2, 2)), counts=np.zeros((n, HIST_CELLS)),
+            mean_mm=np.zeros((n, 2)), cov_mm2=np.zeros((n, 2, 2)), counts=np.zeros((n, HIST_BINS * HIST_BINS)),
             done=np.zeros(n, dtype=bool),
             grid_lo_mm=np.zeros(n, dtype=np.float32), grid_inv_mm=np.ones(n, dtype=np.float32),
             grid_cells=np.ones(n, dtype=np.int64), table_row=np.arange(n, dtype=np.int64) * table_cells,

@@ -2,20 +2,22 @@
 
 One step of env i (paper §4.1, Algorithm 1):
 
-1. the commanded move (action × 10 mm per axis, or one of the 9 discrete moves) moves the carriage,
-   truncated at the walls of the allowed box (:meth:`~electroloc_gym.core.tasks.TargetTask.move`);
-2. env i's generator draws, in order: the reading noise (1 normal), the resampling offset (1 uniform)
-   and the jitter (2M 16-bit indices into the normal quantile table);
-3. the reading Φ = clip(noise-free reading + noise, ±V_sat) (:mod:`electroloc_gym.sensor`);
-4. the belief update in one compiled call per step: the sensor model's log-likelihood of every
-   particle (calibrated: the bilinear table lookup in the kernel; analytic: the physics in numpy),
-   the weights, systematic resampling, jitter, the clip to the box, the new cloud's mean, covariance
-   and histogram (:mod:`electroloc_gym.kernels.filter`);
+1. the commanded move (mm, parsed from the action by the adapter, :mod:`electroloc_gym.envs.actions`)
+   moves the carriage, truncated at the walls of the allowed box (:meth:`Task.move
+   <electroloc_gym.core.task.Task.move>`);
+2. env i's generator draws, in order: the reading noise (1 normal; K with K readings per step), the
+   resampling offset (1 uniform) and the jitter (2M 16-bit indices into the normal quantile table;
+   (2 + S)·M with S shape coordinates per particle);
+3. the reading Φ = clip(noise-free reading + noise, ±V_sat) (the task's ``true_mean_V``,
+   :func:`electroloc_gym.sensor.saturated_reading`);
+4. the task's belief update (``assimilate``: one compiled call per step for the x–y beliefs — the
+   sensor model's log-likelihood of every particle, the weights, systematic resampling, jitter, the
+   clip to the box, the new cloud's mean, covariance and histogram, :mod:`electroloc_gym.kernels.filter`);
 5. reward −1; terminated when √trace Σ ≤ ``success_spread_mm``; truncated after
    ``max_observations`` readings (or ``max_episode_steps`` steps);
-6. the observation (:mod:`electroloc_gym.envs.observation`) and the info arrays.
+6. the task's observation (:mod:`electroloc_gym.core.observation`) and info arrays.
 
-A reset draws the episode (:mod:`electroloc_gym.core.tasks`) and takes the first reading (steps 2–4),
+A reset draws the episode (the task's ``begin_episode``) and takes the first reading (steps 2–4),
 so an episode starts with one observation. Autoreset follows Gymnasium's modes: ``"next_step"`` (the
 step after an episode ends resets that env: reward 0, not done, the action ignored), ``"same_step"``
 (reset within the ending step; the final observation and info returned beside) or ``"disabled"``
@@ -28,27 +30,30 @@ with exact operations and fixed-order sums (docs/design.md, "Results that do not
 
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
 import numpy as np
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
 
-from electroloc_gym.core.params import DISCRETE_MOVES_MM, MAX_STEP_MM, EnvParams
+from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.state import State
-from electroloc_gym.core.tasks import group_by_world, make_task
+from electroloc_gym.core.task import Task
 from electroloc_gym.draws import normal_table, table_normal_indices
-from electroloc_gym.envs.observation import BELIEF_OBS_DIM, HIST_BINS, RAW_OBS_DIM, belief_observation, raw_observation
-from electroloc_gym.kernels import calibrated_assimilate, egocentric_counts, loglik_assimilate, mean_cov_rows
+from electroloc_gym.registry import task_entry
 from electroloc_gym.sensor import saturated_reading
 
-__all__ = ["Simulation", "AUTORESET_MODES", "INFO_KEYS"]
+__all__ = ["Simulation", "AUTORESET_MODES", "make_task"]
 
 AUTORESET_MODES = ("next_step", "same_step", "disabled")
-#: The info keys of every step and reset, in order.
-INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
-             "condition")
 _ALL = slice(None)
+
+
+def make_task(params: EnvParams) -> Task:
+    """The task object of ``params.task`` (its class from the env table, :mod:`electroloc_gym.registry`)."""
+    module, _, name = task_entry(params.task).task_class.partition(":")
+    return getattr(importlib.import_module(module), name)(params)
 
 
 class Simulation:
@@ -67,15 +72,11 @@ class Simulation:
         self.num_envs = int(num_envs)
         self.task = make_task(params)
         params.check_memory(self.num_envs, self.task.calibration_points())
-        self.state = State.empty(self.num_envs, params.n_particles, self.task.table_cells(),
-                                 getattr(self.task, "shape_dims", 0))
-        self.n_gains = len(params.gains)
-        self.dynamic_gain = params.gain_levels is not None
-        # the raw observation gets the gain level of its reading as a fourth entry with dynamic gain
-        self.obs_dim = BELIEF_OBS_DIM if params.observation == "belief" else RAW_OBS_DIM + int(self.dynamic_gain)
+        self.state = State.empty(self.num_envs, params.n_particles, self.task.table_cells(), self.task.shape_dims,
+                                 self.task.n_readings)
+        self.obs_dim = self.task.obs_dim
         self._normal_table = normal_table()
         self._all_ids = np.arange(self.num_envs)
-        self._sign = self.task.offset_sign
 
     # ---- generators ----------------------------------------------------------------------------
     def generator(self, i: int) -> np.random.Generator:
@@ -105,10 +106,7 @@ class Simulation:
             raise ValueError(f"particles_mm must be finite with shape ({s.n_particles}, 2), got {p.shape}")
         h = np.float32(s.half_mm[i])
         s.particles_mm[i] = np.minimum(np.maximum(p, -h), h).T
-        x, y = s.particles_mm[i:i + 1, 0], s.particles_mm[i:i + 1, 1]
-        mean_cov_rows(x, y, s.mean_mm[i:i + 1], s.cov_mm2[i:i + 1])
-        egocentric_counts(x, y, self.task.histogram_origin(s, slice(i, i + 1)), np.full(1, 2 * h), HIST_BINS,
-                          s.counts[i:i + 1])
+        self.task.update_statistics(s, slice(i, i + 1))
 
     # ---- reset / step --------------------------------------------------------------------------
     def reset(self, ids: NDArray[np.intp] | None = None) -> None:
@@ -120,58 +118,6 @@ class Simulation:
         self._observe(ids)
         self.state.done[ids] = False
         self.state.started = True
-
-    def moves_from_actions(self, actions: Any, single: bool = False) -> NDArray[np.float64]:
-        """The commanded moves (N, 2), mm, of a batch of actions (or of one action with ``single``)."""
-        if self.dynamic_gain:
-            return self._split_gain_actions(actions, single)[0]
-        return self._moves(actions, single)
-
-    def gains_from_actions(self, actions: Any, single: bool = False) -> NDArray[np.int64] | None:
-        """The gain levels (N,) of a batch of actions (dynamic gain), else None."""
-        return self._split_gain_actions(actions, single)[1] if self.dynamic_gain else None
-
-    def _split_gain_actions(self, actions: Any, single: bool) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-        """Dynamic gain: continuous (dx, dy, g), g ∈ [−1, 1] cut into K equal bins (level ⌊(g + 1)/2·K⌋);
-        discrete (move index, level) of MultiDiscrete([9, K]).
-        """
-        n, k = self.num_envs, self.n_gains
-        a = np.asarray(actions)
-        shape = (2,) if single else (n, 2)
-        if self.params.action_type == "discrete":
-            if a.shape != shape or not np.issubdtype(a.dtype, np.integer) or np.any((a[..., 1] < 0) | (a[..., 1] >= k)):
-                what = "action" if single else f"actions of {n} envs"
-                raise ValueError(f"{what} must be (move index in [0, 8], gain level in [0, {k - 1}]) integers, "
-                                 f"got {actions!r}")
-            a = a.reshape(n, 2)
-            return self._moves(a[:, 0], False), a[:, 1].astype(np.int64)
-        a = np.asarray(actions, dtype=np.float64)
-        shape = (3,) if single else (n, 3)
-        if a.shape != shape or not np.all(np.isfinite(a)):
-            what = "action" if single else "actions"
-            raise ValueError(f"{what} must be finite with shape {shape} (dx, dy, gain in [-1, 1]), got {actions!r}")
-        a = a.reshape(n, 3)
-        g = np.minimum(np.maximum(a[:, 2], -1.0), 1.0)
-        levels = np.minimum(np.floor((g + 1.0) * 0.5 * k), k - 1).astype(np.int64)
-        return self._moves(a[:, :2], False), levels
-
-    def _moves(self, actions: Any, single: bool) -> NDArray[np.float64]:
-        n = self.num_envs
-        if self.params.action_type == "discrete":
-            a = np.asarray(actions)
-            ok = (a.size == 1 if single else a.shape == (n,)) and np.issubdtype(a.dtype, np.integer)
-            if not (ok and np.all((a >= 0) & (a < len(DISCRETE_MOVES_MM)))):
-                what = "action must be an integer" if single else f"actions must be {n} integers"
-                raise ValueError(f"{what} in [0, {len(DISCRETE_MOVES_MM) - 1}], got {actions!r}")
-            return DISCRETE_MOVES_MM[a.reshape(n)]
-        a = np.asarray(actions, dtype=np.float64)
-        shape = (2,) if single else (n, 2)
-        if a.shape != shape:
-            what = "action" if single else "actions"
-            raise ValueError(f"{what} must have shape {shape} (dx, dy in [-1, 1]), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action{'' if single else 's'} must be finite (dx, dy in [-1, 1]), got {actions!r}")
-        return np.minimum(np.maximum(a.reshape(n, 2), -1.0), 1.0) * MAX_STEP_MM
 
     def step(self, moves_mm: NDArray[np.float64], autoreset: str = "next_step",
              gains: NDArray[np.int64] | None = None
@@ -240,50 +186,13 @@ class Simulation:
             truncated |= s.elapsed >= self.params.max_episode_steps
         return success, truncated
 
-    def _reference_mm(self, sel: Any) -> NDArray[np.float64]:
-        """The observation's entries 0–1: the carriage (localize) or the odometry (global)."""
-        s = self.state
-        return s.odometry_mm[sel] if self.task.name == "global" else s.position_mm[sel]
-
     def observation(self, ids: NDArray[np.intp] | None = None) -> NDArray[np.float32]:
-        """(k, obs_dim) float32 observations of envs ``ids`` (all if None)."""
-        s, sel = self.state, _ALL if ids is None else ids
-        half, sat = s.half_mm[sel], s.saturation_V[sel]
-        if self.params.observation == "raw":
-            obs = raw_observation(self._reference_mm(sel), s.reading_V[sel], half, sat)
-            if self.dynamic_gain:  # the reading's gain level, in [−1, 1]
-                level = s.gain_index[sel] * (2.0 / max(self.n_gains - 1, 1)) - 1.0
-                obs = np.concatenate([obs, level.astype(np.float32)[:, None]], axis=1)
-            return obs
-        origin = np.zeros((len(half), 2)) if self.task.name == "global" else s.position_mm[sel]
-        obs = belief_observation(origin, s.reading_V[sel], s.mean_mm[sel], s.cov_mm2[sel],
-                                 s.counts[sel] / s.n_particles, s.n_observations[sel], self.params.max_observations,
-                                 half, s.noise_V[sel], sat, self.params.success_spread_mm, s.descriptor[sel])
-        if self.task.name == "global":  # entries 0–1: the odometry instead of the (unknown) carriage
-            obs[:, 0:2] = np.minimum(np.maximum(s.odometry_mm[sel] / half[:, None], -1.0), 1.0)
-        return obs
+        """(k, obs_dim) float32 observations of envs ``ids`` (all if None): the task's."""
+        return self.task.observation(self.state, ids)
 
     def info(self, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray]:
-        """The info arrays of envs ``ids`` (all if None), keys :data:`INFO_KEYS`."""
-        s, sel = self.state, _ALL if ids is None else ids
-        est = s.mean_mm[sel]
-        spread = np.sqrt(np.maximum(s.cov_mm2[sel, 0, 0] + s.cov_mm2[sel, 1, 1], 0.0))
-        d = est - self.task.truth_mm(s, sel)
-        extra = self.task.shape_info(s, sel) if self.task.name == "unknown" else {}
-        if self.dynamic_gain:  # the amplifier gain G of the last reading
-            extra["gain"] = np.array([w.amplifier.gain for w in s.world], dtype=np.float64)[sel] * \
-                np.asarray(self.params.gains)[s.gain_index[sel]]
-        return {
-            "position_mm": s.position_mm[sel].copy(),
-            "estimate_mm": est.copy(),
-            "error_mm": np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]),
-            "spread_mm": spread,
-            "reading_V": s.reading_V[sel].copy(),
-            "n_observations": s.n_observations[sel].copy(),
-            "success": spread <= self.params.success_spread_mm,
-            "condition": s.names[sel].copy(),
-            **extra,
-        }
+        """The info arrays of envs ``ids`` (all if None): the task's (``INFO_KEYS`` first)."""
+        return self.task.info(self.state, ids)
 
     # ---- the reading and the belief update -----------------------------------------------------
     def _observe(self, ids: NDArray[np.intp]) -> None:
@@ -292,57 +201,21 @@ class Simulation:
         k = len(ids)
         full = k == self.num_envs
         sel: Any = _ALL if full else ids
-        noise = np.empty(k)
+        n_readings = self.task.n_readings
+        noise = np.empty(k) if n_readings == 1 else np.empty((k, n_readings))
         u0 = np.empty(k)
         jitter = s.jitter_idx if full else s.jitter_idx[:k]
-        draws = s.jitter_idx.shape[1]  # 2·M (4·M with shapes)
+        draws = s.jitter_idx.shape[1]  # (2 + S)·M
         gens = s.gens
+        size = None if n_readings == 1 else n_readings
         for j, (i, sd) in enumerate(zip(ids.tolist(), s.noise_V[sel].tolist(), strict=True)):
             g = gens[i] or self.generator(i)
-            noise[j] = g.normal(0.0, sd)
+            noise[j] = g.normal(0.0, sd, size)
             u0[j] = g.random()
             jitter[j] = table_normal_indices(g, draws)
-        reading = saturated_reading(self.task.true_mean_V(s, ids), noise, s.saturation_V[sel])
+        sat = s.saturation_V[sel] if n_readings == 1 else s.saturation_V[sel][:, None]
+        reading = saturated_reading(self.task.true_mean_V(s, ids), noise, sat)
         s.reading_V[sel] = reading
         s.n_observations[sel] += 1
-        if self.task.name == "unknown":  # position and shape resampled together (core.unknown)
-            if self.task.assimilate(s, ids, reading, u0, jitter, self._normal_table, HIST_BINS) >= 0:
-                raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
-            return
-        src = s.particles_mm if full else s.particles_mm[ids]  # full: updated in place
-        origin = self.task.histogram_origin(s, sel)
-        half = s.half_mm[sel].astype(np.float32)
-        if full:  # the kernels write the statistics in place
-            mean, cov, counts = s.mean_mm, s.cov_mm2, s.counts
-        else:
-            mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
-        if self.task.calibrated:
-            rows = self.task.table_rows(s, sel)  # each env's rows at its current gain level
-            bad = calibrated_assimilate(src, origin, self._sign, s.grid_lo_mm[sel], s.grid_inv_mm[sel],
-                                        s.grid_cells[sel], rows, s.table, reading.astype(np.float32), u0,
-                                        jitter, self._normal_table, half, src, mean, cov, 2 * half, HIST_BINS, counts)
-        else:
-            ll = self._analytic_log_likelihood(ids, src, origin, reading)
-            bad = loglik_assimilate(ll, src, origin, u0, jitter, self._normal_table, half, src, mean, cov, 2 * half,
-                                    HIST_BINS, counts)
-        if bad >= 0:
+        if self.task.assimilate(s, ids, reading, u0, jitter, self._normal_table) >= 0:
             raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
-        if not full:
-            s.particles_mm[ids] = src
-            s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
-
-    def _analytic_log_likelihood(self, ids: NDArray[np.intp], src: NDArray[np.float32], origin: NDArray[np.float32],
-                                 reading: NDArray[np.float64]) -> NDArray[np.float32]:
-        """(k, M) float32 log-likelihoods of the analytic models, one numpy evaluation per world (and gain
-        level, with dynamic gain).
-        """
-        off = ((src - origin[:, :, None]) * self._sign).transpose(0, 2, 1)  # (k, M, 2) offsets
-        groups = group_by_world(self.state, ids, by_gain=self.dynamic_gain)
-        if len(groups) == 1:
-            model = self.task.sensor_model(self.state, int(ids[0]))
-            return np.ascontiguousarray(model.log_likelihood(reading[:, None], off), dtype=np.float32)
-        ll = np.empty((len(ids), src.shape[2]), dtype=np.float32)
-        for _, rows in groups:
-            model = self.task.sensor_model(self.state, int(ids[rows[0]]))
-            ll[rows] = model.log_likelihood(reading[rows][:, None], off[rows])
-        return ll

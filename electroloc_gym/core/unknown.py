@@ -11,9 +11,13 @@ eight pairs), with ``"prior"`` it is drawn from the belief's prior (radius unifo
 probability; ``"continuous"``: χ uniform in [−½, 1]).
 
 **Measurement update.** The log-likelihood of every hypothesis comes from the shape sensor model
-(:mod:`electroloc_gym.sensor_models.shape`; exact elementwise numpy operations), the systematic
-resampling indices from the compiled kernel :func:`~electroloc_gym.kernels.resample_indices`, and
-position and shape are resampled with the same indices. Jitter: N(0, 1 mm²) per position axis (as
+(:mod:`electroloc_gym.sensor_models.shape`; exact elementwise numpy operations, as the analytic
+models' of the other tasks), then the kernel layer does the rest as for the x–y clouds: the systematic
+resampling indices (:func:`~electroloc_gym.kernels.resample_indices`), the resampling of position and
+shape with the same indices, the jitter and the clip (:func:`~electroloc_gym.kernels.jitter_resampled`),
+the statistics (:func:`~electroloc_gym.kernels.mean_cov_rows`, ``egocentric_counts``, ``row_sums``).
+The one-pass x–y kernels (``loglik_assimilate``) are not used because they carry two coordinates
+per particle; the two passes here carry any number. Jitter: N(0, 1 mm²) per position axis (as
 the other tasks), N(0, (0.5 mm)²) on the radius, N(0, 0.02²) on a continuous χ (none on a binary
 one); each coordinate is clipped to its range (the box, the radius range, [−½, 1]). The draws per
 step: the reading's noise, U, then 4·M normal-table indices (x, y of particle j at 2j, 2j + 1; radius,
@@ -36,11 +40,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.conditions import Condition
+from electroloc_gym.conditions import Condition, Target
+from electroloc_gym.core.localize import LocalizeTask
+from electroloc_gym.core.observation import HIST_BINS
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.state import State
-from electroloc_gym.core.tasks import TargetTask, group_by_world
-from electroloc_gym.kernels import egocentric_counts, mean_cov_rows, resample_indices, row_sums
+from electroloc_gym.core.worlds import group_by_world
+from electroloc_gym.kernels import egocentric_counts, jitter_resampled, mean_cov_rows, resample_indices, row_sums
 from electroloc_gym.sensor import sphere_reading
 from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
 
@@ -63,18 +69,20 @@ def _material(chi: NDArray) -> NDArray[np.object_]:
     return np.where(np.asarray(chi) > 0, "conductor", "insulator").astype(object)
 
 
-class UnknownTargetTask(TargetTask):
+class UnknownTargetTask(LocalizeTask):
     """ElectroLocUnknownTarget-v0 (module docstring)."""
 
-    name = "unknown"
-    #: Shape coordinates per particle (radius, χ); a hypothesis is (x, y, a, χ).
-    shape_dims = 2
+    #: A hypothesis is (x, y, a, χ): two shape coordinates (radius, χ) per particle.
     particle_dims = 4
+    info_keys = SHAPE_INFO_KEYS
 
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
         self.radius_range_mm = params.radius_range_mm
         self.continuous = params.contrast == "continuous"
+        #: The jitter's std per coordinate (x, y mm; radius mm; χ, none for a binary contrast).
+        self._jitter_scale = np.array([1.0, 1.0, RADIUS_JITTER_MM, CHI_JITTER if self.continuous else 0.0],
+                                      dtype=np.float32)
         self._theoretical = [[TheoreticalShapeModel(self.at_gain(c, j)) for j in range(len(self.gains))]
                              for c in self.pool]
 
@@ -93,13 +101,9 @@ class UnknownTargetTask(TargetTask):
         the sphere (``target_draw="prior"``: radius, then material or χ), target position
         (``randomize_target``), start position, particle positions, particle radii, particle χ.
         """
-        pool = self.pool
-        k = int(g.integers(len(pool))) if len(pool) > 1 else 0
-        c = pool[k]
-        self._set_world(state, i, c, k, c, self._descriptors[k])
+        c = self._draw_condition(state, i, g)
         state.cal_seed[i] = self._cal_seed(g)
         state.model[i] = [None] * len(self.gains)
-        lo, hi = self.radius_range_mm
         if self.params.target_draw == "prior":
             radius = float(self._draw_radius(g))
             state.target_shape[i] = (radius, float(self._draw_chi(g)))
@@ -137,8 +141,6 @@ class UnknownTargetTask(TargetTask):
 
     def true_condition(self, state: State, i: int) -> Condition:
         """Env ``i``'s tank with its hidden sphere (ground truth, for evaluation only)."""
-        from electroloc_gym.conditions import Target
-
         c: Condition = state.world[i]
         radius, chi = state.target_shape[i]
         if c.target.radius_mm == radius and c.chi == chi:
@@ -151,19 +153,17 @@ class UnknownTargetTask(TargetTask):
                                        material=material))
 
     # ---- predictions for agents ------------------------------------------------------------------
-    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
-        """Target position hypothesis (columns 0–1 of (M, 4) particles) − the carriage after the move."""
-        return super().offsets_after_move(state, i, particles[..., :2], moves_mm)
-
     def predicted_mean_std(self, state: State, i: int, particles: NDArray, moves_mm: NDArray,
                            level: int | None = None) -> tuple[NDArray, NDArray]:
-        """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves."""
+        """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves (the
+        offsets from columns 0–1, :meth:`LocalizeTask.offsets_after_move`).
+        """
         off = self.offsets_after_move(state, i, particles, moves_mm)
         return self.sensor_model(state, i, level).mean_std(off, particles[..., 2], particles[..., 3])
 
     # ---- the measurement update ------------------------------------------------------------------
     def assimilate(self, state: State, ids: NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
-                   jitter: NDArray[np.uint16], normal_table: NDArray[np.float32], bins: int) -> int:
+                   jitter: NDArray[np.uint16], normal_table: NDArray[np.float32]) -> int:
         """Fuse each env's reading into its 4-D cloud (module docstring); returns −1 or the first env whose
         log-likelihood is NaN.
         """
@@ -180,26 +180,29 @@ class UnknownTargetTask(TargetTask):
         bad = resample_indices(ll, u0, idx)
         if bad >= 0:
             return bad
-        z = normal_table[jitter[:k]]                                             # (k, 4M) standard normals
-        half = s.half_mm[ids].astype(np.float32)[:, None]
-        lo, hi = (np.float32(v) for v in self.radius_range_mm)
-        rows = np.arange(k)[:, None]
-        x = np.minimum(np.maximum(xy[:, 0][rows, idx] + z[:, 0:2 * m:2], -half), half)
-        y = np.minimum(np.maximum(xy[:, 1][rows, idx] + z[:, 1:2 * m:2], -half), half)
-        radius = np.minimum(np.maximum(shape[:, 0][rows, idx] + np.float32(RADIUS_JITTER_MM) * z[:, 2 * m::2], lo), hi)
-        chi = shape[:, 1][rows, idx]
-        if self.continuous:
-            chi = np.minimum(np.maximum(chi + np.float32(CHI_JITTER) * z[:, 2 * m + 1::2],
-                                        np.float32(INSULATOR_CHI)), np.float32(CONDUCTOR_CHI))
-        s.particles_mm[ids, 0], s.particles_mm[ids, 1] = x, y
-        s.shape_particles[ids, 0], s.shape_particles[ids, 1] = radius, chi
-        mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, bins * bins))
+        cloud = np.concatenate([xy, shape], axis=1)                             # (k, 4, M): x, y, radius, χ
+        half = s.half_mm[ids].astype(np.float32)
+        lo = np.empty((k, 4), dtype=np.float32)
+        hi = np.empty((k, 4), dtype=np.float32)
+        lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1] = -half, -half, half, half
+        lo[:, 2], hi[:, 2] = self.radius_range_mm
+        lo[:, 3], hi[:, 3] = INSULATOR_CHI, CONDUCTOR_CHI
+        out = np.empty_like(cloud)
+        jitter_resampled(idx, cloud, jitter[:k], normal_table, self._jitter_scale, lo, hi, out)
+        s.particles_mm[ids] = out[:, :2]
+        s.shape_particles[ids] = out[:, 2:]
+        mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         x, y = s.particles_mm[ids, 0], s.particles_mm[ids, 1]
         mean_cov_rows(x, y, mean, cov)
-        egocentric_counts(x, y, origin, 2 * half[:, 0], bins, counts)
+        egocentric_counts(x, y, origin, 2 * half, HIST_BINS, counts)
         s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
         self._shape_statistics(s, ids)
         return -1
+
+    def update_statistics(self, state: State, ids: NDArray[np.intp] | slice) -> None:
+        """The x–y statistics and the shape's (:meth:`_shape_statistics`)."""
+        super().update_statistics(state, ids)
+        self._shape_statistics(state, np.arange(state.num_envs)[ids])
 
     def _shape_statistics(self, s: State, ids: NDArray[np.intp]) -> None:
         """The shape's means and stds (fixed-order sums) and the conductor fraction of envs ``ids``."""
@@ -217,11 +220,12 @@ class UnknownTargetTask(TargetTask):
         v = np.partition(s.shape_particles[ids, 0].astype(np.float64), (m - 1) // 2 + np.arange(2 - m % 2), axis=1)
         s.radius_median_mm[ids] = 0.5 * (v[:, (m - 1) // 2] + v[:, m // 2])
         s.p_conductor[ids] = np.count_nonzero(s.shape_particles[ids, 1] > 0, axis=1) / m
-        # the observation's condition entries 76–77: the belief's radius / 25 mm and χ instead of the truth
-        s.descriptor[ids, 0] = (s.shape_mean[ids, 0] / 25.0).astype(np.float32)
+        # the observation's condition entries 76–77: the belief's radius / 25 mm (clipped to 1, as the condition
+        # descriptor's: radii above 25 mm read 1) and χ instead of the truth
+        s.descriptor[ids, 0] = np.minimum(s.shape_mean[ids, 0] / 25.0, 1.0).astype(np.float32)
         s.descriptor[ids, 1] = s.shape_mean[ids, 1].astype(np.float32)
 
-    def shape_info(self, state: State, sel: Any) -> dict[str, NDArray]:
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
         """The info arrays :data:`SHAPE_INFO_KEYS` of envs ``sel``."""
         s = state
         est_r, true_r = s.radius_median_mm[sel], s.target_shape[sel, 0]

@@ -1,21 +1,15 @@
-"""Gymnasium environments of electroloc-gym.
+"""Gymnasium environments of electroloc-gym: thin adapters over the simulation core (:mod:`electroloc_gym.core`).
 
-The env classes load on first access, so that the core can import :mod:`.observation` without
-importing the adapters (which import the core).
+Each env of the table (:mod:`electroloc_gym.registry`) is a :class:`~.adapter.CoreEnv` (single) and a
+:class:`~.vector.CoreVectorEnv` (native vector) with its id; :mod:`.actions` parses the actions.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from electroloc_gym.envs.global_env import GlobalEnv
+from electroloc_gym.envs.localize import ElectroLocEnv
+from electroloc_gym.envs.unknown_target import UnknownTargetEnv
+from electroloc_gym.envs.vector import ElectroLocVectorEnv, GlobalVectorEnv, UnknownTargetVectorEnv
 
-__all__ = ["ElectroLocEnv", "GlobalLocalizationEnv", "UnknownTargetEnv"]
-
-_WHERE = {"ElectroLocEnv": "localize", "GlobalLocalizationEnv": "self_localize", "UnknownTargetEnv": "unknown_target"}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _WHERE:
-        import importlib
-
-        return getattr(importlib.import_module(f"electroloc_gym.envs.{_WHERE[name]}"), name)
-    raise AttributeError(f"module 'electroloc_gym.envs' has no attribute {name!r}")
+__all__ = ["ElectroLocEnv", "GlobalEnv", "UnknownTargetEnv", "ElectroLocVectorEnv", "GlobalVectorEnv",
+           "UnknownTargetVectorEnv"]

@@ -7,8 +7,10 @@ terminated or truncated, is an error: call reset) and returns row 0 of its array
 scalars. It adds only what a single env has and a batch has not: the carriage path for plots,
 rendering, and the read-only accessors agents use (``belief``, ``sensor_model``, ``condition``,
 ``position_mm``, ``allowed_box_mm``, ``move_bounds_mm``, ``n_observations``, ``last_reading_V``,
-``path_mm``, ``predicted_reading_model``, ``predicted_particles_mm``). ``ElectroLoc-v0``
-(:mod:`.localize`) and ``ElectroLocGlobal-v0`` (:mod:`.self_localize`) are this class with a task.
+``path_mm``, ``predicted_reading_model``, ``predicted_particles_mm``). Every env of the table
+(:mod:`electroloc_gym.registry`) is this class with its id: ``ElectroLoc-v0`` (:mod:`.localize`),
+``ElectroLocGlobal-v0`` (:mod:`.global_env`), ``ElectroLocUnknownTarget-v0`` (:mod:`.unknown_target`).
+Actions are parsed and checked here (:mod:`.actions`), before the core sees them.
 """
 
 from __future__ import annotations
@@ -17,36 +19,17 @@ from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym.belief import BeliefView
 from electroloc_gym.conditions import Condition
-from electroloc_gym.core.params import DISCRETE_MOVES_MM, MAX_STEP_MM, EnvParams
+from electroloc_gym.core.observation import INFO_KEYS
+from electroloc_gym.core.params import MAX_STEP_MM, EnvParams
 from electroloc_gym.core.step import Simulation
+from electroloc_gym.envs.actions import ActionParser, spaces_of
+from electroloc_gym.registry import env_entry
 
 __all__ = ["CoreEnv", "ParamAccessors", "spaces_of"]
-
-_INFO_ROW_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
-                  "condition")
-
-
-def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space, spaces.Box]:
-    """(action space, observation space) of one env.
-
-    Dynamic gain (``gain_levels``) adds the gain to the action in the two forms SB3 trains (it has no
-    Dict or Tuple actions): a third Box coordinate cut into K equal bins (continuous), or
-    ``MultiDiscrete([9, K])`` (discrete).
-    """
-    k = len(params.gains)
-    if params.action_type == "continuous":
-        dims = 3 if params.gain_levels is not None else 2
-        action: spaces.Space = spaces.Box(-1.0, 1.0, shape=(dims,), dtype=np.float32)
-    elif params.gain_levels is not None:
-        action = spaces.MultiDiscrete([len(DISCRETE_MOVES_MM), k])
-    else:
-        action = spaces.Discrete(len(DISCRETE_MOVES_MM))
-    return action, spaces.Box(-1.0, 1.0, shape=(obs_dim,), dtype=np.float32)
 
 
 class ParamAccessors:
@@ -97,21 +80,35 @@ class ParamAccessors:
         return self.params.reset_gain_index
 
 
+class RenderModes(list):
+    """The render modes (a list), refusing a non-string mode in a membership test with one ValueError:
+    ``gym.make`` tests ``render_mode in metadata["render_modes"]`` before it builds the env, and would
+    otherwise fail inside Gymnasium on ``render_mode=1``.
+    """
+
+    def __contains__(self, mode: object) -> bool:
+        if mode is not None and not isinstance(mode, str):
+            raise ValueError(f"render_mode must be one of {list(self)} or None, got {mode!r}")
+        return super().__contains__(mode)
+
+
 class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] | int]):
     """One env of the simulation core (see the module docstring); subclasses set the task."""
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
-    _TASK = "localize"
+    metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 4}
+    #: The env's id in the env table (its task, arguments and defaults come from the entry).
     _ENV_ID = "ElectroLoc-v0"
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        modes = self.metadata["render_modes"]
+        if render_mode is not None and render_mode not in modes:
+            raise ValueError(f"render_mode must be one of {list(modes)} or None, got {render_mode!r}")
         self.render_mode = render_mode
-        self.params = EnvParams.from_kwargs(self._TASK, kwargs, self._ENV_ID)
+        self.params = EnvParams.from_kwargs(env_entry(self._ENV_ID).task, kwargs, self._ENV_ID)
         self._sim = Simulation(self.params, 1)
         self._state = self._sim.state
         self._task = self._sim.task
+        self._actions = ActionParser(self.params, 1)
         self.action_space, self.observation_space = spaces_of(self.params, self._sim.obs_dim)
         self._belief = BeliefView(self._state, 0)
         self._path: list[tuple[float, float]] = []
@@ -138,12 +135,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     def condition(self) -> Condition:
         """The current episode's condition (before the first reset: the first of the pool)."""
         w = self._state.world[0]
-        if w is None:
-            return self._default_condition()
-        return w if isinstance(w, Condition) else w.as_condition()
-
-    def _default_condition(self) -> Condition:
-        raise NotImplementedError
+        return self._task.world_condition(self._task.default_world() if w is None else w)
 
     @property
     def position_mm(self) -> NDArray[np.float64]:
@@ -244,8 +236,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     def step(self, action: Any) -> tuple[NDArray[np.float32], SupportsFloat, bool, bool, dict[str, Any]]:
         if not self._state.started:
             raise RuntimeError("call reset() before step()")
-        moves = self._sim.moves_from_actions(action, single=True)
-        gains = self._sim.gains_from_actions(action, single=True) if self._sim.dynamic_gain else None
+        moves, gains = self._actions(action, single=True)
         obs, reward, terminated, truncated, info = self._sim.step(moves, autoreset="disabled", gains=gains)
         self._path.append(tuple(self._state.position_mm[0].tolist()))
         if self.render_mode == "human":
@@ -256,7 +247,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     def _info_row(info: dict[str, NDArray]) -> dict[str, Any]:
         """Row 0 of the core's info arrays as Python values (positions as tuples of float)."""
         extra = {k: v[0].item() if isinstance(v[0], np.generic) else v[0] for k, v in info.items()
-                 if k not in _INFO_ROW_KEYS} if len(info) > len(_INFO_ROW_KEYS) else {}
+                 if k not in INFO_KEYS} if len(info) > len(INFO_KEYS) else {}
         return {
             "position_mm": tuple(info["position_mm"][0].tolist()),
             "estimate_mm": tuple(info["estimate_mm"][0].tolist()),

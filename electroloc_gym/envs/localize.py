@@ -1,7 +1,7 @@
 """ElectroLoc-v0: move the sensing carriage until the particle belief pins the target down.
 
 A thin adapter (:class:`~electroloc_gym.envs.adapter.CoreEnv`) over the simulation core with one env
-of the ``"localize"`` task (:mod:`electroloc_gym.core`).
+of the ``"localize"`` task (:mod:`electroloc_gym.core.localize`).
 """
 
 from __future__ import annotations
@@ -11,11 +11,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.conditions import Condition
-from electroloc_gym.core.params import ACTION_TYPES, DISCRETE_MOVES_MM, MAX_STEP_MM
+from electroloc_gym.core.params import MAX_STEP_MM
 from electroloc_gym.envs.adapter import CoreEnv
 
-__all__ = ["ElectroLocEnv", "MAX_STEP_MM", "DISCRETE_MOVES_MM", "ACTION_TYPES"]
+__all__ = ["ElectroLocEnv"]
 
 
 class ElectroLocEnv(CoreEnv):
@@ -38,21 +37,10 @@ class ElectroLocEnv(CoreEnv):
 
     ## Observation Space
 
-    ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``:
-
-    | index | feature | unit / normalisation |
-    |-------|---------|----------------------|
-    | 0–1   | carriage position x, y | mm / H (allowed half-width) |
-    | 2     | last reading Φ | V / 10 V |
-    | 3     | last reading in noise units | tanh(Φ / 3·G·σ_s) |
-    | 4–5   | belief mean − carriage | mm / 2H |
-    | 6–7   | belief std x, y | mm / H |
-    | 8     | belief correlation | — |
-    | 9     | spread √trace Σ | mm / H |
-    | 10    | log₁₀(spread / 10 mm) | clipped to [−1, 1] |
-    | 11    | observations used / cap | — |
-    | 12–75 | 8×8 egocentric particle histogram over ±H | mass fraction |
-    | 76–80 | condition: radius/25 mm, χ, log₁₀ G / 4, G·σ_s (V), signal scale / 8 | — |
+    ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``: the carriage position, the last
+    reading, the belief's mean, spread, correlation and 8×8 egocentric histogram, the observations used
+    and a condition descriptor; the layout table is :mod:`electroloc_gym.core.observation`'s (also in
+    docs/environments.md).
 
     ``observation="raw"``: ``Box(-1, 1, (3,), float32)`` = [x/H, y/H, Φ/10 V] (no belief).
 
@@ -121,7 +109,6 @@ class ElectroLocEnv(CoreEnv):
     * v0: initial version.
     """
 
-    _TASK = "localize"
     _ENV_ID = "ElectroLoc-v0"
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
@@ -136,9 +123,6 @@ class ElectroLocEnv(CoreEnv):
     def calibration_seed(self) -> int | None:
         """The fixed calibration seed, or None (a new calibration per episode)."""
         return self.params.calibration_seed
-
-    def _default_condition(self) -> Condition:
-        return self._task.pool[0]
 
     @property
     def target_mm(self) -> NDArray[np.float64]:

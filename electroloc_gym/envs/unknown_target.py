@@ -87,14 +87,13 @@ class UnknownTargetEnv(ElectroLocEnv):
     * v0: initial version.
     """
 
-    _TASK = "unknown"
     _ENV_ID = "ElectroLocUnknownTarget-v0"
 
     @property
     def condition(self) -> Condition:
         """The episode's tank with its hidden sphere (ground truth; before the first reset: the first tank)."""
         if self._state.world[0] is None:
-            return self._default_condition()
+            return self._task.default_world()
         return self._task.true_condition(self._state, 0)
 
     @property

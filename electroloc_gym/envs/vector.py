@@ -1,12 +1,18 @@
 """The native vector envs: the simulation core with N envs behind Gymnasium's ``VectorEnv``.
 
 ``gym.make_vec("ElectroLoc-v0", num_envs=N, vectorization_mode="vector_entry_point")`` builds an
-:class:`ElectroLocVectorEnv`, ``"ElectroLocGlobal-v0"`` a :class:`GlobalLocalizationVectorEnv`: one
+:class:`ElectroLocVectorEnv`, ``"ElectroLocGlobal-v0"`` a :class:`GlobalVectorEnv` (each entry's
+``vector_entry_point`` in :mod:`electroloc_gym.registry`): one
 :class:`~electroloc_gym.core.step.Simulation` of N envs, whose every step is one batched core step —
 the same code, with the same per-env arithmetic, as the single env (:mod:`.adapter`, N = 1). Sub-env
-``i`` reset with seed ``s + i`` (``reset(seed=s)``, as :class:`gymnasium.vector.SyncVectorEnv`) therefore
-produces exactly what the single env reset with ``s + i`` produces: observations, rewards,
-terminations, truncations and infos, across autoresets (docs/design.md).
+``i`` reset with seed ``t`` (the i-th of ``reset(seed=[...])``, or ``t = sub_env_seeds(s, N)[i]`` for
+``reset(seed=s)``) therefore produces exactly what the single env reset with ``t`` produces: observations,
+rewards, terminations, truncations and infos, across autoresets (docs/design.md).
+
+Seeds: an int ``s`` is spread over the sub-envs with :class:`numpy.random.SeedSequence` (child ``i`` of
+``SeedSequence(s)``, :func:`sub_env_seeds`), not as ``s + i``: vector envs seeded ``s`` and ``s + 1`` —
+RLlib seeds env runner k with ``seed + k`` — then share no sub-env (with ``s + i``, sub-env ``i`` of the
+second would repeat sub-env ``i + 1`` of the first).
 
 Autoreset: ``metadata["autoreset_mode"]`` is :attr:`gymnasium.vector.AutoresetMode.NEXT_STEP` by
 default, like Gymnasium's built-in vector envs; ``autoreset_mode="same_step"`` resets an ending
@@ -24,7 +30,7 @@ plain float arrays. Rendering is not supported (``render_mode`` must be None): r
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -35,10 +41,11 @@ from numpy.typing import NDArray
 from electroloc_gym.conditions import Condition
 from electroloc_gym.core.params import EnvParams, check_int
 from electroloc_gym.core.step import Simulation
-from electroloc_gym.envs.adapter import ParamAccessors, spaces_of
+from electroloc_gym.envs.actions import ActionParser, spaces_of
+from electroloc_gym.envs.adapter import ParamAccessors
+from electroloc_gym.registry import env_entry
 
-__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalLocalizationVectorEnv", "UnknownTargetVectorEnv",
-           "make_electroloc_vector_env", "make_global_vector_env", "make_unknown_target_vector_env"]
+__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalVectorEnv", "UnknownTargetVectorEnv", "sub_env_seeds"]
 
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
     AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP: AutoresetMode.SAME_STEP,
@@ -47,6 +54,40 @@ _AUTORESET_MODES: dict[Any, AutoresetMode] = {
 }
 #: The core's name of each mode.
 _CORE_MODE = {AutoresetMode.NEXT_STEP: "next_step", AutoresetMode.SAME_STEP: "same_step"}
+
+
+def _is_seed(value: Any) -> bool:
+    """A seed: an integer ≥ 0 (Python or numpy; not a bool)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0
+
+
+def _check_seed(seed: Any, n: int) -> None:
+    """``reset``'s ``seed``: None, an integer ≥ 0, or a sequence of ``n`` entries each None or an integer ≥ 0;
+    anything else is one ValueError naming it.
+    """
+    if seed is None or _is_seed(seed):
+        return
+    what = f"seed must be None, an integer ≥ 0 or a sequence of {n} seeds (each None or an integer ≥ 0)"
+    if isinstance(seed, (str, bytes, Mapping)) or not isinstance(seed, (Sequence, np.ndarray)) or \
+            (isinstance(seed, np.ndarray) and seed.ndim != 1):
+        raise ValueError(f"{what}, got {seed!r}")
+    if len(seed) != n:
+        raise ValueError(f"{what}, got {len(seed)} seeds")
+    bad = [s for s in seed if not (s is None or _is_seed(s))]
+    if bad:
+        raise ValueError(f"{what}, got {list(seed)!r} (bad: {bad!r})")
+
+
+def sub_env_seeds(seed: int, num_envs: int) -> list[int]:
+    """The seed of each sub-env of a vector env reset with the int ``seed``: the 128-bit state of child
+    ``i`` of ``numpy.random.SeedSequence(seed)`` (depends on ``seed`` and ``i`` only, not on ``num_envs``).
+
+    Raises:
+        ValueError: ``seed`` not an int ≥ 0 or ``num_envs`` not an int ≥ 1 (names the argument).
+    """
+    root = np.random.SeedSequence(check_int("seed", seed, 0))
+    return [int.from_bytes(child.generate_state(4, np.uint32).tobytes(), "little")
+            for child in root.spawn(check_int("num_envs", num_envs, 1))]
 
 
 class CoreVectorEnv(ParamAccessors, VectorEnv):
@@ -60,7 +101,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
-    _TASK = "localize"
+    #: The env's id in the env table (its task, arguments and defaults come from the entry).
     _ENV_ID = "ElectroLoc-v0"
 
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
@@ -73,8 +114,9 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         if mode is None:
             raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or 'next_step', "
                              f"'same_step'), got {autoreset_mode!r}")
-        self.params = EnvParams.from_kwargs(self._TASK, kwargs, self._ENV_ID)
+        self.params = EnvParams.from_kwargs(env_entry(self._ENV_ID).task, kwargs, self._ENV_ID)
         self._sim = Simulation(self.params, n)
+        self._actions = ActionParser(self.params, n)
         self._state = self._sim.state
         self.num_envs = n
         self.autoreset_mode = mode
@@ -111,7 +153,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         """Each sub-env's current condition."""
         if not self._state.started:
             raise RuntimeError("call reset() first")
-        return tuple(w if isinstance(w, Condition) else w.as_condition() for w in self._state.world)
+        return tuple(self._sim.task.world_condition(w) for w in self._state.world)
 
     @property
     def sensor_models(self) -> tuple[Any, ...]:
@@ -138,16 +180,15 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
     # ---- gymnasium API ------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        """Reset all sub-envs (or those in ``options["reset_mask"]``); seeds as SyncVectorEnv."""
+        """Reset all sub-envs (or those in ``options["reset_mask"]``); an int seed as :func:`sub_env_seeds`."""
         n = self.num_envs
+        _check_seed(seed, n)  # everything is checked before any sub-env changes
         if seed is None:
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
-            seeds = [int(seed) + i for i in range(n)]
+            seeds = list(sub_env_seeds(int(seed), n))
         else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"seed must be None, an int or a sequence of {n} seeds, got {len(seeds)} seeds")
+            seeds = [None if s is None else int(s) for s in seed]
         mask = np.ones(n, dtype=bool)
         if options is not None and "reset_mask" in options:
             mask = options["reset_mask"]
@@ -164,8 +205,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
                                           NDArray[np.bool_], dict[str, Any]]:
         if not self._state.started:
             raise RuntimeError("call reset() before step()")
-        moves = self._sim.moves_from_actions(actions)
-        gains = self._sim.gains_from_actions(actions)
+        moves, gains = self._actions(actions)
         obs, rewards, terminated, truncated, info = self._sim.step(moves, self._mode, gains)
         if "done" in info:
             done = info.pop("done")
@@ -196,16 +236,14 @@ class ElectroLocVectorEnv(CoreVectorEnv):
     ``num_envs`` and ``autoreset_mode``.
     """
 
-    _TASK = "localize"
     _ENV_ID = "ElectroLoc-v0"
 
 
-class GlobalLocalizationVectorEnv(CoreVectorEnv):
+class GlobalVectorEnv(CoreVectorEnv):
     """``num_envs`` copies of ElectroLocGlobal-v0 stepped as one core (module docstring); any layout,
     ``"random"`` included (every sub-env draws its own map per episode).
     """
 
-    _TASK = "global"
     _ENV_ID = "ElectroLocGlobal-v0"
 
     @property
@@ -219,20 +257,4 @@ class UnknownTargetVectorEnv(CoreVectorEnv):
     adds the unknown-target keys (size and material estimates, their truth) as (N,) arrays.
     """
 
-    _TASK = "unknown"
     _ENV_ID = "ElectroLocUnknownTarget-v0"
-
-
-def make_electroloc_vector_env(num_envs: int = 1, **kwargs: Any) -> ElectroLocVectorEnv:
-    """The ``vector_entry_point`` of ElectroLoc-v0."""
-    return ElectroLocVectorEnv(num_envs=num_envs, **kwargs)
-
-
-def make_global_vector_env(num_envs: int = 1, **kwargs: Any) -> GlobalLocalizationVectorEnv:
-    """The ``vector_entry_point`` of ElectroLocGlobal-v0."""
-    return GlobalLocalizationVectorEnv(num_envs=num_envs, **kwargs)
-
-
-def make_unknown_target_vector_env(num_envs: int = 1, **kwargs: Any) -> UnknownTargetVectorEnv:
-    """The ``vector_entry_point`` of ElectroLocUnknownTarget-v0."""
-    return UnknownTargetVectorEnv(num_envs=num_envs, **kwargs)

@@ -3,7 +3,9 @@
 One env at a time, in a few passes over its particles while they are in cache, in place:
 
 * :func:`calibrated_assimilate`: the calibrated model's lookup (:mod:`.lookup`) and the update;
-* :func:`loglik_assimilate`: the update from given float32 log-likelihoods (the analytic models).
+* :func:`loglik_assimilate`: the update from given float32 log-likelihoods (the analytic models);
+* :func:`resample_indices` and :func:`jitter_resampled`: the same update of clouds with more coordinates
+  than x, y (the unknown target's radius and contrast), in two passes.
 
 Each ends with the new cloud's mean, covariance and histogram counts (:mod:`.stats`).
 """
@@ -17,7 +19,7 @@ from electroloc_gym.kernels.lookup import _calibrated_ll_one
 from electroloc_gym.kernels.mathf32 import JIT, exp32, sum8
 from electroloc_gym.kernels.stats import _counts_one, _cov_about
 
-__all__ = ["calibrated_assimilate", "loglik_assimilate", "resample_indices"]
+__all__ = ["calibrated_assimilate", "loglik_assimilate", "resample_indices", "jitter_resampled"]
 
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
@@ -258,3 +260,37 @@ def resample_indices(ll, u0, idx):  # pragma: no cover - compiled
                 i += 1
             idx[e, j] = i
     return -1
+
+
+@njit(**JIT)
+def jitter_resampled(idx, src, jitter_idx, normal_table, scale, lo, hi, out):  # pragma: no cover - compiled
+    """The resampled, jittered and clipped particles of k clouds of D coordinates per particle, after
+    :func:`resample_indices` (the unknown-target env: x, y, radius, χ)::
+
+        out[e, d, j] = min(max(src[e, d, idx[e, j]] + scale[d] · z(e, d, j), lo[e, d]), hi[e, d])
+
+    with ``z(e, d, j) = normal_table[jitter_idx[e, (d // 2)·2M + 2j + d % 2]]`` (coordinate pair d // 2 of
+    particle j at 2j, 2j + 1 of its block of 2M draws). Float32 throughout, one rounding per operation
+    (``scale`` 1 adds the draw itself, 0 leaves the coordinate unjittered).
+
+    Args:
+        idx: (k, M) int64 resampling indices.
+        src: (k, D, M) float32 particles, coordinate-major.
+        jitter_idx: (k, ≥ 2·⌈D/2⌉·M) uint16 normal-table indices.
+        normal_table: float32 standard normal quantiles.
+        scale: (D,) float32 jitter std per coordinate.
+        lo: (k, D) float32 lower bounds per env and coordinate.
+        hi: (k, D) float32 upper bounds per env and coordinate.
+        out: (k, D, M) float32 output (must not alias ``src``).
+    """
+    k, d_count, m = src.shape
+    for e in range(k):
+        for d in range(d_count):
+            base = (d // 2) * 2 * m + (d % 2)
+            s = scale[d]
+            low = lo[e, d]
+            high = hi[e, d]
+            for j in range(m):
+                v = src[e, d, idx[e, j]] + s * normal_table[jitter_idx[e, base + 2 * j]]
+                v = low if v < low else v
+                out[e, d, j] = high if v > high else v

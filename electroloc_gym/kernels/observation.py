@@ -1,4 +1,4 @@
-"""The belief observation's assembly from a cloud's statistics (layout: :mod:`electroloc_gym.envs.observation`).
+"""The belief observation's assembly from a cloud's statistics (layout: :mod:`electroloc_gym.core.observation`).
 
 One env per row, float64 arithmetic then a float32 cast; ``tanh`` and ``log10`` are scalar libm calls
 (one per env: no SIMD path).
@@ -25,7 +25,7 @@ def _clip1(v):  # pragma: no cover - compiled
 def belief_observation_rows(carriage, reading, mean, cov, n_obs, max_obs, hw, noise, sat, success,  # pragma: no cover
                             hist, desc, out):
     """The belief observations (k, 81) float32 of k clouds from their statistics (see
-    :mod:`electroloc_gym.envs.observation` for the layout), float64 arithmetic, then cast.
+    :mod:`electroloc_gym.core.observation` for the layout), float64 arithmetic, then cast.
 
     Args:
         carriage: (k, 2) carriage centres, mm.

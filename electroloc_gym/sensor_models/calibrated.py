@@ -46,7 +46,9 @@ __all__ = [
     "noise_free_calibration_grid",
 ]
 
-SENSOR_MODEL_NAMES = ("analytic", "calibrated")
+#: The sensor models of a target's (or a map's) x–y position: the paper's calibrated model first (the envs'
+#: default), then the analytic one.
+SENSOR_MODEL_NAMES = ("calibrated", "analytic")
 
 #: Which offsets the calibration grid covers.
 GRID_EXTENTS = ("allowed-box", "all-offsets")

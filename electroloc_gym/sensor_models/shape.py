@@ -42,7 +42,7 @@ from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
 __all__ = ["TheoreticalShapeModel", "InterpolatedShapeModel", "SHAPE_SENSOR_MODELS",
            "DEFAULT_EEV_RADII_MM"]
 
-#: The unknown-target env's sensor models.
+#: The unknown-target env's sensor models (the theoretical EEV first: the env's default).
 SHAPE_SENSOR_MODELS = ("analytic", "interpolated")
 #: The radii of the calibrated EEVs the interpolated model starts from, mm: every 2.5 mm over the default
 #: radius range (the paper's 6.35 and 19.05 mm spheres are then sizes it has not seen). With only the

@@ -1,7 +1,7 @@
 """ElectroLocGlobal-v0: the robot localises itself in a pre-mapped tank of six cylinders (paper §6.5).
 
 A thin adapter (:class:`~electroloc_gym.envs.adapter.CoreEnv`) over the simulation core with one env
-of the ``"global"`` task (:mod:`electroloc_gym.core`).
+of the ``"global"`` task (:mod:`electroloc_gym.core.global_task`).
 """
 
 from __future__ import annotations
@@ -11,15 +11,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.conditions import Condition
-from electroloc_gym.core.params import LAYOUTS, MAX_STEP_MM
+from electroloc_gym.core.params import MAX_STEP_MM
 from electroloc_gym.envs.adapter import CoreEnv
 from electroloc_gym.scene import Scene
 
-__all__ = ["GlobalLocalizationEnv", "LAYOUTS"]
+__all__ = ["GlobalEnv"]
 
 
-class GlobalLocalizationEnv(CoreEnv):
+class GlobalEnv(CoreEnv):
     """
     ## Description
 
@@ -28,7 +27,7 @@ class GlobalLocalizationEnv(CoreEnv):
     conductivities within ±80 mm; their EEV map (Fig. 14) is known to the robot. The robot does
     *not* know where it is: the particle belief (2500 particles, uniform over the tank box at start)
     is over the carriage's own position in the map frame. Every commanded move shifts all particles
-    by the move (deterministic motion, :meth:`electroloc_gym.core.tasks.MapTask.move`: clipped at the
+    by the move (deterministic motion, :meth:`electroloc_gym.core.global_task.GlobalTask.move`: clipped at the
     walls exactly as the true carriage is); every reading reweights them with the map's sensor model.
     The agent moves the carriage until the belief is tight: √trace Σ ≤ 10 mm. The filter, sensor-model machinery, action
     space, success rule, observation cap and observation layout are those of ``ElectroLoc-v0`` (the
@@ -49,22 +48,12 @@ class GlobalLocalizationEnv(CoreEnv):
     ## Observation Space
 
     ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``, the layout of ``ElectroLoc-v0``
-    built by the same code (:mod:`electroloc_gym.envs.observation`) with the
-    *map origin* as the reference point instead of the (here unknown) carriage:
-
-    | index | feature (ElectroLocGlobal-v0) | unit / normalisation |
-    |-------|---------|----------------------|
-    | 0–1   | odometry: sum of the commanded moves since reset (start = 0) | mm / H (clipped) |
-    | 2     | last reading Φ | V / 10 V |
-    | 3     | last reading in noise units | tanh(Φ / 3·G·σ_s) |
-    | 4–5   | belief mean = estimated carriage position in the map frame | mm / 2H |
-    | 6–7   | belief std x, y | mm / H |
-    | 8     | belief correlation | — |
-    | 9     | spread √trace Σ | mm / H |
-    | 10    | log₁₀(spread / 10 mm) | clipped to [−1, 1] |
-    | 11    | observations used / cap | — |
-    | 12–75 | 8×8 histogram of the particles over the map box ±H (allocentric, map frame) | mass fraction |
-    | 76–80 | descriptor of ``condition``: mean radius/25 mm, χ*, log₁₀ G / 4, G·σ_s (V), scale / 8 | — |
+    (:mod:`electroloc_gym.core.observation`) built by the same code with the *map origin* as the
+    reference point instead of the (here unknown) carriage. What differs: entries 0–1 are the odometry
+    (the sum of the commanded moves since reset, start = 0) / H, clipped; entries 4–5 the belief mean,
+    i.e. the estimated carriage position in the map frame, / 2H; entries 12–75 the histogram of the
+    particles over the map box ±H (allocentric); entries 76–80 the descriptor of ``condition`` (mean
+    radius, χ*, gain, noise, scale).
 
     χ* is the sphere contrast of the first object's conductivity (``condition``'s stand-in target).
     H = 80 mm for the benchmark map. ``observation="raw"``: ``[odometry_x/H, odometry_y/H, Φ/10 V]``
@@ -130,7 +119,6 @@ class GlobalLocalizationEnv(CoreEnv):
     * v0: initial version.
     """
 
-    _TASK = "global"
     _ENV_ID = "ElectroLocGlobal-v0"
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
@@ -150,9 +138,6 @@ class GlobalLocalizationEnv(CoreEnv):
     def calibration_seed(self) -> int | None:
         """The fixed calibration seed, or None (a new calibration per episode)."""
         return self.params.calibration_seed
-
-    def _default_condition(self) -> Condition:
-        return self._task.scene_template.as_condition()
 
     @property
     def scene(self) -> Scene:

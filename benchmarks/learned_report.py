@@ -1,0 +1,321 @@
+"""Learned baselines across training seeds, with rliable's interval estimates (Agarwal et al., NeurIPS 2021).
+
+Reads the benchmark runs of a learned-baseline results folder laid out as::
+
+    RESULTS/<env-id>/<algo>/seed-<k>/bench/trials.jsonl    one `electroloc bench` run per trained seed
+    RESULTS/<env-id>/_baselines/bench/trials.jsonl         the non-learned agents on the same trials
+
+and writes ``RESULTS/report.md``, ``RESULTS/report.json`` and figures: per algorithm and env, the IQM and
+the mean of readings-to-localise and of successes with 95 % stratified bootstrap confidence intervals,
+a normalised score, performance profiles and the probability of improvement over min-var and over the
+look-ahead planner.
+
+Scores, one per (run, condition), each over the condition's trials:
+
+* **readings**: the mean number of readings fused until the belief was tight; a failed trial counts as
+  the cap (35 readings: the most an episode can use), so a policy cannot look fast by failing.
+* **success**: the fraction of trials that localised.
+* **normalised**: ``(R_rnd − R) / (R_rnd − R_best)`` with R the readings score, R_rnd that of rnd-wlk
+  and R_best that of the best non-learned planner on the condition (the lowest of the baselines' scores
+  other than rnd-wlk): 0 at rnd-wlk, 1 at the best planner, above 1 better than every planner.
+
+The conditions are rliable's tasks (stratified bootstrap: runs are resampled within each condition); the
+non-learned agents are deterministic given the benchmark seed, so each is one run. rliable computes every
+aggregate and interval; this script only arranges the records into its (runs × tasks) matrices.
+
+Run: ``python benchmarks/learned_report.py RESULTS [--reps 2000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+BASELINES_DIR = "_baselines"
+RND = "rnd-wlk"
+#: The non-learned agents the probability of improvement is stated against (when they were benched).
+REFERENCES = ("min-var", "lookahead")
+
+
+def read_trials(path: Path) -> list[dict[str, Any]]:
+    """The trial records of one benchmark run's ``trials.jsonl`` (blank lines skipped)."""
+    rows = []
+    with open(path, encoding="utf-8") as fh:
+        for line in fh:
+            if line.strip():
+                rows.append(json.loads(line))
+    return rows
+
+
+def condition_scores(records: Sequence[dict[str, Any]], conditions: Sequence[str]) -> dict[str, np.ndarray]:
+    """``{"readings", "success"}`` → (conditions,) scores of one run of one agent."""
+    readings, success = [], []
+    for cond in conditions:
+        rows = [r for r in records if r["condition"] == cond]
+        if not rows:
+            raise ValueError(f"no trials of condition {cond!r}")
+        cap = [int(r["max_observations"]) for r in rows]
+        readings.append(float(np.mean([r["observations"] if r["success"] else c for r, c in zip(rows, cap)])))
+        success.append(float(np.mean([bool(r["success"]) for r in rows])))
+    return {"readings": np.array(readings), "success": np.array(success)}
+
+
+def collect(results: Path, env_id: str) -> tuple[list[str], dict[str, dict[str, np.ndarray]],
+                                                 dict[str, dict[str, np.ndarray]], dict[str, list[str]]]:
+    """(conditions, learned, baselines, seeds) of one env.
+
+    ``learned[algo][metric]`` is a (seeds × conditions) matrix; ``baselines[agent][metric]`` is (1 ×
+    conditions); ``seeds[algo]`` names the runs in row order.
+    """
+    env_dir = results / env_id
+    base_path = env_dir / BASELINES_DIR / "bench" / "trials.jsonl"
+    base_rows = read_trials(base_path)
+    conditions = sorted({r["condition"] for r in base_rows})
+    baselines: dict[str, dict[str, np.ndarray]] = {}
+    for agent in sorted({r["agent"] for r in base_rows}):
+        s = condition_scores([r for r in base_rows if r["agent"] == agent], conditions)
+        baselines[agent] = {k: v[None, :] for k, v in s.items()}
+    learned: dict[str, dict[str, np.ndarray]] = {}
+    seeds: dict[str, list[str]] = {}
+    for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
+        runs = sorted(p for p in algo_dir.glob("seed-*") if (p / "bench" / "trials.jsonl").is_file())
+        if not runs:
+            continue
+        per_run = [condition_scores(read_trials(p / "bench" / "trials.jsonl"), conditions) for p in runs]
+        learned[algo_dir.name] = {k: np.stack([s[k] for s in per_run]) for k in ("readings", "success")}
+        seeds[algo_dir.name] = [p.name for p in runs]
+    return conditions, learned, baselines, seeds
+
+
+def normalised(readings: np.ndarray, baselines: dict[str, dict[str, np.ndarray]]) -> np.ndarray:
+    """The normalised score of a (runs × conditions) readings matrix (0 at rnd-wlk, 1 at the best planner)."""
+    if RND not in baselines:
+        raise ValueError(f"the baselines' run must include {RND!r} to normalise")
+    planners = [v["readings"][0] for k, v in baselines.items() if k != RND]
+    if not planners:
+        raise ValueError("the baselines' run must include a planner besides rnd-wlk to normalise")
+    rnd = baselines[RND]["readings"][0]
+    best = np.min(np.stack(planners), axis=0)
+    gap = rnd - best
+    if np.any(gap <= 0):
+        raise ValueError("rnd-wlk is not worse than the best planner on some condition; the score is undefined")
+    return (rnd - readings) / gap
+
+
+def interval(score_dict: dict[str, np.ndarray], func: Any, reps: int, seed: int) -> dict[str, list[float]]:
+    """``{name: [point, lower, upper]}`` of ``func`` with a 95 % stratified bootstrap CI (rliable)."""
+    from rliable import library as rly
+
+    point, ci = rly.get_interval_estimates(score_dict, func, reps=reps,
+                                          random_state=np.random.RandomState(seed))
+    return {k: [float(np.ravel(point[k])[0]), float(np.ravel(ci[k])[0]), float(np.ravel(ci[k])[1])]
+            for k in score_dict}
+
+
+def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0) -> dict[str, Any]:
+    """Every statistic of one env (plain data, see the module docstring)."""
+    from rliable import metrics
+
+    conditions, learned, baselines, seeds = collect(results, env_id)
+    if not learned:
+        raise ValueError(f"no learned runs with a benchmark under {results / env_id}")
+    iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
+    mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
+    out: dict[str, Any] = {"env_id": env_id, "conditions": conditions, "seeds": seeds, "reps": reps,
+                           "algorithms": {}, "baselines": {}}
+    readings = {a: v["readings"] for a, v in learned.items()}
+    success = {a: v["success"] for a, v in learned.items()}
+    norm = {a: normalised(v, baselines) for a, v in readings.items()} if RND in baselines else {}
+    stats = {"readings_iqm": interval(readings, iqm, reps, seed), "readings_mean": interval(readings, mean, reps, seed),
+             "success_iqm": interval(success, iqm, reps, seed), "success_mean": interval(success, mean, reps, seed)}
+    if norm:
+        stats["normalised_iqm"] = interval(norm, iqm, reps, seed)
+    for algo in learned:
+        row = {k: v[algo] for k, v in stats.items()}
+        row["per_condition_readings"] = {c: readings[algo][:, j].tolist() for j, c in enumerate(conditions)}
+        row["per_condition_success"] = {c: success[algo][:, j].tolist() for j, c in enumerate(conditions)}
+        poi = {}
+        for ref in REFERENCES:
+            if ref in baselines:  # lower readings are better: P(algo < ref) = POI of (−algo) over (−ref)
+                pair = {ref: (-readings[algo], -baselines[ref]["readings"])}
+                poi[ref] = interval(pair, lambda x, y: np.array([metrics.probability_of_improvement(x, y)]),
+                                    reps, seed)[ref]
+        row["p_improvement"] = poi
+        out["algorithms"][algo] = row
+    for agent, v in baselines.items():
+        row = {"readings_mean": float(v["readings"].mean()), "success_mean": float(v["success"].mean()),
+               "per_condition_readings": dict(zip(conditions, v["readings"][0].tolist()))}
+        if norm:
+            row["normalised_mean"] = float(normalised(v["readings"], baselines).mean())
+        out["baselines"][agent] = row
+    out["_matrices"] = {"normalised": norm, "readings": readings}
+    return out
+
+
+def _fmt(v: Sequence[float], digits: int = 2) -> str:
+    return f"{v[0]:.{digits}f} [{v[1]:.{digits}f}, {v[2]:.{digits}f}]"
+
+
+def table(analyses: Sequence[dict[str, Any]]) -> str:
+    """The aggregate table (markdown): algorithm × env."""
+    lines = ["| env | algorithm | seeds | readings IQM [95 % CI] | readings mean [CI] | success mean [CI] | "
+             "normalised IQM [CI] | P(better than min-var) [CI] | P(better than lookahead) [CI] |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for a in analyses:
+        for algo, row in a["algorithms"].items():
+            norm = _fmt(row["normalised_iqm"]) if "normalised_iqm" in row else "–"
+            poi = [_fmt(row["p_improvement"][r]) if r in row["p_improvement"] else "–" for r in REFERENCES]
+            lines.append(f"| {a['env_id']} | {algo} | {len(a['seeds'][algo])} | {_fmt(row['readings_iqm'])} | "
+                         f"{_fmt(row['readings_mean'])} | {_fmt(row['success_mean'])} | {norm} | {poi[0]} | {poi[1]} |")
+        for agent, row in a["baselines"].items():
+            norm = f"{row['normalised_mean']:.2f}" if "normalised_mean" in row else "–"
+            lines.append(f"| {a['env_id']} | {agent} (not learned) | 1 | – | {row['readings_mean']:.2f} | "
+                         f"{row['success_mean']:.2f} | {norm} | | |")
+    return "\n".join(lines) + "\n"
+
+
+def figures(analyses: Sequence[dict[str, Any]], out: Path) -> list[Path]:
+    """One performance-profile figure per env (normalised score), saved atomically; the paths written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from rliable import library as rly
+
+    from electroloc_gym.fileio import save_figure_atomic
+
+    paths = []
+    for a in analyses:
+        norm = a["_matrices"]["normalised"]
+        if not norm:
+            continue
+        taus = np.linspace(min(-0.5, min(float(v.min()) for v in norm.values())),
+                           max(1.5, max(float(v.max()) for v in norm.values())), 101)
+        profiles, cis = rly.create_performance_profile(norm, taus, reps=a["reps"])
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for algo, prof in profiles.items():
+            ax.plot(taus, prof, label=algo)
+            ax.fill_between(taus, cis[algo][0], cis[algo][1], alpha=0.2)
+        ax.axvline(1.0, color="k", lw=0.8, ls=":")
+        ax.set_xlabel("normalised score τ (0: rnd-wlk, 1: best planner)")
+        ax.set_ylabel("fraction of (run, condition) with score > τ")
+        ax.set_title(f"{a['env_id']}: performance profiles")
+        ax.legend(fontsize=8)
+        path = out / f"profile_{a['env_id']}.png"
+        save_figure_atomic(fig, path, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
+    """Per algorithm: the validation evaluations of its seeds (``eval.csv`` of each rl-zoo3 run) on a common
+    step grid, and the training wall times (``summary.json``).
+
+    Returns:
+        ``{algo: {"timesteps": (T,), "success_rate": (seeds, T), "mean_readings": (seeds, T),
+        "wall_time_s": [per seed]}}``; the grid is the steps every seed evaluated at.
+    """
+    import csv
+
+    out: dict[str, dict[str, Any]] = {}
+    env_dir = results / env_id
+    for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
+        runs = []
+        for seed_dir in sorted(algo_dir.glob("seed-*")):
+            found = sorted(seed_dir.glob("zoo/*/*/eval.csv"))
+            if not found:
+                continue
+            with open(found[-1], encoding="utf-8", newline="") as fh:
+                rows = list(csv.DictReader(fh))
+            summary = found[-1].parent / "summary.json"
+            wall = json.loads(summary.read_text(encoding="utf-8")).get("wall_time_s") if summary.is_file() else None
+            runs.append(({int(r["timesteps"]): r for r in rows}, wall))
+        if not runs:
+            continue
+        grid = sorted(set.intersection(*(set(r) for r, _ in runs)))
+        out[algo_dir.name] = {
+            "timesteps": np.array(grid),
+            **{k: np.array([[float(r[t][k]) for t in grid] for r, _ in runs])
+               for k in ("success_rate", "mean_readings")},
+            "wall_time_s": [w for _, w in runs],
+        }
+    return out
+
+
+def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) -> Path | None:
+    """Success rate and mean readings on validation episodes against env steps: the mean over seeds and its
+    95 % t-interval (scipy), every algorithm of the env in one figure; saved atomically.
+    """
+    if not curves:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy import stats
+
+    from electroloc_gym.fileio import save_figure_atomic
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for algo, c in curves.items():
+        for ax, key in zip(axes, ("success_rate", "mean_readings")):
+            y = c[key]
+            m = y.mean(axis=0)
+            if y.shape[0] > 1:
+                half = stats.t.ppf(0.975, y.shape[0] - 1) * y.std(axis=0, ddof=1) / np.sqrt(y.shape[0])
+                ax.fill_between(c["timesteps"], m - half, m + half, alpha=0.2)
+            ax.plot(c["timesteps"], m, marker=".", label=f"{algo} ({y.shape[0]} seeds)")
+    axes[0].set_ylabel("success rate (validation episodes)")
+    axes[1].set_ylabel("mean readings to localise (failure = cap)")
+    for ax in axes:
+        ax.set_xlabel("env steps")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"{env_id}: learning curves, mean and 95 % interval over training seeds")
+    path = results / f"curves_{env_id}.png"
+    save_figure_atomic(fig, path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("results", type=Path, help="the results folder (RESULTS/<env-id>/<algo>/seed-<k>/)")
+    parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (≥ 100)")
+    parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed")
+    args = parser.parse_args(argv)
+    if args.reps < 100:
+        parser.error(f"--reps must be at least 100, got {args.reps}")
+    if not args.results.is_dir():
+        parser.error(f"results folder {str(args.results)!r} does not exist")
+    from electroloc_gym.fileio import atomic_write_text, write_json_atomic
+
+    envs = sorted(p.name for p in args.results.iterdir() if (p / BASELINES_DIR).is_dir())
+    if not envs:
+        parser.error(f"no <env-id>/{BASELINES_DIR}/ folder under {str(args.results)!r}")
+    analyses = [analyse(args.results, env, args.reps, args.seed) for env in envs]
+    text = table(analyses)
+    figures(analyses, args.results)
+    compute = ["", "| env | algorithm | training wall time per seed, s (2-core CPU) |", "|---|---|---|"]
+    for env in envs:
+        curves = eval_curves(args.results, env)
+        curve_figure(args.results, env, curves)
+        for algo, c in curves.items():
+            walls = [w for w in c["wall_time_s"] if w is not None]
+            compute.append(f"| {env} | {algo} | {', '.join(f'{w:.0f}' for w in walls) or '–'} |")
+    text += "\n".join(compute) + "\n"
+    atomic_write_text(args.results / "report.md", text)
+    write_json_atomic(args.results / "report.json",
+                      [{k: v for k, v in a.items() if not k.startswith("_")} for a in analyses])
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,250 @@
+"""Distractors: objects in the tank that are not the target, and what they add to the reading.
+
+Physics level (no Gymnasium, no simulation core). A distractor is a :class:`~electroloc_gym.scene.SceneObject`
+— a sphere, or a vertical cylinder standing on the floor with a rounded top — of any size and material.
+Like every object of :mod:`electroloc_gym.scene` its top lies the clearance O (2 mm) below the electrodes,
+so its dipole point is ``a + E + O`` deep, the depth of the target's centre when a = A. Each object
+becomes an induced dipole in the emitters' field, and the perturbations **superpose** with the
+target's (paper Eq. 4; the uniform-field assumption: no mutual polarisation, no walls):
+
+    Φ = clip(s·G·(δV_target(S1) − δV_target(S2) + Σ_k (δV_k(S1) − δV_k(S2))) + ε, ±V_sat)
+
+with the condition's signal scale s, gain G, noise and clip. The target's term is
+:func:`electroloc_gym.sensor.expected_reading`'s; the distractors' terms are
+:meth:`electroloc_gym.scene.Scene.perturbation` of a scene of the distractors in the condition's water,
+amplifier and geometry — the same physics module the maps use, nothing re-derived here. An empty set
+adds nothing: :func:`superposed_reading_V` then returns the target's reading itself, bit for bit.
+
+An agent's sensor model knows only the target: the distractors are the model mismatch a real tank
+imposes (Miller et al., IEEE T-RO 32(1), 2016, localise targets among such distractors).
+
+**Placement.** A set is drawn per episode (:class:`DistractorDraw`, from the episode's generator) with
+every centre in the condition's allowed box (the part of the tank the carriage can pass over, so every
+distractor is within the sensor's reach) and every footprint — the disc of the object's radius around
+its centre; all tops are at the same depth, so disjoint footprints are disjoint bodies — at least
+``gap_mm`` from the target's and from the other distractors'. Explicit layouts
+(:class:`DistractorSet`) are validated by the same rule (:meth:`DistractorSet.validate`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from electroloc_gym.conditions import Condition
+from electroloc_gym.scene import SHAPES, STOCK_DIAMETERS_MM, Scene, SCENE_MATERIAL_CONDUCTIVITY_uScm, SceneObject
+from electroloc_gym.sensor import expected_reading
+
+__all__ = [
+    "MAX_DISTRACTORS",
+    "DistractorDraw",
+    "DistractorSet",
+    "superposed_reading_V",
+    "resolve_distractors",
+]
+
+#: Most distractors a draw may place (the 100 mm box holds a handful of stock-size objects).
+MAX_DISTRACTORS = 8
+
+
+def _tuple_of(name: str, values: Any, allowed: Sequence[str]) -> tuple[str, ...]:
+    if isinstance(values, str) or not isinstance(values, Sequence) or len(values) == 0:
+        raise ValueError(f"{name} must be a non-empty sequence drawn from {list(allowed)}, got {values!r}")
+    bad = [v for v in values if v not in allowed]
+    if bad:
+        raise ValueError(f"{name} must be drawn from {list(allowed)}, got {bad!r}")
+    return tuple(values)
+
+
+@dataclass(frozen=True)
+class DistractorDraw:
+    """How a distractor set is drawn per episode (all draws from the episode's generator).
+
+    Attributes:
+        count: D, the number of distractors, 0–:data:`MAX_DISTRACTORS`.
+        shapes: shapes drawn uniformly per object (``"sphere"``, ``"cylinder"``).
+        diameters_mm: diameters drawn uniformly per object, mm (> 0; default the stock sizes 6.35–38.1 mm).
+        materials: materials drawn uniformly per object (:data:`~electroloc_gym.scene.SCENE_MATERIAL_CONDUCTIVITY_uScm`:
+            conductors, insulators and the weakly conducting agar).
+        gap_mm: least horizontal clearance between footprints (target and distractors), mm (≥ 0).
+        max_attempts: rejection-sampling attempts per object before the draw is refused (1–100000).
+    """
+
+    count: int
+    shapes: tuple[str, ...] = SHAPES
+    diameters_mm: tuple[float, ...] = STOCK_DIAMETERS_MM
+    materials: tuple[str, ...] = ("steel", "brass", "aluminium", "delrin", "pvc", "agar")
+    gap_mm: float = 5.0
+    max_attempts: int = 1000
+
+    def __post_init__(self) -> None:
+        c = self.count
+        if isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not 0 <= c <= MAX_DISTRACTORS:
+            raise ValueError(f"count (distractors) must be an integer in [0, {MAX_DISTRACTORS}], got {c!r}")
+        object.__setattr__(self, "count", int(c))
+        object.__setattr__(self, "shapes", _tuple_of("shapes", self.shapes, SHAPES))
+        object.__setattr__(self, "materials", _tuple_of("materials", self.materials,
+                                                        tuple(SCENE_MATERIAL_CONDUCTIVITY_uScm)))
+        d = self.diameters_mm
+        if isinstance(d, str) or not isinstance(d, Sequence) or len(d) == 0 or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 for v in d):
+            raise ValueError(f"diameters_mm must be a non-empty sequence of diameters > 0 mm, got {d!r}")
+        object.__setattr__(self, "diameters_mm", tuple(float(v) for v in d))
+        g = self.gap_mm
+        if isinstance(g, bool) or not isinstance(g, (int, float)) or not math.isfinite(g) or g < 0:
+            raise ValueError(f"gap_mm must be a number of mm ≥ 0, got {g!r}")
+        object.__setattr__(self, "gap_mm", float(g))
+        a = self.max_attempts
+        if isinstance(a, bool) or not isinstance(a, (int, np.integer)) or not 1 <= a <= 100_000:
+            raise ValueError(f"max_attempts must be an integer in [1, 100000], got {a!r}")
+
+    def draw(self, condition: Condition, target_xy_mm: ArrayLike, rng: np.random.Generator) -> DistractorSet:
+        """One episode's set in ``condition``'s tank, none overlapping the target at ``target_xy_mm``.
+
+        Per object, in order: shape, diameter, material (one uniform index each), then centres uniform
+        in the allowed box until one clears the target and the objects placed so far by ``gap_mm``.
+
+        Raises:
+            ValueError: no free place found in ``max_attempts`` (too many or too large objects for the box).
+        """
+        h = condition.allowed_half_width_mm
+        placed: list[SceneObject] = []
+        discs = [(np.asarray(target_xy_mm, dtype=np.float64), condition.target.radius_mm)]
+        for n in range(self.count):
+            shape = self.shapes[int(rng.integers(len(self.shapes)))]
+            diameter = self.diameters_mm[int(rng.integers(len(self.diameters_mm)))]
+            material = self.materials[int(rng.integers(len(self.materials)))]
+            radius = diameter / 2.0
+            for _ in range(self.max_attempts):
+                xy = rng.uniform(-h, h, size=2)
+                if all(np.hypot(*(xy - c)) >= radius + r + self.gap_mm for c, r in discs):
+                    break
+            else:
+                raise ValueError(f"could not place distractor {n + 1} of {self.count} ({shape}, {diameter} mm) "
+                                 f"clear of the others by gap_mm={self.gap_mm} in the ±{h} mm box after "
+                                 f"{self.max_attempts} attempts: ask for fewer or smaller distractors")
+            placed.append(SceneObject.of_material(shape, (float(xy[0]), float(xy[1])), diameter, material))
+            discs.append((xy, radius))
+        return DistractorSet(tuple(placed))
+
+
+@dataclass(frozen=True)
+class DistractorSet:
+    """The distractors of one episode (or an explicit layout): objects of :mod:`electroloc_gym.scene`.
+
+    Attributes:
+        objects: the distractors (any number, possibly none); centres in the tank frame, mm.
+    """
+
+    objects: tuple[SceneObject, ...] = ()
+
+    def __post_init__(self) -> None:
+        if isinstance(self.objects, SceneObject) or not isinstance(self.objects, Sequence):
+            raise ValueError(f"objects must be a sequence of SceneObject, got {type(self.objects).__name__}")
+        object.__setattr__(self, "objects", tuple(self.objects))
+        for o in self.objects:
+            if not isinstance(o, SceneObject):
+                raise ValueError(f"objects must be SceneObject instances, got {type(o).__name__}")
+
+    def __len__(self) -> int:
+        return len(self.objects)
+
+    def validate(self, condition: Condition, target_xy_mm: ArrayLike, gap_mm: float = 0.0) -> DistractorSet:
+        """Check the layout against a tank and target: every centre in the allowed box, every footprint
+        at least ``gap_mm`` from the target's and the others'. Returns self.
+
+        Raises:
+            ValueError: the first violation, naming the object.
+        """
+        h = condition.allowed_half_width_mm
+        discs = [(np.asarray(target_xy_mm, dtype=np.float64), condition.target.radius_mm, "the target")]
+        for i, o in enumerate(self.objects):
+            xy = np.asarray(o.xy_mm)
+            name = f"distractor {i} ({o.shape}, {o.diameter_mm:g} mm at {o.xy_mm})"
+            if np.any(np.abs(xy) > h):
+                raise ValueError(f"{name} lies outside the allowed box ±{h} mm")
+            for c, r, other in discs:
+                if np.hypot(*(xy - c)) < o.radius_mm + r + gap_mm:
+                    raise ValueError(f"{name} overlaps {other} (centres must be ≥ radii + {gap_mm} mm apart)")
+            discs.append((xy, o.radius_mm, f"distractor {i}"))
+        return self
+
+    def scene(self, condition: Condition) -> Scene | None:
+        """The distractors as a :class:`~electroloc_gym.scene.Scene` in ``condition``'s water, amplifier,
+        geometry and signal scale (None when there are none).
+        """
+        if not self.objects:
+            return None
+        return Scene(name=f"{condition.name}+{len(self.objects)} distractors", objects=self.objects,
+                     water=condition.water, amplifier=condition.amplifier,
+                     allowed_half_width_mm=condition.allowed_half_width_mm,
+                     start_half_width_mm=condition.start_half_width_mm, signal_scale=condition.signal_scale,
+                     geometry=condition.geometry)
+
+    def reading_V(self, condition: Condition, carriage_mm: ArrayLike) -> NDArray:
+        """The distractors' part of the noise-free, unsaturated reading, s·G·Σ_k (δV_k(S1) − δV_k(S2)) (V),
+        with the carriage at ``carriage_mm`` (..., 2); exactly 0 without distractors. float32 stays float32.
+        """
+        p = np.asarray(carriage_mm)
+        if p.dtype not in (np.float32, np.float64):
+            p = p.astype(np.float64)
+        scene = self.scene(condition)
+        if scene is None:
+            return np.zeros(p.shape[:-1], dtype=p.dtype)
+        return scene.expected_reading(p, saturate=False)
+
+
+def superposed_reading_V(condition: Condition, target_xy_mm: ArrayLike, distractors: DistractorSet,
+                         carriage_mm: ArrayLike, *, saturate: bool = True) -> NDArray:
+    """The noise-free reading Φ (V) of the target and the distractors together, carriage at ``carriage_mm``
+    (..., 2): the target's term plus the distractors', then the clip. Without distractors it is
+    :func:`~electroloc_gym.sensor.expected_reading` of the target, bit for bit.
+    """
+    p = np.asarray(carriage_mm)
+    if p.dtype not in (np.float32, np.float64):
+        p = p.astype(np.float64)
+    target = expected_reading(condition, np.asarray(target_xy_mm, dtype=p.dtype) - p, saturate=False)
+    if len(distractors) == 0:
+        phi = target
+    else:
+        phi = target + distractors.reading_V(condition, p)
+    if saturate:
+        sat = phi.dtype.type(condition.saturation_V)
+        phi = np.clip(phi, -sat, sat)
+    return phi
+
+
+def resolve_distractors(value: Any) -> DistractorDraw | DistractorSet:
+    """What a ``distractors=`` argument means: an int D (a :class:`DistractorDraw` of D per episode), a
+    :class:`DistractorDraw` or :class:`DistractorSet`, a mapping of :class:`DistractorDraw`'s fields, or a
+    sequence of :class:`~electroloc_gym.scene.SceneObject` / their field mappings (an explicit layout).
+
+    Raises:
+        ValueError: anything else (naming the argument and the accepted forms).
+    """
+    if isinstance(value, (DistractorDraw, DistractorSet)):
+        return value
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        return DistractorDraw(count=int(value))
+    if isinstance(value, Mapping):
+        try:
+            return DistractorDraw(**dict(value))
+        except TypeError as exc:
+            raise ValueError(f"distractors: {exc}") from exc
+    if isinstance(value, Sequence) and not isinstance(value, str):
+        objects = []
+        for item in value:
+            if isinstance(item, Mapping):
+                try:
+                    item = SceneObject(**dict(item))
+                except TypeError as exc:
+                    raise ValueError(f"distractors: {exc}") from exc
+            objects.append(item)
+        return DistractorSet(tuple(objects))
+    raise ValueError(f"distractors must be a count 0–{MAX_DISTRACTORS}, a DistractorDraw, a DistractorSet, a dict "
+                     f"of DistractorDraw's fields or a sequence of SceneObject, got {value!r}")

@@ -1,0 +1,346 @@
+"""The pickle-free policy format: weights in safetensors, everything else in JSON.
+
+A policy folder holds::
+
+    policy.json          architecture, observation layout and normalisation, action space, provenance
+    policy.safetensors   the policy network's tensors (torch ``state_dict`` names and dtypes)
+
+``policy.json`` (``format`` = ``"electroloc-gym-policy"``, ``format_version`` 1):
+
+* ``weights``: ``{"file": "policy.safetensors", "sha256": hex, "tensors": n}`` — a weights file that
+  does not belong to the JSON is refused.
+* ``algo`` (``"ppo"``, ``"sac"``, …) and ``architecture``: ``{"policy_class": one of POLICY_CLASSES,
+  "policy_kwargs": {net_arch, activation_fn (a name in ACTIVATIONS), …}, "recurrent": null |
+  {lstm_hidden_size, n_lstm_layers, shared_lstm, enable_critic_lstm}}``.
+* ``observation``: ``{"env_id", "mode" ("belief"/"raw"), "frame_stack", "frame_dim", "shape" (network
+  input), "space"}``; ``action``: ``{"action_type" ("continuous"/"discrete"), "space"}``.
+* ``normalization``: null or VecNormalize's frozen statistics (``norm_obs``, ``obs_mean``, ``obs_var``,
+  ``clip_obs``, ``epsilon``, …). Statistics of ``frame_dim`` values normalise each frame before
+  stacking (rl-zoo3's order: ``VecNormalize`` inside ``VecFrameStack``); statistics of the stacked
+  vector normalise after stacking (files written before the rl-zoo3 path).
+* ``env_kwargs`` (training env kwargs, for reference), ``provenance`` and ``evaluation`` (plain data).
+
+Reading never unpickles or executes anything: JSON is parsed, spaces are rebuilt from plain values,
+and the safetensors file — an 8-byte header length, a JSON header, raw little-endian arrays — is
+read here with numpy (:func:`read_weights`), so that running a shipped policy needs no optional
+package at all. Writing (:func:`write_export`) takes numpy arrays.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import struct
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from electroloc_gym.fileio import atomic_write_bytes, write_json_atomic
+
+__all__ = ["ACTIVATIONS", "FORMAT", "FORMAT_VERSION", "POLICY_CLASSES", "POLICY_JSON", "WEIGHTS_FILE",
+           "ObsNormalization", "PolicyExport", "PolicyFormatError", "read_export", "read_weights", "space_from_json",
+           "space_to_json", "write_export"]
+
+FORMAT = "electroloc-gym-policy"
+FORMAT_VERSION = 1
+POLICY_JSON = "policy.json"
+WEIGHTS_FILE = "policy.safetensors"
+
+#: Policy class name in policy.json → "module:attribute" of the SB3 class (for stochastic actions).
+POLICY_CLASSES: dict[str, str] = {
+    "ActorCriticPolicy": "stable_baselines3.common.policies:ActorCriticPolicy",
+    "RecurrentActorCriticPolicy": "sb3_contrib.common.recurrent.policies:RecurrentActorCriticPolicy",
+    "SACPolicy": "stable_baselines3.sac.policies:SACPolicy",
+    "DQNPolicy": "stable_baselines3.dqn.policies:DQNPolicy",
+    "QRDQNPolicy": "sb3_contrib.qrdqn.policies:QRDQNPolicy",
+}
+
+#: Activation name (as written in policy.json) → ``torch.nn`` class name.
+ACTIVATIONS: dict[str, str] = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
+                               "gelu": "GELU", "silu": "SiLU"}
+
+# safetensors dtype names ↔ numpy dtypes (little-endian).
+_DTYPES = {"F64": "<f8", "F32": "<f4", "F16": "<f2", "I64": "<i8", "I32": "<i4", "I16": "<i2", "I8": "i1",
+           "U8": "u1", "BOOL": "?"}
+
+
+class PolicyFormatError(ValueError):
+    """A policy folder or file is missing, malformed, or does not describe a loadable policy."""
+
+
+@dataclass(frozen=True)
+class ObsNormalization:
+    """Frozen observation statistics: ``clip((x − mean) / sqrt(var + epsilon), −clip_obs, clip_obs)``.
+
+    Attributes:
+        mean: per-feature mean, shape (d,).
+        var: per-feature variance, shape (d,), ≥ 0.
+        clip_obs: clip of the normalised value (> 0).
+        epsilon: added to the variance (> 0).
+    """
+
+    mean: np.ndarray
+    var: np.ndarray
+    clip_obs: float = 10.0
+    epsilon: float = 1e-8
+
+    def __post_init__(self) -> None:
+        mean = np.asarray(self.mean, dtype=np.float64)
+        var = np.asarray(self.var, dtype=np.float64)
+        if mean.ndim != 1 or var.shape != mean.shape or mean.size == 0:
+            raise PolicyFormatError(f"normalisation mean and var must be equal-length 1-D arrays, got shapes "
+                                    f"{mean.shape} and {var.shape}")
+        if not (np.isfinite(mean).all() and np.isfinite(var).all() and (var >= 0).all()):
+            raise PolicyFormatError("normalisation mean/var must be finite and var ≥ 0")
+        for name in ("clip_obs", "epsilon"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise PolicyFormatError(f"normalisation {name} must be a finite number > 0, got {v!r}")
+        object.__setattr__(self, "mean", mean)
+        object.__setattr__(self, "var", var)
+
+    def apply(self, x: np.ndarray) -> np.ndarray:
+        """Normalise rows of ``x`` exactly as SB3's ``VecNormalize.normalize_obs`` does."""
+        return np.clip((x - self.mean) / np.sqrt(self.var + self.epsilon), -self.clip_obs, self.clip_obs)
+
+
+@dataclass(frozen=True)
+class PolicyExport:
+    """A parsed, validated ``policy.json`` plus its folder."""
+
+    folder: Path
+    meta: dict[str, Any]
+    normalization: ObsNormalization | None
+
+    @property
+    def frame_stack(self) -> int:
+        return int(self.meta["observation"]["frame_stack"])
+
+    @property
+    def env_kwargs(self) -> dict[str, Any]:
+        """The env kwargs the policy depends on (observation mode, action type)."""
+        return {"observation": self.meta["observation"]["mode"], "action_type": self.meta["action"]["action_type"]}
+
+
+# ------------------------------------------------------------------------------------ spaces, JSON
+def floats_to_json(a: Any) -> list[Any]:
+    """Numbers as a flat JSON list; ±inf as the strings "inf", "-inf" (NaN is refused)."""
+    out = []
+    for v in np.asarray(a, dtype=np.float64).reshape(-1).tolist():
+        if math.isnan(v):
+            raise PolicyFormatError("cannot write NaN into a policy file")
+        out.append(v if math.isfinite(v) else ("inf" if v > 0 else "-inf"))
+    return out
+
+
+def floats_from_json(values: Any, where: str) -> np.ndarray:
+    """Inverse of :func:`floats_to_json` (``where`` names the field in errors)."""
+    if not isinstance(values, list):
+        raise PolicyFormatError(f"{where} must be a list of numbers")
+    out = []
+    for v in values:
+        if isinstance(v, str) and v in ("inf", "-inf"):
+            out.append(float(v))
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            out.append(float(v))
+        else:
+            raise PolicyFormatError(f"{where} must hold numbers, got {v!r}")
+    return np.asarray(out, dtype=np.float64)
+
+
+def space_to_json(space: Any) -> dict[str, Any]:
+    """A Gymnasium ``Box`` or ``Discrete`` as plain JSON."""
+    from gymnasium import spaces
+
+    if isinstance(space, spaces.Box):
+        return {"type": "Box", "shape": list(space.shape), "dtype": str(space.dtype),
+                "low": floats_to_json(space.low), "high": floats_to_json(space.high)}
+    if isinstance(space, spaces.Discrete):
+        return {"type": "Discrete", "n": int(space.n), "start": int(space.start)}
+    raise PolicyFormatError(f"cannot export a {type(space).__name__} space (only Box and Discrete)")
+
+
+def space_from_json(d: Any, where: str = "space") -> Any:
+    """Inverse of :func:`space_to_json`."""
+    from gymnasium import spaces
+
+    if not isinstance(d, dict) or d.get("type") not in ("Box", "Discrete"):
+        raise PolicyFormatError(f"{where} must be an object with type 'Box' or 'Discrete', got {d!r}")
+    if d["type"] == "Discrete":
+        n, start = d.get("n"), d.get("start", 0)
+        if not (isinstance(n, int) and not isinstance(n, bool) and n >= 1 and isinstance(start, int)):
+            raise PolicyFormatError(f"{where}: Discrete needs an integer n ≥ 1 and an integer start")
+        return spaces.Discrete(n, start=start)
+    shape = d.get("shape")
+    if not (isinstance(shape, list) and shape and all(isinstance(s, int) and s >= 1 for s in shape)):
+        raise PolicyFormatError(f"{where}: Box shape must be a list of positive integers, got {shape!r}")
+    if d.get("dtype") not in ("float32", "float64"):
+        raise PolicyFormatError(f"{where}: Box dtype must be float32 or float64, got {d.get('dtype')!r}")
+    low, high = floats_from_json(d.get("low"), f"{where}.low"), floats_from_json(d.get("high"), f"{where}.high")
+    size = int(np.prod(shape))
+    if low.size != size or high.size != size:
+        raise PolicyFormatError(f"{where}: low/high must have {size} values for shape {shape}")
+    dtype = np.dtype(d["dtype"])
+    return spaces.Box(low.reshape(shape).astype(dtype), high.reshape(shape).astype(dtype), dtype=dtype)
+
+
+def json_value(value: Any, where: str) -> Any:
+    """``value`` as plain JSON data (tuples → lists, numpy scalars → numbers); classes and NaN are refused."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, (bool, int, str, type(None))):
+        return value
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise PolicyFormatError(f"cannot export {where} = {value!r} (not finite)")
+        return value
+    if isinstance(value, (list, tuple)):
+        return [json_value(v, where) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): json_value(v, f"{where}.{k}") for k, v in value.items()}
+    raise PolicyFormatError(f"cannot export {where} = {value!r} (not plain data)")
+
+
+# ------------------------------------------------------------------------------------- weights
+def _safetensors_bytes(tensors: Mapping[str, np.ndarray]) -> bytes:
+    header: dict[str, Any] = {"__metadata__": {"format": FORMAT}}
+    chunks, offset = [], 0
+    for name in sorted(tensors):
+        a = np.ascontiguousarray(tensors[name])
+        code = next((k for k, v in _DTYPES.items() if np.dtype(v) == a.dtype), None)
+        if code is None:
+            raise PolicyFormatError(f"cannot write tensor {name!r} of dtype {a.dtype}")
+        raw = a.astype(_DTYPES[code], copy=False).tobytes()
+        header[name] = {"dtype": code, "shape": list(a.shape), "data_offsets": [offset, offset + len(raw)]}
+        chunks.append(raw)
+        offset += len(raw)
+    head = json.dumps(header, separators=(",", ":")).encode()
+    head += b" " * (-len(head) % 8)
+    return struct.pack("<Q", len(head)) + head + b"".join(chunks)
+
+
+def read_weights(export: PolicyExport) -> dict[str, np.ndarray]:
+    """The tensors of ``policy.safetensors`` as numpy arrays, after checking the SHA-256 in ``policy.json``.
+
+    Raises:
+        PolicyFormatError: a missing or altered file, or one that is not a safetensors file.
+    """
+    path = export.folder / WEIGHTS_FILE
+    if not path.is_file():
+        raise PolicyFormatError(f"{export.folder} has {POLICY_JSON} but no {WEIGHTS_FILE}")
+    blob = path.read_bytes()
+    if hashlib.sha256(blob).hexdigest() != export.meta["weights"]["sha256"]:
+        raise PolicyFormatError(f"{path} does not match the sha256 recorded in {POLICY_JSON} (altered or mixed files)")
+    try:
+        (n,) = struct.unpack("<Q", blob[:8])
+        header = json.loads(blob[8:8 + n])
+        data = memoryview(blob)[8 + n:]
+        out = {}
+        for name, spec in header.items():
+            if name == "__metadata__":
+                continue
+            start, stop = spec["data_offsets"]
+            dtype = np.dtype(_DTYPES[spec["dtype"]])
+            out[name] = np.frombuffer(data[start:stop], dtype=dtype).reshape(spec["shape"]).copy()
+    except (struct.error, ValueError, KeyError, TypeError) as exc:
+        raise PolicyFormatError(f"{path} is not a readable safetensors file: {exc}") from exc
+    return out
+
+
+def write_export(folder: str | Path, meta: Mapping[str, Any], tensors: Mapping[str, np.ndarray]) -> Path:
+    """Write ``policy.safetensors`` then ``policy.json`` (both atomically); ``meta`` without ``weights``.
+
+    The JSON is written last and names the SHA-256 of the weights, so a reader never pairs a new
+    JSON with old weights.
+    """
+    d = Path(folder)
+    blob = _safetensors_bytes(tensors)
+    full = {"format": FORMAT, "format_version": FORMAT_VERSION,
+            "weights": {"file": WEIGHTS_FILE, "sha256": hashlib.sha256(blob).hexdigest(), "tensors": len(tensors)},
+            **json_value(dict(meta), "policy")}
+    atomic_write_bytes(d / WEIGHTS_FILE, blob)
+    write_json_atomic(d / POLICY_JSON, full)
+    return d
+
+
+# ------------------------------------------------------------------------------------- reading
+def _need(d: Mapping[str, Any], key: str, types: type | tuple[type, ...], where: str) -> Any:
+    if key not in d:
+        raise PolicyFormatError(f"{where}: missing key {key!r}")
+    v = d[key]
+    allowed = types if isinstance(types, tuple) else (types,)
+    if not isinstance(v, allowed) or (isinstance(v, bool) and bool not in allowed):
+        raise PolicyFormatError(f"{where}: {key!r} has the wrong type ({type(v).__name__})")
+    return v
+
+
+def _normalization(norm: Any, obs: Mapping[str, Any], where: str) -> ObsNormalization | None:
+    if norm is None:
+        return None
+    if not isinstance(norm, dict):
+        raise PolicyFormatError(f"{where}: normalization must be null or an object")
+    if not norm.get("norm_obs", False):
+        return None
+    if norm.get("obs_mean") is None or norm.get("obs_var") is None:
+        raise PolicyFormatError(f"{where}: normalization.norm_obs is true but the observation statistics "
+                                f"(obs_mean, obs_var) are missing — refusing to run on raw observations")
+    stats = ObsNormalization(floats_from_json(norm["obs_mean"], f"{where} obs_mean"),
+                             floats_from_json(norm["obs_var"], f"{where} obs_var"),
+                             clip_obs=norm.get("clip_obs", 10.0), epsilon=norm.get("epsilon", 1e-8))
+    if stats.mean.shape[0] not in (obs["shape"][0], obs["frame_dim"]):
+        raise PolicyFormatError(f"{where}: normalisation statistics have {stats.mean.shape[0]} features, the "
+                                f"observation has {obs['frame_dim']} per frame and {obs['shape'][0]} stacked")
+    return stats
+
+
+def read_export(folder: str | Path) -> PolicyExport:
+    """Parse and validate ``folder/policy.json`` (the weights are checked by :func:`read_weights`).
+
+    Raises:
+        PolicyFormatError: no policy.json, invalid JSON, wrong format/version, a missing or mistyped
+            field, or statistics that do not fit the observation shape.
+    """
+    d = Path(folder)
+    path = d / POLICY_JSON
+    if not path.is_file():
+        raise PolicyFormatError(f"{d} has no {POLICY_JSON}")
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise PolicyFormatError(f"{path} is not valid JSON: {exc}") from exc
+    where = str(path)
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise PolicyFormatError(f"{where} is not an {FORMAT} file")
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise PolicyFormatError(f"{where}: format_version {meta.get('format_version')!r} is not supported "
+                                f"(this version reads {FORMAT_VERSION})")
+    weights = _need(meta, "weights", dict, where)
+    if weights.get("file") != WEIGHTS_FILE or not isinstance(weights.get("sha256"), str):
+        raise PolicyFormatError(f"{where}: weights must name {WEIGHTS_FILE!r} and its sha256")
+    _need(meta, "algo", str, where)
+    arch = _need(meta, "architecture", dict, where)
+    if arch.get("policy_class") not in POLICY_CLASSES:
+        raise PolicyFormatError(f"{where}: architecture.policy_class must be one of {sorted(POLICY_CLASSES)}, "
+                                f"got {arch.get('policy_class')!r}")
+    pk = _need(arch, "policy_kwargs", dict, f"{where} architecture")
+    if "activation_fn" in pk and pk["activation_fn"] not in ACTIVATIONS:
+        raise PolicyFormatError(f"{where}: activation_fn must be one of {list(ACTIVATIONS)}, "
+                                f"got {pk['activation_fn']!r}")
+    if arch.get("recurrent") is not None and not isinstance(arch["recurrent"], dict):
+        raise PolicyFormatError(f"{where}: architecture.recurrent must be null or an object")
+    obs = _need(meta, "observation", dict, where)
+    for key, types in (("env_id", str), ("mode", str), ("frame_stack", int), ("frame_dim", int), ("shape", list)):
+        _need(obs, key, types, f"{where} observation")
+    space = space_from_json(obs.get("space"), f"{where} observation.space")
+    if list(space.shape) != obs["shape"] or obs["frame_stack"] < 1 or \
+            obs["frame_dim"] * obs["frame_stack"] != obs["shape"][0]:
+        raise PolicyFormatError(f"{where}: observation shape {obs['shape']} does not match its space, frame_stack "
+                                f"{obs['frame_stack']} and frame_dim {obs['frame_dim']}")
+    act = _need(meta, "action", dict, where)
+    _need(act, "action_type", str, f"{where} action")
+    space_from_json(act.get("space"), f"{where} action.space")
+    return PolicyExport(folder=d, meta=meta, normalization=_normalization(meta.get("normalization"), obs, where))

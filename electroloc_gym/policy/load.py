@@ -1,0 +1,175 @@
+"""A trained policy as an agent the benchmark runs beside the paper's controllers.
+
+The agent protocol (shared with the baseline controllers in ``electroloc_gym.baselines.agent``)::
+
+    agent.env_kwargs                       # kwargs the policy needs in gym.make (observation, action_type)
+    agent.reset(env)                       # after env.reset(), at each trial start
+    action, state = agent.predict(obs, state=None, episode_start=None, deterministic=True)
+
+The benchmark passes raw env observations, so the agent applies what training put between the env
+and the network: the frozen normalisation statistics and the frame stack (in the order the
+statistics say, :mod:`electroloc_gym.policy.format`). A recurrent policy keeps its LSTM state
+across ``predict`` calls; ``reset(env)`` clears it.
+
+:func:`load_policy` reads the pickle-free format only: nothing in the folder is unpickled or
+executed, and deterministic actions need numpy alone (:mod:`electroloc_gym.policy.networks`).
+Stochastic actions rebuild the SB3 policy (torch and SB3: the ``train`` extra). SB3's own zip and
+``vecnormalize.pkl`` contain pickles — loading a file made by someone else runs their code — so they
+are read only with ``trust_pickle=True`` (SB3 needed), with a logged warning.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from electroloc_gym.policy.format import POLICY_JSON, ObsNormalization, PolicyExport, read_export, read_weights
+from electroloc_gym.policy.networks import build_actor
+
+__all__ = ["LearnedAgent", "load_policy"]
+
+logger = logging.getLogger(__name__)
+
+TRAIN_EXTRA = "pip install 'electroloc-gym[train]'"
+
+
+class LearnedAgent:
+    """An exported policy + its frozen observation pre-processing, behind the benchmark's agent protocol.
+
+    Args:
+        meta: the validated ``policy.json`` content.
+        weights: its tensors (numpy arrays by ``state_dict`` name).
+        normalization: frozen observation statistics, or None.
+        name: a label for tables.
+    """
+
+    def __init__(self, meta: Mapping[str, Any], weights: Mapping[str, NDArray],
+                 normalization: ObsNormalization | None, name: str = "learned") -> None:
+        self.meta = dict(meta)
+        self.weights = dict(weights)
+        self.name = name
+        obs = meta["observation"]
+        self.frame_stack, self.obs_dim = int(obs["frame_stack"]), int(obs["frame_dim"])
+        self.env_kwargs: dict[str, Any] = {"observation": obs["mode"], "action_type": meta["action"]["action_type"]}
+        self.normalization = normalization
+        self.normalize_frames = normalization is not None and normalization.mean.shape[0] == self.obs_dim \
+            and self.frame_stack > 1
+        self.actor = build_actor(meta, weights)
+        self.recurrent = self.actor.recurrent
+        self._stack: NDArray | None = None
+        self._state: Any = None
+        self._fresh = True
+        self._sb3_policy: Any = None
+
+    def __repr__(self) -> str:
+        return (f"LearnedAgent({self.meta['architecture']['policy_class']}, name={self.name!r}, "
+                f"frame_stack={self.frame_stack}, normalised={self.normalization is not None}, "
+                f"env_kwargs={self.env_kwargs})")
+
+    def reset(self, env: Any = None) -> None:
+        """Start of a trial: clear the frame stack and the recurrent state (``env`` is not used)."""
+        self._stack, self._state, self._fresh = None, None, True
+
+    def preprocess(self, observation: NDArray, episode_start: NDArray | None = None) -> NDArray[np.float32]:
+        """Raw env observation(s) (d,) or (n, d) → the network's input (n, k·d), updating the frame stack."""
+        obs = np.asarray(observation, dtype=np.float32)
+        obs = obs[None] if obs.ndim == 1 else obs
+        if obs.ndim != 2 or obs.shape[1] != self.obs_dim:
+            raise ValueError(f"observation must have shape ({self.obs_dim},) or (n, {self.obs_dim}), got {obs.shape}")
+        if self.normalize_frames:
+            obs = self.normalization.apply(obs).astype(np.float32)
+        n = obs.shape[0]
+        if self._stack is None or self._stack.shape[0] != n:
+            self._stack = np.zeros((n, self.frame_stack, self.obs_dim), dtype=np.float32)
+        if episode_start is not None:
+            self._stack[np.asarray(episode_start, dtype=bool).reshape(n)] = 0.0
+        self._stack = np.roll(self._stack, -1, axis=1)
+        self._stack[:, -1] = obs
+        x = self._stack.reshape(n, -1).copy()
+        if self.normalization is not None and not self.normalize_frames:
+            x = self.normalization.apply(x)
+        return x.astype(np.float32)
+
+    def predict(self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None,
+                deterministic: bool = True) -> tuple[NDArray, Any]:
+        """SB3-style decision for one observation (d,) or a batch (n, d).
+
+        Returns:
+            (action, state): the action (batch dim removed for one observation) and the recurrent state.
+        """
+        single = np.ndim(observation) == 1
+        x = self.preprocess(observation, episode_start)
+        if self.recurrent and episode_start is None:
+            episode_start = np.full(x.shape[0], self._fresh, dtype=bool)
+        st = self._state if state is None else state
+        if deterministic:
+            action, st = self.actor(x, st, episode_start)
+        else:
+            action, st = self._stochastic(x, st, episode_start)
+        self._state = st if self.recurrent else None
+        self._fresh = False
+        return (action[0] if single else action), st
+
+    def _stochastic(self, x: NDArray, state: Any, episode_start: NDArray | None) -> tuple[NDArray, Any]:
+        if self._sb3_policy is None:
+            try:
+                from electroloc_gym.policy.sb3 import sb3_policy
+
+                self._sb3_policy = sb3_policy(self.meta, self.weights)
+            except ImportError as exc:
+                raise ValueError(f"stochastic actions of a learned policy need torch and SB3 ({TRAIN_EXTRA}): "
+                                 f"{exc}") from exc
+        if self.recurrent:
+            start = np.zeros(x.shape[0], dtype=bool) if episode_start is None else np.asarray(episode_start, bool)
+            return self._sb3_policy.predict(x, state=state, episode_start=start, deterministic=False)
+        return self._sb3_policy.predict(x, deterministic=False)[0], None
+
+
+def agent_from_export(export: PolicyExport, name: str | None = None) -> LearnedAgent:
+    """The :class:`LearnedAgent` of a validated export (its weights checked against the SHA-256)."""
+    return LearnedAgent(export.meta, read_weights(export), export.normalization, name or export.folder.name)
+
+
+def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
+    """Load a trained policy as a :class:`LearnedAgent`.
+
+    By default only the pickle-free format is read: a folder holding ``policy.json`` and
+    ``policy.safetensors`` (or the ``policy.json`` file). Nothing is unpickled. An SB3 ``.zip`` (e.g.
+    an rl-zoo3 run's ``best_model.zip``) needs ``trust_pickle=True`` and SB3; it is then converted in
+    memory (:func:`electroloc_gym.policy.sb3.agent_from_sb3_zip`) and a warning is logged.
+
+    Args:
+        path: a policy folder, its ``policy.json``, an rl-zoo3 run folder of this path (its ``best/``), or
+            (with ``trust_pickle``) an SB3 ``.zip``.
+        trust_pickle: allow SB3's pickle-based files (only for files you trust: loading runs their code).
+
+    Raises:
+        ValueError: a missing path, a pickle-based model without ``trust_pickle``, or a malformed
+            ``policy.json`` or weights file (the message names the file).
+    """
+    p = Path(path)
+    if p.is_file() and p.name == POLICY_JSON:
+        p = p.parent
+    if p.is_dir() and not (p / POLICY_JSON).is_file() and (p / "best" / POLICY_JSON).is_file():
+        p = p / "best"  # an rl-zoo3 run folder of this path: its chosen checkpoint
+    if p.is_dir() and (p / POLICY_JSON).is_file():
+        return agent_from_export(read_export(p))
+    if not p.exists():
+        raise ValueError(f"policy path {str(path)!r} does not exist (expected a folder with {POLICY_JSON})")
+    if not trust_pickle:
+        raise ValueError(f"refusing to load {str(path)!r}: it has no {POLICY_JSON} (the pickle-free policy format). "
+                         f"SB3's .zip and vecnormalize.pkl contain pickles, which run code when loaded; read them "
+                         f"only with trust_pickle=True (--trust-pickle) for files you trust, or export a run you "
+                         f"trust with `python -m electroloc_gym.train.export`")
+    try:
+        from electroloc_gym.policy.sb3 import agent_from_sb3_zip
+    except ImportError as exc:
+        raise ValueError(f"loading an SB3 zip needs SB3 ({TRAIN_EXTRA}): {exc}") from exc
+    logger.warning("loading %s with pickle (trust_pickle=True): a pickle-based model runs code from the file; "
+                   "load only files you trust", p)
+    return agent_from_sb3_zip(p)

@@ -1,0 +1,168 @@
+"""The env contract (docs/environments.md, "Arguments and their ranges"): every observation of every env in
+its space for every valid argument; every argument's range checked at construction, so that nothing valid
+there fails later; every bad argument, action or seed one ValueError naming it; a refused call changes nothing.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import electroloc_gym  # noqa: F401
+from electroloc_gym.conditions import PRESET_NAMES
+from electroloc_gym.core.params import GAIN_FACTOR_LIMITS, MAX_POSITION_BLUR_MM, RADIUS_LIMITS_MM, SIGNAL_LIMITS
+
+ENV_IDS = ("ElectroLoc-v0", "ElectroLocGlobal-v0", "ElectroLocUnknownTarget-v0")
+
+
+def _make(env_id: str, vector: bool, **kwargs: Any) -> Any:
+    if vector:
+        return gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    return gym.make(env_id, **kwargs)
+
+
+def _rollout_in_space(env: Any, seed: int, steps: int, rng: np.random.Generator) -> None:
+    """Reset and step with random and extreme actions; every observation in the observation space, every
+    reward and the info's numbers finite.
+    """
+    obs, info = env.reset(seed=seed)
+    assert env.observation_space.contains(obs), obs
+    space = env.action_space
+    for t in range(steps):
+        action = space.sample()
+        if space.dtype.kind == "f" and t % 3 == 2:  # finite values far outside [−1, 1] are clipped
+            action = (np.sign(action) * 1e6).astype(space.dtype)
+        obs, reward, terminated, truncated, info = env.step(action)
+        assert env.observation_space.contains(obs), (t, obs)
+        assert np.all(np.isfinite(reward))
+        for key in ("estimate_mm", "spread_mm", "reading_V", "error_mm"):
+            assert np.all(np.isfinite(np.asarray(info[key], dtype=float))), key
+        if np.ndim(terminated) == 0 and (terminated or truncated):
+            obs, info = env.reset(seed=seed + t + 1)
+            assert env.observation_space.contains(obs)
+    space.seed(int(rng.integers(2**31)))
+
+
+_factors = st.floats(GAIN_FACTOR_LIMITS[0], GAIN_FACTOR_LIMITS[1])
+_radii = st.floats(RADIUS_LIMITS_MM[0], RADIUS_LIMITS_MM[1])
+_common = {
+    "observation": st.sampled_from(["belief", "raw"]),
+    "action_type": st.sampled_from(["continuous", "discrete"]),
+    "max_observations": st.integers(1, 12),
+    "success_spread_mm": st.floats(0.5, 1e3),
+}
+_target = {
+    "condition": st.sampled_from(("random",) + PRESET_NAMES),
+    "signal": st.one_of(st.sampled_from(["fitted", "paper", "coverage"]), st.floats(*SIGNAL_LIMITS)),
+    "randomize_target": st.booleans(),
+    "gain_levels": st.one_of(st.none(), st.lists(_factors, min_size=1, max_size=3, unique=True).map(tuple)),
+}
+ARGUMENTS = {
+    "ElectroLoc-v0": st.fixed_dictionaries({**_common, **_target}),
+    "ElectroLocGlobal-v0": st.fixed_dictionaries({**_common, "layout": st.sampled_from(["benchmark", "random"]),
+                                                  "position_blur_mm": st.floats(0.0, MAX_POSITION_BLUR_MM)}),
+    "ElectroLocUnknownTarget-v0": st.fixed_dictionaries({
+        **_common, **_target, "target_draw": st.sampled_from(["prior", "condition"]),
+        "contrast": st.sampled_from(["binary", "continuous"]),
+        "radius_range_mm": st.lists(_radii, min_size=2, max_size=2, unique=True).map(lambda r: tuple(sorted(r)))}),
+}
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data(), seed=st.integers(0, 2**20), vector=st.booleans())
+def test_every_observation_is_in_its_space_for_valid_arguments(env_id: str, data: Any, seed: int,
+                                                               vector: bool) -> None:
+    kwargs = data.draw(ARGUMENTS[env_id])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # gymnasium's checker on float spaces of extreme actions
+        env = _make(env_id, vector, n_particles=40, sensor_model="analytic", **kwargs)
+        _rollout_in_space(env, seed, 6, np.random.default_rng(seed))
+
+
+@pytest.mark.parametrize("env_id, kwargs", [
+    ("ElectroLoc-v0", {"gain_levels": GAIN_FACTOR_LIMITS}),
+    ("ElectroLoc-v0", {"gain_levels": GAIN_FACTOR_LIMITS, "sensor_model": "analytic"}),
+    ("ElectroLoc-v0", {"signal": SIGNAL_LIMITS[1], "condition": "salt-steel-12.7"}),
+    ("ElectroLocGlobal-v0", {"position_blur_mm": MAX_POSITION_BLUR_MM}),
+    ("ElectroLocUnknownTarget-v0", {"radius_range_mm": RADIUS_LIMITS_MM, "gain_levels": GAIN_FACTOR_LIMITS}),
+    ("ElectroLocUnknownTarget-v0", {"sensor_model": "interpolated", "eev_radii_mm": RADIUS_LIMITS_MM,
+                                    "radius_range_mm": RADIUS_LIMITS_MM}),
+])
+def test_the_ends_of_the_ranges_run_with_every_sensor_model(env_id: str, kwargs: dict) -> None:
+    env = gym.make(env_id, n_particles=100, calibration_seed=3, **kwargs)
+    _rollout_in_space(env, 0, 5, np.random.default_rng(0))
+
+
+def test_unknown_target_radius_entry_stays_in_the_box_for_big_spheres() -> None:
+    """The reproducer: radius_range_mm=(5, 50) put entry 76 (radius / 25 mm) at 1.2066."""
+    env = gym.make("ElectroLocUnknownTarget-v0", radius_range_mm=(5, 50))
+    obs = env.reset(seed=0)[0]
+    assert obs[76] == 1.0 and env.observation_space.contains(obs)
+
+
+@pytest.mark.parametrize("vector", [False, True])
+@pytest.mark.parametrize("env_id, kwargs, match", [
+    ("ElectroLoc-v0", {"gain_levels": (1e-60,)}, r"gain_levels must be a finite number ≥ 0.001 and ≤ 1000"),
+    ("ElectroLoc-v0", {"gain_levels": (1e-60, 1.0)}, r"gain_levels must be a finite number ≥ 0.001"),
+    ("ElectroLoc-v0", {"gain_levels": (1e40,), "sensor_model": "analytic"}, r"gain_levels .* ≤ 1000, got 1e\+40"),
+    ("ElectroLocGlobal-v0", {"position_blur_mm": 1e40}, r"position_blur_mm must be a finite number ≥ 0 and ≤ 100"),
+    ("ElectroLocUnknownTarget-v0", {"eev_radii_mm": (1e-20, 20), "sensor_model": "interpolated"},
+     r"eev_radii_mm must be a finite number ≥ 1 and ≤ 50, got 1e-20"),
+    ("ElectroLocUnknownTarget-v0", {"radius_range_mm": (5, 1e20)}, r"radius_range_mm .* ≤ 50, got 1e\+20"),
+    ("ElectroLoc-v0", {"signal": 1e40}, r"signal must be a finite number ≥ 0.001 and ≤ 1000"),
+    ("ElectroLoc-v0", {"gain_levels": np.array(2.0)}, r"gain_levels must be a tuple of one or more numbers"),
+    ("ElectroLocUnknownTarget-v0", {"radius_range_mm": np.array(2.0)}, r"radius_range_mm must be a tuple of 2"),
+    ("ElectroLocUnknownTarget-v0", {"eev_radii_mm": np.array(2.0)}, r"eev_radii_mm must be a tuple of one or more"),
+    ("ElectroLoc-v0", {"condition": {}}, r"condition \(a dict of Condition fields\) is invalid: missing Condition "
+                                         r"field\(s\) \['allowed_half_width_mm', 'amplifier', 'name'"),
+    ("ElectroLoc-v0", {"condition": {"target": 5}}, r"condition \(a dict of Condition fields\) is invalid"),
+])
+def test_values_that_used_to_fail_later_are_refused_at_construction(env_id: str, kwargs: dict, match: str,
+                                                                    vector: bool) -> None:
+    with pytest.raises(ValueError, match=match):
+        _make(env_id, vector, **kwargs)
+
+
+@pytest.mark.parametrize("action", ["abc", {"dx": 1}, np.array(["0.1", "0.2"]), np.array([1 + 1j, 0]),
+                                    [0.1, "x"], [[0.1], [0.2, 0.3]], True, None, object()])
+@pytest.mark.parametrize("action_type", ["continuous", "discrete"])
+def test_bad_actions_are_one_value_error(action: Any, action_type: str) -> None:
+    env = gym.make("ElectroLoc-v0", sensor_model="analytic", n_particles=50, action_type=action_type)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^actions? must be"):
+        env.unwrapped.step(action)
+    vec = _make("ElectroLoc-v0", True, sensor_model="analytic", n_particles=50, action_type=action_type)
+    vec.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^actions? must be"):
+        vec.step([action, action])
+    assert env.unwrapped.n_observations == 1  # nothing was stepped
+
+
+@pytest.mark.parametrize("seed", [1.5, True, "123", b"1", [0, -1, 2], [0, 1], [0, 1.0, 2], np.array([[1, 2, 3]]),
+                                  -1, {"a": 1}])
+def test_a_refused_vector_reset_changes_nothing(seed: Any) -> None:
+    kw = {"sensor_model": "analytic", "n_particles": 60}
+    vec = _make("ElectroLoc-v0", False, **kw)  # noqa: F841 - the registry is loaded
+    env = gym.make_vec("ElectroLoc-v0", num_envs=3, vectorization_mode="vector_entry_point", **kw)
+    ref = gym.make_vec("ElectroLoc-v0", num_envs=3, vectorization_mode="vector_entry_point", **kw)
+    env.reset(seed=5)
+    ref.reset(seed=5)
+    with pytest.raises(ValueError, match=r"^seed must be None, an integer ≥ 0 or a sequence of 3 seeds"):
+        env.reset(seed=seed)
+    assert env.np_random_seed == ref.np_random_seed == (5, 6, 7)
+    actions = np.random.default_rng(0).uniform(-1, 1, (5, 3, 2))
+    for a in actions:
+        np.testing.assert_array_equal(env.step(a)[0], ref.step(a)[0])
+
+
+def test_render_mode_of_the_wrong_type_is_one_clear_error() -> None:
+    for mode in (1, b"human", "human ", ["rgb_array"]):
+        with pytest.raises(ValueError, match=r"render_mode must be one of \['human', 'rgb_array'\] or None"):
+            gym.make("ElectroLoc-v0", render_mode=mode)

@@ -1,0 +1,181 @@
+"""The package's import graph: no cycles, and the layers import only downward (docs/design.md).
+
+Every ``import`` and ``from … import`` of every module of the installed package is read with ``ast`` —
+function-level imports included, only those under ``if TYPE_CHECKING:`` left out (they never run) — and
+resolved to the package's modules (``from electroloc_gym.x import y`` is an edge to the module
+``electroloc_gym.x.y`` if there is one, else to ``electroloc_gym.x``). A package's ``__init__`` running
+before its submodules is Python's order, not an edge. The modules are found from pyproject.toml's
+package list and ``package-dir`` (``baselines/``, ``train/`` and ``models/`` install as
+``electroloc_gym.baselines`` …).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Cycles in other floors, being removed on their branches: a cycle within one of these sets of modules is
+#: known. The whole-package test below is expected to fail until they are gone (strict: it then fails as
+#: XPASS, and this list and its marker go).
+KNOWN_ELSEWHERE = (
+    frozenset({"electroloc_gym.baselines.agent", "electroloc_gym.baselines.lookahead",
+               "electroloc_gym.baselines.min_variance", "electroloc_gym.baselines.random_walk",
+               "electroloc_gym.baselines.zero_crossing"}),
+    frozenset({"electroloc_gym.train.config", "electroloc_gym.train.validation"}),
+    frozenset({"electroloc_gym.cli", "electroloc_gym.train.__main__", "electroloc_gym.train.runplan"}),
+)
+
+
+def package_modules() -> dict[str, Path]:
+    """Every module of the package (dotted name → file), from pyproject.toml's package list."""
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
+    dirs = cfg.get("package-dir", {})
+    out: dict[str, Path] = {}
+    for pkg in cfg["packages"]:
+        folder = ROOT / dirs[pkg] if pkg in dirs else ROOT / pkg.replace(".", "/")
+        for f in sorted(folder.glob("*.py")):
+            out[pkg if f.stem == "__init__" else f"{pkg}.{f.stem}"] = f
+    return out
+
+
+def _type_checking_only(tree: ast.AST) -> set[int]:
+    """ids of the import nodes under ``if TYPE_CHECKING:``."""
+    skip: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If):
+            t = node.test
+            name = t.id if isinstance(t, ast.Name) else t.attr if isinstance(t, ast.Attribute) else None
+            if name == "TYPE_CHECKING":
+                skip.update(id(n) for stmt in node.body for n in ast.walk(stmt))
+    return skip
+
+
+def import_graph(modules: dict[str, Path]) -> dict[str, set[str]]:
+    """module → the package's modules it imports (anywhere in the file)."""
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        skip = _type_checking_only(tree)
+        is_pkg = path.stem == "__init__"
+        edges: set[str] = set()
+        for node in ast.walk(tree):
+            if id(node) in skip:
+                continue
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:  # relative: from the module's package, up level − 1 more
+                    parts = (name if is_pkg else name.rpartition(".")[0]).split(".")
+                    parts = parts[:len(parts) - (node.level - 1)]
+                    base = ".".join(parts + ([base] if base else []))
+                targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
+            else:
+                continue
+            for t in targets:
+                while t and t not in modules:  # import a.b.c of a package: the deepest module named
+                    t = t.rpartition(".")[0]
+                if t and t != name:
+                    edges.add(t)
+        graph[name] = edges
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[frozenset[str]]:
+    """The strongly connected components of more than one module (Tarjan), each a set of modules."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[frozenset[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(frozenset(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def describe(comp: frozenset[str], graph: dict[str, set[str]]) -> str:
+    """One cycle's modules and the edges inside it."""
+    edges = sorted(f"{a} → {b}" for a in comp for b in graph[a] if b in comp)
+    return f"{sorted(comp)}: " + "; ".join(edges)
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    return import_graph(package_modules())
+
+
+def test_the_scan_sees_function_level_and_relative_imports() -> None:
+    """The resolver on a fixed example: a function-level import is an edge, TYPE_CHECKING is not."""
+    src = ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from electroloc_gym.envs import adapter\n"
+           "def f():\n    from electroloc_gym.core import step\n    import electroloc_gym.registry\n"
+           "from . import worlds\n")
+    tmp = ROOT / "tests" / "_import_scan_example.py"
+    try:
+        tmp.write_text(src, encoding="utf-8")
+        mods = {**package_modules(), "electroloc_gym.core.example": tmp}
+        edges = import_graph(mods)["electroloc_gym.core.example"]
+    finally:
+        tmp.unlink()
+    assert edges == {"electroloc_gym.core.step", "electroloc_gym.registry", "electroloc_gym.core.worlds"}
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [frozenset("abc")]
+
+
+def test_the_graph_covers_the_package(graph: dict[str, set[str]]) -> None:
+    for name in ("electroloc_gym.core.step", "electroloc_gym.envs.adapter", "electroloc_gym.baselines.agent",
+                 "electroloc_gym.train", "electroloc_gym.registry"):
+        assert name in graph
+    assert "electroloc_gym.core.task" in graph["electroloc_gym.core.step"]
+
+
+def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
+    """core/ imports nothing from the adapters or anything above them (one-way data flow)."""
+    upper = ("electroloc_gym.envs", "electroloc_gym.baselines", "electroloc_gym.bench", "electroloc_gym.train",
+             "electroloc_gym.cli", "electroloc_gym.demo", "electroloc_gym.render")
+    bad = sorted(f"{m} → {t}" for m, ts in graph.items() if m.startswith("electroloc_gym.core")
+                 for t in ts if t.startswith(upper))
+    assert not bad, "the core imports an upper layer: " + "; ".join(bad)
+
+
+def test_no_import_cycle_but_the_known_ones_elsewhere(graph: dict[str, set[str]]) -> None:
+    """Every cycle of the package is one of :data:`KNOWN_ELSEWHERE` (being removed in other floors)."""
+    new = [c for c in cycles(graph) if not any(c <= known for known in KNOWN_ELSEWHERE)]
+    assert not new, "import cycles:\n" + "\n".join(describe(c, graph) for c in new)
+
+
+@pytest.mark.xfail(strict=True, reason="cycles in other floors (KNOWN_ELSEWHERE) are being removed on their "
+                                       "branches; when they are gone this XPASSes: drop the marker and the list")
+def test_no_import_cycle_anywhere(graph: dict[str, set[str]]) -> None:
+    found = cycles(graph)
+    assert not found, "import cycles (none may remain):\n" + "\n".join(describe(c, graph) for c in found)

@@ -1,0 +1,80 @@
+"""The learned-baseline report (benchmarks/learned_report.py) on synthetic benchmark records."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rliable")
+
+ROOT = Path(__file__).resolve().parents[1]
+spec = importlib.util.spec_from_file_location("learned_report", ROOT / "benchmarks" / "learned_report.py")
+report = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(report)
+
+CONDS = ("a", "b")
+
+
+def _write(path: Path, agent: str, readings: dict[str, list[int]]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for cond, obs in readings.items():
+        for t, n in enumerate(obs):
+            rows.append({"condition": cond, "agent": agent, "trial": t, "success": n <= 35,
+                         "observations": min(n, 35), "max_observations": 35})
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write("".join(json.dumps(r) + "\n" for r in rows))
+
+
+def _results(tmp_path: Path) -> Path:
+    env = tmp_path / "ElectroLoc-v0"
+    base = env / "_baselines" / "bench" / "trials.jsonl"
+    _write(base, "rnd-wlk", {"a": [20, 30, 99], "b": [25, 25, 25]})  # 99: a failure, scored as the cap 35
+    _write(base, "min-var", {"a": [10, 10, 10], "b": [15, 15, 15]})
+    for k, shift in enumerate((0, 1, 2)):
+        _write(env / "ppo" / f"seed-{k}" / "bench" / "trials.jsonl", "ppo",
+               {"a": [5 + shift] * 3, "b": [6 + shift] * 3})
+    return tmp_path
+
+
+def test_scores_count_failures_as_the_cap(tmp_path):
+    conds, learned, baselines, seeds = report.collect(_results(tmp_path), "ElectroLoc-v0")
+    assert conds == list(CONDS)
+    np.testing.assert_allclose(baselines["rnd-wlk"]["readings"][0], [(20 + 30 + 35) / 3, 25])
+    np.testing.assert_allclose(baselines["rnd-wlk"]["success"][0], [2 / 3, 1])
+    assert learned["ppo"]["readings"].shape == (3, 2) and seeds["ppo"] == ["seed-0", "seed-1", "seed-2"]
+
+
+def test_normalised_score_is_zero_at_rnd_wlk_and_one_at_the_best_planner(tmp_path):
+    _, _, baselines, _ = report.collect(_results(tmp_path), "ElectroLoc-v0")
+    np.testing.assert_allclose(report.normalised(baselines["rnd-wlk"]["readings"], baselines), 0)
+    np.testing.assert_allclose(report.normalised(baselines["min-var"]["readings"], baselines), 1)
+
+
+def test_analysis_intervals_contain_the_point_and_poi_is_certain(tmp_path):
+    a = report.analyse(_results(tmp_path), "ElectroLoc-v0", reps=200)
+    row = a["algorithms"]["ppo"]
+    for key in ("readings_iqm", "readings_mean", "success_mean", "normalised_iqm"):
+        point, lo, hi = row[key]
+        assert lo <= point <= hi
+    assert row["readings_mean"][0] == pytest.approx(np.mean([5, 6, 6, 7, 7, 8]))
+    assert row["p_improvement"]["min-var"][0] == pytest.approx(1.0)  # every ppo run beats min-var everywhere
+    assert "lookahead" not in row["p_improvement"]
+
+
+def test_main_writes_report_and_figure(tmp_path):
+    res = _results(tmp_path)
+    assert report.main([str(res), "--reps", "200"]) == 0
+    assert "| ElectroLoc-v0 | ppo | 3 |" in (res / "report.md").read_text()
+    assert json.loads((res / "report.json").read_text())[0]["env_id"] == "ElectroLoc-v0"
+    assert (res / "profile_ElectroLoc-v0.png").stat().st_size > 0
+
+
+def test_bad_arguments_are_one_line(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        report.main([str(tmp_path / "missing")])
+    assert exc.value.code == 2 and "does not exist" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        report.main([str(tmp_path), "--reps", "5"])

@@ -1,0 +1,66 @@
+"""The learned-baseline suite end to end on a tiny budget: train (rl-zoo3, native vector env), export, bench,
+then the rliable report — two algorithms × two seeds × two conditions × two trials."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("rl_zoo3")
+pytest.importorskip("rliable")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, *args], cwd=ROOT, capture_output=True, text=True, timeout=900)
+
+
+def test_suite_trains_exports_benches_and_reports(tmp_path):
+    out = tmp_path / "learned"
+    suite = ["benchmarks/learned_suite.py", "--out", str(out), "--only", "ElectroLoc-v0/ppo,ElectroLoc-v0/a2c",
+             "--seeds", "1,2", "--timesteps", "512", "--conditions", "fresh-steel-12.7,salt-delrin-38.1",
+             "--trials", "2", "--workers", "1", "--hyperparams", "n_envs=2"]
+    proc = _run(*suite)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    for algo in ("ppo", "a2c"):
+        for seed in (1, 2):
+            folder = out / "ElectroLoc-v0" / algo / f"seed-{seed}"
+            assert (folder / "policy" / "policy.json").is_file()
+            records = [json.loads(line) for line in (folder / "bench" / "trials.jsonl").read_text().splitlines()]
+            assert len(records) == 4 and {r["condition"] for r in records} == {"fresh-steel-12.7", "salt-delrin-38.1"}
+            assert list(folder.glob("zoo/*/*/eval.csv")), "the validation evaluations are kept"
+    base = [json.loads(line) for line in
+            (out / "ElectroLoc-v0" / "_baselines" / "bench" / "trials.jsonl").read_text().splitlines()]
+    assert {"rnd-wlk", "min-var", "lookahead"} <= {r["agent"] for r in base}
+    runs = json.loads((out / "suite.json").read_text())
+    assert len(runs) == 4 and all(r["train_wall_time_s"] > 0 for r in runs)
+
+    # resumable: a second call finds every run and benchmark and trains nothing
+    again = _run(*suite)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert len(list((out / "ElectroLoc-v0" / "ppo" / "seed-1" / "zoo" / "ppo").glob("ElectroLoc-v0_*/"))) == 1
+
+    report = _run("benchmarks/learned_report.py", str(out), "--reps", "200")
+    assert report.returncode == 0, report.stderr[-2000:]
+    text = (out / "report.md").read_text()
+    assert "| ElectroLoc-v0 | ppo | 2 |" in text and "| ElectroLoc-v0 | a2c | 2 |" in text
+    assert (out / "profile_ElectroLoc-v0.png").is_file() and (out / "curves_ElectroLoc-v0.png").is_file()
+
+
+def test_suite_bad_arguments_are_one_line(tmp_path):
+    for args, word in ((["--seeds", "x"], "--seeds"), (["--timesteps", "0"], "--timesteps"),
+                       (["--only", "nope"], "--only"), (["--trials", "0"], "--trials")):
+        proc = _run("benchmarks/learned_suite.py", "--out", str(tmp_path / "o"), *args)
+        assert proc.returncode == 2 and word in proc.stderr and "Traceback" not in proc.stderr
+        assert not (tmp_path / "o").exists()
+
+
+def test_suite_lists_every_configuration():
+    proc = _run("benchmarks/learned_suite.py", "--list")
+    assert proc.returncode == 0
+    for label in ("ppo", "sac", "a2c", "qrdqn", "ppo_lstm-raw", "ppo-framestack-raw"):
+        assert f" {label} " in proc.stdout
+    assert "ElectroLocGlobal-v0" in proc.stdout and "ElectroLocUnknownTarget-v0" in proc.stdout
