@@ -12,9 +12,9 @@ from electroloc_gym.bench.backends import BACKENDS, Backend, SerialBackend, make
 from electroloc_gym.bench.config import BenchConfig, make_trial_specs, resolve_conditions, trial_seeds
 from electroloc_gym.bench.records import read_trials
 from electroloc_gym.bench.runner import run_benchmark
+from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.bench.stats import summarize
 from electroloc_gym.bench.tables import PAPER_TABLE4, PAPER_TABLE4_ALL, render_table_md
-from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.conditions import PRESET_NAMES
 

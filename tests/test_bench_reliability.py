@@ -19,9 +19,9 @@ from electroloc_gym.bench.records import (
     REJECTED_FILE,
     FolderBusyError,
     load_records,
-    run_lock,
     prepare_out_dir,
     read_trials,
+    run_lock,
 )
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.bench.schema import TIMING_KEYS

@@ -86,3 +86,129 @@ def test_help_is_plain_text_with_defaults(command) -> None:
         assert "(default: eev.png)" in text and "(default: fresh-steel-12.7)" in text
     if command == ["demo"]:
         assert "(default: demo.png)" in text
+
+
+# ---- bad input: one line naming the option, exit 2, nothing written ----------------------------------------
+def _one_line_error(capsys, argv, tmp_path, option: str) -> str:
+    from electroloc_gym.cli import main
+
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with pytest.raises(SystemExit) as exc_info:
+        raise SystemExit(main(argv))
+    assert exc_info.value.code == 2, argv
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "error" in lines[0] and option in lines[0], (argv, err)
+    assert "Traceback" not in err and not out
+    assert sorted(p.name for p in tmp_path.iterdir()) == before, argv  # nothing written
+    return lines[0]
+
+
+@pytest.mark.parametrize("argv,option", [
+    (["eev", "--out", "{tmp}"], "--out"),
+    (["eev", "--out", ""], "--out"),
+    (["eev", "--out", "{tmp}/e.xyz"], "--out"),
+    (["eev", "--out", "{tmp}/FILE/e.png"], "--out"),
+    (["detect", "--plot", "{tmp}/p.xyz"], "--plot"),
+    (["demo", "--seed", "-1"], "--seed"),
+    (["demo", "--out", "{tmp}/X.gif", "--gif", "{tmp}/X.gif"], "gif"),
+    (["bench", "--agents", "lookahead[n_options=256,continuations=256,branches=1024,n_particles=100000]",
+      "--out", "{tmp}/b"], "lookahead[n_options=256"),
+    (["bench", "--trials", "1000000000000", "--out", "{tmp}/b"], "--trials"),
+    (["bench", "--agents", "", "--out", "{tmp}/b"], "--agents"),
+    (["bench", "--agents", ",", "--out", "{tmp}/b"], "--agents"),
+    (["bench", "--agents", "lookahead[depth=2,depth=3]", "--out", "{tmp}/b"], "'depth' given twice"),
+    (["bench", "--env", "unknown-target", "--agents", "ppo-belief", "--out", "{tmp}/b"], "ppo-belief"),
+    (["bench", "--agents", "ppo-belief-unknown", "--out", "{tmp}/b"], "trained on ElectroLocUnknownTarget-v0"),
+    (["bench", "--env", "dynamic-gain", "--agents", "ppo-belief-global", "--out", "{tmp}/b"], "ppo-belief-global"),
+    (["bench", "--env", "dynamic-gain", "--agents", "ppo-belief", "--out", "{tmp}/b"], "gain_levels"),
+])
+def test_issue_reproducers_are_one_line(capsys, tmp_path, argv, option) -> None:
+    (tmp_path / "FILE").write_text("a file")
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    if any("ppo-" in a for a in argv):
+        pytest.importorskip("torch")
+    _one_line_error(capsys, argv, tmp_path, option)
+
+
+def test_detect_json_is_strict_and_nan_rows_have_no_branch_label() -> None:
+    for factor in ("2", "1e-6"):
+        proc = run_cli("detect", "--noise-factor", factor, "--json")
+        assert proc.returncode == 0
+
+        def refuse(constant):
+            raise AssertionError(f"non-strict JSON constant {constant}")
+
+        data = json.loads(proc.stdout, parse_constant=refuse)
+        for row in data["rows"]:
+            for signal in ("paper", "fitted"):
+                values = (row["zero_crossing_mm"], row[f"{signal}_mm"], row[f"{signal}_quiet_mm"])
+                assert (row[f"{signal}_branch"] == "n/a") == (None in values), row
+
+
+_BENCH_INTS = {"--trials": (1, 100_000), "--workers": (1, 1024), "--max-observations": (1, 100_000),
+               "--n-particles": (2, 1_000_000), "--seed": (0, 2**63 - 1)}
+_CHOICES = {("bench", "--env"), ("bench", "--backend"), ("bench", "--sensor-model"), ("bench", "--signal"),
+            ("eev", "--condition"), ("eev", "--signal"), ("eev", "--env"), ("demo", "--condition"),
+            ("demo", "--sensor-model")}
+
+
+def _bad_value(draw, command: str, option: str) -> str:
+    from hypothesis import strategies as st
+
+    if command == "bench" and option in _BENCH_INTS:
+        low, high = _BENCH_INTS[option]
+        return str(draw(st.one_of(st.integers(max_value=low - 1, min_value=-10**30),
+                                  st.integers(min_value=high + 1, max_value=10**30),
+                                  st.sampled_from(["x", "1.5", "", "1e3", "nan"]))))
+    if (command, option) in _CHOICES:
+        return draw(st.text(alphabet="abcxyz-_.", min_size=0, max_size=8).filter(lambda t: t not in (
+            "target", "global", "process", "serial", "ray", "analytic", "calibrated", "fitted", "paper")))
+    if command == "bench" and option == "--out":  # a folder: a file, under a file, or nothing
+        return draw(st.sampled_from(["", "  ", "{tmp}/FILE", "{tmp}/FILE/x"]))
+    if option in ("--out", "--plot", "--gif"):  # a figure file
+        return draw(st.sampled_from(["", "{tmp}", "{tmp}/FILE/x.png", "{tmp}/x.xyz", "{tmp}/x"]))
+    if option == "--noise-factor":
+        return draw(st.sampled_from(["0", "-1", "x", "1/0", "inf", "nan", ""]))
+    if option == "--seed":
+        return str(draw(st.one_of(st.integers(max_value=-1, min_value=-10**30), st.integers(min_value=2**63))))
+    if option == "--agents":
+        return draw(st.sampled_from(["", ",", "nope", "a[b]", "min-var[x=1]]", "lookahead[depth=2,depth=3]",
+                                    "no_such_module_h2:f", "min-var[n_voters=-5]", "lookahead[depth=99]"]))
+    if option == "--conditions":
+        return draw(st.sampled_from(["", "nope", "fresh-steel-12.7,fresh-steel-12.7", ","]))
+    raise AssertionError(f"no bad values for {command} {option}")
+
+
+_OPTIONS = [("bench", o) for o in ("--agents", "--conditions", "--env", "--trials", "--seed", "--workers",
+                                   "--backend", "--sensor-model", "--signal", "--max-observations",
+                                   "--n-particles", "--out")]
+_OPTIONS += [("eev", o) for o in ("--condition", "--signal", "--out", "--env")]
+_OPTIONS += [("demo", o) for o in ("--condition", "--sensor-model", "--seed", "--out", "--gif")]
+_OPTIONS += [("detect", o) for o in ("--noise-factor", "--plot")]
+
+
+def test_every_option_bad_values_are_one_line(capsys, tmp_path) -> None:
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    (tmp_path / "FILE").write_text("a file")
+
+    @settings(max_examples=120, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(data=st.data())
+    def check(data) -> None:
+        command, option = data.draw(st.sampled_from(_OPTIONS), label="option")
+        value = _bad_value(data.draw, command, option).replace("{tmp}", str(tmp_path))
+        argv = [command, option, value]
+        if command == "bench":
+            argv += ["--out", str(tmp_path / "never")] if option != "--out" else []
+            argv += ["--agents", "rnd-wlk"] if option != "--agents" else []
+        if command == "demo" and option == "--gif":
+            argv += ["--out", str(tmp_path / "never.png")]
+        name = "--plot" if option == "--plot" else option
+        if option in ("--gif",) and value.endswith("/x"):
+            name = "gif"
+        line = _one_line_error(capsys, argv, tmp_path, "")
+        assert name.lstrip("-") in line or option in line or "agent" in line or "condition" in line, (argv, line)
+
+    check()

@@ -44,3 +44,12 @@ def test_table_marks_each_cell_inside_or_outside() -> None:
     assert "41(9) [36–44] ✓" in md      # rnd-wlk 44/50 inside the paper's 41/50
     assert "50(0) [48–50] ✗" in md      # min-var 40/50 outside the paper's 50/50
     assert "rnd-wlk 1 of 1; min-var 0 of 1" in md
+
+
+@pytest.mark.parametrize("s,n", [(0, 50), (1, 50), (35, 50), (41, 50), (50, 50), (287, 400)])
+def test_scipy_wilson_interval_is_the_closed_form(s: int, n: int) -> None:
+    z = 1.6448536269514722  # two-sided 90 %
+    p = s / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    assert wilson_interval(s, n) == pytest.approx((max(0.0, centre - half), min(1.0, centre + half)), abs=1e-12)

@@ -51,6 +51,7 @@ __all__ = [
     "protocol_problem",
     "policy_env_problem",
     "cached_agent",
+    "register_object_agent",
     "bench_env_kwargs",
     "planner_memory_bytes",
     "default_agents",
@@ -81,8 +82,31 @@ def is_policy_path(spec: str) -> bool:
     return is_path_like(spec) or Path(spec).is_dir()
 
 
+#: Agent objects handed to the Python API (:func:`electroloc_gym.bench.api.run`), by the name they run under.
+_OBJECTS: dict[str, Any] = {}
+
+
+def register_object_agent(name: str, agent: Any) -> None:
+    """Make ``agent`` (an object with the agent protocol) the agent named ``name`` in this process.
+
+    Raises:
+        ValueError: ``name`` not a plain agent name, taken by a built-in agent or shipped model, or the
+            object lacks the protocol.
+    """
+    parsed = parse_agent_spec(name)
+    if parsed.options or parsed.is_factory or parsed.name in AGENT_REGISTRY + EXTRA_AGENTS or name in shipped_models():
+        raise ValueError(f"agent object name {name!r} must be a plain name other than the built-in agents' and "
+                         f"shipped models'")
+    why = protocol_problem(agent)
+    if why is not None:
+        raise ValueError(f"agent object {name!r} ({type(agent).__name__}) is not an agent: it lacks {why}")
+    _OBJECTS[name] = agent
+    for key in [k for k in _CACHE if k[0] == name]:
+        del _CACHE[key]
+
+
 def agent_kind(spec: str) -> str:
-    """``"baseline"``, ``"factory"``, ``"shipped"`` or ``"path"``.
+    """``"baseline"``, ``"factory"``, ``"object"``, ``"shipped"`` or ``"path"``.
 
     Raises:
         ValueError: a spec that is none of them (the message lists the choices), or a malformed one.
@@ -97,6 +121,8 @@ def agent_kind(spec: str) -> str:
         return "baseline"
     if parsed.is_factory:
         return "factory"
+    if spec in _OBJECTS:
+        return "object"
     if spec in shipped_models():
         return "shipped"
     if is_policy_path(spec):
@@ -194,9 +220,14 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
     kind = agent_kind(spec)
     spec = spec.strip()
     if kind == "baseline":
-        return make_agent(spec, seed=seed)
+        try:
+            return make_agent(spec, seed=seed)
+        except ValueError as exc:
+            raise ValueError(str(exc) if repr(spec) in str(exc) else f"agent {spec!r}: {exc}") from None
     if kind == "factory":
         return make_factory_agent(spec)
+    if kind == "object":
+        return _OBJECTS[spec]
     path = _policy_path(spec)
     try:
         from electroloc_gym.policy import load_policy

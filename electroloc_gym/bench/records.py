@@ -131,7 +131,10 @@ def _bounded_int(text: str) -> int:
 def _bounded_float(text: str) -> float:
     if len(text) > MAX_NUMBER_CHARS:
         raise ValueError(f"a number of {len(text)} characters (at most {MAX_NUMBER_CHARS})")
-    return float(text)
+    value = float(text)
+    if value in (float("inf"), float("-inf")):
+        raise ValueError(f"the number {text} overflows (not a finite number)")
+    return value
 
 
 def _no_constant(text: str) -> Any:

@@ -127,7 +127,7 @@ def _resume(config: BenchConfig, out: Path, log: _Log,
     return loaded, stored
 
 
-def _check_agents(config: BenchConfig, trust_pickle: bool, log: _Log) -> None:
+def _check_agents(config: BenchConfig, trust_pickle: bool) -> str:
     """Fail fast (before any worker starts) on bad agent names, paths, factories or policy files, and on a
     learned policy recorded for another env, observation layout or action space; say what runs.
     """
@@ -141,7 +141,7 @@ def _check_agents(config: BenchConfig, trust_pickle: bool, log: _Log) -> None:
                              f"particles; this machine has ≈{_memory_budget() / 2**30:.3g} GiB to spare: choose "
                              f"smaller options")
         probe_env(config, spec, agent)
-        if kind in ("baseline", "factory"):
+        if kind in ("baseline", "factory", "object"):
             described.append(spec)
             continue
         why = policy_env_problem(spec, agent, config.env_id, config.gain_levels)
@@ -149,8 +149,7 @@ def _check_agents(config: BenchConfig, trust_pickle: bool, log: _Log) -> None:
             raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
         described.append(f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
                          f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)")
-    if log is not None:
-        log("agents: " + "; ".join(described))
+    return "agents: " + "; ".join(described)
 
 
 def _memory_budget() -> int:
@@ -181,13 +180,14 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
         raise ValueError(f"agent {spec!r}: {config.env_id} refuses this run's settings: {exc}") from None
 
 
-def _agent_limits(spec: str, trust_pickle: bool) -> tuple[int | None, float | None]:
-    """(observation cap, success criterion) an agent sets itself through its ``env_kwargs`` (None: the run's)."""
+def _agent_limits(spec: str, trust_pickle: bool) -> tuple[int | None, float | None, str | None]:
+    """(observation cap, success criterion, layout) an agent sets itself (None: the run's / unknown)."""
     try:
-        kwargs = dict(getattr(cached_agent(spec, trust_pickle=trust_pickle), "env_kwargs", {}) or {})
+        agent = cached_agent(spec, trust_pickle=trust_pickle)
     except ValueError:  # an agent of the stored run that does not build here: its records keep the run's limits
-        return None, None
-    return kwargs.get("max_observations"), kwargs.get("success_spread_mm")
+        return None, None, None
+    kwargs = dict(getattr(agent, "env_kwargs", {}) or {})
+    return kwargs.get("max_observations"), kwargs.get("success_spread_mm"), str(getattr(agent, "layout", "table4"))
 
 
 def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
@@ -204,14 +204,16 @@ def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
     env = gym.make(config.env_id)
     criterion = float(env.unwrapped.success_spread_mm)
     env.close()
-    caps, criteria = {}, {}
+    caps, criteria, layouts = {}, {}, {}
     for spec in agents:
-        cap, crit = _agent_limits(spec, trust_pickle)
+        cap, crit, layout = _agent_limits(spec, trust_pickle)
         caps[spec] = int(cap) if cap is not None else config.max_observations
         if crit is not None:
             criteria[spec] = float(crit)
+        if layout is not None:
+            layouts[spec] = layout
     return RecordRules(conditions=conditions, agents=agents, trials=trials, success_spread_mm=criterion,
-                       shape=config.env_id == UNKNOWN_ENV_ID, caps=caps, criteria=criteria)
+                       shape=config.env_id == UNKNOWN_ENV_ID, caps=caps, criteria=criteria, layouts=layouts)
 
 
 def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
@@ -223,8 +225,13 @@ def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
     from electroloc_gym.bench.plots import steps_png
     from electroloc_gym.bench.tables import render_table_md
 
-    content = {"summary.json": strict_json(summary).encode("utf-8"),
-               "table.md": render_table_md(summary).encode("utf-8"), "steps.png": steps_png(summary)}
+    try:
+        content = {"summary.json": strict_json(summary).encode("utf-8"),
+                   "table.md": render_table_md(summary).encode("utf-8"), "steps.png": steps_png(summary)}
+    except BaseException:  # the old files describe other records: none stays beside trials.jsonl
+        for name in OUTPUT_FILES:
+            (out / name).unlink(missing_ok=True)
+        raise
     try:
         for name in OUTPUT_FILES:
             atomic_write_bytes(out / name, content[name])
@@ -262,9 +269,11 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
     if planned > MAX_PLANNED_TRIALS:
         raise ValueError(f"--trials {config.trials} × {len(config.agents)} agent(s) × {len(config.conditions)} "
                          f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run")
-    _check_agents(config, trust_pickle, log)  # before the folder is touched: a bad agent writes nothing
+    described = _check_agents(config, trust_pickle)  # before the folder is touched: a bad agent writes nothing
     out = prepare_out_dir(out_dir)
     with run_lock(out):
+        if log is not None:
+            log(described)
         trials_path, config_path = out / TRIALS_FILE, out / "config.json"
         stored: dict[str, Any] | None = None
         loaded = LoadedRecords(trials_path)

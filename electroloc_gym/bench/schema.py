@@ -209,6 +209,8 @@ class TrialRecord:
             return f"condition {self.condition!r} is not one of the run's {sorted(rules.conditions)}"
         if self.agent not in rules.agents:
             return f"agent {self.agent!r} is not one of the run's {sorted(rules.agents)}"
+        if self.layout != rules.layouts.get(self.agent, self.layout):
+            return f"layout {self.layout!r}, but agent {self.agent!r} reports to {rules.layouts[self.agent]!r}"
         if self.trial >= rules.trials:
             return f"trial {self.trial} is outside the run's range 0–{rules.trials - 1}"
         cap = rules.caps.get(self.agent, self.max_observations)
@@ -253,6 +255,7 @@ class RecordRules:
         shape: the env identifies the target (records carry ``shape``).
         caps: each agent's observation cap (default: the record's ``max_observations``).
         criteria: each agent's success criterion, where it sets its own (default: ``success_spread_mm``).
+        layouts: each agent's table layout (``"table4"`` or ``"table1"``), where known.
     """
 
     conditions: frozenset[str]
@@ -262,3 +265,4 @@ class RecordRules:
     shape: bool = False
     caps: Mapping[str, int] = field(default_factory=dict)
     criteria: Mapping[str, float] = field(default_factory=dict)
+    layouts: Mapping[str, str] = field(default_factory=dict)

@@ -1,0 +1,203 @@
+"""Records a damaged or crafted trials.jsonl cannot change: bounded parsing, the schema, the run's rules."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from electroloc_gym.bench.config import UNKNOWN_ENV_ID, BenchConfig
+from electroloc_gym.bench.records import REJECTED_FILE, load_records
+from electroloc_gym.bench.runner import record_rules, run_benchmark
+from electroloc_gym.bench.schema import RECORD_KEYS, TIMING_KEYS, TrialRecord
+from electroloc_gym.cli import main as cli_main
+
+TARGET = dict(agents=("rnd-wlk", "zero-crossing[max_observations=60]"), conditions=("fresh-steel-12.7",), trials=3,
+              seed=5, n_particles=300, max_observations=6, sensor_model="analytic")
+UNKNOWN = dict(agents=("rnd-wlk",), conditions=("fresh-steel-12.7",), trials=2, seed=5, n_particles=300,
+               max_observations=5, sensor_model="analytic", env_id=UNKNOWN_ENV_ID)
+
+
+def _cli(cfg: dict, out: Path) -> list[str]:
+    args = ["bench", "--agents", ",".join(cfg["agents"]), "--conditions", ",".join(cfg["conditions"]),
+            "--trials", str(cfg["trials"]), "--seed", str(cfg["seed"]), "--n-particles", str(cfg["n_particles"]),
+            "--max-observations", str(cfg["max_observations"]), "--sensor-model", cfg["sensor_model"],
+            "--backend", "serial", "--no-progress", "--out", str(out)]
+    return args + (["--env", "unknown-target"] if cfg.get("env_id") == UNKNOWN_ENV_ID else [])
+
+
+def _strip(summary: dict) -> list:
+    return [{k: v for k, v in r.items() if k not in ("decision_ms_median",)} for r in summary["rows"]]
+
+
+@pytest.fixture(scope="module", params=["target", "unknown"])
+def reference(request, tmp_path_factory):
+    cfg = TARGET if request.param == "target" else UNKNOWN
+    out = tmp_path_factory.mktemp(request.param)
+    summary = run_benchmark(BenchConfig(**cfg), out, backend="serial", progress=False, log=None)
+    return cfg, out, (out / "trials.jsonl").read_text().splitlines(keepends=True), summary
+
+
+def _crafted(reference, tmp_path: Path, line_no: int, new_line: str) -> Path:
+    cfg, out, lines, _ = reference
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    lines = list(lines)
+    lines[line_no] = new_line if new_line.endswith("\n") else new_line + "\n"
+    (run / "trials.jsonl").write_text("".join(lines))
+    return run
+
+
+def _edit(line: str, **changes) -> str:
+    rec = json.loads(line)
+    for k, v in changes.items():
+        if v is _DROP:
+            rec.pop(k)
+        elif k == "shape" and isinstance(v, dict) and isinstance(rec.get("shape"), dict):
+            rec["shape"] = {**rec["shape"], **v}
+        else:
+            rec[k] = v
+    return json.dumps(rec)
+
+
+_DROP = object()
+
+
+def _resume_and_check(reference, run: Path, capsys, message: str) -> None:
+    """The crafted line is set aside by file and line, run again, and the summary is the reference's."""
+    cfg, _, lines, summary = reference
+    (run / "table.md").write_text("stale table")
+    assert cli_main([*_cli(cfg, run), "--resume"]) == 0
+    captured = capsys.readouterr()
+    err = captured.out + captured.err
+    assert f"{run / 'trials.jsonl'}:1: " in err and message in err, err
+    assert "Traceback" not in err
+    assert _strip(json.loads((run / "summary.json").read_text())) == _strip(summary)
+    assert (run / "table.md").read_text() != "stale table"
+    assert len((run / REJECTED_FILE).read_text().splitlines()) == 1
+
+
+# ---- the reproducers ---------------------------------------------------------------------------------------
+def test_a_wrong_type_inside_shape_is_set_aside(reference, tmp_path, capsys) -> None:
+    if reference[0] is not UNKNOWN:
+        pytest.skip("the unknown-target env's records")
+    run = _crafted(reference, tmp_path, 0, _edit(reference[2][0], shape={"radius_estimate_mm": "big"}))
+    _resume_and_check(reference, run, capsys, "'shape' must be null or an object with exactly the keys")
+
+
+def test_an_unknown_target_record_without_shape_is_set_aside(reference, tmp_path, capsys) -> None:
+    if reference[0] is not UNKNOWN:
+        pytest.skip("the unknown-target env's records")
+    run = _crafted(reference, tmp_path, 0, _edit(reference[2][0], shape=_DROP))
+    _resume_and_check(reference, run, capsys, "'shape' must be the identification results")
+
+
+@pytest.mark.parametrize("crafted,message", [
+    ("[" * 100_000, "a line longer than 16384 characters"),
+    ("[" * 1000 + "]" * 1000, "nested deeper than 8 levels"),
+    ('{"trial": ' + "9" * 5001 + "}", "an integer of 5001 digits (at most 24)"),
+    ('{"trial": 1e999999}', "the number 1e999999 overflows"),
+    ('{"trial": NaN}', "NaN (not strict JSON)"),
+    ("x" * 20_000, "characters (at most 16384)"),
+])
+def test_parsing_is_bounded(reference, tmp_path, capsys, crafted, message) -> None:
+    if reference[0] is not TARGET:
+        pytest.skip("once")
+    run = _crafted(reference, tmp_path, 0, crafted)
+    _resume_and_check(reference, run, capsys, message)
+
+
+@pytest.mark.parametrize("changes,message", [
+    ({"observations": 1000}, "≠ 'observations' − 1 = 999"),
+    ({"observations": 1000, "decisions": 999}, "'observations' 1000 exceeds the cap of 6"),
+    ({"error_mm": -5}, "'error_mm' must be a distance in [0, 2000] mm"),
+    ({"agent": "evil"}, "agent 'evil' is not one of the run's"),
+    ({"trial": 7}, "trial 7 is outside the run's range 0–2"),
+    ({"layout": "table1", "_failed": True}, "layout 'table1', but agent 'rnd-wlk' reports to 'table4'"),
+    ({"spread_mm": 50.0, "success": True, "ended_by": "success", "observations": 5, "decisions": 4},
+     "vs the criterion 10.0 mm"),
+    ({"extra": 1}, "unknown key(s) ['extra']"),
+])
+def test_impossible_records_are_set_aside(reference, tmp_path, capsys, changes, message) -> None:
+    cfg, _, lines, _ = reference
+    if cfg is not TARGET:
+        pytest.skip("the target env's records")
+    failed = changes.pop("_failed", False)
+    n = next(i for i, line in enumerate(lines)
+             if json.loads(line)["agent"] == "rnd-wlk" and (not failed or not json.loads(line)["success"]))
+    crafted = _edit(lines[n], **changes)
+    lines = [lines[n], *lines[:n], *lines[n + 1:]]  # the crafted record first: line 1
+    run = _crafted((cfg, reference[1], lines, reference[3]), tmp_path, 0, crafted)
+    _resume_and_check(reference, run, capsys, message)
+
+
+def test_summary_and_table_are_written_together_or_not_at_all(reference, tmp_path, monkeypatch) -> None:
+    cfg, out, _, _ = reference
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    import electroloc_gym.bench.tables as tables
+
+    def broken(summary):
+        raise RuntimeError("table failed")
+
+    monkeypatch.setattr(tables, "render_table_md", broken)
+    with pytest.raises(RuntimeError, match="table failed"):
+        run_benchmark(BenchConfig(**cfg), run, backend="serial", progress=False, log=None, resume=True)
+    assert not any((run / name).exists() for name in ("summary.json", "table.md", "steps.png"))
+
+
+# ---- properties --------------------------------------------------------------------------------------------
+_ANY = st.one_of(st.none(), st.booleans(), st.integers(min_value=-2**70, max_value=2**70),
+                 st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=8),
+                 st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=3),
+                 st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
+#: Fields whose other values can be valid on their own: accepted only inside their documented range.
+_LOOSE = {"start": lambda v: isinstance(v, list) and len(v) == 2 and all(
+              isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= 1000 for x in v),
+          "agent_label": lambda v: isinstance(v, str) and 0 < len(v) <= 2000,
+          **{k: (lambda v: v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
+                                         and 0 <= v <= 86_400e3)) for k in TIMING_KEYS}}
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_every_field_is_checked_on_resume(reference, tmp_path, data) -> None:
+    cfg, out, lines, _ = reference
+    config = BenchConfig(**cfg)
+    rules = _rules(cfg)
+    table4 = [i for i, line in enumerate(lines) if json.loads(line)["layout"] == "table4"]  # every field pinned
+    n = data.draw(st.sampled_from(table4), label="line")
+    key = data.draw(st.sampled_from(RECORD_KEYS), label="field")
+    original = json.loads(lines[n])
+    value = data.draw(_ANY, label="value")
+    if value == original.get(key) and type(value) is type(original.get(key)):
+        return
+    crafted = dict(original, **{key: value})
+    path = tmp_path / f"trials-{key}.jsonl"
+    path.write_text("".join([json.dumps(crafted) + "\n", *lines[:n], *lines[n + 1:]]))
+    loaded = load_records(path, config, rules)
+    kept = list(loaded.records.values())
+    assert len(kept) + len(loaded.rejected) + len(loaded.foreign) == len(lines)
+    accepted = crafted in kept
+    if key in _LOOSE:
+        assert not accepted or _LOOSE[key](value)
+    else:
+        assert not accepted, (key, value)
+
+
+def _rules(cfg: dict):
+    return record_rules(BenchConfig(**cfg))
+
+
+def test_what_the_worker_writes_passes_its_own_schema(reference) -> None:
+    _, _, lines, _ = reference
+    rules = _rules(reference[0])
+    for line in lines:
+        rec = TrialRecord.from_json(json.loads(line))
+        assert rec.problem(rules) is None and rec.to_json() == json.loads(line)
+        assert rec.error_mm is None or math.isclose(rec.error_mm, math.dist(rec.estimate, rec.target))
