@@ -6,10 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
-pytest.importorskip("rl_zoo3")
-pytest.importorskip("rliable")
+import rl_zoo3  # noqa: E402,F401
+import rliable  # noqa: E402,F401
 
 ROOT = Path(__file__).resolve().parents[1]
 
