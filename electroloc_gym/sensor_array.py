@@ -58,6 +58,7 @@ __all__ = [
     "array_reading",
     "array_noisy_reading",
     "pair_baseline_V",
+    "detection_coverage",
 ]
 
 #: The named layouts (:func:`named_layout`).
@@ -313,15 +314,28 @@ def pair_baseline_V(layout: SensorLayout) -> NDArray[np.float64]:
     return np.zeros(layout.n_pairs) if layout.subtract_baseline else layout.baselines_V
 
 
-def _general_pair(condition: Condition, electrodes: NDArray[np.float64], emitters: NDArray[np.float64],
-                  off: NDArray[np.float64], a: NDArray[np.float64], chi: NDArray[np.float64]) -> NDArray[np.float64]:
-    """s·(δV(e1) − δV(e2)) (V, before the gain) of one pair for spheres at ``off`` (..., 2), float64 (Eq. 4, 7)."""
+def _target_field(condition: Condition, emitters: NDArray[np.float64], off: NDArray[np.float64],
+                  a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The sphere centres c (..., 3), A + E + O below the electrodes (§6.7), and the field E_f(c) (..., 3) of the
+    emitters (+, −) (2, 2), V/mm (Eq. 7).
+    """
     g = condition.geometry
     depth = (a + g.electrode_radius_mm) + g.clearance_mm
     x, y = np.broadcast_arrays(off[..., 0], off[..., 1], depth)[:2]
     centre = np.stack([x, y, -np.broadcast_to(depth, x.shape)], axis=-1)
     emit = _points3(emitters)
-    field_V_per_mm = physics.emitter_field(centre, emit[0], emit[1], g.emitter_voltage_V, g.electrode_radius_mm)
+    return centre, physics.emitter_field(centre, emit[0], emit[1], g.emitter_voltage_V, g.electrode_radius_mm)
+
+
+def _general_pair(condition: Condition, electrodes: NDArray[np.float64], emitters: NDArray[np.float64],
+                  off: NDArray[np.float64], a: NDArray[np.float64], chi: NDArray[np.float64],
+                  target_field: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> NDArray[np.float64]:
+    """s·(δV(e1) − δV(e2)) (V, before the gain) of one pair for spheres at ``off`` (..., 2), float64 (Eq. 4, 7).
+
+    ``target_field``: :func:`_target_field`'s result for these emitters, when already computed (pairs that share
+    the carriage's emitters share it).
+    """
+    centre, field_V_per_mm = _target_field(condition, emitters, off, a) if target_field is None else target_field
     elec = _points3(electrodes)
     dv = (physics.sphere_perturbation(elec[0], centre, a, chi, field_V_per_mm)
           - physics.sphere_perturbation(elec[1], centre, a, chi, field_V_per_mm))
@@ -353,10 +367,15 @@ def array_reading(condition: Condition, layout: SensorLayout, offsets_mm: ArrayL
     base = pair_baseline_V(layout)
     out = np.empty((layout.n_pairs,) + np.broadcast_shapes(off.shape[:-1], a.shape, x.shape), dtype=dtype)
     elec, emit = layout.electrodes, layout.emitters
+    shared = None  # the carriage's emitters' field at the spheres, computed once for every pair in it
     for k, centre in enumerate(layout.paper_unit_centres):
         if centre is not None:
             shifted = off if centre == (0.0, 0.0) else off - np.asarray(centre, dtype=dtype)
             phi = sphere_reading(condition, shifted, a, x, saturate=False)
+        elif layout.emitters_mm is None:
+            if shared is None:
+                shared = _target_field(condition, emit[k], off.astype(np.float64), a)
+            phi = _general_pair(condition, elec[k], emit[k], off.astype(np.float64), a, x, shared) * gain
         else:
             phi = _general_pair(condition, elec[k], emit[k], off.astype(np.float64), a, x) * gain
         if base[k] != 0.0:
@@ -376,3 +395,17 @@ def array_noisy_reading(condition: Condition, layout: SensorLayout, offsets_mm: 
     """
     mean = array_reading(condition, layout, np.asarray(offsets_mm, dtype=np.float64), saturate=False, **sphere)
     return saturated_reading(mean, rng.normal(0.0, condition.noise_std_V, size=mean.shape), condition.saturation_V)
+
+
+def detection_coverage(condition: Condition, layout: SensorLayout, threshold_sigmas: float = 2.0,
+                       n_grid: int = 121) -> float:
+    """Fraction of carriage positions (uniform in the start box) from which at least one pair's noise-free reading
+    exceeds ``threshold_sigmas``·G·σ_s: the array's analogue of
+    :func:`electroloc_gym.conditions.start_box_coverage` (equal to it for ``"single"``).
+    """
+    s = condition.start_half_width_mm
+    g = np.linspace(-s, s, n_grid)
+    gx, gy = np.meshgrid(g, g, indexing="ij")
+    off = np.asarray(condition.target_xy_mm) - np.stack([gx, gy], axis=-1)
+    signal = np.abs(array_reading(condition, layout, off))
+    return float(np.mean(np.any(signal > threshold_sigmas * condition.noise_std_V, axis=0)))

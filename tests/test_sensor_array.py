@@ -272,21 +272,23 @@ def test_exact_posterior_is_the_same_at_once_or_one_by_one() -> None:
     assert max(dropped) > 0.05  # a missing reading is seen: the comparison can fail
 
 
-def _filter_trials(seed: int, trials: int, n_particles: int, readings_used: int, at_once: bool) -> np.ndarray:
+def _filter_trials(seed: int, trials: int, n_particles: int, readings_used: int, at_once: bool,
+                   condition: str = FRESH, signal: str = "fitted") -> np.ndarray:
     """Posterior (mean x, mean y, spread) of the grid-2x2 array's four readings over ``trials`` fixed-seed trials."""
-    c = get_condition(FRESH)
+    c = get_condition(condition, signal)
+    half = c.allowed_half_width_mm
     layout = named_layout("grid-2x2")
     model = ArrayAnalyticSensorModel(c, layout)
     gens = [[np.random.default_rng(s) for s in np.random.SeedSequence([seed, i]).spawn(3)] for i in range(trials)]
     carriage = np.array([g[0].uniform(-40, 40, 2) for g in gens])
     readings = np.stack([array_noisy_reading(c, layout, -p, g[0]) for p, g in zip(carriage, gens)])
-    clouds = np.stack([g[1].uniform(-50, 50, (2, n_particles)) for g in gens]).astype(np.float32)
+    clouds = np.stack([g[1].uniform(-half, half, (2, n_particles)) for g in gens]).astype(np.float32)
     car32 = carriage.astype(np.float32)
 
     def pair_loglik(j: int, cl: np.ndarray) -> np.ndarray:
         return model.pair_log_likelihood(j, readings[:, j, None], cl.transpose(0, 2, 1) - car32[:, None, :])
 
-    mean, cov = assimilate_readings(pair_loglik, readings_used, clouds, np.full(trials, 50.0), [g[2] for g in gens],
+    mean, cov = assimilate_readings(pair_loglik, readings_used, clouds, np.full(trials, half), [g[2] for g in gens],
                                     at_once=at_once)
     return np.column_stack([mean, np.sqrt(cov[:, 0, 0] + cov[:, 1, 1])])
 
@@ -303,3 +305,28 @@ def test_particle_filter_at_once_and_one_by_one_agree_in_distribution() -> None:
         assert stats.ks_2samp(at_once[:, j], one_by_one[:, j]).pvalue > 0.01
     assert stats.ks_2samp(one_by_one[:, 2], control[:, 2]).pvalue < 0.01
     assert not np.array_equal(at_once, one_by_one)  # really two different filters
+
+
+def test_particle_filter_sharp_posterior_one_by_one_is_wider() -> None:
+    """Where four readings pin the target down (the stronger "coverage" signal, 38.1 mm spheres), the filter is
+    not commutative in its spread: one by one, every update adds the jitter's 1 mm² per axis, so the posterior
+    spread is wider than fused at once (where one resampling of a uniform cloud also leaves few distinct
+    particles); the estimate itself (mean x, y) still has the same distribution.
+    """
+    kw = dict(condition="salt-delrin-38.1", signal="coverage")
+    at_once = _filter_trials(102, 80, 1000, 4, True, **kw)
+    one_by_one = _filter_trials(102, 80, 1000, 4, False, **kw)
+    for j in range(2):
+        assert stats.ks_2samp(at_once[:, j], one_by_one[:, j]).pvalue > 0.01
+    assert stats.ks_2samp(at_once[:, 2], one_by_one[:, 2]).pvalue < 0.01
+    assert np.median(one_by_one[:, 2]) > np.median(at_once[:, 2])
+
+
+def test_detection_coverage_of_single_is_the_conditions() -> None:
+    from electroloc_gym.conditions import start_box_coverage
+    from electroloc_gym.sensor_array import detection_coverage
+
+    for name in ("fresh-steel-12.7", "salt-delrin-38.1"):
+        c = get_condition(name)
+        assert detection_coverage(c, named_layout("single")) == start_box_coverage(c)
+        assert detection_coverage(c, named_layout("ring-8")) > start_box_coverage(c)
