@@ -15,12 +15,15 @@ for bit.
   that is the paper's unit translated by c_k (``"single"``, ``"grid-2x2"``) that table *is* the paper's
   calibration (the same noise-free grid, cached), looked up at ``offsets − c_k``; for a pair in the carriage's
   shared field (``"line-4"``, ``"ring-8"``) its reading is not a translate of the paper's, so its own noisy
-  readings fill the table (``reading_fn``). Centring the grid on the pair keeps its response, which falls off
-  with the distance from the pair, inside the grid's ±2H. Pair 0 is calibrated with ``seed`` (so
+  readings fill the table (``reading_fn``; its noise-free grid, :func:`pair_noise_free_grid`, is cached per
+  condition, pair and protocol). Centring the grid on the pair keeps its response, which falls off with the
+  distance from the pair, inside the grid's ±2H. Pair 0 is calibrated with ``seed`` (so
   ``"single"`` is today's model bit for bit), pair k ≥ 1 with :func:`pair_seeds`' independent seeds.
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -34,11 +37,13 @@ from electroloc_gym.sensor_models.calibrated import (
     SENSOR_MODEL_NAMES,
     CalibratedSensorModel,
     CalibrationProtocol,
+    calibration_grid_for,
     make_sensor_model,
 )
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
 
-__all__ = ["ArrayAnalyticSensorModel", "ArrayCalibratedSensorModel", "make_array_sensor_model", "pair_seeds"]
+__all__ = ["ArrayAnalyticSensorModel", "ArrayCalibratedSensorModel", "make_array_sensor_model", "pair_seeds",
+           "pair_noise_free_grid"]
 
 
 def pair_seeds(seed: int, n_pairs: int) -> tuple[int, ...]:
@@ -125,14 +130,14 @@ class ArrayCalibratedSensorModel:
         self.pairs: tuple[CalibratedSensorModel, ...] = tuple(pairs)
 
     def _reading_fn(self, k: int):
-        """Pair k's calibration readings at grid offsets u (relative to its centre): noise from the quantile
-        table, as :func:`~electroloc_gym.sensor.calibration_readings`.
+        """Pair k's calibration readings: its cached noise-free grid (:func:`pair_noise_free_grid`) plus noise from
+        the quantile table, as :func:`~electroloc_gym.sensor.calibration_readings`.
         """
-        centre = self.centres_mm[k]
-        sub = self.layout.pair(k)
+        mean = pair_noise_free_grid(self.condition, self.layout.pair(k), self.protocol)
 
         def reading(u: NDArray, rng: np.random.Generator) -> NDArray:
-            mean = array_reading(self.condition, sub, np.asarray(u, dtype=np.float64) + centre, saturate=False)[0]
+            if np.shape(u)[:-1] != mean.shape:
+                raise ValueError(f"calibration offsets of shape {np.shape(u)} do not match the grid {mean.shape}")
             return add_calibration_noise(self.condition, mean, rng)
 
         return reading
@@ -157,6 +162,21 @@ class ArrayCalibratedSensorModel:
     def pair_log_likelihood(self, k: int, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
         """Log N(Φ_k; mean_k, std_k²) (...) of pair k's reading alone, from its table (one-by-one fusion)."""
         return self.pairs[k].log_likelihood(reading_V, self._pair_offsets(offsets_mm, k))
+
+
+@functools.lru_cache(maxsize=64)
+def pair_noise_free_grid(condition: Condition, pair: SensorLayout, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
+                         ) -> NDArray[np.float64]:
+    """A one-pair layout's calibration readings without noise or clip, (samples, n, n), V, on the grid of
+    ``protocol`` laid over ``u = target − carriage − centre`` (the same for every seed; cached, read-only).
+    """
+    grid = calibration_grid_for(condition, protocol)
+    gx, gy = np.meshgrid(grid, grid, indexing="ij")
+    u = np.stack([gx, gy], axis=-1) + pair.centres_mm[0]
+    mean = np.broadcast_to(array_reading(condition, pair, u, saturate=False)[0],
+                           (protocol.samples_per_point, grid.size, grid.size)).copy()
+    mean.flags.writeable = False
+    return mean
 
 
 def make_array_sensor_model(kind: str, condition: Condition, layout: SensorLayout, seed: int = 0,
