@@ -25,9 +25,11 @@ pair, ``δV`` the target's induced dipole (Eq. 4) in the field of the pair's emi
 :mod:`electroloc_gym.physics` (``Δφ_nt,k`` is 0, or below :data:`BASELINE_TOLERANCE_V`, or subtracted). A pair
 that is the paper's unit translated by c (electrodes c ± (0, L/2), emitters c ± (L/2, 0)) is computed by
 :func:`electroloc_gym.sensor.sphere_reading` at ``offsets − c``, the compiled fast path: the ``"single"``
-layout's numbers are today's sensor's bit for bit. Other pairs use the physics module's general
-:func:`~electroloc_gym.physics.emitter_field` and :func:`~electroloc_gym.physics.sphere_perturbation` (tested
-equal to the fast path on the paper's pair).
+layout's numbers are today's sensor's bit for bit. Other pairs are one compiled pass of the same
+equations for electrodes and emitters anywhere (:func:`electroloc_gym.kernels.array.general_pair_difference`),
+tested equal to the physics module's :func:`~electroloc_gym.physics.emitter_field` +
+:func:`~electroloc_gym.physics.sphere_perturbation` (:func:`_general_pair`), which is also tested equal to the
+fast path on the paper's pair.
 
 Offsets are ``target − carriage centre`` (..., 2), mm; readings come out with the pairs first, (K, ...), V.
 """
@@ -44,6 +46,7 @@ from numpy.typing import ArrayLike, NDArray
 from electroloc_gym import physics
 from electroloc_gym.apparatus import Geometry, check_finite
 from electroloc_gym.conditions import Condition
+from electroloc_gym.kernels.array import general_pair_difference
 from electroloc_gym.sensor import saturated_reading, sphere_reading
 
 __all__ = [
@@ -314,28 +317,17 @@ def pair_baseline_V(layout: SensorLayout) -> NDArray[np.float64]:
     return np.zeros(layout.n_pairs) if layout.subtract_baseline else layout.baselines_V
 
 
-def _target_field(condition: Condition, emitters: NDArray[np.float64], off: NDArray[np.float64],
-                  a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The sphere centres c (..., 3), A + E + O below the electrodes (§6.7), and the field E_f(c) (..., 3) of the
-    emitters (+, −) (2, 2), V/mm (Eq. 7).
+def _general_pair(condition: Condition, electrodes: NDArray[np.float64], emitters: NDArray[np.float64],
+                  off: NDArray[np.float64], a: NDArray[np.float64], chi: NDArray[np.float64]) -> NDArray[np.float64]:
+    """s·(δV(e1) − δV(e2)) (V, before the gain) of one pair for spheres at ``off`` (..., 2) through the physics
+    module's general functions (Eq. 4, 7), float64: the reference the compiled pass is tested against.
     """
     g = condition.geometry
     depth = (a + g.electrode_radius_mm) + g.clearance_mm
     x, y = np.broadcast_arrays(off[..., 0], off[..., 1], depth)[:2]
     centre = np.stack([x, y, -np.broadcast_to(depth, x.shape)], axis=-1)
     emit = _points3(emitters)
-    return centre, physics.emitter_field(centre, emit[0], emit[1], g.emitter_voltage_V, g.electrode_radius_mm)
-
-
-def _general_pair(condition: Condition, electrodes: NDArray[np.float64], emitters: NDArray[np.float64],
-                  off: NDArray[np.float64], a: NDArray[np.float64], chi: NDArray[np.float64],
-                  target_field: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> NDArray[np.float64]:
-    """s·(δV(e1) − δV(e2)) (V, before the gain) of one pair for spheres at ``off`` (..., 2), float64 (Eq. 4, 7).
-
-    ``target_field``: :func:`_target_field`'s result for these emitters, when already computed (pairs that share
-    the carriage's emitters share it).
-    """
-    centre, field_V_per_mm = _target_field(condition, emitters, off, a) if target_field is None else target_field
+    field_V_per_mm = physics.emitter_field(centre, emit[0], emit[1], g.emitter_voltage_V, g.electrode_radius_mm)
     elec = _points3(electrodes)
     dv = (physics.sphere_perturbation(elec[0], centre, a, chi, field_V_per_mm)
           - physics.sphere_perturbation(elec[1], centre, a, chi, field_V_per_mm))
@@ -367,17 +359,20 @@ def array_reading(condition: Condition, layout: SensorLayout, offsets_mm: ArrayL
     base = pair_baseline_V(layout)
     out = np.empty((layout.n_pairs,) + np.broadcast_shapes(off.shape[:-1], a.shape, x.shape), dtype=dtype)
     elec, emit = layout.electrodes, layout.emitters
-    shared = None  # the carriage's emitters' field at the spheres, computed once for every pair in it
+    g = condition.geometry
+    strength = x * (a * a * a)
+    depth = (a + g.electrode_radius_mm) + g.clearance_mm
+    drive = g.emitter_voltage_V * g.electrode_radius_mm
     for k, centre in enumerate(layout.paper_unit_centres):
         if centre is not None:
             shifted = off if centre == (0.0, 0.0) else off - np.asarray(centre, dtype=dtype)
             phi = sphere_reading(condition, shifted, a, x, saturate=False)
-        elif layout.emitters_mm is None:
-            if shared is None:
-                shared = _target_field(condition, emit[k], off.astype(np.float64), a)
-            phi = _general_pair(condition, elec[k], emit[k], off.astype(np.float64), a, x, shared) * gain
-        else:
-            phi = _general_pair(condition, elec[k], emit[k], off.astype(np.float64), a, x) * gain
+        else:  # Eq. 4 + 7 for this pair: the compiled pass, equal to _general_pair's (tested)
+            (px, py), (nx, ny) = emit[k]
+            (ax, ay), (bx, by) = elec[k]
+            phi = general_pair_difference(off[..., 0].astype(np.float64), off[..., 1].astype(np.float64), depth,
+                                          strength, drive, px, py, nx, ny, ax, ay, bx, by)
+            phi = phi * (condition.signal_scale * gain)
         if base[k] != 0.0:
             phi = phi + base[k] * gain
         out[k] = phi

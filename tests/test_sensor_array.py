@@ -80,6 +80,26 @@ def test_general_physics_path_equals_compiled_path() -> None:
             np.testing.assert_allclose(general, fast, rtol=1e-12, atol=1e-12 * np.abs(fast).max())
 
 
+def test_compiled_general_pairs_equal_the_physics_module() -> None:
+    """Pairs in the carriage's field and explicit pairs anywhere (own emitters, front end): the compiled pass of
+    array_reading equals the physics module's emitter_field + sphere_perturbation.
+    """
+    from electroloc_gym.sensor_array import _general_pair
+
+    c = get_condition("salt-steel-38.1")
+    off = _offsets(8, 3000)
+    radii = np.random.default_rng(9).uniform(5.0, 20.0, 3000)
+    chis = np.random.default_rng(10).choice([1.0, -0.5], 3000)
+    explicit = SensorLayout([[[12.0, 40.0], [-30.0, -20.0]], [[70.0, 10.0], [50.0, 60.0]]],
+                            emitters_mm=[[[0.0, 0.0], [30.0, 0.0]], [[-60.0, 0.0], [-60.0, 40.0]]],
+                            subtract_baseline=True)
+    for layout in (named_layout("line-4"), named_layout("ring-8"), explicit):
+        got = array_reading(c, layout, off, radius_mm=radii, chi=chis, saturate=False)
+        for k in range(layout.n_pairs):
+            ref = _general_pair(c, layout.electrodes[k], layout.emitters[k], off, radii, chis) * c.amplifier.gain
+            np.testing.assert_allclose(got[k], ref, rtol=1e-11, atol=1e-12 * np.abs(ref).max())
+
+
 def test_grid_2x2_is_four_stationary_copies_of_the_paper_sensor() -> None:
     """§7's four stationary pairs: unit k of the array at carriage p reads what the paper's sensor reads at p + c_k,
     and the array's likelihood of its four readings is the sum of the moving sensor's four likelihoods.

@@ -11,8 +11,11 @@ same posterior. Two forms:
   once to the summed log-likelihood, or K times, once per reading. The resampling and the jitter make the two
   differ per seed; benchmarks/commutativity.py compares their distributions.
 
-No new compiled loop is needed: the sum over pairs is elementwise additions in pair order
-(:func:`sum_over_pairs`, IEEE-exact and CPU-independent), and each update is the existing kernel.
+The sum over pairs needs no compiled loop: elementwise additions in pair order (:func:`sum_over_pairs`) are
+IEEE-exact and CPU-independent, and each update is the existing kernel. One compiled loop is here,
+:func:`general_pair_difference`: Eq. 4 and Eq. 7 for a pair of electrodes anywhere in the field of any two
+emitters, in one elementwise pass (the general counterpart of the paper's pair's fast path in
+:mod:`electroloc_gym.physics`; tested equal to ``physics.emitter_field`` + ``physics.sphere_perturbation``).
 """
 
 from __future__ import annotations
@@ -20,15 +23,48 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from numba import vectorize
 from numpy.typing import NDArray
 
 from electroloc_gym.draws import normal_table, table_normal_indices
 from electroloc_gym.kernels.filter import loglik_assimilate
 
-__all__ = ["sum_over_pairs", "grid_posterior", "assimilate_readings"]
+__all__ = ["sum_over_pairs", "grid_posterior", "assimilate_readings", "general_pair_difference"]
 
 #: Histogram bins the filter kernel fills as it goes (unused here, but the kernel needs its buffer).
 _BINS = 8
+
+
+@vectorize(["float64(" + ", ".join(["float64"] * 13) + ")"], cache=True)
+def general_pair_difference(x, y, depth, strength, k, px, py, nx, ny, ax, ay, bx, by):  # pragma: no cover - compiled
+    """``strength · E_f(c)·[(a − c)/|a − c|³ − (b − c)/|b − c|³]`` (V) for a sphere centre c = (x, y, −depth) (mm),
+    the emitters ±k (V·mm, = V_e·E) at (px, py, 0) and (nx, ny, 0), the electrodes a = (ax, ay, 0) and
+    b = (bx, by, 0): δV(a) − δV(b) of Eq. 4 in the field of Eq. 7, ``strength`` = χ·a³ (mm³). Exact operations
+    only (+ − × ÷, √), float64.
+    """
+    z2 = depth * depth
+    dxp = x - px
+    dyp = y - py
+    tp = dxp * dxp + dyp * dyp + z2
+    rp = np.sqrt(tp)
+    ip = 1.0 / (rp * rp * rp)
+    dxn = x - nx
+    dyn = y - ny
+    tn = dxn * dxn + dyn * dyn + z2
+    rn = np.sqrt(tn)
+    inn = 1.0 / (rn * rn * rn)
+    ex = k * (dxp * ip - dxn * inn)
+    ey = k * (dyp * ip - dyn * inn)
+    ez = k * ((-depth) * ip - (-depth) * inn)
+    dax = ax - x
+    day = ay - y
+    ta = dax * dax + day * day + z2
+    dbx = bx - x
+    dby = by - y
+    tb = dbx * dbx + dby * dby + z2
+    dot_a = ex * dax + ey * day + ez * depth
+    dot_b = ex * dbx + ey * dby + ez * depth
+    return strength * (dot_a / (ta * np.sqrt(ta)) - dot_b / (tb * np.sqrt(tb)))
 
 
 def sum_over_pairs(terms: Sequence[NDArray]) -> NDArray:

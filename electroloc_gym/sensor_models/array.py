@@ -89,7 +89,7 @@ class ArrayAnalyticSensorModel:
     def log_likelihood(self, readings_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
         """Σ_k log N(Φ_k; mean_k, (G·σ_s)²) (...) up to a constant; ``readings_V`` (K,) or (K, ...) broadcasting."""
         r = _pair_readings(readings_V, self.n_pairs)
-        mean = array_reading(self.condition, self.layout, offsets_mm)  # all pairs at once: a shared field once
+        mean = array_reading(self.condition, self.layout, offsets_mm)
         return sum_over_pairs([gaussian_log_likelihood(r[k], mean[k], self.noise_std_V) for k in range(self.n_pairs)])
 
     def pair_log_likelihood(self, k: int, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
