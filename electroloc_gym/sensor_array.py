@@ -98,7 +98,7 @@ def _pairs_array(value: Any, what: str) -> NDArray[np.float64]:
     except (TypeError, ValueError):
         raise _error(f"{what} must be a (K, 2, 2) array of electrode (x, y) offsets in mm, got {value!r}") from None
     if arr.ndim == 3 and arr.shape[0] == 0:
-        raise _error(f"needs at least one pair (K ≥ 1), got K = 0 {what}")
+        raise _error(f"{what} needs at least one pair (K ≥ 1), got K = 0")
     if arr.ndim != 3 or arr.shape[1:] != (2, 2):
         raise _error(f"{what} must have shape (K, 2, 2) — K pairs of two (x, y) points in mm — got shape {arr.shape}")
     if arr.shape[0] > MAX_PAIRS:

@@ -350,3 +350,18 @@ def test_detection_coverage_of_single_is_the_conditions() -> None:
         c = get_condition(name)
         assert detection_coverage(c, named_layout("single")) == start_box_coverage(c)
         assert detection_coverage(c, named_layout("ring-8")) > start_box_coverage(c)
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    (dict(emitters_mm=[[[5.0, 30.0], [-40.0, 30.0]]] * 2), "one emitter pair per sensing pair"),
+    (dict(emitters_mm=[[[0.0, 25.5], [-40.0, 30.0]]]), "overlap"),
+    (dict(reach_mm=20.0), "outside the carriage's reach"),
+    (dict(reach_mm=-1.0), "reach_mm must be"),
+    (dict(subtract_baseline="yes"), "subtract_baseline must be True or False"),
+    (dict(name=""), "name must be"),
+    (dict(geometry="paper"), "geometry must be a Geometry"),
+])
+def test_bad_layout_fields_raise_one_clear_error(kwargs: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match) as info:
+        SensorLayout([[[0.0, 25.0], [0.0, -25.0]]], **kwargs)
+    assert str(info.value).startswith("sensor_layout")
