@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from electroloc_gym.core.params import MAX_STEP_MM
 from electroloc_gym.envs.adapter import CoreEnv
+from electroloc_gym.sensor_array import SensorLayout
 
 __all__ = ["ElectroLocEnv"]
 
@@ -141,8 +142,22 @@ class ElectroLocEnv(CoreEnv):
         return self._state.target_mm[0].copy()
 
     @property
+    def sensor_layout(self) -> SensorLayout:
+        """The carriage's sensing pairs (K, 2, 2 electrode offsets in mm: ``.electrodes``, ``.n_pairs``)."""
+        return self._task.layout
+
+    @property
+    def fixed_carriage(self) -> bool:
+        """Whether the carriage never moves (the stationary array: every move is ignored)."""
+        return self.params.fixed_carriage
+
+    @property
     def move_bounds_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(lo, hi) moves, mm, within ±10 mm that keep the carriage in the allowed box (0 always inside)."""
+        """(lo, hi) moves, mm, within ±10 mm that keep the carriage in the allowed box (0 always inside; both 0
+        with ``fixed_carriage``).
+        """
+        if self.params.fixed_carriage:
+            return np.zeros(2), np.zeros(2)
         low, high = self.allowed_box_mm
         p = self._state.position_mm[0]
         lo = np.minimum(np.maximum(-MAX_STEP_MM, low - p), 0.0)
