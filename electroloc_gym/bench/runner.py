@@ -66,7 +66,8 @@ def _config_problem(stored: Any) -> str | None:
     """Why a parsed config.json cannot describe a run (None: it can)."""
     if not isinstance(stored, dict):
         return f"not a JSON object ({type(stored).__name__})"
-    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k != "gain_levels"]  # (added later)
+    later = ("gain_levels", "sensor_layout")  # keys added later
+    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k not in later]
     if missing:
         return f"missing key(s) {missing}"
     if isinstance(stored["seed"], bool) or not isinstance(stored["seed"], int):

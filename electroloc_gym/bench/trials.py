@@ -38,7 +38,7 @@ SHAPE_RECORD_KEYS = ("radius_estimate_mm", "radius_mean_mm", "radius_spread_mm",
                      "radius_error_frac", "p_conductor", "material_estimate", "material_correct", "chi_estimate",
                      "target_chi")
 # The bench owns these env kwargs; an agent's env_kwargs cannot override them.
-_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels")
+_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels", "sensor_layout")
 _ENVS: dict[tuple[Any, ...], Any] = {}
 
 
@@ -59,6 +59,8 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
         kwargs["target_draw"] = "condition"
     if spec.gain_levels is not None:
         kwargs["gain_levels"] = tuple(spec.gain_levels)
+    if spec.sensor_layout != "single":
+        kwargs["sensor_layout"] = spec.sensor_layout
     kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
                    if k not in _BENCH_ONLY_KWARGS})
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
