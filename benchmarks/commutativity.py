@@ -17,7 +17,7 @@ Across trials it compares the distributions of the posterior mean (x, y), its er
 spread √trace Σ: two-sample Kolmogorov–Smirnov (``scipy.stats.ks_2samp``) and a paired sign-flip permutation
 test of the mean difference (``scipy.stats.permutation_test``), at once against one by one and each against
 the exact posterior. A positive control (one reading dropped from the one-by-one filter) shows the tests'
-power. docs/sensor_array.md reports seed 0.
+power. docs/extensions.md ("A sensor array") reports seed 0.
 
     python benchmarks/commutativity.py --seed 0 --trials 200 --out commutativity.json
 """

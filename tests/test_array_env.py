@@ -233,3 +233,18 @@ def test_zero_crossing_refuses_an_array() -> None:
     env.reset(seed=0)
     with pytest.raises(ValueError, match="zero-crossing .*sensor_layout='single'"):
         make_agent("zero-crossing", seed=0).reset(env)
+
+
+def test_bench_sensor_layout_reaches_the_trials(tmp_path: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from electroloc_gym.cli import main
+
+    args = ["bench", "--sensor-layout", "ring-8", "--agents", "rnd-wlk", "--conditions", "fresh-steel-38.1",
+            "--trials", "2", "--n-particles", "300", "--sensor-model", "analytic", "--workers", "1",
+            "--backend", "serial", "--no-progress", "--out", str(tmp_path / "run")]
+    assert main(args) == 0
+    recs = [json.loads(line) for line in (tmp_path / "run" / "trials.jsonl").read_text().splitlines()]
+    assert len(recs) == 2 and all(r["sensor_layout"] == "ring-8" for r in recs)
+    assert main([*args[:-1], str(tmp_path / "other"), "--env", "global"]) == 2
+    assert "--sensor-layout applies to --env target" in capsys.readouterr().err

@@ -70,7 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="signal scale of the presets: fitted to Table 3's measured detection distances, "
                              "coverage (fitted × one factor matching §6.3's 78%% of starts inside the detection "
                              "region), or the paper's equations (scale 1); docs/fidelity.md compares them")
-    parser.add_argument("--sensor-layout", default="single", choices=list(LAYOUT_NAMES),
+    parser.add_argument("--sensor-layout", default=None, choices=list(LAYOUT_NAMES),
                         help="ElectroLoc-v0's sensing pairs (§7; observations = snapshots, K readings each)")
     parser.add_argument("--max-observations", type=int, default=35, help="observation cap of a trial (paper: 35)")
     parser.add_argument("--n-particles", type=int, default=None,
@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         n_particles = ENV_N_PARTICLES[env_id] if args.n_particles is None else args.n_particles
         if not agents:
             raise ValueError("--agents names no agent")
-        if args.sensor_layout != "single" and env_name != "target":
+        if args.sensor_layout is not None and env_name != "target":
             raise ValueError(f"--sensor-layout applies to --env target (ElectroLoc-v0), got --env {env_name}")
         conditions = (GLOBAL_CONDITION,) if is_global else tuple(resolve_conditions(args.conditions))
         if is_global:  # zero-crossing looks for one sphere; a learned policy must have been trained on this env

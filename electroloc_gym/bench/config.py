@@ -84,7 +84,8 @@ class BenchConfig:
         n_particles: particles of the belief (paper: 2500).
         env_id: the environment id.
         gain_levels: dynamic gain: the factors of the amplifier gain in the action (None: the preset gain).
-        sensor_layout: ElectroLoc-v0's named sensor layout (``electroloc_gym.sensor_array.LAYOUT_NAMES``).
+        sensor_layout: ElectroLoc-v0's named sensor layout (``electroloc_gym.sensor_array.LAYOUT_NAMES``), or
+            None: the env's default (the paper's pair).
     """
 
     agents: tuple[str, ...] = DEFAULT_AGENTS
@@ -97,7 +98,7 @@ class BenchConfig:
     n_particles: int = 2500
     env_id: str = "ElectroLoc-v0"
     gain_levels: tuple[float, ...] | None = None
-    sensor_layout: str = "single"
+    sensor_layout: str | None = None
 
     def __post_init__(self) -> None:
         if self.gain_levels is not None:
@@ -145,7 +146,7 @@ class TrialSpec:
     n_particles: int
     env_id: str = "ElectroLoc-v0"
     gain_levels: tuple[float, ...] | None = None
-    sensor_layout: str = "single"
+    sensor_layout: str | None = None
     #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
     trust_pickle: bool = False
 

@@ -162,6 +162,7 @@ _CHECKS: dict[str, tuple[Callable[[Any], bool], str]] = {
     "shape": (lambda v: v is None or isinstance(v, dict), "an object or null"),
     "gain_levels": (lambda v: v is None or (isinstance(v, list) and all(_is_num_or_none(g) for g in v)),
                     "a list of numbers or null"),
+    "sensor_layout": (lambda v: v is None or isinstance(v, str), "a layout name or null"),
 }
 assert set(_CHECKS) == set(RECORD_KEYS)
 

@@ -30,9 +30,9 @@ TIMING_KEYS = ("decision_ms_median", "decision_ms_mean", "wall_s")
 RECORD_KEYS = ("condition", "agent", "agent_label", "layout", "trial", "seed", "agent_seed", "success", "ended_by",
                "observations", "error_mm", "error_x_mm", "error_y_mm", "estimate", "target", "start", "spread_mm",
                "decisions", "decision_ms_median", "decision_ms_mean", "sensor_model", "signal", "max_observations",
-               "n_particles", "env_id", "wall_s", "shape", "gain_levels")
+               "n_particles", "env_id", "wall_s", "shape", "gain_levels", "sensor_layout")
 #: Keys a record may lack (records written before the key existed read as None).
-OPTIONAL_RECORD_KEYS = ("shape", "gain_levels")
+OPTIONAL_RECORD_KEYS = ("shape", "gain_levels", "sensor_layout")
 #: The unknown-target env's identification results in a record's ``"shape"`` (None elsewhere).
 SHAPE_RECORD_KEYS = ("radius_estimate_mm", "radius_mean_mm", "radius_spread_mm", "target_radius_mm",
                      "radius_error_frac", "p_conductor", "material_estimate", "material_correct", "chi_estimate",
@@ -59,7 +59,7 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
         kwargs["target_draw"] = "condition"
     if spec.gain_levels is not None:
         kwargs["gain_levels"] = tuple(spec.gain_levels)
-    if spec.sensor_layout != "single":
+    if spec.sensor_layout is not None:
         kwargs["sensor_layout"] = spec.sensor_layout
     kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
                    if k not in _BENCH_ONLY_KWARGS})
@@ -139,6 +139,7 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
         "wall_s": time.perf_counter() - t_start,
         "shape": _shape_record(info) if spec.env_id == UNKNOWN_ENV_ID else None,
         "gain_levels": None if spec.gain_levels is None else list(spec.gain_levels),
+        "sensor_layout": spec.sensor_layout,
     }
 
 
