@@ -137,6 +137,17 @@ def report(args: argparse.Namespace) -> None:
                      f"({100 * r['success_rate']:.0f} %) | {r['success_within_10mm']} | {r['error_median_mm']:.1f} | "
                      f"{r['error_mean_success_mm']:.1f} | {r['snapshots']:.1f} | {r['readings']:.1f} | "
                      f"{r['motions']:.1f} |")
+    ks = sorted({(r["K"], r["layout"]) for r in recs})
+    lines += ["", "The stationary array per condition: successes (those within 10 mm of the target) of the trials.", "",
+              "| condition | " + " | ".join(f"K = {k} {lay}" for k, lay in ks) + " |", "|---|" + "---|" * len(ks)]
+    for c in PRESET_NAMES:
+        cells = []
+        for _, lay in ks:
+            rs = [r for r in recs if r["agent"] == STATIONARY and r["layout"] == lay and r["condition"] == c]
+            ok = sum(r["success"] for r in rs)
+            good = sum(r["success"] and r["error_mm"] <= 10.0 for r in rs)
+            cells.append(f"{ok}/{len(rs)} ({good})")
+        lines.append(f"| {c} | " + " | ".join(cells) + " |")
     with open(args.table, "w", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
