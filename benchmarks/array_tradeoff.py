@@ -167,7 +167,8 @@ def report(args: argparse.Namespace) -> None:
             ax2.plot(ks, [100 * r["success_rate"] for r in sel], "o-", label=ag)
         for ax in (ax1, ax2):
             ax.set_xscale("log", base=2)
-            ax.set_xticks([1, 2, 4, 8], ["1", "2", "4", "8"])
+            names = {r["K"]: r["layout"] for r in rows}
+            ax.set_xticks(sorted(names), [f"{k}\n{names[k]}" for k in sorted(names)])
             ax.set_xlabel("sensing pairs K")
         ax1.set_ylabel("motions to localise (mean, successes)")
         ax2.set_ylabel("success (%)")
