@@ -196,7 +196,7 @@ class LookaheadAgent(BaselineAgent):
         disp = np.stack(d).reshape(len(steps), c * k, 1, 2)                       # (T, N, 1, 2)
         shifted = (x[None, None, :, :] - disp).reshape(-1, 2).astype(np.float32)
         mean, std = env.predicted_reading_model(shifted, np.zeros(2))
-        shape = (len(steps), c * k, x.shape[0])
+        shape = (len(steps), c * k, x.shape[0]) + np.shape(mean)[1:]  # a sensor array: K readings, last axis
         return np.asarray(mean).reshape(shape), np.asarray(std).reshape(shape), x
 
     def _readings_moving(self, x: NDArray, first: NDArray, cont: NDArray) -> tuple[NDArray, NDArray, list[NDArray]]:
@@ -233,6 +233,14 @@ class LookaheadAgent(BaselineAgent):
             clouds.append(q.transpose(1, 0, 2, 3).reshape(c * k, s, 2))
         return np.stack(means), np.stack(stds), clouds
 
+    def _pair_axis(self) -> tuple[int, ...]:
+        """() for one reading per step; (K,) for a sensor array of K pairs (each reading its own noise)."""
+        layout = getattr(self.env, "sensor_layout", None)
+        k = 1 if layout is None else layout.n_pairs
+        if k > 1 and self.closed:
+            raise ValueError("lookahead closed=True plans one reading per step; with a sensor array use closed=False")
+        return (k,) if k > 1 else ()
+
     def _first_moves(self) -> NDArray[np.float64]:
         """The first-move options (C, 2), mm: stay, the compass moves if asked, then uniform moves."""
         lo, hi = move_bounds_mm(self.env)
@@ -254,7 +262,7 @@ class LookaheadAgent(BaselineAgent):
         else:
             cont = self.rng.uniform(-MAX_STEP_MM, MAX_STEP_MM, size=(k, self.depth - 1, 2))
         hyp = self.rng.integers(0, x.shape[0], size=self.branches)
-        eps = self.rng.standard_normal((self.branches, self.depth))
+        eps = self.rng.standard_normal((self.branches, self.depth) + self._pair_axis())
         reader = self._readings_moving if moving else self._readings_static
         mean, std, clouds = reader(x, first, cont)
         if self.closed:

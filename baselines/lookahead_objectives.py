@@ -51,7 +51,13 @@ def _weighted_spread(w: NDArray, x: NDArray) -> NDArray[np.float64]:
 
 
 def _step_log_likelihoods(mu: NDArray, sd: NDArray, hyp: NDArray[np.intp], eps: NDArray) -> NDArray[np.float64]:
-    """(T, N, B, S) log-likelihood of every hypothesis under each future's t-th reading (up to a constant)."""
+    """(T, N, B, S) log-likelihood of every hypothesis under each future's t-th reading (up to a constant).
+
+    A sensor array's K readings per step (``mu``, ``sd`` (T, N, S, K), ``eps`` (B, T, K)): independent noises,
+    so the step's log-likelihood is the sum over the pairs.
+    """
+    if mu.ndim == 4:
+        return sum(_step_log_likelihoods(mu[..., q], sd[..., q], hyp, eps[..., q]) for q in range(mu.shape[-1]))
     z = mu[:, :, hyp] + sd[:, :, hyp] * eps.T[:, None, :]                                    # (T, N, B)
     r = (z[..., None] - mu[:, :, None, :]) / sd[:, :, None, :]                               # (T, N, B, S)
     return -0.5 * r * r - np.log(sd)[:, :, None, :]
@@ -74,12 +80,12 @@ def sequence_costs(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray | list
 
     Args:
         mean_V: (T, N, S) sensor-model mean of each hypothesis' reading after the t-th move of each of N
-            sequences, V.
-        std_V: (T, N, S) its std, V (> 0).
+            sequences, V; (T, N, S, K) with K readings per step (a sensor array).
+        std_V: (T, N, S) (or (T, N, S, K)) its std, V (> 0).
         particles_mm: the hypotheses after the sequence, (S, 2) or (N, S, 2) mm, or a list of T such
             arrays (the hypotheses after each move; ``"steps"`` needs the spread after every move).
         hyp: (B,) index of the hypothesis that generates each future's readings.
-        eps: (B, T) standard-normal noise of each future's readings.
+        eps: (B, T) (or (B, T, K)) standard-normal noise of each future's readings.
         objective: one of :data:`OBJECTIVES`.
         success_spread_mm: the env's success spread, mm (``"steps"``).
         tail: readings per unit of ``ln(s_T / success_spread_mm)`` in ``"steps"``' tail estimate (≥ 0).

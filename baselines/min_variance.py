@@ -117,8 +117,9 @@ def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArra
         particles: (M, 2) particle positions, mm, or (C, M, 2) positions after each option's move
             (hypotheses that move with the robot, global localisation).
         weights: (M,) prior weights (None: uniform, as right after the env's resampling).
-        mean_V: (C, M) sensor-model mean of each particle's reading under each option, V.
-        std_V: (C, M) sensor-model std, V (> 0).
+        mean_V: (C, M) sensor-model mean of each particle's reading under each option, V; or (C, M, K) with K
+            readings per step (a sensor array: their independent Gaussian likelihoods multiply).
+        std_V: (C, M) (or (C, M, K)) sensor-model std, V (> 0).
         voters: (V,) indices of the voting particles.
         n_moments: 4 (1, x, y, |x|²: enough for the variance) or 9 (up to |x|⁴).
         chunk_rows: voters per block of the (voters × M) likelihood matrix.
@@ -135,7 +136,8 @@ def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArra
     if n_moments not in (4, N_MOMENTS):
         raise ValueError(f"n_moments must be 4 or {N_MOMENTS}, got {n_moments!r}")
     x = np.asarray(particles, dtype=np.float64)
-    n_options, m = mean_V.shape
+    n_options, m = mean_V.shape[:2]
+    pairs = np.ndim(mean_V) == 3  # K readings per option: the exponent sums over the pairs
     if x.shape not in ((m, 2), (n_options, m, 2)) or np.shape(std_V) != mean_V.shape:
         raise ValueError(f"shapes disagree: particles {x.shape}, mean_V {mean_V.shape}, std_V {np.shape(std_V)}")
     w = np.full(m, 1.0 / m) if weights is None else np.asarray(weights, dtype=np.float64)
@@ -144,7 +146,7 @@ def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArra
     r2 = np.einsum("...i,...i->...", xc, xc)
     f32 = np.float32
     inv_s = 1.0 / np.asarray(std_V, dtype=np.float64)                          # (C, M)
-    g = inv_s * w                                                             # prior × Gaussian 1/σ
+    g = (np.prod(inv_s, axis=-1) if pairs else inv_s) * w                     # prior × Gaussian 1/σ
     cx, cy = xc[..., 0], xc[..., 1]
     if n_moments == 4:
         cols = [g, g * cx, g * cy, g * r2]
@@ -154,7 +156,9 @@ def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArra
     mu64 = np.asarray(mean_V, dtype=np.float64)
     mu64 = mu64 - 0.5 * (mu64.max(axis=1, keepdims=True) + mu64.min(axis=1, keepdims=True))  # z is shift-free
     half_k2 = 0.5 * inv_s**2                                                  # z²/2 = (a − b)²·k²/2
-    if kernel == "auto":
+    if pairs:
+        kernel = "difference"
+    elif kernel == "auto":
         kernel = "expanded" if float(np.max(mu64**2 * half_k2)) <= expanded_max_exponent else "difference"
     voters = np.asarray(voters, dtype=np.intp)
     n_vot = voters.size
@@ -178,17 +182,27 @@ def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArra
     else:
         k = np.sqrt(half_k2).astype(f32)                                      # z/√2 = (a − b)·k
         mu = mu64.astype(f32)
-        bk = mu * k                                                           # (C, M)
+        bk = mu * k                                                           # (C, M[, K])
+        if not pairs:  # one pair: a trailing axis of 1
+            k, mu, bk = k[..., None], mu[..., None], bk[..., None]
+        k, bk = np.ascontiguousarray(k.transpose(0, 2, 1)), np.ascontiguousarray(bk.transpose(0, 2, 1))  # (C, K, M)
         cap = f32(-exp_floor)
+        term = np.empty_like(buf)
         for c in range(n_options):
-            a = mu[c, voters]
+            a = mu[c, voters]                                                 # (V, K)
             kc, bkc, fc = k[c], bk[c], feats[c]
             for r0 in range(0, n_vot, rows):
                 r1 = min(r0 + rows, n_vot)
                 d = buf[: r1 - r0]
-                np.multiply(a[r0:r1, None], kc[None, :], out=d)   # a_v·k_i
-                np.subtract(d, bkc[None, :], out=d)                # (a_v − b_i)·k_i = z/√2
-                np.multiply(d, d, out=d)                           # z²/2
+                np.multiply(a[r0:r1, 0, None], kc[0][None, :], out=d)  # a_v·k_i
+                np.subtract(d, bkc[0][None, :], out=d)                 # (a_v − b_i)·k_i = z/√2
+                np.multiply(d, d, out=d)                               # z²/2
+                for q in range(1, kc.shape[0]):                        # further pairs: Σ_q z_q²/2
+                    t = term[: r1 - r0]
+                    np.multiply(a[r0:r1, q, None], kc[q][None, :], out=t)
+                    np.subtract(t, bkc[q][None, :], out=t)
+                    np.multiply(t, t, out=t)
+                    np.add(d, t, out=d)
                 np.minimum(d, cap, out=d)                          # clamp: exp(−60) ≈ 1e-26
                 np.negative(d, out=d)
                 np.exp(d, out=d)

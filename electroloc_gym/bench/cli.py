@@ -23,6 +23,7 @@ from electroloc_gym.bench.config import (
 from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
+from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = ["add_arguments", "run", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS", "MAX_OBSERVATIONS",
            "MAX_PARTICLES"]
@@ -81,6 +82,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="signal scale of the presets: fitted to Table 3's measured detection distances, "
                              "coverage (fitted × one factor matching §6.3's 78%% of starts inside the detection "
                              "region), or the paper's equations (scale 1); docs/fidelity.md compares them")
+    parser.add_argument("--sensor-layout", default=None, choices=list(LAYOUT_NAMES),
+                        help="ElectroLoc-v0's sensing pairs (§7; observations = snapshots, K readings each)")
     parser.add_argument("--max-observations", type=int, default=35, help="observation cap of a trial (paper: 35)")
     parser.add_argument("--n-particles", type=int, default=None,
                         help="particles of the belief (default: the env's, 2500 as the paper; unknown-target: 5000)")
@@ -157,6 +160,8 @@ def run(args: argparse.Namespace) -> int:
         n_particles = ENV_N_PARTICLES[env_id] if args.n_particles is None else args.n_particles
         if not agents:
             raise ValueError("--agents names no agent")
+        if args.sensor_layout is not None and env_name != "target":
+            raise ValueError(f"--sensor-layout applies to --env target (ElectroLoc-v0), got --env {env_name}")
         conditions = (GLOBAL_CONDITION,) if is_global else tuple(resolve_conditions(args.conditions))
         if is_global:  # zero-crossing looks for one sphere; a learned policy must have been trained on this env
             bad = [a for a in agents if not _runs_on_global(a)]
@@ -166,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
                              max_observations=args.max_observations, n_particles=n_particles,
-                             env_id=env_id, gain_levels=gain_levels)
+                             env_id=env_id, gain_levels=gain_levels, sensor_layout=args.sensor_layout)
         options = {} if args.address is None else {"address": args.address}
         run_benchmark(config, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
                       progress=not args.no_progress, backend_options=options, trust_pickle=args.trust_pickle)

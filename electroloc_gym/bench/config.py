@@ -63,7 +63,7 @@ GLOBAL_ENV_ID, GLOBAL_CONDITION = next((e.env_id, b.condition) for e, b in BENCH
 #: The unknown-target env (paper §7): the eight presets' sphere/water pairs, the sphere hidden from the agent.
 UNKNOWN_ENV_ID = BENCH_ENVS["unknown-target"][0].env_id
 #: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
-IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id", "gain_levels")
+IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id", "gain_levels", "sensor_layout")
 
 
 @dataclass(frozen=True)
@@ -84,6 +84,8 @@ class BenchConfig:
         n_particles: particles of the belief (paper: 2500).
         env_id: the environment id.
         gain_levels: dynamic gain: the factors of the amplifier gain in the action (None: the preset gain).
+        sensor_layout: ElectroLoc-v0's named sensor layout (``electroloc_gym.sensor_array.LAYOUT_NAMES``), or
+            None: the env's default (the paper's pair).
     """
 
     agents: tuple[str, ...] = DEFAULT_AGENTS
@@ -96,6 +98,7 @@ class BenchConfig:
     n_particles: int = 2500
     env_id: str = "ElectroLoc-v0"
     gain_levels: tuple[float, ...] | None = None
+    sensor_layout: str | None = None
 
     def __post_init__(self) -> None:
         if self.gain_levels is not None:
@@ -143,6 +146,7 @@ class TrialSpec:
     n_particles: int
     env_id: str = "ElectroLoc-v0"
     gain_levels: tuple[float, ...] | None = None
+    sensor_layout: str | None = None
     #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
     trust_pickle: bool = False
 
@@ -193,5 +197,6 @@ def make_trial_specs(config: BenchConfig, *, trust_pickle: bool = False) -> list
             for agent in config.agents:
                 specs.append(TrialSpec(cond, agent, k, env_seed, agent_seed, config.sensor_model, config.signal,
                                        config.max_observations, config.n_particles, config.env_id,
-                                       gain_levels=config.gain_levels, trust_pickle=trust_pickle))
+                                       gain_levels=config.gain_levels, sensor_layout=config.sensor_layout,
+                                       trust_pickle=trust_pickle))
     return specs

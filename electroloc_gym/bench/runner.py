@@ -74,7 +74,8 @@ def _config_problem(stored: Any) -> str | None:
     """Why a parsed config.json cannot describe a run (None: it can)."""
     if not isinstance(stored, dict):
         return f"not a JSON object ({type(stored).__name__})"
-    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k != "gain_levels"]  # (added later)
+    later = ("gain_levels", "sensor_layout")  # keys added later
+    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k not in later]
     if missing:
         return f"missing key(s) {missing}"
     if isinstance(stored["seed"], bool) or not isinstance(stored["seed"], int):
@@ -173,7 +174,7 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
 
     kwargs = bench_env_kwargs(config.env_id, agent, config.gain_levels, condition=config.conditions[0],
                               signal=config.signal, sensor_model=config.sensor_model, n_particles=config.n_particles,
-                              max_observations=config.max_observations)
+                              max_observations=config.max_observations, sensor_layout=config.sensor_layout)
     try:
         gym.make(config.env_id, **kwargs).close()
     except (TypeError, ValueError, MemoryError) as exc:

@@ -29,6 +29,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from electroloc_gym.agentspec import is_path_like, parse_agent_spec
+from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = ["TrialRecord", "RecordRules", "RECORD_KEYS", "OPTIONAL_RECORD_KEYS", "TIMING_KEYS", "SHAPE_RECORD_KEYS",
            "POSITION_BOUND_MM", "MAX_TEXT_CHARS"]
@@ -147,6 +148,8 @@ class TrialRecord:
     shape: dict[str, Any] | None = _f(_shape, f"null or an object with exactly the keys {list(SHAPE_RECORD_KEYS)} "
                                               f"in their ranges", optional=True)
     gain_levels: list[float] | None = _f(_gains, "null or a list of positive gain factors", optional=True)
+    sensor_layout: str | None = _f(lambda v: v is None or v in LAYOUT_NAMES, f"null or one of {list(LAYOUT_NAMES)}",
+                                   optional=True)
 
     @classmethod
     def from_json(cls, obj: Any) -> TrialRecord:

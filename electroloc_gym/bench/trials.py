@@ -34,7 +34,7 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
 
     kwargs = bench_env_kwargs(spec.env_id, agent, spec.gain_levels, condition=spec.condition, signal=spec.signal,
                               sensor_model=spec.sensor_model, n_particles=spec.n_particles,
-                              max_observations=spec.max_observations)
+                              max_observations=spec.max_observations, sensor_layout=spec.sensor_layout)
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
     if key not in _ENVS:
         if len(_ENVS) > 16:
@@ -103,6 +103,7 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
         "wall_s": time.perf_counter() - t_start,
         "shape": _shape_record(info) if spec.env_id == UNKNOWN_ENV_ID else None,
         "gain_levels": None if spec.gain_levels is None else list(spec.gain_levels),
+        "sensor_layout": spec.sensor_layout,
     }).to_json()
 
 

@@ -161,6 +161,12 @@ class EnvParams:
         gain_levels: dynamic gain (§7): factors (positive, distinct) of the condition's amplifier gain G
             among which the agent picks the gain of every reading (the action gets a gain component);
             None: every reading at G. Reset reads at the level nearest to 1.
+        sensor_layout: localize: the carriage's sensing pairs (§7), a name of
+            :data:`electroloc_gym.sensor_array.LAYOUT_NAMES`, a
+            :class:`~electroloc_gym.sensor_array.SensorLayout`, or (K, 2, 2) electrode offsets in mm
+            (stored as a ``SensorLayout``); ``"single"``: the paper's one pair.
+        fixed_carriage: localize: the carriage never moves (the stationary array); the action space is
+            unchanged and its moves are ignored.
     """
 
     task: str = TASKS[0]
@@ -183,6 +189,8 @@ class EnvParams:
     contrast: str = "binary"
     eev_radii_mm: Any = DEFAULT_EEV_RADII_MM
     gain_levels: Any = None
+    sensor_layout: Any = "single"
+    fixed_carriage: bool = False
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -209,6 +217,15 @@ class EnvParams:
         put("max_observations", check_int("max_observations", self.max_observations, 1))
         put("success_spread_mm", check_float("success_spread_mm", self.success_spread_mm, 0.0))
         put("randomize_target", check_bool("randomize_target", self.randomize_target))
+        put("fixed_carriage", check_bool("fixed_carriage", self.fixed_carriage))
+        if not isinstance(self.sensor_layout, str):
+            from electroloc_gym.sensor_array import make_sensor_layout
+
+            put("sensor_layout", make_sensor_layout(self.sensor_layout))  # one error naming sensor_layout
+        elif self.sensor_layout != "single":
+            from electroloc_gym.sensor_array import named_layout
+
+            named_layout(self.sensor_layout)  # an unknown name: one error naming sensor_layout
         put("position_blur_mm", check_float("position_blur_mm", self.position_blur_mm, 0.0, inclusive=True,
                                             high=MAX_POSITION_BLUR_MM))
         if self.calibration_seed is not None:

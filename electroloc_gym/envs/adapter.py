@@ -155,8 +155,13 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
 
     @property
     def last_reading_V(self) -> float:
-        """The last reading Φ, V."""
-        return float(self._state.reading_V[0])
+        """The last reading Φ, V (pair 0's with a sensor array)."""
+        return float(np.ravel(self._state.reading_V[0])[0])
+
+    @property
+    def last_readings_V(self) -> NDArray[np.float64]:
+        """The last reading of every sensing pair (K,), V (a copy)."""
+        return np.atleast_1d(self._state.reading_V[0]).copy()
 
     @property
     def path_mm(self) -> NDArray[np.float64]:

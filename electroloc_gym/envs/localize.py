@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from electroloc_gym.core.params import MAX_STEP_MM
 from electroloc_gym.envs.adapter import CoreEnv
+from electroloc_gym.sensor_array import SensorLayout
 
 __all__ = ["ElectroLocEnv"]
 
@@ -44,6 +45,10 @@ class ElectroLocEnv(CoreEnv):
 
     ``observation="raw"``: ``Box(-1, 1, (3,), float32)`` = [x/H, y/H, Φ/10 V] (no belief).
 
+    With a sensor array of K pairs (``sensor_layout``, below) entry 2–3 hold pair 0's reading and K − 1 entries
+    follow the 81: Φ_k / 10 V of pairs 1..K−1 (``Box(-1, 1, (80 + K,))``); ``"raw"``: [x/H, y/H, Φ_0/10 V, …,
+    Φ_{K−1}/10 V].
+
     ## Rewards
 
     −1 per step (every new reading). Minimising the return minimises the observations used.
@@ -70,6 +75,8 @@ class ElectroLocEnv(CoreEnv):
     ``position_mm``, ``estimate_mm`` (tuples of float, mm), ``error_mm`` (estimate − true target),
     ``spread_mm``, ``reading_V``, ``n_observations``, ``success``, ``condition`` (name). ``error_mm``
     uses the ground truth: it is for evaluation, agents must not act on it.
+    With a sensor array: ``reading_V`` is pair 0's, ``pair_readings_V`` (K,) every pair's (V), ``n_readings``
+    = K × ``n_observations`` (the cap counts snapshots of K readings).
 
     ## Accessors (read-only, on ``env.unwrapped``)
 
@@ -80,7 +87,10 @@ class ElectroLocEnv(CoreEnv):
     ``predicted_reading_model(particles_mm, moves_mm)`` → (mean_V, std_V) of the reading each target
     hypothesis predicts after a commanded move (offsets = particle − clip(carriage + move)), and
     ``predicted_particles_mm`` (the target does not move: the particles unchanged). The same calls
-    exist on ``ElectroLocGlobal-v0`` (the same core, :mod:`electroloc_gym.core`).
+    exist on ``ElectroLocGlobal-v0`` (the same core, :mod:`electroloc_gym.core`). With a sensor array of K ≥ 2
+    pairs ``predicted_reading_model`` returns (…, K) means and stds (the pair axis last), ``sensor_model`` the
+    K-pair model, ``last_readings_V`` every pair's last reading, ``sensor_layout`` the pairs, and
+    ``fixed_carriage`` says whether moves are ignored (``move_bounds_mm`` is then (0, 0)).
 
     ## Arguments
 
@@ -103,6 +113,11 @@ class ElectroLocEnv(CoreEnv):
     * ``signal``: the presets' signal scale (:func:`electroloc_gym.conditions.get_condition`:
       ``"fitted"`` to the hardware's detection distances, Table 3, ``"paper"``: the paper's equations,
       ``"coverage"``, or a number); ignored for a ``Condition``.
+
+    * ``sensor_layout``: the carriage's sensing pairs (§7, :mod:`electroloc_gym.core.array`): a name of
+      ``electroloc_gym.sensor_array.LAYOUT_NAMES``, a ``SensorLayout``, or (K, 2, 2) electrode offsets in mm;
+      ``"single"`` (default) is the paper's pair. Each step takes K readings, fused one filter update per reading.
+    * ``fixed_carriage``: the carriage never moves (the stationary array); actions are accepted and ignored.
 
     ## Version History
 
@@ -130,8 +145,22 @@ class ElectroLocEnv(CoreEnv):
         return self._state.target_mm[0].copy()
 
     @property
+    def sensor_layout(self) -> SensorLayout:
+        """The carriage's sensing pairs (K, 2, 2 electrode offsets in mm: ``.electrodes``, ``.n_pairs``)."""
+        return self._task.layout
+
+    @property
+    def fixed_carriage(self) -> bool:
+        """Whether the carriage never moves (the stationary array: every move is ignored)."""
+        return self.params.fixed_carriage
+
+    @property
     def move_bounds_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(lo, hi) moves, mm, within ±10 mm that keep the carriage in the allowed box (0 always inside)."""
+        """(lo, hi) moves, mm, within ±10 mm that keep the carriage in the allowed box (0 always inside; both 0
+        with ``fixed_carriage``).
+        """
+        if self.params.fixed_carriage:
+            return np.zeros(2), np.zeros(2)
         low, high = self.allowed_box_mm
         p = self._state.position_mm[0]
         lo = np.minimum(np.maximum(-MAX_STEP_MM, low - p), 0.0)
