@@ -41,6 +41,15 @@ def test_each_algorithm_file_trains_exports_and_benches(algo, tmp_path, monkeypa
     assert "policy" in json.dumps(table)
 
 
+def test_a_frame_stacked_raw_policy_trains_and_benches_as_trained(tmp_path, monkeypatch):
+    """rl-zoo3's frame_stack (VecFrameStack outside VecNormalize): the export stacks normalised frames the same way."""
+    run = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=128, env_kwargs={"observation": "raw"},
+                           hyper={"frame_stack": 4}), monkeypatch)
+    agent = load_policy(run)
+    assert agent.frame_stack == 4 and agent.obs_dim == 3 and agent.normalize_frames
+    assert json.loads((run / "summary.json").read_text())["best"]["episodes"] == 2
+
+
 def test_the_hook_swaps_dummy_vec_env_for_the_native_vector_env(tmp_path, monkeypatch):
     """One VecMonitor file (native batched env) with the hook; one Monitor file per env without it (DummyVecEnv)."""
     native = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=64), monkeypatch)
