@@ -1,125 +1,72 @@
-"""SB3 PPO training throughput on ElectroLoc-v0: DummyVecEnv vs the native batched adapter.
+"""Training throughput of the rl-zoo3 path: PPO with the native vector env vs rl-zoo3's default DummyVecEnv.
 
-Trains ``PPO("MlpPolicy")`` for a few short rollouts with each vector env at the same N (torch and
-numpy on one thread, docs/performance.md) and prints env steps per second of training (rollouts *and*
-gradient updates) side by side, per CPU-second of the process and per wall second, and the ratio.
-Each configuration runs in a fresh interpreter after one warm-up rollout; the best of ``--rounds``
-timed ``learn`` calls is kept. The host's speed drifts by ±20 % over minutes, so the two rows are
-measured in ``--passes`` interleaved passes (dummy, native, dummy, native, ...) and each row's best
-pass is kept: then both rows see the same phases.
+Both rows are the same command of :func:`electroloc_gym.train.run.zoo_argv` — ``python -m rl_zoo3.train
+--algo ppo --env ElectroLoc-v0 --conf-file train/hyperparams/ppo.yml`` with the same seed, budget and
+hyper-parameters — once with ``--gym-packages electroloc_gym.train.zoo`` (the native batched env behind
+SB3's VecEnv) and once with ``--gym-packages electroloc_gym`` (rl-zoo3's DummyVecEnv). Each row is a
+fresh rl-zoo3 process; its env steps per second of training (rollouts *and* gradient updates, the
+validation episodes excluded) come from the run's own ``summary.json``. The host's speed drifts, so
+the rows run in ``--passes`` interleaved passes (dummy, native, dummy, ...) and each row keeps its
+best pass.
 
-    python benchmarks/train_fps.py [--n-envs 16] [--n-steps 64] [--rollouts 2] [--rounds 2] [--passes 3]
-        [--particles 2500] [--before DIR] [--json out.json]
+    python benchmarks/train_fps.py [--timesteps 16384] [--passes 2] [--json out.json]
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
 
-for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
+from electroloc_gym.fileio import atomic_write_text
+from electroloc_gym.runtime import THREAD_VARS
+from electroloc_gym.train.run import zoo_argv
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
-
-from electroloc_gym.fileio import atomic_write_text  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout: `train` importable
+#: One validation episode at the start and the end only: the timing is of training.
+CALLBACK = "callback:[{'electroloc_gym.train.callbacks.BenchEvalCallback':{'eval_freq':10**9,'n_episodes':1}}]"
 
 
-def _make_venv(kind: str, n: int, kwargs: dict[str, Any], seed: int) -> Any:
-    import gymnasium as gym
-    from stable_baselines3.common.monitor import Monitor
-    from stable_baselines3.common.vec_env import DummyVecEnv
-
-    import electroloc_gym  # noqa: F401
-
-    if kind == "native":
-        from electroloc_gym.train.native_vec import make_native_vec_env
-
-        return make_native_vec_env("ElectroLoc-v0", n, seed, kwargs)
-    venv = DummyVecEnv([lambda: Monitor(gym.make("ElectroLoc-v0", **kwargs)) for _ in range(n)])
-    venv.seed(seed)
-    return venv
-
-
-def measure(kind: str, n: int, n_steps: int, rollouts: int, rounds: int, kwargs: dict[str, Any]) -> dict[str, float]:
-    """Best-of-``rounds`` training env steps/s (CPU, wall) of PPO on ``kind`` ("dummy" | "native")."""
-    import torch
-    from stable_baselines3 import PPO
-
-    torch.set_num_threads(1)
-    venv = _make_venv(kind, n, kwargs, seed=0)
-    model = PPO("MlpPolicy", venv, n_steps=n_steps, batch_size=min(256, n * n_steps), n_epochs=4, seed=0,
-                device="cpu", verbose=0)
-    model.learn(n * n_steps)  # warm-up rollout + update
-    steps = n * n_steps * rollouts
-    best_cpu = best_wall = float("inf")
-    for _ in range(rounds):
-        c0, w0 = time.process_time(), time.perf_counter()
-        model.learn(steps, reset_num_timesteps=False)
-        best_cpu = min(best_cpu, time.process_time() - c0)
-        best_wall = min(best_wall, time.perf_counter() - w0)
-    venv.close()
-    return {"fps_cpu": steps / best_cpu, "fps_wall": steps / best_wall, "timesteps": steps}
+def one_run(native: bool, timesteps: int, log_folder: Path) -> dict[str, Any]:
+    """Run rl-zoo3 once; its summary.json's timing."""
+    argv = zoo_argv("ppo", "ElectroLoc-v0", 0, timesteps=timesteps, log_folder=log_folder, native=native)
+    env = {**os.environ, **{v: "1" for v in THREAD_VARS}}
+    out = subprocess.run([sys.executable, *argv, "--hyperparams", CALLBACK], capture_output=True, text=True, env=env,
+                         check=True).stdout
+    run = Path(next(ln.split("Log path:", 1)[1].strip() for ln in out.splitlines() if ln.startswith("Log path:")))
+    s = json.loads((run / "summary.json").read_text())
+    return {"timesteps": s["timesteps"], "fps": s["fps_training_only"], "wall_time_s": s["wall_time_s"]}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--n-envs", type=int, default=16)
-    ap.add_argument("--n-steps", type=int, default=64, help="PPO n_steps (per env per rollout)")
-    ap.add_argument("--rollouts", type=int, default=2, help="rollouts per timed learn() call")
-    ap.add_argument("--rounds", type=int, default=2, help="timed learn() calls per process (the best is kept)")
-    ap.add_argument("--passes", type=int, default=3, help="interleaved passes over the two rows (the best is kept)")
-    ap.add_argument("--particles", type=int, default=2500)
-    ap.add_argument("--condition", default="fresh-steel-12.7")
+    ap.add_argument("--timesteps", type=int, default=16384, help="env steps per run (16 envs x 256 = 4096 a rollout)")
+    ap.add_argument("--passes", type=int, default=2, help="interleaved passes over the two rows (the best is kept)")
     ap.add_argument("--json", default=None)
-    ap.add_argument("--before", default=None, metavar="DIR",
-                    help="also measure the code of this checkout, interleaved with the current code's rows")
-    ap.add_argument("--_one", default=None, help=argparse.SUPPRESS)
-    args = ap.parse_args(argv)
-    kwargs = {"n_particles": args.particles, "condition": args.condition}
-    if args._one:
-        res = measure(args._one, args.n_envs, args.n_steps, args.rollouts, args.rounds, kwargs)
-        print(json.dumps(res))
-        return res
-    print(f"PPO MlpPolicy on ElectroLoc-v0 {kwargs}, N={args.n_envs}, n_steps={args.n_steps}, n_epochs=4, "
-          f"torch threads=1; best of {args.rounds} x {args.rollouts} rollouts per process, each row in a fresh "
-          f"process, {args.passes} interleaved passes", flush=True)
-    results: dict[str, Any] = {"kwargs": kwargs, "n_envs": args.n_envs, "rows": []}
-    trees: list[tuple[str, str | None]] = [("now", None)] + ([("before", args.before)] if args.before else [])
-    best: dict[tuple[str, str], dict[str, float]] = {}
-    for _ in range(args.passes):
-        for code, tree in trees:
+    a = ap.parse_args(argv)
+    print(f"rl-zoo3 PPO on ElectroLoc-v0 (train/hyperparams/ppo.yml: 16 envs, n_steps 256, 10 epochs, 128x128), "
+          f"{a.timesteps} steps per run, torch 1 thread, {a.passes} interleaved passes", flush=True)
+    best: dict[str, dict[str, Any]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for p in range(a.passes):
             for kind in ("dummy", "native"):
-                script = __file__ if tree is None else str(Path(tree) / "benchmarks" / "train_fps.py")
-                env = None if tree is None else dict(os.environ, PYTHONPATH=str(Path(tree).resolve()))
-                cmd = [sys.executable, script, "--_one", kind, "--n-envs", str(args.n_envs), "--n-steps",
-                       str(args.n_steps), "--rollouts", str(args.rollouts), "--rounds", str(args.rounds),
-                       "--particles", str(args.particles), "--condition", args.condition]
-                out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env).stdout
-                r = json.loads(out.strip().splitlines()[-1])
-                old = best.get((code, kind))
-                if old is None or r["fps_cpu"] > old["fps_cpu"]:
-                    best[(code, kind)] = {**r, "fps_wall": max(r["fps_wall"], old["fps_wall"] if old else 0.0)}
-                else:
-                    old["fps_wall"] = max(old["fps_wall"], r["fps_wall"])
-    print(f"{'code':<7} {'vec env':<8} {'fps (CPU)':>10} {'fps (wall)':>11} {'vs dummy':>9}")
-    for code, _ in trees:
-        base = best[(code, "dummy")]["fps_cpu"]
-        for kind in ("dummy", "native"):
-            r = best[(code, kind)]
-            ratio = r["fps_cpu"] / base
-            print(f"{code:<7} {kind:<8} {r['fps_cpu']:>10.0f} {r['fps_wall']:>11.0f} {ratio:>8.2f}x", flush=True)
-            results["rows"].append({"code": code, "vec_env": kind, **r, "ratio_vs_dummy_cpu": ratio})
-    if args.json:
-        atomic_write_text(args.json, json.dumps(results, indent=2))
-    return results
+                r = one_run(kind == "native", a.timesteps, Path(tmp))
+                print(f"  pass {p + 1} {kind:<7} {r['fps']:8.0f} steps/s", flush=True)
+                if kind not in best or r["fps"] > best[kind]["fps"]:
+                    best[kind] = r
+    ratio = best["native"]["fps"] / best["dummy"]["fps"]
+    print(f"{'vec env':<26} {'fps (training)':>15}")
+    print(f"{'DummyVecEnv (rl-zoo3)':<26} {best['dummy']['fps']:>15.0f}")
+    print(f"{'native (electroloc hook)':<26} {best['native']['fps']:>15.0f}")
+    print(f"native / dummy: {ratio:.2f}x")
+    res = {"timesteps": a.timesteps, "passes": a.passes, "rows": best, "ratio_native_vs_dummy": ratio}
+    if a.json:
+        atomic_write_text(a.json, json.dumps(res, indent=2))
+    return res
 
 
 if __name__ == "__main__":

@@ -41,6 +41,15 @@ def test_each_algorithm_file_trains_exports_and_benches(algo, tmp_path, monkeypa
     assert "policy" in json.dumps(table)
 
 
+def test_a_frame_stacked_raw_policy_trains_and_benches_as_trained(tmp_path, monkeypatch):
+    """rl-zoo3's frame_stack (VecFrameStack outside VecNormalize): the export stacks normalised frames the same way."""
+    run = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=128, env_kwargs={"observation": "raw"},
+                           hyper={"frame_stack": 4}), monkeypatch)
+    agent = load_policy(run)
+    assert agent.frame_stack == 4 and agent.obs_dim == 3 and agent.normalize_frames
+    assert json.loads((run / "summary.json").read_text())["best"]["episodes"] == 2
+
+
 def test_the_hook_swaps_dummy_vec_env_for_the_native_vector_env(tmp_path, monkeypatch):
     """One VecMonitor file (native batched env) with the hook; one Monitor file per env without it (DummyVecEnv)."""
     native = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=64), monkeypatch)
@@ -49,3 +58,27 @@ def test_the_hook_swaps_dummy_vec_env_for_the_native_vector_env(tmp_path, monkey
     dummy = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=64, native=False), monkeypatch)
     assert sorted(p.name for p in dummy.glob("*.monitor.csv")) == [f"{i}.monitor.csv" for i in range(4)]
     assert (dummy / "best" / "policy.json").is_file()  # the callback and the shaping work on DummyVecEnv too
+
+
+def test_enjoy_reports_the_task_measures_and_the_unshaped_return(tmp_path, monkeypatch, capsys):
+    from electroloc_gym.train.zoo import main as zoo_main
+
+    run = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=64), monkeypatch)
+    capsys.readouterr()
+    assert zoo_main(["enjoy", "--algo", "ppo", "--env", "ElectroLoc-v0", "-f", str(tmp_path / "logs"), "--exp-id",
+                     run.name.rsplit("_", 1)[1], "--no-render", "-n", "40", "--deterministic"]) == 0
+    out = capsys.readouterr().out
+    reports = [ln for ln in out.splitlines() if ln.startswith("[electroloc] episode:")]
+    rewards = [float(ln.split(":")[1]) for ln in out.splitlines() if ln.startswith("Episode Reward:")]
+    assert reports and len(reports) == len(rewards)
+    for line, reward in zip(reports, rewards):
+        readings = int(line.split("episode:")[1].split("readings")[0])
+        assert "(unshaped)" in line and "error" in line and "success" in line
+        assert reward == pytest.approx(-(readings - 1))  # −1 per reading after the first: no shaping in enjoy
+
+
+def test_zoo_runner_names_a_bad_script(capsys):
+    from electroloc_gym.train.zoo import main as zoo_main
+
+    assert zoo_main(["nope"]) == 2
+    assert capsys.readouterr().err.strip().startswith("error: SCRIPT must be one of")

@@ -23,7 +23,7 @@ TINY_CALLBACK = "[{'electroloc_gym.train.callbacks.BenchEvalCallback': {'eval_fr
 
 
 def zoo_argv(algo: str, log_folder: Path, *, timesteps: int = 256, native: bool = True,
-             env_kwargs: dict[str, Any] | None = None) -> list[str]:
+             env_kwargs: dict[str, Any] | None = None, hyper: dict[str, Any] | None = None) -> list[str]:
     """The argv of a tiny ``rl_zoo3.train`` run of ``algo``'s shipped file (its ElectroLoc-v0 section)."""
     import yaml
 
@@ -33,8 +33,9 @@ def zoo_argv(algo: str, log_folder: Path, *, timesteps: int = 256, native: bool 
     file_kw = yaml.safe_load(hyperparams_file(algo).read_text())["ElectroLoc-v0"]["env_kwargs"]
     argv = argv_of(algo, "ElectroLoc-v0", 7, timesteps=timesteps, log_folder=log_folder,
                    env_kwargs={**file_kw, **TINY_ENV, **(env_kwargs or {})}, native=native)
-    hyper = [f"{k}:{v!r}" if not isinstance(v, str) else f"{k}:{v}" for k, v in TINY_HYPER[algo].items()]
-    return [*argv[2:], "--hyperparams", *hyper, f"callback:{TINY_CALLBACK}"]
+    items = {**TINY_HYPER[algo], **(hyper or {})}.items()
+    words = [f"{k}:{v!r}" if not isinstance(v, str) else f"{k}:{v}" for k, v in items]
+    return [*argv[2:], "--hyperparams", *words, f"callback:{TINY_CALLBACK}"]
 
 
 def run_zoo(argv: list[str], monkeypatch) -> Path:

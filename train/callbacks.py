@@ -83,7 +83,7 @@ def _chain(venv: VecEnv) -> list[VecEnv]:
 def env_of(venv: VecEnv) -> tuple[str, dict[str, Any], int, Path | None]:
     """(env id, env kwargs, frames stacked, run folder) of an rl-zoo3 training env."""
     chain = _chain(venv)
-    stack = next((w.n_stack for w in chain if isinstance(w, VecFrameStack)), 1)
+    stack = next((w.stacked_obs.n_stack for w in chain if isinstance(w, VecFrameStack)), 1)
     base = chain[-1]
     monitor_file = None
     mon = next((w for w in chain if isinstance(w, VecMonitor)), None)

@@ -24,3 +24,33 @@ from electroloc_gym.train.native_vec import zoo_vec_env
 # staticmethod: rl-zoo3 reads it through an instance (self.default_vec_env_cls) and through the class (enjoy).
 ExperimentManager.default_vec_env_cls = staticmethod(zoo_vec_env)  # type: ignore[assignment]
 pin_threads()  # one thread per numeric library (torch included: rl-zoo3 imported it before this module)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m electroloc_gym.train.zoo SCRIPT ARGS…``: an rl-zoo3 script run with this hook installed.
+
+    For the rl-zoo3 scripts without ``--gym-packages`` (``record_video``, ``record_training``); the
+    others take ``--gym-packages electroloc_gym.train.zoo`` directly.
+    """
+    import importlib.util
+    import runpy
+    import sys
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    scripts = ("train", "enjoy", "record_video", "record_training")
+    if not args or args[0] not in scripts:
+        print(f"error: SCRIPT must be one of {list(scripts)}, got {args[0] if args else None!r}", file=sys.stderr)
+        return 2
+    module = f"rl_zoo3.{args[0]}"
+    if importlib.util.find_spec(module) is None:  # pragma: no cover - every rl-zoo3 2.x has them
+        print(f"error: this rl-zoo3 has no {module}", file=sys.stderr)
+        return 2
+    sys.argv = [module, *args[1:]]
+    runpy.run_module(module, run_name="__main__", alter_sys=True)
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())
