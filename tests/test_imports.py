@@ -23,18 +23,6 @@ except ModuleNotFoundError:  # Python 3.10
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: Cycles in other floors, being removed on their branches: a cycle within one of these sets of modules is
-#: known. The whole-package test below is expected to fail until they are gone (strict: it then fails as
-#: XPASS, and this list and its marker go).
-KNOWN_ELSEWHERE = (
-    frozenset({"electroloc_gym.baselines.agent", "electroloc_gym.baselines.lookahead",
-               "electroloc_gym.baselines.min_variance", "electroloc_gym.baselines.random_walk",
-               "electroloc_gym.baselines.zero_crossing"}),
-    frozenset({"electroloc_gym.train.config", "electroloc_gym.train.validation"}),
-    frozenset({"electroloc_gym.cli", "electroloc_gym.train.__main__", "electroloc_gym.train.runplan"}),
-)
-
-
 def package_modules() -> dict[str, Path]:
     """Every module of the package (dotted name → file), from pyproject.toml's package list."""
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
@@ -168,14 +156,6 @@ def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
     assert not bad, "the core imports an upper layer: " + "; ".join(bad)
 
 
-def test_no_import_cycle_but_the_known_ones_elsewhere(graph: dict[str, set[str]]) -> None:
-    """Every cycle of the package is one of :data:`KNOWN_ELSEWHERE` (being removed in other floors)."""
-    new = [c for c in cycles(graph) if not any(c <= known for known in KNOWN_ELSEWHERE)]
-    assert not new, "import cycles:\n" + "\n".join(describe(c, graph) for c in new)
-
-
-@pytest.mark.xfail(strict=True, reason="cycles in other floors (KNOWN_ELSEWHERE) are being removed on their "
-                                       "branches; when they are gone this XPASSes: drop the marker and the list")
 def test_no_import_cycle_anywhere(graph: dict[str, set[str]]) -> None:
     found = cycles(graph)
     assert not found, "import cycles (none may remain):\n" + "\n".join(describe(c, graph) for c in found)

@@ -36,7 +36,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper,
 from electroloc_gym.bench.rollout import run_episode
 from electroloc_gym.fileio import FolderLock, atomic_write_text, write_json_atomic
 from electroloc_gym.policy.format import write_export
-from electroloc_gym.policy.sb3 import agent_from_model, export_meta, model_weights
+from electroloc_gym.policy.load import agent_from_model
+from electroloc_gym.policy.sb3 import export_meta, model_weights
 from electroloc_gym.train.native_vec import NativeVecEnv
 from electroloc_gym.train.wrappers import activate_shaping
 

@@ -28,7 +28,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.policy.format import POLICY_JSON, ObsNormalization, PolicyExport, read_export, read_weights
+from electroloc_gym.policy.format import (
+    POLICY_JSON,
+    ObsNormalization,
+    PolicyExport,
+    _normalization,
+    read_export,
+    read_weights,
+)
 from electroloc_gym.policy.networks import build_actor
 
 __all__ = ["LearnedAgent", "load_policy"]
@@ -141,7 +148,7 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
     By default only the pickle-free format is read: a folder holding ``policy.json`` and
     ``policy.safetensors`` (or the ``policy.json`` file). Nothing is unpickled. An SB3 ``.zip`` (e.g.
     an rl-zoo3 run's ``best_model.zip``) needs ``trust_pickle=True`` and SB3; it is then converted in
-    memory (:func:`electroloc_gym.policy.sb3.agent_from_sb3_zip`) and a warning is logged.
+    memory (:func:`electroloc_gym.policy.sb3.model_from_sb3_zip`) and a warning is logged.
 
     Args:
         path: a policy folder, its ``policy.json``, an rl-zoo3 run folder of this path (its ``best/``), or
@@ -167,9 +174,20 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
                          f"only with trust_pickle=True (--trust-pickle) for files you trust, or export a run you "
                          f"trust with `python -m electroloc_gym.train.export`")
     try:
-        from electroloc_gym.policy.sb3 import agent_from_sb3_zip
+        from electroloc_gym.policy.sb3 import model_from_sb3_zip
     except ImportError as exc:
         raise ValueError(f"loading an SB3 zip needs SB3 ({TRAIN_EXTRA}): {exc}") from exc
     logger.warning("loading %s with pickle (trust_pickle=True): a pickle-based model runs code from the file; "
                    "load only files you trust", p)
-    return agent_from_sb3_zip(p)
+    model, meta = model_from_sb3_zip(p)
+    return agent_from_model(model, meta, p.stem)
+
+
+def agent_from_model(model: Any, meta: Mapping[str, Any], name: str = "learned") -> LearnedAgent:
+    """The benchmark's agent for a live SB3 model (what its export would load), from
+    :func:`electroloc_gym.policy.sb3.export_meta`'s dict (needs torch and SB3).
+    """
+    from electroloc_gym.policy.sb3 import model_weights
+
+    norm = _normalization(meta["normalization"], meta["observation"], "model")
+    return LearnedAgent(meta, model_weights(model), norm, name)

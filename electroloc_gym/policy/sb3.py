@@ -25,7 +25,7 @@ from electroloc_gym.policy.format import (
     space_to_json,
 )
 
-__all__ = ["agent_from_model", "agent_from_sb3_zip", "export_meta", "model_weights", "normalization_from_vecnormalize",
+__all__ = ["model_from_sb3_zip", "export_meta", "model_weights", "normalization_from_vecnormalize",
            "read_zoo_yaml", "sb3_policy"]
 
 # Constructor keywords that only matter for training (the optimiser) or that are rebuilt here.
@@ -158,15 +158,6 @@ def export_meta(model: Any, *, env_id: str, env_kwargs: Mapping[str, Any], frame
     }
 
 
-def agent_from_model(model: Any, meta: Mapping[str, Any], name: str = "learned") -> Any:
-    """The benchmark's agent for a live model (what its export would load), from :func:`export_meta`'s dict."""
-    from electroloc_gym.policy.format import _normalization
-    from electroloc_gym.policy.load import LearnedAgent
-
-    norm = _normalization(meta["normalization"], meta["observation"], "model")
-    return LearnedAgent(meta, model_weights(model), norm, name)
-
-
 def sb3_policy(meta: Mapping[str, Any], weights: Mapping[str, np.ndarray]) -> Any:
     """The SB3 policy network of an export (for stochastic actions), weights loaded strictly."""
     import torch
@@ -213,8 +204,8 @@ def load_zoo_run(zip_path: str | Path) -> tuple[Any, Any, dict[str, Any]]:
     return model, vn, {"config": cfg, "args": args}
 
 
-def agent_from_sb3_zip(zip_path: str | Path) -> Any:
-    """A TRUSTED SB3 zip of an rl-zoo3 run, converted in memory to the benchmark's agent (unpickles)."""
+def model_from_sb3_zip(zip_path: str | Path) -> tuple[Any, dict[str, Any]]:
+    """A TRUSTED SB3 zip of an rl-zoo3 run → (model, its export metadata), converted in memory (unpickles)."""
     model, vn, run = load_zoo_run(zip_path)
     args = run["args"]
     env_kwargs = {**dict(run["config"].get("env_kwargs") or {}), **dict(args.get("env_kwargs") or {})}
@@ -223,4 +214,4 @@ def agent_from_sb3_zip(zip_path: str | Path) -> Any:
                        provenance={"converted_from": str(zip_path)})
     if vn is not None and vn.norm_obs:
         ObsNormalization(np.asarray(vn.obs_rms.mean), np.asarray(vn.obs_rms.var))  # validates the statistics
-    return agent_from_model(model, meta, Path(zip_path).stem)
+    return model, meta
