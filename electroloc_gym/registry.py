@@ -97,10 +97,10 @@ class EnvEntry:
 ENVS: tuple[EnvEntry, ...] = (
     EnvEntry(
         env_id="ElectroLoc-v0", task="localize",
-        task_class="electroloc_gym.core.localize:LocalizeTask",
+        task_class="electroloc_gym.core.distractors:LocalizeDistractorsTask",
         entry_point="electroloc_gym.envs.localize:ElectroLocEnv",
         vector_entry_point="electroloc_gym.envs.vector:ElectroLocVectorEnv",
-        arguments=("condition", "signal", "randomize_target", "gain_levels"),
+        arguments=("condition", "signal", "randomize_target", "gain_levels", "distractors"),
         sensor_models=SENSOR_MODEL_NAMES,
         bench=(BenchEnv("target"), BenchEnv("dynamic-gain", _frozen({"gain_levels": DYNAMIC_GAIN_LEVELS}))),
         summary="localise a target sphere with a particle-filter belief",
