@@ -215,12 +215,12 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
 
 
 # The bench owns these env kwargs; an agent's env_kwargs cannot override them.
-_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels")
+_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels", "distractors")
 def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | None, *, condition: str | None = None,
                      signal: str | None = None, sensor_model: str | None = None, n_particles: int | None = None,
-                     max_observations: int | None = None) -> dict[str, Any]:
+                     max_observations: int | None = None, distractors: int = 0) -> dict[str, Any]:
     """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``
-    (never overriding what the bench owns).
+    (never overriding what the bench owns, e.g. the distractors a policy was trained with).
     """
     kwargs: dict[str, Any] = {k: v for k, v in (("sensor_model", sensor_model), ("n_particles", n_particles),
                                                 ("max_observations", max_observations)) if v is not None}
@@ -234,6 +234,8 @@ def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | N
         kwargs["target_draw"] = "condition"
     if gain_levels is not None:
         kwargs["gain_levels"] = tuple(gain_levels)
+    if distractors:
+        kwargs["distractors"] = int(distractors)
     kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
                    if k not in _BENCH_ONLY_KWARGS})
     return kwargs
