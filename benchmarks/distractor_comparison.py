@@ -122,6 +122,31 @@ def near_distractor(rec: dict) -> bool:
     return bool(np.min(np.hypot(*(xy - est).T)) < np.hypot(*(tgt - est)))
 
 
+def paired(agents: list[str], ds: list[int], out: Path, n: int, ref: str = "eedi") -> list[str]:
+    """``ref`` against each other agent on the same trials (same seeds): correct localisations (a success that is
+    not far) where exactly one of the two got it, and the exact two-sided binomial (sign) test of those.
+    """
+    from scipy.stats import binomtest
+
+    lines = []
+    for d in ds:
+        mine = {(r["condition"], r["trial"]): r for r in _records(out, d, ref) if r["trial"] < n}
+        for other in agents:
+            if other == ref:
+                continue
+            theirs = {(r["condition"], r["trial"]): r for r in _records(out, d, other) if r["trial"] < n}
+            keys = sorted(set(mine) & set(theirs))
+            ok = {k: (mine[k]["success"] and not mine[k].get("far_success"),
+                      theirs[k]["success"] and not theirs[k].get("far_success")) for k in keys}
+            win = sum(a and not b for a, b in ok.values())
+            loss = sum(b and not a for a, b in ok.values())
+            p = binomtest(win, win + loss).pvalue if win + loss else 1.0
+            lines.append(f"| {d} | {other} | {len(keys)} | {win} | {loss} | {p:.2f} |")
+    return [f"Paired on the same trials: {ref} against each agent — trials where only {ref} / only the other "
+            f"localised correctly (a success that is not far), and the sign test's two-sided p.", "",
+            f"| D | against | trials | only {ref} | only the other | p |", "|---|---|---|---|---|---|", *lines]
+
+
 def _f(x: float | None, digits: int = 1) -> str:
     return "–" if x is None else f"{x:.{digits}f}"
 
@@ -199,6 +224,8 @@ def main() -> None:
         run(agents, ds, rounds, a.seed, out, deadline)
     n, rows = summarize(agents, ds, out)
     text = table_md(n, rows, a.seed)
+    if "eedi" in agents and n:
+        text += "\n" + "\n".join(paired(agents, ds, out, n)) + "\n"
     print(text)
     out.mkdir(parents=True, exist_ok=True)
     (out / "comparison.json").write_text(json.dumps({"trials_per_condition": n, "rows": rows}, indent=1))
