@@ -143,3 +143,11 @@ def test_bad_values_are_one_error_naming_the_argument(bad) -> None:
 def test_other_envs_refuse_the_argument() -> None:
     with pytest.raises(ValueError, match=r"unexpected argument\(s\) \['distractors'\]"):
         gym.make("ElectroLocGlobal-v0", distractors=1)
+
+
+def test_a_draw_that_cannot_fit_is_one_error_naming_the_argument() -> None:
+    env = gym.make("ElectroLoc-v0", n_particles=50, sensor_model="analytic",
+                   distractors={"count": 8, "diameters_mm": (38.1,), "gap_mm": 10.0, "max_attempts": 20})
+    with pytest.raises(ValueError, match=r"^distractors: could not place distractor") as exc:
+        env.reset(seed=0)
+    assert "\n" not in str(exc.value)

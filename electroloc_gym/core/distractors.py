@@ -69,7 +69,12 @@ class LocalizeDistractorsTask(LocalizeTask):
         self.info_keys = (DISTRACTOR_INFO_KEY,) if self.count else ()
 
     def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
-        """The plain task's draws (:meth:`LocalizeTask.begin_episode`), then the distractor set's (none for D = 0)."""
+        """The plain task's draws (:meth:`LocalizeTask.begin_episode`), then the distractor set's (none for D = 0).
+
+        Raises:
+            ValueError: the draw found no free place for every object (possible with many large ones in a
+                small box, e.g. 8 of up to 38.1 mm in ±50 mm; naming ``distractors``).
+        """
         super().begin_episode(state, i, g)
         if not self.count:
             return
@@ -77,7 +82,10 @@ class LocalizeDistractorsTask(LocalizeTask):
             state.distractor_scenes = [None] * state.num_envs
         c = state.world[i]
         spec = self.spec
-        layout = spec if isinstance(spec, DistractorSet) else spec.draw(c, state.target_mm[i], g)
+        try:
+            layout = spec if isinstance(spec, DistractorSet) else spec.draw(c, state.target_mm[i], g)
+        except ValueError as exc:  # many large objects may not fit the box: say which argument to change
+            raise ValueError(f"distractors: {exc}") from None
         state.distractor_scenes[i] = layout.scene(c)
 
     def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
