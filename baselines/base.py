@@ -44,7 +44,7 @@ __all__ = ["Agent", "BaselineAgent", "sample_options_mm", "move_bounds_mm", "sam
 
 @runtime_checkable
 class Agent(Protocol):
-    """What the benchmark runner calls. Learned policies (``electroloc_gym.train.policy``) implement the same."""
+    """What the benchmark runner calls. Learned policies (``electroloc_gym.policy.load``) implement the same."""
 
     env_kwargs: dict[str, Any]
 

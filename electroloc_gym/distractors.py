@@ -66,7 +66,8 @@ class DistractorDraw:
     """How a distractor set is drawn per episode (all draws from the episode's generator).
 
     Attributes:
-        count: D, the number of distractors, 0–:data:`MAX_DISTRACTORS`.
+        count: D, the number of distractors, 0–:data:`MAX_DISTRACTORS`; or a tuple of such counts, one of
+            which is drawn uniformly per episode (a mix of tanks, e.g. ``(0, 1, 2)`` for training).
         shapes: shapes drawn uniformly per object (``"sphere"``, ``"cylinder"``).
         diameters_mm: diameters drawn uniformly per object, mm (> 0; default the stock sizes 6.35–38.1 mm).
         materials: materials drawn uniformly per object (:data:`~electroloc_gym.scene.SCENE_MATERIAL_CONDUCTIVITY_uScm`:
@@ -75,7 +76,7 @@ class DistractorDraw:
         max_attempts: rejection-sampling attempts per object before the draw is refused (1–100000).
     """
 
-    count: int
+    count: int | tuple[int, ...]
     shapes: tuple[str, ...] = SHAPES
     diameters_mm: tuple[float, ...] = STOCK_DIAMETERS_MM
     materials: tuple[str, ...] = ("steel", "brass", "aluminium", "delrin", "pvc", "agar")
@@ -84,9 +85,12 @@ class DistractorDraw:
 
     def __post_init__(self) -> None:
         c = self.count
-        if isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not 0 <= c <= MAX_DISTRACTORS:
-            raise ValueError(f"count (distractors) must be an integer in [0, {MAX_DISTRACTORS}], got {c!r}")
-        object.__setattr__(self, "count", int(c))
+        mix = isinstance(c, (tuple, list)) and len(c) > 0
+        for v in (c if mix else (c,)):
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= MAX_DISTRACTORS:
+                raise ValueError(f"count (distractors) must be an integer in [0, {MAX_DISTRACTORS}] or a non-empty "
+                                 f"tuple of such integers, got {c!r}")
+        object.__setattr__(self, "count", tuple(int(v) for v in c) if mix else int(c))
         object.__setattr__(self, "shapes", _tuple_of("shapes", self.shapes, SHAPES))
         object.__setattr__(self, "materials", _tuple_of("materials", self.materials,
                                                         tuple(SCENE_MATERIAL_CONDUCTIVITY_uScm)))
@@ -103,11 +107,17 @@ class DistractorDraw:
         if isinstance(a, bool) or not isinstance(a, (int, np.integer)) or not 1 <= a <= 100_000:
             raise ValueError(f"max_attempts must be an integer in [1, 100000], got {a!r}")
 
+    @property
+    def max_count(self) -> int:
+        """The most distractors an episode can have."""
+        return max(self.count) if isinstance(self.count, tuple) else self.count
+
     def draw(self, condition: Condition, target_xy_mm: ArrayLike, rng: np.random.Generator) -> DistractorSet:
         """One episode's set in ``condition``'s tank, none overlapping the target at ``target_xy_mm``.
 
-        Per object, in order: shape, diameter, material (one uniform index each), then centres uniform
-        in the allowed box until one clears the target and the objects placed so far by ``gap_mm``.
+        With a tuple of counts, first the episode's count (one uniform index). Per object, in order: shape,
+        diameter, material (one uniform index each), then centres uniform in the allowed box until one clears
+        the target and the objects placed so far by ``gap_mm``.
 
         Raises:
             ValueError: no free place found in ``max_attempts`` (too many or too large objects for the box).
@@ -115,7 +125,8 @@ class DistractorDraw:
         h = condition.allowed_half_width_mm
         placed: list[SceneObject] = []
         discs = [(np.asarray(target_xy_mm, dtype=np.float64), condition.target.radius_mm)]
-        for n in range(self.count):
+        count = self.count[int(rng.integers(len(self.count)))] if isinstance(self.count, tuple) else self.count
+        for n in range(count):
             shape = self.shapes[int(rng.integers(len(self.shapes)))]
             diameter = self.diameters_mm[int(rng.integers(len(self.diameters_mm)))]
             material = self.materials[int(rng.integers(len(self.materials)))]
@@ -125,7 +136,7 @@ class DistractorDraw:
                 if all(np.hypot(*(xy - c)) >= radius + r + self.gap_mm for c, r in discs):
                     break
             else:
-                raise ValueError(f"could not place distractor {n + 1} of {self.count} ({shape}, {diameter} mm) "
+                raise ValueError(f"could not place distractor {n + 1} of {count} ({shape}, {diameter} mm) "
                                  f"clear of the others by gap_mm={self.gap_mm} in the ±{h} mm box after "
                                  f"{self.max_attempts} attempts: ask for fewer or smaller distractors")
             placed.append(SceneObject.of_material(shape, (float(xy[0]), float(xy[1])), diameter, material))
@@ -221,12 +232,22 @@ def superposed_reading_V(condition: Condition, target_xy_mm: ArrayLike, distract
 
 def resolve_distractors(value: Any) -> DistractorDraw | DistractorSet:
     """What a ``distractors=`` argument means: an int D (a :class:`DistractorDraw` of D per episode), a
-    :class:`DistractorDraw` or :class:`DistractorSet`, a mapping of :class:`DistractorDraw`'s fields, or a
-    sequence of :class:`~electroloc_gym.scene.SceneObject` / their field mappings (an explicit layout).
+    sequence of ints (one of these counts drawn per episode), a :class:`DistractorDraw` or
+    :class:`DistractorSet`, a mapping of :class:`DistractorDraw`'s fields, or a sequence of
+    :class:`~electroloc_gym.scene.SceneObject` / their field mappings (an explicit layout).
 
     Raises:
         ValueError: anything else (naming the argument and the accepted forms).
     """
+    try:
+        return _resolve(value)
+    except ValueError as exc:
+        msg = str(exc)
+        raise ValueError(msg if msg.startswith("distractors") or "(distractors)" in msg
+                         else f"distractors: {msg}") from None
+
+
+def _resolve(value: Any) -> DistractorDraw | DistractorSet:
     if isinstance(value, (DistractorDraw, DistractorSet)):
         return value
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
@@ -236,6 +257,9 @@ def resolve_distractors(value: Any) -> DistractorDraw | DistractorSet:
             return DistractorDraw(**dict(value))
         except TypeError as exc:
             raise ValueError(f"distractors: {exc}") from exc
+    if isinstance(value, Sequence) and not isinstance(value, str) and len(value) and all(
+            isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value):
+        return DistractorDraw(count=tuple(value))
     if isinstance(value, Sequence) and not isinstance(value, str):
         objects = []
         for item in value:
@@ -246,5 +270,5 @@ def resolve_distractors(value: Any) -> DistractorDraw | DistractorSet:
                     raise ValueError(f"distractors: {exc}") from exc
             objects.append(item)
         return DistractorSet(tuple(objects))
-    raise ValueError(f"distractors must be a count 0–{MAX_DISTRACTORS}, a DistractorDraw, a DistractorSet, a dict "
-                     f"of DistractorDraw's fields or a sequence of SceneObject, got {value!r}")
+    raise ValueError(f"distractors must be a count 0–{MAX_DISTRACTORS} (or a list of counts), a DistractorDraw, "
+                     f"a DistractorSet, a dict of DistractorDraw's fields or a sequence of SceneObject, got {value!r}")

@@ -97,10 +97,11 @@ class EnvEntry:
 ENVS: tuple[EnvEntry, ...] = (
     EnvEntry(
         env_id="ElectroLoc-v0", task="localize",
-        task_class="electroloc_gym.core.array:ArrayLocalizeTask",
+        task_class="electroloc_gym.core.electroloc:ElectroLocTask",
         entry_point="electroloc_gym.envs.localize:ElectroLocEnv",
         vector_entry_point="electroloc_gym.envs.vector:ElectroLocVectorEnv",
-        arguments=("condition", "signal", "randomize_target", "gain_levels", "sensor_layout", "fixed_carriage"),
+        arguments=("condition", "signal", "randomize_target", "gain_levels", "sensor_layout", "fixed_carriage",
+                   "distractors"),
         sensor_models=SENSOR_MODEL_NAMES,
         bench=(BenchEnv("target"), BenchEnv("dynamic-gain", _frozen({"gain_levels": DYNAMIC_GAIN_LEVELS}))),
         summary="localise a target sphere with a particle-filter belief",

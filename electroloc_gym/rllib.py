@@ -230,7 +230,8 @@ def export_ppo(algo: Any, folder: str | Path, *, env_id: str, env_kwargs: Mappin
     from ray.rllib.core import COMPONENT_ENV_TO_MODULE_CONNECTOR, DEFAULT_MODULE_ID
     from stable_baselines3.common.policies import ActorCriticPolicy
 
-    from electroloc_gym.train.policy_format import export_policy
+    from electroloc_gym.policy.format import write_export
+    from electroloc_gym.policy.sb3 import export_meta, model_weights
 
     state = algo.learner_group.get_weights()[DEFAULT_MODULE_ID]
     env = make_env({"env_id": env_id, **dict(env_kwargs)})  # the raw spaces (the module sees filtered ones)
@@ -247,18 +248,15 @@ def export_ppo(algo: Any, folder: str | Path, *, env_id: str, env_kwargs: Mappin
         (stat,) = agent_state["running_stats"]
         normalization = normalization_from_filter(stat, agent_state["clip_by_value"])
     shim = _PolicyHolder(policy, {"net_arch": list(hidden), "activation_fn": torch.nn.Tanh, "ortho_init": False})
-    kwargs = dict(env_kwargs)
-    observation = {"env_id": env_id, "mode": kwargs.get("observation", "belief"), "frame_stack": 1,
-                   "action_type": kwargs.get("action_type", "continuous"), "env_kwargs": kwargs, "algo": "ppo"}
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    return export_policy(shim, folder, observation=observation, normalization=normalization,
-                         provenance={"trainer": "rllib", **dict(provenance)})
+    meta = export_meta(shim, env_id=env_id, env_kwargs=dict(env_kwargs), frame_stack=1, vecnormalize=None,
+                       provenance={"trainer": "rllib", **dict(provenance)})
+    meta["algo"], meta["normalization"] = "ppo", normalization
+    return write_export(folder, meta, model_weights(shim))
 
 
 class _PolicyHolder:
-    """What :func:`~electroloc_gym.train.policy_format.export_policy` reads of an SB3 model: the policy
-    and its constructor keywords.
+    """What :func:`~electroloc_gym.policy.sb3.export_meta` reads of an SB3 model: the policy and its
+    constructor keywords.
     """
 
     def __init__(self, policy: Any, policy_kwargs: dict[str, Any]) -> None:

@@ -65,7 +65,8 @@ _target = {
     "gain_levels": st.one_of(st.none(), st.lists(_factors, min_size=1, max_size=3, unique=True).map(tuple)),
 }
 ARGUMENTS = {
-    "ElectroLoc-v0": st.fixed_dictionaries({**_common, **_target}),
+    "ElectroLoc-v0": st.fixed_dictionaries({**_common, **_target,
+                                            "distractors": st.sampled_from([0, 1, 2, [0, 2]])}),
     "ElectroLocGlobal-v0": st.fixed_dictionaries({**_common, "layout": st.sampled_from(["benchmark", "random"]),
                                                   "position_blur_mm": st.floats(0.0, MAX_POSITION_BLUR_MM)}),
     "ElectroLocUnknownTarget-v0": st.fixed_dictionaries({

@@ -19,7 +19,7 @@ something without ``reset``/``predict``, a policy recorded for another env, obse
 action space (:func:`policy_env_problem`) — is one ``ValueError`` naming the spec, raised before any
 trial runs.
 
-Learned policies load through :func:`electroloc_gym.train.policy.load_policy`, which reads the
+Learned policies load through :func:`electroloc_gym.policy.load.load_policy`, which reads the
 project's pickle-free policy files; a bare SB3 ``.zip`` (pickle inside) loads only with
 ``trust_pickle=True`` (``--trust-pickle``). The paper's controllers never import the training package.
 Nothing is picked up from the working directory: a default run uses the shipped models only.
@@ -246,12 +246,14 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
 
 
 # The bench owns these env kwargs; an agent's env_kwargs cannot override them.
-_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels", "sensor_layout")
+_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels", "sensor_layout",
+                      "distractors")
 def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | None, *, condition: str | None = None,
                      signal: str | None = None, sensor_model: str | None = None, n_particles: int | None = None,
-                     max_observations: int | None = None, sensor_layout: str | None = None) -> dict[str, Any]:
+                     max_observations: int | None = None, sensor_layout: str | None = None,
+                     distractors: int = 0) -> dict[str, Any]:
     """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``
-    (never overriding what the bench owns).
+    (never overriding what the bench owns, e.g. the distractors a policy was trained with).
     """
     kwargs: dict[str, Any] = {k: v for k, v in (("sensor_model", sensor_model), ("n_particles", n_particles),
                                                 ("max_observations", max_observations)) if v is not None}
@@ -267,6 +269,8 @@ def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | N
         kwargs["gain_levels"] = tuple(gain_levels)
     if sensor_layout is not None:
         kwargs["sensor_layout"] = sensor_layout
+    if distractors:
+        kwargs["distractors"] = int(distractors)
     kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
                    if k not in _BENCH_ONLY_KWARGS})
     return kwargs

@@ -23,6 +23,7 @@ from electroloc_gym.bench.config import (
 from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
+from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = ["add_arguments", "run", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS", "MAX_OBSERVATIONS",
@@ -84,6 +85,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "region), or the paper's equations (scale 1); docs/fidelity.md compares them")
     parser.add_argument("--sensor-layout", default=None, choices=list(LAYOUT_NAMES),
                         help="ElectroLoc-v0's sensing pairs (§7; observations = snapshots, K readings each)")
+    parser.add_argument("--distractors", type=int, default=0,
+                        help=f"D objects that are not the target drawn per trial in the tank (ElectroLoc-v0's "
+                             f"distractors=D, 0–{MAX_DISTRACTORS}; in the true reading only; default 0)")
     parser.add_argument("--max-observations", type=int, default=35, help="observation cap of a trial (paper: 35)")
     parser.add_argument("--n-particles", type=int, default=None,
                         help="particles of the belief (default: the env's, 2500 as the paper; unknown-target: 5000)")
@@ -136,6 +140,7 @@ def _check_ranges(args: argparse.Namespace) -> None:
                                      ("--seed", args.seed, 0, 2**63 - 1),
                                      ("--workers", args.workers, 1, MAX_WORKERS),
                                      ("--max-observations", args.max_observations, 1, MAX_OBSERVATIONS),
+                                     ("--distractors", getattr(args, "distractors", 0), 0, MAX_DISTRACTORS),
                                      ("--n-particles", args.n_particles, 2, MAX_PARTICLES)):
         if value is not None and not low <= value <= high:
             raise ValueError(f"{option} must be an integer in [{low}, {high}], got {value}")
@@ -171,7 +176,8 @@ def run(args: argparse.Namespace) -> int:
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
                              max_observations=args.max_observations, n_particles=n_particles,
-                             env_id=env_id, gain_levels=gain_levels, sensor_layout=args.sensor_layout)
+                             env_id=env_id, gain_levels=gain_levels, sensor_layout=args.sensor_layout,
+                             distractors=getattr(args, "distractors", 0))
         options = {} if args.address is None else {"address": args.address}
         run_benchmark(config, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
                       progress=not args.no_progress, backend_options=options, trust_pickle=args.trust_pickle)

@@ -20,6 +20,7 @@ import numpy as np
 
 from electroloc_gym.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOICES
 from electroloc_gym.core.params import EnvParams
+from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.registry import BENCH_ENVS, DYNAMIC_GAIN_LEVELS, ENVS
 
 __all__ = [
@@ -40,6 +41,8 @@ __all__ = [
     "DYNAMIC_GAIN_LEVELS",
     "ENV_DEFAULT_AGENTS",
     "IDENTITY_KEYS",
+    "IDENTITY_DEFAULTS",
+    "ENV_TAKES_DISTRACTORS",
 ]
 
 #: The paper's three controllers.
@@ -62,8 +65,13 @@ ENV_DEFAULT_AGENTS = {name: bench.agents for name, (_, bench) in BENCH_ENVS.item
 GLOBAL_ENV_ID, GLOBAL_CONDITION = next((e.env_id, b.condition) for e, b in BENCH_ENVS.values() if b.condition)
 #: The unknown-target env (paper §7): the eight presets' sphere/water pairs, the sphere hidden from the agent.
 UNKNOWN_ENV_ID = BENCH_ENVS["unknown-target"][0].env_id
+#: Which envs take ``distractors=`` (``--distractors``).
+ENV_TAKES_DISTRACTORS = {e.env_id: "distractors" in e.arguments for e in ENVS}
 #: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
-IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id", "gain_levels", "sensor_layout")
+#: What an identity key missing from an older record or config means.
+IDENTITY_DEFAULTS = {"distractors": 0}
+IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id", "gain_levels", "sensor_layout",
+                 "distractors")
 
 
 @dataclass(frozen=True)
@@ -86,6 +94,7 @@ class BenchConfig:
         gain_levels: dynamic gain: the factors of the amplifier gain in the action (None: the preset gain).
         sensor_layout: ElectroLoc-v0's named sensor layout (``electroloc_gym.sensor_array.LAYOUT_NAMES``), or
             None: the env's default (the paper's pair).
+        distractors: D, distractors drawn per trial in ElectroLoc-v0's tank (``distractors=D``; 0: none).
     """
 
     agents: tuple[str, ...] = DEFAULT_AGENTS
@@ -99,8 +108,15 @@ class BenchConfig:
     env_id: str = "ElectroLoc-v0"
     gain_levels: tuple[float, ...] | None = None
     sensor_layout: str | None = None
+    distractors: int = 0
 
     def __post_init__(self) -> None:
+        d = self.distractors
+        if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d <= MAX_DISTRACTORS:
+            raise ValueError(f"distractors must be an integer in [0, {MAX_DISTRACTORS}], got {d!r}")
+        if d and not ENV_TAKES_DISTRACTORS.get(self.env_id, False):
+            raise ValueError(f"distractors apply to {[k for k, v in ENV_TAKES_DISTRACTORS.items() if v]} only, "
+                             f"not {self.env_id}")
         if self.gain_levels is not None:
             object.__setattr__(self, "gain_levels", tuple(float(g) for g in self.gain_levels))
         if not self.agents:
@@ -147,6 +163,8 @@ class TrialSpec:
     env_id: str = "ElectroLoc-v0"
     gain_levels: tuple[float, ...] | None = None
     sensor_layout: str | None = None
+    #: D, distractors drawn per trial (0: none).
+    distractors: int = 0
     #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
     trust_pickle: bool = False
 
@@ -198,5 +216,6 @@ def make_trial_specs(config: BenchConfig, *, trust_pickle: bool = False) -> list
                 specs.append(TrialSpec(cond, agent, k, env_seed, agent_seed, config.sensor_model, config.signal,
                                        config.max_observations, config.n_particles, config.env_id,
                                        gain_levels=config.gain_levels, sensor_layout=config.sensor_layout,
+                                       distractors=config.distractors,
                                        trust_pickle=trust_pickle))
     return specs

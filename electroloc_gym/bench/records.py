@@ -28,7 +28,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.bench.config import GLOBAL_CONDITION, GLOBAL_ENV_ID, IDENTITY_KEYS, BenchConfig, trial_seeds
+from electroloc_gym.bench.config import (
+    GLOBAL_CONDITION,
+    GLOBAL_ENV_ID,
+    IDENTITY_DEFAULTS,
+    IDENTITY_KEYS,
+    BenchConfig,
+    trial_seeds,
+)
 from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules, TrialRecord
 from electroloc_gym.fileio import FolderBusyError, FolderLock, atomic_write_text, strict_json
 
@@ -107,7 +114,7 @@ def _plain(value: Any) -> Any:
 def foreign_reason(rec: dict[str, Any], config: BenchConfig) -> str | None:
     """Why a valid record does not belong to ``config``'s run (None: it does)."""
     for key in IDENTITY_KEYS:
-        mine, theirs = _plain(getattr(config, key)), _plain(rec.get(key))  # JSON: tuples come back as lists
+        mine, theirs = _plain(getattr(config, key)), _plain(rec.get(key, IDENTITY_DEFAULTS.get(key)))  # JSON lists
         if theirs != mine:
             return f"{key} {theirs!r}, this run {mine!r}"
     if (rec["condition"] == GLOBAL_CONDITION) != (config.env_id == GLOBAL_ENV_ID):

@@ -34,6 +34,7 @@ from electroloc_gym.bench.config import (
     DEFAULT_AGENTS,
     GLOBAL_CONDITION,
     GLOBAL_ENV_ID,
+    IDENTITY_DEFAULTS,
     IDENTITY_KEYS,
     UNKNOWN_ENV_ID,
     BenchConfig,
@@ -74,7 +75,7 @@ def _config_problem(stored: Any) -> str | None:
     """Why a parsed config.json cannot describe a run (None: it can)."""
     if not isinstance(stored, dict):
         return f"not a JSON object ({type(stored).__name__})"
-    later = ("gain_levels", "sensor_layout")  # keys added later
+    later = ("gain_levels", "sensor_layout", "distractors")  # keys added later
     missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k not in later]
     if missing:
         return f"missing key(s) {missing}"
@@ -110,7 +111,8 @@ def _resume(config: BenchConfig, out: Path, log: _Log,
     """Check a stored run against ``config``; set damaged lines aside. Returns its records and config."""
     stored = read_config(out / "config.json", log)
     if stored is not None:
-        mismatch = {k: (stored.get(k), v) for k, v in config.identity().items() if stored.get(k) != v}
+        was = {k: stored.get(k, IDENTITY_DEFAULTS.get(k)) for k in config.identity()}  # keys added later: defaults
+        mismatch = {k: (was[k], v) for k, v in config.identity().items() if was[k] != v}
         if mismatch:
             raise ValueError(f"cannot resume {out}: settings differ from the stored run (stored, now): {mismatch}")
     loaded = load_records(out / TRIALS_FILE, config, record_rules(config, stored, trust_pickle=trust_pickle))

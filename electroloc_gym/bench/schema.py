@@ -17,6 +17,8 @@ Consistency, for every record:
   reset), ``observations`` when the agent did (its last decision ends the trial).
 * ``error_mm`` = ‖estimate − target‖ and ``error_x_mm``/``error_y_mm`` its components; no estimate,
   no error.
+* ``far_success`` ⇔ a success whose estimate is more than :data:`FAR_ERROR_MM` from the target
+  (:func:`is_far_success`; a tight belief on the wrong object, e.g. a distractor).
 * ``shape`` (the unknown-target env's identification): exactly :data:`SHAPE_RECORD_KEYS`, on that
   env only.
 """
@@ -31,8 +33,20 @@ from typing import Any
 from electroloc_gym.agentspec import is_path_like, parse_agent_spec
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
-__all__ = ["TrialRecord", "RecordRules", "RECORD_KEYS", "OPTIONAL_RECORD_KEYS", "TIMING_KEYS", "SHAPE_RECORD_KEYS",
+__all__ = ["TrialRecord", "FAR_ERROR_MM", "is_far_success",
+           "RecordRules", "RECORD_KEYS", "OPTIONAL_RECORD_KEYS", "TIMING_KEYS", "SHAPE_RECORD_KEYS",
            "POSITION_BOUND_MM", "MAX_TEXT_CHARS"]
+
+#: A *far success*: the trial succeeded (the belief is tight) but its estimate is more than this from the target,
+#: mm: 1.5 × the success criterion (10 mm), so the tight cloud does not hold the target — a belief locked on
+#: the wrong object (a distractor, or a wrong mode of the target's own map).
+FAR_ERROR_MM = 15.0
+
+
+def is_far_success(success: bool, error_mm: float | None) -> bool:
+    """A success whose estimate is more than :data:`FAR_ERROR_MM` from the target (the one definition)."""
+    return bool(success and error_mm is not None and error_mm > FAR_ERROR_MM)
+
 
 #: Largest |coordinate| of a position in a record, mm (the tank is well under a metre across).
 POSITION_BOUND_MM = 1000.0
@@ -150,6 +164,9 @@ class TrialRecord:
     gain_levels: list[float] | None = _f(_gains, "null or a list of positive gain factors", optional=True)
     sensor_layout: str | None = _f(lambda v: v is None or v in LAYOUT_NAMES, f"null or one of {list(LAYOUT_NAMES)}",
                                    optional=True)
+    distractors: int | None = _f(lambda v: v is None or _int(0, 8)(v), "an integer in [0, 8] or null",
+                                 optional=True)
+    far_success: bool | None = _f(lambda v: v is None or isinstance(v, bool), "true, false or null", optional=True)
 
     @classmethod
     def from_json(cls, obj: Any) -> TrialRecord:
@@ -190,6 +207,9 @@ class TrialRecord:
                                     ("error_mm", self.error_mm, math.hypot(dx, dy))):
                 if got is None or not math.isclose(got, want, rel_tol=1e-9, abs_tol=1e-9):
                     return f"{name!r} is {got!r}, but estimate − target gives {want!r}"
+        if self.far_success is not None and self.far_success != is_far_success(self.success, self.error_mm):
+            return (f"'far_success' {self.far_success} contradicts 'success' {self.success} and 'error_mm' "
+                    f"{self.error_mm} (far: a success more than {FAR_ERROR_MM} mm off)")
         if self.ended_by == "agent":
             if self.decisions != self.observations:
                 return f"'decisions' {self.decisions} ≠ 'observations' {self.observations} (the agent ended the trial)"

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.agentspec import is_path_like
+from electroloc_gym.bench.schema import is_far_success
 
 __all__ = ["summarize", "agent_label", "RULES"]
 
@@ -170,6 +171,7 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
             "steps_mean_paired": _avg_of(crow, "steps_mean_paired"),
             "error_median_pooled_mm": _median(r["error_mm"] for r in recs),
             "steps_median_pooled": _median(r["observations"] for r in recs),
+            "far_successes": sum(is_far_success(r["success"], r["error_mm"]) for r in recs),
             "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
             "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),
             **_identification([r for r in recs if r["success"]]),  # pooled over the conditions' successes

@@ -11,6 +11,7 @@ from typing import Any
 
 from electroloc_gym.agentspec import parse_agent_spec
 from electroloc_gym.bench.fidelity import PAPER_TRIALS, paper_count_interval
+from electroloc_gym.bench.schema import FAR_ERROR_MM
 from electroloc_gym.conditions import PRESET_NAMES
 
 __all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "PAPER_TABLE2", "render_table_md", "paper_agent_key",
@@ -202,7 +203,10 @@ def render_table_md(summary: dict[str, Any]) -> str:
             out.append("Pooled over all trials (not the paper's convention): " + "; ".join(
                 f"{r.get('label', r['agent'])}: median steps {_f(r.get('steps_median_pooled'))}, median error "
                 f"{_f(r.get('error_median_pooled_mm'), 2)} mm, own-success means: error "
-                f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('steps_mean'))}" for r in alls) + ".")
+                f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('steps_mean'))}"
+                + ("" if r.get("far_successes") is None
+                   else f", far successes (> {FAR_ERROR_MM:g} mm off) {r['far_successes']}")
+                for r in alls) + ".")
             out.append("")
     ident = [r for r in t4 if r.get("identified_trials") and r["condition"] != "all"]
     if ident:

@@ -19,7 +19,7 @@ import numpy as np
 from electroloc_gym.bench.agents import bench_env_kwargs, cached_agent
 from electroloc_gym.bench.config import GLOBAL_ENV_ID, UNKNOWN_ENV_ID, TrialSpec
 from electroloc_gym.bench.rollout import run_episode
-from electroloc_gym.bench.schema import SHAPE_RECORD_KEYS, TrialRecord
+from electroloc_gym.bench.schema import SHAPE_RECORD_KEYS, TrialRecord, is_far_success
 from electroloc_gym.fileio import to_json_data
 
 __all__ = ["run_trial"]
@@ -34,7 +34,8 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
 
     kwargs = bench_env_kwargs(spec.env_id, agent, spec.gain_levels, condition=spec.condition, signal=spec.signal,
                               sensor_model=spec.sensor_model, n_particles=spec.n_particles,
-                              max_observations=spec.max_observations, sensor_layout=spec.sensor_layout)
+                              max_observations=spec.max_observations, sensor_layout=spec.sensor_layout,
+                              distractors=spec.distractors)
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
     if key not in _ENVS:
         if len(_ENVS) > 16:
@@ -104,6 +105,8 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
         "shape": _shape_record(info) if spec.env_id == UNKNOWN_ENV_ID else None,
         "gain_levels": None if spec.gain_levels is None else list(spec.gain_levels),
         "sensor_layout": spec.sensor_layout,
+        "distractors": spec.distractors,
+        "far_success": is_far_success(success, error),
     }).to_json()
 
 

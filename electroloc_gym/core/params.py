@@ -23,6 +23,7 @@ import numpy as np
 
 from electroloc_gym.conditions import Condition, get_condition
 from electroloc_gym.core.observation import OBSERVATION_MODES
+from electroloc_gym.distractors import resolve_distractors
 from electroloc_gym.registry import TASKS, task_entry
 from electroloc_gym.scene import Scene
 from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, SENSOR_MODEL_NAMES, CalibrationProtocol
@@ -167,6 +168,10 @@ class EnvParams:
             (stored as a ``SensorLayout``); ``"single"``: the paper's one pair.
         fixed_carriage: localize: the carriage never moves (the stationary array); the action space is
             unchanged and its moves are ignored.
+        distractors: localize: objects that are not the target, in the true reading only
+            (:mod:`electroloc_gym.core.distractors`): a count D drawn per episode, a ``DistractorDraw``, a
+            dict of its fields, or an explicit layout (a ``DistractorSet`` or a sequence of ``SceneObject``);
+            stored resolved (0: none, the plain env).
     """
 
     task: str = TASKS[0]
@@ -191,6 +196,7 @@ class EnvParams:
     gain_levels: Any = None
     sensor_layout: Any = "single"
     fixed_carriage: bool = False
+    distractors: Any = 0
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -242,6 +248,8 @@ class EnvParams:
         if not isinstance(cal, CalibrationProtocol):
             raise ValueError(f"calibration must be a CalibrationProtocol or a dict of its fields, got {cal!r}")
         put("calibration", cal)
+        if "distractors" in task_entry(self.task).arguments:
+            put("distractors", resolve_distractors(self.distractors))
         if "condition" in task_entry(self.task).arguments:
             signal = self.signal
             if isinstance(signal, (int, float, np.integer, np.floating)) and not isinstance(signal, (bool, np.bool_)):

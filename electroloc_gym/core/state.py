@@ -63,6 +63,8 @@ class State:
         gain_index: (N,) the gain level of each env's last reading (dynamic gain; 0 without).
         worlds_drawn: worlds drawn per episode so far (the global task's random maps: each new map's
             ``world_key``).
+        distractor_scenes: each env's episode distractors as a ``Scene`` in its world's water (None: none;
+            empty until a task with distractors resets; :mod:`electroloc_gym.core.distractors`).
     """
 
     gens: list[np.random.Generator | None]
@@ -102,6 +104,7 @@ class State:
     gain_index: NDArray[np.int64]
     started: bool = field(default=False)
     worlds_drawn: int = field(default=0)
+    distractor_scenes: list[Any] = field(default_factory=list)
 
     @classmethod
     def empty(cls, num_envs: int, n_particles: int, table_cells: int, shape_dims: int = 0,

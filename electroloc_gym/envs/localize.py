@@ -113,6 +113,10 @@ class ElectroLocEnv(CoreEnv):
     * ``signal``: the presets' signal scale (:func:`electroloc_gym.conditions.get_condition`:
       ``"fitted"`` to the hardware's detection distances, Table 3, ``"paper"``: the paper's equations,
       ``"coverage"``, or a number); ignored for a ``Condition``.
+    * ``distractors``: objects that are not the target (:mod:`electroloc_gym.core.distractors`): a count D
+      (0–8) drawn per episode clear of the target, a list of counts (one drawn per episode), or an explicit
+      layout; they add to the true reading only (the agent's model knows the target alone), and the info
+      then has ``distractors_mm`` (their centres, for evaluation and rendering only). 0 (default): none.
 
     * ``sensor_layout``: the carriage's sensing pairs (§7, :mod:`electroloc_gym.core.array`): a name of
       ``electroloc_gym.sensor_array.LAYOUT_NAMES``, a ``SensorLayout``, or (K, 2, 2) electrode offsets in mm;

@@ -1,0 +1,120 @@
+"""The ``localize`` task with distractors (ElectroLoc-v0's ``distractors=`` argument).
+
+Distractors are objects in the tank that are not the target (the physics, their draws and layouts:
+:mod:`electroloc_gym.distractors`). This task is :class:`~electroloc_gym.core.localize.LocalizeTask`
+with two changes, and only these:
+
+* **episode draws** (:meth:`LocalizeDistractorsTask.begin_episode`): after the plain task's draws
+  (condition, calibration seed, target, start position, particles), the episode's distractor set —
+  drawn from the env's generator clear of the target (``distractors=D``: per object shape, diameter,
+  material, then centres by rejection), or the explicit layout itself (no draws). With D = 0 nothing
+  is drawn: the generator's stream, and so every episode, is the plain task's bit for bit. A count mix
+  (``distractors=(0, 1, 2)``) first draws the episode's count.
+* **true reading** (:meth:`LocalizeDistractorsTask.true_mean_V`): the target's noise-free reading plus
+  the distractors' perturbations, superposed in the world's water, amplifier, signal scale and
+  geometry (and times the gain factor of the reading with dynamic gain). Without distractors it returns
+  the plain task's array itself.
+
+The agent's sensor model, the belief update, the predictions agents make and the observation know
+only the target: the distractors are the model mismatch a real tank imposes. The info gains
+``distractors_mm`` — each env's (D, 2) centres, mm (an object array over envs) — for renderers and evaluation only (like
+``target_mm``: agents must not act on it); the plain env (D = 0) keeps the plain info keys.
+
+An explicit layout is checked once, at construction, against every condition of the pool (centres in
+the allowed box, footprints clear of the condition's target); it needs ``randomize_target=False``,
+since a drawn target could land on a fixed distractor.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from electroloc_gym.core.localize import LocalizeTask
+from electroloc_gym.core.params import EnvParams
+from electroloc_gym.core.state import State
+from electroloc_gym.distractors import DistractorDraw, DistractorSet
+
+__all__ = ["LocalizeDistractorsTask", "DISTRACTOR_INFO_KEY"]
+
+#: The info key of the distractors' centres ((D, 2) per env, mm).
+DISTRACTOR_INFO_KEY = "distractors_mm"
+
+
+class LocalizeDistractorsTask(LocalizeTask):
+    """ElectroLoc-v0: the localize task, with ``params.distractors`` in the true reading (module docstring).
+
+    Raises:
+        ValueError: an explicit layout with ``randomize_target=True``, or one that leaves a condition's
+            allowed box or overlaps its target (naming ``distractors`` and the object).
+    """
+
+    def __init__(self, params: EnvParams) -> None:
+        super().__init__(params)
+        spec = params.distractors
+        self.spec: DistractorDraw | DistractorSet = spec
+        if isinstance(spec, DistractorSet) and len(spec):
+            if params.randomize_target:
+                raise ValueError("distractors: an explicit layout needs randomize_target=False (a drawn target "
+                                 "could overlap it); pass a count or a DistractorDraw to draw them per episode")
+            for c in self.pool:
+                try:
+                    spec.validate(c, c.target_xy_mm)
+                except ValueError as exc:
+                    raise ValueError(f"distractors in condition {c.name!r}: {exc}") from None
+        #: D, the most distractors an episode has (0: the plain task).
+        self.count = len(spec) if isinstance(spec, DistractorSet) else spec.max_count
+        self.info_keys = tuple(self.info_keys) + ((DISTRACTOR_INFO_KEY,) if self.count else ())
+
+    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+        """The plain task's draws (:meth:`LocalizeTask.begin_episode`), then the distractor set's (none for D = 0).
+
+        Raises:
+            ValueError: the draw found no free place for every object (possible with many large ones in a
+                small box, e.g. 8 of up to 38.1 mm in ±50 mm; naming ``distractors``).
+        """
+        super().begin_episode(state, i, g)
+        if not self.count:
+            return
+        if len(state.distractor_scenes) != state.num_envs:
+            state.distractor_scenes = [None] * state.num_envs
+        c = state.world[i]
+        spec = self.spec
+        try:
+            layout = spec if isinstance(spec, DistractorSet) else spec.draw(c, state.target_mm[i], g)
+        except ValueError as exc:  # many large objects may not fit the box: say which argument to change
+            raise ValueError(f"distractors: {exc}") from None
+        state.distractor_scenes[i] = layout.scene(c)
+
+    def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
+        """(k,) noise-free, unsaturated true readings, V: the target's plus the distractors' (superposition)."""
+        out = super().true_mean_V(state, ids)
+        if not self.count:
+            return out
+        scenes = state.distractor_scenes
+        extra = np.array([0.0 if scenes[i] is None else scenes[i].expected_reading(state.position_mm[i], saturate=False)
+                          for i in ids.tolist()], dtype=np.float64)
+        if len(self.gains) > 1:
+            extra *= self._gain_array[state.gain_index[ids]]
+        return out + extra
+
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
+        """``distractors_mm``: (k,) object array of each env's (D_i, 2) distractor centres, mm (with D > 0; D_i
+        varies per episode in a count mix, so the rows are arrays of their own rather than NaN-padded).
+        """
+        base = super().task_info(state, sel)
+        if not self.count:
+            return base
+        ids = np.arange(state.num_envs)[sel]
+        out = np.empty(len(ids), dtype=object)
+        for row, i in enumerate(ids.tolist()):
+            scene = state.distractor_scenes[i]
+            out[row] = np.array([o.xy_mm for o in scene.objects] if scene is not None else np.empty((0, 2)),
+                                dtype=np.float64).reshape(-1, 2)
+        return {**base, DISTRACTOR_INFO_KEY: out}
+
+    def distractor_scene(self, state: State, i: int) -> Any:
+        """Env ``i``'s episode distractors as a :class:`~electroloc_gym.scene.Scene` (None without)."""
+        return state.distractor_scenes[i] if self.count else None
