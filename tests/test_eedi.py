@@ -15,7 +15,6 @@ from electroloc_gym.baselines.ergodic import (
     information_density,
     workspace_grid,
 )
-from electroloc_gym.bench.rollout import run_episode
 
 BOX = ((-50.0, -50.0), (50.0, 50.0))
 
@@ -152,22 +151,6 @@ def test_decisions_are_seeded_within_the_limits_and_the_density_is_normalised() 
     assert isinstance(agent, EEDIAgent) and agent.last_density is not None
     h = float(np.unique(np.diff(np.unique(agent.last_grid_mm[:, 0])))[0])
     assert agent.last_density.sum() * h * h == pytest.approx(1.0)
-
-
-@pytest.mark.parametrize("env_id", ["ElectroLoc-v0", "ElectroLocUnknownTarget-v0"])
-def test_runs_an_episode_on_the_target_envs(env_id: str) -> None:
-    env = gym.make(env_id, n_particles=500, max_observations=6, sensor_model="analytic")
-    ep = run_episode(env, make_agent("eedi[n_particles=64,grid_mm=10]"), seed=2, agent_seed=1)
-    assert ep.ended_by in ("success", "cap")
-    assert 1 <= len(ep.decision_s) <= 5
-
-
-def test_refuses_the_global_env_in_one_line() -> None:
-    env = gym.make("ElectroLocGlobal-v0", n_particles=200)
-    env.reset(seed=0)
-    with pytest.raises(ValueError, match="ElectroLocGlobal-v0") as err:
-        make_agent("eedi").reset(env)
-    assert "\n" not in str(err.value)
 
 
 def test_registry_and_bench_name() -> None:

@@ -14,7 +14,6 @@ from electroloc_gym.baselines.infotaxis import (
     gauss_hermite,
     log_weight_entropy,
 )
-from electroloc_gym.bench.rollout import run_episode
 
 
 def _reference(mean, std, weights, voters, nodes):
@@ -119,17 +118,3 @@ def test_decisions_are_seeded_and_within_the_move_limits() -> None:
     assert np.all(np.isfinite(agent.last_gains))
 
 
-@pytest.mark.parametrize("env_id", ["ElectroLoc-v0", "ElectroLocUnknownTarget-v0"])
-def test_runs_an_episode_on_the_target_envs(env_id: str) -> None:
-    env = gym.make(env_id, n_particles=600, max_observations=6, sensor_model="analytic")
-    ep = run_episode(env, make_agent("infotaxis[n_voters=32]"), seed=2, agent_seed=1)
-    assert ep.ended_by in ("success", "cap")
-    assert 1 <= len(ep.decision_s) <= 5
-
-
-def test_refuses_the_global_env_in_one_line() -> None:
-    env = gym.make("ElectroLocGlobal-v0", n_particles=200)
-    env.reset(seed=0)
-    with pytest.raises(ValueError, match="ElectroLocGlobal-v0") as err:
-        make_agent("infotaxis").reset(env)
-    assert "\n" not in str(err.value)
