@@ -160,6 +160,11 @@ _ANY = st.one_of(st.none(), st.booleans(), st.integers(min_value=-2**70, max_val
 _LOOSE = {"start": lambda v: isinstance(v, list) and len(v) == 2 and all(
               isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= 1000 for x in v),
           "agent_label": lambda v: isinstance(v, str) and 0 < len(v) <= 2000,
+          # keys added later: null is what a record written before them means (far_success: not computed)
+          "far_success": lambda v: v is None,
+          # any spread consistent with the record's success (≤ the criterion ⇔ success) is a valid spread
+          "spread_mm": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0,
+          "distractors": lambda v: v is None,
           **{k: (lambda v: v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
                                          and 0 <= v <= 86_400e3)) for k in TIMING_KEYS}}
 
