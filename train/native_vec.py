@@ -29,13 +29,11 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper,
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 import electroloc_gym  # noqa: F401  (registers the ids)
+from electroloc_gym.core.observation import INFO_KEYS  # the info keys copied into every per-env info dict
 from electroloc_gym.train.wrappers import VecPotentialShaping
 
 __all__ = ["NativeVecEnv", "VecEpisodeReport", "make_native_vec_env", "zoo_vec_env"]
 
-#: Info keys of the single env copied into every per-env info dict.
-_INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
-              "condition")
 
 
 class NativeVecEnv(VecEnv):
@@ -87,7 +85,7 @@ class NativeVecEnv(VecEnv):
                 self.reset_infos[i] = now[i]
             final_info = info["final_info"]
             info = {k: np.where(dones.reshape((-1,) + (1,) * (np.ndim(v) - 1)), final_info[k], v)
-                    for k, v in info.items() if k in _INFO_KEYS}
+                    for k, v in info.items() if k in INFO_KEYS}
         infos = self._split_info(info)
         timeout = (truncated & ~terminated).tolist()
         for i, d in enumerate(infos):
@@ -124,7 +122,7 @@ class NativeVecEnv(VecEnv):
     def _split_info(self, info: dict[str, Any]) -> list[dict[str, Any]]:
         """The vector env's dict of arrays as SB3's list of per-env dicts."""
         cols = {k: ([tuple(r) for r in info[k].tolist()] if info[k].ndim == 2 else info[k].tolist())
-                for k in _INFO_KEYS if k in info}
+                for k in INFO_KEYS if k in info}
         return [dict(zip(cols, row, strict=True)) for row in zip(*cols.values(), strict=True)]
 
 
