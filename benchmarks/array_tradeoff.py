@@ -3,8 +3,9 @@ r"""The trade of motion for sensing (§7), measured: readings, motions and snaps
 For every layout (K = 1 ``single``, K = 2 ``ring-2`` — pairs 1 and 6 of ``ring-8``, mirrored about the emitter
 axis —, K = 4 ``grid-2x2`` — the paper's "four stationary sensor pairs" —, K = 8 ``ring-8``), every agent
 (``rnd-wlk``, ``min-var``, ``lookahead``) on the moving carriage, and the **stationary** array
-(``fixed_carriage=True``: the carriage stays at its start, every step one more snapshot of K readings), on the
-paper's eight conditions: the trials of ``electroloc bench`` (its seeds,
+(``fixed_carriage=True``: the carriage stays at its start, every step one more snapshot of K readings), and any
+learned policy named with ``--agents`` (a shipped model or a policy folder, run only on the layout it was trained
+with: ``ppo-belief-grid-2x2``), on the paper's eight conditions: the trials of ``electroloc bench`` (its seeds,
 :func:`electroloc_gym.bench.config.trial_seeds`; ElectroLoc-v0 with the calibrated model, 2500 particles, the
 35-snapshot cap, the 10 mm success spread). Per
 trial: success (√trace Σ ≤ 10 mm within the cap), error (mm), snapshots (``n_observations``: readings per
@@ -15,6 +16,8 @@ so a run stopped early still has the same trials in every cell; ``--resume`` ski
 ``report`` writes the table (markdown) and the figure of motions to localise against K.
 
     python benchmarks/array_tradeoff.py run --trials 50 --out array_tradeoff.jsonl
+    python benchmarks/array_tradeoff.py run --trials 50 --layouts grid-2x2 --agents ppo-belief-grid-2x2 \
+        --out array_tradeoff.jsonl --resume
     python benchmarks/array_tradeoff.py report array_tradeoff.jsonl --table docs/array_tradeoff.md \
         --figure docs/array_tradeoff.png
 """
@@ -34,6 +37,7 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401
 from electroloc_gym.baselines import make_agent  # noqa: E402
+from electroloc_gym.bench.agents import bench_env_kwargs, make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.bench.rollout import run_episode  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
@@ -55,9 +59,14 @@ def run_trial(layout: str, agent_name: str, condition: str, trial: int, seed: in
     """One trial (module docstring) as a JSON-able record."""
     env_seed, agent_seed = trial_seeds(seed, condition, trial)
     fixed = agent_name == STATIONARY
-    env = gym.make("ElectroLoc-v0", condition=get_condition(condition), sensor_layout=layout_of(layout),
+    if fixed or agent_name in AGENTS:
+        agent = make_agent("rnd-wlk" if fixed else agent_name, seed=agent_seed)
+        kwargs = {}
+    else:  # a learned policy: its own observation mode, the bench's settings (bench_env_kwargs)
+        agent = make_bench_agent(agent_name, seed=agent_seed)
+        kwargs = bench_env_kwargs("ElectroLoc-v0", agent, None)
+    env = gym.make("ElectroLoc-v0", **kwargs, condition=get_condition(condition), sensor_layout=layout_of(layout),
                    fixed_carriage=fixed)
-    agent = make_agent("rnd-wlk" if fixed else agent_name, seed=agent_seed)
     positions: list[tuple[float, float]] = []
     t0 = time.perf_counter()
     ep = run_episode(env, agent, env_seed, agent_seed=agent_seed,
@@ -101,11 +110,17 @@ def _load(path: str) -> list[dict]:
     return [r for r in recs if r["trial"] in full]
 
 
+def _order(agent: str) -> int:
+    """Table order: the controllers, the stationary array, then learned policies."""
+    known = (*AGENTS, STATIONARY)
+    return known.index(agent) if agent in known else len(known)
+
+
 def summarise(recs: list[dict]) -> list[dict]:
     """Per layout and agent, pooled over the conditions: trials, success rate, errors, means to localise."""
     rows = []
     keys = sorted({(r["K"], r["layout"], r["agent"]) for r in recs},
-                  key=lambda x: (x[0], (*AGENTS, STATIONARY).index(x[2])))
+                  key=lambda x: (x[0], _order(x[2]), x[2]))
     for k, lay, ag in keys:
         rs = [r for r in recs if r["layout"] == lay and r["agent"] == ag]
         ok = [r for r in rs if r["success"]]
@@ -158,13 +173,12 @@ def report(args: argparse.Namespace) -> None:
         import matplotlib.pyplot as plt
 
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.6))
-        for ag in (*AGENTS, STATIONARY):
+        for ag in sorted({r["agent"] for r in rows}, key=lambda a: (_order(a), a)):
             sel = sorted((r for r in rows if r["agent"] == ag), key=lambda r: r["K"])
-            if not sel:
-                continue
             ks = [r["K"] for r in sel]
-            ax1.plot(ks, [r["motions"] for r in sel], "o-", label=ag)
-            ax2.plot(ks, [100 * r["success_rate"] for r in sel], "o-", label=ag)
+            style = "o-" if _order(ag) < len(AGENTS) + 1 else "*"  # a learned policy: its own layout only
+            ax1.plot(ks, [r["motions"] for r in sel], style, label=ag, markersize=10 if style == "*" else 6)
+            ax2.plot(ks, [100 * r["success_rate"] for r in sel], style, label=ag, markersize=10 if style == "*" else 6)
         for ax in (ax1, ax2):
             ax.set_xscale("log", base=2)
             names = {r["K"]: r["layout"] for r in rows}

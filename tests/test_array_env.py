@@ -248,3 +248,29 @@ def test_bench_sensor_layout_reaches_the_trials(tmp_path: Any, capsys: pytest.Ca
     assert len(recs) == 2 and all(r["sensor_layout"] == "ring-8" for r in recs)
     assert main([*args[:-1], str(tmp_path / "other"), "--env", "global"]) == 2
     assert "--sensor-layout applies to --env target" in capsys.readouterr().err
+
+
+def test_a_policy_runs_only_on_the_layout_it_was_trained_with(tmp_path: Any,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from electroloc_gym.bench.agents import default_agents
+    from electroloc_gym.cli import main
+
+    base = ["bench", "--conditions", "fresh-steel-38.1", "--trials", "1", "--n-particles", "300", "--workers", "1",
+            "--backend", "serial", "--no-progress"]
+    assert main([*base, "--agents", "ppo-belief-grid-2x2", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert "trained with sensor_layout='grid-2x2', this run has sensor_layout='single'" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "a").exists()
+    assert main([*base, "--sensor-layout", "grid-2x2", "--agents", "ppo-belief", "--out", str(tmp_path / "b")]) == 2
+    assert "trained with sensor_layout='single', this run has sensor_layout='grid-2x2'" in capsys.readouterr().err
+    assert main([*base, "--sensor-layout", "grid-2x2", "--agents", "ppo-belief-grid-2x2", "--out",
+                 str(tmp_path / "c")]) == 0
+    recs = [json.loads(line) for line in (tmp_path / "c" / "trials.jsonl").read_text().splitlines()]
+    assert [r["sensor_layout"] for r in recs] == ["grid-2x2"]
+    # a default run lists the array policy only on its own layout, and the single-pair policies only on theirs
+    on_grid = {c.spec: c.skipped for c in default_agents(sensor_layout="grid-2x2")}
+    on_single = {c.spec: c.skipped for c in default_agents()}
+    assert on_grid["ppo-belief-grid-2x2"] is None and "sensor_layout='single'" in on_grid["ppo-belief"]
+    assert "sensor_layout='grid-2x2'" in on_single["ppo-belief-grid-2x2"] and on_single["ppo-belief"] is None

@@ -130,7 +130,8 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
     assert [c.spec for c in choices if not c.skipped] == ["rnd-wlk", "min-var", "zero-crossing"]
     other_env = {"ppo-belief-unknown": "trained on ElectroLocUnknownTarget-v0, not ElectroLoc-v0",
                  "ppo-belief-gain": "trained on ElectroLoc-v0 with gain_levels=[0.25, 1.0, 4.0], not ElectroLoc-v0",
-                 "ppo-belief-global": "trained on ElectroLocGlobal-v0, not ElectroLoc-v0"}
+                 "ppo-belief-global": "trained on ElectroLocGlobal-v0, not ElectroLoc-v0",
+                 "ppo-belief-grid-2x2": "trained with sensor_layout='grid-2x2', not 'single'"}
     assert {c.spec: c.skipped for c in choices if c.skipped} == {
         name: other_env.get(name, "the training extra is not installed (test)") for name in shipped_models()}
     assert cli_main(["bench", *FAST, "--backend", "serial", "--out", str(tmp_path)]) == 0

@@ -334,6 +334,16 @@ def shipped_model_env(folder: Path) -> tuple[str, tuple[float, ...] | None] | No
     return env_id, None if gains is None else tuple(float(g) for g in gains)
 
 
+def trained_sensor_layout(meta: Any) -> str | None:
+    """The named sensor layout a policy was trained with (its policy.json's ``env_kwargs.sensor_layout``;
+    ``"single"``, the paper's one pair, when it records none), or None when it records something else
+    (explicit offsets: the observation-frame check decides).
+    """
+    kwargs = meta.get("env_kwargs") if isinstance(meta, dict) else None
+    layout = kwargs.get("sensor_layout", "single") if isinstance(kwargs, dict) else "single"
+    return layout if isinstance(layout, str) else None
+
+
 def _policy_meta(spec: str) -> dict[str, Any] | None:
     """The ``policy.json`` of a shipped model or a policy path (None: none, or not readable as JSON)."""
     if spec in shipped_models():
@@ -356,7 +366,8 @@ def _space_text(space: Any) -> str:
     return f"Discrete({int(n)})" if n is not None and not shape else f"{type(space).__name__}{tuple(shape or ())}"
 
 
-def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[float, ...] | None) -> str | None:
+def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[float, ...] | None,
+                       sensor_layout: str | None = None) -> str | None:
     """Why a learned policy cannot run on the run's env (None: it can, or it records nothing to check).
 
     Compares what the policy's ``policy.json`` records — the env id it was trained on, its dynamic-gain
@@ -378,12 +389,15 @@ def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[fl
     theirs = None if recorded is None else [float(g) for g in recorded]
     if theirs != mine:
         return f"it was trained with gain_levels={theirs}, this run has gain_levels={mine}"
+    layout, run_layout = trained_sensor_layout(meta), sensor_layout or "single"
+    if layout is not None and layout != run_layout:
+        return f"it was trained with sensor_layout={layout!r}, this run has sensor_layout={run_layout!r}"
     import gymnasium as gym
 
     import electroloc_gym  # noqa: F401  (registers the ids)
 
     try:
-        env = gym.make(env_id, **bench_env_kwargs(env_id, agent, gain_levels))
+        env = gym.make(env_id, **bench_env_kwargs(env_id, agent, gain_levels, sensor_layout=sensor_layout))
     except (TypeError, ValueError) as exc:
         return f"its env_kwargs do not build {env_id}: {exc}"
     try:
@@ -407,7 +421,7 @@ def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[fl
 
 
 def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env_id: str = "ElectroLoc-v0",
-                   gain_levels: tuple[float, ...] | None = None) -> list[AgentChoice]:
+                   gain_levels: tuple[float, ...] | None = None, sensor_layout: str | None = None) -> list[AgentChoice]:
     """What a run without ``--agents`` considers: the paper's controllers, then every shipped model
     trained on ``env_id``.
 
@@ -421,6 +435,8 @@ def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env
         env_id: the run's env.
         gain_levels: the run's dynamic-gain levels (then min-var runs twice: choosing the gain, and at the
             preset gain).
+        sensor_layout: the run's named sensor layout (None: the paper's single pair); a shipped model
+            trained with another layout is skipped.
     """
     choices = [AgentChoice("rnd-wlk"), AgentChoice("min-var")] if table4_only else \
         [AgentChoice(name) for name in AGENT_REGISTRY]
@@ -434,6 +450,11 @@ def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env
             what = trained_on[0] + ("" if trained_on[1] is None else f" with gain_levels={list(trained_on[1])}")
             here = env_id + ("" if gain_levels is None else f" with gain_levels={list(gain_levels)}")
             choices.append(AgentChoice(name, skipped=f"trained on {what}, not {here}"))
+            continue
+        layout = trained_sensor_layout(_policy_meta(name))
+        if layout is not None and layout != (sensor_layout or "single"):
+            choices.append(AgentChoice(name, skipped=f"trained with sensor_layout={layout!r}, "
+                                                     f"not {sensor_layout or 'single'!r}"))
             continue
         if missing:
             choices.append(AgentChoice(name, skipped=missing))

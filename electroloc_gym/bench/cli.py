@@ -127,7 +127,7 @@ def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...
                 raise ValueError(f"--agents: {exc}") from None
         return specs
     choices = default_agents(table4_only=env_id == GLOBAL_ENV_ID, trust_pickle=args.trust_pickle, env_id=env_id,
-                             gain_levels=gain_levels)
+                             gain_levels=gain_levels, sensor_layout=args.sensor_layout)
     for c in choices:
         if c.skipped:
             print(f"electroloc bench: skipping {c.spec}: {c.skipped}", file=sys.stderr)

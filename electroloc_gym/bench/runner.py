@@ -147,7 +147,7 @@ def _check_agents(config: BenchConfig, trust_pickle: bool) -> str:
         if kind in ("baseline", "factory", "object"):
             described.append(spec)
             continue
-        why = policy_env_problem(spec, agent, config.env_id, config.gain_levels)
+        why = policy_env_problem(spec, agent, config.env_id, config.gain_levels, config.sensor_layout)
         if why is not None:
             raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
         described.append(f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
