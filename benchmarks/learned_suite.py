@@ -9,8 +9,8 @@ It is resumable: a finished training run is found again by its exact rl-zoo3 com
 already made from it is kept, a benchmark with a ``summary.json`` is not rerun (an unfinished one
 resumes with ``--resume``), so re-running the command only does what is missing.
 
-Layout (what is kept in git: configs, args, evaluations, summaries and trial records — checkpoints are
-ignored by the folder's .gitignore; the export of the seed the docs name is copied to ``models/``)::
+Layout (what is kept in git: configs, args, evaluations, summaries and trial records — checkpoints,
+monitors and exports are ignored by the folder's .gitignore, except the export of the seed the docs name)::
 
     RESULTS/<env-id>/<algo>/seed-<k>/zoo/<algo>/<env-id>_1/   rl-zoo3's run folder (config.yml, args.yml,
                                                               eval.csv, summary.json; checkpoints ignored)
@@ -22,6 +22,10 @@ Run (the full suite; hours on a 2-core machine — ``--only`` picks a part, ``--
 
     python benchmarks/learned_suite.py --out results/learned
     python benchmarks/learned_report.py results/learned
+
+Invocations with disjoint ``--only`` sets may run side by side on one results folder (one per core):
+each trains its own runs, the shared ``suite.json`` is updated under a lock, and a baseline benchmark
+another invocation is running is left to it.
 
 Hyper-parameters are the repository's files (train/hyperparams/, chosen on validation episodes,
 reset seeds 100000+, never the benchmark's seed 0); every run shares one env-step budget
@@ -49,7 +53,8 @@ SEEDS = (1, 2, 3, 4, 5)
 #: The env-step budget every configuration shares.
 TIMESTEPS = 300_000
 #: Checkpoints and other bulky run files the results folder does not keep in git.
-GITIGNORE = "*.zip\n*.pkl\n*.npz\nbest/\n*.log\n**/tb/\nevents.out.tfevents.*\n"
+GITIGNORE = ("*.zip\n*.pkl\n*.npz\nbest/\n*.log\n*.lock\n*.monitor.csv\nsteps.png\n**/tb/\nevents.out.tfevents.*\n"
+             "# exports: only the seed the docs name is kept (a '!<env-id>/<label>/seed-<k>/policy/' line below)\npolicy/\n")
 
 
 @dataclass(frozen=True)
@@ -120,7 +125,9 @@ class Plan:
 
 
 def _bench(plan: Plan, env_id: str, agents: str, out: Path) -> None:
-    """``electroloc bench`` into ``out`` (skipped when finished, resumed when started)."""
+    """``electroloc bench`` into ``out`` (skipped when finished, resumed when started, left to the other
+    invocation when another one is benchmarking it now).
+    """
     if (out / "summary.json").is_file():
         return
     argv = [sys.executable, "-m", "electroloc_gym.cli", "bench", "--env", BENCH_ENV[env_id], "--agents", agents,
@@ -133,6 +140,9 @@ def _bench(plan: Plan, env_id: str, agents: str, out: Path) -> None:
         argv.append("--resume")
     env = {**os.environ, **{v: "1" for v in THREAD_VARS}}
     proc = subprocess.run(argv, env=env, capture_output=True, text=True)
+    if proc.returncode != 0 and "in use by another electroloc bench run" in proc.stderr:
+        print(f"{out} is being benchmarked by another invocation; it finishes it", flush=True)
+        return
     if proc.returncode != 0:
         raise RuntimeError(f"electroloc bench failed for {out}: {proc.stderr.strip().splitlines()[-1:]}")
 
@@ -200,17 +210,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     plan.out.mkdir(parents=True, exist_ok=True)
     if not (plan.out / ".gitignore").exists():
         (plan.out / ".gitignore").write_text(GITIGNORE, encoding="utf-8")
+    from filelock import FileLock
     from tqdm import tqdm
 
     from electroloc_gym.fileio import write_json_atomic
 
     log_path = plan.out / "suite.json"
-    done = json.loads(log_path.read_text(encoding="utf-8")) if log_path.is_file() else []
     jobs = [(c, s) for c in configs for s in plan.seeds]
     for cfg, seed in tqdm(jobs, desc="learned suite", unit="run"):
         line = run_config(plan, cfg, seed)
-        done = [d for d in done if (d["env_id"], d["label"], d["seed"]) != (cfg.env_id, cfg.label, seed)] + [line]
-        write_json_atomic(log_path, done)
+        with FileLock(str(log_path) + ".lock", timeout=600):  # invocations on disjoint --only share the log
+            done = json.loads(log_path.read_text(encoding="utf-8")) if log_path.is_file() else []
+            done = [d for d in done if (d["env_id"], d["label"], d["seed"]) != (cfg.env_id, cfg.label, seed)]
+            write_json_atomic(log_path, done + [line])
     for env_id in sorted({c.env_id for c in configs}):
         _bench(plan, env_id, BASELINE_AGENTS[env_id], plan.out / env_id / "_baselines" / "bench")
     print(f"done: {len(jobs)} runs; the report: python benchmarks/learned_report.py {plan.out}")
