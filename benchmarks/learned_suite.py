@@ -54,7 +54,8 @@ SEEDS = (1, 2, 3, 4, 5)
 TIMESTEPS = 300_000
 #: Checkpoints and other bulky run files the results folder does not keep in git.
 GITIGNORE = ("*.zip\n*.pkl\n*.npz\nbest/\n*.log\n*.lock\n*.monitor.csv\nsteps.png\n**/tb/\nevents.out.tfevents.*\n"
-             "# exports: only the seed the docs name is kept (a '!<env-id>/<label>/seed-<k>/policy/' line below)\npolicy/\n")
+             "# exports: only the seed the docs name is kept (a '!<env-id>/<label>/seed-<k>/policy/' line)\n"
+             "policy/\n")
 
 
 @dataclass(frozen=True)

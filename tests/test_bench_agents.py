@@ -148,6 +148,21 @@ def test_global_env_refuses_learned_policies_and_zero_crossing(tmp_path, capsys)
         assert f"not applicable: ['{spec}']" in capsys.readouterr().err
 
 
+def test_global_env_takes_a_policy_folder_trained_on_it(tmp_path, capsys) -> None:
+    import shutil
+
+    mine = tmp_path / "my-global"  # a user's own export of a global-env policy, named by path
+    shutil.copytree(shipped_models()["ppo-belief-global"], mine)
+    other = tmp_path / "my-target"
+    shutil.copytree(shipped_models()["ppo-belief"], other)
+    assert cli_main(["bench", "--env", "global", "--agents", f"rnd-wlk,{mine}", *FAST[2:], "--workers", "1",
+                     "--out", str(tmp_path / "ok")]) == 0
+    assert "my-global" in (tmp_path / "ok" / "table.md").read_text()
+    assert cli_main(["bench", "--env", "global", "--agents", f"rnd-wlk,{other}", *FAST[2:], "--out",
+                     str(tmp_path / "refused")]) == 2
+    assert f"not applicable: ['{other}']" in capsys.readouterr().err
+
+
 # ---- one rollout loop -----------------------------------------------------------------------------------------
 def test_run_episode_ends_by_env_or_by_agent() -> None:
     env = gym.make("ElectroLoc-v0", condition="fresh-steel-12.7", n_particles=200, sensor_model="analytic",

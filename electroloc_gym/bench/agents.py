@@ -344,7 +344,7 @@ def trained_sensor_layout(meta: Any) -> str | None:
     return layout if isinstance(layout, str) else None
 
 
-def _policy_meta(spec: str) -> dict[str, Any] | None:
+def policy_meta(spec: str) -> dict[str, Any] | None:
     """The ``policy.json`` of a shipped model or a policy path (None: none, or not readable as JSON)."""
     if spec in shipped_models():
         path = shipped_models()[spec]
@@ -376,7 +376,7 @@ def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[fl
     observation mode). A policy trained on one env and benchmarked on another gives meaningless numbers,
     so this is refused before any trial; there is no override.
     """
-    meta = _policy_meta(spec)
+    meta = policy_meta(spec)
     if meta is None:
         return None
     obs = meta.get("observation") if isinstance(meta.get("observation"), dict) else {}
@@ -451,7 +451,7 @@ def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env
             here = env_id + ("" if gain_levels is None else f" with gain_levels={list(gain_levels)}")
             choices.append(AgentChoice(name, skipped=f"trained on {what}, not {here}"))
             continue
-        layout = trained_sensor_layout(_policy_meta(name))
+        layout = trained_sensor_layout(policy_meta(name))
         if layout is not None and layout != (sensor_layout or "single"):
             choices.append(AgentChoice(name, skipped=f"trained with sensor_layout={layout!r}, "
                                                      f"not {sensor_layout or 'single'!r}"))

@@ -6,7 +6,14 @@ import argparse
 import sys
 
 from electroloc_gym.agentspec import split_specs
-from electroloc_gym.bench.agents import agent_kind, cached_agent, default_agents, shipped_model_env, shipped_models
+from electroloc_gym.bench.agents import (
+    agent_kind,
+    cached_agent,
+    default_agents,
+    policy_meta,
+    shipped_model_env,
+    shipped_models,
+)
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.config import (
     DYNAMIC_GAIN_LEVELS,
@@ -102,11 +109,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _runs_on_global(spec: str) -> bool:
-    """A particle-filter controller, or a shipped policy trained on the global env."""
+    """A particle-filter controller, a user's factory agent, or a policy (shipped or a path) trained on the
+    global env.
+    """
     kind = agent_kind(spec)
     if kind == "baseline":
         return getattr(cached_agent(spec), "layout", "table4") == "table4"
-    return kind == "shipped" and shipped_model_env(shipped_models()[spec]) == (GLOBAL_ENV_ID, None)
+    if kind == "shipped":
+        return shipped_model_env(shipped_models()[spec]) == (GLOBAL_ENV_ID, None)
+    if kind == "path":
+        meta = policy_meta(spec) or {}
+        obs = meta.get("observation") if isinstance(meta.get("observation"), dict) else {}
+        return obs.get("env_id") == GLOBAL_ENV_ID
+    return kind in ("factory", "object")
 
 
 def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...] | None) -> list[str]:
