@@ -38,6 +38,11 @@ from typing import Any
 import numpy as np
 
 BASELINES_DIR = "_baselines"
+
+
+class NoLearnedRuns(ValueError):
+    """An env of the results folder has no learned run with a finished benchmark yet."""
+
 RND = "rnd-wlk"
 #: The non-learned agents the probability of improvement is stated against (when they were benched).
 REFERENCES = ("min-var", "lookahead")
@@ -84,7 +89,7 @@ def collect(results: Path, env_id: str) -> tuple[list[str], dict[str, dict[str, 
     learned: dict[str, dict[str, np.ndarray]] = {}
     seeds: dict[str, list[str]] = {}
     for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
-        runs = sorted(p for p in algo_dir.glob("seed-*") if (p / "bench" / "trials.jsonl").is_file())
+        runs = sorted(p for p in algo_dir.glob("seed-*") if (p / "bench" / "summary.json").is_file())
         if not runs:
             continue
         per_run = [condition_scores(read_trials(p / "bench" / "trials.jsonl"), conditions) for p in runs]
@@ -124,7 +129,7 @@ def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0) -> dict
 
     conditions, learned, baselines, seeds = collect(results, env_id)
     if not learned:
-        raise ValueError(f"no learned runs with a benchmark under {results / env_id}")
+        raise NoLearnedRuns(f"no learned runs with a benchmark under {results / env_id}")
     iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
     mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
     out: dict[str, Any] = {"env_id": env_id, "conditions": conditions, "seeds": seeds, "reps": reps,
@@ -230,7 +235,7 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
         runs = []
         for seed_dir in sorted(algo_dir.glob("seed-*")):
             found = sorted(seed_dir.glob("zoo/*/*/eval.csv"))
-            if not found:
+            if not found or not (seed_dir / "bench" / "summary.json").is_file():  # finished and benchmarked only
                 continue
             with open(found[-1], encoding="utf-8", newline="") as fh:
                 rows = list(csv.DictReader(fh))
@@ -296,10 +301,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"results folder {str(args.results)!r} does not exist")
     from electroloc_gym.fileio import atomic_write_text, write_json_atomic
 
-    envs = sorted(p.name for p in args.results.iterdir() if (p / BASELINES_DIR).is_dir())
+    envs = sorted(p.name for p in args.results.iterdir() if (p / BASELINES_DIR / "bench" / "summary.json").is_file())
     if not envs:
-        parser.error(f"no <env-id>/{BASELINES_DIR}/ folder under {str(args.results)!r}")
-    analyses = [analyse(args.results, env, args.reps, args.seed) for env in envs]
+        parser.error(f"no finished <env-id>/{BASELINES_DIR}/bench/ under {str(args.results)!r}")
+    analyses = []
+    for env in list(envs):  # a suite still running: an env without a benchmarked learned run is left out
+        try:
+            analyses.append(analyse(args.results, env, args.reps, args.seed))
+        except NoLearnedRuns as exc:
+            print(f"learned_report: {env} left out: {exc}", file=sys.stderr)
+            envs.remove(env)
+    if not analyses:
+        parser.error(f"no benchmarked learned run under {str(args.results)!r}")
     text = table(analyses)
     figures(analyses, args.results)
     compute = ["", "| env | algorithm | training wall time per seed, s (2-core CPU) |", "|---|---|---|"]

@@ -25,6 +25,7 @@ def _write(path: Path, agent: str, readings: dict[str, list[int]]) -> None:
                          "observations": min(n, 35), "max_observations": 35})
     with open(path, "a", encoding="utf-8") as fh:
         fh.write("".join(json.dumps(r) + "\n" for r in rows))
+    (path.parent / "summary.json").write_text("{}")  # the benchmark finished
 
 
 def _results(tmp_path: Path) -> Path:
@@ -69,6 +70,17 @@ def test_main_writes_report_and_figure(tmp_path):
     assert "| ElectroLoc-v0 | ppo | 3 |" in (res / "report.md").read_text()
     assert json.loads((res / "report.json").read_text())[0]["env_id"] == "ElectroLoc-v0"
     assert (res / "profile_ElectroLoc-v0.png").stat().st_size > 0
+
+
+def test_a_suite_still_running_reports_what_is_finished(tmp_path, capsys):
+    res = _results(tmp_path)
+    _write(res / "ElectroLoc-v0" / "ppo" / "seed-9" / "bench" / "trials.jsonl", "ppo", {"a": [1] * 3, "b": [1] * 3})
+    (res / "ElectroLoc-v0" / "ppo" / "seed-9" / "bench" / "summary.json").unlink()  # its benchmark still running
+    _write(res / "ElectroLocGlobal-v0" / "_baselines" / "bench" / "trials.jsonl", "rnd-wlk", {"g": [9] * 3})
+    assert report.main([str(res), "--reps", "200"]) == 0
+    text = (res / "report.md").read_text()
+    assert "| ElectroLoc-v0 | ppo | 3 |" in text and "ElectroLocGlobal-v0" not in text
+    assert "ElectroLocGlobal-v0 left out: no learned runs" in capsys.readouterr().err
 
 
 def test_bad_arguments_are_one_line(tmp_path, capsys):
