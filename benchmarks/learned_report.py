@@ -185,6 +185,24 @@ def table(analyses: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def condition_table(a: dict[str, Any]) -> str:
+    """Per condition of one env: each algorithm's readings score, mean over its seeds (min–max), and each
+    non-learned agent's (markdown).
+    """
+    conds = a["conditions"]
+    lines = [f"{a['env_id']}: readings to localise per condition (a failure counts as the cap), learned: mean over "
+             "seeds (min–max)", "", "| agent | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]
+    for algo, row in a["algorithms"].items():
+        cells = []
+        for c in conds:
+            v = np.asarray(row["per_condition_readings"][c])
+            cells.append(f"{v.mean():.2f} ({v.min():.1f}–{v.max():.1f})")
+        lines.append(f"| {algo} ({len(a['seeds'][algo])} seeds) | " + " | ".join(cells) + " |")
+    for agent, row in a["baselines"].items():
+        lines.append(f"| {agent} | " + " | ".join(f"{row['per_condition_readings'][c]:.2f}" for c in conds) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def figures(analyses: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     """One performance-profile figure per env (normalised score), saved atomically; the paths written."""
     import matplotlib
@@ -313,7 +331,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             envs.remove(env)
     if not analyses:
         parser.error(f"no benchmarked learned run under {str(args.results)!r}")
-    text = table(analyses)
+    text = table(analyses) + "".join("\n" + condition_table(a) for a in analyses)
     figures(analyses, args.results)
     compute = ["", "| env | algorithm | training wall time per seed, s (2-core CPU) |", "|---|---|---|"]
     for env in envs:

@@ -67,7 +67,10 @@ def test_analysis_intervals_contain_the_point_and_poi_is_certain(tmp_path):
 def test_main_writes_report_and_figure(tmp_path):
     res = _results(tmp_path)
     assert report.main([str(res), "--reps", "200"]) == 0
-    assert "| ElectroLoc-v0 | ppo | 3 |" in (res / "report.md").read_text()
+    text = (res / "report.md").read_text()
+    assert "| ElectroLoc-v0 | ppo | 3 |" in text
+    assert "| ppo (3 seeds) | 6.00 (5.0–7.0) | 7.00 (6.0–8.0) |" in text  # per condition: mean (min–max) of seeds
+    assert "| rnd-wlk | 28.33 | 25.00 |" in text
     assert json.loads((res / "report.json").read_text())[0]["env_id"] == "ElectroLoc-v0"
     assert (res / "profile_ElectroLoc-v0.png").stat().st_size > 0
 
