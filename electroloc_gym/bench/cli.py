@@ -186,8 +186,8 @@ def run(args: argparse.Namespace) -> int:
         if is_global:  # zero-crossing looks for one sphere; a learned policy must have been trained on this env
             bad = [a for a in agents if not _runs_on_global(a)]
             if bad:
-                raise ValueError(f"--env global runs the particle-filter controllers (Table 2) and policies trained "
-                                 f"on {GLOBAL_ENV_ID}; not applicable: {bad}")
+                raise ValueError(f"--env global runs the particle-filter controllers (Table 2), policies trained "
+                                 f"on {GLOBAL_ENV_ID} and users' factory agents; not applicable: {bad}")
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
                              max_observations=args.max_observations, n_particles=n_particles,
