@@ -30,15 +30,20 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import inspect
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from electroloc_gym.agentspec import AgentSpec, is_path_like, parse_agent_spec
 from electroloc_gym.baselines.agent import AGENT_REGISTRY, EXTRA_AGENTS, make_agent
-from electroloc_gym.bench.config import GLOBAL_ENV_ID, UNKNOWN_ENV_ID
-from electroloc_gym.conditions import get_condition
+from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
+    bench_env_kwargs,
+    policy_env_problem,
+    policy_meta,
+    shipped_model_env,
+    shipped_models,
+    trained_sensor_layout,
+)
 
 __all__ = [
     "AgentChoice",
@@ -67,14 +72,6 @@ class AgentChoice:
 
     spec: str
     skipped: str | None = None
-
-
-def shipped_models() -> dict[str, Path]:
-    """Name → folder of every shipped learned policy (a folder of ``electroloc_gym.models``)."""
-    from electroloc_gym.models import MODELS_DIR
-
-    return {p.name: p for p in sorted(MODELS_DIR.iterdir())
-            if p.is_dir() and not p.name.startswith((".", "_")) and any(p.iterdir())}
 
 
 def is_policy_path(spec: str) -> bool:
@@ -245,37 +242,6 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
     return agent
 
 
-# The bench owns these env kwargs; an agent's env_kwargs cannot override them.
-_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels", "sensor_layout",
-                      "distractors")
-def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | None, *, condition: str | None = None,
-                     signal: str | None = None, sensor_model: str | None = None, n_particles: int | None = None,
-                     max_observations: int | None = None, sensor_layout: str | None = None,
-                     distractors: int = 0) -> dict[str, Any]:
-    """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``
-    (never overriding what the bench owns, e.g. the distractors a policy was trained with).
-    """
-    kwargs: dict[str, Any] = {k: v for k, v in (("sensor_model", sensor_model), ("n_particles", n_particles),
-                                                ("max_observations", max_observations)) if v is not None}
-    if env_id != GLOBAL_ENV_ID and condition is not None:  # the global env has one fixed map, no condition kwarg
-        cond = get_condition(condition, signal)
-        adapt = getattr(agent, "adapt_condition", None)
-        if callable(adapt):
-            cond = adapt(cond)
-        kwargs["condition"] = cond
-    if env_id == UNKNOWN_ENV_ID:  # the paper's sphere/water pairs, the sphere hidden from the agent
-        kwargs["target_draw"] = "condition"
-    if gain_levels is not None:
-        kwargs["gain_levels"] = tuple(gain_levels)
-    if sensor_layout is not None:
-        kwargs["sensor_layout"] = sensor_layout
-    if distractors:
-        kwargs["distractors"] = int(distractors)
-    kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
-                   if k not in _BENCH_ONLY_KWARGS})
-    return kwargs
-
-
 def planner_memory_bytes(agent: Any, n_particles: int) -> int:
     """Estimated peak memory of one decision, bytes (0 for agents that plan nothing large).
 
@@ -315,108 +281,6 @@ def _training_extra_missing() -> str | None:
                 return f"the training extra is not installed ({module} missing; {TRAIN_EXTRA_HINT})"
         except (ImportError, ValueError) as exc:
             return f"the training extra is not importable ({module}: {exc})"
-    return None
-
-
-def shipped_model_env(folder: Path) -> tuple[str, tuple[float, ...] | None] | None:
-    """(env id, gain levels) a shipped policy was trained on (its policy.json's ``observation.env_id``
-    and ``env_kwargs.gain_levels``; plain JSON), or None if the file does not say.
-    """
-    try:
-        with open(folder / "policy.json", encoding="utf-8") as f:
-            meta = json.load(f)
-        env_id = meta["observation"]["env_id"]
-        gains = (meta.get("env_kwargs") or {}).get("gain_levels")
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return None
-    if not isinstance(env_id, str):
-        return None
-    return env_id, None if gains is None else tuple(float(g) for g in gains)
-
-
-def trained_sensor_layout(meta: Any) -> str | None:
-    """The named sensor layout a policy was trained with (its policy.json's ``env_kwargs.sensor_layout``;
-    ``"single"``, the paper's one pair, when it records none), or None when it records something else
-    (explicit offsets: the observation-frame check decides).
-    """
-    kwargs = meta.get("env_kwargs") if isinstance(meta, dict) else None
-    layout = kwargs.get("sensor_layout", "single") if isinstance(kwargs, dict) else "single"
-    return layout if isinstance(layout, str) else None
-
-
-def policy_meta(spec: str) -> dict[str, Any] | None:
-    """The ``policy.json`` of a shipped model or a policy path (None: none, or not readable as JSON)."""
-    if spec in shipped_models():
-        path = shipped_models()[spec]
-    else:
-        path = Path(spec).expanduser()
-    if path.is_file():
-        path = path if path.name == "policy.json" else path.parent
-    try:
-        with open(path / "policy.json", encoding="utf-8") as f:
-            meta = json.load(f)
-    except (OSError, ValueError):
-        return None
-    return meta if isinstance(meta, dict) else None
-
-
-def _space_text(space: Any) -> str:
-    shape = getattr(space, "shape", None)
-    n = getattr(space, "n", None)
-    return f"Discrete({int(n)})" if n is not None and not shape else f"{type(space).__name__}{tuple(shape or ())}"
-
-
-def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[float, ...] | None,
-                       sensor_layout: str | None = None) -> str | None:
-    """Why a learned policy cannot run on the run's env (None: it can, or it records nothing to check).
-
-    Compares what the policy's ``policy.json`` records — the env id it was trained on, its dynamic-gain
-    levels, its observation frame (``observation.frame_dim``, else the last axis of ``observation.shape``)
-    and its action space — with the run's env built with the policy's own ``env_kwargs`` (its
-    observation mode). A policy trained on one env and benchmarked on another gives meaningless numbers,
-    so this is refused before any trial; there is no override.
-    """
-    meta = policy_meta(spec)
-    if meta is None:
-        return None
-    obs = meta.get("observation") if isinstance(meta.get("observation"), dict) else {}
-    act = meta.get("action") if isinstance(meta.get("action"), dict) else {}
-    trained = obs.get("env_id")
-    if isinstance(trained, str) and trained != env_id:
-        return f"it was trained on {trained}, this run is on {env_id}"
-    recorded = (meta.get("env_kwargs") or {}).get("gain_levels") if isinstance(meta.get("env_kwargs"), dict) else None
-    mine = None if gain_levels is None else [float(g) for g in gain_levels]
-    theirs = None if recorded is None else [float(g) for g in recorded]
-    if theirs != mine:
-        return f"it was trained with gain_levels={theirs}, this run has gain_levels={mine}"
-    layout, run_layout = trained_sensor_layout(meta), sensor_layout or "single"
-    if layout is not None and layout != run_layout:
-        return f"it was trained with sensor_layout={layout!r}, this run has sensor_layout={run_layout!r}"
-    import gymnasium as gym
-
-    import electroloc_gym  # noqa: F401  (registers the ids)
-
-    try:
-        env = gym.make(env_id, **bench_env_kwargs(env_id, agent, gain_levels, sensor_layout=sensor_layout))
-    except (TypeError, ValueError) as exc:
-        return f"its env_kwargs do not build {env_id}: {exc}"
-    try:
-        frame = obs.get("frame_dim") or (obs.get("shape") or [None])[-1]
-        env_frame = env.observation_space.shape[-1] if env.observation_space.shape else None
-        if frame is not None and env_frame is not None and int(frame) != int(env_frame):
-            return (f"its observation frame has {frame} entries, {env_id}'s "
-                    f"({getattr(agent, 'env_kwargs', {}).get('observation', 'default')} observation) has {env_frame}")
-        space = act.get("space") if isinstance(act.get("space"), dict) else {}
-        want = space.get("shape")
-        have = env.action_space.shape
-        if space.get("type") == "Discrete" or act.get("action_type") == "discrete":
-            n = space.get("n")
-            if getattr(env.action_space, "n", None) != n:
-                return f"its action space is Discrete({n}), {env_id}'s is {_space_text(env.action_space)}"
-        elif want is not None and tuple(want) != tuple(have or ()):
-            return f"its action space has shape {tuple(want)}, {env_id}'s is {_space_text(env.action_space)}"
-    finally:
-        env.close()
     return None
 
 
