@@ -98,7 +98,7 @@ SUITE: tuple[Config, ...] = (
 BENCH_ENV = {"ElectroLoc-v0": "target", "ElectroLocGlobal-v0": "global", "ElectroLocUnknownTarget-v0": "unknown-target"}
 BASELINE_AGENTS = {"ElectroLoc-v0": "rnd-wlk,min-var,lookahead,infotaxis,eedi",
                    "ElectroLocGlobal-v0": "rnd-wlk,min-var,lookahead",
-                   "ElectroLocUnknownTarget-v0": "rnd-wlk,min-var,lookahead"}
+                   "ElectroLocUnknownTarget-v0": "rnd-wlk,min-var,infotaxis"}   # lookahead plans over positions only
 
 
 @dataclass

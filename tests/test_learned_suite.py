@@ -62,3 +62,25 @@ def test_suite_lists_every_configuration():
     for label in ("ppo", "sac", "a2c", "qrdqn", "ppo_lstm-raw", "ppo-framestack-raw"):
         assert f" {label} " in proc.stdout
     assert "ElectroLocGlobal-v0" in proc.stdout and "ElectroLocUnknownTarget-v0" in proc.stdout
+
+
+def test_every_env_takes_its_baseline_agents(tmp_path):
+    """The suite's non-learned agents of each env run on that env's benchmark (one trial of one condition),
+    so a long reference run cannot end on an agent its env refuses."""
+    import importlib.util
+
+    from electroloc_gym.bench import run
+
+    spec = importlib.util.spec_from_file_location("learned_suite", ROOT / "benchmarks" / "learned_suite.py")
+    suite = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("learned_suite", suite)      # its dataclasses look their module up
+    spec.loader.exec_module(suite)
+    assert set(suite.BASELINE_AGENTS) == set(suite.BENCH_ENV) == {c.env_id for c in suite.SUITE}
+    for env_id, agents in suite.BASELINE_AGENTS.items():
+        bench_env = suite.BENCH_ENV[env_id]
+        conditions = "all" if bench_env == "global" else "fresh-steel-38.1"
+        result = run(agents.split(","), env=bench_env, conditions=conditions, trials=1, workers=1,
+                     out=tmp_path / bench_env)
+        assert result.summary["agents"] == agents.split(","), env_id
+        records = [json.loads(line) for line in (result.out / "trials.jsonl").read_text().splitlines()]
+        assert {r["agent"] for r in records} == set(agents.split(",")), env_id
