@@ -274,7 +274,9 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
 
 def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) -> Path | None:
     """Success rate and mean readings on validation episodes against env steps: the mean over seeds and its
-    95 % t-interval (scipy), every algorithm of the env in one figure; saved atomically.
+    95 % t-interval (scipy) clipped to the metric's range (a rate in [0, 1], readings in [0, the episode
+    cap]: with five seeds an early, bimodal step's t-interval reaches past both), every algorithm of the env
+    in one figure; saved atomically.
     """
     if not curves:
         return None
@@ -282,10 +284,13 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter
     from scipy import stats
 
+    from electroloc_gym.core.params import EnvParams
     from electroloc_gym.fileio import save_figure_atomic
 
+    ranges = {"success_rate": (0.0, 1.0), "mean_readings": (0.0, float(EnvParams().max_observations))}
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     for algo, c in curves.items():
         for ax, key in zip(axes, ("success_rate", "mean_readings")):
@@ -293,12 +298,13 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
             m = y.mean(axis=0)
             if y.shape[0] > 1:
                 half = stats.t.ppf(0.975, y.shape[0] - 1) * y.std(axis=0, ddof=1) / np.sqrt(y.shape[0])
-                ax.fill_between(c["timesteps"], m - half, m + half, alpha=0.2)
+                ax.fill_between(c["timesteps"], *np.clip([m - half, m + half], *ranges[key]), alpha=0.2)
             ax.plot(c["timesteps"], m, marker=".", label=f"{algo} ({y.shape[0]} seeds)")
     axes[0].set_ylabel("success rate (validation episodes)")
     axes[1].set_ylabel("mean readings to localise (failure = cap)")
     for ax in axes:
-        ax.set_xlabel("env steps")
+        ax.set_xlabel("env steps (thousands)")
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x / 1000:g}"))
     axes[0].legend(fontsize=8)
     fig.suptitle(f"{env_id}: learning curves, mean and 95 % interval over training seeds")
     path = results / f"curves_{env_id}.png"
