@@ -113,12 +113,32 @@ def normalised(readings: np.ndarray, baselines: dict[str, dict[str, np.ndarray]]
     return (rnd - readings) / gap
 
 
-def interval(score_dict: dict[str, np.ndarray], func: Any, reps: int, seed: int) -> dict[str, list[float]]:
-    """``{name: [point, lower, upper]}`` of ``func`` with a 95 % stratified bootstrap CI (rliable)."""
+def bootstrap(score_dict: dict[str, Any], func: Any, reps: int, seed: int) -> tuple[dict, dict]:
+    """Point estimates and 95 % stratified bootstrap CIs (rliable), reproducible from ``seed``.
+
+    rliable 1.2's bootstraps draw their resampling indices from NumPy's global stream
+    (``np.random.choice`` in ``update_indices``), so its ``random_state`` argument does not make a run
+    repeatable. Each entry is therefore resampled after seeding the global stream with ``seed`` (its
+    previous state restored afterwards): the same records give the same intervals, and an algorithm's
+    interval depends on its own runs only, not on which other algorithms are in the table.
+    """
     from rliable import library as rly
 
-    point, ci = rly.get_interval_estimates(score_dict, func, reps=reps,
-                                          random_state=np.random.RandomState(seed))
+    point, ci = {}, {}
+    saved = np.random.get_state()
+    try:
+        for k, scores in score_dict.items():
+            np.random.seed(seed)
+            p, c = rly.get_interval_estimates({k: scores}, func, reps=reps)
+            point[k], ci[k] = p[k], c[k]
+    finally:
+        np.random.set_state(saved)
+    return point, ci
+
+
+def interval(score_dict: dict[str, Any], func: Any, reps: int, seed: int) -> dict[str, list[float]]:
+    """``{name: [point, lower, upper]}`` of ``func`` with a 95 % stratified bootstrap CI (rliable)."""
+    point, ci = bootstrap(score_dict, func, reps, seed)
     return {k: [float(np.ravel(point[k])[0]), float(np.ravel(ci[k])[0]), float(np.ravel(ci[k])[1])]
             for k in score_dict}
 
@@ -132,7 +152,7 @@ def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0) -> dict
         raise NoLearnedRuns(f"no learned runs with a benchmark under {results / env_id}")
     iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
     mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
-    out: dict[str, Any] = {"env_id": env_id, "conditions": conditions, "seeds": seeds, "reps": reps,
+    out: dict[str, Any] = {"env_id": env_id, "conditions": conditions, "seeds": seeds, "reps": reps, "seed": seed,
                            "algorithms": {}, "baselines": {}}
     readings = {a: v["readings"] for a, v in learned.items()}
     success = {a: v["success"] for a, v in learned.items()}
@@ -220,7 +240,8 @@ def figures(analyses: Sequence[dict[str, Any]], out: Path) -> list[Path]:
             continue
         taus = np.linspace(min(-0.5, min(float(v.min()) for v in norm.values())),
                            max(1.5, max(float(v.max()) for v in norm.values())), 101)
-        profiles, cis = rly.create_performance_profile(norm, taus, reps=a["reps"])
+        # rliable's create_performance_profile with its default score distributions, seeded like the table
+        profiles, cis = bootstrap(norm, lambda s, t=taus: rly.score_distributions(s, t), a["reps"], a["seed"])
         fig, ax = plt.subplots(figsize=(6, 4))
         for algo, prof in profiles.items():
             ax.plot(taus, prof, label=algo)

@@ -64,6 +64,16 @@ def test_analysis_intervals_contain_the_point_and_poi_is_certain(tmp_path):
     assert "lookahead" not in row["p_improvement"]
 
 
+def test_intervals_are_reproducible_and_independent_of_the_other_algorithms():
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(5, 1, (5, 8)), rng.normal(7, 2, (3, 8))
+    mean = lambda x: np.array([x.mean()])  # noqa: E731
+    alone = report.interval({"a": a}, mean, reps=300, seed=0)["a"]
+    assert report.interval({"a": a}, mean, reps=300, seed=0)["a"] == alone  # the same records, the same CI
+    assert report.interval({"b": b, "a": a}, mean, reps=300, seed=0)["a"] == alone
+    assert report.interval({"a": a}, mean, reps=300, seed=1)["a"] != alone  # the seed does reach the draws
+
+
 def test_main_writes_report_and_figure(tmp_path):
     res = _results(tmp_path)
     assert report.main([str(res), "--reps", "200"]) == 0
