@@ -7,8 +7,8 @@ Reads the benchmark runs of a learned-baseline results folder laid out as::
 
 and writes ``RESULTS/report.md``, ``RESULTS/report.json`` and figures: per algorithm and env, the IQM and
 the mean of readings-to-localise and of successes with 95 % stratified bootstrap confidence intervals,
-a normalised score, performance profiles and the probability of improvement over min-var and over the
-look-ahead planner.
+a normalised score, performance profiles, the probability of improvement over min-var and over the
+look-ahead planner, and between the pairs of learned configurations in ``COMPARISONS`` (or ``--compare``).
 
 Scores, one per (run, condition), each over the condition's trials:
 
@@ -46,6 +46,9 @@ class NoLearnedRuns(ValueError):
 RND = "rnd-wlk"
 #: The non-learned agents the probability of improvement is stated against (when they were benched).
 REFERENCES = ("min-var", "lookahead")
+#: Pairs of learned configurations (suite labels) whose P(A better than B) the report states when both
+#: ran on an env: memory against stacked frames on the raw reading, and the belief given against memory.
+COMPARISONS = (("ppo_lstm-raw", "ppo-framestack-raw"), ("ppo", "ppo_lstm-raw"))
 
 
 def read_trials(path: Path) -> list[dict[str, Any]]:
@@ -143,8 +146,21 @@ def interval(score_dict: dict[str, Any], func: Any, reps: int, seed: int) -> dic
             for k in score_dict}
 
 
-def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0) -> dict[str, Any]:
-    """Every statistic of one env (plain data, see the module docstring)."""
+def p_better(x: np.ndarray, y: np.ndarray, reps: int, seed: int) -> list[float]:
+    """P(a run of X needs fewer readings than a run of Y on a condition) [95 % CI]: rliable's probability
+    of improvement of (−X) over (−Y), the readings matrices (runs × conditions) negated, lower being better.
+    """
+    from rliable import metrics
+
+    func = lambda a, b: np.array([metrics.probability_of_improvement(a, b)])  # noqa: E731
+    return interval({"p": (-x, -y)}, func, reps, seed)["p"]
+
+
+def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0,
+            comparisons: Sequence[tuple[str, str]] = COMPARISONS) -> dict[str, Any]:
+    """Every statistic of one env (plain data, see the module docstring); ``comparisons`` are the
+    (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env.
+    """
     from rliable import metrics
 
     conditions, learned, baselines, seeds = collect(results, env_id)
@@ -165,13 +181,8 @@ def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0) -> dict
         row = {k: v[algo] for k, v in stats.items()}
         row["per_condition_readings"] = {c: readings[algo][:, j].tolist() for j, c in enumerate(conditions)}
         row["per_condition_success"] = {c: success[algo][:, j].tolist() for j, c in enumerate(conditions)}
-        poi = {}
-        for ref in REFERENCES:
-            if ref in baselines:  # lower readings are better: P(algo < ref) = POI of (−algo) over (−ref)
-                pair = {ref: (-readings[algo], -baselines[ref]["readings"])}
-                poi[ref] = interval(pair, lambda x, y: np.array([metrics.probability_of_improvement(x, y)]),
-                                    reps, seed)[ref]
-        row["p_improvement"] = poi
+        row["p_improvement"] = {ref: p_better(readings[algo], baselines[ref]["readings"], reps, seed)
+                                for ref in REFERENCES if ref in baselines}
         out["algorithms"][algo] = row
     for agent, v in baselines.items():
         row = {"readings_mean": float(v["readings"].mean()), "success_mean": float(v["success"].mean()),
@@ -179,6 +190,8 @@ def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0) -> dict
         if norm:
             row["normalised_mean"] = float(normalised(v["readings"], baselines).mean())
         out["baselines"][agent] = row
+    out["comparisons"] = [{"better": a, "than": b, "p": p_better(readings[a], readings[b], reps, seed)}
+                          for a, b in comparisons if a in readings and b in readings]
     out["_matrices"] = {"normalised": norm, "readings": readings}
     return out
 
@@ -202,6 +215,10 @@ def table(analyses: Sequence[dict[str, Any]]) -> str:
             norm = f"{row['normalised_mean']:.2f}" if "normalised_mean" in row else "–"
             lines.append(f"| {a['env_id']} | {agent} (not learned) | 1 | – | {row['readings_mean']:.2f} | "
                          f"{row['success_mean']:.2f} | {norm} | | |")
+    pairs = [(a["env_id"], c) for a in analyses for c in a.get("comparisons", [])]
+    if pairs:
+        lines += ["", "| env | A | B | P(A needs fewer readings than B) [95 % CI] |", "|---|---|---|---|"]
+        lines += [f"| {env} | {c['better']} | {c['than']} | {_fmt(c['p'])} |" for env, c in pairs]
     return "\n".join(lines) + "\n"
 
 
@@ -339,7 +356,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("results", type=Path, help="the results folder (RESULTS/<env-id>/<algo>/seed-<k>/)")
     parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (≥ 100)")
     parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed")
+    parser.add_argument("--compare", action="append", metavar="A:B",
+                        help="learned labels A:B whose P(A better than B) to state (repeatable; default "
+                             + ", ".join(f"{a}:{b}" for a, b in COMPARISONS) + ")")
     args = parser.parse_args(argv)
+    comparisons = COMPARISONS
+    if args.compare:
+        pairs = [c.split(":") for c in args.compare]
+        if any(len(p) != 2 or not all(p) for p in pairs):
+            parser.error(f"--compare takes A:B, two learned labels, got {args.compare!r}")
+        comparisons = tuple((a, b) for a, b in pairs)
     if args.reps < 100:
         parser.error(f"--reps must be at least 100, got {args.reps}")
     if not args.results.is_dir():
@@ -352,7 +378,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     analyses = []
     for env in list(envs):  # a suite still running: an env without a benchmarked learned run is left out
         try:
-            analyses.append(analyse(args.results, env, args.reps, args.seed))
+            analyses.append(analyse(args.results, env, args.reps, args.seed, comparisons))
         except NoLearnedRuns as exc:
             print(f"learned_report: {env} left out: {exc}", file=sys.stderr)
             envs.remove(env)

@@ -85,6 +85,21 @@ def test_main_writes_report_and_figure(tmp_path):
     assert (res / "profile_ElectroLoc-v0.png").stat().st_size > 0
 
 
+def test_pairs_of_learned_configurations_are_compared(tmp_path, capsys):
+    res = _results(tmp_path)
+    for k in range(2):  # a2c needs more readings than every ppo run on both conditions
+        _write(res / "ElectroLoc-v0" / "a2c" / f"seed-{k}" / "bench" / "trials.jsonl", "a2c",
+               {"a": [20 + k] * 3, "b": [21] * 3})
+    assert report.main([str(res), "--reps", "200", "--compare", "ppo:a2c", "--compare", "a2c:sac"]) == 0
+    text = (res / "report.md").read_text()
+    assert "| ElectroLoc-v0 | ppo | a2c | 1.00 [1.00, 1.00] |" in text and "sac" not in text  # sac never ran
+    (cmp,) = json.loads((res / "report.json").read_text())[0]["comparisons"]
+    assert cmp["better"] == "ppo" and cmp["than"] == "a2c" and cmp["p"][0] == pytest.approx(1.0)
+    with pytest.raises(SystemExit) as exc:
+        report.main([str(res), "--compare", "ppo"])
+    assert exc.value.code == 2 and "--compare takes A:B" in capsys.readouterr().err
+
+
 def test_a_suite_still_running_reports_what_is_finished(tmp_path, capsys):
     res = _results(tmp_path)
     _write(res / "ElectroLoc-v0" / "ppo" / "seed-9" / "bench" / "trials.jsonl", "ppo", {"a": [1] * 3, "b": [1] * 3})
