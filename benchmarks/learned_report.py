@@ -355,7 +355,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("results", type=Path, help="the results folder (RESULTS/<env-id>/<algo>/seed-<k>/)")
     parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (≥ 100)")
-    parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed")
+    parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (0 to 2**32 - 1)")
     parser.add_argument("--compare", action="append", metavar="A:B",
                         help="learned labels A:B whose P(A better than B) to state (repeatable; default "
                              + ", ".join(f"{a}:{b}" for a, b in COMPARISONS) + ")")
@@ -368,6 +368,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         comparisons = tuple((a, b) for a, b in pairs)
     if args.reps < 100:
         parser.error(f"--reps must be at least 100, got {args.reps}")
+    if not 0 <= args.seed < 2**32:
+        parser.error(f"--seed must be in [0, 2**32), got {args.seed}")
     if not args.results.is_dir():
         parser.error(f"results folder {str(args.results)!r} does not exist")
     from electroloc_gym.fileio import atomic_write_text, write_json_atomic

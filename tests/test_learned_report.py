@@ -117,3 +117,6 @@ def test_bad_arguments_are_one_line(tmp_path, capsys):
     assert exc.value.code == 2 and "does not exist" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         report.main([str(tmp_path), "--reps", "5"])
+    with pytest.raises(SystemExit) as exc:
+        report.main([str(tmp_path), "--seed", "-1"])
+    assert exc.value.code == 2 and "--seed must be in [0, 2**32)" in capsys.readouterr().err
