@@ -215,7 +215,7 @@ class BenchEvalCallback(BaseCallback):
             "env_id": self.env_id, "algo": type(self.model).__name__.lower(), "seed": self.model.seed,
             "command": shlex.join(["python", *_zoo_argv()]), "argv": _zoo_argv(), "finished": finished,
             "timesteps": steps,
-            "wall_time_s": round(wall, 1), "evaluation_time_s": round(self._eval_s, 1),
+            "wall_time_s": round(wall, 3), "evaluation_time_s": round(self._eval_s, 3),
             "fps_with_evaluation": round(steps / wall, 1) if wall > 0 else None,
             "fps_training_only": round(steps / (wall - self._eval_s), 1) if wall > self._eval_s else None,
             "validation": {"episodes": self.n_episodes, "first_seed": self.seed, "env_kwargs": self.eval_env_kwargs},
