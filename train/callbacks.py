@@ -149,7 +149,7 @@ class BenchEvalCallback(BaseCallback):
                 self._lock.release()
                 raise ValueError(f"run folder {self.run_dir} already holds another run's eval.csv; "
                                  f"rl-zoo3 gives every run a fresh folder — start a new run")
-        self._t0 = time.time()
+        self._t0 = time.perf_counter()
         self._last = self.num_timesteps
         self.evaluate()
 
@@ -178,12 +178,12 @@ class BenchEvalCallback(BaseCallback):
 
     def evaluate(self) -> dict[str, float]:
         """Evaluate the current policy now; log, write eval.csv, export it to ``best/`` if it is the best."""
-        t = time.time()
+        t = time.perf_counter()
         agent = agent_from_model(self.model, self._meta(None))
         seeds = range(self.seed, self.seed + self.n_episodes)
         res = evaluate_agent(agent, self.env_id, {**self.env_kwargs, **self.eval_env_kwargs}, seeds)
-        self._eval_s += time.time() - t
-        row = {"timesteps": int(self.num_timesteps), "wall_time_s": round(time.time() - self._t0, 1), **res}
+        self._eval_s += time.perf_counter() - t
+        row = {"timesteps": int(self.num_timesteps), "wall_time_s": round(time.perf_counter() - self._t0, 1), **res}
         self.history.append(row)
         for k in ("success_rate", "mean_readings", "median_readings", "median_error_mm", "mean_return"):
             self.logger.record(f"bench_eval/{k}", row[k])
@@ -209,7 +209,7 @@ class BenchEvalCallback(BaseCallback):
     def _write_summary(self, finished: bool) -> None:
         if self.run_dir is None:
             return
-        wall = time.time() - self._t0
+        wall = time.perf_counter() - self._t0
         steps = int(self.num_timesteps)
         write_json_atomic(self.run_dir / "summary.json", {
             "env_id": self.env_id, "algo": type(self.model).__name__.lower(), "seed": self.model.seed,
