@@ -31,16 +31,13 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from electroloc_gym.agentspec import is_path_like, parse_agent_spec
+from electroloc_gym.protocol import FAR_ERROR_MM
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = ["TrialRecord", "FAR_ERROR_MM", "is_far_success",
            "RecordRules", "RECORD_KEYS", "OPTIONAL_RECORD_KEYS", "TIMING_KEYS", "SHAPE_RECORD_KEYS",
            "POSITION_BOUND_MM", "MAX_TEXT_CHARS"]
 
-#: A *far success*: the trial succeeded (the belief is tight) but its estimate is more than this from the target,
-#: mm: 1.5 × the success criterion (10 mm), so the tight cloud does not hold the target — a belief locked on
-#: the wrong object (a distractor, or a wrong mode of the target's own map).
-FAR_ERROR_MM = 15.0
 
 
 def is_far_success(success: bool, error_mm: float | None) -> bool:

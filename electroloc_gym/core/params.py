@@ -24,6 +24,7 @@ import numpy as np
 from electroloc_gym.conditions import Condition, get_condition
 from electroloc_gym.core.observation import OBSERVATION_MODES
 from electroloc_gym.distractors import resolve_distractors
+from electroloc_gym.protocol import MAX_OBSERVATIONS, MAX_STEP_MM, N_PARTICLES, SUCCESS_SPREAD_MM
 from electroloc_gym.registry import TASKS, task_entry
 from electroloc_gym.scene import Scene
 from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, SENSOR_MODEL_NAMES, CalibrationProtocol
@@ -56,8 +57,6 @@ MAX_POSITION_BLUR_MM = 100.0
 #: The presets' signal scale as a number (``signal``): a thousandth to a thousand (the fitted scales are ≈1–8).
 SIGNAL_LIMITS = (1e-3, 1e3)
 
-#: Largest move per axis per step, mm (paper §4.1.3).
-MAX_STEP_MM = 10.0
 #: The discrete action set: stay plus the 8 king moves of 10 mm per axis (index = 3·(dx+1) + (dy+1)).
 DISCRETE_MOVES_MM = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.float64) * MAX_STEP_MM
 DISCRETE_MOVES_MM.flags.writeable = False
@@ -182,9 +181,9 @@ class EnvParams:
     position_blur_mm: float = DEFAULT_POSITION_BLUR_MM
     observation: str = "belief"
     sensor_model: str = SENSOR_MODEL_NAMES[0]
-    n_particles: int = 2500
-    max_observations: int = 35
-    success_spread_mm: float = 10.0
+    n_particles: int = N_PARTICLES
+    max_observations: int = MAX_OBSERVATIONS
+    success_spread_mm: float = SUCCESS_SPREAD_MM
     action_type: str = "continuous"
     calibration_seed: int | None = None
     calibration: Any = DEFAULT_CALIBRATION
