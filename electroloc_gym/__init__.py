@@ -10,12 +10,21 @@ idempotent):
 
 from __future__ import annotations
 
+from importlib.metadata import PackageNotFoundError, version
+
 from gymnasium.envs import registration
 
-from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition
-from electroloc_gym.registry import ENV_IDS, ENVS
+from electroloc_gym.runtime import use_user_numba_cache
 
-__version__ = "0.1.0"
+use_user_numba_cache()  # before the first numba import (below): the compiled kernels are cached once per user
+
+from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
+from electroloc_gym.registry import ENV_IDS, ENVS  # noqa: E402
+
+try:  # the version is declared once, in pyproject.toml
+    __version__ = version("electroloc-gym")
+except PackageNotFoundError:  # pragma: no cover - a source tree that was never installed
+    __version__ = "0+unknown"
 
 __all__ = ["PRESET_NAMES", "Condition", "get_condition", "ENV_IDS", "__version__"]
 

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import os
 import sys
+from pathlib import Path
 
-__all__ = ["pin_threads", "THREAD_VARS"]
+__all__ = ["pin_threads", "THREAD_VARS", "use_user_numba_cache", "user_numba_cache_dir"]
 
 #: The environment variables that size the thread pools of OpenMP, OpenBLAS, MKL, numexpr, Accelerate
 #: (read when those libraries load, so set them before the first import where it matters).
@@ -36,3 +37,23 @@ def pin_threads() -> None:
     torch = sys.modules.get("torch")
     if torch is not None:
         torch.set_num_threads(1)
+
+
+def user_numba_cache_dir() -> Path:
+    """The per-user numba cache folder: ``$XDG_CACHE_HOME/electroloc-gym/numba`` (``~/.cache`` without it)."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "electroloc-gym" / "numba"
+
+
+def use_user_numba_cache() -> str:
+    """Set ``NUMBA_CACHE_DIR`` to :func:`user_numba_cache_dir` unless the user set it; return the folder in use.
+
+    numba creates the folder when it first writes a kernel. If numba's configuration is already loaded
+    (numba imported before this package), it is reloaded so the setting still applies.
+    """
+    if not os.environ.get("NUMBA_CACHE_DIR"):
+        os.environ["NUMBA_CACHE_DIR"] = str(user_numba_cache_dir())
+        config = sys.modules.get("numba.core.config")
+        if config is not None:
+            config.reload_config()
+    return os.environ["NUMBA_CACHE_DIR"]

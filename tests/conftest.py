@@ -2,6 +2,10 @@
 tests with fixed examples."""
 
 import os
+import re
+from pathlib import Path
+
+import pytest
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -27,3 +31,25 @@ from hypothesis import settings  # noqa: E402
 
 settings.register_profile("fixed", derandomize=True, database=None)
 settings.load_profile("fixed")
+
+
+_EXTRA_MARK = re.compile(r"^pytestmark = pytest\.mark\.(rllib|zoo|minari)\b", re.M)
+
+
+def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool | None:
+    """A module marked for an optional extra is not imported when ``-m`` deselects its marker.
+
+    Its imports need the extra, which a session that deselects it does not install (nox's ``lowest``
+    and ``tests``); importing it anyway would fail or skip where the marker already says "not here".
+    """
+    if collection_path.suffix != ".py" or not config.option.markexpr:
+        return None
+    found = _EXTRA_MARK.search(collection_path.read_text(encoding="utf-8"))
+    if found is None:
+        return None
+    from _pytest.mark.expression import Expression  # the parser of -m itself
+
+    def matches(name: str, **_kwargs: object) -> bool:
+        return name == found.group(1)
+
+    return True if not Expression.compile(config.option.markexpr).evaluate(matches) else None

@@ -6,7 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rliable.library  # noqa: E402,F401  (the zoo extra installs it; rliable 1.2 needs pandas<3 for arch)
+import rliable.library  # noqa: F401  (the zoo extra installs it; rliable 1.2 needs pandas<3 for arch)
+
+pytestmark = pytest.mark.zoo
 
 ROOT = Path(__file__).resolve().parents[1]
 spec = importlib.util.spec_from_file_location("learned_report", ROOT / "benchmarks" / "learned_report.py")

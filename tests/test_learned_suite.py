@@ -6,8 +6,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-import rl_zoo3  # noqa: E402,F401
-import rliable  # noqa: E402,F401
+import pytest
+import rl_zoo3  # noqa: F401
+import rliable  # noqa: F401
+
+pytestmark = pytest.mark.zoo  # the zoo extra (rl-zoo3, rliable)
 
 ROOT = Path(__file__).resolve().parents[1]
 

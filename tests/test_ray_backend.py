@@ -13,6 +13,8 @@ from electroloc_gym.bench.backends import BACKENDS, make_backend
 from electroloc_gym.bench.ray_backend import RayBackend, check_ray_address
 from electroloc_gym.cli import main
 
+pytestmark = pytest.mark.rllib  # Ray; the nox session rllib runs these
+
 
 def _closed_port() -> int:
     """A local TCP port nobody listens on (bound, then released)."""

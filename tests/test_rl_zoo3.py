@@ -7,8 +7,7 @@ import json
 
 import pytest
 
-pytest.importorskip("rl_zoo3")
-pytest.importorskip("sb3_contrib")
+pytestmark = pytest.mark.zoo  # the zoo extra (rl-zoo3, sb3-contrib)
 
 from train_fixtures import run_zoo, zoo_argv  # noqa: E402
 

@@ -12,8 +12,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-pytest.importorskip("ray.rllib")
-pytest.importorskip("torch")
+pytestmark = pytest.mark.rllib  # the rllib extra; the nox session rllib runs these
 
 import electroloc_gym.rllib as erl  # noqa: E402
 from electroloc_gym.envs.vector import ElectroLocVectorEnv, sub_env_seeds  # noqa: E402

@@ -14,8 +14,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-pytest.importorskip("stable_baselines3")
-pytest.importorskip("rl_zoo3")
+pytestmark = pytest.mark.zoo  # the zoo extra (rl-zoo3, SB3)
 
 from stable_baselines3.common.monitor import Monitor  # noqa: E402
 from stable_baselines3.common.vec_env import DummyVecEnv  # noqa: E402
