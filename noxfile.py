@@ -1,0 +1,128 @@
+"""The project's checks as nox sessions; `nox` runs them all (the README's test command, and .ci/run).
+
+* ``tests``  — the suite on the main job's install: ``-e .[dev,zoo]``, the newest releases the resolver
+  picks (no RLlib pin), without the Ray/RLlib tests.
+* ``lowest`` — the suite on every declared minimum (``constraints-lowest.txt``); the tests of extras that
+  cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker.
+* ``rllib``  — exactly the Ray/RLlib tests (marker ``rllib``), with RLlib's gymnasium pin.
+* ``wheel``  — sdist and wheel built (``python -m build``) and checked (``twine check``); the wheel
+  installed alone into an empty venv outside the checkout, then every registered id made, a shipped
+  policy benchmarked, and the CLI's help printed.
+* ``docs``   — the docs site built with ``mkdocs build --strict``.
+* ``types``  — pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml).
+
+Installs are shared: each session's venv is reused (``.nox/``) and pip's download cache serves every
+session; ``constraints.txt`` pins the CPU-only torch wheel. Sessions pin numeric libraries to one thread
+(the processes fill the cores). Arguments after ``--`` go to pytest (``nox -s tests -- tests/test_env.py``).
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+import nox
+
+ROOT = Path(__file__).resolve().parent
+nox.options.reuse_venv = "yes"
+nox.options.default_venv_backend = "venv"
+nox.options.sessions = ["tests", "lowest", "rllib", "wheel", "docs", "types"]
+
+CONSTRAINTS = ("-c", str(ROOT / "constraints.txt"))
+ONE_THREAD = {var: "1" for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                                   "NUMEXPR_NUM_THREADS", "NUMBA_NUM_THREADS")}
+#: What the default sessions leave out (the fast suite's ``not slow`` plus the extras they do not install).
+NOT_RLLIB = "not slow and not rllib"
+NOT_LOWEST = "not slow and not rllib and not zoo and not minari"
+
+#: What each session's optional-path tests import (checked before the tests run: a skipped test checks nothing).
+ZOO_IMPORTS = ("rl_zoo3", "sb3_contrib", "rliable", "safetensors", "requests", "moviepy", "hypothesis")
+RLLIB_IMPORTS = ("ray", "ray.rllib", "torch", "safetensors")
+
+
+def _imports(modules: tuple[str, ...]) -> str:
+    return f"import {', '.join(modules)}; print('imports ok: {' '.join(modules)}')"
+
+
+def _pytest(session: nox.Session, markexpr: str) -> None:
+    session.run("python", "-m", "pytest", "-m", markexpr, *session.posargs, env=ONE_THREAD)
+
+
+@nox.session
+def tests(session: nox.Session) -> None:
+    """The default suite on the newest releases: the install of the README's main job plus dev and zoo."""
+    session.install(*CONSTRAINTS, "-e", ".[dev,zoo]")
+    session.run("python", "-c", _imports(ZOO_IMPORTS))  # a test of an extra never skips for a missing import
+    _pytest(session, NOT_RLLIB)
+
+
+@nox.session
+def lowest(session: nox.Session) -> None:
+    """The default suite on each declared minimum (constraints-lowest.txt), the zoo and minari tests deselected."""
+    session.install("-c", str(ROOT / "constraints-lowest.txt"), "-e", ".[dev,train]")
+    session.run("python", "-m", "pip", "list", "--format=freeze", silent=False)
+    _pytest(session, NOT_LOWEST)
+
+
+@nox.session
+def rllib(session: nox.Session) -> None:
+    """The Ray/RLlib tests (marker ``rllib``) on the rllib extra, which pins gymnasium to RLlib's version."""
+    session.install(*CONSTRAINTS, "-e", ".[dev,rllib]")
+    session.run("python", "-c", _imports(RLLIB_IMPORTS))
+    _pytest(session, "rllib and not slow")
+
+
+_WHEEL_SMOKE = """
+import sys
+import gymnasium as gym
+import electroloc_gym
+from electroloc_gym.registry import ENV_IDS
+
+assert "site-packages" in electroloc_gym.__file__, electroloc_gym.__file__  # the wheel, not the checkout
+for env_id in ENV_IDS:
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    env.close()
+print(f"electroloc-gym {electroloc_gym.__version__}: made {len(ENV_IDS)} ids: {', '.join(ENV_IDS)}")
+"""
+
+
+@nox.session
+def wheel(session: nox.Session) -> None:
+    """Build sdist and wheel, check them, install the wheel alone into an empty venv and run it from there."""
+    session.install("build", "twine")
+    tmp = Path(session.create_tmp()).resolve()
+    dist, venv, work = tmp / "dist", tmp / "wheel-venv", tmp / "work"
+    for folder in (dist, venv, work):
+        shutil.rmtree(folder, ignore_errors=True)
+    work.mkdir()
+    session.run("python", "-m", "build", "--outdir", str(dist), str(ROOT))
+    (sdist,) = dist.glob("electroloc_gym-*.tar.gz")
+    (whl,) = dist.glob("electroloc_gym-*.whl")
+    session.run("twine", "check", "--strict", str(sdist), str(whl))
+    session.run(sys.executable, "-m", "venv", str(venv), external=True)
+    py = str(venv / "bin" / "python")
+    electroloc = str(venv / "bin" / "electroloc")
+    # the core dependencies only: a shipped policy runs without torch or SB3 (electroloc_gym.policy)
+    session.run(py, "-m", "pip", "install", "-q", *CONSTRAINTS, str(whl), external=True)
+    session.chdir(work)  # nothing of the checkout on sys.path
+    session.run(py, "-c", _WHEEL_SMOKE, external=True, env=ONE_THREAD)
+    session.run(electroloc, "--help", external=True, silent=True)
+    session.run(electroloc, "bench", "--agents", "ppo-belief,rnd-wlk", "--conditions", "fresh-steel-12.7",
+                "--trials", "2", "--out", str(work / "bench"), "--no-progress", external=True, env=ONE_THREAD)
+
+
+@nox.session
+def docs(session: nox.Session) -> None:
+    """The docs site with every warning an error (a broken link, anchor or API reference fails it)."""
+    session.install(*CONSTRAINTS, "-e", ".[docs]")
+    session.run("mkdocs", "build", "--strict", "--site-dir", str(Path(session.create_tmp()) / "site"))
+
+
+@nox.session
+def types(session: nox.Session) -> None:
+    """Type-check the package with pyright, the training extra installed so SB3's and torch's types resolve."""
+    session.install(*CONSTRAINTS, "-e", ".[train]", "pyright")
+    session.run("pyright", *(session.posargs or ["electroloc_gym"]))

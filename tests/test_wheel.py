@@ -1,0 +1,85 @@
+"""The release artefacts: an sdist and a wheel built as a release builds them, holding what a user needs.
+
+The build runs on a copy of the checkout with leftovers planted where they collect (``build/lib``,
+``results/``, ``experiments/``), so a packaging change that lets them in fails here. The wheel must hold
+the package, the shipped policies (without pickles) and the hyper-parameter files, nothing of
+``tests/``, ``results/``, ``build/``, ``experiments/`` or ``benchmarks/``, and stay small. nox's ``wheel``
+session installs the same wheel alone into an empty venv and runs it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import zipfile
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MAX_WHEEL_MB = 12.0  # the shipped policies are about 6.6 MB of it
+LEFT_OUT = ("tests/", "results/", "build/", "experiments/", "benchmarks/", "docs/", ".nox/", "site/")
+_SKIP = shutil.ignore_patterns(".git", ".venv", ".nox", "site", "dist", "build", "__pycache__", "*.egg-info",
+                               ".pytest_cache", ".ruff_cache", ".hypothesis", "results", "logs")
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    src = tmp_path_factory.mktemp("checkout") / "electroloc-gym"
+    shutil.copytree(ROOT, src, ignore=_SKIP)
+    for leftover in ("build/lib/electroloc_gym/leftover.py", "results/bench/table.md",
+                     "experiments/leftover/run.py", "models/ppo-belief/stale.pkl"):
+        (src / leftover).parent.mkdir(parents=True, exist_ok=True)
+        (src / leftover).write_text("# a leftover that must not ship\n", encoding="utf-8")
+    dist = src.parent / "dist"
+    proc = subprocess.run([sys.executable, "-m", "build", "--no-isolation", "--outdir", str(dist), str(src)],
+                          capture_output=True, text=True, timeout=900, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    (sdist,) = dist.glob("electroloc_gym-*.tar.gz")
+    (wheel,) = dist.glob("electroloc_gym-*.whl")
+    return sdist, wheel
+
+
+def test_wheel_holds_the_package_and_the_shipped_policies(built: tuple[Path, Path]) -> None:
+    _, wheel = built
+    names = zipfile.ZipFile(wheel).namelist()
+    tops = {n.split("/", 1)[0] for n in names}
+    assert {t for t in tops if not t.endswith(".dist-info")} == {"electroloc_gym"}
+    for needed in ("electroloc_gym/py.typed", "electroloc_gym/baselines/agent.py", "electroloc_gym/policy/load.py",
+                   "electroloc_gym/train/hyperparams/ppo.yml", "electroloc_gym/bench/records.py",
+                   "electroloc_gym/models/__init__.py"):
+        assert needed in names, needed
+    for model in sorted(p.name for p in (ROOT / "models").iterdir() if p.is_dir() and p.name != "__pycache__"):
+        shipped = {Path(n).name for n in names if n.startswith(f"electroloc_gym/models/{model}/")}
+        on_disk = {p.name for p in (ROOT / "models" / model).iterdir() if p.suffix != ".pkl"}
+        assert shipped == on_disk, (model, on_disk - shipped)
+        assert {"policy.json", "policy.safetensors"} <= shipped, model
+
+
+def test_wheel_leaves_out_leftovers_tests_and_results(built: tuple[Path, Path]) -> None:
+    _, wheel = built
+    info = zipfile.ZipFile(wheel).infolist()
+    names = [i.filename for i in info]
+    assert not [n for n in names if n.endswith(".pkl") or "leftover" in n or "__pycache__" in n]
+    inner = [n.split("/", 1)[1] for n in names if n.startswith("electroloc_gym/")]
+    assert not [n for n in inner if n.startswith(LEFT_OUT)]
+    size_mb = wheel.stat().st_size / 1e6
+    by_folder = Counter(n.split("/")[1] if n.count("/") > 1 else "(package)" for n in names
+                        if n.startswith("electroloc_gym/"))
+    print(f"\n{wheel.name}: {len(names)} files, {size_mb:.1f} MB; files per folder: {dict(sorted(by_folder.items()))}")
+    assert size_mb < MAX_WHEEL_MB, f"{wheel.name} is {size_mb:.1f} MB"
+
+
+def test_sdist_holds_the_sources_not_the_results(built: tuple[Path, Path]) -> None:
+    sdist, _ = built
+    with tarfile.open(sdist) as tar:
+        names = [n.split("/", 1)[1] for n in tar.getnames() if "/" in n]
+    for needed in ("pyproject.toml", "README.md", "LICENSE", "electroloc_gym/__init__.py", "baselines/agent.py",
+                   "models/ppo-belief/policy.safetensors"):
+        assert needed in names, needed
+    assert not [n for n in names if n.startswith(("results/", "build/", "experiments/")) or "leftover" in n]
+    assert sdist.stat().st_size / 1e6 < MAX_WHEEL_MB
