@@ -103,3 +103,27 @@ def test_version_is_declared_once() -> None:
         "version"]
     init = (ROOT / "electroloc_gym" / "__init__.py").read_text(encoding="utf-8")
     assert PYPROJECT["project"]["version"] not in init
+
+
+_CACHE_PROBE = ("import sys, os\n"
+                "if sys.argv[1] == 'numba-first':\n    import numba\n"
+                "import electroloc_gym, numba.core.config as c\n"
+                "print(c.CACHE_DIR, os.environ['NUMBA_CACHE_DIR'])")
+
+
+@pytest.mark.parametrize("order", ["package-first", "numba-first"])
+def test_numba_caches_per_user(tmp_path, order) -> None:
+    env = {k: v for k, v in ENV.items() if k != "NUMBA_CACHE_DIR"} | {"XDG_CACHE_HOME": str(tmp_path)}
+    proc = subprocess.run([sys.executable, "-c", _CACHE_PROBE, order], capture_output=True, text=True, env=env,
+                          cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    want = str(tmp_path / "electroloc-gym" / "numba")
+    assert proc.stdout.split() == [want, want]
+
+
+def test_numba_cache_set_by_the_user_is_kept(tmp_path) -> None:
+    env = ENV | {"NUMBA_CACHE_DIR": str(tmp_path / "mine")}
+    proc = subprocess.run([sys.executable, "-c", _CACHE_PROBE, "package-first"], capture_output=True, text=True,
+                          env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == [str(tmp_path / "mine")] * 2
