@@ -13,7 +13,8 @@ Consistency, for every record:
   is true and ``spread_mm`` ≤ the success criterion; ``"cap"``: ``success`` is false,
   ``readings`` is the cap and ``spread_mm`` is above the criterion. An agent that ends trials
   itself (``"agent"``, and every Table-1 trial): ``success`` ⇔ it ended the trial with an estimate.
-* ``readings`` ≤ ``max_observations`` (the run's cap; Table-1 trials: the agent's own budget), and ``decisions`` = ``readings − 1`` when the env
+* ``readings`` ≤ ``max_observations`` (the run's cap; Table-1 trials: the agent's own budget), and
+  ``decisions`` = ``readings − 1`` when the env
   ended the trial (the first reading comes with the reset), ``readings`` when the agent did (its last
   decision ends the trial).
 * ``error_mm`` = ‖estimate − target‖ and ``error_x_mm``/``error_y_mm`` its components; no estimate,
