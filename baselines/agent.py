@@ -1,20 +1,21 @@
 """The agent registry: names → the controllers, built from an agent spec by :func:`make_agent`.
 
-A spec is a name, optionally with keyword options in brackets (``min-var[n_voters=2500]``,
-``lookahead[objective=steps,depth=2]``), parsed by the package's one spec parser
-(:mod:`electroloc_gym.agentspec`). The agent protocol and the controllers' common base live in
+The package's one registry of built-in agents: their names are declared here once
+(:data:`PAPER_AGENTS`, :data:`EXTRA_AGENTS`, :data:`AGENT_NAMES`) and the benchmark's agent resolver
+(:mod:`electroloc_gym.bench.agents`, which adds shipped models, policy paths and users' factories) and its
+tables read them. A spec is a name, optionally with keyword options in brackets
+(``min-var[n_voters=2500]``, ``lookahead[objective=steps,depth=2]``), parsed by the package's one spec
+parser (:mod:`electroloc_gym.agentspec`, re-exported as :func:`parse_agent_spec`).
+The agent protocol and the controllers' common base live in
 :mod:`electroloc_gym.baselines.base` (re-exported here); the controller modules import that module,
 never this one, so the registry → controllers imports run one way.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from electroloc_gym.agentspec import AgentSpec
-from electroloc_gym.agentspec import parse_agent_spec as _parse
+from electroloc_gym.agentspec import AgentSpec, parse_agent_spec
 from electroloc_gym.baselines.base import (
     MAX_STEP_MM,
     Agent,
@@ -27,7 +28,10 @@ __all__ = [
     "Agent",
     "BaselineAgent",
     "AGENT_REGISTRY",
+    "PAPER_AGENTS",
     "EXTRA_AGENTS",
+    "AGENT_NAMES",
+    "agent_class",
     "make_agent",
     "parse_agent_spec",
     "sample_options_mm",
@@ -37,7 +41,9 @@ __all__ = [
 
 
 def _registry() -> dict[str, type]:
-    """Name → controller class (imported when first needed: min-var and lookahead load scipy's kernels)."""
+    """Name → controller class (imported when first needed: min-var and lookahead load scipy's kernels);
+    each class's ``name`` is its registry name.
+    """
     from electroloc_gym.baselines.eedi import EEDIAgent
     from electroloc_gym.baselines.infotaxis import InfotaxisAgent
     from electroloc_gym.baselines.lookahead import LookaheadAgent
@@ -45,24 +51,30 @@ def _registry() -> dict[str, type]:
     from electroloc_gym.baselines.random_walk import RandomWalkAgent
     from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 
-    return {"rnd-wlk": RandomWalkAgent, "min-var": MinVarianceAgent, "zero-crossing": ZeroCrossingAgent,
-            "lookahead": LookaheadAgent, "infotaxis": InfotaxisAgent, "eedi": EEDIAgent}
+    classes = (RandomWalkAgent, MinVarianceAgent, ZeroCrossingAgent, LookaheadAgent, InfotaxisAgent, EEDIAgent)
+    return {cls.name: cls for cls in classes}
 
 
-#: Names of the built-in agents (classes resolved lazily by :func:`make_agent`).
-AGENT_REGISTRY: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
+#: The paper's three controllers: a default benchmark run's agents, and the paper's rows of its tables.
+PAPER_AGENTS: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
+#: The paper's controllers under their older name.
+AGENT_REGISTRY = PAPER_AGENTS
 #: Agents beyond the paper's controllers, built by :func:`make_agent` but not in default benchmark runs.
 EXTRA_AGENTS: tuple[str, ...] = ("lookahead", "infotaxis", "eedi")
+#: Every built-in agent's name.
+AGENT_NAMES: tuple[str, ...] = PAPER_AGENTS + EXTRA_AGENTS
 
 
-def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:
-    """``"min-var[n_voters=2500,n_options=16]"`` → ``("min-var", {"n_voters": 2500, ...})``.
+def agent_class(name: str) -> type:
+    """The controller class registered as ``name``.
 
     Raises:
-        ValueError: malformed spec, option or value, or a key given twice (:mod:`electroloc_gym.agentspec`).
+        ValueError: an unknown name (the message lists the names).
     """
-    parsed = _parse(spec)
-    return parsed.name, dict(parsed.options)
+    registry = _registry()
+    if name not in registry:
+        raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_NAMES)}")
+    return registry[name]
 
 
 def make_agent(spec: str | AgentSpec, seed: int | np.random.Generator | None = None) -> BaselineAgent:
@@ -76,11 +88,9 @@ def make_agent(spec: str | AgentSpec, seed: int | np.random.Generator | None = N
     Raises:
         ValueError: an unknown name or bad options (the message lists the names).
     """
-    parsed = spec if isinstance(spec, AgentSpec) else _parse(spec)
-    registry = _registry()
-    if parsed.name not in registry:
-        raise ValueError(f"unknown agent {parsed.name!r}; choose from {list(AGENT_REGISTRY + EXTRA_AGENTS)}")
+    parsed = spec if isinstance(spec, AgentSpec) else parse_agent_spec(spec)
+    cls = agent_class(parsed.name)
     try:
-        return registry[parsed.name](seed=seed, **parsed.options)
+        return cls(seed=seed, **parsed.options)
     except TypeError as exc:
         raise ValueError(f"bad options for agent {parsed.name!r} in {parsed.text!r}: {exc}") from exc

@@ -22,6 +22,12 @@ Attributes and optional hooks the benchmark runner understands:
   evaluated in (zero-crossing: the paper's Table-1 layout, §6.4).
 * ``layout: str`` (optional) — ``"table4"`` (default) or ``"table1"``: which of the paper's tables
   the agent's results belong to.
+* ``sensor_layouts: tuple[str, ...] | None`` (optional) — the named sensor layouts
+  (``electroloc_gym.sensor_array.LAYOUT_NAMES``) the agent can run on; None (default): every one. The
+  benchmark refuses a run on another layout before it writes anything.
+* ``memory_bytes(n_particles) -> int`` and ``decision_seconds(n_particles) -> float`` (optional) — the
+  agent's estimate of one decision's peak memory and time with a belief of ``n_particles``; the
+  benchmark refuses a run that cannot fit in memory and warns before one whose decisions are slow.
 
 :class:`BaselineAgent` is the controllers' common plumbing; every controller module imports this
 module and nothing above it (the registry, :mod:`electroloc_gym.baselines.agent`, imports the
@@ -36,7 +42,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.core.params import MAX_STEP_MM  # the largest move per axis per step, mm (paper §4.1.3)
+from electroloc_gym.protocol import MAX_STEP_MM  # the largest move per axis per step, mm (paper §4.1.3)
 
 __all__ = ["Agent", "BaselineAgent", "sample_options_mm", "move_bounds_mm", "sample_belief", "MAX_STEP_MM"]
 
@@ -69,6 +75,8 @@ class BaselineAgent:
     name = "baseline"
     #: Which paper table the agent's results belong to.
     layout = "table4"
+    #: The named sensor layouts the agent runs on (None: every one).
+    sensor_layouts: tuple[str, ...] | None = None
 
     def __init__(self, seed: int | np.random.Generator | None = None) -> None:
         self.env_kwargs: dict[str, Any] = {}

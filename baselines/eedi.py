@@ -74,6 +74,15 @@ def _mm_option(name: str, value: Any, low: float, high: float) -> float:
     return float(value)
 
 
+#: Side of the largest allowed box of the presets, mm (the 38.1 mm spheres' ±60 mm).
+_BOX_SIDE_MM = 120.0
+#: Memory per sensor-model evaluation of an EID update, bytes (the (x, y) hypothesis, mean, deviation and
+#: the sensor model's float64 temporaries).
+_BYTES_PER_EVALUATION = 96
+#: Time per sensor-model evaluation of an EID update on one core, s (order of magnitude).
+_SECONDS_PER_EVALUATION = 5e-7
+
+
 class EEDIAgent(BaselineAgent):
     """Ergodic exploration of the expected information density (module docstring).
 
@@ -92,6 +101,8 @@ class EEDIAgent(BaselineAgent):
     """
 
     name = "eedi"
+    #: The Fisher information is of one pair's (N, S) readings: the paper's single pair only.
+    sensor_layouts = ("single",)
 
     def __init__(self, seed: int | np.random.Generator | None = None, n_coefficients: int = 10,
                  grid_mm: float = 5.0, n_particles: int = 200, update_period: int = 1, criterion: str = "det",
@@ -117,6 +128,26 @@ class EEDIAgent(BaselineAgent):
         require_target_belief(self.env, self.name)
         self._phi_k = None
         self._updated_at = -1
+
+    # ---- cost ---------------------------------------------------------------------------------
+    def _evaluations(self, n_particles: int) -> int:
+        """Sensor-model evaluations of one EID update: 4 shifted carriages per cell of the grid over the
+        largest allowed box of the presets (:data:`_BOX_SIDE_MM` a side), times the hypotheses.
+        """
+        cells = math.ceil(_BOX_SIDE_MM / self.grid_mm) ** 2
+        return 4 * cells * min(self.n_particles, int(n_particles))
+
+    def memory_bytes(self, n_particles: int) -> int:
+        """Peak memory of one EID update, bytes: per evaluation the shifted (x, y) hypothesis and the
+        float64 mean and deviation with the sensor model's temporaries, ≈ :data:`_BYTES_PER_EVALUATION`.
+        """
+        return _BYTES_PER_EVALUATION * self._evaluations(n_particles)
+
+    def decision_seconds(self, n_particles: int) -> float:
+        """Estimated time of one decision that updates the EID, s (:data:`_SECONDS_PER_EVALUATION` per
+        sensor-model evaluation, measured on one core with the calibrated model).
+        """
+        return _SECONDS_PER_EVALUATION * self._evaluations(n_particles)
 
     # ---- the EID ------------------------------------------------------------------------------
     def _hypotheses(self) -> NDArray:

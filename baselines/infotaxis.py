@@ -179,6 +179,8 @@ class InfotaxisAgent(BaselineAgent):
     """
 
     name = "infotaxis"
+    #: The score reads one pair's (C, M) predictions: the paper's single pair only.
+    sensor_layouts = ("single",)
 
     def __init__(self, seed: int | np.random.Generator | None = None, n_options: int = 16,
                  n_particles: int | None = 500, n_voters: int | None = 128, nodes: int = 3) -> None:
@@ -193,6 +195,16 @@ class InfotaxisAgent(BaselineAgent):
     def reset(self, env: Any) -> None:
         super().reset(env)
         require_target_belief(self.env, self.name)
+
+    def memory_bytes(self, n_particles: int) -> int:
+        """Peak memory of one decision with a belief of ``n_particles``, bytes: the options' float64
+        predicted means and deviations and their moved hypotheses (C, S) — ≈ 32 bytes per (option,
+        hypothesis) — and two float32 (V·Q, S) buffers of one option's log-weights, with S the measured
+        cloud, V its voters and Q the quadrature nodes.
+        """
+        s = int(n_particles) if self.n_particles is None else min(self.n_particles, int(n_particles))
+        v = s if self.n_voters is None else min(self.n_voters, s)
+        return 32 * self.n_options * s + 8 * v * self.nodes * s
 
     def _cloud(self) -> tuple[NDArray, NDArray[np.float64] | None]:
         """The hypotheses the entropy is measured over: the belief, or ``n_particles`` drawn from it."""

@@ -92,6 +92,8 @@ class ZeroCrossingAgent(BaselineAgent):
 
     name = "zero-crossing"
     layout = "table1"
+    #: It follows one pair's zero crossings (§4.2): the paper's single pair only.
+    sensor_layouts = ("single",)
 
     def __init__(self, seed: int | np.random.Generator | None = None, n_average: int = 4,
                  n_average_refine: int = 8, k_sigma: float = 3.0, max_gap_mm: float = 30.0,

@@ -116,22 +116,22 @@ def table4(rows: list[dict[str, Any]], label: str) -> list[str]:
             else:
                 cell, p_s, p_steps, p_err = f"{r['successes']}", "", "", ""
             out.append(f"| {'All conditions' if n == 'all' else n} | {r.get('label', r['agent'])} | {cell} | {p_s} "
-                       f"| {r['steps_median']:.3g} | {p_steps} | {r['error_median_mm']:.1f} | {p_err} |")
+                       f"| {r['readings_median']:.3g} | {p_steps} | {r['error_median_mm']:.1f} | {p_err} |")
     return out
 
 
 def fig12(rows: list[dict[str, Any]]) -> list[str]:
     by = {(r["condition"], r["agent"]): r for r in rows}
     both = [n for n in PRESET_NAMES if (n, "min-var") in by and (n, "rnd-wlk") in by]
-    fewer_steps = sum(by[(n, "min-var")]["steps_median"] < by[(n, "rnd-wlk")]["steps_median"] for n in both)
+    fewer_steps = sum(by[(n, "min-var")]["readings_median"] < by[(n, "rnd-wlk")]["readings_median"] for n in both)
     fewer_fail = sum(by[(n, "min-var")]["failures"] <= by[(n, "rnd-wlk")]["failures"] for n in both)
     a, b = by.get(("all", "min-var")), by.get(("all", "rnd-wlk"))
-    ratio = a["steps_median"] / b["steps_median"] if a and b else float("nan")
+    ratio = a["readings_median"] / b["readings_median"] if a and b else float("nan")
     return ["| Fig. 12 statement | paper | simulation |", "|---|---|---|",
             f"| conditions where min-var needs fewer median steps | 8 of 8 | {fewer_steps} of 8 |",
             f"| conditions where min-var fails no more often | 8 of 8 | {fewer_fail} of 8 |",
             f"| min-var / rnd-wlk, mean of the 8 median steps | 6.7 / 12.4 = 0.54 | "
-            f"{a['steps_median'] if a else float('nan'):.3g} / {b['steps_median'] if b else float('nan'):.3g} "
+            f"{a['readings_median'] if a else float('nan'):.3g} / {b['readings_median'] if b else float('nan'):.3g} "
             f"= {ratio:.2f} |",
             f"| failures min-var / rnd-wlk | 19 / 113 "
             f"| {a['failures'] if a else '–'} / {b['failures'] if b else '–'} |"]
@@ -176,7 +176,7 @@ def table2(rows: list[dict[str, Any]]) -> list[str]:
         if not paper:
             continue
         cell = _mark(r["successes"], r["successes"] + r["failures"], paper[0], paper[0] + paper[1])
-        out.append(f"| {r['agent']} | {cell} | {paper[0]} | {r['steps_median']:g} | {paper[5]:g} "
+        out.append(f"| {r['agent']} | {cell} | {paper[0]} | {r['readings_median']:g} | {paper[5]:g} "
                    f"| {r['error_median_mm']:.1f} | {paper[3]:g} |")
     return out
 

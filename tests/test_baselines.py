@@ -6,6 +6,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from electroloc_gym.agentspec import AgentSpec
+
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.baselines.agent import (
     MAX_STEP_MM,
@@ -96,7 +98,15 @@ def test_make_agent_options() -> None:
     agent = make_agent("min-var[n_voters=64, n_options=8]")
     assert agent.n_voters == 64 and agent.n_options == 8
     assert make_agent("min-var[n_voters=None]").n_voters is None
-    assert parse_agent_spec("rnd-wlk") == ("rnd-wlk", {})
+    spec = parse_agent_spec("rnd-wlk[n_options=4]")  # the package's one parser and its one type
+    assert isinstance(spec, AgentSpec) and (spec.name, spec.options) == ("rnd-wlk", {"n_options": 4})
+
+
+def test_one_registry_declares_every_built_in_agent() -> None:
+    from electroloc_gym.baselines.agent import AGENT_NAMES, PAPER_AGENTS, _registry
+    from electroloc_gym.bench.config import DEFAULT_AGENTS
+
+    assert tuple(_registry()) == AGENT_NAMES and DEFAULT_AGENTS == PAPER_AGENTS == AGENT_NAMES[:3]
 
 
 @pytest.mark.parametrize("spec,match", [

@@ -21,7 +21,7 @@ from electroloc_gym.conditions import PRESET_NAMES
 TINY = dict(conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=2, seed=3, n_particles=300,
             max_observations=6, sensor_model="analytic")
 SUMMARY_KEYS = {"condition", "agent", "trials", "successes", "failures", "error_mean_mm", "error_median_mm",
-                "steps_mean", "steps_median", "decision_ms_median"}
+                "readings_mean", "readings_median", "decision_ms_median"}
 
 
 def _strip(records):
@@ -128,9 +128,9 @@ def test_run_writes_all_files(serial_run) -> None:
     records = read_trials(out / "trials.jsonl")
     assert len(records) == len(cfg.agents) * len(cfg.conditions) * cfg.trials
     for r in records:
-        assert {"condition", "agent", "trial", "seed", "success", "observations", "error_mm", "estimate", "start",
+        assert {"condition", "agent", "trial", "seed", "success", "readings", "error_mm", "estimate", "start",
                 "decision_ms_median"} <= r.keys()
-        assert 1 <= r["observations"]
+        assert 1 <= r["readings"]
     data = json.loads((out / "summary.json").read_text())  # strict JSON: no NaN
     rows = data["rows"]
     assert all(SUMMARY_KEYS <= r.keys() for r in rows)
@@ -186,7 +186,7 @@ def test_resume_refuses_different_settings(serial_run, tmp_path) -> None:
 
 # ---- Appendix B statistics -------------------------------------------------------------------------
 def _rec(cond, agent, trial, success, steps, err, layout="table4"):
-    return {"condition": cond, "agent": agent, "trial": trial, "success": success, "observations": steps,
+    return {"condition": cond, "agent": agent, "trial": trial, "success": success, "readings": steps,
             "error_mm": err, "error_x_mm": err, "error_y_mm": 0.0, "estimate": [err, 0.0], "layout": layout,
             "decision_ms_median": 1.0}
 
@@ -203,13 +203,13 @@ def test_appendix_b_rules() -> None:
     a1 = row[("c1", "a")]
     assert (a1["successes"], a1["failures"]) == (2, 1)
     assert a1["paired_trials"] == 1                                  # only trial 0: both succeeded
-    assert a1["error_mean_paired_mm"] == 1.0 and a1["steps_mean_paired"] == 5
-    assert a1["error_mean_mm"] == 1.5 and a1["steps_mean"] == 7      # own successes
-    assert a1["steps_median"] == 9 and a1["error_median_mm"] == 2.0  # all trials, failures included
+    assert a1["error_mean_paired_mm"] == 1.0 and a1["readings_mean_paired"] == 5
+    assert a1["error_mean_mm"] == 1.5 and a1["readings_mean"] == 7      # own successes
+    assert a1["readings_median"] == 9 and a1["error_median_mm"] == 2.0  # all trials, failures included
     all_a = row[("all", "a")]
     assert all_a["successes"] == 3 and all_a["failures"] == 1
-    assert all_a["steps_median"] == (9 + 10) / 2                     # average of per-condition medians
-    assert all_a["steps_median_pooled"] == 9.5
+    assert all_a["readings_median"] == (9 + 10) / 2                     # average of per-condition medians
+    assert all_a["readings_median_pooled"] == 9.5
     assert math.isclose(all_a["error_mean_paired_mm"], (1.0 + 4.0) / 2)
 
 
@@ -251,7 +251,7 @@ def test_statistical_min_var_beats_rnd_wlk_with_analytic_model(tmp_path) -> None
     row = {(r["condition"], r["agent"]): r for r in summary["rows"]}
     for c in cfg.conditions:
         assert row[(c, "min-var")]["failures"] < row[(c, "rnd-wlk")]["failures"]
-        assert row[(c, "min-var")]["steps_median"] < row[(c, "rnd-wlk")]["steps_median"]
+        assert row[(c, "min-var")]["readings_median"] < row[(c, "rnd-wlk")]["readings_median"]
 
 
 # The paper's claim (Table 4, Fig. 12): min-var fails less and needs fewer readings than rnd-wlk. With
@@ -267,7 +267,7 @@ def test_statistical_min_var_beats_rnd_wlk(tmp_path) -> None:
     row = {(r["condition"], r["agent"]): r for r in summary["rows"]}
     mv, rw = row[("all", "min-var")], row[("all", "rnd-wlk")]
     assert mv["failures"] < rw["failures"]
-    assert mv["steps_median"] < rw["steps_median"]
+    assert mv["readings_median"] < rw["readings_median"]
     assert mv["successes"] >= 0.9 * 20 * len(PRESET_NAMES)
 
 

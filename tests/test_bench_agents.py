@@ -187,7 +187,7 @@ def test_run_trial_is_run_episode_plus_the_record() -> None:
     env = gym.make("ElectroLoc-v0", condition=get_condition("salt-steel-12.7", spec.signal), n_particles=200,
                    sensor_model="analytic", max_observations=8)
     ep = run_episode(env, make_agent("rnd-wlk"), seed=spec.env_seed, agent_seed=spec.agent_seed)
-    assert rec["observations"] == ep.info["n_observations"] and rec["ended_by"] == ep.ended_by
+    assert rec["readings"] == ep.info["n_observations"] and rec["ended_by"] == ep.ended_by
     assert rec["estimate"] == [float(v) for v in ep.info["estimate_mm"]]
     assert rec["start"] == [float(v) for v in ep.start_info["position_mm"]]
     assert (rec["seed"], rec["agent_seed"], rec["env_id"], rec["n_particles"]) == \

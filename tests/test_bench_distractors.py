@@ -60,8 +60,7 @@ def test_records_carry_d_and_far_success_and_the_env_has_the_distractors(tmp_pat
     assert [r["distractors"] for r in plain_recs] == [0, 0]
     # same seeds, same start; the distractors change the readings and so the trial
     assert [r["start"] for r in plain_recs] == [r["start"] for r in recs]
-    assert [(r["observations"], r["estimate"]) for r in plain_recs] != [(r["observations"], r["estimate"])
-                                                                         for r in recs]
+    assert [(r["readings"], r["estimate"]) for r in plain_recs] != [(r["readings"], r["estimate"]) for r in recs]
     with pytest.raises(ValueError, match="settings differ"):
         run_benchmark(BenchConfig(agents=("rnd-wlk",), distractors=1, **TINY), tmp_path, backend="serial",
                       resume=True, progress=False, log=None)
@@ -97,4 +96,8 @@ def test_schema_refuses_a_far_flag_that_contradicts_the_error() -> None:
         TrialRecord.from_json({**rec, "far_success": False})
     with pytest.raises(ValueError, match="'distractors' must be an integer in"):
         TrialRecord.from_json({**rec, "distractors": 9})
-    assert np.isclose(TrialRecord.from_json({**rec, "distractors": None, "far_success": None}).error_mm, 20.0)
+    for key in ("distractors", "far_success"):  # absent (an older record) reads as what it meant; null is refused
+        with pytest.raises(ValueError, match=f"'{key}' must be"):
+            TrialRecord.from_json({**rec, key: None})
+    old = TrialRecord.from_json({k: v for k, v in rec.items() if k not in ("distractors", "far_success")})
+    assert old.distractors == 0 and old.far_success and old.readings == 5

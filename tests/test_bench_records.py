@@ -113,13 +113,18 @@ def test_parsing_is_bounded(reference, tmp_path, capsys, crafted, message) -> No
 
 
 @pytest.mark.parametrize("changes,message", [
-    ({"observations": 1000}, "≠ 'observations' − 1 = 999"),
-    ({"observations": 1000, "decisions": 999}, "'observations' 1000 exceeds the cap of 6"),
+    ({"readings": 1000}, "'readings' 1000 exceeds the record's cap 'max_observations' 6"),
+    ({"readings": 5, "decisions": 5}, "≠ 'readings' − 1 = 4"),
+    ({"observations": 3}, "both 'readings' and its old name 'observations'"),
+    ({"start": [0, 0]}, "'start' [0, 0] is not the start"),
+    ({"start": [0.0, 1e-3]}, "is not the start"),
+    ({"far_success": None}, "'far_success' must be true or false, got None"),
+    ({"distractors": None}, "'distractors' must be an integer in [0, 8], got None"),
     ({"error_mm": -5}, "'error_mm' must be a distance in [0, 2000] mm"),
     ({"agent": "evil"}, "agent 'evil' is not one of the run's"),
     ({"trial": 7}, "trial 7 is outside the run's range 0–2"),
     ({"layout": "table1", "_failed": True}, "layout 'table1', but agent 'rnd-wlk' reports to 'table4'"),
-    ({"spread_mm": 50.0, "success": True, "ended_by": "success", "observations": 5, "decisions": 4},
+    ({"spread_mm": 50.0, "success": True, "ended_by": "success", "readings": 5, "decisions": 4},
      "vs the criterion 10.0 mm"),
     ({"extra": 1}, "unknown key(s) ['extra']"),
 ])
@@ -157,14 +162,9 @@ _ANY = st.one_of(st.none(), st.booleans(), st.integers(min_value=-2**70, max_val
                  st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=3),
                  st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
 #: Fields whose other values can be valid on their own: accepted only inside their documented range.
-_LOOSE = {"start": lambda v: isinstance(v, list) and len(v) == 2 and all(
-              isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= 1000 for x in v),
-          "agent_label": lambda v: isinstance(v, str) and 0 < len(v) <= 2000,
-          # keys added later: null is what a record written before them means (far_success: not computed)
-          "far_success": lambda v: v is None,
+_LOOSE = {"agent_label": lambda v: isinstance(v, str) and 0 < len(v) <= 2000,
           # any spread consistent with the record's success (≤ the criterion ⇔ success) is a valid spread
           "spread_mm": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0,
-          "distractors": lambda v: v is None,
           **{k: (lambda v: v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
                                          and 0 <= v <= 86_400e3)) for k in TIMING_KEYS}}
 
@@ -206,3 +206,65 @@ def test_what_the_worker_writes_passes_its_own_schema(reference) -> None:
         rec = TrialRecord.from_json(json.loads(line))
         assert rec.problem(rules) is None and rec.to_json() == json.loads(line)
         assert rec.error_mm is None or math.isclose(rec.error_mm, math.dist(rec.estimate, rec.target))
+
+
+# ---- the one reader, old key names -------------------------------------------------------------------------
+def test_a_record_with_the_old_name_of_readings_reads_as_readings(reference, tmp_path) -> None:
+    cfg, out, lines, _ = reference
+    old = []
+    for line in lines:
+        rec = json.loads(line)
+        rec["observations"] = rec.pop("readings")
+        rec.pop("far_success"), rec.pop("distractors")  # written before these keys existed
+        old.append(json.dumps(rec) + "\n")
+    path = tmp_path / "trials.jsonl"
+    path.write_text("".join(old))
+    loaded = load_records(path, BenchConfig(**cfg), _rules(cfg))
+    assert loaded.n_rejected == 0 and loaded.n_foreign == 0
+    assert list(loaded.records.values()) == [json.loads(line) for line in lines]
+
+
+def test_read_run_records_is_what_resume_keeps(reference, tmp_path) -> None:
+    from electroloc_gym.bench.stored_run import read_run_records
+
+    cfg, out, lines, _ = reference
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    bad = _edit(lines[0], readings=1000)
+    (run / "trials.jsonl").write_text("".join([bad + "\n", "garbage\n", *lines[1:]]))
+    got = read_run_records(run)
+    assert got.config == BenchConfig(**cfg)
+    assert got.records == [json.loads(line) for line in lines[1:]]
+    assert got.n_set_aside == 2 and len(got.messages()) == 2
+    assert (run / "trials.jsonl").read_text().startswith(bad)  # nothing written
+
+
+@pytest.mark.parametrize("damage", ["no-folder", "no-config", "no-trials", "config-garbage", "config-list",
+                                    "config-bad-value", "trials-a-folder"])
+def test_read_run_records_refuses_a_damaged_folder_in_one_line(reference, tmp_path, damage) -> None:
+    from electroloc_gym.bench.stored_run import read_run_records
+
+    cfg, out, _, _ = reference
+    if cfg is not TARGET:
+        pytest.skip("once")
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    config = json.loads((run / "config.json").read_text())
+    if damage == "no-folder":
+        run = tmp_path / "absent"
+    elif damage == "no-config":
+        (run / "config.json").unlink()
+    elif damage == "no-trials":
+        (run / "trials.jsonl").unlink()
+    elif damage == "config-garbage":
+        (run / "config.json").write_bytes(b"\xff[[[")
+    elif damage == "config-list":
+        (run / "config.json").write_text("[1, 2]")
+    elif damage == "config-bad-value":
+        (run / "config.json").write_text(json.dumps({**config, "trials": -3}))
+    else:
+        (run / "trials.jsonl").unlink()
+        (run / "trials.jsonl").mkdir()
+    with pytest.raises(ValueError) as info:
+        read_run_records(run)
+    assert "\n" not in str(info.value) and str(run.name) in str(info.value)

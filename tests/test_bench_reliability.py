@@ -209,7 +209,7 @@ def _damage(lines: list[str]) -> dict[str, tuple[list[bytes], int, str]]:
     b = [ln.encode("utf-8") for ln in lines]
     rec = json.loads(lines[3])
     null_trial = {**rec, "trial": None}
-    no_keys = {k: v for k, v in rec.items() if k not in ("success", "observations")}
+    no_keys = {k: v for k, v in rec.items() if k not in ("success", "readings")}
     return {
         "truncated": ([*b[:3], b[3][: len(b[3]) // 2] + b"\n", *b[4:]], 4, "not JSON"),
         "torn-last": ([*b[:3], *b[4:], b[3][:40]], len(b), "last line torn"),

@@ -13,7 +13,10 @@ An agent *spec* (what ``--agents`` takes, and the ``agent`` key of every trial r
   factory called with the options, and the object it returns must have the agent protocol
   (:func:`protocol_problem`). Importing the module runs its code, as ``import`` would.
 
-Specs are parsed by the package's one parser (:mod:`electroloc_gym.agentspec`). Every failure —
+Specs are parsed by the package's one parser (:mod:`electroloc_gym.agentspec`), once per process:
+:func:`resolve_agent` turns a spec's text into an :class:`AgentRef` (its kind and parsed form) that
+everything else here reads. The built-in controllers' names are the baselines' registry's
+(:data:`electroloc_gym.baselines.agent.AGENT_NAMES`). Every failure —
 an unknown name, a bad option, a module that does not import, a factory that raises or returns
 something without ``reset``/``predict``, a policy recorded for another env, observation layout or
 action space (:func:`policy_env_problem`) — is one ``ValueError`` naming the spec, raised before any
@@ -35,9 +38,11 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.agentspec import AgentSpec, is_path_like, parse_agent_spec
-from electroloc_gym.baselines.agent import AGENT_REGISTRY, EXTRA_AGENTS, make_agent
+from electroloc_gym.baselines.agent import AGENT_NAMES, PAPER_AGENTS, agent_class, make_agent
 from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
+    AGENT_ENV_KWARGS,
     bench_env_kwargs,
+    plug_in_problem,
     policy_env_problem,
     policy_meta,
     shipped_model_env,
@@ -47,6 +52,13 @@ from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (r
 
 __all__ = [
     "AgentChoice",
+    "AgentRef",
+    "resolve_agent",
+    "builtin_agent",
+    "plug_in_problem",
+    "layout_problem",
+    "decision_seconds",
+    "AGENT_ENV_KWARGS",
     "shipped_models",
     "is_policy_path",
     "agent_kind",
@@ -83,6 +95,63 @@ def is_policy_path(spec: str) -> bool:
 _OBJECTS: dict[str, Any] = {}
 
 
+@dataclass(frozen=True)
+class AgentRef:
+    """An agent spec resolved once: what it names and how it was parsed.
+
+    Attributes:
+        text: the spec as written (stripped): the ``agent`` key of trial records.
+        kind: ``"baseline"`` (a built-in controller), ``"factory"``, ``"object"``, ``"shipped"`` or ``"path"``.
+        parsed: the parsed spec (None for a path or a shipped model's name).
+    """
+
+    text: str
+    kind: str
+    parsed: AgentSpec | None = None
+
+    @property
+    def builtin(self) -> bool:
+        """A built-in controller (its options are in its spec; it may set its own protocol)."""
+        return self.kind == "baseline"
+
+
+_REFS: dict[str, AgentRef] = {}
+
+
+def resolve_agent(spec: str | AgentRef) -> AgentRef:
+    """The :class:`AgentRef` of a spec (parsed once per process).
+
+    Raises:
+        ValueError: a spec that names nothing (the message lists the choices), or a malformed one.
+    """
+    if isinstance(spec, AgentRef):
+        return spec
+    if not isinstance(spec, str) or not spec.strip():
+        raise ValueError(f"agent must be a non-empty string, got {spec!r}")
+    if spec not in _REFS:
+        _REFS[spec] = _resolve(spec.strip())
+    return _REFS[spec]
+
+
+def _resolve(spec: str) -> AgentRef:
+    if is_path_like(spec):
+        return AgentRef(spec, "path")
+    parsed = parse_agent_spec(spec)
+    if parsed.name in AGENT_NAMES:  # the paper's controllers, and ours
+        return AgentRef(spec, "baseline", parsed)
+    if parsed.is_factory:
+        return AgentRef(spec, "factory", parsed)
+    if spec in _OBJECTS:
+        return AgentRef(spec, "object", parsed)
+    if spec in shipped_models():
+        return AgentRef(spec, "shipped")
+    if is_policy_path(spec):
+        return AgentRef(spec, "path")
+    raise ValueError(f"unknown agent {parsed.name!r}; choose from {list(AGENT_NAMES)} (options "
+                     f"as NAME[key=value]), a shipped model {sorted(shipped_models())}, a path to a model folder / "
+                     f"policy file, or package.module:factory[key=value,...]")
+
+
 def register_object_agent(name: str, agent: Any) -> None:
     """Make ``agent`` (an object with the agent protocol) the agent named ``name`` in this process.
 
@@ -91,42 +160,25 @@ def register_object_agent(name: str, agent: Any) -> None:
             object lacks the protocol.
     """
     parsed = parse_agent_spec(name)
-    if parsed.options or parsed.is_factory or parsed.name in AGENT_REGISTRY + EXTRA_AGENTS or name in shipped_models():
+    if parsed.options or parsed.is_factory or parsed.name in AGENT_NAMES or name in shipped_models():
         raise ValueError(f"agent object name {name!r} must be a plain name other than the built-in agents' and "
                          f"shipped models'")
     why = protocol_problem(agent)
     if why is not None:
         raise ValueError(f"agent object {name!r} ({type(agent).__name__}) is not an agent: it lacks {why}")
     _OBJECTS[name] = agent
+    _REFS.pop(name, None)
     for key in [k for k in _CACHE if k[0] == name]:
         del _CACHE[key]
 
 
-def agent_kind(spec: str) -> str:
-    """``"baseline"``, ``"factory"``, ``"object"``, ``"shipped"`` or ``"path"``.
+def agent_kind(spec: str | AgentRef) -> str:
+    """``"baseline"``, ``"factory"``, ``"object"``, ``"shipped"`` or ``"path"`` (:func:`resolve_agent`).
 
     Raises:
         ValueError: a spec that is none of them (the message lists the choices), or a malformed one.
     """
-    if not isinstance(spec, str) or not spec.strip():
-        raise ValueError(f"agent must be a non-empty string, got {spec!r}")
-    spec = spec.strip()
-    if is_path_like(spec):
-        return "path"
-    parsed = parse_agent_spec(spec)
-    if parsed.name in AGENT_REGISTRY or parsed.name in EXTRA_AGENTS:  # the paper's controllers, and ours
-        return "baseline"
-    if parsed.is_factory:
-        return "factory"
-    if spec in _OBJECTS:
-        return "object"
-    if spec in shipped_models():
-        return "shipped"
-    if is_policy_path(spec):
-        return "path"
-    raise ValueError(f"unknown agent {parsed.name!r}; choose from {list(AGENT_REGISTRY + EXTRA_AGENTS)} (options "
-                     f"as NAME[key=value]), a shipped model {sorted(shipped_models())}, a path to a model folder / "
-                     f"policy file, or package.module:factory[key=value,...]")
+    return resolve_agent(spec).kind
 
 
 def protocol_problem(agent: Any) -> str | None:
@@ -192,16 +244,16 @@ def agent_display_name(spec: str) -> str:
     return p.parent.name if p.name == "model.zip" and p.parent.name else (p.stem if p.suffix == ".zip" else p.name)
 
 
-def _policy_path(spec: str) -> Path:
-    if spec in shipped_models():
-        return shipped_models()[spec]
-    path = Path(spec).expanduser()
+def _policy_path(ref: AgentRef) -> Path:
+    if ref.kind == "shipped":
+        return shipped_models()[ref.text]
+    path = Path(ref.text).expanduser()
     if not path.exists():
-        raise ValueError(f"agent path {spec!r} does not exist (expected a model folder or a policy file)")
+        raise ValueError(f"agent path {ref.text!r} does not exist (expected a model folder or a policy file)")
     return path
 
 
-def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool = False) -> Any:
+def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pickle: bool = False) -> Any:
     """Build the agent a spec names.
 
     Args:
@@ -214,18 +266,20 @@ def make_bench_agent(spec: str, *, seed: int | None = None, trust_pickle: bool =
         ValueError: an unknown name, bad options, a missing path, the training extra not installed, or
             a policy that does not load (the message names the path).
     """
-    kind = agent_kind(spec)
-    spec = spec.strip()
+    ref = resolve_agent(spec)
+    kind, spec = ref.kind, ref.text
     if kind == "baseline":
+        assert ref.parsed is not None
         try:
-            return make_agent(spec, seed=seed)
+            return make_agent(ref.parsed, seed=seed)
         except ValueError as exc:
             raise ValueError(str(exc) if repr(spec) in str(exc) else f"agent {spec!r}: {exc}") from None
     if kind == "factory":
-        return make_factory_agent(spec)
+        assert ref.parsed is not None
+        return make_factory_agent(ref.parsed)
     if kind == "object":
         return _OBJECTS[spec]
-    path = _policy_path(spec)
+    path = _policy_path(ref)
     try:
         from electroloc_gym.policy import load_policy
     except ImportError as exc:
@@ -265,12 +319,44 @@ def planner_memory_bytes(agent: Any, n_particles: int) -> int:
 _CACHE: dict[tuple[str, bool], Any] = {}
 
 
-def cached_agent(spec: str, *, trust_pickle: bool = False) -> Any:
+def cached_agent(spec: str | AgentRef, *, trust_pickle: bool = False) -> Any:
     """:func:`make_bench_agent`, built once per process (the runner re-seeds and resets it every trial)."""
-    key = (spec, bool(trust_pickle))
+    ref = resolve_agent(spec)
+    key = (ref.text, bool(trust_pickle))
     if key not in _CACHE:
-        _CACHE[key] = make_bench_agent(spec, trust_pickle=trust_pickle)
+        _CACHE[key] = make_bench_agent(ref, trust_pickle=trust_pickle)
     return _CACHE[key]
+
+
+def builtin_agent(spec: str) -> Any | None:
+    """The built agent when ``spec`` names a built-in controller, else None (a plug-in agent, a learned
+    policy, or a spec that does not resolve here: none of them sets its own protocol).
+    """
+    try:
+        ref = resolve_agent(spec)
+        return cached_agent(ref) if ref.builtin else None
+    except ValueError:
+        return None
+
+
+def layout_problem(agent: Any, sensor_layout: str | None) -> str | None:
+    """Why ``agent`` cannot run on the named sensor layout (None: it can): its ``sensor_layouts``
+    (None or absent: every layout) lacks the layout (None: the paper's ``"single"`` pair).
+    """
+    supported = getattr(agent, "sensor_layouts", None)
+    layout = sensor_layout or "single"
+    if supported is None or layout in supported:
+        return None
+    return f"it runs on the sensor layout(s) {list(supported)} only, not {layout!r}"
+
+
+def decision_seconds(agent: Any, n_particles: int) -> float:
+    """The agent's own estimate of one decision's time, s (``decision_seconds(n_particles)``; 0: none)."""
+    own = getattr(agent, "decision_seconds", None)
+    try:
+        return float(own(n_particles)) if callable(own) else 0.0
+    except (TypeError, ValueError, OverflowError):
+        return 0.0
 
 
 def _training_extra_missing() -> str | None:
@@ -302,8 +388,7 @@ def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env
         sensor_layout: the run's named sensor layout (None: the paper's single pair); a shipped model
             trained with another layout is skipped.
     """
-    choices = [AgentChoice("rnd-wlk"), AgentChoice("min-var")] if table4_only else \
-        [AgentChoice(name) for name in AGENT_REGISTRY]
+    choices = [AgentChoice(name) for name in PAPER_AGENTS if not table4_only or agent_class(name).layout == "table4"]
     if gain_levels is not None:
         choices.insert(2, AgentChoice("min-var[gain=preset]"))
     models = shipped_models()

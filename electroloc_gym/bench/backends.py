@@ -29,12 +29,27 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, ClassVar
 
 from electroloc_gym.runtime import THREAD_VARS, pin_threads
 
 __all__ = ["Backend", "SerialBackend", "ProcessBackend", "BACKENDS", "register_backend", "make_backend",
-           "default_workers", "exit_with_parent"]
+           "default_workers", "exit_with_parent", "WorkerLost"]
+
+
+class WorkerLost(RuntimeError):
+    """A worker process died without returning (``os._exit``, a signal, the OOM killer).
+
+    Attributes:
+        specs: the specs that were running on the lost worker, or the few in flight when the backend
+            cannot tell which one it was.
+        reason: what the backend saw, in a few words.
+    """
+
+    def __init__(self, specs: Sequence[Any], reason: str) -> None:
+        super().__init__(f"a worker process died ({reason})")
+        self.specs, self.reason = list(specs), reason
 
 def exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
     """Make this (worker) process exit when ``parent_pid``, the process that started it, dies.
@@ -97,7 +112,8 @@ class Backend(abc.ABC):
     def run_trials(self, specs: Sequence[Any], worker_fn: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
         """Yield ``(spec, worker_fn(spec))`` for every spec as it finishes (any order).
 
-        A failing trial raises its exception from the iterator (after which no more results come).
+        A failing trial raises its exception from the iterator (after which no more results come); a
+        worker that dies without returning raises :class:`WorkerLost`.
         """
 
 
@@ -112,7 +128,11 @@ class SerialBackend(Backend):
 
 
 class ProcessBackend(Backend):
-    """A local process pool (``concurrent.futures.ProcessPoolExecutor``, spawn), one thread per worker."""
+    """A local process pool (``concurrent.futures.ProcessPoolExecutor``, spawn), one thread per worker.
+
+    At most one trial per worker is in flight, so a worker that dies (the pool breaks) is known to have
+    been running one of those few (:class:`WorkerLost` lists them).
+    """
 
     name = "process"
 
@@ -130,10 +150,25 @@ class ProcessBackend(Backend):
         try:
             with cf.ProcessPoolExecutor(max_workers=min(self.workers, len(specs)), mp_context=ctx,
                                         initializer=_init_worker, initargs=(os.getpid(),)) as pool:
-                futures = {pool.submit(worker_fn, spec): spec for spec in specs}
+                todo = iter(specs)
+                futures: dict[cf.Future, Any] = {}
+                for spec in todo:
+                    futures[pool.submit(worker_fn, spec)] = spec
+                    if len(futures) >= self.workers:
+                        break
                 try:
-                    for fut in cf.as_completed(futures):
-                        yield futures[fut], fut.result()
+                    while futures:
+                        done, _ = cf.wait(futures, return_when=cf.FIRST_COMPLETED)
+                        broken = [f for f in done if isinstance(f.exception(), BrokenProcessPool)]
+                        if broken:
+                            raise WorkerLost(list(futures.values()), "the process pool broke: a worker exited or "
+                                                                     "was killed")
+                        for fut in done:
+                            spec = futures.pop(fut)
+                            yield spec, fut.result()
+                            nxt = next(todo, None)
+                            if nxt is not None:
+                                futures[pool.submit(worker_fn, nxt)] = nxt
                 finally:
                     for fut in futures:
                         fut.cancel()

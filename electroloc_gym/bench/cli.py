@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 from electroloc_gym.agentspec import split_specs
@@ -31,16 +32,17 @@ from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
 from electroloc_gym.distractors import MAX_DISTRACTORS
+from electroloc_gym.protocol import MAX_OBSERVATIONS
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
-__all__ = ["add_arguments", "run", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS", "MAX_OBSERVATIONS",
-           "MAX_PARTICLES"]
+__all__ = ["add_arguments", "run", "ascii_int", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS",
+           "MAX_READINGS", "MAX_PARTICLES"]
 
 #: Bounds of the numeric options: far beyond the paper (50 trials, 35 observations, 2500 particles), short
 #: of what cannot run (the plan is held in memory: at most MAX_PLANNED_TRIALS trials in all).
 MAX_TRIALS = 100_000
 MAX_WORKERS = 1024
-MAX_OBSERVATIONS = 100_000
+MAX_READINGS = 100_000
 MAX_PARTICLES = 1_000_000
 
 DESCRIPTION = ("Benchmark agents on the paper's eight conditions (Solberg, Lynch & MacIver 2008, Tables 4 and 1; "
@@ -55,6 +57,16 @@ EPILOG = """examples:
   electroloc bench --env unknown-target --out bench_unknown            size and material unknown (§7)
   electroloc bench --env dynamic-gain --out bench_gain                 the gain in the action (§7)
 """
+
+
+_ASCII_INT = re.compile(r"-?[0-9]+")
+
+
+def ascii_int(text: str) -> int:
+    """An integer written in ASCII digits (``int`` also takes other scripts' digits, ``_`` and spaces)."""
+    if not isinstance(text, str) or not _ASCII_INT.fullmatch(text) or len(text) > 40:
+        raise argparse.ArgumentTypeError(f"must be an integer in ASCII digits, got {text!r}")
+    return int(text)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -73,11 +85,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "on the presets' sphere/water pairs, the sphere's size and material hidden (§7), with "
                              "the identification results beside the Table-4 layout); dynamic-gain: ElectroLoc-v0 "
                              "with the amplifier gain (×1/4, ×1, ×4 the preset) in every action (§7)")
-    parser.add_argument("--trials", type=int, default=50,
+    parser.add_argument("--trials", type=ascii_int, default=50,
                         help=f"trials per condition and agent (paper: 50; at most {MAX_TRIALS:,}, and "
                              f"{MAX_PLANNED_TRIALS:,} in all)")
-    parser.add_argument("--seed", type=int, default=0, help="root seed of the per-trial seeds")
-    parser.add_argument("--workers", type=int, default=None,
+    parser.add_argument("--seed", type=ascii_int, default=0, help="root seed of the per-trial seeds")
+    parser.add_argument("--workers", type=ascii_int, default=None,
                         help=f"parallel worker processes (default: all cores, here {default_workers()})")
     parser.add_argument("--backend", default="process", choices=sorted(BACKENDS),
                         help="where trials run: a local process pool, in-process (serial), or Ray")
@@ -92,11 +104,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "region), or the paper's equations (scale 1); docs/fidelity.md compares them")
     parser.add_argument("--sensor-layout", default=None, choices=list(LAYOUT_NAMES),
                         help="ElectroLoc-v0's sensing pairs (§7; observations = snapshots, K readings each)")
-    parser.add_argument("--distractors", type=int, default=0,
+    parser.add_argument("--distractors", type=ascii_int, default=0,
                         help=f"D objects that are not the target drawn per trial in the tank (ElectroLoc-v0's "
                              f"distractors=D, 0–{MAX_DISTRACTORS}; in the true reading only; default 0)")
-    parser.add_argument("--max-observations", type=int, default=35, help="observation cap of a trial (paper: 35)")
-    parser.add_argument("--n-particles", type=int, default=None,
+    parser.add_argument("--max-observations", type=ascii_int, default=MAX_OBSERVATIONS,
+                        help=f"the cap of readings of a trial (paper: {MAX_OBSERVATIONS})")
+    parser.add_argument("--n-particles", type=ascii_int, default=None,
                         help="particles of the belief (default: the env's, 2500 as the paper; unknown-target: 5000)")
     parser.add_argument("--out", default="bench_out", help="output folder (locked while the run writes to it)")
     parser.add_argument("--resume", action="store_true",
@@ -154,7 +167,7 @@ def _check_ranges(args: argparse.Namespace) -> None:
     for option, value, low, high in (("--trials", args.trials, 1, MAX_TRIALS),
                                      ("--seed", args.seed, 0, 2**63 - 1),
                                      ("--workers", args.workers, 1, MAX_WORKERS),
-                                     ("--max-observations", args.max_observations, 1, MAX_OBSERVATIONS),
+                                     ("--max-observations", args.max_observations, 1, MAX_READINGS),
                                      ("--distractors", getattr(args, "distractors", 0), 0, MAX_DISTRACTORS),
                                      ("--n-particles", args.n_particles, 2, MAX_PARTICLES)):
         if value is not None and not low <= value <= high:

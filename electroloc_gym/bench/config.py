@@ -18,9 +18,11 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOICES
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.distractors import MAX_DISTRACTORS
+from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES, SUCCESS_SPREAD_MM
 from electroloc_gym.registry import BENCH_ENVS, DYNAMIC_GAIN_LEVELS, ENVS
 
 __all__ = [
@@ -45,8 +47,8 @@ __all__ = [
     "ENV_TAKES_DISTRACTORS",
 ]
 
-#: The paper's three controllers.
-DEFAULT_AGENTS: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
+#: The paper's three controllers (the baselines' registry's :data:`~electroloc_gym.baselines.agent.PAPER_AGENTS`).
+DEFAULT_AGENTS: tuple[str, ...] = PAPER_AGENTS
 SIGNALS = SIGNAL_CHOICES
 # The per-env settings below are read from the env table (electroloc_gym.registry), not declared here.
 #: ``electroloc bench --env`` names → environment ids (``dynamic-gain``: ElectroLoc-v0 with
@@ -67,9 +69,9 @@ GLOBAL_ENV_ID, GLOBAL_CONDITION = next((e.env_id, b.condition) for e, b in BENCH
 UNKNOWN_ENV_ID = BENCH_ENVS["unknown-target"][0].env_id
 #: Which envs take ``distractors=`` (``--distractors``).
 ENV_TAKES_DISTRACTORS = {e.env_id: "distractors" in e.arguments for e in ENVS}
-#: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
 #: What an identity key missing from an older record or config means.
-IDENTITY_DEFAULTS = {"distractors": 0}
+IDENTITY_DEFAULTS = {"distractors": 0, "success_spread_mm": SUCCESS_SPREAD_MM}
+#: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
 IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id", "gain_levels", "sensor_layout",
                  "distractors")
 
@@ -88,8 +90,12 @@ class BenchConfig:
         signal: the presets' signal scale (:data:`electroloc_gym.conditions.DEFAULT_SIGNAL` by default):
             "fitted" (fitted to Table 3's measured detection distances), "coverage" (fitted × one factor
             matching the paper's §6.3 start coverage) or "paper" (scale 1); see conditions.get_condition.
-        max_observations: observation cap of a trial (paper: 35).
+        max_observations: the cap of readings of a trial (paper: 35).
         n_particles: particles of the belief (paper: 2500).
+        success_spread_mm: the success criterion, mm: a trial succeeds when the belief's spread √trace Σ is
+            at most this (paper: 10 mm). With the cap, the particles, the sensor model, the signal, the
+            layout and the distractors it is the run's protocol: fixed by the run for every agent (a
+            plug-in agent's ``env_kwargs`` cannot change it) and compared by ``--resume``.
         env_id: the environment id.
         gain_levels: dynamic gain: the factors of the amplifier gain in the action (None: the preset gain).
         sensor_layout: ElectroLoc-v0's named sensor layout (``electroloc_gym.sensor_array.LAYOUT_NAMES``), or
@@ -103,12 +109,13 @@ class BenchConfig:
     seed: int = 0
     sensor_model: str = "calibrated"
     signal: str = DEFAULT_SIGNAL
-    max_observations: int = 35
-    n_particles: int = 2500
+    max_observations: int = MAX_OBSERVATIONS
+    n_particles: int = N_PARTICLES
     env_id: str = "ElectroLoc-v0"
     gain_levels: tuple[float, ...] | None = None
     sensor_layout: str | None = None
     distractors: int = 0
+    success_spread_mm: float = SUCCESS_SPREAD_MM
 
     def __post_init__(self) -> None:
         d = self.distractors
@@ -138,13 +145,17 @@ class BenchConfig:
             raise ValueError(f"sensor_model of {self.env_id} must be one of {list(allowed)}, got {self.sensor_model!r}")
         if self.signal not in SIGNALS:
             raise ValueError(f"signal must be one of {list(SIGNALS)}, got {self.signal!r}")
+        spread = self.success_spread_mm
+        if isinstance(spread, bool) or not isinstance(spread, (int, float)) or not 0 < spread < float("inf"):
+            raise ValueError(f"success_spread_mm must be a finite number of mm > 0, got {spread!r}")
+        object.__setattr__(self, "success_spread_mm", float(spread))
 
     def identity(self) -> dict[str, Any]:
         """The fields that must match for ``--resume`` to append to an existing run."""
         plain = {k: getattr(self, k) for k in IDENTITY_KEYS}
         if plain["gain_levels"] is not None:  # as JSON stores it
             plain["gain_levels"] = list(plain["gain_levels"])
-        return {"seed": self.seed, **plain}
+        return {"seed": self.seed, **plain, "success_spread_mm": self.success_spread_mm}
 
 
 @dataclass(frozen=True)
@@ -165,6 +176,8 @@ class TrialSpec:
     sensor_layout: str | None = None
     #: D, distractors drawn per trial (0: none).
     distractors: int = 0
+    #: The run's success criterion, mm (:attr:`BenchConfig.success_spread_mm`).
+    success_spread_mm: float = SUCCESS_SPREAD_MM
     #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
     trust_pickle: bool = False
 
@@ -217,5 +230,6 @@ def make_trial_specs(config: BenchConfig, *, trust_pickle: bool = False) -> list
                                        config.max_observations, config.n_particles, config.env_id,
                                        gain_levels=config.gain_levels, sensor_layout=config.sensor_layout,
                                        distractors=config.distractors,
+                                       success_spread_mm=config.success_spread_mm,
                                        trust_pickle=trust_pickle))
     return specs

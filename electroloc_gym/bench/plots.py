@@ -49,7 +49,7 @@ def steps_png(summary: dict[str, Any]) -> bytes:
     for j, agent in enumerate(agents):
         label = next((r.get("label", agent) for r in rows if r["agent"] == agent), agent)
         fails = [lookup.get((c, agent), {}).get("failures", np.nan) for c in conditions]
-        med = [lookup.get((c, agent), {}).get("steps_median", np.nan) for c in conditions]
+        med = [lookup.get((c, agent), {}).get("readings_median", np.nan) for c in conditions]
         xs = x - 0.4 + width * (j + 0.5)
         axes[0].bar(xs, [np.nan if v is None else v for v in fails], width, label=label)
         axes[1].bar(xs, [np.nan if v is None else v for v in med], width, label=label)

@@ -24,23 +24,57 @@ def shipped_models() -> dict[str, Path]:
             if p.is_dir() and not p.name.startswith((".", "_")) and any(p.iterdir())}
 
 
-# The bench owns these env kwargs; an agent's env_kwargs cannot override them.
+# The bench owns these env kwargs; no agent's env_kwargs override them.
 _BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels", "sensor_layout",
                       "distractors")
+#: The env kwargs a plug-in agent (a user's factory or object, a learned policy) may set: how it observes and
+#: acts. Everything else an env takes decides what a trial means (the protocol: cap, particles, success
+#: criterion, sensor model, tank, target draw, ...) and is the run's alone; only the built-in controllers,
+#: whose options are part of their spec, set more (zero-crossing: the paper's Table-1 protocol).
+AGENT_ENV_KWARGS = ("observation", "action_type")
+#: Hooks of the agent protocol that change what a trial is, honoured for the built-in controllers only.
+BUILTIN_HOOKS = ("adapt_condition",)
+
+
+def plug_in_problem(agent: Any) -> str | None:
+    """Why a plug-in agent would change the run's protocol (None: it does not): ``env_kwargs`` beyond
+    :data:`AGENT_ENV_KWARGS`, a :data:`BUILTIN_HOOKS` hook, or a table layout other than Table 4's.
+    """
+    kwargs = getattr(agent, "env_kwargs", None) or {}
+    if not isinstance(kwargs, dict):
+        return f"env_kwargs must be a dict, got {type(kwargs).__name__}"
+    extra = sorted(str(k) for k in kwargs if k not in AGENT_ENV_KWARGS)
+    if extra:
+        return (f"its env_kwargs set {extra[:6]}{' …' if len(extra) > 6 else ''}, which the benchmark fixes for "
+                f"every agent (an agent's env_kwargs may set only {list(AGENT_ENV_KWARGS)})")
+    hooks = [h for h in BUILTIN_HOOKS if callable(getattr(agent, h, None))]
+    if hooks:
+        return f"it defines {hooks}, a hook of the built-in controllers only (the benchmark fixes the workspace)"
+    layout = getattr(agent, "layout", "table4")
+    if layout != "table4":
+        return (f"its layout is {str(layout)[:40]!r}; a plug-in agent is judged by the belief (Table-4 layout), "
+                f"only the built-in zero-crossing reports to Table 1")
+    return None
 
 
 def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | None, *, condition: str | None = None,
                      signal: str | None = None, sensor_model: str | None = None, n_particles: int | None = None,
                      max_observations: int | None = None, sensor_layout: str | None = None,
-                     distractors: int = 0) -> dict[str, Any]:
-    """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``
-    (never overriding what the bench owns, e.g. the distractors a policy was trained with).
+                     distractors: int = 0, success_spread_mm: float | None = None,
+                     builtin: bool = False) -> dict[str, Any]:
+    """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``.
+
+    A plug-in agent (``builtin`` false) adds only :data:`AGENT_ENV_KWARGS` and its hooks are not called
+    (the runner refuses such an agent beforehand, :func:`plug_in_problem`); a built-in controller's
+    ``env_kwargs`` and ``adapt_condition`` apply, never overriding what the bench owns (the tank, the
+    layout, the distractors). ``agent`` may be None (no agent kwargs).
     """
     kwargs: dict[str, Any] = {k: v for k, v in (("sensor_model", sensor_model), ("n_particles", n_particles),
-                                                ("max_observations", max_observations)) if v is not None}
+                                                ("max_observations", max_observations),
+                                                ("success_spread_mm", success_spread_mm)) if v is not None}
     if env_id != GLOBAL_ENV_ID and condition is not None:  # the global env has one fixed map, no condition kwarg
         cond = get_condition(condition, signal)
-        adapt = getattr(agent, "adapt_condition", None)
+        adapt = getattr(agent, "adapt_condition", None) if builtin else None
         if callable(adapt):
             cond = adapt(cond)
         kwargs["condition"] = cond
@@ -52,8 +86,10 @@ def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | N
         kwargs["sensor_layout"] = sensor_layout
     if distractors:
         kwargs["distractors"] = int(distractors)
-    kwargs.update({k: v for k, v in dict(getattr(agent, "env_kwargs", {}) or {}).items()
-                   if k not in _BENCH_ONLY_KWARGS})
+    own = getattr(agent, "env_kwargs", None) or {}
+    if isinstance(own, dict):
+        kwargs.update({k: v for k, v in own.items()
+                       if k not in _BENCH_ONLY_KWARGS and (builtin or k in AGENT_ENV_KWARGS)})
     return kwargs
 
 

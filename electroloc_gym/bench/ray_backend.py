@@ -22,7 +22,7 @@ import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-from electroloc_gym.bench.backends import Backend, register_backend
+from electroloc_gym.bench.backends import Backend, WorkerLost, register_backend
 from electroloc_gym.runtime import THREAD_VARS, pin_threads
 
 __all__ = ["RayBackend", "check_ray_address"]
@@ -120,6 +120,21 @@ def _run_in_worker(worker_fn: Callable[[Any], Any], spec: Any) -> Any:
     return worker_fn(spec)
 
 
+def _result(ray: Any, ref: Any, spec: Any) -> Any:
+    """``ray.get(ref)``; a task's own exception re-raised as itself (not Ray's traceback-laden wrapper), a
+    dead worker as :class:`~electroloc_gym.bench.backends.WorkerLost`.
+    """
+    try:
+        return ray.get(ref)
+    except ray.exceptions.RayTaskError as exc:
+        cause = getattr(exc, "cause", None)
+        if isinstance(cause, BaseException):
+            raise cause from None
+        raise
+    except (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError) as exc:
+        raise WorkerLost([spec], f"Ray: {type(exc).__name__}") from None
+
+
 @register_backend
 class RayBackend(Backend):
     """Trials as Ray tasks (one CPU each), yielded as they finish.
@@ -167,7 +182,7 @@ class RayBackend(Backend):
                 while pending:
                     done, pending = ray.wait(pending, num_returns=1)
                     for ref in done:
-                        yield refs[ref], ray.get(ref)
+                        yield refs[ref], _result(ray, ref, refs[ref])
             finally:
                 for ref in pending:  # an error or an abandoned iterator: stop the rest
                     ray.cancel(ref, force=True)

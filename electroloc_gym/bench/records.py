@@ -13,7 +13,8 @@
   other or the run) and a second line for a key already present are reported by file and line and
   *set aside* (moved to ``trials.rejected.jsonl``, so those trials run again); a record whose seeds
   or settings are not the run's is *foreign* (the runner refuses to resume). No record is ever
-  counted twice.
+  counted twice. A kept record is returned in the current key names
+  (:data:`~electroloc_gym.bench.schema.OLD_KEY_NAMES`).
 * :class:`RecordWriter` — appends one line per finished trial, flushed and fsync'ed at once (a killed
   run loses no finished trial).
 """
@@ -40,10 +41,12 @@ from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules, TrialRecord
 from electroloc_gym.fileio import FolderBusyError, FolderLock, atomic_write_text, strict_json
 
 __all__ = ["prepare_out_dir", "run_lock", "FolderBusyError", "LoadedRecords", "load_records", "read_trials",
+           "CONFIG_FILE",
            "parse_line", "RecordWriter", "set_aside", "record_key", "validate_record", "foreign_reason",
            "TRIALS_FILE", "REJECTED_FILE", "LOCK_FILE", "MAX_LINE_CHARS", "MAX_DEPTH", "MAX_DIGITS"]
 
 TRIALS_FILE = "trials.jsonl"
+CONFIG_FILE = "config.json"
 REJECTED_FILE = "trials.rejected.jsonl"
 LOCK_FILE = ".bench.lock"
 #: Bounds of a trials.jsonl line (a record is about 700 characters, 3 levels deep, numbers of ≤ 20 digits).
@@ -194,6 +197,16 @@ class LoadedRecords:
         """One line per set-aside line: ``FILE:LINE: reason``."""
         return [f"{self.path}:{n}: {why}" for n, why, _ in self.rejected]
 
+    @property
+    def n_rejected(self) -> int:
+        """Lines set aside: damaged, impossible, or a second line for a trial already read."""
+        return len(self.rejected)
+
+    @property
+    def n_foreign(self) -> int:
+        """Valid records that are not of the run (another seed or other settings)."""
+        return len(self.foreign)
+
 
 def load_records(path: str | os.PathLike, config: BenchConfig | None = None,
                  rules: RecordRules | None = None) -> LoadedRecords:
@@ -210,8 +223,12 @@ def load_records(path: str | os.PathLike, config: BenchConfig | None = None,
     out = LoadedRecords(Path(path))
     if not out.path.exists():
         return out
+    try:
+        fh = open(out.path, "rb")  # noqa: SIM115 - closed by the with below
+    except OSError as exc:
+        raise ValueError(f"cannot read {out.path}: {exc.strerror or exc}") from None
     seen: dict[tuple[str, str, int], tuple[int, dict[str, Any]]] = {}
-    with open(out.path, "rb") as fh:
+    with fh:
         for n, raw in enumerate(iter(lambda: fh.readline(MAX_LINE_CHARS * 4 + 2), b""), start=1):
             if len(raw) > MAX_LINE_CHARS * 4 + 1:  # a line longer than any record: read it to its end, reject it
                 while raw[-1:] != b"\n":
@@ -234,10 +251,16 @@ def load_records(path: str | os.PathLike, config: BenchConfig | None = None,
                 torn = "" if raw.endswith(b"\n") else ", the last line torn (a run killed mid-write)"
                 out.rejected.append((n, f"{exc}{torn}", raw))
                 continue
-            why = validate_record(rec, rules)
+            try:
+                record = TrialRecord.from_json(rec)
+            except ValueError as exc:
+                out.rejected.append((n, str(exc), raw))
+                continue
+            why = None if rules is None else record.problem(rules)
             if why is not None:
                 out.rejected.append((n, why, raw))
                 continue
+            rec = record.to_json()
             key = record_key(rec)
             if key in seen:
                 first, kept = seen[key]
@@ -297,3 +320,4 @@ class RecordWriter:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+

@@ -11,7 +11,9 @@ The loop is the agent protocol of :mod:`electroloc_gym.baselines.agent` and noth
     until terminated or truncated
 
 so an episode counted by ``electroloc bench`` and one counted by the training's seeded evaluation
-are the same episode.
+are the same episode. Whatever an agent's ``seed``, ``reset`` or ``predict`` raises (any exception,
+``SystemExit`` included) comes out as one :class:`AgentCallError` naming the method, so a caller can
+tell the agent's failure from the env's.
 """
 
 from __future__ import annotations
@@ -23,7 +25,43 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Episode", "run_episode"]
+__all__ = ["Episode", "run_episode", "AgentCallError"]
+
+
+class AgentCallError(Exception):
+    """An agent's method raised during an episode.
+
+    Attributes:
+        method: ``"seed"``, ``"reset"`` or ``"predict"``.
+        error: one line: the exception's type and the first line of its message.
+    """
+
+    def __init__(self, method: str, error: str) -> None:
+        super().__init__(f"its {method}() raised {error}")
+        self.method, self.error = method, error
+
+    def __reduce__(self) -> tuple[Any, ...]:  # picklable across worker processes
+        return (AgentCallError, (self.method, self.error))
+
+
+def exception_line(exc: BaseException, limit: int = 300) -> str:
+    """``Type: first line of the message``, at most ``limit`` characters."""
+    try:
+        text = str(exc)
+    except Exception:  # noqa: BLE001 - an exception whose __str__ fails still has a type
+        text = ""
+    first = text.strip().splitlines()[0] if text.strip() else ""
+    line = f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+    return line if len(line) <= limit else line[:limit - 1] + "…"
+
+
+def _call(method: str, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    try:
+        return fn(*args, **kwargs)
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - the agent's failure, whatever it is, becomes one line
+        raise AgentCallError(method, exception_line(exc)) from None
 
 
 @dataclass
@@ -67,8 +105,8 @@ def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = Non
     """
     obs, info = env.reset(seed=int(seed))
     if agent_seed is not None and hasattr(agent, "seed"):
-        agent.seed(int(agent_seed))
-    agent.reset(env)
+        _call("seed", agent.seed, int(agent_seed))
+    _call("reset", agent.reset, env)
     episode = Episode(start_info=info, info=info)
     if on_step is not None:
         on_step(info)
@@ -76,7 +114,8 @@ def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = Non
     episode_start = np.ones((1,), dtype=bool)
     while True:
         t0 = time.perf_counter()
-        action, state = agent.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
+        action, state = _call("predict", agent.predict, obs, state=state, episode_start=episode_start,
+                              deterministic=deterministic)
         episode.decision_s.append(time.perf_counter() - t0)
         episode_start = np.zeros((1,), dtype=bool)
         if getattr(agent, "done", False):

@@ -13,7 +13,6 @@ written atomically.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Callable
@@ -23,20 +22,21 @@ from typing import Any
 
 from electroloc_gym.bench.agents import (
     agent_display_name,
-    agent_kind,
     bench_env_kwargs,
     cached_agent,
+    decision_seconds,
+    layout_problem,
     planner_memory_bytes,
+    plug_in_problem,
     policy_env_problem,
+    resolve_agent,
 )
-from electroloc_gym.bench.backends import make_backend
+from electroloc_gym.bench.backends import WorkerLost, make_backend
 from electroloc_gym.bench.config import (
     DEFAULT_AGENTS,
     GLOBAL_CONDITION,
     GLOBAL_ENV_ID,
     IDENTITY_DEFAULTS,
-    IDENTITY_KEYS,
-    UNKNOWN_ENV_ID,
     BenchConfig,
     TrialSpec,
     make_trial_specs,
@@ -55,8 +55,9 @@ from electroloc_gym.bench.records import (
     run_lock,
     set_aside,
 )
-from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules
-from electroloc_gym.bench.trials import run_trial
+from electroloc_gym.bench.schema import TIMING_KEYS
+from electroloc_gym.bench.stored_run import read_config, record_rules
+from electroloc_gym.bench.trials import TrialFailed, describe_trial, run_trial
 from electroloc_gym.fileio import atomic_write_bytes, strict_json, write_json_atomic
 
 # The run, plus the names a caller of the runner needs (defined in config, records and trials).
@@ -69,41 +70,8 @@ _Log = Callable[[str], None] | None
 MAX_PLANNED_TRIALS = 1_000_000
 #: The files a run derives from its records, written together (:func:`_write_outputs`).
 OUTPUT_FILES = ("summary.json", "table.md", "steps.png")
-
-
-def _config_problem(stored: Any) -> str | None:
-    """Why a parsed config.json cannot describe a run (None: it can)."""
-    if not isinstance(stored, dict):
-        return f"not a JSON object ({type(stored).__name__})"
-    later = ("gain_levels", "sensor_layout", "distractors")  # keys added later
-    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k not in later]
-    if missing:
-        return f"missing key(s) {missing}"
-    if isinstance(stored["seed"], bool) or not isinstance(stored["seed"], int):
-        return f"'seed' must be an integer, got {stored['seed']!r}"
-    for key, kind in (("agents", list), ("conditions", list), ("trials", int)):
-        if key in stored and not isinstance(stored[key], kind):
-            return f"{key!r} must be a {kind.__name__}, got {stored[key]!r}"
-    return None
-
-
-def read_config(path: Path, log: _Log) -> dict[str, Any] | None:
-    """config.json of a stored run; a damaged one is reported, set aside (renamed) and ignored."""
-    if not path.exists():
-        return None
-    try:
-        stored = json.loads(path.read_bytes().decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        why = f"not valid UTF-8 JSON ({exc})"
-    else:
-        why = _config_problem(stored)
-        if why is None:
-            return stored
-    aside = path.with_name("config.rejected.json")
-    os.replace(path, aside)
-    if log is not None:
-        log(f"{path}: {why}; moved to {aside.name}; every record is checked on its own instead")
-    return None
+#: An agent whose own estimate of one decision exceeds this is announced before the run, s.
+SLOW_DECISION_S = 10.0
 
 
 def _resume(config: BenchConfig, out: Path, log: _Log,
@@ -130,19 +98,40 @@ def _resume(config: BenchConfig, out: Path, log: _Log,
     return loaded, stored
 
 
-def _check_agents(config: BenchConfig, trust_pickle: bool) -> str:
-    """Fail fast (before any worker starts) on bad agent names, paths, factories or policy files, and on a
-    learned policy recorded for another env, observation layout or action space; say what runs.
+def _check_agents(config: BenchConfig, trust_pickle: bool) -> tuple[str, list[str]]:
+    """Fail fast (before any worker starts and before the output folder is touched) on bad agent names,
+    paths, factories or policy files; on a plug-in agent that would change the run's protocol
+    (:func:`~electroloc_gym.bench.agents.plug_in_problem`); on an agent that cannot run on the run's
+    sensor layout or whose decisions do not fit in memory; and on a learned policy recorded for another
+    env, observation layout or action space. Returns what runs, and a warning per agent whose own
+    estimate of a decision exceeds :data:`SLOW_DECISION_S`.
     """
-    described = []
+    described, warnings = [], []
     for spec in config.agents:
-        agent = cached_agent(spec, trust_pickle=trust_pickle)
-        kind = agent_kind(spec)
-        need = planner_memory_bytes(agent, config.n_particles)
+        ref = resolve_agent(spec)
+        agent = cached_agent(ref, trust_pickle=trust_pickle)
+        kind = ref.kind
+        if not ref.builtin:
+            why = plug_in_problem(agent)
+            if why is not None:
+                raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
+        why = layout_problem(agent, config.sensor_layout)
+        if why is not None:
+            raise ValueError(f"agent {spec!r} cannot run with --sensor-layout {config.sensor_layout or 'single'}: "
+                             f"{why}")
+        try:
+            need = planner_memory_bytes(agent, config.n_particles)
+        except Exception as exc:  # noqa: BLE001 - a plug-in agent's own estimate: any failure is one line
+            raise ValueError(f"agent {spec!r}: its memory_bytes() raised {type(exc).__name__}: {exc}") from None
         if need > _memory_budget():
             raise ValueError(f"agent {spec!r} needs ≈{need / 2**30:.3g} GiB per decision with {config.n_particles} "
                              f"particles; this machine has ≈{_memory_budget() / 2**30:.3g} GiB to spare: choose "
                              f"smaller options")
+        slow = decision_seconds(agent, config.n_particles)
+        if slow > SLOW_DECISION_S:
+            warnings.append(f"electroloc bench: warning: agent {spec!r} takes ≈{slow:.3g} s per decision by its own "
+                            f"estimate (up to {config.max_observations} decisions a trial, {config.trials} trial(s) "
+                            f"per condition): choose smaller options for a shorter run")
         probe_env(config, spec, agent)
         if kind in ("baseline", "factory", "object"):
             described.append(spec)
@@ -152,7 +141,15 @@ def _check_agents(config: BenchConfig, trust_pickle: bool) -> str:
             raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
         described.append(f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
                          f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)")
-    return "agents: " + "; ".join(described)
+    return "agents: " + "; ".join(described), warnings
+
+
+def _lost_text(exc: WorkerLost) -> str:
+    """One line: the trial (or the few trials in flight) a dead worker process was running."""
+    trials = [describe_trial(spec) for spec in exc.specs[:4]]
+    more = f" (and {len(exc.specs) - 4} more)" if len(exc.specs) > 4 else ""
+    which = trials[0] if len(trials) == 1 else "one of: " + "; ".join(trials) + more
+    return f"a worker process died ({exc.reason}) while running {which}"
 
 
 def _memory_budget() -> int:
@@ -176,47 +173,13 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
 
     kwargs = bench_env_kwargs(config.env_id, agent, config.gain_levels, condition=config.conditions[0],
                               signal=config.signal, sensor_model=config.sensor_model, n_particles=config.n_particles,
-                              max_observations=config.max_observations, sensor_layout=config.sensor_layout)
+                              max_observations=config.max_observations, sensor_layout=config.sensor_layout,
+                              distractors=config.distractors, success_spread_mm=config.success_spread_mm,
+                              builtin=resolve_agent(spec).builtin)
     try:
         gym.make(config.env_id, **kwargs).close()
     except (TypeError, ValueError, MemoryError) as exc:
         raise ValueError(f"agent {spec!r}: {config.env_id} refuses this run's settings: {exc}") from None
-
-
-def _agent_limits(spec: str, trust_pickle: bool) -> tuple[int | None, float | None, str | None]:
-    """(observation cap, success criterion, layout) an agent sets itself (None: the run's / unknown)."""
-    try:
-        agent = cached_agent(spec, trust_pickle=trust_pickle)
-    except ValueError:  # an agent of the stored run that does not build here: its records keep the run's limits
-        return None, None, None
-    kwargs = dict(getattr(agent, "env_kwargs", {}) or {})
-    return kwargs.get("max_observations"), kwargs.get("success_spread_mm"), str(getattr(agent, "layout", "table4"))
-
-
-def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
-                 trust_pickle: bool = False) -> RecordRules:
-    """What a record of ``config``'s run (continuing ``stored``, a config.json) may hold."""
-    import gymnasium as gym
-
-    import electroloc_gym  # noqa: F401  (registers the ids)
-
-    stored = stored or {}
-    agents = frozenset([*config.agents, *(a for a in stored.get("agents", []) if isinstance(a, str))])
-    conditions = frozenset([*config.conditions, *(c for c in stored.get("conditions", []) if isinstance(c, str))])
-    trials = max(config.trials, stored["trials"] if isinstance(stored.get("trials"), int) else 0)
-    env = gym.make(config.env_id)
-    criterion = float(env.unwrapped.success_spread_mm)
-    env.close()
-    caps, criteria, layouts = {}, {}, {}
-    for spec in agents:
-        cap, crit, layout = _agent_limits(spec, trust_pickle)
-        caps[spec] = int(cap) if cap is not None else config.max_observations
-        if crit is not None:
-            criteria[spec] = float(crit)
-        if layout is not None:
-            layouts[spec] = layout
-    return RecordRules(conditions=conditions, agents=agents, trials=trials, success_spread_mm=criterion,
-                       shape=config.env_id == UNKNOWN_ENV_ID, caps=caps, criteria=criteria, layouts=layouts)
 
 
 def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
@@ -272,11 +235,13 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
     if planned > MAX_PLANNED_TRIALS:
         raise ValueError(f"--trials {config.trials} × {len(config.agents)} agent(s) × {len(config.conditions)} "
                          f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run")
-    described = _check_agents(config, trust_pickle)  # before the folder is touched: a bad agent writes nothing
+    described, warnings = _check_agents(config, trust_pickle)  # before the folder is touched: nothing written
     out = prepare_out_dir(out_dir)
     with run_lock(out):
         if log is not None:
             log(described)
+            for line in warnings:
+                log(line)
         trials_path, config_path = out / TRIALS_FILE, out / "config.json"
         stored: dict[str, Any] | None = None
         loaded = LoadedRecords(trials_path)
@@ -305,12 +270,17 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
                 f"with {be.workers} worker(s) → {out}")
         t0 = time.perf_counter()
         bar = TrialProgress(len(specs), be.workers, enabled=progress)
+        done_before = len(records)
         try:
             with RecordWriter(trials_path) as writer:
                 for spec, rec in be.run_trials(specs, run_trial):
                     writer.write(rec)
                     records[spec.key] = rec
                     bar.update(rec)
+        except (TrialFailed, WorkerLost) as exc:
+            what = str(exc) if isinstance(exc, TrialFailed) else _lost_text(exc)
+            raise ValueError(f"{what}; the {len(records)} finished trial(s) ({len(records) - done_before} this time) "
+                             f"are kept in {trials_path}: fix the agent, then run again with --resume") from None
         finally:
             bar.close()
         wall = time.perf_counter() - t0

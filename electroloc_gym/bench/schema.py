@@ -11,16 +11,24 @@ Consistency, for every record:
 
 * Table-4 layout (the belief decides): ``ended_by == "success"`` ⇔ the env terminated: ``success``
   is true and ``spread_mm`` ≤ the success criterion; ``"cap"``: ``success`` is false,
-  ``observations`` is the cap and ``spread_mm`` is above the criterion. An agent that ends trials
+  ``readings`` is the cap and ``spread_mm`` is above the criterion. An agent that ends trials
   itself (``"agent"``, and every Table-1 trial): ``success`` ⇔ it ended the trial with an estimate.
-* ``decisions`` = ``observations − 1`` when the env ended the trial (the first reading comes with the
-  reset), ``observations`` when the agent did (its last decision ends the trial).
+* ``readings`` ≤ ``max_observations`` (the run's cap; Table-1 trials: the agent's own budget), and
+  ``decisions`` = ``readings − 1`` when the env
+  ended the trial (the first reading comes with the reset), ``readings`` when the agent did (its last
+  decision ends the trial).
 * ``error_mm`` = ‖estimate − target‖ and ``error_x_mm``/``error_y_mm`` its components; no estimate,
   no error.
 * ``far_success`` ⇔ a success whose estimate is more than :data:`FAR_ERROR_MM` from the target
   (:func:`is_far_success`; a tight belief on the wrong object, e.g. a distractor).
 * ``shape`` (the unknown-target env's identification): exactly :data:`SHAPE_RECORD_KEYS`, on that
   env only.
+* ``start`` is the start the trial's seed draws (checked on resume, :attr:`RecordRules.start_of`).
+
+Keys added to the schema later (:data:`OPTIONAL_RECORD_KEYS`) may be absent from an older record; they
+then read as what such a record means (``distractors`` 0, ``far_success`` computed from ``success`` and
+``error_mm``), never as ``null``. The count of readings was once written ``observations``
+(:data:`OLD_KEY_NAMES`): such a record reads as ``readings``.
 """
 
 from __future__ import annotations
@@ -28,15 +36,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, fields
+from types import MappingProxyType
 from typing import Any
 
 from electroloc_gym.agentspec import is_path_like, parse_agent_spec
+from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import FAR_ERROR_MM
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = ["TrialRecord", "FAR_ERROR_MM", "is_far_success",
            "RecordRules", "RECORD_KEYS", "OPTIONAL_RECORD_KEYS", "TIMING_KEYS", "SHAPE_RECORD_KEYS",
-           "POSITION_BOUND_MM", "MAX_TEXT_CHARS"]
+           "OLD_KEY_NAMES", "POSITION_BOUND_MM", "MAX_TEXT_CHARS"]
 
 
 
@@ -139,7 +149,7 @@ class TrialRecord:
     agent_seed: int = _f(_int(0, 2**32 - 1), "an integer in [0, 2³²)")
     success: bool = _f(lambda v: isinstance(v, bool), "true or false")
     ended_by: str = _f(lambda v: v in ("success", "cap", "agent"), "'success', 'cap' or 'agent'")
-    observations: int = _f(_int(1), "an integer ≥ 1")
+    readings: int = _f(_int(1), "an integer ≥ 1")
     error_mm: float | None = _f(_num(0.0, 2 * POSITION_BOUND_MM), "a distance in [0, 2000] mm or null")
     error_x_mm: float | None = _f(_num(-2 * POSITION_BOUND_MM, 2 * POSITION_BOUND_MM), "a number (mm) or null")
     error_y_mm: float | None = _f(_num(-2 * POSITION_BOUND_MM, 2 * POSITION_BOUND_MM), "a number (mm) or null")
@@ -161,9 +171,8 @@ class TrialRecord:
     gain_levels: list[float] | None = _f(_gains, "null or a list of positive gain factors", optional=True)
     sensor_layout: str | None = _f(lambda v: v is None or v in LAYOUT_NAMES, f"null or one of {list(LAYOUT_NAMES)}",
                                    optional=True)
-    distractors: int | None = _f(lambda v: v is None or _int(0, 8)(v), "an integer in [0, 8] or null",
-                                 optional=True)
-    far_success: bool | None = _f(lambda v: v is None or isinstance(v, bool), "true, false or null", optional=True)
+    distractors: int = _f(_int(0, MAX_DISTRACTORS), f"an integer in [0, {MAX_DISTRACTORS}]", optional=True)
+    far_success: bool = _f(lambda v: isinstance(v, bool), "true or false", optional=True)
 
     @classmethod
     def from_json(cls, obj: Any) -> TrialRecord:
@@ -174,6 +183,7 @@ class TrialRecord:
         """
         if not isinstance(obj, dict):
             raise ValueError(f"not a JSON object ({type(obj).__name__})")
+        obj = _current_names(obj)
         unknown = sorted(set(obj) - set(RECORD_KEYS))
         if unknown:
             raise ValueError(f"unknown key(s) {unknown[:5]}")
@@ -181,10 +191,17 @@ class TrialRecord:
         if missing:
             raise ValueError(f"missing key(s) {missing}")
         for f in fields(cls):
-            value = obj.get(f.name)
+            if f.name not in obj:  # a key added later, absent from an older record: what such a record means
+                continue
+            value = obj[f.name]
             if not f.metadata["check"](value):
                 raise ValueError(f"{f.name!r} must be {f.metadata['what']}, got {_short(value)}")
-        rec = cls(**{k: obj.get(k) for k in RECORD_KEYS})
+        values = {k: obj.get(k) for k in RECORD_KEYS}
+        if "distractors" not in obj:
+            values["distractors"] = 0
+        if "far_success" not in obj:
+            values["far_success"] = is_far_success(obj["success"], obj["error_mm"])
+        rec = cls(**values)
         why = rec._inconsistency()
         if why is not None:
             raise ValueError(why)
@@ -204,14 +221,16 @@ class TrialRecord:
                                     ("error_mm", self.error_mm, math.hypot(dx, dy))):
                 if got is None or not math.isclose(got, want, rel_tol=1e-9, abs_tol=1e-9):
                     return f"{name!r} is {got!r}, but estimate − target gives {want!r}"
-        if self.far_success is not None and self.far_success != is_far_success(self.success, self.error_mm):
+        if self.far_success != is_far_success(self.success, self.error_mm):
             return (f"'far_success' {self.far_success} contradicts 'success' {self.success} and 'error_mm' "
                     f"{self.error_mm} (far: a success more than {FAR_ERROR_MM} mm off)")
+        if self.layout == "table4" and self.readings > self.max_observations:  # Table 1: the agent's own budget
+            return f"'readings' {self.readings} exceeds the record's cap 'max_observations' {self.max_observations}"
         if self.ended_by == "agent":
-            if self.decisions != self.observations:
-                return f"'decisions' {self.decisions} ≠ 'observations' {self.observations} (the agent ended the trial)"
-        elif self.decisions != self.observations - 1:
-            return (f"'decisions' {self.decisions} ≠ 'observations' − 1 = {self.observations - 1} "
+            if self.decisions != self.readings:
+                return f"'decisions' {self.decisions} ≠ 'readings' {self.readings} (the agent ended the trial)"
+        elif self.decisions != self.readings - 1:
+            return (f"'decisions' {self.decisions} ≠ 'readings' − 1 = {self.readings - 1} "
                     f"(the env ended the trial)")
         if self.ended_by == "agent" or self.layout == "table1":  # the agent's own estimate decides
             if self.success != (self.ended_by == "agent" and self.estimate is not None):
@@ -234,10 +253,10 @@ class TrialRecord:
         if self.trial >= rules.trials:
             return f"trial {self.trial} is outside the run's range 0–{rules.trials - 1}"
         cap = rules.caps.get(self.agent, self.max_observations)
-        if self.observations > cap:
-            return f"'observations' {self.observations} exceeds the cap of {cap}"
-        if self.ended_by == "cap" and self.observations != cap:
-            return f"ended by the cap of {cap} after {self.observations} observations"
+        if self.readings > cap:
+            return f"'readings' {self.readings} exceeds the cap of {cap}"
+        if self.ended_by == "cap" and self.readings != cap:
+            return f"ended by the cap of {cap} after {self.readings} readings"
         if self.ended_by != "agent" and self.layout == "table4":
             criterion = rules.criteria.get(self.agent, rules.success_spread_mm)
             assert self.spread_mm is not None  # checked by from_json
@@ -247,7 +266,30 @@ class TrialRecord:
         if (self.shape is not None) != rules.shape:
             return ("'shape' must be " + ("the identification results (unknown-target env)" if rules.shape else
                                           "null (only the unknown-target env identifies the target)"))
+        if rules.start_of is not None:
+            want = rules.start_of(self.condition, self.agent, self.seed)
+            if want is not None and not all(math.isclose(a, b, rel_tol=0.0, abs_tol=1e-6)
+                                            for a, b in zip(self.start, want)):
+                return (f"'start' {self.start} is not the start {[round(w, 6) for w in want]} mm the trial's "
+                        f"seed {self.seed} draws")
         return None
+
+
+def _current_names(obj: dict[str, Any]) -> dict[str, Any]:
+    """``obj`` with every old key name (:data:`OLD_KEY_NAMES`) read as the current one.
+
+    Raises:
+        ValueError: a record holding both a key and its old name.
+    """
+    if not any(old in obj for old in OLD_KEY_NAMES):
+        return obj
+    out = dict(obj)
+    for old, new in OLD_KEY_NAMES.items():
+        if old in out:
+            if new in out:
+                raise ValueError(f"both {new!r} and its old name {old!r}")
+            out[new] = out.pop(old)
+    return out
 
 
 def _short(value: Any) -> str:
@@ -255,6 +297,8 @@ def _short(value: Any) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
+#: Old key names still read (old → current): the count of readings was written ``observations``.
+OLD_KEY_NAMES: Mapping[str, str] = MappingProxyType({"observations": "readings"})
 #: Every key of a trial record, in the order written.
 RECORD_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord))
 #: Keys a record may lack (records written before the key existed read as None).
@@ -276,6 +320,8 @@ class RecordRules:
         caps: each agent's observation cap (default: the record's ``max_observations``).
         criteria: each agent's success criterion, where it sets its own (default: ``success_spread_mm``).
         layouts: each agent's table layout (``"table4"`` or ``"table1"``), where known.
+        start_of: (condition, agent, env seed) → the start (x, y) mm that trial's seed draws (None: the
+            start is not checked; the callable may return None for a trial it cannot replay).
     """
 
     conditions: frozenset[str]
@@ -286,3 +332,4 @@ class RecordRules:
     caps: Mapping[str, int] = field(default_factory=dict)
     criteria: Mapping[str, float] = field(default_factory=dict)
     layouts: Mapping[str, str] = field(default_factory=dict)
+    start_of: Callable[[str, str, int], tuple[float, float] | None] | None = None

@@ -16,7 +16,7 @@ Appendix B (Table 4):
   Pooled medians over all trials are given too (``*_pooled`` keys).
 
 ``summary.json`` rows also carry the per-agent versions of the means (``error_mean_mm``,
-``steps_mean``: over the agent's own successful trials, App. B item 3's wording for steps), which do
+``readings_mean``: over the agent's own successful trials, App. B item 3's wording for steps), which do
 not change when other agents join the run.
 
 Table 1 (zero-crossing): mean absolute error in x and in y of the final estimates
@@ -38,7 +38,7 @@ __all__ = ["summarize", "agent_label", "RULES"]
 
 RULES = (
     "Appendix B: success (failure) counts; mean error and mean steps over the start positions on which every "
-    "Table-4 agent succeeded (*_paired; error_mean_mm/steps_mean: the agent's own successes); medians over all "
+    "Table-4 agent succeeded (*_paired; error_mean_mm/readings_mean: the agent's own successes); medians over all "
     "trials, failures included; 'all' rows average the per-condition statistics as the paper's 'All conditions' "
     "row does (pooled medians in *_pooled). steps = observations fused (info['n_observations'])."
 )
@@ -80,12 +80,12 @@ def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int
         "failures": len(recs) - len(ok),
         "error_mean_mm": _mean(r["error_mm"] for r in ok),
         "error_median_mm": _median(r["error_mm"] for r in recs),
-        "steps_mean": _mean(r["observations"] for r in ok),
-        "steps_median": _median(r["observations"] for r in recs),
+        "readings_mean": _mean(r["readings"] for r in ok),
+        "readings_median": _median(r["readings"] for r in recs),
         "decision_ms_median": _median(r.get("decision_ms_median") for r in recs),
         "paired_trials": len(pair),
         "error_mean_paired_mm": _mean(r["error_mm"] for r in pair),
-        "steps_mean_paired": _mean(r["observations"] for r in pair),
+        "readings_mean_paired": _mean(r["readings"] for r in pair),
         "error_x_mean_abs_mm": _mean(abs(r["error_x_mm"]) for r in ok if r.get("error_x_mm") is not None),
         "error_y_mean_abs_mm": _mean(abs(r["error_y_mm"]) for r in ok if r.get("error_y_mm") is not None),
     }
@@ -121,7 +121,7 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
 
     Returns:
         ``{"rules": ..., "rows": [...]}``; every row has the keys condition, agent, trials, successes,
-        failures, error_mean_mm, error_median_mm, steps_mean, steps_median, decision_ms_median (and
+        failures, error_mean_mm, error_median_mm, readings_mean, readings_median, decision_ms_median (and
         more, see the module docstring). Missing statistics are None (JSON null), never NaN.
     """
     agents = list(dict.fromkeys(agents if agents is not None else [r["agent"] for r in records]))
@@ -163,14 +163,14 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
             "failures": sum(r["failures"] for r in crow),
             "error_mean_mm": _avg_of(crow, "error_mean_mm"),
             "error_median_mm": _avg_of(crow, "error_median_mm"),
-            "steps_mean": _avg_of(crow, "steps_mean"),
-            "steps_median": _avg_of(crow, "steps_median"),
+            "readings_mean": _avg_of(crow, "readings_mean"),
+            "readings_median": _avg_of(crow, "readings_median"),
             "decision_ms_median": _median(r.get("decision_ms_median") for r in recs),
             "paired_trials": sum(r["paired_trials"] for r in crow),
             "error_mean_paired_mm": _avg_of(crow, "error_mean_paired_mm"),
-            "steps_mean_paired": _avg_of(crow, "steps_mean_paired"),
+            "readings_mean_paired": _avg_of(crow, "readings_mean_paired"),
             "error_median_pooled_mm": _median(r["error_mm"] for r in recs),
-            "steps_median_pooled": _median(r["observations"] for r in recs),
+            "readings_median_pooled": _median(r["readings"] for r in recs),
             "far_successes": sum(is_far_success(r["success"], r["error_mm"]) for r in recs),
             "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
             "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),

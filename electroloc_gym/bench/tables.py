@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 from electroloc_gym.agentspec import parse_agent_spec
+from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.bench.fidelity import PAPER_TRIALS, paper_count_interval
 from electroloc_gym.bench.schema import FAR_ERROR_MM
 from electroloc_gym.conditions import PRESET_NAMES
@@ -70,7 +71,7 @@ def paper_agent_key(agent: str) -> str | None:
         base = parse_agent_spec(agent).name
     except ValueError:  # a policy path
         return None
-    return base if base in ("rnd-wlk", "min-var", "zero-crossing") else None
+    return base if base in PAPER_AGENTS else None
 
 
 def _cond_label(name: str) -> tuple[str, str]:
@@ -191,7 +192,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
             ps, pe, pst = _paper_cells(paper, r)
             out.append(f"| {water} | {sphere} | {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
                        f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
-                       f"| {_pair(r['steps_mean_paired'], r['steps_median'])} | {_f(r['decision_ms_median'], 2)} "
+                       f"| {_pair(r['readings_mean_paired'], r['readings_median'])} | {_f(r['decision_ms_median'], 2)} "
                        f"| {ps} | {pe} | {pst} |")
         out.append("")
         inside = _inside_counts(t4)
@@ -201,9 +202,9 @@ def render_table_md(summary: dict[str, Any]) -> str:
         alls = [r for r in t4 if r["condition"] == "all"]
         if alls:
             out.append("Pooled over all trials (not the paper's convention): " + "; ".join(
-                f"{r.get('label', r['agent'])}: median steps {_f(r.get('steps_median_pooled'))}, median error "
+                f"{r.get('label', r['agent'])}: median steps {_f(r.get('readings_median_pooled'))}, median error "
                 f"{_f(r.get('error_median_pooled_mm'), 2)} mm, own-success means: error "
-                f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('steps_mean'))}"
+                f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('readings_mean'))}"
                 + ("" if r.get("far_successes") is None
                    else f", far successes (> {FAR_ERROR_MM:g} mm off) {r['far_successes']}")
                 for r in alls) + ".")
@@ -236,7 +237,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
                 rep = _pair(r.get("error_x_repeatability_mm"), r.get("error_y_repeatability_mm"), 2)
             out.append(f"| {label} | {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
                        f"| {_f(r.get('error_x_mean_abs_mm'), 2)} | {_f(r.get('error_y_mean_abs_mm'), 2)} | {rep} "
-                       f"| {_f(r['steps_median'], 0)} | {_f(paper[0], 2) if paper else ''} "
+                       f"| {_f(r['readings_median'], 0)} | {_f(paper[0], 2) if paper else ''} "
                        f"| {_f(paper[1], 2) if paper else ''} |")
         out.append("")
     return "\n".join(out)
@@ -281,7 +282,7 @@ def _render_table2(summary: dict[str, Any]) -> str:
         ps, pe, pst = _paper_cells(paper, r)
         out.append(f"| {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
                    f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
-                   f"| {_pair(r['steps_mean_paired'], r['steps_median'])} | {_f(r['decision_ms_median'], 2)} "
+                   f"| {_pair(r['readings_mean_paired'], r['readings_median'])} | {_f(r['decision_ms_median'], 2)} "
                    f"| {ps} | {pe} | {pst} |")
     out.append("")
     return "\n".join(out)

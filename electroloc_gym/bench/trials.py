@@ -16,13 +16,25 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym.bench.agents import bench_env_kwargs, cached_agent
+from electroloc_gym.bench.agents import bench_env_kwargs, cached_agent, resolve_agent
 from electroloc_gym.bench.config import GLOBAL_ENV_ID, UNKNOWN_ENV_ID, TrialSpec
-from electroloc_gym.bench.rollout import run_episode
+from electroloc_gym.bench.rollout import AgentCallError, exception_line, run_episode
 from electroloc_gym.bench.schema import SHAPE_RECORD_KEYS, TrialRecord, is_far_success
 from electroloc_gym.fileio import to_json_data
 
-__all__ = ["run_trial"]
+__all__ = ["run_trial", "TrialFailed", "describe_trial"]
+
+
+class TrialFailed(ValueError):
+    """A trial that could not finish: one line naming the agent, the trial and the exception."""
+
+    def __reduce__(self) -> tuple[Any, ...]:  # picklable across worker processes
+        return (TrialFailed, (str(self),))
+
+
+def describe_trial(spec: TrialSpec) -> str:
+    """``agent 'X' in trial K of CONDITION`` (the words of every failure message)."""
+    return f"agent {spec.agent!r} in trial {spec.trial} of {spec.condition}"
 
 _ENVS: dict[tuple[Any, ...], Any] = {}
 
@@ -35,7 +47,8 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
     kwargs = bench_env_kwargs(spec.env_id, agent, spec.gain_levels, condition=spec.condition, signal=spec.signal,
                               sensor_model=spec.sensor_model, n_particles=spec.n_particles,
                               max_observations=spec.max_observations, sensor_layout=spec.sensor_layout,
-                              distractors=spec.distractors)
+                              distractors=spec.distractors, success_spread_mm=spec.success_spread_mm,
+                              builtin=resolve_agent(spec.agent).builtin)
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
     if key not in _ENVS:
         if len(_ENVS) > 16:
@@ -47,7 +60,24 @@ def _env(spec: TrialSpec, agent: Any) -> Any:
 
 
 def run_trial(spec: TrialSpec) -> dict[str, Any]:
-    """Run one trial and return its record (the worker function of every backend), checked by its schema."""
+    """Run one trial and return its record (the worker function of every backend), checked by its schema.
+
+    Raises:
+        TrialFailed: the agent's ``seed``, ``reset`` or ``predict`` raised (any exception, ``SystemExit``
+            and ``MemoryError`` included), the agent did not build in this worker, or the trial failed
+            otherwise — one line naming the agent, the trial and the exception.
+    """
+    try:
+        return _run_trial(spec)
+    except KeyboardInterrupt:
+        raise
+    except AgentCallError as exc:
+        raise TrialFailed(f"{describe_trial(spec)}: {exc}") from None
+    except BaseException as exc:  # noqa: BLE001 - any failure of a trial is reported in one line
+        raise TrialFailed(f"{describe_trial(spec)} failed: {exception_line(exc)}") from None
+
+
+def _run_trial(spec: TrialSpec) -> dict[str, Any]:
     t_start = time.perf_counter()
     agent = cached_agent(spec.agent, trust_pickle=spec.trust_pickle)
     env = _env(spec, agent)
@@ -85,7 +115,7 @@ def run_trial(spec: TrialSpec) -> dict[str, Any]:
         "agent_seed": spec.agent_seed,
         "success": success,
         "ended_by": ep.ended_by,
-        "observations": int(info["n_observations"]),
+        "readings": int(info["n_observations"]),
         "error_mm": to_json_data(error),
         "error_x_mm": to_json_data(error_x),
         "error_y_mm": to_json_data(error_y),

@@ -1,0 +1,205 @@
+"""A stored run read back: its config.json, the rules its records obey, and the one public reader.
+
+* :func:`read_run_records` — the public reader of a finished or partial run's folder
+  (``electroloc bench --out``): its ``config.json`` (the run, a
+  :class:`~electroloc_gym.bench.config.BenchConfig`) and its ``trials.jsonl`` through
+  :func:`~electroloc_gym.bench.records.load_records` with the run's own rules (:func:`record_rules`),
+  so every reader of benchmark records (``--resume``, the reports) keeps and sets aside the same records.
+* :func:`record_rules` — what a record of a run may hold (:class:`~electroloc_gym.bench.schema.RecordRules`),
+  the start each trial's seed draws included.
+* :func:`read_config` — ``config.json`` for ``--resume``: a damaged one is set aside.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from electroloc_gym.bench.config import IDENTITY_KEYS, UNKNOWN_ENV_ID, BenchConfig
+from electroloc_gym.bench.records import CONFIG_FILE, TRIALS_FILE, LoadedRecords, load_records
+from electroloc_gym.bench.schema import RecordRules
+
+__all__ = ["RunRecords", "read_run_records", "record_rules", "read_config", "config_from_json"]
+
+
+def _config_problem(stored: Any) -> str | None:
+    """Why a parsed config.json cannot describe a run (None: it can)."""
+    if not isinstance(stored, dict):
+        return f"not a JSON object ({type(stored).__name__})"
+    later = ("gain_levels", "sensor_layout", "distractors", "success_spread_mm")  # keys added later
+    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k not in later]
+    if missing:
+        return f"missing key(s) {missing}"
+    if isinstance(stored["seed"], bool) or not isinstance(stored["seed"], int):
+        return f"'seed' must be an integer, got {stored['seed']!r}"
+    for key, kind in (("agents", list), ("conditions", list), ("trials", int)):
+        if key in stored and not isinstance(stored[key], kind):
+            return f"{key!r} must be a {kind.__name__}, got {stored[key]!r}"
+    return None
+
+
+def read_config(path: Path, log: Callable[[str], None] | None) -> dict[str, Any] | None:
+    """config.json of a stored run; a damaged one is reported, set aside (renamed) and ignored."""
+    if not path.exists():
+        return None
+    try:
+        stored = json.loads(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        why = f"not valid UTF-8 JSON ({type(exc).__name__}: {exc})"
+    else:
+        why = _config_problem(stored)
+        if why is None:
+            return stored
+    aside = path.with_name("config.rejected.json")
+    os.replace(path, aside)
+    if log is not None:
+        log(f"{path}: {why}; moved to {aside.name}; every record is checked on its own instead")
+    return None
+
+
+def config_from_json(stored: Any, where: str = CONFIG_FILE) -> BenchConfig:
+    """The :class:`BenchConfig` a config.json holds.
+
+    Raises:
+        ValueError: not a run's config (one line naming ``where`` and the problem).
+    """
+    why = _config_problem(stored)
+    if why is None:
+        names = {f.name for f in fields(BenchConfig)}
+        kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in stored.items() if k in names}
+        try:
+            return BenchConfig(**kwargs)
+        except (TypeError, ValueError) as exc:
+            why = str(exc)
+    raise ValueError(f"{where}: not a benchmark run's config: {why}")
+
+
+class _StartReplay:
+    """(condition, agent, env seed) → the start the trial's env draws on ``reset(seed)``, mm.
+
+    The start is a function of the run's settings, the agent's env kwargs and the seed; it is replayed
+    on one env per (condition, agent kind), built as the trial's (no trial is run).
+    """
+
+    def __init__(self, config: BenchConfig, trust_pickle: bool) -> None:
+        self.config, self.trust_pickle = config, trust_pickle
+        self._envs: dict[tuple[str, str], Any] = {}
+
+    def __call__(self, condition: str, agent: str, seed: int) -> tuple[float, float] | None:
+        import gymnasium as gym
+
+        import electroloc_gym  # noqa: F401  (registers the ids)
+        from electroloc_gym.bench.agents import bench_env_kwargs, builtin_agent
+
+        cfg = self.config
+        own = builtin_agent(agent)  # a built-in agent may set its own workspace; a plug-in's kwargs cannot move it
+        key = (condition, agent if own is not None else "")
+        if key not in self._envs:
+            kwargs = bench_env_kwargs(cfg.env_id, own, cfg.gain_levels, condition=condition, signal=cfg.signal,
+                                      sensor_model=cfg.sensor_model, n_particles=cfg.n_particles,
+                                      max_observations=cfg.max_observations, sensor_layout=cfg.sensor_layout,
+                                      distractors=cfg.distractors, success_spread_mm=cfg.success_spread_mm,
+                                      builtin=own is not None)
+            try:
+                self._envs[key] = gym.make(cfg.env_id, **kwargs)
+            except (TypeError, ValueError):
+                self._envs[key] = None
+        env = self._envs[key]
+        if env is None:
+            return None
+        _, info = env.reset(seed=int(seed))
+        start = info["position_mm"]
+        return float(start[0]), float(start[1])
+
+
+def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
+                 trust_pickle: bool = False) -> RecordRules:
+    """What a record of ``config``'s run (continuing ``stored``, a config.json) may hold.
+
+    Only the built-in agents set their own cap, success criterion and table layout (zero-crossing, the
+    paper's Table-1 protocol); every other agent is held to the run's, so no plug-in code is run here.
+    """
+    from electroloc_gym.bench.agents import builtin_agent
+
+    stored = stored or {}
+    agents = frozenset([*config.agents, *(a for a in stored.get("agents", []) if isinstance(a, str))])
+    conditions = frozenset([*config.conditions, *(c for c in stored.get("conditions", []) if isinstance(c, str))])
+    trials = max(config.trials, stored["trials"] if isinstance(stored.get("trials"), int) else 0)
+    caps, criteria, layouts = {}, {}, {}
+    for spec in agents:
+        agent = builtin_agent(spec)
+        kwargs = dict(getattr(agent, "env_kwargs", {}) or {}) if agent is not None else {}
+        caps[spec] = int(kwargs.get("max_observations", config.max_observations))
+        if "success_spread_mm" in kwargs:
+            criteria[spec] = float(kwargs["success_spread_mm"])
+        layouts[spec] = str(getattr(agent, "layout", "table4"))
+    return RecordRules(conditions=conditions, agents=agents, trials=trials,
+                       success_spread_mm=float(config.success_spread_mm), shape=config.env_id == UNKNOWN_ENV_ID,
+                       caps=caps, criteria=criteria, layouts=layouts, start_of=_StartReplay(config, trust_pickle))
+
+
+@dataclass(frozen=True)
+class RunRecords:
+    """A benchmark run read back by :func:`read_run_records`.
+
+    Attributes:
+        config: the run (its ``config.json``).
+        loaded: its records: ``loaded.records`` the kept ones by (condition, agent, trial), in the current
+            key names; ``loaded.rejected`` the lines set aside (damaged or impossible) and
+            ``loaded.foreign`` the valid records of another run (another seed or settings), each with its
+            line number and reason.
+    """
+
+    config: BenchConfig
+    loaded: LoadedRecords
+
+    @property
+    def records(self) -> list[dict[str, Any]]:
+        """The kept records, in file order."""
+        return list(self.loaded.records.values())
+
+    @property
+    def n_set_aside(self) -> int:
+        """Lines not kept: rejected plus foreign."""
+        return self.loaded.n_rejected + self.loaded.n_foreign
+
+    def messages(self) -> list[str]:
+        """One line per line not kept: ``FILE:LINE: reason``."""
+        return self.loaded.messages() + [f"{self.loaded.path}:{n}: not of this run: {why}"
+                                         for n, why in self.loaded.foreign]
+
+
+def read_run_records(out_dir: str | os.PathLike) -> RunRecords:
+    """Read a benchmark run's folder (``electroloc bench --out``) as ``--resume`` reads it.
+
+    ``OUT/config.json`` gives the run; every line of ``OUT/trials.jsonl`` is parsed within bounds and
+    checked through the record schema and the run's rules (:func:`record_rules`: its conditions,
+    agents, trial range, cap, success criterion, the start each seed draws); a line that fails is
+    set aside and counted, a valid record of another run (other seeds or settings) is counted as
+    foreign. Nothing is written.
+
+    Raises:
+        ValueError: one line naming the file: the folder, its config.json or its trials.jsonl missing or
+            unreadable, or config.json not a run's config.
+    """
+    folder = Path(os.fspath(out_dir)).expanduser()
+    if not folder.is_dir():
+        raise ValueError(f"{folder}: not a benchmark output folder (no such folder)")
+    config_path, trials_path = folder / CONFIG_FILE, folder / TRIALS_FILE
+    for path in (config_path, trials_path):
+        if not path.is_file():
+            raise ValueError(f"{path}: missing (not a benchmark output folder)")
+    try:
+        raw = config_path.read_bytes()
+        if len(raw) > 1 << 20:
+            raise ValueError(f"{len(raw)} bytes (a config is a few hundred)")
+        stored = json.loads(raw.decode("utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError, ValueError) as exc:
+        raise ValueError(f"{config_path}: not readable as a run's config ({type(exc).__name__}: {exc})") from None
+    config = config_from_json(stored, str(config_path))
+    loaded = load_records(trials_path, config, record_rules(config, stored))
+    return RunRecords(config=config, loaded=loaded)
