@@ -1,0 +1,178 @@
+"""ElectroLoc-v0's torch backend behind Gymnasium's ``VectorEnv`` (Gymnasium's torch conventions).
+
+``gym.make_vec("ElectroLoc-v0", num_envs=N, vectorization_mode="vector_entry_point", backend="torch",
+device="cuda")`` builds a :class:`TorchElectroLocVectorEnv`: observations (N, 81) float32, rewards (N,)
+float64, terminated and truncated (N,) bool and the info's entries are tensors on ``device``; actions
+may be tensors there (or anything ``torch.as_tensor`` takes). Autoreset is Gymnasium's
+``NEXT_STEP``. A numpy view: :func:`numpy_view` (Gymnasium's ``ArrayConversion`` wrapper).
+
+Seeding is Gymnasium's: ``reset(seed=s)`` gives sub-env i the seed ``sub_env_seeds(s, N)[i]`` (child i
+of ``SeedSequence(s)``, as the numba vector env), ``reset(seed=[...])`` one seed per sub-env, None fresh
+entropy; a sub-env's key is the first two words of its seed's ``SeedSequence``, so its episodes depend
+on its seed and its actions only (:mod:`.rng`). ``compile=True`` runs the step through
+``torch.compile`` (``compile_backend``: inductor by default).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from electroloc_gym.core.params import EnvParams, check_int
+from electroloc_gym.core.observation import BELIEF_OBS_DIM, RAW_OBS_DIM
+from electroloc_gym.envs.actions import spaces_of
+from electroloc_gym.torch_core import sim
+from electroloc_gym.torch_core.consts import TorchConsts
+
+__all__ = ["TorchElectroLocVectorEnv", "make_torch_vector_env", "numpy_view", "BACKENDS"]
+
+#: The core backends of the native vector env (numba: the default, the reference).
+BACKENDS = ("numba", "torch")
+_TORCH_ENV_IDS = ("ElectroLoc-v0",)
+
+
+def _device(value: Any) -> torch.device:
+    try:
+        return torch.device(value)
+    except (RuntimeError, TypeError) as exc:
+        raise ValueError(f"device must be a torch device name such as 'cpu' or 'cuda', got {value!r}") from exc
+
+
+def _seed_words(seed: int | None) -> tuple[int, int]:
+    """The two 32-bit key words of a sub-env seed (None: fresh entropy)."""
+    w = np.random.SeedSequence(seed).generate_state(2, np.uint32)
+    return int(w[0]), int(w[1])
+
+
+class TorchElectroLocVectorEnv(VectorEnv):
+    """N ElectroLoc-v0 envs as one torch core on ``device`` (module docstring).
+
+    Args:
+        num_envs: N (≥ 1).
+        device: the torch device ("cpu", "cuda", "cuda:1", …).
+        compile: run the step through ``torch.compile(fullgraph=True)``.
+        compile_backend: ``torch.compile``'s backend ("inductor", or "eager" to check the capture only).
+        render_mode: must be None.
+        autoreset_mode: ``AutoresetMode.NEXT_STEP`` (the only mode of the torch core).
+        **kwargs: the single env's arguments (:class:`~electroloc_gym.core.params.EnvParams`).
+    """
+
+    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, device: Any = "cpu", compile: bool = False,  # noqa: A002 - torch's word
+                 compile_backend: str = "inductor", render_mode: str | None = None,
+                 autoreset_mode: Any = AutoresetMode.NEXT_STEP, **kwargs: Any) -> None:
+        n = check_int("num_envs", num_envs, 1)
+        if render_mode is not None:
+            raise ValueError(f"render_mode must be None for the torch vector env, got {render_mode!r}")
+        if autoreset_mode not in (AutoresetMode.NEXT_STEP, "next_step", AutoresetMode.NEXT_STEP.value):
+            raise ValueError(f"autoreset_mode: backend='torch' implements AutoresetMode.NEXT_STEP only, got "
+                             f"{autoreset_mode!r}")
+        if not isinstance(compile, bool):
+            raise ValueError(f"compile must be a bool, got {compile!r}")
+        self.params = EnvParams.from_kwargs("localize", kwargs, "ElectroLoc-v0")
+        self.device = _device(device)
+        self.consts = TorchConsts.build(self.params, self.device)
+        self.num_envs = n
+        self.render_mode = None
+        self.autoreset_mode = AutoresetMode.NEXT_STEP
+        self.metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+        obs_dim = BELIEF_OBS_DIM if self.params.observation == "belief" else RAW_OBS_DIM
+        self.single_action_space, self.single_observation_space = spaces_of(self.params, obs_dim)
+        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self._state = sim.empty_state(self.consts, n)
+        self._started = False
+        c = self.consts
+        step_fn = lambda state, actions: sim.step(c, state, actions)  # noqa: E731 - the compiled unit
+        self._step_fn = torch.compile(step_fn, fullgraph=True, backend=compile_backend) if compile else step_fn
+
+    # ---- accessors ------------------------------------------------------------------------------
+    @property
+    def state(self) -> dict[str, torch.Tensor]:
+        """The core's state tensors (read-only use: the particles (N, 2, M) mm, the means, …)."""
+        return self._state
+
+    def memory_bytes_per_env(self) -> int:
+        """Bytes of state per env on the device (the step's temporaries come on top, :mod:`.sim`)."""
+        return sum(t.element_size() * t[0].numel() for t in self._state.values())
+
+    # ---- gymnasium API ------------------------------------------------------------------------
+    def reset(self, *, seed: int | Sequence[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[torch.Tensor, dict[str, Any]]:
+        """Reset every sub-env (or those of ``options["reset_mask"]``, a bool (N,) tensor or array)."""
+        from electroloc_gym.envs.vector import _check_seed, sub_env_seeds
+
+        n = self.num_envs
+        _check_seed(seed, n)
+        if seed is None:
+            seeds: list[int | None] = [None] * n
+        elif isinstance(seed, (int, np.integer)):
+            seeds = list(sub_env_seeds(int(seed), n))
+        else:
+            seeds = [None if s is None else int(s) for s in seed]
+        mask = torch.ones(n, dtype=torch.bool, device=self.device)
+        if options is not None and "reset_mask" in options:
+            m = torch.as_tensor(options["reset_mask"], device=self.device)
+            if m.dtype != torch.bool or m.shape != (n,) or not bool(m.any()):
+                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},) with a True entry")
+            mask = m
+        s = dict(self._state)
+        reseed = [i for i, v in enumerate(seeds) if v is not None or not self._started]
+        if reseed:
+            words = torch.tensor([_seed_words(seeds[i]) for i in reseed], dtype=torch.int64, device=self.device)
+            idx = torch.tensor(reseed, device=self.device)
+            sel = torch.zeros(n, dtype=torch.bool, device=self.device)
+            sel[idx] = True
+            sel &= mask
+            k0, k1 = s["k0"].clone(), s["k1"].clone()
+            k0[idx], k1[idx] = words[:, 0], words[:, 1]
+            s["k0"], s["k1"] = torch.where(sel, k0, s["k0"]), torch.where(sel, k1, s["k1"])
+            s["episode"] = torch.where(sel, torch.full_like(s["episode"], -1), s["episode"])
+        s = sim.begin_episodes(self.consts, s, mask)
+        s = sim.observe(self.consts, s, mask)
+        s["done"] = torch.where(mask, torch.zeros_like(s["done"]), s["done"])
+        self._state = s
+        self._started = True
+        return sim.observation(self.consts, s), sim.info(self.consts, s)
+
+    def step(self, actions: Any) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict[str, Any]]:
+        """One step of every sub-env (Gymnasium's next-step autoreset)."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        a = torch.as_tensor(actions, device=self.device)
+        want = (self.num_envs,) if self.consts.discrete else (self.num_envs, 2)
+        if tuple(a.shape) != want:
+            raise ValueError(f"actions must have shape {want}, got {tuple(a.shape)}")
+        self._state, obs, rewards, terminated, truncated = self._step_fn(self._state, a)
+        return obs, rewards, terminated, truncated, sim.info(self.consts, self._state)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Nothing to release."""
+
+
+def make_torch_vector_env(env_id: str, backend: Any, num_envs: int = 1, **kwargs: Any) -> VectorEnv:
+    """The native vector env's ``backend`` dispatch: the torch vector env of ``env_id`` (ValueError
+    for an unknown backend or an env the torch core does not implement).
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if env_id not in _TORCH_ENV_IDS:
+        raise ValueError(f"backend='torch' implements {list(_TORCH_ENV_IDS)} only, not {env_id}; use backend='numba'")
+    return TorchElectroLocVectorEnv(num_envs=num_envs, **kwargs)
+
+
+def numpy_view(env: VectorEnv) -> VectorEnv:
+    """The torch vector env seen through numpy arrays (Gymnasium's ``ArrayConversion`` wrapper)."""
+    from gymnasium.wrappers.vector import ArrayConversion
+
+    return ArrayConversion(env, env_xp=torch, target_xp=np, env_device=env.device, target_device=None)
+
+
+_ = spaces  # the spaces come from the single env's (``spaces_of``)
