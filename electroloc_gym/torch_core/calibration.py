@@ -16,12 +16,14 @@ padded to the largest; padded points are excluded from the pooled variance and n
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import torch
 
 from electroloc_gym.torch_core.consts import TorchConsts
 from electroloc_gym.torch_core.rng import STREAMS, bits32, stream_key
 
-__all__ = ["calibration_tables"]
+__all__ = ["calibration_tables", "tables_from_draws"]
 
 
 def calibration_tables(c: TorchConsts, cond: torch.Tensor, k0: torch.Tensor, k1: torch.Tensor,
@@ -31,25 +33,38 @@ def calibration_tables(c: TorchConsts, cond: torch.Tensor, k0: torch.Tensor, k1:
     Args:
         c: the constants.
         cond: (N,) int64 each env's condition in the pool.
-        k0, k1, episode: (N,) int64 each env's key words and episode (the draws' coordinates).
+        k0: (N,) int64 each env's first key word.
+        k1: (N,) int64 its second key word.
+        episode: (N,) int64 its episode (with the key: the draws' coordinates).
     """
     if c.fixed_table is not None:
         return c.fixed_table[cond]
-    n, s = c.grid_n, c.samples_per_point
+    n = c.grid_n
+    per = n * n
+    half = (per + 1) // 2  # words per sample: two 16-bit indices each
+    key = stream_key(k0, k1, episode, torch.zeros_like(episode), STREAMS["calibration"])
+
+    def draws(t: int) -> torch.Tensor:
+        w = bits32(key, half, start=t * half)
+        return torch.cat([w & 0xFFFF, w >> 16], dim=1)[:, :per].reshape(-1, n, n)
+
+    return tables_from_draws(c, cond, draws)
+
+
+def tables_from_draws(c: TorchConsts, cond: torch.Tensor, draws: Callable[[int], torch.Tensor]) -> torch.Tensor:
+    """The coefficients of :func:`calibration_tables` from given draws: ``draws(t)`` (N, n, n) int64 the
+    normal-table indices of sample t at every grid point (the equivalence tests inject numpy's).
+    """
+    s = c.samples_per_point
     mu = c.grid_mean_V[cond]  # (N, n, n)
     sigma = c.noise_V[cond][:, None, None]
     sat = c.saturation_V[cond][:, None, None]
-    key = stream_key(k0, k1, episode, torch.zeros_like(episode), STREAMS["calibration"])
-    per = n * n
-    half = (per + 1) // 2  # words per sample: two 16-bit indices each
     table = c.normal_table
     sum_d = torch.zeros_like(mu)
     sum_d2 = torch.zeros_like(mu)
     saturated = torch.zeros(mu.shape, dtype=torch.bool, device=mu.device)
     for t in range(s):  # a fixed number of samples: no data-dependent loop
-        w = bits32(key, half, start=t * half)
-        idx = torch.cat([w & 0xFFFF, w >> 16], dim=1)[:, :per].reshape(-1, n, n)
-        reading = torch.clamp(mu + table[idx].to(torch.float64) * sigma, min=-sat, max=sat)
+        reading = torch.clamp(mu + table[draws(t)].to(torch.float64) * sigma, min=-sat, max=sat)
         d = reading - mu
         sum_d = sum_d + d
         sum_d2 = sum_d2 + d * d
@@ -59,6 +74,7 @@ def calibration_tables(c: TorchConsts, cond: torch.Tensor, k0: torch.Tensor, k1:
     floor = c.floor_V[cond][:, None, None]
     std = torch.maximum(torch.sqrt(var), floor)
     if c.pooled_std:
+        n = mu.shape[1]
         points = c.grid_points[cond]
         axis = torch.arange(n, device=mu.device)
         valid = (axis[None, :] < points[:, None])[:, :, None] & (axis[None, :] < points[:, None])[:, None, :]

@@ -57,7 +57,8 @@ def calibrated_log_likelihood(particles: torch.Tensor, origin: torch.Tensor, lo:
     Args:
         particles: (N, 2, M) float32 target hypotheses, mm.
         origin: (N, 2) float32 the carriage, mm (offsets = particle − carriage).
-        lo, inv: (N,) float32 each grid's first coordinate (mm) and inverse step (1/mm).
+        lo: (N,) float32 each grid's first coordinate, mm.
+        inv: (N,) float32 each grid's inverse step, 1/mm.
         cells: (N,) int64 each grid's cells per axis n1.
         stride: the row stride of ``table`` (the pool's largest n1); the last row is "outside".
         table: (N, stride² + 1, 8) float32 bilinear coefficients.
@@ -112,7 +113,8 @@ def resample(ll: torch.Tensor, particles: torch.Tensor, u0: torch.Tensor, jx: to
         ll: (N, M) float32 log-likelihoods.
         particles: (N, 2, M) float32.
         u0: (N,) float64 offsets U in [0, 1).
-        jx, jy: (N, M) int64 normal-table indices of the x and y jitter.
+        jx: (N, M) int64 normal-table indices of the x jitter.
+        jy: (N, M) int64 those of the y jitter.
         normal_table: (65536,) float32.
         half: (N,) float32 the box half-width H, mm.
     """

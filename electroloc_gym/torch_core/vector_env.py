@@ -20,21 +20,17 @@ from typing import Any
 
 import numpy as np
 import torch
-from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from electroloc_gym.core.params import EnvParams, check_int
 from electroloc_gym.core.observation import BELIEF_OBS_DIM, RAW_OBS_DIM
+from electroloc_gym.core.params import EnvParams, check_int
 from electroloc_gym.envs.actions import spaces_of
 from electroloc_gym.torch_core import sim
 from electroloc_gym.torch_core.consts import TorchConsts
 
-__all__ = ["TorchElectroLocVectorEnv", "make_torch_vector_env", "numpy_view", "BACKENDS"]
+__all__ = ["TorchElectroLocVectorEnv", "numpy_view"]
 
-#: The core backends of the native vector env (numba: the default, the reference).
-BACKENDS = ("numba", "torch")
-_TORCH_ENV_IDS = ("ElectroLoc-v0",)
 
 
 def _device(value: Any) -> torch.device:
@@ -157,22 +153,9 @@ class TorchElectroLocVectorEnv(VectorEnv):
         """Nothing to release."""
 
 
-def make_torch_vector_env(env_id: str, backend: Any, num_envs: int = 1, **kwargs: Any) -> VectorEnv:
-    """The native vector env's ``backend`` dispatch: the torch vector env of ``env_id`` (ValueError
-    for an unknown backend or an env the torch core does not implement).
-    """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
-    if env_id not in _TORCH_ENV_IDS:
-        raise ValueError(f"backend='torch' implements {list(_TORCH_ENV_IDS)} only, not {env_id}; use backend='numba'")
-    return TorchElectroLocVectorEnv(num_envs=num_envs, **kwargs)
-
-
 def numpy_view(env: VectorEnv) -> VectorEnv:
     """The torch vector env seen through numpy arrays (Gymnasium's ``ArrayConversion`` wrapper)."""
     from gymnasium.wrappers.vector import ArrayConversion
 
     return ArrayConversion(env, env_xp=torch, target_xp=np, env_device=env.device, target_device=None)
 
-
-_ = spaces  # the spaces come from the single env's (``spaces_of``)
