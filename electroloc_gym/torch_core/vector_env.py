@@ -6,9 +6,9 @@ float64, terminated and truncated (N,) bool and the info's entries are tensors o
 may be tensors there (or anything ``torch.as_tensor`` takes). Autoreset is Gymnasium's
 ``NEXT_STEP``. A numpy view: :func:`numpy_view` (Gymnasium's ``ArrayConversion`` wrapper).
 
-Seeding is Gymnasium's: ``reset(seed=s)`` gives sub-env i the seed ``sub_env_seeds(s, N)[i]`` (child i
-of ``SeedSequence(s)``, as the numba vector env), ``reset(seed=[...])`` one seed per sub-env, None fresh
-entropy; a sub-env's key is the first two words of its seed's ``SeedSequence``, so its episodes depend
+Seeding is Gymnasium's: ``reset(seed=s)`` gives sub-env i child i of ``SeedSequence(s)`` (as the numba
+vector env spreads an int seed), ``reset(seed=[...])`` one seed per sub-env (its ``SeedSequence``),
+None fresh entropy; a sub-env's key is the first two words of its seed sequence, so its episodes depend
 on its seed and its actions only (:mod:`.rng`). ``compile=True`` runs the step through
 ``torch.compile`` (``compile_backend``: inductor by default).
 """
@@ -40,10 +40,31 @@ def _device(value: Any) -> torch.device:
         raise ValueError(f"device must be a torch device name such as 'cpu' or 'cuda', got {value!r}") from exc
 
 
-def _seed_words(seed: int | None) -> tuple[int, int]:
-    """The two 32-bit key words of a sub-env seed (None: fresh entropy)."""
-    w = np.random.SeedSequence(seed).generate_state(2, np.uint32)
+def _seed_words(seed: int | np.random.SeedSequence | None) -> tuple[int, int]:
+    """The two 32-bit key words of a sub-env seed or seed sequence (None: fresh entropy)."""
+    seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    w = seq.generate_state(2, np.uint32)
     return int(w[0]), int(w[1])
+
+
+def _is_seed(value: Any) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0
+
+
+def _key_words(seed: Any, n: int) -> list[tuple[int, int] | None]:
+    """Each sub-env's key words of ``reset``'s ``seed`` (None: keep or draw fresh): an int s gives sub-env i
+    child i of ``SeedSequence(s)``, a sequence one seed per sub-env; anything else one ValueError.
+    """
+    if seed is None:
+        return [None] * n
+    if _is_seed(seed):
+        return [_seed_words(child) for child in np.random.SeedSequence(int(seed)).spawn(n)]
+    ok = isinstance(seed, (list, tuple, np.ndarray)) and len(seed) == n and \
+        all(v is None or _is_seed(v) for v in seed)
+    if not ok:
+        raise ValueError(f"seed must be None, an integer ≥ 0 or a sequence of {n} seeds (each None or an integer "
+                         f"≥ 0), got {seed!r}")
+    return [None if v is None else _seed_words(int(v)) for v in seed]
 
 
 class TorchElectroLocVectorEnv(VectorEnv):
@@ -103,16 +124,8 @@ class TorchElectroLocVectorEnv(VectorEnv):
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[torch.Tensor, dict[str, Any]]:
         """Reset every sub-env (or those of ``options["reset_mask"]``, a bool (N,) tensor or array)."""
-        from electroloc_gym.envs.vector import _check_seed, sub_env_seeds
-
         n = self.num_envs
-        _check_seed(seed, n)
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)):
-            seeds = list(sub_env_seeds(int(seed), n))
-        else:
-            seeds = [None if s is None else int(s) for s in seed]
+        words = _key_words(seed, n)  # checked before any sub-env changes
         mask = torch.ones(n, dtype=torch.bool, device=self.device)
         if options is not None and "reset_mask" in options:
             m = torch.as_tensor(options["reset_mask"], device=self.device)
@@ -120,15 +133,16 @@ class TorchElectroLocVectorEnv(VectorEnv):
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},) with a True entry")
             mask = m
         s = dict(self._state)
-        reseed = [i for i, v in enumerate(seeds) if v is not None or not self._started]
+        reseed = [i for i, w in enumerate(words) if w is not None or not self._started]
         if reseed:
-            words = torch.tensor([_seed_words(seeds[i]) for i in reseed], dtype=torch.int64, device=self.device)
+            fresh = [w if w is not None else _seed_words(None) for w in (words[i] for i in reseed)]
+            words_t = torch.tensor(fresh, dtype=torch.int64, device=self.device)
             idx = torch.tensor(reseed, device=self.device)
             sel = torch.zeros(n, dtype=torch.bool, device=self.device)
             sel[idx] = True
             sel &= mask
             k0, k1 = s["k0"].clone(), s["k1"].clone()
-            k0[idx], k1[idx] = words[:, 0], words[:, 1]
+            k0[idx], k1[idx] = words_t[:, 0], words_t[:, 1]
             s["k0"], s["k1"] = torch.where(sel, k0, s["k0"]), torch.where(sel, k1, s["k1"])
             s["episode"] = torch.where(sel, torch.full_like(s["episode"], -1), s["episode"])
         s = sim.begin_episodes(self.consts, s, mask)
