@@ -97,6 +97,8 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         num_envs: N (≥ 1).
         render_mode: must be None.
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` / ``SAME_STEP`` or their values.
+        backend: ``"numba"`` (this class) or ``"torch"`` (ElectroLoc-v0 only: the torch core on ``device``,
+            :mod:`electroloc_gym.torch_core.vector_env`).
         **kwargs: the single env's arguments (:class:`~electroloc_gym.core.params.EnvParams`).
     """
 
@@ -104,8 +106,17 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
     #: The env's id in the env table (its task, arguments and defaults come from the entry).
     _ENV_ID = "ElectroLoc-v0"
 
+    def __new__(cls, *args: Any, backend: Any = "numba", **kwargs: Any) -> Any:
+        """``backend="torch"``: the torch core's vector env instead (:mod:`electroloc_gym.torch_core`)."""
+        if backend == "numba":
+            return super().__new__(cls)
+        from electroloc_gym.torch_core.dispatch import make_torch_vector_env
+
+        return make_torch_vector_env(cls._ENV_ID, backend, *args, **kwargs)
+
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
-                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, **kwargs: Any) -> None:
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, backend: str = "numba",
+                 **kwargs: Any) -> None:
         n = check_int("num_envs", num_envs, 1)
         if render_mode is not None:
             raise ValueError(f"render_mode must be None for the native vector env (got {render_mode!r}); "

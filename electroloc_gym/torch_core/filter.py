@@ -1,0 +1,185 @@
+"""The belief update of N envs as tensor operations (paper §4.1, Algorithm 1): likelihoods, systematic
+resampling, jitter, clip, statistics, histogram and the observation.
+
+Each function is the numba kernel's arithmetic (:mod:`electroloc_gym.kernels`) batched over envs:
+float32 for the particles, the likelihoods and the weights (as the numba core), float64 for the
+weights' total, the cumulative weights and the resampling pointers (a float32 cumulative sum of 2500
+weights would lose the small weights' mass), float64 for the statistics. Sums are torch's reductions
+(their order is the device's: the results agree with the numba core's fixed-order sums to float
+rounding, not bit for bit). The exp and log are torch's (the numba core's are its branch-free
+polynomials; both within an ulp of the exact value).
+"""
+
+from __future__ import annotations
+
+import torch
+
+__all__ = ["dipole_difference", "calibrated_log_likelihood", "analytic_log_likelihood", "resample",
+           "statistics", "belief_observation", "raw_observation", "HIST_BINS"]
+
+#: Histogram cells per axis of the belief observation (:data:`electroloc_gym.core.observation.HIST_BINS`).
+HIST_BINS = 8
+
+
+def dipole_difference(x: torch.Tensor, y: torch.Tensor, h: torch.Tensor, z2: torch.Tensor, k: torch.Tensor,
+                      strength: torch.Tensor) -> torch.Tensor:
+    """``physics._dipole_difference`` (Eq. 4 + Eq. 7, a sphere's point dipole) elementwise in the inputs'
+    precision: δV(S1) − δV(S2) (V) of a sphere at offsets (x, y) mm, half-spacing ``h`` mm, depth² ``z2``
+    mm², ``k`` = V_e·E (V·mm), ``strength`` = χ·A³ (mm³) (broadcasting).
+    """
+    xp = x - h
+    xn = x + h
+    y2z2 = y * y + z2
+    tp = xp * xp + y2z2
+    tn = xn * xn + y2z2
+    ip = 1.0 / (tp * torch.sqrt(tp))
+    inn = 1.0 / (tn * torch.sqrt(tn))
+    ex = k * (xp * ip - xn * inn)
+    eyz = k * (ip - inn)
+    x2z2 = x * x + z2
+    d1 = h - y
+    d2 = -h - y
+    t1 = x2z2 + d1 * d1
+    t2 = x2z2 + d2 * d2
+    r1 = 1.0 / (t1 * torch.sqrt(t1))
+    r2 = 1.0 / (t2 * torch.sqrt(t2))
+    common = -ex * x - eyz * z2
+    dot1 = common + eyz * y * d1
+    dot2 = common + eyz * y * d2
+    return strength * (dot1 * r1 - dot2 * r2)
+
+
+def calibrated_log_likelihood(particles: torch.Tensor, origin: torch.Tensor, lo: torch.Tensor, inv: torch.Tensor,
+                              cells: torch.Tensor, stride: int, table: torch.Tensor,
+                              reading: torch.Tensor) -> torch.Tensor:
+    """(N, M) float32 log-likelihoods of the calibrated model (``kernels.lookup._calibrated_ll_one``).
+
+    Args:
+        particles: (N, 2, M) float32 target hypotheses, mm.
+        origin: (N, 2) float32 the carriage, mm (offsets = particle − carriage).
+        lo: (N,) float32 each grid's first coordinate, mm.
+        inv: (N,) float32 each grid's inverse step, 1/mm.
+        cells: (N,) int64 each grid's cells per axis n1.
+        stride: the row stride of ``table`` (the pool's largest n1); the last row is "outside".
+        table: (N, stride² + 1, 8) float32 bilinear coefficients.
+        reading: (N,) float32 readings, V.
+    """
+    fx = (particles[:, 0] - origin[:, 0:1] - lo[:, None]) * inv[:, None]
+    fy = (particles[:, 1] - origin[:, 1:2] - lo[:, None]) * inv[:, None]
+    n1f = cells.to(torch.float32)[:, None]
+    top = (cells - 1)[:, None]
+    ix = torch.minimum(torch.clamp(fx, min=-1.0).clamp(max=n1f + 1).to(torch.int64), top)
+    iy = torch.minimum(torch.clamp(fy, min=-1.0).clamp(max=n1f + 1).to(torch.int64), top)
+    tx = fx - ix.to(torch.float32)
+    ty = fy - iy.to(torch.float32)
+    inside = (fx >= 0) & (fx <= n1f) & (fy >= 0) & (fy <= n1f)
+    rows = torch.where(inside, ix * stride + iy, stride * stride)
+    coef = torch.gather(table, 1, rows[:, :, None].expand(-1, -1, 8))
+    txy = tx * ty
+    mean = coef[..., 0] + coef[..., 1] * tx + coef[..., 2] * ty + coef[..., 3] * txy
+    std = coef[..., 4] + coef[..., 5] * tx + coef[..., 6] * ty + coef[..., 7] * txy
+    z = (reading[:, None] - mean) / std
+    return (-0.5 * z) * z - torch.log(std)
+
+
+def analytic_log_likelihood(particles: torch.Tensor, origin: torch.Tensor, dip: tuple[torch.Tensor, ...],
+                            scale: torch.Tensor, saturation: torch.Tensor, noise: torch.Tensor,
+                            reading: torch.Tensor) -> torch.Tensor:
+    """(N, M) float32 log-likelihoods of the analytic model (mean = the physics, saturated; std G·σ_s; the
+    constant −log σ dropped), as ``AnalyticSensorModel.log_likelihood`` on float32 offsets.
+
+    ``dip`` = (h, z2, k, strength), each (N,) float32; ``scale`` (N,) float32 s·G; ``saturation``,
+    ``noise`` (N,) float32 V_sat and G·σ_s; ``reading`` (N,) float32, V.
+    """
+    h, z2, k, strength = (d[:, None] for d in dip)
+    x = particles[:, 0] - origin[:, 0:1]
+    y = particles[:, 1] - origin[:, 1:2]
+    sat = saturation[:, None]
+    mean = torch.clamp(dipole_difference(x, y, h, z2, k, strength) * scale[:, None], min=-sat, max=sat)
+    z = (reading[:, None] - mean) / noise[:, None]
+    return (-0.5 * z) * z
+
+
+def resample(ll: torch.Tensor, particles: torch.Tensor, u0: torch.Tensor, jx: torch.Tensor, jy: torch.Tensor,
+             normal_table: torch.Tensor, half: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Systematic resampling, jitter and clip of N clouds (``kernels.filter._resample_one``); returns the
+    new (N, 2, M) float32 particles and the (N, M) int64 resampling indices.
+
+    ``w = exp(ll − max)`` (float32; all 1 where the max is not finite), ``cum = cumsum(w / Σw)``
+    normalised by its last entry (float64), ``idx = min(searchsorted(cum, (U + j)/M, right), M − 1)``,
+    then ``clip(particle[idx] + table[jitter], ±H)``.
+
+    Args:
+        ll: (N, M) float32 log-likelihoods.
+        particles: (N, 2, M) float32.
+        u0: (N,) float64 offsets U in [0, 1).
+        jx: (N, M) int64 normal-table indices of the x jitter.
+        jy: (N, M) int64 those of the y jitter.
+        normal_table: (65536,) float32.
+        half: (N,) float32 the box half-width H, mm.
+    """
+    m = ll.shape[1]
+    top = ll.max(dim=1, keepdim=True).values
+    finite = torch.isfinite(top)
+    w = torch.where(finite, torch.exp(ll - torch.where(finite, top, torch.zeros_like(top))), torch.ones_like(ll))
+    w64 = w.to(torch.float64)
+    cum = torch.cumsum(w64 / w64.sum(dim=1, keepdim=True), dim=1)
+    cum = cum / cum[:, -1:]
+    ptr = (u0[:, None] + torch.arange(m, device=ll.device, dtype=torch.float64)[None, :]) / m
+    idx = torch.clamp(torch.searchsorted(cum, ptr, right=True), max=m - 1)
+    h = half[:, None]
+    x = torch.clamp(torch.gather(particles[:, 0], 1, idx) + normal_table[jx], min=-h, max=h)
+    y = torch.clamp(torch.gather(particles[:, 1], 1, idx) + normal_table[jy], min=-h, max=h)
+    return torch.stack([x, y], dim=1), idx
+
+
+def statistics(particles: torch.Tensor, centre: torch.Tensor, scale: torch.Tensor
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Mean (N, 2) and population covariance (N, 2, 2), float64, and the (N, 64) float64 histogram counts
+    of N unweighted clouds (``kernels.stats``): cells of ``((p − centre)/scale + ½)·8`` in float32,
+    truncated, clipped to [0, 7]; ``centre`` (N, 2) float32 the carriage, ``scale`` (N,) float32 2H.
+    """
+    p = particles.to(torch.float64)
+    mean = p.mean(dim=2)
+    d = p - mean[:, :, None]
+    m = p.shape[2]
+    cxx = (d[:, 0] * d[:, 0]).sum(dim=1) / m
+    cxy = (d[:, 0] * d[:, 1]).sum(dim=1) / m
+    cyy = (d[:, 1] * d[:, 1]).sum(dim=1) / m
+    cov = torch.stack([torch.stack([cxx, cxy], dim=1), torch.stack([cxy, cyy], dim=1)], dim=1)
+    fb = float(HIST_BINS)
+    s = scale[:, None]
+    a = torch.clamp(((particles[:, 0] - centre[:, 0:1]) / s + 0.5) * fb, min=-1.0, max=fb).to(torch.int64)
+    b = torch.clamp(((particles[:, 1] - centre[:, 1:2]) / s + 0.5) * fb, min=-1.0, max=fb).to(torch.int64)
+    cell = a.clamp(0, HIST_BINS - 1) * HIST_BINS + b.clamp(0, HIST_BINS - 1)
+    counts = torch.zeros(p.shape[0], HIST_BINS * HIST_BINS, dtype=torch.float64, device=p.device)
+    counts = counts.scatter_add(1, cell, torch.ones_like(cell, dtype=torch.float64))
+    return mean, cov, counts
+
+
+def belief_observation(carriage: torch.Tensor, reading: torch.Tensor, mean: torch.Tensor, cov: torch.Tensor,
+                       hist: torch.Tensor, n_obs: torch.Tensor, max_obs: int, half: torch.Tensor,
+                       noise: torch.Tensor, saturation: torch.Tensor, success_mm: float,
+                       descriptor: torch.Tensor) -> torch.Tensor:
+    """(N, 81) float32 belief observations (layout: :mod:`electroloc_gym.core.observation`), float64
+    arithmetic then a float32 cast, as ``kernels.observation.belief_observation_rows``.
+    """
+    h = half
+    c00, c11, c01 = cov[:, 0, 0], cov[:, 1, 1], cov[:, 0, 1]
+    sx = torch.sqrt(torch.clamp(c00, min=0.0))
+    sy = torch.sqrt(torch.clamp(c11, min=0.0))
+    sxy = sx * sy
+    rho = torch.where(sxy > 1e-12, c01 / torch.clamp(sxy, min=1e-12), torch.zeros_like(sxy))
+    spread = torch.sqrt(torch.clamp(c00 + c11, min=0.0))
+    cols = [carriage[:, 0] / h, carriage[:, 1] / h, reading / saturation, torch.tanh(reading / (3.0 * noise)),
+            (mean[:, 0] - carriage[:, 0]) / (2.0 * h), (mean[:, 1] - carriage[:, 1]) / (2.0 * h), sx / h, sy / h,
+            rho, spread / h, torch.log10(torch.clamp(spread, min=1e-6) / success_mm), n_obs.to(torch.float64) / max_obs]
+    scalars = torch.clamp(torch.stack(cols, dim=1), -1.0, 1.0).to(torch.float32)
+    return torch.cat([scalars, hist.to(torch.float32), descriptor], dim=1)
+
+
+def raw_observation(carriage: torch.Tensor, reading: torch.Tensor, half: torch.Tensor,
+                    saturation: torch.Tensor) -> torch.Tensor:
+    """(N, 3) float32 ``clip([x/H, y/H, Φ/V_sat], −1, 1)`` (:func:`electroloc_gym.core.observation.raw_observation`)."""
+    cols = torch.stack([carriage[:, 0] / half, carriage[:, 1] / half, reading / saturation], dim=1)
+    return torch.clamp(cols, -1.0, 1.0).to(torch.float32)

@@ -1,0 +1,194 @@
+"""Reset and step of N ElectroLoc-v0 envs as tensor operations on one device (the torch core).
+
+The state is a dict of tensors (:func:`empty_state`); :func:`begin_episodes`, :func:`observe` and
+:func:`step` are pure functions of it, with no host synchronisation — no ``.item()``, no transfer, no
+Python loop over envs, no branch on tensor values: which envs reset, which are in the box, which
+resample which particle are all masks and ``torch.where``. ``torch.compile(step, fullgraph=True)``
+captures a whole step in one graph (tested).
+
+One step, as :mod:`electroloc_gym.core.step` with ``autoreset="next_step"``: the envs whose episode
+ended at the last step start a new one (their draws: condition, calibration, target, start, particles;
+reward 0, flags false, the action ignored); the others move by their commanded move, truncated at the
+walls; every env takes one reading and fuses it (:mod:`.filter`); reward −1, terminated when
+√trace Σ ≤ the success spread, truncated at the reading cap (or ``max_episode_steps``).
+
+Every draw is the env's counter-based stream (:mod:`.rng`) at (key, episode, reading index): the
+reading's noise and the resampling offset, the jitter (2M table normals), and at a reset the
+condition (``condition="random"``), the target (``randomize_target``), the start (2 uniforms), the
+particles (2M uniforms) and the calibration. A reset's draws are computed for every env and kept where
+the env resets (the price of no host synchronisation: about one reset's work per env per step).
+"""
+
+from __future__ import annotations
+
+import torch
+
+from electroloc_gym.torch_core import filter as F
+from electroloc_gym.torch_core.calibration import calibration_tables
+from electroloc_gym.torch_core.consts import TorchConsts
+from electroloc_gym.torch_core.rng import STREAMS, bits32, normal_pair_indices, stream_key, uniform24, uniform53
+
+__all__ = ["empty_state", "begin_episodes", "observe", "step", "observation", "info", "State"]
+
+State = dict[str, torch.Tensor]
+
+
+def empty_state(c: TorchConsts, num_envs: int) -> State:
+    """The state of ``num_envs`` envs before their first reset (keys 0; call :func:`begin_episodes`)."""
+    n, m, dev = num_envs, c.n_particles, c.device
+    i64 = dict(dtype=torch.int64, device=dev)
+    f64 = dict(dtype=torch.float64, device=dev)
+    s1 = c.grid_n - 1
+    return {
+        "k0": torch.zeros(n, **i64), "k1": torch.zeros(n, **i64), "episode": torch.full((n,), -1, **i64),
+        "cond": torch.zeros(n, **i64), "position_mm": torch.zeros(n, 2, **f64), "target_mm": torch.zeros(n, 2, **f64),
+        "particles_mm": torch.zeros(n, 2, m, dtype=torch.float32, device=dev),
+        "table": torch.zeros(n, s1 * s1 + 1 if c.calibrated else 1, 8, dtype=torch.float32, device=dev),
+        "reading_V": torch.zeros(n, **f64), "n_observations": torch.zeros(n, **i64), "elapsed": torch.zeros(n, **i64),
+        "mean_mm": torch.zeros(n, 2, **f64), "cov_mm2": torch.zeros(n, 2, 2, **f64),
+        "counts": torch.zeros(n, F.HIST_BINS * F.HIST_BINS, **f64),
+        "done": torch.zeros(n, dtype=torch.bool, device=dev),
+    }
+
+
+def _keep(mask: torch.Tensor, new: torch.Tensor, old: torch.Tensor) -> torch.Tensor:
+    """``new`` where ``mask`` (N,) else ``old`` (broadcast over the trailing dims)."""
+    return torch.where(mask.reshape(mask.shape + (1,) * (new.dim() - 1)), new, old)
+
+
+def begin_episodes(c: TorchConsts, s: State, mask: torch.Tensor) -> State:
+    """The envs of ``mask`` (N,) bool start a new episode (the reset draws; no reading yet)."""
+    s = dict(s)
+    ep = torch.where(mask, s["episode"] + 1, s["episode"])
+    zero = torch.zeros_like(ep)
+
+    def key(name: str) -> torch.Tensor:
+        return stream_key(s["k0"], s["k1"], ep, zero, STREAMS[name])
+
+    if c.pool > 1:
+        cond = (bits32(key("condition"), 1)[:, 0] * c.pool) >> 32
+    else:
+        cond = zero
+    start = c.start_half_mm[cond][:, None]
+    if c.randomize_target:
+        target = -start + 2.0 * start * uniform53(key("target"), 2)
+    else:
+        target = c.target_mm[cond]
+    position = -start + 2.0 * start * uniform53(key("start"), 2)
+    m = c.n_particles
+    h = c.half_mm[cond][:, None]
+    u = uniform24(key("particles"), 2 * m)
+    particles = (-h + 2.0 * h * u).to(torch.float32).reshape(-1, 2, m)
+    s["episode"] = ep
+    s["cond"] = torch.where(mask, cond, s["cond"])
+    s["target_mm"] = _keep(mask, target, s["target_mm"])
+    s["position_mm"] = _keep(mask, position, s["position_mm"])
+    s["particles_mm"] = _keep(mask, particles, s["particles_mm"])
+    if c.calibrated:
+        s["table"] = _keep(mask, calibration_tables(c, s["cond"], s["k0"], s["k1"], ep), s["table"])
+    s["n_observations"] = torch.where(mask, zero, s["n_observations"])
+    s["elapsed"] = torch.where(mask, zero, s["elapsed"])
+    return s
+
+
+def true_reading_V(c: TorchConsts, s: State) -> torch.Tensor:
+    """(N,) float64 noise-free, unsaturated readings of the true targets (the physics in float64)."""
+    k = s["cond"]
+    off = s["target_mm"] - s["position_mm"]
+    delta = F.dipole_difference(off[:, 0], off[:, 1], c.dip_h[k], c.dip_z2[k], c.dip_k[k], c.dip_strength[k])
+    return delta * c.dip_scale[k]
+
+
+def log_likelihood(c: TorchConsts, s: State, particles: torch.Tensor, reading: torch.Tensor) -> torch.Tensor:
+    """(N, M) float32 log-likelihoods of the readings (N,) V under each env's sensor model."""
+    k = s["cond"]
+    origin = s["position_mm"].to(torch.float32)
+    r32 = reading.to(torch.float32)
+    if c.calibrated:
+        return F.calibrated_log_likelihood(particles, origin, c.grid_lo_mm[k], c.grid_inv_mm[k],
+                                           c.grid_points[k] - 1, c.grid_n - 1, s["table"], r32)
+    dip = tuple(d[k].to(torch.float32) for d in (c.dip_h, c.dip_z2, c.dip_k, c.dip_strength))
+    return F.analytic_log_likelihood(particles, origin, dip, c.dip_scale[k].to(torch.float32),
+                                     c.saturation_V[k].to(torch.float32), c.noise_V[k].to(torch.float32), r32)
+
+
+def observe(c: TorchConsts, s: State, mask: torch.Tensor | None = None) -> State:
+    """Every env (or those of ``mask``) takes a noisy reading and fuses it into its belief."""
+    s = dict(s)
+    k = s["cond"]
+    t = s["n_observations"]
+
+    def key(name: str) -> torch.Tensor:
+        return stream_key(s["k0"], s["k1"], s["episode"], t + 1, STREAMS[name])
+
+    table = c.normal_table
+    noise_idx, _ = normal_pair_indices(key("noise"), 1)
+    sat = c.saturation_V[k]
+    reading = torch.clamp(true_reading_V(c, s) + table[noise_idx[:, 0]].to(torch.float64) * c.noise_V[k],
+                          min=-sat, max=sat)
+    u0 = uniform53(key("resample"), 1)[:, 0]
+    jx, jy = normal_pair_indices(key("jitter"), c.n_particles)
+    ll = log_likelihood(c, s, s["particles_mm"], reading)
+    half = c.half_mm[k]
+    particles, _ = F.resample(ll, s["particles_mm"], u0, jx, jy, table, half.to(torch.float32))
+    mean, cov, counts = F.statistics(particles, s["position_mm"].to(torch.float32), (2.0 * half).to(torch.float32))
+    new = {"reading_V": reading, "n_observations": t + 1, "particles_mm": particles, "mean_mm": mean, "cov_mm2": cov,
+           "counts": counts}
+    for name, value in new.items():
+        s[name] = value if mask is None else _keep(mask, value, s[name])
+    return s
+
+
+def spread_mm(s: State) -> torch.Tensor:
+    """(N,) √trace Σ of each belief, mm."""
+    cov = s["cov_mm2"]
+    return torch.sqrt(torch.clamp(cov[:, 0, 0] + cov[:, 1, 1], min=0.0))
+
+
+def observation(c: TorchConsts, s: State) -> torch.Tensor:
+    """(N, obs_dim) float32 observations (the "belief" or "raw" layout)."""
+    k = s["cond"]
+    half = c.half_mm[k]
+    if not c.belief_obs:
+        return F.raw_observation(s["position_mm"], s["reading_V"], half, c.saturation_V[k])
+    return F.belief_observation(s["position_mm"], s["reading_V"], s["mean_mm"], s["cov_mm2"],
+                                s["counts"] / c.n_particles, s["n_observations"], c.max_observations, half,
+                                c.noise_V[k], c.saturation_V[k], c.success_spread_mm, c.descriptor[k])
+
+
+def info(c: TorchConsts, s: State) -> dict[str, torch.Tensor]:
+    """The info tensors (the numba core's numeric ``INFO_KEYS``; the condition as its pool index)."""
+    spread = spread_mm(s)
+    d = s["mean_mm"] - s["target_mm"]
+    return {"position_mm": s["position_mm"], "estimate_mm": s["mean_mm"],
+            "error_mm": torch.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]), "spread_mm": spread,
+            "reading_V": s["reading_V"], "n_observations": s["n_observations"],
+            "success": spread <= c.success_spread_mm, "condition_index": s["cond"]}
+
+
+def moves_of(c: TorchConsts, actions: torch.Tensor) -> torch.Tensor:
+    """(N, 2) float64 commanded moves (mm) of the actions: continuous clip(a, ±1)·10 mm, or a discrete index."""
+    if c.discrete:
+        return c.moves_mm[actions.to(torch.int64).reshape(-1)]
+    return torch.clamp(actions.to(torch.float64), -1.0, 1.0) * c.max_step_mm
+
+
+def step(c: TorchConsts, s: State, actions: torch.Tensor
+         ) -> tuple[State, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """One step of every env (module docstring): (state, observations, rewards, terminated, truncated)."""
+    reset = s["done"]
+    moving = ~reset
+    s = begin_episodes(c, s, reset)
+    h = c.half_mm[s["cond"]][:, None]
+    moved = torch.clamp(s["position_mm"] + moves_of(c, actions), min=-h, max=h)
+    s["position_mm"] = _keep(moving, moved, s["position_mm"])
+    s = observe(c, s)
+    s["elapsed"] = s["elapsed"] + moving.to(torch.int64)
+    terminated = (spread_mm(s) <= c.success_spread_mm) & moving
+    truncated = ~terminated & (s["n_observations"] >= c.max_observations)
+    if c.max_episode_steps is not None:
+        truncated = truncated | (s["elapsed"] >= c.max_episode_steps)
+    truncated = truncated & moving
+    s["done"] = terminated | truncated
+    rewards = torch.where(moving, -1.0, 0.0).to(torch.float64)
+    return s, observation(c, s), rewards, terminated, truncated
