@@ -6,9 +6,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from electroloc_gym.agentspec import AgentSpec
-
 import electroloc_gym  # noqa: F401  (registers the ids)
+from electroloc_gym.agentspec import AgentSpec
 from electroloc_gym.baselines.agent import (
     MAX_STEP_MM,
     BaselineAgent,

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 import pytest
 
 from electroloc_gym.bench.agents import bench_env_kwargs
