@@ -118,7 +118,8 @@ def test_presets_at_one_thirty_second() -> None:
 
 
 # ---- the CLI --------------------------------------------------------------------------------
-@pytest.mark.parametrize(("text", "value"), [("1/32", QUIET), ("0.03125", QUIET), (" 1/2 ", 0.5), ("1e-3", 1e-3), ("1", 1.0), ("1e-4", 1e-4)])
+@pytest.mark.parametrize(("text", "value"), [("1/32", QUIET), ("0.03125", QUIET), (" 1/2 ", 0.5), ("1e-3", 1e-3),
+                                            ("1", 1.0), ("1e-4", 1e-4)])
 def test_parse_noise_factor(text: str, value: float) -> None:
     assert parse_noise_factor(text) == pytest.approx(value)
 
