@@ -24,6 +24,23 @@ distractor is within the sensor's reach) and every footprint — the disc of the
 its centre; all tops are at the same depth, so disjoint footprints are disjoint bodies — at least
 ``gap_mm`` from the target's and from the other distractors'. Explicit layouts
 (:class:`DistractorSet`) are validated by the same rule (:meth:`DistractorSet.validate`).
+
+**A draw that always finishes.** Centres are drawn by rejection, object after object; a set placed
+early can leave no room for a later object, so when ``max_attempts`` centres in a row fail, the draw
+falls back to a construction that cannot fail where it is admitted: *columns*
+(:func:`~electroloc_gym.distractor_layout.column_layout`).
+With S = 2·r_max + gap (two of the largest objects side by side) and T = r_target + r_max + gap,
+columns at least S apart never conflict, and in one column the most centres spaced ≥ S in [−h, h] that
+avoid the interval the target's disc of radius T cuts out of it is what the greedy bottom-up sweep
+places (the 1-D interval argument). Over a family of column positions (and the same with rows) the
+best one is taken; the episode's objects take a random subset of its centres. Whether every target
+position the env can draw admits ``count`` objects is checked once at construction
+(:meth:`DistractorDraw.check_fits`): at the fixed target itself, or — for a random target in a box —
+at a grid of targets with the disc grown by the grid's half-diagonal m, since a layout valid for the
+grid point's disc of radius T + m is valid for every target within m of it, and the count is monotone
+in the blocked set. No packing library solves this per-episode, per-target bound, so it is written
+here. A draw that succeeds by rejection is untouched: the fallback is reached only where the draw
+used to fail.
 """
 
 from __future__ import annotations
@@ -37,6 +54,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym.conditions import Condition
+from electroloc_gym.distractor_layout import EDGE_MM, column_layout, least_capacity
 from electroloc_gym.scene import SHAPES, STOCK_DIAMETERS_MM, Scene, SCENE_MATERIAL_CONDUCTIVITY_uScm, SceneObject
 from electroloc_gym.sensor import expected_reading
 
@@ -73,7 +91,8 @@ class DistractorDraw:
         materials: materials drawn uniformly per object (:data:`~electroloc_gym.scene.SCENE_MATERIAL_CONDUCTIVITY_uScm`:
             conductors, insulators and the weakly conducting agar).
         gap_mm: least horizontal clearance between footprints (target and distractors), mm (≥ 0).
-        max_attempts: rejection-sampling attempts per object before the draw is refused (1–100000).
+        max_attempts: rejection-sampling attempts per object before the draw falls back to the column
+            construction (1–100000; module docstring).
     """
 
     count: int | tuple[int, ...]
@@ -119,14 +138,17 @@ class DistractorDraw:
         diameter, material (one uniform index each), then centres uniform in the allowed box until one clears
         the target and the objects placed so far by ``gap_mm``.
 
+        Where ``max_attempts`` centres in a row fail, the column construction places the set instead
+        (module docstring); it always succeeds where :meth:`check_fits` admits the draw.
+
         Raises:
-            ValueError: no free place found in ``max_attempts`` (too many or too large objects for the box).
+            ValueError: not even the column construction fits ``count`` objects beside this target.
         """
         h = condition.allowed_half_width_mm
         placed: list[SceneObject] = []
         discs = [(np.asarray(target_xy_mm, dtype=np.float64), condition.target.radius_mm)]
         count = self.count[int(rng.integers(len(self.count)))] if isinstance(self.count, tuple) else self.count
-        for n in range(count):
+        for _ in range(count):
             shape = self.shapes[int(rng.integers(len(self.shapes)))]
             diameter = self.diameters_mm[int(rng.integers(len(self.diameters_mm)))]
             material = self.materials[int(rng.integers(len(self.materials)))]
@@ -136,12 +158,63 @@ class DistractorDraw:
                 if all(np.hypot(*(xy - c)) >= radius + r + self.gap_mm for c, r in discs):
                     break
             else:
-                raise ValueError(f"could not place distractor {n + 1} of {count} ({shape}, {diameter} mm) "
-                                 f"clear of the others by gap_mm={self.gap_mm} in the ±{h} mm box after "
-                                 f"{self.max_attempts} attempts: ask for fewer or smaller distractors")
+                return self._fallback(condition, target_xy_mm, rng, count, placed, (shape, diameter, material))
             placed.append(SceneObject.of_material(shape, (float(xy[0]), float(xy[1])), diameter, material))
             discs.append((xy, radius))
         return DistractorSet(tuple(placed))
+
+    def _clearances_mm(self, condition: Condition) -> tuple[float, float]:
+        """(S, T): the centre distance two of the largest objects need, and one of them and the target, mm
+        (each a hair more, :data:`~electroloc_gym.distractor_layout.EDGE_MM`, so that rounding in the sums
+        never brings two centres closer).
+        """
+        r_max = max(self.diameters_mm) / 2.0
+        return 2.0 * r_max + self.gap_mm + EDGE_MM, condition.target.radius_mm + r_max + self.gap_mm + EDGE_MM
+
+    def _fallback(self, condition: Condition, target_xy_mm: ArrayLike, rng: np.random.Generator, count: int,
+                  placed: list[SceneObject], current: tuple[str, float, str]) -> DistractorSet:
+        """The column construction, reached when rejection fails: the objects keep their drawn shape,
+        diameter and material (the rest are drawn now, as in the loop), and take ``count`` of the best
+        column layout's centres, a random subset.
+        """
+        kinds = [(o.shape, o.diameter_mm, o.material) for o in placed] + [current]
+        while len(kinds) < count:
+            kinds.append((self.shapes[int(rng.integers(len(self.shapes)))],
+                          self.diameters_mm[int(rng.integers(len(self.diameters_mm)))],
+                          self.materials[int(rng.integers(len(self.materials)))]))
+        t = np.asarray(target_xy_mm, dtype=np.float64).reshape(2)
+        spacing, clearance = self._clearances_mm(condition)
+        nodes = column_layout(condition.allowed_half_width_mm, spacing, clearance, float(t[0]), float(t[1]))
+        if len(nodes) < count:
+            raise ValueError(f"could not place {count} distractors of up to {max(self.diameters_mm):g} mm clear of "
+                             f"the target at ({t[0]:.4g}, {t[1]:.4g}) mm by gap_mm={self.gap_mm:g} in the "
+                             f"±{condition.allowed_half_width_mm:g} mm box: at most {len(nodes)} fit there")
+        pick = rng.choice(len(nodes), size=count, replace=False)
+        return DistractorSet(tuple(SceneObject.of_material(shape, nodes[int(j)], diameter, material)
+                                   for (shape, diameter, material), j in zip(kinds, pick)))
+
+    def check_fits(self, condition: Condition, target_half_width_mm: float | None = None) -> None:
+        """Refuse a draw that could fail: ``max_count`` objects must fit beside every target the env can
+        draw — the condition's fixed target (``target_half_width_mm=None``) or any target uniform in
+        ±``target_half_width_mm`` (module docstring: a grid with a grown disc).
+
+        Raises:
+            ValueError: one line naming the count, the sizes, the condition and the most that always fit.
+        """
+        if self.max_count == 0:
+            return
+        spacing, clearance = self._clearances_mm(condition)
+        h = condition.allowed_half_width_mm
+        if target_half_width_mm is None:
+            fits = len(column_layout(h, spacing, clearance, *condition.target_xy_mm))
+            where = f"the target at {condition.target_xy_mm} mm"
+        else:
+            fits = least_capacity(h, spacing, clearance, float(target_half_width_mm))
+            where = f"a random target in ±{float(target_half_width_mm):g} mm"
+        if fits < self.max_count:
+            raise ValueError(f"count (distractors) {self.max_count} of up to {max(self.diameters_mm):g} mm with "
+                             f"gap_mm={self.gap_mm:g} cannot always be placed in condition {condition.name!r} "
+                             f"beside {where}: at most {fits} always fit; ask for fewer or smaller distractors")
 
 
 @dataclass(frozen=True)
@@ -272,3 +345,4 @@ def _resolve(value: Any) -> DistractorDraw | DistractorSet:
         return DistractorSet(tuple(objects))
     raise ValueError(f"distractors must be a count 0–{MAX_DISTRACTORS} (or a list of counts), a DistractorDraw, "
                      f"a DistractorSet, a dict of DistractorDraw's fields or a sequence of SceneObject, got {value!r}")
+

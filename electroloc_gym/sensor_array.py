@@ -196,7 +196,8 @@ class SensorLayout:
         if far.size:
             i = int(far[0])
             what = f"electrode {i % 2} of pair {i // 2}" if i < n_electrodes else "an emitter"
-            raise _error(f"{what} at {tuple(points[i].round(3))} mm is {r[i]:.1f} mm from the carriage centre, "
+            x, y = (float(v) for v in points[i])
+            raise _error(f"{what} at ({x:.4g}, {y:.4g}) mm is {float(r[i]):.4g} mm from the carriage centre, "
                          f"outside the carriage's reach (≤ {self.reach_mm:g} mm)")
         d = np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
         d[np.diag_indices_from(d)] = np.inf

@@ -100,3 +100,12 @@ def test_schema_refuses_a_far_flag_that_contradicts_the_error() -> None:
             TrialRecord.from_json({**rec, key: None})
     old = TrialRecord.from_json({k: v for k, v in rec.items() if k not in ("distractors", "far_success")})
     assert old.distractors == 0 and old.far_success and old.readings == 5
+
+
+def test_a_bench_of_eight_distractors_always_finishes(tmp_path) -> None:
+    """Seed 0's first 40 trials include three draws that rejection alone cannot place."""
+    cfg = BenchConfig(agents=("rnd-wlk",), distractors=8, conditions=("fresh-steel-12.7",), trials=40, seed=0,
+                      n_particles=100, max_observations=2)
+    run_benchmark(cfg, tmp_path, backend="serial", progress=False, log=None)
+    recs = [json.loads(x) for x in (tmp_path / "trials.jsonl").read_text().splitlines()]
+    assert len(recs) == 40 and all(r["distractors"] == 8 for r in recs)

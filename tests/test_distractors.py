@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from electroloc_gym import physics
-from electroloc_gym.conditions import get_condition
+from electroloc_gym.conditions import PRESET_NAMES, get_condition
+from electroloc_gym.distractor_layout import column_layout
 from electroloc_gym.distractors import (
     MAX_DISTRACTORS,
     DistractorDraw,
@@ -125,9 +128,11 @@ def test_bad_inputs_are_one_clear_error() -> None:
         DistractorDraw(count=1, diameters_mm=(0.0,))
     with pytest.raises(ValueError, match="gap_mm"):
         DistractorDraw(count=1, gap_mm=-1.0)
-    with pytest.raises(ValueError, match="could not place distractor"):                   # no room in the box
-        DistractorDraw(count=8, diameters_mm=(38.1,), gap_mm=10.0, max_attempts=50).draw(
+    with pytest.raises(ValueError, match="could not place 8 distractors .* at most 4 fit there"):   # no room
+        DistractorDraw(count=8, diameters_mm=(38.1,), gap_mm=20.0, max_attempts=50).draw(
             COND, (0.0, 0.0), np.random.default_rng(0))
+    with pytest.raises(ValueError, match=r"count \(distractors\) 8 .* at most 4 always fit"):
+        DistractorDraw(count=8, diameters_mm=(38.1,), gap_mm=20.0).check_fits(COND)
     with pytest.raises(ValueError, match="SceneObject"):
         DistractorSet(("sphere",))
     with pytest.raises(ValueError, match="distractors must be"):
@@ -142,3 +147,92 @@ def test_resolve_distractors_forms() -> None:
     assert isinstance(layout, DistractorSet) and layout.objects[0].radius_mm == 5.0
     with pytest.raises(ValueError, match="distractors"):
         resolve_distractors({"cnt": 1})
+
+
+def _rejection_only(draw: DistractorDraw, condition, target, rng):
+    """The placement by rejection alone (None where it gives up): what a draw was before its fallback."""
+    h = condition.allowed_half_width_mm
+    placed, discs = [], [(np.asarray(target, dtype=np.float64), condition.target.radius_mm)]
+    count = draw.count[int(rng.integers(len(draw.count)))] if isinstance(draw.count, tuple) else draw.count
+    for _ in range(count):
+        shape = draw.shapes[int(rng.integers(len(draw.shapes)))]
+        diameter = draw.diameters_mm[int(rng.integers(len(draw.diameters_mm)))]
+        material = draw.materials[int(rng.integers(len(draw.materials)))]
+        for _ in range(draw.max_attempts):
+            xy = rng.uniform(-h, h, size=2)
+            if all(np.hypot(*(xy - c)) >= diameter / 2 + r + draw.gap_mm for c, r in discs):
+                break
+        else:
+            return None
+        placed.append(SceneObject.of_material(shape, (float(xy[0]), float(xy[1])), diameter, material))
+        discs.append((xy, diameter / 2))
+    return DistractorSet(tuple(placed))
+
+
+def _assert_clear(layout: DistractorSet, condition, target, gap_mm: float) -> None:
+    layout.validate(condition, target, gap_mm=gap_mm)
+
+
+def test_every_count_and_seed_on_the_fixed_target_draws_and_rejection_draws_are_unchanged() -> None:
+    """D = 8 at the presets' fixed target fails by rejection for some seeds: those fall back, all others
+    are the rejection draw bit for bit."""
+    fell_back = 0
+    for name in PRESET_NAMES[:3]:
+        c = get_condition(name)
+        for d in (7, 8):
+            draw = DistractorDraw(count=d, max_attempts=200)
+            draw.check_fits(c)
+            for seed in range(40):
+                got = draw.draw(c, c.target_xy_mm, np.random.default_rng(seed))
+                old = _rejection_only(draw, c, c.target_xy_mm, np.random.default_rng(seed))
+                assert len(got) == d
+                _assert_clear(got, c, c.target_xy_mm, draw.gap_mm)
+                if old is None:
+                    fell_back += 1
+                else:
+                    assert got == old
+    assert fell_back > 0                                   # the fallback was exercised
+
+
+def test_the_fallback_keeps_the_drawn_objects_and_is_deterministic() -> None:
+    draw = DistractorDraw(count=8, max_attempts=1)                  # rejection gives up at once
+    a = draw.draw(COND, (0.0, 0.0), np.random.default_rng(5))
+    assert a == draw.draw(COND, (0.0, 0.0), np.random.default_rng(5)) and len(a) == 8
+    _assert_clear(a, COND, (0.0, 0.0), draw.gap_mm)
+    assert len({o.xy_mm for o in a.objects}) == 8
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(h=st.floats(20.0, 90.0), diameter=st.floats(3.0, 40.0), gap=st.floats(0.0, 12.0),
+       target_radius=st.floats(1.0, 20.0), u=st.floats(-1.0, 1.0), v=st.floats(-1.0, 1.0))
+def test_column_layouts_are_always_clear(h, diameter, gap, target_radius, u, v) -> None:
+    r = diameter / 2
+    spacing, clearance = 2 * r + gap, target_radius + r + gap
+    t = np.array([u * h, v * h])
+    nodes = np.array(column_layout(h, spacing + 1e-9, clearance + 1e-9, *t)).reshape(-1, 2)
+    assert np.all(np.abs(nodes) <= h)
+    assert np.all(np.hypot(*(nodes - t).T) >= clearance)
+    d = np.hypot(*(nodes[:, None] - nodes[None]).transpose(2, 0, 1))
+    assert np.all(d[np.triu_indices(len(nodes), 1)] >= spacing)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(name=st.sampled_from(PRESET_NAMES), count=st.integers(0, 8), seed=st.integers(0, 2**32 - 1),
+       random_target=st.booleans(), small=st.booleans())
+def test_an_admitted_draw_always_finishes(name, count, seed, random_target, small) -> None:
+    """Whatever check_fits admits draws for every seed and every target the env can draw."""
+    c = get_condition(name)
+    draw = DistractorDraw(count=count, diameters_mm=(6.35, 12.7) if small else DistractorDraw(0).diameters_mm,
+                          max_attempts=20)
+    half = c.start_half_width_mm if random_target else None
+    try:
+        draw.check_fits(c, half)
+    except ValueError as exc:
+        assert random_target and count == 8 and not small and "at most 7 always fit" in str(exc)
+        return
+    rng = np.random.default_rng(seed)
+    for _ in range(5):
+        t = rng.uniform(-half, half, size=2) if random_target else np.array(c.target_xy_mm)
+        layout = draw.draw(c, t, rng)
+        assert len(layout) == count
+        _assert_clear(layout, c, t, draw.gap_mm)

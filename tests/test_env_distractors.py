@@ -11,6 +11,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import electroloc_gym  # noqa: F401
 from electroloc_gym.core.localize import LocalizeTask
@@ -98,11 +100,74 @@ def test_count_mix_draws_each_count_and_pads_the_info() -> None:
     env = gym.make_vec("ElectroLoc-v0", num_envs=8, vectorization_mode="vector_entry_point", n_particles=100,
                        distractors=[0, 1, 2], condition="random", randomize_target=True)
     _, info = env.reset(seed=3)
-    xy = info["distractors_mm"]
-    assert xy.shape == (8,) and xy.dtype == object
-    counts = [len(row) for row in xy]
-    assert set(counts) <= {0, 1, 2} and len(set(counts)) >= 2
-    assert all(row.shape == (n, 2) and np.isfinite(row).all() for row, n in zip(xy, counts, strict=True))
+    xy, counts = info["distractors_mm"], info["distractors_count"]
+    assert xy.shape == (8, 2, 2) and xy.dtype == np.float64 and counts.shape == (8,)
+    assert set(counts.tolist()) <= {0, 1, 2} and len(set(counts.tolist())) >= 2
+    for row, n in zip(xy, counts, strict=True):
+        assert np.isfinite(row[:n]).all() and not row[n:].any()
+
+
+def test_a_count_mix_keeps_gymnasiums_sync_vector_env_working() -> None:
+    kw = {"n_particles": 60, "sensor_model": "analytic", "distractors": [0, 1]}
+    sync = gym.make_vec("ElectroLoc-v0", num_envs=3, vectorization_mode="sync", **kw)
+    native = gym.make_vec("ElectroLoc-v0", num_envs=3, vectorization_mode="vector_entry_point", **kw)
+    _, a = sync.reset(seed=[0, 1, 2])
+    _, b = native.reset(seed=[0, 1, 2])
+    np.testing.assert_array_equal(a["distractors_mm"], b["distractors_mm"])
+    np.testing.assert_array_equal(a["distractors_count"], b["distractors_count"])
+
+
+_VARIANTS = [
+    ("ElectroLoc-v0", {"distractors": [0, 1, 2]}),
+    ("ElectroLoc-v0", {"distractors": [0, 8]}),
+    ("ElectroLoc-v0", {"distractors": 3, "condition": "random", "randomize_target": True}),
+    ("ElectroLoc-v0", {"sensor_layout": "ring-8"}),
+    ("ElectroLoc-v0", {"gain_levels": (0.1, 1.0, 10.0)}),
+    ("ElectroLoc-v0", {"distractors": [0, 2], "gain_levels": (0.1, 1.0, 10.0)}),
+    ("ElectroLocUnknownTarget-v0", {"n_particles": 300}),
+]
+
+
+def _shapes(info: dict) -> dict:
+    return {k: np.shape(v) for k, v in info.items() if not k.startswith("_")}
+
+
+@settings(max_examples=12, deadline=None, derandomize=True)
+@given(variant=st.sampled_from(_VARIANTS), seed=st.integers(0, 2**31 - 1))
+def test_info_keys_and_shapes_are_fixed_and_sync_equals_native(variant, seed) -> None:
+    env_id, extra = variant
+    kw = {"n_particles": 60, "sensor_model": "analytic", **extra}
+    sync = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync", **kw)
+    native = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kw)
+    seeds = [seed, seed + 1]
+    _, a = sync.reset(seed=seeds)
+    _, b = native.reset(seed=seeds)
+    sync_shapes, native_shapes = _shapes(a), _shapes(b)
+    assert sync_shapes.keys() == native_shapes.keys()
+    rng = np.random.default_rng(seed)
+    for _ in range(3):                                         # new episodes, other seeds: the same keys and shapes
+        act = rng.uniform(-1, 1, (2,) + native.single_action_space.shape).astype(np.float32)
+        sync.step(act)
+        native.step(act)
+        seeds = [int(x) for x in rng.integers(0, 2**31 - 1, 2)]
+        _, a = sync.reset(seed=seeds)
+        _, b = native.reset(seed=seeds)
+        assert _shapes(a) == sync_shapes and _shapes(b) == native_shapes
+        for k, shape in native_shapes.items():                 # tuples in single envs' infos stack otherwise
+            if sync_shapes[k] == shape and np.asarray(b[k]).dtype.kind in "fiub":
+                np.testing.assert_array_equal(a[k], b[k])
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(count=st.integers(0, 8), seed=st.integers(0, 2**32 - 1))
+def test_every_count_and_seed_resets_single_and_vector_with_autoreset(count, seed) -> None:
+    kw = {"n_particles": 40, "sensor_model": "analytic", "distractors": count, "max_observations": 2}
+    _, info = gym.make("ElectroLoc-v0", **kw).reset(seed=seed)
+    assert count == 0 or info["distractors_count"] == count
+    vec = gym.make_vec("ElectroLoc-v0", num_envs=3, vectorization_mode="vector_entry_point", **kw)
+    vec.reset(seed=seed)
+    for _ in range(8):                                         # the cap of 2 readings: several autoresets
+        vec.step(np.zeros((3, 2), dtype=np.float32))
 
 
 def test_vector_env_equals_single_envs() -> None:
@@ -145,12 +210,14 @@ def test_other_envs_refuse_the_argument() -> None:
         gym.make("ElectroLocGlobal-v0", distractors=1)
 
 
-def test_a_draw_that_cannot_fit_is_one_error_naming_the_argument() -> None:
-    env = gym.make("ElectroLoc-v0", n_particles=50, sensor_model="analytic",
-                   distractors={"count": 8, "diameters_mm": (38.1,), "gap_mm": 10.0, "max_attempts": 20})
-    with pytest.raises(ValueError, match=r"^distractors: could not place distractor") as exc:
-        env.reset(seed=0)
+def test_a_draw_that_cannot_fit_is_one_error_at_construction_naming_the_argument() -> None:
+    with pytest.raises(ValueError, match=r"^distractors: count \(distractors\) 8 .* at most 4 always fit") as exc:
+        gym.make("ElectroLoc-v0", n_particles=50, sensor_model="analytic",
+                 distractors={"count": 8, "diameters_mm": (38.1,), "gap_mm": 20.0})
     assert "\n" not in str(exc.value)
+    with pytest.raises(ValueError, match=r"^distractors: .*random target in ±40 mm: at most 7 always fit"):
+        gym.make("ElectroLoc-v0", distractors=8, randomize_target=True)
+    gym.make("ElectroLoc-v0", n_particles=50, distractors=8).reset(seed=4)       # the fixed target: 8 fit
 
 
 def test_distractors_with_a_sensor_array_are_one_error_and_each_alone_keeps_the_other_off() -> None:

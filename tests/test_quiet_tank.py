@@ -118,7 +118,8 @@ def test_presets_at_one_thirty_second() -> None:
 
 
 # ---- the CLI --------------------------------------------------------------------------------
-@pytest.mark.parametrize(("text", "value"), [("1/32", QUIET), ("0.03125", QUIET), (" 2 ", 2.0), ("1e-3", 1e-3)])
+@pytest.mark.parametrize(("text", "value"), [("1/32", QUIET), ("0.03125", QUIET), (" 1/2 ", 0.5), ("1e-3", 1e-3),
+                                            ("1", 1.0), ("1e-4", 1e-4)])
 def test_parse_noise_factor(text: str, value: float) -> None:
     assert parse_noise_factor(text) == pytest.approx(value)
 
@@ -142,13 +143,20 @@ def test_cli_detect_noise_factor_one_thirty_second() -> None:
         assert row == table_row and row["condition"] == name
 
 
-@pytest.mark.parametrize("bad", ["0", "1/0", "abc", "nan", "inf", "--noise-factor=-1/32"])
+@pytest.mark.parametrize("bad", ["0", "1/0", "abc", "nan", "inf", "--noise-factor=-1/32", "1e-320", "1e-9", "1e308",
+                                 "2", "9/100000"])
 def test_cli_bad_noise_factor_is_one_clear_error(bad: str) -> None:
     args = [bad] if bad.startswith("--") else ["--noise-factor", bad]
     out = run_cli("detect", *args)
     assert out.returncode == 2
-    assert "--noise-factor" in out.stderr and "positive finite number" in out.stderr
-    assert "Traceback" not in out.stderr
+    assert "--noise-factor" in out.stderr and "must be a number in [1/10000, 1]" in out.stderr
+    assert "Traceback" not in out.stderr and out.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("factor", [1e-4, 1e-3, 1 / 32, 0.5, 1.0])
+def test_every_admitted_noise_factor_gives_a_full_table(factor: float) -> None:
+    rows = quiet_tank_table(factor)
+    assert all(math.isfinite(v) for r in rows for v in r.values() if isinstance(v, float))
 
 
 def test_cli_detect_plot_writes_png(tmp_path) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from scipy import stats
@@ -365,3 +366,10 @@ def test_bad_layout_fields_raise_one_clear_error(kwargs: dict, match: str) -> No
     with pytest.raises(ValueError, match=match) as info:
         SensorLayout([[[0.0, 25.0], [0.0, -25.0]]], **kwargs)
     assert str(info.value).startswith("sensor_layout")
+
+
+@pytest.mark.parametrize("coordinate", [1e300, -1e300, 1e20, 150.0])
+def test_a_far_electrode_is_a_short_message_with_the_allowed_reach(coordinate) -> None:
+    with pytest.raises(ValueError, match=r"^sensor_layout: .*outside the carriage's reach \(≤ 100 mm\)$") as exc:
+        gym.make("ElectroLoc-v0", sensor_layout=[[[coordinate, 0.0], [0.0, 0.0]]])
+    assert len(str(exc.value)) < 200 and "\n" not in str(exc.value)
