@@ -51,13 +51,53 @@ REFERENCES = ("min-var", "lookahead")
 COMPARISONS = (("ppo_lstm-raw", "ppo-framestack-raw"), ("ppo", "ppo_lstm-raw"))
 
 
-def read_trials(path: Path) -> list[dict[str, Any]]:
-    """The trial records of one benchmark run's ``trials.jsonl`` (blank lines skipped)."""
-    rows = []
-    with open(path, encoding="utf-8") as fh:
-        for line in fh:
-            if line.strip():
-                rows.append(json.loads(line))
+class ReportError(ValueError):
+    """A results folder the report cannot read (a missing, empty or unreadable file): one line."""
+
+
+#: The most bootstrap replications accepted (each keeps a runs × conditions matrix per replication).
+MAX_REPS = 100_000
+
+
+def _config(bench: Path) -> dict[str, Any]:
+    path = bench / "config.json"
+    try:
+        cfg = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise ReportError(f"{path}: not a readable benchmark config ({type(exc).__name__})") from None
+    if not (isinstance(cfg, dict) and isinstance(cfg.get("conditions"), list) and isinstance(cfg.get("agents"), list)
+            and isinstance(cfg.get("trials"), int) and isinstance(cfg.get("env_id"), str)):
+        raise ReportError(f"{path}: a benchmark config names its conditions, agents, trials and env_id")
+    return cfg
+
+
+def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str, Any]]:
+    """The valid trial records of one benchmark run's ``trials.jsonl``, read through the bench's own
+    record schema (:func:`electroloc_gym.bench.records.load_records` with the run's
+    :class:`~electroloc_gym.bench.schema.RecordRules` from its ``config.json``): a damaged or impossible
+    line — out of range, inconsistent, another run's agent or condition, a duplicate — is left out and
+    named in ``set_aside``.
+
+    Raises:
+        ReportError: the file is missing or holds no valid record.
+    """
+    from electroloc_gym.bench.config import UNKNOWN_ENV_ID
+    from electroloc_gym.bench.records import load_records
+    from electroloc_gym.bench.schema import RecordRules
+    from electroloc_gym.protocol import SUCCESS_SPREAD_MM
+
+    if not path.is_file():
+        raise ReportError(f"{path} is missing")
+    cfg = _config(path.parent)
+    rules = RecordRules(conditions=frozenset(c for c in cfg["conditions"] if isinstance(c, str)),
+                        agents=frozenset(a for a in cfg["agents"] if isinstance(a, str)), trials=cfg["trials"],
+                        success_spread_mm=SUCCESS_SPREAD_MM, shape=cfg["env_id"] == UNKNOWN_ENV_ID)
+    loaded = load_records(path, rules=rules)
+    if set_aside is not None:
+        set_aside.extend(loaded.messages())
+    rows = list(loaded.records.values())
+    if not rows:
+        raise ReportError(f"{path} holds no valid trial record")
     return rows
 
 
@@ -74,16 +114,17 @@ def condition_scores(records: Sequence[dict[str, Any]], conditions: Sequence[str
     return {"readings": np.array(readings), "success": np.array(success)}
 
 
-def collect(results: Path, env_id: str) -> tuple[list[str], dict[str, dict[str, np.ndarray]],
-                                                 dict[str, dict[str, np.ndarray]], dict[str, list[str]]]:
-    """(conditions, learned, baselines, seeds) of one env.
+def collect(results: Path, env_id: str, set_aside: list[str] | None = None) -> tuple[
+        list[str], dict[str, dict[str, np.ndarray]], dict[str, dict[str, np.ndarray]], dict[str, list[str]]]:
+    """(conditions, learned, baselines, seeds) of one env; what was left out is appended to ``set_aside``.
 
     ``learned[algo][metric]`` is a (seeds × conditions) matrix; ``baselines[agent][metric]`` is (1 ×
-    conditions); ``seeds[algo]`` names the runs in row order.
+    conditions); ``seeds[algo]`` names the runs in row order (``seed-<integer>`` folders only).
     """
+    set_aside = [] if set_aside is None else set_aside
     env_dir = results / env_id
     base_path = env_dir / BASELINES_DIR / "bench" / "trials.jsonl"
-    base_rows = read_trials(base_path)
+    base_rows = read_trials(base_path, set_aside)
     conditions = sorted({r["condition"] for r in base_rows})
     baselines: dict[str, dict[str, np.ndarray]] = {}
     for agent in sorted({r["agent"] for r in base_rows}):
@@ -93,9 +134,12 @@ def collect(results: Path, env_id: str) -> tuple[list[str], dict[str, dict[str, 
     seeds: dict[str, list[str]] = {}
     for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
         runs = sorted(p for p in algo_dir.glob("seed-*") if (p / "bench" / "summary.json").is_file())
+        odd = [p for p in runs if not p.name[len("seed-"):].isdecimal() or not p.name.isascii()]
+        set_aside.extend(f"{p}: not a seed-<integer> folder" for p in odd)
+        runs = [p for p in runs if p not in odd]
         if not runs:
             continue
-        per_run = [condition_scores(read_trials(p / "bench" / "trials.jsonl"), conditions) for p in runs]
+        per_run = [condition_scores(read_trials(p / "bench" / "trials.jsonl", set_aside), conditions) for p in runs]
         learned[algo_dir.name] = {k: np.stack([s[k] for s in per_run]) for k in ("readings", "success")}
         seeds[algo_dir.name] = [p.name for p in runs]
     return conditions, learned, baselines, seeds
@@ -163,7 +207,8 @@ def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0,
     """
     from rliable import metrics
 
-    conditions, learned, baselines, seeds = collect(results, env_id)
+    set_aside: list[str] = []
+    conditions, learned, baselines, seeds = collect(results, env_id, set_aside)
     if not learned:
         raise NoLearnedRuns(f"no learned runs with a benchmark under {results / env_id}")
     iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
@@ -192,6 +237,7 @@ def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0,
         out["baselines"][agent] = row
     out["comparisons"] = [{"better": a, "than": b, "p": p_better(readings[a], readings[b], reps, seed)}
                           for a, b in comparisons if a in readings and b in readings]
+    out["set_aside"] = set_aside
     out["_matrices"] = {"normalised": norm, "readings": readings}
     return out
 
@@ -293,11 +339,26 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
             found = sorted(seed_dir.glob("zoo/*/*/eval.csv"))
             if not found or not (seed_dir / "bench" / "summary.json").is_file():  # finished and benchmarked only
                 continue
-            with open(found[-1], encoding="utf-8", newline="") as fh:
-                rows = list(csv.DictReader(fh))
+            try:
+                with open(found[-1], encoding="utf-8", newline="") as fh:
+                    rows = {int(r["timesteps"]): r for r in csv.DictReader(fh)}
+                for r in rows.values():
+                    if not all(np.isfinite(float(r[k])) for k in ("success_rate", "mean_readings")):
+                        raise ValueError("a non-finite evaluation")
+            except (KeyError, TypeError, ValueError, UnicodeDecodeError, csv.Error) as exc:
+                raise ReportError(f"{found[-1]}: not a readable evaluation log ({exc})") from None
             summary = found[-1].parent / "summary.json"
-            wall = json.loads(summary.read_text(encoding="utf-8")).get("wall_time_s") if summary.is_file() else None
-            runs.append(({int(r["timesteps"]): r for r in rows}, wall))
+            wall = None
+            if summary.is_file():
+                try:
+                    data = json.loads(summary.read_text(encoding="utf-8"))
+                    wall = data.get("wall_time_s")
+                    if wall is not None and (isinstance(wall, bool) or not isinstance(wall, (int, float))
+                                             or not np.isfinite(wall)):
+                        raise ValueError("wall_time_s is not a finite number")
+                except (AttributeError, ValueError, UnicodeDecodeError, RecursionError) as exc:
+                    raise ReportError(f"{summary}: not a readable training summary ({exc})") from None
+            runs.append((rows, wall))
         if not runs:
             continue
         grid = sorted(set.intersection(*(set(r) for r, _ in runs)))
@@ -366,17 +427,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         if any(len(p) != 2 or not all(p) for p in pairs):
             parser.error(f"--compare takes A:B, two learned labels, got {args.compare!r}")
         comparisons = tuple((a, b) for a, b in pairs)
-    if args.reps < 100:
-        parser.error(f"--reps must be at least 100, got {args.reps}")
+    if not 100 <= args.reps <= MAX_REPS:
+        parser.error(f"--reps must be in [100, {MAX_REPS}], got {args.reps}")
     if not 0 <= args.seed < 2**32:
         parser.error(f"--seed must be in [0, 2**32), got {args.seed}")
     if not args.results.is_dir():
         parser.error(f"results folder {str(args.results)!r} does not exist")
-    from electroloc_gym.fileio import atomic_write_text, write_json_atomic
 
     envs = sorted(p.name for p in args.results.iterdir() if (p / BASELINES_DIR / "bench" / "summary.json").is_file())
     if not envs:
         parser.error(f"no finished <env-id>/{BASELINES_DIR}/bench/ under {str(args.results)!r}")
+    try:
+        return _report(args, envs, comparisons)
+    except (ValueError, OSError, RecursionError) as exc:  # a damaged results folder: one line
+        text = str(exc).strip().splitlines()
+        print(f"learned_report: error: {text[0] if text else type(exc).__name__}", file=sys.stderr)
+        return 2
+
+
+def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tuple[str, str]]) -> int:
+    from electroloc_gym.fileio import atomic_write_text, write_json_atomic
+
     analyses = []
     for env in list(envs):  # a suite still running: an env without a benchmarked learned run is left out
         try:
@@ -385,8 +456,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"learned_report: {env} left out: {exc}", file=sys.stderr)
             envs.remove(env)
     if not analyses:
-        parser.error(f"no benchmarked learned run under {str(args.results)!r}")
+        raise ReportError(f"no benchmarked learned run under {str(args.results)!r}")
     text = table(analyses) + "".join("\n" + condition_table(a) for a in analyses)
+    aside = [m for a in analyses for m in a["set_aside"]]
+    for m in aside:
+        print(f"learned_report: set aside: {m}", file=sys.stderr)
+    if aside:
+        text += f"\n{len(aside)} record(s) or folder(s) set aside (impossible or not this run's):\n\n"
+        text += "".join(f"* {m}\n" for m in aside)
     figures(analyses, args.results)
     compute = ["", "| env | algorithm | training wall time per seed, s (2-core CPU) |", "|---|---|---|"]
     for env in envs:
@@ -398,7 +475,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     text += "\n".join(compute) + "\n"
     atomic_write_text(args.results / "report.md", text)
     write_json_atomic(args.results / "report.json",
-                      [{k: v for k, v in a.items() if not k.startswith("_")} for a in analyses])
+                      [{k: v for k, v in a.items() if not k.startswith("_") and not (k == "set_aside" and not v)}
+                       for a in analyses])
     print(text)
     return 0
 

@@ -219,7 +219,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     log_path = plan.out / "suite.json"
     jobs = [(c, s) for c in configs for s in plan.seeds]
     for cfg, seed in tqdm(jobs, desc="learned suite", unit="run"):
-        line = run_config(plan, cfg, seed)
+        try:
+            line = run_config(plan, cfg, seed)
+        except (ValueError, RuntimeError, OSError) as exc:  # a failed training run or benchmark: one line
+            text = str(exc).strip().splitlines()
+            print(f"learned_suite: {cfg.env_id}/{cfg.label} seed {seed} failed: {text[0] if text else exc!r}",
+                  file=sys.stderr)
+            return 2
         with FileLock(str(log_path) + ".lock", timeout=600):  # invocations on disjoint --only share the log
             done = json.loads(log_path.read_text(encoding="utf-8")) if log_path.is_file() else []
             done = [d for d in done if (d["env_id"], d["label"], d["seed"]) != (cfg.env_id, cfg.label, seed)]

@@ -131,6 +131,10 @@ def success_callback(*, episode: Any, metrics_logger: Any, **_: Any) -> None:
 def plot_progress(csv_path: str | Path, png_path: str | Path, title: str = "RLlib PPO on ElectroLoc-v0") -> Path:
     """The learning curve of a ``progress.csv`` (examples/rllib_ppo.py): success rate and mean episode length
     of the training episodes (last 100, stochastic policy) against env steps.
+
+    Raises:
+        ValueError: an unreadable file, a missing column, a short row or a value that is not a number
+            (one line naming the file and the line).
     """
     import csv
 
@@ -139,15 +143,32 @@ def plot_progress(csv_path: str | Path, png_path: str | Path, title: str = "RLli
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    with open(csv_path, newline="", encoding="utf-8") as f:
-        rows = [r for r in csv.DictReader(f) if r["success_mean"] not in ("", "nan", "NaN")]
+    columns = ("env_steps", "success_mean", "length_mean")
+    try:
+        with open(csv_path, newline="", encoding="utf-8") as f:
+            reader = csv.DictReader(f)
+            missing = [c for c in columns if c not in (reader.fieldnames or ())]
+            if missing:
+                raise ValueError(f"{csv_path} lacks the column(s) {missing} (a progress.csv has {list(columns)})")
+            rows = []
+            for line, r in enumerate(reader, start=2):
+                if any(r.get(c) is None for c in columns):
+                    raise ValueError(f"{csv_path} line {line} is short: it has no value for every column")
+                if r["success_mean"] in ("", "nan", "NaN"):
+                    continue
+                try:
+                    rows.append((int(r["env_steps"]), float(r["success_mean"]), float(r["length_mean"])))
+                except ValueError:
+                    raise ValueError(f"{csv_path} line {line}: {list(columns)} must be numbers") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise ValueError(f"cannot read {csv_path}: {exc}") from exc
     if not rows:
         raise ValueError(f"{csv_path} has no iteration with finished episodes")
-    steps = [int(r["env_steps"]) for r in rows]
+    steps = [r[0] for r in rows]
     fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.4), constrained_layout=True)
-    a.plot(steps, [float(r["success_mean"]) for r in rows], color="tab:green")
+    a.plot(steps, [r[1] for r in rows], color="tab:green")
     a.set(xlabel="env steps", ylabel="success rate (last 100 episodes)", ylim=(0, 1.02))
-    b.plot(steps, [float(r["length_mean"]) for r in rows], color="tab:blue")
+    b.plot(steps, [r[2] for r in rows], color="tab:blue")
     b.set(xlabel="env steps", ylabel="mean episode length (readings)")
     for ax in (a, b):
         ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:.0f}k")

@@ -1,5 +1,6 @@
-"""The learned-baseline suite end to end on a tiny budget: train (rl-zoo3, native vector env), export, bench,
-then the rliable report — two algorithms × two seeds × two conditions × two trials."""
+"""The learned-baseline suite: end to end on a tiny budget (slow: train with rl-zoo3 on the native vector env,
+export, bench, then the rliable report — two algorithms × two seeds × two conditions × two trials), and a
+quick smoke test of its front door in the default suite."""
 
 import json
 import subprocess
@@ -19,6 +20,15 @@ def _run(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, *args], cwd=ROOT, capture_output=True, text=True, timeout=900)
 
 
+def test_a_failed_training_run_is_one_line(tmp_path):
+    """Smoke test: the suite reaches rl-zoo3, whose run fails at once (no envs); one line, exit 2."""
+    proc = _run("benchmarks/learned_suite.py", "--out", str(tmp_path / "o"), "--only", "ElectroLoc-v0/ppo",
+                "--seeds", "1", "--timesteps", "64", "--hyperparams", "n_envs=0")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "learned_suite: ElectroLoc-v0/ppo seed 1 failed:" in proc.stderr
+
+
+@pytest.mark.slow
 def test_suite_trains_exports_benches_and_reports(tmp_path):
     out = tmp_path / "learned"
     suite = ["benchmarks/learned_suite.py", "--out", str(out), "--only", "ElectroLoc-v0/ppo,ElectroLoc-v0/a2c",

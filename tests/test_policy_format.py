@@ -237,3 +237,95 @@ def test_a_shipped_policy_runs_without_torch_and_sb3():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     assert "(2,)" in r.stdout and "ERR stochastic actions of a learned policy need torch and SB3" in r.stdout
+
+
+# ------------------------------------------------------------------ damaged folders: one error naming the file
+SHIPPED = ROOT / "models" / "ppo-belief"
+
+
+def _copy_shipped(tmp: Path) -> Path:
+    dst = tmp / "policy"
+    if dst.exists():
+        shutil.rmtree(dst)
+    shutil.copytree(SHIPPED, dst)
+    return dst
+
+
+def test_a_deeply_nested_policy_json_is_one_error_naming_the_file(tmp_path):
+    d = _copy_shipped(tmp_path)
+    (d / "policy.json").write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(PolicyFormatError, match="policy.json"):
+        load_policy(d)
+
+
+def test_a_list_for_the_policy_class_is_one_error_naming_the_file(tmp_path):
+    d = _copy_shipped(tmp_path)
+    _edit(d, lambda m: m["architecture"].update(policy_class=[[], []]))
+    with pytest.raises(PolicyFormatError, match="policy.json.*policy_class"):
+        load_policy(d)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_non_finite_weights_are_refused_even_with_a_matching_sha256(tmp_path, bad):
+    import hashlib
+
+    import safetensors.numpy as st
+
+    d = _copy_shipped(tmp_path)
+    tensors = st.load_file(str(d / "policy.safetensors"))
+    name = sorted(tensors)[0]
+    tensors[name] = np.full_like(tensors[name], bad)
+    blob = st.save(tensors)
+    (d / "policy.safetensors").write_bytes(blob)
+    _edit(d, lambda m: m["weights"].update(sha256=hashlib.sha256(blob).hexdigest()))
+    with pytest.raises(PolicyFormatError, match="non-finite weights"):
+        load_policy(d)
+
+
+def _leaf_paths(node, prefix=()):
+    """Every path to a value of a JSON document (dict keys and list indices)."""
+    yield prefix
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from _leaf_paths(v, prefix + (k,))
+    elif isinstance(node, list):
+        for i, v in enumerate(node[:4]):  # a few entries of long lists are enough
+            yield from _leaf_paths(v, prefix + (i,))
+
+
+_DAMAGES = [None, True, -1, 0, 10**30, 1e308, "x", "", [], [[], []], {}, {"a": {}}, 3.5, "nan", [None]]
+
+
+def test_any_single_field_damage_of_a_shipped_policy_is_one_value_error_or_a_working_policy(tmp_path):
+    """Hypothesis: replace or delete one field of a shipped policy.json; loading either works (the field
+    was not used) and acts finitely, or raises one PolicyFormatError naming the file — never another type.
+    """
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as hs
+
+    meta0 = json.loads((SHIPPED / "policy.json").read_text())
+    paths = [p for p in _leaf_paths(meta0) if p]
+    obs = np.zeros(len(meta0["observation"]["space"]["low"]), dtype=np.float32)
+
+    @settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+    @given(hs.sampled_from(paths), hs.sampled_from(_DAMAGES + ["<delete>"]))
+    def check(path, value):
+        d = _copy_shipped(tmp_path)
+        meta = json.loads(json.dumps(meta0))
+        node = meta
+        for k in path[:-1]:
+            node = node[k]
+        if value == "<delete>":
+            node.pop(path[-1]) if isinstance(node, dict) else node.pop(path[-1])
+        else:
+            node[path[-1]] = value
+        (d / "policy.json").write_text(json.dumps(meta))
+        try:
+            agent = load_policy(d)
+        except PolicyFormatError as exc:
+            assert str(d) in str(exc) and "\n" not in str(exc).strip()
+            return
+        action, _ = agent.predict(obs)
+        assert np.isfinite(np.asarray(action, dtype=np.float64)).all()
+
+    check()

@@ -201,3 +201,23 @@ def test_rllib_progress_plot_skips_iterations_without_episodes(tmp_path: Path) -
     empty.write_text(head + "1,0,1.0,0,nan,nan,nan\n")
     with pytest.raises(ValueError, match="no iteration with finished episodes"):
         erl.plot_progress(empty, tmp_path / "x.png")
+
+
+@pytest.mark.parametrize("body, pattern", [
+    ("iteration,env_steps,wall_s,episodes,return_mean,success_mean\n1,100,1.0,5,-9.0,0.4\n",
+     r"lacks the column\(s\) \['length_mean'\]"),
+    ("iteration,env_steps,wall_s,episodes,return_mean,length_mean,success_mean\n1,100,1.0,5,-9.0,9.0,0.4\n2,200\n",
+     "line 3 is short"),
+    ("iteration,env_steps,wall_s,episodes,return_mean,length_mean,success_mean\n1,x,1.0,5,-9.0,9.0,0.4\n",
+     "line 2: .* must be numbers"),
+    ("", r"lacks the column\(s\)"),
+])
+def test_rllib_progress_plot_refuses_a_damaged_csv_in_one_line(tmp_path: Path, body: str, pattern: str) -> None:
+    bad = tmp_path / "progress.csv"
+    bad.write_text(body)
+    with pytest.raises(ValueError, match=pattern) as info:
+        erl.plot_progress(bad, tmp_path / "x.png")
+    assert "\n" not in str(info.value) and not (tmp_path / "x.png").exists()
+    bad.write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(ValueError, match="cannot read"):
+        erl.plot_progress(bad, tmp_path / "x.png")

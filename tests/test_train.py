@@ -89,10 +89,16 @@ def test_bad_callback_arguments_are_one_line(kwargs, pattern):
 
 @pytest.mark.parametrize("argv, pattern", [
     (["--algo", "td3", "--seed", "1"], "argument --algo: invalid choice: 'td3'"),
-    (["--algo", "ppo", "--seed", "-1"], "seed must be an integer ≥ 0"),
+    (["--algo", "ppo", "--seed", "-1"], "seed must be an integer in [0, 2**32)"),
+    (["--algo", "ppo", "--seed", str(2**64)], "seed must be an integer in [0, 2**32)"),
     (["--algo", "ppo", "--seed", "1", "--env", "Nope-v0"], "env_id 'Nope-v0' is not registered"),
-    (["--algo", "ppo", "--seed", "1", "--timesteps", "0"], "timesteps must be an integer ≥ 1"),
+    (["--algo", "ppo", "--seed", "1", "--timesteps", "0"], "timesteps must be an integer in [1,"),
+    (["--algo", "ppo", "--seed", "1", "--timesteps", str(10**30)], "timesteps must be an integer in [1,"),
     (["--algo", "ppo", "--seed", "1", "--env-kwargs", "observation"], "--env-kwargs expects KEY=VALUE"),
+    (["--algo", "ppo", "--seed", "1", "--env-kwargs", "distractors=9"], "refused by ElectroLoc-v0"),
+    (["--algo", "ppo", "--seed", "1", "--env-kwargs", "fixed_carriage='yes'"], "fixed_carriage must be"),
+    (["--algo", "ppo"], "the following arguments are required: --seed"),
+    (["--algo", "ppo", "--seed", "x"], "argument --seed: invalid int value"),
 ])
 def test_the_front_door_names_each_bad_argument_in_one_line(argv, pattern, capsys):
     from electroloc_gym.cli import main
@@ -103,7 +109,17 @@ def test_the_front_door_names_each_bad_argument_in_one_line(argv, pattern, capsy
         code = exc.code
     assert code == 2
     err = capsys.readouterr().err
-    assert "Traceback" not in err and pattern in err.strip().splitlines()[-1]
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1 and pattern in err
+
+
+def test_a_log_folder_under_a_file_is_one_line(tmp_path, capsys):
+    from electroloc_gym.cli import main
+
+    (tmp_path / "a-file").write_text("")
+    code = main(["train", "--algo", "ppo", "--seed", "1", "--log-folder", str(tmp_path / "a-file" / "x"),
+                 "--print-command"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "is a file" in err
 
 
 def test_the_front_door_prints_the_exact_rl_zoo3_command(capsys, monkeypatch):

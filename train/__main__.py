@@ -36,9 +36,16 @@ def _pairs(items: Sequence[str], option: str) -> dict[str, Any]:
     return out
 
 
+class _Parser(argparse.ArgumentParser):
+    """One-line usage errors (``electroloc train: error: …``, exit 2), as the other subcommands print."""
+
+    def error(self, message: str) -> Any:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status (2 with one line on stderr for a bad argument)."""
-    p = argparse.ArgumentParser(prog="electroloc train", description=__doc__, epilog=EPILOG,
+    p = _Parser(prog="electroloc train", description=__doc__, epilog=EPILOG,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--algo", required=True, choices=sorted(ALGO_FILES), help="rl-zoo3 algorithm")
     p.add_argument("--env", default="ElectroLoc-v0", help="env id (a section of the algorithm's file)")
@@ -61,7 +68,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         run = train(a.algo, a.env, a.seed, out=a.out, **kw)
     except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"electroloc train: error: {exc}", file=sys.stderr)
         return 2
     print(f"run folder: {run}" + (f"; exported to {a.out}" if a.out else ""))
     return 0

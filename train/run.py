@@ -41,6 +41,35 @@ def _py_literal(v: Any) -> str:
     return repr(v)  # rl-zoo3's StoreDict evaluates each value as a Python literal
 
 
+#: Seeds rl-zoo3 hands to ``np.random.seed`` (which takes [0, 2**32)).
+SEED_LIMIT = 2**32
+#: The largest env-step budget accepted (a trillion steps: far past any run, well inside SB3's int counters).
+MAX_TIMESTEPS = 10**12
+
+
+def _check_log_folder(folder: Path) -> None:
+    """``folder`` can be a folder: nothing on its way is a file."""
+    for part in (folder, *folder.parents):
+        if part.exists():
+            if not part.is_dir():
+                raise ValueError(f"log_folder {str(folder)!r} cannot be made: {str(part)!r} is a file")
+            return
+
+
+def check_env_kwargs(env_id: str, env_kwargs: Mapping[str, Any]) -> None:
+    """Refuse env kwargs the env would refuse, before rl-zoo3 starts: the env is built once with them
+    (its parameter dataclasses validate every value) and closed.
+    """
+    import gymnasium as gym
+
+    try:
+        gym.make(env_id, **dict(env_kwargs)).close()
+    except (TypeError, ValueError) as exc:
+        text = str(exc).strip().splitlines()
+        raise ValueError(f"env_kwargs {dict(env_kwargs)!r} are refused by {env_id}: "
+                         f"{(text[0] if text else type(exc).__name__)[:300]}") from None
+
+
 def zoo_argv(algo: str, env_id: str, seed: int, *, timesteps: int | None = None, log_folder: str | Path = "logs",
              conf_file: str | Path | None = None, env_kwargs: Mapping[str, Any] | None = None,
              hyperparams: Mapping[str, Any] | None = None, native: bool = True) -> list[str]:
@@ -60,10 +89,12 @@ def zoo_argv(algo: str, env_id: str, seed: int, *, timesteps: int | None = None,
     conf = Path(conf_file) if conf_file is not None else hyperparams_file(algo)
     if conf.is_absolute() and conf.is_relative_to(Path.cwd()):
         conf = conf.relative_to(Path.cwd())  # the command as typed from the repository root
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"seed must be an integer ≥ 0, got {seed!r}")
-    if timesteps is not None and (isinstance(timesteps, bool) or not isinstance(timesteps, int) or timesteps < 1):
-        raise ValueError(f"timesteps must be an integer ≥ 1, got {timesteps!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < SEED_LIMIT:
+        raise ValueError(f"seed must be an integer in [0, 2**32) (NumPy's seed range), got {seed!r}")
+    if timesteps is not None and (isinstance(timesteps, bool) or not isinstance(timesteps, int)
+                                  or not 1 <= timesteps <= MAX_TIMESTEPS):
+        raise ValueError(f"timesteps must be an integer in [1, {MAX_TIMESTEPS:.0e}], got {timesteps!r}")
+    _check_log_folder(Path(log_folder))
     import gymnasium as gym
 
     import electroloc_gym  # noqa: F401
@@ -71,6 +102,8 @@ def zoo_argv(algo: str, env_id: str, seed: int, *, timesteps: int | None = None,
     if env_id not in gym.registry:
         raise ValueError(f"env_id {env_id!r} is not registered (electroloc ids: "
                          f"{sorted(k for k in gym.registry if k.startswith('ElectroLoc'))})")
+    if env_kwargs:
+        check_env_kwargs(env_id, env_kwargs)
     argv = ["-m", "rl_zoo3.train", "--algo", algo, "--env", env_id, "--gym-packages",
             "electroloc_gym.train.zoo" if native else "electroloc_gym", "--conf-file", str(conf),
             "--seed", str(seed), "--log-folder", str(log_folder), "--eval-freq", "-1", "--num-threads", "1"]

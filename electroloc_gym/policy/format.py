@@ -21,9 +21,10 @@ A policy folder holds::
 * ``env_kwargs`` (training env kwargs, for reference), ``provenance`` and ``evaluation`` (plain data).
 
 Reading never unpickles or executes anything: JSON is parsed, spaces are rebuilt from plain values,
-and the safetensors file — an 8-byte header length, a JSON header, raw little-endian arrays — is
-read here with numpy (:func:`read_weights`), so that running a shipped policy needs no optional
-package at all. Writing (:func:`write_export`) takes numpy arrays.
+and the safetensors file is read and written by the reference library's numpy interface
+(``safetensors.numpy``: no torch needed). What this module adds is what the format does not say:
+the SHA-256 that ties the weights to their JSON, finite weights, and one :class:`PolicyFormatError`
+naming the file for any damage.
 """
 
 from __future__ import annotations
@@ -31,7 +32,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,13 +63,17 @@ POLICY_CLASSES: dict[str, str] = {
 ACTIVATIONS: dict[str, str] = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
                                "gelu": "GELU", "silu": "SiLU"}
 
-# safetensors dtype names ↔ numpy dtypes (little-endian).
-_DTYPES = {"F64": "<f8", "F32": "<f4", "F16": "<f2", "I64": "<i8", "I32": "<i4", "I16": "<i2", "I8": "i1",
-           "U8": "u1", "BOOL": "?"}
 
 
 class PolicyFormatError(ValueError):
     """A policy folder or file is missing, malformed, or does not describe a loadable policy."""
+
+
+def one_line(exc: BaseException, limit: int = 200) -> str:
+    """``exc`` as ``Type: first line``, cut to ``limit`` characters (a library's message may be a page)."""
+    text = str(exc).strip().splitlines()
+    first = text[0] if text else ""
+    return f"{type(exc).__name__}: {first[:limit]}{'…' if len(first) > limit or len(text) > 1 else ''}"
 
 
 @dataclass(frozen=True)
@@ -184,6 +188,8 @@ def space_from_json(d: Any, where: str = "space") -> Any:
     size = int(np.prod(shape))
     if low.size != size or high.size != size:
         raise PolicyFormatError(f"{where}: low/high must have {size} values for shape {shape}")
+    if not (low <= high).all():
+        raise PolicyFormatError(f"{where}: Box low must not exceed high")
     dtype = np.dtype(d["dtype"])
     return spaces.Box(low.reshape(shape).astype(dtype), high.reshape(shape).astype(dtype), dtype=dtype)
 
@@ -207,28 +213,23 @@ def json_value(value: Any, where: str) -> Any:
 
 # ------------------------------------------------------------------------------------- weights
 def _safetensors_bytes(tensors: Mapping[str, np.ndarray]) -> bytes:
-    header: dict[str, Any] = {"__metadata__": {"format": FORMAT}}
-    chunks, offset = [], 0
-    for name in sorted(tensors):
-        a = np.ascontiguousarray(tensors[name])
-        code = next((k for k, v in _DTYPES.items() if np.dtype(v) == a.dtype), None)
-        if code is None:
-            raise PolicyFormatError(f"cannot write tensor {name!r} of dtype {a.dtype}")
-        raw = a.astype(_DTYPES[code], copy=False).tobytes()
-        header[name] = {"dtype": code, "shape": list(a.shape), "data_offsets": [offset, offset + len(raw)]}
-        chunks.append(raw)
-        offset += len(raw)
-    head = json.dumps(header, separators=(",", ":")).encode()
-    head += b" " * (-len(head) % 8)
-    return struct.pack("<Q", len(head)) + head + b"".join(chunks)
+    import safetensors.numpy as st
+
+    try:
+        return st.save({name: np.ascontiguousarray(a) for name, a in tensors.items()}, metadata={"format": FORMAT})
+    except Exception as exc:  # the library raises its own error types for dtypes it cannot hold
+        raise PolicyFormatError(f"cannot write the policy tensors: {one_line(exc)}") from exc
 
 
 def read_weights(export: PolicyExport) -> dict[str, np.ndarray]:
     """The tensors of ``policy.safetensors`` as numpy arrays, after checking the SHA-256 in ``policy.json``.
 
     Raises:
-        PolicyFormatError: a missing or altered file, or one that is not a safetensors file.
+        PolicyFormatError: a missing or altered file, one that is not a safetensors file, or weights that
+            are not all finite (a NaN or infinite weight makes every action NaN).
     """
+    import safetensors.numpy as st
+
     path = export.folder / WEIGHTS_FILE
     if not path.is_file():
         raise PolicyFormatError(f"{export.folder} has {POLICY_JSON} but no {WEIGHTS_FILE}")
@@ -236,18 +237,12 @@ def read_weights(export: PolicyExport) -> dict[str, np.ndarray]:
     if hashlib.sha256(blob).hexdigest() != export.meta["weights"]["sha256"]:
         raise PolicyFormatError(f"{path} does not match the sha256 recorded in {POLICY_JSON} (altered or mixed files)")
     try:
-        (n,) = struct.unpack("<Q", blob[:8])
-        header = json.loads(blob[8:8 + n])
-        data = memoryview(blob)[8 + n:]
-        out = {}
-        for name, spec in header.items():
-            if name == "__metadata__":
-                continue
-            start, stop = spec["data_offsets"]
-            dtype = np.dtype(_DTYPES[spec["dtype"]])
-            out[name] = np.frombuffer(data[start:stop], dtype=dtype).reshape(spec["shape"]).copy()
-    except (struct.error, ValueError, KeyError, TypeError) as exc:
-        raise PolicyFormatError(f"{path} is not a readable safetensors file: {exc}") from exc
+        out = {name: np.array(a) for name, a in st.load(blob).items()}
+    except Exception as exc:  # safetensors raises SafetensorError (not a ValueError) on a damaged header
+        raise PolicyFormatError(f"{path} is not a readable safetensors file: {one_line(exc)}") from exc
+    for name, a in out.items():
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            raise PolicyFormatError(f"{path}: tensor {name!r} holds non-finite weights (NaN or infinity)")
     return out
 
 
@@ -312,7 +307,21 @@ def read_export(folder: str | Path) -> PolicyExport:
         meta = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise PolicyFormatError(f"{path} is not valid JSON: {exc}") from exc
+    except RecursionError as exc:
+        raise PolicyFormatError(f"{path} is nested too deeply to be a policy file") from exc
     where = str(path)
+    try:
+        return _validated(d, meta, where)
+    except PolicyFormatError as exc:
+        if where in str(exc):
+            raise
+        raise PolicyFormatError(f"{where}: {exc}") from exc
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RecursionError) as exc:
+        # a field of a legal JSON type in a place no check above foresaw (e.g. a list where a name goes)
+        raise PolicyFormatError(f"{where} does not describe a loadable policy: {one_line(exc)}") from exc
+
+
+def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise PolicyFormatError(f"{where} is not an {FORMAT} file")
     if meta.get("format_version") != FORMAT_VERSION:
@@ -323,11 +332,11 @@ def read_export(folder: str | Path) -> PolicyExport:
         raise PolicyFormatError(f"{where}: weights must name {WEIGHTS_FILE!r} and its sha256")
     _need(meta, "algo", str, where)
     arch = _need(meta, "architecture", dict, where)
-    if arch.get("policy_class") not in POLICY_CLASSES:
+    if not isinstance(arch.get("policy_class"), str) or arch["policy_class"] not in POLICY_CLASSES:
         raise PolicyFormatError(f"{where}: architecture.policy_class must be one of {sorted(POLICY_CLASSES)}, "
                                 f"got {arch.get('policy_class')!r}")
     pk = _need(arch, "policy_kwargs", dict, f"{where} architecture")
-    if "activation_fn" in pk and pk["activation_fn"] not in ACTIVATIONS:
+    if "activation_fn" in pk and (not isinstance(pk["activation_fn"], str) or pk["activation_fn"] not in ACTIVATIONS):
         raise PolicyFormatError(f"{where}: activation_fn must be one of {list(ACTIVATIONS)}, "
                                 f"got {pk['activation_fn']!r}")
     if arch.get("recurrent") is not None and not isinstance(arch["recurrent"], dict):

@@ -32,7 +32,9 @@ from electroloc_gym.policy.format import (
     POLICY_JSON,
     ObsNormalization,
     PolicyExport,
+    PolicyFormatError,
     _normalization,
+    one_line,
     read_export,
     read_weights,
 )
@@ -138,8 +140,20 @@ class LearnedAgent:
 
 
 def agent_from_export(export: PolicyExport, name: str | None = None) -> LearnedAgent:
-    """The :class:`LearnedAgent` of a validated export (its weights checked against the SHA-256)."""
-    return LearnedAgent(export.meta, read_weights(export), export.normalization, name or export.folder.name)
+    """The :class:`LearnedAgent` of a validated export (its weights checked against the SHA-256).
+
+    Raises:
+        PolicyFormatError: the weights or the architecture do not make a network (one error naming the
+            folder, whatever the damage).
+    """
+    weights = read_weights(export)
+    try:
+        return LearnedAgent(export.meta, weights, export.normalization, name or export.folder.name)
+    except PolicyFormatError:
+        raise
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RecursionError) as exc:
+        raise PolicyFormatError(f"{export.folder / POLICY_JSON}: its architecture and weights do not make a "
+                                f"network: {one_line(exc)}") from exc
 
 
 def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
