@@ -30,12 +30,12 @@ def test_ci_runs_the_readme_test_command() -> None:
     assert _readme_commands()[1] in ci.splitlines()
 
 
-def test_nox_runs_every_session_by_default() -> None:
+def test_nox_runs_every_default_session() -> None:
     noxfile = (ROOT / "noxfile.py").read_text(encoding="utf-8")
     sessions = re.findall(r"@nox\.session\ndef (\w+)", noxfile)
     assert set(sessions) == {"tests", "lowest", "rllib", "wheel", "docs", "types"}
     listed = re.search(r"nox\.options\.sessions = \[([^\]]*)\]", noxfile).group(1)
-    assert sorted(re.findall(r'"(\w+)"', listed)) == sorted(sessions)
+    assert sorted(re.findall(r'"(\w+)"', listed)) == sorted(set(sessions) - {"types"})
 
 
 def test_constraints_pin_cpu_torch() -> None:

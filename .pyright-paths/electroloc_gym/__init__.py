@@ -1,0 +1,1 @@
+../../electroloc_gym/__init__.py
