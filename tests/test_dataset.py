@@ -61,6 +61,7 @@ def test_tiny_dataset_loads_recovers_and_replays(store):
     meta = loaded.storage.metadata
     block = meta["electroloc"]
     assert block["complete"] and block["agent"] == "min-var" and block["env_kwargs"] == {"condition": "random"}
+    assert meta["dataset_size"] == type(loaded.storage).get_size(loaded.storage)  # counted once, at the end
     # the reference scores: 1 − readings of rnd-wlk and of the best planner on the benchmark's trials
     refs = reference_scores(REFERENCE, "ElectroLoc-v0")
     assert meta["ref_min_score"] == pytest.approx(1 - refs["rnd_readings"])

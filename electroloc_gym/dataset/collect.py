@@ -207,6 +207,16 @@ def _episode_buffer(env: Any, agent: Any, k: int, root_seed: int) -> Any:
                          truncations=truncs, infos=stacked)
 
 
+def _fast(storage: Any) -> Any:
+    """``storage`` with its size left uncounted while episodes are appended.
+
+    Minari's storage recounts the size of every file of the dataset after each episode it writes (a walk of
+    the whole folder), which makes writing N episodes one by one O(N²); the size is counted once at the end.
+    """
+    storage.get_size = lambda: 0.0
+    return storage
+
+
 def _existing(ds_id: str) -> Any:
     """The local dataset ``ds_id`` (None: none)."""
     import minari
@@ -286,15 +296,16 @@ def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool 
                                     f"training seeds", author="electroloc-gym", author_email="none",
                         code_permalink="electroloc_gym/dataset/collect.py", data_format="arrow",
                         requirements=["electroloc-gym"], **extra)
-                    storage = minari.load_dataset(ds_id).storage
+                    storage = _fast(minari.load_dataset(ds_id).storage)
                     storage.update_metadata({"electroloc": block})
                 else:
-                    storage = storage if k > start else minari.load_dataset(ds_id).storage
+                    storage = storage if k > start else _fast(minari.load_dataset(ds_id).storage)
                     storage.update_episodes([buffer])
                 bar.update(1)
             bar.close()
             storage = storage if request.episodes > start else minari.load_dataset(ds_id).storage
-            storage.update_metadata({"electroloc": {**block, "complete": True}})
+            storage.update_metadata({"electroloc": {**block, "complete": True},
+                                     "dataset_size": type(storage).get_size(storage)})
     finally:
         env.close()
     return minari.load_dataset(ds_id)
