@@ -24,12 +24,12 @@ ROOT = Path(__file__).resolve().parents[2]
 #: (env id, agent, episodes) of the reference datasets.
 DATASETS = (
     ("ElectroLoc-v0", "rnd-wlk", 1000),
-    ("ElectroLoc-v0", "min-var", 1000),
-    ("ElectroLoc-v0", "lookahead", 1000),
-    ("ElectroLoc-v0", "infotaxis", 1000),
-    ("ElectroLoc-v0", "ppo-belief", 1000),
-    ("ElectroLocGlobal-v0", "min-var", 500),
-    ("ElectroLocGlobal-v0", "lookahead", 500),
+    ("ElectroLoc-v0", "min-var", 300),
+    ("ElectroLoc-v0", "lookahead", 500),
+    ("ElectroLoc-v0", "infotaxis", 500),
+    ("ElectroLoc-v0", "ppo-belief", 500),
+    ("ElectroLocGlobal-v0", "min-var", 200),
+    ("ElectroLocGlobal-v0", "lookahead", 200),
 )
 
 
