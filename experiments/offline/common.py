@@ -8,7 +8,7 @@
 * :class:`Actor` is a deterministic tanh actor with the layer names of SB3's ``SACPolicy`` actor
   (``actor.latent_pi.{0,2}``, ``actor.mu``), so :func:`export_actor` writes it in the project's pickle-free
   policy format (:mod:`electroloc_gym.policy.format`) and ``electroloc bench`` runs it with numpy like any
-  shipped policy; :func:`export_actor` checks the numpy actions against torch's.
+  shipped policy; :func:`export_actor` checks the numpy actions against torch's (to 1e-4: float64 against float32).
 * :func:`validate` runs the torch actor on validation episodes (reset seeds 100000+, the training
   callback's, never the benchmark's seed 0) through the benchmark's rollout loop: mean readings (a failure
   counted as the cap) and success rate — the learning curve and the checkpoint choice.
@@ -105,7 +105,7 @@ class Actor(nn.Module):
 def export_actor(actor: Actor, norm: Normalizer, out: str | Path, *, algo: str, env_id: str,
                  provenance: dict[str, Any], evaluation: dict[str, Any] | None = None) -> Path:
     """Write ``actor`` as a policy folder (policy.json + policy.safetensors) and check that the numpy
-    loader's actions equal torch's on standardised random observations (to 1e-5).
+    loader's actions equal torch's on standardised random observations (to 1e-4).
     """
     import gymnasium as gym
 
@@ -131,7 +131,7 @@ def export_actor(actor: Actor, norm: Normalizer, out: str | Path, *, algo: str, 
     x = np.random.default_rng(0).uniform(-1, 1, size=(64, obs_space.shape[0])).astype(np.float32)
     want = actor(torch.as_tensor(norm(x))).detach().numpy()
     got, _ = agent.predict(x)
-    if not np.allclose(got, want, atol=1e-5):
+    if not np.allclose(got, want, atol=1e-4):  # float64 numpy against float32 torch
         raise RuntimeError(f"the exported policy's actions differ from torch's by {np.abs(got - want).max():.2e}")
     return folder
 
