@@ -1,6 +1,6 @@
 """The project's checks as nox sessions; `nox` runs them all (the README's test command, and .ci/run).
 
-* ``tests``  — the suite on the main job's install: ``-e .[dev,zoo]``, the newest releases the resolver
+* ``tests``  — the suite on the main job's install: ``-e .[dev,zoo,minari]``, the newest releases the resolver
   picks (no RLlib pin), without the Ray/RLlib tests.
 * ``lowest`` — the suite on every declared minimum (``constraints-lowest.txt``); the tests of extras that
   cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker.
@@ -38,7 +38,7 @@ NOT_RLLIB = "not slow and not rllib"
 NOT_LOWEST = "not slow and not rllib and not zoo and not minari"
 
 #: What each session's optional-path tests import (checked before the tests run: a skipped test checks nothing).
-ZOO_IMPORTS = ("rl_zoo3", "sb3_contrib", "rliable", "safetensors", "requests", "moviepy", "hypothesis")
+ZOO_IMPORTS = ("rl_zoo3", "sb3_contrib", "rliable", "safetensors", "requests", "moviepy", "hypothesis", "minari")
 RLLIB_IMPORTS = ("ray", "ray.rllib", "torch", "safetensors")
 
 
@@ -53,7 +53,7 @@ def _pytest(session: nox.Session, markexpr: str) -> None:
 @nox.session
 def tests(session: nox.Session) -> None:
     """The default suite on the newest releases: the install of the README's main job plus dev and zoo."""
-    session.install(*CONSTRAINTS, "-e", ".[dev,zoo]")
+    session.install(*CONSTRAINTS, "-e", ".[dev,zoo,minari]")
     session.run("python", "-c", _imports(ZOO_IMPORTS))  # a test of an extra never skips for a missing import
     _pytest(session, NOT_RLLIB)
 

@@ -347,6 +347,12 @@ def build_parser() -> argparse.ArgumentParser:
     bench_cli.add_arguments(b)
     b.set_defaults(func=bench_cli.run)
 
+    from electroloc_gym.dataset import cli as dataset_cli
+
+    ds = command("dataset", "write an agent's episodes as a local Minari dataset", description=dataset_cli.DESCRIPTION)
+    dataset_cli.add_arguments(ds)
+    ds.set_defaults(func=dataset_cli.run)
+
     t = sub.add_parser("train", help="train through rl-zoo3 on the native vector env (electroloc train --help)",
                        add_help=False)
     t.set_defaults(func=None)

@@ -1,0 +1,102 @@
+"""The datasets' seed protocol and reference scores: which episodes a dataset holds, and what 0 and 1 mean.
+
+**Seeds.** The benchmark evaluates on the trial seeds of root seed 0
+(:func:`electroloc_gym.bench.config.trial_seeds`: ``SeedSequence(0, spawn_key=(condition index, trial))``,
+condition indices 0–7 the presets, 8 the global map). Training and validation use other seeds (the
+learned suite's training seeds 1–5, the training callback's reset seeds 100000+, the tuning scripts'
+validation seeds 101, 102). Dataset episode ``k`` of root seed ``s`` gets
+``SeedSequence(s, spawn_key=(DATASET_STREAM, k))``: a stream index no benchmark trial uses, and a root
+seed other than the evaluation seed 0 (refused), so no dataset episode is a benchmark trial;
+:func:`evaluation_overlap` checks it against the evaluation seeds themselves.
+
+**Reference scores.** Minari's normalised score is ``(return − ref_min_score) / (ref_max_score −
+ref_min_score)``. An episode's return is ``1 − R`` (reward −1 per reading after the reset's first one; a
+failed episode reads the cap), with R the readings the learned table counts (a failure counted as the
+cap). So ``ref_min_score = 1 − R_rnd`` and ``ref_max_score = 1 − R_best``, with ``R_rnd`` the mean
+readings of rnd-wlk and ``R_best`` those of the best non-learned planner on the benchmark's trials of the
+same env (the committed baseline run of the learned suite, ``<results>/<env-id>/_baselines/bench``): 0 at
+rnd-wlk and 1 at the best planner, as in the learned table (whose score averages per-condition ratios;
+the dataset's uses the means over the same conditions).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from electroloc_gym.conditions import PRESET_NAMES
+
+__all__ = ["DATASET_STREAM", "DEFAULT_DATASET_SEED", "EVALUATION_SEED", "episode_seeds", "evaluation_overlap",
+           "reference_scores", "RND_AGENT", "PLANNERS"]
+
+#: The benchmark's evaluation root seed (``electroloc bench --seed 0``): never a dataset's.
+EVALUATION_SEED = 0
+#: The default root seed of dataset episodes (a training seed).
+DEFAULT_DATASET_SEED = 1
+#: The spawn-key stream of dataset episodes: after the presets (0–7) and the global map (8).
+DATASET_STREAM = len(PRESET_NAMES) + 1
+#: The agent that scores 0.
+RND_AGENT = "rnd-wlk"
+#: The non-learned planners whose best scores 1 (those a baseline run holds).
+PLANNERS = ("min-var", "lookahead", "infotaxis", "eedi")
+#: Evaluation trials per condition checked for overlap (the bench's default is 50).
+_CHECKED_TRIALS = 1000
+
+
+def episode_seeds(root_seed: int, episode: int) -> tuple[int, int]:
+    """(env reset seed, agent seed) of dataset episode ``episode`` under ``root_seed``."""
+    ss = np.random.SeedSequence(int(root_seed), spawn_key=(DATASET_STREAM, int(episode)))
+    env_seed, agent_seed = (int(v) for v in ss.generate_state(2, dtype=np.uint32))
+    return env_seed, agent_seed
+
+
+def evaluation_overlap(env_seeds: Iterable[int]) -> list[int]:
+    """The seeds of ``env_seeds`` that are reset seeds of the benchmark's evaluation trials (root seed 0,
+    every condition and the global map, the first 1000 trials of each) or of the training callback's
+    validation episodes (100000–100063); empty for a valid dataset.
+    """
+    from electroloc_gym.bench.config import GLOBAL_CONDITION, trial_seeds
+
+    evaluation = {trial_seeds(EVALUATION_SEED, c, k)[0] for c in (*PRESET_NAMES, GLOBAL_CONDITION)
+                  for k in range(_CHECKED_TRIALS)} | set(range(100_000, 100_064))
+    return sorted(set(int(s) for s in env_seeds) & evaluation)
+
+
+def _mean_readings(rows: list[dict[str, Any]]) -> float:
+    """Mean over conditions of the per-condition mean readings, a failure counted as the cap."""
+    conditions = sorted({r["condition"] for r in rows})
+    per = [np.mean([r["observations"] if r["success"] else r["max_observations"]
+                    for r in rows if r["condition"] == c]) for c in conditions]
+    return float(np.mean(per))
+
+
+def reference_scores(bench_dir: str | Path, env_id: str) -> dict[str, Any]:
+    """``{"ref_min_score", "ref_max_score", "rnd_readings", "best_planner", "best_readings", "source"}`` from
+    a benchmark run's ``trials.jsonl`` holding rnd-wlk and at least one planner on ``env_id``.
+
+    Raises:
+        ValueError: no such file, another env, or rnd-wlk or every planner missing — one line.
+    """
+    path = Path(bench_dir)
+    path = path / "trials.jsonl" if path.is_dir() else path
+    if not path.is_file():
+        raise ValueError(f"reference must be a benchmark folder or trials.jsonl with rnd-wlk and a planner on "
+                         f"{env_id}; {str(path)!r} does not exist")
+    rows = [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line.strip()]
+    rows = [r for r in rows if r.get("env_id", "ElectroLoc-v0") == env_id]
+    agents = {r["agent"] for r in rows}
+    planners = [p for p in PLANNERS if p in agents]
+    if RND_AGENT not in agents or not planners:
+        raise ValueError(f"reference {str(path)!r} must hold {RND_AGENT} and one of {list(PLANNERS)} on {env_id}; "
+                         f"it holds {sorted(agents)}")
+    rnd = _mean_readings([r for r in rows if r["agent"] == RND_AGENT])
+    scores = {p: _mean_readings([r for r in rows if r["agent"] == p]) for p in planners}
+    best = min(scores, key=scores.__getitem__)
+    if scores[best] >= rnd:
+        raise ValueError(f"reference {str(path)!r}: rnd-wlk is not worse than the best planner; no score scale")
+    return {"ref_min_score": 1.0 - rnd, "ref_max_score": 1.0 - scores[best], "rnd_readings": rnd,
+            "best_planner": best, "best_readings": scores[best], "source": str(path)}

@@ -1,0 +1,98 @@
+"""Privileged information for asymmetric actor-critics: the hidden state, as an opt-in wrapper.
+
+An asymmetric actor-critic (Pinto et al., "Asymmetric Actor Critic for Image-Based Robot Learning", 2018)
+trains its critic on what the simulator knows and its actor on what the robot sees; only the actor acts,
+so the trained policy needs nothing privileged. :class:`PrivilegedInfo` adds the hidden state of the
+episode to what an env returns, in one of two forms:
+
+* ``mode="info"`` (default): ``info["privileged"]``, a float64 vector; the observation is unchanged, so
+  any agent or policy of the env runs on the wrapped env as on the plain one;
+* ``mode="dict"``: the observation becomes ``Dict({"observation": <the env's>, "privileged": Box})``.
+
+What the vector holds (:func:`privileged_keys`), all in the tank's frame:
+
+* ``ElectroLoc-v0``: the target centre (x, y), mm;
+* ``ElectroLocGlobal-v0``: the robot's true carriage position (x, y), mm (its odometry is in the
+  observation; the truth is what it localises);
+* ``ElectroLocUnknownTarget-v0``: the target centre (x, y), mm, its radius, mm, and contrast factor χ.
+
+It is off by default: ``gym.make`` never adds it, the benchmark builds its envs with ``gym.make`` and so
+never shows it to an agent, and the datasets store the same truth in their infos, not in observations.
+The values come from the envs' documented evaluation accessors (``target_mm``, the global env's
+``info["position_mm"]``, the unknown target's ``target_radius_mm`` / ``target_chi`` infos).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+__all__ = ["PrivilegedInfo", "privileged_keys", "PRIVILEGED_MODES"]
+
+PRIVILEGED_MODES = ("info", "dict")
+_KEYS = {"ElectroLoc-v0": ("target_x_mm", "target_y_mm"),
+         "ElectroLocGlobal-v0": ("true_x_mm", "true_y_mm"),
+         "ElectroLocUnknownTarget-v0": ("target_x_mm", "target_y_mm", "target_radius_mm", "target_chi")}
+
+
+def privileged_keys(env_id: str) -> tuple[str, ...]:
+    """The names of the privileged vector's entries for ``env_id``.
+
+    Raises:
+        ValueError: an env without privileged information (the message lists those with it).
+    """
+    if env_id not in _KEYS:
+        raise ValueError(f"privileged information exists for {list(_KEYS)}, not {env_id!r}")
+    return _KEYS[env_id]
+
+
+class PrivilegedInfo(gym.Wrapper):
+    """Add the episode's hidden state (:func:`privileged_keys`) to ``info`` or to a ``Dict`` observation.
+
+    Args:
+        env: a single env of the registry (``gym.make(...)``, any wrappers).
+        mode: ``"info"`` (``info["privileged"]``) or ``"dict"`` (a ``Dict`` observation).
+
+    Raises:
+        ValueError: an unknown mode or an env without privileged information.
+    """
+
+    def __init__(self, env: gym.Env, mode: str = "info") -> None:
+        super().__init__(env)
+        if mode not in PRIVILEGED_MODES:
+            raise ValueError(f"mode must be one of {list(PRIVILEGED_MODES)}, got {mode!r}")
+        spec = env.unwrapped.spec
+        self.env_id = spec.id if spec is not None else type(env.unwrapped).__name__
+        self.keys = privileged_keys(self.env_id)
+        self.mode = mode
+        box = gym.spaces.Box(-np.inf, np.inf, (len(self.keys),), np.float64)
+        if mode == "dict":
+            self.observation_space = gym.spaces.Dict({"observation": env.observation_space, "privileged": box})
+        self.privileged_space = box
+
+    def privileged(self, info: dict[str, Any]) -> np.ndarray:
+        """The hidden state now (:func:`privileged_keys`), float64."""
+        core = self.env.unwrapped
+        if self.env_id == "ElectroLocGlobal-v0":
+            return np.asarray(info["position_mm"], dtype=np.float64).reshape(2)
+        xy = np.asarray(core.target_mm, dtype=np.float64).reshape(2)
+        if self.env_id == "ElectroLocUnknownTarget-v0":
+            return np.array([xy[0], xy[1], float(info["target_radius_mm"]), float(info["target_chi"])])
+        return xy
+
+    def _wrap(self, obs: Any, info: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
+        p = self.privileged(info)
+        if self.mode == "dict":
+            return {"observation": obs, "privileged": p}, info
+        return obs, {**info, "privileged": p}
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        return self._wrap(obs, info)
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        obs, info = self._wrap(obs, info)
+        return obs, reward, terminated, truncated, info

@@ -1,0 +1,156 @@
+"""TD3+BC (Fujimoto & Gu, NeurIPS 2021) on mixed Minari datasets, single file in the style of CORL's ``td3_bc``.
+
+Offline RL on the belief-state MDP: twin critics Q(s, a) learn the return of the unshaped reward (−1 per
+reading, discount ``discount``) from every transition of the datasets; the deterministic actor
+(:class:`common.Actor`) maximises ``λ·Q(s, π(s)) − (π(s) − a)²`` with ``λ = alpha / mean|Q|``, target
+policy smoothing and delayed actor updates as TD3. States are standardised (:class:`common.Normalizer`).
+Every ``eval_every`` steps the actor runs the validation episodes (reset seeds 100000+); the checkpoint
+with the fewest mean readings is exported to the pickle-free policy format (``OUT/policy``) and the
+learning curve written to ``OUT/curve.json``.
+
+    python experiments/offline/td3_bc.py --seed 1 --out experiments/offline/results/ElectroLoc-v0/td3bc-mixed/seed-1
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import sys
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import common  # noqa: E402
+
+MIXED = ",".join(f"electroloc/ElectroLoc-v0/{a}-v0" for a in ("rnd-wlk", "min-var", "lookahead", "infotaxis",
+                                                               "ppo-belief"))
+
+
+@dataclass
+class TrainConfig:
+    """TD3+BC's settings (CORL's defaults; every one a command-line option of the same name)."""
+
+    datasets: str = MIXED  # comma-separated Minari ids
+    env_id: str = "ElectroLoc-v0"
+    seed: int = 1
+    out: str = "experiments/offline/results/ElectroLoc-v0/td3bc-mixed/seed-1"
+    steps: int = 30_000
+    batch_size: int = 256
+    lr: float = 3e-4
+    discount: float = 0.99
+    tau: float = 0.005
+    policy_noise: float = 0.2
+    noise_clip: float = 0.5
+    policy_freq: int = 2
+    alpha: float = 2.5
+    eval_every: int = 5_000
+    eval_episodes: int = 32
+
+
+class Critic(nn.Module):
+    """Q(s, a): a ReLU MLP on the standardised observation and the action."""
+
+    def __init__(self, obs_dim: int, act_dim: int, hidden: int = 256) -> None:
+        super().__init__()
+        self.net = nn.Sequential(nn.Linear(obs_dim + act_dim, hidden), nn.ReLU(), nn.Linear(hidden, hidden), nn.ReLU(),
+                                 nn.Linear(hidden, 1))
+
+    def forward(self, s: torch.Tensor, a: torch.Tensor) -> torch.Tensor:
+        return self.net(torch.cat([s, a], 1))
+
+
+def soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
+    """Polyak averaging: target ← (1 − tau)·target + tau·source."""
+    for t, s in zip(target.parameters(), source.parameters()):
+        t.data.copy_((1 - tau) * t.data + tau * s.data)
+
+
+def train(config: TrainConfig) -> dict:
+    """Train, validate, export the best checkpoint; returns its validation row and the curve."""
+    import gymnasium as gym
+
+    import electroloc_gym  # noqa: F401
+
+    common.seed_everything(config.seed)
+    ids = [s.strip() for s in config.datasets.split(",") if s.strip()]
+    data = common.load_transitions(ids)
+    norm = common.Normalizer.fit(data["observations"])
+    s_all, s2_all = torch.as_tensor(norm(data["observations"])), torch.as_tensor(norm(data["next_observations"]))
+    a_all = torch.as_tensor(data["actions"])
+    r_all = torch.as_tensor(data["rewards"])[:, None]
+    d_all = torch.as_tensor(data["terminals"])[:, None]
+    obs_dim, act_dim = s_all.shape[1], a_all.shape[1]
+    actor = common.Actor(obs_dim, act_dim)
+    actor_t = copy.deepcopy(actor)
+    q1, q2 = Critic(obs_dim, act_dim), Critic(obs_dim, act_dim)
+    q1_t, q2_t = copy.deepcopy(q1), copy.deepcopy(q2)
+    a_opt = torch.optim.Adam(actor.parameters(), lr=config.lr)
+    q_opt = torch.optim.Adam([*q1.parameters(), *q2.parameters()], lr=config.lr)
+    env = gym.make(config.env_id, condition="random") if config.env_id != "ElectroLocGlobal-v0" \
+        else gym.make(config.env_id)
+    rng = np.random.default_rng(config.seed)
+    curve, best, best_state = [], None, None
+    t0 = common.timer()
+    actor_loss = torch.zeros(())
+    for step in range(1, config.steps + 1):
+        idx = torch.as_tensor(rng.integers(0, len(s_all), config.batch_size))
+        s, a, r, s2, d = s_all[idx], a_all[idx], r_all[idx], s2_all[idx], d_all[idx]
+        with torch.no_grad():
+            noise = (torch.randn_like(a) * config.policy_noise).clamp(-config.noise_clip, config.noise_clip)
+            a2 = (actor_t(s2) + noise).clamp(-1.0, 1.0)
+            target = r + (1 - d) * config.discount * torch.min(q1_t(s2, a2), q2_t(s2, a2))
+        critic_loss = F.mse_loss(q1(s, a), target) + F.mse_loss(q2(s, a), target)
+        q_opt.zero_grad()
+        critic_loss.backward()
+        q_opt.step()
+        if step % config.policy_freq == 0:
+            pi = actor(s)
+            q = q1(s, pi)
+            lmbda = config.alpha / q.abs().mean().detach()
+            actor_loss = -lmbda * q.mean() + F.mse_loss(pi, a)
+            a_opt.zero_grad()
+            actor_loss.backward()
+            a_opt.step()
+            soft_update(q1_t, q1, config.tau)
+            soft_update(q2_t, q2, config.tau)
+            soft_update(actor_t, actor, config.tau)
+        if step % config.eval_every == 0 or step == config.steps:
+            v = common.validate(actor, norm, env, config.eval_episodes)
+            curve.append({"step": step, "critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(), **v,
+                          "wall_s": round(common.timer() - t0, 1)})
+            print(f"step {step}: critic {critic_loss.item():.3f} actor {actor_loss.item():.3f} "
+                  f"readings {v['readings']:.2f} success {v['success']:.2f}", flush=True)
+            if best is None or v["readings"] < best["readings"]:
+                best, best_state = curve[-1], copy.deepcopy(actor.state_dict())
+    out = Path(config.out)
+    actor.load_state_dict(best_state)
+    common.write_curve(out / "curve.json", curve)
+    provenance = {"trainer": "experiments/offline/td3_bc.py", "config": asdict(config), "datasets": ids,
+                  "transitions": int(len(s_all)), "wall_time_s": round(common.timer() - t0, 1),
+                  "checkpoint_chosen_by": "fewest mean readings (failures as the cap) on the validation episodes",
+                  "validation": {"episodes": config.eval_episodes, "first_seed": common.VALIDATION_SEED}}
+    common.export_actor(actor, norm, out / "policy", algo="td3_bc", env_id=config.env_id, provenance=provenance,
+                        evaluation=best)
+    return {"best": best, "curve": curve}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line: every field of TrainConfig as an option."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    for f in fields(TrainConfig):
+        parser.add_argument(f"--{f.name.replace('_', '-')}", type=type(f.default), default=f.default)
+    config = TrainConfig(**vars(parser.parse_args(argv)))
+    for name in ("steps", "batch_size", "eval_every", "eval_episodes", "policy_freq"):
+        if getattr(config, name) < 1:
+            parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(config, name)}")
+    train(config)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

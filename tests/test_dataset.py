@@ -1,0 +1,167 @@
+"""Minari datasets of the benchmark's agents: build, load, recover the env, replay; the seed protocol; bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+minari = pytest.importorskip("minari")  # the dev extra installs it; the numpy lower-bound session deselects these
+
+from electroloc_gym.bench.config import GLOBAL_CONDITION, trial_seeds  # noqa: E402
+from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
+from electroloc_gym.dataset import (  # noqa: E402
+    DatasetRequest,
+    build_dataset,
+    dataset_id,
+    episode_seeds,
+    evaluation_overlap,
+    reference_scores,
+)
+
+pytestmark = pytest.mark.minari
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE = ROOT / "results" / "learned" / "ElectroLoc-v0" / "_baselines" / "bench"
+
+
+@pytest.fixture()
+def store(tmp_path, monkeypatch):
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    return tmp_path / "minari"
+
+
+def _replay(ds) -> int:
+    """Replay every episode's stored actions in the recovered env; return the steps compared."""
+    env = ds.recover_environment()
+    steps = 0
+    for ep, meta in zip(ds.iterate_episodes(), ds.storage.get_episode_metadata(range(ds.total_episodes))):
+        obs, _ = env.reset(seed=int(meta["seed"]))
+        np.testing.assert_array_equal(obs, ep.observations[0])
+        for t, action in enumerate(ep.actions):
+            obs, reward, terminated, truncated, _ = env.step(action)
+            np.testing.assert_array_equal(obs, ep.observations[t + 1])
+            assert reward == ep.rewards[t]
+            assert (terminated, truncated) == (ep.terminations[t], ep.truncations[t])
+            steps += 1
+        assert terminated or truncated
+    return steps
+
+
+def test_tiny_dataset_loads_recovers_and_replays(store):
+    ds = build_dataset(DatasetRequest("ElectroLoc-v0", "min-var", 3, reference=REFERENCE), progress=False)
+    assert ds.spec.dataset_id == "electroloc/ElectroLoc-v0/min-var-v0"
+    loaded = minari.load_dataset("electroloc/ElectroLoc-v0/min-var-v0")
+    assert (store / "electroloc" / "ElectroLoc-v0" / "min-var-v0" / "data").is_dir()  # MINARI_DATASETS_PATH
+    assert loaded.total_episodes == 3 and loaded.total_steps == _replay(loaded)
+    meta = loaded.storage.metadata
+    block = meta["electroloc"]
+    assert block["complete"] and block["agent"] == "min-var" and block["env_kwargs"] == {"condition": "random"}
+    assert meta["dataset_size"] == type(loaded.storage).get_size(loaded.storage)  # counted once, at the end
+    # the reference scores: 1 − readings of rnd-wlk and of the best planner on the benchmark's trials
+    refs = reference_scores(REFERENCE, "ElectroLoc-v0")
+    assert meta["ref_min_score"] == pytest.approx(1 - refs["rnd_readings"])
+    assert meta["ref_max_score"] == pytest.approx(1 - refs["best_readings"])
+    ep = next(loaded.iterate_episodes())
+    # return = 1 − readings (the reset's reading unrewarded), the scale the reference scores use
+    assert ep.rewards.sum() == 1 - ep.infos["n_observations"][-1]
+    assert minari.get_normalized_score(loaded, np.array([meta["ref_max_score"]]))[0] == pytest.approx(1.0)
+    # the infos: belief summary and truth, one row per observation
+    n = len(ep.observations)
+    assert ep.infos["truth_mm"].shape == (n, 2) and ep.infos["covariance_mm2"].shape == (n, 3)
+    err = np.hypot(*(ep.infos["estimate_mm"][-1] - ep.infos["truth_mm"][-1]))
+    assert err == pytest.approx(ep.infos["error_mm"][-1])
+    assert np.all(ep.infos["condition_index"] >= 0)
+
+
+def test_global_env_dataset_replays_and_holds_the_robots_true_position(store):
+    ds = build_dataset(DatasetRequest("ElectroLocGlobal-v0", "rnd-wlk", 2), progress=False)
+    assert _replay(ds) == ds.total_steps
+    ep = next(ds.iterate_episodes())
+    assert np.all(ep.infos["condition_index"] == -1)
+    assert "ref_min_score" not in ds.storage.metadata  # no reference given
+
+
+def test_resume_continues_with_the_same_episodes(store, monkeypatch):
+    full = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, dataset_id="test/full-v0"), progress=False)
+    part = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1, dataset_id="test/part-v0"), progress=False)
+    part.storage.update_metadata({"electroloc": {**part.storage.metadata["electroloc"], "complete": False}})
+    with pytest.raises(ValueError, match="--resume"):
+        build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, dataset_id="test/part-v0"), progress=False)
+    with pytest.raises(ValueError, match="other settings"):
+        build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, seed=2, dataset_id="test/part-v0"), resume=True,
+                      progress=False)
+    resumed = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, dataset_id="test/part-v0"), resume=True,
+                            progress=False)
+    assert resumed.total_episodes == 3 and resumed.storage.metadata["electroloc"]["complete"]
+    for a, b in zip(full.iterate_episodes(), resumed.iterate_episodes()):
+        np.testing.assert_array_equal(a.observations, b.observations)
+        np.testing.assert_array_equal(a.actions, b.actions)
+
+
+def test_existing_id_refused_unless_forced(store):
+    build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1), progress=False)
+    with pytest.raises(ValueError, match="--force"):
+        build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1), progress=False)
+    ds = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 2), force=True, progress=False)
+    assert ds.total_episodes == 2
+
+
+def test_dataset_seeds_are_disjoint_from_the_evaluation_seeds():
+    seeds = [episode_seeds(1, k)[0] for k in range(5000)]
+    assert evaluation_overlap(seeds) == []
+    assert len(set(seeds)) == len(seeds)
+    evaluation = [trial_seeds(0, c, k)[0] for c in (*PRESET_NAMES, GLOBAL_CONDITION) for k in range(3)]
+    assert evaluation_overlap(evaluation) == sorted(set(evaluation))  # the check can fail
+
+
+def test_dataset_ids():
+    assert dataset_id("ElectroLoc-v0", "lookahead") == "electroloc/ElectroLoc-v0/lookahead-v0"
+    assert dataset_id("ElectroLoc-v0", "min-var[n_voters=500]", 2) == "electroloc/ElectroLoc-v0/min-var_n_voters_500-v2"
+    assert dataset_id("ElectroLoc-v0", "/x/runs/bc-seed1/") == "electroloc/ElectroLoc-v0/bc-seed1-v0"
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"env_id": "Nope-v0"}, "env must be one of"),
+    ({"episodes": 0}, r"episodes must be an integer in \[1, "),
+    ({"episodes": True}, "episodes must be"),
+    ({"seed": 0}, "evaluation seed"),
+    ({"seed": -3}, "seed must be"),
+    ({"version": -1}, "version must be"),
+    ({"condition": "mud"}, "condition must be 'random' or one of"),
+    ({"agent": " "}, "agent must be"),
+    ({"dataset_id": "no namespace"}, "dataset id must be"),
+])
+def test_bad_requests_one_line(kwargs, match):
+    args = {"env_id": "ElectroLoc-v0", "agent": "rnd-wlk", "episodes": 1, **kwargs}
+    with pytest.raises(ValueError, match=match) as info:
+        DatasetRequest(**args)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(("argv", "match"), [
+    (["--agent", "nope", "--episodes", "1"], "unknown agent 'nope'"),
+    (["--agent", "zero-crossing", "--episodes", "1"], "ends episodes itself"),
+    (["--agent", "ppo-belief", "--episodes", "1", "--env", "ElectroLocGlobal-v0"], "trained on ElectroLoc-v0"),
+    (["--agent", "rnd-wlk", "--episodes", "1", "--reference", "/no/such/bench"], "reference must be"),
+    (["--agent", "rnd-wlk", "--episodes", "1", "--resume", "--force"], "exclude each other"),
+])
+def test_cli_bad_input_is_one_line(store, argv, match):
+    proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "dataset", "--no-progress", *argv],
+                          capture_output=True, text=True, env={**__import__("os").environ})
+    assert proc.returncode == 2
+    err = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(err) == 1 and match in err[0] and "Traceback" not in proc.stderr
+    assert not any(store.rglob("metadata.json"))  # nothing half-written
+
+
+def test_reference_refuses_a_run_without_a_planner(tmp_path):
+    rows = [{"agent": "rnd-wlk", "condition": "c", "observations": 9, "success": True, "max_observations": 35,
+             "env_id": "ElectroLoc-v0"}]
+    (tmp_path / "trials.jsonl").write_text("\n".join(json.dumps(r) for r in rows), encoding="utf-8")
+    with pytest.raises(ValueError, match="must hold rnd-wlk and one of"):
+        reference_scores(tmp_path, "ElectroLoc-v0")
