@@ -18,10 +18,13 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["EDGE_MM", "column_layout", "least_capacity"]
+__all__ = ["EDGE_MM", "MAX_COLUMN_SETS", "column_layout", "least_capacity"]
 
 #: Column positions tried per column (shifts 0, slack/8, …, slack of the slack the box leaves).
 _SHIFT_LEVELS = 8
+#: The most column sets tried: with more columns than that family allows (small objects in a large box) every
+#: column takes the same shift, which keeps the construction valid and its cost linear in the columns.
+MAX_COLUMN_SETS = 250_000
 #: Margin added to every clearance, mm: keeps a centre exactly on an edge clear under rounding.
 EDGE_MM = 1e-9
 
@@ -47,7 +50,10 @@ def _columns(h: float, spacing: float) -> tuple[NDArray[np.float64], NDArray[np.
     k = int(math.floor(2.0 * h / spacing + 1e-12)) + 1
     slack = max(2.0 * h - (k - 1) * spacing, 0.0)
     shifts = np.linspace(0.0, slack, _SHIFT_LEVELS + 1)
-    combos = np.array(list(itertools.combinations_with_replacement(range(_SHIFT_LEVELS + 1), k)), dtype=np.intp)
+    if math.comb(k + _SHIFT_LEVELS, _SHIFT_LEVELS) <= MAX_COLUMN_SETS:
+        combos = np.array(list(itertools.combinations_with_replacement(range(_SHIFT_LEVELS + 1), k)), dtype=np.intp)
+    else:
+        combos = np.repeat(np.arange(_SHIFT_LEVELS + 1, dtype=np.intp)[:, None], k, axis=1)
     xs = (-h + np.arange(k) * spacing)[:, None] + shifts[None, :]          # (k, levels+1)
     index = np.arange(k) * (_SHIFT_LEVELS + 1) + combos                     # (F, k) into xs.ravel()
     return np.minimum(xs.ravel(), h), index

@@ -202,6 +202,14 @@ def test_the_fallback_keeps_the_drawn_objects_and_is_deterministic() -> None:
     assert len({o.xy_mm for o in a.objects}) == 8
 
 
+def test_the_fallback_of_small_objects_in_a_large_box_stays_cheap() -> None:
+    """Many columns (3 mm objects): the column family is capped, so the fallback neither explodes nor fails."""
+    draw = DistractorDraw(count=8, diameters_mm=(3.0,), max_attempts=1)
+    a = draw.draw(COND, (0.0, 0.0), np.random.default_rng(1))
+    assert len(a) == 8
+    _assert_clear(a, COND, (0.0, 0.0), draw.gap_mm)
+
+
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(h=st.floats(20.0, 90.0), diameter=st.floats(3.0, 40.0), gap=st.floats(0.0, 12.0),
        target_radius=st.floats(1.0, 20.0), u=st.floats(-1.0, 1.0), v=st.floats(-1.0, 1.0))
