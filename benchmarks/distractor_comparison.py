@@ -83,8 +83,8 @@ def summarize(agents: list[str], ds: list[int], out: Path) -> tuple[int, list[di
             continue
         rs = [r for r in rs if r["trial"] < min(n, have[(d, a)])]
         ok = [r for r in rs if r["success"]]
-        obs = np.array([r["observations"] for r in rs], dtype=float)
-        ok_obs = np.array([r["observations"] for r in ok], dtype=float)
+        obs = np.array([r.get("readings", r.get("observations")) for r in rs], dtype=float)
+        ok_obs = np.array([r.get("readings", r.get("observations")) for r in ok], dtype=float)
         err = np.array([r["error_mm"] for r in ok], dtype=float)
         dms = np.array([r["decision_ms_median"] for r in rs if r["decision_ms_median"] is not None], dtype=float)
         rows.append({"agent": a, "distractors": d, "trials": len(rs), "successes": len(ok),

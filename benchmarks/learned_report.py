@@ -109,7 +109,7 @@ def condition_scores(records: Sequence[dict[str, Any]], conditions: Sequence[str
         if not rows:
             raise ValueError(f"no trials of condition {cond!r}")
         cap = [int(r["max_observations"]) for r in rows]
-        readings.append(float(np.mean([r["observations"] if r["success"] else c for r, c in zip(rows, cap)])))
+        readings.append(float(np.mean([r["readings"] if r["success"] else c for r, c in zip(rows, cap)])))
         success.append(float(np.mean([bool(r["success"]) for r in rows])))
     return {"readings": np.array(readings), "success": np.array(success)}
 

@@ -24,7 +24,8 @@ TEMPLATE = json.loads((ROOT / "results" / "learned" / "ElectroLoc-v0" / "ppo" / 
 
 def _record(cond: str, agent: str, trial: int, n: int) -> dict:
     """A schema-valid record: a success after n readings, or (n > 35) a failure at the cap."""
-    rec = {**TEMPLATE, "condition": cond, "agent": agent, "trial": trial, "far_success": None}
+    rec = {**TEMPLATE, "condition": cond, "agent": agent, "trial": trial}
+    rec.pop("far_success", None)  # absent: computed from success and error (null is refused)
     if n <= 35:
         rec.update(success=True, ended_by="success", observations=n, decisions=n - 1, spread_mm=2.0)
     else:

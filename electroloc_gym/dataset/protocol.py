@@ -21,7 +21,6 @@ the dataset's uses the means over the same conditions).
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -69,7 +68,7 @@ def evaluation_overlap(env_seeds: Iterable[int]) -> list[int]:
 def _mean_readings(rows: list[dict[str, Any]]) -> float:
     """Mean over conditions of the per-condition mean readings, a failure counted as the cap."""
     conditions = sorted({r["condition"] for r in rows})
-    per = [np.mean([r["observations"] if r["success"] else r["max_observations"]
+    per = [np.mean([r["readings"] if r["success"] else r["max_observations"]
                     for r in rows if r["condition"] == c]) for c in conditions]
     return float(np.mean(per))
 
@@ -86,8 +85,9 @@ def reference_scores(bench_dir: str | Path, env_id: str) -> dict[str, Any]:
     if not path.is_file():
         raise ValueError(f"reference must be a benchmark folder or trials.jsonl with rnd-wlk and a planner on "
                          f"{env_id}; {str(path)!r} does not exist")
-    rows = [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line.strip()]
-    rows = [r for r in rows if r.get("env_id", "ElectroLoc-v0") == env_id]
+    from electroloc_gym.bench.records import read_trials
+
+    rows = [r for r in read_trials(path) if r.get("env_id", "ElectroLoc-v0") == env_id]  # the bench's own schema
     agents = {r["agent"] for r in rows}
     planners = [p for p in PLANNERS if p in agents]
     if RND_AGENT not in agents or not planners:
