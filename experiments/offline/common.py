@@ -9,6 +9,8 @@
   (``actor.latent_pi.{0,2}``, ``actor.mu``), so :func:`export_actor` writes it in the project's pickle-free
   policy format (:mod:`electroloc_gym.policy.format`) and ``electroloc bench`` runs it with numpy like any
   shipped policy; :func:`export_actor` checks the numpy actions against torch's (to 1e-4: float64 against float32).
+* :func:`finish` keeps the checkpoint with the fewest validation readings, writes the curve and exports it
+  with its provenance; :func:`main_of` is the trainers' command line (every field of their config an option).
 * :func:`validate` runs the torch actor on validation episodes (reset seeds 100000+, the training
   callback's, never the benchmark's seed 0) through the benchmark's rollout loop: mean readings (a failure
   counted as the cap) and success rate — the learning curve and the checkpoint choice.
@@ -189,3 +191,39 @@ def timer() -> float:
 def read_json(path: Path) -> Any:
     """A JSON file's content."""
     return json.loads(Path(path).read_text(encoding="utf-8"))
+
+
+def finish(actor: Actor, best_state: dict[str, Any], best: dict[str, Any], curve: list[dict[str, Any]], *,
+           norm: Normalizer, config: Any, algo: str, trainer: str, datasets: Sequence[str], transitions: int,
+           t0: float) -> dict[str, Any]:
+    """Load the chosen checkpoint into ``actor``, write ``curve.json`` and export the policy to ``config.out``."""
+    from dataclasses import asdict
+
+    out = Path(config.out)
+    actor.load_state_dict(best_state)
+    write_curve(out / "curve.json", curve)
+    provenance = {"trainer": trainer, "config": asdict(config), "datasets": list(datasets),
+                  "transitions": int(transitions), "wall_time_s": round(timer() - t0, 1),
+                  "checkpoint_chosen_by": "fewest mean readings (failures as the cap) on the validation episodes",
+                  "validation": {"episodes": config.eval_episodes, "first_seed": VALIDATION_SEED}}
+    export_actor(actor, norm, out / "policy", algo=algo, env_id=config.env_id, provenance=provenance, evaluation=best)
+    return {"best": best, "curve": curve}
+
+
+def main_of(config_class: type, train: Any, doc: str, positive: Sequence[str]) -> Any:
+    """A trainer's command line: every field of ``config_class`` as an option, ``positive`` ones ≥ 1."""
+    import argparse
+    from dataclasses import fields
+
+    def main(argv: list[str] | None = None) -> int:
+        parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+        for f in fields(config_class):
+            parser.add_argument(f"--{f.name.replace('_', '-')}", type=type(f.default), default=f.default)
+        config = config_class(**vars(parser.parse_args(argv)))
+        for name in positive:
+            if getattr(config, name) < 1:
+                parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(config, name)}")
+        train(config)
+        return 0
+
+    return main

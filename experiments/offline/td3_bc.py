@@ -13,10 +13,9 @@ learning curve written to ``OUT/curve.json``.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import sys
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -127,29 +126,12 @@ def train(config: TrainConfig) -> dict:
                   f"readings {v['readings']:.2f} success {v['success']:.2f}", flush=True)
             if best is None or v["readings"] < best["readings"]:
                 best, best_state = curve[-1], copy.deepcopy(actor.state_dict())
-    out = Path(config.out)
-    actor.load_state_dict(best_state)
-    common.write_curve(out / "curve.json", curve)
-    provenance = {"trainer": "experiments/offline/td3_bc.py", "config": asdict(config), "datasets": ids,
-                  "transitions": int(len(s_all)), "wall_time_s": round(common.timer() - t0, 1),
-                  "checkpoint_chosen_by": "fewest mean readings (failures as the cap) on the validation episodes",
-                  "validation": {"episodes": config.eval_episodes, "first_seed": common.VALIDATION_SEED}}
-    common.export_actor(actor, norm, out / "policy", algo="td3_bc", env_id=config.env_id, provenance=provenance,
-                        evaluation=best)
-    return {"best": best, "curve": curve}
+    return common.finish(actor, best_state, best, curve, norm=norm, config=config, algo="td3_bc",
+                         trainer="experiments/offline/td3_bc.py", datasets=ids, transitions=len(s_all), t0=t0)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """The command line: every field of TrainConfig as an option."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    for f in fields(TrainConfig):
-        parser.add_argument(f"--{f.name.replace('_', '-')}", type=type(f.default), default=f.default)
-    config = TrainConfig(**vars(parser.parse_args(argv)))
-    for name in ("steps", "batch_size", "eval_every", "eval_episodes", "policy_freq"):
-        if getattr(config, name) < 1:
-            parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(config, name)}")
-    train(config)
-    return 0
+main = common.main_of(TrainConfig, train, __doc__,
+                      ("steps", "batch_size", "eval_every", "eval_episodes", "policy_freq"))
 
 
 if __name__ == "__main__":
