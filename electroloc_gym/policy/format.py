@@ -98,8 +98,10 @@ class ObsNormalization:
         if mean.ndim != 1 or var.shape != mean.shape or mean.size == 0:
             raise PolicyFormatError(f"normalisation mean and var must be equal-length 1-D arrays, got shapes "
                                     f"{mean.shape} and {var.shape}")
-        if not (np.isfinite(mean).all() and np.isfinite(var).all() and (var >= 0).all()):
-            raise PolicyFormatError("normalisation mean/var must be finite and var ≥ 0")
+        big = float(np.finfo(np.float32).max)  # the observations are float32: statistics beyond it describe none
+        if not (np.isfinite(mean).all() and np.isfinite(var).all() and (var >= 0).all()
+                and (np.abs(mean) <= big).all() and (var <= big).all()):
+            raise PolicyFormatError(f"normalisation mean/var must be finite, within ±{big:.3g} and var ≥ 0")
         for name in ("clip_obs", "epsilon"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
@@ -108,8 +110,13 @@ class ObsNormalization:
         object.__setattr__(self, "var", var)
 
     def apply(self, x: np.ndarray) -> np.ndarray:
-        """Normalise rows of ``x`` exactly as SB3's ``VecNormalize.normalize_obs`` does."""
-        return np.clip((x - self.mean) / np.sqrt(self.var + self.epsilon), -self.clip_obs, self.clip_obs)
+        """Normalise rows of ``x`` exactly as SB3's ``VecNormalize.normalize_obs`` does.
+
+        A quotient that overflows (a tiny variance under a far mean) is ±inf before the clip, which gives
+        exactly ±``clip_obs``: the overflow is expected and silenced.
+        """
+        with np.errstate(over="ignore"):
+            return np.clip((x - self.mean) / np.sqrt(self.var + self.epsilon), -self.clip_obs, self.clip_obs)
 
 
 @dataclass(frozen=True)

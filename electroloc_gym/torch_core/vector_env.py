@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import torch
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -169,7 +170,11 @@ class TorchElectroLocVectorEnv(VectorEnv):
 
 def numpy_view(env: VectorEnv) -> VectorEnv:
     """The torch vector env seen through numpy arrays (Gymnasium's ``ArrayConversion`` wrapper)."""
-    from gymnasium.wrappers.vector import ArrayConversion
+    try:
+        from gymnasium.wrappers.vector import ArrayConversion
+    except ImportError:  # added in gymnasium 1.2
+        raise RuntimeError("numpy_view needs gymnasium >= 1.2 (its ArrayConversion wrapper); "
+                           f"this is gymnasium {gym.__version__}") from None
 
     return ArrayConversion(env, env_xp=torch, target_xp=np, env_device=env.device, target_device=None)
 
