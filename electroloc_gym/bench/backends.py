@@ -168,7 +168,11 @@ class ProcessBackend(Backend):
                             yield spec, fut.result()
                             nxt = next(todo, None)
                             if nxt is not None:
-                                futures[pool.submit(worker_fn, nxt)] = nxt
+                                try:
+                                    futures[pool.submit(worker_fn, nxt)] = nxt
+                                except BrokenProcessPool:  # a worker died while this trial's result was kept
+                                    raise WorkerLost(list(futures.values()) or [nxt], "the process pool broke: "
+                                                     "a worker exited or was killed") from None
                 finally:
                     for fut in futures:
                         fut.cancel()
