@@ -26,7 +26,6 @@ from typing import Any
 
 from electroloc_gym.bench.agents import register_object_agent, shipped_models
 from electroloc_gym.bench.config import (
-    DYNAMIC_GAIN_LEVELS,
     ENV_CHOICES,
     ENV_N_PARTICLES,
     ENV_SENSOR_MODELS,
@@ -37,6 +36,7 @@ from electroloc_gym.bench.config import (
 )
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
+from electroloc_gym.registry import bench_env
 
 __all__ = ["run", "BenchResult"]
 
@@ -121,7 +121,7 @@ def run(agents: list[Any], *, env: str = "target", conditions: str | list[str] =
         conditions=(GLOBAL_CONDITION,) if env_id == GLOBAL_ENV_ID else tuple(resolve_conditions(conditions)),
         trials=trials, seed=seed, sensor_model=sensor_model or ENV_SENSOR_MODELS[env_id][0], signal=signal,
         max_observations=max_observations, n_particles=ENV_N_PARTICLES[env_id] if n_particles is None else n_particles,
-        env_id=env_id, gain_levels=DYNAMIC_GAIN_LEVELS if env == "dynamic-gain" else None)
+        env_id=env_id, gain_levels=bench_env(env)[1].env_kwargs.get("gain_levels"))
     folder = Path(tempfile.mkdtemp(prefix="electroloc-bench-")) if out is None else Path(out)
     summary = run_benchmark(config, folder, workers=workers, backend=backend, resume=resume, progress=progress,
                             trust_pickle=trust_pickle, log=log)

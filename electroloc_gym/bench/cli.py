@@ -17,7 +17,6 @@ from electroloc_gym.bench.agents import (
 )
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.config import (
-    DYNAMIC_GAIN_LEVELS,
     ENV_CHOICES,
     ENV_N_PARTICLES,
     ENV_SENSOR_MODELS,
@@ -33,6 +32,7 @@ from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
 from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import MAX_OBSERVATIONS
+from electroloc_gym.registry import bench_env
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = ["add_arguments", "run", "ascii_int", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS",
@@ -186,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
             check_ray_address(args.address)
         env_name = getattr(args, "env", "target")
         env_id = ENV_CHOICES[env_name]
-        gain_levels = DYNAMIC_GAIN_LEVELS if env_name == "dynamic-gain" else None
+        gain_levels = bench_env(env_name)[1].env_kwargs.get("gain_levels")  # the row's own arguments
         is_global = env_id == GLOBAL_ENV_ID
         agents = _agents(args, env_id, gain_levels)
         sensor_model = args.sensor_model or ENV_SENSOR_MODELS[env_id][0]
