@@ -64,9 +64,7 @@ def require_target_belief(env: Any, agent_name: str) -> None:
     """Raise one ValueError unless ``env``'s belief is over the target's position (hypotheses that do not
     move with the robot): ElectroLoc-v0 and ElectroLocUnknownTarget-v0, not ElectroLocGlobal-v0.
     """
-    x = np.asarray(env.belief.particles[:1])
-    moved = np.asarray(env.predicted_particles_mm(x, np.array([1.0, 1.0])), dtype=np.float64)
-    if np.any(np.abs(moved - x) > 1e-6):
+    if env.belief_frame != "target":
         raise ValueError(f"{agent_name} needs a belief over the target's position (ElectroLoc-v0, "
                          "ElectroLocUnknownTarget-v0); this env's belief is over the robot's own position "
                          "(ElectroLocGlobal-v0): use min-var or lookahead there")

@@ -176,10 +176,9 @@ class LookaheadAgent(BaselineAgent):
                              "(ElectroLocUnknownTarget-v0 carries a radius and a contrast): use min-var there")
         return sample_belief(belief, self.n_particles, self.rng)[0].astype(np.float64, copy=False)
 
-    def _moves_with_robot(self, x: NDArray) -> bool:
-        env = self.env
-        moved = env.predicted_particles_mm(x, np.array([1.0, 1.0]))
-        return bool(np.any(np.abs(np.asarray(moved, dtype=np.float64) - x) > 1e-6))
+    def _moves_with_robot(self) -> bool:
+        """Whether the belief is over the robot's own position (the env's ``belief_frame``)."""
+        return bool(self.env.belief_frame == "robot")
 
     def _readings_static(self, x: NDArray, first: NDArray, cont: NDArray) -> tuple[NDArray, NDArray, NDArray]:
         """Static target: (T, C·K, S) mean/std from the carriage at p + D_t (kept in the box)."""
@@ -278,7 +277,7 @@ class LookaheadAgent(BaselineAgent):
         t0 = time.perf_counter()
         x = self._subsample()
         first = self._first_moves()
-        moving = self._moves_with_robot(x)
+        moving = self._moves_with_robot()
         total = np.zeros(first.shape[0])
         n = 0
         while True:

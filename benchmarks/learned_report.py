@@ -81,17 +81,17 @@ def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str
     Raises:
         ReportError: the file is missing or holds no valid record.
     """
-    from electroloc_gym.bench.config import UNKNOWN_ENV_ID
     from electroloc_gym.bench.records import load_records
     from electroloc_gym.bench.schema import RecordRules
     from electroloc_gym.protocol import SUCCESS_SPREAD_MM
+    from electroloc_gym.registry import env_entry
 
     if not path.is_file():
         raise ReportError(f"{path} is missing")
     cfg = _config(path.parent)
     rules = RecordRules(conditions=frozenset(c for c in cfg["conditions"] if isinstance(c, str)),
                         agents=frozenset(a for a in cfg["agents"] if isinstance(a, str)), trials=cfg["trials"],
-                        success_spread_mm=SUCCESS_SPREAD_MM, shape=cfg["env_id"] == UNKNOWN_ENV_ID)
+                        success_spread_mm=SUCCESS_SPREAD_MM, shape=bool(env_entry(cfg["env_id"]).record_keys))
     loaded = load_records(path, rules=rules)
     if set_aside is not None:
         set_aside.extend(loaded.messages())

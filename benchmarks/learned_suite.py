@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from electroloc_gym.registry import env_entry
 from electroloc_gym.runtime import THREAD_VARS
 
 #: Training seeds of every configuration (disjoint from the benchmark's trial seeds by construction:
@@ -133,7 +134,7 @@ def _bench(plan: Plan, env_id: str, agents: str, out: Path) -> None:
         return
     argv = [sys.executable, "-m", "electroloc_gym.cli", "bench", "--env", BENCH_ENV[env_id], "--agents", agents,
             "--trials", str(plan.trials), "--seed", "0", "--out", str(out), "--no-progress"]
-    if plan.conditions and env_id != "ElectroLocGlobal-v0":
+    if plan.conditions and env_entry(env_id).takes("condition"):
         argv += ["--conditions", plan.conditions]
     if plan.workers is not None:
         argv += ["--workers", str(plan.workers)]

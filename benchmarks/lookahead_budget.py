@@ -40,7 +40,11 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
-from electroloc_gym.bench.config import GLOBAL_CONDITION, GLOBAL_ENV_ID, resolve_conditions, trial_seeds  # noqa: E402
+from electroloc_gym.bench.config import resolve_conditions, trial_seeds  # noqa: E402
+from electroloc_gym.registry import env_entry  # noqa: E402
+
+GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
+GLOBAL_CONDITION = env_entry(GLOBAL_ENV_ID).map_condition
 from electroloc_gym.bench.rollout import run_episode  # noqa: E402
 from electroloc_gym.conditions import DEFAULT_SIGNAL, get_condition  # noqa: E402
 
@@ -63,7 +67,7 @@ def run(env_id: str, conditions: tuple[str, ...], trials: int, seed: int, agents
     with tqdm(total=total, desc=env_id, unit="trial") as bar:
         for cond in conditions:
             kwargs = {"sensor_model": "calibrated", "n_particles": n_particles, "max_observations": max_observations}
-            if env_id != GLOBAL_ENV_ID:
+            if env_entry(env_id).takes("condition"):
                 kwargs["condition"] = get_condition(cond, DEFAULT_SIGNAL)
             env = gym.make(env_id, **kwargs)
             for k in range(trials):

@@ -45,6 +45,7 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
 from electroloc_gym.fileio import atomic_write_text  # noqa: E402
+from electroloc_gym.registry import env_entry  # noqa: E402
 
 
 class _Single:
@@ -164,7 +165,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         print(json.dumps(res))
         return res
     kwargs = {"n_particles": args.particles, "observation": args.observation, "sensor_model": args.sensor_model}
-    if args.env == "ElectroLoc-v0":
+    if env_entry(args.env).takes("condition"):
         kwargs["condition"] = args.condition
     if args.profile:
         profile_native(args.env, args.n_envs[0], kwargs)

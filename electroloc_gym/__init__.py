@@ -1,7 +1,7 @@
 """electroloc-gym: the active-electrolocation robot of Solberg, Lynch & MacIver (IJRR 2008) as Gymnasium envs.
 
 Importing the package registers the environment ids of the env table (:mod:`electroloc_gym.registry`;
-idempotent):
+idempotent); :func:`register_env` adds another:
 
 * ``ElectroLoc-v0`` — localise a target sphere with a particle-filter belief.
 * ``ElectroLocGlobal-v0`` — the robot localises itself in a mapped tank of six cylinders (§6.5).
@@ -19,21 +19,34 @@ from electroloc_gym.runtime import use_user_numba_cache
 use_user_numba_cache()  # before the first numba import (below): the compiled kernels are cached once per user
 
 from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
-from electroloc_gym.registry import ENV_IDS, ENVS  # noqa: E402
+from electroloc_gym.registry import ENV_IDS, EnvEntry, add_entry, class_path  # noqa: E402
 
 try:  # the version is declared once, in pyproject.toml
     __version__ = version("electroloc-gym")
 except PackageNotFoundError:  # pragma: no cover - a source tree that was never installed
     __version__ = "0+unknown"
 
-__all__ = ["PRESET_NAMES", "Condition", "get_condition", "ENV_IDS", "__version__"]
+__all__ = ["PRESET_NAMES", "Condition", "get_condition", "ENV_IDS", "register_env", "__version__"]
 
 
-def _register() -> None:
-    for entry in ENVS:
-        if entry.env_id not in registration.registry:
-            registration.register(id=entry.env_id, entry_point=entry.entry_point,
-                                  vector_entry_point=entry.vector_entry_point)
+def register_env(entry: EnvEntry) -> None:
+    """Add ``entry`` to the env table and register its id with Gymnasium (``gym.make``, ``gym.make_vec``);
+    idempotent for the same entry.
+
+    Raises:
+        ValueError: another entry with the same id, task, env class or bench name.
+    """
+    add_entry(entry)
+    if entry.env_id not in registration.registry:
+        registration.register(id=entry.env_id, entry_point=class_path(entry.env_class),
+                              vector_entry_point=class_path(entry.vector_class))
 
 
-_register()
+def _register_builtin() -> None:
+    from electroloc_gym.envs.table import BUILTIN_ENVS
+
+    for entry in BUILTIN_ENVS:
+        register_env(entry)
+
+
+_register_builtin()

@@ -24,6 +24,7 @@ from electroloc_gym.conditions import (
     get_condition,
 )
 from electroloc_gym.fileio import strict_json
+from electroloc_gym.registry import BENCH_ENVS, bench_env
 from electroloc_gym.runtime import pin_threads
 from electroloc_gym.sensor import zero_crossing_mm
 
@@ -263,8 +264,9 @@ def _cmd_eev(args: argparse.Namespace) -> int:
 
     from electroloc_gym.render import plot_eev, save_figure_atomic
 
-    if getattr(args, "env", "target") == "global":
-        # Fig. 14: the six-cylinder map of ElectroLocGlobal-v0, physics and the calibrated grid side by side.
+    if bench_env(getattr(args, "env", "target"))[0].map_condition is not None:
+        # Fig. 14: the map of an env of one fixed map (ElectroLocGlobal-v0's six cylinders), physics and the
+        # calibrated grid side by side.
         from electroloc_gym.render import plot_map_eev
         from electroloc_gym.scene import BENCHMARK_SCENE
 
@@ -328,8 +330,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES), help="the preset")
     e.add_argument("--signal", default=DEFAULT_SIGNAL, choices=list(SIGNAL_CHOICES), help="signal scale of the preset")
     e.add_argument("--out", default="eev.png", help="the PNG to write")
-    e.add_argument("--env", default="target", choices=["target", "global"],
-                   help="target: one sphere's EEV (ElectroLoc-v0); global: the six-cylinder map (Fig. 14)")
+    e.add_argument("--env", default="target", choices=list(BENCH_ENVS),
+                   help="an env of the presets: one sphere's EEV (ElectroLoc-v0); of one fixed map (global): "
+                        "the six-cylinder map (Fig. 14)")
     e.set_defaults(func=_cmd_eev)
 
     m = command("demo", "run one random-move episode; save its belief snapshots (PNG) and optionally a GIF")

@@ -18,8 +18,8 @@ What the vector holds (:func:`privileged_keys`), all in the tank's frame:
 
 It is off by default: ``gym.make`` never adds it, the benchmark builds its envs with ``gym.make`` and so
 never shows it to an agent, and the datasets store the same truth in their infos, not in observations.
-The values come from the envs' documented evaluation accessors (``target_mm``, the global env's
-``info["position_mm"]``, the unknown target's ``target_radius_mm`` / ``target_chi`` infos).
+The values come from the envs' documented evaluation accessors (``hidden_keys``, ``hidden_state()``:
+each task's own hidden state, declared with the task).
 """
 
 from __future__ import annotations
@@ -29,23 +29,20 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from electroloc_gym.registry import ENV_IDS, env_entry
+
 __all__ = ["PrivilegedInfo", "privileged_keys", "PRIVILEGED_MODES"]
 
 PRIVILEGED_MODES = ("info", "dict")
-_KEYS = {"ElectroLoc-v0": ("target_x_mm", "target_y_mm"),
-         "ElectroLocGlobal-v0": ("true_x_mm", "true_y_mm"),
-         "ElectroLocUnknownTarget-v0": ("target_x_mm", "target_y_mm", "target_radius_mm", "target_chi")}
 
 
 def privileged_keys(env_id: str) -> tuple[str, ...]:
-    """The names of the privileged vector's entries for ``env_id``.
+    """The names of the privileged vector's entries for ``env_id`` (its task's hidden state).
 
     Raises:
-        ValueError: an env without privileged information (the message lists those with it).
+        ValueError: an id that is not in the env table (the message lists the ids).
     """
-    if env_id not in _KEYS:
-        raise ValueError(f"privileged information exists for {list(_KEYS)}, not {env_id!r}")
-    return _KEYS[env_id]
+    return tuple(env_entry(env_id).task_class.hidden_keys)
 
 
 class PrivilegedInfo(gym.Wrapper):
@@ -63,9 +60,12 @@ class PrivilegedInfo(gym.Wrapper):
         super().__init__(env)
         if mode not in PRIVILEGED_MODES:
             raise ValueError(f"mode must be one of {list(PRIVILEGED_MODES)}, got {mode!r}")
-        spec = env.unwrapped.spec
-        self.env_id = spec.id if spec is not None else type(env.unwrapped).__name__
-        self.keys = privileged_keys(self.env_id)
+        core = env.unwrapped
+        if not hasattr(core, "hidden_state"):
+            raise ValueError(f"env must be an env of the env table ({list(ENV_IDS)}), got "
+                             f"{type(core).__name__}")
+        self.env_id = core.entry().env_id
+        self.keys = core.hidden_keys
         self.mode = mode
         box = gym.spaces.Box(-np.inf, np.inf, (len(self.keys),), np.float64)
         if mode == "dict":
@@ -74,13 +74,7 @@ class PrivilegedInfo(gym.Wrapper):
 
     def privileged(self, info: dict[str, Any]) -> np.ndarray:
         """The hidden state now (:func:`privileged_keys`), float64."""
-        core = self.env.unwrapped
-        if self.env_id == "ElectroLocGlobal-v0":
-            return np.asarray(info["position_mm"], dtype=np.float64).reshape(2)
-        xy = np.asarray(core.target_mm, dtype=np.float64).reshape(2)
-        if self.env_id == "ElectroLocUnknownTarget-v0":
-            return np.array([xy[0], xy[1], float(info["target_radius_mm"]), float(info["target_chi"])])
-        return xy
+        return np.asarray(self.env.unwrapped.hidden_state(), dtype=np.float64)
 
     def _wrap(self, obs: Any, info: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
         p = self.privileged(info)

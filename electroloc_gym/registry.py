@@ -1,42 +1,51 @@
-"""The environments of electroloc-gym, declared once: ids, classes, arguments, defaults and benchmark settings.
+"""The env table: every fact about an environment, declared once in one :class:`EnvEntry`.
 
 :data:`ENVS` is the one table that the rest of the package reads:
 
-* ``electroloc_gym/__init__.py`` registers every entry's id with Gymnasium (``entry_point``,
-  ``vector_entry_point``);
+* :func:`electroloc_gym.register_env` adds an entry and registers its id with Gymnasium (the built-in
+  entries are in :mod:`electroloc_gym.envs.table`);
 * the simulation core builds an entry's task from ``task_class`` (:func:`task_entry`) and validates its
   arguments against ``arguments`` and ``sensor_models`` (:mod:`electroloc_gym.core.params`);
-* ``electroloc bench`` takes its ``--env`` names, default particle counts, sensor models and default
-  agents from the entries' :class:`BenchEnv` rows (:mod:`electroloc_gym.bench.config`).
+* the single and native vector envs find their entry by class (:func:`entry_of_class`);
+* ``electroloc bench`` takes its ``--env`` names, conditions, default particle counts, sensor models,
+  default agents and table layout from the entries (:mod:`electroloc_gym.bench.config`); RLlib's creator
+  and the dataset collector accept every id of the table.
 
-Adding an environment is one :class:`EnvEntry` here plus its task module (docs/design.md, "How to add
-an environment"). This module is data: it imports only the sensor models' names, so every layer
-above them may read it.
+Adding an environment is one :class:`EnvEntry` plus its task module (docs/design.md, "How to add an
+environment"). This module is data: it imports nothing of the package, so every layer may read it; the
+table's views (:data:`ENVS`, :data:`ENV_IDS`, :data:`TASKS`, :data:`BENCH_ENVS`) are live, so an entry
+added later is seen by every reader.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeVar, overload
 
-from electroloc_gym.sensor_models.calibrated import SENSOR_MODEL_NAMES
-from electroloc_gym.sensor_models.shape import SHAPE_SENSOR_MODELS
-
-__all__ = ["EnvEntry", "BenchEnv", "ENVS", "ENV_IDS", "TASKS", "BENCH_ENVS", "COMMON_ARGUMENTS", "env_entry",
-           "task_entry", "bench_env", "DYNAMIC_GAIN_LEVELS"]
+__all__ = ["EnvEntry", "BenchEnv", "ENVS", "ENV_IDS", "TASKS", "BENCH_ENVS", "COMMON_ARGUMENTS", "PAPER_TABLES",
+           "env_entry", "task_entry", "bench_env", "entry_of_class", "add_entry", "class_path", "frozen", "LiveMapping",
+           "LiveSequence"]
 
 #: The arguments every env takes (the fields of ``EnvParams`` shared by all tasks).
 COMMON_ARGUMENTS = ("observation", "sensor_model", "n_particles", "max_observations", "success_spread_mm",
                     "action_type", "calibration_seed", "calibration", "max_episode_steps")
-#: A dynamic-gain example (paper §7): a quarter, the preset and four times the preset amplifier gain
-#: (``electroloc bench --env dynamic-gain``).
-DYNAMIC_GAIN_LEVELS = (0.25, 1.0, 4.0)
+#: The paper's result tables a benchmark's table.md is laid out like: Table 4 (the target's position per
+#: condition and agent) or Table 2 (global self-localisation on one map).
+PAPER_TABLES = ("table4", "table2")
+
+_T = TypeVar("_T")
 
 
-def _frozen(d: Mapping[str, Any] | None = None) -> Mapping[str, Any]:
+def frozen(d: Mapping[str, Any] | None = None) -> Mapping[str, Any]:
+    """A read-only copy of ``d`` (an entry's mappings)."""
     return MappingProxyType(dict(d or {}))
+
+
+def class_path(cls: type) -> str:
+    """``"module:QualName"`` of ``cls`` (Gymnasium's entry-point string)."""
+    return f"{cls.__module__}:{cls.__qualname__}"
 
 
 @dataclass(frozen=True)
@@ -48,14 +57,13 @@ class BenchEnv:
         env_kwargs: arguments the benchmark passes to every trial's env (e.g. ``gain_levels``).
         agents: the default agents' names, or None: every registered controller (then the shipped models
             trained on this env).
-        condition: the one "condition" of a single-map env (its trial seeds use condition index 8), or
-            None: the paper's eight presets.
+        summary: what the choice runs (``electroloc bench --help``).
     """
 
     name: str
-    env_kwargs: Mapping[str, Any] = field(default_factory=_frozen)
+    env_kwargs: Mapping[str, Any] = field(default_factory=frozen)
     agents: tuple[str, ...] | None = None
-    condition: str | None = None
+    summary: str = ""
 
 
 @dataclass(frozen=True)
@@ -65,85 +73,152 @@ class EnvEntry:
     Attributes:
         env_id: the Gymnasium id.
         task: the core's task name (``EnvParams.task``).
-        task_class: ``"module:Class"`` of the task (a :class:`electroloc_gym.core.task.Task`).
-        entry_point: ``"module:Class"`` of the single env (a ``CoreEnv``).
-        vector_entry_point: ``"module:Class"`` of the native vector env (a ``CoreVectorEnv``).
+        task_class: the task (a :class:`electroloc_gym.core.task.Task` subclass, built with the params).
+        env_class: the single env (a ``CoreEnv`` subclass; Gymnasium's ``entry_point``).
+        vector_class: the native vector env (a ``CoreVectorEnv`` subclass; ``vector_entry_point``).
         arguments: the task's own arguments (the env also takes :data:`COMMON_ARGUMENTS`).
         sensor_models: the sensor models the task implements (the first is the env's and the benchmark's
             default).
         defaults: the env's defaults that differ from ``EnvParams``' (the benchmark's too: its particle
             count and sensor model).
         bench: the ``electroloc bench --env`` choices on this env.
+        map_condition: the one condition of an env without ``condition`` presets (its fixed map's name, =
+            ``info["condition"]``; its trial seeds use condition index 8), or None: the paper's eight presets.
+        paper_table: the paper's table the benchmark's results are laid out like (:data:`PAPER_TABLES`).
+        bench_kwargs: arguments every benchmark trial on this env passes (part of the benchmark's protocol
+            there, e.g. the unknown target drawn from the condition's sphere).
+        record_keys: the task's info keys a benchmark record keeps under ``"shape"`` (empty: none).
+        backends: other simulation backends of the native vector env: name → ``"module:Class"`` (imported
+            only when asked for, so an optional dependency such as torch stays optional).
         summary: one line for the package docstring and the docs.
     """
 
     env_id: str
     task: str
-    task_class: str
-    entry_point: str
-    vector_entry_point: str
+    task_class: type
+    env_class: type
+    vector_class: type
     arguments: tuple[str, ...]
     sensor_models: tuple[str, ...]
-    defaults: Mapping[str, Any] = field(default_factory=_frozen)
+    defaults: Mapping[str, Any] = field(default_factory=frozen)
     bench: tuple[BenchEnv, ...] = ()
+    map_condition: str | None = None
+    paper_table: str = "table4"
+    bench_kwargs: Mapping[str, Any] = field(default_factory=frozen)
+    record_keys: tuple[str, ...] = ()
+    backends: Mapping[str, str] = field(default_factory=frozen)
     summary: str = ""
+
+    def __post_init__(self) -> None:
+        if self.paper_table not in PAPER_TABLES:
+            raise ValueError(f"paper_table must be one of {list(PAPER_TABLES)}, got {self.paper_table!r}")
+        if (self.map_condition is None) != ("condition" in self.arguments):
+            raise ValueError("an env takes either the 'condition' argument (map_condition=None) or one fixed map "
+                             f"(map_condition names it); {self.env_id} has arguments {list(self.arguments)} and "
+                             f"map_condition={self.map_condition!r}")
+        for name in ("defaults", "bench_kwargs", "backends"):
+            object.__setattr__(self, name, frozen(getattr(self, name)))
 
     @property
     def all_arguments(self) -> tuple[str, ...]:
         """Every keyword argument of the env (its own, then the common ones)."""
         return self.arguments + COMMON_ARGUMENTS
 
+    def takes(self, argument: str) -> bool:
+        """Whether the env takes the keyword argument ``argument``."""
+        return argument in self.all_arguments
 
-ENVS: tuple[EnvEntry, ...] = (
-    EnvEntry(
-        env_id="ElectroLoc-v0", task="localize",
-        task_class="electroloc_gym.core.electroloc:ElectroLocTask",
-        entry_point="electroloc_gym.envs.localize:ElectroLocEnv",
-        vector_entry_point="electroloc_gym.envs.vector:ElectroLocVectorEnv",
-        arguments=("condition", "signal", "randomize_target", "gain_levels", "sensor_layout", "fixed_carriage",
-                   "distractors"),
-        sensor_models=SENSOR_MODEL_NAMES,
-        bench=(BenchEnv("target"), BenchEnv("dynamic-gain", _frozen({"gain_levels": DYNAMIC_GAIN_LEVELS}))),
-        summary="localise a target sphere with a particle-filter belief",
-    ),
-    EnvEntry(
-        env_id="ElectroLocGlobal-v0", task="global",
-        task_class="electroloc_gym.core.global_task:GlobalTask",
-        entry_point="electroloc_gym.envs.global_env:GlobalEnv",
-        vector_entry_point="electroloc_gym.envs.vector:GlobalVectorEnv",
-        arguments=("layout", "position_blur_mm"),
-        sensor_models=SENSOR_MODEL_NAMES,
-        bench=(BenchEnv("global", agents=("rnd-wlk", "min-var"), condition="six-cylinders"),),
-        summary="the robot localises itself in a mapped tank of six cylinders (§6.5)",
-    ),
-    EnvEntry(
-        env_id="ElectroLocUnknownTarget-v0", task="unknown",
-        task_class="electroloc_gym.core.unknown:UnknownTargetTask",
-        entry_point="electroloc_gym.envs.unknown_target:UnknownTargetEnv",
-        vector_entry_point="electroloc_gym.envs.vector:UnknownTargetVectorEnv",
-        arguments=("condition", "signal", "randomize_target", "target_draw", "radius_range_mm", "contrast",
-                   "eev_radii_mm", "gain_levels"),
-        sensor_models=SHAPE_SENSOR_MODELS,
-        # the eight tanks, the theoretical EEV, and 5000 particles for the 4-D belief (with the paper's 2500
-        # one success in seven was more than 10 mm off, measured on validation seeds, docs/extensions.md)
-        defaults=_frozen({"condition": "random", "n_particles": 5000}),
-        bench=(BenchEnv("unknown-target"),),
-        summary="localise a sphere of unknown size and material (§7)",
-    ),
-)
 
+_TABLE: list[EnvEntry] = []
+
+
+class LiveSequence(Sequence[_T]):
+    """A read-only sequence recomputed from the table on every use (an entry added later is in it)."""
+
+    def __init__(self, compute: Callable[[], Sequence[_T]]) -> None:
+        self._compute = compute
+
+    @overload
+    def __getitem__(self, i: int) -> _T: ...
+    @overload
+    def __getitem__(self, i: slice) -> Sequence[_T]: ...
+    def __getitem__(self, i: Any) -> Any:
+        return tuple(self._compute())[i]
+
+    def __len__(self) -> int:
+        return len(self._compute())
+
+    def __eq__(self, other: object) -> bool:
+        """Equal to a tuple or list with the same items (as the tuple it stands for)."""
+        if isinstance(other, (LiveSequence, tuple, list)):
+            return tuple(self) == tuple(other)
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]  # it changes when the table does
+
+    def __add__(self, other: Sequence[_T]) -> tuple[_T, ...]:
+        return (*self, *other)
+
+    def __repr__(self) -> str:
+        return repr(tuple(self._compute()))
+
+
+class LiveMapping(Mapping[str, _T]):
+    """A read-only mapping recomputed from the table on every use (an entry added later is in it)."""
+
+    def __init__(self, compute: Callable[[], Mapping[str, _T]]) -> None:
+        self._compute = compute
+
+    def __getitem__(self, key: str) -> _T:
+        return self._compute()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._compute())
+
+    def __len__(self) -> int:
+        return len(self._compute())
+
+    def __repr__(self) -> str:
+        return repr(dict(self._compute()))
+
+
+#: The entries, in the order they were added.
+ENVS: Sequence[EnvEntry] = LiveSequence(lambda: _TABLE)
 #: The registered ids, in table order.
-ENV_IDS: tuple[str, ...] = tuple(e.env_id for e in ENVS)
+ENV_IDS: Sequence[str] = LiveSequence(lambda: [e.env_id for e in _TABLE])
 #: The core's task names, in table order.
-TASKS: tuple[str, ...] = tuple(e.task for e in ENVS)
+TASKS: Sequence[str] = LiveSequence(lambda: [e.task for e in _TABLE])
 #: ``electroloc bench --env`` names → (entry, bench row).
-BENCH_ENVS: Mapping[str, tuple[EnvEntry, BenchEnv]] = MappingProxyType(
-    {b.name: (e, b) for e in ENVS for b in e.bench})
+BENCH_ENVS: Mapping[str, tuple[EnvEntry, BenchEnv]] = LiveMapping(
+    lambda: {b.name: (e, b) for e in _TABLE for b in e.bench})
+
+
+def add_entry(entry: EnvEntry) -> bool:
+    """Add ``entry`` to the table (False if the same entry is there already).
+
+    Raises:
+        ValueError: another entry with the same id, task, class or bench name.
+    """
+    if not isinstance(entry, EnvEntry):
+        raise ValueError(f"entry must be an EnvEntry, got {type(entry).__name__}")
+    if entry in _TABLE:
+        return False
+    for e in _TABLE:
+        for what, a, b in (("env_id", e.env_id, entry.env_id), ("task", e.task, entry.task),
+                           ("env_class", e.env_class, entry.env_class),
+                           ("vector_class", e.vector_class, entry.vector_class)):
+            if a == b:
+                raise ValueError(f"{what} {b!r} is already in the env table ({e.env_id})")
+        taken = {r.name for r in e.bench} & {r.name for r in entry.bench}
+        if taken:
+            raise ValueError(f"bench name(s) {sorted(taken)} already belong to {e.env_id}")
+    _TABLE.append(entry)
+    return True
 
 
 def env_entry(env_id: str) -> EnvEntry:
     """The entry of ``env_id`` (a ValueError listing the ids otherwise)."""
-    for e in ENVS:
+    for e in _TABLE:
         if e.env_id == env_id:
             return e
     raise ValueError(f"env_id must be one of {list(ENV_IDS)}, got {env_id!r}")
@@ -151,14 +226,27 @@ def env_entry(env_id: str) -> EnvEntry:
 
 def task_entry(task: str) -> EnvEntry:
     """The entry of the core's task ``task`` (a ValueError listing the tasks otherwise)."""
-    for e in ENVS:
+    for e in _TABLE:
         if e.task == task:
             return e
     raise ValueError(f"task must be one of {list(TASKS)}, got {task!r}")
 
 
+def entry_of_class(cls: type) -> EnvEntry:
+    """The entry whose single or vector env class is ``cls`` or one of its bases (a user's subclass of a
+    registered env is that env).
+    """
+    for base in cls.__mro__:
+        for e in _TABLE:
+            if base is e.env_class or base is e.vector_class:
+                return e
+    raise ValueError(f"{cls.__qualname__} is no env of the env table; its entry's env_class or vector_class "
+                     f"names the class (ids: {list(ENV_IDS)})")
+
+
 def bench_env(name: str) -> tuple[EnvEntry, BenchEnv]:
     """(entry, bench row) of ``electroloc bench --env NAME`` (a ValueError listing the names otherwise)."""
-    if name not in BENCH_ENVS:
-        raise ValueError(f"--env must be one of {list(BENCH_ENVS)}, got {name!r}")
-    return BENCH_ENVS[name]
+    rows = dict(BENCH_ENVS)
+    if name not in rows:
+        raise ValueError(f"--env must be one of {list(rows)}, got {name!r}")
+    return rows[name]

@@ -37,14 +37,13 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from electroloc_gym.registry import ENV_IDS
 from electroloc_gym.runtime import THREAD_VARS, pin_threads
 
 __all__ = ["ENV_IDS", "RLLIB_ENV_NAME", "SUCCESS_METRIC", "make_env", "register", "runner_env_vars", "warm_kernels",
            "success_callback", "plot_progress",
            "sb3_state_dict", "normalization_from_filter", "export_ppo"]
 
-#: The env ids with a native vector entry point.
-ENV_IDS = ("ElectroLoc-v0", "ElectroLocGlobal-v0", "ElectroLocUnknownTarget-v0")
 #: The name :func:`register` registers the creator under (``PPOConfig().environment(RLLIB_ENV_NAME)``).
 RLLIB_ENV_NAME = "electroloc"
 #: The key under ``result["env_runners"]`` of the success rate over the last 100 episodes (:func:`success_callback`).
@@ -79,7 +78,8 @@ def make_env(config: Mapping[str, Any]) -> gym.Env | gym.vector.VectorEnv:
 
     Args:
         config: the env kwargs (:class:`~electroloc_gym.core.params.EnvParams`), plus ``env_id`` (one of
-            :data:`ENV_IDS`, default ElectroLoc-v0) and, from RLlib's vector entry point, ``num_envs``.
+            :data:`electroloc_gym.registry.ENV_IDS`, the env table's ids; default its first) and, from
+            RLlib's vector entry point, ``num_envs``.
 
     Raises:
         ValueError: an unknown ``env_id``, ``autoreset_mode`` other than next-step, or a bad env kwarg

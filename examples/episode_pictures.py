@@ -19,6 +19,7 @@ import electroloc_gym  # noqa: F401  (registers the env ids)
 from electroloc_gym.baselines import make_agent
 from electroloc_gym.demo import check_output_path, plot_episode, record_episode, save_gif
 from electroloc_gym.fileio import save_figure_atomic
+from electroloc_gym.registry import env_entry
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -40,7 +41,7 @@ def main(argv: list[str] | None = None) -> dict:
         agent = None if args.agent == "random" else make_agent(args.agent, seed=args.seed)
     except ValueError as exc:
         p.error(str(exc))
-    kwargs = {"condition": args.condition} if args.env == "ElectroLoc-v0" else {}
+    kwargs = {"condition": args.condition} if env_entry(args.env).takes("condition") else {}
     env = gym.make(args.env, render_mode="rgb_array" if args.gif else None, **kwargs)
     episode = record_episode(env, seed=args.seed, agent=agent, frames=args.gif is not None)
     env.close()

@@ -204,7 +204,10 @@ def test_agents_list_splits_only_outside_brackets() -> None:
 
 
 def test_global_env_runs_the_policy_trained_on_it() -> None:
-    from electroloc_gym.bench.cli import _runs_on_global
+    from electroloc_gym.bench.cli import _runs_on_map_env
+
+    def _runs_on_global(spec: str) -> bool:
+        return _runs_on_map_env(spec, "ElectroLocGlobal-v0")
 
     assert _runs_on_global("ppo-belief-global") and _runs_on_global("min-var")
     assert not _runs_on_global("ppo-belief") and not _runs_on_global("zero-crossing")

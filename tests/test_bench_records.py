@@ -11,7 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from electroloc_gym.bench.config import UNKNOWN_ENV_ID, BenchConfig
+from electroloc_gym.bench.config import BenchConfig
 from electroloc_gym.bench.records import REJECTED_FILE, load_records
 from electroloc_gym.bench.runner import record_rules, run_benchmark
 from electroloc_gym.bench.schema import RECORD_KEYS, TIMING_KEYS, TrialRecord
@@ -20,7 +20,7 @@ from electroloc_gym.cli import main as cli_main
 TARGET = dict(agents=("rnd-wlk", "zero-crossing[max_observations=60]"), conditions=("fresh-steel-12.7",), trials=3,
               seed=5, n_particles=300, max_observations=6, sensor_model="analytic")
 UNKNOWN = dict(agents=("rnd-wlk",), conditions=("fresh-steel-12.7",), trials=2, seed=5, n_particles=300,
-               max_observations=5, sensor_model="analytic", env_id=UNKNOWN_ENV_ID)
+               max_observations=5, sensor_model="analytic", env_id="ElectroLocUnknownTarget-v0")
 
 
 def _cli(cfg: dict, out: Path) -> list[str]:
@@ -28,7 +28,7 @@ def _cli(cfg: dict, out: Path) -> list[str]:
             "--trials", str(cfg["trials"]), "--seed", str(cfg["seed"]), "--n-particles", str(cfg["n_particles"]),
             "--max-observations", str(cfg["max_observations"]), "--sensor-model", cfg["sensor_model"],
             "--backend", "serial", "--no-progress", "--out", str(out)]
-    return args + (["--env", "unknown-target"] if cfg.get("env_id") == UNKNOWN_ENV_ID else [])
+    return args + (["--env", "unknown-target"] if cfg.get("env_id") == "ElectroLocUnknownTarget-v0" else [])
 
 
 def _strip(summary: dict) -> list:

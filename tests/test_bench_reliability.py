@@ -190,10 +190,10 @@ def test_resume_without_config_refuses_records_of_other_settings(reference, tmp_
 
 
 def test_a_global_map_record_is_not_a_trial_of_a_target_run(reference) -> None:
-    from electroloc_gym.bench.config import GLOBAL_CONDITION
     from electroloc_gym.bench.records import foreign_reason
+    from electroloc_gym.registry import env_entry
 
-    rec = {**json.loads(reference[1][0]), "condition": GLOBAL_CONDITION}
+    rec = {**json.loads(reference[1][0]), "condition": env_entry("ElectroLocGlobal-v0").map_condition}
     assert "does not belong to env ElectroLoc-v0" in foreign_reason(rec, BenchConfig(agents=AGENTS, **TINY))
 
 

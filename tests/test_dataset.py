@@ -12,7 +12,7 @@ import pytest
 
 minari = pytest.importorskip("minari")  # the dev extra installs it; the numpy lower-bound session deselects these
 
-from electroloc_gym.bench.config import GLOBAL_CONDITION, trial_seeds  # noqa: E402
+from electroloc_gym.bench.config import MAP_CONDITIONS, trial_seeds  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
 from electroloc_gym.dataset import (  # noqa: E402
     DatasetRequest,
@@ -115,7 +115,7 @@ def test_dataset_seeds_are_disjoint_from_the_evaluation_seeds():
     seeds = [episode_seeds(1, k)[0] for k in range(5000)]
     assert evaluation_overlap(seeds) == []
     assert len(set(seeds)) == len(seeds)
-    evaluation = [trial_seeds(0, c, k)[0] for c in (*PRESET_NAMES, GLOBAL_CONDITION) for k in range(3)]
+    evaluation = [trial_seeds(0, c, k)[0] for c in (*PRESET_NAMES, *MAP_CONDITIONS) for k in range(3)]
     assert evaluation_overlap(evaluation) == sorted(set(evaluation))  # the check can fail
 
 

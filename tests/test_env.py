@@ -58,8 +58,8 @@ def test_make_by_module_path() -> None:
 
 
 def test_registration_is_idempotent() -> None:
-    electroloc_gym._register()
-    electroloc_gym._register()
+    electroloc_gym._register_builtin()
+    electroloc_gym._register_builtin()
     assert "ElectroLoc-v0" in gym.registry
 
 

@@ -21,7 +21,7 @@ GLOBAL_ID = "ElectroLocGlobal-v0"
 # ---------------------------------------------------------------------------------------------
 def test_registered_and_idempotent() -> None:
     assert GLOBAL_ID in electroloc_gym.ENV_IDS
-    electroloc_gym._register()
+    electroloc_gym._register_builtin()
     assert GLOBAL_ID in gym.registry
     env = gym.make(f"electroloc_gym:{GLOBAL_ID}", n_particles=100)
     assert isinstance(env.unwrapped, GlobalEnv)
@@ -268,9 +268,11 @@ def test_table2_statistics_with_the_paper_controllers() -> None:
 def test_bench_runs_table2_layout(tmp_path) -> None:
     """`electroloc bench --env global`: the runner's Table-2 path (serial backend, 2 trials of rnd-wlk)."""
     pytest.importorskip("electroloc_gym.baselines.agent")
-    from electroloc_gym.bench.runner import GLOBAL_CONDITION, GLOBAL_ENV_ID, BenchConfig, run_benchmark, trial_seeds
+    from electroloc_gym.bench.runner import BenchConfig, run_benchmark, trial_seeds
 
-    config = BenchConfig(agents=("rnd-wlk",), conditions=("ignored",), trials=2, env_id=GLOBAL_ENV_ID)
+    GLOBAL_CONDITION = "six-cylinders"  # the map's name (info['condition'])
+
+    config = BenchConfig(agents=("rnd-wlk",), conditions=("ignored",), trials=2, env_id="ElectroLocGlobal-v0")
     assert config.conditions == (GLOBAL_CONDITION,)
     assert trial_seeds(0, GLOBAL_CONDITION, 1) != trial_seeds(0, "salt-delrin-38.1", 1)
     summary = run_benchmark(config, tmp_path, workers=1, backend="serial", progress=False, log=None)

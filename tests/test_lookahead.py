@@ -107,6 +107,8 @@ def test_time_budget_runs_more_rounds() -> None:
 class _BimodalEnv:
     """A static-target env stand-in: a belief split in two clusters along x, the carriage far above."""
 
+    belief_frame = "target"
+
     def __init__(self) -> None:
         rng = np.random.default_rng(0)
         x = np.concatenate([np.full((100, 2), [-20.0, 0.0]), np.full((100, 2), [20.0, 0.0])])

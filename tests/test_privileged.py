@@ -44,8 +44,10 @@ def test_dict_mode_observation_is_in_its_space():
 def test_bad_input():
     with pytest.raises(ValueError, match="mode must be one of"):
         PrivilegedInfo(gym.make("ElectroLoc-v0", n_particles=50), mode="obs")
-    with pytest.raises(ValueError, match="privileged information exists for"):
+    with pytest.raises(ValueError, match=r"env_id must be one of \['ElectroLoc-v0'"):
         privileged_keys("CartPole-v1")
+    with pytest.raises(ValueError, match="env must be an env of the env table"):
+        PrivilegedInfo(gym.make("CartPole-v1"))
 
 
 def test_asymmetric_example_runs_and_its_actor_never_sees_the_truth(tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 
 import gymnasium as gym
@@ -12,7 +13,16 @@ from electroloc_gym.bench import config as bench_config
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.step import make_task
 from electroloc_gym.core.task import Task
-from electroloc_gym.registry import BENCH_ENVS, ENV_IDS, ENVS, bench_env, env_entry, task_entry
+from electroloc_gym.registry import (
+    BENCH_ENVS,
+    ENV_IDS,
+    ENVS,
+    add_entry,
+    bench_env,
+    entry_of_class,
+    env_entry,
+    task_entry,
+)
 
 
 def _load(path: str) -> type:
@@ -20,14 +30,34 @@ def _load(path: str) -> type:
     return getattr(importlib.import_module(module), name)
 
 
-@pytest.mark.parametrize("entry", ENVS, ids=ENV_IDS)
+@pytest.mark.parametrize("entry", list(ENVS), ids=list(ENV_IDS))
 def test_every_entry_is_registered_with_its_classes(entry) -> None:
     spec = gym.spec(entry.env_id)
-    assert spec.entry_point == entry.entry_point and spec.vector_entry_point == entry.vector_entry_point
-    assert _load(entry.entry_point)._ENV_ID == entry.env_id
-    assert _load(entry.vector_entry_point)._ENV_ID == entry.env_id
-    assert issubclass(_load(entry.task_class), Task)
-    assert electroloc_gym.ENV_IDS == ENV_IDS
+    assert _load(spec.entry_point) is entry.env_class and _load(spec.vector_entry_point) is entry.vector_class
+    assert entry_of_class(entry.env_class) is entry and entry_of_class(entry.vector_class) is entry
+    assert entry.env_class.entry() is entry and entry.vector_class.entry() is entry
+    assert issubclass(entry.task_class, Task)
+    assert electroloc_gym.ENV_IDS is ENV_IDS
+
+
+def test_a_subclass_of_a_registered_env_is_that_env() -> None:
+    sub = type("MyEnv", (env_entry("ElectroLoc-v0").env_class,), {})
+    assert entry_of_class(sub).env_id == "ElectroLoc-v0"
+    with pytest.raises(ValueError, match="no env of the env table"):
+        entry_of_class(gym.Env)
+
+
+def test_an_entry_is_refused_when_it_clashes() -> None:
+    entry = env_entry("ElectroLoc-v0")
+    assert add_entry(entry) is False  # the same entry again: nothing to do
+    with pytest.raises(ValueError, match="env_id 'ElectroLoc-v0' is already in the env table"):
+        add_entry(dataclasses.replace(entry, task="other"))
+    with pytest.raises(ValueError, match="must be an EnvEntry"):
+        add_entry("ElectroLoc-v0")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="paper_table must be one of"):
+        dataclasses.replace(entry, env_id="X-v0", paper_table="table9")
+    with pytest.raises(ValueError, match="either the 'condition' argument"):
+        dataclasses.replace(entry, env_id="X-v0", map_condition="my-map")
 
 
 @pytest.mark.parametrize("entry", ENVS, ids=ENV_IDS)
@@ -37,7 +67,7 @@ def test_defaults_and_arguments_come_from_the_entry(entry) -> None:
     for key, value in entry.defaults.items():
         assert getattr(params, key) == value
     task = make_task(params)
-    assert type(task) is _load(entry.task_class)
+    assert type(task) is entry.task_class
     assert not hasattr(task, "name")  # the step cannot ask a task its name
     other = next(a for e in ENVS for a in e.arguments if a not in entry.all_arguments)
     with pytest.raises(ValueError, match=rf"{entry.env_id} got unexpected argument\(s\) \['{other}'\]"):
@@ -50,8 +80,9 @@ def test_the_benchmark_reads_the_table() -> None:
     assert bench_config.ENV_SENSOR_MODELS == {e.env_id: e.sensor_models for e in ENVS}
     assert bench_config.ENV_N_PARTICLES == {"ElectroLoc-v0": 2500, "ElectroLocGlobal-v0": 2500,
                                             "ElectroLocUnknownTarget-v0": 5000}
-    assert bench_config.GLOBAL_CONDITION == "six-cylinders"
-    assert bench_env("dynamic-gain")[1].env_kwargs["gain_levels"] == bench_config.DYNAMIC_GAIN_LEVELS
+    assert bench_config.MAP_CONDITIONS == ("six-cylinders",)
+    assert gym.make("ElectroLocGlobal-v0").reset(seed=0)[1]["condition"] == "six-cylinders"
+    assert bench_env("dynamic-gain")[1].env_kwargs["gain_levels"] == (0.25, 1.0, 4.0)
     assert bench_config.ENV_DEFAULT_AGENTS["global"] == ("rnd-wlk", "min-var")
 
 

@@ -237,7 +237,9 @@ def test_resample_indices_equal_searchsorted() -> None:
 
 # ---- the benchmark ----------------------------------------------------------------------------------------
 def test_bench_unknown_target_records_identification_and_prints_its_table(tmp_path: Any) -> None:
-    from electroloc_gym.bench.config import UNKNOWN_ENV_ID, BenchConfig
+    from electroloc_gym.bench.config import BenchConfig
+
+    UNKNOWN_ENV_ID = "ElectroLocUnknownTarget-v0"
     from electroloc_gym.bench.records import read_trials
     from electroloc_gym.bench.runner import run_benchmark
 

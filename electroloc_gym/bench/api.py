@@ -29,10 +29,8 @@ from electroloc_gym.bench.config import (
     ENV_CHOICES,
     ENV_N_PARTICLES,
     ENV_SENSOR_MODELS,
-    GLOBAL_CONDITION,
-    GLOBAL_ENV_ID,
     BenchConfig,
-    resolve_conditions,
+    run_conditions,
 )
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
@@ -118,7 +116,7 @@ def run(agents: list[Any], *, env: str = "target", conditions: str | list[str] =
                          f"pass a spec (package.module:factory[...]) to run on {backend!r}")
     config = BenchConfig(
         agents=tuple(specs),
-        conditions=(GLOBAL_CONDITION,) if env_id == GLOBAL_ENV_ID else tuple(resolve_conditions(conditions)),
+        conditions=run_conditions(env_id, conditions),
         trials=trials, seed=seed, sensor_model=sensor_model or ENV_SENSOR_MODELS[env_id][0], signal=signal,
         max_observations=max_observations, n_particles=ENV_N_PARTICLES[env_id] if n_particles is None else n_particles,
         env_id=env_id, gain_levels=bench_env(env)[1].env_kwargs.get("gain_levels"))

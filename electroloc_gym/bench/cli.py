@@ -20,19 +20,17 @@ from electroloc_gym.bench.config import (
     ENV_CHOICES,
     ENV_N_PARTICLES,
     ENV_SENSOR_MODELS,
-    GLOBAL_CONDITION,
-    GLOBAL_ENV_ID,
     SENSOR_MODELS,
     SIGNALS,
     BenchConfig,
-    resolve_conditions,
+    run_conditions,
 )
 from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
 from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import MAX_OBSERVATIONS
-from electroloc_gym.registry import bench_env
+from electroloc_gym.registry import BENCH_ENVS, bench_env, env_entry
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = ["add_arguments", "run", "ascii_int", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS",
@@ -79,12 +77,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "plus every shipped model that runs here; the run says which and why one is skipped)")
     parser.add_argument("--conditions", default="all", help="'all' or comma-separated preset names")
     parser.add_argument("--env", default="target", choices=list(ENV_CHOICES),
-                        help="target: ElectroLoc-v0 on the presets (Tables 4 and 1); global: ElectroLocGlobal-v0, "
-                             "self-localisation among six cylinders (Table 2; default agents rnd-wlk,min-var; "
-                             "--conditions and --signal do not apply); unknown-target: ElectroLocUnknownTarget-v0 "
-                             "on the presets' sphere/water pairs, the sphere's size and material hidden (§7), with "
-                             "the identification results beside the Table-4 layout); dynamic-gain: ElectroLoc-v0 "
-                             "with the amplifier gain (×1/4, ×1, ×4 the preset) in every action (§7)")
+                        help="; ".join(f"{name}: {entry.env_id} {row.summary}".rstrip()
+                                       for name, (entry, row) in BENCH_ENVS.items()))
     parser.add_argument("--trials", type=ascii_int, default=50,
                         help=f"trials per condition and agent (paper: 50; at most {MAX_TRIALS:,}, and "
                              f"{MAX_PLANNED_TRIALS:,} in all)")
@@ -121,19 +115,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _runs_on_global(spec: str) -> bool:
-    """A particle-filter controller, a user's factory agent, or a policy (shipped or a path) trained on the
-    global env.
+def _runs_on_map_env(spec: str, env_id: str) -> bool:
+    """On an env of one fixed map: a particle-filter controller, a user's factory agent, or a policy (shipped
+    or a path) trained on that env.
     """
     kind = agent_kind(spec)
     if kind == "baseline":
         return getattr(cached_agent(spec), "layout", "table4") == "table4"
     if kind == "shipped":
-        return shipped_model_env(shipped_models()[spec]) == (GLOBAL_ENV_ID, None)
+        return shipped_model_env(shipped_models()[spec]) == (env_id, None)
     if kind == "path":
         meta = policy_meta(spec) or {}
         obs = meta.get("observation") if isinstance(meta.get("observation"), dict) else {}
-        return obs.get("env_id") == GLOBAL_ENV_ID
+        return bool(obs.get("env_id") == env_id)
     return kind in ("factory", "object")
 
 
@@ -154,7 +148,8 @@ def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...
             except ValueError as exc:
                 raise ValueError(f"--agents: {exc}") from None
         return specs
-    choices = default_agents(table4_only=env_id == GLOBAL_ENV_ID, trust_pickle=args.trust_pickle, env_id=env_id,
+    one_map = env_entry(env_id).map_condition is not None  # the particle-filter controllers only (Table 2)
+    choices = default_agents(table4_only=one_map, trust_pickle=args.trust_pickle, env_id=env_id,
                              gain_levels=gain_levels, sensor_layout=args.sensor_layout)
     for c in choices:
         if c.skipped:
@@ -185,22 +180,23 @@ def run(args: argparse.Namespace) -> int:
         if args.backend == "ray":  # Ray installed and the cluster reachable, before --out is touched
             check_ray_address(args.address)
         env_name = getattr(args, "env", "target")
-        env_id = ENV_CHOICES[env_name]
-        gain_levels = bench_env(env_name)[1].env_kwargs.get("gain_levels")  # the row's own arguments
-        is_global = env_id == GLOBAL_ENV_ID
+        entry, row = bench_env(env_name)
+        env_id = entry.env_id
+        gain_levels = row.env_kwargs.get("gain_levels")  # the row's own arguments
         agents = _agents(args, env_id, gain_levels)
         sensor_model = args.sensor_model or ENV_SENSOR_MODELS[env_id][0]
         n_particles = ENV_N_PARTICLES[env_id] if args.n_particles is None else args.n_particles
         if not agents:
             raise ValueError("--agents names no agent")
-        if args.sensor_layout is not None and env_name != "target":
-            raise ValueError(f"--sensor-layout applies to --env target (ElectroLoc-v0), got --env {env_name}")
-        conditions = (GLOBAL_CONDITION,) if is_global else tuple(resolve_conditions(args.conditions))
-        if is_global:  # zero-crossing looks for one sphere; a learned policy must have been trained on this env
-            bad = [a for a in agents if not _runs_on_global(a)]
+        if args.sensor_layout is not None and not (entry.takes("sensor_layout") and not row.env_kwargs):
+            rows = [n for n, (e, r) in BENCH_ENVS.items() if e.takes("sensor_layout") and not r.env_kwargs]
+            raise ValueError(f"--sensor-layout applies to --env {' or '.join(rows)}, got --env {env_name}")
+        conditions = run_conditions(env_id, args.conditions)
+        if entry.map_condition is not None:  # zero-crossing looks for one sphere; a policy must know the map
+            bad = [a for a in agents if not _runs_on_map_env(a, env_id)]
             if bad:
-                raise ValueError(f"--env global runs the particle-filter controllers (Table 2), policies trained "
-                                 f"on {GLOBAL_ENV_ID} and users' factory agents; not applicable: {bad}")
+                raise ValueError(f"--env {env_name} runs the particle-filter controllers (Table 2), policies "
+                                 f"trained on {env_id} and users' factory agents; not applicable: {bad}")
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
                              max_observations=args.max_observations, n_particles=n_particles,

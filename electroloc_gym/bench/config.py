@@ -23,7 +23,7 @@ from electroloc_gym.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOIC
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES, SUCCESS_SPREAD_MM
-from electroloc_gym.registry import BENCH_ENVS, DYNAMIC_GAIN_LEVELS, ENVS
+from electroloc_gym.registry import BENCH_ENVS, ENVS, LiveMapping, LiveSequence, env_entry
 
 __all__ = [
     "BenchConfig",
@@ -34,13 +34,11 @@ __all__ = [
     "DEFAULT_AGENTS",
     "SENSOR_MODELS",
     "SIGNALS",
-    "GLOBAL_ENV_ID",
-    "GLOBAL_CONDITION",
-    "UNKNOWN_ENV_ID",
+    "MAP_CONDITIONS",
+    "run_conditions",
     "ENV_CHOICES",
     "ENV_SENSOR_MODELS",
     "ENV_N_PARTICLES",
-    "DYNAMIC_GAIN_LEVELS",
     "ENV_DEFAULT_AGENTS",
     "IDENTITY_KEYS",
     "IDENTITY_DEFAULTS",
@@ -50,25 +48,27 @@ __all__ = [
 #: The paper's three controllers (the baselines' registry's :data:`~electroloc_gym.baselines.agent.PAPER_AGENTS`).
 DEFAULT_AGENTS: tuple[str, ...] = PAPER_AGENTS
 SIGNALS = SIGNAL_CHOICES
-# The per-env settings below are read from the env table (electroloc_gym.registry), not declared here.
-#: ``electroloc bench --env`` names → environment ids (``dynamic-gain``: ElectroLoc-v0 with
-#: :data:`DYNAMIC_GAIN_LEVELS`, the gain part of every action).
-ENV_CHOICES = {name: entry.env_id for name, (entry, _) in BENCH_ENVS.items()}
+# The per-env settings below are read from the env table (electroloc_gym.registry), not declared here;
+# they are live views, so an env registered later is in them.
+#: ``electroloc bench --env`` names → environment ids (``dynamic-gain``: ElectroLoc-v0 with its row's
+#: ``gain_levels``, the gain part of every action).
+ENV_CHOICES: LiveMapping[str] = LiveMapping(lambda: {name: entry.env_id for name, (entry, _) in BENCH_ENVS.items()})
 #: The bench's default particle count per env (the env's own default).
-ENV_N_PARTICLES = {e.env_id: e.defaults.get("n_particles", EnvParams.n_particles) for e in ENVS}
+ENV_N_PARTICLES: LiveMapping[int] = LiveMapping(
+    lambda: {e.env_id: e.defaults.get("n_particles", EnvParams.n_particles) for e in ENVS})
 #: The sensor models of each env (the first is the bench's default there).
-ENV_SENSOR_MODELS = {e.env_id: e.sensor_models for e in ENVS}
+ENV_SENSOR_MODELS: LiveMapping[tuple[str, ...]] = LiveMapping(lambda: {e.env_id: e.sensor_models for e in ENVS})
 #: Every sensor model some env takes (``--sensor-model`` choices).
-SENSOR_MODELS = tuple(dict.fromkeys(m for e in ENVS for m in e.sensor_models))
+SENSOR_MODELS: LiveSequence[str] = LiveSequence(lambda: tuple(dict.fromkeys(m for e in ENVS for m in e.sensor_models)))
 #: ``--env`` names → the default agents' names (None: every registered controller).
-ENV_DEFAULT_AGENTS = {name: bench.agents for name, (_, bench) in BENCH_ENVS.items()}
-#: Global self-localisation (paper §6.5, Table 2): one fixed map, run as the single "condition"
-#: GLOBAL_CONDITION (the map's name, = info["condition"]); its trial seeds use condition index 8.
-GLOBAL_ENV_ID, GLOBAL_CONDITION = next((e.env_id, b.condition) for e, b in BENCH_ENVS.values() if b.condition)
-#: The unknown-target env (paper §7): the eight presets' sphere/water pairs, the sphere hidden from the agent.
-UNKNOWN_ENV_ID = BENCH_ENVS["unknown-target"][0].env_id
+ENV_DEFAULT_AGENTS: LiveMapping[tuple[str, ...] | None] = LiveMapping(
+    lambda: {name: bench.agents for name, (_, bench) in BENCH_ENVS.items()})
+#: The single "conditions" of the envs with one fixed map (e.g. ElectroLocGlobal-v0's six-cylinder map,
+#: paper §6.5, = info["condition"]); their trial seeds use condition index 8.
+MAP_CONDITIONS: LiveSequence[str] = LiveSequence(
+    lambda: tuple(dict.fromkeys(e.map_condition for e in ENVS if e.map_condition is not None)))
 #: Which envs take ``distractors=`` (``--distractors``).
-ENV_TAKES_DISTRACTORS = {e.env_id: "distractors" in e.arguments for e in ENVS}
+ENV_TAKES_DISTRACTORS: LiveMapping[bool] = LiveMapping(lambda: {e.env_id: e.takes("distractors") for e in ENVS})
 #: What an identity key missing from an older record or config means.
 IDENTITY_DEFAULTS = {"distractors": 0, "success_spread_mm": SUCCESS_SPREAD_MM}
 #: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
@@ -118,6 +118,8 @@ class BenchConfig:
     success_spread_mm: float = SUCCESS_SPREAD_MM
 
     def __post_init__(self) -> None:
+        if self.env_id not in ENV_SENSOR_MODELS:
+            raise ValueError(f"env_id must be one of {list(ENV_SENSOR_MODELS)}, got {self.env_id!r}")
         d = self.distractors
         if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d <= MAX_DISTRACTORS:
             raise ValueError(f"distractors must be an integer in [0, {MAX_DISTRACTORS}], got {d!r}")
@@ -130,16 +132,11 @@ class BenchConfig:
             raise ValueError("agents must name at least one agent")
         if len(set(self.agents)) != len(self.agents):
             raise ValueError(f"agents must be distinct, got {list(self.agents)}")
-        if self.env_id == GLOBAL_ENV_ID:  # one map, no presets (signal does not apply)
-            object.__setattr__(self, "conditions", (GLOBAL_CONDITION,))
-        else:
-            object.__setattr__(self, "conditions", tuple(resolve_conditions(list(self.conditions))))
+        object.__setattr__(self, "conditions", run_conditions(self.env_id, self.conditions))
         for name, val, low in (("trials", self.trials, 1), ("seed", self.seed, 0),
                                ("max_observations", self.max_observations, 1), ("n_particles", self.n_particles, 1)):
             if isinstance(val, bool) or not isinstance(val, int) or val < low:
                 raise ValueError(f"{name} must be an integer ≥ {low}, got {val!r}")
-        if self.env_id not in ENV_SENSOR_MODELS:
-            raise ValueError(f"env_id must be one of {list(ENV_SENSOR_MODELS)}, got {self.env_id!r}")
         allowed = ENV_SENSOR_MODELS[self.env_id]
         if self.sensor_model not in allowed:
             raise ValueError(f"sensor_model of {self.env_id} must be one of {list(allowed)}, got {self.sensor_model!r}")
@@ -206,6 +203,16 @@ def resolve_conditions(spec: str | Sequence[str]) -> list[str]:
     return names
 
 
+def run_conditions(env_id: str, conditions: str | Sequence[str]) -> tuple[str, ...]:
+    """The conditions a run on ``env_id`` has: an env with one fixed map runs its map as the one condition
+    (``conditions`` does not apply), the others the presets ``conditions`` names (:func:`resolve_conditions`).
+    """
+    entry = env_entry(env_id)
+    if entry.map_condition is not None:
+        return (entry.map_condition,)
+    return tuple(resolve_conditions(conditions if isinstance(conditions, str) else list(conditions)))
+
+
 def trial_seeds(seed: int, condition: str, trial: int) -> tuple[int, int]:
     """(env seed, agent seed) of trial ``trial`` of ``condition``.
 
@@ -213,7 +220,7 @@ def trial_seeds(seed: int, condition: str, trial: int) -> tuple[int, int]:
     with ``i`` the condition's index among the presets: independent of the run's other conditions,
     agents, trial count and workers.
     """
-    index = len(PRESET_NAMES) if condition == GLOBAL_CONDITION else PRESET_NAMES.index(condition)
+    index = len(PRESET_NAMES) if condition in MAP_CONDITIONS else PRESET_NAMES.index(condition)
     ss = np.random.SeedSequence(seed, spawn_key=(index, trial))
     env_seed, agent_seed = (int(v) for v in ss.generate_state(2, dtype=np.uint32))
     return env_seed, agent_seed

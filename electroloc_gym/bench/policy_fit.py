@@ -12,8 +12,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.bench.config import GLOBAL_ENV_ID, UNKNOWN_ENV_ID
 from electroloc_gym.conditions import get_condition
+from electroloc_gym.registry import env_entry
 
 
 def shipped_models() -> dict[str, Path]:
@@ -72,14 +72,14 @@ def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | N
     kwargs: dict[str, Any] = {k: v for k, v in (("sensor_model", sensor_model), ("n_particles", n_particles),
                                                 ("max_observations", max_observations),
                                                 ("success_spread_mm", success_spread_mm)) if v is not None}
-    if env_id != GLOBAL_ENV_ID and condition is not None:  # the global env has one fixed map, no condition kwarg
+    entry = env_entry(env_id)
+    if entry.takes("condition") and condition is not None:  # an env with one fixed map takes no condition
         cond = get_condition(condition, signal)
         adapt = getattr(agent, "adapt_condition", None) if builtin else None
         if callable(adapt):
             cond = adapt(cond)
         kwargs["condition"] = cond
-    if env_id == UNKNOWN_ENV_ID:  # the paper's sphere/water pairs, the sphere hidden from the agent
-        kwargs["target_draw"] = "condition"
+    kwargs.update(entry.bench_kwargs)
     if gain_levels is not None:
         kwargs["gain_levels"] = tuple(gain_levels)
     if sensor_layout is not None:

@@ -30,15 +30,15 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.bench.config import (
-    GLOBAL_CONDITION,
-    GLOBAL_ENV_ID,
     IDENTITY_DEFAULTS,
     IDENTITY_KEYS,
+    MAP_CONDITIONS,
     BenchConfig,
     trial_seeds,
 )
 from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules, TrialRecord
 from electroloc_gym.fileio import FolderBusyError, FolderLock, atomic_write_text, strict_json
+from electroloc_gym.registry import env_entry
 
 __all__ = ["prepare_out_dir", "run_lock", "FolderBusyError", "LoadedRecords", "load_records", "read_trials",
            "CONFIG_FILE",
@@ -120,7 +120,8 @@ def foreign_reason(rec: dict[str, Any], config: BenchConfig) -> str | None:
         mine, theirs = _plain(getattr(config, key)), _plain(rec.get(key, IDENTITY_DEFAULTS.get(key)))  # JSON lists
         if theirs != mine:
             return f"{key} {theirs!r}, this run {mine!r}"
-    if (rec["condition"] == GLOBAL_CONDITION) != (config.env_id == GLOBAL_ENV_ID):
+    own_map = env_entry(config.env_id).map_condition
+    if (rec["condition"] != own_map) if own_map is not None else (rec["condition"] in MAP_CONDITIONS):
         return f"condition {rec['condition']!r} does not belong to env {config.env_id}"
     env_seed, agent_seed = trial_seeds(config.seed, rec["condition"], rec["trial"])
     if (rec["seed"], rec["agent_seed"]) != (env_seed, agent_seed):

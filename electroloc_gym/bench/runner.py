@@ -34,9 +34,8 @@ from electroloc_gym.bench.agents import (
 from electroloc_gym.bench.backends import WorkerLost, make_backend
 from electroloc_gym.bench.config import (
     DEFAULT_AGENTS,
-    GLOBAL_CONDITION,
-    GLOBAL_ENV_ID,
     IDENTITY_DEFAULTS,
+    MAP_CONDITIONS,
     BenchConfig,
     TrialSpec,
     make_trial_specs,
@@ -62,7 +61,7 @@ from electroloc_gym.fileio import atomic_write_bytes, strict_json, write_json_at
 
 # The run, plus the names a caller of the runner needs (defined in config, records and trials).
 __all__ = ["run_benchmark", "read_config", "record_rules", "OUTPUT_FILES", "BenchConfig", "TrialSpec", "DEFAULT_AGENTS",
-           "GLOBAL_CONDITION", "GLOBAL_ENV_ID", "resolve_conditions", "trial_seeds", "make_trial_specs",
+           "MAP_CONDITIONS", "resolve_conditions", "trial_seeds", "make_trial_specs",
            "read_trials", "TIMING_KEYS", "run_trial"]
 
 _Log = Callable[[str], None] | None

@@ -40,6 +40,7 @@ from types import MappingProxyType
 from typing import Any
 
 from electroloc_gym.agentspec import is_path_like, parse_agent_spec
+from electroloc_gym.core.unknown import SHAPE_RECORD_KEYS
 from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import FAR_ERROR_MM
 from electroloc_gym.sensor_array import LAYOUT_NAMES
@@ -62,10 +63,6 @@ MAX_TEXT_CHARS = 2000
 #: Largest per-decision or per-trial time accepted, ms / s (a day).
 _MAX_TIME = 86_400e3
 _CONDITION_CHARS = 64
-#: The unknown-target env's identification results in a record's ``"shape"``.
-SHAPE_RECORD_KEYS = ("radius_estimate_mm", "radius_mean_mm", "radius_spread_mm", "target_radius_mm",
-                     "radius_error_frac", "p_conductor", "material_estimate", "material_correct", "chi_estimate",
-                     "target_chi")
 _MATERIALS = ("conductor", "insulator")
 Check = Callable[[Any], bool]
 

@@ -19,9 +19,10 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.bench.config import IDENTITY_KEYS, UNKNOWN_ENV_ID, BenchConfig
+from electroloc_gym.bench.config import IDENTITY_KEYS, BenchConfig
 from electroloc_gym.bench.records import CONFIG_FILE, TRIALS_FILE, LoadedRecords, load_records
 from electroloc_gym.bench.schema import RecordRules
+from electroloc_gym.registry import env_entry
 
 __all__ = ["RunRecords", "read_run_records", "record_rules", "read_config", "config_from_json"]
 
@@ -138,7 +139,8 @@ def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
             criteria[spec] = float(kwargs["success_spread_mm"])
         layouts[spec] = str(getattr(agent, "layout", "table4"))
     return RecordRules(conditions=conditions, agents=agents, trials=trials,
-                       success_spread_mm=float(config.success_spread_mm), shape=config.env_id == UNKNOWN_ENV_ID,
+                       success_spread_mm=float(config.success_spread_mm),
+                       shape=bool(env_entry(config.env_id).record_keys),
                        caps=caps, criteria=criteria, layouts=layouts, start_of=_StartReplay(config, trust_pickle))
 
 

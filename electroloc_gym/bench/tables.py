@@ -14,6 +14,7 @@ from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.bench.fidelity import PAPER_TRIALS, paper_count_interval
 from electroloc_gym.bench.schema import FAR_ERROR_MM
 from electroloc_gym.conditions import PRESET_NAMES
+from electroloc_gym.registry import ENVS
 
 __all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "PAPER_TABLE2", "render_table_md", "paper_agent_key",
            "aggregate_label", "is_all_conditions"]
@@ -143,13 +144,18 @@ def _pair(a: Any, b: Any, digits: int = 1) -> str:
     return f"{_f(a, digits)}/{_f(b, digits)}"
 
 
+def _paper_table(env_id: Any) -> str:
+    """The paper's table a run's env is laid out like (an id no longer registered: Table 4's layout)."""
+    return next((e.paper_table for e in ENVS if e.env_id == env_id), "table4")
+
+
 def render_table_md(summary: dict[str, Any]) -> str:
     """table.md: Table 4 layout for the belief agents, Table 1 layout for zero-crossing agents."""
     rows = summary["rows"]
     cfg = summary.get("config", {})
     t4 = [r for r in rows if r.get("layout", "table4") == "table4"]
     t1 = [r for r in rows if r.get("layout") == "table1"]
-    if cfg.get("env_id") == "ElectroLocGlobal-v0":
+    if _paper_table(cfg.get("env_id")) == "table2":
         return _render_table2(summary)
     out: list[str] = []
     out.append(f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}")

@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.bench.agents import bench_env_kwargs, cached_agent, resolve_agent
-from electroloc_gym.bench.config import GLOBAL_ENV_ID, UNKNOWN_ENV_ID, TrialSpec
+from electroloc_gym.bench.config import TrialSpec
 from electroloc_gym.bench.rollout import AgentCallError, exception_line, run_episode
-from electroloc_gym.bench.schema import SHAPE_RECORD_KEYS, TrialRecord, is_far_success
+from electroloc_gym.bench.schema import TrialRecord, is_far_success
 from electroloc_gym.fileio import to_json_data
 
 __all__ = ["run_trial", "TrialFailed", "describe_trial"]
@@ -85,10 +85,7 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
     info = ep.info
     start = ep.start_info["position_mm"]
     core = env.unwrapped
-    if spec.env_id == GLOBAL_ENV_ID:  # the hidden state is the robot's own (final) position
-        target = np.asarray(info["position_mm"], dtype=float)  # evaluation only
-    else:
-        target = np.asarray(core.target_mm, dtype=float)  # evaluation only (the documented ground-truth accessor)
+    target = core.truth_mm  # evaluation only: what the belief estimates (the target, or the robot's own position)
     layout = str(getattr(agent, "layout", "table4"))
     if ep.ended_by == "agent" or layout == "table1":  # an agent that ends trials itself reports its estimate
         est = getattr(agent, "estimate_mm", None)
@@ -132,7 +129,7 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
         "n_particles": spec.n_particles,
         "env_id": spec.env_id,
         "wall_s": time.perf_counter() - t_start,
-        "shape": _shape_record(info) if spec.env_id == UNKNOWN_ENV_ID else None,
+        "shape": _shape_record(info, core.entry().record_keys) or None,
         "gain_levels": None if spec.gain_levels is None else list(spec.gain_levels),
         "sensor_layout": spec.sensor_layout,
         "distractors": spec.distractors,
@@ -140,10 +137,12 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
     }).to_json()
 
 
-def _shape_record(info: dict[str, Any]) -> dict[str, Any]:
-    """The unknown-target env's final size and material estimates and their truth (JSON values)."""
+def _shape_record(info: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
+    """The task's identification results ``keys`` of the final info (the unknown target's size and material
+    estimates and their truth), as JSON values.
+    """
     out: dict[str, Any] = {}
-    for k in SHAPE_RECORD_KEYS:
+    for k in keys:
         v = info[k]
         out[k] = str(v) if isinstance(v, str) else to_json_data(v if isinstance(v, (bool, np.bool_)) else float(v))
     return out

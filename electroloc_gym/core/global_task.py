@@ -39,6 +39,9 @@ def _shift_in_box(points: NDArray, shift: NDArray, half: Any) -> NDArray:
 class GlobalTask(Task):
     """ElectroLocGlobal-v0 (module docstring)."""
 
+    belief_frame = "robot"
+    hidden_keys = ("true_x_mm", "true_y_mm")
+
     offset_sign = np.float32(-1.0)
 
     def __init__(self, params: EnvParams) -> None:

@@ -173,7 +173,7 @@ class EnvParams:
             stored resolved (0: none, the plain env).
     """
 
-    task: str = TASKS[0]
+    task: str = "localize"
     condition: Any = "fresh-steel-12.7"
     signal: Any = dataclasses.field(default_factory=_default_signal)
     randomize_target: bool = False

@@ -30,7 +30,6 @@ with exact operations and fixed-order sums (docs/design.md, "Results that do not
 
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 import numpy as np
@@ -52,8 +51,8 @@ _ALL = slice(None)
 
 def make_task(params: EnvParams) -> Task:
     """The task object of ``params.task`` (its class from the env table, :mod:`electroloc_gym.registry`)."""
-    module, _, name = task_entry(params.task).task_class.partition(":")
-    return getattr(importlib.import_module(module), name)(params)
+    task: Task = task_entry(params.task).task_class(params)
+    return task
 
 
 class Simulation:

@@ -72,6 +72,11 @@ class Task(ABC):
     info_keys: tuple[str, ...] = ()
     #: Offsets = sign · (particle − origin): +1 target hypothesis − carriage, −1 −(carriage hypothesis).
     offset_sign = np.float32(1.0)
+    #: What the belief's hypotheses are: ``"target"`` (a static target's position: they stay put when the
+    #: robot moves) or ``"robot"`` (the carriage's own position: they move with every commanded move).
+    belief_frame = "target"
+    #: The names of the hidden state's entries (:meth:`hidden_state`), units in the names.
+    hidden_keys: tuple[str, ...] = ("target_x_mm", "target_y_mm")
 
     def __init__(self, params: EnvParams) -> None:
         self.params = params
@@ -219,6 +224,12 @@ class Task(ABC):
     @abstractmethod
     def truth_mm(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
         """(k, 2) what the belief estimates (ground truth, for the info's error), mm."""
+
+    def hidden_state(self, state: State, i: int) -> NDArray[np.float64]:
+        """Env ``i``'s hidden state (:attr:`hidden_keys`), float64: ground truth, for evaluation and
+        privileged critics only.
+        """
+        return np.asarray(self.truth_mm(state, np.array([i]))[0], dtype=np.float64).copy()
 
     def belief_origin_mm(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
         """(k, 2) the belief's frame origin, mm: the offsets' origin, the histogram's centre (the carriage)."""

@@ -50,7 +50,8 @@ from electroloc_gym.kernels import egocentric_counts, jitter_resampled, mean_cov
 from electroloc_gym.sensor import sphere_reading
 from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
 
-__all__ = ["UnknownTargetTask", "CONDUCTOR_CHI", "INSULATOR_CHI", "RADIUS_JITTER_MM", "CHI_JITTER", "SHAPE_INFO_KEYS"]
+__all__ = ["UnknownTargetTask", "CONDUCTOR_CHI", "INSULATOR_CHI", "RADIUS_JITTER_MM", "CHI_JITTER", "SHAPE_INFO_KEYS",
+           "SHAPE_RECORD_KEYS"]
 
 #: The contrasts of a perfect conductor and a perfect insulator (Eq. 4).
 CONDUCTOR_CHI = 1.0
@@ -63,6 +64,8 @@ CHI_JITTER = 0.02
 SHAPE_INFO_KEYS = ("radius_estimate_mm", "radius_mean_mm", "radius_spread_mm", "chi_estimate", "chi_spread",
                    "p_conductor", "material_estimate", "target_radius_mm", "target_chi", "radius_error_frac",
                    "material_correct")
+#: The identification results a benchmark record keeps (``"shape"``): the info keys but the χ spread.
+SHAPE_RECORD_KEYS = tuple(k for k in SHAPE_INFO_KEYS if k != "chi_spread")
 
 
 def _material(chi: NDArray) -> NDArray[np.object_]:
@@ -75,6 +78,7 @@ class UnknownTargetTask(LocalizeTask):
     #: A hypothesis is (x, y, a, χ): two shape coordinates (radius, χ) per particle.
     particle_dims = 4
     info_keys = SHAPE_INFO_KEYS
+    hidden_keys = ("target_x_mm", "target_y_mm", "target_radius_mm", "target_chi")
 
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
@@ -224,6 +228,10 @@ class UnknownTargetTask(LocalizeTask):
         # descriptor's: radii above 25 mm read 1) and χ instead of the truth
         s.descriptor[ids, 0] = np.minimum(s.shape_mean[ids, 0] / 25.0, 1.0).astype(np.float32)
         s.descriptor[ids, 1] = s.shape_mean[ids, 1].astype(np.float32)
+
+    def hidden_state(self, state: State, i: int) -> NDArray[np.float64]:
+        """Env ``i``'s target centre (mm), radius (mm) and contrast χ, float64 (ground truth)."""
+        return np.array([*state.target_mm[i], *state.target_shape[i, :2]], dtype=np.float64)
 
     def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
         """The info arrays :data:`SHAPE_INFO_KEYS` of envs ``sel``."""

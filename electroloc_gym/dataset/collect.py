@@ -122,10 +122,10 @@ def dataset_env_kwargs(env_id: str, agent: Any, condition: str = "random") -> di
     env spec serialises), with ``condition`` as a name (the global env takes none).
     """
     from electroloc_gym.bench.agents import bench_env_kwargs
-    from electroloc_gym.bench.config import GLOBAL_ENV_ID
+    from electroloc_gym.registry import env_entry
 
     kwargs = bench_env_kwargs(env_id, agent, None)
-    if env_id != GLOBAL_ENV_ID:
+    if env_entry(env_id).takes("condition"):
         kwargs["condition"] = condition
     return {k: (list(v) if isinstance(v, tuple) else v) for k, v in kwargs.items()}
 
@@ -139,13 +139,11 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
     own in the mapped tank) and ``error_mm``; for the unknown target ``truth_radius_mm``, ``truth_chi``,
     ``radius_estimate_mm``, ``p_conductor``. Read from the env's documented evaluation accessors.
     """
-    from electroloc_gym.bench.config import GLOBAL_ENV_ID, UNKNOWN_ENV_ID
     from electroloc_gym.conditions import PRESET_NAMES
 
     core = env.unwrapped
     cov = np.asarray(core.belief.covariance(), dtype=np.float64)
-    env_id = core.spec.id if core.spec is not None else ""
-    truth = info["position_mm"] if env_id == GLOBAL_ENV_ID else core.target_mm
+    truth = core.truth_mm
     name = str(info.get("condition", ""))
     out: dict[str, Any] = {
         "estimate_mm": np.asarray(info["estimate_mm"], dtype=np.float64),
@@ -158,9 +156,11 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
         "truth_mm": np.asarray(truth, dtype=np.float64).reshape(2),
         "error_mm": np.float64(info["error_mm"]),
     }
-    if env_id == UNKNOWN_ENV_ID:
-        out.update(truth_radius_mm=np.float64(info["target_radius_mm"]), truth_chi=np.float64(info["target_chi"]),
-                   radius_estimate_mm=np.float64(info["radius_estimate_mm"]),
+    hidden = core.hidden_state()
+    for key, value in zip(core.hidden_keys[2:], hidden[2:]):  # the hidden shape beyond the position
+        out["truth_" + key.removeprefix("target_")] = np.float64(value)
+    if core.entry().record_keys:  # its estimates
+        out.update(radius_estimate_mm=np.float64(info["radius_estimate_mm"]),
                    p_conductor=np.float64(info["p_conductor"]))
     return out
 

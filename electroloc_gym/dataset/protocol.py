@@ -58,9 +58,9 @@ def evaluation_overlap(env_seeds: Iterable[int]) -> list[int]:
     every condition and the global map, the first 1000 trials of each) or of the training callback's
     validation episodes (100000–100063); empty for a valid dataset.
     """
-    from electroloc_gym.bench.config import GLOBAL_CONDITION, trial_seeds
+    from electroloc_gym.bench.config import MAP_CONDITIONS, trial_seeds
 
-    evaluation = {trial_seeds(EVALUATION_SEED, c, k)[0] for c in (*PRESET_NAMES, GLOBAL_CONDITION)
+    evaluation = {trial_seeds(EVALUATION_SEED, c, k)[0] for c in (*PRESET_NAMES, *MAP_CONDITIONS)
                   for k in range(_CHECKED_TRIALS)} | set(range(100_000, 100_064))
     return sorted(set(int(s) for s in env_seeds) & evaluation)
 

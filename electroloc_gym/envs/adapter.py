@@ -27,7 +27,7 @@ from electroloc_gym.core.observation import INFO_KEYS
 from electroloc_gym.core.params import MAX_STEP_MM, EnvParams
 from electroloc_gym.core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
-from electroloc_gym.registry import env_entry
+from electroloc_gym.registry import EnvEntry, entry_of_class
 
 __all__ = ["CoreEnv", "ParamAccessors", "spaces_of"]
 
@@ -96,15 +96,19 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     """One env of the simulation core (see the module docstring); subclasses set the task."""
 
     metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 4}
-    #: The env's id in the env table (its task, arguments and defaults come from the entry).
-    _ENV_ID = "ElectroLoc-v0"
+
+    @classmethod
+    def entry(cls) -> EnvEntry:
+        """The env's entry in the env table (its id, task, arguments and defaults)."""
+        return entry_of_class(cls)
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         modes = self.metadata["render_modes"]
         if render_mode is not None and render_mode not in modes:
             raise ValueError(f"render_mode must be one of {list(modes)} or None, got {render_mode!r}")
         self.render_mode = render_mode
-        self.params = EnvParams.from_kwargs(env_entry(self._ENV_ID).task, kwargs, self._ENV_ID)
+        entry = self.entry()
+        self.params = EnvParams.from_kwargs(entry.task, kwargs, entry.env_id)
         self._sim = Simulation(self.params, 1)
         self._state = self._sim.state
         self._task = self._sim.task
@@ -147,6 +151,31 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         """(low, high) corners of the carriage's allowed box, mm."""
         h = self.condition.allowed_half_width_mm
         return np.array([-h, -h]), np.array([h, h])
+
+    @property
+    def belief_frame(self) -> str:
+        """What the belief's hypotheses are: ``"target"`` (a static target's position) or ``"robot"`` (the
+        carriage's own position, moving with it).
+        """
+        return str(self._task.belief_frame)
+
+    @property
+    def truth_mm(self) -> NDArray[np.float64]:
+        """What the belief estimates, its true (x, y), mm (a copy): ground truth, for evaluation only."""
+        self._require_reset()
+        return np.asarray(self._task.truth_mm(self._state, np.array([0]))[0], dtype=np.float64).copy()
+
+    @property
+    def hidden_keys(self) -> tuple[str, ...]:
+        """The names of :meth:`hidden_state`'s entries (units in the names)."""
+        return tuple(self._task.hidden_keys)
+
+    def hidden_state(self) -> NDArray[np.float64]:
+        """The episode's hidden state (:attr:`hidden_keys`), float64: ground truth, for evaluation and
+        privileged critics (:class:`electroloc_gym.privileged.PrivilegedInfo`), never for agents.
+        """
+        self._require_reset()
+        return self._task.hidden_state(self._state, 0)
 
     @property
     def n_observations(self) -> int:

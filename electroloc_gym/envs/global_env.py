@@ -119,8 +119,6 @@ class GlobalEnv(CoreEnv):
     * v0: initial version.
     """
 
-    _ENV_ID = "ElectroLocGlobal-v0"
-
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         super().__init__(render_mode, **kwargs)
 

@@ -128,8 +128,6 @@ class ElectroLocEnv(CoreEnv):
     * v0: initial version.
     """
 
-    _ENV_ID = "ElectroLoc-v0"
-
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         super().__init__(render_mode, **kwargs)
 

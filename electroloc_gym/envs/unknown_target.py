@@ -87,8 +87,6 @@ class UnknownTargetEnv(ElectroLocEnv):
     * v0: initial version.
     """
 
-    _ENV_ID = "ElectroLocUnknownTarget-v0"
-
     @property
     def condition(self) -> Condition:
         """The episode's tank with its hidden sphere (ground truth; before the first reset: the first tank)."""

@@ -43,7 +43,8 @@ from electroloc_gym.core.params import EnvParams, check_int
 from electroloc_gym.core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.envs.adapter import ParamAccessors
-from electroloc_gym.registry import env_entry
+from electroloc_gym.envs.sim_backends import make_backend_vector_env
+from electroloc_gym.registry import EnvEntry, entry_of_class
 
 __all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalVectorEnv", "UnknownTargetVectorEnv", "sub_env_seeds"]
 
@@ -103,16 +104,19 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
-    #: The env's id in the env table (its task, arguments and defaults come from the entry).
-    _ENV_ID = "ElectroLoc-v0"
+
+    @classmethod
+    def entry(cls) -> EnvEntry:
+        """The env's entry in the env table (its id, task, arguments, defaults and other backends)."""
+        return entry_of_class(cls)
 
     def __new__(cls, *args: Any, backend: Any = "numba", **kwargs: Any) -> Any:
-        """``backend="torch"``: the torch core's vector env instead (:mod:`electroloc_gym.torch_core`)."""
+        """Another ``backend`` of the entry (``"torch"``: the torch core, :mod:`electroloc_gym.torch_core`)
+        builds that backend's vector env instead.
+        """
         if backend == "numba":
             return super().__new__(cls)
-        from electroloc_gym.torch_core.dispatch import make_torch_vector_env
-
-        return make_torch_vector_env(cls._ENV_ID, backend, *args, **kwargs)
+        return make_backend_vector_env(cls.entry(), backend, *args, **kwargs)
 
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, backend: str = "numba",
@@ -125,7 +129,8 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         if mode is None:
             raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or 'next_step', "
                              f"'same_step'), got {autoreset_mode!r}")
-        self.params = EnvParams.from_kwargs(env_entry(self._ENV_ID).task, kwargs, self._ENV_ID)
+        entry = self.entry()
+        self.params = EnvParams.from_kwargs(entry.task, kwargs, entry.env_id)
         self._sim = Simulation(self.params, n)
         self._actions = ActionParser(self.params, n)
         self._state = self._sim.state
@@ -247,15 +252,11 @@ class ElectroLocVectorEnv(CoreVectorEnv):
     ``num_envs`` and ``autoreset_mode``.
     """
 
-    _ENV_ID = "ElectroLoc-v0"
-
 
 class GlobalVectorEnv(CoreVectorEnv):
     """``num_envs`` copies of ElectroLocGlobal-v0 stepped as one core (module docstring); any layout,
     ``"random"`` included (every sub-env draws its own map per episode).
     """
-
-    _ENV_ID = "ElectroLocGlobal-v0"
 
     @property
     def odometry_mm(self) -> NDArray[np.float64]:
@@ -267,5 +268,3 @@ class UnknownTargetVectorEnv(CoreVectorEnv):
     """``num_envs`` copies of ElectroLocUnknownTarget-v0 stepped as one core (module docstring); the info
     adds the unknown-target keys (size and material estimates, their truth) as (N,) arrays.
     """
-
-    _ENV_ID = "ElectroLocUnknownTarget-v0"

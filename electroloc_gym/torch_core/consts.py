@@ -15,21 +15,29 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from electroloc_gym.core.electroloc import ElectroLocTask
 from electroloc_gym.core.observation import condition_descriptor
 from electroloc_gym.core.params import DISCRETE_MOVES_MM, EnvParams
 from electroloc_gym.core.worlds import fixed_coefficients
 from electroloc_gym.draws import normal_table
 from electroloc_gym.protocol import MAX_STEP_MM
+from electroloc_gym.registry import ENVS, EnvEntry, task_entry
 from electroloc_gym.sensor_models.calibrated import calibration_grid_for, noise_free_calibration_grid
 
-__all__ = ["TorchConsts", "check_supported"]
+__all__ = ["TorchConsts", "check_supported", "torch_entry"]
+
+
+def torch_entry() -> EnvEntry:
+    """The env table's entry of the task the torch core implements (:class:`ElectroLocTask`)."""
+    return next(e for e in ENVS if e.task_class is ElectroLocTask)
 
 
 def check_supported(params: EnvParams) -> None:
     """One ValueError naming the first argument the torch core does not implement (the numba core does)."""
-    if params.task != "localize":
-        raise ValueError(f"backend='torch' implements ElectroLoc-v0 only (task 'localize'), got task {params.task!r}; "
-                         "use backend='numba'")
+    entry = torch_entry()
+    if task_entry(params.task) is not entry:
+        raise ValueError(f"backend='torch' implements {entry.env_id} only (task {entry.task!r}), got task "
+                         f"{params.task!r}; use backend='numba'")
     if params.gain_levels is not None:
         raise ValueError("gain_levels: backend='torch' has no dynamic gain (one calibration per level); use "
                          "gain_levels=None or backend='numba'")

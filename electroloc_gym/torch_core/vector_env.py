@@ -28,7 +28,7 @@ from electroloc_gym.core.observation import BELIEF_OBS_DIM, RAW_OBS_DIM
 from electroloc_gym.core.params import EnvParams, check_int
 from electroloc_gym.envs.actions import spaces_of
 from electroloc_gym.torch_core import sim
-from electroloc_gym.torch_core.consts import TorchConsts
+from electroloc_gym.torch_core.consts import TorchConsts, torch_entry
 
 __all__ = ["TorchElectroLocVectorEnv", "numpy_view"]
 
@@ -94,7 +94,8 @@ class TorchElectroLocVectorEnv(VectorEnv):
                              f"{autoreset_mode!r}")
         if not isinstance(compile, bool):
             raise ValueError(f"compile must be a bool, got {compile!r}")
-        self.params = EnvParams.from_kwargs("localize", kwargs, "ElectroLoc-v0")
+        entry = torch_entry()
+        self.params = EnvParams.from_kwargs(entry.task, kwargs, entry.env_id)
         self.device = _device(device)
         self.consts = TorchConsts.build(self.params, self.device)
         self.num_envs = n

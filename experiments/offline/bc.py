@@ -45,6 +45,7 @@ def train(config: TrainConfig) -> dict:
     import gymnasium as gym
 
     import electroloc_gym  # noqa: F401
+    from electroloc_gym.registry import env_entry
 
     common.seed_everything(config.seed)
     ids = [s.strip() for s in config.datasets.split(",") if s.strip()]
@@ -54,8 +55,7 @@ def train(config: TrainConfig) -> dict:
     act = torch.as_tensor(data["actions"])
     actor = common.Actor(obs.shape[1], act.shape[1])
     optim = torch.optim.Adam(actor.parameters(), lr=config.lr)
-    env = gym.make(config.env_id, condition="random") if config.env_id != "ElectroLocGlobal-v0" \
-        else gym.make(config.env_id)
+    env = gym.make(config.env_id, **({"condition": "random"} if env_entry(config.env_id).takes("condition") else {}))
     rng = np.random.default_rng(config.seed)
     curve, best, best_state = [], None, None
     t0 = common.timer()

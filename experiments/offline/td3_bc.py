@@ -74,6 +74,7 @@ def train(config: TrainConfig) -> dict:
     import gymnasium as gym
 
     import electroloc_gym  # noqa: F401
+    from electroloc_gym.registry import env_entry
 
     common.seed_everything(config.seed)
     ids = [s.strip() for s in config.datasets.split(",") if s.strip()]
@@ -90,8 +91,7 @@ def train(config: TrainConfig) -> dict:
     q1_t, q2_t = copy.deepcopy(q1), copy.deepcopy(q2)
     a_opt = torch.optim.Adam(actor.parameters(), lr=config.lr)
     q_opt = torch.optim.Adam([*q1.parameters(), *q2.parameters()], lr=config.lr)
-    env = gym.make(config.env_id, condition="random") if config.env_id != "ElectroLocGlobal-v0" \
-        else gym.make(config.env_id)
+    env = gym.make(config.env_id, **({"condition": "random"} if env_entry(config.env_id).takes("condition") else {}))
     rng = np.random.default_rng(config.seed)
     curve, best, best_state = [], None, None
     t0 = common.timer()
