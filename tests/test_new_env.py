@@ -57,8 +57,10 @@ def test_one_entry_makes_a_new_env(registered, tmp_path, capsys) -> None:
     assert type(vec.unwrapped) is FewReadingsVectorEnv and obs.shape[0] == 2
     vec.close()
     out = tmp_path / "run"
-    rc = bench_cli.run(_args(["--env", "few-readings", "--agents", "rnd-wlk", "--trials", "2", "--max-observations", "6",
-                              "--conditions", "fresh-steel-12.7", "--backend", "serial", "--workers", "1", "--out", str(out), "--no-progress"]))
+    argv = ["--env", "few-readings", "--agents", "rnd-wlk", "--trials", "2", "--max-observations", "6",
+            "--conditions", "fresh-steel-12.7", "--backend", "serial", "--workers", "1", "--out", str(out),
+            "--no-progress"]
+    rc = bench_cli.run(_args(argv))
     assert rc == 0, capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["config"]["env_id"] == "ElectroLocFewReadings-v0"
