@@ -64,7 +64,7 @@ def require_target_belief(env: Any, agent_name: str) -> None:
     """Raise one ValueError unless ``env``'s belief is over the target's position (hypotheses that do not
     move with the robot): ElectroLoc-v0 and ElectroLocUnknownTarget-v0, not ElectroLocGlobal-v0.
     """
-    if env.belief_frame != "target":
+    if env.belief_frame == "robot":
         raise ValueError(f"{agent_name} needs a belief over the target's position (ElectroLoc-v0, "
                          "ElectroLocUnknownTarget-v0); this env's belief is over the robot's own position "
                          "(ElectroLocGlobal-v0): use min-var or lookahead there")
