@@ -188,9 +188,9 @@ def run(args: argparse.Namespace) -> int:
         n_particles = ENV_N_PARTICLES[env_id] if args.n_particles is None else args.n_particles
         if not agents:
             raise ValueError("--agents names no agent")
-        if args.sensor_layout is not None and not (entry.takes("sensor_layout") and not row.env_kwargs):
-            rows = [n for n, (e, r) in BENCH_ENVS.items() if e.takes("sensor_layout") and not r.env_kwargs]
-            raise ValueError(f"--sensor-layout applies to --env {' or '.join(rows)}, got --env {env_name}")
+        layout_rows = [n for n, (e, r) in BENCH_ENVS.items() if e.takes("sensor_layout") and not r.env_kwargs]
+        if args.sensor_layout is not None and env_name not in layout_rows:
+            raise ValueError(f"--sensor-layout applies to --env {' or '.join(layout_rows)}, got --env {env_name}")
         conditions = run_conditions(env_id, args.conditions)
         if entry.map_condition is not None:  # zero-crossing looks for one sphere; a policy must know the map
             bad = [a for a in agents if not _runs_on_map_env(a, env_id)]
