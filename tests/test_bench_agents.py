@@ -25,10 +25,10 @@ from electroloc_gym.bench.agents import (
     shipped_models,
 )
 from electroloc_gym.bench.config import BenchConfig, make_trial_specs
-from electroloc_gym.bench.rollout import run_episode
 from electroloc_gym.bench.trials import run_trial
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.conditions import get_condition
+from electroloc_gym.rollout import run_episode
 
 HAS_TRAIN = all(importlib.util.find_spec(m) is not None for m in ("torch", "stable_baselines3"))
 ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -138,7 +138,7 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
     captured = capsys.readouterr()
     assert "electroloc bench: skipping ppo-belief: the training extra is not installed (test)" in captured.err
     assert "agents: rnd-wlk; min-var; zero-crossing" in captured.out
-    assert [c.spec for c in default_agents(table4_only=True) if not c.skipped] == ["rnd-wlk", "min-var"]
+    assert [c.spec for c in default_agents(names=("rnd-wlk", "min-var")) if not c.skipped] == ["rnd-wlk", "min-var"]
 
 
 def test_global_env_refuses_learned_policies_and_zero_crossing(tmp_path, capsys) -> None:

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.agentspec import AgentSpec, is_path_like, parse_agent_spec
-from electroloc_gym.baselines.agent import AGENT_NAMES, PAPER_AGENTS, agent_class, make_agent
+from electroloc_gym.baselines.agent import AGENT_NAMES, PAPER_AGENTS, make_agent
 from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
     AGENT_ENV_KWARGS,
     bench_env_kwargs,
@@ -370,7 +370,7 @@ def _training_extra_missing() -> str | None:
     return None
 
 
-def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env_id: str = "ElectroLoc-v0",
+def default_agents(*, names: tuple[str, ...] | None = None, trust_pickle: bool = False, env_id: str = "ElectroLoc-v0",
                    gain_levels: tuple[float, ...] | None = None, sensor_layout: str | None = None) -> list[AgentChoice]:
     """What a run without ``--agents`` considers: the paper's controllers, then every shipped model
     trained on ``env_id``.
@@ -379,7 +379,7 @@ def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env
     extra missing, its files not loading, or another env).
 
     Args:
-        table4_only: only particle-filter controllers (the global env: rnd-wlk, min-var), then the
+        names: the controllers to run first (a bench row's ``agents``; None: the paper's three), then the
             shipped models trained on ``env_id``.
         trust_pickle: passed to the policy loader.
         env_id: the run's env.
@@ -388,7 +388,7 @@ def default_agents(*, table4_only: bool = False, trust_pickle: bool = False, env
         sensor_layout: the run's named sensor layout (None: the paper's single pair); a shipped model
             trained with another layout is skipped.
     """
-    choices = [AgentChoice(name) for name in PAPER_AGENTS if not table4_only or agent_class(name).layout == "table4"]
+    choices = [AgentChoice(name) for name in (PAPER_AGENTS if names is None else names)]
     if gain_levels is not None:
         choices.insert(2, AgentChoice("min-var[gain=preset]"))
     models = shipped_models()

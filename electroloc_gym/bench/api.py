@@ -27,6 +27,7 @@ from typing import Any
 from electroloc_gym.bench.agents import register_object_agent, shipped_models
 from electroloc_gym.bench.config import (
     ENV_CHOICES,
+    ENV_MAX_OBSERVATIONS,
     ENV_N_PARTICLES,
     ENV_SENSOR_MODELS,
     BenchConfig,
@@ -65,7 +66,7 @@ def _object_name(agent: Any, taken: set[str]) -> str:
 
 def run(agents: list[Any], *, env: str = "target", conditions: str | list[str] = "all", trials: int = 50,
         seed: int = 0, out: str | os.PathLike | None = None, sensor_model: str | None = None,
-        signal: str = DEFAULT_SIGNAL, max_observations: int = 35, n_particles: int | None = None,
+        signal: str = DEFAULT_SIGNAL, max_observations: int | None = None, n_particles: int | None = None,
         backend: str | None = None, workers: int | None = None, resume: bool = False, progress: bool = False,
         trust_pickle: bool = False, log: Any = None) -> BenchResult:
     """Benchmark ``agents`` (objects and/or specs) as ``electroloc bench`` does.
@@ -79,7 +80,7 @@ def run(agents: list[Any], *, env: str = "target", conditions: str | list[str] =
         out: output folder (None: a new temporary folder).
         sensor_model: the filter's sensor model (None: the env's default).
         signal: the presets' signal scale.
-        max_observations: observation cap of a trial.
+        max_observations: the cap of readings of a trial (None: the env's, 35 as the paper).
         n_particles: particles of the belief (None: the env's default).
         backend: ``"serial"``, ``"process"``, ``"ray"`` (None: serial with agent objects, else process).
         workers: parallel workers of the backend.
@@ -118,7 +119,8 @@ def run(agents: list[Any], *, env: str = "target", conditions: str | list[str] =
         agents=tuple(specs),
         conditions=run_conditions(env_id, conditions),
         trials=trials, seed=seed, sensor_model=sensor_model or ENV_SENSOR_MODELS[env_id][0], signal=signal,
-        max_observations=max_observations, n_particles=ENV_N_PARTICLES[env_id] if n_particles is None else n_particles,
+        max_observations=ENV_MAX_OBSERVATIONS[env_id] if max_observations is None else max_observations,
+        n_particles=ENV_N_PARTICLES[env_id] if n_particles is None else n_particles,
         env_id=env_id, gain_levels=bench_env(env)[1].env_kwargs.get("gain_levels"))
     folder = Path(tempfile.mkdtemp(prefix="electroloc-bench-")) if out is None else Path(out)
     summary = run_benchmark(config, folder, workers=workers, backend=backend, resume=resume, progress=progress,

@@ -18,6 +18,7 @@ from electroloc_gym.bench.agents import (
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.config import (
     ENV_CHOICES,
+    ENV_MAX_OBSERVATIONS,
     ENV_N_PARTICLES,
     ENV_SENSOR_MODELS,
     SENSOR_MODELS,
@@ -30,7 +31,7 @@ from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
 from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import MAX_OBSERVATIONS
-from electroloc_gym.registry import BENCH_ENVS, bench_env, env_entry
+from electroloc_gym.registry import BENCH_ENVS, BenchEnv, bench_env
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = ["add_arguments", "run", "ascii_int", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS",
@@ -101,8 +102,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--distractors", type=ascii_int, default=0,
                         help=f"D objects that are not the target drawn per trial in the tank (ElectroLoc-v0's "
                              f"distractors=D, 0–{MAX_DISTRACTORS}; in the true reading only; default 0)")
-    parser.add_argument("--max-observations", type=ascii_int, default=MAX_OBSERVATIONS,
-                        help=f"the cap of readings of a trial (paper: {MAX_OBSERVATIONS})")
+    parser.add_argument("--max-observations", type=ascii_int, default=None,
+                        help=f"the cap of readings of a trial (default: the env's, {MAX_OBSERVATIONS} as the paper)")
     parser.add_argument("--n-particles", type=ascii_int, default=None,
                         help="particles of the belief (default: the env's, 2500 as the paper; unknown-target: 5000)")
     parser.add_argument("--out", default="bench_out", help="output folder (locked while the run writes to it)")
@@ -131,8 +132,10 @@ def _runs_on_map_env(spec: str, env_id: str) -> bool:
     return kind in ("factory", "object")
 
 
-def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...] | None) -> list[str]:
-    """The run's agent specs; a default list says what it skipped and why."""
+def _agents(args: argparse.Namespace, env_id: str, row: BenchEnv) -> list[str]:
+    """The run's agent specs (``--agents``, else the bench row's defaults); a default list says what it
+    skipped and why.
+    """
     if args.agents is not None:
         try:
             specs = split_specs(args.agents)
@@ -148,9 +151,8 @@ def _agents(args: argparse.Namespace, env_id: str, gain_levels: tuple[float, ...
             except ValueError as exc:
                 raise ValueError(f"--agents: {exc}") from None
         return specs
-    one_map = env_entry(env_id).map_condition is not None  # the particle-filter controllers only (Table 2)
-    choices = default_agents(table4_only=one_map, trust_pickle=args.trust_pickle, env_id=env_id,
-                             gain_levels=gain_levels, sensor_layout=args.sensor_layout)
+    choices = default_agents(names=row.agents, trust_pickle=args.trust_pickle, env_id=env_id,
+                             gain_levels=row.env_kwargs.get("gain_levels"), sensor_layout=args.sensor_layout)
     for c in choices:
         if c.skipped:
             print(f"electroloc bench: skipping {c.spec}: {c.skipped}", file=sys.stderr)
@@ -183,9 +185,10 @@ def run(args: argparse.Namespace) -> int:
         entry, row = bench_env(env_name)
         env_id = entry.env_id
         gain_levels = row.env_kwargs.get("gain_levels")  # the row's own arguments
-        agents = _agents(args, env_id, gain_levels)
+        agents = _agents(args, env_id, row)
         sensor_model = args.sensor_model or ENV_SENSOR_MODELS[env_id][0]
         n_particles = ENV_N_PARTICLES[env_id] if args.n_particles is None else args.n_particles
+        max_observations = ENV_MAX_OBSERVATIONS[env_id] if args.max_observations is None else args.max_observations
         if not agents:
             raise ValueError("--agents names no agent")
         layout_rows = [n for n, (e, r) in BENCH_ENVS.items() if e.takes("sensor_layout") and not r.env_kwargs]
@@ -199,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
                                  f"trained on {env_id} and users' factory agents; not applicable: {bad}")
         config = BenchConfig(agents=tuple(agents), conditions=conditions,
                              trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
-                             max_observations=args.max_observations, n_particles=n_particles,
+                             max_observations=max_observations, n_particles=n_particles,
                              env_id=env_id, gain_levels=gain_levels, sensor_layout=args.sensor_layout,
                              distractors=getattr(args, "distractors", 0))
         options = {} if args.address is None else {"address": args.address}

@@ -40,6 +40,7 @@ __all__ = [
     "ENV_SENSOR_MODELS",
     "ENV_N_PARTICLES",
     "ENV_DEFAULT_AGENTS",
+    "ENV_MAX_OBSERVATIONS",
     "IDENTITY_KEYS",
     "IDENTITY_DEFAULTS",
     "ENV_TAKES_DISTRACTORS",
@@ -56,6 +57,9 @@ ENV_CHOICES: LiveMapping[str] = LiveMapping(lambda: {name: entry.env_id for name
 #: The bench's default particle count per env (the env's own default).
 ENV_N_PARTICLES: LiveMapping[int] = LiveMapping(
     lambda: {e.env_id: e.defaults.get("n_particles", EnvParams.n_particles) for e in ENVS})
+#: The bench's default cap of readings per env (the env's own default; the paper's 35).
+ENV_MAX_OBSERVATIONS: LiveMapping[int] = LiveMapping(
+    lambda: {e.env_id: e.defaults.get("max_observations", MAX_OBSERVATIONS) for e in ENVS})
 #: The sensor models of each env (the first is the bench's default there).
 ENV_SENSOR_MODELS: LiveMapping[tuple[str, ...]] = LiveMapping(lambda: {e.env_id: e.sensor_models for e in ENVS})
 #: Every sensor model some env takes (``--sensor-model`` choices).
