@@ -35,8 +35,8 @@ from tqdm import tqdm  # noqa: E402
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.bench.agents import make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
-from electroloc_gym.bench.rollout import run_episode  # noqa: E402
 from electroloc_gym.conditions import Condition, get_condition  # noqa: E402
+from electroloc_gym.rollout import run_episode  # noqa: E402
 
 TRAIN_SEED = 7000
 

@@ -23,8 +23,8 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
-from electroloc_gym.bench.rollout import run_episode  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, fitted_signal_scale, get_condition, start_box_coverage  # noqa: E402
+from electroloc_gym.rollout import run_episode  # noqa: E402
 
 
 def scan_one(k: float, agents: list[str], trials: int, seed: int) -> dict[str, tuple[int, float, list[float]]]:

@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.bench.rollout import run_episode
 from electroloc_gym.fileio import atomic_write_bytes, save_figure_atomic
 from electroloc_gym.render import Snapshot, draw_snapshot, eev_colorbar, legend_handles, snapshot
+from electroloc_gym.rollout import run_episode
 
 __all__ = ["Episode", "record_episode", "plot_episode", "save_gif", "demo", "check_output_path", "MAX_PANELS"]
 
@@ -65,7 +65,7 @@ def record_episode(env: Any, seed: int = 0, agent: Any = None, frames: bool = Fa
                    label: str | None = None) -> Episode:
     """Run one episode of ``env`` from ``reset(seed=seed)`` and record it.
 
-    The episode is the benchmark's (:func:`electroloc_gym.bench.rollout.run_episode`): an agent that
+    The episode is the benchmark's (:func:`electroloc_gym.rollout.run_episode`): an agent that
     sets ``done`` ends it.
 
     Args:
@@ -296,8 +296,6 @@ def demo(condition: str = "fresh-steel-12.7", sensor_model: str = "calibrated", 
          out: str | os.PathLike | None = "demo.png", gif: str | os.PathLike | None = None) -> Episode:
     """``electroloc demo``: one random-move episode of ElectroLoc-v0 as a snapshot grid and/or a GIF."""
     import gymnasium as gym
-
-    import electroloc_gym  # noqa: F401  (registers the ids)
 
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise ValueError(f"seed must be an integer in [0, 2**63), got {seed!r}")

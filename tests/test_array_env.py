@@ -218,7 +218,7 @@ def test_lookahead_step_log_likelihood_sums_the_pairs() -> None:
 @pytest.mark.parametrize("agent", ["min-var", "lookahead", "rnd-wlk"])
 def test_agents_run_on_an_array(agent: str) -> None:
     from electroloc_gym.baselines import make_agent
-    from electroloc_gym.bench.rollout import run_episode
+    from electroloc_gym.rollout import run_episode
 
     env = gym.make(ID, sensor_layout="grid-2x2", n_particles=500, sensor_model="analytic", max_observations=8,
                    condition="fresh-steel-38.1")

@@ -159,3 +159,74 @@ def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
 def test_no_import_cycle_anywhere(graph: dict[str, set[str]]) -> None:
     found = cycles(graph)
     assert not found, "import cycles (none may remain):\n" + "\n".join(describe(c, graph) for c in found)
+
+
+#: The package's layers, bottom to top (docs/design.md's diagram): a module imports only its own layer and
+#: those below. Names are relative to ``electroloc_gym``; a package name covers its submodules.
+LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("data", ("protocol", "registry", "runtime", "fileio", "agentspec", "distractor_layout", "models")),
+    ("physics", ("physics", "apparatus", "conditions")),
+    ("kernels", ("kernels", "draws")),
+    ("sensor", ("sensor", "sensor_array", "scene", "distractors")),
+    ("sensor models", ("sensor_models",)),
+    ("core", ("core",)),
+    ("views", ("belief", "render")),
+    ("adapters", ("envs", "torch_core", "privileged")),
+    ("agents", ("baselines", "policy", "rollout")),
+    ("benchmark", ("bench",)),
+    ("tools", ("dataset", "train", "rllib", "demo")),
+    ("entry points", ("cli", "")),  # "" is the package's __init__ (registers the table's envs)
+)
+
+
+def layer_of(module: str) -> int:
+    """The index in :data:`LAYERS` of a package module (its longest matching name)."""
+    rel = module.removeprefix("electroloc_gym").removeprefix(".")
+    best, at = -1, None
+    for i, (_, names) in enumerate(LAYERS):
+        for n in names:
+            if (rel == n or rel.startswith(n + ".")) and len(n) > best:
+                best, at = len(n), i
+    if at is None:
+        raise KeyError(module)
+    return at
+
+
+def test_every_module_has_a_layer(graph: dict[str, set[str]]) -> None:
+    missing = []
+    for m in graph:
+        try:
+            layer_of(m)
+        except KeyError:
+            missing.append(m)
+    assert not missing, f"modules in no layer of LAYERS (add them, and to docs/design.md's diagram): {missing}"
+
+
+def test_the_layers_import_only_downward(graph: dict[str, set[str]]) -> None:
+    """The whole order, not only the core's: every edge goes to the same layer or one below."""
+    bad = sorted(f"{m} ({LAYERS[layer_of(m)][0]}) → {t} ({LAYERS[layer_of(t)][0]})"
+                 for m, ts in graph.items() for t in ts if layer_of(t) > layer_of(m))
+    assert not bad, "upward imports against the layer order:\n" + "\n".join(bad)
+
+
+def test_the_check_sees_an_upward_import() -> None:
+    assert layer_of("electroloc_gym.core.step") < layer_of("electroloc_gym.envs.adapter")
+    assert layer_of("electroloc_gym.sensor_models.map") == layer_of("electroloc_gym.sensor_models")
+    assert layer_of("electroloc_gym") == len(LAYERS) - 1
+    with pytest.raises(KeyError):
+        layer_of("electroloc_gym.nothing_here")
+
+
+def test_the_design_diagram_names_every_module(graph: dict[str, set[str]]) -> None:
+    """docs/design.md's architecture diagram lists each module (its file name) and each layer's name."""
+    text = (ROOT / "docs" / "design.md").read_text(encoding="utf-8")
+    block = text.split("## Architecture", 1)[1].split("```text", 1)[1].split("```", 1)[0]
+    missing = []
+    for m in graph:
+        rel = m.removeprefix("electroloc_gym").removeprefix(".")
+        leaf = rel.rpartition(".")[2] if rel else "__init__"
+        if f"{leaf}.py" not in block and f"{leaf}/" not in block:
+            missing.append(m)
+    assert not missing, f"modules docs/design.md's diagram does not show: {missing}"
+    for name, _ in LAYERS:
+        assert name in block, f"layer {name!r} is not named in docs/design.md's diagram"

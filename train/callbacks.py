@@ -4,7 +4,7 @@ rl-zoo3's own ``EvalCallback`` scores a checkpoint by its mean return. :class:`B
 (named under ``callback:`` in every file of ``train/hyperparams/``) also runs the *current* policy
 the way the benchmark runs a policy — exported in memory to the pickle-free format, loaded as the
 benchmark's agent (:mod:`electroloc_gym.policy`), one seeded episode per validation seed through
-:func:`electroloc_gym.bench.rollout.run_episode` — and records what the benchmark reports:
+:func:`electroloc_gym.rollout.run_episode` — and records what the benchmark reports:
 successes, readings to localise (``info["n_observations"]``; a failure counts as the cap) and the
 final error, plus the task's own (unshaped) return. It also switches on the reward shaping of the
 training env (:func:`electroloc_gym.train.wrappers.activate_shaping`).
@@ -33,11 +33,11 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper, VecFrameStack, VecMonitor
 
-from electroloc_gym.bench.rollout import run_episode
 from electroloc_gym.fileio import FolderLock, atomic_write_text, write_json_atomic
 from electroloc_gym.policy.format import write_export
 from electroloc_gym.policy.load import agent_from_model
 from electroloc_gym.policy.sb3 import export_meta, model_weights
+from electroloc_gym.rollout import run_episode
 from electroloc_gym.train.native_vec import NativeVecEnv
 from electroloc_gym.train.wrappers import activate_shaping
 

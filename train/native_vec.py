@@ -28,7 +28,6 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper, VecMonitor
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.core.observation import INFO_KEYS  # the info keys copied into every per-env info dict
 from electroloc_gym.train.wrappers import VecPotentialShaping
 

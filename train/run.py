@@ -97,8 +97,6 @@ def zoo_argv(algo: str, env_id: str, seed: int, *, timesteps: int | None = None,
     _check_log_folder(Path(log_folder))
     import gymnasium as gym
 
-    import electroloc_gym  # noqa: F401
-
     if env_id not in gym.registry:
         raise ValueError(f"env_id {env_id!r} is not registered (electroloc ids: "
                          f"{sorted(k for k in gym.registry if k.startswith('ElectroLoc'))})")

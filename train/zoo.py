@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from rl_zoo3.exp_manager import ExperimentManager
 
-import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.runtime import pin_threads
 from electroloc_gym.train.native_vec import zoo_vec_env
 

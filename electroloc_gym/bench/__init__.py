@@ -9,7 +9,7 @@ Modules, in the order a run uses them:
 * :mod:`~electroloc_gym.bench.records` — the output folder: checked, locked, records parsed within bounds,
   keyed and validated against the run;
 * :mod:`~electroloc_gym.bench.backends` (and :mod:`~electroloc_gym.bench.ray_backend`) — where trials run;
-* :mod:`~electroloc_gym.bench.trials` and :mod:`~electroloc_gym.bench.rollout` — one trial, one episode;
+* :mod:`~electroloc_gym.bench.trials` and :mod:`~electroloc_gym.rollout` — one trial, one episode;
 * :mod:`~electroloc_gym.bench.runner` — :func:`run_benchmark`, which ties them together;
 * :mod:`~electroloc_gym.bench.stats`, :mod:`~electroloc_gym.bench.tables`, :mod:`~electroloc_gym.bench.plots`
   — Appendix-B statistics, the paper's table layouts, Fig. 12;
@@ -23,10 +23,10 @@ from electroloc_gym.bench import ray_backend as _ray_backend  # noqa: F401  (reg
 from electroloc_gym.bench.api import BenchResult, run
 from electroloc_gym.bench.backends import BACKENDS, Backend, make_backend, register_backend
 from electroloc_gym.bench.config import BenchConfig, TrialSpec, trial_seeds
-from electroloc_gym.bench.rollout import Episode, run_episode
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.bench.stats import summarize
 from electroloc_gym.bench.trials import run_trial
+from electroloc_gym.rollout import Episode, run_episode
 
 __all__ = [
     "run",

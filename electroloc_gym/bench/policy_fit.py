@@ -169,8 +169,6 @@ def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[fl
         return f"it was trained with sensor_layout={layout!r}, this run has sensor_layout={run_layout!r}"
     import gymnasium as gym
 
-    import electroloc_gym  # noqa: F401  (registers the ids)
-
     try:
         env = gym.make(env_id, **bench_env_kwargs(env_id, agent, gain_levels, sensor_layout=sensor_layout))
     except (TypeError, ValueError) as exc:

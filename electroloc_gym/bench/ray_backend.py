@@ -115,7 +115,6 @@ def _probe(address: str, ray: Any) -> None:
 def _run_in_worker(worker_fn: Callable[[Any], Any], spec: Any) -> Any:
     """What a Ray task runs: set up the worker process like the process pool's initializer, then the trial."""
     pin_threads()
-    import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0 & co. in this worker)
 
     return worker_fn(spec)
 

@@ -168,8 +168,6 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
     """
     import gymnasium as gym
 
-    import electroloc_gym  # noqa: F401  (registers the ids)
-
     kwargs = bench_env_kwargs(config.env_id, agent, config.gain_levels, condition=config.conditions[0],
                               signal=config.signal, sensor_model=config.sensor_model, n_particles=config.n_particles,
                               max_observations=config.max_observations, sensor_layout=config.sensor_layout,

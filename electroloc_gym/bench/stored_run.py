@@ -93,7 +93,6 @@ class _StartReplay:
     def __call__(self, condition: str, agent: str, seed: int) -> tuple[float, float] | None:
         import gymnasium as gym
 
-        import electroloc_gym  # noqa: F401  (registers the ids)
         from electroloc_gym.bench.agents import bench_env_kwargs, builtin_agent
 
         cfg = self.config

@@ -1,7 +1,7 @@
 """The worker side of a benchmark: one trial spec → one trial record.
 
 A worker builds (and caches) its agents and envs itself from the spec, runs the seeded episode
-(:func:`electroloc_gym.bench.rollout.run_episode`) and returns the record written to trials.jsonl.
+(:func:`electroloc_gym.rollout.run_episode`) and returns the record written to trials.jsonl.
 
 Steps-to-localize is the number of observations fused (``info["n_observations"]``, the first
 reading taken by ``reset`` included), as the paper counts. A trial succeeds when the env terminates
@@ -18,9 +18,9 @@ import numpy as np
 
 from electroloc_gym.bench.agents import bench_env_kwargs, cached_agent, resolve_agent
 from electroloc_gym.bench.config import TrialSpec
-from electroloc_gym.bench.rollout import AgentCallError, exception_line, run_episode
 from electroloc_gym.bench.schema import TrialRecord, is_far_success
 from electroloc_gym.fileio import to_json_data
+from electroloc_gym.rollout import AgentCallError, exception_line, run_episode
 
 __all__ = ["run_trial", "TrialFailed", "describe_trial"]
 
@@ -41,8 +41,6 @@ _ENVS: dict[tuple[Any, ...], Any] = {}
 
 def _env(spec: TrialSpec, agent: Any) -> Any:
     import gymnasium as gym
-
-    import electroloc_gym  # noqa: F401  (registers the ids in a fresh worker)
 
     kwargs = bench_env_kwargs(spec.env_id, agent, spec.gain_levels, condition=spec.condition, signal=spec.signal,
                               sensor_model=spec.sensor_model, n_particles=spec.n_particles,

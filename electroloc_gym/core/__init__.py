@@ -7,6 +7,8 @@
   machinery the tasks share; :mod:`~electroloc_gym.core.worlds` — grouping envs by world, cached values;
 * one module per task: :mod:`~electroloc_gym.core.localize` (one target), :mod:`~electroloc_gym.core.global_task`
   (the mapped tank), :mod:`~electroloc_gym.core.unknown` (the unknown target: position, radius, contrast);
+  ElectroLoc-v0's task :mod:`~electroloc_gym.core.electroloc` is the localize task with its two variants,
+  :mod:`~electroloc_gym.core.array` (a sensor array) and :mod:`~electroloc_gym.core.distractors`;
 * :mod:`~electroloc_gym.core.step` — reset and step of N envs, through the task interface.
 
 The core imports nothing from :mod:`electroloc_gym.envs` (the adapters import the core).

@@ -18,7 +18,7 @@ A dataset is the episodes of one agent on one env, written with Minari's own sto
   ``algorithm_name``, and an ``electroloc`` block: agent, env kwargs, root seed, the planned episode count,
   the reference's provenance, and ``complete``.
 
-The episodes are the benchmark's rollout loop (:func:`electroloc_gym.bench.rollout.run_episode`) with the
+The episodes are the benchmark's rollout loop (:func:`electroloc_gym.rollout.run_episode`) with the
 agent built by the benchmark's own constructor (:func:`electroloc_gym.bench.agents.make_bench_agent`):
 every spec ``electroloc bench --agents`` takes works here. Writing is resumable: each episode is written
 as it ends, ``complete`` is set after the last, and ``resume=True`` continues an unfinished dataset from
@@ -169,7 +169,7 @@ def _episode_buffer(env: Any, agent: Any, k: int, root_seed: int) -> Any:
     """Episode ``k``: the benchmark's rollout, recorded step by step into a Minari ``EpisodeBuffer``."""
     from minari.data_collector.episode_buffer import EpisodeBuffer
 
-    from electroloc_gym.bench.rollout import run_episode
+    from electroloc_gym.rollout import run_episode
 
     env_seed, agent_seed = episode_seeds(root_seed, k)
     obs, acts, rews, terms, truncs, infos = [], [], [], [], [], []
@@ -244,7 +244,6 @@ def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool 
     import gymnasium as gym
     from tqdm import tqdm
 
-    import electroloc_gym  # noqa: F401  (registers the ids)
     from electroloc_gym.bench.agents import make_bench_agent, policy_env_problem
 
     ds_id = request.id

@@ -5,7 +5,8 @@
 * :mod:`.filter` — the particle filter's measurement update (weights, resampling, jitter);
 * :mod:`.stats` — the belief's mean, covariance and histogram;
 * :mod:`.observation` — the belief observation's assembly;
-* :mod:`.draws` — bulk transforms of random draws.
+* :mod:`.draws` — bulk transforms of random draws;
+* :mod:`.array` — the fusion of a sensor array's K readings (imported by its users, not re-exported here).
 
 Why compiled loops: at M = 2500 particles a numpy update is ~25 elementwise passes, each with its
 own temporary; one kernel call takes one env at a time through a few passes over its particles

@@ -154,7 +154,7 @@ class _TorchAgent:
 
 def validate(actor: Actor, norm: Normalizer, env: Any, episodes: int) -> dict[str, float]:
     """Mean readings (a failure counted as the cap), success rate and ms per decision on validation episodes."""
-    from electroloc_gym.bench.rollout import run_episode
+    from electroloc_gym.rollout import run_episode
 
     agent = _TorchAgent(actor, norm)
     readings, success, decision = [], [], []
