@@ -78,7 +78,7 @@ def test_help_is_plain_text_with_defaults(command) -> None:
     assert "(default: None)" not in text and "(default: False)" not in text
     if command == ["bench"]:
         for default in ("--trials TRIALS", "(default: 50)", "(default: 0)", "(default: bench_out)",
-                        "(default: calibrated,", "2500 as the paper; unknown-target: 5000", "(default: 35)",
+                        "(default: calibrated,", "2500 as the paper; unknown-target: 5000", "35 as the paper",
                         "(default: all)",
                         "(default: process)", "examples:", "ppo-belief"):
             assert default in text, default
