@@ -23,10 +23,11 @@ from __future__ import annotations
 
 import ast
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["AgentSpec", "parse_agent_spec", "split_specs", "is_path_like", "MAX_SPEC_CHARS"]
+__all__ = ["AgentSpec", "parse_agent_spec", "split_specs", "is_path_like", "parse_options", "MAX_SPEC_CHARS"]
 
 #: Longest spec accepted (characters): a spec is a name and a few options, not a data file.
 MAX_SPEC_CHARS = 2000
@@ -141,6 +142,36 @@ def _value(raw: str) -> Any:
     raise ValueError(f"value {raw!r} is neither a Python literal nor a bare word")
 
 
+def _option(item: str, where: str, options: dict[str, Any]) -> None:
+    """One ``key=value`` into ``options`` (the value by :func:`_value`); ``where`` names it in errors."""
+    if "=" not in item:
+        raise ValueError(f"{where}: {item.strip()!r} must be key=value")
+    key, raw = (s.strip() for s in item.split("=", 1))
+    if not _KEY_RE.fullmatch(key):
+        raise ValueError(f"{where}: key {key!r} must be a Python identifier")
+    if key in options:
+        raise ValueError(f"{where}: {key!r} given twice")
+    try:
+        options[key] = _value(raw)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {key!r}: {exc}") from None
+
+
+def parse_options(items: Sequence[str], where: str) -> dict[str, Any]:
+    """``["key=value", ...]`` → a dict, by the agent spec's rule for a value (a Python literal, else a bare
+    word, else a bracketed sequence of such values); the one KEY=VALUE syntax of the command lines
+    (``electroloc train --env-kwargs/--hyperparams``, the learned suite's ``--hyperparams``).
+
+    Raises:
+        ValueError: one line starting with ``where``: an item without ``=``, a key that is not an
+            identifier or given twice, or a value that is neither a literal nor a bare word.
+    """
+    options: dict[str, Any] = {}
+    for item in items:
+        _option(item, where, options)
+    return options
+
+
 def parse_agent_spec(text: str) -> AgentSpec:
     """Parse an agent spec (see the module docstring).
 
@@ -165,16 +196,5 @@ def parse_agent_spec(text: str) -> AgentSpec:
     options: dict[str, Any] = {}
     if body is not None and body.strip():
         for a, b in _scan(body, f"options of agent spec {spec!r}:"):
-            item = body[a:b]
-            if "=" not in item:
-                raise ValueError(f"agent option {item.strip()!r} in {spec!r} must be key=value")
-            key, raw = (s.strip() for s in item.split("=", 1))
-            if not _KEY_RE.fullmatch(key):
-                raise ValueError(f"agent option key {key!r} in {spec!r} must be a Python identifier")
-            if key in options:
-                raise ValueError(f"agent option {key!r} given twice in {spec!r}")
-            try:
-                options[key] = _value(raw)
-            except ValueError as exc:
-                raise ValueError(f"agent option {key!r} in {spec!r}: {exc}") from None
+            _option(body[a:b], f"agent option in {spec!r}", options)
     return AgentSpec(text=spec, name=head, options=options)

@@ -94,7 +94,7 @@ def test_bad_callback_arguments_are_one_line(kwargs, pattern):
     (["--algo", "ppo", "--seed", "1", "--env", "Nope-v0"], "env_id 'Nope-v0' is not registered"),
     (["--algo", "ppo", "--seed", "1", "--timesteps", "0"], "timesteps must be an integer in [1,"),
     (["--algo", "ppo", "--seed", "1", "--timesteps", str(10**30)], "timesteps must be an integer in [1,"),
-    (["--algo", "ppo", "--seed", "1", "--env-kwargs", "observation"], "--env-kwargs expects KEY=VALUE"),
+    (["--algo", "ppo", "--seed", "1", "--env-kwargs", "observation"], "--env-kwargs: 'observation' must be key=value"),
     (["--algo", "ppo", "--seed", "1", "--env-kwargs", "distractors=9"], "refused by ElectroLoc-v0"),
     (["--algo", "ppo", "--seed", "1", "--env-kwargs", "fixed_carriage='yes'"], "fixed_carriage must be"),
     (["--algo", "ppo"], "the following arguments are required: --seed"),

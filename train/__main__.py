@@ -9,31 +9,18 @@ it, runs it (or finds the finished run with the same command) and exports the ch
 from __future__ import annotations
 
 import argparse
-import ast
 import shlex
 import sys
 from collections.abc import Sequence
 from typing import Any
 
+from electroloc_gym.agentspec import parse_options
 from electroloc_gym.train.run import ALGO_FILES, train, zoo_argv
 
 EPILOG = """examples:
   electroloc train --algo ppo --env ElectroLoc-v0 --seed 3000 --out models/ppo-belief
   electroloc train --algo qrdqn --env ElectroLoc-v0 --seed 1 --timesteps 300000 --print-command
 """
-
-
-def _pairs(items: Sequence[str], option: str) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, raw = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"{option} expects KEY=VALUE, got {item!r}")
-        try:
-            out[key] = ast.literal_eval(raw)
-        except (ValueError, SyntaxError):
-            out[key] = raw  # a bare word is a string
-    return out
 
 
 class _Parser(argparse.ArgumentParser):
@@ -60,8 +47,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--print-command", action="store_true", help="print the rl-zoo3 command and exit")
     a = p.parse_args(argv)
     try:
-        kw = dict(timesteps=a.timesteps, log_folder=a.log_folder, env_kwargs=_pairs(a.env_kwargs, "--env-kwargs"),
-                  hyperparams=_pairs(a.hyperparams, "--hyperparams"), native=not a.dummy)
+        kw = dict(timesteps=a.timesteps, log_folder=a.log_folder, native=not a.dummy,
+                  env_kwargs=parse_options(a.env_kwargs, "--env-kwargs"),
+                  hyperparams=parse_options(a.hyperparams, "--hyperparams"))
         args = zoo_argv(a.algo, a.env, a.seed, **kw)
         print(shlex.join(["python", *args]), flush=True)
         if a.print_command:
