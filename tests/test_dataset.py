@@ -26,7 +26,7 @@ from electroloc_gym.dataset import (  # noqa: E402
 pytestmark = pytest.mark.minari
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = ROOT / "results" / "learned" / "ElectroLoc-v0" / "_baselines" / "bench"
+REFERENCE = ROOT / "experiments" / "learned" / "results" / "ElectroLoc-v0" / "_baselines" / "bench"
 
 
 @pytest.fixture()

@@ -68,8 +68,8 @@ def _all_row(table: str, agent: str) -> list[str]:
 
 def test_the_headline_table_is_the_reference_run() -> None:
     """Each Table-4 and Table-2 headline row's success and medians are the reference run's table.md cells."""
-    bench = (ROOT / "results" / "reference" / "bench" / "table.md").read_text(encoding="utf-8")
-    glob = (ROOT / "results" / "reference" / "bench-global" / "table.md").read_text(encoding="utf-8")
+    bench = (ROOT / "experiments" / "reference" / "bench" / "table.md").read_text(encoding="utf-8")
+    glob = (ROOT / "experiments" / "reference" / "bench-global" / "table.md").read_text(encoding="utf-8")
     block = README.split("<!-- results:start")[1].split("<!-- results:end")[0]
     rows = [[c.strip() for c in ln.strip("|").split("|")] for ln in block.splitlines() if ln.startswith("| Table")]
     assert rows

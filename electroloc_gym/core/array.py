@@ -17,7 +17,7 @@ methods are used unchanged. Any other layout of K pairs (:mod:`electroloc_gym.se
   the filter a single pair runs over K readings, and "readings to localise" compares like with like across
   K. Fusing the K readings in one update (their summed log-likelihood) would jitter once instead of K times;
   the jitter (1 mm per axis) widens the cloud at every update, so one update per step shrinks the spread
-  faster for a reason that is not sensing (benchmarks/commutativity.py measured the at-once spread ≈ 1.5 mm
+  faster for a reason that is not sensing (experiments/array/commutativity.py measured the at-once spread ≈ 1.5 mm
   narrower than one by one on the 38.1 mm spheres). The extra draws of readings 1..K−1 (a resampling
   uniform, then the 2M jitter indices, per reading) come from the env's own generator after the step's;
 * **observation**: the paper's layout with pair 0's reading at entries 2–3, then one entry per further pair,

@@ -26,7 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--condition", default="random", help="'random' (a preset per episode) or a preset name")
     parser.add_argument("--reference", default=None, metavar="BENCH",
                         help="a benchmark folder (or trials.jsonl) with rnd-wlk and a planner on the env: "
-                             "ref_min_score / ref_max_score (e.g. results/learned/<env-id>/_baselines/bench)")
+                             "ref_min_score / ref_max_score "
+                             "(e.g. experiments/learned/results/<env-id>/_baselines/bench)")
     parser.add_argument("--id", default=None, dest="dataset_id", help="the dataset id (default "
                                                                        "electroloc/<env-id>/<agent>-v<version>)")
     parser.add_argument("--version", type=int, default=0, help="the id's version N (≥ 0)")

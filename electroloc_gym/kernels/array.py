@@ -9,7 +9,7 @@ same posterior. Two forms:
 * :func:`assimilate_readings`: the particle filter's update (:func:`~electroloc_gym.kernels.loglik_assimilate`:
   shifted float32 weights, systematic resampling, jitter N(0, 1 mm²) per axis, the clip to the box) applied
   once to the summed log-likelihood, or K times, once per reading. The resampling and the jitter make the two
-  differ per seed; benchmarks/commutativity.py compares their distributions.
+  differ per seed; experiments/array/commutativity.py compares their distributions.
 
 The sum over pairs needs no compiled loop: elementwise additions in pair order (:func:`sum_over_pairs`) are
 IEEE-exact and CPU-independent, and each update is the existing kernel. One compiled loop is here,

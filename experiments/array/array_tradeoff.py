@@ -15,10 +15,10 @@ pair), readings (K × snapshots) and motions (steps in which the carriage moved)
 so a run stopped early still has the same trials in every cell; ``--resume`` skips the trials already there);
 ``report`` writes the table (markdown) and the figure of motions to localise against K.
 
-    python benchmarks/array_tradeoff.py run --trials 50 --out array_tradeoff.jsonl
-    python benchmarks/array_tradeoff.py run --trials 50 --layouts grid-2x2 --agents ppo-belief-grid-2x2 \
+    python experiments/array/array_tradeoff.py run --trials 50 --out array_tradeoff.jsonl
+    python experiments/array/array_tradeoff.py run --trials 50 --layouts grid-2x2 --agents ppo-belief-grid-2x2 \
         --out array_tradeoff.jsonl --resume
-    python benchmarks/array_tradeoff.py report array_tradeoff.jsonl --table docs/array_tradeoff.md \
+    python experiments/array/array_tradeoff.py report array_tradeoff.jsonl --table docs/array_tradeoff.md \
         --figure docs/array_tradeoff.png
 """
 

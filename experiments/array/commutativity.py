@@ -19,7 +19,7 @@ test of the mean difference (``scipy.stats.permutation_test``), at once against 
 the exact posterior. A positive control (one reading dropped from the one-by-one filter) shows the tests'
 power. docs/extensions.md ("A sensor array") reports seed 0.
 
-    python benchmarks/commutativity.py --seed 0 --trials 200 --out commutativity.json
+    python experiments/array/commutativity.py --seed 0 --trials 200 --out commutativity.json
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ belief's spread and its estimate's error. From these it reports, per agent:
 * *far at the budget*: the estimate's error after all ``--budget`` readings: does continued exploration
   (ergodic or greedy) pull a wrong lock back to the target?
 
-    python benchmarks/distractor_budget.py --agents infotaxis,eedi,lookahead --distractors 2 --seed 101 \
+    python experiments/distractors/distractor_budget.py --agents infotaxis,eedi,lookahead --distractors 2 --seed 101 \
         --trials 3 --budget 15
 
 Validation seeds only (the benchmark's trial seeds of ``--seed``; 101 here, never 0). One process, one

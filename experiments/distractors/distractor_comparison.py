@@ -6,7 +6,7 @@ are present. This script runs the agents on the paper's eight conditions with ``
 --distractors D`` for each D and writes a table (Markdown) and a figure (mean readings and far successes
 against D per agent):
 
-    python benchmarks/distractor_comparison.py --trials 50 --seed 0 --out results/distractors \
+    python experiments/distractors/distractor_comparison.py --trials 50 --seed 0 --out results/distractors \
         --table docs/distractor_comparison.md --plot docs/distractor_comparison.png
 
 It is resumable and grows evenly: every (D, agent) pair is its own benchmark folder under ``--out``
@@ -154,7 +154,8 @@ def _f(x: float | None, digits: int = 1) -> str:
 def table_md(n: int, rows: list[dict], seed: int) -> str:
     """The comparison as Markdown."""
     out = [f"Seed {seed}, the paper's eight conditions × {n} trials = {8 * n} trials per agent and D "
-           f"(`benchmarks/distractor_comparison.py`). *Successes (far)*: √trace Σ ≤ 10 mm within 35 readings "
+           f"(`experiments/distractors/distractor_comparison.py`). *Successes (far)*: √trace Σ ≤ 10 mm within 35 "
+           f"readings "
            f"(of which far: the estimate more than {FAR_ERROR_MM:g} mm from the target). *Far on a distractor*: of the "
            f"far ones, those whose estimate is nearer a distractor's centre than the target's. *Readings*: mean over "
            f"successes / median over all trials (a failure counts 35). *Error*: median over successes. "

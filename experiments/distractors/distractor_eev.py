@@ -7,7 +7,7 @@ tank centre and ``--distractors`` objects drawn by :class:`electroloc_gym.distra
 model knows only the first panel). Black contours: |Φ| at 2σ of the reading noise; outlines: the
 objects' footprints (target dashed).
 
-    python benchmarks/distractor_eev.py [--condition fresh-steel-12.7] [--distractors 2] [--seed 101]
+    python experiments/distractors/distractor_eev.py [--condition fresh-steel-12.7] [--distractors 2] [--seed 101]
         [--out docs/distractor_eev.png]
 """
 

@@ -7,7 +7,8 @@ true target (for the reader; the agent never sees it). The EID concentrates on t
 positions where the reading is steepest in the believed target's position, and the SMC law drives
 the path around it.
 
-    python benchmarks/eedi_map.py [--condition fresh-steel-12.7] [--seed 101] [--panels 4] [--out docs/eedi_map.png]
+    python experiments/distractors/eedi_map.py [--condition fresh-steel-12.7] [--seed 101] [--panels 4]
+        [--out docs/eedi_map.png]
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ r"""Every number the paper reports beside the simulation's, as the markdown tabl
 Physics-only rows (Table 3 detection distances, start coverage, Fig. 5 slopes) are computed here;
 controller rows (Tables 4, 1, 2, Fig. 12) are read from finished ``electroloc bench`` folders::
 
-    python benchmarks/fidelity_report.py --bench results/bench --other results/bench-coverage \\
+    python experiments/fidelity/fidelity_report.py --bench results/bench --other results/bench-coverage \\
         --expected results/bench-expected --global results/bench-global > /tmp/fidelity_tables.md
 
 Success counts carry the paper's 90 % binomial interval (Wilson; about ±4 of 50) and ✓/✗ for

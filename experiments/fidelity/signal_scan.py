@@ -6,7 +6,7 @@ seed 0). Per k: start coverage (share of starts inside the 2σ detection region,
 successes and the mean of the eight per-condition median steps of each controller (the paper's
 Table-4 convention), and their ratio (paper: 6.7 / 12.4 = 0.54).
 
-    python benchmarks/signal_scan.py --k 1 2 4 8.65 30 --trials 12 --seed 101
+    python experiments/fidelity/signal_scan.py --k 1 2 4 8.65 30 --trials 12 --seed 101
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ high gain. This script runs both controllers on the paper's eight conditions in 
 * ``paper+daq``: noise factor 1 and an output noise of ``--daq-mV`` (e.g. 100 mV, comparable to the
   amplified tank noise G·σ_s = 44–692 mV of the presets: a hypothetical card, where the gain matters).
 
-    python benchmarks/dynamic_gain.py --trials 20 --seed 0 --plot docs/dynamic_gain.png
+    python experiments/gain/dynamic_gain.py --trials 20 --seed 0 --plot docs/dynamic_gain.png
 
 Trial k of a condition uses the benchmark's seeds (:func:`electroloc_gym.bench.config.trial_seeds`), so
 both controllers meet the same starts and noise draws.

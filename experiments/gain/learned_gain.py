@@ -13,8 +13,8 @@ with min-var choosing over moves × gains and min-var at the preset gain, on the
 (the benchmark's per-trial seeds of ``--condition``). Train the four policies first (each ~3 min on one
 core; they are not shipped, they are this experiment's):
 
-    python benchmarks/learned_gain.py --print-train-commands | bash
-    python benchmarks/learned_gain.py --trials 50 --seed 0
+    python experiments/gain/learned_gain.py --print-train-commands | bash
+    python experiments/gain/learned_gain.py --trials 50 --seed 0
 """
 
 from __future__ import annotations

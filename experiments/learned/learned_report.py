@@ -23,7 +23,7 @@ The conditions are rliable's tasks (stratified bootstrap: runs are resampled wit
 non-learned agents are deterministic given the benchmark seed, so each is one run. rliable computes every
 aggregate and interval; this script only arranges the records into its (runs × tasks) matrices.
 
-Run: ``python benchmarks/learned_report.py RESULTS [--reps 2000]``.
+Run: ``python experiments/learned/learned_report.py RESULTS [--reps 2000]``.
 """
 
 from __future__ import annotations
@@ -37,209 +37,18 @@ from typing import Any
 
 import numpy as np
 
-BASELINES_DIR = "_baselines"
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the scores beside this script
 
-
-class NoLearnedRuns(ValueError):
-    """An env of the results folder has no learned run with a finished benchmark yet."""
-
-RND = "rnd-wlk"
-#: The non-learned agents the probability of improvement is stated against (when they were benched).
-REFERENCES = ("min-var", "lookahead")
-#: Pairs of learned configurations (suite labels) whose P(A better than B) the report states when both
-#: ran on an env: memory against stacked frames on the raw reading, and the belief given against memory.
-COMPARISONS = (("ppo_lstm-raw", "ppo-framestack-raw"), ("ppo", "ppo_lstm-raw"))
-
-
-class ReportError(ValueError):
-    """A results folder the report cannot read (a missing, empty or unreadable file): one line."""
-
-
-#: The most bootstrap replications accepted (each keeps a runs × conditions matrix per replication).
-MAX_REPS = 100_000
-
-
-def _config(bench: Path) -> dict[str, Any]:
-    path = bench / "config.json"
-    try:
-        cfg = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
-        raise ReportError(f"{path}: not a readable benchmark config ({type(exc).__name__})") from None
-    if not (isinstance(cfg, dict) and isinstance(cfg.get("conditions"), list) and isinstance(cfg.get("agents"), list)
-            and isinstance(cfg.get("trials"), int) and isinstance(cfg.get("env_id"), str)):
-        raise ReportError(f"{path}: a benchmark config names its conditions, agents, trials and env_id")
-    return cfg
-
-
-def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str, Any]]:
-    """The valid trial records of one benchmark run's ``trials.jsonl``, read through the bench's own
-    record schema (:func:`electroloc_gym.bench.records.load_records` with the run's
-    :class:`~electroloc_gym.bench.schema.RecordRules` from its ``config.json``): a damaged or impossible
-    line — out of range, inconsistent, another run's agent or condition, a duplicate — is left out and
-    named in ``set_aside``.
-
-    Raises:
-        ReportError: the file is missing or holds no valid record.
-    """
-    from electroloc_gym.bench.records import load_records
-    from electroloc_gym.bench.schema import RecordRules
-    from electroloc_gym.protocol import SUCCESS_SPREAD_MM
-    from electroloc_gym.registry import env_entry
-
-    if not path.is_file():
-        raise ReportError(f"{path} is missing")
-    cfg = _config(path.parent)
-    rules = RecordRules(conditions=frozenset(c for c in cfg["conditions"] if isinstance(c, str)),
-                        agents=frozenset(a for a in cfg["agents"] if isinstance(a, str)), trials=cfg["trials"],
-                        success_spread_mm=SUCCESS_SPREAD_MM, shape=bool(env_entry(cfg["env_id"]).record_keys))
-    loaded = load_records(path, rules=rules)
-    if set_aside is not None:
-        set_aside.extend(loaded.messages())
-    rows = list(loaded.records.values())
-    if not rows:
-        raise ReportError(f"{path} holds no valid trial record")
-    return rows
-
-
-def condition_scores(records: Sequence[dict[str, Any]], conditions: Sequence[str]) -> dict[str, np.ndarray]:
-    """``{"readings", "success"}`` → (conditions,) scores of one run of one agent."""
-    readings, success = [], []
-    for cond in conditions:
-        rows = [r for r in records if r["condition"] == cond]
-        if not rows:
-            raise ValueError(f"no trials of condition {cond!r}")
-        cap = [int(r["max_observations"]) for r in rows]
-        readings.append(float(np.mean([r["readings"] if r["success"] else c for r, c in zip(rows, cap)])))
-        success.append(float(np.mean([bool(r["success"]) for r in rows])))
-    return {"readings": np.array(readings), "success": np.array(success)}
-
-
-def collect(results: Path, env_id: str, set_aside: list[str] | None = None) -> tuple[
-        list[str], dict[str, dict[str, np.ndarray]], dict[str, dict[str, np.ndarray]], dict[str, list[str]]]:
-    """(conditions, learned, baselines, seeds) of one env; what was left out is appended to ``set_aside``.
-
-    ``learned[algo][metric]`` is a (seeds × conditions) matrix; ``baselines[agent][metric]`` is (1 ×
-    conditions); ``seeds[algo]`` names the runs in row order (``seed-<integer>`` folders only).
-    """
-    set_aside = [] if set_aside is None else set_aside
-    env_dir = results / env_id
-    base_path = env_dir / BASELINES_DIR / "bench" / "trials.jsonl"
-    base_rows = read_trials(base_path, set_aside)
-    conditions = sorted({r["condition"] for r in base_rows})
-    baselines: dict[str, dict[str, np.ndarray]] = {}
-    for agent in sorted({r["agent"] for r in base_rows}):
-        s = condition_scores([r for r in base_rows if r["agent"] == agent], conditions)
-        baselines[agent] = {k: v[None, :] for k, v in s.items()}
-    learned: dict[str, dict[str, np.ndarray]] = {}
-    seeds: dict[str, list[str]] = {}
-    for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
-        runs = sorted(p for p in algo_dir.glob("seed-*") if (p / "bench" / "summary.json").is_file())
-        odd = [p for p in runs if not p.name[len("seed-"):].isdecimal() or not p.name.isascii()]
-        set_aside.extend(f"{p}: not a seed-<integer> folder" for p in odd)
-        runs = [p for p in runs if p not in odd]
-        if not runs:
-            continue
-        per_run = [condition_scores(read_trials(p / "bench" / "trials.jsonl", set_aside), conditions) for p in runs]
-        learned[algo_dir.name] = {k: np.stack([s[k] for s in per_run]) for k in ("readings", "success")}
-        seeds[algo_dir.name] = [p.name for p in runs]
-    return conditions, learned, baselines, seeds
-
-
-def normalised(readings: np.ndarray, baselines: dict[str, dict[str, np.ndarray]]) -> np.ndarray:
-    """The normalised score of a (runs × conditions) readings matrix (0 at rnd-wlk, 1 at the best planner)."""
-    if RND not in baselines:
-        raise ValueError(f"the baselines' run must include {RND!r} to normalise")
-    planners = [v["readings"][0] for k, v in baselines.items() if k != RND]
-    if not planners:
-        raise ValueError("the baselines' run must include a planner besides rnd-wlk to normalise")
-    rnd = baselines[RND]["readings"][0]
-    best = np.min(np.stack(planners), axis=0)
-    gap = rnd - best
-    if np.any(gap <= 0):
-        raise ValueError("rnd-wlk is not worse than the best planner on some condition; the score is undefined")
-    return (rnd - readings) / gap
-
-
-def bootstrap(score_dict: dict[str, Any], func: Any, reps: int, seed: int) -> tuple[dict, dict]:
-    """Point estimates and 95 % stratified bootstrap CIs (rliable), reproducible from ``seed``.
-
-    rliable 1.2's bootstraps draw their resampling indices from NumPy's global stream
-    (``np.random.choice`` in ``update_indices``), so its ``random_state`` argument does not make a run
-    repeatable. Each entry is therefore resampled after seeding the global stream with ``seed`` (its
-    previous state restored afterwards): the same records give the same intervals, and an algorithm's
-    interval depends on its own runs only, not on which other algorithms are in the table.
-    """
-    from rliable import library as rly
-
-    point, ci = {}, {}
-    saved = np.random.get_state()
-    try:
-        for k, scores in score_dict.items():
-            np.random.seed(seed)
-            p, c = rly.get_interval_estimates({k: scores}, func, reps=reps)
-            point[k], ci[k] = p[k], c[k]
-    finally:
-        np.random.set_state(saved)
-    return point, ci
-
-
-def interval(score_dict: dict[str, Any], func: Any, reps: int, seed: int) -> dict[str, list[float]]:
-    """``{name: [point, lower, upper]}`` of ``func`` with a 95 % stratified bootstrap CI (rliable)."""
-    point, ci = bootstrap(score_dict, func, reps, seed)
-    return {k: [float(np.ravel(point[k])[0]), float(np.ravel(ci[k])[0]), float(np.ravel(ci[k])[1])]
-            for k in score_dict}
-
-
-def p_better(x: np.ndarray, y: np.ndarray, reps: int, seed: int) -> list[float]:
-    """P(a run of X needs fewer readings than a run of Y on a condition) [95 % CI]: rliable's probability
-    of improvement of (−X) over (−Y), the readings matrices (runs × conditions) negated, lower being better.
-    """
-    from rliable import metrics
-
-    func = lambda a, b: np.array([metrics.probability_of_improvement(a, b)])  # noqa: E731
-    return interval({"p": (-x, -y)}, func, reps, seed)["p"]
-
-
-def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0,
-            comparisons: Sequence[tuple[str, str]] = COMPARISONS) -> dict[str, Any]:
-    """Every statistic of one env (plain data, see the module docstring); ``comparisons`` are the
-    (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env.
-    """
-    from rliable import metrics
-
-    set_aside: list[str] = []
-    conditions, learned, baselines, seeds = collect(results, env_id, set_aside)
-    if not learned:
-        raise NoLearnedRuns(f"no learned runs with a benchmark under {results / env_id}")
-    iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
-    mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
-    out: dict[str, Any] = {"env_id": env_id, "conditions": conditions, "seeds": seeds, "reps": reps, "seed": seed,
-                           "algorithms": {}, "baselines": {}}
-    readings = {a: v["readings"] for a, v in learned.items()}
-    success = {a: v["success"] for a, v in learned.items()}
-    norm = {a: normalised(v, baselines) for a, v in readings.items()} if RND in baselines else {}
-    stats = {"readings_iqm": interval(readings, iqm, reps, seed), "readings_mean": interval(readings, mean, reps, seed),
-             "success_iqm": interval(success, iqm, reps, seed), "success_mean": interval(success, mean, reps, seed)}
-    if norm:
-        stats["normalised_iqm"] = interval(norm, iqm, reps, seed)
-    for algo in learned:
-        row = {k: v[algo] for k, v in stats.items()}
-        row["per_condition_readings"] = {c: readings[algo][:, j].tolist() for j, c in enumerate(conditions)}
-        row["per_condition_success"] = {c: success[algo][:, j].tolist() for j, c in enumerate(conditions)}
-        row["p_improvement"] = {ref: p_better(readings[algo], baselines[ref]["readings"], reps, seed)
-                                for ref in REFERENCES if ref in baselines}
-        out["algorithms"][algo] = row
-    for agent, v in baselines.items():
-        row = {"readings_mean": float(v["readings"].mean()), "success_mean": float(v["success"].mean()),
-               "per_condition_readings": dict(zip(conditions, v["readings"][0].tolist()))}
-        if norm:
-            row["normalised_mean"] = float(normalised(v["readings"], baselines).mean())
-        out["baselines"][agent] = row
-    out["comparisons"] = [{"better": a, "than": b, "p": p_better(readings[a], readings[b], reps, seed)}
-                          for a, b in comparisons if a in readings and b in readings]
-    out["set_aside"] = set_aside
-    out["_matrices"] = {"normalised": norm, "readings": readings}
-    return out
+from learned_scores import (  # noqa: E402
+    BASELINES_DIR,
+    COMPARISONS,
+    MAX_REPS,
+    REFERENCES,
+    NoLearnedRuns,
+    ReportError,
+    analyse,
+    bootstrap,
+)
 
 
 def _fmt(v: Sequence[float], digits: int = 2) -> str:

@@ -4,7 +4,7 @@ One command trains every (env, algorithm, seed) of :data:`SUITE` through the pro
 path (rl-zoo3 with the native vector env, :func:`electroloc_gym.train.run.train`), exports each run to
 the pickle-free policy format, runs ``electroloc bench`` on the export (the benchmark's own protocol:
 8 conditions × 50 trials, seed 0 — the same trials as the paper's controllers), benchmarks the
-non-learned agents once per env, and hands the records to ``benchmarks/learned_report.py`` (rliable).
+non-learned agents once per env, and hands the records to ``experiments/learned/learned_report.py`` (rliable).
 It is resumable: a finished training run is found again by its exact rl-zoo3 command, an export
 already made from it is kept, a benchmark with a ``summary.json`` is not rerun (an unfinished one
 resumes with ``--resume``), so re-running the command only does what is missing.
@@ -20,8 +20,8 @@ monitors and exports are ignored by the folder's .gitignore, except the export o
 
 Run (the full suite; hours on a 2-core machine — ``--only`` picks a part, ``--list`` prints the plan)::
 
-    python benchmarks/learned_suite.py --out results/learned
-    python benchmarks/learned_report.py results/learned
+    python experiments/learned/learned_suite.py --out experiments/learned/results
+    python experiments/learned/learned_report.py experiments/learned/results
 
 Invocations with disjoint ``--only`` sets may run side by side on one results folder (one per core):
 each trains its own runs, the shared ``suite.json`` is updated under a lock, and a baseline benchmark
@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from electroloc_gym.agentspec import parse_options
 from electroloc_gym.registry import env_entry
 from electroloc_gym.runtime import THREAD_VARS
 
@@ -96,7 +97,7 @@ SUITE: tuple[Config, ...] = (
 )
 
 #: ``electroloc bench --env`` of each env id, and the non-learned agents benchmarked beside the learned ones.
-BENCH_ENV = {"ElectroLoc-v0": "target", "ElectroLocGlobal-v0": "global", "ElectroLocUnknownTarget-v0": "unknown-target"}
+BENCH_ENV = {c.env_id: env_entry(c.env_id).bench[0].name for c in SUITE}
 BASELINE_AGENTS = {"ElectroLoc-v0": "rnd-wlk,min-var,lookahead,infotaxis,eedi",
                    "ElectroLocGlobal-v0": "rnd-wlk,min-var,lookahead",
                    "ElectroLocUnknownTarget-v0": "rnd-wlk,min-var,infotaxis"}   # lookahead plans over positions only
@@ -168,15 +169,16 @@ def run_config(plan: Plan, cfg: Config, seed: int) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=Path("results/learned"), help="the results folder")
+    parser.add_argument("--out", type=Path, default=Path("experiments/learned/results"), help="the results folder")
     parser.add_argument("--seeds", default=",".join(map(str, SEEDS)), help="comma-separated training seeds (≥ 0)")
     parser.add_argument("--timesteps", type=int, default=TIMESTEPS, help="the env-step budget of every run (≥ 1)")
     parser.add_argument("--only", default="", help="comma-separated labels (or env-id/label) to run; default all")
     parser.add_argument("--conditions", default=None, help="benchmark conditions (default: the paper's eight)")
     parser.add_argument("--trials", type=int, default=50, help="benchmark trials per condition (paper: 50)")
     parser.add_argument("--workers", type=int, default=None, help="benchmark worker processes")
-    parser.add_argument("--hyperparams", default="", help="extra overrides key=value,... for every run "
-                        "(e.g. a smaller n_envs or eval_freq for a smoke test)")
+    parser.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="extra overrides for every run, as `electroloc train` takes them (e.g. a smaller "
+                             "n_envs or eval_freq for a smoke test)")
     parser.add_argument("--list", action="store_true", help="print the plan and exit")
     args = parser.parse_args(argv)
     try:
@@ -189,15 +191,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--timesteps must be ≥ 1, got {args.timesteps}")
     if args.trials < 1:
         parser.error(f"--trials must be ≥ 1, got {args.trials}")
-    extra: dict[str, Any] = {}
-    for item in filter(None, (s.strip() for s in args.hyperparams.split(","))):
-        key, sep, val = item.partition("=")
-        if not sep:
-            parser.error(f"--hyperparams items must be key=value, got {item!r}")
-        try:
-            extra[key.strip()] = json.loads(val)
-        except ValueError:
-            extra[key.strip()] = val
+    try:
+        extra = parse_options(args.hyperparams, "--hyperparams")
+    except ValueError as exc:
+        parser.error(str(exc))
     plan = Plan(out=args.out, seeds=seeds, timesteps=args.timesteps,
                 only=tuple(s.strip() for s in args.only.split(",") if s.strip()), conditions=args.conditions,
                 trials=args.trials, workers=args.workers, extra_hyperparams=extra)
@@ -233,7 +230,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             write_json_atomic(log_path, done + [line])
     for env_id in sorted({c.env_id for c in configs}):
         _bench(plan, env_id, BASELINE_AGENTS[env_id], plan.out / env_id / "_baselines" / "bench")
-    print(f"done: {len(jobs)} runs; the report: python benchmarks/learned_report.py {plan.out}")
+    print(f"done: {len(jobs)} runs; the report: python experiments/learned/learned_report.py {plan.out}")
     return 0
 
 

@@ -1,4 +1,4 @@
-"""The learned-baseline report (benchmarks/learned_report.py) on synthetic benchmark records."""
+"""The learned-baseline report (learned_report.py, its statistics in learned_scores.py) on synthetic records."""
 
 import importlib.util
 import json
@@ -10,15 +10,17 @@ import rliable.library  # noqa: F401  (the zoo extra installs it; rliable 1.2 ne
 
 pytestmark = pytest.mark.zoo
 
-ROOT = Path(__file__).resolve().parents[1]
-spec = importlib.util.spec_from_file_location("learned_report", ROOT / "benchmarks" / "learned_report.py")
+ROOT = Path(__file__).resolve().parents[2]
+spec = importlib.util.spec_from_file_location("learned_report", ROOT / "experiments" / "learned" / "learned_report.py")
 report = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(report)
+import learned_scores as scores  # noqa: E402  (beside the report, which put its folder on sys.path)
 
 CONDS = ("a", "b")
 
 
-TEMPLATE = json.loads((ROOT / "results" / "learned" / "ElectroLoc-v0" / "ppo" / "seed-1" / "bench" / "trials.jsonl")
+RESULTS = ROOT / "experiments" / "learned" / "results"
+TEMPLATE = json.loads((RESULTS / "ElectroLoc-v0" / "ppo" / "seed-1" / "bench" / "trials.jsonl")
                       .read_text(encoding="utf-8").splitlines()[0])
 
 
@@ -58,7 +60,7 @@ def _results(tmp_path: Path) -> Path:
 
 
 def test_scores_count_failures_as_the_cap(tmp_path):
-    conds, learned, baselines, seeds = report.collect(_results(tmp_path), "ElectroLoc-v0")
+    conds, learned, baselines, seeds = scores.collect(_results(tmp_path), "ElectroLoc-v0")
     assert conds == list(CONDS)
     np.testing.assert_allclose(baselines["rnd-wlk"]["readings"][0], [(20 + 30 + 35) / 3, 25])
     np.testing.assert_allclose(baselines["rnd-wlk"]["success"][0], [2 / 3, 1])
@@ -66,13 +68,13 @@ def test_scores_count_failures_as_the_cap(tmp_path):
 
 
 def test_normalised_score_is_zero_at_rnd_wlk_and_one_at_the_best_planner(tmp_path):
-    _, _, baselines, _ = report.collect(_results(tmp_path), "ElectroLoc-v0")
-    np.testing.assert_allclose(report.normalised(baselines["rnd-wlk"]["readings"], baselines), 0)
-    np.testing.assert_allclose(report.normalised(baselines["min-var"]["readings"], baselines), 1)
+    _, _, baselines, _ = scores.collect(_results(tmp_path), "ElectroLoc-v0")
+    np.testing.assert_allclose(scores.normalised(baselines["rnd-wlk"]["readings"], baselines), 0)
+    np.testing.assert_allclose(scores.normalised(baselines["min-var"]["readings"], baselines), 1)
 
 
 def test_analysis_intervals_contain_the_point_and_poi_is_certain(tmp_path):
-    a = report.analyse(_results(tmp_path), "ElectroLoc-v0", reps=200)
+    a = scores.analyse(_results(tmp_path), "ElectroLoc-v0", reps=200)
     row = a["algorithms"]["ppo"]
     for key in ("readings_iqm", "readings_mean", "success_mean", "normalised_iqm"):
         point, lo, hi = row[key]
@@ -86,10 +88,10 @@ def test_intervals_are_reproducible_and_independent_of_the_other_algorithms():
     rng = np.random.default_rng(3)
     a, b = rng.normal(5, 1, (5, 8)), rng.normal(7, 2, (3, 8))
     mean = lambda x: np.array([x.mean()])  # noqa: E731
-    alone = report.interval({"a": a}, mean, reps=300, seed=0)["a"]
-    assert report.interval({"a": a}, mean, reps=300, seed=0)["a"] == alone  # the same records, the same CI
-    assert report.interval({"b": b, "a": a}, mean, reps=300, seed=0)["a"] == alone
-    assert report.interval({"a": a}, mean, reps=300, seed=1)["a"] != alone  # the seed does reach the draws
+    alone = scores.interval({"a": a}, mean, reps=300, seed=0)["a"]
+    assert scores.interval({"a": a}, mean, reps=300, seed=0)["a"] == alone  # the same records, the same CI
+    assert scores.interval({"b": b, "a": a}, mean, reps=300, seed=0)["a"] == alone
+    assert scores.interval({"a": a}, mean, reps=300, seed=1)["a"] != alone  # the seed does reach the draws
 
 
 def test_main_writes_report_and_figure(tmp_path):
@@ -153,7 +155,7 @@ def _damage_line(res: Path, key: str, value) -> None:
 
 
 def _clean_table(res: Path) -> dict:
-    return report.analyse(res, "ElectroLoc-v0", reps=200)
+    return scores.analyse(res, "ElectroLoc-v0", reps=200)
 
 
 @pytest.mark.parametrize("key, value", [("observations", 1000), ("observations", -5), ("observations", float("nan")),
@@ -161,7 +163,7 @@ def _clean_table(res: Path) -> dict:
 def test_an_impossible_record_is_set_aside_and_named(tmp_path, key, value):
     res = _results(tmp_path)
     _damage_line(res, key, value)
-    a = report.analyse(res, "ElectroLoc-v0", reps=200)
+    a = scores.analyse(res, "ElectroLoc-v0", reps=200)
     assert len(a["set_aside"]) == 1 and "seed-0" in a["set_aside"][0]
 
 
@@ -171,14 +173,14 @@ def test_a_seed_x_folder_and_copied_records_are_set_aside(tmp_path):
     import shutil
 
     shutil.copytree(env / "seed-0", env / "seed-x")
-    a = report.analyse(res, "ElectroLoc-v0", reps=200)
+    a = scores.analyse(res, "ElectroLoc-v0", reps=200)
     assert any("seed-x" in m for m in a["set_aside"]) and a["seeds"]["ppo"] == ["seed-0", "seed-1", "seed-2"]
     res2 = _results(tmp_path / "two")
     other = res2 / "ElectroLoc-v0" / "sac" / "seed-0" / "bench" / "trials.jsonl"
     _write(other, "sac", {"a": [5] * 3, "b": [6] * 3})
     with open(other, "a") as fh:  # the ppo seed's records copied into the sac run
         fh.write(_lines(res2).read_text())
-    a = report.analyse(res2, "ElectroLoc-v0", reps=200)
+    a = scores.analyse(res2, "ElectroLoc-v0", reps=200)
     assert sum("agent 'ppo' is not one of the run's" in m for m in a["set_aside"]) == 6
 
 
@@ -190,7 +192,7 @@ def test_a_damaged_line_is_set_aside(tmp_path, damage):
     extra = {"torn": raw[:40], "garbage": b"%%%\n", "utf8": b"\xff\xfe\n", "nested": b"[" * 50_000 + b"\n",
              "list": b"[1, 2]\n", "missing-key": json.dumps({"condition": "a"}).encode() + b"\n"}[damage]
     path.write_bytes(raw + extra)
-    a = report.analyse(res, "ElectroLoc-v0", reps=200)
+    a = scores.analyse(res, "ElectroLoc-v0", reps=200)
     assert len(a["set_aside"]) == 1
     np.testing.assert_array_equal(a["_matrices"]["readings"]["ppo"], _clean_table(_results(tmp_path / "c"))
                                   ["_matrices"]["readings"]["ppo"])
@@ -248,7 +250,7 @@ def test_any_single_field_damage_gives_the_clean_report_or_names_what_it_set_asi
         rows[which][key] = value
         path.write_text("".join(json.dumps(r) + "\n" for r in rows))
         try:
-            a = report.analyse(res, "ElectroLoc-v0", reps=200)
+            a = scores.analyse(res, "ElectroLoc-v0", reps=200)
         except ValueError as exc:  # a condition left without trials: one line
             assert "\n" not in str(exc)
             return

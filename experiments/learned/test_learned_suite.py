@@ -13,7 +13,7 @@ import rliable  # noqa: F401
 
 pytestmark = pytest.mark.zoo  # the zoo extra (rl-zoo3, rliable)
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _run(*args: str) -> subprocess.CompletedProcess:
@@ -22,7 +22,7 @@ def _run(*args: str) -> subprocess.CompletedProcess:
 
 def test_a_failed_training_run_is_one_line(tmp_path):
     """Smoke test: the suite reaches rl-zoo3, whose run fails at once (no envs); one line, exit 2."""
-    proc = _run("benchmarks/learned_suite.py", "--out", str(tmp_path / "o"), "--only", "ElectroLoc-v0/ppo",
+    proc = _run("experiments/learned/learned_suite.py", "--out", str(tmp_path / "o"), "--only", "ElectroLoc-v0/ppo",
                 "--seeds", "1", "--timesteps", "64", "--hyperparams", "n_envs=0")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "learned_suite: ElectroLoc-v0/ppo seed 1 failed:" in proc.stderr
@@ -31,7 +31,7 @@ def test_a_failed_training_run_is_one_line(tmp_path):
 @pytest.mark.slow
 def test_suite_trains_exports_benches_and_reports(tmp_path):
     out = tmp_path / "learned"
-    suite = ["benchmarks/learned_suite.py", "--out", str(out), "--only", "ElectroLoc-v0/ppo,ElectroLoc-v0/a2c",
+    suite = ["experiments/learned/learned_suite.py", "--out", str(out), "--only", "ElectroLoc-v0/ppo,ElectroLoc-v0/a2c",
              "--seeds", "1,2", "--timesteps", "512", "--conditions", "fresh-steel-12.7,salt-delrin-38.1",
              "--trials", "2", "--workers", "1", "--hyperparams", "n_envs=2"]
     proc = _run(*suite)
@@ -54,7 +54,7 @@ def test_suite_trains_exports_benches_and_reports(tmp_path):
     assert again.returncode == 0, again.stderr[-2000:]
     assert len(list((out / "ElectroLoc-v0" / "ppo" / "seed-1" / "zoo" / "ppo").glob("ElectroLoc-v0_*/"))) == 1
 
-    report = _run("benchmarks/learned_report.py", str(out), "--reps", "200")
+    report = _run("experiments/learned/learned_report.py", str(out), "--reps", "200")
     assert report.returncode == 0, report.stderr[-2000:]
     text = (out / "report.md").read_text()
     assert "| ElectroLoc-v0 | ppo | 2 |" in text and "| ElectroLoc-v0 | a2c | 2 |" in text
@@ -64,13 +64,13 @@ def test_suite_trains_exports_benches_and_reports(tmp_path):
 def test_suite_bad_arguments_are_one_line(tmp_path):
     for args, word in ((["--seeds", "x"], "--seeds"), (["--timesteps", "0"], "--timesteps"),
                        (["--only", "nope"], "--only"), (["--trials", "0"], "--trials")):
-        proc = _run("benchmarks/learned_suite.py", "--out", str(tmp_path / "o"), *args)
+        proc = _run("experiments/learned/learned_suite.py", "--out", str(tmp_path / "o"), *args)
         assert proc.returncode == 2 and word in proc.stderr and "Traceback" not in proc.stderr
         assert not (tmp_path / "o").exists()
 
 
 def test_suite_lists_every_configuration():
-    proc = _run("benchmarks/learned_suite.py", "--list")
+    proc = _run("experiments/learned/learned_suite.py", "--list")
     assert proc.returncode == 0
     for label in ("ppo", "sac", "a2c", "qrdqn", "ppo_lstm-raw", "ppo-framestack-raw"):
         assert f" {label} " in proc.stdout
@@ -84,7 +84,7 @@ def test_every_env_takes_its_baseline_agents(tmp_path):
 
     from electroloc_gym.bench import run
 
-    spec = importlib.util.spec_from_file_location("learned_suite", ROOT / "benchmarks" / "learned_suite.py")
+    spec = importlib.util.spec_from_file_location("learned_suite", Path(__file__).with_name("learned_suite.py"))
     suite = importlib.util.module_from_spec(spec)
     sys.modules.setdefault("learned_suite", suite)      # its dataclasses look their module up
     spec.loader.exec_module(suite)

@@ -6,7 +6,8 @@ Run (from the repository root; ``MINARI_DATASETS_PATH`` picks the folder, Minari
     python experiments/offline/make_datasets.py --scale 0.01     # the same plan, 1 % of the episodes
 
 Each dataset is ``electroloc dataset --env ENV --agent AGENT --episodes N --reference
-results/learned/<env-id>/_baselines/bench`` (:func:`electroloc_gym.dataset.build_dataset`); a finished one is
+experiments/learned/results/<env-id>/_baselines/bench`` (:func:`electroloc_gym.dataset.build_dataset`); a finished
+one is
 kept, an unfinished one resumes. ``manifest.json`` (``--manifest``) lists per dataset its id, episodes, steps,
 wall time of the run that finished it, size, and the sha256 of every file (relative to the dataset's folder).
 """
@@ -21,6 +22,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+LEARNED = ROOT / "experiments" / "learned" / "results"
 #: (env id, agent, episodes) of the reference datasets.
 DATASETS = (
     ("ElectroLoc-v0", "rnd-wlk", 1000),
@@ -61,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         n = max(1, round(episodes * args.scale))
         request = DatasetRequest(env_id, agent, n, version=args.version,
-                                 reference=ROOT / "results" / "learned" / env_id / "_baselines" / "bench")
+                                 reference=LEARNED / env_id / "_baselines" / "bench")
         t0 = time.perf_counter()
         try:
             ds = build_dataset(request, resume=True)

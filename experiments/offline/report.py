@@ -13,13 +13,12 @@ the best controller of the mix (offline RL). The controllers are compared on exa
 methods ran (the first trials of each condition of the benchmark's seed 0). Decision time: the median over
 trials of each trial's median ms per ``predict``.
 
-    python experiments/offline/report.py experiments/offline/results --learned results/learned
+    python experiments/offline/report.py experiments/offline/results --learned experiments/learned/results
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -27,27 +26,15 @@ from typing import Any
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "learned"))  # the learned report's statistics
+import learned_scores  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[2]
-#: Where the learned report lives (the first that exists).
-REPORT_PATHS = ("experiments/learned/learned_report.py", "experiments/learned_report.py",
-                "benchmarks/learned_report.py")
 #: Per method label: its data and the controller it is compared with ("best": the best of the mix).
 METHODS = {"bc-lookahead": ("lookahead", "lookahead"), "bc-min-var": ("min-var", "min-var"),
            "td3bc-mixed": ("rnd-wlk, min-var, lookahead, infotaxis, ppo-belief", "best")}
 MIX = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "ppo-belief")
 PLANNERS = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "eedi")
-
-
-def learned_report() -> Any:
-    """The learned report's module, imported from its file."""
-    for rel in REPORT_PATHS:
-        path = ROOT / rel
-        if path.is_file():
-            spec = importlib.util.spec_from_file_location("learned_report", path)
-            mod = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(mod)
-            return mod
-    raise FileNotFoundError(f"none of {REPORT_PATHS} exists")
 
 
 def _controllers(lr: Any, paths: list[Path], keys: set[tuple[str, int]]) -> dict[str, list[dict[str, Any]]]:
@@ -69,7 +56,7 @@ def analyse(results: Path, learned: Path, env_id: str, reps: int, seed: int) -> 
     """Every statistic of one env (plain data)."""
     from rliable import metrics
 
-    lr = learned_report()
+    lr = learned_scores
     env_dir = results / env_id
     runs = {m: sorted(p for p in (env_dir / m).glob("seed-*") if (p / "bench" / "summary.json").is_file())
             for m in METHODS}
@@ -176,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     """Analyse, print and write the report."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("results", type=Path, help="the offline results folder")
-    parser.add_argument("--learned", type=Path, default=ROOT / "results" / "learned",
+    parser.add_argument("--learned", type=Path, default=ROOT / "experiments" / "learned" / "results",
                         help="the learned suite's results (its _baselines runs)")
     parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (≥ 100)")
     parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (0 … 2**32 − 1)")

@@ -6,7 +6,7 @@ Per (method, seed): ``bc.py`` or ``td3_bc.py`` into ``OUT/<env-id>/<label>/seed-
 then ``electroloc bench --agents <policy> --trials T --seed 0`` into its ``bench/`` — the benchmark's
 evaluation trials (the first T of each of the eight conditions), never seen in training. The shipped
 policy of the mixed data (ppo-belief) is benched once on the same trials into ``OUT/<env-id>/_sources/bench``;
-the controllers' runs are the learned suite's (``results/learned/<env-id>/_baselines/bench``).
+the controllers' runs are the learned suite's (``experiments/learned/results/<env-id>/_baselines/bench``).
 The reference datasets (``make_datasets.py``) must exist under ``MINARI_DATASETS_PATH``.
 """
 

@@ -13,7 +13,7 @@ pytest.importorskip("torch")
 
 pytestmark = pytest.mark.minari
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SMALL = ROOT / "tests" / "data" / "minari"
 SMALL_ID = "electroloc/ElectroLoc-v0/lookahead-v0"
 

@@ -18,7 +18,7 @@ move chosen after the first reading, 16 × 8 futures) and depth 3 open loop over
 continuations with 16 futures. The default settings were chosen on validation seeds 101–104
 (docs/baselines.md), not on the seeds of this sweep.
 
-    python benchmarks/lookahead_budget.py [--trials 8] [--global-trials 50] [--seed 0] [--conditions all]
+    python experiments/planners/lookahead_budget.py [--trials 8] [--global-trials 50] [--seed 0] [--conditions all]
         [--out FILE.png]
 """
 

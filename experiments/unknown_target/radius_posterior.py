@@ -8,7 +8,7 @@ over the allowed box), the radius (0.25 mm steps over the prior's 5–20 mm) and
 theoretical EEV and the uniform prior the env uses. Prints the median relative radius error of each
 estimate over the successful trials (docs/extensions.md, "The radius estimate").
 
-    python benchmarks/radius_posterior.py --agent min-var --seed 101 --trials 6
+    python experiments/unknown_target/radius_posterior.py --agent min-var --seed 101 --trials 6
 """
 
 from __future__ import annotations

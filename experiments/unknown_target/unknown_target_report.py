@@ -1,6 +1,6 @@
 """Figure of an ``electroloc bench --env unknown-target`` run: readings to localise, and the size estimates.
 
-    python benchmarks/unknown_target_report.py results/bench_unknown --out docs/unknown_target.png
+    python experiments/unknown_target/unknown_target_report.py results/bench_unknown --out docs/unknown_target.png
 
 Left: median readings per condition and agent (failures count at the cap, as the table's medians).
 Right: the radius estimate of every successful trial against the true radius (the paper's 6.35 and
