@@ -57,21 +57,13 @@ from electroloc_gym.baselines.ergodic import (
     workspace_grid,
 )
 from electroloc_gym.baselines.infotaxis import require_target_belief
+from electroloc_gym.checks import check_float, check_int
 
 __all__ = ["EEDIAgent"]
 
 
-def _int_option(name: str, value: Any, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
-    return int(value)
 
 
-def _mm_option(name: str, value: Any, low: float, high: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not (
-            low < value <= high):
-        raise ValueError(f"{name} must be a number of mm in ({low}, {high}], got {value!r}")
-    return float(value)
 
 
 #: Side of the largest allowed box of the presets, mm (the 38.1 mm spheres' ±60 mm).
@@ -108,14 +100,14 @@ class EEDIAgent(BaselineAgent):
                  grid_mm: float = 5.0, n_particles: int = 200, update_period: int = 1, criterion: str = "det",
                  step_mm: float = 1.0) -> None:
         super().__init__(seed)
-        self.n_coefficients = _int_option("n_coefficients", n_coefficients, 2, 32)
-        self.grid_mm = _mm_option("grid_mm", grid_mm, 1.0 - 1e-12, 20.0)
-        self.n_particles = _int_option("n_particles", n_particles, 1, 5000)
-        self.update_period = _int_option("update_period", update_period, 1, 35)
+        self.n_coefficients = check_int("n_coefficients", n_coefficients, 2, 32)
+        self.grid_mm = check_float("grid_mm", grid_mm, 1.0, inclusive=True, high=20.0)
+        self.n_particles = check_int("n_particles", n_particles, 1, 5000)
+        self.update_period = check_int("update_period", update_period, 1, 35)
         if criterion not in CRITERIA:
             raise ValueError(f"criterion must be one of {list(CRITERIA)}, got {criterion!r}")
         self.criterion = criterion
-        self.step_mm = _mm_option("step_mm", step_mm, 0.0, 5.0)
+        self.step_mm = check_float("step_mm", step_mm, 0.0, high=5.0)
         self.last_density: NDArray[np.float64] | None = None
         self.last_grid_mm: NDArray[np.float64] | None = None
         self.last_direction: NDArray[np.float64] | None = None

@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.baselines.base import BaselineAgent, move_bounds_mm, sample_belief, sample_options_mm
+from electroloc_gym.checks import check_int
 
 __all__ = [
     "InfotaxisAgent",
@@ -148,12 +149,6 @@ def _entropy_inplace(log_w: NDArray[np.float32]) -> NDArray[np.float64]:
     return np.log(z) - shifted_dot / z
 
 
-def _int_option(name: str, value: Any, low: int, high: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
-            high is not None and value > high):
-        rng = f"[{low}, {high}]" if high is not None else f"≥ {low}"
-        raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
-    return int(value)
 
 
 class InfotaxisAgent(BaselineAgent):
@@ -183,10 +178,10 @@ class InfotaxisAgent(BaselineAgent):
     def __init__(self, seed: int | np.random.Generator | None = None, n_options: int = 16,
                  n_particles: int | None = 500, n_voters: int | None = 128, nodes: int = 3) -> None:
         super().__init__(seed)
-        self.n_options = _int_option("n_options", n_options, 1)
-        self.n_particles = None if n_particles is None else _int_option("n_particles", n_particles, 2)
-        self.n_voters = None if n_voters is None else _int_option("n_voters", n_voters, 1)
-        self.nodes = _int_option("nodes", nodes, 1, MAX_NODES)
+        self.n_options = check_int("n_options", n_options, 1)
+        self.n_particles = None if n_particles is None else check_int("n_particles", n_particles, 2)
+        self.n_voters = None if n_voters is None else check_int("n_voters", n_voters, 1)
+        self.nodes = check_int("nodes", nodes, 1, MAX_NODES)
         self.last_gains: NDArray[np.float64] | None = None
         self.last_options_mm: NDArray[np.float64] | None = None
 

@@ -69,13 +69,13 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_belief, sample_options_mm
 from electroloc_gym.baselines.lookahead_objectives import OBJECTIVES, adaptive_costs, posterior_spreads, sequence_costs
+from electroloc_gym.checks import check_int
 
 __all__ = ["LookaheadAgent", "posterior_spreads", "MAX_DEPTH", "COMPASS_MM", "CONTINUATIONS", "OBJECTIVES"]
 
@@ -88,10 +88,6 @@ COMPASS_MM = MAX_STEP_MM * np.array([[1, 1], [-1, 1], [-1, -1], [1, -1], [1, 0],
                                     dtype=np.float64)
 
 
-def _int_option(name: str, value: Any, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
-    return int(value)
 
 
 class LookaheadAgent(BaselineAgent):
@@ -130,13 +126,13 @@ class LookaheadAgent(BaselineAgent):
                  tail: float = 0.5, compass: bool = True, cont: str = "compass", closed: bool = False,
                  inner: int = 8) -> None:
         super().__init__(seed)
-        self.depth = _int_option("depth", depth, 1, MAX_DEPTH)
-        self.n_options = _int_option("n_options", n_options, 1, 256)
-        self.continuations = _int_option("continuations", continuations, 1, 256)
-        self.branches = _int_option("branches", branches, 1, 1024)
-        self.n_particles = _int_option("n_particles", n_particles, 2, 100_000)
-        self.rounds = _int_option("rounds", rounds, 1, 1024)
-        self.max_rounds = _int_option("max_rounds", max_rounds, 1, 4096)
+        self.depth = check_int("depth", depth, 1, MAX_DEPTH)
+        self.n_options = check_int("n_options", n_options, 1, 256)
+        self.continuations = check_int("continuations", continuations, 1, 256)
+        self.branches = check_int("branches", branches, 1, 1024)
+        self.n_particles = check_int("n_particles", n_particles, 2, 100_000)
+        self.rounds = check_int("rounds", rounds, 1, 1024)
+        self.max_rounds = check_int("max_rounds", max_rounds, 1, 4096)
         if budget_s is not None and (isinstance(budget_s, bool) or not isinstance(budget_s, (int, float))
                                      or not math.isfinite(budget_s) or not 0 < budget_s <= 60):
             raise ValueError(f"budget_s must be a number of seconds in (0, 60] or None, got {budget_s!r}")
@@ -159,7 +155,7 @@ class LookaheadAgent(BaselineAgent):
         if closed and self.depth != 2:
             raise ValueError(f"closed=True needs depth=2, got depth={self.depth}")
         self.closed = closed
-        self.inner = _int_option("inner", inner, 1, 256)
+        self.inner = check_int("inner", inner, 1, 256)
         self.last_scores: NDArray[np.float64] | None = None
         self.last_options_mm: NDArray[np.float64] | None = None
         self.last_rounds = 0

@@ -7,34 +7,21 @@ carriage geometry, as frozen, validated dataclasses (units in every field name: 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["MATERIAL_CONDUCTIVITY_uScm", "Target", "Water", "Amplifier", "Geometry", "check_finite", "as_floats",
+from electroloc_gym.checks import check_float
+
+__all__ = ["MATERIAL_CONDUCTIVITY_uScm", "Target", "Water", "Amplifier", "Geometry", "as_floats",
            "from_dict"]
 
 #: Conductivities (µS/cm) of the paper's target materials. Steel ≈ 1.4·10⁶ S/m; Delrin (acetal) is
 #: an insulator (≈10⁻¹³ S/m). Only the contrast χ matters, which is +1 and −½ to many digits.
 MATERIAL_CONDUCTIVITY_uScm: dict[str, float] = {"steel": 1.4e10, "delrin": 1e-9}
 
-
-
-def check_finite(name: str, value: float, *, low: float | None = None, high: float | None = None,
-                  low_inclusive: bool = False) -> None:
-    """A ValueError naming ``name`` unless ``value`` is a finite real number in the given range."""
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not number or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    if low is not None and (value < low or (value == low and not low_inclusive)):
-        op = "≥" if low_inclusive else ">"
-        rng = f"{op} {low}" + (f" and ≤ {high}" if high is not None else "")
-        raise ValueError(f"{name} must be {rng}, got {value!r}")
-    if high is not None and value > high:
-        raise ValueError(f"{name} must be ≤ {high}, got {value!r}")
 
 
 def as_floats(obj: Any, *names: str) -> None:
@@ -72,8 +59,8 @@ class Target:
     material: str = "custom"
 
     def __post_init__(self) -> None:
-        check_finite("radius_mm", self.radius_mm, low=0.0)
-        check_finite("conductivity_uScm", self.conductivity_uScm, low=0.0, low_inclusive=True)
+        check_float("radius_mm", self.radius_mm, low=0.0)
+        check_float("conductivity_uScm", self.conductivity_uScm, low=0.0, inclusive=True)
         as_floats(self, "radius_mm", "conductivity_uScm")
 
     @classmethod
@@ -82,7 +69,7 @@ class Target:
         key = material.lower()
         if key not in MATERIAL_CONDUCTIVITY_uScm:
             raise ValueError(f"material must be one of {sorted(MATERIAL_CONDUCTIVITY_uScm)}, got {material!r}")
-        check_finite("diameter_mm", diameter_mm, low=0.0)
+        check_float("diameter_mm", diameter_mm, low=0.0)
         return cls(radius_mm=diameter_mm / 2.0, conductivity_uScm=MATERIAL_CONDUCTIVITY_uScm[key], material=key)
 
     @property
@@ -98,7 +85,7 @@ class Water:
     conductivity_uScm: float
 
     def __post_init__(self) -> None:
-        check_finite("water conductivity_uScm", self.conductivity_uScm, low=0.0)
+        check_float("water conductivity_uScm", self.conductivity_uScm, low=0.0)
         as_floats(self, "conductivity_uScm")
 
 
@@ -128,11 +115,11 @@ class Amplifier:
     output_noise_mV: float = 0.0
 
     def __post_init__(self) -> None:
-        check_finite("gain", self.gain, low=0.0)
-        check_finite("noise_rms_mV", self.noise_rms_mV, low=0.0)
-        check_finite("saturation_V", self.saturation_V, low=0.0)
-        check_finite("noise_factor", self.noise_factor, low=0.0)
-        check_finite("output_noise_mV", self.output_noise_mV, low=0.0, low_inclusive=True)
+        check_float("gain", self.gain, low=0.0)
+        check_float("noise_rms_mV", self.noise_rms_mV, low=0.0)
+        check_float("saturation_V", self.saturation_V, low=0.0)
+        check_float("noise_factor", self.noise_factor, low=0.0)
+        check_float("output_noise_mV", self.output_noise_mV, low=0.0, inclusive=True)
         as_floats(self, "gain", "noise_rms_mV", "saturation_V", "noise_factor", "output_noise_mV")
 
     @property
@@ -175,8 +162,8 @@ class Geometry:
     clearance_mm: float = 2.0
 
     def __post_init__(self) -> None:
-        check_finite("spacing_mm", self.spacing_mm, low=0.0)
-        check_finite("electrode_radius_mm", self.electrode_radius_mm, low=0.0)
-        check_finite("emitter_voltage_V", self.emitter_voltage_V, low=0.0)
-        check_finite("clearance_mm", self.clearance_mm, low=0.0, low_inclusive=True)
+        check_float("spacing_mm", self.spacing_mm, low=0.0)
+        check_float("electrode_radius_mm", self.electrode_radius_mm, low=0.0)
+        check_float("emitter_voltage_V", self.emitter_voltage_V, low=0.0)
+        check_float("clearance_mm", self.clearance_mm, low=0.0, inclusive=True)
         as_floats(self, "spacing_mm", "electrode_radius_mm", "emitter_voltage_V", "clearance_mm")

@@ -31,9 +31,9 @@ from electroloc_gym.apparatus import (
     Target,
     Water,
     as_floats,
-    check_finite,
     from_dict,
 )
+from electroloc_gym.checks import check_float
 
 __all__ = [
     "MATERIAL_CONDUCTIVITY_uScm",
@@ -88,14 +88,14 @@ class Condition:
         for fname, typ in (("target", Target), ("water", Water), ("amplifier", Amplifier), ("geometry", Geometry)):
             if not isinstance(getattr(self, fname), typ):
                 raise TypeError(f"{fname} must be a {typ.__name__}, got {type(getattr(self, fname)).__name__}")
-        check_finite("allowed_half_width_mm", self.allowed_half_width_mm, low=0.0)
-        check_finite("start_half_width_mm", self.start_half_width_mm, low=0.0, high=self.allowed_half_width_mm)
-        check_finite("signal_scale", self.signal_scale, low=0.0)
+        check_float("allowed_half_width_mm", self.allowed_half_width_mm, low=0.0)
+        check_float("start_half_width_mm", self.start_half_width_mm, low=0.0, high=self.allowed_half_width_mm)
+        check_float("signal_scale", self.signal_scale, low=0.0)
         if len(self.target_xy_mm) != 2:
             raise ValueError(f"target_xy_mm must be (x, y) in mm, got {self.target_xy_mm!r}")
         for v in self.target_xy_mm:
-            check_finite("target_xy_mm", v, low=-self.allowed_half_width_mm, high=self.allowed_half_width_mm,
-                          low_inclusive=True)
+            check_float("target_xy_mm", v, low=-self.allowed_half_width_mm, high=self.allowed_half_width_mm,
+                          inclusive=True)
         object.__setattr__(self, "target_xy_mm", (float(self.target_xy_mm[0]), float(self.target_xy_mm[1])))
         as_floats(self, "start_half_width_mm", "allowed_half_width_mm", "signal_scale")
 

@@ -53,6 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym import physics
+from electroloc_gym.checks import check_float
 from electroloc_gym.conditions import (
     Amplifier,
     Condition,
@@ -96,15 +97,6 @@ STOCK_DIAMETERS_MM: tuple[float, ...] = (6.35, 12.7, 19.05, 25.4, 31.75, 38.1)
 _DEFAULT_GEOMETRY = Geometry()
 
 
-def _finite(name: str, value: Any, low: float | None = None, inclusive: bool = False) -> float:
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    if not number or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    if low is not None and (value < low or (value == low and not inclusive)):
-        raise ValueError(f"{name} must be {'≥' if inclusive else '>'} {low}, got {value!r}")
-    return float(value)
-
-
 @dataclass(frozen=True)
 class SceneObject:
     """One object of the map.
@@ -128,9 +120,9 @@ class SceneObject:
             raise ValueError(f"shape must be one of {list(SHAPES)}, got {self.shape!r}")
         if len(self.xy_mm) != 2:
             raise ValueError(f"xy_mm must be (x, y) in mm, got {self.xy_mm!r}")
-        object.__setattr__(self, "xy_mm", (_finite("xy_mm", self.xy_mm[0]), _finite("xy_mm", self.xy_mm[1])))
-        _finite("radius_mm", self.radius_mm, 0.0)
-        _finite("conductivity_uScm", self.conductivity_uScm, 0.0, inclusive=True)
+        object.__setattr__(self, "xy_mm", (check_float("xy_mm", self.xy_mm[0]), check_float("xy_mm", self.xy_mm[1])))
+        check_float("radius_mm", self.radius_mm, 0.0)
+        check_float("conductivity_uScm", self.conductivity_uScm, 0.0, inclusive=True)
 
     @classmethod
     def of_material(cls, shape: str, xy_mm: tuple[float, float], diameter_mm: float, material: str) -> SceneObject:
@@ -138,7 +130,7 @@ class SceneObject:
         key = material.lower()
         if key not in SCENE_MATERIAL_CONDUCTIVITY_uScm:
             raise ValueError(f"material must be one of {sorted(SCENE_MATERIAL_CONDUCTIVITY_uScm)}, got {material!r}")
-        return cls(shape, tuple(xy_mm), _finite("diameter_mm", diameter_mm, 0.0) / 2.0,
+        return cls(shape, tuple(xy_mm), check_float("diameter_mm", diameter_mm, 0.0) / 2.0,
                    SCENE_MATERIAL_CONDUCTIVITY_uScm[key], key)
 
     @property
@@ -192,12 +184,12 @@ class Scene:
         for fname, typ in (("water", Water), ("amplifier", Amplifier), ("geometry", Geometry)):
             if not isinstance(getattr(self, fname), typ):
                 raise TypeError(f"{fname} must be a {typ.__name__}, got {type(getattr(self, fname)).__name__}")
-        _finite("allowed_half_width_mm", self.allowed_half_width_mm, 0.0)
-        _finite("start_half_width_mm", self.start_half_width_mm, 0.0)
+        check_float("allowed_half_width_mm", self.allowed_half_width_mm, 0.0)
+        check_float("start_half_width_mm", self.start_half_width_mm, 0.0)
         if self.start_half_width_mm > self.allowed_half_width_mm:
             raise ValueError(f"start_half_width_mm must be ≤ allowed_half_width_mm ({self.allowed_half_width_mm}),"
                              f" got {self.start_half_width_mm}")
-        _finite("signal_scale", self.signal_scale, 0.0)
+        check_float("signal_scale", self.signal_scale, 0.0)
 
     # ---- derived values ---------------------------------------------------------------------
     @property
@@ -329,8 +321,8 @@ def random_cylinder_layout(
     """
     if isinstance(n_objects, bool) or not isinstance(n_objects, (int, np.integer)) or n_objects < 1:
         raise ValueError(f"n_objects must be an integer ≥ 1, got {n_objects!r}")
-    _finite("half_width_mm", half_width_mm, 0.0)
-    _finite("min_gap_mm", min_gap_mm, 0.0, inclusive=True)
+    check_float("half_width_mm", half_width_mm, 0.0)
+    check_float("min_gap_mm", min_gap_mm, 0.0, inclusive=True)
     if not diameters_mm or not materials:
         raise ValueError("diameters_mm and materials must not be empty")
     for m in materials:
@@ -390,6 +382,6 @@ def map_eev(scene: Scene, step_mm: float = 1.0, half_span_mm: float | None = Non
             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The map's EEV (Fig. 14): (grid_mm, Φ[ix, iy]) noise-free reading with the carriage at (grid[ix], grid[iy])."""
     h = scene.allowed_half_width_mm if half_span_mm is None else float(half_span_mm)
-    grid = np.arange(-h, h + 1e-9, _finite("step_mm", step_mm, 0.0))
+    grid = np.arange(-h, h + 1e-9, check_float("step_mm", step_mm, 0.0))
     gx, gy = np.meshgrid(grid, grid, indexing="ij")
     return grid, scene.expected_reading(np.stack([gx, gy], axis=-1))

@@ -44,7 +44,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym import physics
-from electroloc_gym.apparatus import Geometry, check_finite
+from electroloc_gym.apparatus import Geometry
+from electroloc_gym.checks import check_float
 from electroloc_gym.conditions import Condition
 from electroloc_gym.kernels.array import general_pair_difference
 from electroloc_gym.sensor import saturated_reading, sphere_reading
@@ -148,7 +149,7 @@ class SensorLayout:
         if not isinstance(self.subtract_baseline, (bool, np.bool_)):
             raise _error(f"subtract_baseline must be True or False, got {self.subtract_baseline!r}")
         try:
-            check_finite("reach_mm", self.reach_mm, low=0.0)
+            check_float("reach_mm", self.reach_mm, low=0.0)
         except ValueError as exc:
             raise _error(str(exc)) from None
         elec = _pairs_array(self.electrodes_mm, "electrodes_mm")

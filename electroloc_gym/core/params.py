@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.checks import check_bool, check_choice, check_float, check_int
 from electroloc_gym.conditions import Condition, get_condition
 from electroloc_gym.core.observation import OBSERVATION_MODES
 from electroloc_gym.distractors import resolve_distractors
@@ -69,34 +70,6 @@ def _default_signal() -> Any:
     return inspect.signature(get_condition).parameters["signal"].default
 
 
-def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
-    """``value`` as an int in [low, high], or a ValueError naming ``name`` and the range (bools refused)."""
-    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
-    if not ok or value < low or (high is not None and value > high):
-        rng = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
-        raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
-    return int(value)
-
-
-def check_float(name: str, value: Any, low: float, *, inclusive: bool = False, high: float | None = None) -> float:
-    """A finite real ``value`` (Python or numpy float/int, not bool) above ``low`` (and at most ``high``) as a
-    float, or a ValueError naming ``name`` and the range.
-    """
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not ok or not math.isfinite(value) or value < low or (value == low and not inclusive) or \
-            (high is not None and value > high):
-        rng = f"{'≥' if inclusive else '>'} {low:g}" + ("" if high is None else f" and ≤ {high:g}")
-        raise ValueError(f"{name} must be a finite number {rng}, got {value!r}")
-    return float(value)
-
-
-def check_bool(name: str, value: Any) -> bool:
-    """``value`` if it is a real boolean (``True``/``False`` or a numpy bool), else a ValueError."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be True or False, got {value!r}")
-    return bool(value)
-
-
 def _numbers_in(name: str, value: Any, count: int | None, low: float, high: float, unit: str = "") -> tuple[float, ...]:
     """A tuple of finite numbers in [low, high] (radii in mm, or gain factors): ``count`` of them, or at least
     one, given as a tuple, a list or a 1-d array.
@@ -108,12 +81,6 @@ def _numbers_in(name: str, value: Any, count: int | None, low: float, high: floa
     if items is None or not items or (count is not None and len(items) != count):
         raise ValueError(f"{name} must be a tuple of {want} numbers in [{low:g}, {high:g}]{unit}, got {value!r}")
     return tuple(check_float(name, v, low, inclusive=True, high=high) for v in items)
-
-
-def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
-    if not isinstance(value, str) or value not in choices:
-        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
-    return value
 
 
 def memory_limit_bytes() -> int:
@@ -201,11 +168,11 @@ class EnvParams:
         def put(name: str, value: Any) -> None:
             object.__setattr__(self, name, value)
 
-        _check_choice("task", self.task, TASKS)
-        _check_choice("observation", self.observation, OBSERVATION_MODES)
-        _check_choice("sensor_model", self.sensor_model, task_entry(self.task).sensor_models)
-        _check_choice("target_draw", self.target_draw, TARGET_DRAWS)
-        _check_choice("contrast", self.contrast, CONTRASTS)
+        check_choice("task", self.task, TASKS)
+        check_choice("observation", self.observation, OBSERVATION_MODES)
+        check_choice("sensor_model", self.sensor_model, task_entry(self.task).sensor_models)
+        check_choice("target_draw", self.target_draw, TARGET_DRAWS)
+        check_choice("contrast", self.contrast, CONTRASTS)
         put("radius_range_mm", _numbers_in("radius_range_mm", self.radius_range_mm, 2, *RADIUS_LIMITS_MM, " mm"))
         if self.radius_range_mm[0] >= self.radius_range_mm[1]:
             raise ValueError(f"radius_range_mm must be (low, high) with low < high, got {self.radius_range_mm!r}")
@@ -217,7 +184,7 @@ class EnvParams:
             put("gain_levels", _numbers_in("gain_levels", self.gain_levels, None, *GAIN_FACTOR_LIMITS))
             if len(set(self.gain_levels)) != len(self.gain_levels):
                 raise ValueError(f"gain_levels must be distinct factors of the gain, got {self.gain_levels!r}")
-        _check_choice("action_type", self.action_type, ACTION_TYPES)
+        check_choice("action_type", self.action_type, ACTION_TYPES)
         put("n_particles", check_int("n_particles", self.n_particles, 1, 2**31 - 2))
         put("max_observations", check_int("max_observations", self.max_observations, 1))
         put("success_spread_mm", check_float("success_spread_mm", self.success_spread_mm, 0.0))
@@ -263,7 +230,7 @@ class EnvParams:
             elif self.signal is not None:
                 get_condition("fresh-steel-12.7", self.signal)
         elif not isinstance(self.layout, Scene):
-            _check_choice("layout", self.layout, LAYOUTS)
+            check_choice("layout", self.layout, LAYOUTS)
 
     @classmethod
     def from_kwargs(cls, task: str, kwargs: Mapping[str, Any], env_id: str) -> EnvParams:

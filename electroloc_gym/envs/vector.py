@@ -38,8 +38,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from electroloc_gym.checks import check_int
 from electroloc_gym.conditions import Condition
-from electroloc_gym.core.params import EnvParams, check_int
+from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.envs.adapter import ParamAccessors

@@ -24,8 +24,9 @@ import torch
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from electroloc_gym.checks import check_int
 from electroloc_gym.core.observation import BELIEF_OBS_DIM, RAW_OBS_DIM
-from electroloc_gym.core.params import EnvParams, check_int
+from electroloc_gym.core.params import EnvParams
 from electroloc_gym.envs.actions import spaces_of
 from electroloc_gym.torch_core import sim
 from electroloc_gym.torch_core.consts import TorchConsts, torch_entry

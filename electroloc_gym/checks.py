@@ -1,0 +1,57 @@
+"""The package's argument checks: one clear ValueError naming the argument and the allowed range.
+
+Every frozen parameter dataclass (the apparatus, the conditions, the scenes, the sensor arrays, the
+envs' :class:`~electroloc_gym.core.params.EnvParams`) and every agent's options check their numbers
+here, so a bad value reads the same wherever it is given: ``radius_mm must be a finite number > 0,
+got -1.0``. Booleans are refused where a number is asked for (``True`` is an ``int`` to Python), and
+numpy scalars are accepted (a value read from an array).
+
+This module is data-layer: it imports nothing of the package, so every layer may use it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+__all__ = ["check_int", "check_float", "check_bool", "check_choice"]
+
+
+def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
+    """``value`` as an int in [low, high] (or ≥ low), else a ValueError naming ``name`` and the range."""
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    if not ok or value < low or (high is not None and value > high):
+        rng = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
+        raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
+    return int(value)
+
+
+def check_float(name: str, value: Any, low: float | None = None, *, inclusive: bool = False,
+                high: float | None = None) -> float:
+    """A finite real ``value`` above ``low`` (at or above it when ``inclusive``) and at most ``high``, as a
+    float; else a ValueError naming ``name`` and the range. ``low=None``: no lower bound.
+    """
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if (not ok or not math.isfinite(value) or (low is not None and (value < low or (value == low and not inclusive)))
+            or (high is not None and value > high)):
+        parts = [] if low is None else [f"{'≥' if inclusive else '>'} {low:g}"]
+        parts += [] if high is None else [f"≤ {high:g}"]
+        rng = (" " + " and ".join(parts)) if parts else ""
+        raise ValueError(f"{name} must be a finite number{rng}, got {value!r}")
+    return float(value)
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` if it is a real boolean (``True``/``False`` or a numpy bool), else a ValueError."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
+    """``value`` if it is one of the strings ``choices``, else a ValueError listing them."""
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
+    return value
