@@ -26,7 +26,7 @@ pair, ``δV`` the target's induced dipole (Eq. 4) in the field of the pair's emi
 that is the paper's unit translated by c (electrodes c ± (0, L/2), emitters c ± (L/2, 0)) is computed by
 :func:`electroloc_gym.sensor.sphere_reading` at ``offsets − c``, the compiled fast path: the ``"single"``
 layout's numbers are today's sensor's bit for bit. Other pairs are one compiled pass of the same
-equations for electrodes and emitters anywhere (:func:`electroloc_gym.kernels.array.general_pair_difference`),
+equations for electrodes and emitters anywhere (:func:`electroloc_gym.kernels.fusion.general_pair_difference`),
 tested equal to the physics module's :func:`~electroloc_gym.physics.emitter_field` +
 :func:`~electroloc_gym.physics.sphere_perturbation` (:func:`_general_pair`), which is also tested equal to the
 fast path on the paper's pair.
@@ -47,7 +47,7 @@ from electroloc_gym import physics
 from electroloc_gym.apparatus import Geometry
 from electroloc_gym.checks import check_float
 from electroloc_gym.conditions import Condition
-from electroloc_gym.kernels.array import general_pair_difference
+from electroloc_gym.kernels.fusion import general_pair_difference
 from electroloc_gym.sensor import saturated_reading, sphere_reading
 
 __all__ = [

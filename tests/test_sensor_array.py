@@ -9,7 +9,7 @@ from scipy import stats
 
 from electroloc_gym import physics, sensor
 from electroloc_gym.conditions import PRESET_NAMES, Geometry, get_condition
-from electroloc_gym.kernels.array import assimilate_readings, grid_posterior
+from electroloc_gym.kernels.fusion import assimilate_readings, grid_posterior
 from electroloc_gym.sensor_array import (
     BASELINE_TOLERANCE_V,
     LAYOUT_DESIGNS,
@@ -21,7 +21,7 @@ from electroloc_gym.sensor_array import (
     named_layout,
 )
 from electroloc_gym.sensor_models import AnalyticSensorModel, make_sensor_model
-from electroloc_gym.sensor_models.array import (
+from electroloc_gym.sensor_models.pairs import (
     ArrayAnalyticSensorModel,
     ArrayCalibratedSensorModel,
     make_array_sensor_model,

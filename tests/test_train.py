@@ -227,7 +227,7 @@ def test_summary_records_honest_timing(tiny_run):
 
 
 def test_learning_curves_from_a_run(tiny_run, tmp_path):
-    from electroloc_gym.train.plots import main
+    from electroloc_gym.train.curves import main
 
     assert main([str(tiny_run), "--out", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").stat().st_size > 1000

@@ -10,8 +10,8 @@ methods are used unchanged. Any other layout of K pairs (:mod:`electroloc_gym.se
   ±V_sat clip (the step draws the K noises in pair order from the env's generator), in the field of the
   carriage's emitters (or each unit's own, ``"grid-2x2"``) by :func:`~electroloc_gym.sensor_array.array_reading`;
 * **calibration**: each pair has its own (``sensor_model="calibrated"``: one
-  :class:`~electroloc_gym.sensor_models.array.ArrayCalibratedSensorModel` per episode, pair 0 from the
-  episode's calibration seed, the others from :func:`~electroloc_gym.sensor_models.array.pair_seeds`);
+  :class:`~electroloc_gym.sensor_models.pairs.ArrayCalibratedSensorModel` per episode, pair 0 from the
+  episode's calibration seed, the others from :func:`~electroloc_gym.sensor_models.pairs.pair_seeds`);
 * **fusion, one reading at a time**: the K readings of a step are fused as K successive particle-filter
   updates (pair 0 first), each with its own resampling offset and jitter. So a step of K pairs is exactly
   the filter a single pair runs over K readings, and "readings to localise" compares like with like across
@@ -47,7 +47,7 @@ from electroloc_gym.core.worlds import group_by_world
 from electroloc_gym.draws import table_normal_indices
 from electroloc_gym.kernels import loglik_assimilate
 from electroloc_gym.sensor_array import SensorLayout, array_reading, make_sensor_layout
-from electroloc_gym.sensor_models.array import ArrayAnalyticSensorModel, ArrayCalibratedSensorModel
+from electroloc_gym.sensor_models.pairs import ArrayAnalyticSensorModel, ArrayCalibratedSensorModel
 
 __all__ = ["ArrayLocalizeTask", "is_paper_pair"]
 

@@ -7,7 +7,7 @@ One env at a time, in a few passes over its particles while they are in cache, i
 * :func:`resample_indices` and :func:`jitter_resampled`: the same update of clouds with more coordinates
   than x, y (the unknown target's radius and contrast), in two passes.
 
-Each ends with the new cloud's mean, covariance and histogram counts (:mod:`.stats`).
+Each ends with the new cloud's mean, covariance and histogram counts (:mod:`.moments`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from numba import njit
 
 from electroloc_gym.kernels.lookup import _calibrated_ll_one
 from electroloc_gym.kernels.mathf32 import JIT, exp32, sum8
-from electroloc_gym.kernels.stats import _counts_one, _cov_about
+from electroloc_gym.kernels.moments import _counts_one, _cov_about
 
 __all__ = ["calibrated_assimilate", "loglik_assimilate", "resample_indices", "jitter_resampled"]
 

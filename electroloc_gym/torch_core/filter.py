@@ -136,7 +136,7 @@ def resample(ll: torch.Tensor, particles: torch.Tensor, u0: torch.Tensor, jx: to
 def statistics(particles: torch.Tensor, centre: torch.Tensor, scale: torch.Tensor
                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Mean (N, 2) and population covariance (N, 2, 2), float64, and the (N, 64) float64 histogram counts
-    of N unweighted clouds (``kernels.stats``): cells of ``((p − centre)/scale + ½)·8`` in float32,
+    of N unweighted clouds (``kernels.moments``): cells of ``((p − centre)/scale + ½)·8`` in float32,
     truncated, clipped to [0, 7]; ``centre`` (N, 2) float32 the carriage, ``scale`` (N,) float32 2H.
     """
     p = particles.to(torch.float64)

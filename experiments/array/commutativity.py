@@ -35,9 +35,9 @@ from scipy import stats  # noqa: E402
 
 from electroloc_gym.conditions import PRESET_NAMES, SIGNAL_CHOICES, get_condition  # noqa: E402
 from electroloc_gym.fileio import write_json_atomic  # noqa: E402
-from electroloc_gym.kernels.array import assimilate_readings, grid_posterior  # noqa: E402
+from electroloc_gym.kernels.fusion import assimilate_readings, grid_posterior  # noqa: E402
 from electroloc_gym.sensor_array import array_noisy_reading, named_layout  # noqa: E402
-from electroloc_gym.sensor_models.array import ArrayAnalyticSensorModel  # noqa: E402
+from electroloc_gym.sensor_models.pairs import ArrayAnalyticSensorModel  # noqa: E402
 
 STATISTICS = ("mean_x_mm", "mean_y_mm", "error_mm", "spread_mm")
 

@@ -2,7 +2,7 @@ r"""Learning curves from run directories' ``eval.csv``: success rate and median 
 
 Usage::
 
-    python -m electroloc_gym.train.plots runs/ppo-s1000 runs/ppo-s2000 --labels "seed 1000" "seed 2000" \
+    python -m electroloc_gym.train.curves runs/ppo-s1000 runs/ppo-s2000 --labels "seed 1000" "seed 2000" \
         --out models/ppo-belief/learning_curves.png [--reference min-var=0.58,7]
 """
 
@@ -77,7 +77,7 @@ def plot_learning_curves(runs: Sequence[str | Path], labels: Sequence[str] | Non
 
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI entry point."""
-    p = argparse.ArgumentParser(prog="python -m electroloc_gym.train.plots", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m electroloc_gym.train.curves", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("runs", nargs="+", help="run directories (or eval.csv files)")
     p.add_argument("--labels", nargs="*", default=None)

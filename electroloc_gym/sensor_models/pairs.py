@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym.conditions import Condition
-from electroloc_gym.kernels.array import sum_over_pairs
+from electroloc_gym.kernels.fusion import sum_over_pairs
 from electroloc_gym.sensor import add_calibration_noise
 from electroloc_gym.sensor_array import SensorLayout, array_reading
 from electroloc_gym.sensor_models.calibrated import (
