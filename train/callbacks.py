@@ -14,6 +14,15 @@ it writes, each atomically: ``eval.csv`` (one row per evaluation), ``best/`` (th
 of the checkpoint with the fewest mean readings on the validation episodes — the checkpoint the
 export ships) and ``summary.json`` (wall time, fps, the chosen row). The run folder is locked while
 the run writes, and a folder that already holds another run's ``eval.csv`` is refused.
+
+Why not SB3's ``EvalCallback`` (with ``callback_after_eval``): it scores a policy by the mean return of
+``evaluate_policy`` on a vector env it resets once, so its episodes are not the seeded, one-reset-per-seed
+episodes of the benchmark, and it counts ``eval_freq`` in callback calls (env steps / n_envs), not env
+steps; its best model is a pickled SB3 zip chosen by return. What this callback needs — the exported
+policy run through :func:`~electroloc_gym.rollout.run_episode` as the benchmark runs it, chosen by
+readings — is none of that, so it is a ``BaseCallback``. Its metrics go through SB3's logger
+(``bench_eval/*``, so rl-zoo3's stdout, CSV and TensorBoard outputs carry them); ``eval.csv`` is the
+per-evaluation table the learned report and ``--resume`` read, written atomically.
 """
 
 from __future__ import annotations

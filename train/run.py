@@ -6,7 +6,13 @@
 :func:`zoo_argv` is the exact ``python -m rl_zoo3.train`` command (through the native-vector-env
 hook :mod:`electroloc_gym.train.zoo`); :func:`train` runs it in a child process (its own thread
 pinning, its output teed to ``<log_folder>/<algo>/<env>_s<seed>.log``), then exports the chosen
-checkpoint when ``out`` is given. A run whose ``summary.json`` records the same command and
+checkpoint when ``out`` is given. The run folder is the one whose ``summary.json`` (written by the
+evaluation callback, :mod:`electroloc_gym.train.callbacks`) records this command as finished.
+
+Why a child process and not rl-zoo3's ``ExperimentManager`` in this one: the command a run records
+is then exactly what rl-zoo3's own front door parsed (a user re-runs it as printed), the numeric
+libraries of the run are pinned to one thread before they load, and a run that dies (out of memory,
+an interrupt) leaves the caller — a suite of many runs — standing. A run whose ``summary.json`` records the same command and
 finished is found again instead of retrained, and an ``out`` already exported from it is kept:
 re-running a script of calls only trains what is missing. Timing is the run's own
 (``summary.json``: wall time, validation time, training-only fps).
@@ -154,10 +160,10 @@ def train(algo: str, env_id: str, seed: int, *, timesteps: int | None = None, lo
         if proc.returncode != 0:
             tail = "".join(lines[-3:]).strip().splitlines()
             raise ValueError(f"rl-zoo3 run failed (exit {proc.returncode}; log {log}): {tail[-1] if tail else ''}")
-        paths = [ln.split("Log path:", 1)[1].strip() for ln in lines if ln.startswith("Log path:")]
-        if not paths:
-            raise ValueError(f"rl-zoo3 did not report its run folder (log {log})")
-        run = Path(paths[-1])
+        run = find_finished_run(log_folder, algo, env_id, argv)  # the callback's summary.json records argv
+        if run is None:
+            raise ValueError(f"rl-zoo3 finished but no run folder under {Path(log_folder, algo)} records this "
+                             f"command as finished (log {log})")
     if out is not None:
         from electroloc_gym.train.export import export_run
 
