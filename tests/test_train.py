@@ -231,3 +231,21 @@ def test_learning_curves_from_a_run(tiny_run, tmp_path):
 
     assert main([str(tiny_run), "--out", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("text, words", [
+    ("", "no rows"),
+    ("timesteps,success_rate\n1,0.5\n", "missing column(s) ['mean_readings', 'median_readings']"),
+    ("timesteps,success_rate,mean_readings,median_readings\n1,0.5,x,3\n", "a non-number in column 'mean_readings'"),
+    ("timesteps,success_rate,mean_readings,median_readings\n1,nan,3,3\n", "non-finite evaluation in column"),
+])
+def test_the_eval_csv_reader_refuses_a_damaged_log_in_one_line(tmp_path, text, words) -> None:
+    from electroloc_gym.train.curves import read_eval_csv
+
+    (tmp_path / "eval.csv").write_text(text, encoding="utf-8")
+    with pytest.raises(ValueError) as err:
+        read_eval_csv(tmp_path)
+    assert words in str(err.value) and str(tmp_path) in str(err.value) and "\n" not in str(err.value)
+    (tmp_path / "eval.csv").write_text("timesteps,success_rate,mean_readings,median_readings\n5,1,4,4\n")
+    assert read_eval_csv(tmp_path) == {"timesteps": [5.0], "success_rate": [1.0], "mean_readings": [4.0],
+                                       "median_readings": [4.0]}

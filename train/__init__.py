@@ -4,8 +4,8 @@
 ``VecEnv`` of the native batched env), ``wrappers`` (potential-based shaping), ``callbacks``
 (the benchmark's metrics on validation episodes, the chosen checkpoint exported pickle-free),
 ``export`` (an rl-zoo3 run folder → a policy folder), ``run`` (one call or command from algorithm,
-env, seed and budget to run folder and export), ``plots`` (learning curves). Hyper-parameter files,
-one per algorithm in rl-zoo3's format: ``hyperparams/``. Loading a policy lives in
+env, seed and budget to run folder and export), ``curves`` (learning curves, the one reader of
+``eval.csv``). Hyper-parameter files, one per algorithm in rl-zoo3's format: ``hyperparams/``. Loading a policy lives in
 :mod:`electroloc_gym.policy`. Importing this package imports nothing heavy.
 """
 

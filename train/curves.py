@@ -11,25 +11,51 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import math
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-__all__ = ["read_eval_csv", "plot_learning_curves", "main"]
+__all__ = ["REQUIRED_COLUMNS", "read_eval_csv", "plot_learning_curves", "main"]
+
+
+#: The columns every reader of an ``eval.csv`` needs (the callback writes ``EVAL_FIELDS``, a superset).
+REQUIRED_COLUMNS = ("timesteps", "success_rate", "mean_readings", "median_readings")
 
 
 def read_eval_csv(path: str | Path) -> dict[str, list[float]]:
-    """Columns of an ``eval.csv`` as float lists (a run directory or the file itself)."""
+    """Columns of an ``eval.csv`` (a run directory or the file itself) as lists of finite floats: the one
+    reader of the evaluation logs :class:`~electroloc_gym.train.callbacks.BenchEvalCallback` writes (the
+    learning curves here and the learned report read through it).
+
+    Raises:
+        ValueError: one line naming the file: missing, empty, not UTF-8 CSV, a column of
+            :data:`REQUIRED_COLUMNS` missing, or a cell that is not a finite number.
+    """
     p = Path(path)
     if p.is_dir():
         p = p / "eval.csv"
     if not p.is_file():
         raise ValueError(f"no eval.csv at {str(path)!r}")
-    with p.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    try:
+        with p.open(encoding="utf-8", newline="") as fh:
+            rows = list(csv.DictReader(fh))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise ValueError(f"{p}: not a readable evaluation log ({type(exc).__name__}: {exc})") from None
     if not rows:
-        raise ValueError(f"{p} has no rows")
-    return {k: [float(r[k]) for r in rows] for k in rows[0]}
+        raise ValueError(f"{p}: not a readable evaluation log (no rows)")
+    missing = [k for k in REQUIRED_COLUMNS if k not in rows[0]]
+    if missing:
+        raise ValueError(f"{p}: not a readable evaluation log (missing column(s) {missing})")
+    cols: dict[str, list[float]] = {}
+    for k in rows[0]:
+        try:
+            cols[k] = [float(r[k]) for r in rows]
+        except (TypeError, ValueError):
+            raise ValueError(f"{p}: not a readable evaluation log (a non-number in column {k!r})") from None
+        if not all(math.isfinite(v) for v in cols[k]):
+            raise ValueError(f"{p}: not a readable evaluation log (a non-finite evaluation in column {k!r})")
+    return cols
 
 
 def plot_learning_curves(runs: Sequence[str | Path], labels: Sequence[str] | None, out: str | Path,

@@ -12,10 +12,12 @@ evaluation callback, :mod:`electroloc_gym.train.callbacks`) records this command
 Why a child process and not rl-zoo3's ``ExperimentManager`` in this one: the command a run records
 is then exactly what rl-zoo3's own front door parsed (a user re-runs it as printed), the numeric
 libraries of the run are pinned to one thread before they load, and a run that dies (out of memory,
-an interrupt) leaves the caller — a suite of many runs — standing. A run whose ``summary.json`` records the same command and
-finished is found again instead of retrained, and an ``out`` already exported from it is kept:
-re-running a script of calls only trains what is missing. Timing is the run's own
-(``summary.json``: wall time, validation time, training-only fps).
+an interrupt) leaves the caller — a suite of many runs — standing.
+
+A run whose ``summary.json`` records the same command and finished is found again instead of
+retrained, and an ``out`` already exported from it is kept: re-running a script of calls only trains
+what is missing. Timing is the run's own (``summary.json``: wall time, validation time, training-only
+fps).
 """
 
 from __future__ import annotations

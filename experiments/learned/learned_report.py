@@ -138,7 +138,7 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
         ``{algo: {"timesteps": (T,), "success_rate": (seeds, T), "mean_readings": (seeds, T),
         "wall_time_s": [per seed]}}``; the grid is the steps every seed evaluated at.
     """
-    import csv
+    from electroloc_gym.train.curves import read_eval_csv
 
     out: dict[str, dict[str, Any]] = {}
     env_dir = results / env_id
@@ -149,13 +149,10 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
             if not found or not (seed_dir / "bench" / "summary.json").is_file():  # finished and benchmarked only
                 continue
             try:
-                with open(found[-1], encoding="utf-8", newline="") as fh:
-                    rows = {int(r["timesteps"]): r for r in csv.DictReader(fh)}
-                for r in rows.values():
-                    if not all(np.isfinite(float(r[k])) for k in ("success_rate", "mean_readings")):
-                        raise ValueError("a non-finite evaluation")
-            except (KeyError, TypeError, ValueError, UnicodeDecodeError, csv.Error) as exc:
-                raise ReportError(f"{found[-1]}: not a readable evaluation log ({exc})") from None
+                cols = read_eval_csv(found[-1])
+            except ValueError as exc:
+                raise ReportError(str(exc)) from None
+            rows = {int(t): {k: v[i] for k, v in cols.items()} for i, t in enumerate(cols["timesteps"])}
             summary = found[-1].parent / "summary.json"
             wall = None
             if summary.is_file():
