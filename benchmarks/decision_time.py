@@ -28,8 +28,8 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
+from electroloc_gym.agentspec import split_specs  # noqa: E402
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
-from electroloc_gym.bench.cli import split_agents  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
 from electroloc_gym.fileio import write_json_atomic  # noqa: E402
 from electroloc_gym.markdown import markdown_table  # noqa: E402
@@ -81,7 +81,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.states < 1 or args.repeats < 1:
         parser.error("--states and --repeats must be ≥ 1")
-    specs = [s.strip() for s in split_agents(args.agents) if s.strip()]
+    specs = [s.strip() for s in split_specs(args.agents) if s.strip()]
     envs = collect_envs(args.states)
     times = {spec: time_decisions(spec, envs, args.repeats) for spec in specs}
     ref = specs[0]
