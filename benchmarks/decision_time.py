@@ -28,10 +28,11 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
+from electroloc_gym.agentspec import split_specs  # noqa: E402
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
-from electroloc_gym.bench.cli import split_agents  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
 from electroloc_gym.fileio import write_json_atomic  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 
 
 def collect_envs(n_states: int, seed: int = 101) -> list[tuple[str, object]]:
@@ -80,7 +81,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.states < 1 or args.repeats < 1:
         parser.error("--states and --repeats must be ≥ 1")
-    specs = [s.strip() for s in split_agents(args.agents) if s.strip()]
+    specs = [s.strip() for s in split_specs(args.agents) if s.strip()]
     envs = collect_envs(args.states)
     times = {spec: time_decisions(spec, envs, args.repeats) for spec in specs}
     ref = specs[0]
@@ -90,13 +91,13 @@ def main() -> None:
         return float(np.median(ms)), float(np.percentile(ms, 90))
 
     print(f"Decision time, ms (median / 90th percentile over {args.states} belief states, best of {args.repeats})\n")
-    print(f"| agent | 12.7 mm presets | 38.1 mm presets | all | median / {ref}'s |")
-    print("|---|---|---|---|---|")
     ref_median = stats(times[ref], None)[0]
+    rows = []
     for spec in specs:
         cells = [stats(times[spec], size) for size in ("12.7", "38.1", None)]
-        text = " | ".join(f"{m:.0f} / {p:.0f}" for m, p in cells)
-        print(f"| {spec} | {text} | {cells[2][0] / ref_median:.2f} |")
+        rows.append((spec, *(f"{m:.0f} / {p:.0f}" for m, p in cells), f"{cells[2][0] / ref_median:.2f}"))
+    for line in markdown_table(("agent", "12.7 mm presets", "38.1 mm presets", "all", f"median / {ref}'s"), rows):
+        print(line)
     if args.json:
         write_json_atomic(args.json, {"states": args.states, "repeats": args.repeats,
                                       "ms": {s: [[c, t * 1e3] for c, t in rows] for s, rows in times.items()}})

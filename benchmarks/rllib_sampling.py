@@ -31,6 +31,7 @@ import numpy as np
 
 import electroloc_gym.rllib as erl
 from electroloc_gym.fileio import write_json_atomic
+from electroloc_gym.markdown import markdown_table
 from electroloc_gym.runtime import pin_threads
 
 STARTUP_CODE = """
@@ -111,10 +112,11 @@ def main() -> None:
     res["native_steps_per_s"] = native_steps_per_s(args.num_envs, args.seconds)
     res.update(rllib_steps_per_s(args.num_envs, args.seconds))
     res["load_average_1min_after"] = os.getloadavg()[0]
-    print(f"| sampler ({args.num_envs} tanks per runner) | env steps/s |\n|---|---|")
-    print(f"| native vector env, this process (no RLlib) | {res['native_steps_per_s']:,.0f} |")
-    print(f"| RLlib, 1 env runner | {res['rllib_1_runner_steps_per_s']:,.0f} |")
-    print(f"| RLlib, 2 env runners at once | {res['rllib_2_runner_steps_per_s']:,.0f} |")
+    for line in markdown_table((f"sampler ({args.num_envs} tanks per runner)", "env steps/s"),
+                               [("native vector env, this process (no RLlib)", f"{res['native_steps_per_s']:,.0f}"),
+                                ("RLlib, 1 env runner", f"{res['rllib_1_runner_steps_per_s']:,.0f}"),
+                                ("RLlib, 2 env runners at once", f"{res['rllib_2_runner_steps_per_s']:,.0f}")]):
+        print(line)
     print(f"\nrunner env start-up (fresh process: import, build, reset, step): cold numba cache "
           f"{res['startup_s_cold_cache']:.1f} s, warm {res['startup_s_warm_cache']:.1f} s; "
           f"PPO build with 2 runners (warm cache) {res['algo_build_s_2_runners_warm_cache']:.1f} s; "

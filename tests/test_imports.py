@@ -164,7 +164,8 @@ def test_no_import_cycle_anywhere(graph: dict[str, set[str]]) -> None:
 #: The package's layers, bottom to top (docs/design.md's diagram): a module imports only its own layer and
 #: those below. Names are relative to ``electroloc_gym``; a package name covers its submodules.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("data", ("protocol", "registry", "checks", "runtime", "fileio", "agentspec", "distractor_layout", "models")),
+    ("data", ("protocol", "registry", "checks", "runtime", "fileio", "agentspec", "distractor_layout", "markdown",
+              "models")),
     ("physics", ("physics", "apparatus", "conditions")),
     ("kernels", ("kernels", "draws")),
     ("sensor", ("sensor", "sensor_array", "scene", "distractors")),

@@ -14,6 +14,7 @@ from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.bench.fidelity import PAPER_TRIALS, paper_count_interval
 from electroloc_gym.bench.schema import FAR_ERROR_MM
 from electroloc_gym.conditions import PRESET_NAMES
+from electroloc_gym.markdown import markdown_table
 from electroloc_gym.registry import ENVS
 
 __all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "PAPER_TABLE2", "render_table_md", "paper_agent_key",
@@ -185,9 +186,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
                    f"Table-4 agent of the run failed; the **medians** use all trials, failures included; {aggregate}. "
                    "Steps = observations fused.")
         out.append("")
-        out.append("| Water | Sphere (mm)/material | Agent | Success (failure) | Error (mm) mean/median "
-                   "| No. steps mean/median | Decision ms | Paper success (failure) | Paper error | Paper steps |")
-        out.append("|---|---|---|---|---|---|---|---|---|---|")
+        cells = []
         for r in t4:
             if r["condition"] == "all":
                 water, sphere = aggregate_label(r), ""
@@ -195,11 +194,13 @@ def render_table_md(summary: dict[str, Any]) -> str:
             else:
                 water, sphere = _cond_label(r["condition"])
                 paper = PAPER_TABLE4.get((r["condition"], paper_agent_key(r["agent"]) or ""))
-            ps, pe, pst = _paper_cells(paper, r)
-            out.append(f"| {water} | {sphere} | {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
-                       f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
-                       f"| {_pair(r['readings_mean_paired'], r['readings_median'])} | {_f(r['decision_ms_median'], 2)} "
-                       f"| {ps} | {pe} | {pst} |")
+            cells.append((water, sphere, r.get("label", r["agent"]), f"{r['successes']}({r['failures']})",
+                          _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
+                          _pair(r["readings_mean_paired"], r["readings_median"]), _f(r["decision_ms_median"], 2),
+                          *_paper_cells(paper, r)))
+        out.extend(markdown_table(("Water", "Sphere (mm)/material", "Agent", "Success (failure)",
+                                   "Error (mm) mean/median", "No. steps mean/median", "Decision ms",
+                                   "Paper success (failure)", "Paper error", "Paper steps"), cells))
         out.append("")
         inside = _inside_counts(t4)
         if inside:
@@ -226,9 +227,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
                    "of the estimates from their own mean (what the paper's text says its table measures). Steps = "
                    "readings taken (the paper does not report them).")
         out.append("")
-        out.append("| Condition | Agent | Success (failure) | Mean abs. error x (mm) | y (mm) "
-                   "| Repeatability x/y (mm) | Steps median | Paper x (mm) | Paper y (mm) |")
-        out.append("|---|---|---|---|---|---|---|---|---|")
+        cells = []
         for r in t1:
             if r["condition"] == "all":
                 label, paper, rep = f"{aggregate_label(r)} (average)", None, ""
@@ -241,10 +240,12 @@ def render_table_md(summary: dict[str, Any]) -> str:
                 label = f"{water} {sphere}"
                 paper = PAPER_TABLE1.get(r["condition"])
                 rep = _pair(r.get("error_x_repeatability_mm"), r.get("error_y_repeatability_mm"), 2)
-            out.append(f"| {label} | {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
-                       f"| {_f(r.get('error_x_mean_abs_mm'), 2)} | {_f(r.get('error_y_mean_abs_mm'), 2)} | {rep} "
-                       f"| {_f(r['readings_median'], 0)} | {_f(paper[0], 2) if paper else ''} "
-                       f"| {_f(paper[1], 2) if paper else ''} |")
+            cells.append((label, r.get("label", r["agent"]), f"{r['successes']}({r['failures']})",
+                          _f(r.get("error_x_mean_abs_mm"), 2), _f(r.get("error_y_mean_abs_mm"), 2), rep,
+                          _f(r["readings_median"], 0), _f(paper[0], 2) if paper else "",
+                          _f(paper[1], 2) if paper else ""))
+        out.extend(markdown_table(("Condition", "Agent", "Success (failure)", "Mean abs. error x (mm)", "y (mm)",
+                                   "Repeatability x/y (mm)", "Steps median", "Paper x (mm)", "Paper y (mm)"), cells))
         out.append("")
     return "\n".join(out)
 
@@ -254,17 +255,18 @@ def _identification_rows(t4: list[dict[str, Any]]) -> list[str]:
     out = ["## Identification (unknown target, §7)", "",
            "Over each agent's successful trials: the material estimate (conductor when more than half the particles "
            "have χ > 0) against the true one, and the median relative error of the radius estimate (the particles' "
-           "median radius). The paper has no such numbers.", "",
-           "| Water | Sphere (mm)/material | Agent | Successes | Material correct | Radius error median |",
-           "|---|---|---|---|---|---|"]
+           "median radius). The paper has no such numbers.", ""]
+    cells = []
     for r in t4:
         if not r.get("identified_trials"):
             continue
         pooled = r["condition"] == "all"
         water, sphere = (f"{aggregate_label(r)} (pooled)", "") if pooled else _cond_label(r["condition"])
         frac, rad = (r.get(k) for k in ("material_correct_frac", "radius_error_median_frac"))
-        out.append(f"| {water} | {sphere} | {r.get('label', r['agent'])} | {r['successes']} "
-                   f"| {_f(None if frac is None else 100 * frac)} % | {_f(None if rad is None else 100 * rad)} % |")
+        cells.append((water, sphere, r.get("label", r["agent"]), r["successes"],
+                      f"{_f(None if frac is None else 100 * frac)} %", f"{_f(None if rad is None else 100 * rad)} %"))
+    out.extend(markdown_table(("Water", "Sphere (mm)/material", "Agent", "Successes", "Material correct",
+                               "Radius error median"), cells))
     out.append("")
     return out
 
@@ -279,16 +281,12 @@ def _render_table2(summary: dict[str, Any]) -> str:
            f"particles, cap {cfg.get('max_observations')} observations; the map is "
            f"`electroloc_gym.scene.BENCHMARK_SCENE`. Error = |belief mean − true carriage position|. Same "
            f"Appendix-B rules as Table 4 (mean error/steps over the trials every agent solved, medians over all "
-           f"trials). Paper values in the right-hand columns."), "",
-           ("| Control type | Success (failure) | Error (mm) mean/median | No. steps mean/median | Decision ms "
-            "| Paper success (failure) | Paper error | Paper steps |"),
-           "|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        paper = PAPER_TABLE2.get(paper_agent_key(r["agent"]) or "")
-        ps, pe, pst = _paper_cells(paper, r)
-        out.append(f"| {r.get('label', r['agent'])} | {r['successes']}({r['failures']}) "
-                   f"| {_pair(r['error_mean_paired_mm'], r['error_median_mm'])} "
-                   f"| {_pair(r['readings_mean_paired'], r['readings_median'])} | {_f(r['decision_ms_median'], 2)} "
-                   f"| {ps} | {pe} | {pst} |")
+           f"trials). Paper values in the right-hand columns."), ""]
+    cells = [(r.get("label", r["agent"]), f"{r['successes']}({r['failures']})",
+              _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
+              _pair(r["readings_mean_paired"], r["readings_median"]), _f(r["decision_ms_median"], 2),
+              *_paper_cells(PAPER_TABLE2.get(paper_agent_key(r["agent"]) or ""), r)) for r in rows]
+    out.extend(markdown_table(("Control type", "Success (failure)", "Error (mm) mean/median", "No. steps mean/median",
+                               "Decision ms", "Paper success (failure)", "Paper error", "Paper steps"), cells))
     out.append("")
     return "\n".join(out)

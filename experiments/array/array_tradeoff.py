@@ -40,6 +40,7 @@ from electroloc_gym.baselines import make_agent  # noqa: E402
 from electroloc_gym.bench.agents import bench_env_kwargs, make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 from electroloc_gym.rollout import run_episode  # noqa: E402
 from electroloc_gym.sensor_array import SensorLayout, named_layout  # noqa: E402
 
@@ -145,24 +146,25 @@ def report(args: argparse.Namespace) -> None:
     lines = [f"Seed 0, the paper's eight conditions × {n_trials} trials per cell (calibrated model, 2500 particles, "
              "cap 35 snapshots). Means to localise over the successful trials; *success ≤ 10 mm*: successes whose "
              "estimate is within 10 mm of the target.", "",
-             "| K | layout | agent | success / trials | success ≤ 10 mm | error median (mm) "
-             "| error mean, successes (mm) | snapshots (= readings per pair) | readings | motions |", "|" + "---|" * 10]
-    for r in rows:
-        lines.append(f"| {r['K']} | {r['layout']} | {r['agent']} | {r['success']}/{r['trials']} "
-                     f"({100 * r['success_rate']:.0f} %) | {r['success_within_10mm']} | {r['error_median_mm']:.1f} | "
-                     f"{r['error_mean_success_mm']:.1f} | {r['snapshots']:.1f} | {r['readings']:.1f} | "
-                     f"{r['motions']:.1f} |")
+             *markdown_table(("K", "layout", "agent", "success / trials", "success ≤ 10 mm", "error median (mm)",
+                              "error mean, successes (mm)", "snapshots (= readings per pair)", "readings", "motions"),
+                             [(r["K"], r["layout"], r["agent"],
+                               f"{r['success']}/{r['trials']} ({100 * r['success_rate']:.0f} %)",
+                               r["success_within_10mm"], f"{r['error_median_mm']:.1f}",
+                               f"{r['error_mean_success_mm']:.1f}", f"{r['snapshots']:.1f}", f"{r['readings']:.1f}",
+                               f"{r['motions']:.1f}") for r in rows])]
     ks = sorted({(r["K"], r["layout"]) for r in recs})
-    lines += ["", "The stationary array per condition: successes (those within 10 mm of the target) of the trials.", "",
-              "| condition | " + " | ".join(f"K = {k} {lay}" for k, lay in ks) + " |", "|---|" + "---|" * len(ks)]
+    per_condition = []
     for c in PRESET_NAMES:
-        cells = []
+        cells = [c]
         for _, lay in ks:
             rs = [r for r in recs if r["agent"] == STATIONARY and r["layout"] == lay and r["condition"] == c]
             ok = sum(r["success"] for r in rs)
             good = sum(r["success"] and r["error_mm"] <= 10.0 for r in rs)
             cells.append(f"{ok}/{len(rs)} ({good})")
-        lines.append(f"| {c} | " + " | ".join(cells) + " |")
+        per_condition.append(cells)
+    lines += ["", "The stationary array per condition: successes (those within 10 mm of the target) of the trials.", "",
+              *markdown_table(("condition", *(f"K = {k} {lay}" for k, lay in ks)), per_condition)]
     with open(args.table, "w", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))

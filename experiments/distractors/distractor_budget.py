@@ -33,6 +33,7 @@ from electroloc_gym.baselines.agent import make_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.bench.schema import FAR_ERROR_MM  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 from electroloc_gym.rollout import run_episode  # noqa: E402
 
 #: The env's success criterion, mm (the benchmark's; here only measured, the episode does not stop on it).
@@ -87,13 +88,13 @@ def main() -> None:
     traces = [trace(agent, c, a.distractors, a.seed, k, a.budget)
               for k in range(a.trials) for c in PRESET_NAMES for agent in a.agents.split(",")]
     rows = summarize(traces)
-    print("| agent | trials | tight within budget | first tight (median reading) | far when first tight "
-          "| of those, back within 15 mm at the budget | far at the budget | median error at the budget (mm) |")
-    print("|---|---|---|---|---|---|---|---|")
-    for r in rows:
-        print(f"| {r['agent']} | {r['trials']} | {r['tight']} | {r['first_tight_reading_median']} "
-              f"| {r['far_at_first_tight']} | {r['recovered_by_budget']} | {r['far_at_budget']} "
-              f"| {r['error_median_at_budget_mm']:.1f} |")
+    for line in markdown_table(("agent", "trials", "tight within budget", "first tight (median reading)",
+                                "far when first tight", "of those, back within 15 mm at the budget",
+                                "far at the budget", "median error at the budget (mm)"),
+                               [(r["agent"], r["trials"], r["tight"], r["first_tight_reading_median"],
+                                 r["far_at_first_tight"], r["recovered_by_budget"], r["far_at_budget"],
+                                 f"{r['error_median_at_budget_mm']:.1f}") for r in rows]):
+        print(line)
     if a.out:
         with open(a.out, "w", encoding="utf-8") as fh:
             json.dump({"args": vars(a), "summary": rows, "traces": traces}, fh)

@@ -39,6 +39,7 @@ from electroloc_gym.bench.agents import shipped_models  # noqa: E402
 from electroloc_gym.bench.runner import BenchConfig, run_benchmark  # noqa: E402
 from electroloc_gym.bench.schema import FAR_ERROR_MM  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 
 AGENTS = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "eedi", "ppo-belief", "ppo-belief-distractors")
 DISTRACTORS = (0, 1, 2)
@@ -128,7 +129,7 @@ def paired(agents: list[str], ds: list[int], out: Path, n: int, ref: str = "eedi
     """
     from scipy.stats import binomtest
 
-    lines = []
+    cells = []
     for d in ds:
         mine = {(r["condition"], r["trial"]): r for r in _records(out, d, ref) if r["trial"] < n}
         for other in agents:
@@ -141,10 +142,10 @@ def paired(agents: list[str], ds: list[int], out: Path, n: int, ref: str = "eedi
             win = sum(a and not b for a, b in ok.values())
             loss = sum(b and not a for a, b in ok.values())
             p = binomtest(win, win + loss).pvalue if win + loss else 1.0
-            lines.append(f"| {d} | {other} | {len(keys)} | {win} | {loss} | {p:.2f} |")
+            cells.append((d, other, len(keys), win, loss, f"{p:.2f}"))
     return [f"Paired on the same trials: {ref} against each agent — trials where only {ref} / only the other "
             f"localised correctly (a success that is not far), and the sign test's two-sided p.", "",
-            f"| D | against | trials | only {ref} | only the other | p |", "|---|---|---|---|---|---|", *lines]
+            *markdown_table(("D", "against", "trials", f"only {ref}", "only the other", "p"), cells)]
 
 
 def _f(x: float | None, digits: int = 1) -> str:
@@ -153,6 +154,7 @@ def _f(x: float | None, digits: int = 1) -> str:
 
 def table_md(n: int, rows: list[dict], seed: int) -> str:
     """The comparison as Markdown."""
+    ordered = sorted(rows, key=lambda r: (AGENTS.index(r["agent"]) if r["agent"] in AGENTS else 99, r["distractors"]))
     out = [f"Seed {seed}, the paper's eight conditions × {n} trials = {8 * n} trials per agent and D "
            f"(`experiments/distractors/distractor_comparison.py`). *Successes (far)*: √trace Σ ≤ 10 mm within 35 "
            f"readings "
@@ -160,14 +162,13 @@ def table_md(n: int, rows: list[dict], seed: int) -> str:
            f"far ones, those whose estimate is nearer a distractor's centre than the target's. *Readings*: mean over "
            f"successes / median over all trials (a failure counts 35). *Error*: median over successes. "
            f"*Decision*: median ms per decision on the shared 2-core machine.", "",
-           "| Agent | D | Successes (far) | Far on a distractor | Readings mean succ. / median all "
-           "| Error median mm | Decision ms |",
-           "|---|---|---|---|---|---|---|"]
-    for r in sorted(rows, key=lambda r: (AGENTS.index(r["agent"]) if r["agent"] in AGENTS else 99, r["distractors"])):
-        out.append(f"| {r['agent']} | {r['distractors']} | {r['successes']}/{r['trials']} ({r['far_successes']}) "
-                   f"| {r['far_near_distractor']} | {_f(r['readings_mean_success'], 2)} "
-                   f"/ {_f(r['readings_median_all'])} "
-                   f"| {_f(r['error_median_mm'])} | {_f(r['decision_ms_median'], 1)} |")
+           *markdown_table(("Agent", "D", "Successes (far)", "Far on a distractor", "Readings mean succ. / median all",
+                            "Error median mm", "Decision ms"),
+                           [(r["agent"], r["distractors"], f"{r['successes']}/{r['trials']} ({r['far_successes']})",
+                             r["far_near_distractor"],
+                             f"{_f(r['readings_mean_success'], 2)} / {_f(r['readings_median_all'])}",
+                             _f(r["error_median_mm"]), _f(r["decision_ms_median"], 1))
+                            for r in ordered])]
     return "\n".join(out) + "\n"
 
 

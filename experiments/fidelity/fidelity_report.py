@@ -32,6 +32,7 @@ from electroloc_gym.conditions import (
     get_condition,
     start_box_coverage,
 )
+from electroloc_gym.markdown import markdown_table
 from electroloc_gym.sensor import expected_reading
 
 SIGNALS = ("paper", "fitted", "coverage")
@@ -43,18 +44,19 @@ def _mark(sim_s: int, sim_n: int, paper_s: int, paper_n: int) -> str:
 
 
 def table3() -> list[str]:
-    out = ["| Condition | σ_s (mV) | paper theory | paper measured | model, scale 1 | fitted scale | model, fitted "
-           "| coverage scale | model, coverage |", "|---|---|---|---|---|---|---|---|---|"]
+    rows = []
     for n in PRESET_NAMES:
         c = {s: get_condition(n, s) for s in SIGNALS}
-        out.append(f"| {n} | {c['paper'].amplifier.noise_rms_mV:.2f} | {PAPER_TABLE3_THEORY_MM[n]:.1f} "
-                   f"| {PAPER_TABLE3_MEASURED_MM[n]:.1f} | {c['paper'].detection_distance_mm():.1f} "
-                   f"| {c['fitted'].signal_scale:.2f} | {c['fitted'].detection_distance_mm():.1f} "
-                   f"| {c['coverage'].signal_scale:.2f} | {c['coverage'].detection_distance_mm():.1f} |")
-    return out
+        rows.append((n, f"{c['paper'].amplifier.noise_rms_mV:.2f}", f"{PAPER_TABLE3_THEORY_MM[n]:.1f}",
+                     f"{PAPER_TABLE3_MEASURED_MM[n]:.1f}", f"{c['paper'].detection_distance_mm():.1f}",
+                     f"{c['fitted'].signal_scale:.2f}", f"{c['fitted'].detection_distance_mm():.1f}",
+                     f"{c['coverage'].signal_scale:.2f}", f"{c['coverage'].detection_distance_mm():.1f}"))
+    return markdown_table(("Condition", "σ_s (mV)", "paper theory", "paper measured", "model, scale 1", "fitted scale",
+                           "model, fitted", "coverage scale", "model, coverage"), rows)
 
 
 def coverage() -> list[str]:
+    # Built by hand, not by markdown_table: the **mean** row's empty cell is "| |", one space, not the helper's "|  |".
     out = ["| Condition | paper signal | fitted | coverage (default) | peak \\|Φ\\| at coverage (V) "
            "| saturated share of the start box at coverage |", "|---|---|---|---|---|---|"]
     cov = {s: [] for s in SIGNALS}
@@ -82,9 +84,9 @@ def fig5_slopes() -> list[str]:
     near, far = rd < 0.1, rd > 3.0
     s_near = np.polyfit(np.log(ns[near]), np.log(rd[near]), 1)[0] if near.sum() > 2 else float("nan")
     s_far = np.polyfit(np.log(ns[far]), np.log(rd[far]), 1)[0] if far.sum() > 2 else float("nan")
-    return ["| Regime | paper (Fig. 5) | model (Eq. 5–6) |", "|---|---|---|",
-            f"| near field, r_d < 0.1 L | −1/2 | {s_near:.3f} |",
-            f"| far field, r_d > 3 L | −1/5 | {s_far:.3f} |"]
+    return markdown_table(("Regime", "paper (Fig. 5)", "model (Eq. 5–6)"),
+                          [("near field, r_d < 0.1 L", "−1/2", f"{s_near:.3f}"),
+                           ("far field, r_d > 3 L", "−1/5", f"{s_far:.3f}")])
 
 
 def _load(folder: str | None) -> tuple[list[dict[str, Any]], list[dict[str, Any]], dict[str, Any]] | None:
@@ -102,9 +104,7 @@ def _inside(record: dict[str, Any], signal: str) -> bool:
 
 
 def table4(rows: list[dict[str, Any]], label: str) -> list[str]:
-    out = [f"Run: {label}.", "",
-           "| Condition | Agent | success [paper 90 % interval] | paper | median steps | paper | median error (mm) "
-           "| paper |", "|---|---|---|---|---|---|---|---|"]
+    cells = []
     for n in PRESET_NAMES + ("all",):
         for r in (r for r in rows if r["condition"] == n and r.get("layout", "table4") == "table4"):
             key = r["agent"].split("[", 1)[0]
@@ -115,9 +115,11 @@ def table4(rows: list[dict[str, Any]], label: str) -> list[str]:
                 p_s, p_steps, p_err = f"{paper[0]}", f"{paper[5]:g}", f"{paper[3]:g}"
             else:
                 cell, p_s, p_steps, p_err = f"{r['successes']}", "", "", ""
-            out.append(f"| {'All conditions' if n == 'all' else n} | {r.get('label', r['agent'])} | {cell} | {p_s} "
-                       f"| {r['readings_median']:.3g} | {p_steps} | {r['error_median_mm']:.1f} | {p_err} |")
-    return out
+            cells.append(("All conditions" if n == "all" else n, r.get("label", r["agent"]), cell, p_s,
+                          f"{r['readings_median']:.3g}", p_steps, f"{r['error_median_mm']:.1f}", p_err))
+    return [f"Run: {label}.", "",
+            *markdown_table(("Condition", "Agent", "success [paper 90 % interval]", "paper", "median steps", "paper",
+                             "median error (mm)", "paper"), cells)]
 
 
 def fig12(rows: list[dict[str, Any]]) -> list[str]:
@@ -127,14 +129,13 @@ def fig12(rows: list[dict[str, Any]]) -> list[str]:
     fewer_fail = sum(by[(n, "min-var")]["failures"] <= by[(n, "rnd-wlk")]["failures"] for n in both)
     a, b = by.get(("all", "min-var")), by.get(("all", "rnd-wlk"))
     ratio = a["readings_median"] / b["readings_median"] if a and b else float("nan")
-    return ["| Fig. 12 statement | paper | simulation |", "|---|---|---|",
-            f"| conditions where min-var needs fewer median steps | 8 of 8 | {fewer_steps} of 8 |",
-            f"| conditions where min-var fails no more often | 8 of 8 | {fewer_fail} of 8 |",
-            f"| min-var / rnd-wlk, mean of the 8 median steps | 6.7 / 12.4 = 0.54 | "
-            f"{a['readings_median'] if a else float('nan'):.3g} / {b['readings_median'] if b else float('nan'):.3g} "
-            f"= {ratio:.2f} |",
-            f"| failures min-var / rnd-wlk | 19 / 113 "
-            f"| {a['failures'] if a else '–'} / {b['failures'] if b else '–'} |"]
+    return markdown_table(("Fig. 12 statement", "paper", "simulation"), [
+        ("conditions where min-var needs fewer median steps", "8 of 8", f"{fewer_steps} of 8"),
+        ("conditions where min-var fails no more often", "8 of 8", f"{fewer_fail} of 8"),
+        ("min-var / rnd-wlk, mean of the 8 median steps", "6.7 / 12.4 = 0.54",
+         f"{a['readings_median'] if a else float('nan'):.3g} / {b['readings_median'] if b else float('nan'):.3g} "
+         f"= {ratio:.2f}"),
+        ("failures min-var / rnd-wlk", "19 / 113", f"{a['failures'] if a else '–'} / {b['failures'] if b else '–'}")])
 
 
 def _median_obs(xs: list[dict[str, Any]]) -> str:
@@ -142,33 +143,31 @@ def _median_obs(xs: list[dict[str, Any]]) -> str:
 
 
 def inside_outside(records: list[dict[str, Any]], signal: str) -> list[str]:
-    out = ["| Agent | starts inside | median steps inside | median steps outside | successes inside "
-           "| successes outside |", "|---|---|---|---|---|---|"]
+    rows = []
     for agent in dict.fromkeys(r["agent"] for r in records if r.get("layout", "table4") == "table4"):
         rs = [r for r in records if r["agent"] == agent]
         ins = [r for r in rs if _inside(r, signal)]
         outs = [r for r in rs if not _inside(r, signal)]
-        out.append(f"| {agent} | {len(ins)}/{len(rs)} ({len(ins) / len(rs):.0%}) | {_median_obs(ins)} "
-                   f"| {_median_obs(outs)} "
-                   f"| {sum(x['success'] for x in ins)}/{len(ins)} | {sum(x['success'] for x in outs)}/{len(outs)} |")
-    return out
+        rows.append((agent, f"{len(ins)}/{len(rs)} ({len(ins) / len(rs):.0%})", _median_obs(ins), _median_obs(outs),
+                     f"{sum(x['success'] for x in ins)}/{len(ins)}", f"{sum(x['success'] for x in outs)}/{len(outs)}"))
+    return markdown_table(("Agent", "starts inside", "median steps inside", "median steps outside", "successes inside",
+                           "successes outside"), rows)
 
 
 def table1(rows: list[dict[str, Any]]) -> list[str]:
-    out = ["| Condition | success | mean \\|error x\\| (mm) | paper | mean \\|error y\\| (mm) | paper |",
-           "|---|---|---|---|---|---|"]
+    cells = []
     for r in rows:
         if r.get("layout") != "table1" or r["condition"] == "all":
             continue
         px, py = PAPER_TABLE1[r["condition"]]
-        out.append(f"| {r['condition']} | {r['successes']}({r['failures']}) | {r['error_x_mean_abs_mm']:.2f} "
-                   f"| {px:.2f} | {r['error_y_mean_abs_mm']:.2f} | {py:.2f} |")
-    return out
+        cells.append((r["condition"], f"{r['successes']}({r['failures']})", f"{r['error_x_mean_abs_mm']:.2f}",
+                      f"{px:.2f}", f"{r['error_y_mean_abs_mm']:.2f}", f"{py:.2f}"))
+    return markdown_table(("Condition", "success", "mean \\|error x\\| (mm)", "paper", "mean \\|error y\\| (mm)",
+                           "paper"), cells)
 
 
 def table2(rows: list[dict[str, Any]]) -> list[str]:
-    out = ["| Agent | success [paper 90 % interval] | paper | median steps | paper | median error (mm) | paper |",
-           "|---|---|---|---|---|---|---|"]
+    cells = []
     for r in rows:
         if r["condition"] == "all":
             continue
@@ -176,9 +175,10 @@ def table2(rows: list[dict[str, Any]]) -> list[str]:
         if not paper:
             continue
         cell = _mark(r["successes"], r["successes"] + r["failures"], paper[0], paper[0] + paper[1])
-        out.append(f"| {r['agent']} | {cell} | {paper[0]} | {r['readings_median']:g} | {paper[5]:g} "
-                   f"| {r['error_median_mm']:.1f} | {paper[3]:g} |")
-    return out
+        cells.append((r["agent"], cell, paper[0], f"{r['readings_median']:g}", f"{paper[5]:g}",
+                      f"{r['error_median_mm']:.1f}", f"{paper[3]:g}"))
+    return markdown_table(("Agent", "success [paper 90 % interval]", "paper", "median steps", "paper",
+                           "median error (mm)", "paper"), cells)
 
 
 def main() -> None:

@@ -24,6 +24,7 @@ from tqdm import tqdm  # noqa: E402
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, fitted_signal_scale, get_condition, start_box_coverage  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 from electroloc_gym.rollout import run_episode  # noqa: E402
 
 
@@ -62,16 +63,14 @@ def main() -> None:
         cov = np.mean([start_box_coverage(get_condition(n, fitted_signal_scale(n) * k)) for n in PRESET_NAMES])
         rows.append((k, cov, scan_one(k, agents, args.trials, args.seed)))
     n = args.trials * len(PRESET_NAMES)
-    head = " | ".join(f"{a} successes | {a} median steps" for a in agents)
     print(f"\nseed {args.seed}, {args.trials} trials per condition ({n} per agent)\n")
-    print(f"| k × fitted | start coverage | {head} | ratio {agents[-1]}/{agents[0]} "
-          f"| per-condition medians ({agents[-1]}) |")
-    print("|---" * (4 + 2 * len(agents)) + "|")
-    for k, cov, res in rows:
-        cells = " | ".join(f"{res[a][0]}/{n} | {res[a][1]:.1f}" for a in agents)
-        ratio = res[agents[-1]][1] / res[agents[0]][1]
-        meds = " ".join(f"{m:g}" for m in res[agents[-1]][2])
-        print(f"| {k:g} | {cov:.2f} | {cells} | {ratio:.2f} | {meds} |")
+    header = ("k × fitted", "start coverage", *(f"{a} {s}" for a in agents for s in ("successes", "median steps")),
+              f"ratio {agents[-1]}/{agents[0]}", f"per-condition medians ({agents[-1]})")
+    cells = [(f"{k:g}", f"{cov:.2f}", *(c for a in agents for c in (f"{res[a][0]}/{n}", f"{res[a][1]:.1f}")),
+              f"{res[agents[-1]][1] / res[agents[0]][1]:.2f}", " ".join(f"{m:g}" for m in res[agents[-1]][2]))
+             for k, cov, res in rows]
+    for line in markdown_table(header, cells):
+        print(line)
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 from electroloc_gym.rollout import run_episode  # noqa: E402
 
 AGENTS = ("min-var", "min-var[gain=preset]")
@@ -86,15 +87,13 @@ def main() -> None:
           f"median readings (successes) per condition, then the mean of the eight medians")
     for setting, res in results.items():
         print(f"\n{setting}:")
-        print("| condition | " + " | ".join(AGENTS) + " |")
-        print("|---|" + "---|" * len(AGENTS))
-        for name in PRESET_NAMES:
-            cells = [f"{np.median([n for _, n in res[a][name]]):.1f} ({sum(s for s, _ in res[a][name])})"
-                     for a in AGENTS]
-            print(f"| {name} | " + " | ".join(cells) + " |")
+        rows = [(name, *(f"{np.median([n for _, n in res[a][name]]):.1f} ({sum(s for s, _ in res[a][name])})"
+                         for a in AGENTS)) for name in PRESET_NAMES]
         means = [np.mean([np.median([n for _, n in res[a][c]]) for c in PRESET_NAMES]) for a in AGENTS]
         succ = [sum(s for c in PRESET_NAMES for s, _ in res[a][c]) for a in AGENTS]
-        print("| mean of medians (successes) | " + " | ".join(f"{m:.2f} ({s})" for m, s in zip(means, succ)) + " |")
+        rows.append(("mean of medians (successes)", *(f"{m:.2f} ({s})" for m, s in zip(means, succ))))
+        for line in markdown_table(("condition", *AGENTS), rows):
+            print(line)
     if args.plot:
         import matplotlib
 

@@ -36,6 +36,7 @@ import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.bench.agents import make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.conditions import Condition, get_condition  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 from electroloc_gym.rollout import run_episode  # noqa: E402
 
 TRAIN_SEED = 7000
@@ -107,9 +108,10 @@ def main() -> None:
         rows.append((label, sum(s for s, _ in res), np.median(n), n.mean()))
     print(f"{args.condition} with a {args.output_noise_mV:g} mV output noise, gain levels {args.levels} × G; "
           f"{args.trials} trials, seed {args.seed} (readings: failures count at the cap)")
-    print("| agent | successes | median readings | mean readings |\n|---|---|---|---|")
-    for label, s, med, mean in rows:
-        print(f"| {label} | {s}/{args.trials} | {med:.1f} | {mean:.2f} |")
+    for line in markdown_table(("agent", "successes", "median readings", "mean readings"),
+                               [(label, f"{s}/{args.trials}", f"{med:.1f}", f"{mean:.2f}")
+                                for label, s, med, mean in rows]):
+        print(line)
 
 
 if __name__ == "__main__":

@@ -57,6 +57,10 @@ def _fmt(v: Sequence[float], digits: int = 2) -> str:
 
 def table(analyses: Sequence[dict[str, Any]]) -> str:
     """The aggregate table (markdown): algorithm × env."""
+    from electroloc_gym.markdown import markdown_table
+
+    # The main table is built by hand, not by markdown_table: a baseline row's empty cells are "| |", one space,
+    # not the helper's "|  |".
     lines = ["| env | algorithm | seeds | readings IQM [95 % CI] | readings mean [CI] | success mean [CI] | "
              "normalised IQM [CI] | P(better than min-var) [CI] | P(better than lookahead) [CI] |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -72,8 +76,8 @@ def table(analyses: Sequence[dict[str, Any]]) -> str:
                          f"{row['success_mean']:.2f} | {norm} | | |")
     pairs = [(a["env_id"], c) for a in analyses for c in a.get("comparisons", [])]
     if pairs:
-        lines += ["", "| env | A | B | P(A needs fewer readings than B) [95 % CI] |", "|---|---|---|---|"]
-        lines += [f"| {env} | {c['better']} | {c['than']} | {_fmt(c['p'])} |" for env, c in pairs]
+        lines += ["", *markdown_table(("env", "A", "B", "P(A needs fewer readings than B) [95 % CI]"),
+                                      [(env, c["better"], c["than"], _fmt(c["p"])) for env, c in pairs])]
     return "\n".join(lines) + "\n"
 
 
@@ -81,17 +85,20 @@ def condition_table(a: dict[str, Any]) -> str:
     """Per condition of one env: each algorithm's readings score, mean over its seeds (min–max), and each
     non-learned agent's (markdown).
     """
+    from electroloc_gym.markdown import markdown_table
+
     conds = a["conditions"]
-    lines = [f"{a['env_id']}: readings to localise per condition (a failure counts as the cap), learned: mean over "
-             "seeds (min–max)", "", "| agent | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]
+    rows = []
     for algo, row in a["algorithms"].items():
-        cells = []
+        cells = [f"{algo} ({len(a['seeds'][algo])} seeds)"]
         for c in conds:
             v = np.asarray(row["per_condition_readings"][c])
             cells.append(f"{v.mean():.2f} ({v.min():.1f}–{v.max():.1f})")
-        lines.append(f"| {algo} ({len(a['seeds'][algo])} seeds) | " + " | ".join(cells) + " |")
+        rows.append(cells)
     for agent, row in a["baselines"].items():
-        lines.append(f"| {agent} | " + " | ".join(f"{row['per_condition_readings'][c]:.2f}" for c in conds) + " |")
+        rows.append([agent, *(f"{row['per_condition_readings'][c]:.2f}" for c in conds)])
+    lines = [f"{a['env_id']}: readings to localise per condition (a failure counts as the cap), learned: mean over "
+             "seeds (min–max)", "", *markdown_table(("agent", *conds), rows)]
     return "\n".join(lines) + "\n"
 
 
@@ -253,6 +260,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tuple[str, str]]) -> int:
     from electroloc_gym.fileio import atomic_write_text, write_json_atomic
+    from electroloc_gym.markdown import markdown_table
 
     analyses = []
     for env in list(envs):  # a suite still running: an env without a benchmarked learned run is left out
@@ -271,14 +279,15 @@ def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tup
         text += f"\n{len(aside)} record(s) or folder(s) set aside (impossible or not this run's):\n\n"
         text += "".join(f"* {m}\n" for m in aside)
     figures(analyses, args.results)
-    compute = ["", "| env | algorithm | training wall time per seed, s (2-core CPU) |", "|---|---|---|"]
+    compute = []
     for env in envs:
         curves = eval_curves(args.results, env)
         curve_figure(args.results, env, curves)
         for algo, c in curves.items():
             walls = [w for w in c["wall_time_s"] if w is not None]
-            compute.append(f"| {env} | {algo} | {', '.join(f'{w:.0f}' for w in walls) or '–'} |")
-    text += "\n".join(compute) + "\n"
+            compute.append((env, algo, ", ".join(f"{w:.0f}" for w in walls) or "–"))
+    text += "\n".join(["", *markdown_table(("env", "algorithm", "training wall time per seed, s (2-core CPU)"),
+                                           compute)]) + "\n"
     atomic_write_text(args.results / "report.md", text)
     write_json_atomic(args.results / "report.json",
                       [{k: v for k, v in a.items() if not k.startswith("_") and not (k == "set_aside" and not v)}

@@ -107,6 +107,8 @@ def analyse(results: Path, learned: Path, env_id: str, reps: int, seed: int) -> 
 def table(a: dict[str, Any]) -> str:
     """The markdown table of one env."""
     f = lambda v: f"{v[0]:.2f} [{v[1]:.2f}, {v[2]:.2f}]"  # noqa: E731
+    # Built by hand, not by electroloc_gym.markdown: a controller row's empty cells are "| |", one space, not
+    # the helper's "|  |".
     lines = [f"### {a['env_id']} ({len(a['conditions'])} conditions × {a['trials_per_condition']} trials of the "
              f"benchmark's seed 0)", "",
              "| agent | data | seeds | readings IQM [95 % CI] | readings mean [CI] | success | normalised IQM [CI] | "

@@ -46,6 +46,7 @@ from electroloc_gym.registry import env_entry  # noqa: E402
 GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
 GLOBAL_CONDITION = env_entry(GLOBAL_ENV_ID).map_condition
 from electroloc_gym.conditions import DEFAULT_SIGNAL, get_condition  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 from electroloc_gym.rollout import run_episode  # noqa: E402
 
 #: min-var, then the planner at increasing budgets.
@@ -84,13 +85,10 @@ def run(env_id: str, conditions: tuple[str, ...], trials: int, seed: int, agents
 
 def table(env_id: str, res: dict[str, dict[str, list[float]]]) -> list[str]:
     """Markdown rows of one env's results."""
-    rows = ["| env | agent | trials | successes | median steps | mean steps | median decision (ms) |",
-            "|---|---|---:|---:|---:|---:|---:|"]
-    for a, r in res.items():
-        rows.append(f"| {env_id} | `{a}` | {len(r['steps'])} | {sum(r['success'])} | "
-                    f"{np.median(r['steps']):.1f} | {np.mean(r['steps']):.2f} | "
-                    f"{1000 * np.median(r['decision_s']):.1f} |")
-    return rows
+    return markdown_table(("env", "agent", "trials", "successes", "median steps", "mean steps", "median decision (ms)"),
+                          [(env_id, f"`{a}`", len(r["steps"]), sum(r["success"]), f"{np.median(r['steps']):.1f}",
+                            f"{np.mean(r['steps']):.2f}", f"{1000 * np.median(r['decision_s']):.1f}")
+                           for a, r in res.items()], align="llrrrrr")
 
 
 def main() -> None:

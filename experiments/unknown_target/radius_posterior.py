@@ -28,6 +28,7 @@ from electroloc_gym.bench.agents import make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
 from electroloc_gym.core.unknown import CONDUCTOR_CHI, INSULATOR_CHI  # noqa: E402
+from electroloc_gym.markdown import markdown_table  # noqa: E402
 from electroloc_gym.rollout import run_episode  # noqa: E402
 from electroloc_gym.sensor_models.shape import TheoreticalShapeModel  # noqa: E402
 
@@ -84,9 +85,10 @@ def main() -> None:
                 errors[key].append(abs(float(est) - truth) / truth)
     n = len(next(iter(errors.values())))
     print(f"{args.agent}, seed {args.seed}, {args.trials} trials per condition: {n} successes")
-    print("| radius estimate | median relative error | within 20 % |\n|---|---|---|")
-    for key, e in errors.items():
-        print(f"| {key} | {100 * np.median(e):.1f} % | {100 * np.mean(np.asarray(e) <= 0.2):.0f} % |")
+    for line in markdown_table(("radius estimate", "median relative error", "within 20 %"),
+                               [(key, f"{100 * np.median(e):.1f} %", f"{100 * np.mean(np.asarray(e) <= 0.2):.0f} %")
+                                for key, e in errors.items()]):
+        print(line)
 
 
 if __name__ == "__main__":
