@@ -5,7 +5,9 @@ one thread):
 
 1. ``benchmarks/vector_env.py``: single env, SyncVectorEnv and the native vector env at N = 16 and 64
    (belief observation, calibrated model, 2500 particles);
-2. ``benchmarks/train_fps.py``: SB3 PPO training fps, DummyVecEnv vs the native adapter, N = 16 and 64;
+2. ``benchmarks/train_fps.py``: rl-zoo3 PPO training fps, DummyVecEnv vs the native adapter, N = 16 and
+   64 (the current code only: ``--before`` compares the env rows, since a previous checkout's ``train/``
+   is not importable beside this one's editable install);
 3. unless ``--skip-table4``: the Table-4 reproduction, ``electroloc bench --agents
    rnd-wlk,min-var,zero-crossing`` (8 conditions × 3 agents × 50 trials, 2 workers), wall time.
 
@@ -68,7 +70,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     fps = {}
     for n in (16, 64):
         print(f"== PPO training fps, N = {n} (benchmarks/train_fps.py)", flush=True)
-        fps[n] = train_fps.main(["--n-envs", str(n)] + (["--before", args.before] if args.before else []))
+        fps[n] = train_fps.main(["--n-envs", str(n)])  # the current code only: see the module docstring
 
     rows: list[dict[str, Any]] = []
 
@@ -88,12 +90,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         add(f"native vector env steps/s, N={n}", by[("native", n)], "steps/s", before.get(("native", n)))
         add(f"native / sync, N={n}", by[("native", n)] / by[("sync", n)], "x", 10.0 if n == 16 else None)
     for n in (16, 64):
-        d = {r["vec_env"]: r["fps_cpu"] for r in fps[n]["rows"] if r["code"] == "now"}
-        prev = {r["vec_env"]: r["fps_cpu"] for r in fps[n]["rows"] if r["code"] == "before"}
-        if prev:
-            add(f"PPO fps native adapter, N={n}, previous code", prev["native"], "fps", None)
+        d = {kind: r["fps"] for kind, r in fps[n]["rows"].items()}
         add(f"PPO fps DummyVecEnv, N={n}", d["dummy"], "fps", None)
-        add(f"PPO fps native adapter, N={n}", d["native"], "fps", prev.get("native") if prev else None)
+        add(f"PPO fps native adapter, N={n}", d["native"], "fps", None)
         add(f"PPO native / dummy, N={n}", d["native"] / d["dummy"], "x", 3.0)
     if not args.skip_table4:
         print(f"== Table-4 reproduction: electroloc bench --agents {TABLE4_AGENTS} --trials {args.trials}", flush=True)

@@ -9,7 +9,7 @@ validation episodes excluded) come from the run's own ``summary.json``. The host
 the rows run in ``--passes`` interleaved passes (dummy, native, dummy, ...) and each row keeps its
 best pass.
 
-    python benchmarks/train_fps.py [--timesteps 16384] [--passes 2] [--json out.json]
+    python benchmarks/train_fps.py [--n-envs 16] [--timesteps 16384] [--passes 2] [--json out.json]
 """
 
 from __future__ import annotations
@@ -31,30 +31,32 @@ from electroloc_gym.train.run import zoo_argv
 CALLBACK = "callback:[{'electroloc_gym.train.callbacks.BenchEvalCallback':{'eval_freq':10**9,'n_episodes':1}}]"
 
 
-def one_run(native: bool, timesteps: int, log_folder: Path) -> dict[str, Any]:
-    """Run rl-zoo3 once; its summary.json's timing."""
+def one_run(native: bool, timesteps: int, log_folder: Path, n_envs: int = 16) -> dict[str, Any]:
+    """Run rl-zoo3 once in a fresh log folder; its summary.json's timing."""
     argv = zoo_argv("ppo", "ElectroLoc-v0", 0, timesteps=timesteps, log_folder=log_folder, native=native)
     env = {**os.environ, **{v: "1" for v in THREAD_VARS}}
-    out = subprocess.run([sys.executable, *argv, "--hyperparams", CALLBACK], capture_output=True, text=True, env=env,
-                         check=True).stdout
-    run = Path(next(ln.split("Log path:", 1)[1].strip() for ln in out.splitlines() if ln.startswith("Log path:")))
-    s = json.loads((run / "summary.json").read_text())
+    subprocess.run([sys.executable, *argv, "--hyperparams", CALLBACK, f"n_envs:{n_envs}"], capture_output=True,
+                   text=True, env=env, check=True)
+    (summary,) = Path(log_folder).glob("ppo/ElectroLoc-v0_*/summary.json")  # the folder is this run's alone
+    s = json.loads(summary.read_text())
     return {"timesteps": s["timesteps"], "fps": s["fps_training_only"], "wall_time_s": s["wall_time_s"]}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--n-envs", type=int, default=16, help="the vector env's N (the file's n_envs: 16)")
     ap.add_argument("--timesteps", type=int, default=16384, help="env steps per run (16 envs x 256 = 4096 a rollout)")
     ap.add_argument("--passes", type=int, default=2, help="interleaved passes over the two rows (the best is kept)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
-    print(f"rl-zoo3 PPO on ElectroLoc-v0 (train/hyperparams/ppo.yml: 16 envs, n_steps 256, 10 epochs, 128x128), "
+    print(f"rl-zoo3 PPO on ElectroLoc-v0 (train/hyperparams/ppo.yml: n_steps 256, 10 epochs, 128x128; "
+          f"{a.n_envs} envs), "
           f"{a.timesteps} steps per run, torch 1 thread, {a.passes} interleaved passes", flush=True)
     best: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for p in range(a.passes):
             for kind in ("dummy", "native"):
-                r = one_run(kind == "native", a.timesteps, Path(tmp))
+                r = one_run(kind == "native", a.timesteps, Path(tmp) / f"{p}-{kind}", a.n_envs)
                 print(f"  pass {p + 1} {kind:<7} {r['fps']:8.0f} steps/s", flush=True)
                 if kind not in best or r["fps"] > best[kind]["fps"]:
                     best[kind] = r
@@ -63,7 +65,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     print(f"{'DummyVecEnv (rl-zoo3)':<26} {best['dummy']['fps']:>15.0f}")
     print(f"{'native (electroloc hook)':<26} {best['native']['fps']:>15.0f}")
     print(f"native / dummy: {ratio:.2f}x")
-    res = {"timesteps": a.timesteps, "passes": a.passes, "rows": best, "ratio_native_vs_dummy": ratio}
+    res = {"n_envs": a.n_envs, "timesteps": a.timesteps, "passes": a.passes, "rows": best,
+           "ratio_native_vs_dummy": ratio}
     if a.json:
         atomic_write_text(a.json, json.dumps(res, indent=2))
     return res
