@@ -20,7 +20,7 @@ Attributes and optional hooks the benchmark runner understands:
   ``None`` when it gave up: a failure). The runner then stops without stepping the env.
 * ``adapt_condition(condition) -> Condition`` (optional) — the workspace layout the agent is
   evaluated in (zero-crossing: the paper's Table-1 layout, §6.4).
-* ``layout: str`` (optional) — ``"table4"`` (default) or ``"table1"``: which of the paper's tables
+* ``table_layout: str`` (optional) — ``"table4"`` (default) or ``"table1"``: which of the paper's tables
   the agent's results belong to.
 * ``sensor_layouts: tuple[str, ...] | None`` (optional) — the named sensor layouts
   (``electroloc_gym.sensor_array.LAYOUT_NAMES``) the agent can run on; None (default): every one. The
@@ -74,7 +74,7 @@ class BaselineAgent:
     #: Registry name.
     name = "baseline"
     #: Which paper table the agent's results belong to.
-    layout = "table4"
+    table_layout = "table4"
     #: The named sensor layouts the agent runs on (None: every one).
     sensor_layouts: tuple[str, ...] | None = None
 

@@ -91,7 +91,7 @@ class ZeroCrossingAgent(BaselineAgent):
     """
 
     name = "zero-crossing"
-    layout = "table1"
+    table_layout = "table1"
     #: It follows one pair's zero crossings (§4.2): the paper's single pair only.
     sensor_layouts = ("single",)
 

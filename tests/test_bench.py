@@ -153,7 +153,7 @@ def test_same_start_for_every_agent(serial_run) -> None:
     recs = read_trials(out / "trials.jsonl")
     by = {}
     for r in recs:
-        if r["layout"] == "table4":
+        if r["table_layout"] == "table4":
             by.setdefault((r["condition"], r["trial"]), set()).add(tuple(r["start"]))
     assert by and all(len(v) == 1 for v in by.values())
 
@@ -185,9 +185,9 @@ def test_resume_refuses_different_settings(serial_run, tmp_path) -> None:
 
 
 # ---- Appendix B statistics -------------------------------------------------------------------------
-def _rec(cond, agent, trial, success, steps, err, layout="table4"):
+def _rec(cond, agent, trial, success, steps, err, table_layout="table4"):
     return {"condition": cond, "agent": agent, "trial": trial, "success": success, "readings": steps,
-            "error_mm": err, "error_x_mm": err, "error_y_mm": 0.0, "estimate": [err, 0.0], "layout": layout,
+            "error_mm": err, "error_x_mm": err, "error_y_mm": 0.0, "estimate": [err, 0.0], "table_layout": table_layout,
             "decision_ms_median": 1.0}
 
 
@@ -222,7 +222,7 @@ def test_paper_all_conditions_row_is_average_of_rows() -> None:
 
 def test_table_renders_paper_numbers() -> None:
     recs = [_rec("fresh-steel-12.7", "min-var", 0, True, 5, 1.0),
-            _rec("fresh-steel-12.7", "zero-crossing", 0, True, 300, 0.1, layout="table1")]
+            _rec("fresh-steel-12.7", "zero-crossing", 0, True, 300, 0.1, table_layout="table1")]
     text = render_table_md(summarize(recs))
     assert "50(0)" in text and "1.7/1.1" in text    # Table 4, fresh 12.7/S, min-var
     assert "0.39" in text                            # Table 1, fresh 12.7/S, y
@@ -274,7 +274,8 @@ def test_statistical_min_var_beats_rnd_wlk(tmp_path) -> None:
 # ---- tables: the paper's totals only beside all eight conditions ----------------------------------------------
 def _eight_condition_records(conditions):
     return [_rec(c, a, k, k != 2, 5 + k, 1.0 + k) for c in conditions for a in ("rnd-wlk", "min-var")
-            for k in range(3)] + [_rec(c, "zero-crossing", 0, True, 300, 0.2, layout="table1") for c in conditions]
+            for k in range(3)] + [_rec(c, "zero-crossing", 0, True, 300, 0.2, table_layout="table1")
+                                  for c in conditions]
 
 
 def test_all_conditions_row_only_over_the_papers_eight() -> None:

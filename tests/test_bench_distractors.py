@@ -84,7 +84,7 @@ def test_an_older_run_without_the_key_resumes_as_zero(tmp_path) -> None:
 
 
 def test_schema_refuses_a_far_flag_that_contradicts_the_error() -> None:
-    rec = {"condition": "fresh-steel-12.7", "agent": "rnd-wlk", "agent_label": "rnd-wlk", "layout": "table4",
+    rec = {"condition": "fresh-steel-12.7", "agent": "rnd-wlk", "agent_label": "rnd-wlk", "table_layout": "table4",
            "trial": 0, "seed": 1, "agent_seed": 2, "success": True, "ended_by": "success", "observations": 5,
            "error_mm": 20.0, "error_x_mm": 20.0, "error_y_mm": 0.0, "estimate": [20.0, 0.0], "target": [0.0, 0.0],
            "start": [1.0, 1.0], "spread_mm": 5.0, "decisions": 4, "decision_ms_median": 1.0,

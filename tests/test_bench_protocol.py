@@ -128,7 +128,7 @@ def test_plug_in_hooks_that_change_the_trial_are_refused() -> None:
 
     class Table1:
         env_kwargs: dict = {}
-        layout = "table1"
+        table_layout = "table1"
 
     assert "adapt_condition" in plug_in_problem(Moves())
     assert "Table-4 layout" in plug_in_problem(Table1())

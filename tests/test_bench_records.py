@@ -123,7 +123,7 @@ def test_parsing_is_bounded(reference, tmp_path, capsys, crafted, message) -> No
     ({"error_mm": -5}, "'error_mm' must be a distance in [0, 2000] mm"),
     ({"agent": "evil"}, "agent 'evil' is not one of the run's"),
     ({"trial": 7}, "trial 7 is outside the run's range 0–2"),
-    ({"layout": "table1", "_failed": True}, "layout 'table1', but agent 'rnd-wlk' reports to 'table4'"),
+    ({"table_layout": "table1", "_failed": True}, "table_layout 'table1', but agent 'rnd-wlk' reports to 'table4'"),
     ({"spread_mm": 50.0, "success": True, "ended_by": "success", "readings": 5, "decisions": 4},
      "vs the criterion 10.0 mm"),
     ({"extra": 1}, "unknown key(s) ['extra']"),
@@ -175,7 +175,7 @@ def test_every_field_is_checked_on_resume(reference, tmp_path, data) -> None:
     cfg, out, lines, _ = reference
     config = BenchConfig(**cfg)
     rules = _rules(cfg)
-    table4 = [i for i, line in enumerate(lines) if json.loads(line)["layout"] == "table4"]  # every field pinned
+    table4 = [i for i, line in enumerate(lines) if json.loads(line)["table_layout"] == "table4"]  # every field pinned
     n = data.draw(st.sampled_from(table4), label="line")
     key = data.draw(st.sampled_from(RECORD_KEYS), label="field")
     original = json.loads(lines[n])

@@ -251,7 +251,7 @@ def test_calibrated_array_model_per_pair_tables() -> None:
     seeds = pair_seeds(9, 4)
     assert seeds[0] == 9 and len(set(seeds)) == 4
     mean, std = grid.mean_std(off)
-    for k, centre in enumerate(grid.layout.paper_unit_centres):  # the paper's calibration, shifted to the unit
+    for k, centre in enumerate(grid.sensor_layout.paper_unit_centres):  # the paper's calibration, shifted to the unit
         ref = make_sensor_model("calibrated", c, seeds[k]).mean_std(off - np.asarray(centre))
         np.testing.assert_array_equal(mean[k], ref[0])
         np.testing.assert_array_equal(std[k], ref[1])

@@ -122,7 +122,7 @@ def _runs_on_map_env(spec: str, env_id: str) -> bool:
     """
     kind = agent_kind(spec)
     if kind == "baseline":
-        return getattr(cached_agent(spec), "layout", "table4") == "table4"
+        return getattr(cached_agent(spec), "table_layout", "table4") == "table4"
     if kind == "shipped":
         return shipped_model_env(shipped_models()[spec]) == (env_id, None)
     if kind == "path":

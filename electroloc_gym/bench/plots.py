@@ -33,7 +33,7 @@ def steps_png(summary: dict[str, Any]) -> bytes:
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
-    rows = [r for r in summary["rows"] if r.get("layout", "table4") == "table4" and r["condition"] != "all"]
+    rows = [r for r in summary["rows"] if r.get("table_layout", "table4") == "table4" and r["condition"] != "all"]
     conditions = list(dict.fromkeys(r["condition"] for r in rows))
     agents = list(dict.fromkeys(r["agent"] for r in rows))
     fig, axes = plt.subplots(2, 1, figsize=(max(6.0, 1.3 * len(conditions) + 2), 6.5), sharex=True)

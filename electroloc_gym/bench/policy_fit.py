@@ -50,7 +50,7 @@ def plug_in_problem(agent: Any) -> str | None:
     hooks = [h for h in BUILTIN_HOOKS if callable(getattr(agent, h, None))]
     if hooks:
         return f"it defines {hooks}, a hook of the built-in controllers only (the benchmark fixes the workspace)"
-    layout = getattr(agent, "layout", "table4")
+    layout = getattr(agent, "table_layout", "table4")
     if layout != "table4":
         return (f"its layout is {str(layout)[:40]!r}; a plug-in agent is judged by the belief (Table-4 layout), "
                 f"only the built-in zero-crossing reports to Table 1")

@@ -140,7 +140,7 @@ class TrialRecord:
     condition: str = _f(lambda v: isinstance(v, str) and 0 < len(v) <= _CONDITION_CHARS, "a condition name")
     agent: str = _f(_agent, "an agent spec")
     agent_label: str = _f(_text, "a non-empty string")
-    layout: str = _f(lambda v: v in ("table4", "table1"), "'table4' or 'table1'")
+    table_layout: str = _f(lambda v: v in ("table4", "table1"), "'table4' or 'table1'")
     trial: int = _f(_int(0), "an integer ≥ 0")
     seed: int = _f(_int(0, 2**32 - 1), "an integer in [0, 2³²)")
     agent_seed: int = _f(_int(0, 2**32 - 1), "an integer in [0, 2³²)")
@@ -221,7 +221,7 @@ class TrialRecord:
         if self.far_success != is_far_success(self.success, self.error_mm):
             return (f"'far_success' {self.far_success} contradicts 'success' {self.success} and 'error_mm' "
                     f"{self.error_mm} (far: a success more than {FAR_ERROR_MM} mm off)")
-        if self.layout == "table4" and self.readings > self.max_observations:  # Table 1: the agent's own budget
+        if self.table_layout == "table4" and self.readings > self.max_observations:  # Table 1: the agent's own budget
             return f"'readings' {self.readings} exceeds the record's cap 'max_observations' {self.max_observations}"
         if self.ended_by == "agent":
             if self.decisions != self.readings:
@@ -229,7 +229,7 @@ class TrialRecord:
         elif self.decisions != self.readings - 1:
             return (f"'decisions' {self.decisions} ≠ 'readings' − 1 = {self.readings - 1} "
                     f"(the env ended the trial)")
-        if self.ended_by == "agent" or self.layout == "table1":  # the agent's own estimate decides
+        if self.ended_by == "agent" or self.table_layout == "table1":  # the agent's own estimate decides
             if self.success != (self.ended_by == "agent" and self.estimate is not None):
                 return "'success' must be true exactly when an agent that ended the trial reported an estimate"
             return None
@@ -245,8 +245,9 @@ class TrialRecord:
             return f"condition {self.condition!r} is not one of the run's {sorted(rules.conditions)}"
         if self.agent not in rules.agents:
             return f"agent {self.agent!r} is not one of the run's {sorted(rules.agents)}"
-        if self.layout != rules.layouts.get(self.agent, self.layout):
-            return f"layout {self.layout!r}, but agent {self.agent!r} reports to {rules.layouts[self.agent]!r}"
+        if self.table_layout != rules.table_layouts.get(self.agent, self.table_layout):
+            return (f"table_layout {self.table_layout!r}, but agent {self.agent!r} reports to "
+                    f"{rules.table_layouts[self.agent]!r}")
         if self.trial >= rules.trials:
             return f"trial {self.trial} is outside the run's range 0–{rules.trials - 1}"
         cap = rules.caps.get(self.agent, self.max_observations)
@@ -254,7 +255,7 @@ class TrialRecord:
             return f"'readings' {self.readings} exceeds the cap of {cap}"
         if self.ended_by == "cap" and self.readings != cap:
             return f"ended by the cap of {cap} after {self.readings} readings"
-        if self.ended_by != "agent" and self.layout == "table4":
+        if self.ended_by != "agent" and self.table_layout == "table4":
             criterion = rules.criteria.get(self.agent, rules.success_spread_mm)
             assert self.spread_mm is not None  # checked by from_json
             if (self.spread_mm <= criterion) != self.success:
@@ -294,8 +295,9 @@ def _short(value: Any) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
-#: Old key names still read (old → current): the count of readings was written ``observations``.
-OLD_KEY_NAMES: Mapping[str, str] = MappingProxyType({"observations": "readings"})
+#: Old key names still read (old → current): the count of readings was written ``observations``, the
+#: paper table a record reports to ``layout``.
+OLD_KEY_NAMES: Mapping[str, str] = MappingProxyType({"observations": "readings", "layout": "table_layout"})
 #: Every key of a trial record, in the order written.
 RECORD_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord))
 #: Keys a record may lack (records written before the key existed read as None).
@@ -316,7 +318,7 @@ class RecordRules:
         shape: the env identifies the target (records carry ``shape``).
         caps: each agent's observation cap (default: the record's ``max_observations``).
         criteria: each agent's success criterion, where it sets its own (default: ``success_spread_mm``).
-        layouts: each agent's table layout (``"table4"`` or ``"table1"``), where known.
+        table_layouts: each agent's table layout (``"table4"`` or ``"table1"``), where known.
         start_of: (condition, agent, env seed) → the start (x, y) mm that trial's seed draws (None: the
             start is not checked; the callable may return None for a trial it cannot replay).
     """
@@ -328,5 +330,5 @@ class RecordRules:
     shape: bool = False
     caps: Mapping[str, int] = field(default_factory=dict)
     criteria: Mapping[str, float] = field(default_factory=dict)
-    layouts: Mapping[str, str] = field(default_factory=dict)
+    table_layouts: Mapping[str, str] = field(default_factory=dict)
     start_of: Callable[[str, str, int], tuple[float, float] | None] | None = None

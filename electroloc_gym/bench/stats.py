@@ -74,7 +74,7 @@ def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int
         "condition": condition,
         "agent": agent,
         "label": agent_label(agent, recs),
-        "layout": recs[0].get("layout", "table4") if recs else "table4",
+        "table_layout": recs[0].get("table_layout", "table4") if recs else "table4",
         "trials": len(recs),
         "successes": len(ok),
         "failures": len(recs) - len(ok),
@@ -131,8 +131,9 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
         by.setdefault((r["condition"], r["agent"]), []).append(r)
     for recs in by.values():
         recs.sort(key=lambda r: int(r["trial"]))
-    layout = {a: next((r.get("layout", "table4") for r in records if r["agent"] == a), "table4") for a in agents}
-    table4 = [a for a in agents if layout[a] == "table4"]
+    table_layout = {a: next((r.get("table_layout", "table4") for r in records if r["agent"] == a), "table4")
+                    for a in agents}
+    table4 = [a for a in agents if table_layout[a] == "table4"]
     rows: list[dict[str, Any]] = []
     per_agent: dict[str, list[dict[str, Any]]] = {a: [] for a in agents}
     for c in conditions:
@@ -143,7 +144,7 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
             recs = by.get((c, a), [])
             if not recs:
                 continue
-            paired = paired_t4 if layout[a] == "table4" else {int(r["trial"]) for r in recs if r["success"]}
+            paired = paired_t4 if table_layout[a] == "table4" else {int(r["trial"]) for r in recs if r["success"]}
             row = _row(c, a, recs, paired)
             rows.append(row)
             per_agent[a].append(row)
@@ -156,7 +157,7 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
             "condition": "all",
             "agent": a,
             "label": crow[0]["label"],
-            "layout": layout[a],
+            "table_layout": table_layout[a],
             "conditions": len(crow),
             "trials": sum(r["trials"] for r in crow),
             "successes": sum(r["successes"] for r in crow),

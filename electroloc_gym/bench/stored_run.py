@@ -129,18 +129,19 @@ def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
     agents = frozenset([*config.agents, *(a for a in stored.get("agents", []) if isinstance(a, str))])
     conditions = frozenset([*config.conditions, *(c for c in stored.get("conditions", []) if isinstance(c, str))])
     trials = max(config.trials, stored["trials"] if isinstance(stored.get("trials"), int) else 0)
-    caps, criteria, layouts = {}, {}, {}
+    caps, criteria, table_layouts = {}, {}, {}
     for spec in agents:
         agent = builtin_agent(spec)
         kwargs = dict(getattr(agent, "env_kwargs", {}) or {}) if agent is not None else {}
         caps[spec] = int(kwargs.get("max_observations", config.max_observations))
         if "success_spread_mm" in kwargs:
             criteria[spec] = float(kwargs["success_spread_mm"])
-        layouts[spec] = str(getattr(agent, "layout", "table4"))
+        table_layouts[spec] = str(getattr(agent, "table_layout", "table4"))
     return RecordRules(conditions=conditions, agents=agents, trials=trials,
                        success_spread_mm=float(config.success_spread_mm),
                        shape=bool(env_entry(config.env_id).record_keys),
-                       caps=caps, criteria=criteria, layouts=layouts, start_of=_StartReplay(config, trust_pickle))
+                       caps=caps, criteria=criteria, table_layouts=table_layouts,
+                       start_of=_StartReplay(config, trust_pickle))
 
 
 @dataclass(frozen=True)

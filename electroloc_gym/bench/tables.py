@@ -154,8 +154,8 @@ def render_table_md(summary: dict[str, Any]) -> str:
     """table.md: Table 4 layout for the belief agents, Table 1 layout for zero-crossing agents."""
     rows = summary["rows"]
     cfg = summary.get("config", {})
-    t4 = [r for r in rows if r.get("layout", "table4") == "table4"]
-    t1 = [r for r in rows if r.get("layout") == "table1"]
+    t4 = [r for r in rows if r.get("table_layout", "table4") == "table4"]
+    t1 = [r for r in rows if r.get("table_layout") == "table1"]
     if _paper_table(cfg.get("env_id")) == "table2":
         return _render_table2(summary)
     out: list[str] = []

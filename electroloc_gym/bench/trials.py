@@ -84,8 +84,8 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
     start = ep.start_info["position_mm"]
     core = env.unwrapped
     target = core.truth_mm  # evaluation only: what the belief estimates (the target, or the robot's own position)
-    layout = str(getattr(agent, "layout", "table4"))
-    if ep.ended_by == "agent" or layout == "table1":  # an agent that ends trials itself reports its estimate
+    table_layout = str(getattr(agent, "table_layout", "table4"))
+    if ep.ended_by == "agent" or table_layout == "table1":  # an agent that ends trials itself reports its estimate
         est = getattr(agent, "estimate_mm", None)
         success = bool(ep.ended_by == "agent" and est is not None)
         estimate = None if est is None else [float(est[0]), float(est[1])]
@@ -104,7 +104,7 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
         "condition": spec.condition,
         "agent": spec.agent,
         "agent_label": str(getattr(agent, "name", spec.agent)),
-        "layout": layout,
+        "table_layout": table_layout,
         "trial": spec.trial,
         "seed": spec.env_seed,
         "agent_seed": spec.agent_seed,

@@ -68,22 +68,22 @@ class ArrayLocalizeTask(LocalizeTask):
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
         self.fixed_carriage = params.fixed_carriage
-        self.layout = make_sensor_layout(params.sensor_layout, self.pool[0].geometry)
+        self.sensor_layout = make_sensor_layout(params.sensor_layout, self.pool[0].geometry)
         for c in self.pool:
-            if c.geometry != self.layout.geometry:
-                raise ValueError(f"sensor_layout: was built for {self.layout.geometry}, condition {c.name} has "
+            if c.geometry != self.sensor_layout.geometry:
+                raise ValueError(f"sensor_layout: was built for {self.sensor_layout.geometry}, condition {c.name} has "
                                  f"{c.geometry}")
-        self.array = not is_paper_pair(self.layout)
+        self.array = not is_paper_pair(self.sensor_layout)
         if not self.array:
             return
         if self.dynamic_gain:
             raise ValueError("sensor_layout: an array of pairs reads at the preset gain; gain_levels needs "
                              "sensor_layout='single'")
-        k = self.layout.n_pairs
+        k = self.sensor_layout.n_pairs
         self.n_readings = k
         self.info_keys = ("pair_readings_V", "n_readings")
         self.obs_dim = (BELIEF_OBS_DIM if params.observation == "belief" else RAW_OBS_DIM) + k - 1
-        self._array_analytic = [ArrayAnalyticSensorModel(c, self.layout) for c in self.pool]
+        self._array_analytic = [ArrayAnalyticSensorModel(c, self.sensor_layout) for c in self.pool]
 
     # ---- sizes: the array path fuses from numpy log-likelihoods, no coefficient table --------------
     def table_cells(self) -> int:
@@ -112,16 +112,16 @@ class ArrayLocalizeTask(LocalizeTask):
 
     def _pairs(self, reading: NDArray[np.float64]) -> NDArray[np.float64]:
         """Readings as (k, K) (the state holds (k,) when K = 1)."""
-        return reading.reshape(len(reading), self.layout.n_pairs)
+        return reading.reshape(len(reading), self.sensor_layout.n_pairs)
 
     def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
         """(k,) (paper's pair) or (k, K) noise-free, unsaturated readings of envs ``ids``, V."""
         if not self.array:
             return super().true_mean_V(state, ids)
         offsets = state.target_mm[ids] - state.position_mm[ids]
-        out = np.empty((len(ids), self.layout.n_pairs))
+        out = np.empty((len(ids), self.sensor_layout.n_pairs))
         for c, rows in group_by_world(state, ids):
-            out[rows] = array_reading(c, self.layout, offsets[rows], saturate=False).T
+            out[rows] = array_reading(c, self.sensor_layout, offsets[rows], saturate=False).T
         return out if self.n_readings > 1 else out[:, 0]
 
     def assimilate(self, state: State, ids: NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
@@ -141,7 +141,7 @@ class ArrayLocalizeTask(LocalizeTask):
         mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         pairs = self._pairs(reading)
         draws = jitter.shape[1]
-        for j in range(self.layout.n_pairs):
+        for j in range(self.sensor_layout.n_pairs):
             if j > 0:  # reading j's own resampling offset and jitter, from each env's generator
                 for r, i in enumerate(ids.tolist()):
                     g = s.gens[i]
@@ -198,7 +198,7 @@ class ArrayLocalizeTask(LocalizeTask):
             pairs = self._pairs(out["reading_V"])
             out["reading_V"] = pairs[:, 0].copy()
             out["pair_readings_V"] = pairs.copy()
-            out["n_readings"] = out["n_observations"] * self.layout.n_pairs
+            out["n_readings"] = out["n_observations"] * self.sensor_layout.n_pairs
         return out
 
     # ---- what agents predict ----------------------------------------------------------------------
@@ -217,7 +217,8 @@ class ArrayLocalizeTask(LocalizeTask):
             return super().sensor_model(state, i, level)
         models = state.model[i]
         if models[0] is None:
-            models[0] = ArrayCalibratedSensorModel(state.world[i], self.layout, int(state.cal_seed[i]), self.protocol)
+            models[0] = ArrayCalibratedSensorModel(state.world[i], self.sensor_layout, int(state.cal_seed[i]),
+                                                   self.protocol)
         return models[0]
 
     def predicted_mean_std(self, state: State, i: int, particles: NDArray, moves_mm: NDArray,

@@ -251,7 +251,7 @@ def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool 
     why = policy_env_problem(request.agent, agent, request.env_id, None)
     if why is not None:
         raise ValueError(f"agent {request.agent!r} cannot run on {request.env_id}: {why}")
-    if getattr(agent, "layout", None) == "table1":  # the agent reports its own estimate and stops (Table 1)
+    if getattr(agent, "table_layout", None) == "table1":  # the agent reports its own estimate and stops (Table 1)
         raise ValueError(f"agent {request.agent!r} ends episodes itself (zero-crossing's Table 1 layout); a dataset "
                          f"needs episodes the env ends")
     kwargs = dataset_env_kwargs(request.env_id, agent, request.condition)

@@ -149,7 +149,7 @@ class ElectroLocEnv(CoreEnv):
     @property
     def sensor_layout(self) -> SensorLayout:
         """The carriage's sensing pairs (K, 2, 2 electrode offsets in mm: ``.electrodes``, ``.n_pairs``)."""
-        return self._task.layout
+        return self._task.sensor_layout
 
     @property
     def fixed_carriage(self) -> bool:

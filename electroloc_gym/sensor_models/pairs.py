@@ -75,7 +75,7 @@ class ArrayAnalyticSensorModel:
 
     def __init__(self, condition: Condition, layout: SensorLayout) -> None:
         self.condition = condition
-        self.layout = layout
+        self.sensor_layout = layout
         self.n_pairs = layout.n_pairs
         self.noise_std_V = float(condition.noise_std_V)
         array_reading(condition, layout, np.zeros(2))  # the layout must fit the condition's geometry
@@ -83,13 +83,13 @@ class ArrayAnalyticSensorModel:
 
     def mean_std(self, offsets_mm: ArrayLike) -> tuple[NDArray, NDArray]:
         """(K, ...) mean and std (V) of every pair's reading for targets at ``offsets_mm`` (..., 2)."""
-        mean = array_reading(self.condition, self.layout, offsets_mm)
+        mean = array_reading(self.condition, self.sensor_layout, offsets_mm)
         return mean, np.full_like(mean, self.noise_std_V)
 
     def log_likelihood(self, readings_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
         """Σ_k log N(Φ_k; mean_k, (G·σ_s)²) (...) up to a constant; ``readings_V`` (K,) or (K, ...) broadcasting."""
         r = _pair_readings(readings_V, self.n_pairs)
-        mean = array_reading(self.condition, self.layout, offsets_mm)
+        mean = array_reading(self.condition, self.sensor_layout, offsets_mm)
         return sum_over_pairs([gaussian_log_likelihood(r[k], mean[k], self.noise_std_V) for k in range(self.n_pairs)])
 
     def pair_log_likelihood(self, k: int, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
@@ -114,7 +114,7 @@ class ArrayCalibratedSensorModel:
     def __init__(self, condition: Condition, layout: SensorLayout, seed: int = 0,
                  protocol: CalibrationProtocol = DEFAULT_CALIBRATION) -> None:
         self.condition = condition
-        self.layout = layout
+        self.sensor_layout = layout
         self.n_pairs = layout.n_pairs
         self.seed = int(seed)
         self.protocol = protocol
@@ -133,7 +133,7 @@ class ArrayCalibratedSensorModel:
         """Pair k's calibration readings: its cached noise-free grid (:func:`pair_noise_free_grid`) plus noise from
         the quantile table, as :func:`~electroloc_gym.sensor.calibration_readings`.
         """
-        mean = pair_noise_free_grid(self.condition, self.layout.pair(k), self.protocol)
+        mean = pair_noise_free_grid(self.condition, self.sensor_layout.pair(k), self.protocol)
 
         def reading(u: NDArray, rng: np.random.Generator) -> NDArray:
             if np.shape(u)[:-1] != mean.shape:

@@ -106,7 +106,7 @@ def _inside(record: dict[str, Any], signal: str) -> bool:
 def table4(rows: list[dict[str, Any]], label: str) -> list[str]:
     cells = []
     for n in PRESET_NAMES + ("all",):
-        for r in (r for r in rows if r["condition"] == n and r.get("layout", "table4") == "table4"):
+        for r in (r for r in rows if r["condition"] == n and r.get("table_layout", "table4") == "table4"):
             key = r["agent"].split("[", 1)[0]
             paper = PAPER_TABLE4_ALL.get(key) if n == "all" else PAPER_TABLE4.get((n, key))
             sim_n = r["successes"] + r["failures"]
@@ -144,7 +144,7 @@ def _median_obs(xs: list[dict[str, Any]]) -> str:
 
 def inside_outside(records: list[dict[str, Any]], signal: str) -> list[str]:
     rows = []
-    for agent in dict.fromkeys(r["agent"] for r in records if r.get("layout", "table4") == "table4"):
+    for agent in dict.fromkeys(r["agent"] for r in records if r.get("table_layout", "table4") == "table4"):
         rs = [r for r in records if r["agent"] == agent]
         ins = [r for r in rs if _inside(r, signal)]
         outs = [r for r in rs if not _inside(r, signal)]
@@ -157,7 +157,7 @@ def inside_outside(records: list[dict[str, Any]], signal: str) -> list[str]:
 def table1(rows: list[dict[str, Any]]) -> list[str]:
     cells = []
     for r in rows:
-        if r.get("layout") != "table1" or r["condition"] == "all":
+        if r.get("table_layout") != "table1" or r["condition"] == "all":
             continue
         px, py = PAPER_TABLE1[r["condition"]]
         cells.append((r["condition"], f"{r['successes']}({r['failures']})", f"{r['error_x_mean_abs_mm']:.2f}",
@@ -211,7 +211,7 @@ def main() -> None:
             sections.append((f"Fig. 12, {label}", fig12(rows)))
         sections.append((f"Starts inside and outside the detection region, {label}",
                          inside_outside(records, cfg.get("signal", "coverage"))))
-        if any(r.get("layout") == "table1" for r in rows):
+        if any(r.get("table_layout") == "table1" for r in rows):
             sections.append((f"Table 1 (zero-crossing), {label}", table1(rows)))
     loaded = _load(args.global_)
     if loaded is not None:

@@ -24,7 +24,7 @@ def main() -> None:
     p.add_argument("--out", default="unknown_target.png", help="the PNG to write")
     args = p.parse_args()
     recs = [json.loads(line) for line in Path(args.run, "trials.jsonl").read_text().splitlines() if line.strip()]
-    agents = list(dict.fromkeys(r["agent"] for r in recs if r.get("layout", "table4") == "table4"))
+    agents = list(dict.fromkeys(r["agent"] for r in recs if r.get("table_layout", "table4") == "table4"))
     import matplotlib
 
     matplotlib.use("Agg")
