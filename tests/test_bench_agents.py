@@ -28,6 +28,7 @@ from electroloc_gym.bench.config import BenchConfig, make_trial_specs
 from electroloc_gym.bench.trials import run_trial
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.conditions import get_condition
+from electroloc_gym.registry import BENCH_ENVS
 from electroloc_gym.rollout import run_episode
 
 HAS_TRAIN = all(importlib.util.find_spec(m) is not None for m in ("torch", "stable_baselines3"))
@@ -137,6 +138,13 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
     assert cli_main(["bench", *FAST, "--backend", "serial", "--out", str(tmp_path)]) == 0
     captured = capsys.readouterr()
     assert "electroloc bench: skipping ppo-belief: the training extra is not installed (test)" in captured.err
+    # the policies of other settings: one plain line saying where each runs, no "skipping" line each
+    assert ("electroloc bench: the shipped policies trained for other settings run there: "
+            "ppo-belief-gain (--env dynamic-gain), ppo-belief-global (--env global), "
+            "ppo-belief-grid-2x2 (--sensor-layout grid-2x2), ppo-belief-unknown (--env unknown-target)") in captured.err
+    assert "skipping ppo-belief-global" not in captured.err
+    for env_name in ("global", "dynamic-gain", "unknown-target"):  # each option named is a real bench row
+        assert env_name in BENCH_ENVS
     assert "agents: rnd-wlk; min-var; zero-crossing" in captured.out
     assert [c.spec for c in default_agents(names=("rnd-wlk", "min-var")) if not c.skipped] == ["rnd-wlk", "min-var"]
 

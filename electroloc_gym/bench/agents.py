@@ -49,6 +49,7 @@ from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (r
     shipped_models,
     trained_sensor_layout,
 )
+from electroloc_gym.registry import BENCH_ENVS
 
 __all__ = [
     "AgentChoice",
@@ -80,10 +81,22 @@ TRAIN_EXTRA_HINT = "pip install 'electroloc-gym[train]'"
 
 @dataclass(frozen=True)
 class AgentChoice:
-    """An agent a default run considered: its spec, and why it was skipped (None: it runs)."""
+    """An agent a default run considered: its spec, why it was skipped (None: it runs), and for a shipped
+    policy trained on other settings the ``electroloc bench`` options it runs with (None: unknown).
+    """
 
     spec: str
     skipped: str | None = None
+    runs_with: str | None = None
+
+
+def _bench_options_of(env_id: str, gain_levels: tuple[float, ...] | None) -> str | None:
+    """The ``--env`` option of the bench row that runs ``env_id`` with these gain levels (None: no row)."""
+    for name, (entry, row) in BENCH_ENVS.items():
+        levels = row.env_kwargs.get("gain_levels")
+        if entry.env_id == env_id and (None if levels is None else tuple(levels)) == gain_levels:
+            return f"--env {name}"
+    return None
 
 
 def is_policy_path(spec: str) -> bool:
@@ -398,12 +411,15 @@ def default_agents(*, names: tuple[str, ...] | None = None, trust_pickle: bool =
         if trained_on is not None and trained_on != (env_id, gain_levels):
             what = trained_on[0] + ("" if trained_on[1] is None else f" with gain_levels={list(trained_on[1])}")
             here = env_id + ("" if gain_levels is None else f" with gain_levels={list(gain_levels)}")
-            choices.append(AgentChoice(name, skipped=f"trained on {what}, not {here}"))
+            levels = None if trained_on[1] is None else tuple(trained_on[1])
+            choices.append(AgentChoice(name, skipped=f"trained on {what}, not {here}",
+                                       runs_with=_bench_options_of(trained_on[0], levels)))
             continue
         layout = trained_sensor_layout(policy_meta(name))
         if layout is not None and layout != (sensor_layout or "single"):
             choices.append(AgentChoice(name, skipped=f"trained with sensor_layout={layout!r}, "
-                                                     f"not {sensor_layout or 'single'!r}"))
+                                                     f"not {sensor_layout or 'single'!r}",
+                                       runs_with=f"--sensor-layout {layout}"))
             continue
         if missing:
             choices.append(AgentChoice(name, skipped=missing))

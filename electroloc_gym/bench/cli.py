@@ -153,8 +153,12 @@ def _agents(args: argparse.Namespace, env_id: str, row: BenchEnv) -> list[str]:
         return specs
     choices = default_agents(names=row.agents, trust_pickle=args.trust_pickle, env_id=env_id,
                              gain_levels=row.env_kwargs.get("gain_levels"), sensor_layout=args.sensor_layout)
+    elsewhere = [f"{c.spec} ({c.runs_with})" for c in choices if c.skipped and c.runs_with]
+    if elsewhere:  # expected, not a warning: the policy belongs to another run
+        print(f"electroloc bench: the shipped policies trained for other settings run there: {', '.join(elsewhere)}",
+              file=sys.stderr)
     for c in choices:
-        if c.skipped:
+        if c.skipped and not c.runs_with:
             print(f"electroloc bench: skipping {c.spec}: {c.skipped}", file=sys.stderr)
     return [c.spec for c in choices if not c.skipped]
 
