@@ -188,7 +188,7 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
     """Success rate and mean readings on validation episodes against env steps: the mean over seeds and its
     95 % t-interval (scipy) clipped to the metric's range (a rate in [0, 1], readings in [0, the episode
     cap]: with five seeds an early, bimodal step's t-interval reaches past both), every algorithm of the env
-    in one figure; saved atomically.
+    in one figure, drawn by rliable's ``plot_sample_efficiency_curve``; saved atomically.
     """
     if not curves:
         return None
@@ -197,6 +197,7 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.ticker import FuncFormatter
+    from rliable import plot_utils
     from scipy import stats
 
     from electroloc_gym.core.params import EnvParams
@@ -204,14 +205,17 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
 
     ranges = {"success_rate": (0.0, 1.0), "mean_readings": (0.0, float(EnvParams().max_observations))}
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
-    for algo, c in curves.items():
-        for ax, key in zip(axes, ("success_rate", "mean_readings")):
+    for ax, key in zip(axes, ("success_rate", "mean_readings")):
+        for algo, c in curves.items():  # one call per algorithm: each has its own evaluation steps
             y = c[key]
             m = y.mean(axis=0)
-            if y.shape[0] > 1:
-                half = stats.t.ppf(0.975, y.shape[0] - 1) * y.std(axis=0, ddof=1) / np.sqrt(y.shape[0])
-                ax.fill_between(c["timesteps"], *np.clip([m - half, m + half], *ranges[key]), alpha=0.2)
-            ax.plot(c["timesteps"], m, marker=".", label=f"{algo} ({y.shape[0]} seeds)")
+            half = (stats.t.ppf(0.975, y.shape[0] - 1) * y.std(axis=0, ddof=1) / np.sqrt(y.shape[0])
+                    if y.shape[0] > 1 else np.zeros_like(m))
+            label = f"{algo} ({y.shape[0]} seeds)"
+            plot_utils.plot_sample_efficiency_curve(
+                c["timesteps"], {label: m}, {label: np.clip([m - half, m + half], *ranges[key])},
+                colors={label: f"C{list(curves).index(algo)}"}, ax=ax, xlabel="", ylabel="", marker=".",
+                labelsize="medium", ticklabelsize="small")
     axes[0].set_ylabel("success rate (validation episodes)")
     axes[1].set_ylabel("mean readings to localise (failure = cap)")
     for ax in axes:
