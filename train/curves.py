@@ -1,5 +1,9 @@
 r"""Learning curves from run directories' ``eval.csv``: success rate and median steps vs timesteps.
 
+Each run is one line (no interval: one seed per run); ``rl_zoo3.plots`` draws the training monitor's
+returns, not the benchmark's readings on seeded validation episodes that ``eval.csv`` holds, hence this
+short plot. Aggregates over seeds with intervals are the learned report's (rliable's curves).
+
 Usage::
 
     python -m electroloc_gym.train.curves runs/ppo-s1000 runs/ppo-s2000 --labels "seed 1000" "seed 2000" \
