@@ -88,6 +88,45 @@ class Agent(nn.Module):
         return action, dist.log_prob(action).sum(-1), dist.entropy().sum(-1), self.value(x)
 
 
+def ppo_update(agent: Agent, optim: torch.optim.Optimizer, args: argparse.Namespace, obs_buf: torch.Tensor,
+               act_buf: torch.Tensor, logp_buf: torch.Tensor, rew_buf: torch.Tensor, done_buf: torch.Tensor,
+               val_buf: torch.Tensor, valid_buf: torch.Tensor, next_value: torch.Tensor) -> None:
+    """GAE over a (T, N) rollout, then clipped-PPO epochs over its valid transitions (any one device)."""
+    T, N = rew_buf.shape
+    with torch.no_grad():  # generalised advantage estimation; an ended episode bootstraps nothing
+        adv = torch.zeros_like(rew_buf)
+        last = torch.zeros_like(next_value)
+        for t in reversed(range(T)):
+            v_next = next_value if t == T - 1 else val_buf[t + 1]
+            nonterminal = 1.0 - done_buf[t]
+            delta = rew_buf[t] + args.gamma * v_next * nonterminal - val_buf[t]
+            last = delta + args.gamma * args.gae_lambda * nonterminal * last
+            adv[t] = last
+        ret = adv + val_buf
+    keep = valid_buf.reshape(-1).bool()  # drop the reset transitions of NEXT_STEP autoreset
+    b_obs, b_act = obs_buf.reshape(T * N, -1)[keep], act_buf.reshape(T * N, -1)[keep]
+    b_logp, b_adv = logp_buf.reshape(-1)[keep], adv.reshape(-1)[keep]
+    b_ret, b_val = ret.reshape(-1)[keep], val_buf.reshape(-1)[keep]
+    n = b_obs.shape[0]
+    mb = max(1, n // args.num_minibatches)
+    for _ in range(args.update_epochs):
+        perm = torch.randperm(n, device=b_obs.device)
+        for start in range(0, n, mb):
+            idx = perm[start:start + mb]
+            _, logp, entropy, value = agent.act(b_obs[idx], b_act[idx])
+            ratio = (logp - b_logp[idx]).exp()
+            a = b_adv[idx]
+            a = (a - a.mean()) / (a.std() + 1e-8) if len(idx) > 1 else a
+            pg_loss = torch.max(-a * ratio, -a * ratio.clamp(1 - args.clip_coef, 1 + args.clip_coef)).mean()
+            v_clipped = b_val[idx] + (value - b_val[idx]).clamp(-args.clip_coef, args.clip_coef)
+            v_loss = 0.5 * torch.max((value - b_ret[idx]) ** 2, (v_clipped - b_ret[idx]) ** 2).mean()
+            loss = pg_loss - args.ent_coef * entropy.mean() + args.vf_coef * v_loss
+            optim.zero_grad()
+            loss.backward()
+            nn.utils.clip_grad_norm_(agent.parameters(), args.max_grad_norm)
+            optim.step()
+
+
 def make_envs(args: argparse.Namespace, num_envs: int, randomize_target: bool) -> gym.vector.VectorEnv:
     """The native vector env: ``num_envs`` tanks and particle filters stepped as arrays."""
     return gym.make_vec(args.env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
@@ -128,40 +167,9 @@ def train(args: argparse.Namespace) -> Agent:
                 successes.append(bool(info["success"][i]))
             next_obs, next_done = torch.as_tensor(obs), done_buf[t].clone()
 
-        with torch.no_grad():  # generalised advantage estimation; an ended episode bootstraps nothing
+        with torch.no_grad():
             next_value = agent.value(next_obs)
-            adv = torch.zeros((T, N))
-            last = torch.zeros(N)
-            for t in reversed(range(T)):
-                v_next = next_value if t == T - 1 else val_buf[t + 1]
-                nonterminal = 1.0 - done_buf[t]
-                delta = rew_buf[t] + args.gamma * v_next * nonterminal - val_buf[t]
-                last = delta + args.gamma * args.gae_lambda * nonterminal * last
-                adv[t] = last
-            ret = adv + val_buf
-
-        keep = valid_buf.reshape(-1).bool()  # drop the reset transitions of NEXT_STEP autoreset
-        b_obs, b_act = obs_buf.reshape(-1, obs_dim)[keep], act_buf.reshape(-1, act_dim)[keep]
-        b_logp, b_adv = logp_buf.reshape(-1)[keep], adv.reshape(-1)[keep]
-        b_ret, b_val = ret.reshape(-1)[keep], val_buf.reshape(-1)[keep]
-        n = b_obs.shape[0]
-        mb = max(1, n // args.num_minibatches)
-        for _ in range(args.update_epochs):
-            perm = torch.randperm(n)
-            for start in range(0, n, mb):
-                idx = perm[start:start + mb]
-                _, logp, entropy, value = agent.act(b_obs[idx], b_act[idx])
-                ratio = (logp - b_logp[idx]).exp()
-                a = b_adv[idx]
-                a = (a - a.mean()) / (a.std() + 1e-8) if len(idx) > 1 else a
-                pg_loss = torch.max(-a * ratio, -a * ratio.clamp(1 - args.clip_coef, 1 + args.clip_coef)).mean()
-                v_clipped = b_val[idx] + (value - b_val[idx]).clamp(-args.clip_coef, args.clip_coef)
-                v_loss = 0.5 * torch.max((value - b_ret[idx]) ** 2, (v_clipped - b_ret[idx]) ** 2).mean()
-                loss = pg_loss - args.ent_coef * entropy.mean() + args.vf_coef * v_loss
-                optim.zero_grad()
-                loss.backward()
-                nn.utils.clip_grad_norm_(agent.parameters(), args.max_grad_norm)
-                optim.step()
+        ppo_update(agent, optim, args, obs_buf, act_buf, logp_buf, rew_buf, done_buf, val_buf, valid_buf, next_value)
 
         if lengths and (update % 10 == 0 or update == n_updates):
             recent = slice(-100, None)

@@ -55,6 +55,24 @@ def test_ppo_minimal_masks_the_reset_steps_of_next_step_autoreset() -> None:
     envs.close()
 
 
+def test_ppo_torch_trains_with_the_rollouts_on_the_env_device(tmp_path, capsys) -> None:
+    torch = pytest.importorskip("torch")
+    ppo = _load("ppo_torch")
+    out = tmp_path / "policy.pt"
+    result = ppo.main(["--device", "cpu", "--num-envs", "16", "--num-steps", "16", "--total-timesteps", "512",
+                       "--update-epochs", "2", "--eval-episodes", "8", "--save", str(out)])
+    assert 0.0 <= result["success_rate"] <= 1.0 and 1.0 <= result["mean_readings"] <= 35.0
+    text = capsys.readouterr().out
+    assert "update 2/2" in text and "evaluation (8 episodes" in text
+    minimal = _load("ppo_minimal")
+    agent = minimal.Agent(81, 2)  # the same network as the CPU example's
+    agent.load_state_dict(torch.load(out, weights_only=True))
+    envs = ppo.make_envs(ppo.parse_args(["--device", "cpu"]), 2, randomize_target=False)
+    obs, _ = envs.reset(seed=0)
+    assert isinstance(obs, torch.Tensor)  # the loop's inputs are tensors on the env's device, no numpy
+    envs.close()
+
+
 def test_ppo_minimal_rejects_a_budget_below_one_rollout(capsys) -> None:
     pytest.importorskip("torch")
     ppo = _load("ppo_minimal")
