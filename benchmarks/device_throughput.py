@@ -11,7 +11,9 @@ random actions, so episodes end and reset as in training), eager and, with ``--c
 ``torch.compile`` (inductor); beside it the numba native vector env at ``--numba-n`` on one CPU core
 (per CPU-second of this process). Rates are wall-clock on CUDA (after ``torch.cuda.synchronize``) and
 per CPU-second on the CPU. Also the state's bytes per env and, on CUDA, the peak allocated bytes per
-env of a step. Prints a table and writes JSON (atomically). Numeric libraries run on one thread.
+env of a step. Then the on-device PPO of ``examples/ppo_torch.py`` at ``--ppo-n`` envs (0: skipped):
+its training env-steps per second (rollouts and updates) over two updates. Prints a table and writes
+JSON (atomically). Numeric libraries run on one thread.
 """
 
 from __future__ import annotations
@@ -85,6 +87,25 @@ def numba_rate(n: int, seconds: float, kwargs: dict[str, Any]) -> dict[str, Any]
     return {"n_envs": n, "env_steps_per_s": n * steps / (time.process_time() - start), "steps": steps}
 
 
+def ppo_rate(n: int, device: torch.device, num_steps: int = 16, updates: int = 2) -> dict[str, Any]:
+    """Training env-steps/s of examples/ppo_torch.py (rollouts on ``device`` and updates), ``updates`` updates."""
+    import importlib.util
+    import sys
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    sys.path.insert(0, str(examples))
+    spec = importlib.util.spec_from_file_location("ppo_torch", examples / "ppo_torch.py")
+    ppo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ppo)
+    args = ppo.parse_args(["--device", str(device), "--num-envs", str(n), "--num-steps", str(num_steps),
+                           "--total-timesteps", str(n * num_steps * updates), "--update-epochs", "4"])
+    t0 = _clock(device)
+    ppo.train(args)
+    seconds = _clock(device) - t0
+    return {"n_envs": n, "timesteps": n * num_steps * updates, "seconds": seconds,
+            "train_steps_per_s": n * num_steps * updates / seconds}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--device", default="cpu")
@@ -93,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--compile", action="store_true", help="also time the torch.compile'd step")
     ap.add_argument("--env-kwargs", default="{}", help="JSON of ElectroLoc-v0 arguments (both backends)")
+    ap.add_argument("--ppo-n", type=int, default=256, help="envs of the on-device PPO row (0: skip it)")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     try:
@@ -100,8 +122,8 @@ def main(argv: list[str] | None = None) -> int:
         kwargs = json.loads(args.env_kwargs)
     except (RuntimeError, ValueError) as exc:
         ap.error(f"--device / --env-kwargs: {exc}")
-    if any(n < 1 for n in args.n_envs) or args.numba_n < 1 or args.seconds <= 0:
-        ap.error("--n-envs and --numba-n must be ≥ 1, --seconds > 0")
+    if any(n < 1 for n in args.n_envs) or args.numba_n < 1 or args.seconds <= 0 or args.ppo_n < 0:
+        ap.error("--n-envs and --numba-n must be ≥ 1, --seconds > 0, --ppo-n ≥ 0")
     torch.set_num_threads(1)
     rows: list[dict[str, Any]] = []
     numba = numba_rate(args.numba_n, args.seconds, kwargs)
@@ -120,9 +142,14 @@ def main(argv: list[str] | None = None) -> int:
                   f"({row['env_steps_per_s'] / numba['env_steps_per_s']:.2f}× numba), "
                   f"state {row['state_bytes_per_env']:,} B/env"
                   + (f", peak {row['peak_bytes_per_env']:,.0f} B/env" if "peak_bytes_per_env" in row else ""))
+    ppo = None
+    if args.ppo_n > 0:
+        ppo = ppo_rate(args.ppo_n, device)
+        print(f"on-device PPO (examples/ppo_torch.py), N = {ppo['n_envs']}: {ppo['train_steps_per_s']:,.0f} "
+              f"training env-steps/s")
     name = torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu (1 thread)"
     result = {"device": str(device), "device_name": name, "torch": torch.__version__, "env_kwargs": kwargs,
-              "numba": numba, "torch_rows": rows,
+              "numba": numba, "torch_rows": rows, "ppo": ppo,
               "rate_clock": "wall (synchronised)" if device.type == "cuda" else "process CPU time"}
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
