@@ -31,8 +31,16 @@ nox.options.default_venv_backend = "venv"
 nox.options.sessions = ["tests", "lowest", "rllib", "wheel", "docs"]
 
 CONSTRAINTS = ("-c", str(ROOT / "constraints.txt"))
-ONE_THREAD = {var: "1" for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                                   "NUMEXPR_NUM_THREADS", "NUMBA_NUM_THREADS")}
+ONE_THREAD = {
+    var: "1"
+    for var in (
+        "OMP_NUM_THREADS",
+        "OPENBLAS_NUM_THREADS",
+        "MKL_NUM_THREADS",
+        "NUMEXPR_NUM_THREADS",
+        "NUMBA_NUM_THREADS",
+    )
+}
 #: What the default sessions leave out (the fast suite's ``not slow`` plus the extras they do not install).
 NOT_RLLIB = "not slow and not rllib"
 NOT_LOWEST = "not slow and not rllib and not zoo and not minari"
@@ -111,8 +119,21 @@ def wheel(session: nox.Session) -> None:
     session.chdir(work)  # nothing of the checkout on sys.path
     session.run(py, "-c", _WHEEL_SMOKE, external=True, env=ONE_THREAD)
     session.run(electroloc, "--help", external=True, silent=True)
-    session.run(electroloc, "bench", "--agents", "ppo-belief,rnd-wlk", "--conditions", "fresh-steel-12.7",
-                "--trials", "2", "--out", str(work / "bench"), "--no-progress", external=True, env=ONE_THREAD)
+    session.run(
+        electroloc,
+        "bench",
+        "--agents",
+        "ppo-belief,rnd-wlk",
+        "--conditions",
+        "fresh-steel-12.7",
+        "--trials",
+        "2",
+        "--out",
+        str(work / "bench"),
+        "--no-progress",
+        external=True,
+        env=ONE_THREAD,
+    )
 
 
 @nox.session

@@ -16,8 +16,10 @@ import electroloc_gym  # noqa: F401
 
 CASES = [
     ("ElectroLoc-v0", {"n_particles": 500}),
-    ("ElectroLoc-v0", {"n_particles": 300, "sensor_model": "analytic", "condition": "random",
-                       "randomize_target": True}),
+    (
+        "ElectroLoc-v0",
+        {"n_particles": 300, "sensor_model": "analytic", "condition": "random", "randomize_target": True},
+    ),
     ("ElectroLocGlobal-v0", {"n_particles": 300}),
     ("ElectroLocGlobal-v0", {"n_particles": 200, "sensor_model": "analytic", "layout": "random"}),
     ("ElectroLocUnknownTarget-v0", {"n_particles": 400}),

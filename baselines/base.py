@@ -47,7 +47,6 @@ from electroloc_gym.protocol import MAX_STEP_MM  # the largest move per axis per
 __all__ = ["Agent", "BaselineAgent", "sample_options_mm", "move_bounds_mm", "sample_belief", "MAX_STEP_MM"]
 
 
-
 @runtime_checkable
 class Agent(Protocol):
     """What the benchmark runner calls. Learned policies (``electroloc_gym.policy.load``) implement the same."""
@@ -58,8 +57,9 @@ class Agent(Protocol):
         """Bind to ``env`` at the start of a trial (after ``env.reset``)."""
         ...
 
-    def predict(self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None,
-                deterministic: bool = True) -> tuple[NDArray, Any]:
+    def predict(
+        self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None, deterministic: bool = True
+    ) -> tuple[NDArray, Any]:
         """The next action (2,) in [−1, 1]² and the recurrent state (``None`` for stateless agents)."""
         ...
 
@@ -104,8 +104,9 @@ class BaselineAgent:
             raise RuntimeError(f"{type(self).__name__}.reset(env) must be called before predict()")
         return self._env
 
-    def predict(self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None,
-                deterministic: bool = True) -> tuple[NDArray[np.float32], Any]:
+    def predict(
+        self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None, deterministic: bool = True
+    ) -> tuple[NDArray[np.float32], Any]:
         """SB3-style call; subclasses implement :meth:`choose_move_mm` (and may set :attr:`gain_level`).
 
         With dynamic gain (the env's ``gain_levels``) the action's third entry selects the gain: the
@@ -147,8 +148,9 @@ def move_bounds_mm(env: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     return lo, hi
 
 
-def sample_options_mm(rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray,
-                      n_options: int = 16) -> NDArray[np.float64]:
+def sample_options_mm(
+    rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray, n_options: int = 16
+) -> NDArray[np.float64]:
     """The paper's control options (§4.1.3): stay, plus ``n_options − 1`` uniform moves in ±10 mm.
 
     The random moves are drawn uniformly from the move bounds ``[lo_mm, hi_mm]`` per axis (the
@@ -167,8 +169,9 @@ def sample_options_mm(rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray,
     return moves
 
 
-def sample_belief(belief: Any, n: int | None, rng: np.random.Generator,
-                  keep_weights: bool = False) -> tuple[NDArray, NDArray[np.float64] | None]:
+def sample_belief(
+    belief: Any, n: int | None, rng: np.random.Generator, keep_weights: bool = False
+) -> tuple[NDArray, NDArray[np.float64] | None]:
     """A planner's hypotheses: the belief's particles, or ``n`` of them drawn from its weights.
 
     Args:

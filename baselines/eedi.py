@@ -62,10 +62,6 @@ from electroloc_gym.checks import check_float, check_int
 __all__ = ["EEDIAgent"]
 
 
-
-
-
-
 #: Side of the largest allowed box of the presets, mm (the 38.1 mm spheres' ±60 mm).
 _BOX_SIDE_MM = 120.0
 #: Memory per sensor-model evaluation of an EID update, bytes (the (x, y) hypothesis, mean, deviation and
@@ -96,9 +92,16 @@ class EEDIAgent(BaselineAgent):
     #: The Fisher information is of one pair's (N, S) readings: the paper's single pair only.
     sensor_layouts = ("single",)
 
-    def __init__(self, seed: int | np.random.Generator | None = None, n_coefficients: int = 10,
-                 grid_mm: float = 5.0, n_particles: int = 200, update_period: int = 1, criterion: str = "det",
-                 step_mm: float = 1.0) -> None:
+    def __init__(
+        self,
+        seed: int | np.random.Generator | None = None,
+        n_coefficients: int = 10,
+        grid_mm: float = 5.0,
+        n_particles: int = 200,
+        update_period: int = 1,
+        criterion: str = "det",
+        step_mm: float = 1.0,
+    ) -> None:
         super().__init__(seed)
         self.n_coefficients = check_int("n_coefficients", n_coefficients, 2, 32)
         self.grid_mm = check_float("grid_mm", grid_mm, 1.0, inclusive=True, high=20.0)
@@ -154,7 +157,7 @@ class EEDIAgent(BaselineAgent):
         def readings(carriages: NDArray) -> tuple[NDArray, NDArray]:
             n, s = carriages.shape[0], x.shape[0]
             h = np.repeat(x[None], n, axis=0)
-            h[..., :2] -= (carriages - p).astype(x.dtype)[:, None, :]      # target − q = (θ − (q − p)) − p
+            h[..., :2] -= (carriages - p).astype(x.dtype)[:, None, :]  # target − q = (θ − (q − p)) − p
             mean, std = env.predicted_reading_model(h.reshape(n * s, x.shape[1]), zero)
             return np.asarray(mean).reshape(n, s), np.asarray(std).reshape(n, s)
 
@@ -187,6 +190,8 @@ class EEDIAgent(BaselineAgent):
         return np.clip(-b / top * MAX_STEP_MM, lo, hi)
 
     def __repr__(self) -> str:
-        return (f"EEDIAgent(n_coefficients={self.n_coefficients}, grid_mm={self.grid_mm}, "
-                f"n_particles={self.n_particles}, update_period={self.update_period}, "
-                f"criterion={self.criterion!r}, step_mm={self.step_mm})")
+        return (
+            f"EEDIAgent(n_coefficients={self.n_coefficients}, grid_mm={self.grid_mm}, "
+            f"n_particles={self.n_particles}, update_period={self.update_period}, "
+            f"criterion={self.criterion!r}, step_mm={self.step_mm})"
+        )

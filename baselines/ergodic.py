@@ -124,7 +124,7 @@ class CosineBasis:
     def values(self, points_mm: ArrayLike) -> NDArray[np.float64]:
         """F_k at ``points_mm`` (..., 2): (..., K²)."""
         u = np.asarray(points_mm, dtype=np.float64) - np.asarray(self.low_mm)
-        arg = u[..., None, :] * self._wavenumbers                                 # (..., K², 2)
+        arg = u[..., None, :] * self._wavenumbers  # (..., K², 2)
         c = np.cos(arg)
         return c[..., 0] * c[..., 1] * self._inv_h
 
@@ -181,8 +181,9 @@ def workspace_grid(low_mm: ArrayLike, high_mm: ArrayLike, pitch_mm: float) -> tu
     return np.stack([gx.ravel(), gy.ravel()], axis=-1), float(cell[0] * cell[1])
 
 
-def belief_fisher_information(reading_fn: Callable[[NDArray], tuple[NDArray, NDArray]], carriages_mm: ArrayLike,
-                              step_mm: float = 1.0) -> NDArray[np.float64]:
+def belief_fisher_information(
+    reading_fn: Callable[[NDArray], tuple[NDArray, NDArray]], carriages_mm: ArrayLike, step_mm: float = 1.0
+) -> NDArray[np.float64]:
     """Ī(q) (G, 2, 2): the Fisher information about the target's position, averaged over the hypotheses.
 
     Args:
@@ -201,7 +202,7 @@ def belief_fisher_information(reading_fn: Callable[[NDArray], tuple[NDArray, NDA
     e = np.array([[step_mm, 0.0], [-step_mm, 0.0], [0.0, step_mm], [0.0, -step_mm]])
     shifted = (q[None, :, :] + e[:, None, :]).reshape(4 * g, 2)
     mean, std = (np.asarray(a, dtype=np.float64).reshape(4, g, -1) for a in reading_fn(shifted))
-    gx = (mean[0] - mean[1]) / (2.0 * step_mm)                                   # (G, S), V/mm
+    gx = (mean[0] - mean[1]) / (2.0 * step_mm)  # (G, S), V/mm
     gy = (mean[2] - mean[3]) / (2.0 * step_mm)
     inv_var = 1.0 / std.mean(axis=0) ** 2
     out = np.empty((g, 2, 2))

@@ -66,9 +66,11 @@ def require_target_belief(env: Any, agent_name: str) -> None:
     move with the robot): ElectroLoc-v0 and ElectroLocUnknownTarget-v0, not ElectroLocGlobal-v0.
     """
     if env.belief_frame == "robot":
-        raise ValueError(f"{agent_name} needs a belief over the target's position (ElectroLoc-v0, "
-                         "ElectroLocUnknownTarget-v0); this env's belief is over the robot's own position "
-                         "(ElectroLocGlobal-v0): use min-var or lookahead there")
+        raise ValueError(
+            f"{agent_name} needs a belief over the target's position (ElectroLoc-v0, "
+            "ElectroLocUnknownTarget-v0); this env's belief is over the robot's own position "
+            "(ElectroLocGlobal-v0): use min-var or lookahead there"
+        )
 
 
 def gauss_hermite(nodes: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -91,8 +93,9 @@ def log_weight_entropy(log_w: NDArray) -> NDArray[np.float64]:
     return np.log(z) - terms.sum(axis=-1) / z
 
 
-def expected_entropy_reduction(mean_V: NDArray, std_V: NDArray, weights: NDArray | None,
-                               voters: NDArray[np.intp], nodes: int = 3) -> NDArray[np.float64]:
+def expected_entropy_reduction(
+    mean_V: NDArray, std_V: NDArray, weights: NDArray | None, voters: NDArray[np.intp], nodes: int = 3
+) -> NDArray[np.float64]:
     """ΔH (C,), nats: each option's expected reduction of the belief's entropy (module docstring).
 
     Args:
@@ -120,21 +123,21 @@ def expected_entropy_reduction(mean_V: NDArray, std_V: NDArray, weights: NDArray
     voters = np.asarray(voters, dtype=np.intp)
     offsets, quad = gauss_hermite(int(nodes))
     wv = w[voters] / w[voters].sum()
-    node_weight = (wv[:, None] * quad[None, :]).ravel()                         # (V·Q,)
+    node_weight = (wv[:, None] * quad[None, :]).ravel()  # (V·Q,)
     f32 = np.float32
     log_w = np.log(w)
     prior_entropy = float(_entropy_inplace(log_w.astype(f32)[None, :])[0])
     rows = voters.size * offsets.size
     buf = np.empty((rows, m), dtype=f32)
     out = np.empty(mu.shape[0])
-    for c in range(mu.shape[0]):                                                # one option at a time (memory)
-        z = (mu[c, voters, None] + sd[c, voters, None] * offsets[None, :]).ravel()           # (V·Q,)
-        k = (np.sqrt(0.5) / sd[c]).astype(f32)                                  # r²/2 = ((z − μ)·k)²
-        a = (log_w - np.log(sd[c])).astype(f32)                                  # ln w_i − ln σ_i
+    for c in range(mu.shape[0]):  # one option at a time (memory)
+        z = (mu[c, voters, None] + sd[c, voters, None] * offsets[None, :]).ravel()  # (V·Q,)
+        k = (np.sqrt(0.5) / sd[c]).astype(f32)  # r²/2 = ((z − μ)·k)²
+        a = (log_w - np.log(sd[c])).astype(f32)  # ln w_i − ln σ_i
         np.subtract(z.astype(f32)[:, None], mu[c].astype(f32)[None, :], out=buf)
         buf *= k
         np.square(buf, out=buf)
-        np.subtract(a[None, :], buf, out=buf)                                    # log posterior weights + const
+        np.subtract(a[None, :], buf, out=buf)  # log posterior weights + const
         out[c] = float(node_weight @ (prior_entropy - _entropy_inplace(buf)))  # per reading: exact 0s stay 0
     return out
 
@@ -147,8 +150,6 @@ def _entropy_inplace(log_w: NDArray[np.float32]) -> NDArray[np.float64]:
     z = e.sum(axis=1, dtype=np.float64)
     shifted_dot[:] = np.einsum("ij,ij->i", e, log_w, dtype=np.float64)
     return np.log(z) - shifted_dot / z
-
-
 
 
 class InfotaxisAgent(BaselineAgent):
@@ -175,8 +176,14 @@ class InfotaxisAgent(BaselineAgent):
     #: The score reads one pair's (C, M) predictions: the paper's single pair only.
     sensor_layouts = ("single",)
 
-    def __init__(self, seed: int | np.random.Generator | None = None, n_options: int = 16,
-                 n_particles: int | None = 500, n_voters: int | None = 128, nodes: int = 3) -> None:
+    def __init__(
+        self,
+        seed: int | np.random.Generator | None = None,
+        n_options: int = 16,
+        n_particles: int | None = 500,
+        n_voters: int | None = 128,
+        nodes: int = 3,
+    ) -> None:
         super().__init__(seed)
         self.n_options = check_int("n_options", n_options, 1)
         self.n_particles = None if n_particles is None else check_int("n_particles", n_particles, 2)
@@ -220,5 +227,7 @@ class InfotaxisAgent(BaselineAgent):
         return options[choice]
 
     def __repr__(self) -> str:
-        return (f"InfotaxisAgent(n_options={self.n_options}, n_particles={self.n_particles}, "
-                f"n_voters={self.n_voters}, nodes={self.nodes})")
+        return (
+            f"InfotaxisAgent(n_options={self.n_options}, n_particles={self.n_particles}, "
+            f"n_voters={self.n_voters}, nodes={self.nodes})"
+        )

@@ -84,10 +84,9 @@ MAX_DEPTH = 3
 #: How continuation moves are drawn: uniform in ±10 mm, or one of the compass moves per step.
 CONTINUATIONS = ("uniform", "compass")
 #: The eight full-range moves (``compass=True``), mm: the four diagonals first, then the four axes.
-COMPASS_MM = MAX_STEP_MM * np.array([[1, 1], [-1, 1], [-1, -1], [1, -1], [1, 0], [0, 1], [-1, 0], [0, -1]],
-                                    dtype=np.float64)
-
-
+COMPASS_MM = MAX_STEP_MM * np.array(
+    [[1, 1], [-1, 1], [-1, -1], [1, -1], [1, 0], [0, 1], [-1, 0], [0, -1]], dtype=np.float64
+)
 
 
 class LookaheadAgent(BaselineAgent):
@@ -120,11 +119,24 @@ class LookaheadAgent(BaselineAgent):
 
     name = "lookahead"
 
-    def __init__(self, seed: int | np.random.Generator | None = None, depth: int = 2, n_options: int = 9,
-                 continuations: int = 8, branches: int = 8, n_particles: int = 300, rounds: int = 1,
-                 budget_s: float | None = None, max_rounds: int = 64, objective: str = "steps",
-                 tail: float = 0.5, compass: bool = True, cont: str = "compass", closed: bool = False,
-                 inner: int = 8) -> None:
+    def __init__(
+        self,
+        seed: int | np.random.Generator | None = None,
+        depth: int = 2,
+        n_options: int = 9,
+        continuations: int = 8,
+        branches: int = 8,
+        n_particles: int = 300,
+        rounds: int = 1,
+        budget_s: float | None = None,
+        max_rounds: int = 64,
+        objective: str = "steps",
+        tail: float = 0.5,
+        compass: bool = True,
+        cont: str = "compass",
+        closed: bool = False,
+        inner: int = 8,
+    ) -> None:
         super().__init__(seed)
         self.depth = check_int("depth", depth, 1, MAX_DEPTH)
         self.n_options = check_int("n_options", n_options, 1, 256)
@@ -133,15 +145,23 @@ class LookaheadAgent(BaselineAgent):
         self.n_particles = check_int("n_particles", n_particles, 2, 100_000)
         self.rounds = check_int("rounds", rounds, 1, 1024)
         self.max_rounds = check_int("max_rounds", max_rounds, 1, 4096)
-        if budget_s is not None and (isinstance(budget_s, bool) or not isinstance(budget_s, (int, float))
-                                     or not math.isfinite(budget_s) or not 0 < budget_s <= 60):
+        if budget_s is not None and (
+            isinstance(budget_s, bool)
+            or not isinstance(budget_s, (int, float))
+            or not math.isfinite(budget_s)
+            or not 0 < budget_s <= 60
+        ):
             raise ValueError(f"budget_s must be a number of seconds in (0, 60] or None, got {budget_s!r}")
         self.budget_s = None if budget_s is None else float(budget_s)
         if objective not in OBJECTIVES:
             raise ValueError(f"objective must be one of {list(OBJECTIVES)}, got {objective!r}")
         self.objective = objective
-        if (isinstance(tail, bool) or not isinstance(tail, (int, float)) or not math.isfinite(tail)
-                or not 0 <= tail <= 100):
+        if (
+            isinstance(tail, bool)
+            or not isinstance(tail, (int, float))
+            or not math.isfinite(tail)
+            or not 0 <= tail <= 100
+        ):
             raise ValueError(f"tail must be a number of readings in [0, 100], got {tail!r}")
         self.tail = float(tail)
         if not isinstance(compass, bool):
@@ -168,8 +188,10 @@ class LookaheadAgent(BaselineAgent):
         belief = self.env.belief
         x = np.asarray(belief.particles, dtype=np.float64)
         if x.shape[1] != 2:
-            raise ValueError(f"lookahead plans over position hypotheses (M, 2); this env's are {x.shape} "
-                             "(ElectroLocUnknownTarget-v0 carries a radius and a contrast): use min-var there")
+            raise ValueError(
+                f"lookahead plans over position hypotheses (M, 2); this env's are {x.shape} "
+                "(ElectroLocUnknownTarget-v0 carries a radius and a contrast): use min-var there"
+            )
         return sample_belief(belief, self.n_particles, self.rng)[0].astype(np.float64, copy=False)
 
     def _moves_with_robot(self) -> bool:
@@ -185,10 +207,10 @@ class LookaheadAgent(BaselineAgent):
         steps = [np.broadcast_to(first[:, None, :], (c, k, 2))]
         steps += [np.broadcast_to(cont[None, :, t, :], (c, k, 2)) for t in range(cont.shape[1])]
         carriage, d = p, []
-        for u in steps:                                   # a handful of steps (≤ MAX_DEPTH)
+        for u in steps:  # a handful of steps (≤ MAX_DEPTH)
             carriage = np.clip(carriage + u, low, high)
             d.append(carriage - p)
-        disp = np.stack(d).reshape(len(steps), c * k, 1, 2)                       # (T, N, 1, 2)
+        disp = np.stack(d).reshape(len(steps), c * k, 1, 2)  # (T, N, 1, 2)
         shifted = (x[None, None, :, :] - disp).reshape(-1, 2).astype(np.float32)
         mean, std = env.predicted_reading_model(shifted, np.zeros(2))
         shape = (len(steps), c * k, x.shape[0]) + np.shape(mean)[1:]  # a sensor array: K readings, last axis
@@ -199,8 +221,8 @@ class LookaheadAgent(BaselineAgent):
         env = self.env
         c, k, s = first.shape[0], cont.shape[0], x.shape[0]
         xf = x.astype(np.float32)
-        m0, s0 = (np.asarray(a) for a in env.predicted_reading_model(xf, first))           # (C, S)
-        q = np.asarray(env.predicted_particles_mm(xf, first))                              # (C, S, 2)
+        m0, s0 = (np.asarray(a) for a in env.predicted_reading_model(xf, first))  # (C, S)
+        q = np.asarray(env.predicted_particles_mm(xf, first))  # (C, S, 2)
         means = [np.repeat(m0, k, axis=0)]
         stds = [np.repeat(s0, k, axis=0)]
         clouds = [np.repeat(q, k, axis=0)]
@@ -212,10 +234,10 @@ class LookaheadAgent(BaselineAgent):
         means.append(m1.transpose(1, 0, 2).reshape(c * k, s))
         stds.append(s1.transpose(1, 0, 2).reshape(c * k, s))
         clouds.append(q.transpose(1, 0, 2, 3).reshape(c * k, s, 2))
-        for t in range(1, cont.shape[1]):                 # later steps: one call per distinct move
+        for t in range(1, cont.shape[1]):  # later steps: one call per distinct move
             moves, group = np.unique(cont[:, t], axis=0, return_inverse=True)
             mt, st, qt = np.empty((k, c, s)), np.empty((k, c, s)), np.empty((k, c, s, 2))
-            for g, u in enumerate(moves):                 # ≤ 8 compass moves (≤ K uniform ones)
+            for g, u in enumerate(moves):  # ≤ 8 compass moves (≤ K uniform ones)
                 js = np.flatnonzero(group.ravel() == g)
                 pts = q[js].reshape(-1, 2)
                 a, b = env.predicted_reading_model(pts, u)
@@ -242,7 +264,7 @@ class LookaheadAgent(BaselineAgent):
         first = sample_options_mm(self.rng, lo, hi, self.n_options)
         if self.compass and self.n_options > 1:
             n = min(len(COMPASS_MM), self.n_options - 1)
-            first[1:1 + n] = np.clip(COMPASS_MM[:n], lo, hi)
+            first[1 : 1 + n] = np.clip(COMPASS_MM[:n], lo, hi)
         return first
 
     # ---- one decision ---------------------------------------------------------------------------
@@ -250,7 +272,7 @@ class LookaheadAgent(BaselineAgent):
         """One round: each first move's best expected objective (C,)."""
         k = self.continuations if self.depth > 1 else 1
         if self.cont == "compass":
-            n_seq = len(COMPASS_MM) ** (self.depth - 1)      # every compass sequence once, as far as k allows
+            n_seq = len(COMPASS_MM) ** (self.depth - 1)  # every compass sequence once, as far as k allows
             pick = self.rng.permutation(n_seq)[:k] if k <= n_seq else self.rng.integers(0, n_seq, size=k)
             digits = (pick[:, None] // len(COMPASS_MM) ** np.arange(self.depth - 1)) % len(COMPASS_MM)
             cont = COMPASS_MM[digits]
@@ -263,10 +285,22 @@ class LookaheadAgent(BaselineAgent):
         if self.closed:
             u_inner = self.rng.random((self.branches, self.inner))
             eps2 = self.rng.standard_normal((self.branches, self.inner))
-            return adaptive_costs(mean, std, clouds, first.shape[0], hyp, eps[:, 0], u_inner, eps2, self.objective,
-                                  success_spread_mm=self._success_spread_mm(), tail=self.tail)
-        cost = sequence_costs(mean, std, clouds, hyp, eps, self.objective,
-                              success_spread_mm=self._success_spread_mm(), tail=self.tail)          # (B, C·K)
+            return adaptive_costs(
+                mean,
+                std,
+                clouds,
+                first.shape[0],
+                hyp,
+                eps[:, 0],
+                u_inner,
+                eps2,
+                self.objective,
+                success_spread_mm=self._success_spread_mm(),
+                tail=self.tail,
+            )
+        cost = sequence_costs(
+            mean, std, clouds, hyp, eps, self.objective, success_spread_mm=self._success_spread_mm(), tail=self.tail
+        )  # (B, C·K)
         return cost.mean(axis=0).reshape(first.shape[0], k).min(axis=1)
 
     def choose_move_mm(self) -> NDArray[np.float64]:
@@ -279,8 +313,9 @@ class LookaheadAgent(BaselineAgent):
         while True:
             total += self._round(x, first, moving)
             n += 1
-            if n >= self.max_rounds or (n >= self.rounds and (
-                    self.budget_s is None or time.perf_counter() - t0 >= self.budget_s)):
+            if n >= self.max_rounds or (
+                n >= self.rounds and (self.budget_s is None or time.perf_counter() - t0 >= self.budget_s)
+            ):
                 break
         scores = total / n
         best = np.flatnonzero(scores <= scores.min() * (1.0 + 1e-9) + 1e-12)
@@ -289,7 +324,9 @@ class LookaheadAgent(BaselineAgent):
         return first[choice]
 
     def __repr__(self) -> str:
-        return (f"LookaheadAgent(depth={self.depth}, n_options={self.n_options}, continuations={self.continuations}, "
-                f"branches={self.branches}, n_particles={self.n_particles}, rounds={self.rounds}, "
-                f"budget_s={self.budget_s}, objective={self.objective!r}, tail={self.tail}, "
-                f"compass={self.compass}, cont={self.cont!r})")
+        return (
+            f"LookaheadAgent(depth={self.depth}, n_options={self.n_options}, continuations={self.continuations}, "
+            f"branches={self.branches}, n_particles={self.n_particles}, rounds={self.rounds}, "
+            f"budget_s={self.budget_s}, objective={self.objective!r}, tail={self.tail}, "
+            f"compass={self.compass}, cont={self.cont!r})"
+        )

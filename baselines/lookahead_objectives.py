@@ -42,7 +42,7 @@ LOG_FLOOR_MM = 1.0
 def _weighted_spread(w: NDArray, x: NDArray) -> NDArray[np.float64]:
     """√trace Σ (N, B) of clouds x (N, S, 2) (or (S, 2)) weighted by w (N, B, S) (weights sum to 1)."""
     x = np.asarray(x, dtype=np.float64)
-    x = x - x.reshape(-1, 2).mean(axis=0)                 # centred: the float sums do not cancel
+    x = x - x.reshape(-1, 2).mean(axis=0)  # centred: the float sums do not cancel
     if x.ndim == 2:
         x = x[None]
     m = np.einsum("nbs,nsi->nbi", w, x)
@@ -58,8 +58,8 @@ def _step_log_likelihoods(mu: NDArray, sd: NDArray, hyp: NDArray[np.intp], eps: 
     """
     if mu.ndim == 4:
         return sum(_step_log_likelihoods(mu[..., q], sd[..., q], hyp, eps[..., q]) for q in range(mu.shape[-1]))
-    z = mu[:, :, hyp] + sd[:, :, hyp] * eps.T[:, None, :]                                    # (T, N, B)
-    r = (z[..., None] - mu[:, :, None, :]) / sd[:, :, None, :]                               # (T, N, B, S)
+    z = mu[:, :, hyp] + sd[:, :, hyp] * eps.T[:, None, :]  # (T, N, B)
+    r = (z[..., None] - mu[:, :, None, :]) / sd[:, :, None, :]  # (T, N, B, S)
     return -0.5 * r * r - np.log(sd)[:, :, None, :]
 
 
@@ -73,9 +73,17 @@ def _normalise(ll: NDArray) -> tuple[NDArray, NDArray]:
     return w, entropy
 
 
-def sequence_costs(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray | list[NDArray], hyp: NDArray[np.intp],
-                   eps: NDArray, objective: str = "spread", *, success_spread_mm: float = 10.0,
-                   tail: float = 1.0) -> NDArray[np.float64]:
+def sequence_costs(
+    mean_V: NDArray,
+    std_V: NDArray,
+    particles_mm: NDArray | list[NDArray],
+    hyp: NDArray[np.intp],
+    eps: NDArray,
+    objective: str = "spread",
+    *,
+    success_spread_mm: float = 10.0,
+    tail: float = 1.0,
+) -> NDArray[np.float64]:
     """The objective (B, N) of every future and sequence (lower is better).
 
     Args:
@@ -104,7 +112,7 @@ def sequence_costs(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray | list
     xs = list(particles_mm) if isinstance(particles_mm, list) else [particles_mm] * t_steps
     ll_t = _step_log_likelihoods(mu, sd, hyp, np.asarray(eps, dtype=np.float64))
     if objective != "steps":
-        w, entropy = _normalise(ll_t.sum(axis=0))                                            # (N, B, S)
+        w, entropy = _normalise(ll_t.sum(axis=0))  # (N, B, S)
         if objective == "entropy":
             return entropy.T
         spread = _weighted_spread(w, xs[-1]).T
@@ -112,7 +120,7 @@ def sequence_costs(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray | list
     cost = np.zeros(ll_t.shape[1:3])
     alive = np.ones(ll_t.shape[1:3], dtype=bool)
     cum = np.zeros(ll_t.shape[1:])
-    for t in range(t_steps):                              # T ≤ 3 steps
+    for t in range(t_steps):  # T ≤ 3 steps
         cum += ll_t[t]
         spread = _weighted_spread(_normalise(cum)[0], xs[t])
         alive &= spread > success_spread_mm
@@ -124,8 +132,9 @@ def sequence_costs(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray | list
     return cost.T
 
 
-def _final_cost(w: NDArray, entropy: NDArray, x: NDArray, objective: str, success_spread_mm: float,
-                tail: float) -> NDArray[np.float64]:
+def _final_cost(
+    w: NDArray, entropy: NDArray, x: NDArray, objective: str, success_spread_mm: float, tail: float
+) -> NDArray[np.float64]:
     """The objective of clouds x weighted by w (…, S) after the last move (``"steps"``: the tail if alive)."""
     if objective == "entropy":
         return entropy
@@ -138,9 +147,20 @@ def _final_cost(w: NDArray, entropy: NDArray, x: NDArray, objective: str, succes
     return alive * (1.0 + tail * np.log(np.maximum(spread, success_spread_mm) / success_spread_mm))
 
 
-def adaptive_costs(mean_V: NDArray, std_V: NDArray, clouds: list[NDArray] | NDArray, n_first: int,
-                   hyp: NDArray[np.intp], eps1: NDArray, u_inner: NDArray, eps2: NDArray, objective: str = "steps",
-                   *, success_spread_mm: float = 10.0, tail: float = 1.0) -> NDArray[np.float64]:
+def adaptive_costs(
+    mean_V: NDArray,
+    std_V: NDArray,
+    clouds: list[NDArray] | NDArray,
+    n_first: int,
+    hyp: NDArray[np.intp],
+    eps1: NDArray,
+    u_inner: NDArray,
+    eps2: NDArray,
+    objective: str = "steps",
+    *,
+    success_spread_mm: float = 10.0,
+    tail: float = 1.0,
+) -> NDArray[np.float64]:
     """Each first move's expected objective (C,) when the second move is chosen after the first reading.
 
     Depth 2, closed loop: ``Q(u₁) = E_{z₁}[c₁ + min_{u₂} E_{z₂ | z₁}[c₂]]``. The outer futures are
@@ -175,37 +195,39 @@ def adaptive_costs(mean_V: NDArray, std_V: NDArray, clouds: list[NDArray] | NDAr
     c = n_first
     k, s = mu.shape[1] // c, mu.shape[2]
     xs = list(clouds) if isinstance(clouds, list) else [clouds] * 2
-    mu1, sd1 = mu[0].reshape(c, k, s)[:, 0], sd[0].reshape(c, k, s)[:, 0]                  # (C, S)
-    z1 = mu1[:, hyp] + sd1[:, hyp] * np.asarray(eps1, dtype=np.float64)[None, :]              # (C, B)
+    mu1, sd1 = mu[0].reshape(c, k, s)[:, 0], sd[0].reshape(c, k, s)[:, 0]  # (C, S)
+    z1 = mu1[:, hyp] + sd1[:, hyp] * np.asarray(eps1, dtype=np.float64)[None, :]  # (C, B)
     r1 = (z1[..., None] - mu1[:, None, :]) / sd1[:, None, :]
-    ll1 = -0.5 * r1 * r1 - np.log(sd1)[:, None, :]                                           # (C, B, S)
+    ll1 = -0.5 * r1 * r1 - np.log(sd1)[:, None, :]  # (C, B, S)
     w1, _ = _normalise(ll1)
     inner = (np.cumsum(w1, axis=-1)[:, :, None, :] <= u_inner[None, :, :, None]).sum(axis=-1)
-    inner = np.minimum(inner, s - 1)                                                         # (C, B, M)
+    inner = np.minimum(inner, s - 1)  # (C, B, M)
     mu2, sd2 = mu[1].reshape(c, k, s), sd[1].reshape(c, k, s)
     ci = np.arange(c)[:, None, None, None]
     ki = np.arange(k)[None, :, None, None]
-    h2 = inner[:, None, :, :]                                                                # (C, 1, B, M)
-    z2 = mu2[ci, ki, h2] + sd2[ci, ki, h2] * eps2[None, None]                                # (C, K, B, M)
+    h2 = inner[:, None, :, :]  # (C, 1, B, M)
+    z2 = mu2[ci, ki, h2] + sd2[ci, ki, h2] * eps2[None, None]  # (C, K, B, M)
     r2 = (z2[..., None] - mu2[:, :, None, None, :]) / sd2[:, :, None, None, :]
-    ll2 = ll1[:, None, :, None, :] - 0.5 * r2 * r2 - np.log(sd2)[:, :, None, None, :]       # (C, K, B, M, S)
+    ll2 = ll1[:, None, :, None, :] - 0.5 * r2 * r2 - np.log(sd2)[:, :, None, None, :]  # (C, K, B, M, S)
     w2, entropy2 = _normalise(ll2)
     x2 = np.asarray(xs[1], dtype=np.float64)
-    if x2.ndim == 3:                                      # (C·K, S, 2) → one cloud per (c, k), repeated over B·M
+    if x2.ndim == 3:  # (C·K, S, 2) → one cloud per (c, k), repeated over B·M
         x2 = x2.reshape(c * k, s, 2)
-    cost2 = _final_cost(w2.reshape(c * k, -1, s), entropy2.reshape(c * k, -1), x2, objective,
-                        success_spread_mm, tail).reshape(c, k, *inner.shape[1:])             # (C, K, B, M)
-    best2 = cost2.mean(axis=-1).min(axis=1)                                                  # (C, B)
+    cost2 = _final_cost(
+        w2.reshape(c * k, -1, s), entropy2.reshape(c * k, -1), x2, objective, success_spread_mm, tail
+    ).reshape(c, k, *inner.shape[1:])  # (C, K, B, M)
+    best2 = cost2.mean(axis=-1).min(axis=1)  # (C, B)
     if objective != "steps":
         return best2.mean(axis=-1)
     x1 = np.asarray(xs[0], dtype=np.float64)
     x1 = x1.reshape(c, k, s, 2)[:, 0] if x1.ndim == 3 else x1
-    alive1 = _weighted_spread(w1, x1) > success_spread_mm                                   # (C, B)
+    alive1 = _weighted_spread(w1, x1) > success_spread_mm  # (C, B)
     return (alive1 * (1.0 + best2)).mean(axis=-1)
 
 
-def posterior_spreads(mean_V: NDArray, std_V: NDArray, particles_mm: NDArray, hyp: NDArray[np.intp],
-                      eps: NDArray) -> NDArray[np.float64]:
+def posterior_spreads(
+    mean_V: NDArray, std_V: NDArray, particles_mm: NDArray, hyp: NDArray[np.intp], eps: NDArray
+) -> NDArray[np.float64]:
     """Posterior spread √trace Σ (B, N) (mm) of a uniform cloud after each sequence's sampled readings.
 
     ``sequence_costs(..., objective="spread")``; the arguments as there.

@@ -97,10 +97,19 @@ def choose_voters(rng: np.random.Generator, n_particles: int, n_voters: int | No
     return np.sort(rng.choice(n_particles, size=n_voters, replace=False))
 
 
-def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArray, std_V: NDArray,
-                     voters: NDArray[np.intp], *, n_moments: int = N_MOMENTS, chunk_rows: int = 128,
-                     exp_floor: float = -60.0, kernel: str = "auto",
-                     expanded_max_exponent: float = 1000.0) -> NDArray[np.float64]:
+def weighted_moments(
+    particles: NDArray,
+    weights: NDArray | None,
+    mean_V: NDArray,
+    std_V: NDArray,
+    voters: NDArray[np.intp],
+    *,
+    n_moments: int = N_MOMENTS,
+    chunk_rows: int = 128,
+    exp_floor: float = -60.0,
+    kernel: str = "auto",
+    expanded_max_exponent: float = 1000.0,
+) -> NDArray[np.float64]:
     """Normalised weighted moments (V, C, K) of the cloud re-weighted by each voter's reading at each option.
 
     Step 3 of Algorithm 1, vectorised: the weights of particle i for voter v and option c are
@@ -145,17 +154,17 @@ def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArra
     xc = x - centre[..., None, :]  # centred coordinates: float32 sums of |x|² do not cancel
     r2 = np.einsum("...i,...i->...", xc, xc)
     f32 = np.float32
-    inv_s = 1.0 / np.asarray(std_V, dtype=np.float64)                          # (C, M)
-    g = (np.prod(inv_s, axis=-1) if pairs else inv_s) * w                     # prior × Gaussian 1/σ
+    inv_s = 1.0 / np.asarray(std_V, dtype=np.float64)  # (C, M)
+    g = (np.prod(inv_s, axis=-1) if pairs else inv_s) * w  # prior × Gaussian 1/σ
     cx, cy = xc[..., 0], xc[..., 1]
     if n_moments == 4:
         cols = [g, g * cx, g * cy, g * r2]
     else:
         cols = [g, g * cx, g * cy, g * cx * cx, g * cy * cy, g * cx * cy, g * r2 * cx, g * r2 * cy, g * r2 * r2]
-    feats = np.stack(np.broadcast_arrays(*cols), axis=-1).astype(f32)         # (C, M, K)
+    feats = np.stack(np.broadcast_arrays(*cols), axis=-1).astype(f32)  # (C, M, K)
     mu64 = np.asarray(mean_V, dtype=np.float64)
     mu64 = mu64 - 0.5 * (mu64.max(axis=1, keepdims=True) + mu64.min(axis=1, keepdims=True))  # z is shift-free
-    half_k2 = 0.5 * inv_s**2                                                  # z²/2 = (a − b)²·k²/2
+    half_k2 = 0.5 * inv_s**2  # z²/2 = (a − b)²·k²/2
     if pairs:
         kernel = "difference"
     elif kernel == "auto":
@@ -170,44 +179,44 @@ def weighted_moments(particles: NDArray, weights: NDArray | None, mean_V: NDArra
         # −z²/2 = [a², a, 1] · [−k²/2, k²b, −k²b²/2]ᵀ  (k² = 1/σ²): one sgemm with inner size 3.
         right = np.stack([-half_k2, 2.0 * half_k2 * mu64, -half_k2 * mu64**2], axis=1).astype(f32)  # (C, 3, M)
         a_all = mu64[:, voters]
-        left = np.stack([a_all**2, a_all, np.ones_like(a_all)], axis=-1).astype(f32)               # (C, V, 3)
+        left = np.stack([a_all**2, a_all, np.ones_like(a_all)], axis=-1).astype(f32)  # (C, V, 3)
         for c in range(n_options):
             for r0 in range(0, n_vot, rows):
                 r1 = min(r0 + rows, n_vot)
                 d = buf[: r1 - r0]
-                np.matmul(left[c, r0:r1], right[c], out=d)    # −z²/2
-                np.maximum(d, floor, out=d)                     # clamp: exp(−60) ≈ 1e-26
+                np.matmul(left[c, r0:r1], right[c], out=d)  # −z²/2
+                np.maximum(d, floor, out=d)  # clamp: exp(−60) ≈ 1e-26
                 np.exp(d, out=d)
                 np.matmul(d, feats[c], out=sums[c, r0:r1])
     else:
-        k = np.sqrt(half_k2).astype(f32)                                      # z/√2 = (a − b)·k
+        k = np.sqrt(half_k2).astype(f32)  # z/√2 = (a − b)·k
         mu = mu64.astype(f32)
-        bk = mu * k                                                           # (C, M[, K])
+        bk = mu * k  # (C, M[, K])
         if not pairs:  # one pair: a trailing axis of 1
             k, mu, bk = k[..., None], mu[..., None], bk[..., None]
         k, bk = np.ascontiguousarray(k.transpose(0, 2, 1)), np.ascontiguousarray(bk.transpose(0, 2, 1))  # (C, K, M)
         cap = f32(-exp_floor)
         term = np.empty_like(buf)
         for c in range(n_options):
-            a = mu[c, voters]                                                 # (V, K)
+            a = mu[c, voters]  # (V, K)
             kc, bkc, fc = k[c], bk[c], feats[c]
             for r0 in range(0, n_vot, rows):
                 r1 = min(r0 + rows, n_vot)
                 d = buf[: r1 - r0]
                 np.multiply(a[r0:r1, 0, None], kc[0][None, :], out=d)  # a_v·k_i
-                np.subtract(d, bkc[0][None, :], out=d)                 # (a_v − b_i)·k_i = z/√2
-                np.multiply(d, d, out=d)                               # z²/2
-                for q in range(1, kc.shape[0]):                        # further pairs: Σ_q z_q²/2
+                np.subtract(d, bkc[0][None, :], out=d)  # (a_v − b_i)·k_i = z/√2
+                np.multiply(d, d, out=d)  # z²/2
+                for q in range(1, kc.shape[0]):  # further pairs: Σ_q z_q²/2
                     t = term[: r1 - r0]
                     np.multiply(a[r0:r1, q, None], kc[q][None, :], out=t)
                     np.subtract(t, bkc[q][None, :], out=t)
                     np.multiply(t, t, out=t)
                     np.add(d, t, out=d)
-                np.minimum(d, cap, out=d)                          # clamp: exp(−60) ≈ 1e-26
+                np.minimum(d, cap, out=d)  # clamp: exp(−60) ≈ 1e-26
                 np.negative(d, out=d)
                 np.exp(d, out=d)
                 np.matmul(d, fc, out=sums[c, r0:r1])
-    s = sums.astype(np.float64).transpose(1, 0, 2)                           # (V, C, K)
+    s = sums.astype(np.float64).transpose(1, 0, 2)  # (V, C, K)
     out = s / s[..., :1]
     out[..., 0] = s[..., 0]
     return out
@@ -220,8 +229,14 @@ def _variance(mom: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.maximum(second - m2, 0.0)
 
 
-def predicted_variances(particles: NDArray, weights: NDArray | None, mean_V: NDArray, std_V: NDArray,
-                        voters: NDArray[np.intp], **kwargs: Any) -> NDArray[np.float64]:
+def predicted_variances(
+    particles: NDArray,
+    weights: NDArray | None,
+    mean_V: NDArray,
+    std_V: NDArray,
+    voters: NDArray[np.intp],
+    **kwargs: Any,
+) -> NDArray[np.float64]:
     """Weighted variance (trace, mm²) of the re-weighted cloud (V, C): the ``"expected"`` vote's score.
 
     ``E[s²]`` after resampling M particles is ``(M − 1)/M`` times this for every option, so the argmin
@@ -249,8 +264,13 @@ def resampled_variances(moments: NDArray[np.float64], n_resample: int, rng: np.r
     mm = mx * mx + my * my
     v = np.maximum(exx + eyy - mm, 0.0)
     # E|x − m|⁴ expanded in the centred moments: |d|⁴ = (|x|² − 2x·m + |m|²)².
-    mu4 = (er4 - 4.0 * (erx * mx + ery * my) + 4.0 * (mx * mx * exx + 2.0 * mx * my * exy + my * my * eyy)
-           + 2.0 * (exx + eyy) * mm - 3.0 * mm * mm)
+    mu4 = (
+        er4
+        - 4.0 * (erx * mx + ery * my)
+        + 4.0 * (mx * mx * exx + 2.0 * mx * my * exy + my * my * eyy)
+        + 2.0 * (exx + eyy) * mm
+        - 3.0 * mm * mm
+    )
     sd = np.sqrt(np.maximum(mu4 - v * v, 0.0) / n_resample)
     z = rng.standard_normal(v.shape)
     return np.maximum((n_resample - 1) / n_resample * v + sd * z, 0.0)
@@ -293,9 +313,16 @@ class MinVarianceAgent(BaselineAgent):
 
     name = "min-var"
 
-    def __init__(self, seed: int | np.random.Generator | None = None, n_options: int = 16,
-                 n_voters: int | None = 256, vote: str = "resample", chunk_rows: int = 128,
-                 exp_floor: float = -60.0, gain: str = "choose") -> None:
+    def __init__(
+        self,
+        seed: int | np.random.Generator | None = None,
+        n_options: int = 16,
+        n_voters: int | None = 256,
+        vote: str = "resample",
+        chunk_rows: int = 128,
+        exp_floor: float = -60.0,
+        gain: str = "choose",
+    ) -> None:
         super().__init__(seed)
         if isinstance(n_options, bool) or not isinstance(n_options, int) or n_options < 1:
             raise ValueError(f"n_options must be an integer ≥ 1, got {n_options!r}")
@@ -345,8 +372,9 @@ class MinVarianceAgent(BaselineAgent):
         if self.vote == "expected":
             var = predicted_variances(moved, prior, mean, std, voters, **opts)
         elif self.vote == "resample":
-            var = resampled_variances(weighted_moments(moved, prior, mean, std, voters, **opts),
-                                      particles.shape[0], self.rng)
+            var = resampled_variances(
+                weighted_moments(moved, prior, mean, std, voters, **opts), particles.shape[0], self.rng
+            )
         else:
             from electroloc_gym.baselines.min_variance_reference import multinomial_resampled_variances
 
@@ -358,5 +386,7 @@ class MinVarianceAgent(BaselineAgent):
         return options[best % n_moves]
 
     def __repr__(self) -> str:
-        return (f"MinVarianceAgent(n_options={self.n_options}, n_voters={self.n_voters}, vote={self.vote!r}, "
-                f"gain={self.gain!r})")
+        return (
+            f"MinVarianceAgent(n_options={self.n_options}, n_voters={self.n_voters}, vote={self.vote!r}, "
+            f"gain={self.gain!r})"
+        )

@@ -20,8 +20,9 @@ from numpy.typing import NDArray
 __all__ = ["literal_predicted_variances", "multinomial_resampled_variances"]
 
 
-def literal_predicted_variances(sensor_model: Any, particles: NDArray, weights: NDArray | None,
-                                positions_mm: NDArray, voters: NDArray[np.intp]) -> NDArray[np.float64]:
+def literal_predicted_variances(
+    sensor_model: Any, particles: NDArray, weights: NDArray | None, positions_mm: NDArray, voters: NDArray[np.intp]
+) -> NDArray[np.float64]:
     """Weighted variance (V, C), mm², of the cloud re-weighted by each voter's predicted reading (slow).
 
     Per option, one sensor-model call per particle (its predicted mean and std from that carriage
@@ -38,12 +39,12 @@ def literal_predicted_variances(sensor_model: Any, particles: NDArray, weights: 
     for c, pos in enumerate(positions_mm):
         p = np.asarray(pos, dtype=x.dtype)
         mus, sds = [], []
-        for i in range(m):                                                   # (1) move, per particle
+        for i in range(m):  # (1) move, per particle
             mu_i, sd_i = sensor_model.mean_std((x[i] - p)[None, :])
             mus.append(float(mu_i[0]))
             sds.append(float(sd_i[0]))
         for vi, mi in enumerate(voters):
-            z = mus[int(mi)]                                                  # (2) simulated reading
+            z = mus[int(mi)]  # (2) simulated reading
             ws = [w_prior[i] * math.exp(-0.5 * ((z - mus[i]) / sds[i]) ** 2) / sds[i] for i in range(m)]  # (3)
             tot = sum(ws)
             mx = sum(ws[i] * px[i] for i in range(m)) / tot
@@ -53,8 +54,14 @@ def literal_predicted_variances(sensor_model: Any, particles: NDArray, weights: 
     return out
 
 
-def multinomial_resampled_variances(particles: NDArray, weights: NDArray | None, mean_V: NDArray, std_V: NDArray,
-                                    voters: NDArray[np.intp], rng: np.random.Generator) -> NDArray[np.float64]:
+def multinomial_resampled_variances(
+    particles: NDArray,
+    weights: NDArray | None,
+    mean_V: NDArray,
+    std_V: NDArray,
+    voters: NDArray[np.intp],
+    rng: np.random.Generator,
+) -> NDArray[np.float64]:
     """Variance (V, C), mm², of the cloud after one literal roulette-wheel resample per voter and option.
 
     Args:
@@ -74,12 +81,12 @@ def multinomial_resampled_variances(particles: NDArray, weights: NDArray | None,
     voters = np.asarray(voters, dtype=np.intp)
     out = np.empty((voters.size, n_options))
     for c in range(n_options):
-        z = (mu[c, voters][:, None] - mu[c][None, :]) / sd[c][None, :]        # (V, M)
+        z = (mu[c, voters][:, None] - mu[c][None, :]) / sd[c][None, :]  # (V, M)
         logw = -0.5 * z * z - np.log(sd[c])[None, :] + np.log(prior)[None, :]
         w = np.exp(logw - logw.max(axis=1, keepdims=True))
         w /= w.sum(axis=1, keepdims=True)
-        counts = rng.multinomial(m, w)                                         # (V, M): step 4
-        mean = counts @ xs[c] / m                                              # (V, 2)
+        counts = rng.multinomial(m, w)  # (V, M): step 4
+        mean = counts @ xs[c] / m  # (V, 2)
         second = counts @ np.einsum("mi,mi->m", xs[c], xs[c]) / m
         out[:, c] = np.maximum(second - np.einsum("vi,vi->v", mean, mean), 0.0)  # step 5
     return out

@@ -95,22 +95,42 @@ class ZeroCrossingAgent(BaselineAgent):
     #: It follows one pair's zero crossings (§4.2): the paper's single pair only.
     sensor_layouts = ("single",)
 
-    def __init__(self, seed: int | np.random.Generator | None = None, n_average: int = 4,
-                 n_average_refine: int = 8, k_sigma: float = 3.0, max_gap_mm: float = 30.0,
-                 column_spacing_mm: float = 20.0, row_offset_mm: float = 15.0,
-                 refine_offsets_mm: tuple[float, ...] = (1.5, 3.0), workspace_half_mm: float = TABLE1_WORKSPACE_HALF_MM,
-                 lobe_ratio_max: float = 2.5, lobe_dominance: float = 1.5, strong_sigmas: float = 6.0,
-                 confirm_reach_mm: float = 40.0, max_observations: int = 1500) -> None:
+    def __init__(
+        self,
+        seed: int | np.random.Generator | None = None,
+        n_average: int = 4,
+        n_average_refine: int = 8,
+        k_sigma: float = 3.0,
+        max_gap_mm: float = 30.0,
+        column_spacing_mm: float = 20.0,
+        row_offset_mm: float = 15.0,
+        refine_offsets_mm: tuple[float, ...] = (1.5, 3.0),
+        workspace_half_mm: float = TABLE1_WORKSPACE_HALF_MM,
+        lobe_ratio_max: float = 2.5,
+        lobe_dominance: float = 1.5,
+        strong_sigmas: float = 6.0,
+        confirm_reach_mm: float = 40.0,
+        max_observations: int = 1500,
+    ) -> None:
         super().__init__(seed)
-        for name, val, low in (("n_average", n_average, 1), ("n_average_refine", n_average_refine, 1),
-                               ("max_observations", max_observations, 2)):
+        for name, val, low in (
+            ("n_average", n_average, 1),
+            ("n_average_refine", n_average_refine, 1),
+            ("max_observations", max_observations, 2),
+        ):
             if isinstance(val, bool) or not isinstance(val, int) or val < low:
                 raise ValueError(f"{name} must be an integer ≥ {low}, got {val!r}")
-        for name, val in (("k_sigma", k_sigma), ("max_gap_mm", max_gap_mm), ("column_spacing_mm", column_spacing_mm),
-                          ("row_offset_mm", row_offset_mm),
-                          ("workspace_half_mm", workspace_half_mm), ("lobe_ratio_max", lobe_ratio_max),
-                          ("lobe_dominance", lobe_dominance), ("strong_sigmas", strong_sigmas),
-                          ("confirm_reach_mm", confirm_reach_mm)):
+        for name, val in (
+            ("k_sigma", k_sigma),
+            ("max_gap_mm", max_gap_mm),
+            ("column_spacing_mm", column_spacing_mm),
+            ("row_offset_mm", row_offset_mm),
+            ("workspace_half_mm", workspace_half_mm),
+            ("lobe_ratio_max", lobe_ratio_max),
+            ("lobe_dominance", lobe_dominance),
+            ("strong_sigmas", strong_sigmas),
+            ("confirm_reach_mm", confirm_reach_mm),
+        ):
             if isinstance(val, bool) or not isinstance(val, (int, float)) or not np.isfinite(val) or val <= 0:
                 raise ValueError(f"{name} must be a finite number > 0, got {val!r}")
         offs = tuple(float(o) for o in refine_offsets_mm)
@@ -131,8 +151,12 @@ class ZeroCrossingAgent(BaselineAgent):
         self.confirm_reach_mm = float(confirm_reach_mm)
         # The belief is unused: a tiny filter keeps the env cheap, a tiny success spread keeps the env
         # from ending the trial on the filter's account; the trial ends when this controller is done.
-        self.env_kwargs = {"n_particles": 16, "sensor_model": "analytic", "success_spread_mm": 1e-6,
-                           "max_observations": max_observations}
+        self.env_kwargs = {
+            "n_particles": 16,
+            "sensor_model": "analytic",
+            "success_spread_mm": 1e-6,
+            "max_observations": max_observations,
+        }
         self.workspace_mm: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._program: Generator[NDArray[np.float64], _Obs, tuple[float, float] | None] | None = None
         self._started = False
@@ -145,8 +169,10 @@ class ZeroCrossingAgent(BaselineAgent):
         The carriage starts uniformly in ±75 mm (the workspace centre) and may go anywhere within
         ±(75 + 80) mm, so every workspace fits in the allowed box.
         """
-        return condition.replace(start_half_width_mm=TABLE1_CENTRE_HALF_MM,
-                                 allowed_half_width_mm=TABLE1_CENTRE_HALF_MM + TABLE1_WORKSPACE_HALF_MM)
+        return condition.replace(
+            start_half_width_mm=TABLE1_CENTRE_HALF_MM,
+            allowed_half_width_mm=TABLE1_CENTRE_HALF_MM + TABLE1_WORKSPACE_HALF_MM,
+        )
 
     def reset(self, env: Any) -> None:
         super().reset(env)
@@ -155,15 +181,18 @@ class ZeroCrossingAgent(BaselineAgent):
             raise ValueError("zero-crossing follows one pair's zero crossings (§4.2); use sensor_layout='single'")
         start = core.position_mm
         low, high = core.allowed_box_mm
-        self.workspace_mm = (np.maximum(start - self.workspace_half_mm, low),
-                             np.minimum(start + self.workspace_half_mm, high))
+        self.workspace_mm = (
+            np.maximum(start - self.workspace_half_mm, low),
+            np.minimum(start + self.workspace_half_mm, high),
+        )
         self._sigma = float(core.condition.noise_std_V)
         self._saturation = float(core.condition.saturation_V)
         self._program = self._search()
         self._started = False
 
-    def predict(self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None,
-                deterministic: bool = True) -> tuple[NDArray[np.float32], Any]:
+    def predict(
+        self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None, deterministic: bool = True
+    ) -> tuple[NDArray[np.float32], Any]:
         core = self.env
         if self.done or self._program is None:
             return self.action_of(np.zeros(2)), state
@@ -212,8 +241,12 @@ class ZeroCrossingAgent(BaselineAgent):
             x_star = found[0]
             # 3. confirm y on a column beside x* (strong lobes there), within ±confirm_reach_mm of y*.
             col = self._offset_inside(x_star, centre[0], lo[0], hi[0])
-            samples = yield from self._scan_line(axis=1, fixed=col, lo=max(lo[1], y_star - self.confirm_reach_mm),
-                                                 hi=min(hi[1], y_star + self.confirm_reach_mm))
+            samples = yield from self._scan_line(
+                axis=1,
+                fixed=col,
+                lo=max(lo[1], y_star - self.confirm_reach_mm),
+                hi=min(hi[1], y_star + self.confirm_reach_mm),
+            )
             found = self._best_crossing(samples)
             if found is not None:
                 y_star = found[0]
@@ -281,8 +314,9 @@ class ZeroCrossingAgent(BaselineAgent):
         return int(np.sign(mean)) if abs(mean) > thr else 0
 
     # ---- scans ------------------------------------------------------------------------------------
-    def _scan_line(self, axis: int, fixed: float, lo: float, hi: float
-                   ) -> Generator[NDArray[np.float64], _Obs, list[tuple[float, float, int]]]:
+    def _scan_line(
+        self, axis: int, fixed: float, lo: float, hi: float
+    ) -> Generator[NDArray[np.float64], _Obs, list[tuple[float, float, int]]]:
         """Averaged readings every ≤ 10 mm along ``axis`` at ``fixed`` over [lo, hi].
 
         The sweep starts at the end nearer to the carriage (boustrophedon). Returns (t, mean, n)
@@ -349,8 +383,9 @@ class ZeroCrossingAgent(BaselineAgent):
         t = t0 + v0 * (t1 - t0) / (v0 - v1)
         return float(np.clip(t, min(t0, t1), max(t0, t1)))
 
-    def _refine(self, axis: int, fixed: float, guess: float, lo: float, hi: float
-                ) -> Generator[NDArray[np.float64], _Obs, float]:
+    def _refine(
+        self, axis: int, fixed: float, guess: float, lo: float, hi: float
+    ) -> Generator[NDArray[np.float64], _Obs, float]:
         """Least-squares zero of the reading on a symmetric pattern around ``guess`` (sub-step)."""
         offs = sorted({0.0, *self.refine_offsets_mm, *(-o for o in self.refine_offsets_mm)})
         ts, vs = [], []
@@ -372,5 +407,7 @@ class ZeroCrossingAgent(BaselineAgent):
         return float(np.clip(t_zero, guess - 2 * span, guess + 2 * span))
 
     def __repr__(self) -> str:
-        return (f"ZeroCrossingAgent(n_average={self.n_average}, k_sigma={self.k_sigma}, "
-                f"column_spacing_mm={self.column_spacing_mm})")
+        return (
+            f"ZeroCrossingAgent(n_average={self.n_average}, k_sigma={self.k_sigma}, "
+            f"column_spacing_mm={self.column_spacing_mm})"
+        )

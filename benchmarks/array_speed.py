@@ -27,8 +27,14 @@ LAYOUTS = ("single", "grid-2x2", "line-4", "ring-8")
 
 def seconds_per_step(layout: str, sensor_model: str, steps: int, repeats: int, n_particles: int) -> float:
     """Best-of-``repeats`` wall seconds per env step."""
-    env = gym.make("ElectroLoc-v0", sensor_layout=layout, sensor_model=sensor_model, n_particles=n_particles,
-                   success_spread_mm=1e-9, max_observations=10**9).unwrapped
+    env = gym.make(
+        "ElectroLoc-v0",
+        sensor_layout=layout,
+        sensor_model=sensor_model,
+        n_particles=n_particles,
+        success_spread_mm=1e-9,
+        max_observations=10**9,
+    ).unwrapped
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, (steps, 2)).astype(np.float32)
@@ -58,10 +64,21 @@ def main() -> None:
             k = gym.make("ElectroLoc-v0", sensor_layout=lay, n_particles=10).unwrapped.sensor_layout.n_pairs
             base = t if lay == "single" else base
             extra = (t - base) / (k - 1) * 1e3 if k > 1 else None
-            rows.append({"sensor_model": model, "layout": lay, "K": k, "steps_per_s": 1.0 / t, "ms_per_step": t * 1e3,
-                         "ms_per_extra_pair": extra})
-            print(f"{model:10s} {lay:9s} K={k}  {1.0 / t:8.1f} steps/s  {t * 1e3:6.2f} ms/step"
-                  + ("" if extra is None else f"  {extra:5.2f} ms per extra pair"), flush=True)
+            rows.append(
+                {
+                    "sensor_model": model,
+                    "layout": lay,
+                    "K": k,
+                    "steps_per_s": 1.0 / t,
+                    "ms_per_step": t * 1e3,
+                    "ms_per_extra_pair": extra,
+                }
+            )
+            print(
+                f"{model:10s} {lay:9s} K={k}  {1.0 / t:8.1f} steps/s  {t * 1e3:6.2f} ms/step"
+                + ("" if extra is None else f"  {extra:5.2f} ms per extra pair"),
+                flush=True,
+            )
     if args.out:
         write_json_atomic(args.out, {"n_particles": args.n_particles, "steps": args.steps, "rows": rows})
 

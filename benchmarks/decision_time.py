@@ -49,10 +49,10 @@ def collect_envs(n_states: int, seed: int = 101) -> list[tuple[str, object]]:
             action, _ = agent.predict(obs)
             obs, _, term, trunc, _ = env.step(action)
             if term or trunc:
-                obs, _ = env.reset(seed=seed + 1000 + k)      # ended: a fresh belief of the same condition
+                obs, _ = env.reset(seed=seed + 1000 + k)  # ended: a fresh belief of the same condition
                 agent.reset(env)
                 break
-        _ = env.unwrapped.sensor_model                         # build the calibrated model outside the timing
+        _ = env.unwrapped.sensor_model  # build the calibrated model outside the timing
         envs.append((cond, env))
     return envs
 
@@ -99,8 +99,14 @@ def main() -> None:
     for line in markdown_table(("agent", "12.7 mm presets", "38.1 mm presets", "all", f"median / {ref}'s"), rows):
         print(line)
     if args.json:
-        write_json_atomic(args.json, {"states": args.states, "repeats": args.repeats,
-                                      "ms": {s: [[c, t * 1e3] for c, t in rows] for s, rows in times.items()}})
+        write_json_atomic(
+            args.json,
+            {
+                "states": args.states,
+                "repeats": args.repeats,
+                "ms": {s: [[c, t * 1e3] for c, t in rows] for s, rows in times.items()},
+            },
+        )
 
 
 if __name__ == "__main__":

@@ -46,11 +46,19 @@ def _clock(device: torch.device) -> float:
     return time.process_time()
 
 
-def torch_rate(n: int, device: torch.device, seconds: float, compile_step: bool, kwargs: dict[str, Any]
-               ) -> dict[str, Any]:
+def torch_rate(
+    n: int, device: torch.device, seconds: float, compile_step: bool, kwargs: dict[str, Any]
+) -> dict[str, Any]:
     """Env-steps/s of the torch backend at N = ``n`` (warm-up steps first, then ``seconds`` of steps)."""
-    env = gym.make_vec("ElectroLoc-v0", num_envs=n, vectorization_mode="vector_entry_point", backend="torch",
-                       device=str(device), compile=compile_step, **kwargs)
+    env = gym.make_vec(
+        "ElectroLoc-v0",
+        num_envs=n,
+        vectorization_mode="vector_entry_point",
+        backend="torch",
+        device=str(device),
+        compile=compile_step,
+        **kwargs,
+    )
     env.reset(seed=0)
     gen = torch.Generator(device=device).manual_seed(0)
     actions = [torch.rand(n, 2, generator=gen, device=device) * 2 - 1 for _ in range(8)]
@@ -67,8 +75,14 @@ def torch_rate(n: int, device: torch.device, seconds: float, compile_step: bool,
         if steps % 4 == 0 and _clock(device) - start >= seconds:
             break
     elapsed = _clock(device) - start
-    out = {"n_envs": n, "compile": compile_step, "env_steps_per_s": n * steps / elapsed, "steps": steps,
-           "warmup_s": warm_s, "state_bytes_per_env": env.memory_bytes_per_env()}
+    out = {
+        "n_envs": n,
+        "compile": compile_step,
+        "env_steps_per_s": n * steps / elapsed,
+        "steps": steps,
+        "warmup_s": warm_s,
+        "state_bytes_per_env": env.memory_bytes_per_env(),
+    }
     if device.type == "cuda":
         out["peak_bytes_per_env"] = torch.cuda.max_memory_allocated(device) / n
     return out
@@ -97,13 +111,29 @@ def ppo_rate(n: int, device: torch.device, num_steps: int = 16, updates: int = 2
     spec = importlib.util.spec_from_file_location("ppo_torch", examples / "ppo_torch.py")
     ppo = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(ppo)
-    args = ppo.parse_args(["--device", str(device), "--num-envs", str(n), "--num-steps", str(num_steps),
-                           "--total-timesteps", str(n * num_steps * updates), "--update-epochs", "4"])
+    args = ppo.parse_args(
+        [
+            "--device",
+            str(device),
+            "--num-envs",
+            str(n),
+            "--num-steps",
+            str(num_steps),
+            "--total-timesteps",
+            str(n * num_steps * updates),
+            "--update-epochs",
+            "4",
+        ]
+    )
     t0 = _clock(device)
     ppo.train(args)
     seconds = _clock(device) - t0
-    return {"n_envs": n, "timesteps": n * num_steps * updates, "seconds": seconds,
-            "train_steps_per_s": n * num_steps * updates / seconds}
+    return {
+        "n_envs": n,
+        "timesteps": n * num_steps * updates,
+        "seconds": seconds,
+        "train_steps_per_s": n * num_steps * updates / seconds,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -138,19 +168,30 @@ def main(argv: list[str] | None = None) -> int:
             if "error" in row:
                 print(f"torch N = {n:6d} compile={comp!s:5}: {row['error']}")
                 continue
-            print(f"torch N = {n:6d} compile={comp!s:5}: {row['env_steps_per_s']:12,.0f} env-steps/s "
-                  f"({row['env_steps_per_s'] / numba['env_steps_per_s']:.2f}× numba), "
-                  f"state {row['state_bytes_per_env']:,} B/env"
-                  + (f", peak {row['peak_bytes_per_env']:,.0f} B/env" if "peak_bytes_per_env" in row else ""))
+            print(
+                f"torch N = {n:6d} compile={comp!s:5}: {row['env_steps_per_s']:12,.0f} env-steps/s "
+                f"({row['env_steps_per_s'] / numba['env_steps_per_s']:.2f}× numba), "
+                f"state {row['state_bytes_per_env']:,} B/env"
+                + (f", peak {row['peak_bytes_per_env']:,.0f} B/env" if "peak_bytes_per_env" in row else "")
+            )
     ppo = None
     if args.ppo_n > 0:
         ppo = ppo_rate(args.ppo_n, device)
-        print(f"on-device PPO (examples/ppo_torch.py), N = {ppo['n_envs']}: {ppo['train_steps_per_s']:,.0f} "
-              f"training env-steps/s")
+        print(
+            f"on-device PPO (examples/ppo_torch.py), N = {ppo['n_envs']}: {ppo['train_steps_per_s']:,.0f} "
+            f"training env-steps/s"
+        )
     name = torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu (1 thread)"
-    result = {"device": str(device), "device_name": name, "torch": torch.__version__, "env_kwargs": kwargs,
-              "numba": numba, "torch_rows": rows, "ppo": ppo,
-              "rate_clock": "wall (synchronised)" if device.type == "cuda" else "process CPU time"}
+    result = {
+        "device": str(device),
+        "device_name": name,
+        "torch": torch.__version__,
+        "env_kwargs": kwargs,
+        "numba": numba,
+        "torch_rows": rows,
+        "ppo": ppo,
+        "rate_clock": "wall (synchronised)" if device.type == "cuda" else "process CPU time",
+    }
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(args.out, json.dumps(result, indent=2) + "\n")

@@ -63,8 +63,9 @@ def main() -> None:
     print(f"{'sensor model':<12} {'env steps/s':>12} {'env step ms':>12} {'bare update ms':>15} {'ratio':>7}")
     for model in ("analytic", "calibrated"):
         # Never terminate, so every step does the full work.
-        env = ElectroLocEnv(sensor_model=model, n_particles=args.particles, max_observations=10**9,
-                            success_spread_mm=1e-9)
+        env = ElectroLocEnv(
+            sensor_model=model, n_particles=args.particles, max_observations=10**9, success_spread_mm=1e-9
+        )
         env.reset(seed=0)
         bare = bare_update_cost(env, args.steps)
         step = env_step_cost(env, args.steps)

@@ -76,8 +76,16 @@ def collect_states(n_states: int, n_particles: int, seed: int = 0) -> list[dict]
         core = env.unwrapped
         options = sample_options_mm(np.random.default_rng(k), *move_bounds_mm(core), 16)
         mean, std = option_means_stds(core.sensor_model, core.belief.particles, core.position_mm + options)
-        states.append({"core": core, "particles": core.belief.particles.copy(), "options": options,
-                       "mean": mean, "std": std, "condition": cond})
+        states.append(
+            {
+                "core": core,
+                "particles": core.belief.particles.copy(),
+                "options": options,
+                "mean": mean,
+                "std": std,
+                "condition": cond,
+            }
+        )
         k += 1
     return states
 
@@ -107,6 +115,7 @@ def main() -> None:
         voters = choose_voters(np.random.default_rng(0), m, n_vot)
         floor = n_vot * m * c * t_exp
         for kernel in ("difference", "expanded"):
+
             def call(voters=voters, kernel=kernel) -> None:
                 predicted_variances(s0["particles"], None, s0["mean"], s0["std"], voters, kernel=kernel)
 
@@ -115,8 +124,10 @@ def main() -> None:
             print(f"{n_vot:>7} {kernel:>11} {t * 1e3:>12.1f} {floor * 1e3:>13.1f} {t / floor:>15.2f}")
 
     # The whole decision per vote form, as the agent makes it, on the collected belief states.
-    print(f"\nWhole min-var decision at {args.voters} voters (median over {len(states)} belief states; floor = "
-          f"the exponentials alone, {args.voters * m * c * t_exp * 1e3:.1f} ms)")
+    print(
+        f"\nWhole min-var decision at {args.voters} voters (median over {len(states)} belief states; floor = "
+        f"the exponentials alone, {args.voters * m * c * t_exp * 1e3:.1f} ms)"
+    )
     for vote in VOTES:
         agent = make_agent(f"min-var[vote={vote!r},n_voters={args.voters}]", seed=0)
         times = []
@@ -133,11 +144,15 @@ def main() -> None:
     t_lit = best_of(lambda: literal_predicted_variances(core.sensor_model, small, None, pos, np.arange(ms)), repeats=2)
     t_lit_scaled = t_lit * (m / ms) ** 2
     best_all = min(results[(m, "difference")], results[(m, "expanded")])
-    print(f"\nLiteral loop (Algorithm 1 as written, one sensor-model call per particle): {t_lit:.2f} s at M = {ms}, "
-          f"scaled to M = {m}: {t_lit_scaled:.0f} s per decision")
+    print(
+        f"\nLiteral loop (Algorithm 1 as written, one sensor-model call per particle): {t_lit:.2f} s at M = {ms}, "
+        f"scaled to M = {m}: {t_lit_scaled:.0f} s per decision"
+    )
     best_sub = min(results[(args.voters, "difference")], results[(args.voters, "expanded")])
-    print(f"speed-up of the vectorised vote (all voters): {t_lit_scaled / best_all:,.0f}×; "
-          f"with {args.voters} voters: {t_lit_scaled / best_sub:,.0f}×")
+    print(
+        f"speed-up of the vectorised vote (all voters): {t_lit_scaled / best_all:,.0f}×; "
+        f"with {args.voters} voters: {t_lit_scaled / best_sub:,.0f}×"
+    )
 
     # Agreement of the subset vote with the all-voter vote.
     same, worse = 0, []
@@ -149,10 +164,16 @@ def main() -> None:
         same += best_sub == best_full
         if best_sub != best_full:
             worse.append(votes_full[best_sub] / votes_full[best_full])
-    print(f"\n{args.voters} voters choose the all-voter option in {same}/{len(states)} decisions "
-          f"({100 * same / len(states):.0f} %)" + (f"; when they differ, the chosen option still has "
-                                                   f"{100 * np.mean(worse):.0f} % of the winner's all-voter votes"
-                                                   if worse else ""))
+    print(
+        f"\n{args.voters} voters choose the all-voter option in {same}/{len(states)} decisions "
+        f"({100 * same / len(states):.0f} %)"
+        + (
+            f"; when they differ, the chosen option still has "
+            f"{100 * np.mean(worse):.0f} % of the winner's all-voter votes"
+            if worse
+            else ""
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -59,8 +59,9 @@ def native_steps_per_s(num_envs: int, seconds: float) -> float:
 
 def startup_s(num_envs: int, cache_dir: str) -> float:
     env = {**os.environ, "NUMBA_CACHE_DIR": cache_dir, **erl.runner_env_vars()}
-    out = subprocess.run([sys.executable, "-c", STARTUP_CODE % num_envs], env=env, check=True, capture_output=True,
-                         text=True)
+    out = subprocess.run(
+        [sys.executable, "-c", STARTUP_CODE % num_envs], env=env, check=True, capture_output=True, text=True
+    )
     return float(out.stdout.strip().splitlines()[-1])
 
 
@@ -68,14 +69,21 @@ def rllib_steps_per_s(num_envs: int, seconds: float) -> dict[str, float]:
     import ray
     from ray.rllib.algorithms.ppo import PPOConfig
 
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
-             runtime_env={"env_vars": erl.runner_env_vars()})
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": erl.runner_env_vars()})
     try:
         t0 = time.perf_counter()
-        algo = (PPOConfig().environment(erl.register(), env_config={})
-                .env_runners(num_env_runners=2, num_envs_per_env_runner=num_envs,
-                             gym_env_vectorize_mode="vector_entry_point", rollout_fragment_length=64)
-                .debugging(seed=0).build_algo())
+        algo = (
+            PPOConfig()
+            .environment(erl.register(), env_config={})
+            .env_runners(
+                num_env_runners=2,
+                num_envs_per_env_runner=num_envs,
+                gym_env_vectorize_mode="vector_entry_point",
+                rollout_fragment_length=64,
+            )
+            .debugging(seed=0)
+            .build_algo()
+        )
         build_s = time.perf_counter() - t0
         group = algo.env_runner_group
         chunk = 64 * num_envs
@@ -104,25 +112,34 @@ def main() -> None:
     args = p.parse_args()
     pin_threads()
     erl.warm_kernels({})
-    res: dict[str, float | int | str] = {"num_envs_per_runner": args.num_envs, "cpus": os.cpu_count() or 0,
-                                         "load_average_1min_before": os.getloadavg()[0]}
+    res: dict[str, float | int | str] = {
+        "num_envs_per_runner": args.num_envs,
+        "cpus": os.cpu_count() or 0,
+        "load_average_1min_before": os.getloadavg()[0],
+    }
     with tempfile.TemporaryDirectory() as cache:
         res["startup_s_cold_cache"] = startup_s(args.num_envs, cache)
         res["startup_s_warm_cache"] = startup_s(args.num_envs, cache)
     res["native_steps_per_s"] = native_steps_per_s(args.num_envs, args.seconds)
     res.update(rllib_steps_per_s(args.num_envs, args.seconds))
     res["load_average_1min_after"] = os.getloadavg()[0]
-    for line in markdown_table((f"sampler ({args.num_envs} tanks per runner)", "env steps/s"),
-                               [("native vector env, this process (no RLlib)", f"{res['native_steps_per_s']:,.0f}"),
-                                ("RLlib, 1 env runner", f"{res['rllib_1_runner_steps_per_s']:,.0f}"),
-                                ("RLlib, 2 env runners at once", f"{res['rllib_2_runner_steps_per_s']:,.0f}")]):
+    for line in markdown_table(
+        (f"sampler ({args.num_envs} tanks per runner)", "env steps/s"),
+        [
+            ("native vector env, this process (no RLlib)", f"{res['native_steps_per_s']:,.0f}"),
+            ("RLlib, 1 env runner", f"{res['rllib_1_runner_steps_per_s']:,.0f}"),
+            ("RLlib, 2 env runners at once", f"{res['rllib_2_runner_steps_per_s']:,.0f}"),
+        ],
+    ):
         print(line)
-    print(f"\nrunner env start-up (fresh process: import, build, reset, step): cold numba cache "
-          f"{res['startup_s_cold_cache']:.1f} s, warm {res['startup_s_warm_cache']:.1f} s; "
-          f"PPO build with 2 runners (warm cache) {res['algo_build_s_2_runners_warm_cache']:.1f} s; "
-          f"1-min load average {res['load_average_1min_before']:.1f} before, "
-          f"{res['load_average_1min_after']:.1f} after "
-          f"(on {res['cpus']} CPUs; above that, others share the cores)")
+    print(
+        f"\nrunner env start-up (fresh process: import, build, reset, step): cold numba cache "
+        f"{res['startup_s_cold_cache']:.1f} s, warm {res['startup_s_warm_cache']:.1f} s; "
+        f"PPO build with 2 runners (warm cache) {res['algo_build_s_2_runners_warm_cache']:.1f} s; "
+        f"1-min load average {res['load_average_1min_before']:.1f} before, "
+        f"{res['load_average_1min_after']:.1f} after "
+        f"(on {res['cpus']} CPUs; above that, others share the cores)"
+    )
     if args.out:
         write_json_atomic(args.out, res)
 

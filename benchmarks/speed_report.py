@@ -48,8 +48,20 @@ TABLE4_AGENTS = "rnd-wlk,min-var,zero-crossing"
 def table4_wall_s(trials: int, workers: int = 2) -> float:
     """Wall seconds of ``electroloc bench`` on the three baselines, all 8 conditions (a temp output dir)."""
     with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "electroloc_gym.cli", "bench", "--agents", TABLE4_AGENTS, "--trials",
-               str(trials), "--workers", str(workers), "--out", out]
+        cmd = [
+            sys.executable,
+            "-m",
+            "electroloc_gym.cli",
+            "bench",
+            "--agents",
+            TABLE4_AGENTS,
+            "--trials",
+            str(trials),
+            "--workers",
+            str(workers),
+            "--out",
+            out,
+        ]
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         return time.perf_counter() - t0
@@ -60,9 +72,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--skip-table4", action="store_true", help="do not time the Table-4 benchmark")
     ap.add_argument("--trials", type=int, default=50, help="trials per condition and agent in the Table-4 run")
     ap.add_argument("--json", default=None, help="also write the report here")
-    ap.add_argument("--before", default=None, metavar="DIR",
-                    help="a checkout of the previous code: its env rows are measured interleaved with these, and "
-                         "the single env's and the native env's steps/s must be at least its")
+    ap.add_argument(
+        "--before",
+        default=None,
+        metavar="DIR",
+        help="a checkout of the previous code: its env rows are measured interleaved with these, and "
+        "the single env's and the native env's steps/s must be at least its",
+    )
     args = ap.parse_args(argv)
 
     print("== env steps/s (benchmarks/vector_env.py)", flush=True)
@@ -96,8 +112,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         add(f"PPO native / dummy, N={n}", d["native"] / d["dummy"], "x", 3.0)
     if not args.skip_table4:
         print(f"== Table-4 reproduction: electroloc bench --agents {TABLE4_AGENTS} --trials {args.trials}", flush=True)
-        add(f"Table-4 benchmark (8 x 3 x {args.trials} trials) wall time", table4_wall_s(args.trials) / 60.0,
-            "min", 10.0, higher_is_better=False)
+        add(
+            f"Table-4 benchmark (8 x 3 x {args.trials} trials) wall time",
+            table4_wall_s(args.trials) / 60.0,
+            "min",
+            10.0,
+            higher_is_better=False,
+        )
 
     print("\n== targets")
     print(f"{'figure':<48} {'measured':>10}  {'target':>8}  met")

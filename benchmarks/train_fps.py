@@ -35,8 +35,13 @@ def one_run(native: bool, timesteps: int, log_folder: Path, n_envs: int = 16) ->
     """Run rl-zoo3 once in a fresh log folder; its summary.json's timing."""
     argv = zoo_argv("ppo", "ElectroLoc-v0", 0, timesteps=timesteps, log_folder=log_folder, native=native)
     env = {**os.environ, **{v: "1" for v in THREAD_VARS}}
-    subprocess.run([sys.executable, *argv, "--hyperparams", CALLBACK, f"n_envs:{n_envs}"], capture_output=True,
-                   text=True, env=env, check=True)
+    subprocess.run(
+        [sys.executable, *argv, "--hyperparams", CALLBACK, f"n_envs:{n_envs}"],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+    )
     (summary,) = Path(log_folder).glob("ppo/ElectroLoc-v0_*/summary.json")  # the folder is this run's alone
     s = json.loads(summary.read_text())
     return {"timesteps": s["timesteps"], "fps": s["fps_training_only"], "wall_time_s": s["wall_time_s"]}
@@ -49,9 +54,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--passes", type=int, default=2, help="interleaved passes over the two rows (the best is kept)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
-    print(f"rl-zoo3 PPO on ElectroLoc-v0 (train/hyperparams/ppo.yml: n_steps 256, 10 epochs, 128x128; "
-          f"{a.n_envs} envs), "
-          f"{a.timesteps} steps per run, torch 1 thread, {a.passes} interleaved passes", flush=True)
+    print(
+        f"rl-zoo3 PPO on ElectroLoc-v0 (train/hyperparams/ppo.yml: n_steps 256, 10 epochs, 128x128; "
+        f"{a.n_envs} envs), "
+        f"{a.timesteps} steps per run, torch 1 thread, {a.passes} interleaved passes",
+        flush=True,
+    )
     best: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for p in range(a.passes):
@@ -65,8 +73,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     print(f"{'DummyVecEnv (rl-zoo3)':<26} {best['dummy']['fps']:>15.0f}")
     print(f"{'native (electroloc hook)':<26} {best['native']['fps']:>15.0f}")
     print(f"native / dummy: {ratio:.2f}x")
-    res = {"n_envs": a.n_envs, "timesteps": a.timesteps, "passes": a.passes, "rows": best,
-           "ratio_native_vs_dummy": ratio}
+    res = {
+        "n_envs": a.n_envs,
+        "timesteps": a.timesteps,
+        "passes": a.passes,
+        "rows": best,
+        "ratio_native_vs_dummy": ratio,
+    }
     if a.json:
         atomic_write_text(a.json, json.dumps(res, indent=2))
     return res

@@ -99,8 +99,15 @@ def _make(backend: str, n: int, kwargs: dict[str, Any], env_id: str = "ElectroLo
     return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
 
 
-def measure_isolated(backend: str, n: int, kwargs: dict[str, Any], seconds: float, rounds: int,
-                     env_id: str = "ElectroLoc-v0", tree: str | None = None) -> dict[str, float]:
+def measure_isolated(
+    backend: str,
+    n: int,
+    kwargs: dict[str, Any],
+    seconds: float,
+    rounds: int,
+    env_id: str = "ElectroLoc-v0",
+    tree: str | None = None,
+) -> dict[str, float]:
     """:func:`measure` in a fresh interpreter, so that allocator state and caches of one configuration
     do not leak into another; ``tree``: a checkout of other code to measure instead (its own copy of
     this script, its package first on ``PYTHONPATH``).
@@ -151,17 +158,26 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--passes", type=int, default=3, help="interleaved passes over the rows (the best is kept)")
     ap.add_argument("--json", default=None, help="also write the results here")
     ap.add_argument("--profile", action="store_true", help="profile the native env's step instead")
-    ap.add_argument("--before", default=None, metavar="DIR",
-                    help="also measure the code of this checkout (e.g. a `git worktree` of an older commit), "
-                         "interleaved with the current code's rows")
-    ap.add_argument("--now-kwargs", default="{}", metavar="JSON",
-                    help="extra env arguments for the current code's rows only (e.g. an older default)")
+    ap.add_argument(
+        "--before",
+        default=None,
+        metavar="DIR",
+        help="also measure the code of this checkout (e.g. a `git worktree` of an older commit), "
+        "interleaved with the current code's rows",
+    )
+    ap.add_argument(
+        "--now-kwargs",
+        default="{}",
+        metavar="JSON",
+        help="extra env arguments for the current code's rows only (e.g. an older default)",
+    )
     ap.add_argument("--_one", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args._one:
         spec = json.loads(args._one)
-        res = measure(lambda: _make(spec["backend"], spec["n"], spec["kwargs"], spec["env_id"]), spec["seconds"],
-                      spec["rounds"])
+        res = measure(
+            lambda: _make(spec["backend"], spec["n"], spec["kwargs"], spec["env_id"]), spec["seconds"], spec["rounds"]
+        )
         print(json.dumps(res))
         return res
     kwargs = {"n_particles": args.particles, "observation": args.observation, "sensor_model": args.sensor_model}
@@ -175,28 +191,35 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     trees: list[tuple[str, str | None]] = [("now", None)] + ([("before", args.before)] if args.before else [])
     rows = [("single", 1)] + [(b, n) for n in args.n_envs for b in ("sync", "native")]
     configs = [(code, tree, b, n) for code, tree in trees for b, n in rows]
-    print(f"{args.env} {kwargs}, random actions, autoreset; {args.passes} interleaved passes over the rows, each "
-          f"row in a fresh process timing the best of {args.rounds} rounds; the best pass is kept", flush=True)
+    print(
+        f"{args.env} {kwargs}, random actions, autoreset; {args.passes} interleaved passes over the rows, each "
+        f"row in a fresh process timing the best of {args.rounds} rounds; the best pass is kept",
+        flush=True,
+    )
     # The host's speed drifts by ±20 % over minutes: the rows are measured in interleaved passes
     # (single, sync 16, native 16, sync 64, ... , then again), so that every row sees the same phases.
     best: dict[tuple[str, str, int], dict[str, float]] = {}
     for _ in tqdm(range(args.passes), desc="passes", leave=False, disable=None):
         for code, tree, backend, n in configs:
-            r = measure_isolated(backend, n, now_kwargs if tree is None else kwargs, args.seconds, args.rounds,
-                                 args.env, tree)
+            r = measure_isolated(
+                backend, n, now_kwargs if tree is None else kwargs, args.seconds, args.rounds, args.env, tree
+            )
             old = best.get((code, backend, n))
             best[(code, backend, n)] = {
                 "steps_per_s_cpu": max(r["steps_per_s_cpu"], old["steps_per_s_cpu"] if old else 0),
                 "steps_per_s_wall": max(r["steps_per_s_wall"], old["steps_per_s_wall"] if old else 0),
-                "vector_steps": r["vector_steps"]}
+                "vector_steps": r["vector_steps"],
+            }
     print(f"{'code':<7} {'backend':<8} {'N':>4} {'steps/s (CPU)':>14} {'steps/s (wall)':>15} {'vs sync (CPU)':>14}")
     for code, _, backend, n in configs:
         r = best[(code, backend, n)]
         base = best[(code, "sync", n)]["steps_per_s_cpu"] if backend == "native" else None
         ratio = r["steps_per_s_cpu"] / base if base else None
         rs = f"{ratio:>13.2f}x" if ratio else f"{'':>14}"
-        print(f"{code:<7} {backend:<8} {n:>4} {r['steps_per_s_cpu']:>14.0f} {r['steps_per_s_wall']:>15.0f} {rs}",
-              flush=True)
+        print(
+            f"{code:<7} {backend:<8} {n:>4} {r['steps_per_s_cpu']:>14.0f} {r['steps_per_s_wall']:>15.0f} {rs}",
+            flush=True,
+        )
         results["rows"].append({"code": code, "backend": backend, "n_envs": n, **r, "ratio_vs_sync_cpu": ratio})
     if args.json:
         atomic_write_text(args.json, json.dumps(results, indent=2))

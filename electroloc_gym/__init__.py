@@ -38,8 +38,9 @@ def register_env(entry: EnvEntry) -> None:
     """
     add_entry(entry)
     if entry.env_id not in registration.registry:
-        registration.register(id=entry.env_id, entry_point=class_path(entry.env_class),
-                              vector_entry_point=class_path(entry.vector_class))
+        registration.register(
+            id=entry.env_id, entry_point=class_path(entry.env_class), vector_entry_point=class_path(entry.vector_class)
+        )
 
 
 def _register_builtin() -> None:

@@ -191,8 +191,10 @@ def parse_agent_spec(text: str) -> AgentSpec:
         body = rest[:-1]
     head = head.strip()
     if not (_NAME_RE.fullmatch(head) or _FACTORY_RE.fullmatch(head)):
-        raise ValueError(f"agent spec {spec!r} is malformed; expected NAME, NAME[key=value,...] or "
-                         f"package.module:factory[key=value,...]")
+        raise ValueError(
+            f"agent spec {spec!r} is malformed; expected NAME, NAME[key=value,...] or "
+            f"package.module:factory[key=value,...]"
+        )
     options: dict[str, Any] = {}
     if body is not None and body.strip():
         for a, b in _scan(body, f"options of agent spec {spec!r}:"):

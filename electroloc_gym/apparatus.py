@@ -15,13 +15,11 @@ import numpy as np
 
 from electroloc_gym.checks import check_float
 
-__all__ = ["MATERIAL_CONDUCTIVITY_uScm", "Target", "Water", "Amplifier", "Geometry", "as_floats",
-           "from_dict"]
+__all__ = ["MATERIAL_CONDUCTIVITY_uScm", "Target", "Water", "Amplifier", "Geometry", "as_floats", "from_dict"]
 
 #: Conductivities (µS/cm) of the paper's target materials. Steel ≈ 1.4·10⁶ S/m; Delrin (acetal) is
 #: an insulator (≈10⁻¹³ S/m). Only the contrast χ matters, which is +1 and −½ to many digits.
 MATERIAL_CONDUCTIVITY_uScm: dict[str, float] = {"steel": 1.4e10, "delrin": 1e-9}
-
 
 
 def as_floats(obj: Any, *names: str) -> None:
@@ -37,8 +35,11 @@ def from_dict(cls: type, data: Mapping[str, Any]) -> Any:
     unknown = sorted(set(data) - names)
     if unknown:
         raise ValueError(f"unknown {cls.__name__} field(s) {unknown}; allowed: {sorted(names)}")
-    missing = sorted(f.name for f in fields if f.name not in data and f.default is dataclasses.MISSING
-                     and f.default_factory is dataclasses.MISSING)
+    missing = sorted(
+        f.name
+        for f in fields
+        if f.name not in data and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    )
     if missing:
         raise ValueError(f"missing {cls.__name__} field(s) {missing}; required: {sorted(f.name for f in fields)}")
     return cls(**data)

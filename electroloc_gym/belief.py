@@ -45,8 +45,11 @@ class BeliefView:
         unknown-target env (M, 4) hypotheses (x mm, y mm, radius mm, χ), a read-only copy.
         """
         s, i = self._state, self._index
-        v = s.particles_mm[i].T if s.shape_particles.shape[1] == 0 else \
-            np.concatenate([s.particles_mm[i], s.shape_particles[i]]).T
+        v = (
+            s.particles_mm[i].T
+            if s.shape_particles.shape[1] == 0
+            else np.concatenate([s.particles_mm[i], s.shape_particles[i]]).T
+        )
         v.flags.writeable = False
         return v
 

@@ -28,14 +28,19 @@ def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
     return int(value)
 
 
-def check_float(name: str, value: Any, low: float | None = None, *, inclusive: bool = False,
-                high: float | None = None) -> float:
+def check_float(
+    name: str, value: Any, low: float | None = None, *, inclusive: bool = False, high: float | None = None
+) -> float:
     """A finite real ``value`` above ``low`` (at or above it when ``inclusive``) and at most ``high``, as a
     float; else a ValueError naming ``name`` and the range. ``low=None``: no lower bound.
     """
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if (not ok or not math.isfinite(value) or (low is not None and (value < low or (value == low and not inclusive)))
-            or (high is not None and value > high)):
+    if (
+        not ok
+        or not math.isfinite(value)
+        or (low is not None and (value < low or (value == low and not inclusive)))
+        or (high is not None and value > high)
+    ):
         parts = [] if low is None else [f"{'≥' if inclusive else '>'} {low:g}"]
         parts += [] if high is None else [f"≤ {high:g}"]
         rng = (" " + " and ".join(parts)) if parts else ""

@@ -30,8 +30,10 @@ from electroloc_gym.sensor import zero_crossing_mm
 
 __all__ = ["main", "detection_table", "quiet_tank_table", "parse_noise_factor", "build_parser", "HelpFormatter"]
 
-DESCRIPTION = ("Gymnasium environments of the active-electrolocation robot of Solberg, Lynch & MacIver (IJRR 2008): "
-               "benchmark the paper's controllers and learned policies, train agents, and draw the paper's figures.")
+DESCRIPTION = (
+    "Gymnasium environments of the active-electrolocation robot of Solberg, Lynch & MacIver (IJRR 2008): "
+    "benchmark the paper's controllers and learned policies, train agents, and draw the paper's figures."
+)
 
 
 class Parser(argparse.ArgumentParser):
@@ -67,15 +69,17 @@ def detection_table() -> list[dict[str, float | str]]:
     for name in PRESET_NAMES:
         paper_eq = get_condition(name, "paper")
         fitted = get_condition(name, "fitted")
-        rows.append({
-            "condition": name,
-            "noise_rms_mV": paper_eq.amplifier.noise_rms_mV,
-            "paper_theory_mm": PAPER_TABLE3_THEORY_MM[name],
-            "paper_measured_mm": PAPER_TABLE3_MEASURED_MM[name],
-            "model_mm": round(paper_eq.detection_distance_mm(), 2),
-            "fitted_signal_scale": round(fitted.signal_scale, 3),
-            "model_fitted_mm": round(fitted.detection_distance_mm(), 2),
-        })
+        rows.append(
+            {
+                "condition": name,
+                "noise_rms_mV": paper_eq.amplifier.noise_rms_mV,
+                "paper_theory_mm": PAPER_TABLE3_THEORY_MM[name],
+                "paper_measured_mm": PAPER_TABLE3_MEASURED_MM[name],
+                "model_mm": round(paper_eq.detection_distance_mm(), 2),
+                "fitted_signal_scale": round(fitted.signal_scale, 3),
+                "model_fitted_mm": round(fitted.detection_distance_mm(), 2),
+            }
+        )
     return rows
 
 
@@ -100,8 +104,10 @@ def parse_noise_factor(text: str) -> float:
         value = None
     if value is None or not low <= value <= high:
         shown = text if len(text) <= 40 else text[:37] + "..."
-        raise argparse.ArgumentTypeError(f"noise factor must be a number in [{low}, {high}] (1: the paper's tank; "
-                                         f"1/32: §7's shielded tank), such as 1/32 or 0.03125, got {shown!r}")
+        raise argparse.ArgumentTypeError(
+            f"noise factor must be a number in [{low}, {high}] (1: the paper's tank; "
+            f"1/32: §7's shielded tank), such as 1/32 or 0.03125, got {shown!r}"
+        )
     return float(value)
 
 
@@ -125,8 +131,9 @@ def quiet_tank_table(noise_factor: float = QUIET_TANK_FACTOR) -> list[dict[str, 
             row[f"{signal}_quiet_mm"] = round(df, 2)
             row[f"{signal}_ratio"] = round(df / d1, 3)
             known = all(math.isfinite(v) for v in (zero, d1, df))  # no zero crossing / no detection: no label
-            row[f"{signal}_branch"] = (("near" if d1 < zero else "far") + "→" + ("near" if df < zero else "far")
-                                       if known else "n/a")
+            row[f"{signal}_branch"] = (
+                ("near" if d1 < zero else "far") + "→" + ("near" if df < zero else "far") if known else "n/a"
+            )
         rows.append(row)
     return rows
 
@@ -134,29 +141,44 @@ def quiet_tank_table(noise_factor: float = QUIET_TANK_FACTOR) -> list[dict[str, 
 def _quiet_tank_report(factor: float, as_json: bool) -> None:
     rows = quiet_tank_table(factor)
     k = 1.0 / factor
-    pred = {"far_eq5": k ** 0.2, "near_eq5": k ** 0.5, "far_layout": k ** (1 / 6)}
+    pred = {"far_eq5": k**0.2, "near_eq5": k**0.5, "far_layout": k ** (1 / 6)}
     if as_json:
-        print(strict_json({"noise_factor": factor, "paper_claim": "roughly doubled", "predicted_ratio": pred,
-                           "rows": rows}), end="")
+        print(
+            strict_json(
+                {"noise_factor": factor, "paper_claim": "roughly doubled", "predicted_ratio": pred, "rows": rows}
+            ),
+            end="",
+        )
         return
-    print(f"Detection distance along the 45° line, 2σ threshold, mm: the paper's tank (noise factor 1) and a"
-          f" noise factor of {factor:g} (1/{k:g})")
-    hdr = (f"{'condition':<18} {'zero':>5} | {'paper eqs':>9} {'quiet':>6} {'ratio':>5} {'branch':>9} |"
-           f" {'fitted':>6} {'quiet':>6} {'ratio':>5} {'branch':>9}")
+    print(
+        f"Detection distance along the 45° line, 2σ threshold, mm: the paper's tank (noise factor 1) and a"
+        f" noise factor of {factor:g} (1/{k:g})"
+    )
+    hdr = (
+        f"{'condition':<18} {'zero':>5} | {'paper eqs':>9} {'quiet':>6} {'ratio':>5} {'branch':>9} |"
+        f" {'fitted':>6} {'quiet':>6} {'ratio':>5} {'branch':>9}"
+    )
     print(hdr)
     print("-" * len(hdr))
     for r in rows:
-        print(f"{r['condition']:<18} {r['zero_crossing_mm']:>5.1f} | {r['paper_mm']:>9.1f} {r['paper_quiet_mm']:>6.1f}"
-              f" {r['paper_ratio']:>5.2f} {r['paper_branch']:>9} | {r['fitted_mm']:>6.1f} {r['fitted_quiet_mm']:>6.1f}"
-              f" {r['fitted_ratio']:>5.2f} {r['fitted_branch']:>9}")
+        print(
+            f"{r['condition']:<18} {r['zero_crossing_mm']:>5.1f} | {r['paper_mm']:>9.1f} {r['paper_quiet_mm']:>6.1f}"
+            f" {r['paper_ratio']:>5.2f} {r['paper_branch']:>9} | {r['fitted_mm']:>6.1f} {r['fitted_quiet_mm']:>6.1f}"
+            f" {r['fitted_ratio']:>5.2f} {r['fitted_branch']:>9}"
+        )
     gm = {s: math.exp(sum(math.log(float(r[f"{s}_ratio"])) for r in rows) / len(rows)) for s in ("paper", "fitted")}
-    print(f"{'geometric mean':<18} {'':>5} | {'':>9} {'':>6} {gm['paper']:>5.2f} {'':>9} | {'':>6} {'':>6}"
-          f" {gm['fitted']:>5.2f}")
-    print("\nPaper §7: detection distance \"roughly doubled\" for a noise cut of more than 32×.")
-    print(f"Eq. 5–6 (§2.3, Fig. 5, one detector): far field r_d ∝ n^(-1/5) → ×{pred['far_eq5']:.2f};"
-          f" near field r_d ∝ n^(-1/2) → ×{pred['near_eq5']:.2f}.")
-    print(f"This layout (differential pair, §6.7) far field: signal ∝ R^-6, r_d ∝ n^(-1/6)"
-          f" → ×{pred['far_layout']:.2f}.")
+    print(
+        f"{'geometric mean':<18} {'':>5} | {'':>9} {'':>6} {gm['paper']:>5.2f} {'':>9} | {'':>6} {'':>6}"
+        f" {gm['fitted']:>5.2f}"
+    )
+    print('\nPaper §7: detection distance "roughly doubled" for a noise cut of more than 32×.')
+    print(
+        f"Eq. 5–6 (§2.3, Fig. 5, one detector): far field r_d ∝ n^(-1/5) → ×{pred['far_eq5']:.2f};"
+        f" near field r_d ∝ n^(-1/2) → ×{pred['near_eq5']:.2f}."
+    )
+    print(
+        f"This layout (differential pair, §6.7) far field: signal ∝ R^-6, r_d ∝ n^(-1/6) → ×{pred['far_layout']:.2f}."
+    )
     print("zero: where the 45° reading changes sign (mm); branch near/far: inside/beyond it at factor 1 → quiet.")
     print("A near→far row jumps the zero-crossing gap; a near→near row stays where the signal falls steeply.")
 
@@ -185,10 +207,13 @@ def _plot_quiet_tank(path: str, factor: float) -> None:
         ax_mm.axhline(zero, color="0.5", lw=0.8, ls=":")
         ax_mm.annotate(f"zero crossing {zero:.1f} mm", (factors[-1], zero), ha="right", va="bottom", fontsize=7)
     ref = factors[factors <= 1.0]
-    for expo, text, colour in ((0.5, "near field n^(-1/2)", "0.6"), (0.2, "far field n^(-1/5): 2× at 1/32", "k"),
-                               (1 / 6, "layout far field n^(-1/6)", "0.3")):
-        ax_ratio.loglog(ref, ref ** -expo, color=colour, lw=2.2, alpha=0.45, label=text)
-    ax_ratio.axhline(2.0, color="k", lw=0.8, ls="-.", label="2× (\"roughly doubled\")")
+    for expo, text, colour in (
+        (0.5, "near field n^(-1/2)", "0.6"),
+        (0.2, "far field n^(-1/5): 2× at 1/32", "k"),
+        (1 / 6, "layout far field n^(-1/6)", "0.3"),
+    ):
+        ax_ratio.loglog(ref, ref**-expo, color=colour, lw=2.2, alpha=0.45, label=text)
+    ax_ratio.axhline(2.0, color="k", lw=0.8, ls="-.", label='2× ("roughly doubled")')
     for ax in (ax_mm, ax_ratio):
         ax.axvline(factor, color="r", lw=0.8, ls=":", label=f"noise factor {factor:g}" if ax is ax_ratio else None)
         ax.set_xlabel("noise factor (σ_s multiplier; 1 = the paper's tank)")
@@ -232,16 +257,20 @@ def _cmd_detect(args: argparse.Namespace) -> int:
         print(strict_json(rows), end="")
         return 0
     print("Detection distance along the 45° line, 2σ threshold (paper Table 3 beside this model), mm")
-    hdr = (f"{'condition':<18} {'σ mV':>5} {'paper theory':>13} {'model (scale 1)':>16} {'Δ':>6}"
-           f" {'paper measured':>15} {'fitted scale':>13} {'model (fitted)':>15}")
+    hdr = (
+        f"{'condition':<18} {'σ mV':>5} {'paper theory':>13} {'model (scale 1)':>16} {'Δ':>6}"
+        f" {'paper measured':>15} {'fitted scale':>13} {'model (fitted)':>15}"
+    )
     print(hdr)
     print("-" * len(hdr))
     for r in rows:
         d = float(r["model_mm"]) - float(r["paper_theory_mm"])
         flag = "  *" if "38.1" in str(r["condition"]) else ""
-        print(f"{r['condition']:<18} {r['noise_rms_mV']:>5.2f} {r['paper_theory_mm']:>13.1f} {r['model_mm']:>16.1f}"
-              f" {d:>+6.1f} {r['paper_measured_mm']:>15.1f} {r['fitted_signal_scale']:>13.3f}"
-              f" {r['model_fitted_mm']:>15.1f}{flag}")
+        print(
+            f"{r['condition']:<18} {r['noise_rms_mV']:>5.2f} {r['paper_theory_mm']:>13.1f} {r['model_mm']:>16.1f}"
+            f" {d:>+6.1f} {r['paper_measured_mm']:>15.1f} {r['fitted_signal_scale']:>13.3f}"
+            f" {r['model_fitted_mm']:>15.1f}{flag}"
+        )
     print("\n* The 38.1 mm rows are not reproducible from the paper's stated equations (uniform-field dipole,")
     print("  Eq. 4): the model gives ≈30–38 mm where the paper's theory column says 39–47 mm. The paper's values")
     print("  sit near the EEV's zero-crossing on the 45° line, where the detection distance jumps. The fitted")
@@ -296,8 +325,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         return 2
     info = ep.final_info
     wrote = " and ".join(str(p) for p in (args.out, args.gif) if p is not None)
-    print(f"episode: {info['n_observations']} observations, success={info['success']}, "
-          f"error {info['error_mm']:.2f} mm; wrote {wrote}")
+    print(
+        f"episode: {info['n_observations']} observations, success={info['success']}, "
+        f"error {info['error_mm']:.2f} mm; wrote {wrote}"
+    )
     return 0
 
 
@@ -310,43 +341,72 @@ def build_parser() -> argparse.ArgumentParser:
 
     def command(name: str, help: str, **kwargs: Any) -> argparse.ArgumentParser:
         description = kwargs.pop("description", help[0].upper() + help[1:] + ".")
-        return sub.add_parser(name, help=help, description=textwrap.fill(description, 100),
-                              formatter_class=HelpFormatter, **kwargs)
+        return sub.add_parser(
+            name, help=help, description=textwrap.fill(description, 100), formatter_class=HelpFormatter, **kwargs
+        )
 
-    d = command("detect", "detection-distance table beside the paper's Table 3",
-                description="Detection-distance table beside the paper's Table 3. With --noise-factor F: the "
-                            "detection distance of the eight conditions at noise factor 1 and F (§7's shielded "
-                            "tank: F = 1/32), with the ratio beside the paper's 'roughly doubled'.")
+    d = command(
+        "detect",
+        "detection-distance table beside the paper's Table 3",
+        description="Detection-distance table beside the paper's Table 3. With --noise-factor F: the "
+        "detection distance of the eight conditions at noise factor 1 and F (§7's shielded "
+        "tank: F = 1/32), with the ratio beside the paper's 'roughly doubled'.",
+    )
     d.add_argument("--json", action="store_true", help="print JSON rows instead of a table")
-    d.add_argument("--noise-factor", type=parse_noise_factor, default=None, metavar="F",
-                   help="multiply the noise σ_s by F > 0 (a fraction such as 1/32 or a decimal) and compare the "
-                        "detection distances at factor 1 and F")
-    d.add_argument("--plot", default=None, metavar="PATH",
-                   help="write a figure of detection distance vs noise factor (log-log) to PATH "
-                        "(implies --noise-factor 1/32 unless given)")
+    d.add_argument(
+        "--noise-factor",
+        type=parse_noise_factor,
+        default=None,
+        metavar="F",
+        help="multiply the noise σ_s by F > 0 (a fraction such as 1/32 or a decimal) and compare the "
+        "detection distances at factor 1 and F",
+    )
+    d.add_argument(
+        "--plot",
+        default=None,
+        metavar="PATH",
+        help="write a figure of detection distance vs noise factor (log-log) to PATH "
+        "(implies --noise-factor 1/32 unless given)",
+    )
     d.set_defaults(func=_cmd_detect)
 
     e = command("eev", "plot the expected-electric-voltage map (Fig. 2 / Fig. 9) to a PNG")
     e.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES), help="the preset")
     e.add_argument("--signal", default=DEFAULT_SIGNAL, choices=list(SIGNAL_CHOICES), help="signal scale of the preset")
     e.add_argument("--out", default="eev.png", help="the PNG to write")
-    e.add_argument("--env", default="target", choices=list(BENCH_ENVS),
-                   help="an env of the presets: one sphere's EEV (ElectroLoc-v0); of one fixed map (global): "
-                        "the six-cylinder map (Fig. 14)")
+    e.add_argument(
+        "--env",
+        default="target",
+        choices=list(BENCH_ENVS),
+        help="an env of the presets: one sphere's EEV (ElectroLoc-v0); of one fixed map (global): "
+        "the six-cylinder map (Fig. 14)",
+    )
     e.set_defaults(func=_cmd_eev)
 
     m = command("demo", "run one random-move episode; save its belief snapshots (PNG) and optionally a GIF")
     m.add_argument("--condition", default="fresh-steel-12.7", choices=list(PRESET_NAMES), help="the preset")
-    m.add_argument("--sensor-model", default="calibrated", choices=["analytic", "calibrated"],
-                   help="the particle filter's sensor model")
+    m.add_argument(
+        "--sensor-model",
+        default="calibrated",
+        choices=["analytic", "calibrated"],
+        help="the particle filter's sensor model",
+    )
     m.add_argument("--seed", type=seed_int, default=0, help="seed of the episode (an integer ≥ 0)")
     m.add_argument("--out", default="demo.png", help="the PNG of belief snapshots to write")
-    m.add_argument("--gif", default=None, metavar="PATH",
-                   help="also write the episode as an animated GIF (a .gif path other than --out)")
+    m.add_argument(
+        "--gif",
+        default=None,
+        metavar="PATH",
+        help="also write the episode as an animated GIF (a .gif path other than --out)",
+    )
     m.set_defaults(func=_cmd_demo)
 
-    b = command("bench", "benchmark agents on the paper's conditions (Table 4 / Table 1 layout)",
-                description=bench_cli.DESCRIPTION, epilog=bench_cli.EPILOG)
+    b = command(
+        "bench",
+        "benchmark agents on the paper's conditions (Table 4 / Table 1 layout)",
+        description=bench_cli.DESCRIPTION,
+        epilog=bench_cli.EPILOG,
+    )
     bench_cli.add_arguments(b)
     b.set_defaults(func=bench_cli.run)
 
@@ -356,8 +416,9 @@ def build_parser() -> argparse.ArgumentParser:
     dataset_cli.add_arguments(ds)
     ds.set_defaults(func=dataset_cli.run)
 
-    t = sub.add_parser("train", help="train through rl-zoo3 on the native vector env (electroloc train --help)",
-                       add_help=False)
+    t = sub.add_parser(
+        "train", help="train through rl-zoo3 on the native vector env (electroloc train --help)", add_help=False
+    )
     t.set_defaults(func=None)
     return p
 
@@ -370,8 +431,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             from electroloc_gym.train.__main__ import main as train_main
         except ImportError as exc:  # torch / SB3 missing
-            print(f"electroloc train needs the training extra: pip install 'electroloc-gym[train]' ({exc})",
-                  file=sys.stderr)
+            print(
+                f"electroloc train needs the training extra: pip install 'electroloc-gym[train]' ({exc})",
+                file=sys.stderr,
+            )
             return 2
         return int(train_main(argv[1:]) or 0)
     args = build_parser().parse_args(argv)

@@ -94,8 +94,9 @@ class Condition:
         if len(self.target_xy_mm) != 2:
             raise ValueError(f"target_xy_mm must be (x, y) in mm, got {self.target_xy_mm!r}")
         for v in self.target_xy_mm:
-            check_float("target_xy_mm", v, low=-self.allowed_half_width_mm, high=self.allowed_half_width_mm,
-                          inclusive=True)
+            check_float(
+                "target_xy_mm", v, low=-self.allowed_half_width_mm, high=self.allowed_half_width_mm, inclusive=True
+            )
         object.__setattr__(self, "target_xy_mm", (float(self.target_xy_mm[0]), float(self.target_xy_mm[1])))
         as_floats(self, "start_half_width_mm", "allowed_half_width_mm", "signal_scale")
 
@@ -124,9 +125,16 @@ class Condition:
         """Model detection distance (mm) along the 45° line (§6.7), signal scale and σ_s·noise_factor applied."""
         g = self.geometry
         return physics.layout_detection_distance(
-            self.target.radius_mm, self.chi, self.amplifier.effective_noise_rms_mV * 1e-3, self.depth_mm,
-            signal_scale=self.signal_scale, threshold_sigmas=threshold_sigmas, spacing_mm=g.spacing_mm,
-            emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+            self.target.radius_mm,
+            self.chi,
+            self.amplifier.effective_noise_rms_mV * 1e-3,
+            self.depth_mm,
+            signal_scale=self.signal_scale,
+            threshold_sigmas=threshold_sigmas,
+            spacing_mm=g.spacing_mm,
+            emitter_voltage_V=g.emitter_voltage_V,
+            electrode_radius_mm=g.electrode_radius_mm,
+        )
 
     def replace(self, **changes: Any) -> Condition:
         """A copy with some fields changed (validated again)."""
@@ -208,8 +216,15 @@ def fitted_signal_scale(name: str) -> float:
     c = _paper_condition(name)
     g = c.geometry
     return physics.fit_signal_scale(
-        PAPER_TABLE3_MEASURED_MM[name], c.target.radius_mm, c.chi, c.amplifier.noise_rms_mV * 1e-3, c.depth_mm,
-        spacing_mm=g.spacing_mm, emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+        PAPER_TABLE3_MEASURED_MM[name],
+        c.target.radius_mm,
+        c.chi,
+        c.amplifier.noise_rms_mV * 1e-3,
+        c.depth_mm,
+        spacing_mm=g.spacing_mm,
+        emitter_voltage_V=g.emitter_voltage_V,
+        electrode_radius_mm=g.electrode_radius_mm,
+    )
 
 
 def start_box_coverage(condition: Condition, threshold_sigmas: float = 2.0, n_grid: int = 121) -> float:
@@ -224,8 +239,14 @@ def start_box_coverage(condition: Condition, threshold_sigmas: float = 2.0, n_gr
     off = np.asarray(condition.target_xy_mm) - np.stack([gx, gy], axis=-1)
     geo = condition.geometry
     delta = physics.differential_perturbation(
-        off, condition.target.radius_mm, condition.chi, condition.depth_mm, spacing_mm=geo.spacing_mm,
-        emitter_voltage_V=geo.emitter_voltage_V, electrode_radius_mm=geo.electrode_radius_mm)
+        off,
+        condition.target.radius_mm,
+        condition.chi,
+        condition.depth_mm,
+        spacing_mm=geo.spacing_mm,
+        emitter_voltage_V=geo.emitter_voltage_V,
+        electrode_radius_mm=geo.electrode_radius_mm,
+    )
     signal = np.minimum(np.abs(delta) * condition.signal_scale * condition.amplifier.gain, condition.saturation_V)
     return float(np.mean(signal > threshold_sigmas * condition.noise_std_V))
 
@@ -246,14 +267,17 @@ def coverage_signal_multiplier() -> float:
     base = [_paper_condition(n).replace(signal_scale=fitted_signal_scale(n)) for n in PRESET_NAMES]
 
     def gap(k: float) -> float:
-        return float(np.mean([start_box_coverage(c.replace(signal_scale=c.signal_scale * k)) for c in base]))\
+        return (
+            float(np.mean([start_box_coverage(c.replace(signal_scale=c.signal_scale * k)) for c in base]))
             - PAPER_START_COVERAGE
+        )
 
     return float(brentq(gap, 1.0, 1000.0, xtol=1e-3))
 
 
-def get_condition(name_or_condition: str | Condition | Mapping[str, Any], signal: str | float = DEFAULT_SIGNAL
-                  ) -> Condition:
+def get_condition(
+    name_or_condition: str | Condition | Mapping[str, Any], signal: str | float = DEFAULT_SIGNAL
+) -> Condition:
     """Return a :class:`Condition` from a preset name, a Condition, or a dict.
 
     Args:

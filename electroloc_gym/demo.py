@@ -37,6 +37,7 @@ __all__ = ["Episode", "record_episode", "plot_episode", "save_gif", "demo", "che
 #: Most belief snapshots in the grid (first and last always shown, the rest evenly spaced).
 MAX_PANELS = 7
 
+
 @dataclass
 class Episode:
     """A recorded episode.
@@ -61,8 +62,9 @@ class Episode:
         return self.infos[-1]
 
 
-def record_episode(env: Any, seed: int = 0, agent: Any = None, frames: bool = False,
-                   label: str | None = None) -> Episode:
+def record_episode(
+    env: Any, seed: int = 0, agent: Any = None, frames: bool = False, label: str | None = None
+) -> Episode:
     """Run one episode of ``env`` from ``reset(seed=seed)`` and record it.
 
     The episode is the benchmark's (:func:`electroloc_gym.rollout.run_episode`): an agent that
@@ -83,8 +85,10 @@ def record_episode(env: Any, seed: int = 0, agent: Any = None, frames: bool = Fa
     if frames and env.render_mode != "rgb_array":
         raise ValueError(f"frames=True needs an env made with render_mode='rgb_array', got {env.render_mode!r}")
     name = "random moves" if agent is None else getattr(agent, "name", type(agent).__name__)
-    ep = Episode(label=label if label is not None else f"{name}, seed {seed}",
-                 success_spread_mm=float(env.unwrapped.success_spread_mm))
+    ep = Episode(
+        label=label if label is not None else f"{name}, seed {seed}",
+        success_spread_mm=float(env.unwrapped.success_spread_mm),
+    )
     if agent is None:
         agent = _RandomMoves(seed)  # the random walk is part of the seeded episode
     elif not hasattr(agent, "reset"):
@@ -111,8 +115,9 @@ class _RandomMoves:
         self._space = env.action_space
         self._space.seed(self._seed)
 
-    def predict(self, obs: Any, state: Any = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[Any, Any]:
+    def predict(
+        self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ) -> tuple[Any, Any]:
         return self._space.sample(), state
 
 
@@ -129,8 +134,9 @@ class _Unbound:
     def reset(self, env: Any) -> None:
         pass
 
-    def predict(self, obs: Any, state: Any = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[Any, Any]:
+    def predict(
+        self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ) -> tuple[Any, Any]:
         return self._agent.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
 
 
@@ -156,19 +162,29 @@ def plot_episode(episode: Episode, max_panels: int = MAX_PANELS) -> Any:
     nrows = -(-n_panels // ncols)
     fig = Figure(figsize=(3.3 * ncols + 1.2, 3.35 * nrows + 1.4), dpi=110)
     FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(nrows, ncols, left=0.05, right=0.88, top=1 - 0.75 / fig.get_figheight(),
-                            bottom=1.05 / fig.get_figheight(), wspace=0.22, hspace=0.32)
+    grid = fig.add_gridspec(
+        nrows,
+        ncols,
+        left=0.05,
+        right=0.88,
+        top=1 - 0.75 / fig.get_figheight(),
+        bottom=1.05 / fig.get_figheight(),
+        wspace=0.22,
+        hspace=0.32,
+    )
     axes = [fig.add_subplot(grid[i // ncols, i % ncols]) for i in range(n_panels)]
     for ax, i in zip(axes, idx):
         draw_snapshot(ax, snaps[i], title=False)
-        ax.set_title(f"observation {snaps[i].n_observations}: Φ = {snaps[i].reading_V:+.2f} V\n"
-                     f"spread {snaps[i].spread_mm:.1f} mm", fontsize=8.5)
-    for ax in axes[:len(idx)]:
+        ax.set_title(
+            f"observation {snaps[i].n_observations}: Φ = {snaps[i].reading_V:+.2f} V\n"
+            f"spread {snaps[i].spread_mm:.1f} mm",
+            fontsize=8.5,
+        )
+    for ax in axes[: len(idx)]:
         ax.set_xlabel("x (mm)", fontsize=7, labelpad=1)
         ax.set_ylabel("y (mm)", fontsize=7, labelpad=0)
     _plot_progress(axes[-1], episode)
-    cax = fig.add_axes((0.905, 1.05 / fig.get_figheight(), 0.012,
-                        1 - 1.8 / fig.get_figheight()))
+    cax = fig.add_axes((0.905, 1.05 / fig.get_figheight(), 0.012, 1 - 1.8 / fig.get_figheight()))
     eev_colorbar(fig, snaps[0], cax=cax)
     cax.tick_params(labelsize=7)
     cax.yaxis.label.set_size(8)
@@ -176,20 +192,27 @@ def plot_episode(episode: Episode, max_panels: int = MAX_PANELS) -> Any:
     info = episode.final_info
     name = first.scene.name if first.is_global else first.condition.name
     outcome = "success (spread ≤ threshold)" if info["success"] else "failure (observation cap)"
-    fig.suptitle(f"{name}, {episode.label}: {outcome} after {info['n_observations']} observations, "
-                 f"final error {info['error_mm']:.1f} mm", fontsize=11)
-    fig.legend(handles=legend_handles(first.is_global), loc="lower center", ncol=6 if ncols >= 4 else 4,
-               fontsize=8, frameon=False, bbox_to_anchor=(0.47, 0.0))
+    fig.suptitle(
+        f"{name}, {episode.label}: {outcome} after {info['n_observations']} observations, "
+        f"final error {info['error_mm']:.1f} mm",
+        fontsize=11,
+    )
+    fig.legend(
+        handles=legend_handles(first.is_global),
+        loc="lower center",
+        ncol=6 if ncols >= 4 else 4,
+        fontsize=8,
+        frameon=False,
+        bbox_to_anchor=(0.47, 0.0),
+    )
     return fig
 
 
 def _plot_progress(ax: Any, episode: Episode) -> None:
     """Spread and error (mm) against observations, with the success threshold."""
     n = [i["n_observations"] for i in episode.infos]
-    ax.plot(n, [i["spread_mm"] for i in episode.infos], "o-", color="tab:green", ms=3,
-            label="spread √trace Σ")
-    ax.plot(n, [i["error_mm"] for i in episode.infos], "s-", color="tab:orange", ms=3,
-            label="error |estimate − truth|")
+    ax.plot(n, [i["spread_mm"] for i in episode.infos], "o-", color="tab:green", ms=3, label="spread √trace Σ")
+    ax.plot(n, [i["error_mm"] for i in episode.infos], "s-", color="tab:orange", ms=3, label="error |estimate − truth|")
     thr = episode.success_spread_mm
     ax.axhline(thr, color="k", lw=0.8, ls=":", label=f"success: spread ≤ {thr:g} mm")
     ax.set_yscale("log")
@@ -209,8 +232,9 @@ def _plot_progress(ax: Any, episode: Episode) -> None:
     ax.set_box_aspect(1.0)
 
 
-def save_gif(frames: list[NDArray[np.uint8]], path: str | os.PathLike, fps: float = 3.0,
-             hold_last_s: float = 2.0) -> None:
+def save_gif(
+    frames: list[NDArray[np.uint8]], path: str | os.PathLike, fps: float = 3.0, hold_last_s: float = 2.0
+) -> None:
     """Write RGB frames (H, W, 3 uint8) as a looping GIF, atomically (temp file, then rename).
 
     Args:
@@ -228,14 +252,17 @@ def save_gif(frames: list[NDArray[np.uint8]], path: str | os.PathLike, fps: floa
     if not (np.isfinite(hold_last_s) and hold_last_s >= 0):
         raise ValueError(f"hold_last_s must be a finite number ≥ 0, got {hold_last_s!r}")
     palette = _shared_palette(frames)
-    images = [Image.fromarray(np.asarray(f, dtype=np.uint8)).quantize(palette=palette, dither=Image.Dither.NONE)
-              for f in frames]
+    images = [
+        Image.fromarray(np.asarray(f, dtype=np.uint8)).quantize(palette=palette, dither=Image.Dither.NONE)
+        for f in frames
+    ]
     dt = int(round(1000.0 / fps))
     durations = [dt] * len(images)
     durations[-1] = dt + int(round(1000.0 * hold_last_s))
     buf = io.BytesIO()
-    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0,
-                   optimize=True)
+    images[0].save(
+        buf, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0, optimize=True
+    )
     atomic_write_bytes(path, buf.getvalue())
 
 
@@ -267,13 +294,24 @@ def check_output_path(name: str, path: str | os.PathLike, suffixes: tuple[str, .
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"{name}: cannot write {str(p)!r}, folder {str(parent)!r} is not writable")
     if suffixes is not None and p.suffix.lower().lstrip(".") not in suffixes:
-        raise ValueError(f"{name} {str(p)!r}: the format {p.suffix or '(none)'!r} is not supported; "
-                         f"use one of {', '.join('.' + x for x in suffixes)}")
+        raise ValueError(
+            f"{name} {str(p)!r}: the format {p.suffix or '(none)'!r} is not supported; "
+            f"use one of {', '.join('.' + x for x in suffixes)}"
+        )
 
 
 #: Marker colours every GIF palette keeps (matplotlib's tab colours, black, grey), RGB.
-_MARKER_RGB = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (23, 190, 207),
-               (0, 0, 0), (89, 89, 89), (255, 255, 255))
+_MARKER_RGB = (
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (23, 190, 207),
+    (0, 0, 0),
+    (89, 89, 89),
+    (255, 255, 255),
+)
 
 
 def _shared_palette(frames: list[NDArray[np.uint8]]) -> Any:
@@ -292,8 +330,13 @@ def _shared_palette(frames: list[NDArray[np.uint8]]) -> Any:
     return Image.fromarray(np.concatenate([*sample, *swatches], axis=0)).quantize(255, method=Image.Quantize.MEDIANCUT)
 
 
-def demo(condition: str = "fresh-steel-12.7", sensor_model: str = "calibrated", seed: int = 0,
-         out: str | os.PathLike | None = "demo.png", gif: str | os.PathLike | None = None) -> Episode:
+def demo(
+    condition: str = "fresh-steel-12.7",
+    sensor_model: str = "calibrated",
+    seed: int = 0,
+    out: str | os.PathLike | None = "demo.png",
+    gif: str | os.PathLike | None = None,
+) -> Episode:
     """``electroloc demo``: one random-move episode of ElectroLoc-v0 as a snapshot grid and/or a GIF."""
     import gymnasium as gym
 
@@ -305,8 +348,12 @@ def demo(condition: str = "fresh-steel-12.7", sensor_model: str = "calibrated", 
         check_output_path("gif", gif, ("gif",))
     if out is not None and gif is not None and Path(out).resolve() == Path(gif).resolve():
         raise ValueError(f"out and gif name the same file {str(out)!r}; one would overwrite the other")
-    env = gym.make("ElectroLoc-v0", condition=condition, sensor_model=sensor_model,
-                   render_mode="rgb_array" if gif is not None else None)
+    env = gym.make(
+        "ElectroLoc-v0",
+        condition=condition,
+        sensor_model=sensor_model,
+        render_mode="rgb_array" if gif is not None else None,
+    )
     try:
         episode = record_episode(env, seed=seed, frames=gif is not None)
     finally:

@@ -54,8 +54,8 @@ def _columns(h: float, spacing: float) -> tuple[NDArray[np.float64], NDArray[np.
         combos = np.array(list(itertools.combinations_with_replacement(range(_SHIFT_LEVELS + 1), k)), dtype=np.intp)
     else:
         combos = np.repeat(np.arange(_SHIFT_LEVELS + 1, dtype=np.intp)[:, None], k, axis=1)
-    xs = (-h + np.arange(k) * spacing)[:, None] + shifts[None, :]          # (k, levels+1)
-    index = np.arange(k) * (_SHIFT_LEVELS + 1) + combos                     # (F, k) into xs.ravel()
+    xs = (-h + np.arange(k) * spacing)[:, None] + shifts[None, :]  # (k, levels+1)
+    index = np.arange(k) * (_SHIFT_LEVELS + 1) + combos  # (F, k) into xs.ravel()
     return np.minimum(xs.ravel(), h), index
 
 
@@ -100,9 +100,9 @@ def least_capacity(h: float, spacing: float, clearance: float, half_width: float
     xs, index = _columns(h, spacing)
     least = None
     col = np.reshape(g, (-1, 1))
-    for ty in g.tolist():                                      # one row of the grid of targets at a time
+    for ty in g.tolist():  # one row of the grid of targets at a time
         by_columns = _column_counts(h, spacing, clearance + margin, xs[None, :] - col, np.float64(ty))
-        by_rows = _column_counts(h, spacing, clearance + margin, xs[None, :] - ty, col)   # the transpose
+        by_rows = _column_counts(h, spacing, clearance + margin, xs[None, :] - ty, col)  # the transpose
         best = np.maximum(by_columns[:, index].sum(axis=2).max(axis=1), by_rows[:, index].sum(axis=2).max(axis=1))
         least = int(best.min()) if least is None else min(least, int(best.min()))
     return int(least)

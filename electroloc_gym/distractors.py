@@ -105,17 +105,26 @@ class DistractorDraw:
     def __post_init__(self) -> None:
         c = self.count
         mix = isinstance(c, (tuple, list)) and len(c) > 0
-        for v in (c if mix else (c,)):
+        for v in c if mix else (c,):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= MAX_DISTRACTORS:
-                raise ValueError(f"count (distractors) must be an integer in [0, {MAX_DISTRACTORS}] or a non-empty "
-                                 f"tuple of such integers, got {c!r}")
+                raise ValueError(
+                    f"count (distractors) must be an integer in [0, {MAX_DISTRACTORS}] or a non-empty "
+                    f"tuple of such integers, got {c!r}"
+                )
         object.__setattr__(self, "count", tuple(int(v) for v in c) if mix else int(c))
         object.__setattr__(self, "shapes", _tuple_of("shapes", self.shapes, SHAPES))
-        object.__setattr__(self, "materials", _tuple_of("materials", self.materials,
-                                                        tuple(SCENE_MATERIAL_CONDUCTIVITY_uScm)))
+        object.__setattr__(
+            self, "materials", _tuple_of("materials", self.materials, tuple(SCENE_MATERIAL_CONDUCTIVITY_uScm))
+        )
         d = self.diameters_mm
-        if isinstance(d, str) or not isinstance(d, Sequence) or len(d) == 0 or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 for v in d):
+        if (
+            isinstance(d, str)
+            or not isinstance(d, Sequence)
+            or len(d) == 0
+            or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 for v in d
+            )
+        ):
             raise ValueError(f"diameters_mm must be a non-empty sequence of diameters > 0 mm, got {d!r}")
         object.__setattr__(self, "diameters_mm", tuple(float(v) for v in d))
         g = self.gap_mm
@@ -171,27 +180,44 @@ class DistractorDraw:
         r_max = max(self.diameters_mm) / 2.0
         return 2.0 * r_max + self.gap_mm + EDGE_MM, condition.target.radius_mm + r_max + self.gap_mm + EDGE_MM
 
-    def _fallback(self, condition: Condition, target_xy_mm: ArrayLike, rng: np.random.Generator, count: int,
-                  placed: list[SceneObject], current: tuple[str, float, str]) -> DistractorSet:
+    def _fallback(
+        self,
+        condition: Condition,
+        target_xy_mm: ArrayLike,
+        rng: np.random.Generator,
+        count: int,
+        placed: list[SceneObject],
+        current: tuple[str, float, str],
+    ) -> DistractorSet:
         """The column construction, reached when rejection fails: the objects keep their drawn shape,
         diameter and material (the rest are drawn now, as in the loop), and take ``count`` of the best
         column layout's centres, a random subset.
         """
         kinds = [(o.shape, o.diameter_mm, o.material) for o in placed] + [current]
         while len(kinds) < count:
-            kinds.append((self.shapes[int(rng.integers(len(self.shapes)))],
-                          self.diameters_mm[int(rng.integers(len(self.diameters_mm)))],
-                          self.materials[int(rng.integers(len(self.materials)))]))
+            kinds.append(
+                (
+                    self.shapes[int(rng.integers(len(self.shapes)))],
+                    self.diameters_mm[int(rng.integers(len(self.diameters_mm)))],
+                    self.materials[int(rng.integers(len(self.materials)))],
+                )
+            )
         t = np.asarray(target_xy_mm, dtype=np.float64).reshape(2)
         spacing, clearance = self._clearances_mm(condition)
         nodes = column_layout(condition.allowed_half_width_mm, spacing, clearance, float(t[0]), float(t[1]))
         if len(nodes) < count:
-            raise ValueError(f"could not place {count} distractors of up to {max(self.diameters_mm):g} mm clear of "
-                             f"the target at ({t[0]:.4g}, {t[1]:.4g}) mm by gap_mm={self.gap_mm:g} in the "
-                             f"±{condition.allowed_half_width_mm:g} mm box: at most {len(nodes)} fit there")
+            raise ValueError(
+                f"could not place {count} distractors of up to {max(self.diameters_mm):g} mm clear of "
+                f"the target at ({t[0]:.4g}, {t[1]:.4g}) mm by gap_mm={self.gap_mm:g} in the "
+                f"±{condition.allowed_half_width_mm:g} mm box: at most {len(nodes)} fit there"
+            )
         pick = rng.choice(len(nodes), size=count, replace=False)
-        return DistractorSet(tuple(SceneObject.of_material(shape, nodes[int(j)], diameter, material)
-                                   for (shape, diameter, material), j in zip(kinds, pick)))
+        return DistractorSet(
+            tuple(
+                SceneObject.of_material(shape, nodes[int(j)], diameter, material)
+                for (shape, diameter, material), j in zip(kinds, pick)
+            )
+        )
 
     def check_fits(self, condition: Condition, target_half_width_mm: float | None = None) -> None:
         """Refuse a draw that could fail: ``max_count`` objects must fit beside every target the env can
@@ -212,9 +238,11 @@ class DistractorDraw:
             fits = least_capacity(h, spacing, clearance, float(target_half_width_mm))
             where = f"a random target in ±{float(target_half_width_mm):g} mm"
         if fits < self.max_count:
-            raise ValueError(f"count (distractors) {self.max_count} of up to {max(self.diameters_mm):g} mm with "
-                             f"gap_mm={self.gap_mm:g} cannot always be placed in condition {condition.name!r} "
-                             f"beside {where}: at most {fits} always fit; ask for fewer or smaller distractors")
+            raise ValueError(
+                f"count (distractors) {self.max_count} of up to {max(self.diameters_mm):g} mm with "
+                f"gap_mm={self.gap_mm:g} cannot always be placed in condition {condition.name!r} "
+                f"beside {where}: at most {fits} always fit; ask for fewer or smaller distractors"
+            )
 
 
 @dataclass(frozen=True)
@@ -264,11 +292,16 @@ class DistractorSet:
         """
         if not self.objects:
             return None
-        return Scene(name=f"{condition.name}+{len(self.objects)} distractors", objects=self.objects,
-                     water=condition.water, amplifier=condition.amplifier,
-                     allowed_half_width_mm=condition.allowed_half_width_mm,
-                     start_half_width_mm=condition.start_half_width_mm, signal_scale=condition.signal_scale,
-                     geometry=condition.geometry)
+        return Scene(
+            name=f"{condition.name}+{len(self.objects)} distractors",
+            objects=self.objects,
+            water=condition.water,
+            amplifier=condition.amplifier,
+            allowed_half_width_mm=condition.allowed_half_width_mm,
+            start_half_width_mm=condition.start_half_width_mm,
+            signal_scale=condition.signal_scale,
+            geometry=condition.geometry,
+        )
 
     def reading_V(self, condition: Condition, carriage_mm: ArrayLike) -> NDArray:
         """The distractors' part of the noise-free, unsaturated reading, s·G·Σ_k (δV_k(S1) − δV_k(S2)) (V),
@@ -283,8 +316,14 @@ class DistractorSet:
         return scene.expected_reading(p, saturate=False)
 
 
-def superposed_reading_V(condition: Condition, target_xy_mm: ArrayLike, distractors: DistractorSet,
-                         carriage_mm: ArrayLike, *, saturate: bool = True) -> NDArray:
+def superposed_reading_V(
+    condition: Condition,
+    target_xy_mm: ArrayLike,
+    distractors: DistractorSet,
+    carriage_mm: ArrayLike,
+    *,
+    saturate: bool = True,
+) -> NDArray:
     """The noise-free reading Φ (V) of the target and the distractors together, carriage at ``carriage_mm``
     (..., 2): the target's term plus the distractors', then the clip. Without distractors it is
     :func:`~electroloc_gym.sensor.expected_reading` of the target, bit for bit.
@@ -316,8 +355,9 @@ def resolve_distractors(value: Any) -> DistractorDraw | DistractorSet:
         return _resolve(value)
     except ValueError as exc:
         msg = str(exc)
-        raise ValueError(msg if msg.startswith("distractors") or "(distractors)" in msg
-                         else f"distractors: {msg}") from None
+        raise ValueError(
+            msg if msg.startswith("distractors") or "(distractors)" in msg else f"distractors: {msg}"
+        ) from None
 
 
 def _resolve(value: Any) -> DistractorDraw | DistractorSet:
@@ -330,8 +370,12 @@ def _resolve(value: Any) -> DistractorDraw | DistractorSet:
             return DistractorDraw(**dict(value))
         except TypeError as exc:
             raise ValueError(f"distractors: {exc}") from exc
-    if isinstance(value, Sequence) and not isinstance(value, str) and len(value) and all(
-            isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value):
+    if (
+        isinstance(value, Sequence)
+        and not isinstance(value, str)
+        and len(value)
+        and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value)
+    ):
         return DistractorDraw(count=tuple(value))
     if isinstance(value, Sequence) and not isinstance(value, str):
         objects = []
@@ -343,6 +387,7 @@ def _resolve(value: Any) -> DistractorDraw | DistractorSet:
                     raise ValueError(f"distractors: {exc}") from exc
             objects.append(item)
         return DistractorSet(tuple(objects))
-    raise ValueError(f"distractors must be a count 0–{MAX_DISTRACTORS} (or a list of counts), a DistractorDraw, "
-                     f"a DistractorSet, a dict of DistractorDraw's fields or a sequence of SceneObject, got {value!r}")
-
+    raise ValueError(
+        f"distractors must be a count 0–{MAX_DISTRACTORS} (or a list of counts), a DistractorDraw, "
+        f"a DistractorSet, a dict of DistractorDraw's fields or a sequence of SceneObject, got {value!r}"
+    )

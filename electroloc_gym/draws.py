@@ -41,8 +41,9 @@ def table_normal_indices(rng: np.random.Generator, n: int) -> NDArray[np.uint16]
     return rng.bit_generator.random_raw((n + 3) // 4).view(np.uint16)[:n]
 
 
-def uniform_in_box(rng: np.random.Generator, low: NDArray, high: NDArray, n: int,
-                   out_xy: tuple[NDArray, NDArray] | None = None) -> NDArray[np.float64] | None:
+def uniform_in_box(
+    rng: np.random.Generator, low: NDArray, high: NDArray, n: int, out_xy: tuple[NDArray, NDArray] | None = None
+) -> NDArray[np.float64] | None:
     """``rng.uniform(low, high, size=(n, 2))`` bit for bit, without numpy's slow broadcasting.
 
     With array bounds numpy's ``uniform`` takes its broadcasting path; it

@@ -25,8 +25,16 @@ from typing import Any
 import numpy as np
 from filelock import FileLock, Timeout
 
-__all__ = ["atomic_write_bytes", "atomic_write_text", "save_figure_atomic", "to_json_data", "strict_json",
-           "write_json_atomic", "FolderLock", "FolderBusyError"]
+__all__ = [
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "save_figure_atomic",
+    "to_json_data",
+    "strict_json",
+    "write_json_atomic",
+    "FolderLock",
+    "FolderBusyError",
+]
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:

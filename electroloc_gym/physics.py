@@ -178,12 +178,21 @@ def differential_perturbation(
     Returns:
         Array of shape (...) in volts.
     """
-    return _differential_dipole(offsets_mm, chi * (radius_mm * radius_mm * radius_mm), depth_mm, 1.5, spacing_mm,
-                                emitter_voltage_V, electrode_radius_mm)
+    return _differential_dipole(
+        offsets_mm,
+        chi * (radius_mm * radius_mm * radius_mm),
+        depth_mm,
+        1.5,
+        spacing_mm,
+        emitter_voltage_V,
+        electrode_radius_mm,
+    )
 
 
-_DIPOLE_SIGNATURES = ["float32(float32, float32, float32, float32, float32, float32, float32, boolean)",
-                      "float64(float64, float64, float64, float64, float64, float64, float64, boolean)"]
+_DIPOLE_SIGNATURES = [
+    "float32(float32, float32, float32, float32, float32, float32, float32, boolean)",
+    "float64(float64, float64, float64, float64, float64, float64, float64, boolean)",
+]
 
 
 @vectorize(_DIPOLE_SIGNATURES, cache=True)
@@ -241,8 +250,16 @@ def _differential_dipole(
     x = off[..., 0].astype(dtype, copy=False)
     y = off[..., 1].astype(dtype, copy=False)
     z2 = np.asarray(depth_mm * depth_mm, dtype=dtype)  # arrays (per-object depth and strength) broadcast
-    return _DIPOLE_UFUNC(x, y, t(spacing_mm / 2.0), z2, t(emitter_voltage_V * electrode_radius_mm),
-                         np.asarray(strength, dtype=dtype), t(1.0), power == 1.5)
+    return _DIPOLE_UFUNC(
+        x,
+        y,
+        t(spacing_mm / 2.0),
+        z2,
+        t(emitter_voltage_V * electrode_radius_mm),
+        np.asarray(strength, dtype=dtype),
+        t(1.0),
+        power == 1.5,
+    )
 
 
 def differential_line_perturbation(
@@ -259,8 +276,9 @@ def differential_line_perturbation(
     The 2-D analogue of Eq. 4 (docs/design.md, "Physics"), ``χ₂ a² E_f(c)·(s − c)/|s − c|²``, evaluated with the
     same column-wise fast path as :func:`differential_perturbation`; float32 in, float32 out.
     """
-    return _differential_dipole(offsets_mm, chi2 * (radius_mm * radius_mm), depth_mm, 1.0, spacing_mm,
-                                emitter_voltage_V, electrode_radius_mm)
+    return _differential_dipole(
+        offsets_mm, chi2 * (radius_mm * radius_mm), depth_mm, 1.0, spacing_mm, emitter_voltage_V, electrode_radius_mm
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -356,8 +374,14 @@ def layout_detection_distance(
     """
     if not noise_rms_V > 0:
         raise ValueError(f"noise_rms_V must be > 0, got {noise_rms_V!r}")
-    kw = dict(radius_mm=radius_mm, chi=chi, depth_mm=depth_mm, spacing_mm=spacing_mm,
-              emitter_voltage_V=emitter_voltage_V, electrode_radius_mm=electrode_radius_mm)
+    kw = dict(
+        radius_mm=radius_mm,
+        chi=chi,
+        depth_mm=depth_mm,
+        spacing_mm=spacing_mm,
+        emitter_voltage_V=emitter_voltage_V,
+        electrode_radius_mm=electrode_radius_mm,
+    )
 
     def g(R):
         return signal_scale * layout_signal_on_45deg(R, **kw) - threshold_sigmas * noise_rms_V
@@ -388,8 +412,14 @@ def fit_signal_scale(
     """
     from scipy.optimize import minimize_scalar
 
-    kw = dict(radius_mm=radius_mm, chi=chi, depth_mm=depth_mm, spacing_mm=spacing_mm,
-              emitter_voltage_V=emitter_voltage_V, electrode_radius_mm=electrode_radius_mm)
+    kw = dict(
+        radius_mm=radius_mm,
+        chi=chi,
+        depth_mm=depth_mm,
+        spacing_mm=spacing_mm,
+        emitter_voltage_V=emitter_voltage_V,
+        electrode_radius_mm=electrode_radius_mm,
+    )
     if measured_distance_mm <= depth_mm:
         raise ValueError(f"measured_distance_mm must exceed the target depth {depth_mm} mm, got {measured_distance_mm}")
     R = np.linspace(measured_distance_mm, r_max_mm, 40001)
@@ -398,8 +428,9 @@ def fit_signal_scale(
     lo, hi = R[max(i - 1, 0)], R[min(i + 1, R.size - 1)]
     best = float(sig[i])
     if hi > lo:
-        res = minimize_scalar(lambda r: -layout_signal_on_45deg(r, **kw), bounds=(lo, hi), method="bounded",
-                              options={"xatol": 1e-10})
+        res = minimize_scalar(
+            lambda r: -layout_signal_on_45deg(r, **kw), bounds=(lo, hi), method="bounded", options={"xatol": 1e-10}
+        )
         best = max(best, float(-res.fun))
     # Nudge up by 1e-6 (relative) so that the returned scale attains R_meas also when s* is the jump
     # scale, where the far-branch peak only touches the threshold (a grid search could miss it).

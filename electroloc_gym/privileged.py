@@ -62,8 +62,7 @@ class PrivilegedInfo(gym.Wrapper):
             raise ValueError(f"mode must be one of {list(PRIVILEGED_MODES)}, got {mode!r}")
         core = env.unwrapped
         if not hasattr(core, "hidden_state"):
-            raise ValueError(f"env must be an env of the env table ({list(ENV_IDS)}), got "
-                             f"{type(core).__name__}")
+            raise ValueError(f"env must be an env of the env table ({list(ENV_IDS)}), got {type(core).__name__}")
         self.env_id = core.entry().env_id
         self.keys = core.hidden_keys
         self.mode = mode

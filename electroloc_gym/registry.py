@@ -24,13 +24,38 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, TypeVar, overload
 
-__all__ = ["EnvEntry", "BenchEnv", "ENVS", "ENV_IDS", "TASKS", "BENCH_ENVS", "COMMON_ARGUMENTS", "PAPER_TABLES",
-           "env_entry", "task_entry", "bench_env", "entry_of_class", "add_entry", "class_path", "frozen", "LiveMapping",
-           "LiveSequence"]
+__all__ = [
+    "EnvEntry",
+    "BenchEnv",
+    "ENVS",
+    "ENV_IDS",
+    "TASKS",
+    "BENCH_ENVS",
+    "COMMON_ARGUMENTS",
+    "PAPER_TABLES",
+    "env_entry",
+    "task_entry",
+    "bench_env",
+    "entry_of_class",
+    "add_entry",
+    "class_path",
+    "frozen",
+    "LiveMapping",
+    "LiveSequence",
+]
 
 #: The arguments every env takes (the fields of ``EnvParams`` shared by all tasks).
-COMMON_ARGUMENTS = ("observation", "sensor_model", "n_particles", "max_observations", "success_spread_mm",
-                    "action_type", "calibration_seed", "calibration", "max_episode_steps")
+COMMON_ARGUMENTS = (
+    "observation",
+    "sensor_model",
+    "n_particles",
+    "max_observations",
+    "success_spread_mm",
+    "action_type",
+    "calibration_seed",
+    "calibration",
+    "max_episode_steps",
+)
 #: The paper's result tables a benchmark's table.md is laid out like: Table 4 (the target's position per
 #: condition and agent) or Table 2 (global self-localisation on one map).
 PAPER_TABLES = ("table4", "table2")
@@ -113,9 +138,11 @@ class EnvEntry:
         if self.paper_table not in PAPER_TABLES:
             raise ValueError(f"paper_table must be one of {list(PAPER_TABLES)}, got {self.paper_table!r}")
         if (self.map_condition is None) != ("condition" in self.arguments):
-            raise ValueError("an env takes either the 'condition' argument (map_condition=None) or one fixed map "
-                             f"(map_condition names it); {self.env_id} has arguments {list(self.arguments)} and "
-                             f"map_condition={self.map_condition!r}")
+            raise ValueError(
+                "an env takes either the 'condition' argument (map_condition=None) or one fixed map "
+                f"(map_condition names it); {self.env_id} has arguments {list(self.arguments)} and "
+                f"map_condition={self.map_condition!r}"
+            )
         for name in ("defaults", "bench_kwargs", "backends"):
             object.__setattr__(self, name, frozen(getattr(self, name)))
 
@@ -190,7 +217,8 @@ ENV_IDS: Sequence[str] = LiveSequence(lambda: [e.env_id for e in _TABLE])
 TASKS: Sequence[str] = LiveSequence(lambda: [e.task for e in _TABLE])
 #: ``electroloc bench --env`` names → (entry, bench row).
 BENCH_ENVS: Mapping[str, tuple[EnvEntry, BenchEnv]] = LiveMapping(
-    lambda: {b.name: (e, b) for e in _TABLE for b in e.bench})
+    lambda: {b.name: (e, b) for e in _TABLE for b in e.bench}
+)
 
 
 def add_entry(entry: EnvEntry) -> bool:
@@ -204,9 +232,12 @@ def add_entry(entry: EnvEntry) -> bool:
     if entry in _TABLE:
         return False
     for e in _TABLE:
-        for what, a, b in (("env_id", e.env_id, entry.env_id), ("task", e.task, entry.task),
-                           ("env_class", e.env_class, entry.env_class),
-                           ("vector_class", e.vector_class, entry.vector_class)):
+        for what, a, b in (
+            ("env_id", e.env_id, entry.env_id),
+            ("task", e.task, entry.task),
+            ("env_class", e.env_class, entry.env_class),
+            ("vector_class", e.vector_class, entry.vector_class),
+        ):
             if a == b:
                 raise ValueError(f"{what} {b!r} is already in the env table ({e.env_id})")
         taken = {r.name for r in e.bench} & {r.name for r in entry.bench}
@@ -240,8 +271,10 @@ def entry_of_class(cls: type) -> EnvEntry:
         for e in _TABLE:
             if base is e.env_class or base is e.vector_class:
                 return e
-    raise ValueError(f"{cls.__qualname__} is no env of the env table; its entry's env_class or vector_class "
-                     f"names the class (ids: {list(ENV_IDS)})")
+    raise ValueError(
+        f"{cls.__qualname__} is no env of the env table; its entry's env_class or vector_class "
+        f"names the class (ids: {list(ENV_IDS)})"
+    )
 
 
 def bench_env(name: str) -> tuple[EnvEntry, BenchEnv]:

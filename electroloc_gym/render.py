@@ -26,8 +26,18 @@ from electroloc_gym.fileio import save_figure_atomic
 from electroloc_gym.sensor import electrode_positions_mm, expected_reading
 
 __all__ = [
-    "eev_map", "plot_eev", "plot_map_eev", "Snapshot", "snapshot", "draw_snapshot", "eev_colorbar",
-    "legend_handles", "FrameRenderer", "EpisodeRenderer", "GlobalEpisodeRenderer", "save_figure_atomic",
+    "eev_map",
+    "plot_eev",
+    "plot_map_eev",
+    "Snapshot",
+    "snapshot",
+    "draw_snapshot",
+    "eev_colorbar",
+    "legend_handles",
+    "FrameRenderer",
+    "EpisodeRenderer",
+    "GlobalEpisodeRenderer",
+    "save_figure_atomic",
 ]
 
 _SENSOR = dict(marker="D", color="k", ms=6, ls="none")
@@ -39,8 +49,9 @@ _MATERIAL_LABELS = {"delrin": "Delrin", "pvc": "PVC"}
 
 
 # ---- EEV maps ---------------------------------------------------------------------------------------
-def eev_map(condition: Condition, half_span_mm: float | None = None, step_mm: float = 1.0
-            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def eev_map(
+    condition: Condition, half_span_mm: float | None = None, step_mm: float = 1.0
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Expected reading (V) over carriage positions relative to the target: (grid_mm, Φ[ix, iy]).
 
     ``Φ[i, j]`` is the noise-free reading with the carriage at ``(grid[i], grid[j])`` and the target
@@ -69,8 +80,11 @@ def plot_eev(condition: Condition, ax: Any = None, threshold_sigmas: float = 2.0
     ax.set_aspect("equal")
     ax.set_xlabel("carriage x − target x (mm)")
     ax.set_ylabel("carriage y − target y (mm)")
-    ax.set_title(f"EEV {condition.name} (signal scale {condition.signal_scale:.2f})\n"
-                 f"black: |Φ| = {threshold_sigmas:g}σ detection contour; dotted: Φ = 0", fontsize=9)
+    ax.set_title(
+        f"EEV {condition.name} (signal scale {condition.signal_scale:.2f})\n"
+        f"black: |Φ| = {threshold_sigmas:g}σ detection contour; dotted: Φ = 0",
+        fontsize=9,
+    )
     ax.figure.colorbar(im, ax=ax, label="expected reading Φ (V)")
     return ax
 
@@ -114,20 +128,45 @@ def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", see
     # Fig. 14's scale is ±10 V; ours is ±max|Φ| rounded up to a volt so that a map that does not
     # saturate stays visible.
     lim = float(min(scene.saturation_V, max(1.0, np.ceil(np.abs(phi).max()))))
-    im = ax.imshow(phi.T, origin="lower", extent=(grid[0], grid[-1], grid[0], grid[-1]), cmap="gray_r",
-                   vmin=-lim, vmax=lim, interpolation="nearest")
-    ax.contour(grid, grid, phi.T, levels=np.arange(-lim + 1.0, lim, 1.0), colors="tab:blue", linewidths=0.4,
-               linestyles=":")
+    im = ax.imshow(
+        phi.T,
+        origin="lower",
+        extent=(grid[0], grid[-1], grid[0], grid[-1]),
+        cmap="gray_r",
+        vmin=-lim,
+        vmax=lim,
+        interpolation="nearest",
+    )
+    ax.contour(
+        grid, grid, phi.T, levels=np.arange(-lim + 1.0, lim, 1.0), colors="tab:blue", linewidths=0.4, linestyles=":"
+    )
     water = scene.water.conductivity_uScm
     handles = []
     for i, o in enumerate(scene.objects, start=1):
         color = _CONDUCTOR if o.contrast(water) > 0 else _INSULATOR
         ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color=color, lw=1.6))
-        ax.text(*o.xy_mm, str(i), fontsize=9, fontweight="bold", ha="center", va="center", color=color,
-                bbox=dict(boxstyle="circle,pad=0.15", fc="white", ec=color, lw=0.8, alpha=0.9))
+        ax.text(
+            *o.xy_mm,
+            str(i),
+            fontsize=9,
+            fontweight="bold",
+            ha="center",
+            va="center",
+            color=color,
+            bbox=dict(boxstyle="circle,pad=0.15", fc="white", ec=color, lw=0.8, alpha=0.9),
+        )
         material = _MATERIAL_LABELS.get(o.material, o.material)
-        handles.append(Line2D([], [], marker=f"${i}$", color=color, ms=7, ls="none",
-                              label=f"{material} {o.shape} Ø{o.diameter_mm:g} mm"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                marker=f"${i}$",
+                color=color,
+                ms=7,
+                ls="none",
+                label=f"{material} {o.shape} Ø{o.diameter_mm:g} mm",
+            )
+        )
     ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=9, mew=1.8)
     ax.set_xlim(grid[0], grid[-1])
     ax.set_ylim(grid[0], grid[-1])
@@ -136,12 +175,22 @@ def plot_map_eev(scene: Any, ax: Any = None, sensor_model: str = "analytic", see
     ax.set_ylabel("carriage y (mm, map frame)")
     ax.set_title(f"map EEV '{scene.name}' ({sensor_model} model)", fontsize=10)
     ax.figure.colorbar(im, ax=ax, label="expected reading Φ (V)", shrink=0.8)
-    handles += [Line2D([], [], color=_CONDUCTOR, lw=1.6, label="conductor (true size)"),
-                Line2D([], [], color=_INSULATOR, lw=1.6, label="insulator (true size)"),
-                Line2D([], [], marker="o", mfc="none", mec="tab:red", mew=1.8, ls="none", label="map origin (0, 0)"),
-                Line2D([], [], color="tab:blue", lw=0.6, ls=":", label="1 V contours")]
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=3, fontsize=7,
-              frameon=False, handlelength=1.5, columnspacing=1.0)
+    handles += [
+        Line2D([], [], color=_CONDUCTOR, lw=1.6, label="conductor (true size)"),
+        Line2D([], [], color=_INSULATOR, lw=1.6, label="insulator (true size)"),
+        Line2D([], [], marker="o", mfc="none", mec="tab:red", mew=1.8, ls="none", label="map origin (0, 0)"),
+        Line2D([], [], color="tab:blue", lw=0.6, ls=":", label="1 V contours"),
+    ]
+    ax.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.13),
+        ncol=3,
+        fontsize=7,
+        frameon=False,
+        handlelength=1.5,
+        columnspacing=1.0,
+    )
     return ax
 
 
@@ -209,11 +258,18 @@ def snapshot(env: Any) -> Snapshot:
     scene = getattr(u, "scene", None)
     position = np.array(u.position_mm, dtype=float)
     truth = position if scene is not None else np.array(u.target_mm, dtype=float)
-    return Snapshot(condition=u.condition, scene=scene, truth_mm=truth, position_mm=position,
-                    path_mm=np.array(u.path_mm, dtype=float).reshape(-1, 2),
-                    particles_mm=np.array(b.particles, dtype=float), estimate_mm=np.array(b.mean(), dtype=float),
-                    spread_mm=float(b.spread()), n_observations=int(u.n_observations),
-                    reading_V=float(u.last_reading_V))
+    return Snapshot(
+        condition=u.condition,
+        scene=scene,
+        truth_mm=truth,
+        position_mm=position,
+        path_mm=np.array(u.path_mm, dtype=float).reshape(-1, 2),
+        particles_mm=np.array(b.particles, dtype=float),
+        estimate_mm=np.array(b.mean(), dtype=float),
+        spread_mm=float(b.spread()),
+        n_observations=int(u.n_observations),
+        reading_V=float(u.last_reading_V),
+    )
 
 
 def _background(snap: Snapshot) -> tuple[NDArray, NDArray, str, float]:
@@ -233,8 +289,13 @@ def eev_colorbar(fig: Any, snap: Snapshot, cax: Any = None, ax: Any = None, **kw
 
     _, _, cmap, lim = _background(snap)
     what = "map EEV" if snap.is_global else "EEV of the true target"
-    return fig.colorbar(ScalarMappable(Normalize(-lim, lim), cmap), cax=cax, ax=ax,
-                        label=f"{what}: expected reading Φ (V)\nwith the carriage at that point", **kwargs)
+    return fig.colorbar(
+        ScalarMappable(Normalize(-lim, lim), cmap),
+        cax=cax,
+        ax=ax,
+        label=f"{what}: expected reading Φ (V)\nwith the carriage at that point",
+        **kwargs,
+    )
 
 
 def draw_snapshot(ax: Any, snap: Snapshot, *, title: bool = True, electrodes: bool = True) -> None:
@@ -242,8 +303,16 @@ def draw_snapshot(ax: Any, snap: Snapshot, *, title: bool = True, electrodes: bo
     from matplotlib.patches import Circle
 
     grid, phi, cmap, lim = _background(snap)
-    ax.imshow(phi.T, origin="lower", extent=(grid[0], grid[-1], grid[0], grid[-1]), cmap=cmap, vmin=-lim,
-              vmax=lim, alpha=0.75 if not snap.is_global else 0.6, interpolation="nearest")
+    ax.imshow(
+        phi.T,
+        origin="lower",
+        extent=(grid[0], grid[-1], grid[0], grid[-1]),
+        cmap=cmap,
+        vmin=-lim,
+        vmax=lim,
+        alpha=0.75 if not snap.is_global else 0.6,
+        interpolation="nearest",
+    )
     h = snap.condition.allowed_half_width_mm
     ax.plot([-h, h, h, -h, -h], [-h, -h, h, h, -h], color="0.35", lw=0.9)
     p = snap.particles_mm
@@ -255,8 +324,9 @@ def draw_snapshot(ax: Any, snap: Snapshot, *, title: bool = True, electrodes: bo
             ax.add_patch(Circle(o.xy_mm, o.radius_mm, fill=False, color=color, lw=1.0))
         ax.plot(0.0, 0.0, "o", mfc="none", mec="tab:red", ms=7, mew=1.4)
     else:
-        ax.add_patch(Circle(tuple(snap.truth_mm), snap.condition.target.radius_mm, fill=False, color=_CONDUCTOR,
-                            lw=2.0))
+        ax.add_patch(
+            Circle(tuple(snap.truth_mm), snap.condition.target.radius_mm, fill=False, color=_CONDUCTOR, lw=2.0)
+        )
     path = snap.path_mm
     ax.plot(path[:, 0], path[:, 1], "*-", color="tab:purple", lw=1.0, ms=6, mec="tab:purple")
     if electrodes:
@@ -275,8 +345,10 @@ def draw_snapshot(ax: Any, snap: Snapshot, *, title: bool = True, electrodes: bo
     ax.set_aspect("equal")
     ax.tick_params(labelsize=7)
     if title:
-        ax.set_title(f"observation {snap.n_observations}: Φ = {snap.reading_V:+.2f} V, "
-                     f"spread {snap.spread_mm:.1f} mm", fontsize=8.5)
+        ax.set_title(
+            f"observation {snap.n_observations}: Φ = {snap.reading_V:+.2f} V, spread {snap.spread_mm:.1f} mm",
+            fontsize=8.5,
+        )
 
 
 def legend_handles(is_global: bool = False) -> list[Any]:
@@ -297,11 +369,15 @@ def legend_handles(is_global: bool = False) -> list[Any]:
         mk("allowed box", color="0.35", lw=0.9),
     ]
     if is_global:
-        handles += [mk("conductor", color=_CONDUCTOR, lw=1.2), mk("insulator", color=_INSULATOR, lw=1.2),
-                    mk("map origin", marker="o", mfc="none", mec="tab:red", ms=7, ls="none")]
+        handles += [
+            mk("conductor", color=_CONDUCTOR, lw=1.2),
+            mk("insulator", color=_INSULATOR, lw=1.2),
+            mk("map origin", marker="o", mfc="none", mec="tab:red", ms=7, ls="none"),
+        ]
     else:
-        handles.insert(4, mk("true target (sphere outline)", marker="o", mfc="none", mec=_CONDUCTOR, mew=2.0,
-                             ms=9, ls="none"))
+        handles.insert(
+            4, mk("true target (sphere outline)", marker="o", mfc="none", mec=_CONDUCTOR, mew=2.0, ms=9, ls="none")
+        )
     return handles
 
 
@@ -349,12 +425,20 @@ class FrameRenderer:
         self.cax.tick_params(labelsize=7)
         self.cax.yaxis.label.set_size(7)
         name = snap.scene.name if snap.is_global else snap.condition.name
-        self.ax.set_title(f"{name} — observation {snap.n_observations}\nΦ = {snap.reading_V:+.2f} V, "
-                          f"spread {snap.spread_mm:.1f} mm", fontsize=9)
+        self.ax.set_title(
+            f"{name} — observation {snap.n_observations}\nΦ = {snap.reading_V:+.2f} V, spread {snap.spread_mm:.1f} mm",
+            fontsize=9,
+        )
         for leg in self.fig.legends:
             leg.remove()
-        self.fig.legend(handles=legend_handles(snap.is_global), loc="lower center", ncol=3, fontsize=7,
-                        frameon=False, bbox_to_anchor=(0.5, 0.0))
+        self.fig.legend(
+            handles=legend_handles(snap.is_global),
+            loc="lower center",
+            ncol=3,
+            fontsize=7,
+            frameon=False,
+            bbox_to_anchor=(0.5, 0.0),
+        )
         return self.finish()
 
     def close(self) -> None:

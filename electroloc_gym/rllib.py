@@ -40,9 +40,20 @@ import numpy as np
 from electroloc_gym.registry import ENV_IDS
 from electroloc_gym.runtime import THREAD_VARS, pin_threads
 
-__all__ = ["ENV_IDS", "RLLIB_ENV_NAME", "SUCCESS_METRIC", "make_env", "register", "runner_env_vars", "warm_kernels",
-           "success_callback", "plot_progress",
-           "sb3_state_dict", "normalization_from_filter", "export_ppo"]
+__all__ = [
+    "ENV_IDS",
+    "RLLIB_ENV_NAME",
+    "SUCCESS_METRIC",
+    "make_env",
+    "register",
+    "runner_env_vars",
+    "warm_kernels",
+    "success_callback",
+    "plot_progress",
+    "sb3_state_dict",
+    "normalization_from_filter",
+    "export_ppo",
+]
 
 #: The name :func:`register` registers the creator under (``PPOConfig().environment(RLLIB_ENV_NAME)``).
 RLLIB_ENV_NAME = "electroloc"
@@ -65,8 +76,10 @@ def _split_config(config: Mapping[str, Any]) -> tuple[str, int | None, dict[str,
     num_envs = kwargs.pop("num_envs", None)
     mode = kwargs.pop("autoreset_mode", "next_step")
     if mode not in ("next_step", gym.vector.AutoresetMode.NEXT_STEP):
-        raise ValueError(f"env_config['autoreset_mode'] must be 'next_step' (RLlib's env runners expect "
-                         f"Gymnasium's next-step autoreset), got {mode!r}")
+        raise ValueError(
+            f"env_config['autoreset_mode'] must be 'next_step' (RLlib's env runners expect "
+            f"Gymnasium's next-step autoreset), got {mode!r}"
+        )
     return env_id, num_envs, kwargs
 
 
@@ -179,8 +192,10 @@ def plot_progress(csv_path: str | Path, png_path: str | Path, title: str = "RLli
 
 
 # ------------------------------------------------------------------------------------------- export
-_LAYER_PAIRS = (("mlp_extractor.policy_net", "encoder.actor_encoder.net.mlp"),
-                ("mlp_extractor.value_net", "encoder.critic_encoder.net.mlp"))
+_LAYER_PAIRS = (
+    ("mlp_extractor.policy_net", "encoder.actor_encoder.net.mlp"),
+    ("mlp_extractor.value_net", "encoder.critic_encoder.net.mlp"),
+)
 
 
 def sb3_state_dict(rllib_state: Mapping[str, Any], n_hidden: int) -> dict[str, Any]:
@@ -200,8 +215,10 @@ def sb3_state_dict(rllib_state: Mapping[str, Any], n_hidden: int) -> dict[str, A
 
     def get(name: str) -> Any:
         if name not in rllib_state:
-            raise ValueError(f"the RLlib module has no tensor {name!r}: build it with DefaultModelConfig("
-                             f"vf_share_layers=False, free_log_std=True) and no head_fcnet_hiddens")
+            raise ValueError(
+                f"the RLlib module has no tensor {name!r}: build it with DefaultModelConfig("
+                f"vf_share_layers=False, free_log_std=True) and no head_fcnet_hiddens"
+            )
         return torch.as_tensor(np.asarray(rllib_state[name]))
 
     out: dict[str, Any] = {}
@@ -228,13 +245,27 @@ def normalization_from_filter(running_stat_state: Mapping[str, Any], clip: float
     rs = RunningStat.from_state(dict(running_stat_state))
     std = np.asarray(rs.std, dtype=np.float64)
     var = (std + _FILTER_EPS) ** 2 - _EXPORT_EPS
-    return {"norm_obs": True, "norm_reward": False, "clip_obs": float(clip), "epsilon": _EXPORT_EPS,
-            "obs_mean": [float(v) for v in np.asarray(rs.mean, dtype=np.float64)],
-            "obs_var": [float(v) for v in var], "obs_count": float(rs.num_pushes), "source": "rllib MeanStdFilter"}
+    return {
+        "norm_obs": True,
+        "norm_reward": False,
+        "clip_obs": float(clip),
+        "epsilon": _EXPORT_EPS,
+        "obs_mean": [float(v) for v in np.asarray(rs.mean, dtype=np.float64)],
+        "obs_var": [float(v) for v in var],
+        "obs_count": float(rs.num_pushes),
+        "source": "rllib MeanStdFilter",
+    }
 
 
-def export_ppo(algo: Any, folder: str | Path, *, env_id: str, env_kwargs: Mapping[str, Any],
-               hidden: Sequence[int], provenance: Mapping[str, Any]) -> Path:
+def export_ppo(
+    algo: Any,
+    folder: str | Path,
+    *,
+    env_id: str,
+    env_kwargs: Mapping[str, Any],
+    hidden: Sequence[int],
+    provenance: Mapping[str, Any],
+) -> Path:
     """Write ``policy.json`` and ``policy.safetensors`` for a trained RLlib PPO ``algo`` into ``folder``.
 
     Args:
@@ -258,8 +289,9 @@ def export_ppo(algo: Any, folder: str | Path, *, env_id: str, env_kwargs: Mappin
     env = make_env({"env_id": env_id, **dict(env_kwargs)})  # the raw spaces (the module sees filtered ones)
     obs_space, act_space = env.observation_space, env.action_space
     env.close()
-    policy = ActorCriticPolicy(obs_space, act_space, lambda _: 0.0,
-                               net_arch=list(hidden), activation_fn=torch.nn.Tanh, ortho_init=False)
+    policy = ActorCriticPolicy(
+        obs_space, act_space, lambda _: 0.0, net_arch=list(hidden), activation_fn=torch.nn.Tanh, ortho_init=False
+    )
     policy.load_state_dict(sb3_state_dict(state, len(hidden)), strict=True)
     connectors = algo.env_runner.get_state(components=COMPONENT_ENV_TO_MODULE_CONNECTOR)
     filt = connectors.get(COMPONENT_ENV_TO_MODULE_CONNECTOR, {}).get("MeanStdFilter")
@@ -269,8 +301,14 @@ def export_ppo(algo: Any, folder: str | Path, *, env_id: str, env_kwargs: Mappin
         (stat,) = agent_state["running_stats"]
         normalization = normalization_from_filter(stat, agent_state["clip_by_value"])
     shim = _PolicyHolder(policy, {"net_arch": list(hidden), "activation_fn": torch.nn.Tanh, "ortho_init": False})
-    meta = export_meta(shim, env_id=env_id, env_kwargs=dict(env_kwargs), frame_stack=1, vecnormalize=None,
-                       provenance={"trainer": "rllib", **dict(provenance)})
+    meta = export_meta(
+        shim,
+        env_id=env_id,
+        env_kwargs=dict(env_kwargs),
+        frame_stack=1,
+        vecnormalize=None,
+        provenance={"trainer": "rllib", **dict(provenance)},
+    )
     meta["algo"], meta["normalization"] = "ppo", normalization
     return write_export(folder, meta, model_weights(shim))
 

@@ -52,7 +52,7 @@ def exception_line(exc: BaseException, limit: int = 300) -> str:
         text = ""
     first = text.strip().splitlines()[0] if text.strip() else ""
     line = f"{type(exc).__name__}: {first}" if first else type(exc).__name__
-    return line if len(line) <= limit else line[:limit - 1] + "…"
+    return line if len(line) <= limit else line[: limit - 1] + "…"
 
 
 def _call(method: str, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
@@ -85,8 +85,15 @@ class Episode:
     decision_s: list[float] = field(default_factory=list)
 
 
-def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = None,
-                deterministic: bool = True, on_step: Callable[[dict[str, Any]], None] | None = None) -> Episode:
+def run_episode(
+    env: Any,
+    agent: Any,
+    seed: int,
+    *,
+    agent_seed: int | None = None,
+    deterministic: bool = True,
+    on_step: Callable[[dict[str, Any]], None] | None = None,
+) -> Episode:
     """Run one seeded episode of ``agent`` in ``env``.
 
     Args:
@@ -114,8 +121,9 @@ def run_episode(env: Any, agent: Any, seed: int, *, agent_seed: int | None = Non
     episode_start = np.ones((1,), dtype=bool)
     while True:
         t0 = time.perf_counter()
-        action, state = _call("predict", agent.predict, obs, state=state, episode_start=episode_start,
-                              deterministic=deterministic)
+        action, state = _call(
+            "predict", agent.predict, obs, state=state, episode_start=episode_start, deterministic=deterministic
+        )
         episode.decision_s.append(time.perf_counter() - t0)
         episode_start = np.zeros((1,), dtype=bool)
         if getattr(agent, "done", False):

@@ -15,8 +15,13 @@ __all__ = ["pin_threads", "THREAD_VARS", "use_user_numba_cache", "user_numba_cac
 
 #: The environment variables that size the thread pools of OpenMP, OpenBLAS, MKL, numexpr, Accelerate
 #: (read when those libraries load, so set them before the first import where it matters).
-THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
-               "VECLIB_MAXIMUM_THREADS")
+THREAD_VARS = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+)
 
 
 def pin_threads() -> None:

@@ -130,8 +130,13 @@ class SceneObject:
         key = material.lower()
         if key not in SCENE_MATERIAL_CONDUCTIVITY_uScm:
             raise ValueError(f"material must be one of {sorted(SCENE_MATERIAL_CONDUCTIVITY_uScm)}, got {material!r}")
-        return cls(shape, tuple(xy_mm), check_float("diameter_mm", diameter_mm, 0.0) / 2.0,
-                   SCENE_MATERIAL_CONDUCTIVITY_uScm[key], key)
+        return cls(
+            shape,
+            tuple(xy_mm),
+            check_float("diameter_mm", diameter_mm, 0.0) / 2.0,
+            SCENE_MATERIAL_CONDUCTIVITY_uScm[key],
+            key,
+        )
 
     @property
     def diameter_mm(self) -> float:
@@ -187,8 +192,10 @@ class Scene:
         check_float("allowed_half_width_mm", self.allowed_half_width_mm, 0.0)
         check_float("start_half_width_mm", self.start_half_width_mm, 0.0)
         if self.start_half_width_mm > self.allowed_half_width_mm:
-            raise ValueError(f"start_half_width_mm must be ≤ allowed_half_width_mm ({self.allowed_half_width_mm}),"
-                             f" got {self.start_half_width_mm}")
+            raise ValueError(
+                f"start_half_width_mm must be ≤ allowed_half_width_mm ({self.allowed_half_width_mm}),"
+                f" got {self.start_half_width_mm}"
+            )
         check_float("signal_scale", self.signal_scale, 0.0)
 
     # ---- derived values ---------------------------------------------------------------------
@@ -223,11 +230,16 @@ class Scene:
         r = float(np.mean([o.radius_mm for o in self.objects]))
         return Condition(
             name=self.name,
-            target=Target(radius_mm=r, conductivity_uScm=self.objects[0].conductivity_uScm,
-                          material=self.objects[0].material),
-            water=self.water, amplifier=self.amplifier, start_half_width_mm=self.start_half_width_mm,
-            allowed_half_width_mm=self.allowed_half_width_mm, signal_scale=self.signal_scale,
-            geometry=self.geometry)
+            target=Target(
+                radius_mm=r, conductivity_uScm=self.objects[0].conductivity_uScm, material=self.objects[0].material
+            ),
+            water=self.water,
+            amplifier=self.amplifier,
+            start_half_width_mm=self.start_half_width_mm,
+            allowed_half_width_mm=self.allowed_half_width_mm,
+            signal_scale=self.signal_scale,
+            geometry=self.geometry,
+        )
 
     # ---- the reading ------------------------------------------------------------------------
     def object_perturbations(self, carriage_mm: ArrayLike) -> NDArray:
@@ -256,11 +268,23 @@ class Scene:
         chi = obj.contrast(self.water.conductivity_uScm)
         if obj.shape == "sphere":
             return physics.differential_perturbation(
-                off, obj.radius_mm, chi, self.object_depth_mm(obj), spacing_mm=g.spacing_mm,
-                emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+                off,
+                obj.radius_mm,
+                chi,
+                self.object_depth_mm(obj),
+                spacing_mm=g.spacing_mm,
+                emitter_voltage_V=g.emitter_voltage_V,
+                electrode_radius_mm=g.electrode_radius_mm,
+            )
         return cylinder_differential_perturbation(
-            off, obj.radius_mm, chi, self.object_depth_mm(obj), spacing_mm=g.spacing_mm,
-            emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+            off,
+            obj.radius_mm,
+            chi,
+            self.object_depth_mm(obj),
+            spacing_mm=g.spacing_mm,
+            emitter_voltage_V=g.emitter_voltage_V,
+            electrode_radius_mm=g.electrode_radius_mm,
+        )
 
     def expected_reading(self, carriage_mm: ArrayLike, *, saturate: bool = True) -> NDArray:
         """Noise-free reading Φ (V) with the carriage at ``carriage_mm`` (..., 2) in the map frame."""
@@ -339,10 +363,13 @@ def random_cylinder_layout(
                 placed.append((float(xy[0]), float(xy[1]), float(d) / 2))
                 break
         else:
-            raise ValueError(f"could not place {n_objects} cylinders within ±{half_width_mm} mm "
-                             f"with a gap of {min_gap_mm} mm")
-    return tuple(SceneObject.of_material("cylinder", (round(x, 1), round(y, 1)), 2 * r, str(m))
-                 for (x, y, r), m in zip(placed, mats))
+            raise ValueError(
+                f"could not place {n_objects} cylinders within ±{half_width_mm} mm with a gap of {min_gap_mm} mm"
+            )
+    return tuple(
+        SceneObject.of_material("cylinder", (round(x, 1), round(y, 1)), 2 * r, str(m))
+        for (x, y, r), m in zip(placed, mats)
+    )
 
 
 #: Seed of the benchmark layout (the paper's year); :data:`BENCHMARK_SCENE` is its output, frozen here.
@@ -362,9 +389,16 @@ _BENCHMARK_OBJECTS: tuple[tuple[tuple[float, float], float, str], ...] = (
 
 def _fresh_scene(name: str, objects: tuple[SceneObject, ...]) -> Scene:
     # Fresh water and the fresh-water 12.7 mm amplifier (paper Table 3): G = 191, σ_s = 0.25 mV.
-    return Scene(name=name, objects=objects, water=Water(FRESH_WATER_uScm),
-                 amplifier=Amplifier(gain=191.0, noise_rms_mV=0.25), allowed_half_width_mm=80.0,
-                 start_half_width_mm=70.0, signal_scale=1.0, geometry=_DEFAULT_GEOMETRY)
+    return Scene(
+        name=name,
+        objects=objects,
+        water=Water(FRESH_WATER_uScm),
+        amplifier=Amplifier(gain=191.0, noise_rms_mV=0.25),
+        allowed_half_width_mm=80.0,
+        start_half_width_mm=70.0,
+        signal_scale=1.0,
+        geometry=_DEFAULT_GEOMETRY,
+    )
 
 
 def _benchmark() -> Scene:
@@ -378,8 +412,9 @@ BENCHMARK_SCENE: Scene = _benchmark()
 # ------------------------------------------------------------------------------------------
 # The map's EEV (Fig. 14)
 # ------------------------------------------------------------------------------------------
-def map_eev(scene: Scene, step_mm: float = 1.0, half_span_mm: float | None = None
-            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def map_eev(
+    scene: Scene, step_mm: float = 1.0, half_span_mm: float | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The map's EEV (Fig. 14): (grid_mm, Φ[ix, iy]) noise-free reading with the carriage at (grid[ix], grid[iy])."""
     h = scene.allowed_half_width_mm if half_span_mm is None else float(half_span_mm)
     grid = np.arange(-h, h + 1e-9, check_float("step_mm", step_mm, 0.0))

@@ -35,8 +35,9 @@ def expected_reading(condition: Condition, offsets_mm: ArrayLike, *, saturate: b
     return sphere_reading(condition, offsets_mm, condition.target.radius_mm, condition.chi, saturate=saturate)
 
 
-def sphere_reading(condition: Condition, offsets_mm: ArrayLike, radius_mm: ArrayLike, chi: ArrayLike, *,
-                   saturate: bool = True) -> NDArray[np.floating]:
+def sphere_reading(
+    condition: Condition, offsets_mm: ArrayLike, radius_mm: ArrayLike, chi: ArrayLike, *, saturate: bool = True
+) -> NDArray[np.floating]:
     """Noise-free reading Φ (V) of spheres of radius ``radius_mm`` (mm) and contrast ``chi`` at
     ``offsets_mm`` (..., 2), in the tank of ``condition`` (its own sphere is :func:`expected_reading`'s).
 
@@ -52,8 +53,14 @@ def sphere_reading(condition: Condition, offsets_mm: ArrayLike, radius_mm: Array
     g = condition.geometry
     depth = (a + g.electrode_radius_mm) + g.clearance_mm
     delta = physics.differential_perturbation(
-        off.astype(dtype, copy=False), a, np.asarray(chi, dtype=np.float64), depth, spacing_mm=g.spacing_mm,
-        emitter_voltage_V=g.emitter_voltage_V, electrode_radius_mm=g.electrode_radius_mm)
+        off.astype(dtype, copy=False),
+        a,
+        np.asarray(chi, dtype=np.float64),
+        depth,
+        spacing_mm=g.spacing_mm,
+        emitter_voltage_V=g.emitter_voltage_V,
+        electrode_radius_mm=g.electrode_radius_mm,
+    )
     phi = np.asarray(delta * t(condition.signal_scale * condition.amplifier.gain))
     if saturate:
         sat = t(condition.saturation_V)
@@ -75,8 +82,9 @@ def noisy_reading(condition: Condition, offsets_mm: ArrayLike, rng: np.random.Ge
     return saturated_reading(mean, rng.normal(0.0, condition.noise_std_V, size=mean.shape), condition.saturation_V)
 
 
-def add_calibration_noise(condition: Condition, mean_V: NDArray[np.float64],
-                          rng: np.random.Generator) -> NDArray[np.float64]:
+def add_calibration_noise(
+    condition: Condition, mean_V: NDArray[np.float64], rng: np.random.Generator
+) -> NDArray[np.float64]:
     """Calibration readings from their noise-free, unsaturated values ``mean_V`` (V): add
     N(0, (G·σ_s)²) noise and saturate, the noise from the normal quantile table
     (:mod:`electroloc_gym.draws`, far cheaper than ``rng.normal`` for the thousands of readings of a
@@ -84,8 +92,14 @@ def add_calibration_noise(condition: Condition, mean_V: NDArray[np.float64],
     """
     mean = np.ascontiguousarray(mean_V, dtype=np.float64).reshape(-1)
     out = np.empty_like(mean)
-    noisy_saturated(mean, table_normal_indices(rng, mean.size), normal_table(), float(condition.noise_std_V),
-                    float(condition.saturation_V), out)  # clip(mean + z·σ, ±V_sat), z from the table
+    noisy_saturated(
+        mean,
+        table_normal_indices(rng, mean.size),
+        normal_table(),
+        float(condition.noise_std_V),
+        float(condition.saturation_V),
+        out,
+    )  # clip(mean + z·σ, ±V_sat), z from the table
     return out.reshape(np.shape(mean_V))
 
 
@@ -122,8 +136,14 @@ def zero_crossing_mm(condition: Condition, r_max_mm: float = 400.0) -> float:
     def signed(R: ArrayLike) -> NDArray[np.float64]:
         h = np.sqrt(np.maximum(np.asarray(R, float) ** 2 - depth * depth, 0.0)) / np.sqrt(2.0)
         return physics.differential_perturbation(
-            np.stack([h, h], axis=-1), condition.target.radius_mm, condition.chi, depth, spacing_mm=geo.spacing_mm,
-            emitter_voltage_V=geo.emitter_voltage_V, electrode_radius_mm=geo.electrode_radius_mm)
+            np.stack([h, h], axis=-1),
+            condition.target.radius_mm,
+            condition.chi,
+            depth,
+            spacing_mm=geo.spacing_mm,
+            emitter_voltage_V=geo.emitter_voltage_V,
+            electrode_radius_mm=geo.electrode_radius_mm,
+        )
 
     R = np.linspace(depth, r_max_mm, 4001)[1:]
     v = signed(R)

@@ -69,8 +69,12 @@ __all__ = [
 LAYOUT_NAMES = ("single", "line-4", "grid-2x2", "ring-8")
 
 #: The design each named layout uses to read ≈ 0 V without a target (module docstring).
-LAYOUT_DESIGNS = {"single": "symmetry plane", "line-4": "symmetry plane", "grid-2x2": "extra emitter pairs",
-                  "ring-8": "mirrored about the emitter axis"}
+LAYOUT_DESIGNS = {
+    "single": "symmetry plane",
+    "line-4": "symmetry plane",
+    "grid-2x2": "extra emitter pairs",
+    "ring-8": "mirrored about the emitter axis",
+}
 
 #: Every electrode and emitter sits on the carriage's breadboard, a disc of this radius (mm) about the carriage
 #: centre: twice the paper's emitter spacing, the width of the 12.7 mm spheres' workspace.
@@ -105,8 +109,10 @@ def _pairs_array(value: Any, what: str) -> NDArray[np.float64]:
     if arr.shape[0] > MAX_PAIRS:
         raise _error(f"{what} must have 1 ≤ K ≤ {MAX_PAIRS} pairs, got K = {arr.shape[0]}")
     if not np.all(np.isfinite(arr)):
-        raise _error(f"{what} must be finite numbers (mm), got non-finite values in pairs "
-                     f"{sorted(set(np.nonzero(~np.isfinite(arr))[0].tolist()))}")
+        raise _error(
+            f"{what} must be finite numbers (mm), got non-finite values in pairs "
+            f"{sorted(set(np.nonzero(~np.isfinite(arr))[0].tolist()))}"
+        )
     return arr
 
 
@@ -169,8 +175,13 @@ class SensorLayout:
         object.__setattr__(self, "subtract_baseline", bool(self.subtract_baseline))
         object.__setattr__(self, "reach_mm", float(self.reach_mm))
         g = self.geometry
-        phi = physics.emitter_potential(_points3(elec), _points3(emit[:, None, 0]), _points3(emit[:, None, 1]),
-                                        g.emitter_voltage_V, g.electrode_radius_mm)
+        phi = physics.emitter_potential(
+            _points3(elec),
+            _points3(emit[:, None, 0]),
+            _points3(emit[:, None, 1]),
+            g.emitter_voltage_V,
+            g.electrode_radius_mm,
+        )
         baseline = phi[:, 0] - phi[:, 1]
         object.__setattr__(self, "_baselines_V", tuple(float(b) for b in baseline))
         if not self.subtract_baseline:
@@ -181,12 +192,14 @@ class SensorLayout:
                     f"pair {i} lies off every equipotential of the emitters: its no-target difference is "
                     f"{baseline[i] * 1e3:.4g} mV at the electrodes (× the gain G = 103–1977 is far beyond ±10 V); "
                     f"place both electrodes on x = 0, or at (x, y) and (x, −y), or give it its own emitters, "
-                    f"or set subtract_baseline=True (|Δφ_nt| ≤ {BASELINE_TOLERANCE_V:g} V allowed)")
+                    f"or set subtract_baseline=True (|Δφ_nt| ≤ {BASELINE_TOLERANCE_V:g} V allowed)"
+                )
         centres: list[tuple[float, float] | None] = []
         for e, m in zip(elec, emit, strict=True):
             c = (e[0] + e[1]) / 2.0
-            paper_unit = (np.array_equal(e, c + np.array([[0.0, h], [0.0, -h]]))
-                          and np.array_equal(m, c + np.array([[h, 0.0], [-h, 0.0]])))
+            paper_unit = np.array_equal(e, c + np.array([[0.0, h], [0.0, -h]])) and np.array_equal(
+                m, c + np.array([[h, 0.0], [-h, 0.0]])
+            )
             centres.append((float(c[0]), float(c[1])) if paper_unit else None)
         object.__setattr__(self, "_unit_centres", tuple(centres))
 
@@ -198,8 +211,10 @@ class SensorLayout:
             i = int(far[0])
             what = f"electrode {i % 2} of pair {i // 2}" if i < n_electrodes else "an emitter"
             x, y = (float(v) for v in points[i])
-            raise _error(f"{what} at ({x:.4g}, {y:.4g}) mm is {float(r[i]):.4g} mm from the carriage centre, "
-                         f"outside the carriage's reach (≤ {self.reach_mm:g} mm)")
+            raise _error(
+                f"{what} at ({x:.4g}, {y:.4g}) mm is {float(r[i]):.4g} mm from the carriage centre, "
+                f"outside the carriage's reach (≤ {self.reach_mm:g} mm)"
+            )
         d = np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
         d[np.diag_indices_from(d)] = np.inf
         min_sep = 2.0 * self.geometry.electrode_radius_mm
@@ -209,16 +224,25 @@ class SensorLayout:
 
             def label(n: int) -> str:
                 return f"electrode {n % 2} of pair {n // 2}" if n < n_electrodes else "an emitter"
-            raise _error(f"{label(i)} and {label(j)} overlap: centres {d[i, j]:.3g} mm apart at "
-                         f"{tuple(points[i].round(3))} mm, less than two electrode radii ({min_sep:g} mm)")
+
+            raise _error(
+                f"{label(i)} and {label(j)} overlap: centres {d[i, j]:.3g} mm apart at "
+                f"{tuple(points[i].round(3))} mm, less than two electrode radii ({min_sep:g} mm)"
+            )
 
     def pair(self, k: int) -> SensorLayout:
         """Pair ``k`` alone, as a one-pair layout (same emitters, front end, geometry and reach)."""
         if not 0 <= k < self.n_pairs:
             raise IndexError(f"pair index must be in [0, {self.n_pairs}), got {k}")
-        emit = None if self.emitters_mm is None else self.emitters_mm[k:k + 1]
-        return SensorLayout(self.electrodes_mm[k:k + 1], emit, self.subtract_baseline, name=f"{self.name}[{k}]",
-                            geometry=self.geometry, reach_mm=self.reach_mm)
+        emit = None if self.emitters_mm is None else self.emitters_mm[k : k + 1]
+        return SensorLayout(
+            self.electrodes_mm[k : k + 1],
+            emit,
+            self.subtract_baseline,
+            name=f"{self.name}[{k}]",
+            geometry=self.geometry,
+            reach_mm=self.reach_mm,
+        )
 
     @property
     def n_pairs(self) -> int:
@@ -286,15 +310,24 @@ def named_layout(name: str, geometry: Geometry | None = None) -> SensorLayout:
     if name == "grid-2x2":
         d = 1.2 * h
         centres = [(-d, d), (d, d), (-d, -d), (d, -d)]
-        return SensorLayout([[[cx, cy + h], [cx, cy - h]] for cx, cy in centres],
-                            emitters_mm=[[[cx + h, cy], [cx - h, cy]] for cx, cy in centres], name=name, geometry=g)
+        return SensorLayout(
+            [[[cx, cy + h], [cx, cy - h]] for cx, cy in centres],
+            emitters_mm=[[[cx + h, cy], [cx - h, cy]] for cx, cy in centres],
+            name=name,
+            geometry=g,
+        )
     if name == "ring-8":
         r = 1.6 * h
         angles = np.deg2rad(11.25 + 22.5 * np.arange(8))
-        return SensorLayout([[[r * math.cos(a), r * math.sin(a)], [r * math.cos(a), -r * math.sin(a)]]
-                             for a in angles], name=name, geometry=g)
-    raise _error(f"must be one of {list(LAYOUT_NAMES)}, a (K, 2, 2) array of electrode offsets in mm, "
-                 f"or a SensorLayout; got {name!r}")
+        return SensorLayout(
+            [[[r * math.cos(a), r * math.sin(a)], [r * math.cos(a), -r * math.sin(a)]] for a in angles],
+            name=name,
+            geometry=g,
+        )
+    raise _error(
+        f"must be one of {list(LAYOUT_NAMES)}, a (K, 2, 2) array of electrode offsets in mm, "
+        f"or a SensorLayout; got {name!r}"
+    )
 
 
 def make_sensor_layout(spec: str | SensorLayout | ArrayLike, geometry: Geometry | None = None) -> SensorLayout:
@@ -309,8 +342,10 @@ def make_sensor_layout(spec: str | SensorLayout | ArrayLike, geometry: Geometry 
     if isinstance(spec, str):
         return named_layout(spec, g)
     if spec is None or isinstance(spec, (bool, int, float, dict, set)):
-        raise _error(f"must be one of {list(LAYOUT_NAMES)}, a (K, 2, 2) array of electrode offsets in mm, "
-                     f"or a SensorLayout; got {spec!r}")
+        raise _error(
+            f"must be one of {list(LAYOUT_NAMES)}, a (K, 2, 2) array of electrode offsets in mm, "
+            f"or a SensorLayout; got {spec!r}"
+        )
     return SensorLayout(spec, geometry=g)
 
 
@@ -319,8 +354,14 @@ def pair_baseline_V(layout: SensorLayout) -> NDArray[np.float64]:
     return np.zeros(layout.n_pairs) if layout.subtract_baseline else layout.baselines_V
 
 
-def _general_pair(condition: Condition, electrodes: NDArray[np.float64], emitters: NDArray[np.float64],
-                  off: NDArray[np.float64], a: NDArray[np.float64], chi: NDArray[np.float64]) -> NDArray[np.float64]:
+def _general_pair(
+    condition: Condition,
+    electrodes: NDArray[np.float64],
+    emitters: NDArray[np.float64],
+    off: NDArray[np.float64],
+    a: NDArray[np.float64],
+    chi: NDArray[np.float64],
+) -> NDArray[np.float64]:
     """s·(δV(e1) − δV(e2)) (V, before the gain) of one pair for spheres at ``off`` (..., 2) through the physics
     module's general functions (Eq. 4, 7), float64: the reference the compiled pass is tested against.
     """
@@ -331,14 +372,21 @@ def _general_pair(condition: Condition, electrodes: NDArray[np.float64], emitter
     emit = _points3(emitters)
     field_V_per_mm = physics.emitter_field(centre, emit[0], emit[1], g.emitter_voltage_V, g.electrode_radius_mm)
     elec = _points3(electrodes)
-    dv = (physics.sphere_perturbation(elec[0], centre, a, chi, field_V_per_mm)
-          - physics.sphere_perturbation(elec[1], centre, a, chi, field_V_per_mm))
+    dv = physics.sphere_perturbation(elec[0], centre, a, chi, field_V_per_mm) - physics.sphere_perturbation(
+        elec[1], centre, a, chi, field_V_per_mm
+    )
     return dv * condition.signal_scale
 
 
-def array_reading(condition: Condition, layout: SensorLayout, offsets_mm: ArrayLike, *,
-                  radius_mm: ArrayLike | None = None, chi: ArrayLike | None = None,
-                  saturate: bool = True) -> NDArray[np.floating]:
+def array_reading(
+    condition: Condition,
+    layout: SensorLayout,
+    offsets_mm: ArrayLike,
+    *,
+    radius_mm: ArrayLike | None = None,
+    chi: ArrayLike | None = None,
+    saturate: bool = True,
+) -> NDArray[np.floating]:
     """Noise-free readings Φ (K, ...) (V) of every pair for spheres at ``offsets_mm`` (..., 2) = target − carriage.
 
     Args:
@@ -372,8 +420,21 @@ def array_reading(condition: Condition, layout: SensorLayout, offsets_mm: ArrayL
         else:  # Eq. 4 + 7 for this pair: the compiled pass, equal to _general_pair's (tested)
             (px, py), (nx, ny) = emit[k]
             (ax, ay), (bx, by) = elec[k]
-            phi = general_pair_difference(off[..., 0].astype(np.float64), off[..., 1].astype(np.float64), depth,
-                                          strength, drive, px, py, nx, ny, ax, ay, bx, by)
+            phi = general_pair_difference(
+                off[..., 0].astype(np.float64),
+                off[..., 1].astype(np.float64),
+                depth,
+                strength,
+                drive,
+                px,
+                py,
+                nx,
+                ny,
+                ax,
+                ay,
+                bx,
+                by,
+            )
             phi = phi * (condition.signal_scale * gain)
         if base[k] != 0.0:
             phi = phi + base[k] * gain
@@ -384,8 +445,9 @@ def array_reading(condition: Condition, layout: SensorLayout, offsets_mm: ArrayL
     return out
 
 
-def array_noisy_reading(condition: Condition, layout: SensorLayout, offsets_mm: ArrayLike, rng: np.random.Generator,
-                        **sphere: Any) -> NDArray[np.float64]:
+def array_noisy_reading(
+    condition: Condition, layout: SensorLayout, offsets_mm: ArrayLike, rng: np.random.Generator, **sphere: Any
+) -> NDArray[np.float64]:
     """Noisy, saturated readings Φ (K, ...) (V): each pair's own N(0, (G·σ_s)²) noise from ``rng`` (the pairs'
     draws in pair order), then the ±V_sat clip, as :func:`electroloc_gym.sensor.noisy_reading` (bit for bit
     for the ``"single"`` layout). ``sphere``: ``radius_mm``, ``chi`` as :func:`array_reading`.
@@ -394,8 +456,9 @@ def array_noisy_reading(condition: Condition, layout: SensorLayout, offsets_mm: 
     return saturated_reading(mean, rng.normal(0.0, condition.noise_std_V, size=mean.shape), condition.saturation_V)
 
 
-def detection_coverage(condition: Condition, layout: SensorLayout, threshold_sigmas: float = 2.0,
-                       n_grid: int = 121) -> float:
+def detection_coverage(
+    condition: Condition, layout: SensorLayout, threshold_sigmas: float = 2.0, n_grid: int = 121
+) -> float:
     """Fraction of carriage positions (uniform in the start box) from which at least one pair's noise-free reading
     exceeds ``threshold_sigmas``·G·σ_s: the array's analogue of
     :func:`electroloc_gym.conditions.start_box_coverage` (equal to it for ``"single"``).

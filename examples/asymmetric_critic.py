@@ -27,17 +27,24 @@ TRUTH_SCALE_MM = 100.0
 
 def mlp(d_in: int, d_out: int, hidden: int = 64) -> nn.Sequential:
     """Two tanh hidden layers."""
-    return nn.Sequential(nn.Linear(d_in, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh(),
-                         nn.Linear(hidden, d_out))
+    return nn.Sequential(
+        nn.Linear(d_in, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, d_out)
+    )
 
 
-def train(updates: int = 200, n_steps: int = 128, n_particles: int = 2500, seed: int = 0, gamma: float = 0.99,
-          lam: float = 0.95, lr: float = 7e-4) -> dict[str, float]:
+def train(
+    updates: int = 200,
+    n_steps: int = 128,
+    n_particles: int = 2500,
+    seed: int = 0,
+    gamma: float = 0.99,
+    lam: float = 0.95,
+    lr: float = 7e-4,
+) -> dict[str, float]:
     """Train; returns the input sizes of actor and critic, the last losses and the mean episode length."""
     torch.manual_seed(seed)
     torch.set_num_threads(1)
-    env = PrivilegedInfo(gym.make("ElectroLoc-v0", condition="random", randomize_target=True,
-                                  n_particles=n_particles))
+    env = PrivilegedInfo(gym.make("ElectroLoc-v0", condition="random", randomize_target=True, n_particles=n_particles))
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     priv_dim = env.privileged_space.shape[0]
     actor, critic = mlp(obs_dim, act_dim), mlp(obs_dim + priv_dim, 1)  # the critic's input adds the truth
@@ -82,8 +89,13 @@ def train(updates: int = 200, n_steps: int = 128, n_particles: int = 2500, seed:
         nn.utils.clip_grad_norm_([*actor.parameters(), *critic.parameters()], 0.5)
         optim.step()
         value_loss, policy_loss = vl.item(), pl.item()
-    return {"actor_input_dim": obs_dim, "critic_input_dim": obs_dim + priv_dim, "value_loss": value_loss,
-            "policy_loss": policy_loss, "mean_episode_steps": float(np.mean(lengths)) if lengths else float("nan")}
+    return {
+        "actor_input_dim": obs_dim,
+        "critic_input_dim": obs_dim + priv_dim,
+        "value_loss": value_loss,
+        "policy_loss": policy_loss,
+        "mean_episode_steps": float(np.mean(lengths)) if lengths else float("nan"),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -24,8 +24,9 @@ from electroloc_gym.registry import env_entry
 
 def main(argv: list[str] | None = None) -> dict:
     """Record one episode and write its pictures; returns the final info dict."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
     p.add_argument("--env", default="ElectroLoc-v0", choices=list(electroloc_gym.ENV_IDS))
     p.add_argument("--condition", default="fresh-steel-12.7", help="preset name (ElectroLoc-v0 only)")
     p.add_argument("--agent", default="min-var", help="random, or a baseline name with optional [options]")
@@ -49,8 +50,10 @@ def main(argv: list[str] | None = None) -> dict:
     if args.gif:
         save_gif(episode.frames, args.gif, fps=args.fps)
     info = episode.final_info
-    print(f"{args.agent}: {info['n_observations']} observations, success={info['success']}, "
-          f"error {info['error_mm']:.1f} mm; wrote {args.out}" + (f" and {args.gif}" if args.gif else ""))
+    print(
+        f"{args.agent}: {info['n_observations']} observations, success={info['success']}, "
+        f"error {info['error_mm']:.1f} mm; wrote {args.out}" + (f" and {args.gif}" if args.gif else "")
+    )
     return info
 
 

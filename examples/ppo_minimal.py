@@ -31,13 +31,18 @@ import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0)
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """Command-line options (CleanRL's names)."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
     p.add_argument("--env-id", default="ElectroLoc-v0")
     p.add_argument("--condition", default="fresh-steel-12.7", help="a preset name, or 'random' (all eight)")
-    p.add_argument("--randomize-target", action=argparse.BooleanOptionalAction, default=True,
-                   help="train with the target anywhere in the start box (else the policy can memorise the "
-                        "paper's centred target); evaluation always uses the paper's fixed target")
+    p.add_argument(
+        "--randomize-target",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="train with the target anywhere in the start box (else the policy can memorise the "
+        "paper's centred target); evaluation always uses the paper's fixed target",
+    )
     p.add_argument("--num-envs", type=int, default=8)
     p.add_argument("--total-timesteps", type=int, default=300_000)
     p.add_argument("--num-steps", type=int, default=128, help="steps per env per rollout")
@@ -73,8 +78,9 @@ class Agent(nn.Module):
     def __init__(self, obs_dim: int, act_dim: int) -> None:
         super().__init__()
         self.critic = nn.Sequential(layer(obs_dim, 64), nn.Tanh(), layer(64, 64), nn.Tanh(), layer(64, 1, 1.0))
-        self.actor_mean = nn.Sequential(layer(obs_dim, 64), nn.Tanh(), layer(64, 64), nn.Tanh(),
-                                        layer(64, act_dim, 0.01))
+        self.actor_mean = nn.Sequential(
+            layer(obs_dim, 64), nn.Tanh(), layer(64, 64), nn.Tanh(), layer(64, act_dim, 0.01)
+        )
         self.actor_logstd = nn.Parameter(torch.full((1, act_dim), -0.5))
 
     def value(self, x: torch.Tensor) -> torch.Tensor:
@@ -88,9 +94,19 @@ class Agent(nn.Module):
         return action, dist.log_prob(action).sum(-1), dist.entropy().sum(-1), self.value(x)
 
 
-def ppo_update(agent: Agent, optim: torch.optim.Optimizer, args: argparse.Namespace, obs_buf: torch.Tensor,
-               act_buf: torch.Tensor, logp_buf: torch.Tensor, rew_buf: torch.Tensor, done_buf: torch.Tensor,
-               val_buf: torch.Tensor, valid_buf: torch.Tensor, next_value: torch.Tensor) -> None:
+def ppo_update(
+    agent: Agent,
+    optim: torch.optim.Optimizer,
+    args: argparse.Namespace,
+    obs_buf: torch.Tensor,
+    act_buf: torch.Tensor,
+    logp_buf: torch.Tensor,
+    rew_buf: torch.Tensor,
+    done_buf: torch.Tensor,
+    val_buf: torch.Tensor,
+    valid_buf: torch.Tensor,
+    next_value: torch.Tensor,
+) -> None:
     """GAE over a (T, N) rollout, then clipped-PPO epochs over its valid transitions (any one device)."""
     T, N = rew_buf.shape
     with torch.no_grad():  # generalised advantage estimation; an ended episode bootstraps nothing
@@ -112,7 +128,7 @@ def ppo_update(agent: Agent, optim: torch.optim.Optimizer, args: argparse.Namesp
     for _ in range(args.update_epochs):
         perm = torch.randperm(n, device=b_obs.device)
         for start in range(0, n, mb):
-            idx = perm[start:start + mb]
+            idx = perm[start : start + mb]
             _, logp, entropy, value = agent.act(b_obs[idx], b_act[idx])
             ratio = (logp - b_logp[idx]).exp()
             a = b_adv[idx]
@@ -129,8 +145,13 @@ def ppo_update(agent: Agent, optim: torch.optim.Optimizer, args: argparse.Namesp
 
 def make_envs(args: argparse.Namespace, num_envs: int, randomize_target: bool) -> gym.vector.VectorEnv:
     """The native vector env: ``num_envs`` tanks and particle filters stepped as arrays."""
-    return gym.make_vec(args.env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        condition=args.condition, randomize_target=randomize_target)
+    return gym.make_vec(
+        args.env_id,
+        num_envs=num_envs,
+        vectorization_mode="vector_entry_point",
+        condition=args.condition,
+        randomize_target=randomize_target,
+    )
 
 
 def train(args: argparse.Namespace) -> Agent:
@@ -173,10 +194,13 @@ def train(args: argparse.Namespace) -> Agent:
 
         if lengths and (update % 10 == 0 or update == n_updates):
             recent = slice(-100, None)
-            print(f"update {update}/{n_updates}  steps {update * T * N}  "
-                  f"episodes {len(lengths)}  last-100 success {np.mean(successes[recent]):.2f}  "
-                  f"median observations {np.median(lengths[recent]):.1f}  "
-                  f"{update * T * N / (time.time() - t0):.0f} steps/s", flush=True)
+            print(
+                f"update {update}/{n_updates}  steps {update * T * N}  "
+                f"episodes {len(lengths)}  last-100 success {np.mean(successes[recent]):.2f}  "
+                f"median observations {np.median(lengths[recent]):.1f}  "
+                f"{update * T * N / (time.time() - t0):.0f} steps/s",
+                flush=True,
+            )
     envs.close()
     return agent
 
@@ -198,7 +222,7 @@ def evaluate(agent: Agent, args: argparse.Namespace) -> tuple[float, float]:
             successes.append(bool(info["success"][i]))
         prev_done = done
     envs.close()
-    return float(np.mean(successes[:args.eval_episodes])), float(np.median(lengths[:args.eval_episodes]))
+    return float(np.mean(successes[: args.eval_episodes])), float(np.median(lengths[: args.eval_episodes]))
 
 
 def main(argv: list[str] | None = None) -> dict[str, float]:
@@ -207,8 +231,10 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     args = parse_args(argv)
     agent = train(args)
     success, median_obs = evaluate(agent, args)
-    print(f"evaluation ({args.eval_episodes} episodes, mean action): success {success:.2f}, "
-          f"median observations {median_obs:.1f}")
+    print(
+        f"evaluation ({args.eval_episodes} episodes, mean action): success {success:.2f}, "
+        f"median observations {median_obs:.1f}"
+    )
     if args.save:
         torch.save(agent.state_dict(), args.save)  # reload with torch.load(path, weights_only=True)
         print(f"wrote {args.save}")

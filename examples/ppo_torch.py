@@ -30,8 +30,9 @@ from ppo_minimal import Agent, ppo_update  # noqa: E402  (the network and the up
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """Command-line options (CleanRL's names, plus the device)."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
     p.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu")
     p.add_argument("--compile", action="store_true", help="torch.compile the env's step (fullgraph)")
     p.add_argument("--condition", default="random", help="a preset name, or 'random' (all eight)")
@@ -58,9 +59,16 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def make_envs(args: argparse.Namespace, num_envs: int, randomize_target: bool) -> gym.vector.VectorEnv:
     """The torch backend: ``num_envs`` tanks and particle filters as tensors on ``args.device``."""
-    return gym.make_vec("ElectroLoc-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        backend="torch", device=args.device, compile=args.compile, condition=args.condition,
-                        randomize_target=randomize_target)
+    return gym.make_vec(
+        "ElectroLoc-v0",
+        num_envs=num_envs,
+        vectorization_mode="vector_entry_point",
+        backend="torch",
+        device=args.device,
+        compile=args.compile,
+        condition=args.condition,
+        randomize_target=randomize_target,
+    )
 
 
 def train(args: argparse.Namespace) -> Agent:
@@ -101,9 +109,12 @@ def train(args: argparse.Namespace) -> Agent:
         ppo_update(agent, optim, args, obs_buf, act_buf, logp_buf, rew_buf, done_buf, val_buf, valid_buf, next_value)
         if update % 10 == 0 or update == n_updates:  # one host read per report, outside the rollout
             n_ep = max(float(ended), 1.0)
-            print(f"update {update}/{n_updates}  steps {update * T * N}  episodes {int(ended)}  "
-                  f"success {float(successes) / n_ep:.2f}  mean readings {float(readings) / n_ep:.1f}  "
-                  f"{update * T * N / (time.time() - t0):.0f} steps/s", flush=True)
+            print(
+                f"update {update}/{n_updates}  steps {update * T * N}  episodes {int(ended)}  "
+                f"success {float(successes) / n_ep:.2f}  mean readings {float(readings) / n_ep:.1f}  "
+                f"{update * T * N / (time.time() - t0):.0f} steps/s",
+                flush=True,
+            )
     envs.close()
     return agent
 
@@ -134,8 +145,10 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
         torch.set_num_threads(1)  # small networks on a CPU: one thread, the other cores left free
     agent = train(args)
     result = evaluate(agent, args)
-    print(f"evaluation ({args.eval_episodes} episodes, mean action): success {result['success_rate']:.2f}, "
-          f"mean readings {result['mean_readings']:.1f}")
+    print(
+        f"evaluation ({args.eval_episodes} episodes, mean action): success {result['success_rate']:.2f}, "
+        f"mean readings {result['mean_readings']:.1f}"
+    )
     if args.save:
         torch.save(agent.state_dict(), args.save)  # reload with torch.load(path, weights_only=True)
         print(f"wrote {args.save}")

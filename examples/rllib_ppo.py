@@ -96,10 +96,14 @@ def build_config(args: argparse.Namespace):
             grad_clip=0.5,
             grad_clip_by="global_norm",
         )
-        .rl_module(model_config=DefaultModelConfig(
-            fcnet_hiddens=HIDDEN, fcnet_activation="tanh",
-            vf_share_layers=False, free_log_std=True,  # SB3's ActorCriticPolicy: exported as one
-        ))
+        .rl_module(
+            model_config=DefaultModelConfig(
+                fcnet_hiddens=HIDDEN,
+                fcnet_activation="tanh",
+                vf_share_layers=False,
+                free_log_std=True,  # SB3's ActorCriticPolicy: exported as one
+            )
+        )
         .debugging(seed=args.seed)
     )
 
@@ -116,8 +120,12 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     warm_s = erl.warm_kernels(env_config(args))  # compile the numba kernels once, before the runners load them
     print(f"kernels ready in {warm_s:.1f} s", flush=True)
-    ray.init(address=args.address, runtime_env={"env_vars": erl.runner_env_vars()},
-             include_dashboard=False, log_to_driver=False)
+    ray.init(
+        address=args.address,
+        runtime_env={"env_vars": erl.runner_env_vars()},
+        include_dashboard=False,
+        log_to_driver=False,
+    )
     algo = build_config(args).build_algo()
     t0, steps = time.perf_counter(), 0
     fields = ["iteration", "env_steps", "wall_s", "episodes", "return_mean", "length_mean", "success_mean"]
@@ -128,19 +136,33 @@ def main(argv: list[str] | None = None) -> int:
             result = algo.train()
             r = result.get("env_runners", {})
             steps = int(result["num_env_steps_sampled_lifetime"])
-            row = {"iteration": result["training_iteration"], "env_steps": steps,
-                   "wall_s": round(time.perf_counter() - t0, 2), "episodes": int(r.get("num_episodes_lifetime", 0)),
-                   "return_mean": r.get("episode_return_mean"), "length_mean": r.get("episode_len_mean"),
-                   "success_mean": r.get(erl.SUCCESS_METRIC)}
+            row = {
+                "iteration": result["training_iteration"],
+                "env_steps": steps,
+                "wall_s": round(time.perf_counter() - t0, 2),
+                "episodes": int(r.get("num_episodes_lifetime", 0)),
+                "return_mean": r.get("episode_return_mean"),
+                "length_mean": r.get("episode_len_mean"),
+                "success_mean": r.get(erl.SUCCESS_METRIC),
+            }
             log.writerow(row)
             f.flush()
             print(json.dumps(row), flush=True)
-    erl.export_ppo(algo, out / "model", env_id=ENV_ID, env_kwargs=ENV_KWARGS, hidden=HIDDEN,
-                   provenance={"commands": ["python examples/rllib_ppo.py " + " ".join(sys.argv[1:] if argv is None
-                                                                                      else argv)],
-                               "seed": args.seed, "timesteps": steps, "num_env_runners": args.num_env_runners,
-                               "num_envs_per_env_runner": args.num_envs_per_env_runner,
-                               "versions": {"ray": ray.__version__, "torch": torch.__version__}})
+    erl.export_ppo(
+        algo,
+        out / "model",
+        env_id=ENV_ID,
+        env_kwargs=ENV_KWARGS,
+        hidden=HIDDEN,
+        provenance={
+            "commands": ["python examples/rllib_ppo.py " + " ".join(sys.argv[1:] if argv is None else argv)],
+            "seed": args.seed,
+            "timesteps": steps,
+            "num_env_runners": args.num_env_runners,
+            "num_envs_per_env_runner": args.num_envs_per_env_runner,
+            "versions": {"ray": ray.__version__, "torch": torch.__version__},
+        },
+    )
     erl.plot_progress(out / "progress.csv", out / "learning_curve.png")
     print(f"exported {out / 'model'}; run it with: electroloc bench --agents {out / 'model'}", flush=True)
     algo.stop()

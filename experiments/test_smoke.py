@@ -14,8 +14,9 @@ import pytest
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-SCRIPTS = sorted(p for p in HERE.glob("*/*.py") if "__main__" in p.read_text(encoding="utf-8")
-                 and not p.name.startswith("test_"))
+SCRIPTS = sorted(
+    p for p in HERE.glob("*/*.py") if "__main__" in p.read_text(encoding="utf-8") and not p.name.startswith("test_")
+)
 
 
 def test_every_study_folder_has_a_script() -> None:
@@ -25,7 +26,8 @@ def test_every_study_folder_has_a_script() -> None:
 
 @pytest.mark.parametrize("script", SCRIPTS, ids=[str(p.relative_to(HERE)) for p in SCRIPTS])
 def test_the_script_starts(script: Path) -> None:
-    proc = subprocess.run([sys.executable, str(script), "--help"], cwd=ROOT, capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run(
+        [sys.executable, str(script), "--help"], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "usage:" in proc.stdout

@@ -134,8 +134,14 @@ class ParticleBelief:
         dtype: particle dtype; float32 halves the cost of the sensor-model evaluation.
     """
 
-    def __init__(self, n_particles: int, low_mm: ArrayLike, high_mm: ArrayLike, jitter_std_mm: float = 1.0,
-                 dtype: type = np.float64) -> None:
+    def __init__(
+        self,
+        n_particles: int,
+        low_mm: ArrayLike,
+        high_mm: ArrayLike,
+        jitter_std_mm: float = 1.0,
+        dtype: type = np.float64,
+    ) -> None:
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
             raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
         low = np.asarray(low_mm, dtype=float).reshape(2)
@@ -182,8 +188,11 @@ class ParticleBelief:
             raise ValueError(f"particles must have shape ({self.n_particles}, 2), got {p.shape}")
         self._particles = p.copy()
         self._uniform = weights is None
-        self._weights = (np.full(self.n_particles, 1.0 / self.n_particles) if weights is None
-                         else np.asarray(weights, dtype=float).copy())
+        self._weights = (
+            np.full(self.n_particles, 1.0 / self.n_particles)
+            if weights is None
+            else np.asarray(weights, dtype=float).copy()
+        )
         self._stats = None
 
     # ---- filter steps ---------------------------------------------------------------------
@@ -266,8 +275,7 @@ class ParticleBelief:
         return float(spread_from_cov(self._mean_cov()[1]))
 
 
-def egocentric_histogram(particles_mm: NDArray, weights: NDArray | None, carriage: NDArray,
-                          hw: NDArray) -> NDArray:
+def egocentric_histogram(particles_mm: NDArray, weights: NDArray | None, carriage: NDArray, hw: NDArray) -> NDArray:
     """Mass fraction of particles in an 8×8 grid of offsets ±H around the carriage, (..., 64).
 
     Without weights each particle counts 1/M.

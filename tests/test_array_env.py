@@ -45,8 +45,13 @@ def _same(a: list[Any], b: list[Any]) -> None:
 
 
 # ---- K = 1, the paper's pair: ElectroLoc-v0 bit for bit -------------------------------------------------------
-@pytest.mark.parametrize("kwargs", [{"n_particles": 300}, {"n_particles": 300, "sensor_model": "analytic",
-                                                            "condition": "random", "randomize_target": True}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"n_particles": 300},
+        {"n_particles": 300, "sensor_model": "analytic", "condition": "random", "randomize_target": True},
+    ],
+)
 def test_single_layout_is_the_paper_env_bit_for_bit(kwargs: dict[str, Any], monkeypatch: pytest.MonkeyPatch) -> None:
     default = _rollout(gym.make(ID, **kwargs), 4, 40)
     _same(default, _rollout(gym.make(ID, sensor_layout="single", **kwargs), 4, 40))
@@ -71,7 +76,7 @@ def test_observation_and_info_carry_every_pair(name: str, observation: str) -> N
         assert pairs.shape == (k,) and info["reading_V"] == pairs[0]
         assert info["n_readings"] == k * info["n_observations"]
         np.testing.assert_array_equal(env.unwrapped.last_readings_V, pairs)
-        np.testing.assert_array_equal(obs[-(k - 1):], np.clip(pairs[1:] / 10.0, -1, 1).astype(np.float32))
+        np.testing.assert_array_equal(obs[-(k - 1) :], np.clip(pairs[1:] / 10.0, -1, 1).astype(np.float32))
         np.testing.assert_array_equal(obs[2], np.float32(np.clip(pairs[0] / 10, -1, 1)))  # Φ_0 / V_sat
         obs, _, te, tr, info = env.step(np.zeros(2, np.float32))
         if te or tr:
@@ -101,8 +106,12 @@ def test_a_step_fuses_its_k_readings_one_update_per_reading() -> None:
         jitter = table_normal_indices(g, 2 * m)[None]
         off = (cloud[0] - origin[0][:, None]).T
         ll = np.asarray(model.pair_log_likelihood(j, reading[j], off), dtype=np.float32)[None]
-        assert loglik_assimilate(ll, cloud, origin, u0, jitter, normal_table(), half, cloud, mean, cov, 2 * half, 8,
-                                 counts) < 0
+        assert (
+            loglik_assimilate(
+                ll, cloud, origin, u0, jitter, normal_table(), half, cloud, mean, cov, 2 * half, 8, counts
+            )
+            < 0
+        )
     _, _, _, _, info = env.step(np.ones(2, np.float32))
     np.testing.assert_array_equal(info["pair_readings_V"], reading)
     np.testing.assert_array_equal(s.particles_mm, cloud)
@@ -110,8 +119,15 @@ def test_a_step_fuses_its_k_readings_one_update_per_reading() -> None:
 
 
 def test_fixed_carriage_never_moves_and_agents_predict_it() -> None:
-    env = gym.make(ID, sensor_layout="ring-8", fixed_carriage=True, n_particles=200, sensor_model="analytic",
-                   max_observations=6, success_spread_mm=1e-3)
+    env = gym.make(
+        ID,
+        sensor_layout="ring-8",
+        fixed_carriage=True,
+        n_particles=200,
+        sensor_model="analytic",
+        max_observations=6,
+        success_spread_mm=1e-3,
+    )
     assert isinstance(env.action_space, gym.spaces.Box) and env.action_space.shape == (2,)
     _, info = env.reset(seed=2)
     core = env.unwrapped
@@ -145,16 +161,19 @@ def test_check_env_gymnasium_and_sb3(name: str) -> None:
         sb3_check_env(gym.make(ID, sensor_layout=name, fixed_carriage=fixed, n_particles=100), warn=False)
 
 
-@pytest.mark.parametrize(("layout", "match"), [
-    ("hexagon", r"^sensor_layout: must be one of"),
-    (np.zeros((0, 2, 2)), r"^sensor_layout: .*K ≥ 1"),
-    ([[[0.0, 25.0], [0.0, 25.5]]], r"^sensor_layout: .*overlap"),
-    ([[[0.0, 125.0], [0.0, -25.0]]], r"^sensor_layout: .*outside the carriage's reach"),
-    ([[[0.0, np.nan], [0.0, -25.0]]], r"^sensor_layout: .*finite"),
-    ([[[10.0, 25.0], [-10.0, 25.0]]], r"^sensor_layout: .*off every equipotential"),
-    ([[0.0, 25.0], [0.0, -25.0]], r"^sensor_layout: .*shape \(K, 2, 2\)"),
-    (3, r"^sensor_layout: must be one of"),
-])
+@pytest.mark.parametrize(
+    ("layout", "match"),
+    [
+        ("hexagon", r"^sensor_layout: must be one of"),
+        (np.zeros((0, 2, 2)), r"^sensor_layout: .*K ≥ 1"),
+        ([[[0.0, 25.0], [0.0, 25.5]]], r"^sensor_layout: .*overlap"),
+        ([[[0.0, 125.0], [0.0, -25.0]]], r"^sensor_layout: .*outside the carriage's reach"),
+        ([[[0.0, np.nan], [0.0, -25.0]]], r"^sensor_layout: .*finite"),
+        ([[[10.0, 25.0], [-10.0, 25.0]]], r"^sensor_layout: .*off every equipotential"),
+        ([[0.0, 25.0], [0.0, -25.0]], r"^sensor_layout: .*shape \(K, 2, 2\)"),
+        (3, r"^sensor_layout: must be one of"),
+    ],
+)
 def test_bad_layouts_one_clear_error(layout: Any, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         gym.make(ID, sensor_layout=layout)
@@ -174,8 +193,9 @@ def test_native_vector_env_equals_single_envs() -> None:
     kw = {"sensor_layout": "line-4", "n_particles": 200, "max_observations": 4}
     n = 3
     native = gym.make_vec(ID, num_envs=n, vectorization_mode="vector_entry_point", **kw)
-    ref = gym.vector.SyncVectorEnv([lambda: gym.make(ID, **kw) for _ in range(n)],
-                                   autoreset_mode=AutoresetMode.NEXT_STEP)
+    ref = gym.vector.SyncVectorEnv(
+        [lambda: gym.make(ID, **kw) for _ in range(n)], autoreset_mode=AutoresetMode.NEXT_STEP
+    )
     assert native.single_observation_space.shape == (84,)
     o1, i1 = native.reset(seed=[3, 4, 5])
     o2, i2 = ref.reset(seed=[3, 4, 5])
@@ -220,8 +240,14 @@ def test_agents_run_on_an_array(agent: str) -> None:
     from electroloc_gym.baselines import make_agent
     from electroloc_gym.rollout import run_episode
 
-    env = gym.make(ID, sensor_layout="grid-2x2", n_particles=500, sensor_model="analytic", max_observations=8,
-                   condition="fresh-steel-38.1")
+    env = gym.make(
+        ID,
+        sensor_layout="grid-2x2",
+        n_particles=500,
+        sensor_model="analytic",
+        max_observations=8,
+        condition="fresh-steel-38.1",
+    )
     ep = run_episode(env, make_agent(agent, seed=0), 101)
     assert ep.info["n_observations"] >= 1 and ep.ended_by in ("success", "cap")
 
@@ -240,9 +266,28 @@ def test_bench_sensor_layout_reaches_the_trials(tmp_path: Any, capsys: pytest.Ca
 
     from electroloc_gym.cli import main
 
-    args = ["bench", "--sensor-layout", "ring-8", "--agents", "rnd-wlk", "--conditions", "fresh-steel-38.1",
-            "--trials", "2", "--n-particles", "300", "--sensor-model", "analytic", "--workers", "1",
-            "--backend", "serial", "--no-progress", "--out", str(tmp_path / "run")]
+    args = [
+        "bench",
+        "--sensor-layout",
+        "ring-8",
+        "--agents",
+        "rnd-wlk",
+        "--conditions",
+        "fresh-steel-38.1",
+        "--trials",
+        "2",
+        "--n-particles",
+        "300",
+        "--sensor-model",
+        "analytic",
+        "--workers",
+        "1",
+        "--backend",
+        "serial",
+        "--no-progress",
+        "--out",
+        str(tmp_path / "run"),
+    ]
     assert main(args) == 0
     recs = [json.loads(line) for line in (tmp_path / "run" / "trials.jsonl").read_text().splitlines()]
     assert len(recs) == 2 and all(r["sensor_layout"] == "ring-8" for r in recs)
@@ -250,23 +295,38 @@ def test_bench_sensor_layout_reaches_the_trials(tmp_path: Any, capsys: pytest.Ca
     assert "--sensor-layout applies to --env target" in capsys.readouterr().err
 
 
-def test_a_policy_runs_only_on_the_layout_it_was_trained_with(tmp_path: Any,
-                                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_policy_runs_only_on_the_layout_it_was_trained_with(
+    tmp_path: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
     import json
 
     from electroloc_gym.bench.agents import default_agents
     from electroloc_gym.cli import main
 
-    base = ["bench", "--conditions", "fresh-steel-38.1", "--trials", "1", "--n-particles", "300", "--workers", "1",
-            "--backend", "serial", "--no-progress"]
+    base = [
+        "bench",
+        "--conditions",
+        "fresh-steel-38.1",
+        "--trials",
+        "1",
+        "--n-particles",
+        "300",
+        "--workers",
+        "1",
+        "--backend",
+        "serial",
+        "--no-progress",
+    ]
     assert main([*base, "--agents", "ppo-belief-grid-2x2", "--out", str(tmp_path / "a")]) == 2
     err = capsys.readouterr().err
     assert "trained with sensor_layout='grid-2x2', this run has sensor_layout='single'" in err
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "a").exists()
     assert main([*base, "--sensor-layout", "grid-2x2", "--agents", "ppo-belief", "--out", str(tmp_path / "b")]) == 2
     assert "trained with sensor_layout='single', this run has sensor_layout='grid-2x2'" in capsys.readouterr().err
-    assert main([*base, "--sensor-layout", "grid-2x2", "--agents", "ppo-belief-grid-2x2", "--out",
-                 str(tmp_path / "c")]) == 0
+    assert (
+        main([*base, "--sensor-layout", "grid-2x2", "--agents", "ppo-belief-grid-2x2", "--out", str(tmp_path / "c")])
+        == 0
+    )
     recs = [json.loads(line) for line in (tmp_path / "c" / "trials.jsonl").read_text().splitlines()]
     assert [r["sensor_layout"] for r in recs] == ["grid-2x2"]
     # a default run lists the array policy only on its own layout, and the single-pair policies only on theirs

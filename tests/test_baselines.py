@@ -85,8 +85,9 @@ def test_move_bounds_clip_to_box() -> None:
     np.testing.assert_allclose(hi, [3.0, 10.0])
 
 
-@pytest.mark.parametrize("name,cls", [("rnd-wlk", RandomWalkAgent), ("min-var", MinVarianceAgent),
-                                      ("zero-crossing", ZeroCrossingAgent)])
+@pytest.mark.parametrize(
+    "name,cls", [("rnd-wlk", RandomWalkAgent), ("min-var", MinVarianceAgent), ("zero-crossing", ZeroCrossingAgent)]
+)
 def test_make_agent_builds_registry_agents(name: str, cls: type) -> None:
     agent = make_agent(name, seed=3)
     assert isinstance(agent, cls) and isinstance(agent, BaselineAgent)
@@ -108,14 +109,17 @@ def test_one_registry_declares_every_built_in_agent() -> None:
     assert tuple(_registry()) == AGENT_NAMES and DEFAULT_AGENTS == PAPER_AGENTS == AGENT_NAMES[:3]
 
 
-@pytest.mark.parametrize("spec,match", [
-    ("nope", "unknown agent 'nope'"),
-    ("min-var[n_voters=0]", "n_voters"),
-    ("min-var[bogus=1]", "bad options for agent 'min-var'"),
-    ("min-var[n_voters]", "key=value"),
-    ("", "non-empty"),
-    ("rnd wlk!", "malformed"),
-])
+@pytest.mark.parametrize(
+    "spec,match",
+    [
+        ("nope", "unknown agent 'nope'"),
+        ("min-var[n_voters=0]", "n_voters"),
+        ("min-var[bogus=1]", "bad options for agent 'min-var'"),
+        ("min-var[n_voters]", "key=value"),
+        ("", "non-empty"),
+        ("rnd wlk!", "malformed"),
+    ],
+)
 def test_make_agent_bad_names(spec: str, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         make_agent(spec)
@@ -188,8 +192,9 @@ def _small_belief(condition: str, sensor_model: str, m: int, steps: int = 2, see
     return env.unwrapped
 
 
-@pytest.mark.parametrize("condition,sensor_model", [("fresh-steel-12.7", "calibrated"),
-                                                    ("salt-delrin-38.1", "analytic")])
+@pytest.mark.parametrize(
+    "condition,sensor_model", [("fresh-steel-12.7", "calibrated"), ("salt-delrin-38.1", "analytic")]
+)
 @pytest.mark.parametrize("weighted", [False, True])
 def test_vectorised_vote_equals_literal(condition: str, sensor_model: str, weighted: bool) -> None:
     core = _small_belief(condition, sensor_model, m=40)

@@ -156,9 +156,21 @@ def _update(ll: np.ndarray) -> tuple[np.ndarray, int]:
     table = normal_table()
     zero = np.full((1, 6), np.searchsorted(table, 0.0), dtype=np.uint16)  # the quantiles nearest 0
     mean, cov, counts = np.empty((1, 2)), np.empty((1, 2, 2)), np.empty((1, 64))
-    bad = loglik_assimilate(ll[None].astype(np.float32), src, np.zeros((1, 2), np.float32), np.full(1, 0.5), zero,
-                            table, np.full(1, 10.0, np.float32), src, mean, cov, np.full(1, 20.0, np.float32), 8,
-                            counts)
+    bad = loglik_assimilate(
+        ll[None].astype(np.float32),
+        src,
+        np.zeros((1, 2), np.float32),
+        np.full(1, 0.5),
+        zero,
+        table,
+        np.full(1, 10.0, np.float32),
+        src,
+        mean,
+        cov,
+        np.full(1, 20.0, np.float32),
+        8,
+        counts,
+    )
     return np.round(src[0, 0]).astype(int), bad
 
 

@@ -18,15 +18,30 @@ from electroloc_gym.bench.tables import PAPER_TABLE4, PAPER_TABLE4_ALL, render_t
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.conditions import PRESET_NAMES
 
-TINY = dict(conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=2, seed=3, n_particles=300,
-            max_observations=6, sensor_model="analytic")
-SUMMARY_KEYS = {"condition", "agent", "trials", "successes", "failures", "error_mean_mm", "error_median_mm",
-                "readings_mean", "readings_median", "decision_ms_median"}
+TINY = dict(
+    conditions=("fresh-steel-12.7", "salt-delrin-38.1"),
+    trials=2,
+    seed=3,
+    n_particles=300,
+    max_observations=6,
+    sensor_model="analytic",
+)
+SUMMARY_KEYS = {
+    "condition",
+    "agent",
+    "trials",
+    "successes",
+    "failures",
+    "error_mean_mm",
+    "error_median_mm",
+    "readings_mean",
+    "readings_median",
+    "decision_ms_median",
+}
 
 
 def _strip(records):
-    return sorted(tuple(sorted((k, json.dumps(v)) for k, v in r.items() if k not in TIMING_KEYS))
-                   for r in records)
+    return sorted(tuple(sorted((k, json.dumps(v)) for k, v in r.items() if k not in TIMING_KEYS)) for r in records)
 
 
 # ---- seeds ------------------------------------------------------------------------------------------
@@ -62,10 +77,17 @@ def test_resolve_conditions() -> None:
         resolve_conditions("")
 
 
-@pytest.mark.parametrize("kwargs,match", [
-    ({"trials": 0}, "trials"), ({"sensor_model": "exact"}, "sensor_model"), ({"signal": "x"}, "signal"),
-    ({"agents": ()}, "at least one"), ({"agents": ("rnd-wlk", "rnd-wlk")}, "distinct"), ({"seed": -1}, "seed"),
-])
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        ({"trials": 0}, "trials"),
+        ({"sensor_model": "exact"}, "sensor_model"),
+        ({"signal": "x"}, "signal"),
+        ({"agents": ()}, "at least one"),
+        ({"agents": ("rnd-wlk", "rnd-wlk")}, "distinct"),
+        ({"seed": -1}, "seed"),
+    ],
+)
 def test_bench_config_rejects_bad_values(kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
         BenchConfig(**kwargs)
@@ -73,11 +95,17 @@ def test_bench_config_rejects_bad_values(kwargs, match) -> None:
 
 def test_bad_agents_fail_before_running(tmp_path) -> None:
     with pytest.raises(ValueError, match="unknown agent 'nope'"):
-        run_benchmark(BenchConfig(agents=("rnd-wlk", "nope"), **TINY), tmp_path, backend="serial", progress=False,
-                      log=None)
+        run_benchmark(
+            BenchConfig(agents=("rnd-wlk", "nope"), **TINY), tmp_path, backend="serial", progress=False, log=None
+        )
     with pytest.raises(ValueError, match="missing.zip"):
-        run_benchmark(BenchConfig(agents=(str(tmp_path / "missing.zip"),), **TINY), tmp_path, backend="serial",
-                      progress=False, log=None)
+        run_benchmark(
+            BenchConfig(agents=(str(tmp_path / "missing.zip"),), **TINY),
+            tmp_path,
+            backend="serial",
+            progress=False,
+            log=None,
+        )
     assert not (tmp_path / "trials.jsonl").exists()
 
 
@@ -128,8 +156,18 @@ def test_run_writes_all_files(serial_run) -> None:
     records = read_trials(out / "trials.jsonl")
     assert len(records) == len(cfg.agents) * len(cfg.conditions) * cfg.trials
     for r in records:
-        assert {"condition", "agent", "trial", "seed", "success", "readings", "error_mm", "estimate", "start",
-                "decision_ms_median"} <= r.keys()
+        assert {
+            "condition",
+            "agent",
+            "trial",
+            "seed",
+            "success",
+            "readings",
+            "error_mm",
+            "estimate",
+            "start",
+            "decision_ms_median",
+        } <= r.keys()
         assert 1 <= r["readings"]
     data = json.loads((out / "summary.json").read_text())  # strict JSON: no NaN
     rows = data["rows"]
@@ -186,29 +224,43 @@ def test_resume_refuses_different_settings(serial_run, tmp_path) -> None:
 
 # ---- Appendix B statistics -------------------------------------------------------------------------
 def _rec(cond, agent, trial, success, steps, err, table_layout="table4"):
-    return {"condition": cond, "agent": agent, "trial": trial, "success": success, "readings": steps,
-            "error_mm": err, "error_x_mm": err, "error_y_mm": 0.0, "estimate": [err, 0.0], "table_layout": table_layout,
-            "decision_ms_median": 1.0}
+    return {
+        "condition": cond,
+        "agent": agent,
+        "trial": trial,
+        "success": success,
+        "readings": steps,
+        "error_mm": err,
+        "error_x_mm": err,
+        "error_y_mm": 0.0,
+        "estimate": [err, 0.0],
+        "table_layout": table_layout,
+        "decision_ms_median": 1.0,
+    }
 
 
 def test_appendix_b_rules() -> None:
     recs = [
-        _rec("c1", "a", 0, True, 5, 1.0), _rec("c1", "b", 0, True, 7, 3.0),
-        _rec("c1", "a", 1, True, 9, 2.0), _rec("c1", "b", 1, False, 35, 20.0),
-        _rec("c1", "a", 2, False, 35, 30.0), _rec("c1", "b", 2, True, 4, 5.0),
-        _rec("c2", "a", 0, True, 10, 4.0), _rec("c2", "b", 0, True, 2, 1.0),
+        _rec("c1", "a", 0, True, 5, 1.0),
+        _rec("c1", "b", 0, True, 7, 3.0),
+        _rec("c1", "a", 1, True, 9, 2.0),
+        _rec("c1", "b", 1, False, 35, 20.0),
+        _rec("c1", "a", 2, False, 35, 30.0),
+        _rec("c1", "b", 2, True, 4, 5.0),
+        _rec("c2", "a", 0, True, 10, 4.0),
+        _rec("c2", "b", 0, True, 2, 1.0),
     ]
     s = summarize(recs, agents=["a", "b"], conditions=["c1", "c2"])
     row = {(r["condition"], r["agent"]): r for r in s["rows"]}
     a1 = row[("c1", "a")]
     assert (a1["successes"], a1["failures"]) == (2, 1)
-    assert a1["paired_trials"] == 1                                  # only trial 0: both succeeded
+    assert a1["paired_trials"] == 1  # only trial 0: both succeeded
     assert a1["error_mean_paired_mm"] == 1.0 and a1["readings_mean_paired"] == 5
-    assert a1["error_mean_mm"] == 1.5 and a1["readings_mean"] == 7      # own successes
+    assert a1["error_mean_mm"] == 1.5 and a1["readings_mean"] == 7  # own successes
     assert a1["readings_median"] == 9 and a1["error_median_mm"] == 2.0  # all trials, failures included
     all_a = row[("all", "a")]
     assert all_a["successes"] == 3 and all_a["failures"] == 1
-    assert all_a["readings_median"] == (9 + 10) / 2                     # average of per-condition medians
+    assert all_a["readings_median"] == (9 + 10) / 2  # average of per-condition medians
     assert all_a["readings_median_pooled"] == 9.5
     assert math.isclose(all_a["error_mean_paired_mm"], (1.0 + 4.0) / 2)
 
@@ -221,18 +273,19 @@ def test_paper_all_conditions_row_is_average_of_rows() -> None:
 
 
 def test_table_renders_paper_numbers() -> None:
-    recs = [_rec("fresh-steel-12.7", "min-var", 0, True, 5, 1.0),
-            _rec("fresh-steel-12.7", "zero-crossing", 0, True, 300, 0.1, table_layout="table1")]
+    recs = [
+        _rec("fresh-steel-12.7", "min-var", 0, True, 5, 1.0),
+        _rec("fresh-steel-12.7", "zero-crossing", 0, True, 300, 0.1, table_layout="table1"),
+    ]
     text = render_table_md(summarize(recs))
-    assert "50(0)" in text and "1.7/1.1" in text    # Table 4, fresh 12.7/S, min-var
-    assert "0.39" in text                            # Table 1, fresh 12.7/S, y
+    assert "50(0)" in text and "1.7/1.1" in text  # Table 4, fresh 12.7/S, min-var
+    assert "0.39" in text  # Table 1, fresh 12.7/S, y
 
 
 # ---- the statistical reproduction (slow) ------------------------------------------------------------
 @pytest.mark.slow
 def test_statistical_zero_crossing_is_submillimetre(tmp_path) -> None:
-    cfg = BenchConfig(agents=("zero-crossing",), conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=25,
-                      seed=0)
+    cfg = BenchConfig(agents=("zero-crossing",), conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=25, seed=0)
     summary = run_benchmark(cfg, tmp_path, progress=False, log=None)
     for r in summary["rows"]:
         assert r["failures"] == 0
@@ -245,8 +298,13 @@ def test_statistical_min_var_beats_rnd_wlk_with_analytic_model(tmp_path) -> None
     # the large spheres: fewer failures and fewer steps than rnd-wlk (fixed seeds). These two conditions
     # were picked from a 20-trial analytic run over all eight, where min-var won on
     # 3-4 of 8 and lost clearly on salt-steel-12.7: this is an existence check, not a claim for all.
-    cfg = BenchConfig(agents=("rnd-wlk", "min-var"), conditions=("fresh-delrin-38.1", "salt-steel-38.1"),
-                      trials=30, seed=0, sensor_model="analytic")
+    cfg = BenchConfig(
+        agents=("rnd-wlk", "min-var"),
+        conditions=("fresh-delrin-38.1", "salt-steel-38.1"),
+        trials=30,
+        seed=0,
+        sensor_model="analytic",
+    )
     summary = run_benchmark(cfg, tmp_path, progress=False, log=None)
     row = {(r["condition"], r["agent"]): r for r in summary["rows"]}
     for c in cfg.conditions:
@@ -273,9 +331,9 @@ def test_statistical_min_var_beats_rnd_wlk(tmp_path) -> None:
 
 # ---- tables: the paper's totals only beside all eight conditions ----------------------------------------------
 def _eight_condition_records(conditions):
-    return [_rec(c, a, k, k != 2, 5 + k, 1.0 + k) for c in conditions for a in ("rnd-wlk", "min-var")
-            for k in range(3)] + [_rec(c, "zero-crossing", 0, True, 300, 0.2, table_layout="table1")
-                                  for c in conditions]
+    return [
+        _rec(c, a, k, k != 2, 5 + k, 1.0 + k) for c in conditions for a in ("rnd-wlk", "min-var") for k in range(3)
+    ] + [_rec(c, "zero-crossing", 0, True, 300, 0.2, table_layout="table1") for c in conditions]
 
 
 def test_all_conditions_row_only_over_the_papers_eight() -> None:
@@ -318,10 +376,34 @@ def test_progress_bar_names_the_agent(tmp_path) -> None:
 
     env = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1"}
     model = tmp_path / "runs" / "my-policy"  # a learned policy by path: the bar shows its folder's name
-    proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", "--agents", "rnd-wlk",
-                           "--conditions", "fresh-steel-12.7", "--trials", "3", "--n-particles", "100",
-                           "--sensor-model", "analytic", "--max-observations", "4", "--workers", "1",
-                           "--out", str(tmp_path / "out")], capture_output=True, text=True, env=env, timeout=300)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "electroloc_gym.cli",
+            "bench",
+            "--agents",
+            "rnd-wlk",
+            "--conditions",
+            "fresh-steel-12.7",
+            "--trials",
+            "3",
+            "--n-particles",
+            "100",
+            "--sensor-model",
+            "analytic",
+            "--max-observations",
+            "4",
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     assert "ETA after warm-up" in proc.stderr and "last: rnd-wlk on fresh-steel-12.7" in proc.stderr
     assert "agents: rnd-wlk" in proc.stdout

@@ -33,8 +33,19 @@ from electroloc_gym.rollout import run_episode
 
 HAS_TRAIN = all(importlib.util.find_spec(m) is not None for m in ("torch", "stable_baselines3"))
 ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-FAST = ["--conditions", "fresh-steel-12.7", "--trials", "1", "--n-particles", "100", "--max-observations", "4",
-        "--sensor-model", "analytic", "--no-progress"]
+FAST = [
+    "--conditions",
+    "fresh-steel-12.7",
+    "--trials",
+    "1",
+    "--n-particles",
+    "100",
+    "--max-observations",
+    "4",
+    "--sensor-model",
+    "analytic",
+    "--no-progress",
+]
 
 
 # ---- names, kinds, labels ------------------------------------------------------------------------------------
@@ -56,17 +67,27 @@ def test_unknown_agent_lists_every_choice() -> None:
         make_bench_agent("runs/missing-model")
 
 
-@pytest.mark.parametrize("spec,name", [("rnd-wlk", "rnd-wlk"), ("min-var[n_voters=16]", "min-var[n_voters=16]"),
-                                       ("ppo-belief", "ppo-belief"), ("/tmp/runs/ppo-s1000/", "ppo-s1000"),
-                                       ("/tmp/runs/ppo-s1000/model.zip", "ppo-s1000"), ("a/best.zip", "best")])
+@pytest.mark.parametrize(
+    "spec,name",
+    [
+        ("rnd-wlk", "rnd-wlk"),
+        ("min-var[n_voters=16]", "min-var[n_voters=16]"),
+        ("ppo-belief", "ppo-belief"),
+        ("/tmp/runs/ppo-s1000/", "ppo-s1000"),
+        ("/tmp/runs/ppo-s1000/model.zip", "ppo-s1000"),
+        ("a/best.zip", "best"),
+    ],
+)
 def test_display_names_are_short(spec, name) -> None:
     assert agent_display_name(spec) == name
 
 
 def test_controllers_do_not_import_the_training_package() -> None:
-    code = ("import sys, electroloc_gym.baselines as b; b.make_agent('min-var'); import electroloc_gym.bench.cli\n"
-            "bad = [m for m in sys.modules if m.startswith(('electroloc_gym.train', 'torch', 'stable_baselines3'))]\n"
-            "assert not bad, bad")
+    code = (
+        "import sys, electroloc_gym.baselines as b; b.make_agent('min-var'); import electroloc_gym.bench.cli\n"
+        "bad = [m for m in sys.modules if m.startswith(('electroloc_gym.train', 'torch', 'stable_baselines3'))]\n"
+        "assert not bad, bad"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV, timeout=120)
     assert proc.returncode == 0, proc.stderr
 
@@ -110,16 +131,36 @@ def test_crafted_model_files_run_no_code_by_default(tmp_path) -> None:
     marker = tmp_path / "PWNED"
     _crafted_model(tmp_path / "models" / "evil", marker)
     # A plain run in a downloaded folder ignores ./models (only the installed models are defaults) ...
-    proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", *FAST, "--workers", "1",
-                           "--out", str(tmp_path / "out")], capture_output=True, text=True, env=ENV, cwd=tmp_path,
-                          timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "electroloc_gym.cli", "bench", *FAST, "--workers", "1", "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        env=ENV,
+        cwd=tmp_path,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     assert "evil" not in proc.stdout + proc.stderr and not marker.exists()
     # ... and naming the folder, or its zip, is refused without --trust-pickle.
     for spec in ("models/evil", "models/evil/model.zip", str(tmp_path / "models" / "evil")):
-        proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", "--agents", spec, *FAST,
-                               "--out", str(tmp_path / "out2")], capture_output=True, text=True, env=ENV,
-                              cwd=tmp_path, timeout=300)
+        proc = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "electroloc_gym.cli",
+                "bench",
+                "--agents",
+                spec,
+                *FAST,
+                "--out",
+                str(tmp_path / "out2"),
+            ],
+            capture_output=True,
+            text=True,
+            env=ENV,
+            cwd=tmp_path,
+            timeout=300,
+        )
         assert proc.returncode == 2, proc.stderr
         assert "Traceback" not in proc.stderr and "trust" in proc.stderr and len(proc.stderr.splitlines()) == 1
         assert not marker.exists()
@@ -129,19 +170,24 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
     monkeypatch.setattr(registry, "_training_extra_missing", lambda: "the training extra is not installed (test)")
     choices = default_agents()
     assert [c.spec for c in choices if not c.skipped] == ["rnd-wlk", "min-var", "zero-crossing"]
-    other_env = {"ppo-belief-unknown": "trained on ElectroLocUnknownTarget-v0, not ElectroLoc-v0",
-                 "ppo-belief-gain": "trained on ElectroLoc-v0 with gain_levels=[0.25, 1.0, 4.0], not ElectroLoc-v0",
-                 "ppo-belief-global": "trained on ElectroLocGlobal-v0, not ElectroLoc-v0",
-                 "ppo-belief-grid-2x2": "trained with sensor_layout='grid-2x2', not 'single'"}
+    other_env = {
+        "ppo-belief-unknown": "trained on ElectroLocUnknownTarget-v0, not ElectroLoc-v0",
+        "ppo-belief-gain": "trained on ElectroLoc-v0 with gain_levels=[0.25, 1.0, 4.0], not ElectroLoc-v0",
+        "ppo-belief-global": "trained on ElectroLocGlobal-v0, not ElectroLoc-v0",
+        "ppo-belief-grid-2x2": "trained with sensor_layout='grid-2x2', not 'single'",
+    }
     assert {c.spec: c.skipped for c in choices if c.skipped} == {
-        name: other_env.get(name, "the training extra is not installed (test)") for name in shipped_models()}
+        name: other_env.get(name, "the training extra is not installed (test)") for name in shipped_models()
+    }
     assert cli_main(["bench", *FAST, "--backend", "serial", "--out", str(tmp_path)]) == 0
     captured = capsys.readouterr()
     assert "electroloc bench: skipping ppo-belief: the training extra is not installed (test)" in captured.err
     # the policies of other settings: one plain line saying where each runs, no "skipping" line each
-    assert ("electroloc bench: the shipped policies trained for other settings run there: "
-            "ppo-belief-gain (--env dynamic-gain), ppo-belief-global (--env global), "
-            "ppo-belief-grid-2x2 (--sensor-layout grid-2x2), ppo-belief-unknown (--env unknown-target)") in captured.err
+    assert (
+        "electroloc bench: the shipped policies trained for other settings run there: "
+        "ppo-belief-gain (--env dynamic-gain), ppo-belief-global (--env global), "
+        "ppo-belief-grid-2x2 (--sensor-layout grid-2x2), ppo-belief-unknown (--env unknown-target)"
+    ) in captured.err
     assert "skipping ppo-belief-global" not in captured.err
     for env_name in ("global", "dynamic-gain", "unknown-target"):  # each option named is a real bench row
         assert env_name in BENCH_ENVS
@@ -151,8 +197,10 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
 
 def test_global_env_refuses_learned_policies_and_zero_crossing(tmp_path, capsys) -> None:
     for spec in ("zero-crossing", "ppo-belief"):
-        assert cli_main(["bench", "--env", "global", "--agents", f"rnd-wlk,{spec}", *FAST[2:], "--out",
-                         str(tmp_path)]) == 2
+        assert (
+            cli_main(["bench", "--env", "global", "--agents", f"rnd-wlk,{spec}", *FAST[2:], "--out", str(tmp_path)])
+            == 2
+        )
         assert f"not applicable: ['{spec}']" in capsys.readouterr().err
 
 
@@ -163,18 +211,38 @@ def test_global_env_takes_a_policy_folder_trained_on_it(tmp_path, capsys) -> Non
     shutil.copytree(shipped_models()["ppo-belief-global"], mine)
     other = tmp_path / "my-target"
     shutil.copytree(shipped_models()["ppo-belief"], other)
-    assert cli_main(["bench", "--env", "global", "--agents", f"rnd-wlk,{mine}", *FAST[2:], "--workers", "1",
-                     "--out", str(tmp_path / "ok")]) == 0
+    assert (
+        cli_main(
+            [
+                "bench",
+                "--env",
+                "global",
+                "--agents",
+                f"rnd-wlk,{mine}",
+                *FAST[2:],
+                "--workers",
+                "1",
+                "--out",
+                str(tmp_path / "ok"),
+            ]
+        )
+        == 0
+    )
     assert "my-global" in (tmp_path / "ok" / "table.md").read_text()
-    assert cli_main(["bench", "--env", "global", "--agents", f"rnd-wlk,{other}", *FAST[2:], "--out",
-                     str(tmp_path / "refused")]) == 2
+    assert (
+        cli_main(
+            ["bench", "--env", "global", "--agents", f"rnd-wlk,{other}", *FAST[2:], "--out", str(tmp_path / "refused")]
+        )
+        == 2
+    )
     assert f"not applicable: ['{other}']" in capsys.readouterr().err
 
 
 # ---- one rollout loop -----------------------------------------------------------------------------------------
 def test_run_episode_ends_by_env_or_by_agent() -> None:
-    env = gym.make("ElectroLoc-v0", condition="fresh-steel-12.7", n_particles=200, sensor_model="analytic",
-                   max_observations=5)
+    env = gym.make(
+        "ElectroLoc-v0", condition="fresh-steel-12.7", n_particles=200, sensor_model="analytic", max_observations=5
+    )
     ep = run_episode(env, make_agent("rnd-wlk"), seed=4, agent_seed=9)
     assert ep.ended_by in ("success", "cap") and (ep.terminated or ep.truncated)
     assert len(ep.decision_s) == ep.info["n_observations"] - 1  # the first reading is taken by reset
@@ -189,17 +257,34 @@ def test_run_episode_ends_by_env_or_by_agent() -> None:
 
 
 def test_run_trial_is_run_episode_plus_the_record() -> None:
-    spec = make_trial_specs(BenchConfig(agents=("rnd-wlk",), conditions=("salt-steel-12.7",), trials=1,
-                                        n_particles=200, sensor_model="analytic", max_observations=8))[0]
+    spec = make_trial_specs(
+        BenchConfig(
+            agents=("rnd-wlk",),
+            conditions=("salt-steel-12.7",),
+            trials=1,
+            n_particles=200,
+            sensor_model="analytic",
+            max_observations=8,
+        )
+    )[0]
     rec = run_trial(spec)
-    env = gym.make("ElectroLoc-v0", condition=get_condition("salt-steel-12.7", spec.signal), n_particles=200,
-                   sensor_model="analytic", max_observations=8)
+    env = gym.make(
+        "ElectroLoc-v0",
+        condition=get_condition("salt-steel-12.7", spec.signal),
+        n_particles=200,
+        sensor_model="analytic",
+        max_observations=8,
+    )
     ep = run_episode(env, make_agent("rnd-wlk"), seed=spec.env_seed, agent_seed=spec.agent_seed)
     assert rec["readings"] == ep.info["n_observations"] and rec["ended_by"] == ep.ended_by
     assert rec["estimate"] == [float(v) for v in ep.info["estimate_mm"]]
     assert rec["start"] == [float(v) for v in ep.start_info["position_mm"]]
-    assert (rec["seed"], rec["agent_seed"], rec["env_id"], rec["n_particles"]) == \
-        (spec.env_seed, spec.agent_seed, "ElectroLoc-v0", 200)
+    assert (rec["seed"], rec["agent_seed"], rec["env_id"], rec["n_particles"]) == (
+        spec.env_seed,
+        spec.agent_seed,
+        "ElectroLoc-v0",
+        200,
+    )
     env.close()
 
 

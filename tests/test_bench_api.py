@@ -13,8 +13,21 @@ from electroloc_gym.bench.agents import make_bench_agent, protocol_problem
 from electroloc_gym.cli import main as cli_main
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "benchmark.md"
-TINY_CLI = ["--conditions", "fresh-steel-12.7", "--trials", "2", "--n-particles", "200", "--max-observations", "5",
-            "--sensor-model", "analytic", "--backend", "serial", "--no-progress"]
+TINY_CLI = [
+    "--conditions",
+    "fresh-steel-12.7",
+    "--trials",
+    "2",
+    "--n-particles",
+    "200",
+    "--max-observations",
+    "5",
+    "--sensor-model",
+    "analytic",
+    "--backend",
+    "serial",
+    "--no-progress",
+]
 USER_MODULE = '''
 import numpy as np
 
@@ -52,24 +65,36 @@ def no_predict():
 
 
 # ---- the one spec parser -----------------------------------------------------------------------------------
-@pytest.mark.parametrize("text,name,options", [
-    ("min-var", "min-var", {}),
-    ("min-var[vote=expected]", "min-var", {"vote": "expected"}),
-    ("lookahead[objective=(a,b)]", "lookahead", {"objective": ("a", "b")}),
-    ("x[w=[1,2,3],name='a,b']", "x", {"w": [1, 2, 3], "name": "a,b"}),
-    ("pkg.mod:make[k=1, s=\"x]\"]", "pkg.mod:make", {"k": 1, "s": "x]"}),
-    ("min-var[n_voters=None]", "min-var", {"n_voters": None}),
-])
+@pytest.mark.parametrize(
+    "text,name,options",
+    [
+        ("min-var", "min-var", {}),
+        ("min-var[vote=expected]", "min-var", {"vote": "expected"}),
+        ("lookahead[objective=(a,b)]", "lookahead", {"objective": ("a", "b")}),
+        ("x[w=[1,2,3],name='a,b']", "x", {"w": [1, 2, 3], "name": "a,b"}),
+        ('pkg.mod:make[k=1, s="x]"]', "pkg.mod:make", {"k": 1, "s": "x]"}),
+        ("min-var[n_voters=None]", "min-var", {"n_voters": None}),
+    ],
+)
 def test_specs_parse_with_commas_and_brackets_inside_values(text, name, options) -> None:
     spec = parse_agent_spec(text)
     assert (spec.name, spec.options, spec.text) == (name, options, text.strip())
 
 
-@pytest.mark.parametrize("text,match", [
-    ("lookahead[depth=2,depth=3]", "'depth' given twice"),
-    ("a[b]", "must be key=value"), ("a[=1]", "key ''"), ("a[x=1]]", "unbalanced"), ("a b", "malformed"),
-    ("a[x='open]", "unclosed quote"), ("", "non-empty"), ("x" * 3000, "at most"), ("a[x=@]", "neither"),
-])
+@pytest.mark.parametrize(
+    "text,match",
+    [
+        ("lookahead[depth=2,depth=3]", "'depth' given twice"),
+        ("a[b]", "must be key=value"),
+        ("a[=1]", "key ''"),
+        ("a[x=1]]", "unbalanced"),
+        ("a b", "malformed"),
+        ("a[x='open]", "unclosed quote"),
+        ("", "non-empty"),
+        ("x" * 3000, "at most"),
+        ("a[x=@]", "neither"),
+    ],
+)
 def test_malformed_specs_are_one_clear_error(text, match) -> None:
     with pytest.raises(ValueError, match=re.escape(match)):
         parse_agent_spec(text)
@@ -77,7 +102,10 @@ def test_malformed_specs_are_one_clear_error(text, match) -> None:
 
 def test_agent_lists_split_outside_brackets_and_quotes() -> None:
     assert split_specs("lookahead[depth=3,branches=16],min-var, x[a='b,c']") == [
-        "lookahead[depth=3,branches=16]", "min-var", "x[a='b,c']"]
+        "lookahead[depth=3,branches=16]",
+        "min-var",
+        "x[a='b,c']",
+    ]
 
 
 # ---- module:factory ---------------------------------------------------------------------------------------
@@ -101,12 +129,15 @@ def test_a_factory_runs_in_the_table(user_module, tmp_path, capsys) -> None:
     assert f"{user_module}:make[dx=0.5]" in table and "rnd-wlk" in table
 
 
-@pytest.mark.parametrize("spec,match", [
-    ("no_such_module_h2:make", "cannot import module 'no_such_module_h2' (ModuleNotFoundError"),
-    ("{m}:broken[a=1]", "broken(a=1) raised RuntimeError: no weights at /nowhere"),
-    ("{m}:no_predict", "the NoPredict object {m}:no_predict returned is not an agent: it lacks a predict() method"),
-    ("{m}:missing", "module '{m}' has no callable 'missing'"),
-])
+@pytest.mark.parametrize(
+    "spec,match",
+    [
+        ("no_such_module_h2:make", "cannot import module 'no_such_module_h2' (ModuleNotFoundError"),
+        ("{m}:broken[a=1]", "broken(a=1) raised RuntimeError: no weights at /nowhere"),
+        ("{m}:no_predict", "the NoPredict object {m}:no_predict returned is not an agent: it lacks a predict() method"),
+        ("{m}:missing", "module '{m}' has no callable 'missing'"),
+    ],
+)
 def test_a_bad_factory_is_one_line_before_any_trial(user_module, tmp_path, capsys, spec, match) -> None:
     spec, match = spec.format(m=user_module), match.format(m=user_module)
     out = tmp_path / "run"

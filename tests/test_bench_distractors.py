@@ -38,11 +38,13 @@ def test_agent_env_kwargs_cannot_override_the_runs_distractors() -> None:
     class Trained:
         env_kwargs = {"distractors": [0, 1, 2], "observation": "belief"}
 
-    kw = bench_env_kwargs("ElectroLoc-v0", Trained(), None, condition="fresh-steel-12.7", signal="fitted",
-                          distractors=2)
+    kw = bench_env_kwargs(
+        "ElectroLoc-v0", Trained(), None, condition="fresh-steel-12.7", signal="fitted", distractors=2
+    )
     assert kw["distractors"] == 2 and kw["observation"] == "belief"
-    assert "distractors" not in bench_env_kwargs("ElectroLoc-v0", Trained(), None, condition="fresh-steel-12.7",
-                                                signal="fitted")
+    assert "distractors" not in bench_env_kwargs(
+        "ElectroLoc-v0", Trained(), None, condition="fresh-steel-12.7", signal="fitted"
+    )
 
 
 def test_records_carry_d_and_far_success_and_the_env_has_the_distractors(tmp_path) -> None:
@@ -61,8 +63,14 @@ def test_records_carry_d_and_far_success_and_the_env_has_the_distractors(tmp_pat
     assert [r["start"] for r in plain_recs] == [r["start"] for r in recs]
     assert [(r["readings"], r["estimate"]) for r in plain_recs] != [(r["readings"], r["estimate"]) for r in recs]
     with pytest.raises(ValueError, match="settings differ"):
-        run_benchmark(BenchConfig(agents=("rnd-wlk",), distractors=1, **TINY), tmp_path, backend="serial",
-                      resume=True, progress=False, log=None)
+        run_benchmark(
+            BenchConfig(agents=("rnd-wlk",), distractors=1, **TINY),
+            tmp_path,
+            backend="serial",
+            resume=True,
+            progress=False,
+            log=None,
+        )
 
 
 def test_an_older_run_without_the_key_resumes_as_zero(tmp_path) -> None:
@@ -77,19 +85,44 @@ def test_an_older_run_without_the_key_resumes_as_zero(tmp_path) -> None:
     conf = json.loads((tmp_path / "config.json").read_text())
     conf.pop("distractors")
     (tmp_path / "config.json").write_text(json.dumps(conf))
-    summary = run_benchmark(BenchConfig(agents=("rnd-wlk",), **TINY), tmp_path, backend="serial", resume=True,
-                            progress=False, log=None)
+    summary = run_benchmark(
+        BenchConfig(agents=("rnd-wlk",), **TINY), tmp_path, backend="serial", resume=True, progress=False, log=None
+    )
     assert summary is not None
     assert len((tmp_path / "trials.jsonl").read_text().splitlines()) == 2
 
 
 def test_schema_refuses_a_far_flag_that_contradicts_the_error() -> None:
-    rec = {"condition": "fresh-steel-12.7", "agent": "rnd-wlk", "agent_label": "rnd-wlk", "table_layout": "table4",
-           "trial": 0, "seed": 1, "agent_seed": 2, "success": True, "ended_by": "success", "observations": 5,
-           "error_mm": 20.0, "error_x_mm": 20.0, "error_y_mm": 0.0, "estimate": [20.0, 0.0], "target": [0.0, 0.0],
-           "start": [1.0, 1.0], "spread_mm": 5.0, "decisions": 4, "decision_ms_median": 1.0,
-           "decision_ms_mean": 1.0, "sensor_model": "calibrated", "signal": "fitted", "max_observations": 35,
-           "n_particles": 2500, "env_id": "ElectroLoc-v0", "wall_s": 1.0, "distractors": 1, "far_success": True}
+    rec = {
+        "condition": "fresh-steel-12.7",
+        "agent": "rnd-wlk",
+        "agent_label": "rnd-wlk",
+        "table_layout": "table4",
+        "trial": 0,
+        "seed": 1,
+        "agent_seed": 2,
+        "success": True,
+        "ended_by": "success",
+        "observations": 5,
+        "error_mm": 20.0,
+        "error_x_mm": 20.0,
+        "error_y_mm": 0.0,
+        "estimate": [20.0, 0.0],
+        "target": [0.0, 0.0],
+        "start": [1.0, 1.0],
+        "spread_mm": 5.0,
+        "decisions": 4,
+        "decision_ms_median": 1.0,
+        "decision_ms_mean": 1.0,
+        "sensor_model": "calibrated",
+        "signal": "fitted",
+        "max_observations": 35,
+        "n_particles": 2500,
+        "env_id": "ElectroLoc-v0",
+        "wall_s": 1.0,
+        "distractors": 1,
+        "far_success": True,
+    }
     assert TrialRecord.from_json(rec).far_success
     with pytest.raises(ValueError, match="'far_success' False contradicts"):
         TrialRecord.from_json({**rec, "far_success": False})
@@ -104,8 +137,15 @@ def test_schema_refuses_a_far_flag_that_contradicts_the_error() -> None:
 
 def test_a_bench_of_eight_distractors_always_finishes(tmp_path) -> None:
     """Seed 0's first 40 trials include three draws that rejection alone cannot place."""
-    cfg = BenchConfig(agents=("rnd-wlk",), distractors=8, conditions=("fresh-steel-12.7",), trials=40, seed=0,
-                      n_particles=100, max_observations=2)
+    cfg = BenchConfig(
+        agents=("rnd-wlk",),
+        distractors=8,
+        conditions=("fresh-steel-12.7",),
+        trials=40,
+        seed=0,
+        n_particles=100,
+        max_observations=2,
+    )
     run_benchmark(cfg, tmp_path, backend="serial", progress=False, log=None)
     recs = [json.loads(x) for x in (tmp_path / "trials.jsonl").read_text().splitlines()]
     assert len(recs) == 40 and all(r["distractors"] == 8 for r in recs)

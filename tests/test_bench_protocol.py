@@ -15,10 +15,21 @@ from electroloc_gym.bench.config import BenchConfig
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.registry import ENVS
 
-TINY = ["--conditions", "fresh-steel-12.7", "--trials", "3", "--n-particles", "200", "--max-observations", "6",
-        "--sensor-model", "analytic", "--no-progress"]
+TINY = [
+    "--conditions",
+    "fresh-steel-12.7",
+    "--trials",
+    "3",
+    "--n-particles",
+    "200",
+    "--max-observations",
+    "6",
+    "--sensor-model",
+    "analytic",
+    "--no-progress",
+]
 
-USER_MODULE = '''
+USER_MODULE = """
 import os, sys
 import numpy as np
 
@@ -57,7 +68,7 @@ class Agent:
 
 def make(**kwargs):
     return Agent(**kwargs)
-'''
+"""
 
 
 @pytest.fixture
@@ -97,22 +108,30 @@ def test_an_agent_that_sets_its_own_success_criterion_is_refused(user_module, tm
     assert not (tmp_path / "out").exists()
 
 
-_ANY_VALUE = st.one_of(st.none(), st.booleans(), st.integers(-10**9, 10**9), st.floats(allow_nan=True),
-                       st.text(max_size=5))
+_ANY_VALUE = st.one_of(
+    st.none(), st.booleans(), st.integers(-(10**9), 10**9), st.floats(allow_nan=True), st.text(max_size=5)
+)
 _KEYS = sorted({k for e in ENVS for k in e.all_arguments} | {"render_mode", "target_draw", "zz"})
 
 
 @settings(max_examples=150, deadline=None)
-@given(kwargs=st.dictionaries(st.sampled_from(_KEYS), _ANY_VALUE, max_size=6),
-       env=st.sampled_from([e.env_id for e in ENVS]))
+@given(
+    kwargs=st.dictionaries(st.sampled_from(_KEYS), _ANY_VALUE, max_size=6),
+    env=st.sampled_from([e.env_id for e in ENVS]),
+)
 def test_no_env_kwargs_of_a_plug_in_agent_change_the_protocol(kwargs, env) -> None:
     class Plug:
         env_kwargs = kwargs
 
     cfg = BenchConfig(env_id=env, sensor_model="analytic")
-    run = dict(condition=None if env == "ElectroLocGlobal-v0" else "fresh-steel-12.7", signal=cfg.signal,
-               sensor_model=cfg.sensor_model, n_particles=cfg.n_particles, max_observations=cfg.max_observations,
-               success_spread_mm=cfg.success_spread_mm)
+    run = dict(
+        condition=None if env == "ElectroLocGlobal-v0" else "fresh-steel-12.7",
+        signal=cfg.signal,
+        sensor_model=cfg.sensor_model,
+        n_particles=cfg.n_particles,
+        max_observations=cfg.max_observations,
+        success_spread_mm=cfg.success_spread_mm,
+    )
     honest = bench_env_kwargs(env, None, None, **run)
     got = bench_env_kwargs(env, Plug(), None, **run)
     assert {k: v for k, v in got.items() if k not in AGENT_ENV_KWARGS} == honest
@@ -137,8 +156,14 @@ def test_plug_in_hooks_that_change_the_trial_are_refused() -> None:
 def test_the_protocol_is_in_config_json_and_resume_compares_it(tmp_path) -> None:
     from electroloc_gym.bench.runner import run_benchmark
 
-    cfg = BenchConfig(agents=("rnd-wlk",), conditions=("fresh-steel-12.7",), trials=1, n_particles=100,
-                      max_observations=4, sensor_model="analytic")
+    cfg = BenchConfig(
+        agents=("rnd-wlk",),
+        conditions=("fresh-steel-12.7",),
+        trials=1,
+        n_particles=100,
+        max_observations=4,
+        sensor_model="analytic",
+    )
     run_benchmark(cfg, tmp_path, backend="serial", progress=False, log=None)
     stored = json.loads((tmp_path / "config.json").read_text())
     assert stored["success_spread_mm"] == 10.0 and stored["max_observations"] == 4 and stored["n_particles"] == 100
@@ -149,10 +174,20 @@ def test_the_protocol_is_in_config_json_and_resume_compares_it(tmp_path) -> None
 
 
 # ---- failures mid-trial ------------------------------------------------------------------------------------
-@pytest.mark.parametrize("fail,method", [("runtime", "predict"), ("memory", "predict"), ("recursion", "reset"),
-                                         ("value", "predict"), ("exit", "seed"), ("key", "reset")])
-def test_an_agent_that_raises_mid_trial_is_one_line_and_resume_goes_on(user_module, tmp_path, capsys, fail,
-                                                                       method) -> None:
+@pytest.mark.parametrize(
+    "fail,method",
+    [
+        ("runtime", "predict"),
+        ("memory", "predict"),
+        ("recursion", "reset"),
+        ("value", "predict"),
+        ("exit", "seed"),
+        ("key", "reset"),
+    ],
+)
+def test_an_agent_that_raises_mid_trial_is_one_line_and_resume_goes_on(
+    user_module, tmp_path, capsys, fail, method
+) -> None:
     out = tmp_path / "out"
     spec = f"{user_module}:make[fail='{fail}',method='{method}',after=1]"
     code, err = _bench(capsys, out, "--agents", spec, "--backend", "serial")
@@ -165,8 +200,12 @@ def test_an_agent_that_raises_mid_trial_is_one_line_and_resume_goes_on(user_modu
 
 def test_a_fixed_agent_resumes_where_the_broken_one_stopped(user_module, tmp_path, capsys) -> None:
     out = tmp_path / "out"
-    (tmp_path / "pb_user_agents.py").write_text(textwrap.dedent(USER_MODULE).replace(
-        "def make(**kwargs):\n    return Agent(**kwargs)", "def make(**kwargs):\n    return Agent('runtime', after=2)"))
+    (tmp_path / "pb_user_agents.py").write_text(
+        textwrap.dedent(USER_MODULE).replace(
+            "def make(**kwargs):\n    return Agent(**kwargs)",
+            "def make(**kwargs):\n    return Agent('runtime', after=2)",
+        )
+    )
     code, _ = _bench(capsys, out, "--agents", f"{user_module}:make", "--backend", "serial")
     assert code == 2
     (tmp_path / "pb_user_agents.py").write_text(textwrap.dedent(USER_MODULE))
@@ -185,8 +224,11 @@ def test_a_worker_that_exits_is_one_line_naming_the_agent(user_module, tmp_path,
 
 
 @settings(max_examples=12, deadline=None)
-@given(fail=st.sampled_from(["runtime", "memory", "value", "exit", "key", "type", "recursion"]),
-       method=st.sampled_from(["seed", "reset", "predict"]), after=st.integers(0, 3))
+@given(
+    fail=st.sampled_from(["runtime", "memory", "value", "exit", "key", "type", "recursion"]),
+    method=st.sampled_from(["seed", "reset", "predict"]),
+    after=st.integers(0, 3),
+)
 def test_random_exceptions_from_random_methods_give_one_line(fail, method, after) -> None:
     import sys
     import types
@@ -199,8 +241,14 @@ def test_random_exceptions_from_random_methods_give_one_line(fail, method, after
     exec(textwrap.dedent(USER_MODULE), module.__dict__)  # noqa: S102 - the test's own agent code
     sys.modules["pb_random"] = module
     register_object_agent("pb-random", module.Agent(fail, method, after))
-    cfg = BenchConfig(agents=("pb-random",), conditions=("fresh-steel-12.7",), trials=5, n_particles=100,
-                      max_observations=5, sensor_model="analytic")
+    cfg = BenchConfig(
+        agents=("pb-random",),
+        conditions=("fresh-steel-12.7",),
+        trials=5,
+        n_particles=100,
+        max_observations=5,
+        sensor_model="analytic",
+    )
     for spec in make_trial_specs(cfg):
         try:
             run_trial(spec)
@@ -242,16 +290,32 @@ def test_a_slow_eedi_is_announced_before_the_run(tmp_path, capsys, monkeypatch) 
     monkeypatch.setattr(runner, "SLOW_DECISION_S", EEDIAgent().decision_seconds(2500) * 2)
     lines: list[str] = []
     with pytest.raises(ValueError):  # stopped right after the checks: the warning is what is tested
-        runner.run_benchmark(BenchConfig(agents=("eedi[n_particles=5000,n_coefficients=32,grid_mm=1]",),
-                                         conditions=("fresh-steel-12.7",), trials=1),
-                             tmp_path / "x" / "y", backend="nope", progress=False, log=lines.append)
+        runner.run_benchmark(
+            BenchConfig(
+                agents=("eedi[n_particles=5000,n_coefficients=32,grid_mm=1]",),
+                conditions=("fresh-steel-12.7",),
+                trials=1,
+            ),
+            tmp_path / "x" / "y",
+            backend="nope",
+            progress=False,
+            log=lines.append,
+        )
     assert any("warning" in line and "s per decision" in line for line in lines)
 
 
 # ---- integer options ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("option,value", [("--distractors", "٣"), ("--trials", "３"), ("--seed", "²"),
-                                          ("--workers", "1_0"), ("--max-observations", " 5"),
-                                          ("--n-particles", "+100")])
+@pytest.mark.parametrize(
+    "option,value",
+    [
+        ("--distractors", "٣"),
+        ("--trials", "３"),
+        ("--seed", "²"),
+        ("--workers", "1_0"),
+        ("--max-observations", " 5"),
+        ("--n-particles", "+100"),
+    ],
+)
 def test_integer_options_take_ascii_digits_only(tmp_path, capsys, option, value) -> None:
     with pytest.raises(SystemExit) as info:
         cli_main(["bench", "--out", str(tmp_path / "out"), *TINY, "--agents", "rnd-wlk", option, value])

@@ -17,17 +17,50 @@ from electroloc_gym.bench.runner import record_rules, run_benchmark
 from electroloc_gym.bench.schema import RECORD_KEYS, TIMING_KEYS, TrialRecord
 from electroloc_gym.cli import main as cli_main
 
-TARGET = dict(agents=("rnd-wlk", "zero-crossing[max_observations=60]"), conditions=("fresh-steel-12.7",), trials=3,
-              seed=5, n_particles=300, max_observations=6, sensor_model="analytic")
-UNKNOWN = dict(agents=("rnd-wlk",), conditions=("fresh-steel-12.7",), trials=2, seed=5, n_particles=300,
-               max_observations=5, sensor_model="analytic", env_id="ElectroLocUnknownTarget-v0")
+TARGET = dict(
+    agents=("rnd-wlk", "zero-crossing[max_observations=60]"),
+    conditions=("fresh-steel-12.7",),
+    trials=3,
+    seed=5,
+    n_particles=300,
+    max_observations=6,
+    sensor_model="analytic",
+)
+UNKNOWN = dict(
+    agents=("rnd-wlk",),
+    conditions=("fresh-steel-12.7",),
+    trials=2,
+    seed=5,
+    n_particles=300,
+    max_observations=5,
+    sensor_model="analytic",
+    env_id="ElectroLocUnknownTarget-v0",
+)
 
 
 def _cli(cfg: dict, out: Path) -> list[str]:
-    args = ["bench", "--agents", ",".join(cfg["agents"]), "--conditions", ",".join(cfg["conditions"]),
-            "--trials", str(cfg["trials"]), "--seed", str(cfg["seed"]), "--n-particles", str(cfg["n_particles"]),
-            "--max-observations", str(cfg["max_observations"]), "--sensor-model", cfg["sensor_model"],
-            "--backend", "serial", "--no-progress", "--out", str(out)]
+    args = [
+        "bench",
+        "--agents",
+        ",".join(cfg["agents"]),
+        "--conditions",
+        ",".join(cfg["conditions"]),
+        "--trials",
+        str(cfg["trials"]),
+        "--seed",
+        str(cfg["seed"]),
+        "--n-particles",
+        str(cfg["n_particles"]),
+        "--max-observations",
+        str(cfg["max_observations"]),
+        "--sensor-model",
+        cfg["sensor_model"],
+        "--backend",
+        "serial",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
     return args + (["--env", "unknown-target"] if cfg.get("env_id") == "ElectroLocUnknownTarget-v0" else [])
 
 
@@ -97,14 +130,17 @@ def test_an_unknown_target_record_without_shape_is_set_aside(reference, tmp_path
     _resume_and_check(reference, run, capsys, "'shape' must be the identification results")
 
 
-@pytest.mark.parametrize("crafted,message", [
-    ("[" * 100_000, "a line longer than 16384 characters"),
-    ("[" * 1000 + "]" * 1000, "nested deeper than 8 levels"),
-    ('{"trial": ' + "9" * 5001 + "}", "an integer of 5001 digits (at most 24)"),
-    ('{"trial": 1e999999}', "the number 1e999999 overflows"),
-    ('{"trial": NaN}', "NaN (not strict JSON)"),
-    ("x" * 20_000, "characters (at most 16384)"),
-])
+@pytest.mark.parametrize(
+    "crafted,message",
+    [
+        ("[" * 100_000, "a line longer than 16384 characters"),
+        ("[" * 1000 + "]" * 1000, "nested deeper than 8 levels"),
+        ('{"trial": ' + "9" * 5001 + "}", "an integer of 5001 digits (at most 24)"),
+        ('{"trial": 1e999999}', "the number 1e999999 overflows"),
+        ('{"trial": NaN}', "NaN (not strict JSON)"),
+        ("x" * 20_000, "characters (at most 16384)"),
+    ],
+)
 def test_parsing_is_bounded(reference, tmp_path, capsys, crafted, message) -> None:
     if reference[0] is not TARGET:
         pytest.skip("once")
@@ -112,31 +148,39 @@ def test_parsing_is_bounded(reference, tmp_path, capsys, crafted, message) -> No
     _resume_and_check(reference, run, capsys, message)
 
 
-@pytest.mark.parametrize("changes,message", [
-    ({"readings": 1000}, "'readings' 1000 exceeds the record's cap 'max_observations' 6"),
-    ({"readings": 5, "decisions": 5}, "≠ 'readings' − 1 = 4"),
-    ({"observations": 3}, "both 'readings' and its old name 'observations'"),
-    ({"start": [0, 0]}, "'start' [0, 0] is not the start"),
-    ({"start": [0.0, 1e-3]}, "is not the start"),
-    ({"far_success": None}, "'far_success' must be true or false, got None"),
-    ({"distractors": None}, "'distractors' must be an integer in [0, 8], got None"),
-    ({"error_mm": -5}, "'error_mm' must be a distance in [0, 2000] mm"),
-    ({"agent": "evil"}, "agent 'evil' is not one of the run's"),
-    ({"trial": 7}, "trial 7 is outside the run's range 0–2"),
-    ({"table_layout": "table1", "_failed": True}, "table_layout 'table1', but agent 'rnd-wlk' reports to 'table4'"),
-    ({"spread_mm": 50.0, "success": True, "ended_by": "success", "readings": 5, "decisions": 4},
-     "vs the criterion 10.0 mm"),
-    ({"extra": 1}, "unknown key(s) ['extra']"),
-])
+@pytest.mark.parametrize(
+    "changes,message",
+    [
+        ({"readings": 1000}, "'readings' 1000 exceeds the record's cap 'max_observations' 6"),
+        ({"readings": 5, "decisions": 5}, "≠ 'readings' − 1 = 4"),
+        ({"observations": 3}, "both 'readings' and its old name 'observations'"),
+        ({"start": [0, 0]}, "'start' [0, 0] is not the start"),
+        ({"start": [0.0, 1e-3]}, "is not the start"),
+        ({"far_success": None}, "'far_success' must be true or false, got None"),
+        ({"distractors": None}, "'distractors' must be an integer in [0, 8], got None"),
+        ({"error_mm": -5}, "'error_mm' must be a distance in [0, 2000] mm"),
+        ({"agent": "evil"}, "agent 'evil' is not one of the run's"),
+        ({"trial": 7}, "trial 7 is outside the run's range 0–2"),
+        ({"table_layout": "table1", "_failed": True}, "table_layout 'table1', but agent 'rnd-wlk' reports to 'table4'"),
+        (
+            {"spread_mm": 50.0, "success": True, "ended_by": "success", "readings": 5, "decisions": 4},
+            "vs the criterion 10.0 mm",
+        ),
+        ({"extra": 1}, "unknown key(s) ['extra']"),
+    ],
+)
 def test_impossible_records_are_set_aside(reference, tmp_path, capsys, changes, message) -> None:
     cfg, _, lines, _ = reference
     if cfg is not TARGET:
         pytest.skip("the target env's records")
     failed = changes.pop("_failed", False)
-    n = next(i for i, line in enumerate(lines)
-             if json.loads(line)["agent"] == "rnd-wlk" and (not failed or not json.loads(line)["success"]))
+    n = next(
+        i
+        for i, line in enumerate(lines)
+        if json.loads(line)["agent"] == "rnd-wlk" and (not failed or not json.loads(line)["success"])
+    )
     crafted = _edit(lines[n], **changes)
-    lines = [lines[n], *lines[:n], *lines[n + 1:]]  # the crafted record first: line 1
+    lines = [lines[n], *lines[:n], *lines[n + 1 :]]  # the crafted record first: line 1
     run = _crafted((cfg, reference[1], lines, reference[3]), tmp_path, 0, crafted)
     _resume_and_check(reference, run, capsys, message)
 
@@ -157,16 +201,25 @@ def test_summary_and_table_are_written_together_or_not_at_all(reference, tmp_pat
 
 
 # ---- properties --------------------------------------------------------------------------------------------
-_ANY = st.one_of(st.none(), st.booleans(), st.integers(min_value=-2**70, max_value=2**70),
-                 st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=8),
-                 st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=3),
-                 st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
+_ANY = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.floats(allow_nan=False, allow_infinity=False),
+    st.text(max_size=8),
+    st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=3),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
+)
 #: Fields whose other values can be valid on their own: accepted only inside their documented range.
-_LOOSE = {"agent_label": lambda v: isinstance(v, str) and 0 < len(v) <= 2000,
-          # any spread consistent with the record's success (≤ the criterion ⇔ success) is a valid spread
-          "spread_mm": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0,
-          **{k: (lambda v: v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
-                                         and 0 <= v <= 86_400e3)) for k in TIMING_KEYS}}
+_LOOSE = {
+    "agent_label": lambda v: isinstance(v, str) and 0 < len(v) <= 2000,
+    # any spread consistent with the record's success (≤ the criterion ⇔ success) is a valid spread
+    "spread_mm": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0,
+    **{
+        k: (lambda v: v is None or (isinstance(v, (int, float)) and not isinstance(v, bool) and 0 <= v <= 86_400e3))
+        for k in TIMING_KEYS
+    },
+}
 
 
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -184,7 +237,7 @@ def test_every_field_is_checked_on_resume(reference, tmp_path, data) -> None:
         return
     crafted = dict(original, **{key: value})
     path = tmp_path / f"trials-{key}.jsonl"
-    path.write_text("".join([json.dumps(crafted) + "\n", *lines[:n], *lines[n + 1:]]))
+    path.write_text("".join([json.dumps(crafted) + "\n", *lines[:n], *lines[n + 1 :]]))
     loaded = load_records(path, config, rules)
     kept = list(loaded.records.values())
     assert len(kept) + len(loaded.rejected) + len(loaded.foreign) == len(lines)
@@ -239,8 +292,10 @@ def test_read_run_records_is_what_resume_keeps(reference, tmp_path) -> None:
     assert (run / "trials.jsonl").read_text().startswith(bad)  # nothing written
 
 
-@pytest.mark.parametrize("damage", ["no-folder", "no-config", "no-trials", "config-garbage", "config-list",
-                                    "config-bad-value", "trials-a-folder"])
+@pytest.mark.parametrize(
+    "damage",
+    ["no-folder", "no-config", "no-trials", "config-garbage", "config-list", "config-bad-value", "trials-a-folder"],
+)
 def test_read_run_records_refuses_a_damaged_folder_in_one_line(reference, tmp_path, damage) -> None:
     from electroloc_gym.bench.stored_run import read_run_records
 

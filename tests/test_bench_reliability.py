@@ -27,18 +27,39 @@ from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.cli import main as cli_main
 
-TINY = dict(conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=2, seed=3, n_particles=300,
-            max_observations=6, sensor_model="analytic")
+TINY = dict(
+    conditions=("fresh-steel-12.7", "salt-delrin-38.1"),
+    trials=2,
+    seed=3,
+    n_particles=300,
+    max_observations=6,
+    sensor_model="analytic",
+)
 AGENTS = ("rnd-wlk", "zero-crossing[max_observations=60]")
-TINY_CLI = ["--agents", "rnd-wlk,zero-crossing[max_observations=60]", "--conditions",
-            "fresh-steel-12.7,salt-delrin-38.1", "--trials", "2", "--seed", "3", "--n-particles", "300",
-            "--max-observations", "6", "--sensor-model", "analytic", "--no-progress"]
+TINY_CLI = [
+    "--agents",
+    "rnd-wlk,zero-crossing[max_observations=60]",
+    "--conditions",
+    "fresh-steel-12.7,salt-delrin-38.1",
+    "--trials",
+    "2",
+    "--seed",
+    "3",
+    "--n-particles",
+    "300",
+    "--max-observations",
+    "6",
+    "--sensor-model",
+    "analytic",
+    "--no-progress",
+]
 ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def _strip(records) -> dict:
-    return {(r["condition"], r["agent"], r["trial"]): {k: v for k, v in r.items() if k not in TIMING_KEYS}
-            for r in records}
+    return {
+        (r["condition"], r["agent"], r["trial"]): {k: v for k, v in r.items() if k not in TIMING_KEYS} for r in records
+    }
 
 
 def _run(out: Path, **kw):
@@ -68,9 +89,13 @@ def _copy_run(reference, dest: Path, lines=None, config=True) -> Path:
 def _bad_outs(tmp_path: Path) -> list[tuple[str, str]]:
     a_file = tmp_path / "a_file"
     a_file.write_text("x")
-    return [("", "must name a folder"), (str(a_file), "is a file, not a folder"),
-            (str(a_file / "sub" / "out"), "which is a file"), ("/proc/self", "not writable"),
-            ("/sys/electroloc-bench-test", "cannot be created")]
+    return [
+        ("", "must name a folder"),
+        (str(a_file), "is a file, not a folder"),
+        (str(a_file / "sub" / "out"), "which is a file"),
+        ("/proc/self", "not writable"),
+        ("/sys/electroloc-bench-test", "cannot be created"),
+    ]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and /sys as unwritable folders")
@@ -116,13 +141,20 @@ def test_a_second_run_on_a_locked_folder_refuses(tmp_path, capsys) -> None:
 
 
 def test_the_lock_dies_with_its_holder(tmp_path) -> None:
-    code = ("import time\nfrom electroloc_gym.bench.records import run_lock\n"
-            f"lock = run_lock({str(tmp_path)!r}).acquire(); print('locked', flush=True); time.sleep(120)")
+    code = (
+        "import time\nfrom electroloc_gym.bench.records import run_lock\n"
+        f"lock = run_lock({str(tmp_path)!r}).acquire(); print('locked', flush=True); time.sleep(120)"
+    )
     holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=ENV)
     try:
         assert holder.stdout.readline().strip() == "locked"
-        proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", *TINY_CLI, "--out", str(tmp_path)],
-                              capture_output=True, text=True, env=ENV, timeout=120)
+        proc = subprocess.run(
+            [sys.executable, "-m", "electroloc_gym.cli", "bench", *TINY_CLI, "--out", str(tmp_path)],
+            capture_output=True,
+            text=True,
+            env=ENV,
+            timeout=120,
+        )
         assert proc.returncode == 2
         assert "in use by another electroloc bench run" in proc.stderr
         assert "Traceback" not in proc.stderr and not (tmp_path / "trials.jsonl").exists()
@@ -138,11 +170,13 @@ def test_duplicate_lines_are_never_counted_twice(reference, tmp_path, capsys) ->
     out, lines, ref_summary = reference
     doubled = _copy_run(reference, tmp_path / "doubled", lines=lines + lines)  # two writers, every trial twice
     assert len(read_trials(doubled / "trials.jsonl")) == len(lines)
-    summary = run_benchmark(BenchConfig(agents=AGENTS, **TINY), doubled, backend="serial", resume=True,
-                            progress=False, log=print)
+    summary = run_benchmark(
+        BenchConfig(agents=AGENTS, **TINY), doubled, backend="serial", resume=True, progress=False, log=print
+    )
     assert summary["trials_run_this_time"] == 0
-    assert [(r["successes"], r["failures"], r["trials"]) for r in summary["rows"]] == \
-        [(r["successes"], r["failures"], r["trials"]) for r in ref_summary["rows"]]
+    assert [(r["successes"], r["failures"], r["trials"]) for r in summary["rows"]] == [
+        (r["successes"], r["failures"], r["trials"]) for r in ref_summary["rows"]
+    ]
     assert (doubled / "table.md").read_text() == (out / "table.md").read_text()
     logged = capsys.readouterr().out
     assert logged.count("duplicate of line") == len(lines)
@@ -166,8 +200,7 @@ def test_a_conflicting_second_result_is_set_aside(reference, tmp_path) -> None:
 def test_resume_refuses_records_of_another_seed(reference, tmp_path, with_config) -> None:
     _, lines, _ = reference
     other = tmp_path / "seed99"
-    run_benchmark(BenchConfig(agents=AGENTS, **{**TINY, "seed": 99}), other, backend="serial", progress=False,
-                  log=None)
+    run_benchmark(BenchConfig(agents=AGENTS, **{**TINY, "seed": 99}), other, backend="serial", progress=False, log=None)
     foreign = (other / "trials.jsonl").read_text().splitlines(keepends=True)
     mixed = _copy_run(reference, tmp_path / "mixed", lines=[*lines[:3], foreign[3], *lines[4:]], config=with_config)
     with pytest.raises(ValueError, match=r"trials.jsonl:4 is not a trial of this run .*another --seed"):
@@ -178,8 +211,9 @@ def test_resume_refuses_records_of_another_seed(reference, tmp_path, with_config
     assert (mixed / "trials.jsonl").read_text() == "".join([*lines[:3], foreign[3], *lines[4:]])  # untouched
 
 
-@pytest.mark.parametrize("key,value", [("sensor_model", "calibrated"), ("n_particles", 2500),
-                                       ("max_observations", 35), ("signal", "paper")])
+@pytest.mark.parametrize(
+    "key,value", [("sensor_model", "calibrated"), ("n_particles", 2500), ("max_observations", 35), ("signal", "paper")]
+)
 def test_resume_without_config_refuses_records_of_other_settings(reference, tmp_path, key, value) -> None:
     _, lines, _ = reference
     rec = json.loads(lines[2])
@@ -200,8 +234,14 @@ def test_a_global_map_record_is_not_a_trial_of_a_target_run(reference) -> None:
 def test_resume_refuses_a_config_of_other_settings(reference, tmp_path) -> None:
     run = _copy_run(reference, tmp_path)
     with pytest.raises(ValueError, match="settings differ"):
-        run_benchmark(BenchConfig(agents=AGENTS, **{**TINY, "seed": 99}), run, backend="serial", resume=True,
-                      progress=False, log=None)
+        run_benchmark(
+            BenchConfig(agents=AGENTS, **{**TINY, "seed": 99}),
+            run,
+            backend="serial",
+            resume=True,
+            progress=False,
+            log=None,
+        )
 
 
 def _damage(lines: list[str]) -> dict[str, tuple[list[bytes], int, str]]:
@@ -218,13 +258,17 @@ def _damage(lines: list[str]) -> dict[str, tuple[list[bytes], int, str]]:
         "null-trial": ([*b[:3], json.dumps(null_trial).encode() + b"\n", *b[4:]], 4, "'trial' must be an integer"),
         "missing-keys": ([*b[:3], json.dumps(no_keys).encode() + b"\n", *b[4:]], 4, "missing key(s)"),
         "not-object": ([*b[:3], b"[1, 2, 3]\n", *b[3:]], 4, "not a JSON object"),
-        "bad-type": ([*b[:3], json.dumps({**rec, "success": "yes"}).encode() + b"\n", *b[4:]], 4,
-                     "'success' must be true or false"),
+        "bad-type": (
+            [*b[:3], json.dumps({**rec, "success": "yes"}).encode() + b"\n", *b[4:]],
+            4,
+            "'success' must be true or false",
+        ),
     }
 
 
-@pytest.mark.parametrize("case", ["truncated", "torn-last", "garbage", "non-utf8", "null-trial", "missing-keys",
-                                  "not-object", "bad-type"])
+@pytest.mark.parametrize(
+    "case", ["truncated", "torn-last", "garbage", "non-utf8", "null-trial", "missing-keys", "not-object", "bad-type"]
+)
 def test_damaged_lines_are_reported_set_aside_and_rerun(reference, tmp_path, capsys, case) -> None:
     _, lines, _ = reference
     damaged, line_no, says = _damage(lines)[case]
@@ -232,8 +276,9 @@ def test_damaged_lines_are_reported_set_aside_and_rerun(reference, tmp_path, cap
     run.mkdir()
     (run / "trials.jsonl").write_bytes(b"".join(damaged))
     (run / "config.json").write_text((reference[0] / "config.json").read_text())
-    summary = run_benchmark(BenchConfig(agents=AGENTS, **TINY), run, backend="serial", resume=True, progress=False,
-                            log=print)
+    summary = run_benchmark(
+        BenchConfig(agents=AGENTS, **TINY), run, backend="serial", resume=True, progress=False, log=print
+    )
     logged = capsys.readouterr().out
     assert f"{run / 'trials.jsonl'}:{line_no}: " in logged and says in logged, logged
     assert summary["trials_run_this_time"] == (0 if case in ("garbage", "not-object") else 1)
@@ -242,15 +287,16 @@ def test_damaged_lines_are_reported_set_aside_and_rerun(reference, tmp_path, cap
     assert damaged[line_no - 1].rstrip(b"\n") in rejected
 
 
-@pytest.mark.parametrize("content", [b"[1, 2]", b"not json", b"\xff\xfe{}", b'"a string"', b'{"seed": "zero"}',
-                                     b'{"agents": 1}'])
-def test_a_damaged_config_is_set_aside_and_records_checked_on_their_own(reference, tmp_path, capsys,
-                                                                        content) -> None:
+@pytest.mark.parametrize(
+    "content", [b"[1, 2]", b"not json", b"\xff\xfe{}", b'"a string"', b'{"seed": "zero"}', b'{"agents": 1}']
+)
+def test_a_damaged_config_is_set_aside_and_records_checked_on_their_own(reference, tmp_path, capsys, content) -> None:
     _, lines, _ = reference
     run = _copy_run(reference, tmp_path, lines=lines[:5])
     (run / "config.json").write_bytes(content)
-    summary = run_benchmark(BenchConfig(agents=AGENTS, **TINY), run, backend="serial", resume=True, progress=False,
-                            log=print)
+    summary = run_benchmark(
+        BenchConfig(agents=AGENTS, **TINY), run, backend="serial", resume=True, progress=False, log=print
+    )
     assert f"{run / 'config.json'}: " in capsys.readouterr().out
     assert (run / "config.rejected.json").read_bytes() == content
     assert summary["trials_run_this_time"] == len(lines) - 5
@@ -264,8 +310,13 @@ def test_cli_resume_reports_and_reruns_without_traceback(reference, tmp_path) ->
     run = tmp_path / "run"
     run.mkdir()
     (run / "trials.jsonl").write_bytes(b"".join(damaged))
-    proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "bench", *TINY_CLI, "--out", str(run),
-                           "--resume"], capture_output=True, text=True, env=ENV, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "electroloc_gym.cli", "bench", *TINY_CLI, "--out", str(run), "--resume"],
+        capture_output=True,
+        text=True,
+        env=ENV,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     assert "trials.jsonl:4: not UTF-8" in proc.stdout and "set 1 line(s) aside" in proc.stdout
     assert "Traceback" not in proc.stderr
@@ -297,15 +348,34 @@ def _alive(pid: int) -> bool:
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_workers_exit_when_the_parent_is_killed(tmp_path) -> None:
     workers: list[int] = []
-    cmd = [sys.executable, "-m", "electroloc_gym.cli", "bench", "--agents", "min-var", "--trials", "40",
-           "--conditions", "fresh-steel-12.7", "--n-particles", "2000", "--workers", "2", "--no-progress",
-           "--out", str(tmp_path)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "electroloc_gym.cli",
+        "bench",
+        "--agents",
+        "min-var",
+        "--trials",
+        "40",
+        "--conditions",
+        "fresh-steel-12.7",
+        "--n-particles",
+        "2000",
+        "--workers",
+        "2",
+        "--no-progress",
+        "--out",
+        str(tmp_path),
+    ]
     parent = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV)
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
-            workers = [p for p in _children(parent.pid)
-                       if "spawn_main" in Path(f"/proc/{p}/cmdline").read_bytes().decode(errors="replace")]
+            workers = [
+                p
+                for p in _children(parent.pid)
+                if "spawn_main" in Path(f"/proc/{p}/cmdline").read_bytes().decode(errors="replace")
+            ]
             if len(workers) == 2 and (tmp_path / "trials.jsonl").exists():
                 break
             assert parent.poll() is None, "the run ended before its workers started"
@@ -342,9 +412,19 @@ def test_fault_campaign_kill_at_random_points_then_resume(tmp_path) -> None:
     counts (kill when the file holds k more records), so the campaign does not depend on the speed of
     the machine.
     """
-    args = ["--agents", "rnd-wlk,min-var[n_voters=64],zero-crossing", "--conditions",
-            "fresh-steel-12.7,salt-delrin-38.1,fresh-delrin-38.1", "--trials", "4", "--n-particles", "500",
-            "--workers", "2", "--no-progress"]
+    args = [
+        "--agents",
+        "rnd-wlk,min-var[n_voters=64],zero-crossing",
+        "--conditions",
+        "fresh-steel-12.7,salt-delrin-38.1,fresh-delrin-38.1",
+        "--trials",
+        "4",
+        "--n-particles",
+        "500",
+        "--workers",
+        "2",
+        "--no-progress",
+    ]
     base = [sys.executable, "-m", "electroloc_gym.cli", "bench", *args]
     whole = tmp_path / "whole"
     subprocess.run([*base, "--out", str(whole)], check=True, capture_output=True, env=ENV, timeout=900)
@@ -352,8 +432,9 @@ def test_fault_campaign_kill_at_random_points_then_resume(tmp_path) -> None:
     rng = random.Random(20080529)
     run = tmp_path / "killed"
     trials = run / "trials.jsonl"
-    plan = [("time", rng.uniform(0.2, 2.0)), ("time", rng.uniform(0.2, 2.0))] + \
-        [("records", rng.randint(1, max(1, total // 4))) for _ in range(5)]
+    plan = [("time", rng.uniform(0.2, 2.0)), ("time", rng.uniform(0.2, 2.0))] + [
+        ("records", rng.randint(1, max(1, total // 4))) for _ in range(5)
+    ]
     partial = []
     for kind, point in plan:
         cmd = [*base, "--out", str(run)] + (["--resume"] if trials.exists() else [])
@@ -368,15 +449,16 @@ def test_fault_campaign_kill_at_random_points_then_resume(tmp_path) -> None:
         proc.wait()
         assert proc.returncode in (0, -signal.SIGKILL), proc.stderr.read().decode()
         partial.append(len(read_trials(trials)))
-    proc = subprocess.run([*base, "--out", str(run), "--resume"], capture_output=True, text=True, env=ENV,
-                          timeout=900)
+    proc = subprocess.run([*base, "--out", str(run), "--resume"], capture_output=True, text=True, env=ENV, timeout=900)
     assert proc.returncode == 0, proc.stderr
     assert sum(0 < n < total for n in partial) >= 3, partial  # killed mid-run, several times
     assert _strip(read_trials(trials)) == _strip(read_trials(whole / "trials.jsonl"))
 
     def rows(out: Path) -> list[dict]:
-        return [{k: v for k, v in r.items() if k != "decision_ms_median"}
-                for r in json.loads((out / "summary.json").read_text())["rows"]]
+        return [
+            {k: v for k, v in r.items() if k != "decision_ms_median"}
+            for r in json.loads((out / "summary.json").read_text())["rows"]
+        ]
 
     assert rows(run) == rows(whole)
     print("fault campaign, records after each kill:", partial, "of", total)

@@ -21,20 +21,23 @@ def test_good_values_come_back_as_python_types() -> None:
     assert check_choice("c", "a", ("a", "b")) == "a"
 
 
-@pytest.mark.parametrize("call, message", [
-    (lambda: check_int("n", 0, 1, 5), "n must be an integer in [1, 5], got 0"),
-    (lambda: check_int("n", True, 0), "n must be an integer ≥ 0, got True"),
-    (lambda: check_int("n", 2.0, 0), "n must be an integer ≥ 0, got 2.0"),
-    (lambda: check_float("x", 0.0, 0.0), "x must be a finite number > 0, got 0.0"),
-    (lambda: check_float("x", 6.0, 0.0, high=5.0), "x must be a finite number > 0 and ≤ 5, got 6.0"),
-    (lambda: check_float("x", -1.0, 0.0, inclusive=True), "x must be a finite number ≥ 0, got -1.0"),
-    (lambda: check_float("x", math.nan), "x must be a finite number, got nan"),
-    (lambda: check_float("x", math.inf, 0.0), "x must be a finite number > 0, got inf"),
-    (lambda: check_float("x", "1", 0.0), "x must be a finite number > 0, got '1'"),
-    (lambda: check_float("x", False, 0.0, inclusive=True), "x must be a finite number ≥ 0, got False"),
-    (lambda: check_bool("b", 1), "b must be True or False, got 1"),
-    (lambda: check_choice("c", "z", ("a", "b")), "c must be one of ['a', 'b'], got 'z'"),
-])
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: check_int("n", 0, 1, 5), "n must be an integer in [1, 5], got 0"),
+        (lambda: check_int("n", True, 0), "n must be an integer ≥ 0, got True"),
+        (lambda: check_int("n", 2.0, 0), "n must be an integer ≥ 0, got 2.0"),
+        (lambda: check_float("x", 0.0, 0.0), "x must be a finite number > 0, got 0.0"),
+        (lambda: check_float("x", 6.0, 0.0, high=5.0), "x must be a finite number > 0 and ≤ 5, got 6.0"),
+        (lambda: check_float("x", -1.0, 0.0, inclusive=True), "x must be a finite number ≥ 0, got -1.0"),
+        (lambda: check_float("x", math.nan), "x must be a finite number, got nan"),
+        (lambda: check_float("x", math.inf, 0.0), "x must be a finite number > 0, got inf"),
+        (lambda: check_float("x", "1", 0.0), "x must be a finite number > 0, got '1'"),
+        (lambda: check_float("x", False, 0.0, inclusive=True), "x must be a finite number ≥ 0, got False"),
+        (lambda: check_bool("b", 1), "b must be True or False, got 1"),
+        (lambda: check_choice("c", "z", ("a", "b")), "c must be one of ['a', 'b'], got 'z'"),
+    ],
+)
 def test_bad_values_are_one_line_naming_the_argument(call, message) -> None:
     with pytest.raises(ValueError) as err:
         call()

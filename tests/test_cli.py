@@ -15,8 +15,9 @@ ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_
 
 
 def run_cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "electroloc_gym.cli", *args], capture_output=True, text=True,
-                          env=ENV, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "electroloc_gym.cli", *args], capture_output=True, text=True, env=ENV, timeout=timeout
+    )
 
 
 def test_detect_table_prints_paper_columns() -> None:
@@ -77,10 +78,19 @@ def test_help_is_plain_text_with_defaults(command) -> None:
     assert "``" not in text and ":func:" not in text and ":mod:" not in text
     assert "(default: None)" not in text and "(default: False)" not in text
     if command == ["bench"]:
-        for default in ("--trials TRIALS", "(default: 50)", "(default: 0)", "(default: bench_out)",
-                        "(default: calibrated,", "2500 as the paper; unknown-target: 5000", "35 as the paper",
-                        "(default: all)",
-                        "(default: process)", "examples:", "ppo-belief"):
+        for default in (
+            "--trials TRIALS",
+            "(default: 50)",
+            "(default: 0)",
+            "(default: bench_out)",
+            "(default: calibrated,",
+            "2500 as the paper; unknown-target: 5000",
+            "35 as the paper",
+            "(default: all)",
+            "(default: process)",
+            "examples:",
+            "ppo-belief",
+        ):
             assert default in text, default
     if command == ["eev"]:
         assert "(default: eev.png)" in text and "(default: fresh-steel-12.7)" in text
@@ -104,25 +114,36 @@ def _one_line_error(capsys, argv, tmp_path, option: str) -> str:
     return lines[0]
 
 
-@pytest.mark.parametrize("argv,option", [
-    (["eev", "--out", "{tmp}"], "--out"),
-    (["eev", "--out", ""], "--out"),
-    (["eev", "--out", "{tmp}/e.xyz"], "--out"),
-    (["eev", "--out", "{tmp}/FILE/e.png"], "--out"),
-    (["detect", "--plot", "{tmp}/p.xyz"], "--plot"),
-    (["demo", "--seed", "-1"], "--seed"),
-    (["demo", "--out", "{tmp}/X.gif", "--gif", "{tmp}/X.gif"], "gif"),
-    (["bench", "--agents", "lookahead[n_options=256,continuations=256,branches=1024,n_particles=100000]",
-      "--out", "{tmp}/b"], "lookahead[n_options=256"),
-    (["bench", "--trials", "1000000000000", "--out", "{tmp}/b"], "--trials"),
-    (["bench", "--agents", "", "--out", "{tmp}/b"], "--agents"),
-    (["bench", "--agents", ",", "--out", "{tmp}/b"], "--agents"),
-    (["bench", "--agents", "lookahead[depth=2,depth=3]", "--out", "{tmp}/b"], "'depth' given twice"),
-    (["bench", "--env", "unknown-target", "--agents", "ppo-belief", "--out", "{tmp}/b"], "ppo-belief"),
-    (["bench", "--agents", "ppo-belief-unknown", "--out", "{tmp}/b"], "trained on ElectroLocUnknownTarget-v0"),
-    (["bench", "--env", "dynamic-gain", "--agents", "ppo-belief-global", "--out", "{tmp}/b"], "ppo-belief-global"),
-    (["bench", "--env", "dynamic-gain", "--agents", "ppo-belief", "--out", "{tmp}/b"], "gain_levels"),
-])
+@pytest.mark.parametrize(
+    "argv,option",
+    [
+        (["eev", "--out", "{tmp}"], "--out"),
+        (["eev", "--out", ""], "--out"),
+        (["eev", "--out", "{tmp}/e.xyz"], "--out"),
+        (["eev", "--out", "{tmp}/FILE/e.png"], "--out"),
+        (["detect", "--plot", "{tmp}/p.xyz"], "--plot"),
+        (["demo", "--seed", "-1"], "--seed"),
+        (["demo", "--out", "{tmp}/X.gif", "--gif", "{tmp}/X.gif"], "gif"),
+        (
+            [
+                "bench",
+                "--agents",
+                "lookahead[n_options=256,continuations=256,branches=1024,n_particles=100000]",
+                "--out",
+                "{tmp}/b",
+            ],
+            "lookahead[n_options=256",
+        ),
+        (["bench", "--trials", "1000000000000", "--out", "{tmp}/b"], "--trials"),
+        (["bench", "--agents", "", "--out", "{tmp}/b"], "--agents"),
+        (["bench", "--agents", ",", "--out", "{tmp}/b"], "--agents"),
+        (["bench", "--agents", "lookahead[depth=2,depth=3]", "--out", "{tmp}/b"], "'depth' given twice"),
+        (["bench", "--env", "unknown-target", "--agents", "ppo-belief", "--out", "{tmp}/b"], "ppo-belief"),
+        (["bench", "--agents", "ppo-belief-unknown", "--out", "{tmp}/b"], "trained on ElectroLocUnknownTarget-v0"),
+        (["bench", "--env", "dynamic-gain", "--agents", "ppo-belief-global", "--out", "{tmp}/b"], "ppo-belief-global"),
+        (["bench", "--env", "dynamic-gain", "--agents", "ppo-belief", "--out", "{tmp}/b"], "gain_levels"),
+    ],
+)
 def test_issue_reproducers_are_one_line(capsys, tmp_path, argv, option) -> None:
     (tmp_path / "FILE").write_text("a file")
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
@@ -132,7 +153,7 @@ def test_issue_reproducers_are_one_line(capsys, tmp_path, argv, option) -> None:
 
 
 def test_detect_json_is_strict_and_nan_rows_have_no_branch_label() -> None:
-    for factor in ("1", "1/10000"):                          # the ends of the range: every row computed
+    for factor in ("1", "1/10000"):  # the ends of the range: every row computed
         proc = run_cli("detect", "--noise-factor", factor, "--json")
         assert proc.returncode == 0
 
@@ -146,11 +167,24 @@ def test_detect_json_is_strict_and_nan_rows_have_no_branch_label() -> None:
                 assert (row[f"{signal}_branch"] == "n/a") == (None in values), row
 
 
-_BENCH_INTS = {"--trials": (1, 100_000), "--workers": (1, 1024), "--max-observations": (1, 100_000),
-               "--n-particles": (2, 1_000_000), "--seed": (0, 2**63 - 1)}
-_CHOICES = {("bench", "--env"), ("bench", "--backend"), ("bench", "--sensor-model"), ("bench", "--signal"),
-            ("eev", "--condition"), ("eev", "--signal"), ("eev", "--env"), ("demo", "--condition"),
-            ("demo", "--sensor-model")}
+_BENCH_INTS = {
+    "--trials": (1, 100_000),
+    "--workers": (1, 1024),
+    "--max-observations": (1, 100_000),
+    "--n-particles": (2, 1_000_000),
+    "--seed": (0, 2**63 - 1),
+}
+_CHOICES = {
+    ("bench", "--env"),
+    ("bench", "--backend"),
+    ("bench", "--sensor-model"),
+    ("bench", "--signal"),
+    ("eev", "--condition"),
+    ("eev", "--signal"),
+    ("eev", "--env"),
+    ("demo", "--condition"),
+    ("demo", "--sensor-model"),
+}
 
 
 def _bad_value(draw, command: str, option: str) -> str:
@@ -158,12 +192,24 @@ def _bad_value(draw, command: str, option: str) -> str:
 
     if command == "bench" and option in _BENCH_INTS:
         low, high = _BENCH_INTS[option]
-        return str(draw(st.one_of(st.integers(max_value=low - 1, min_value=-10**30),
-                                  st.integers(min_value=high + 1, max_value=10**30),
-                                  st.sampled_from(["x", "1.5", "", "1e3", "nan"]))))
+        return str(
+            draw(
+                st.one_of(
+                    st.integers(max_value=low - 1, min_value=-(10**30)),
+                    st.integers(min_value=high + 1, max_value=10**30),
+                    st.sampled_from(["x", "1.5", "", "1e3", "nan"]),
+                )
+            )
+        )
     if (command, option) in _CHOICES:
-        return draw(st.text(alphabet="abcxyz-_.", min_size=0, max_size=8).filter(lambda t: t not in (
-            "target", "global", "process", "serial", "ray", "analytic", "calibrated", "fitted", "paper")))
+        return draw(
+            st.text(alphabet="abcxyz-_.", min_size=0, max_size=8).filter(
+                lambda t: (
+                    t
+                    not in ("target", "global", "process", "serial", "ray", "analytic", "calibrated", "fitted", "paper")
+                )
+            )
+        )
     if command == "bench" and option == "--out":  # a folder: a file, under a file, or nothing
         return draw(st.sampled_from(["", "  ", "{tmp}/FILE", "{tmp}/FILE/x"]))
     if option in ("--out", "--plot", "--gif"):  # a figure file
@@ -171,18 +217,45 @@ def _bad_value(draw, command: str, option: str) -> str:
     if option == "--noise-factor":
         return draw(st.sampled_from(["0", "-1", "x", "1/0", "inf", "nan", "", "1e-320", "1e-9", "1e308", "2"]))
     if option == "--seed":
-        return str(draw(st.one_of(st.integers(max_value=-1, min_value=-10**30), st.integers(min_value=2**63))))
+        return str(draw(st.one_of(st.integers(max_value=-1, min_value=-(10**30)), st.integers(min_value=2**63))))
     if option == "--agents":
-        return draw(st.sampled_from(["", ",", "nope", "a[b]", "min-var[x=1]]", "lookahead[depth=2,depth=3]",
-                                    "no_such_module_h2:f", "min-var[n_voters=-5]", "lookahead[depth=99]"]))
+        return draw(
+            st.sampled_from(
+                [
+                    "",
+                    ",",
+                    "nope",
+                    "a[b]",
+                    "min-var[x=1]]",
+                    "lookahead[depth=2,depth=3]",
+                    "no_such_module_h2:f",
+                    "min-var[n_voters=-5]",
+                    "lookahead[depth=99]",
+                ]
+            )
+        )
     if option == "--conditions":
         return draw(st.sampled_from(["", "nope", "fresh-steel-12.7,fresh-steel-12.7", ","]))
     raise AssertionError(f"no bad values for {command} {option}")
 
 
-_OPTIONS = [("bench", o) for o in ("--agents", "--conditions", "--env", "--trials", "--seed", "--workers",
-                                   "--backend", "--sensor-model", "--signal", "--max-observations",
-                                   "--n-particles", "--out")]
+_OPTIONS = [
+    ("bench", o)
+    for o in (
+        "--agents",
+        "--conditions",
+        "--env",
+        "--trials",
+        "--seed",
+        "--workers",
+        "--backend",
+        "--sensor-model",
+        "--signal",
+        "--max-observations",
+        "--n-particles",
+        "--out",
+    )
+]
 _OPTIONS += [("eev", o) for o in ("--condition", "--signal", "--out", "--env")]
 _OPTIONS += [("demo", o) for o in ("--condition", "--sensor-model", "--seed", "--out", "--gif")]
 _OPTIONS += [("detect", o) for o in ("--noise-factor", "--plot")]

@@ -105,8 +105,14 @@ def test_nonsense_is_rejected_with_the_argument_named(build, match) -> None:
 
 
 def test_custom_condition_conductivities_give_chi() -> None:
-    c = Condition(name="x", target=Target(5.0, conductivity_uScm=320.0), water=Water(160.0),
-                  amplifier=Amplifier(100.0, 0.3), start_half_width_mm=30, allowed_half_width_mm=40)
+    c = Condition(
+        name="x",
+        target=Target(5.0, conductivity_uScm=320.0),
+        water=Water(160.0),
+        amplifier=Amplifier(100.0, 0.3),
+        start_half_width_mm=30,
+        allowed_half_width_mm=40,
+    )
     assert c.chi == pytest.approx((320 - 160) / (320 + 320))
 
 
@@ -224,15 +230,20 @@ def test_saturated_calibration_has_floored_std() -> None:
     assert m.std_table_V.min() == pytest.approx(0.25 * c.noise_std_V)
 
 
-@pytest.mark.parametrize("kwargs, match", [(dict(grid_step_mm=0), "grid_step_mm"),
-                                           (dict(grid_step_mm=float("nan")), "grid_step_mm"),
-                                           (dict(samples_per_point=1), "samples_per_point"),
-                                           (dict(samples_per_point=2.5), "samples_per_point"),
-                                           (dict(half_span_mm=-1.0), "half_span_mm"),
-                                           (dict(std_estimator="median"), "std_estimator"),
-                                           (dict(grid_extent="everything"), "grid_extent"),
-                                           (dict(min_std_fraction=0.0), "min_std_fraction"),
-                                           (dict(position_blur_mm=-0.1), "position_blur_mm")])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(grid_step_mm=0), "grid_step_mm"),
+        (dict(grid_step_mm=float("nan")), "grid_step_mm"),
+        (dict(samples_per_point=1), "samples_per_point"),
+        (dict(samples_per_point=2.5), "samples_per_point"),
+        (dict(half_span_mm=-1.0), "half_span_mm"),
+        (dict(std_estimator="median"), "std_estimator"),
+        (dict(grid_extent="everything"), "grid_extent"),
+        (dict(min_std_fraction=0.0), "min_std_fraction"),
+        (dict(position_blur_mm=-0.1), "position_blur_mm"),
+    ],
+)
 def test_calibration_protocol_bad_args(kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
         CalibrationProtocol(**kwargs)
@@ -244,15 +255,16 @@ def test_calibration_coefficients_equal_the_models(name: str) -> None:
     c = get_condition(name)
     for protocol in (CalibrationProtocol(), CalibrationProtocol(std_estimator="pooled", half_span_mm=70.0)):
         for seed in (0, 123456789):
-            ref = CalibratedSensorModel(c, seed, protocol,
-                                        reading_fn=lambda offs, rng: calibration_readings(c, offs, rng))
+            ref = CalibratedSensorModel(
+                c, seed, protocol, reading_fn=lambda offs, rng: calibration_readings(c, offs, rng)
+            )
             fast = CalibratedSensorModel(c, seed, protocol)
             assert np.array_equal(fast.mean_table_V, ref.mean_table_V)
             assert np.array_equal(fast.std_table_V, ref.std_table_V)
             assert np.array_equal(calibration_coefficients(c, seed, protocol), ref._coef)
             out32 = np.zeros((ref._coef.shape[0] + 3, 8), dtype=np.float32)
-            calibration_coefficients(c, seed, protocol, out=out32[:ref._coef.shape[0]])
-            assert np.array_equal(out32[:ref._coef.shape[0]], ref._coef.astype(np.float32))
+            calibration_coefficients(c, seed, protocol, out=out32[: ref._coef.shape[0]])
+            assert np.array_equal(out32[: ref._coef.shape[0]], ref._coef.astype(np.float32))
 
 
 @pytest.mark.parametrize("name, n", [("fresh-steel-12.7", 51), ("salt-delrin-38.1", 61)])
@@ -272,8 +284,11 @@ def test_pooled_statistics_equal_their_numpy_form() -> None:
     """The one-pass kernel against the estimator written out with numpy (mean variance over clean points)."""
     c = get_condition("fresh-steel-12.7", 300.0)
     protocol = CalibrationProtocol(std_estimator="pooled")
-    samples = calibration_readings(c, np.zeros((10, 51, 51, 2)) + np.linspace(-40, 40, 51)[None, :, None, None]
-                                   * np.array([1.0, 0.6]), np.random.default_rng(3))
+    samples = calibration_readings(
+        c,
+        np.zeros((10, 51, 51, 2)) + np.linspace(-40, 40, 51)[None, :, None, None] * np.array([1.0, 0.6]),
+        np.random.default_rng(3),
+    )
     mean, std = calibration_statistics(samples, protocol, c.noise_std_V, c.saturation_V)
     clean = np.all(np.abs(samples) < c.saturation_V, axis=0)
     assert 0 < clean.sum() < clean.size  # both kinds of point present

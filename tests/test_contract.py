@@ -65,22 +65,30 @@ _target = {
     "gain_levels": st.one_of(st.none(), st.lists(_factors, min_size=1, max_size=3, unique=True).map(tuple)),
 }
 ARGUMENTS = {
-    "ElectroLoc-v0": st.fixed_dictionaries({**_common, **_target,
-                                            "distractors": st.sampled_from([0, 1, 2, [0, 2]])}),
-    "ElectroLocGlobal-v0": st.fixed_dictionaries({**_common, "layout": st.sampled_from(["benchmark", "random"]),
-                                                  "position_blur_mm": st.floats(0.0, MAX_POSITION_BLUR_MM)}),
-    "ElectroLocUnknownTarget-v0": st.fixed_dictionaries({
-        **_common, **_target, "target_draw": st.sampled_from(["prior", "condition"]),
-        "contrast": st.sampled_from(["binary", "continuous"]),
-        "radius_range_mm": st.lists(_radii, min_size=2, max_size=2, unique=True).map(lambda r: tuple(sorted(r)))}),
+    "ElectroLoc-v0": st.fixed_dictionaries({**_common, **_target, "distractors": st.sampled_from([0, 1, 2, [0, 2]])}),
+    "ElectroLocGlobal-v0": st.fixed_dictionaries(
+        {
+            **_common,
+            "layout": st.sampled_from(["benchmark", "random"]),
+            "position_blur_mm": st.floats(0.0, MAX_POSITION_BLUR_MM),
+        }
+    ),
+    "ElectroLocUnknownTarget-v0": st.fixed_dictionaries(
+        {
+            **_common,
+            **_target,
+            "target_draw": st.sampled_from(["prior", "condition"]),
+            "contrast": st.sampled_from(["binary", "continuous"]),
+            "radius_range_mm": st.lists(_radii, min_size=2, max_size=2, unique=True).map(lambda r: tuple(sorted(r))),
+        }
+    ),
 }
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data(), seed=st.integers(0, 2**20), vector=st.booleans())
-def test_every_observation_is_in_its_space_for_valid_arguments(env_id: str, data: Any, seed: int,
-                                                               vector: bool) -> None:
+def test_every_observation_is_in_its_space_for_valid_arguments(env_id: str, data: Any, seed: int, vector: bool) -> None:
     kwargs = data.draw(ARGUMENTS[env_id])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # gymnasium's checker on float spaces of extreme actions
@@ -88,15 +96,20 @@ def test_every_observation_is_in_its_space_for_valid_arguments(env_id: str, data
         _rollout_in_space(env, seed, 6, np.random.default_rng(seed))
 
 
-@pytest.mark.parametrize("env_id, kwargs", [
-    ("ElectroLoc-v0", {"gain_levels": GAIN_FACTOR_LIMITS}),
-    ("ElectroLoc-v0", {"gain_levels": GAIN_FACTOR_LIMITS, "sensor_model": "analytic"}),
-    ("ElectroLoc-v0", {"signal": SIGNAL_LIMITS[1], "condition": "salt-steel-12.7"}),
-    ("ElectroLocGlobal-v0", {"position_blur_mm": MAX_POSITION_BLUR_MM}),
-    ("ElectroLocUnknownTarget-v0", {"radius_range_mm": RADIUS_LIMITS_MM, "gain_levels": GAIN_FACTOR_LIMITS}),
-    ("ElectroLocUnknownTarget-v0", {"sensor_model": "interpolated", "eev_radii_mm": RADIUS_LIMITS_MM,
-                                    "radius_range_mm": RADIUS_LIMITS_MM}),
-])
+@pytest.mark.parametrize(
+    "env_id, kwargs",
+    [
+        ("ElectroLoc-v0", {"gain_levels": GAIN_FACTOR_LIMITS}),
+        ("ElectroLoc-v0", {"gain_levels": GAIN_FACTOR_LIMITS, "sensor_model": "analytic"}),
+        ("ElectroLoc-v0", {"signal": SIGNAL_LIMITS[1], "condition": "salt-steel-12.7"}),
+        ("ElectroLocGlobal-v0", {"position_blur_mm": MAX_POSITION_BLUR_MM}),
+        ("ElectroLocUnknownTarget-v0", {"radius_range_mm": RADIUS_LIMITS_MM, "gain_levels": GAIN_FACTOR_LIMITS}),
+        (
+            "ElectroLocUnknownTarget-v0",
+            {"sensor_model": "interpolated", "eev_radii_mm": RADIUS_LIMITS_MM, "radius_range_mm": RADIUS_LIMITS_MM},
+        ),
+    ],
+)
 def test_the_ends_of_the_ranges_run_with_every_sensor_model(env_id: str, kwargs: dict) -> None:
     env = gym.make(env_id, n_particles=100, calibration_seed=3, **kwargs)
     _rollout_in_space(env, 0, 5, np.random.default_rng(0))
@@ -110,30 +123,53 @@ def test_unknown_target_radius_entry_stays_in_the_box_for_big_spheres() -> None:
 
 
 @pytest.mark.parametrize("vector", [False, True])
-@pytest.mark.parametrize("env_id, kwargs, match", [
-    ("ElectroLoc-v0", {"gain_levels": (1e-60,)}, r"gain_levels must be a finite number ≥ 0.001 and ≤ 1000"),
-    ("ElectroLoc-v0", {"gain_levels": (1e-60, 1.0)}, r"gain_levels must be a finite number ≥ 0.001"),
-    ("ElectroLoc-v0", {"gain_levels": (1e40,), "sensor_model": "analytic"}, r"gain_levels .* ≤ 1000, got 1e\+40"),
-    ("ElectroLocGlobal-v0", {"position_blur_mm": 1e40}, r"position_blur_mm must be a finite number ≥ 0 and ≤ 100"),
-    ("ElectroLocUnknownTarget-v0", {"eev_radii_mm": (1e-20, 20), "sensor_model": "interpolated"},
-     r"eev_radii_mm must be a finite number ≥ 1 and ≤ 50, got 1e-20"),
-    ("ElectroLocUnknownTarget-v0", {"radius_range_mm": (5, 1e20)}, r"radius_range_mm .* ≤ 50, got 1e\+20"),
-    ("ElectroLoc-v0", {"signal": 1e40}, r"signal must be a finite number ≥ 0.001 and ≤ 1000"),
-    ("ElectroLoc-v0", {"gain_levels": np.array(2.0)}, r"gain_levels must be a tuple of one or more numbers"),
-    ("ElectroLocUnknownTarget-v0", {"radius_range_mm": np.array(2.0)}, r"radius_range_mm must be a tuple of 2"),
-    ("ElectroLocUnknownTarget-v0", {"eev_radii_mm": np.array(2.0)}, r"eev_radii_mm must be a tuple of one or more"),
-    ("ElectroLoc-v0", {"condition": {}}, r"condition \(a dict of Condition fields\) is invalid: missing Condition "
-                                         r"field\(s\) \['allowed_half_width_mm', 'amplifier', 'name'"),
-    ("ElectroLoc-v0", {"condition": {"target": 5}}, r"condition \(a dict of Condition fields\) is invalid"),
-])
-def test_values_that_used_to_fail_later_are_refused_at_construction(env_id: str, kwargs: dict, match: str,
-                                                                    vector: bool) -> None:
+@pytest.mark.parametrize(
+    "env_id, kwargs, match",
+    [
+        ("ElectroLoc-v0", {"gain_levels": (1e-60,)}, r"gain_levels must be a finite number ≥ 0.001 and ≤ 1000"),
+        ("ElectroLoc-v0", {"gain_levels": (1e-60, 1.0)}, r"gain_levels must be a finite number ≥ 0.001"),
+        ("ElectroLoc-v0", {"gain_levels": (1e40,), "sensor_model": "analytic"}, r"gain_levels .* ≤ 1000, got 1e\+40"),
+        ("ElectroLocGlobal-v0", {"position_blur_mm": 1e40}, r"position_blur_mm must be a finite number ≥ 0 and ≤ 100"),
+        (
+            "ElectroLocUnknownTarget-v0",
+            {"eev_radii_mm": (1e-20, 20), "sensor_model": "interpolated"},
+            r"eev_radii_mm must be a finite number ≥ 1 and ≤ 50, got 1e-20",
+        ),
+        ("ElectroLocUnknownTarget-v0", {"radius_range_mm": (5, 1e20)}, r"radius_range_mm .* ≤ 50, got 1e\+20"),
+        ("ElectroLoc-v0", {"signal": 1e40}, r"signal must be a finite number ≥ 0.001 and ≤ 1000"),
+        ("ElectroLoc-v0", {"gain_levels": np.array(2.0)}, r"gain_levels must be a tuple of one or more numbers"),
+        ("ElectroLocUnknownTarget-v0", {"radius_range_mm": np.array(2.0)}, r"radius_range_mm must be a tuple of 2"),
+        ("ElectroLocUnknownTarget-v0", {"eev_radii_mm": np.array(2.0)}, r"eev_radii_mm must be a tuple of one or more"),
+        (
+            "ElectroLoc-v0",
+            {"condition": {}},
+            r"condition \(a dict of Condition fields\) is invalid: missing Condition "
+            r"field\(s\) \['allowed_half_width_mm', 'amplifier', 'name'",
+        ),
+        ("ElectroLoc-v0", {"condition": {"target": 5}}, r"condition \(a dict of Condition fields\) is invalid"),
+    ],
+)
+def test_values_that_used_to_fail_later_are_refused_at_construction(
+    env_id: str, kwargs: dict, match: str, vector: bool
+) -> None:
     with pytest.raises(ValueError, match=match):
         _make(env_id, vector, **kwargs)
 
 
-@pytest.mark.parametrize("action", ["abc", {"dx": 1}, np.array(["0.1", "0.2"]), np.array([1 + 1j, 0]),
-                                    [0.1, "x"], [[0.1], [0.2, 0.3]], True, None, object()])
+@pytest.mark.parametrize(
+    "action",
+    [
+        "abc",
+        {"dx": 1},
+        np.array(["0.1", "0.2"]),
+        np.array([1 + 1j, 0]),
+        [0.1, "x"],
+        [[0.1], [0.2, 0.3]],
+        True,
+        None,
+        object(),
+    ],
+)
 @pytest.mark.parametrize("action_type", ["continuous", "discrete"])
 def test_bad_actions_are_one_value_error(action: Any, action_type: str) -> None:
     env = gym.make("ElectroLoc-v0", sensor_model="analytic", n_particles=50, action_type=action_type)
@@ -147,8 +183,9 @@ def test_bad_actions_are_one_value_error(action: Any, action_type: str) -> None:
     assert env.unwrapped.n_observations == 1  # nothing was stepped
 
 
-@pytest.mark.parametrize("seed", [1.5, True, "123", b"1", [0, -1, 2], [0, 1], [0, 1.0, 2], np.array([[1, 2, 3]]),
-                                  -1, {"a": 1}])
+@pytest.mark.parametrize(
+    "seed", [1.5, True, "123", b"1", [0, -1, 2], [0, 1], [0, 1.0, 2], np.array([[1, 2, 3]]), -1, {"a": 1}]
+)
 def test_a_refused_vector_reset_changes_nothing(seed: Any) -> None:
     kw = {"sensor_model": "analytic", "n_particles": 60}
     vec = _make("ElectroLoc-v0", False, **kw)  # noqa: F841 - the registry is loaded

@@ -93,10 +93,14 @@ def test_resume_continues_with_the_same_episodes(store, monkeypatch):
     with pytest.raises(ValueError, match="--resume"):
         build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, dataset_id="test/part-v0"), progress=False)
     with pytest.raises(ValueError, match="other settings"):
-        build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, seed=2, dataset_id="test/part-v0"), resume=True,
-                      progress=False)
-    resumed = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, dataset_id="test/part-v0"), resume=True,
-                            progress=False)
+        build_dataset(
+            DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, seed=2, dataset_id="test/part-v0"),
+            resume=True,
+            progress=False,
+        )
+    resumed = build_dataset(
+        DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, dataset_id="test/part-v0"), resume=True, progress=False
+    )
     assert resumed.total_episodes == 3 and resumed.storage.metadata["electroloc"]["complete"]
     for a, b in zip(full.iterate_episodes(), resumed.iterate_episodes()):
         np.testing.assert_array_equal(a.observations, b.observations)
@@ -125,17 +129,20 @@ def test_dataset_ids():
     assert dataset_id("ElectroLoc-v0", "/x/runs/bc-seed1/") == "electroloc/ElectroLoc-v0/bc-seed1-v0"
 
 
-@pytest.mark.parametrize(("kwargs", "match"), [
-    ({"env_id": "Nope-v0"}, "env must be one of"),
-    ({"episodes": 0}, r"episodes must be an integer in \[1, "),
-    ({"episodes": True}, "episodes must be"),
-    ({"seed": 0}, "evaluation seed"),
-    ({"seed": -3}, "seed must be"),
-    ({"version": -1}, "version must be"),
-    ({"condition": "mud"}, "condition must be 'random' or one of"),
-    ({"agent": " "}, "agent must be"),
-    ({"dataset_id": "no namespace"}, "dataset id must be"),
-])
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"env_id": "Nope-v0"}, "env must be one of"),
+        ({"episodes": 0}, r"episodes must be an integer in \[1, "),
+        ({"episodes": True}, "episodes must be"),
+        ({"seed": 0}, "evaluation seed"),
+        ({"seed": -3}, "seed must be"),
+        ({"version": -1}, "version must be"),
+        ({"condition": "mud"}, "condition must be 'random' or one of"),
+        ({"agent": " "}, "agent must be"),
+        ({"dataset_id": "no namespace"}, "dataset id must be"),
+    ],
+)
 def test_bad_requests_one_line(kwargs, match):
     args = {"env_id": "ElectroLoc-v0", "agent": "rnd-wlk", "episodes": 1, **kwargs}
     with pytest.raises(ValueError, match=match) as info:
@@ -143,16 +150,23 @@ def test_bad_requests_one_line(kwargs, match):
     assert "\n" not in str(info.value)
 
 
-@pytest.mark.parametrize(("argv", "match"), [
-    (["--agent", "nope", "--episodes", "1"], "unknown agent 'nope'"),
-    (["--agent", "zero-crossing", "--episodes", "1"], "ends episodes itself"),
-    (["--agent", "ppo-belief", "--episodes", "1", "--env", "ElectroLocGlobal-v0"], "trained on ElectroLoc-v0"),
-    (["--agent", "rnd-wlk", "--episodes", "1", "--reference", "/no/such/bench"], "reference must be"),
-    (["--agent", "rnd-wlk", "--episodes", "1", "--resume", "--force"], "exclude each other"),
-])
+@pytest.mark.parametrize(
+    ("argv", "match"),
+    [
+        (["--agent", "nope", "--episodes", "1"], "unknown agent 'nope'"),
+        (["--agent", "zero-crossing", "--episodes", "1"], "ends episodes itself"),
+        (["--agent", "ppo-belief", "--episodes", "1", "--env", "ElectroLocGlobal-v0"], "trained on ElectroLoc-v0"),
+        (["--agent", "rnd-wlk", "--episodes", "1", "--reference", "/no/such/bench"], "reference must be"),
+        (["--agent", "rnd-wlk", "--episodes", "1", "--resume", "--force"], "exclude each other"),
+    ],
+)
 def test_cli_bad_input_is_one_line(store, argv, match):
-    proc = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "dataset", "--no-progress", *argv],
-                          capture_output=True, text=True, env={**__import__("os").environ})
+    proc = subprocess.run(
+        [sys.executable, "-m", "electroloc_gym.cli", "dataset", "--no-progress", *argv],
+        capture_output=True,
+        text=True,
+        env={**__import__("os").environ},
+    )
     assert proc.returncode == 2
     err = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(err) == 1 and match in err[0] and "Traceback" not in proc.stderr
@@ -160,8 +174,16 @@ def test_cli_bad_input_is_one_line(store, argv, match):
 
 
 def test_reference_refuses_a_run_without_a_planner(tmp_path):
-    rows = [{"agent": "rnd-wlk", "condition": "c", "observations": 9, "success": True, "max_observations": 35,
-             "env_id": "ElectroLoc-v0"}]
+    rows = [
+        {
+            "agent": "rnd-wlk",
+            "condition": "c",
+            "observations": 9,
+            "success": True,
+            "max_observations": 35,
+            "env_id": "ElectroLoc-v0",
+        }
+    ]
     (tmp_path / "trials.jsonl").write_text("\n".join(json.dumps(r) for r in rows), encoding="utf-8")
     with pytest.raises(ValueError, match="must hold rnd-wlk and one of"):
         reference_scores(tmp_path, "ElectroLoc-v0")

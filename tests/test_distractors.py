@@ -37,16 +37,20 @@ def _closed_form_V(condition, obj: SceneObject, carriage) -> np.ndarray:
         chi = obj.contrast(condition.water.conductivity_uScm)
         if obj.shape == "sphere":
             dv = [physics.sphere_perturbation(s, c, obj.radius_mm, chi, field) for s in (s1, s2)]
-        else:                                     # line dipole through c: χ₂ a² E·(s − c)/|s − c|² in 3-D
+        else:  # line dipole through c: χ₂ a² E·(s − c)/|s − c|² in 3-D
             dv = [chi * obj.radius_mm**2 * np.dot(field, s - c) / np.dot(s - c, s - c) for s in (s1, s2)]
         out.append(condition.signal_scale * condition.amplifier.gain * (dv[0] - dv[1]))
     return np.array(out)
 
 
 def test_superposition_matches_the_physics_closed_form() -> None:
-    layout = DistractorSet((SceneObject.of_material("sphere", (25.0, -20.0), 19.05, "brass"),
-                            SceneObject.of_material("cylinder", (-30.0, 15.0), 12.7, "pvc"),
-                            SceneObject.of_material("sphere", (-10.0, -35.0), 25.4, "agar")))
+    layout = DistractorSet(
+        (
+            SceneObject.of_material("sphere", (25.0, -20.0), 19.05, "brass"),
+            SceneObject.of_material("cylinder", (-30.0, 15.0), 12.7, "pvc"),
+            SceneObject.of_material("sphere", (-10.0, -35.0), 25.4, "agar"),
+        )
+    )
     target = np.array([3.0, 4.0])
     carriages = np.random.default_rng(0).uniform(-50, 50, size=(40, 2))
     got = superposed_reading_V(COND, target, layout, carriages, saturate=False)
@@ -71,7 +75,7 @@ def test_zero_distractors_contribute_exactly_nothing(dtype) -> None:
         got = superposed_reading_V(COND, target, empty, carriages, saturate=saturate)
         plain = expected_reading(COND, target.astype(dtype) - carriages, saturate=saturate)
         assert got.dtype == plain.dtype
-        np.testing.assert_array_equal(got.view(np.uint8), plain.view(np.uint8))   # bit for bit
+        np.testing.assert_array_equal(got.view(np.uint8), plain.view(np.uint8))  # bit for bit
     assert len(DistractorDraw(0).draw(COND, target, np.random.default_rng(0))) == 0
 
 
@@ -87,9 +91,9 @@ def test_draws_never_overlap_the_target_or_each_other_and_stay_in_the_box() -> N
         discs = [(target, COND.target.radius_mm)] + [(np.array(o.xy_mm), o.radius_mm) for o in layout.objects]
         for i, (ci, ri) in enumerate(discs):
             assert i == 0 or np.all(np.abs(ci) <= h)
-            for cj, rj in discs[i + 1:]:
+            for cj, rj in discs[i + 1 :]:
                 assert np.hypot(*(ci - cj)) >= ri + rj + 3.0
-        layout.validate(COND, target, gap_mm=3.0)                     # the same rule, as an explicit layout
+        layout.validate(COND, target, gap_mm=3.0)  # the same rule, as an explicit layout
         shapes |= {(o.shape, o.material) for o in layout.objects}
     assert {s for s, _ in shapes} == {"sphere", "cylinder"} and len(shapes) >= 8
 
@@ -103,10 +107,10 @@ def test_draws_are_deterministic_per_seed() -> None:
 
 
 def test_explicit_layouts_are_validated() -> None:
-    near = SceneObject.of_material("sphere", (10.0, 0.0), 12.7, "steel")     # 10 mm < 6.35 + 6.35 + gap
+    near = SceneObject.of_material("sphere", (10.0, 0.0), 12.7, "steel")  # 10 mm < 6.35 + 6.35 + gap
     with pytest.raises(ValueError, match="overlaps the target"):
         DistractorSet((near,)).validate(COND, (0.0, 0.0), gap_mm=0.0)
-    DistractorSet((near,)).validate(COND, (-10.0, 0.0))                        # clear of a target elsewhere
+    DistractorSet((near,)).validate(COND, (-10.0, 0.0))  # clear of a target elsewhere
     out = SceneObject.of_material("cylinder", (55.0, 0.0), 6.35, "pvc")
     with pytest.raises(ValueError, match="outside the allowed box"):
         DistractorSet((out,)).validate(COND, (0.0, 0.0))
@@ -128,9 +132,10 @@ def test_bad_inputs_are_one_clear_error() -> None:
         DistractorDraw(count=1, diameters_mm=(0.0,))
     with pytest.raises(ValueError, match="gap_mm"):
         DistractorDraw(count=1, gap_mm=-1.0)
-    with pytest.raises(ValueError, match="could not place 8 distractors .* at most 4 fit there"):   # no room
+    with pytest.raises(ValueError, match="could not place 8 distractors .* at most 4 fit there"):  # no room
         DistractorDraw(count=8, diameters_mm=(38.1,), gap_mm=20.0, max_attempts=50).draw(
-            COND, (0.0, 0.0), np.random.default_rng(0))
+            COND, (0.0, 0.0), np.random.default_rng(0)
+        )
     with pytest.raises(ValueError, match=r"count \(distractors\) 8 .* at most 4 always fit"):
         DistractorDraw(count=8, diameters_mm=(38.1,), gap_mm=20.0).check_fits(COND)
     with pytest.raises(ValueError, match="SceneObject"):
@@ -142,8 +147,9 @@ def test_bad_inputs_are_one_clear_error() -> None:
 def test_resolve_distractors_forms() -> None:
     assert resolve_distractors(2) == DistractorDraw(count=2)
     assert resolve_distractors({"count": 1, "gap_mm": 2.0}) == DistractorDraw(count=1, gap_mm=2.0)
-    layout = resolve_distractors([{"shape": "sphere", "xy_mm": (20.0, 20.0), "radius_mm": 5.0,
-                                   "conductivity_uScm": 1e10, "material": "steel"}])
+    layout = resolve_distractors(
+        [{"shape": "sphere", "xy_mm": (20.0, 20.0), "radius_mm": 5.0, "conductivity_uScm": 1e10, "material": "steel"}]
+    )
     assert isinstance(layout, DistractorSet) and layout.objects[0].radius_mm == 5.0
     with pytest.raises(ValueError, match="distractors"):
         resolve_distractors({"cnt": 1})
@@ -191,11 +197,11 @@ def test_every_count_and_seed_on_the_fixed_target_draws_and_rejection_draws_are_
                     fell_back += 1
                 else:
                     assert got == old
-    assert fell_back > 0                                   # the fallback was exercised
+    assert fell_back > 0  # the fallback was exercised
 
 
 def test_the_fallback_keeps_the_drawn_objects_and_is_deterministic() -> None:
-    draw = DistractorDraw(count=8, max_attempts=1)                  # rejection gives up at once
+    draw = DistractorDraw(count=8, max_attempts=1)  # rejection gives up at once
     a = draw.draw(COND, (0.0, 0.0), np.random.default_rng(5))
     assert a == draw.draw(COND, (0.0, 0.0), np.random.default_rng(5)) and len(a) == 8
     _assert_clear(a, COND, (0.0, 0.0), draw.gap_mm)
@@ -211,8 +217,14 @@ def test_the_fallback_of_small_objects_in_a_large_box_stays_cheap() -> None:
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)
-@given(h=st.floats(20.0, 90.0), diameter=st.floats(3.0, 40.0), gap=st.floats(0.0, 12.0),
-       target_radius=st.floats(1.0, 20.0), u=st.floats(-1.0, 1.0), v=st.floats(-1.0, 1.0))
+@given(
+    h=st.floats(20.0, 90.0),
+    diameter=st.floats(3.0, 40.0),
+    gap=st.floats(0.0, 12.0),
+    target_radius=st.floats(1.0, 20.0),
+    u=st.floats(-1.0, 1.0),
+    v=st.floats(-1.0, 1.0),
+)
 def test_column_layouts_are_always_clear(h, diameter, gap, target_radius, u, v) -> None:
     r = diameter / 2
     spacing, clearance = 2 * r + gap, target_radius + r + gap
@@ -225,13 +237,19 @@ def test_column_layouts_are_always_clear(h, diameter, gap, target_radius, u, v) 
 
 
 @settings(max_examples=40, deadline=None, derandomize=True)
-@given(name=st.sampled_from(PRESET_NAMES), count=st.integers(0, 8), seed=st.integers(0, 2**32 - 1),
-       random_target=st.booleans(), small=st.booleans())
+@given(
+    name=st.sampled_from(PRESET_NAMES),
+    count=st.integers(0, 8),
+    seed=st.integers(0, 2**32 - 1),
+    random_target=st.booleans(),
+    small=st.booleans(),
+)
 def test_an_admitted_draw_always_finishes(name, count, seed, random_target, small) -> None:
     """Whatever check_fits admits draws for every seed and every target the env can draw."""
     c = get_condition(name)
-    draw = DistractorDraw(count=count, diameters_mm=(6.35, 12.7) if small else DistractorDraw(0).diameters_mm,
-                          max_attempts=20)
+    draw = DistractorDraw(
+        count=count, diameters_mm=(6.35, 12.7) if small else DistractorDraw(0).diameters_mm, max_attempts=20
+    )
     half = c.start_half_width_mm if random_target else None
     try:
         draw.check_fits(c, half)

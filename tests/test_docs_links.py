@@ -24,7 +24,7 @@ def _strip_code(text: str) -> str:
 
 def github_slug(heading: str) -> str:
     """The anchor GitHub gives a heading: lower case, punctuation dropped, spaces to hyphens."""
-    text = re.sub(r"<[^>]+>", "", heading)                # inline HTML
+    text = re.sub(r"<[^>]+>", "", heading)  # inline HTML
     text = re.sub(r"!?\[([^\]]*)\]\([^)]*\)", r"\1", text)  # links keep their text
     text = text.replace("`", "").lower()
     text = re.sub(r"[^\w\- ]", "", text)
@@ -77,8 +77,11 @@ def test_slugs_follow_github() -> None:
 
 def test_link_extraction_skips_code_and_urls(tmp_path) -> None:
     page = tmp_path / "p.md"
-    page.write_text("[a](x.md) ![i](img.png) [u](https://e.org) `[c](no.md)`\n```\n[d](no2.md)\n```\n"
-                    "<img src=\"pic.gif\" width=\"300\">\n", encoding="utf-8")
+    page.write_text(
+        "[a](x.md) ![i](img.png) [u](https://e.org) `[c](no.md)`\n```\n[d](no2.md)\n```\n"
+        '<img src="pic.gif" width="300">\n',
+        encoding="utf-8",
+    )
     assert relative_links(page) == ["x.md", "img.png", "pic.gif"]
 
 

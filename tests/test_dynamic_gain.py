@@ -23,8 +23,9 @@ LEVELS = (0.25, 1.0, 4.0)
 @pytest.mark.parametrize("action_type", ["continuous", "discrete"])
 @pytest.mark.parametrize("observation", ["belief", "raw"])
 def test_spaces_and_check_env(action_type: str, observation: str) -> None:
-    env = gym.make("ElectroLoc-v0", gain_levels=LEVELS, n_particles=200, action_type=action_type,
-                   observation=observation)
+    env = gym.make(
+        "ElectroLoc-v0", gain_levels=LEVELS, n_particles=200, action_type=action_type, observation=observation
+    )
     if action_type == "continuous":
         assert env.action_space == gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
     else:
@@ -32,8 +33,12 @@ def test_spaces_and_check_env(action_type: str, observation: str) -> None:
     assert env.observation_space.shape == ((81,) if observation == "belief" else (4,))
     check_env(env.unwrapped, skip_render_check=True)
     sb3 = pytest.importorskip("stable_baselines3.common.env_checker")
-    sb3.check_env(gym.make("ElectroLoc-v0", gain_levels=LEVELS, n_particles=200, action_type=action_type,
-                           observation=observation), warn=True)
+    sb3.check_env(
+        gym.make(
+            "ElectroLoc-v0", gain_levels=LEVELS, n_particles=200, action_type=action_type, observation=observation
+        ),
+        warn=True,
+    )
 
 
 def test_every_reading_has_the_chosen_gain() -> None:
@@ -133,8 +138,18 @@ def test_min_var_chooses_over_moves_and_gains() -> None:
 
 CASES = [
     pytest.param({"n_particles": 300, "gain_levels": LEVELS}, AutoresetMode.NEXT_STEP, id="calibrated"),
-    pytest.param({"n_particles": 200, "gain_levels": (1.0, 8.0), "sensor_model": "analytic", "condition": "random",
-                  "action_type": "discrete", "max_observations": 8}, AutoresetMode.SAME_STEP, id="analytic-discrete"),
+    pytest.param(
+        {
+            "n_particles": 200,
+            "gain_levels": (1.0, 8.0),
+            "sensor_model": "analytic",
+            "condition": "random",
+            "action_type": "discrete",
+            "max_observations": 8,
+        },
+        AutoresetMode.SAME_STEP,
+        id="analytic-discrete",
+    ),
 ]
 
 
@@ -143,13 +158,16 @@ def test_native_equals_sync_of_single_envs(kwargs: dict[str, Any], mode: Autores
     assert_native_equals_sync("ElectroLoc-v0", kwargs, mode, ("reading_V", "gain"), seed=9, action_seed=4)
 
 
-@pytest.mark.parametrize(("env_id", "kwargs", "match"), [
-    ("ElectroLoc-v0", {"gain_levels": (1.0, 1.0)}, "distinct"),
-    ("ElectroLoc-v0", {"gain_levels": (0.0, 1.0)}, "gain_levels"),
-    ("ElectroLoc-v0", {"gain_levels": 4.0}, "gain_levels"),
-    ("ElectroLoc-v0", {"gain_levels": ()}, "gain_levels"),
-    ("ElectroLocGlobal-v0", {"gain_levels": (1.0, 2.0)}, "unexpected argument"),
-])
+@pytest.mark.parametrize(
+    ("env_id", "kwargs", "match"),
+    [
+        ("ElectroLoc-v0", {"gain_levels": (1.0, 1.0)}, "distinct"),
+        ("ElectroLoc-v0", {"gain_levels": (0.0, 1.0)}, "gain_levels"),
+        ("ElectroLoc-v0", {"gain_levels": 4.0}, "gain_levels"),
+        ("ElectroLoc-v0", {"gain_levels": ()}, "gain_levels"),
+        ("ElectroLocGlobal-v0", {"gain_levels": (1.0, 2.0)}, "unexpected argument"),
+    ],
+)
 def test_bad_gain_levels(env_id: str, kwargs: dict[str, Any], match: str) -> None:
     with pytest.raises(ValueError, match=match):
         gym.make(env_id, **kwargs)

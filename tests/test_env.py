@@ -77,8 +77,10 @@ def _rollout(seed: int, n: int = 40, **kwargs):
     return out
 
 
-@pytest.mark.parametrize("kwargs", [dict(), dict(condition="random", sensor_model="analytic"),
-                                    dict(observation="raw", randomize_target=True)])
+@pytest.mark.parametrize(
+    "kwargs",
+    [dict(), dict(condition="random", sensor_model="analytic"), dict(observation="raw", randomize_target=True)],
+)
 def test_seeded_rollouts_are_identical(kwargs) -> None:
     a = _rollout(7, **kwargs)
     b = _rollout(7, **kwargs)
@@ -98,8 +100,15 @@ def test_different_seeds_differ() -> None:
 def test_info_contract_and_types() -> None:
     env = gym.make("ElectroLoc-v0", n_particles=500)
     _, info = env.reset(seed=3)
-    assert set(info) >= {"position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations",
-                         "success"}
+    assert set(info) >= {
+        "position_mm",
+        "estimate_mm",
+        "error_mm",
+        "spread_mm",
+        "reading_V",
+        "n_observations",
+        "success",
+    }
     assert info["n_observations"] == 1
     assert isinstance(info["success"], bool) and isinstance(info["error_mm"], float)
     _, r, term, trunc, info = env.step(np.array([0.5, -1.0], dtype=np.float32))
@@ -224,9 +233,12 @@ _custom_conditions = st.builds(
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(cond=_custom_conditions, seed=st.integers(0, 2**16), actions=st.lists(
-    st.tuples(st.floats(-1, 1), st.floats(-1, 1)), min_size=1, max_size=12),
-    sensor_model=st.sampled_from(["analytic", "calibrated"]))
+@given(
+    cond=_custom_conditions,
+    seed=st.integers(0, 2**16),
+    actions=st.lists(st.tuples(st.floats(-1, 1), st.floats(-1, 1)), min_size=1, max_size=12),
+    sensor_model=st.sampled_from(["analytic", "calibrated"]),
+)
 def test_no_nan_anywhere_for_custom_conditions(cond, seed, actions, sensor_model) -> None:
     env = ElectroLocEnv(condition=cond, n_particles=200, sensor_model=sensor_model)
     obs, info = env.reset(seed=seed)
@@ -246,7 +258,7 @@ def _lawnmower(half: float, step: float = 10.0) -> list[np.ndarray]:
     ys = np.arange(-half, half + 1e-9, 20.0)
     for k, y in enumerate(ys):
         xs = np.arange(-half, half + 1e-9, step)
-        for x in (xs if k % 2 == 0 else xs[::-1]):
+        for x in xs if k % 2 == 0 else xs[::-1]:
             pts.append(np.array([x, y]))
     return pts
 
@@ -256,8 +268,9 @@ def test_fixed_lawnmower_path_localises_target() -> None:
     seeds."""
     good = 0
     for seed in range(20):
-        env = ElectroLocEnv(condition="fresh-steel-12.7", signal="fitted", sensor_model="analytic",
-                            max_observations=200)
+        env = ElectroLocEnv(
+            condition="fresh-steel-12.7", signal="fitted", sensor_model="analytic", max_observations=200
+        )
         env.reset(seed=seed)
         info: dict = {}
         for wp in _lawnmower(40.0):
@@ -276,22 +289,25 @@ def test_fixed_lawnmower_path_localises_target() -> None:
 
 
 # ---- parameters: one declaration, one clear error ------------------------------------------------
-@pytest.mark.parametrize(("env_id", "kwargs", "match"), [
-    ("ElectroLoc-v0", {"layout": "random"}, "layout"),
-    ("ElectroLoc-v0", {"n_particle": 100}, "n_particle"),
-    ("ElectroLocGlobal-v0", {"condition": "random"}, "condition"),
-    ("ElectroLocGlobal-v0", {"randomize_target": True}, "randomize_target"),
-    ("ElectroLoc-v0", {"randomize_target": "false"}, "randomize_target"),
-    ("ElectroLoc-v0", {"randomize_target": 1}, "randomize_target"),
-    ("ElectroLoc-v0", {"sensor_model": "pooled"}, "sensor_model"),
-    ("ElectroLoc-v0", {"calibration": {"grid_pitch_mm": 4.0}}, "grid_pitch_mm"),
-    ("ElectroLoc-v0", {"calibration": "fine"}, "calibration"),
-    ("ElectroLoc-v0", {"calibration_seed": -1}, "calibration_seed"),
-    ("ElectroLoc-v0", {"max_episode_steps": 0}, "max_episode_steps"),
-    ("ElectroLoc-v0", {"n_particles": 10**9}, "n_particles"),
-    ("ElectroLoc-v0", {"calibration": {"grid_step_mm": 1e-5}}, "grid_step_mm"),
-    ("ElectroLocGlobal-v0", {"calibration": {"grid_step_mm": 1e-5}}, "grid_step_mm"),
-])
+@pytest.mark.parametrize(
+    ("env_id", "kwargs", "match"),
+    [
+        ("ElectroLoc-v0", {"layout": "random"}, "layout"),
+        ("ElectroLoc-v0", {"n_particle": 100}, "n_particle"),
+        ("ElectroLocGlobal-v0", {"condition": "random"}, "condition"),
+        ("ElectroLocGlobal-v0", {"randomize_target": True}, "randomize_target"),
+        ("ElectroLoc-v0", {"randomize_target": "false"}, "randomize_target"),
+        ("ElectroLoc-v0", {"randomize_target": 1}, "randomize_target"),
+        ("ElectroLoc-v0", {"sensor_model": "pooled"}, "sensor_model"),
+        ("ElectroLoc-v0", {"calibration": {"grid_pitch_mm": 4.0}}, "grid_pitch_mm"),
+        ("ElectroLoc-v0", {"calibration": "fine"}, "calibration"),
+        ("ElectroLoc-v0", {"calibration_seed": -1}, "calibration_seed"),
+        ("ElectroLoc-v0", {"max_episode_steps": 0}, "max_episode_steps"),
+        ("ElectroLoc-v0", {"n_particles": 10**9}, "n_particles"),
+        ("ElectroLoc-v0", {"calibration": {"grid_step_mm": 1e-5}}, "grid_step_mm"),
+        ("ElectroLocGlobal-v0", {"calibration": {"grid_step_mm": 1e-5}}, "grid_step_mm"),
+    ],
+)
 @pytest.mark.parametrize("vector", [False, True])
 def test_every_bad_argument_is_one_clear_error_in_single_and_vector_env(env_id, kwargs, match, vector) -> None:
     with pytest.raises(ValueError, match=match):
@@ -311,8 +327,13 @@ def test_sizes_that_cannot_fit_are_refused_at_construction_naming_the_limit() ->
 
 
 def test_numpy_scalars_are_accepted_where_numbers_are() -> None:
-    env = ElectroLocEnv(n_particles=np.int64(100), success_spread_mm=np.float32(12.5), randomize_target=np.bool_(True),
-                        max_observations=np.int32(5), calibration={"grid_step_mm": np.float32(5.0)})
+    env = ElectroLocEnv(
+        n_particles=np.int64(100),
+        success_spread_mm=np.float32(12.5),
+        randomize_target=np.bool_(True),
+        max_observations=np.int32(5),
+        calibration={"grid_step_mm": np.float32(5.0)},
+    )
     assert env.success_spread_mm == 12.5 and isinstance(env.success_spread_mm, float)
     assert env.randomize_target is True and env.n_particles == 100
     env.reset(seed=0)
@@ -354,9 +375,14 @@ def test_stepping_an_ended_episode_raises_call_reset(kwargs) -> None:
 def test_numpy_floats_in_a_custom_condition_are_stored_as_floats() -> None:
     target = Target(radius_mm=np.float32(6.35), conductivity_uScm=np.float64(1e10))
     assert isinstance(target.radius_mm, float) and target.radius_mm == float(np.float32(6.35))
-    cond = Condition(name="np", target=target, water=Water(np.float32(160.0)),
-                     amplifier=Amplifier(gain=np.int64(191), noise_rms_mV=np.float32(0.25)),
-                     allowed_half_width_mm=np.float32(50.0), start_half_width_mm=np.float32(40.0))
+    cond = Condition(
+        name="np",
+        target=target,
+        water=Water(np.float32(160.0)),
+        amplifier=Amplifier(gain=np.int64(191), noise_rms_mV=np.float32(0.25)),
+        allowed_half_width_mm=np.float32(50.0),
+        start_half_width_mm=np.float32(40.0),
+    )
     values = (cond.allowed_half_width_mm, cond.amplifier.gain, cond.water.conductivity_uScm)
     assert all(isinstance(v, float) for v in values)
     env = ElectroLocEnv(condition=cond, n_particles=100)

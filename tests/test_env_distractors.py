@@ -29,9 +29,13 @@ def _digest_module():
     return mod
 
 
-@pytest.mark.parametrize("kwargs", [{"n_particles": 500},
-                                    {"n_particles": 300, "sensor_model": "analytic", "condition": "random",
-                                     "randomize_target": True}])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"n_particles": 500},
+        {"n_particles": 300, "sensor_model": "analytic", "condition": "random", "randomize_target": True},
+    ],
+)
 def test_zero_distractors_is_the_plain_env_digest(kwargs) -> None:
     mod = _digest_module()
     plain = mod.digest("ElectroLoc-v0", kwargs, n_steps=30)
@@ -83,8 +87,10 @@ def test_true_reading_is_target_plus_distractors_and_the_model_knows_only_the_ta
 
 
 def test_explicit_layout_and_its_errors() -> None:
-    objs = (SceneObject.of_material("cylinder", (30.0, -25.0), 12.7, "pvc"),
-            SceneObject.of_material("sphere", (-30.0, 20.0), 19.05, "brass"))
+    objs = (
+        SceneObject.of_material("cylinder", (30.0, -25.0), 12.7, "pvc"),
+        SceneObject.of_material("sphere", (-30.0, 20.0), 19.05, "brass"),
+    )
     env = gym.make("ElectroLoc-v0", n_particles=200, distractors=list(objs))
     for seed in (0, 1):
         _, info = env.reset(seed=seed)
@@ -97,8 +103,15 @@ def test_explicit_layout_and_its_errors() -> None:
 
 
 def test_count_mix_draws_each_count_and_pads_the_info() -> None:
-    env = gym.make_vec("ElectroLoc-v0", num_envs=8, vectorization_mode="vector_entry_point", n_particles=100,
-                       distractors=[0, 1, 2], condition="random", randomize_target=True)
+    env = gym.make_vec(
+        "ElectroLoc-v0",
+        num_envs=8,
+        vectorization_mode="vector_entry_point",
+        n_particles=100,
+        distractors=[0, 1, 2],
+        condition="random",
+        randomize_target=True,
+    )
     _, info = env.reset(seed=3)
     xy, counts = info["distractors_mm"], info["distractors_count"]
     assert xy.shape == (8, 2, 2) and xy.dtype == np.float64 and counts.shape == (8,)
@@ -145,7 +158,7 @@ def test_info_keys_and_shapes_are_fixed_and_sync_equals_native(variant, seed) ->
     sync_shapes, native_shapes = _shapes(a), _shapes(b)
     assert sync_shapes.keys() == native_shapes.keys()
     rng = np.random.default_rng(seed)
-    for _ in range(3):                                         # new episodes, other seeds: the same keys and shapes
+    for _ in range(3):  # new episodes, other seeds: the same keys and shapes
         act = rng.uniform(-1, 1, (2,) + native.single_action_space.shape).astype(np.float32)
         sync.step(act)
         native.step(act)
@@ -153,7 +166,7 @@ def test_info_keys_and_shapes_are_fixed_and_sync_equals_native(variant, seed) ->
         _, a = sync.reset(seed=seeds)
         _, b = native.reset(seed=seeds)
         assert _shapes(a) == sync_shapes and _shapes(b) == native_shapes
-        for k, shape in native_shapes.items():                 # tuples in single envs' infos stack otherwise
+        for k, shape in native_shapes.items():  # tuples in single envs' infos stack otherwise
             if sync_shapes[k] == shape and np.asarray(b[k]).dtype.kind in "fiub":
                 np.testing.assert_array_equal(a[k], b[k])
 
@@ -166,7 +179,7 @@ def test_every_count_and_seed_resets_single_and_vector_with_autoreset(count, see
     assert count == 0 or info["distractors_count"] == count
     vec = gym.make_vec("ElectroLoc-v0", num_envs=3, vectorization_mode="vector_entry_point", **kw)
     vec.reset(seed=seed)
-    for _ in range(8):                                         # the cap of 2 readings: several autoresets
+    for _ in range(8):  # the cap of 2 readings: several autoresets
         vec.step(np.zeros((3, 2), dtype=np.float32))
 
 
@@ -190,8 +203,7 @@ def test_vector_env_equals_single_envs() -> None:
 
 @pytest.mark.parametrize("distractors", [2, [0, 1, 2]])
 def test_check_env_with_distractors(distractors) -> None:
-    env = gym.make("ElectroLoc-v0", n_particles=200, distractors=distractors, condition="random",
-                   randomize_target=True)
+    env = gym.make("ElectroLoc-v0", n_particles=200, distractors=distractors, condition="random", randomize_target=True)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         gym_check_env(env.unwrapped, skip_render_check=True)
@@ -212,12 +224,16 @@ def test_other_envs_refuse_the_argument() -> None:
 
 def test_a_draw_that_cannot_fit_is_one_error_at_construction_naming_the_argument() -> None:
     with pytest.raises(ValueError, match=r"^distractors: count \(distractors\) 8 .* at most 4 always fit") as exc:
-        gym.make("ElectroLoc-v0", n_particles=50, sensor_model="analytic",
-                 distractors={"count": 8, "diameters_mm": (38.1,), "gap_mm": 20.0})
+        gym.make(
+            "ElectroLoc-v0",
+            n_particles=50,
+            sensor_model="analytic",
+            distractors={"count": 8, "diameters_mm": (38.1,), "gap_mm": 20.0},
+        )
     assert "\n" not in str(exc.value)
     with pytest.raises(ValueError, match=r"^distractors: .*random target in ±40 mm: at most 7 always fit"):
         gym.make("ElectroLoc-v0", distractors=8, randomize_target=True)
-    gym.make("ElectroLoc-v0", n_particles=50, distractors=8).reset(seed=4)       # the fixed target: 8 fit
+    gym.make("ElectroLoc-v0", n_particles=50, distractors=8).reset(seed=4)  # the fixed target: 8 fit
 
 
 def test_distractors_with_a_sensor_array_are_one_error_and_each_alone_keeps_the_other_off() -> None:

@@ -34,7 +34,8 @@ def env_name_comparisons(path: Path, names: set[str]) -> list[str]:
     out = []
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Compare) and any(
-                v in names for c in (node.left, *node.comparators) for v in _literals(c) if isinstance(v, str)):
+            v in names for c in (node.left, *node.comparators) for v in _literals(c) if isinstance(v, str)
+        ):
             where = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
             out.append(f"{where}:{node.lineno}: {ast.unparse(node)}")
     return out
@@ -42,9 +43,13 @@ def env_name_comparisons(path: Path, names: set[str]) -> list[str]:
 
 def test_no_code_compares_an_env_name() -> None:
     names = _names()
-    found = [hit for folder in SCANNED for p in sorted((ROOT / folder).rglob("*.py"))
-             if p.name != "registry.py" and not p.name.startswith("test_")  # tests name the envs they test
-             for hit in env_name_comparisons(p, names)]
+    found = [
+        hit
+        for folder in SCANNED
+        for p in sorted((ROOT / folder).rglob("*.py"))
+        if p.name != "registry.py" and not p.name.startswith("test_")  # tests name the envs they test
+        for hit in env_name_comparisons(p, names)
+    ]
     assert found == []
 
 

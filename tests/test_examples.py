@@ -24,8 +24,22 @@ def test_ppo_minimal_trains_and_evaluates(tmp_path, capsys) -> None:
     torch = pytest.importorskip("torch")
     ppo = _load("ppo_minimal")
     out = tmp_path / "policy.pt"
-    result = ppo.main(["--total-timesteps", "512", "--num-steps", "32", "--num-envs", "8", "--update-epochs", "2",
-                       "--eval-episodes", "4", "--save", str(out)])
+    result = ppo.main(
+        [
+            "--total-timesteps",
+            "512",
+            "--num-steps",
+            "32",
+            "--num-envs",
+            "8",
+            "--update-epochs",
+            "2",
+            "--eval-episodes",
+            "4",
+            "--save",
+            str(out),
+        ]
+    )
     assert 0.0 <= result["success_rate"] <= 1.0
     assert 1 <= result["median_observations"] <= 35
     text = capsys.readouterr().out
@@ -43,8 +57,14 @@ def test_ppo_minimal_masks_the_reset_steps_of_next_step_autoreset() -> None:
     import electroloc_gym  # noqa: F401
 
     # The property the example relies on: after a sub-env ends, the next step only resets it.
-    envs = gym.make_vec("ElectroLoc-v0", num_envs=2, vectorization_mode="vector_entry_point", max_observations=2,
-                        n_particles=200, sensor_model="analytic")
+    envs = gym.make_vec(
+        "ElectroLoc-v0",
+        num_envs=2,
+        vectorization_mode="vector_entry_point",
+        max_observations=2,
+        n_particles=200,
+        sensor_model="analytic",
+    )
     envs.reset(seed=0)
     a = np.zeros((2, 2), np.float32)
     _, _, term, trunc, _ = envs.step(a)
@@ -59,8 +79,24 @@ def test_ppo_torch_trains_with_the_rollouts_on_the_env_device(tmp_path, capsys) 
     torch = pytest.importorskip("torch")
     ppo = _load("ppo_torch")
     out = tmp_path / "policy.pt"
-    result = ppo.main(["--device", "cpu", "--num-envs", "16", "--num-steps", "16", "--total-timesteps", "512",
-                       "--update-epochs", "2", "--eval-episodes", "8", "--save", str(out)])
+    result = ppo.main(
+        [
+            "--device",
+            "cpu",
+            "--num-envs",
+            "16",
+            "--num-steps",
+            "16",
+            "--total-timesteps",
+            "512",
+            "--update-epochs",
+            "2",
+            "--eval-episodes",
+            "8",
+            "--save",
+            str(out),
+        ]
+    )
     assert 0.0 <= result["success_rate"] <= 1.0 and 1.0 <= result["mean_readings"] <= 35.0
     text = capsys.readouterr().out
     assert "update 2/2" in text and "evaluation (8 episodes" in text

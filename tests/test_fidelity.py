@@ -38,11 +38,16 @@ def test_table_marks_each_cell_inside_or_outside() -> None:
         {"condition": "fresh-steel-12.7", "agent": "min-var", "successes": 40, "failures": 10},
     ]
     for r in rows:
-        r.update(error_mean_paired_mm=1.0, error_median_mm=1.0, readings_mean_paired=5.0, readings_median=5.0,
-                 decision_ms_median=1.0)
+        r.update(
+            error_mean_paired_mm=1.0,
+            error_median_mm=1.0,
+            readings_mean_paired=5.0,
+            readings_median=5.0,
+            decision_ms_median=1.0,
+        )
     md = render_table_md({"rows": rows, "config": {"env_id": "ElectroLoc-v0"}})
-    assert "41(9) [36–44] ✓" in md      # rnd-wlk 44/50 inside the paper's 41/50
-    assert "50(0) [48–50] ✗" in md      # min-var 40/50 outside the paper's 50/50
+    assert "41(9) [36–44] ✓" in md  # rnd-wlk 44/50 inside the paper's 41/50
+    assert "50(0) [48–50] ✗" in md  # min-var 40/50 outside the paper's 50/50
     assert "rnd-wlk 1 of 1; min-var 0 of 1" in md
 
 

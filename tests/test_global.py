@@ -62,8 +62,14 @@ def _rollout(seed: int, n: int = 40, **kwargs):
     return out
 
 
-@pytest.mark.parametrize("kwargs", [dict(n_particles=500), dict(n_particles=500, sensor_model="analytic"),
-                                    dict(n_particles=300, layout="random", observation="raw")])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(n_particles=500),
+        dict(n_particles=500, sensor_model="analytic"),
+        dict(n_particles=300, layout="random", observation="raw"),
+    ],
+)
 def test_seeded_rollouts_are_identical(kwargs) -> None:
     a = _rollout(11, **kwargs)
     b = _rollout(11, **kwargs)
@@ -90,8 +96,16 @@ def test_random_layout_changes_with_the_seed_only() -> None:
 def test_info_contract_truth_and_odometry() -> None:
     env = GlobalEnv(n_particles=500, observation="raw")
     obs, info = env.reset(seed=3)
-    assert set(info) == {"position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations",
-                         "success", "condition"}
+    assert set(info) == {
+        "position_mm",
+        "estimate_mm",
+        "error_mm",
+        "spread_mm",
+        "reading_V",
+        "n_observations",
+        "success",
+        "condition",
+    }
     assert info["n_observations"] == 1 and info["condition"] == BENCHMARK_SCENE.name
     np.testing.assert_array_equal(obs[:2], 0.0)  # raw: odometry, not the (unknown) true position
     assert np.all(np.abs(env.position_mm) <= BENCHMARK_SCENE.start_half_width_mm)
@@ -204,16 +218,19 @@ def test_multimodal_belief_spread_and_no_crash() -> None:
     assert np.all(np.isfinite(mean)) and np.all(std > 0)
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(layout="moon"), "layout"),
-    (dict(observation="pixels"), "observation"),
-    (dict(sensor_model="magic"), "sensor_model"),
-    (dict(n_particles=0), "n_particles"),
-    (dict(max_observations=0), "max_observations"),
-    (dict(success_spread_mm=-1.0), "success_spread_mm"),
-    (dict(action_type="joystick"), "action_type"),
-    (dict(position_blur_mm=-2.0), "position_blur_mm"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(layout="moon"), "layout"),
+        (dict(observation="pixels"), "observation"),
+        (dict(sensor_model="magic"), "sensor_model"),
+        (dict(n_particles=0), "n_particles"),
+        (dict(max_observations=0), "max_observations"),
+        (dict(success_spread_mm=-1.0), "success_spread_mm"),
+        (dict(action_type="joystick"), "action_type"),
+        (dict(position_blur_mm=-2.0), "position_blur_mm"),
+    ],
+)
 def test_bad_kwargs_raise_clear_errors(kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
         GlobalEnv(**kwargs)
@@ -235,8 +252,13 @@ def test_cli_eev_global_writes_a_png(tmp_path) -> None:
 
     out = tmp_path / "fig14.png"
     env = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    res = subprocess.run([sys.executable, "-m", "electroloc_gym.cli", "eev", "--env", "global", "--out", str(out)],
-                         capture_output=True, text=True, env=env, timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-m", "electroloc_gym.cli", "eev", "--env", "global", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert res.returncode == 0, res.stderr
     assert out.stat().st_size > 10_000 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -23,6 +23,7 @@ except ModuleNotFoundError:  # Python 3.10
 
 ROOT = Path(__file__).resolve().parents[1]
 
+
 def package_modules() -> dict[str, Path]:
     """Every module of the package (dotted name → file), from pyproject.toml's package list."""
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
@@ -64,7 +65,7 @@ def import_graph(modules: dict[str, Path]) -> dict[str, set[str]]:
                 base = node.module or ""
                 if node.level:  # relative: from the module's package, up level − 1 more
                     parts = (name if is_pkg else name.rpartition(".")[0]).split(".")
-                    parts = parts[:len(parts) - (node.level - 1)]
+                    parts = parts[: len(parts) - (node.level - 1)]
                     base = ".".join(parts + ([base] if base else []))
                 targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
             else:
@@ -126,9 +127,11 @@ def graph() -> dict[str, set[str]]:
 
 def test_the_scan_sees_function_level_and_relative_imports() -> None:
     """The resolver on a fixed example: a function-level import is an edge, TYPE_CHECKING is not."""
-    src = ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from electroloc_gym.envs import adapter\n"
-           "def f():\n    from electroloc_gym.core import step\n    import electroloc_gym.registry\n"
-           "from . import worlds\n")
+    src = (
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from electroloc_gym.envs import adapter\n"
+        "def f():\n    from electroloc_gym.core import step\n    import electroloc_gym.registry\n"
+        "from . import worlds\n"
+    )
     tmp = ROOT / "tests" / "_import_scan_example.py"
     try:
         tmp.write_text(src, encoding="utf-8")
@@ -141,18 +144,35 @@ def test_the_scan_sees_function_level_and_relative_imports() -> None:
 
 
 def test_the_graph_covers_the_package(graph: dict[str, set[str]]) -> None:
-    for name in ("electroloc_gym.core.step", "electroloc_gym.envs.adapter", "electroloc_gym.baselines.agent",
-                 "electroloc_gym.train", "electroloc_gym.registry"):
+    for name in (
+        "electroloc_gym.core.step",
+        "electroloc_gym.envs.adapter",
+        "electroloc_gym.baselines.agent",
+        "electroloc_gym.train",
+        "electroloc_gym.registry",
+    ):
         assert name in graph
     assert "electroloc_gym.core.task" in graph["electroloc_gym.core.step"]
 
 
 def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
     """core/ imports nothing from the adapters or anything above them (one-way data flow)."""
-    upper = ("electroloc_gym.envs", "electroloc_gym.baselines", "electroloc_gym.bench", "electroloc_gym.train",
-             "electroloc_gym.cli", "electroloc_gym.demo", "electroloc_gym.render")
-    bad = sorted(f"{m} → {t}" for m, ts in graph.items() if m.startswith("electroloc_gym.core")
-                 for t in ts if t.startswith(upper))
+    upper = (
+        "electroloc_gym.envs",
+        "electroloc_gym.baselines",
+        "electroloc_gym.bench",
+        "electroloc_gym.train",
+        "electroloc_gym.cli",
+        "electroloc_gym.demo",
+        "electroloc_gym.render",
+    )
+    bad = sorted(
+        f"{m} → {t}"
+        for m, ts in graph.items()
+        if m.startswith("electroloc_gym.core")
+        for t in ts
+        if t.startswith(upper)
+    )
     assert not bad, "the core imports an upper layer: " + "; ".join(bad)
 
 
@@ -164,8 +184,10 @@ def test_no_import_cycle_anywhere(graph: dict[str, set[str]]) -> None:
 #: The package's layers, bottom to top (docs/design.md's diagram): a module imports only its own layer and
 #: those below. Names are relative to ``electroloc_gym``; a package name covers its submodules.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("data", ("protocol", "registry", "checks", "runtime", "fileio", "agentspec", "distractor_layout", "markdown",
-              "models")),
+    (
+        "data",
+        ("protocol", "registry", "checks", "runtime", "fileio", "agentspec", "distractor_layout", "markdown", "models"),
+    ),
     ("physics", ("physics", "apparatus", "conditions")),
     ("kernels", ("kernels", "draws")),
     ("sensor", ("sensor", "sensor_array", "scene", "distractors")),
@@ -205,8 +227,12 @@ def test_every_module_has_a_layer(graph: dict[str, set[str]]) -> None:
 
 def test_the_layers_import_only_downward(graph: dict[str, set[str]]) -> None:
     """The whole order, not only the core's: every edge goes to the same layer or one below."""
-    bad = sorted(f"{m} ({LAYERS[layer_of(m)][0]}) → {t} ({LAYERS[layer_of(t)][0]})"
-                 for m, ts in graph.items() for t in ts if layer_of(t) > layer_of(m))
+    bad = sorted(
+        f"{m} ({LAYERS[layer_of(m)][0]}) → {t} ({LAYERS[layer_of(t)][0]})"
+        for m, ts in graph.items()
+        for t in ts
+        if layer_of(t) > layer_of(m)
+    )
     assert not bad, "upward imports against the layer order:\n" + "\n".join(bad)
 
 

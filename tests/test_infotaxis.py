@@ -37,16 +37,16 @@ def test_an_option_whose_predicted_readings_are_all_equal_reduces_nothing() -> N
     rng = np.random.default_rng(0)
     mean = rng.normal(0.0, 1.0, size=(4, 300))
     std = np.full((4, 300), 0.05)
-    mean[2] = 0.37                                            # every hypothesis predicts the same reading
+    mean[2] = 0.37  # every hypothesis predicts the same reading
     gains = expected_entropy_reduction(mean, std, None, np.arange(0, 300, 3), nodes=3)
     assert gains[2] == 0.0
-    assert np.all(np.delete(gains, 2) > 1.0)                   # distinct readings: nats of information
+    assert np.all(np.delete(gains, 2) > 1.0)  # distinct readings: nats of information
 
 
 def test_noise_free_distinct_readings_reveal_the_hypothesis() -> None:
     m = 64
     mean = np.linspace(-1.0, 1.0, m)[None, :]
-    std = np.full((1, m), 1e-6)                              # far below the spacing of the predictions
+    std = np.full((1, m), 1e-6)  # far below the spacing of the predictions
     gains = expected_entropy_reduction(mean, std, None, np.arange(m), nodes=1)
     np.testing.assert_allclose(gains, np.log(m), rtol=1e-6)  # all of the prior's entropy
 
@@ -76,9 +76,13 @@ def test_bad_inputs_are_one_clear_error() -> None:
         expected_entropy_reduction(np.zeros((2, 3)), np.zeros((2, 3)), None, np.arange(3))
     with pytest.raises(ValueError, match="shape"):
         expected_entropy_reduction(np.zeros(3), np.ones(3), None, np.arange(3))
-    for spec, option in [("infotaxis[n_options=0]", "n_options"), ("infotaxis[nodes=17]", "nodes"),
-                         ("infotaxis[n_voters=0]", "n_voters"), ("infotaxis[n_particles=1]", "n_particles"),
-                         ("infotaxis[nodes=2.5]", "nodes")]:
+    for spec, option in [
+        ("infotaxis[n_options=0]", "n_options"),
+        ("infotaxis[nodes=17]", "nodes"),
+        ("infotaxis[n_voters=0]", "n_voters"),
+        ("infotaxis[n_particles=1]", "n_particles"),
+        ("infotaxis[nodes=2.5]", "nodes"),
+    ]:
         with pytest.raises(ValueError, match=option):
             make_agent(spec)
 
@@ -116,5 +120,3 @@ def test_decisions_are_seeded_and_within_the_move_limits() -> None:
     np.testing.assert_array_equal(a, b)
     assert agent.last_gains is not None and agent.last_gains.shape == (16,)
     assert np.all(np.isfinite(agent.last_gains))
-
-

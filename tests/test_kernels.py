@@ -101,9 +101,21 @@ def test_calibrated_kernel_equals_sensor_model_log_likelihood() -> None:
     for e in range(k):  # one env of the fused update's lookup, offsets = particle − carriage
         px, py = np.ascontiguousarray(particles[e, :, 0]), np.ascontiguousarray(particles[e, :, 1])
         o = position[e].astype(np.float32)
-        K.lookup._calibrated_ll_one(px, py, o[0], o[1], np.float32(1.0), np.float32(model.grid_mm[0]),
-                                    np.float32(1.0 / model.grid_step_mm), n1, 0, table, np.float32(reading[e]), ll[e],
-                                    *scratch)
+        K.lookup._calibrated_ll_one(
+            px,
+            py,
+            o[0],
+            o[1],
+            np.float32(1.0),
+            np.float32(model.grid_mm[0]),
+            np.float32(1.0 / model.grid_step_mm),
+            n1,
+            0,
+            table,
+            np.float32(reading[e]),
+            ll[e],
+            *scratch,
+        )
     for e in range(k):
         ref = model.log_likelihood(reading[e], particles[e] - position[e].astype(np.float32))
         assert ref.dtype == np.float32 and np.array_equal(ll[e], ref)
@@ -143,8 +155,14 @@ def _ulp_error(approx: np.ndarray, x: np.ndarray, fn: Any) -> float:
 
 def test_exp32_within_one_ulp_and_its_special_values() -> None:
     rng = np.random.default_rng(6)
-    x = np.concatenate([-rng.random(400_000) * 104, rng.uniform(-88, 88, 200_000), rng.normal(0, 1, 100_000),
-                        -rng.random(10_000) * 1e-6]).astype(np.float32)
+    x = np.concatenate(
+        [
+            -rng.random(400_000) * 104,
+            rng.uniform(-88, 88, 200_000),
+            rng.normal(0, 1, 100_000),
+            -rng.random(10_000) * 1e-6,
+        ]
+    ).astype(np.float32)
     out = np.empty_like(x)
     K.exp_f32(x, out)
     assert _ulp_error(out, x, np.exp) <= 1.0
@@ -158,8 +176,9 @@ def test_exp32_within_one_ulp_and_its_special_values() -> None:
 
 def test_log32_within_one_ulp_and_its_special_values() -> None:
     rng = np.random.default_rng(7)
-    x = np.concatenate([np.exp(rng.uniform(-100, 88, 400_000)), rng.random(200_000),
-                        1.0 + rng.normal(0, 1e-3, 50_000)]).astype(np.float32)
+    x = np.concatenate(
+        [np.exp(rng.uniform(-100, 88, 400_000)), rng.random(200_000), 1.0 + rng.normal(0, 1e-3, 50_000)]
+    ).astype(np.float32)
     out = np.empty_like(x)
     K.log_f32(x, out)
     assert _ulp_error(out, x, np.log) <= 1.0
@@ -205,20 +224,56 @@ def test_calibrated_assimilate_is_the_single_env_update() -> None:
     reading = np.array([0.05, -0.2, 3.0])
     u0 = rng.random(k)
     raw = rng.integers(0, 2**64, size=(k, (2 * m + 3) // 4), dtype=np.uint64)
-    jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, :2 * m])
+    jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, : 2 * m])
     src = np.ascontiguousarray(particles.transpose(0, 2, 1))
     out = np.empty_like(src)
     mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
-    grid = (np.full(k, model.grid_mm[0], dtype=np.float32), np.full(k, 1 / model.grid_step_mm, dtype=np.float32),
-            np.full(k, n1), np.zeros(k, dtype=np.int64), model._coef.astype(np.float32))
-    bad = K.calibrated_assimilate(src, position.astype(np.float32), np.float32(1.0), *grid, reading.astype(np.float32),
-                                  u0, jitter_idx, normal_table(), np.full(k, h), out, mean, cov, np.full(k, 2 * h),
-                                  HIST_BINS, counts)
+    grid = (
+        np.full(k, model.grid_mm[0], dtype=np.float32),
+        np.full(k, 1 / model.grid_step_mm, dtype=np.float32),
+        np.full(k, n1),
+        np.zeros(k, dtype=np.int64),
+        model._coef.astype(np.float32),
+    )
+    bad = K.calibrated_assimilate(
+        src,
+        position.astype(np.float32),
+        np.float32(1.0),
+        *grid,
+        reading.astype(np.float32),
+        u0,
+        jitter_idx,
+        normal_table(),
+        np.full(k, h),
+        out,
+        mean,
+        cov,
+        np.full(k, 2 * h),
+        HIST_BINS,
+        counts,
+    )
     assert bad == -1
     inplace, mean2, cov2, counts2 = src.copy(), np.empty_like(mean), np.empty_like(cov), np.empty_like(counts)
-    assert K.calibrated_assimilate(inplace, position.astype(np.float32), np.float32(1.0), *grid,
-                                   reading.astype(np.float32), u0, jitter_idx, normal_table(), np.full(k, h), inplace,
-                                   mean2, cov2, np.full(k, 2 * h), HIST_BINS, counts2) == -1
+    assert (
+        K.calibrated_assimilate(
+            inplace,
+            position.astype(np.float32),
+            np.float32(1.0),
+            *grid,
+            reading.astype(np.float32),
+            u0,
+            jitter_idx,
+            normal_table(),
+            np.full(k, h),
+            inplace,
+            mean2,
+            cov2,
+            np.full(k, 2 * h),
+            HIST_BINS,
+            counts2,
+        )
+        == -1
+    )
     assert np.array_equal(inplace, out) and np.array_equal(mean2, mean) and np.array_equal(counts2, counts)
 
     class _Fixed:  # replays the kernel's draws through the single env's calls
@@ -232,16 +287,31 @@ def test_calibrated_assimilate_is_the_single_env_update() -> None:
     for e in range(k):
         b = ParticleBelief(m, (-h, -h), (h, h), dtype=np.float32)
         b.set_state(particles[e])
-        b.assimilate(model.log_likelihood(reading[e], b.particles - position[e].astype(np.float32)),
-                     _Fixed(u0[e], raw[e]))
+        b.assimilate(
+            model.log_likelihood(reading[e], b.particles - position[e].astype(np.float32)), _Fixed(u0[e], raw[e])
+        )
         assert np.array_equal(out[e].T, b.particles)
         assert np.array_equal(mean[e], b.mean()) and np.array_equal(cov[e], b.covariance())
         hist = egocentric_histogram(b.particles, None, position[e].astype(np.float32), np.asarray(float(h)))
         assert np.array_equal(counts[e] / m, hist)
     # A NaN reading is reported, not resampled from.
-    bad = K.calibrated_assimilate(src, position.astype(np.float32), np.float32(1.0), *grid,
-                                  np.array([0.0, np.nan, 0.0], dtype=np.float32), u0, jitter_idx, normal_table(),
-                                  np.full(k, h), out, mean, cov, np.full(k, 2 * h), HIST_BINS, counts)
+    bad = K.calibrated_assimilate(
+        src,
+        position.astype(np.float32),
+        np.float32(1.0),
+        *grid,
+        np.array([0.0, np.nan, 0.0], dtype=np.float32),
+        u0,
+        jitter_idx,
+        normal_table(),
+        np.full(k, h),
+        out,
+        mean,
+        cov,
+        np.full(k, 2 * h),
+        HIST_BINS,
+        counts,
+    )
     assert bad == 1
 
 
@@ -274,10 +344,23 @@ def test_belief_observation_equals_its_numpy_formulas() -> None:
     sx, sy = np.sqrt(cov[:, 0, 0]), np.sqrt(cov[:, 1, 1])
     rho = np.where(sx * sy > 1e-12, cov[:, 0, 1] / np.maximum(sx * sy, 1e-12), 0.0)
     spread = np.sqrt(cov[:, 0, 0] + cov[:, 1, 1])
-    scalars = np.stack([carriage[:, 0] / hw, carriage[:, 1] / hw, reading / sat, np.tanh(reading / (3 * noise)),
-                        (mean[:, 0] - carriage[:, 0]) / (2 * hw), (mean[:, 1] - carriage[:, 1]) / (2 * hw),
-                        sx / hw, sy / hw, rho, spread / hw, np.log10(np.maximum(spread, 1e-6) / 10.0), n_obs / 35],
-                       axis=-1)
+    scalars = np.stack(
+        [
+            carriage[:, 0] / hw,
+            carriage[:, 1] / hw,
+            reading / sat,
+            np.tanh(reading / (3 * noise)),
+            (mean[:, 0] - carriage[:, 0]) / (2 * hw),
+            (mean[:, 1] - carriage[:, 1]) / (2 * hw),
+            sx / hw,
+            sy / hw,
+            rho,
+            spread / hw,
+            np.log10(np.maximum(spread, 1e-6) / 10.0),
+            n_obs / 35,
+        ],
+        axis=-1,
+    )
     ref = np.concatenate([np.clip(scalars, -1, 1), hist, desc], axis=-1).astype(np.float32)
     assert obs.shape == (k, 81) and obs.dtype == np.float32
     np.testing.assert_allclose(obs, ref, rtol=1e-6, atol=1e-7)
@@ -300,8 +383,8 @@ def test_jitter_resampled_is_the_numpy_gather_jitter_and_clip() -> None:
     K.jitter_resampled(idx, src, jitter, table, scale, lo, hi, out)
     z = table[jitter]
     rows = np.arange(k)[:, None]
-    draws = (z[:, 0:2 * m:2], z[:, 1:2 * m:2], z[:, 2 * m::2], z[:, 2 * m + 1::2])
+    draws = (z[:, 0 : 2 * m : 2], z[:, 1 : 2 * m : 2], z[:, 2 * m :: 2], z[:, 2 * m + 1 :: 2])
     for d in range(4):
-        want = np.minimum(np.maximum(src[:, d][rows, idx] + scale[d] * draws[d], lo[:, d:d + 1]), hi[:, d:d + 1])
+        want = np.minimum(np.maximum(src[:, d][rows, idx] + scale[d] * draws[d], lo[:, d : d + 1]), hi[:, d : d + 1])
         np.testing.assert_array_equal(out[:, d], want)
     assert set(np.unique(out[:, 3])) <= {np.float32(-0.5), np.float32(1.0)}  # scale 0: the contrast unjittered

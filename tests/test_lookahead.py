@@ -37,12 +37,21 @@ def test_registry_and_options() -> None:
     assert make_agent("lookahead").depth == 2
 
 
-@pytest.mark.parametrize("spec, option", [
-    ("lookahead[depth=4]", "depth"), ("lookahead[depth=0]", "depth"), ("lookahead[branches=0]", "branches"),
-    ("lookahead[budget_s=-1]", "budget_s"), ("lookahead[budget_s=nan]", "budget_s"),
-    ("lookahead[n_particles=1]", "n_particles"), ("lookahead[continuations=2.5]", "continuations"),
-    ("lookahead[rounds=0]", "rounds"), ("lookahead[n_options=0]", "n_options"), ("lookahead[foo=1]", "foo"),
-])
+@pytest.mark.parametrize(
+    "spec, option",
+    [
+        ("lookahead[depth=4]", "depth"),
+        ("lookahead[depth=0]", "depth"),
+        ("lookahead[branches=0]", "branches"),
+        ("lookahead[budget_s=-1]", "budget_s"),
+        ("lookahead[budget_s=nan]", "budget_s"),
+        ("lookahead[n_particles=1]", "n_particles"),
+        ("lookahead[continuations=2.5]", "continuations"),
+        ("lookahead[rounds=0]", "rounds"),
+        ("lookahead[n_options=0]", "n_options"),
+        ("lookahead[foo=1]", "foo"),
+    ],
+)
 def test_bad_options_name_the_option(spec: str, option: str) -> None:
     with pytest.raises(ValueError, match=option):
         make_agent(spec)
@@ -53,7 +62,7 @@ def test_decisions_reproducible_from_the_seed() -> None:
     a2, _ = _moves(make_agent("lookahead[n_particles=100]", seed=3))
     np.testing.assert_array_equal(a1, a2)
     agent = make_agent("lookahead[n_particles=100]", seed=99)
-    agent.seed(3)                                         # the runner's per-trial re-seed
+    agent.seed(3)  # the runner's per-trial re-seed
     np.testing.assert_array_equal(_moves(agent)[0], a1)
     a3, _ = _moves(make_agent("lookahead[n_particles=100]", seed=4))
     assert not np.array_equal(a1, a3)
@@ -68,15 +77,14 @@ def test_moves_within_bounds(env_id: str) -> None:
 
 
 def test_moves_within_the_box_near_a_wall() -> None:
-    env = gym.make("ElectroLoc-v0", condition=get_condition("fresh-steel-12.7"), n_particles=200,
-                   max_observations=100)
+    env = gym.make("ElectroLoc-v0", condition=get_condition("fresh-steel-12.7"), n_particles=200, max_observations=100)
     env.reset(seed=0)
-    for _ in range(30):                                   # drive the carriage into the (+x, +y) corner
+    for _ in range(30):  # drive the carriage into the (+x, +y) corner
         _, _, term, trunc, _ = env.step(np.array([1.0, 1.0], dtype=np.float32))
         if term or trunc or np.all(move_bounds_mm(env)[1] < 1e-9):
             break
     lo, hi = move_bounds_mm(env)
-    assert np.any(hi < MAX_STEP_MM)                       # a wall is within reach
+    assert np.any(hi < MAX_STEP_MM)  # a wall is within reach
     agent = make_agent("lookahead", seed=0)
     agent.reset(env)
     for _ in range(5):
@@ -112,8 +120,11 @@ class _BimodalEnv:
     def __init__(self) -> None:
         rng = np.random.default_rng(0)
         x = np.concatenate([np.full((100, 2), [-20.0, 0.0]), np.full((100, 2), [20.0, 0.0])])
-        self.belief = type("B", (), {"particles": (x + rng.normal(0, 1.0, x.shape)).astype(np.float32),
-                                     "weights": np.full(200, 1 / 200)})()
+        self.belief = type(
+            "B",
+            (),
+            {"particles": (x + rng.normal(0, 1.0, x.shape)).astype(np.float32), "weights": np.full(200, 1 / 200)},
+        )()
         self.model = make_sensor_model("analytic", get_condition("fresh-steel-12.7"))
         self.position_mm = np.array([0.0, 40.0])
         self.allowed_box_mm = (np.array([-100.0, -100.0]), np.array([100.0, 100.0]))
@@ -141,7 +152,7 @@ def test_prefers_a_move_that_separates_the_modes() -> None:
         agent.reset(env)
         move = agent.choose_move_mm()
         scores = agent.last_scores
-        assert scores[0] > scores.min()                    # "stay" is not the best option
+        assert scores[0] > scores.min()  # "stay" is not the best option
         wins += bool(np.any(move != 0))
     assert wins == 3
 
@@ -150,10 +161,10 @@ def test_posterior_spreads_uninformative_and_exact_readings() -> None:
     x = np.array([[-10.0, 0.0], [10.0, 0.0]])
     flat = np.zeros((1, 1, 2))
     spread = posterior_spreads(flat, np.ones((1, 1, 2)), x, np.array([0, 1]), np.zeros((2, 1)))
-    np.testing.assert_allclose(spread, 10.0)               # equal readings: the prior's spread
+    np.testing.assert_allclose(spread, 10.0)  # equal readings: the prior's spread
     sharp = np.array([[[-1.0, 1.0]]])
     spread = posterior_spreads(sharp, np.full((1, 1, 2), 1e-3), x, np.array([0, 1]), np.zeros((2, 1)))
-    np.testing.assert_allclose(spread, 0.0, atol=1e-6)     # distinct, exact readings: collapsed
+    np.testing.assert_allclose(spread, 0.0, atol=1e-6)  # distinct, exact readings: collapsed
 
 
 def test_bench_accepts_the_planner_by_name() -> None:

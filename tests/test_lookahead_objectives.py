@@ -13,13 +13,13 @@ from electroloc_gym.baselines.lookahead_objectives import LOG_FLOOR_MM, OBJECTIV
 
 #: Two hypotheses 20 mm apart: prior spread 10 mm.
 X = np.array([[-10.0, 0.0], [10.0, 0.0]])
-FLAT = np.zeros((1, 2))                       # both hypotheses predict the same reading
-SHARP = np.array([[-1.0, 1.0]])               # distinct readings ...
-TIGHT = np.full((1, 2), 1e-3)                 # ... with a tiny std: the reading tells them apart
+FLAT = np.zeros((1, 2))  # both hypotheses predict the same reading
+SHARP = np.array([[-1.0, 1.0]])  # distinct readings ...
+TIGHT = np.full((1, 2), 1e-3)  # ... with a tiny std: the reading tells them apart
 
 
 def _costs(means, stds, objective, **kw):
-    mean = np.stack(means)[:, None, :].repeat(1, axis=1)        # (T, N=1, S=2)
+    mean = np.stack(means)[:, None, :].repeat(1, axis=1)  # (T, N=1, S=2)
     std = np.stack(stds)[:, None, :]
     t = mean.shape[0]
     return sequence_costs(mean, std, X, np.array([0, 1]), np.zeros((2, t)), objective, **kw)
@@ -44,8 +44,8 @@ def test_spread_logspread_entropy() -> None:
     np.testing.assert_allclose(_costs(*sharp, "spread"), 0.0, atol=1e-6)
     np.testing.assert_allclose(_costs(*flat, "logspread"), np.log(10.0 + LOG_FLOOR_MM))
     np.testing.assert_allclose(_costs(*sharp, "logspread"), np.log(LOG_FLOOR_MM), atol=1e-6)
-    np.testing.assert_allclose(_costs(*flat, "entropy"), np.log(2.0))       # uniform over 2 hypotheses
-    np.testing.assert_allclose(_costs(*sharp, "entropy"), 0.0, atol=1e-6)   # one hypothesis left
+    np.testing.assert_allclose(_costs(*flat, "entropy"), np.log(2.0))  # uniform over 2 hypotheses
+    np.testing.assert_allclose(_costs(*sharp, "entropy"), 0.0, atol=1e-6)  # one hypothesis left
 
 
 def test_costs_per_future_and_sequence_shape() -> None:
@@ -62,7 +62,7 @@ def test_costs_per_future_and_sequence_shape() -> None:
 def _adaptive(first, second, objective="steps", **kw):
     """One first move with two continuations: the second reading flat, or as ``second``."""
     (m1, s1), (m2, s2) = first, second
-    mean = np.stack([np.stack([m1, m1]), np.stack([np.zeros(2), m2])])           # (T=2, C·K=2, S=2)
+    mean = np.stack([np.stack([m1, m1]), np.stack([np.zeros(2), m2])])  # (T=2, C·K=2, S=2)
     std = np.stack([np.stack([s1, s1]), np.stack([np.ones(2), s2])])
     u = np.random.default_rng(0).random((2, 4))
     return adaptive_costs(mean, std, X, 1, np.array([0, 1]), np.zeros(2), u, np.zeros((2, 4)), objective, **kw)
@@ -70,9 +70,9 @@ def _adaptive(first, second, objective="steps", **kw):
 
 def test_adaptive_steps_and_the_second_move_chosen_after_the_first_reading() -> None:
     sharp, flat = (SHARP[0], TIGHT[0]), (FLAT[0], np.ones(2))
-    np.testing.assert_allclose(_adaptive(sharp, flat, success_spread_mm=5.0), 0.0)       # done after move 1
-    np.testing.assert_allclose(_adaptive(flat, sharp, success_spread_mm=5.0), 1.0)       # the sharp continuation
-    got = _adaptive(flat, flat, success_spread_mm=5.0, tail=2.0)                         # never done
+    np.testing.assert_allclose(_adaptive(sharp, flat, success_spread_mm=5.0), 0.0)  # done after move 1
+    np.testing.assert_allclose(_adaptive(flat, sharp, success_spread_mm=5.0), 1.0)  # the sharp continuation
+    got = _adaptive(flat, flat, success_spread_mm=5.0, tail=2.0)  # never done
     np.testing.assert_allclose(got, 2.0 + 2.0 * np.log(2.0))
     np.testing.assert_allclose(_adaptive(flat, sharp, "spread"), 0.0, atol=1e-6)
     np.testing.assert_allclose(_adaptive(flat, flat, "entropy"), np.log(2.0))
@@ -94,11 +94,19 @@ def test_unknown_objective() -> None:
         sequence_costs(np.zeros((1, 1, 2)), np.ones((1, 1, 2)), X, np.array([0]), np.zeros((1, 1)), "variance")
 
 
-@pytest.mark.parametrize("spec, option", [
-    ("lookahead[objective='bits']", "objective"), ("lookahead[tail=-1]", "tail"), ("lookahead[tail=True]", "tail"),
-    ("lookahead[compass=1]", "compass"), ("lookahead[cont='grid']", "cont"),
-    ("lookahead[closed=True,depth=3]", "closed"), ("lookahead[closed=1]", "closed"), ("lookahead[inner=0]", "inner"),
-])
+@pytest.mark.parametrize(
+    "spec, option",
+    [
+        ("lookahead[objective='bits']", "objective"),
+        ("lookahead[tail=-1]", "tail"),
+        ("lookahead[tail=True]", "tail"),
+        ("lookahead[compass=1]", "compass"),
+        ("lookahead[cont='grid']", "cont"),
+        ("lookahead[closed=True,depth=3]", "closed"),
+        ("lookahead[closed=1]", "closed"),
+        ("lookahead[inner=0]", "inner"),
+    ],
+)
 def test_bad_options_name_the_option(spec: str, option: str) -> None:
     with pytest.raises(ValueError, match=option):
         make_agent(spec)
@@ -137,8 +145,8 @@ def test_compass_continuations_are_distinct_sequences() -> None:
         agent.choose_move_mm()
         cont = seen[0]
         assert cont.shape == (k, depth - 1, 2)
-        assert len({tuple(c.ravel()) for c in cont}) == k                      # no sequence twice
-        assert np.all(np.isin(np.abs(cont), (0.0, MAX_STEP_MM)))               # compass moves only
+        assert len({tuple(c.ravel()) for c in cont}) == k  # no sequence twice
+        assert np.all(np.isin(np.abs(cont), (0.0, MAX_STEP_MM)))  # compass moves only
 
 
 @pytest.mark.slow

@@ -22,16 +22,20 @@ def test_cells_are_str_and_rows_may_be_any_iterable() -> None:
     assert lines[2:] == ["| None |", "| True |", "| a | b |"]
 
 
-@pytest.mark.parametrize(("header", "rows", "align", "names"), [
-    (("a", "b"), [(1,)], None, "rows[0]"),
-    (("a", "b"), [(1, 2), (1, 2, 3)], None, "rows[1]"),
-    (("a", "b"), [], "l", "align"),
-    (("a", "b"), [], "lrr", "align"),
-    (("a", "b"), [], "lx", "align"),
-    (("a", "b"), [], "LR", "align"),
-    ((), [], None, "header"),
-])
-def test_bad_input_raises_one_value_error_naming_the_argument(header: tuple, rows: list, align: str | None,
-                                                               names: str) -> None:
+@pytest.mark.parametrize(
+    ("header", "rows", "align", "names"),
+    [
+        (("a", "b"), [(1,)], None, "rows[0]"),
+        (("a", "b"), [(1, 2), (1, 2, 3)], None, "rows[1]"),
+        (("a", "b"), [], "l", "align"),
+        (("a", "b"), [], "lrr", "align"),
+        (("a", "b"), [], "lx", "align"),
+        (("a", "b"), [], "LR", "align"),
+        ((), [], None, "header"),
+    ],
+)
+def test_bad_input_raises_one_value_error_naming_the_argument(
+    header: tuple, rows: list, align: str | None, names: str
+) -> None:
     with pytest.raises(ValueError, match=r"^" + names.replace("[", r"\[")):
         markdown_table(header, rows, align)

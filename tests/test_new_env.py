@@ -32,10 +32,17 @@ class FewReadingsVectorEnv(CoreVectorEnv):
 
 
 BASE = env_entry("ElectroLoc-v0")
-ENTRY = EnvEntry(env_id="ElectroLocFewReadings-v0", task="few-readings", task_class=FewReadingsTask,
-                 env_class=FewReadingsEnv, vector_class=FewReadingsVectorEnv, arguments=BASE.arguments,
-                 sensor_models=BASE.sensor_models, defaults={"n_particles": 300, "max_observations": 6},
-                 bench=(BenchEnv("few-readings", agents=("rnd-wlk",)),))
+ENTRY = EnvEntry(
+    env_id="ElectroLocFewReadings-v0",
+    task="few-readings",
+    task_class=FewReadingsTask,
+    env_class=FewReadingsEnv,
+    vector_class=FewReadingsVectorEnv,
+    arguments=BASE.arguments,
+    sensor_models=BASE.sensor_models,
+    defaults={"n_particles": 300, "max_observations": 6},
+    bench=(BenchEnv("few-readings", agents=("rnd-wlk",)),),
+)
 
 
 @pytest.fixture
@@ -57,8 +64,21 @@ def test_one_entry_makes_a_new_env(registered, tmp_path, capsys) -> None:
     assert type(vec.unwrapped) is FewReadingsVectorEnv and obs.shape[0] == 2
     vec.close()
     out = tmp_path / "run"
-    argv = ["--env", "few-readings", "--trials", "2", "--conditions", "fresh-steel-12.7", "--backend", "serial",
-            "--workers", "1", "--out", str(out), "--no-progress"]
+    argv = [
+        "--env",
+        "few-readings",
+        "--trials",
+        "2",
+        "--conditions",
+        "fresh-steel-12.7",
+        "--backend",
+        "serial",
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     rc = bench_cli.run(_args(argv))
     assert rc == 0, capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())

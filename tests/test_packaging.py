@@ -39,19 +39,23 @@ def test_every_package_is_listed_in_pyproject() -> None:
 
 
 def test_namespaced_imports_and_no_top_level_names(tmp_path) -> None:
-    code = ("import importlib.util as u, electroloc_gym.baselines, electroloc_gym.train, electroloc_gym.models as m\n"
-            "assert u.find_spec('baselines') is None and u.find_spec('train') is None\n"
-            "assert (m.MODELS_DIR / 'ppo-belief').is_dir()\n"
-            "print(electroloc_gym.baselines.make_agent('rnd-wlk').name)")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=ENV,
-                          timeout=120)
+    code = (
+        "import importlib.util as u, electroloc_gym.baselines, electroloc_gym.train, electroloc_gym.models as m\n"
+        "assert u.find_spec('baselines') is None and u.find_spec('train') is None\n"
+        "assert (m.MODELS_DIR / 'ppo-belief').is_dir()\n"
+        "print(electroloc_gym.baselines.make_agent('rnd-wlk').name)"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=ENV, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "rnd-wlk"
 
 
 def test_python_m_train_works_from_the_repository_root() -> None:
-    proc = subprocess.run([sys.executable, "-m", "train", "--help"], capture_output=True, text=True, cwd=ROOT,
-                          env=ENV, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "train", "--help"], capture_output=True, text=True, cwd=ROOT, env=ENV, timeout=120
+    )
     if proc.returncode != 0 and "No module named" in proc.stderr and "torch" in proc.stderr:
         pytest.skip("the training extra is not installed")
     assert proc.returncode == 0, proc.stderr
@@ -82,7 +86,8 @@ def test_lowest_constraints_pin_every_declared_minimum() -> None:
         if name == "torch":  # the one CPU-only wheel at hand (constraints-lowest.txt says why)
             continue
         assert [int(x) for x in pins[name].split(".")] == [int(x) for x in minimum.split(".")] + [0] * (
-            pins[name].count(".") - minimum.count(".")), f"{name}: pinned {pins[name]}, declared >={minimum}"
+            pins[name].count(".") - minimum.count(".")
+        ), f"{name}: pinned {pins[name]}, declared >={minimum}"
 
 
 def test_every_extra_is_explained() -> None:
@@ -99,23 +104,25 @@ def test_version_is_declared_once() -> None:
 
     import electroloc_gym
 
-    assert electroloc_gym.__version__ == importlib.metadata.version("electroloc-gym") == PYPROJECT["project"][
-        "version"]
+    assert electroloc_gym.__version__ == importlib.metadata.version("electroloc-gym") == PYPROJECT["project"]["version"]
     init = (ROOT / "electroloc_gym" / "__init__.py").read_text(encoding="utf-8")
     assert PYPROJECT["project"]["version"] not in init
 
 
-_CACHE_PROBE = ("import sys, os\n"
-                "if sys.argv[1] == 'numba-first':\n    import numba\n"
-                "import electroloc_gym, numba.core.config as c\n"
-                "print(c.CACHE_DIR, os.environ['NUMBA_CACHE_DIR'])")
+_CACHE_PROBE = (
+    "import sys, os\n"
+    "if sys.argv[1] == 'numba-first':\n    import numba\n"
+    "import electroloc_gym, numba.core.config as c\n"
+    "print(c.CACHE_DIR, os.environ['NUMBA_CACHE_DIR'])"
+)
 
 
 @pytest.mark.parametrize("order", ["package-first", "numba-first"])
 def test_numba_caches_per_user(tmp_path, order) -> None:
     env = {k: v for k, v in ENV.items() if k != "NUMBA_CACHE_DIR"} | {"XDG_CACHE_HOME": str(tmp_path)}
-    proc = subprocess.run([sys.executable, "-c", _CACHE_PROBE, order], capture_output=True, text=True, env=env,
-                          cwd=tmp_path, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", _CACHE_PROBE, order], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
     want = str(tmp_path / "electroloc-gym" / "numba")
     assert proc.stdout.split() == [want, want]
@@ -123,7 +130,13 @@ def test_numba_caches_per_user(tmp_path, order) -> None:
 
 def test_numba_cache_set_by_the_user_is_kept(tmp_path) -> None:
     env = ENV | {"NUMBA_CACHE_DIR": str(tmp_path / "mine")}
-    proc = subprocess.run([sys.executable, "-c", _CACHE_PROBE, "package-first"], capture_output=True, text=True,
-                          env=env, cwd=tmp_path, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", _CACHE_PROBE, "package-first"],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == [str(tmp_path / "mine")] * 2

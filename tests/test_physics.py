@@ -69,8 +69,17 @@ def test_emitter_potential_on_its_own_surface_is_close_to_ve() -> None:
 def test_field_is_minus_gradient_of_potential() -> None:
     x = np.random.default_rng(1).uniform(-40, 40, size=(50, 3)) + np.array([0, 0, -12.0])
     h = 1e-5
-    grad = np.stack([(P.emitter_potential(x + h * e, [25, 0, 0], [-25, 0, 0])
-                      - P.emitter_potential(x - h * e, [25, 0, 0], [-25, 0, 0])) / (2 * h) for e in np.eye(3)], -1)
+    grad = np.stack(
+        [
+            (
+                P.emitter_potential(x + h * e, [25, 0, 0], [-25, 0, 0])
+                - P.emitter_potential(x - h * e, [25, 0, 0], [-25, 0, 0])
+            )
+            / (2 * h)
+            for e in np.eye(3)
+        ],
+        -1,
+    )
     np.testing.assert_allclose(P.emitter_field(x, [25, 0, 0], [-25, 0, 0]), -grad, rtol=1e-5, atol=1e-12)
 
 

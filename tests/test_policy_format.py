@@ -30,16 +30,18 @@ from electroloc_gym.policy.sb3 import export_meta, model_weights  # noqa: E402
 
 #: The shipped SB3 zips were pickled under numpy 2; numpy 1.x cannot unpickle them (no module numpy._core), so the
 #: tests that open them run on numpy >= 2 (the nox session `tests`), not at the numpy minimum (`lowest`).
-needs_numpy2_pickles = pytest.mark.skipif(int(np.__version__.split(".")[0]) < 2,
-                                          reason="the shipped SB3 zips are numpy-2 pickles")
+needs_numpy2_pickles = pytest.mark.skipif(
+    int(np.__version__.split(".")[0]) < 2, reason="the shipped SB3 zips are numpy-2 pickles"
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 KW = {"n_particles": 200}
 
 
 def _venv(observation="belief", action_type="continuous", stack=1, n=2):
-    venv = DummyVecEnv([lambda: gym.make("ElectroLoc-v0", observation=observation, action_type=action_type, **KW)
-                        for _ in range(n)])
+    venv = DummyVecEnv(
+        [lambda: gym.make("ElectroLoc-v0", observation=observation, action_type=action_type, **KW) for _ in range(n)]
+    )
     venv.seed(3)
     venv = VecNormalize(venv, norm_reward=False)
     venv.obs_rms.mean[:] = np.random.default_rng(1).normal(0, 0.1, venv.obs_rms.mean.shape)  # not the identity
@@ -49,9 +51,14 @@ def _venv(observation="belief", action_type="continuous", stack=1, n=2):
 
 
 def _export(model, venv, folder, observation="belief", action_type="continuous", stack=1):
-    meta = export_meta(model, env_id="ElectroLoc-v0", env_kwargs={"observation": observation,
-                                                                  "action_type": action_type},
-                       frame_stack=stack, vecnormalize=model.get_vec_normalize_env(), provenance={"test": True})
+    meta = export_meta(
+        model,
+        env_id="ElectroLoc-v0",
+        env_kwargs={"observation": observation, "action_type": action_type},
+        frame_stack=stack,
+        vecnormalize=model.get_vec_normalize_env(),
+        provenance={"test": True},
+    )
     write_export(folder, meta, model_weights(model))
     return load_policy(folder)
 
@@ -77,9 +84,17 @@ def _rollout_check(model, venv, agent, steps=40, atol=1e-5):
     return n_done
 
 
-@pytest.mark.parametrize("algo, action_type, stack", [
-    (PPO, "continuous", 1), (PPO, "discrete", 1), (PPO, "continuous", 3), (A2C, "continuous", 1),
-    (SAC, "continuous", 1), (DQN, "discrete", 1)])
+@pytest.mark.parametrize(
+    "algo, action_type, stack",
+    [
+        (PPO, "continuous", 1),
+        (PPO, "discrete", 1),
+        (PPO, "continuous", 3),
+        (A2C, "continuous", 1),
+        (SAC, "continuous", 1),
+        (DQN, "discrete", 1),
+    ],
+)
 def test_the_numpy_policy_acts_as_sb3_predict(tmp_path, algo, action_type, stack):
     observation = "raw" if stack > 1 else "belief"
     venv = _venv(observation, action_type, stack)
@@ -95,12 +110,19 @@ def test_the_numpy_policy_acts_as_sb3_predict(tmp_path, algo, action_type, stack
 def test_qrdqn_and_recurrent_ppo_act_as_sb3(tmp_path):
     contrib = pytest.importorskip("sb3_contrib")
     venv = _venv("belief", "discrete")
-    model = contrib.QRDQN("MlpPolicy", venv, policy_kwargs={"net_arch": [16], "n_quantiles": 5}, seed=0,
-                          learning_starts=10**6, device="cpu")
+    model = contrib.QRDQN(
+        "MlpPolicy",
+        venv,
+        policy_kwargs={"net_arch": [16], "n_quantiles": 5},
+        seed=0,
+        learning_starts=10**6,
+        device="cpu",
+    )
     _rollout_check(model, venv, _export(model, venv, tmp_path / "q", "belief", "discrete"))
     venv = _venv("raw")
-    model = contrib.RecurrentPPO("MlpLstmPolicy", venv, policy_kwargs={"lstm_hidden_size": 8, "net_arch": [8]},
-                                 seed=0, device="cpu")
+    model = contrib.RecurrentPPO(
+        "MlpLstmPolicy", venv, policy_kwargs={"lstm_hidden_size": 8, "net_arch": [8]}, seed=0, device="cpu"
+    )
     agent = _export(model, venv, tmp_path / "r", "raw")
     assert agent.recurrent and _rollout_check(model, venv, agent, steps=60) >= 1  # the LSTM state resets per episode
 
@@ -137,16 +159,22 @@ def _edit(folder: Path, fn) -> None:
     (folder / "policy.json").write_text(json.dumps(meta))
 
 
-@pytest.mark.parametrize("edit, pattern", [
-    (lambda m: m.update(format="other"), "not an electroloc-gym-policy"),
-    (lambda m: m.update(format_version=99), "format_version 99"),
-    (lambda m: m["architecture"].update(policy_class="os.system"), "policy_class must be one of"),
-    (lambda m: m["architecture"]["policy_kwargs"].update(activation_fn="evil"), "activation_fn must be one of"),
-    (lambda m: m["observation"].update(frame_stack=2), "does not match"),
-    (lambda m: m["normalization"].update(obs_mean=None), "statistics .* are missing"),
-    (lambda m: m["normalization"].update(obs_mean=[0.0], obs_var=[1.0]), "normalisation statistics have 1 features"),
-    (lambda m: m.pop("action"), "missing key 'action'"),
-])
+@pytest.mark.parametrize(
+    "edit, pattern",
+    [
+        (lambda m: m.update(format="other"), "not an electroloc-gym-policy"),
+        (lambda m: m.update(format_version=99), "format_version 99"),
+        (lambda m: m["architecture"].update(policy_class="os.system"), "policy_class must be one of"),
+        (lambda m: m["architecture"]["policy_kwargs"].update(activation_fn="evil"), "activation_fn must be one of"),
+        (lambda m: m["observation"].update(frame_stack=2), "does not match"),
+        (lambda m: m["normalization"].update(obs_mean=None), "statistics .* are missing"),
+        (
+            lambda m: m["normalization"].update(obs_mean=[0.0], obs_var=[1.0]),
+            "normalisation statistics have 1 features",
+        ),
+        (lambda m: m.pop("action"), "missing key 'action'"),
+    ],
+)
 def test_malformed_policy_json_is_refused_with_one_clear_error(saved, edit, pattern):
     _edit(saved, edit)
     with pytest.raises(PolicyFormatError, match=pattern):
@@ -191,8 +219,10 @@ def _poison_zip(zip_path: Path, marker: Path) -> None:
     with zipfile.ZipFile(zip_path) as zf:
         entries = {n: zf.read(n) for n in zf.namelist()}
     data = json.loads(entries["data"])
-    data["observation_space"] = {":type:": "<class 'gymnasium.spaces.box.Box'>",
-                                 ":serialized:": base64.b64encode(pickle.dumps(_Payload(marker))).decode()}
+    data["observation_space"] = {
+        ":type:": "<class 'gymnasium.spaces.box.Box'>",
+        ":serialized:": base64.b64encode(pickle.dumps(_Payload(marker))).decode(),
+    }
     entries["data"] = json.dumps(data).encode()
     with zipfile.ZipFile(zip_path, "w") as zf:
         for n, b in entries.items():
@@ -235,12 +265,14 @@ def test_no_default_load_path_runs_a_payload(poisoned, caplog):
 
 def test_a_shipped_policy_runs_without_torch_and_sb3():
     """Deterministic actions need numpy only; stochastic ones say that torch and SB3 are needed."""
-    code = ("import sys; sys.modules['torch'] = None; sys.modules['stable_baselines3'] = None\n"
-            "import numpy as np, gymnasium as gym, electroloc_gym\n"
-            "from electroloc_gym.bench.agents import make_bench_agent\n"
-            "a = make_bench_agent('ppo-belief'); env = gym.make('ElectroLoc-v0', n_particles=200, **a.env_kwargs)\n"
-            "o, _ = env.reset(seed=0); a.reset(env); print(a.predict(o)[0].shape)\n"
-            "try:\n    a.predict(o, deterministic=False)\nexcept ValueError as e:\n    print('ERR', e)\n")
+    code = (
+        "import sys; sys.modules['torch'] = None; sys.modules['stable_baselines3'] = None\n"
+        "import numpy as np, gymnasium as gym, electroloc_gym\n"
+        "from electroloc_gym.bench.agents import make_bench_agent\n"
+        "a = make_bench_agent('ppo-belief'); env = gym.make('ElectroLoc-v0', n_particles=200, **a.env_kwargs)\n"
+        "o, _ = env.reset(seed=0); a.reset(env); print(a.predict(o)[0].shape)\n"
+        "try:\n    a.predict(o, deterministic=False)\nexcept ValueError as e:\n    print('ERR', e)\n"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     assert "(2,)" in r.stdout and "ERR stochastic actions of a learned policy need torch and SB3" in r.stdout

@@ -19,7 +19,7 @@ from electroloc_gym.conditions import PRESET_NAMES, Amplifier, Condition, get_co
 from electroloc_gym.sensor import expected_reading
 
 QUIET = 1.0 / 32.0
-FAR_EQ5, NEAR_EQ5, FAR_LAYOUT = 32 ** 0.2, 32 ** 0.5, 32 ** (1 / 6)
+FAR_EQ5, NEAR_EQ5, FAR_LAYOUT = 32**0.2, 32**0.5, 32 ** (1 / 6)
 ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
@@ -78,6 +78,7 @@ def test_env_reading_noise_and_calibrated_pooled_std_scale_with_noise_factor() -
 # ---- the physics of the detection distance --------------------------------------------------
 def test_eq5_layout_ratio_lies_between_far_and_near_field_laws() -> None:
     """Fig. 5 (one detector, a = 0.05, e = 0.005): a 32× noise cut multiplies r_d by 2 (far) to 5.7 (near)."""
+
     def rd(n: float) -> float:
         return P.eq6_detection_distance(n, 0.05, 0.005, 1.0)
 
@@ -91,7 +92,7 @@ def test_eq5_layout_ratio_lies_between_far_and_near_field_laws() -> None:
 def test_differential_layout_far_field_follows_one_sixth_power(name: str) -> None:
     """Deep in the far field the differential pair reads ∝ R⁻⁶: ×32^(1/6) per 32× cut, below Eq. 5's ×2."""
     c = get_condition(name, "paper")
-    d1, d2 = (c.with_noise_factor(f).detection_distance_mm() for f in (QUIET ** 2, QUIET ** 3))
+    d1, d2 = (c.with_noise_factor(f).detection_distance_mm() for f in (QUIET**2, QUIET**3))
     assert d1 > 2 * zero_crossing_mm(c) and math.isfinite(d2)
     assert FAR_LAYOUT * 0.99 <= d2 / d1 <= FAR_LAYOUT * 1.04 < FAR_EQ5
 
@@ -118,15 +119,17 @@ def test_presets_at_one_thirty_second() -> None:
 
 
 # ---- the CLI --------------------------------------------------------------------------------
-@pytest.mark.parametrize(("text", "value"), [("1/32", QUIET), ("0.03125", QUIET), (" 1/2 ", 0.5), ("1e-3", 1e-3),
-                                            ("1", 1.0), ("1e-4", 1e-4)])
+@pytest.mark.parametrize(
+    ("text", "value"), [("1/32", QUIET), ("0.03125", QUIET), (" 1/2 ", 0.5), ("1e-3", 1e-3), ("1", 1.0), ("1e-4", 1e-4)]
+)
 def test_parse_noise_factor(text: str, value: float) -> None:
     assert parse_noise_factor(text) == pytest.approx(value)
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "electroloc_gym.cli", *args], capture_output=True, text=True,
-                          env=ENV, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "electroloc_gym.cli", *args], capture_output=True, text=True, env=ENV, timeout=120
+    )
 
 
 def test_cli_detect_noise_factor_one_thirty_second() -> None:
@@ -143,8 +146,9 @@ def test_cli_detect_noise_factor_one_thirty_second() -> None:
         assert row == table_row and row["condition"] == name
 
 
-@pytest.mark.parametrize("bad", ["0", "1/0", "abc", "nan", "inf", "--noise-factor=-1/32", "1e-320", "1e-9", "1e308",
-                                 "2", "9/100000"])
+@pytest.mark.parametrize(
+    "bad", ["0", "1/0", "abc", "nan", "inf", "--noise-factor=-1/32", "1e-320", "1e-9", "1e308", "2", "9/100000"]
+)
 def test_cli_bad_noise_factor_is_one_clear_error(bad: str) -> None:
     args = [bad] if bad.startswith("--") else ["--noise-factor", bad]
     out = run_cli("detect", *args)

@@ -46,8 +46,13 @@ def test_ray_backend_gives_the_process_backends_trials(tmp_path: Path) -> None:
     from electroloc_gym.bench.config import BenchConfig
     from electroloc_gym.bench.runner import run_benchmark
 
-    config = BenchConfig(agents=("rnd-wlk",), conditions=("fresh-steel-12.7", "salt-delrin-38.1"), trials=3,
-                         n_particles=300, max_observations=12)
+    config = BenchConfig(
+        agents=("rnd-wlk",),
+        conditions=("fresh-steel-12.7", "salt-delrin-38.1"),
+        trials=3,
+        n_particles=300,
+        max_observations=12,
+    )
     run_benchmark(config, tmp_path / "process", workers=2, backend="process", progress=False, log=None)
     run_benchmark(config, tmp_path / "ray", workers=2, backend="ray", progress=False, log=None)
     a, b = _records(tmp_path / "process"), _records(tmp_path / "ray")
@@ -75,7 +80,8 @@ def test_ray_check_unreachable_address_names_the_option() -> None:
 
 @pytest.mark.parametrize("without_ray", [False, True])
 def test_ray_bench_bad_paths_exit_2_with_one_line_and_nothing_written(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, without_ray: bool) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, without_ray: bool
+) -> None:
     if without_ray:
         monkeypatch.setitem(sys.modules, "ray", None)
         option = "--backend ray"
@@ -83,8 +89,24 @@ def test_ray_bench_bad_paths_exit_2_with_one_line_and_nothing_written(
         pytest.importorskip("ray")
         option = "--address"
     out = tmp_path / "out"
-    code = main(["bench", "--agents", "rnd-wlk", "--conditions", "fresh-steel-12.7", "--trials", "1",
-                 "--backend", "ray", "--address", f"127.0.0.1:{_closed_port()}", "--out", str(out), "--no-progress"])
+    code = main(
+        [
+            "bench",
+            "--agents",
+            "rnd-wlk",
+            "--conditions",
+            "fresh-steel-12.7",
+            "--trials",
+            "1",
+            "--backend",
+            "ray",
+            "--address",
+            f"127.0.0.1:{_closed_port()}",
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and option in err[0] and "Traceback" not in err[0]
     assert not out.exists()
@@ -110,6 +132,9 @@ def test_ray_check_a_port_that_is_not_ray_names_the_option(monkeypatch: pytest.M
         server.bind(("127.0.0.1", 0))
         server.listen(8)
         address = f"127.0.0.1:{server.getsockname()[1]}"
-        with pytest.raises(ValueError, match=r"^--address '127\.0\.0\.1:\d+': (no Ray cluster answered within 3 s|"
-                                             r"could not join a Ray cluster there)"):
+        with pytest.raises(
+            ValueError,
+            match=r"^--address '127\.0\.0\.1:\d+': (no Ray cluster answered within 3 s|"
+            r"could not join a Ray cluster there)",
+        ):
             check_ray_address(address)

@@ -49,8 +49,14 @@ def test_readme_is_short_and_names_the_plugin_agents() -> None:
 
 def test_the_example_runs(tmp_path: Path) -> None:
     (example,) = [b for b in re.findall(r"```python\n(.*?)```", README, re.S) if "gym.make" in b]
-    proc = subprocess.run([sys.executable, "-c", example], capture_output=True, text=True, cwd=tmp_path,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "-c", example],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr
     n_obs, success, error = proc.stdout.splitlines()[0].split()
     assert 1 <= int(n_obs) <= 35 and success in ("True", "False") and float(error) >= 0
@@ -79,8 +85,11 @@ def test_the_headline_table_is_the_reference_run() -> None:
             cells = _all_row(bench, name)
             assert cells[3] == success and cells[4].split("/")[1] == error and cells[5].split("/")[1] == steps
         elif task.startswith("Table 2"):
-            (cells,) = [[c.strip() for c in ln.strip("|").split("|")] for ln in glob.splitlines()
-                        if ln.startswith(f"| {name} |")]
+            (cells,) = [
+                [c.strip() for c in ln.strip("|").split("|")]
+                for ln in glob.splitlines()
+                if ln.startswith(f"| {name} |")
+            ]
             assert success.startswith(cells[1]) and cells[2].split("/")[1] == error
             assert cells[3].split("/")[1] == steps
         else:

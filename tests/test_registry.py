@@ -78,8 +78,11 @@ def test_the_benchmark_reads_the_table() -> None:
     assert bench_config.ENV_CHOICES == {name: e.env_id for name, (e, _) in BENCH_ENVS.items()}
     assert set(bench_config.ENV_CHOICES) == {"target", "global", "unknown-target", "dynamic-gain"}
     assert bench_config.ENV_SENSOR_MODELS == {e.env_id: e.sensor_models for e in ENVS}
-    assert bench_config.ENV_N_PARTICLES == {"ElectroLoc-v0": 2500, "ElectroLocGlobal-v0": 2500,
-                                            "ElectroLocUnknownTarget-v0": 5000}
+    assert bench_config.ENV_N_PARTICLES == {
+        "ElectroLoc-v0": 2500,
+        "ElectroLocGlobal-v0": 2500,
+        "ElectroLocUnknownTarget-v0": 5000,
+    }
     assert bench_config.MAP_CONDITIONS == ("six-cylinders",)
     assert gym.make("ElectroLocGlobal-v0").reset(seed=0)[1]["condition"] == "six-cylinders"
     assert bench_env("dynamic-gain")[1].env_kwargs["gain_levels"] == (0.25, 1.0, 4.0)

@@ -23,8 +23,18 @@ matplotlib.use("Agg")
 SMALL = dict(n_particles=300, sensor_model="analytic")
 
 #: The env accessors a picture may read (ground truth included: pictures may show it, agents may not).
-PUBLIC = ("condition", "belief", "position_mm", "path_mm", "n_observations", "last_reading_V", "target_mm",
-          "scene", "success_spread_mm", "render_mode")
+PUBLIC = (
+    "condition",
+    "belief",
+    "position_mm",
+    "path_mm",
+    "n_observations",
+    "last_reading_V",
+    "target_mm",
+    "scene",
+    "success_spread_mm",
+    "render_mode",
+)
 
 
 class PublicOnly:
@@ -151,8 +161,9 @@ def test_gif_has_one_frame_per_observation(tmp_path) -> None:
     assert green(last) >= 0.8 * green(ep.frames[-1])
 
 
-@pytest.mark.parametrize("kwargs, match", [({"frames": []}, "at least one"), ({"fps": 0}, "fps"),
-                                           ({"hold_last_s": -1}, "hold_last_s")])
+@pytest.mark.parametrize(
+    "kwargs, match", [({"frames": []}, "at least one"), ({"fps": 0}, "fps"), ({"hold_last_s": -1}, "hold_last_s")]
+)
 def test_gif_bad_input(tmp_path, kwargs, match) -> None:
     args = {"frames": [np.zeros((4, 4, 3), np.uint8)], "path": tmp_path / "x.gif", **kwargs}
     with pytest.raises(ValueError, match=match):

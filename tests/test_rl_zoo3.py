@@ -30,20 +30,43 @@ def test_each_algorithm_file_trains_exports_and_benches(algo, tmp_path, monkeypa
     dest = export_run(run, tmp_path / "policy")
     agent = load_policy(dest)
     expected_mode = "raw" if algo == "ppo_lstm" else "belief"
-    assert agent.env_kwargs == {"observation": expected_mode,
-                                "action_type": "discrete" if algo == "qrdqn" else "continuous"}
+    assert agent.env_kwargs == {
+        "observation": expected_mode,
+        "action_type": "discrete" if algo == "qrdqn" else "continuous",
+    }
     assert "rl_zoo3.train" in (dest / "command.txt").read_text()
     bench = tmp_path / "bench"
-    assert cli_main(["bench", "--agents", str(dest), "--conditions", "fresh-steel-12.7", "--trials", "2",
-                     "--n-particles", "300", "--backend", "serial", "--no-progress", "--out", str(bench)]) == 0
+    assert (
+        cli_main(
+            [
+                "bench",
+                "--agents",
+                str(dest),
+                "--conditions",
+                "fresh-steel-12.7",
+                "--trials",
+                "2",
+                "--n-particles",
+                "300",
+                "--backend",
+                "serial",
+                "--no-progress",
+                "--out",
+                str(bench),
+            ]
+        )
+        == 0
+    )
     table = json.loads((bench / "summary.json").read_text())
     assert "policy" in json.dumps(table)
 
 
 def test_a_frame_stacked_raw_policy_trains_and_benches_as_trained(tmp_path, monkeypatch):
     """rl-zoo3's frame_stack (VecFrameStack outside VecNormalize): the export stacks normalised frames the same way."""
-    run = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=128, env_kwargs={"observation": "raw"},
-                           hyper={"frame_stack": 4}), monkeypatch)
+    run = run_zoo(
+        zoo_argv("ppo", tmp_path / "logs", timesteps=128, env_kwargs={"observation": "raw"}, hyper={"frame_stack": 4}),
+        monkeypatch,
+    )
     agent = load_policy(run)
     assert agent.frame_stack == 4 and agent.obs_dim == 3 and agent.normalize_frames
     assert json.loads((run / "summary.json").read_text())["best"]["episodes"] == 2
@@ -64,8 +87,26 @@ def test_enjoy_reports_the_task_measures_and_the_unshaped_return(tmp_path, monke
 
     run = run_zoo(zoo_argv("ppo", tmp_path / "logs", timesteps=64), monkeypatch)
     capsys.readouterr()
-    assert zoo_main(["enjoy", "--algo", "ppo", "--env", "ElectroLoc-v0", "-f", str(tmp_path / "logs"), "--exp-id",
-                     run.name.rsplit("_", 1)[1], "--no-render", "-n", "40", "--deterministic"]) == 0
+    assert (
+        zoo_main(
+            [
+                "enjoy",
+                "--algo",
+                "ppo",
+                "--env",
+                "ElectroLoc-v0",
+                "-f",
+                str(tmp_path / "logs"),
+                "--exp-id",
+                run.name.rsplit("_", 1)[1],
+                "--no-render",
+                "-n",
+                "40",
+                "--deterministic",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     reports = [ln for ln in out.splitlines() if ln.startswith("[electroloc] episode:")]
     rewards = [float(ln.split(":")[1]) for ln in out.splitlines() if ln.startswith("Episode Reward:")]

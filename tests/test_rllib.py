@@ -31,10 +31,12 @@ def _example():
 def _runner_config(seed: int, num_envs: int, **env_kwargs):
     from ray.rllib.algorithms.ppo import PPOConfig
 
-    return (PPOConfig().environment(erl.register(), env_config={**SMALL, **env_kwargs})
-            .env_runners(num_env_runners=0, num_envs_per_env_runner=num_envs,
-                         gym_env_vectorize_mode="vector_entry_point")
-            .debugging(seed=seed))
+    return (
+        PPOConfig()
+        .environment(erl.register(), env_config={**SMALL, **env_kwargs})
+        .env_runners(num_env_runners=0, num_envs_per_env_runner=num_envs, gym_env_vectorize_mode="vector_entry_point")
+        .debugging(seed=seed)
+    )
 
 
 def _runner(seed: int, num_envs: int, worker_index: int = 0, mode: str = "vector_entry_point", **env_kwargs):
@@ -44,8 +46,9 @@ def _runner(seed: int, num_envs: int, worker_index: int = 0, mode: str = "vector
     return SingleAgentEnvRunner(config=config, worker_index=worker_index)
 
 
-@pytest.mark.parametrize(("mode", "vector_class"), [("vector_entry_point", "ElectroLocVectorEnv"),
-                                                     ("sync", "SyncVectorEnv")])
+@pytest.mark.parametrize(
+    ("mode", "vector_class"), [("vector_entry_point", "ElectroLocVectorEnv"), ("sync", "SyncVectorEnv")]
+)
 def test_rllib_runner_builds_the_registered_creator_in_both_modes(mode: str, vector_class: str) -> None:
     runner = _runner(seed=1, num_envs=2, mode=mode)
     assert type(runner.env.unwrapped).__name__ == vector_class and runner.env.num_envs == 2
@@ -73,8 +76,9 @@ def test_rllib_creator_serves_both_entry_points_and_refuses_same_step() -> None:
 def test_rllib_sub_env_seeds_come_from_seed_sequence() -> None:
     seeds = sub_env_seeds(5, 4)
     assert seeds[:2] == sub_env_seeds(5, 2)  # sub-env i depends on (seed, i) only
-    expected = [int.from_bytes(c.generate_state(4, np.uint32).tobytes(), "little")
-                for c in np.random.SeedSequence(5).spawn(4)]
+    expected = [
+        int.from_bytes(c.generate_state(4, np.uint32).tobytes(), "little") for c in np.random.SeedSequence(5).spawn(4)
+    ]
     assert seeds == expected
     runners = [set(sub_env_seeds(100 + k, 8)) for k in range(4)]  # RLlib: runner k reset with seed + k
     assert len(set().union(*runners)) == 32
@@ -139,8 +143,9 @@ def ray_local():
     ray = pytest.importorskip("ray")
     started = not ray.is_initialized()
     if started:
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
-                 runtime_env={"env_vars": erl.runner_env_vars()})
+        ray.init(
+            num_cpus=2, include_dashboard=False, log_to_driver=False, runtime_env={"env_vars": erl.runner_env_vars()}
+        )
     yield ray
     if started:
         ray.shutdown()
@@ -153,24 +158,51 @@ def test_rllib_ppo_iteration_in_a_worker_exports_a_policy_bench_runs(ray_local, 
     from electroloc_gym.policy.load import load_policy
 
     ex = _example()
-    args = ex.parse_args(["--num-env-runners", "1", "--num-envs-per-env-runner", "2", "--train-batch", "64",
-                          "--n-particles", "60", "--timesteps", "64", "--seed", "3"])
+    args = ex.parse_args(
+        [
+            "--num-env-runners",
+            "1",
+            "--num-envs-per-env-runner",
+            "2",
+            "--train-batch",
+            "64",
+            "--n-particles",
+            "60",
+            "--timesteps",
+            "64",
+            "--seed",
+            "3",
+        ]
+    )
     erl.warm_kernels(ex.env_config(args))
     algo = ex.build_config(args).build_algo()
     try:
         # The remote runner resolved the registered creator and pinned its threads.
         remote = algo.env_runner_group.foreach_env_runner(
-            lambda r: (type(r.env.unwrapped).__name__, r.env.num_envs, os.environ.get("OMP_NUM_THREADS"),
-                       os.environ.get("NUMBA_NUM_THREADS"), __import__("torch").get_num_threads(), os.getpid()),
-            local_env_runner=False)
+            lambda r: (
+                type(r.env.unwrapped).__name__,
+                r.env.num_envs,
+                os.environ.get("OMP_NUM_THREADS"),
+                os.environ.get("NUMBA_NUM_THREADS"),
+                __import__("torch").get_num_threads(),
+                os.getpid(),
+            ),
+            local_env_runner=False,
+        )
         assert len(remote) == 1 and remote[0][:5] == ("ElectroLocVectorEnv", 2, "1", "1", 1)
         assert remote[0][5] != os.getpid()
         result = algo.train()
         assert result["num_env_steps_sampled_lifetime"] >= 64
         assert result["env_runners"]["num_episodes"] >= 1
         assert 0.0 <= result["env_runners"][erl.SUCCESS_METRIC] <= 1.0
-        out = erl.export_ppo(algo, tmp_path / "model", env_id=ex.ENV_ID, env_kwargs=ex.ENV_KWARGS,
-                             hidden=ex.HIDDEN, provenance={"seed": 3})
+        out = erl.export_ppo(
+            algo,
+            tmp_path / "model",
+            env_id=ex.ENV_ID,
+            env_kwargs=ex.ENV_KWARGS,
+            hidden=ex.HIDDEN,
+            provenance={"seed": 3},
+        )
         # The exported policy acts as RLlib's module on the filtered observation.
         agent = load_policy(out)
         env = gym.make("ElectroLoc-v0", n_particles=60)
@@ -203,15 +235,24 @@ def test_rllib_progress_plot_skips_iterations_without_episodes(tmp_path: Path) -
         erl.plot_progress(empty, tmp_path / "x.png")
 
 
-@pytest.mark.parametrize("body, pattern", [
-    ("iteration,env_steps,wall_s,episodes,return_mean,success_mean\n1,100,1.0,5,-9.0,0.4\n",
-     r"lacks the column\(s\) \['length_mean'\]"),
-    ("iteration,env_steps,wall_s,episodes,return_mean,length_mean,success_mean\n1,100,1.0,5,-9.0,9.0,0.4\n2,200\n",
-     "line 3 is short"),
-    ("iteration,env_steps,wall_s,episodes,return_mean,length_mean,success_mean\n1,x,1.0,5,-9.0,9.0,0.4\n",
-     "line 2: .* must be numbers"),
-    ("", r"lacks the column\(s\)"),
-])
+@pytest.mark.parametrize(
+    "body, pattern",
+    [
+        (
+            "iteration,env_steps,wall_s,episodes,return_mean,success_mean\n1,100,1.0,5,-9.0,0.4\n",
+            r"lacks the column\(s\) \['length_mean'\]",
+        ),
+        (
+            "iteration,env_steps,wall_s,episodes,return_mean,length_mean,success_mean\n1,100,1.0,5,-9.0,9.0,0.4\n2,200\n",
+            "line 3 is short",
+        ),
+        (
+            "iteration,env_steps,wall_s,episodes,return_mean,length_mean,success_mean\n1,x,1.0,5,-9.0,9.0,0.4\n",
+            "line 2: .* must be numbers",
+        ),
+        ("", r"lacks the column\(s\)"),
+    ],
+)
 def test_rllib_progress_plot_refuses_a_damaged_csv_in_one_line(tmp_path: Path, body: str, pattern: str) -> None:
     bad = tmp_path / "progress.csv"
     bad.write_text(body)

@@ -54,15 +54,29 @@ def test_superposition_equals_sum_of_single_object_perturbations() -> None:
 
 def test_single_sphere_scene_equals_the_single_target_sensor() -> None:
     """A one-sphere scene reads exactly what ElectroLoc-v0's sensor reads for that sphere."""
-    cond = Condition(name="s", target=Target(radius_mm=6.35, conductivity_uScm=1.4e10), water=Water(160.0),
-                     amplifier=Amplifier(gain=191.0, noise_rms_mV=0.25), start_half_width_mm=40.0,
-                     allowed_half_width_mm=50.0, target_xy_mm=(12.0, -7.0), signal_scale=0.9)
-    scene = Scene(name="one", objects=(SceneObject("sphere", (12.0, -7.0), 6.35, 1.4e10),), water=Water(160.0),
-                  amplifier=Amplifier(gain=191.0, noise_rms_mV=0.25), allowed_half_width_mm=50.0,
-                  start_half_width_mm=40.0, signal_scale=0.9)
+    cond = Condition(
+        name="s",
+        target=Target(radius_mm=6.35, conductivity_uScm=1.4e10),
+        water=Water(160.0),
+        amplifier=Amplifier(gain=191.0, noise_rms_mV=0.25),
+        start_half_width_mm=40.0,
+        allowed_half_width_mm=50.0,
+        target_xy_mm=(12.0, -7.0),
+        signal_scale=0.9,
+    )
+    scene = Scene(
+        name="one",
+        objects=(SceneObject("sphere", (12.0, -7.0), 6.35, 1.4e10),),
+        water=Water(160.0),
+        amplifier=Amplifier(gain=191.0, noise_rms_mV=0.25),
+        allowed_half_width_mm=50.0,
+        start_half_width_mm=40.0,
+        signal_scale=0.9,
+    )
     p = _carriages(300) * 0.6
-    np.testing.assert_allclose(scene.expected_reading(p), expected_reading(cond, np.array([12.0, -7.0]) - p),
-                               rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(
+        scene.expected_reading(p), expected_reading(cond, np.array([12.0, -7.0]) - p), rtol=1e-12, atol=1e-15
+    )
 
 
 def test_cylinder_at_depth_zero_is_the_physics_2d_formula() -> None:
@@ -73,7 +87,7 @@ def test_cylinder_at_depth_zero_is_the_physics_2d_formula() -> None:
     c = np.concatenate([off, np.zeros((400, 1))], axis=-1)
     e = physics.emitter_field(c, np.array([h, 0.0, 0.0]), np.array([-h, 0.0, 0.0]))
     s1, s2 = np.array([0.0, h, 0.0]), np.array([0.0, -h, 0.0])
-    ref = (physics.cylinder_perturbation(s1, c, 9.0, 0.7, e) - physics.cylinder_perturbation(s2, c, 9.0, 0.7, e))
+    ref = physics.cylinder_perturbation(s1, c, 9.0, 0.7, e) - physics.cylinder_perturbation(s2, c, 9.0, 0.7, e)
     np.testing.assert_allclose(cylinder_differential_perturbation(off, 9.0, 0.7, 0.0), ref, rtol=1e-9, atol=1e-14)
 
 
@@ -132,7 +146,7 @@ def test_layout_generator_is_seeded_and_paper_like() -> None:
         assert len({o.diameter_mm for o in objs}) == 6 and len({o.material for o in objs}) == 6
         assert all(abs(c) <= 80.0 for o in objs for c in o.xy_mm)
         for i, a in enumerate(objs):
-            for b in objs[i + 1:]:
+            for b in objs[i + 1 :]:
                 gap = np.hypot(a.xy_mm[0] - b.xy_mm[0], a.xy_mm[1] - b.xy_mm[1]) - a.radius_mm - b.radius_mm
                 assert gap >= 5.0 - 0.2  # 5 mm apart, less the rounding of the centres to 0.1 mm
     assert random_cylinder_layout(0) != random_cylinder_layout(1)
@@ -144,25 +158,31 @@ def test_benchmark_layout_is_the_documented_generator_output() -> None:
     assert BENCHMARK_SCENE.water.conductivity_uScm == 160.0 and BENCHMARK_SCENE.amplifier.gain == 191.0
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(n_objects=0), "n_objects"),
-    (dict(half_width_mm=-1.0), "half_width_mm"),
-    (dict(materials=("gold",)), "materials"),
-    (dict(n_objects=40, min_gap_mm=10.0, max_tries=50), "could not place"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(n_objects=0), "n_objects"),
+        (dict(half_width_mm=-1.0), "half_width_mm"),
+        (dict(materials=("gold",)), "materials"),
+        (dict(n_objects=40, min_gap_mm=10.0, max_tries=50), "could not place"),
+    ],
+)
 def test_layout_generator_bad_arguments(kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
         random_cylinder_layout(0, **kwargs)
 
 
-@pytest.mark.parametrize("make, match", [
-    (lambda: SceneObject("cube", (0.0, 0.0), 5.0, 1.0), "shape"),
-    (lambda: SceneObject("sphere", (0.0, 0.0), -5.0, 1.0), "radius_mm"),
-    (lambda: SceneObject("sphere", (0.0, np.nan), 5.0, 1.0), "xy_mm"),
-    (lambda: SceneObject.of_material("cylinder", (0.0, 0.0), 5.0, "wood"), "material"),
-    (lambda: BENCHMARK_SCENE.replace(objects=()), "objects"),
-    (lambda: BENCHMARK_SCENE.replace(start_half_width_mm=90.0), "start_half_width_mm"),
-])
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda: SceneObject("cube", (0.0, 0.0), 5.0, 1.0), "shape"),
+        (lambda: SceneObject("sphere", (0.0, 0.0), -5.0, 1.0), "radius_mm"),
+        (lambda: SceneObject("sphere", (0.0, np.nan), 5.0, 1.0), "xy_mm"),
+        (lambda: SceneObject.of_material("cylinder", (0.0, 0.0), 5.0, "wood"), "material"),
+        (lambda: BENCHMARK_SCENE.replace(objects=()), "objects"),
+        (lambda: BENCHMARK_SCENE.replace(start_half_width_mm=90.0), "start_half_width_mm"),
+    ],
+)
 def test_scene_validation(make, match) -> None:
     with pytest.raises(ValueError, match=match):
         make()

@@ -56,8 +56,9 @@ def test_single_layout_sensor_models_bit_for_bit() -> None:
     c = get_condition("salt-steel-12.7")
     layout = named_layout("single")
     off = _offsets(2, 2500, 50.0).astype(np.float32)
-    assert np.array_equal(ArrayAnalyticSensorModel(c, layout).log_likelihood([0.4], off),
-                          AnalyticSensorModel(c).log_likelihood(0.4, off))
+    assert np.array_equal(
+        ArrayAnalyticSensorModel(c, layout).log_likelihood([0.4], off), AnalyticSensorModel(c).log_likelihood(0.4, off)
+    )
     cal = ArrayCalibratedSensorModel(c, layout, seed=5)
     ref = make_sensor_model("calibrated", c, 5)
     assert np.array_equal(cal.log_likelihood([-1.3], off), ref.log_likelihood(-1.3, off))
@@ -91,9 +92,11 @@ def test_compiled_general_pairs_equal_the_physics_module() -> None:
     off = _offsets(8, 3000)
     radii = np.random.default_rng(9).uniform(5.0, 20.0, 3000)
     chis = np.random.default_rng(10).choice([1.0, -0.5], 3000)
-    explicit = SensorLayout([[[12.0, 40.0], [-30.0, -20.0]], [[70.0, 10.0], [50.0, 60.0]]],
-                            emitters_mm=[[[0.0, 0.0], [30.0, 0.0]], [[-60.0, 0.0], [-60.0, 40.0]]],
-                            subtract_baseline=True)
+    explicit = SensorLayout(
+        [[[12.0, 40.0], [-30.0, -20.0]], [[70.0, 10.0], [50.0, 60.0]]],
+        emitters_mm=[[[0.0, 0.0], [30.0, 0.0]], [[-60.0, 0.0], [-60.0, 40.0]]],
+        subtract_baseline=True,
+    )
     for layout in (named_layout("line-4"), named_layout("ring-8"), explicit):
         got = array_reading(c, layout, off, radius_mm=radii, chi=chis, saturate=False)
         for k in range(layout.n_pairs):
@@ -117,8 +120,9 @@ def test_grid_2x2_is_four_stationary_copies_of_the_paper_sensor() -> None:
         position = carriage + np.asarray(centre)
         np.testing.assert_allclose(mean[k], sensor.expected_reading(c, particles - position), rtol=1e-12, atol=1e-15)
         total = total + single.log_likelihood(readings[k], particles - position)
-    np.testing.assert_allclose(ArrayAnalyticSensorModel(c, layout).log_likelihood(readings, particles - carriage),
-                               total, rtol=1e-10)
+    np.testing.assert_allclose(
+        ArrayAnalyticSensorModel(c, layout).log_likelihood(readings, particles - carriage), total, rtol=1e-10
+    )
 
 
 # ---- no target: every named layout reads ≈ 0 V; noise and saturation are the paper's amplifier's ----------
@@ -131,8 +135,9 @@ def test_named_layouts_read_zero_without_target(name: str) -> None:
     g = Geometry()
     elec = np.concatenate([layout.electrodes, np.zeros((layout.n_pairs, 2, 1))], axis=-1)
     emit = np.concatenate([layout.emitters, np.zeros((layout.n_pairs, 2, 1))], axis=-1)
-    phi = physics.emitter_potential(elec, emit[:, None, 0], emit[:, None, 1], g.emitter_voltage_V,
-                                    g.electrode_radius_mm)
+    phi = physics.emitter_potential(
+        elec, emit[:, None, 0], emit[:, None, 1], g.emitter_voltage_V, g.electrode_radius_mm
+    )
     raw = phi[:, 0] - phi[:, 1]  # the emitters' own difference at each pair, V, before the gain
     for cname in PRESET_NAMES:
         c = get_condition(cname)
@@ -183,29 +188,33 @@ def test_vectorised_over_particles() -> None:
     radii = np.linspace(5.0, 20.0, 20)
     per_sphere = array_reading(c, layout, off, radius_mm=radii, chi=-0.5)
     assert per_sphere.shape == (4, 3, 20)
-    np.testing.assert_array_equal(per_sphere[:, 1, 7], array_reading(c, layout, off[1, 7], radius_mm=radii[7],
-                                                                      chi=-0.5))
+    np.testing.assert_array_equal(
+        per_sphere[:, 1, 7], array_reading(c, layout, off[1, 7], radius_mm=radii[7], chi=-0.5)
+    )
 
 
 # ---- bad layouts: one clear error naming sensor_layout --------------------------------------------------
 
 
-@pytest.mark.parametrize(("spec", "match"), [
-    (np.zeros((0, 2, 2)), r"at least one pair \(K ≥ 1\), got K = 0"),
-    ([[[0.0, 10.0], [0.0, 10.5]]], "overlap"),
-    ([[[0.0, 25.0], [0.0, -25.0]], [[0.0, 25.0], [0.0, -40.0]]], "overlap"),
-    ([[[24.5, 0.0], [0.0, -25.0]]], "overlap"),  # on an emitter
-    ([[[0.0, 150.0], [0.0, -25.0]]], "outside the carriage's reach"),
-    ([[[0.0, np.nan], [0.0, -25.0]]], "finite"),
-    ([[[0.0, np.inf], [0.0, -25.0]]], "finite"),
-    ([[0.0, 25.0], [0.0, -25.0]], r"shape \(K, 2, 2\)"),
-    (np.zeros((2, 3, 2)), r"shape \(K, 2, 2\)"),
-    ([[[0.0, "a"], [0.0, 1.0]]], r"\(K, 2, 2\) array"),
-    ("ring-9", "must be one of"),
-    (None, "must be one of"),
-    (np.zeros((65, 2, 2)), "K ≤ 64"),
-    ([[[25.0, 25.0], [-25.0, 25.0]]], "off every equipotential"),  # mirrored about x = 0: Δφ = 2φ(25, 25)
-])
+@pytest.mark.parametrize(
+    ("spec", "match"),
+    [
+        (np.zeros((0, 2, 2)), r"at least one pair \(K ≥ 1\), got K = 0"),
+        ([[[0.0, 10.0], [0.0, 10.5]]], "overlap"),
+        ([[[0.0, 25.0], [0.0, -25.0]], [[0.0, 25.0], [0.0, -40.0]]], "overlap"),
+        ([[[24.5, 0.0], [0.0, -25.0]]], "overlap"),  # on an emitter
+        ([[[0.0, 150.0], [0.0, -25.0]]], "outside the carriage's reach"),
+        ([[[0.0, np.nan], [0.0, -25.0]]], "finite"),
+        ([[[0.0, np.inf], [0.0, -25.0]]], "finite"),
+        ([[0.0, 25.0], [0.0, -25.0]], r"shape \(K, 2, 2\)"),
+        (np.zeros((2, 3, 2)), r"shape \(K, 2, 2\)"),
+        ([[[0.0, "a"], [0.0, 1.0]]], r"\(K, 2, 2\) array"),
+        ("ring-9", "must be one of"),
+        (None, "must be one of"),
+        (np.zeros((65, 2, 2)), "K ≤ 64"),
+        ([[[25.0, 25.0], [-25.0, 25.0]]], "off every equipotential"),  # mirrored about x = 0: Δφ = 2φ(25, 25)
+    ],
+)
 def test_bad_layouts_raise_one_clear_error(spec, match: str) -> None:
     with pytest.raises(ValueError, match=match) as info:
         make_sensor_layout(spec)
@@ -230,8 +239,11 @@ def test_equipotential_designs_and_the_front_end() -> None:
     assert abs(closed) * c.amplifier.gain > c.saturation_V  # without it, the pair would sit at the rail
     tiny = SensorLayout([[[0.0, 25.0], [1e-5, -25.0]]])  # a hair off x = 0: accepted, and its baseline kept
     assert 0 < abs(tiny.baselines_V[0]) <= BASELINE_TOLERANCE_V
-    np.testing.assert_allclose(array_reading(get_condition(FRESH), tiny, np.array([500.0, 500.0]), chi=0.0)[0],
-                               tiny.baselines_V[0] * 191.0, rtol=1e-12)
+    np.testing.assert_allclose(
+        array_reading(get_condition(FRESH), tiny, np.array([500.0, 500.0]), chi=0.0)[0],
+        tiny.baselines_V[0] * 191.0,
+        rtol=1e-12,
+    )
 
 
 def test_layout_geometry_must_match_the_condition() -> None:
@@ -287,14 +299,22 @@ def test_exact_posterior_is_the_same_at_once_or_one_by_one() -> None:
         ll = np.stack([model.pair_log_likelihood(k, readings[k], grid - carriage) for k in range(4)])
         at_once = grid_posterior(ll, at_once=True)
         for order in ([0, 1, 2, 3], [3, 1, 0, 2], [2, 3, 1, 0]):
-            np.testing.assert_allclose(grid_posterior(ll, at_once=False, order=order), at_once, rtol=0,
-                                       atol=1e-12 * at_once.max())
+            np.testing.assert_allclose(
+                grid_posterior(ll, at_once=False, order=order), at_once, rtol=0, atol=1e-12 * at_once.max()
+            )
         dropped.append(np.abs(grid_posterior(ll[:3], at_once=True) - at_once).max() / at_once.max())
     assert max(dropped) > 0.05  # a missing reading is seen: the comparison can fail
 
 
-def _filter_trials(seed: int, trials: int, n_particles: int, readings_used: int, at_once: bool,
-                   condition: str = FRESH, signal: str = "fitted") -> np.ndarray:
+def _filter_trials(
+    seed: int,
+    trials: int,
+    n_particles: int,
+    readings_used: int,
+    at_once: bool,
+    condition: str = FRESH,
+    signal: str = "fitted",
+) -> np.ndarray:
     """Posterior (mean x, mean y, spread) of the grid-2x2 array's four readings over ``trials`` fixed-seed trials."""
     c = get_condition(condition, signal)
     half = c.allowed_half_width_mm
@@ -309,8 +329,9 @@ def _filter_trials(seed: int, trials: int, n_particles: int, readings_used: int,
     def pair_loglik(j: int, cl: np.ndarray) -> np.ndarray:
         return model.pair_log_likelihood(j, readings[:, j, None], cl.transpose(0, 2, 1) - car32[:, None, :])
 
-    mean, cov = assimilate_readings(pair_loglik, readings_used, clouds, np.full(trials, half), [g[2] for g in gens],
-                                    at_once=at_once)
+    mean, cov = assimilate_readings(
+        pair_loglik, readings_used, clouds, np.full(trials, half), [g[2] for g in gens], at_once=at_once
+    )
     return np.column_stack([mean, np.sqrt(cov[:, 0, 0] + cov[:, 1, 1])])
 
 
@@ -353,15 +374,18 @@ def test_detection_coverage_of_single_is_the_conditions() -> None:
         assert detection_coverage(c, named_layout("ring-8")) > start_box_coverage(c)
 
 
-@pytest.mark.parametrize(("kwargs", "match"), [
-    (dict(emitters_mm=[[[5.0, 30.0], [-40.0, 30.0]]] * 2), "one emitter pair per sensing pair"),
-    (dict(emitters_mm=[[[0.0, 25.5], [-40.0, 30.0]]]), "overlap"),
-    (dict(reach_mm=20.0), "outside the carriage's reach"),
-    (dict(reach_mm=-1.0), "reach_mm must be"),
-    (dict(subtract_baseline="yes"), "subtract_baseline must be True or False"),
-    (dict(name=""), "name must be"),
-    (dict(geometry="paper"), "geometry must be a Geometry"),
-])
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        (dict(emitters_mm=[[[5.0, 30.0], [-40.0, 30.0]]] * 2), "one emitter pair per sensing pair"),
+        (dict(emitters_mm=[[[0.0, 25.5], [-40.0, 30.0]]]), "overlap"),
+        (dict(reach_mm=20.0), "outside the carriage's reach"),
+        (dict(reach_mm=-1.0), "reach_mm must be"),
+        (dict(subtract_baseline="yes"), "subtract_baseline must be True or False"),
+        (dict(name=""), "name must be"),
+        (dict(geometry="paper"), "geometry must be a Geometry"),
+    ],
+)
 def test_bad_layout_fields_raise_one_clear_error(kwargs: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match) as info:
         SensorLayout([[[0.0, 25.0], [0.0, -25.0]]], **kwargs)

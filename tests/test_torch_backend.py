@@ -87,10 +87,16 @@ def test_calibrated_likelihood_matches_numba(name):
     mean_std = model.mean_std(off.astype(np.float32))
     want = want - 0.0 * mean_std[0]  # the model's own float32 path
     table = torch.tensor(np.stack([to_torch_layout(coef, n1, n1 + 5)] * 4))
-    got = F.calibrated_log_likelihood(torch.tensor(parts), torch.tensor(carriage),
-                                      torch.full((4,), np.float32(model.grid_mm[0])),
-                                      torch.full((4,), np.float32(1.0 / 4.0)), torch.full((4,), n1), n1 + 5, table,
-                                      torch.tensor(reading)).numpy()
+    got = F.calibrated_log_likelihood(
+        torch.tensor(parts),
+        torch.tensor(carriage),
+        torch.full((4,), np.float32(model.grid_mm[0])),
+        torch.full((4,), np.float32(1.0 / 4.0)),
+        torch.full((4,), n1),
+        n1 + 5,
+        table,
+        torch.tensor(reading),
+    ).numpy()
     np.testing.assert_allclose(got, want, rtol=2e-5, atol=2e-4)
 
 
@@ -105,9 +111,15 @@ def test_analytic_likelihood_matches_numba():
     want = model.log_likelihood(reading[:, None], off)
     k = consts(condition="salt-steel-12.7", sensor_model="analytic")
     dip = tuple(d.repeat(3).to(torch.float32) for d in (k.dip_h, k.dip_z2, k.dip_k, k.dip_strength))
-    got = F.analytic_log_likelihood(torch.tensor(parts), torch.tensor(carriage), dip,
-                                    k.dip_scale.repeat(3).float(), k.saturation_V.repeat(3).float(),
-                                    k.noise_V.repeat(3).float(), torch.tensor(reading, dtype=torch.float32)).numpy()
+    got = F.analytic_log_likelihood(
+        torch.tensor(parts),
+        torch.tensor(carriage),
+        dip,
+        k.dip_scale.repeat(3).float(),
+        k.saturation_V.repeat(3).float(),
+        k.noise_V.repeat(3).float(),
+        torch.tensor(reading, dtype=torch.float32),
+    ).numpy()
     assert want.dtype == np.float32
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-3)
 
@@ -144,12 +156,15 @@ def test_resampling_and_statistics_match_numba(seed):
     half = np.full(k, h, dtype=np.float32)
     out = np.empty_like(src)
     mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, 64))
-    assert loglik_assimilate(ll, src.copy(), origin, u0, jit, normal_table(), half, out, mean, cov, 2 * half, 8,
-                             counts) == -1
+    assert (
+        loglik_assimilate(ll, src.copy(), origin, u0, jit, normal_table(), half, out, mean, cov, 2 * half, 8, counts)
+        == -1
+    )
     table = torch.tensor(normal_table())
     j = torch.tensor(jit.astype(np.int64))
-    got, idx = F.resample(torch.tensor(ll), torch.tensor(src), torch.tensor(u0), j[:, 0::2], j[:, 1::2], table,
-                          torch.tensor(half))
+    got, idx = F.resample(
+        torch.tensor(ll), torch.tensor(src), torch.tensor(u0), j[:, 0::2], j[:, 1::2], table, torch.tensor(half)
+    )
     same = (got.numpy() == out).all(axis=1)
     assert same.mean() > 0.999  # a pointer within float rounding of a cumulative weight may pick its neighbour
     gmean, gcov, gcounts = F.statistics(got, torch.tensor(origin), torch.tensor(2 * half))
@@ -174,8 +189,15 @@ def test_resample_degenerate_weights_are_uniform():
     ll = torch.full((1, 8), -float("inf"))
     parts = torch.arange(16, dtype=torch.float32).reshape(1, 2, 8)
     zero = torch.full((1, 8), 32768)  # the table's entry nearest 0
-    _, idx = F.resample(ll, parts, torch.tensor([0.5], dtype=torch.float64), zero, zero,
-                        torch.tensor(normal_table()), torch.tensor([100.0]))
+    _, idx = F.resample(
+        ll,
+        parts,
+        torch.tensor([0.5], dtype=torch.float64),
+        zero,
+        zero,
+        torch.tensor(normal_table()),
+        torch.tensor([100.0]),
+    )
     np.testing.assert_array_equal(idx.numpy(), [list(range(8))])
 
 
@@ -207,8 +229,9 @@ def test_belief_observation_matches_numba():
     desc = np.stack([condition_descriptor(get_condition(p)) for p in PRESET_NAMES[:k]])
     want = belief_observation(carriage, reading, mean, cov, hist, n_obs, 35, half, noise, sat, 10.0, desc)
     t = torch.tensor
-    got = F.belief_observation(t(carriage), t(reading), t(mean), t(cov), t(hist), t(n_obs), 35, t(half), t(noise),
-                               t(sat), 10.0, t(desc)).numpy()
+    got = F.belief_observation(
+        t(carriage), t(reading), t(mean), t(cov), t(hist), t(n_obs), 35, t(half), t(noise), t(sat), 10.0, t(desc)
+    ).numpy()
     np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-7)
 
 
@@ -231,7 +254,7 @@ def test_same_seed_same_trajectory_and_independent_of_n():
     c = rollout(TorchElectroLocVectorEnv(num_envs=2, **kw), 12, [5, 6], 2)
     for x, y, z in zip(a, b, c, strict=True):
         assert torch.equal(x, y)
-        assert torch.equal(x[:2, :z.shape[1]] if x.shape[1] == z.shape[1] else x[:2], z)
+        assert torch.equal(x[:2, : z.shape[1]] if x.shape[1] == z.shape[1] else x[:2], z)
 
 
 def test_episodes_end_and_autoreset():
@@ -247,8 +270,15 @@ def test_episodes_end_and_autoreset():
         assert obs.shape == (8, 81) and obs.dtype == torch.float32 and torch.all(obs.abs() <= 1)
 
 
-@pytest.mark.parametrize("kw", [dict(observation="raw"), dict(action_type="discrete"), dict(sensor_model="analytic"),
-                                dict(calibration_seed=3, condition="random")])
+@pytest.mark.parametrize(
+    "kw",
+    [
+        dict(observation="raw"),
+        dict(action_type="discrete"),
+        dict(sensor_model="analytic"),
+        dict(calibration_seed=3, condition="random"),
+    ],
+)
 def test_options_run_and_fit_their_spaces(kw):
     env = TorchElectroLocVectorEnv(num_envs=3, n_particles=300, **kw)
     obs, _ = env.reset(seed=1)
@@ -260,14 +290,16 @@ def test_options_run_and_fit_their_spaces(kw):
 
 def test_fixed_calibration_seed_is_the_numba_table():
     k = consts(calibration_seed=5)
-    want = calibration_coefficients(get_condition("fresh-steel-12.7"), 5, DEFAULT_CALIBRATION,
-                                    out=np.empty((50 * 50 + 1, 8), dtype=np.float32))
+    want = calibration_coefficients(
+        get_condition("fresh-steel-12.7"), 5, DEFAULT_CALIBRATION, out=np.empty((50 * 50 + 1, 8), dtype=np.float32)
+    )
     np.testing.assert_array_equal(k.fixed_table[0].numpy(), to_torch_layout(want, 50, k.grid_n - 1))
 
 
 def test_step_compiles_without_graph_break():
-    env = TorchElectroLocVectorEnv(num_envs=2, n_particles=64, compile=True, compile_backend="eager",
-                                   condition="random")
+    env = TorchElectroLocVectorEnv(
+        num_envs=2, n_particles=64, compile=True, compile_backend="eager", condition="random"
+    )
     env.reset(seed=0)
     for _ in range(3):
         env.step(torch.zeros(2, 2))
@@ -276,8 +308,14 @@ def test_step_compiles_without_graph_break():
 
 
 def test_make_vec_backend_torch():
-    env = gym.make_vec("ElectroLoc-v0", num_envs=3, vectorization_mode="vector_entry_point", backend="torch",
-                       device="cpu", n_particles=200)
+    env = gym.make_vec(
+        "ElectroLoc-v0",
+        num_envs=3,
+        vectorization_mode="vector_entry_point",
+        backend="torch",
+        device="cpu",
+        n_particles=200,
+    )
     assert isinstance(env, TorchElectroLocVectorEnv)
     obs, info = env.reset(seed=0)
     assert isinstance(obs, torch.Tensor) and obs.device.type == "cpu"
@@ -293,16 +331,19 @@ def test_make_vec_backend_torch():
     assert not isinstance(numba_env, TorchElectroLocVectorEnv)
 
 
-@pytest.mark.parametrize(("env_id", "kw", "match"), [
-    ("ElectroLocGlobal-v0", {}, "implements"),
-    ("ElectroLocUnknownTarget-v0", {}, "implements"),
-    ("ElectroLoc-v0", {"backend": "jax"}, "backend must be one of"),
-    ("ElectroLoc-v0", {"gain_levels": (0.5, 1.0)}, "gain_levels"),
-    ("ElectroLoc-v0", {"distractors": 2}, "distractors"),
-    ("ElectroLoc-v0", {"sensor_layout": "array-3"}, "sensor_layout"),
-    ("ElectroLoc-v0", {"device": "nonsense"}, "device must be"),
-    ("ElectroLoc-v0", {"autoreset_mode": "same_step"}, "autoreset_mode"),
-])
+@pytest.mark.parametrize(
+    ("env_id", "kw", "match"),
+    [
+        ("ElectroLocGlobal-v0", {}, "implements"),
+        ("ElectroLocUnknownTarget-v0", {}, "implements"),
+        ("ElectroLoc-v0", {"backend": "jax"}, "backend must be one of"),
+        ("ElectroLoc-v0", {"gain_levels": (0.5, 1.0)}, "gain_levels"),
+        ("ElectroLoc-v0", {"distractors": 2}, "distractors"),
+        ("ElectroLoc-v0", {"sensor_layout": "array-3"}, "sensor_layout"),
+        ("ElectroLoc-v0", {"device": "nonsense"}, "device must be"),
+        ("ElectroLoc-v0", {"autoreset_mode": "same_step"}, "autoreset_mode"),
+    ],
+)
 def test_refusals_are_one_clear_error(env_id, kw, match):
     kw = {"backend": "torch", **kw}
     with pytest.raises(ValueError, match=match):

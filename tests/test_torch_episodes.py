@@ -26,8 +26,14 @@ TRIALS = 50
 def _first_episodes(backend: str, condition: str, policy) -> tuple[np.ndarray, np.ndarray]:
     """(success, readings) of each sub-env's first episode, sub-env k on trial k's env seed."""
     kw = {"backend": "torch", "device": "cpu"} if backend == "torch" else {}
-    env = gym.make_vec("ElectroLoc-v0", num_envs=TRIALS, vectorization_mode="vector_entry_point",
-                       condition=condition, randomize_target=False, **kw)
+    env = gym.make_vec(
+        "ElectroLoc-v0",
+        num_envs=TRIALS,
+        vectorization_mode="vector_entry_point",
+        condition=condition,
+        randomize_target=False,
+        **kw,
+    )
     obs, _ = env.reset(seed=[trial_seeds(0, condition, k)[0] for k in range(TRIALS)])
     done, success, readings = np.zeros(TRIALS, bool), np.zeros(TRIALS, bool), np.zeros(TRIALS)
     rng = np.random.default_rng(7)

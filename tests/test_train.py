@@ -72,34 +72,47 @@ def test_shaping_telescopes_and_is_off_until_training_switches_it_on():
     assert np.array_equal(off.step(a)[1], plain.step(a)[1])
 
 
-@pytest.mark.parametrize("coef, gamma, pattern", [(-1.0, 0.99, "coef must be a number ≥ 0"),
-                                                  (float("nan"), 0.99, "coef"), (1.0, 1.5, "gamma must be in")])
+@pytest.mark.parametrize(
+    "coef, gamma, pattern",
+    [(-1.0, 0.99, "coef must be a number ≥ 0"), (float("nan"), 0.99, "coef"), (1.0, 1.5, "gamma must be in")],
+)
 def test_bad_shaping_arguments_are_one_line(coef, gamma, pattern):
     with pytest.raises(ValueError, match=pattern):
         check_shaping(coef, gamma)
 
 
-@pytest.mark.parametrize("kwargs, pattern", [({"eval_freq": 0}, "eval_freq must be an integer ≥ 1"),
-                                             ({"n_episodes": 1.5}, "n_episodes must be"),
-                                             ({"seed": -1}, "seed must be an integer ≥ 0")])
+@pytest.mark.parametrize(
+    "kwargs, pattern",
+    [
+        ({"eval_freq": 0}, "eval_freq must be an integer ≥ 1"),
+        ({"n_episodes": 1.5}, "n_episodes must be"),
+        ({"seed": -1}, "seed must be an integer ≥ 0"),
+    ],
+)
 def test_bad_callback_arguments_are_one_line(kwargs, pattern):
     with pytest.raises(ValueError, match=pattern):
         BenchEvalCallback(**kwargs)
 
 
-@pytest.mark.parametrize("argv, pattern", [
-    (["--algo", "td3", "--seed", "1"], "argument --algo: invalid choice: 'td3'"),
-    (["--algo", "ppo", "--seed", "-1"], "seed must be an integer in [0, 2**32)"),
-    (["--algo", "ppo", "--seed", str(2**64)], "seed must be an integer in [0, 2**32)"),
-    (["--algo", "ppo", "--seed", "1", "--env", "Nope-v0"], "env_id 'Nope-v0' is not registered"),
-    (["--algo", "ppo", "--seed", "1", "--timesteps", "0"], "timesteps must be an integer in [1,"),
-    (["--algo", "ppo", "--seed", "1", "--timesteps", str(10**30)], "timesteps must be an integer in [1,"),
-    (["--algo", "ppo", "--seed", "1", "--env-kwargs", "observation"], "--env-kwargs: 'observation' must be key=value"),
-    (["--algo", "ppo", "--seed", "1", "--env-kwargs", "distractors=9"], "refused by ElectroLoc-v0"),
-    (["--algo", "ppo", "--seed", "1", "--env-kwargs", "fixed_carriage='yes'"], "fixed_carriage must be"),
-    (["--algo", "ppo"], "the following arguments are required: --seed"),
-    (["--algo", "ppo", "--seed", "x"], "argument --seed: invalid int value"),
-])
+@pytest.mark.parametrize(
+    "argv, pattern",
+    [
+        (["--algo", "td3", "--seed", "1"], "argument --algo: invalid choice: 'td3'"),
+        (["--algo", "ppo", "--seed", "-1"], "seed must be an integer in [0, 2**32)"),
+        (["--algo", "ppo", "--seed", str(2**64)], "seed must be an integer in [0, 2**32)"),
+        (["--algo", "ppo", "--seed", "1", "--env", "Nope-v0"], "env_id 'Nope-v0' is not registered"),
+        (["--algo", "ppo", "--seed", "1", "--timesteps", "0"], "timesteps must be an integer in [1,"),
+        (["--algo", "ppo", "--seed", "1", "--timesteps", str(10**30)], "timesteps must be an integer in [1,"),
+        (
+            ["--algo", "ppo", "--seed", "1", "--env-kwargs", "observation"],
+            "--env-kwargs: 'observation' must be key=value",
+        ),
+        (["--algo", "ppo", "--seed", "1", "--env-kwargs", "distractors=9"], "refused by ElectroLoc-v0"),
+        (["--algo", "ppo", "--seed", "1", "--env-kwargs", "fixed_carriage='yes'"], "fixed_carriage must be"),
+        (["--algo", "ppo"], "the following arguments are required: --seed"),
+        (["--algo", "ppo", "--seed", "x"], "argument --seed: invalid int value"),
+    ],
+)
 def test_the_front_door_names_each_bad_argument_in_one_line(argv, pattern, capsys):
     from electroloc_gym.cli import main
 
@@ -116,8 +129,9 @@ def test_a_log_folder_under_a_file_is_one_line(tmp_path, capsys):
     from electroloc_gym.cli import main
 
     (tmp_path / "a-file").write_text("")
-    code = main(["train", "--algo", "ppo", "--seed", "1", "--log-folder", str(tmp_path / "a-file" / "x"),
-                 "--print-command"])
+    code = main(
+        ["train", "--algo", "ppo", "--seed", "1", "--log-folder", str(tmp_path / "a-file" / "x"), "--print-command"]
+    )
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and "is a file" in err
 
@@ -126,14 +140,29 @@ def test_the_front_door_prints_the_exact_rl_zoo3_command(capsys, monkeypatch):
     monkeypatch.chdir(ROOT)
     from electroloc_gym.train.__main__ import main
 
-    assert main(["--algo", "ppo", "--seed", "3000", "--env-kwargs", "observation=raw", "--hyperparams",
-                 "frame_stack=16", "--print-command"]) == 0
+    assert (
+        main(
+            [
+                "--algo",
+                "ppo",
+                "--seed",
+                "3000",
+                "--env-kwargs",
+                "observation=raw",
+                "--hyperparams",
+                "frame_stack=16",
+                "--print-command",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
-    assert out.startswith("python -m rl_zoo3.train --algo ppo --env ElectroLoc-v0 --gym-packages "
-                          "electroloc_gym.train.zoo --conf-file ")
+    assert out.startswith(
+        "python -m rl_zoo3.train --algo ppo --env ElectroLoc-v0 --gym-packages electroloc_gym.train.zoo --conf-file "
+    )
     words = shlex.split(out)
     tail = ["--env-kwargs", "observation:'raw'", "--hyperparams", "frame_stack:16"]
-    assert words[words.index("--env-kwargs"):] == tail
+    assert words[words.index("--env-kwargs") :] == tail
     assert words[words.index("--conf-file") + 1] == "train/hyperparams/ppo.yml"  # relative to the repository root
 
 
@@ -188,8 +217,14 @@ def test_the_export_default_path_opens_no_pickle(tiny_run, tmp_path):
     meta = json.loads((dest / "policy.json").read_text())
     assert meta["provenance"]["command"].startswith("python -m rl_zoo3.train")
     assert meta["provenance"]["checkpoint_chosen_by"].startswith("fewest mean readings")
-    assert {p.name for p in dest.iterdir()} >= {"policy.json", "policy.safetensors", "eval.csv", "summary.json",
-                                                "command.txt", "config.yml"}
+    assert {p.name for p in dest.iterdir()} >= {
+        "policy.json",
+        "policy.safetensors",
+        "eval.csv",
+        "summary.json",
+        "command.txt",
+        "config.yml",
+    }
     from electroloc_gym.bench.agents import make_bench_agent
 
     make_bench_agent(str(run))  # a run folder resolves to its best/ export
@@ -233,12 +268,15 @@ def test_learning_curves_from_a_run(tiny_run, tmp_path):
     assert (tmp_path / "c.png").stat().st_size > 1000
 
 
-@pytest.mark.parametrize("text, words", [
-    ("", "no rows"),
-    ("timesteps,success_rate\n1,0.5\n", "missing column(s) ['mean_readings', 'median_readings']"),
-    ("timesteps,success_rate,mean_readings,median_readings\n1,0.5,x,3\n", "a non-number in column 'mean_readings'"),
-    ("timesteps,success_rate,mean_readings,median_readings\n1,nan,3,3\n", "non-finite evaluation in column"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("", "no rows"),
+        ("timesteps,success_rate\n1,0.5\n", "missing column(s) ['mean_readings', 'median_readings']"),
+        ("timesteps,success_rate,mean_readings,median_readings\n1,0.5,x,3\n", "a non-number in column 'mean_readings'"),
+        ("timesteps,success_rate,mean_readings,median_readings\n1,nan,3,3\n", "non-finite evaluation in column"),
+    ],
+)
 def test_the_eval_csv_reader_refuses_a_damaged_log_in_one_line(tmp_path, text, words) -> None:
     from electroloc_gym.train.curves import read_eval_csv
 
@@ -247,5 +285,9 @@ def test_the_eval_csv_reader_refuses_a_damaged_log_in_one_line(tmp_path, text, w
         read_eval_csv(tmp_path)
     assert words in str(err.value) and str(tmp_path) in str(err.value) and "\n" not in str(err.value)
     (tmp_path / "eval.csv").write_text("timesteps,success_rate,mean_readings,median_readings\n5,1,4,4\n")
-    assert read_eval_csv(tmp_path) == {"timesteps": [5.0], "success_rate": [1.0], "mean_readings": [4.0],
-                                       "median_readings": [4.0]}
+    assert read_eval_csv(tmp_path) == {
+        "timesteps": [5.0],
+        "success_rate": [1.0],
+        "mean_readings": [4.0],
+        "median_readings": [4.0],
+    }

@@ -36,9 +36,15 @@ def test_sphere_reading_of_the_condition_sphere_is_eq4_at_its_depth_bit_for_bit(
     off = _GRID.astype(dtype)
     a = sphere_reading(c, off, c.target.radius_mm, c.chi, saturate=False)
     g = c.geometry
-    delta = physics.differential_perturbation(off, c.target.radius_mm, c.chi, c.depth_mm, spacing_mm=g.spacing_mm,
-                                              emitter_voltage_V=g.emitter_voltage_V,
-                                              electrode_radius_mm=g.electrode_radius_mm)
+    delta = physics.differential_perturbation(
+        off,
+        c.target.radius_mm,
+        c.chi,
+        c.depth_mm,
+        spacing_mm=g.spacing_mm,
+        emitter_voltage_V=g.emitter_voltage_V,
+        electrode_radius_mm=g.electrode_radius_mm,
+    )
     b = delta * delta.dtype.type(c.signal_scale * c.amplifier.gain)
     assert a.dtype == b.dtype == dtype
     assert np.array_equal(a, b)
@@ -56,8 +62,11 @@ def test_theoretical_model_is_linear_in_chi_and_grows_with_the_radius() -> None:
     # Eq. 4 with the sphere's centre at A + E + O below the electrodes (a bigger sphere sits deeper)
     for a in (6.0, 18.0):
         got, _ = model.mean_std(np.array([[20.0, 20.0]]), a, 1.0)
-        want = physics.differential_perturbation(np.array([20.0, 20.0]), a, 1.0, a + 1.0 + 2.0) \
-            * c.signal_scale * c.amplifier.gain
+        want = (
+            physics.differential_perturbation(np.array([20.0, 20.0]), a, 1.0, a + 1.0 + 2.0)
+            * c.signal_scale
+            * c.amplifier.gain
+        )
         assert got[0] == pytest.approx(float(want), rel=1e-12)
     # per-particle shapes broadcast: one call equals the scalar calls
     radius = np.array([6.0, 12.0, 18.0])
@@ -65,7 +74,7 @@ def test_theoretical_model_is_linear_in_chi_and_grows_with_the_radius() -> None:
     p = np.array([[5.0, 9.0], [-14.0, 3.0], [22.0, -30.0]])
     batched, _ = model.mean_std(p, radius, chi)
     for k in range(3):
-        assert batched[k] == model.mean_std(p[k:k + 1], radius[k], chi[k])[0][0]
+        assert batched[k] == model.mean_std(p[k : k + 1], radius[k], chi[k])[0][0]
 
 
 def test_interpolated_model_at_a_calibrated_radius_is_that_calibration() -> None:
@@ -106,8 +115,10 @@ def test_check_env_gymnasium_and_sb3() -> None:
     check_env(env.unwrapped, skip_render_check=True)
     sb3 = pytest.importorskip("stable_baselines3.common.env_checker")
     sb3.check_env(gym.make(ENV_ID, n_particles=300), warn=True)
-    check_env(gym.make(ENV_ID, n_particles=200, sensor_model="interpolated", contrast="continuous").unwrapped,
-              skip_render_check=True)
+    check_env(
+        gym.make(ENV_ID, n_particles=200, sensor_model="interpolated", contrast="continuous").unwrapped,
+        skip_render_check=True,
+    )
 
 
 def test_info_reports_the_estimates_and_the_truth() -> None:
@@ -180,17 +191,20 @@ def test_same_seed_same_episode_and_min_var_runs() -> None:
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
 
 
-@pytest.mark.parametrize(("kwargs", "match"), [
-    ({"sensor_model": "calibrated"}, "sensor_model"),
-    ({"radius_range_mm": (10.0, 5.0)}, "radius_range_mm"),
-    ({"radius_range_mm": (0.0, 5.0)}, "radius_range_mm"),
-    ({"radius_range_mm": 5.0}, "radius_range_mm"),
-    ({"contrast": "ternary"}, "contrast"),
-    ({"target_draw": "truth"}, "target_draw"),
-    ({"eev_radii_mm": (6.0, 6.0)}, "eev_radii_mm"),
-    ({"eev_radii_mm": ()}, "eev_radii_mm"),
-    ({"layout": "benchmark"}, "unexpected argument"),
-])
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"sensor_model": "calibrated"}, "sensor_model"),
+        ({"radius_range_mm": (10.0, 5.0)}, "radius_range_mm"),
+        ({"radius_range_mm": (0.0, 5.0)}, "radius_range_mm"),
+        ({"radius_range_mm": 5.0}, "radius_range_mm"),
+        ({"contrast": "ternary"}, "contrast"),
+        ({"target_draw": "truth"}, "target_draw"),
+        ({"eev_radii_mm": (6.0, 6.0)}, "eev_radii_mm"),
+        ({"eev_radii_mm": ()}, "eev_radii_mm"),
+        ({"layout": "benchmark"}, "unexpected argument"),
+    ],
+)
 def test_bad_arguments(kwargs: dict[str, Any], match: str) -> None:
     with pytest.raises(ValueError, match=match):
         gym.make(ENV_ID, **kwargs)
@@ -206,17 +220,28 @@ def test_the_other_envs_refuse_the_unknown_target_arguments() -> None:
 # ---- equivalence: the native vector env is the single env, per env, on every CPU --------------------------
 EQUIVALENCE_CASES = [
     pytest.param({"n_particles": 300}, AutoresetMode.NEXT_STEP, id="prior-next"),
-    pytest.param({"n_particles": 200, "target_draw": "condition", "contrast": "continuous", "max_observations": 8},
-                 AutoresetMode.SAME_STEP, id="condition-continuous-same-step"),
-    pytest.param({"n_particles": 150, "sensor_model": "interpolated", "max_observations": 6},
-                 AutoresetMode.NEXT_STEP, id="interpolated"),
+    pytest.param(
+        {"n_particles": 200, "target_draw": "condition", "contrast": "continuous", "max_observations": 8},
+        AutoresetMode.SAME_STEP,
+        id="condition-continuous-same-step",
+    ),
+    pytest.param(
+        {"n_particles": 150, "sensor_model": "interpolated", "max_observations": 6},
+        AutoresetMode.NEXT_STEP,
+        id="interpolated",
+    ),
 ]
 
 
 @pytest.mark.parametrize(("kwargs", "mode"), EQUIVALENCE_CASES)
 def test_native_equals_sync_of_single_envs(kwargs: dict[str, Any], mode: AutoresetMode) -> None:
-    assert_native_equals_sync(ENV_ID, kwargs, mode, ("reading_V", "spread_mm", "radius_estimate_mm",
-                                                     "radius_mean_mm", "p_conductor", "chi_spread"), min_ended=1)
+    assert_native_equals_sync(
+        ENV_ID,
+        kwargs,
+        mode,
+        ("reading_V", "spread_mm", "radius_estimate_mm", "radius_mean_mm", "p_conductor", "chi_spread"),
+        min_ended=1,
+    )
 
 
 def test_resample_indices_equal_searchsorted() -> None:
@@ -243,8 +268,15 @@ def test_bench_unknown_target_records_identification_and_prints_its_table(tmp_pa
     from electroloc_gym.bench.records import read_trials
     from electroloc_gym.bench.runner import run_benchmark
 
-    cfg = BenchConfig(agents=("rnd-wlk", "min-var[n_voters=32]"), conditions=("salt-steel-38.1",), trials=2,
-                      sensor_model="analytic", n_particles=300, max_observations=8, env_id=UNKNOWN_ENV_ID)
+    cfg = BenchConfig(
+        agents=("rnd-wlk", "min-var[n_voters=32]"),
+        conditions=("salt-steel-38.1",),
+        trials=2,
+        sensor_model="analytic",
+        n_particles=300,
+        max_observations=8,
+        env_id=UNKNOWN_ENV_ID,
+    )
     summary = run_benchmark(cfg, tmp_path, backend="serial", progress=False, log=None)
     recs = read_trials(tmp_path / "trials.jsonl")
     assert len(recs) == 4

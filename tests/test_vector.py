@@ -43,19 +43,38 @@ def _actions(space: gym.Space, n_steps: int, seed: int) -> list[Any]:
 
 CASES = [
     pytest.param({"n_particles": 400}, AutoresetMode.NEXT_STEP, 120, id="calibrated-next"),
-    pytest.param({"n_particles": 300, "sensor_model": "analytic", "condition": "random", "randomize_target": True},
-                 AutoresetMode.NEXT_STEP, 120, id="analytic-random-target"),
+    pytest.param(
+        {"n_particles": 300, "sensor_model": "analytic", "condition": "random", "randomize_target": True},
+        AutoresetMode.NEXT_STEP,
+        120,
+        id="analytic-random-target",
+    ),
     pytest.param({"n_particles": 300, "condition": "random"}, AutoresetMode.SAME_STEP, 120, id="random-same-step"),
-    pytest.param({"n_particles": 200, "observation": "raw", "action_type": "discrete", "max_observations": 6},
-                 AutoresetMode.NEXT_STEP, 80, id="raw-discrete"),
-    pytest.param({"n_particles": 250, "calibration_seed": 7, "signal": "paper", "condition": "salt-delrin-38.1",
-                  "success_spread_mm": 14.0}, AutoresetMode.SAME_STEP, 80, id="fixed-calibration-paper"),
+    pytest.param(
+        {"n_particles": 200, "observation": "raw", "action_type": "discrete", "max_observations": 6},
+        AutoresetMode.NEXT_STEP,
+        80,
+        id="raw-discrete",
+    ),
+    pytest.param(
+        {
+            "n_particles": 250,
+            "calibration_seed": 7,
+            "signal": "paper",
+            "condition": "salt-delrin-38.1",
+            "success_spread_mm": 14.0,
+        },
+        AutoresetMode.SAME_STEP,
+        80,
+        id="fixed-calibration-paper",
+    ),
 ]
 
 
 @pytest.mark.parametrize(("kwargs", "mode", "n_steps"), CASES)
-def test_native_equals_sync_of_single_envs_bit_for_bit(kwargs: dict[str, Any], mode: AutoresetMode,
-                                                         n_steps: int) -> None:
+def test_native_equals_sync_of_single_envs_bit_for_bit(
+    kwargs: dict[str, Any], mode: AutoresetMode, n_steps: int
+) -> None:
     n = 5
     native = _native(n, autoreset_mode=mode, **kwargs)
     ref = _reference(n, mode, **kwargs)
@@ -141,8 +160,12 @@ def test_reset_mask_resets_only_selected_envs() -> None:
 
 def test_max_episode_steps_truncates_like_time_limit() -> None:
     native = _native(2, n_particles=120, max_episode_steps=3, success_spread_mm=1e-6)
-    ref = gym.vector.SyncVectorEnv([lambda: gym.make("ElectroLoc-v0", n_particles=120, max_episode_steps=3,
-                                                     success_spread_mm=1e-6) for _ in range(2)])
+    ref = gym.vector.SyncVectorEnv(
+        [
+            lambda: gym.make("ElectroLoc-v0", n_particles=120, max_episode_steps=3, success_spread_mm=1e-6)
+            for _ in range(2)
+        ]
+    )
     native.reset(seed=1)
     ref.reset(seed=sub_env_seeds(1, 2))
     for act in _actions(ref.action_space, 8, seed=0):
@@ -187,13 +210,28 @@ def test_resample_kernel_equals_belief_resample_and_jitter() -> None:
         half = np.float32(rng.uniform(5, 60))
         aos = rng.uniform(-half, half, (n, m, 2)).astype(np.float32)
         raw = rng.integers(0, 2**64, size=(n, (2 * m + 3) // 4), dtype=np.uint64)
-        jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, :2 * m])
+        jitter_idx = np.ascontiguousarray(raw.view(np.uint16)[:, : 2 * m])
         out = np.ascontiguousarray(aos.transpose(0, 2, 1))  # updated in place
         mean, cov, counts = np.empty((n, 2)), np.empty((n, 2, 2)), np.empty((n, HIST_BINS * HIST_BINS))
         origin = rng.uniform(-half, half, (n, 2))
-        assert loglik_assimilate(ll, out, origin.astype(np.float32), u, jitter_idx, normal_table(),
-                                 np.full(n, half, dtype=np.float32), out, mean, cov,
-                                 np.full(n, 2 * half, dtype=np.float32), HIST_BINS, counts) == -1
+        assert (
+            loglik_assimilate(
+                ll,
+                out,
+                origin.astype(np.float32),
+                u,
+                jitter_idx,
+                normal_table(),
+                np.full(n, half, dtype=np.float32),
+                out,
+                mean,
+                cov,
+                np.full(n, 2 * half, dtype=np.float32),
+                HIST_BINS,
+                counts,
+            )
+            == -1
+        )
         for i in range(n):
             b = ParticleBelief(m, (-half, -half), (half, half), dtype=np.float32)
             b.set_state(aos[i])
@@ -207,16 +245,19 @@ def test_resample_kernel_equals_belief_resample_and_jitter() -> None:
             assert np.array_equal(counts[i] / m, hist)
 
 
-@pytest.mark.parametrize(("kwargs", "match"), [
-    ({"num_envs": 0}, "num_envs"),
-    ({"num_envs": 2, "autoreset_mode": "sometimes"}, "autoreset_mode"),
-    ({"num_envs": 2, "autoreset_mode": AutoresetMode.DISABLED}, "autoreset_mode"),
-    ({"num_envs": 2, "render_mode": "rgb_array"}, "render_mode"),
-    ({"num_envs": 2, "max_episode_steps": 0}, "max_episode_steps"),
-    ({"num_envs": 2, "n_particles": 0}, "n_particles"),
-    ({"num_envs": 2, "observation": "pixels"}, "observation"),
-    ({"num_envs": 2, "condition": "mud-steel-12.7"}, "mud"),
-])
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"num_envs": 0}, "num_envs"),
+        ({"num_envs": 2, "autoreset_mode": "sometimes"}, "autoreset_mode"),
+        ({"num_envs": 2, "autoreset_mode": AutoresetMode.DISABLED}, "autoreset_mode"),
+        ({"num_envs": 2, "render_mode": "rgb_array"}, "render_mode"),
+        ({"num_envs": 2, "max_episode_steps": 0}, "max_episode_steps"),
+        ({"num_envs": 2, "n_particles": 0}, "n_particles"),
+        ({"num_envs": 2, "observation": "pixels"}, "observation"),
+        ({"num_envs": 2, "condition": "mud-steel-12.7"}, "mud"),
+    ],
+)
 def test_bad_constructor_arguments(kwargs: dict[str, Any], match: str) -> None:
     with pytest.raises((ValueError, KeyError), match=match):
         ElectroLocVectorEnv(**kwargs)
@@ -297,8 +338,9 @@ def test_sb3_adapter_shaping_equals_potential_shaping_wrapper() -> None:
 
     kw = {"n_particles": 200, "max_observations": 8}
     native = make_native_vec_env("ElectroLoc-v0", 3, seed=2, env_kwargs=kw, shaping_coef=1.0, gamma=0.9)
-    dummy = DummyVecEnv([lambda: PotentialShaping(Monitor(gym.make("ElectroLoc-v0", **kw)), 1.0, 0.9)
-                         for _ in range(3)])
+    dummy = DummyVecEnv(
+        [lambda: PotentialShaping(Monitor(gym.make("ElectroLoc-v0", **kw)), 1.0, 0.9) for _ in range(3)]
+    )
     dummy.seed(2)
     assert np.array_equal(native.reset(), dummy.reset())
     rng = np.random.default_rng(1)
@@ -319,8 +361,11 @@ def test_sb3_adapter_shaping_equals_potential_shaping_wrapper() -> None:
 # ---- ElectroLocGlobal-v0 (fixed map) ------------------------------------------------------------
 GLOBAL_CASES = [
     pytest.param({"n_particles": 300}, AutoresetMode.NEXT_STEP, id="global-calibrated-next"),
-    pytest.param({"n_particles": 300, "sensor_model": "analytic", "observation": "raw"}, AutoresetMode.SAME_STEP,
-                 id="global-analytic-raw-same-step"),
+    pytest.param(
+        {"n_particles": 300, "sensor_model": "analytic", "observation": "raw"},
+        AutoresetMode.SAME_STEP,
+        id="global-analytic-raw-same-step",
+    ),
     pytest.param({"n_particles": 200, "layout": "random"}, AutoresetMode.SAME_STEP, id="global-random-layout"),
 ]
 
@@ -328,10 +373,12 @@ GLOBAL_CASES = [
 @pytest.mark.parametrize(("kwargs", "mode"), GLOBAL_CASES)
 def test_global_native_equals_sync_of_single_envs(kwargs: dict[str, Any], mode: AutoresetMode) -> None:
     n = 3
-    native = gym.make_vec("ElectroLocGlobal-v0", num_envs=n, vectorization_mode="vector_entry_point",
-                          autoreset_mode=mode, **kwargs)
-    ref = gym.vector.SyncVectorEnv([lambda: gym.make("ElectroLocGlobal-v0", **kwargs) for _ in range(n)],
-                                   autoreset_mode=mode)
+    native = gym.make_vec(
+        "ElectroLocGlobal-v0", num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode=mode, **kwargs
+    )
+    ref = gym.vector.SyncVectorEnv(
+        [lambda: gym.make("ElectroLocGlobal-v0", **kwargs) for _ in range(n)], autoreset_mode=mode
+    )
     o1, _ = native.reset(seed=21)
     o2, _ = ref.reset(seed=sub_env_seeds(21, n))
     assert np.array_equal(o1, o2)
@@ -346,8 +393,9 @@ def test_global_native_equals_sync_of_single_envs(kwargs: dict[str, Any], mode: 
     assert ended >= 2
 
 
-@pytest.mark.parametrize("kwargs", [{"n_particles": 257}, {"n_particles": 257, "sensor_model": "analytic",
-                                                              "condition": "random"}])
+@pytest.mark.parametrize(
+    "kwargs", [{"n_particles": 257}, {"n_particles": 257, "sensor_model": "analytic", "condition": "random"}]
+)
 def test_sub_env_values_do_not_depend_on_the_batch_size(kwargs: dict[str, Any]) -> None:
     """Sub-env i of N = 1, 3 and 17 native envs seeded alike: the same bits (SIMD body vs tail of every array)."""
     envs = {n: _native(n, **kwargs) for n in (1, 3, 17)}

@@ -23,21 +23,43 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 MAX_WHEEL_MB = 12.0  # the shipped policies are about 6.6 MB of it
 LEFT_OUT = ("tests/", "results/", "build/", "experiments/", "benchmarks/", "docs/", ".nox/", "site/")
-_SKIP = shutil.ignore_patterns(".git", ".venv", ".nox", "site", "dist", "build", "__pycache__", "*.egg-info",
-                               ".pytest_cache", ".ruff_cache", ".hypothesis", "results", "logs")
+_SKIP = shutil.ignore_patterns(
+    ".git",
+    ".venv",
+    ".nox",
+    "site",
+    "dist",
+    "build",
+    "__pycache__",
+    "*.egg-info",
+    ".pytest_cache",
+    ".ruff_cache",
+    ".hypothesis",
+    "results",
+    "logs",
+)
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     src = tmp_path_factory.mktemp("checkout") / "electroloc-gym"
     shutil.copytree(ROOT, src, ignore=_SKIP)
-    for leftover in ("build/lib/electroloc_gym/leftover.py", "results/bench/table.md",
-                     "experiments/leftover/run.py", "models/ppo-belief/stale.pkl"):
+    for leftover in (
+        "build/lib/electroloc_gym/leftover.py",
+        "results/bench/table.md",
+        "experiments/leftover/run.py",
+        "models/ppo-belief/stale.pkl",
+    ):
         (src / leftover).parent.mkdir(parents=True, exist_ok=True)
         (src / leftover).write_text("# a leftover that must not ship\n", encoding="utf-8")
     dist = src.parent / "dist"
-    proc = subprocess.run([sys.executable, "-m", "build", "--no-isolation", "--outdir", str(dist), str(src)],
-                          capture_output=True, text=True, timeout=900, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.run(
+        [sys.executable, "-m", "build", "--no-isolation", "--outdir", str(dist), str(src)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     (sdist,) = dist.glob("electroloc_gym-*.tar.gz")
     (wheel,) = dist.glob("electroloc_gym-*.whl")
@@ -49,9 +71,14 @@ def test_wheel_holds_the_package_and_the_shipped_policies(built: tuple[Path, Pat
     names = zipfile.ZipFile(wheel).namelist()
     tops = {n.split("/", 1)[0] for n in names}
     assert {t for t in tops if not t.endswith(".dist-info")} == {"electroloc_gym"}
-    for needed in ("electroloc_gym/py.typed", "electroloc_gym/baselines/agent.py", "electroloc_gym/policy/load.py",
-                   "electroloc_gym/train/hyperparams/ppo.yml", "electroloc_gym/bench/records.py",
-                   "electroloc_gym/models/__init__.py"):
+    for needed in (
+        "electroloc_gym/py.typed",
+        "electroloc_gym/baselines/agent.py",
+        "electroloc_gym/policy/load.py",
+        "electroloc_gym/train/hyperparams/ppo.yml",
+        "electroloc_gym/bench/records.py",
+        "electroloc_gym/models/__init__.py",
+    ):
         assert needed in names, needed
     for model in sorted(p.name for p in (ROOT / "models").iterdir() if p.is_dir() and p.name != "__pycache__"):
         shipped = {Path(n).name for n in names if n.startswith(f"electroloc_gym/models/{model}/")}
@@ -68,8 +95,9 @@ def test_wheel_leaves_out_leftovers_tests_and_results(built: tuple[Path, Path]) 
     inner = [n.split("/", 1)[1] for n in names if n.startswith("electroloc_gym/")]
     assert not [n for n in inner if n.startswith(LEFT_OUT)]
     size_mb = wheel.stat().st_size / 1e6
-    by_folder = Counter(n.split("/")[1] if n.count("/") > 1 else "(package)" for n in names
-                        if n.startswith("electroloc_gym/"))
+    by_folder = Counter(
+        n.split("/")[1] if n.count("/") > 1 else "(package)" for n in names if n.startswith("electroloc_gym/")
+    )
     print(f"\n{wheel.name}: {len(names)} files, {size_mb:.1f} MB; files per folder: {dict(sorted(by_folder.items()))}")
     assert size_mb < MAX_WHEEL_MB, f"{wheel.name} is {size_mb:.1f} MB"
 
@@ -78,8 +106,14 @@ def test_sdist_holds_the_sources_not_the_results(built: tuple[Path, Path]) -> No
     sdist, _ = built
     with tarfile.open(sdist) as tar:
         names = [n.split("/", 1)[1] for n in tar.getnames() if "/" in n]
-    for needed in ("pyproject.toml", "README.md", "LICENSE", "electroloc_gym/__init__.py", "baselines/agent.py",
-                   "models/ppo-belief/policy.safetensors"):
+    for needed in (
+        "pyproject.toml",
+        "README.md",
+        "LICENSE",
+        "electroloc_gym/__init__.py",
+        "baselines/agent.py",
+        "models/ppo-belief/policy.safetensors",
+    ):
         assert needed in names, needed
     assert not [n for n in names if n.startswith(("results/", "build/", "experiments/")) or "leftover" in n]
     assert sdist.stat().st_size / 1e6 < MAX_WHEEL_MB

@@ -11,9 +11,18 @@ from gymnasium.vector import AutoresetMode
 from electroloc_gym.envs.vector import sub_env_seeds
 
 
-def assert_native_equals_sync(env_id: str, kwargs: dict[str, Any], mode: AutoresetMode, info_keys: tuple[str, ...],
-                              *, n: int = 3, seed: int = 5, action_seed: int = 2, steps: int = 40,
-                              min_ended: int = 0) -> None:
+def assert_native_equals_sync(
+    env_id: str,
+    kwargs: dict[str, Any],
+    mode: AutoresetMode,
+    info_keys: tuple[str, ...],
+    *,
+    n: int = 3,
+    seed: int = 5,
+    action_seed: int = 2,
+    steps: int = 40,
+    min_ended: int = 0,
+) -> None:
     """Run ``n`` native envs and ``n`` single envs in a SyncVectorEnv on the same seeds and random actions;
     observations, rewards, terminations and the ``info_keys`` must be bit for bit equal at every step.
     """

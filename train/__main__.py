@@ -32,24 +32,37 @@ class _Parser(argparse.ArgumentParser):
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit status (2 with one line on stderr for a bad argument)."""
-    p = _Parser(prog="electroloc train", description=__doc__, epilog=EPILOG,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _Parser(
+        prog="electroloc train",
+        description=__doc__,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--algo", required=True, choices=sorted(ALGO_FILES), help="rl-zoo3 algorithm")
     p.add_argument("--env", default="ElectroLoc-v0", help="env id (a section of the algorithm's file)")
     p.add_argument("--seed", type=int, required=True, help="the run's seed")
     p.add_argument("--timesteps", type=int, default=None, help="env-step budget (default: the file's)")
     p.add_argument("--log-folder", default="logs", help="rl-zoo3's log folder (default logs)")
     p.add_argument("--out", default=None, help="export the chosen checkpoint to this policy folder")
-    p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="replace the file's env_kwargs (rl-zoo3's rule)")
+    p.add_argument(
+        "--env-kwargs",
+        nargs="*",
+        default=[],
+        metavar="KEY=VALUE",
+        help="replace the file's env_kwargs (rl-zoo3's rule)",
+    )
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE", help="override hyper-parameters")
     p.add_argument("--dummy", action="store_true", help="rl-zoo3's default DummyVecEnv instead of the native env")
     p.add_argument("--print-command", action="store_true", help="print the rl-zoo3 command and exit")
     a = p.parse_args(argv)
     try:
-        kw = dict(timesteps=a.timesteps, log_folder=a.log_folder, native=not a.dummy,
-                  env_kwargs=parse_options(a.env_kwargs, "--env-kwargs"),
-                  hyperparams=parse_options(a.hyperparams, "--hyperparams"))
+        kw = dict(
+            timesteps=a.timesteps,
+            log_folder=a.log_folder,
+            native=not a.dummy,
+            env_kwargs=parse_options(a.env_kwargs, "--env-kwargs"),
+            hyperparams=parse_options(a.hyperparams, "--hyperparams"),
+        )
         args = zoo_argv(a.algo, a.env, a.seed, **kw)
         print(shlex.join(["python", *args]), flush=True)
         if a.print_command:

@@ -52,8 +52,17 @@ from electroloc_gym.train.wrappers import activate_shaping
 
 __all__ = ["BenchEvalCallback", "EVAL_FIELDS", "evaluate_agent"]
 
-EVAL_FIELDS = ("timesteps", "wall_time_s", "episodes", "success_rate", "mean_readings", "median_readings",
-               "median_error_mm", "mean_error_mm", "mean_return")
+EVAL_FIELDS = (
+    "timesteps",
+    "wall_time_s",
+    "episodes",
+    "success_rate",
+    "mean_readings",
+    "median_readings",
+    "median_error_mm",
+    "mean_error_mm",
+    "mean_return",
+)
 
 #: First reset seed of the validation episodes (the benchmark's trials are drawn from seed 0's stream).
 VALIDATION_SEED = 100_000
@@ -73,9 +82,15 @@ def evaluate_agent(agent: Any, env_id: str, env_kwargs: Mapping[str, Any], seeds
     finally:
         env.close()
     r, e = np.asarray(readings, float), np.asarray(errors, float)
-    return {"episodes": len(r), "success_rate": float(np.mean(success)), "mean_readings": float(r.mean()),
-            "median_readings": float(np.median(r)), "median_error_mm": float(np.median(e)),
-            "mean_error_mm": float(e.mean()), "mean_return": float(np.mean(returns))}
+    return {
+        "episodes": len(r),
+        "success_rate": float(np.mean(success)),
+        "mean_readings": float(r.mean()),
+        "median_readings": float(np.median(r)),
+        "median_error_mm": float(np.median(e)),
+        "mean_error_mm": float(e.mean()),
+        "mean_return": float(np.mean(returns)),
+    }
 
 
 def _zoo_argv() -> list[str]:
@@ -126,8 +141,14 @@ class BenchEvalCallback(BaseCallback):
         verbose: 1 prints one line per evaluation.
     """
 
-    def __init__(self, eval_freq: int = 50_000, n_episodes: int = 64, seed: int = VALIDATION_SEED,
-                 env_kwargs: Mapping[str, Any] | None = None, verbose: int = 1) -> None:
+    def __init__(
+        self,
+        eval_freq: int = 50_000,
+        n_episodes: int = 64,
+        seed: int = VALIDATION_SEED,
+        env_kwargs: Mapping[str, Any] | None = None,
+        verbose: int = 1,
+    ) -> None:
         super().__init__(verbose)
         for name, v in (("eval_freq", eval_freq), ("n_episodes", n_episodes)):
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
@@ -149,15 +170,21 @@ class BenchEvalCallback(BaseCallback):
         n = activate_shaping(self.training_env)
         self.env_id, self.env_kwargs, self.frame_stack, self.run_dir = env_of(self.training_env)
         if self.verbose:
-            print(f"[bench-eval] {self.env_id}: reward shaping {'on' if n else 'absent'}; evaluating every "
-                  f"{self.eval_freq} steps on {self.n_episodes} validation episodes (seeds {self.seed}…)", flush=True)
+            print(
+                f"[bench-eval] {self.env_id}: reward shaping {'on' if n else 'absent'}; evaluating every "
+                f"{self.eval_freq} steps on {self.n_episodes} validation episodes (seeds {self.seed}…)",
+                flush=True,
+            )
         if self.run_dir is not None:
-            self._lock = FolderLock(self.run_dir, ".bench_eval.lock",
-                                    f"another training run writes into {self.run_dir}").acquire()
+            self._lock = FolderLock(
+                self.run_dir, ".bench_eval.lock", f"another training run writes into {self.run_dir}"
+            ).acquire()
             if (self.run_dir / "eval.csv").exists():
                 self._lock.release()
-                raise ValueError(f"run folder {self.run_dir} already holds another run's eval.csv; "
-                                 f"rl-zoo3 gives every run a fresh folder — start a new run")
+                raise ValueError(
+                    f"run folder {self.run_dir} already holds another run's eval.csv; "
+                    f"rl-zoo3 gives every run a fresh folder — start a new run"
+                )
         self._t0 = time.perf_counter()
         self._last = self.num_timesteps
         self.evaluate()
@@ -180,10 +207,20 @@ class BenchEvalCallback(BaseCallback):
 
     # ---- evaluation ---------------------------------------------------------------------------
     def _meta(self, row: Mapping[str, Any] | None) -> dict[str, Any]:
-        return export_meta(self.model, env_id=self.env_id, env_kwargs=self.env_kwargs, frame_stack=self.frame_stack,
-                           vecnormalize=self.model.get_vec_normalize_env(), evaluation=row,
-                           provenance={"command": shlex.join(["python", *_zoo_argv()]), "seed": self.model.seed,
-                                       "timesteps": int(self.num_timesteps), "run": str(self.run_dir)})
+        return export_meta(
+            self.model,
+            env_id=self.env_id,
+            env_kwargs=self.env_kwargs,
+            frame_stack=self.frame_stack,
+            vecnormalize=self.model.get_vec_normalize_env(),
+            evaluation=row,
+            provenance={
+                "command": shlex.join(["python", *_zoo_argv()]),
+                "seed": self.model.seed,
+                "timesteps": int(self.num_timesteps),
+                "run": str(self.run_dir),
+            },
+        )
 
     def evaluate(self) -> dict[str, float]:
         """Evaluate the current policy now; log, write eval.csv, export it to ``best/`` if it is the best."""
@@ -197,10 +234,13 @@ class BenchEvalCallback(BaseCallback):
         for k in ("success_rate", "mean_readings", "median_readings", "median_error_mm", "mean_return"):
             self.logger.record(f"bench_eval/{k}", row[k])
         if self.verbose:
-            print(f"[bench-eval] t={row['timesteps']:>8d}  success {res['success_rate']:6.1%}  readings mean "
-                  f"{res['mean_readings']:5.2f} median {res['median_readings']:4.1f}  error median "
-                  f"{res['median_error_mm']:4.1f} mm  return {res['mean_return']:6.2f} (unshaped)  "
-                  f"({row['wall_time_s']:.0f} s)", flush=True)
+            print(
+                f"[bench-eval] t={row['timesteps']:>8d}  success {res['success_rate']:6.1%}  readings mean "
+                f"{res['mean_readings']:5.2f} median {res['median_readings']:4.1f}  error median "
+                f"{res['median_error_mm']:4.1f} mm  return {res['mean_return']:6.2f} (unshaped)  "
+                f"({row['wall_time_s']:.0f} s)",
+                flush=True,
+            )
         new_best = self.best is None or res["mean_readings"] <= self.best["mean_readings"]  # ties: the later checkpoint
         if new_best:
             self.best = row
@@ -220,14 +260,27 @@ class BenchEvalCallback(BaseCallback):
             return
         wall = time.perf_counter() - self._t0
         steps = int(self.num_timesteps)
-        write_json_atomic(self.run_dir / "summary.json", {
-            "env_id": self.env_id, "algo": type(self.model).__name__.lower(), "seed": self.model.seed,
-            "command": shlex.join(["python", *_zoo_argv()]), "argv": _zoo_argv(), "finished": finished,
-            "timesteps": steps,
-            "wall_time_s": round(wall, 3), "evaluation_time_s": round(self._eval_s, 3),
-            "fps_with_evaluation": round(steps / wall, 1) if wall > 0 else None,
-            "fps_training_only": round(steps / (wall - self._eval_s), 1) if wall > self._eval_s else None,
-            "validation": {"episodes": self.n_episodes, "first_seed": self.seed, "env_kwargs": self.eval_env_kwargs},
-            "chosen_by": "fewest mean readings to localise (failures count as the cap) on the validation episodes",
-            "best": self.best, "evaluations": len(self.history),
-        })
+        write_json_atomic(
+            self.run_dir / "summary.json",
+            {
+                "env_id": self.env_id,
+                "algo": type(self.model).__name__.lower(),
+                "seed": self.model.seed,
+                "command": shlex.join(["python", *_zoo_argv()]),
+                "argv": _zoo_argv(),
+                "finished": finished,
+                "timesteps": steps,
+                "wall_time_s": round(wall, 3),
+                "evaluation_time_s": round(self._eval_s, 3),
+                "fps_with_evaluation": round(steps / wall, 1) if wall > 0 else None,
+                "fps_training_only": round(steps / (wall - self._eval_s), 1) if wall > self._eval_s else None,
+                "validation": {
+                    "episodes": self.n_episodes,
+                    "first_seed": self.seed,
+                    "env_kwargs": self.eval_env_kwargs,
+                },
+                "chosen_by": "fewest mean readings to localise (failures count as the cap) on the validation episodes",
+                "best": self.best,
+                "evaluations": len(self.history),
+            },
+        )

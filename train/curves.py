@@ -62,8 +62,12 @@ def read_eval_csv(path: str | Path) -> dict[str, list[float]]:
     return cols
 
 
-def plot_learning_curves(runs: Sequence[str | Path], labels: Sequence[str] | None, out: str | Path,
-                         references: Mapping[str, tuple[float, float]] | None = None) -> Path:
+def plot_learning_curves(
+    runs: Sequence[str | Path],
+    labels: Sequence[str] | None,
+    out: str | Path,
+    references: Mapping[str, tuple[float, float]] | None = None,
+) -> Path:
     """Two panels (success rate, median steps) vs env steps for each run; written atomically as PNG.
 
     Args:
@@ -107,13 +111,21 @@ def plot_learning_curves(runs: Sequence[str | Path], labels: Sequence[str] | Non
 
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI entry point."""
-    p = argparse.ArgumentParser(prog="python -m electroloc_gym.train.curves", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="python -m electroloc_gym.train.curves",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("runs", nargs="+", help="run directories (or eval.csv files)")
     p.add_argument("--labels", nargs="*", default=None)
     p.add_argument("--out", default="learning_curves.png")
-    p.add_argument("--reference", nargs="*", default=[], metavar="NAME=SUCCESS,STEPS",
-                   help="horizontal reference lines, e.g. min-var=0.58,7")
+    p.add_argument(
+        "--reference",
+        nargs="*",
+        default=[],
+        metavar="NAME=SUCCESS,STEPS",
+        help="horizontal reference lines, e.g. min-var=0.58,7",
+    )
     a = p.parse_args(argv)
     refs = {}
     for item in a.reference:

@@ -78,8 +78,14 @@ def _from_zip(zip_path: Path, out: Path, summary: dict[str, Any]) -> dict[str, A
     env_id = str(args.get("env", summary.get("env_id")))
     env_kwargs = dict(args.get("env_kwargs") or cfg.get("env_kwargs") or {})
     stack = int(cfg.get("frame_stack") or 1)
-    meta = export_meta(model, env_id=env_id, env_kwargs=env_kwargs, frame_stack=stack, vecnormalize=vn,
-                       provenance={"timesteps": int(model.num_timesteps), "converted_from": zip_path.name})
+    meta = export_meta(
+        model,
+        env_id=env_id,
+        env_kwargs=env_kwargs,
+        frame_stack=stack,
+        vecnormalize=vn,
+        provenance={"timesteps": int(model.num_timesteps), "converted_from": zip_path.name},
+    )
     write_export(out, meta, model_weights(model))
     agent = agent_from_export(read_export(out))
     frames = _sample_observations(env_id, {**env_kwargs, **agent.env_kwargs}, 64 * stack)
@@ -89,14 +95,17 @@ def _from_zip(zip_path: Path, out: Path, summary: dict[str, Any]) -> dict[str, A
     expected, _ = model.predict(x, deterministic=True)
     got, _ = agent.actor(x, None, np.ones(64, dtype=bool))
     if not np.allclose(np.asarray(got, float), np.asarray(expected, float), atol=1e-5):
-        raise ValueError(f"{out}: the exported policy's actions differ from SB3's predict (max |Δ| "
-                         f"{np.abs(np.asarray(got, float) - np.asarray(expected, float)).max():.3g})")
+        raise ValueError(
+            f"{out}: the exported policy's actions differ from SB3's predict (max |Δ| "
+            f"{np.abs(np.asarray(got, float) - np.asarray(expected, float)).max():.3g})"
+        )
     print(f"{out}: actions match SB3's predict on 64 observations (|Δ| ≤ 1e-5)")
     return meta
 
 
-def export_run(run: str | Path, out: str | Path, *, zip_path: str | Path | None = None,
-               trust_pickle: bool = False) -> Path:
+def export_run(
+    run: str | Path, out: str | Path, *, zip_path: str | Path | None = None, trust_pickle: bool = False
+) -> Path:
     """Export ``run``'s chosen checkpoint (``best/``) — or, trusted, an SB3 zip of it — to ``out``.
 
     Raises:
@@ -113,38 +122,53 @@ def export_run(run: str | Path, out: str | Path, *, zip_path: str | Path | None 
         chosen = f"the SB3 zip {Path(zip_path).name} (converted with --trust-pickle)"
     else:
         best = read_export(run / "best")
-        write_export(dest, {k: v for k, v in best.meta.items() if k not in ("format", "format_version", "weights")},
-                     read_weights(best))
+        write_export(
+            dest,
+            {k: v for k, v in best.meta.items() if k not in ("format", "format_version", "weights")},
+            read_weights(best),
+        )
         chosen = summary.get("chosen_by", "")
     export = read_export(dest)
     meta = {k: v for k, v in export.meta.items() if k not in ("format", "format_version", "weights")}
     argv = summary.get("argv") or shlex.split(summary.get("command", ""))[1:]  # without the interpreter
     command = shlex.join(["python", *argv]) if argv else ""
-    meta["provenance"] = {**dict(meta.get("provenance") or {}), "command": command, "seed": summary.get("seed"),
-                          "run_timesteps": summary.get("timesteps"), "wall_time_s": summary.get("wall_time_s"),
-                          "evaluation_time_s": summary.get("evaluation_time_s"),
-                          "fps_training_only": summary.get("fps_training_only"), "checkpoint_chosen_by": chosen,
-                          "validation": summary.get("validation")}
+    meta["provenance"] = {
+        **dict(meta.get("provenance") or {}),
+        "command": command,
+        "seed": summary.get("seed"),
+        "run_timesteps": summary.get("timesteps"),
+        "wall_time_s": summary.get("wall_time_s"),
+        "evaluation_time_s": summary.get("evaluation_time_s"),
+        "fps_training_only": summary.get("fps_training_only"),
+        "checkpoint_chosen_by": chosen,
+        "validation": summary.get("validation"),
+    }
     write_export(dest, meta, read_weights(export))
     agent_from_export(read_export(dest))  # loads as the benchmark loads it
     if (run / "eval.csv").is_file():
         atomic_write_text(dest / "eval.csv", (run / "eval.csv").read_text(encoding="utf-8"))
     write_json_atomic(dest / "summary.json", summary)
-    atomic_write_text(dest / "config.yml", yaml.safe_dump({"args": _plain(args), "hyperparams": _plain(config)},
-                                                           sort_keys=False))
+    atomic_write_text(
+        dest / "config.yml", yaml.safe_dump({"args": _plain(args), "hyperparams": _plain(config)}, sort_keys=False)
+    )
     best_row = summary.get("best") or {}
-    atomic_write_text(dest / "command.txt", (
-        f"# {dest.name}: {meta['algo']} on {meta['observation']['env_id']} ({meta['observation']['mode']} "
-        f"observation), trained by rl-zoo3 through electroloc_gym.train.zoo. Exact command (repository root):\n"
-        f"{command}\n"
-        f"# seed: {summary.get('seed')}; {summary.get('timesteps')} env steps in {summary.get('wall_time_s')} s wall "
-        f"time ({summary.get('evaluation_time_s')} s of it validation; {summary.get('fps_training_only')} steps/s "
-        f"training only), CPU, torch 1 thread\n"
-        f"# checkpoint: {chosen}: the evaluation at {best_row.get('timesteps')} steps "
-        f"({best_row.get('success_rate')} success rate, {best_row.get('mean_readings')} mean and "
-        f"{best_row.get('median_readings')} median readings, median error {best_row.get('median_error_mm')} mm) on "
-        f"{(summary.get('validation') or {}).get('episodes')} validation episodes (reset seeds from "
-        f"{(summary.get('validation') or {}).get('first_seed')}; the benchmark's trials are seed 0's)\n"))
+    atomic_write_text(
+        dest / "command.txt",
+        (
+            f"# {dest.name}: {meta['algo']} on {meta['observation']['env_id']} ({meta['observation']['mode']} "
+            f"observation), trained by rl-zoo3 through electroloc_gym.train.zoo. Exact command (repository root):\n"
+            f"{command}\n"
+            f"# seed: {summary.get('seed')}; {summary.get('timesteps')} env steps in "
+            f"{summary.get('wall_time_s')} s wall time ({summary.get('evaluation_time_s')} s of it validation; "
+            f"{summary.get('fps_training_only')} steps/s "
+            f"training only), CPU, torch 1 thread\n"
+            f"# checkpoint: {chosen}: the evaluation at {best_row.get('timesteps')} steps "
+            f"({best_row.get('success_rate')} success rate, {best_row.get('mean_readings')} mean and "
+            f"{best_row.get('median_readings')} median readings, median error {best_row.get('median_error_mm')} mm) on "
+            f"{(summary.get('validation') or {}).get('episodes')} validation episodes (reset seeds from "
+            f"{(summary.get('validation') or {}).get('first_seed')}; the benchmark's trials are seed 0's)\n"
+        ),
+    )
     return dest
 
 
@@ -159,8 +183,11 @@ def _plain(d: Any) -> Any:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m electroloc_gym.train.export RUN --out FOLDER``; returns the exit status."""
-    p = argparse.ArgumentParser(prog="python -m electroloc_gym.train.export", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="python -m electroloc_gym.train.export",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("run", help="an rl-zoo3 run folder (logs/<algo>/<env>_<n>)")
     p.add_argument("--out", required=True, help="the policy folder to write")
     p.add_argument("--zip", default=None, help="convert this SB3 zip of the run instead of best/ (unpickles)")

@@ -34,7 +34,6 @@ from electroloc_gym.train.wrappers import VecPotentialShaping
 __all__ = ["NativeVecEnv", "VecEpisodeReport", "make_native_vec_env", "zoo_vec_env"]
 
 
-
 class NativeVecEnv(VecEnv):
     """SB3 ``VecEnv`` over a native Gymnasium vector env that autoresets in the same step.
 
@@ -50,8 +49,10 @@ class NativeVecEnv(VecEnv):
 
     def __init__(self, venv: gym.vector.VectorEnv) -> None:
         if venv.metadata.get("autoreset_mode") is not AutoresetMode.SAME_STEP:
-            raise ValueError(f"venv must autoreset in the same step (AutoresetMode.SAME_STEP), got "
-                             f"{venv.metadata.get('autoreset_mode')!r}")
+            raise ValueError(
+                f"venv must autoreset in the same step (AutoresetMode.SAME_STEP), got "
+                f"{venv.metadata.get('autoreset_mode')!r}"
+            )
         self.venv = venv
         #: The single env's id and kwargs (set by :func:`make_native_vec_env`).
         self.env_id: str | None = None
@@ -83,8 +84,11 @@ class NativeVecEnv(VecEnv):
             for i in np.flatnonzero(dones):
                 self.reset_infos[i] = now[i]
             final_info = info["final_info"]
-            info = {k: np.where(dones.reshape((-1,) + (1,) * (np.ndim(v) - 1)), final_info[k], v)
-                    for k, v in info.items() if k in INFO_KEYS}
+            info = {
+                k: np.where(dones.reshape((-1,) + (1,) * (np.ndim(v) - 1)), final_info[k], v)
+                for k, v in info.items()
+                if k in INFO_KEYS
+            }
         infos = self._split_info(info)
         timeout = (truncated & ~terminated).tolist()
         for i, d in enumerate(infos):
@@ -106,8 +110,9 @@ class NativeVecEnv(VecEnv):
         """Set an attribute of the whole vector env (sub-envs cannot be set individually)."""
         setattr(self.venv, attr_name, value)
 
-    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
-                   **method_kwargs: Any) -> list[Any]:
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list[Any]:
         """Call a method of the whole vector env once; its result is repeated per requested index."""
         result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
         return [result for _ in self._get_indices(indices)]
@@ -120,8 +125,11 @@ class NativeVecEnv(VecEnv):
 
     def _split_info(self, info: dict[str, Any]) -> list[dict[str, Any]]:
         """The vector env's dict of arrays as SB3's list of per-env dicts."""
-        cols = {k: ([tuple(r) for r in info[k].tolist()] if info[k].ndim == 2 else info[k].tolist())
-                for k in INFO_KEYS if k in info}
+        cols = {
+            k: ([tuple(r) for r in info[k].tolist()] if info[k].ndim == 2 else info[k].tolist())
+            for k in INFO_KEYS
+            if k in info
+        }
         return [dict(zip(cols, row, strict=True)) for row in zip(*cols.values(), strict=True)]
 
 
@@ -146,15 +154,26 @@ class VecEpisodeReport(VecEnvWrapper):
         self._ret += rewards
         if dones[0]:
             d = infos[0]
-            print(f"[electroloc] episode: {d['n_observations']} readings, success {bool(d['success'])}, "
-                  f"error {d['error_mm']:.1f} mm, return {self._ret[0]:.1f} (unshaped)", flush=True)
+            print(
+                f"[electroloc] episode: {d['n_observations']} readings, success {bool(d['success'])}, "
+                f"error {d['error_mm']:.1f} mm, return {self._ret[0]:.1f} (unshaped)",
+                flush=True,
+            )
         self._ret[dones] = 0.0
         return obs, rewards, dones, infos
 
 
-def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: dict[str, Any] | None = None,
-                        monitor: bool = True, shaping_coef: float = 0.0, gamma: float = 0.99,
-                        monitor_file: str | None = None, info_keywords: tuple[str, ...] = ()) -> VecEnv:
+def make_native_vec_env(
+    env_id: str,
+    n_envs: int,
+    seed: int | None,
+    env_kwargs: dict[str, Any] | None = None,
+    monitor: bool = True,
+    shaping_coef: float = 0.0,
+    gamma: float = 0.99,
+    monitor_file: str | None = None,
+    info_keywords: tuple[str, ...] = (),
+) -> VecEnv:
     """An SB3 ``VecEnv`` of ``n_envs`` sub-envs of ``env_id`` stepped by its native batched vector env.
 
     Args:
@@ -177,8 +196,13 @@ def make_native_vec_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: 
         raise ValueError(f"env_id {env_id} has no native vector env (vector_entry_point); use DummyVecEnv")
     if isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
         raise ValueError(f"n_envs must be an integer ≥ 1, got {n_envs!r}")
-    venv = gym.make_vec(env_id, num_envs=int(n_envs), vectorization_mode="vector_entry_point",
-                        autoreset_mode=AutoresetMode.SAME_STEP, **dict(env_kwargs or {}))
+    venv = gym.make_vec(
+        env_id,
+        num_envs=int(n_envs),
+        vectorization_mode="vector_entry_point",
+        autoreset_mode=AutoresetMode.SAME_STEP,
+        **dict(env_kwargs or {}),
+    )
     wrapped: VecEnv = NativeVecEnv(venv)
     wrapped.env_id, wrapped.env_kwargs = env_id, dict(env_kwargs or {})
     if seed is not None:
@@ -204,8 +228,13 @@ def zoo_vec_env(env_fns: list[Callable[[], gym.Env]], **vec_env_kwargs: Any) -> 
     """
     probe = env_fns[0]()
     spec = probe.unwrapped.spec
-    native = (isinstance(probe, Monitor) and spec is not None and spec.vector_entry_point is not None
-              and spec.kwargs.get("render_mode") is None and not vec_env_kwargs)
+    native = (
+        isinstance(probe, Monitor)
+        and spec is not None
+        and spec.vector_entry_point is not None
+        and spec.kwargs.get("render_mode") is None
+        and not vec_env_kwargs
+    )
     if native:
         writer = probe.results_writer
         monitor_file = None if writer is None else writer.file_handler.name
@@ -213,8 +242,9 @@ def zoo_vec_env(env_fns: list[Callable[[], gym.Env]], **vec_env_kwargs: Any) -> 
         kwargs = {k: v for k, v in spec.kwargs.items() if k != "render_mode"}
     probe.close()
     if native:
-        venv = make_native_vec_env(spec.id, len(env_fns), seed=None, env_kwargs=kwargs,
-                                   monitor_file=monitor_file, info_keywords=info_keywords)
+        venv = make_native_vec_env(
+            spec.id, len(env_fns), seed=None, env_kwargs=kwargs, monitor_file=monitor_file, info_keywords=info_keywords
+        )
     else:
         venv = DummyVecEnv(env_fns, **vec_env_kwargs)
     if _main_module() in ("rl_zoo3.enjoy", "rl_zoo3.record_video"):

@@ -74,13 +74,24 @@ def check_env_kwargs(env_id: str, env_kwargs: Mapping[str, Any]) -> None:
         gym.make(env_id, **dict(env_kwargs)).close()
     except (TypeError, ValueError) as exc:
         text = str(exc).strip().splitlines()
-        raise ValueError(f"env_kwargs {dict(env_kwargs)!r} are refused by {env_id}: "
-                         f"{(text[0] if text else type(exc).__name__)[:300]}") from None
+        raise ValueError(
+            f"env_kwargs {dict(env_kwargs)!r} are refused by {env_id}: "
+            f"{(text[0] if text else type(exc).__name__)[:300]}"
+        ) from None
 
 
-def zoo_argv(algo: str, env_id: str, seed: int, *, timesteps: int | None = None, log_folder: str | Path = "logs",
-             conf_file: str | Path | None = None, env_kwargs: Mapping[str, Any] | None = None,
-             hyperparams: Mapping[str, Any] | None = None, native: bool = True) -> list[str]:
+def zoo_argv(
+    algo: str,
+    env_id: str,
+    seed: int,
+    *,
+    timesteps: int | None = None,
+    log_folder: str | Path = "logs",
+    conf_file: str | Path | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    hyperparams: Mapping[str, Any] | None = None,
+    native: bool = True,
+) -> list[str]:
     """The ``python -m rl_zoo3.train`` arguments (without the interpreter) for one run.
 
     Args:
@@ -99,20 +110,40 @@ def zoo_argv(algo: str, env_id: str, seed: int, *, timesteps: int | None = None,
         conf = conf.relative_to(Path.cwd())  # the command as typed from the repository root
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < SEED_LIMIT:
         raise ValueError(f"seed must be an integer in [0, 2**32) (NumPy's seed range), got {seed!r}")
-    if timesteps is not None and (isinstance(timesteps, bool) or not isinstance(timesteps, int)
-                                  or not 1 <= timesteps <= MAX_TIMESTEPS):
+    if timesteps is not None and (
+        isinstance(timesteps, bool) or not isinstance(timesteps, int) or not 1 <= timesteps <= MAX_TIMESTEPS
+    ):
         raise ValueError(f"timesteps must be an integer in [1, {MAX_TIMESTEPS:.0e}], got {timesteps!r}")
     _check_log_folder(Path(log_folder))
     import gymnasium as gym
 
     if env_id not in gym.registry:
-        raise ValueError(f"env_id {env_id!r} is not registered (electroloc ids: "
-                         f"{sorted(k for k in gym.registry if k.startswith('ElectroLoc'))})")
+        raise ValueError(
+            f"env_id {env_id!r} is not registered (electroloc ids: "
+            f"{sorted(k for k in gym.registry if k.startswith('ElectroLoc'))})"
+        )
     if env_kwargs:
         check_env_kwargs(env_id, env_kwargs)
-    argv = ["-m", "rl_zoo3.train", "--algo", algo, "--env", env_id, "--gym-packages",
-            "electroloc_gym.train.zoo" if native else "electroloc_gym", "--conf-file", str(conf),
-            "--seed", str(seed), "--log-folder", str(log_folder), "--eval-freq", "-1", "--num-threads", "1"]
+    argv = [
+        "-m",
+        "rl_zoo3.train",
+        "--algo",
+        algo,
+        "--env",
+        env_id,
+        "--gym-packages",
+        "electroloc_gym.train.zoo" if native else "electroloc_gym",
+        "--conf-file",
+        str(conf),
+        "--seed",
+        str(seed),
+        "--log-folder",
+        str(log_folder),
+        "--eval-freq",
+        "-1",
+        "--num-threads",
+        "1",
+    ]
     if timesteps is not None:
         argv += ["-n", str(timesteps)]
     if env_kwargs:
@@ -135,25 +166,48 @@ def find_finished_run(log_folder: str | Path, algo: str, env_id: str, argv: Sequ
     return max(found, key=lambda p: p.stat().st_mtime) if found else None
 
 
-def train(algo: str, env_id: str, seed: int, *, timesteps: int | None = None, log_folder: str | Path = "logs",
-          out: str | Path | None = None, conf_file: str | Path | None = None,
-          env_kwargs: Mapping[str, Any] | None = None, hyperparams: Mapping[str, Any] | None = None,
-          native: bool = True, quiet: bool = False) -> Path:
+def train(
+    algo: str,
+    env_id: str,
+    seed: int,
+    *,
+    timesteps: int | None = None,
+    log_folder: str | Path = "logs",
+    out: str | Path | None = None,
+    conf_file: str | Path | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    hyperparams: Mapping[str, Any] | None = None,
+    native: bool = True,
+    quiet: bool = False,
+) -> Path:
     """Train (or find the finished run of) one configuration; export it to ``out``; return the run folder.
 
     Raises:
         ValueError: a bad argument (one line naming it), or a run that fails (its log named).
     """
-    argv = zoo_argv(algo, env_id, seed, timesteps=timesteps, log_folder=log_folder, conf_file=conf_file,
-                    env_kwargs=env_kwargs, hyperparams=hyperparams, native=native)
+    argv = zoo_argv(
+        algo,
+        env_id,
+        seed,
+        timesteps=timesteps,
+        log_folder=log_folder,
+        conf_file=conf_file,
+        env_kwargs=env_kwargs,
+        hyperparams=hyperparams,
+        native=native,
+    )
     run = find_finished_run(log_folder, algo, env_id, argv)
     if run is None:
         log = Path(log_folder, algo, f"{env_id}_s{seed}.log")
         log.parent.mkdir(parents=True, exist_ok=True)
         env = {**os.environ, **{v: "1" for v in THREAD_VARS}}
         lines = []
-        with log.open("w", encoding="utf-8") as fh, subprocess.Popen(
-                [sys.executable, *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env) as proc:
+        with (
+            log.open("w", encoding="utf-8") as fh,
+            subprocess.Popen(
+                [sys.executable, *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env
+            ) as proc,
+        ):
             for line in proc.stdout:
                 fh.write(line)
                 lines.append(line)
@@ -164,15 +218,18 @@ def train(algo: str, env_id: str, seed: int, *, timesteps: int | None = None, lo
             raise ValueError(f"rl-zoo3 run failed (exit {proc.returncode}; log {log}): {tail[-1] if tail else ''}")
         run = find_finished_run(log_folder, algo, env_id, argv)  # the callback's summary.json records argv
         if run is None:
-            raise ValueError(f"rl-zoo3 finished but no run folder under {Path(log_folder, algo)} records this "
-                             f"command as finished (log {log})")
+            raise ValueError(
+                f"rl-zoo3 finished but no run folder under {Path(log_folder, algo)} records this "
+                f"command as finished (log {log})"
+            )
     if out is not None:
         from electroloc_gym.train.export import export_run
 
         dest = Path(out)
         done = dest / "summary.json"
-        same = done.is_file() and json.loads(done.read_text(encoding="utf-8")).get("argv") == \
-            json.loads((run / "summary.json").read_text(encoding="utf-8")).get("argv")
+        same = done.is_file() and json.loads(done.read_text(encoding="utf-8")).get("argv") == json.loads(
+            (run / "summary.json").read_text(encoding="utf-8")
+        ).get("argv")
         if not same:
             export_run(run, dest)
     return run

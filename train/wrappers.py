@@ -42,8 +42,16 @@ def spread_potential(spread_mm: ArrayLike, success_spread_mm: float, coef: float
     return float(phi) if np.ndim(phi) == 0 else phi
 
 
-def shaped_reward(reward: ArrayLike, phi: ArrayLike, next_spread_mm: ArrayLike, terminated: ArrayLike, *,
-                  coef: float, gamma: float, success_spread_mm: float) -> tuple[Any, Any]:
+def shaped_reward(
+    reward: ArrayLike,
+    phi: ArrayLike,
+    next_spread_mm: ArrayLike,
+    terminated: ArrayLike,
+    *,
+    coef: float,
+    gamma: float,
+    success_spread_mm: float,
+) -> tuple[Any, Any]:
     """One shaping step, element-wise: (reward + γ·Φ(s′) − Φ(s), Φ(s′)), float64.
 
     Φ of a terminal (success) state is 0, so an episode's shaped return is its return − Φ(s₀); on
@@ -71,8 +79,15 @@ class PotentialShaping(gym.Wrapper):
 
     def step(self, action) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
-        shaped, phi_next = shaped_reward(float(reward), self._phi, float(info["spread_mm"]), terminated,
-                                         coef=self.coef, gamma=self.gamma, success_spread_mm=self.success_spread_mm)
+        shaped, phi_next = shaped_reward(
+            float(reward),
+            self._phi,
+            float(info["spread_mm"]),
+            terminated,
+            coef=self.coef,
+            gamma=self.gamma,
+            success_spread_mm=self.success_spread_mm,
+        )
         self._phi = float(phi_next)
         return obs, float(shaped), terminated, truncated, info
 
@@ -104,8 +119,9 @@ class VecPotentialShaping(VecEnvWrapper):
 
     def _reset_phi(self, rows: np.ndarray) -> None:
         for i in np.flatnonzero(rows):
-            self._phi[i] = spread_potential(float(self.unwrapped.reset_infos[i]["spread_mm"]), self.success_spread_mm,
-                                            self.coef)
+            self._phi[i] = spread_potential(
+                float(self.unwrapped.reset_infos[i]["spread_mm"]), self.success_spread_mm, self.coef
+            )
 
     def reset(self) -> VecEnvObs:
         obs = self.venv.reset()
@@ -116,8 +132,15 @@ class VecPotentialShaping(VecEnvWrapper):
         obs, rewards, dones, infos = self.venv.step_wait()
         spread = np.array([d["spread_mm"] for d in infos], dtype=np.float64)
         timeout = np.array([d.get("TimeLimit.truncated", False) for d in infos], dtype=bool)
-        shaped, self._phi = shaped_reward(rewards, self._phi, spread, dones & ~timeout, coef=self.coef,
-                                          gamma=self.gamma, success_spread_mm=self.success_spread_mm)
+        shaped, self._phi = shaped_reward(
+            rewards,
+            self._phi,
+            spread,
+            dones & ~timeout,
+            coef=self.coef,
+            gamma=self.gamma,
+            success_spread_mm=self.success_spread_mm,
+        )
         self._reset_phi(dones)
         return obs, (shaped if self.active else rewards).astype(np.float32), dones, infos
 

@@ -160,9 +160,11 @@ def _resolve(spec: str) -> AgentRef:
         return AgentRef(spec, "shipped")
     if is_policy_path(spec):
         return AgentRef(spec, "path")
-    raise ValueError(f"unknown agent {parsed.name!r}; choose from {list(AGENT_NAMES)} (options "
-                     f"as NAME[key=value]), a shipped model {sorted(shipped_models())}, a path to a model folder / "
-                     f"policy file, or package.module:factory[key=value,...]")
+    raise ValueError(
+        f"unknown agent {parsed.name!r}; choose from {list(AGENT_NAMES)} (options "
+        f"as NAME[key=value]), a shipped model {sorted(shipped_models())}, a path to a model folder / "
+        f"policy file, or package.module:factory[key=value,...]"
+    )
 
 
 def register_object_agent(name: str, agent: Any) -> None:
@@ -174,8 +176,9 @@ def register_object_agent(name: str, agent: Any) -> None:
     """
     parsed = parse_agent_spec(name)
     if parsed.options or parsed.is_factory or parsed.name in AGENT_NAMES or name in shipped_models():
-        raise ValueError(f"agent object name {name!r} must be a plain name other than the built-in agents' and "
-                         f"shipped models'")
+        raise ValueError(
+            f"agent object name {name!r} must be a plain name other than the built-in agents' and shipped models'"
+        )
     why = protocol_problem(agent)
     if why is not None:
         raise ValueError(f"agent object {name!r} ({type(agent).__name__}) is not an agent: it lacks {why}")
@@ -202,8 +205,10 @@ def protocol_problem(agent: Any) -> str | None:
     optional ``env_kwargs``, ``seed(int)``, ``done``/``estimate_mm``.
     """
     missing = []
-    for name, args, kwargs in (("reset", (None,), {}),
-                               ("predict", (None,), {"state": None, "episode_start": None, "deterministic": True})):
+    for name, args, kwargs in (
+        ("reset", (None,), {}),
+        ("predict", (None,), {"state": None, "episode_start": None, "deterministic": True}),
+    ):
         method = getattr(agent, name, None)
         if not callable(method):
             missing.append(f"a {name}() method")
@@ -232,8 +237,10 @@ def make_factory_agent(spec: str | AgentSpec) -> Any:
     try:
         module = importlib.import_module(parsed.module)
     except Exception as exc:  # noqa: BLE001 - any import failure is the user's module's, reported in one line
-        raise ValueError(f"agent {parsed.text!r}: cannot import module {parsed.module!r} "
-                         f"({type(exc).__name__}: {exc}); it must be installed or on PYTHONPATH") from None
+        raise ValueError(
+            f"agent {parsed.text!r}: cannot import module {parsed.module!r} "
+            f"({type(exc).__name__}: {exc}); it must be installed or on PYTHONPATH"
+        ) from None
     factory = getattr(module, parsed.factory, None)
     if not callable(factory):
         raise ValueError(f"agent {parsed.text!r}: module {parsed.module!r} has no callable {parsed.factory!r}")
@@ -244,8 +251,10 @@ def make_factory_agent(spec: str | AgentSpec) -> Any:
         raise ValueError(f"agent {parsed.text!r}: {call} raised {type(exc).__name__}: {exc}") from None
     why = protocol_problem(agent)
     if why is not None:
-        raise ValueError(f"agent {parsed.text!r}: the {type(agent).__name__} object {parsed.name} returned is not an "
-                         f"agent: it lacks {why}")
+        raise ValueError(
+            f"agent {parsed.text!r}: the {type(agent).__name__} object {parsed.name} returned is not an "
+            f"agent: it lacks {why}"
+        )
     return agent
 
 
@@ -296,8 +305,9 @@ def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pic
     try:
         from electroloc_gym.policy import load_policy
     except ImportError as exc:
-        raise ValueError(f"cannot load policy {str(path)!r}: the training extra is not installed "
-                         f"({TRAIN_EXTRA_HINT}): {exc}") from exc
+        raise ValueError(
+            f"cannot load policy {str(path)!r}: the training extra is not installed ({TRAIN_EXTRA_HINT}): {exc}"
+        ) from exc
     try:
         agent = load_policy(path, trust_pickle=trust_pickle)
     except ValueError as exc:
@@ -383,8 +393,14 @@ def _training_extra_missing() -> str | None:
     return None
 
 
-def default_agents(*, names: tuple[str, ...] | None = None, trust_pickle: bool = False, env_id: str = "ElectroLoc-v0",
-                   gain_levels: tuple[float, ...] | None = None, sensor_layout: str | None = None) -> list[AgentChoice]:
+def default_agents(
+    *,
+    names: tuple[str, ...] | None = None,
+    trust_pickle: bool = False,
+    env_id: str = "ElectroLoc-v0",
+    gain_levels: tuple[float, ...] | None = None,
+    sensor_layout: str | None = None,
+) -> list[AgentChoice]:
     """What a run without ``--agents`` considers: the paper's controllers, then every shipped model
     trained on ``env_id``.
 
@@ -412,14 +428,21 @@ def default_agents(*, names: tuple[str, ...] | None = None, trust_pickle: bool =
             what = trained_on[0] + ("" if trained_on[1] is None else f" with gain_levels={list(trained_on[1])}")
             here = env_id + ("" if gain_levels is None else f" with gain_levels={list(gain_levels)}")
             levels = None if trained_on[1] is None else tuple(trained_on[1])
-            choices.append(AgentChoice(name, skipped=f"trained on {what}, not {here}",
-                                       runs_with=_bench_options_of(trained_on[0], levels)))
+            choices.append(
+                AgentChoice(
+                    name, skipped=f"trained on {what}, not {here}", runs_with=_bench_options_of(trained_on[0], levels)
+                )
+            )
             continue
         layout = trained_sensor_layout(policy_meta(name))
         if layout is not None and layout != (sensor_layout or "single"):
-            choices.append(AgentChoice(name, skipped=f"trained with sensor_layout={layout!r}, "
-                                                     f"not {sensor_layout or 'single'!r}",
-                                       runs_with=f"--sensor-layout {layout}"))
+            choices.append(
+                AgentChoice(
+                    name,
+                    skipped=f"trained with sensor_layout={layout!r}, not {sensor_layout or 'single'!r}",
+                    runs_with=f"--sensor-layout {layout}",
+                )
+            )
             continue
         if missing:
             choices.append(AgentChoice(name, skipped=missing))

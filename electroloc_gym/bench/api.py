@@ -64,11 +64,25 @@ def _object_name(agent: Any, taken: set[str]) -> str:
     return name
 
 
-def run(agents: list[Any], *, env: str = "target", conditions: str | list[str] = "all", trials: int = 50,
-        seed: int = 0, out: str | os.PathLike | None = None, sensor_model: str | None = None,
-        signal: str = DEFAULT_SIGNAL, max_observations: int | None = None, n_particles: int | None = None,
-        backend: str | None = None, workers: int | None = None, resume: bool = False, progress: bool = False,
-        trust_pickle: bool = False, log: Any = None) -> BenchResult:
+def run(
+    agents: list[Any],
+    *,
+    env: str = "target",
+    conditions: str | list[str] = "all",
+    trials: int = 50,
+    seed: int = 0,
+    out: str | os.PathLike | None = None,
+    sensor_model: str | None = None,
+    signal: str = DEFAULT_SIGNAL,
+    max_observations: int | None = None,
+    n_particles: int | None = None,
+    backend: str | None = None,
+    workers: int | None = None,
+    resume: bool = False,
+    progress: bool = False,
+    trust_pickle: bool = False,
+    log: Any = None,
+) -> BenchResult:
     """Benchmark ``agents`` (objects and/or specs) as ``electroloc bench`` does.
 
     Args:
@@ -113,16 +127,31 @@ def run(agents: list[Any], *, env: str = "target", conditions: str | list[str] =
     if backend is None:
         backend = "serial" if objects else "process"
     elif objects and backend != "serial":
-        raise ValueError(f"agent objects run in this process, so backend must be 'serial' (got {backend!r}); "
-                         f"pass a spec (package.module:factory[...]) to run on {backend!r}")
+        raise ValueError(
+            f"agent objects run in this process, so backend must be 'serial' (got {backend!r}); "
+            f"pass a spec (package.module:factory[...]) to run on {backend!r}"
+        )
     config = BenchConfig(
         agents=tuple(specs),
         conditions=run_conditions(env_id, conditions),
-        trials=trials, seed=seed, sensor_model=sensor_model or ENV_SENSOR_MODELS[env_id][0], signal=signal,
+        trials=trials,
+        seed=seed,
+        sensor_model=sensor_model or ENV_SENSOR_MODELS[env_id][0],
+        signal=signal,
         max_observations=ENV_MAX_OBSERVATIONS[env_id] if max_observations is None else max_observations,
         n_particles=ENV_N_PARTICLES[env_id] if n_particles is None else n_particles,
-        env_id=env_id, gain_levels=bench_env(env)[1].env_kwargs.get("gain_levels"))
+        env_id=env_id,
+        gain_levels=bench_env(env)[1].env_kwargs.get("gain_levels"),
+    )
     folder = Path(tempfile.mkdtemp(prefix="electroloc-bench-")) if out is None else Path(out)
-    summary = run_benchmark(config, folder, workers=workers, backend=backend, resume=resume, progress=progress,
-                            trust_pickle=trust_pickle, log=log)
+    summary = run_benchmark(
+        config,
+        folder,
+        workers=workers,
+        backend=backend,
+        resume=resume,
+        progress=progress,
+        trust_pickle=trust_pickle,
+        log=log,
+    )
     return BenchResult(summary=summary, table=(folder / "table.md").read_text(encoding="utf-8"), out=folder)

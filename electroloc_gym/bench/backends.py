@@ -34,8 +34,17 @@ from typing import Any, ClassVar
 
 from electroloc_gym.runtime import THREAD_VARS, pin_threads
 
-__all__ = ["Backend", "SerialBackend", "ProcessBackend", "BACKENDS", "register_backend", "make_backend",
-           "default_workers", "exit_with_parent", "WorkerLost"]
+__all__ = [
+    "Backend",
+    "SerialBackend",
+    "ProcessBackend",
+    "BACKENDS",
+    "register_backend",
+    "make_backend",
+    "default_workers",
+    "exit_with_parent",
+    "WorkerLost",
+]
 
 
 class WorkerLost(RuntimeError):
@@ -50,6 +59,7 @@ class WorkerLost(RuntimeError):
     def __init__(self, specs: Sequence[Any], reason: str) -> None:
         super().__init__(f"a worker process died ({reason})")
         self.specs, self.reason = list(specs), reason
+
 
 def exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
     """Make this (worker) process exit when ``parent_pid``, the process that started it, dies.
@@ -148,8 +158,12 @@ class ProcessBackend(Backend):
         for v in THREAD_VARS:  # children read these at numpy import, before the initializer runs
             os.environ[v] = "1"
         try:
-            with cf.ProcessPoolExecutor(max_workers=min(self.workers, len(specs)), mp_context=ctx,
-                                        initializer=_init_worker, initargs=(os.getpid(),)) as pool:
+            with cf.ProcessPoolExecutor(
+                max_workers=min(self.workers, len(specs)),
+                mp_context=ctx,
+                initializer=_init_worker,
+                initargs=(os.getpid(),),
+            ) as pool:
                 todo = iter(specs)
                 futures: dict[cf.Future, Any] = {}
                 for spec in todo:
@@ -161,8 +175,9 @@ class ProcessBackend(Backend):
                         done, _ = cf.wait(futures, return_when=cf.FIRST_COMPLETED)
                         broken = [f for f in done if isinstance(f.exception(), BrokenProcessPool)]
                         if broken:
-                            raise WorkerLost(list(futures.values()), "the process pool broke: a worker exited or "
-                                                                     "was killed")
+                            raise WorkerLost(
+                                list(futures.values()), "the process pool broke: a worker exited or was killed"
+                            )
                         for fut in done:
                             spec = futures.pop(fut)
                             yield spec, fut.result()
@@ -171,8 +186,10 @@ class ProcessBackend(Backend):
                                 try:
                                     futures[pool.submit(worker_fn, nxt)] = nxt
                                 except BrokenProcessPool:  # a worker died while this trial's result was kept
-                                    raise WorkerLost(list(futures.values()) or [nxt], "the process pool broke: "
-                                                     "a worker exited or was killed") from None
+                                    raise WorkerLost(
+                                        list(futures.values()) or [nxt],
+                                        "the process pool broke: a worker exited or was killed",
+                                    ) from None
                 finally:
                     for fut in futures:
                         fut.cancel()

@@ -34,8 +34,17 @@ from electroloc_gym.protocol import MAX_OBSERVATIONS
 from electroloc_gym.registry import BENCH_ENVS, BenchEnv, bench_env
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
-__all__ = ["add_arguments", "run", "ascii_int", "DESCRIPTION", "EPILOG", "MAX_TRIALS", "MAX_WORKERS",
-           "MAX_READINGS", "MAX_PARTICLES"]
+__all__ = [
+    "add_arguments",
+    "run",
+    "ascii_int",
+    "DESCRIPTION",
+    "EPILOG",
+    "MAX_TRIALS",
+    "MAX_WORKERS",
+    "MAX_READINGS",
+    "MAX_PARTICLES",
+]
 
 #: Bounds of the numeric options: far beyond the paper (50 trials, 35 observations, 2500 particles), short
 #: of what cannot run (the plan is held in memory: at most MAX_PLANNED_TRIALS trials in all).
@@ -44,10 +53,12 @@ MAX_WORKERS = 1024
 MAX_READINGS = 100_000
 MAX_PARTICLES = 1_000_000
 
-DESCRIPTION = ("Benchmark agents on the paper's eight conditions (Solberg, Lynch & MacIver 2008, Tables 4 and 1; "
-               "--env global: Table 2; --env unknown-target: the eight pairs with the sphere hidden, paper §7) "
-               "with seeded trials, and write trials.jsonl, summary.json, table.md and "
-               "steps.png to the output folder.")
+DESCRIPTION = (
+    "Benchmark agents on the paper's eight conditions (Solberg, Lynch & MacIver 2008, Tables 4 and 1; "
+    "--env global: Table 2; --env unknown-target: the eight pairs with the sphere hidden, paper §7) "
+    "with seeded trials, and write trials.jsonl, summary.json, table.md and "
+    "steps.png to the output folder."
+)
 EPILOG = """examples:
   electroloc bench --trials 50 --out bench_full                         the full reproduction
   electroloc bench --agents rnd-wlk,min-var --conditions fresh-steel-12.7,salt-delrin-38.1 --trials 10
@@ -70,49 +81,97 @@ def ascii_int(text: str) -> int:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``bench`` options to ``parser``."""
-    parser.add_argument("--agents", default=None,
-                        help="comma-separated agents: rnd-wlk, min-var, zero-crossing, NAME[key=value,...] "
-                             "(e.g. min-var[n_voters=2500]), a shipped model by name (e.g. ppo-belief), or a "
-                             "path to a model folder, or package.module:factory[key=value,...] (a factory of your "
-                             "own, imported like any module: it runs your code) (default: the three controllers "
-                             "plus every shipped model that runs here; the run says which and why one is skipped)")
+    parser.add_argument(
+        "--agents",
+        default=None,
+        help="comma-separated agents: rnd-wlk, min-var, zero-crossing, NAME[key=value,...] "
+        "(e.g. min-var[n_voters=2500]), a shipped model by name (e.g. ppo-belief), or a "
+        "path to a model folder, or package.module:factory[key=value,...] (a factory of your "
+        "own, imported like any module: it runs your code) (default: the three controllers "
+        "plus every shipped model that runs here; the run says which and why one is skipped)",
+    )
     parser.add_argument("--conditions", default="all", help="'all' or comma-separated preset names")
-    parser.add_argument("--env", default="target", choices=list(ENV_CHOICES),
-                        help="; ".join(f"{name}: {entry.env_id} {row.summary}".rstrip()
-                                       for name, (entry, row) in BENCH_ENVS.items()))
-    parser.add_argument("--trials", type=ascii_int, default=50,
-                        help=f"trials per condition and agent (paper: 50; at most {MAX_TRIALS:,}, and "
-                             f"{MAX_PLANNED_TRIALS:,} in all)")
+    parser.add_argument(
+        "--env",
+        default="target",
+        choices=list(ENV_CHOICES),
+        help="; ".join(f"{name}: {entry.env_id} {row.summary}".rstrip() for name, (entry, row) in BENCH_ENVS.items()),
+    )
+    parser.add_argument(
+        "--trials",
+        type=ascii_int,
+        default=50,
+        help=f"trials per condition and agent (paper: 50; at most {MAX_TRIALS:,}, and {MAX_PLANNED_TRIALS:,} in all)",
+    )
     parser.add_argument("--seed", type=ascii_int, default=0, help="root seed of the per-trial seeds")
-    parser.add_argument("--workers", type=ascii_int, default=None,
-                        help=f"parallel worker processes (default: all cores, here {default_workers()})")
-    parser.add_argument("--backend", default="process", choices=sorted(BACKENDS),
-                        help="where trials run: a local process pool, in-process (serial), or Ray")
-    parser.add_argument("--address", default=None,
-                        help="cluster address for a distributed backend (e.g. --backend ray --address auto)")
-    parser.add_argument("--sensor-model", default=None, choices=list(SENSOR_MODELS),
-                        help="the particle filter's sensor model (default: calibrated, the paper's; "
-                             "unknown-target: analytic, the theoretical EEV, or interpolated)")
-    parser.add_argument("--signal", default=DEFAULT_SIGNAL, choices=list(SIGNALS),
-                        help="signal scale of the presets: fitted to Table 3's measured detection distances, "
-                             "coverage (fitted × one factor matching §6.3's 78%% of starts inside the detection "
-                             "region), or the paper's equations (scale 1); docs/fidelity.md compares them")
-    parser.add_argument("--sensor-layout", default=None, choices=list(LAYOUT_NAMES),
-                        help="ElectroLoc-v0's sensing pairs (§7; observations = snapshots, K readings each)")
-    parser.add_argument("--distractors", type=ascii_int, default=0,
-                        help=f"D objects that are not the target drawn per trial in the tank (ElectroLoc-v0's "
-                             f"distractors=D, 0–{MAX_DISTRACTORS}; in the true reading only; default 0)")
-    parser.add_argument("--max-observations", type=ascii_int, default=None,
-                        help=f"the cap of readings of a trial (default: the env's, {MAX_OBSERVATIONS} as the paper)")
-    parser.add_argument("--n-particles", type=ascii_int, default=None,
-                        help="particles of the belief (default: the env's, 2500 as the paper; unknown-target: 5000)")
+    parser.add_argument(
+        "--workers",
+        type=ascii_int,
+        default=None,
+        help=f"parallel worker processes (default: all cores, here {default_workers()})",
+    )
+    parser.add_argument(
+        "--backend",
+        default="process",
+        choices=sorted(BACKENDS),
+        help="where trials run: a local process pool, in-process (serial), or Ray",
+    )
+    parser.add_argument(
+        "--address", default=None, help="cluster address for a distributed backend (e.g. --backend ray --address auto)"
+    )
+    parser.add_argument(
+        "--sensor-model",
+        default=None,
+        choices=list(SENSOR_MODELS),
+        help="the particle filter's sensor model (default: calibrated, the paper's; "
+        "unknown-target: analytic, the theoretical EEV, or interpolated)",
+    )
+    parser.add_argument(
+        "--signal",
+        default=DEFAULT_SIGNAL,
+        choices=list(SIGNALS),
+        help="signal scale of the presets: fitted to Table 3's measured detection distances, "
+        "coverage (fitted × one factor matching §6.3's 78%% of starts inside the detection "
+        "region), or the paper's equations (scale 1); docs/fidelity.md compares them",
+    )
+    parser.add_argument(
+        "--sensor-layout",
+        default=None,
+        choices=list(LAYOUT_NAMES),
+        help="ElectroLoc-v0's sensing pairs (§7; observations = snapshots, K readings each)",
+    )
+    parser.add_argument(
+        "--distractors",
+        type=ascii_int,
+        default=0,
+        help=f"D objects that are not the target drawn per trial in the tank (ElectroLoc-v0's "
+        f"distractors=D, 0–{MAX_DISTRACTORS}; in the true reading only; default 0)",
+    )
+    parser.add_argument(
+        "--max-observations",
+        type=ascii_int,
+        default=None,
+        help=f"the cap of readings of a trial (default: the env's, {MAX_OBSERVATIONS} as the paper)",
+    )
+    parser.add_argument(
+        "--n-particles",
+        type=ascii_int,
+        default=None,
+        help="particles of the belief (default: the env's, 2500 as the paper; unknown-target: 5000)",
+    )
     parser.add_argument("--out", default="bench_out", help="output folder (locked while the run writes to it)")
-    parser.add_argument("--resume", action="store_true",
-                        help="continue the run in --out: run only the trials not yet in its trials.jsonl (each "
-                             "record's seeds and settings are checked; damaged lines are set aside and re-run)")
-    parser.add_argument("--trust-pickle", action="store_true",
-                        help="also load learned policies stored as a bare SB3 .zip, which unpickles code from "
-                             "the file: only for files you trust")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --out: run only the trials not yet in its trials.jsonl (each "
+        "record's seeds and settings are checked; damaged lines are set aside and re-run)",
+    )
+    parser.add_argument(
+        "--trust-pickle",
+        action="store_true",
+        help="also load learned policies stored as a bare SB3 .zip, which unpickles code from "
+        "the file: only for files you trust",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -151,12 +210,19 @@ def _agents(args: argparse.Namespace, env_id: str, row: BenchEnv) -> list[str]:
             except ValueError as exc:
                 raise ValueError(f"--agents: {exc}") from None
         return specs
-    choices = default_agents(names=row.agents, trust_pickle=args.trust_pickle, env_id=env_id,
-                             gain_levels=row.env_kwargs.get("gain_levels"), sensor_layout=args.sensor_layout)
+    choices = default_agents(
+        names=row.agents,
+        trust_pickle=args.trust_pickle,
+        env_id=env_id,
+        gain_levels=row.env_kwargs.get("gain_levels"),
+        sensor_layout=args.sensor_layout,
+    )
     elsewhere = [f"{c.spec} ({c.runs_with})" for c in choices if c.skipped and c.runs_with]
     if elsewhere:  # expected, not a warning: the policy belongs to another run
-        print(f"electroloc bench: the shipped policies trained for other settings run there: {', '.join(elsewhere)}",
-              file=sys.stderr)
+        print(
+            f"electroloc bench: the shipped policies trained for other settings run there: {', '.join(elsewhere)}",
+            file=sys.stderr,
+        )
     for c in choices:
         if c.skipped and not c.runs_with:
             print(f"electroloc bench: skipping {c.spec}: {c.skipped}", file=sys.stderr)
@@ -165,12 +231,14 @@ def _agents(args: argparse.Namespace, env_id: str, row: BenchEnv) -> list[str]:
 
 def _check_ranges(args: argparse.Namespace) -> None:
     """Every numeric option in its range (one line naming the option)."""
-    for option, value, low, high in (("--trials", args.trials, 1, MAX_TRIALS),
-                                     ("--seed", args.seed, 0, 2**63 - 1),
-                                     ("--workers", args.workers, 1, MAX_WORKERS),
-                                     ("--max-observations", args.max_observations, 1, MAX_READINGS),
-                                     ("--distractors", getattr(args, "distractors", 0), 0, MAX_DISTRACTORS),
-                                     ("--n-particles", args.n_particles, 2, MAX_PARTICLES)):
+    for option, value, low, high in (
+        ("--trials", args.trials, 1, MAX_TRIALS),
+        ("--seed", args.seed, 0, 2**63 - 1),
+        ("--workers", args.workers, 1, MAX_WORKERS),
+        ("--max-observations", args.max_observations, 1, MAX_READINGS),
+        ("--distractors", getattr(args, "distractors", 0), 0, MAX_DISTRACTORS),
+        ("--n-particles", args.n_particles, 2, MAX_PARTICLES),
+    ):
         if value is not None and not low <= value <= high:
             raise ValueError(f"{option} must be an integer in [{low}, {high}], got {value}")
     if args.address is not None and args.backend != "ray":
@@ -202,22 +270,43 @@ def run(args: argparse.Namespace) -> int:
         if entry.map_condition is not None:  # zero-crossing looks for one sphere; a policy must know the map
             bad = [a for a in agents if not _runs_on_map_env(a, env_id)]
             if bad:
-                raise ValueError(f"--env {env_name} runs the particle-filter controllers (Table 2), policies "
-                                 f"trained on {env_id} and users' factory agents; not applicable: {bad}")
-        config = BenchConfig(agents=tuple(agents), conditions=conditions,
-                             trials=args.trials, seed=args.seed, sensor_model=sensor_model, signal=args.signal,
-                             max_observations=max_observations, n_particles=n_particles,
-                             env_id=env_id, gain_levels=gain_levels, sensor_layout=args.sensor_layout,
-                             distractors=getattr(args, "distractors", 0))
+                raise ValueError(
+                    f"--env {env_name} runs the particle-filter controllers (Table 2), policies "
+                    f"trained on {env_id} and users' factory agents; not applicable: {bad}"
+                )
+        config = BenchConfig(
+            agents=tuple(agents),
+            conditions=conditions,
+            trials=args.trials,
+            seed=args.seed,
+            sensor_model=sensor_model,
+            signal=args.signal,
+            max_observations=max_observations,
+            n_particles=n_particles,
+            env_id=env_id,
+            gain_levels=gain_levels,
+            sensor_layout=args.sensor_layout,
+            distractors=getattr(args, "distractors", 0),
+        )
         options = {} if args.address is None else {"address": args.address}
-        run_benchmark(config, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
-                      progress=not args.no_progress, backend_options=options, trust_pickle=args.trust_pickle)
+        run_benchmark(
+            config,
+            args.out,
+            workers=args.workers,
+            backend=args.backend,
+            resume=args.resume,
+            progress=not args.no_progress,
+            backend_options=options,
+            trust_pickle=args.trust_pickle,
+        )
     except ValueError as exc:
         print(f"electroloc bench: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"electroloc bench: interrupted; the finished trials are in {args.out}/trials.jsonl "
-              f"(--resume continues)", file=sys.stderr)
+        print(
+            f"electroloc bench: interrupted; the finished trials are in {args.out}/trials.jsonl (--resume continues)",
+            file=sys.stderr,
+        )
         return 130
     with open(f"{args.out}/table.md", encoding="utf-8") as f:
         print(f.read())

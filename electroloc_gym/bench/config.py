@@ -56,28 +56,40 @@ SIGNALS = SIGNAL_CHOICES
 ENV_CHOICES: LiveMapping[str] = LiveMapping(lambda: {name: entry.env_id for name, (entry, _) in BENCH_ENVS.items()})
 #: The bench's default particle count per env (the env's own default).
 ENV_N_PARTICLES: LiveMapping[int] = LiveMapping(
-    lambda: {e.env_id: e.defaults.get("n_particles", EnvParams.n_particles) for e in ENVS})
+    lambda: {e.env_id: e.defaults.get("n_particles", EnvParams.n_particles) for e in ENVS}
+)
 #: The bench's default cap of readings per env (the env's own default; the paper's 35).
 ENV_MAX_OBSERVATIONS: LiveMapping[int] = LiveMapping(
-    lambda: {e.env_id: e.defaults.get("max_observations", MAX_OBSERVATIONS) for e in ENVS})
+    lambda: {e.env_id: e.defaults.get("max_observations", MAX_OBSERVATIONS) for e in ENVS}
+)
 #: The sensor models of each env (the first is the bench's default there).
 ENV_SENSOR_MODELS: LiveMapping[tuple[str, ...]] = LiveMapping(lambda: {e.env_id: e.sensor_models for e in ENVS})
 #: Every sensor model some env takes (``--sensor-model`` choices).
 SENSOR_MODELS: LiveSequence[str] = LiveSequence(lambda: tuple(dict.fromkeys(m for e in ENVS for m in e.sensor_models)))
 #: ``--env`` names → the default agents' names (None: every registered controller).
 ENV_DEFAULT_AGENTS: LiveMapping[tuple[str, ...] | None] = LiveMapping(
-    lambda: {name: bench.agents for name, (_, bench) in BENCH_ENVS.items()})
+    lambda: {name: bench.agents for name, (_, bench) in BENCH_ENVS.items()}
+)
 #: The single "conditions" of the envs with one fixed map (e.g. ElectroLocGlobal-v0's six-cylinder map,
 #: paper §6.5, = info["condition"]); their trial seeds use condition index 8.
 MAP_CONDITIONS: LiveSequence[str] = LiveSequence(
-    lambda: tuple(dict.fromkeys(e.map_condition for e in ENVS if e.map_condition is not None)))
+    lambda: tuple(dict.fromkeys(e.map_condition for e in ENVS if e.map_condition is not None))
+)
 #: Which envs take ``distractors=`` (``--distractors``).
 ENV_TAKES_DISTRACTORS: LiveMapping[bool] = LiveMapping(lambda: {e.env_id: e.takes("distractors") for e in ENVS})
 #: What an identity key missing from an older record or config means.
 IDENTITY_DEFAULTS = {"distractors": 0, "success_spread_mm": SUCCESS_SPREAD_MM}
 #: Settings every record of a run shares (stored in each record; ``--resume`` checks them).
-IDENTITY_KEYS = ("sensor_model", "signal", "max_observations", "n_particles", "env_id", "gain_levels", "sensor_layout",
-                 "distractors")
+IDENTITY_KEYS = (
+    "sensor_model",
+    "signal",
+    "max_observations",
+    "n_particles",
+    "env_id",
+    "gain_levels",
+    "sensor_layout",
+    "distractors",
+)
 
 
 @dataclass(frozen=True)
@@ -128,8 +140,9 @@ class BenchConfig:
         if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d <= MAX_DISTRACTORS:
             raise ValueError(f"distractors must be an integer in [0, {MAX_DISTRACTORS}], got {d!r}")
         if d and not ENV_TAKES_DISTRACTORS.get(self.env_id, False):
-            raise ValueError(f"distractors apply to {[k for k, v in ENV_TAKES_DISTRACTORS.items() if v]} only, "
-                             f"not {self.env_id}")
+            raise ValueError(
+                f"distractors apply to {[k for k, v in ENV_TAKES_DISTRACTORS.items() if v]} only, not {self.env_id}"
+            )
         if self.gain_levels is not None:
             object.__setattr__(self, "gain_levels", tuple(float(g) for g in self.gain_levels))
         if not self.agents:
@@ -137,8 +150,12 @@ class BenchConfig:
         if len(set(self.agents)) != len(self.agents):
             raise ValueError(f"agents must be distinct, got {list(self.agents)}")
         object.__setattr__(self, "conditions", run_conditions(self.env_id, self.conditions))
-        for name, val, low in (("trials", self.trials, 1), ("seed", self.seed, 0),
-                               ("max_observations", self.max_observations, 1), ("n_particles", self.n_particles, 1)):
+        for name, val, low in (
+            ("trials", self.trials, 1),
+            ("seed", self.seed, 0),
+            ("max_observations", self.max_observations, 1),
+            ("n_particles", self.n_particles, 1),
+        ):
             if isinstance(val, bool) or not isinstance(val, int) or val < low:
                 raise ValueError(f"{name} must be an integer ≥ {low}, got {val!r}")
         allowed = ENV_SENSOR_MODELS[self.env_id]
@@ -237,10 +254,23 @@ def make_trial_specs(config: BenchConfig, *, trust_pickle: bool = False) -> list
         for k in range(config.trials):
             env_seed, agent_seed = trial_seeds(config.seed, cond, k)
             for agent in config.agents:
-                specs.append(TrialSpec(cond, agent, k, env_seed, agent_seed, config.sensor_model, config.signal,
-                                       config.max_observations, config.n_particles, config.env_id,
-                                       gain_levels=config.gain_levels, sensor_layout=config.sensor_layout,
-                                       distractors=config.distractors,
-                                       success_spread_mm=config.success_spread_mm,
-                                       trust_pickle=trust_pickle))
+                specs.append(
+                    TrialSpec(
+                        cond,
+                        agent,
+                        k,
+                        env_seed,
+                        agent_seed,
+                        config.sensor_model,
+                        config.signal,
+                        config.max_observations,
+                        config.n_particles,
+                        config.env_id,
+                        gain_levels=config.gain_levels,
+                        sensor_layout=config.sensor_layout,
+                        distractors=config.distractors,
+                        success_spread_mm=config.success_spread_mm,
+                        trust_pickle=trust_pickle,
+                    )
+                )
     return specs

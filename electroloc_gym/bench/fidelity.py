@@ -40,8 +40,9 @@ def paper_count_interval(paper_successes: int, n_trials: int, paper_trials: int 
     return math.ceil(lo * n_trials - 1e-9), math.floor(hi * n_trials + 1e-9)
 
 
-def inside_paper_interval(successes: int, n_trials: int, paper_successes: int,
-                          paper_trials: int = PAPER_TRIALS) -> bool:
+def inside_paper_interval(
+    successes: int, n_trials: int, paper_successes: int, paper_trials: int = PAPER_TRIALS
+) -> bool:
     """True when ``successes`` of ``n_trials`` lies inside the paper's 90 % interval."""
     lo, hi = paper_count_interval(paper_successes, n_trials, paper_trials)
     return lo <= successes <= hi

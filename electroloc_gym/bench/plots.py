@@ -65,8 +65,11 @@ def steps_png(summary: dict[str, Any]) -> bytes:
     axes[0].set_ylabel("failed trials")
     axes[1].set_ylabel("median steps")
     n = summary.get("config", {}).get("trials")
-    axes[0].set_title(f"Failed trials and median steps ({n} trials per condition and agent)\n"
-                      f"black ticks: paper's Fig. 12 (failures scaled to {n} trials)", fontsize=10)
+    axes[0].set_title(
+        f"Failed trials and median steps ({n} trials per condition and agent)\n"
+        f"black ticks: paper's Fig. 12 (failures scaled to {n} trials)",
+        fontsize=10,
+    )
     axes[1].set_xticks(x)
     axes[1].set_xticklabels([" ".join(_cond_label(c)) for c in conditions], rotation=30, ha="right")
     axes[0].legend(fontsize=8, ncol=min(4, len(agents) + 1))

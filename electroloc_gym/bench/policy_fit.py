@@ -20,13 +20,23 @@ def shipped_models() -> dict[str, Path]:
     """Name → folder of every shipped learned policy (a folder of ``electroloc_gym.models``)."""
     from electroloc_gym.models import MODELS_DIR
 
-    return {p.name: p for p in sorted(MODELS_DIR.iterdir())
-            if p.is_dir() and not p.name.startswith((".", "_")) and any(p.iterdir())}
+    return {
+        p.name: p
+        for p in sorted(MODELS_DIR.iterdir())
+        if p.is_dir() and not p.name.startswith((".", "_")) and any(p.iterdir())
+    }
 
 
 # The bench owns these env kwargs; no agent's env_kwargs override them.
-_BENCH_ONLY_KWARGS = ("condition", "signal", "randomize_target", "render_mode", "gain_levels", "sensor_layout",
-                      "distractors")
+_BENCH_ONLY_KWARGS = (
+    "condition",
+    "signal",
+    "randomize_target",
+    "render_mode",
+    "gain_levels",
+    "sensor_layout",
+    "distractors",
+)
 #: The env kwargs a plug-in agent (a user's factory or object, a learned policy) may set: how it observes and
 #: acts. Everything else an env takes decides what a trial means (the protocol: cap, particles, success
 #: criterion, sensor model, tank, target draw, ...) and is the run's alone; only the built-in controllers,
@@ -45,23 +55,37 @@ def plug_in_problem(agent: Any) -> str | None:
         return f"env_kwargs must be a dict, got {type(kwargs).__name__}"
     extra = sorted(str(k) for k in kwargs if k not in AGENT_ENV_KWARGS)
     if extra:
-        return (f"its env_kwargs set {extra[:6]}{' …' if len(extra) > 6 else ''}, which the benchmark fixes for "
-                f"every agent (an agent's env_kwargs may set only {list(AGENT_ENV_KWARGS)})")
+        return (
+            f"its env_kwargs set {extra[:6]}{' …' if len(extra) > 6 else ''}, which the benchmark fixes for "
+            f"every agent (an agent's env_kwargs may set only {list(AGENT_ENV_KWARGS)})"
+        )
     hooks = [h for h in BUILTIN_HOOKS if callable(getattr(agent, h, None))]
     if hooks:
         return f"it defines {hooks}, a hook of the built-in controllers only (the benchmark fixes the workspace)"
     layout = getattr(agent, "table_layout", "table4")
     if layout != "table4":
-        return (f"its layout is {str(layout)[:40]!r}; a plug-in agent is judged by the belief (Table-4 layout), "
-                f"only the built-in zero-crossing reports to Table 1")
+        return (
+            f"its layout is {str(layout)[:40]!r}; a plug-in agent is judged by the belief (Table-4 layout), "
+            f"only the built-in zero-crossing reports to Table 1"
+        )
     return None
 
 
-def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | None, *, condition: str | None = None,
-                     signal: str | None = None, sensor_model: str | None = None, n_particles: int | None = None,
-                     max_observations: int | None = None, sensor_layout: str | None = None,
-                     distractors: int = 0, success_spread_mm: float | None = None,
-                     builtin: bool = False) -> dict[str, Any]:
+def bench_env_kwargs(
+    env_id: str,
+    agent: Any,
+    gain_levels: tuple[float, ...] | None,
+    *,
+    condition: str | None = None,
+    signal: str | None = None,
+    sensor_model: str | None = None,
+    n_particles: int | None = None,
+    max_observations: int | None = None,
+    sensor_layout: str | None = None,
+    distractors: int = 0,
+    success_spread_mm: float | None = None,
+    builtin: bool = False,
+) -> dict[str, Any]:
     """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``.
 
     A plug-in agent (``builtin`` false) adds only :data:`AGENT_ENV_KWARGS` and its hooks are not called
@@ -69,9 +93,16 @@ def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | N
     ``env_kwargs`` and ``adapt_condition`` apply, never overriding what the bench owns (the tank, the
     layout, the distractors). ``agent`` may be None (no agent kwargs).
     """
-    kwargs: dict[str, Any] = {k: v for k, v in (("sensor_model", sensor_model), ("n_particles", n_particles),
-                                                ("max_observations", max_observations),
-                                                ("success_spread_mm", success_spread_mm)) if v is not None}
+    kwargs: dict[str, Any] = {
+        k: v
+        for k, v in (
+            ("sensor_model", sensor_model),
+            ("n_particles", n_particles),
+            ("max_observations", max_observations),
+            ("success_spread_mm", success_spread_mm),
+        )
+        if v is not None
+    }
     entry = env_entry(env_id)
     if entry.takes("condition") and condition is not None:  # an env with one fixed map takes no condition
         cond = get_condition(condition, signal)
@@ -88,8 +119,9 @@ def bench_env_kwargs(env_id: str, agent: Any, gain_levels: tuple[float, ...] | N
         kwargs["distractors"] = int(distractors)
     own = getattr(agent, "env_kwargs", None) or {}
     if isinstance(own, dict):
-        kwargs.update({k: v for k, v in own.items()
-                       if k not in _BENCH_ONLY_KWARGS and (builtin or k in AGENT_ENV_KWARGS)})
+        kwargs.update(
+            {k: v for k, v in own.items() if k not in _BENCH_ONLY_KWARGS and (builtin or k in AGENT_ENV_KWARGS)}
+        )
     return kwargs
 
 
@@ -141,8 +173,9 @@ def _space_text(space: Any) -> str:
     return f"Discrete({int(n)})" if n is not None and not shape else f"{type(space).__name__}{tuple(shape or ())}"
 
 
-def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[float, ...] | None,
-                       sensor_layout: str | None = None) -> str | None:
+def policy_env_problem(
+    spec: str, agent: Any, env_id: str, gain_levels: tuple[float, ...] | None, sensor_layout: str | None = None
+) -> str | None:
     """Why a learned policy cannot run on the run's env (None: it can, or it records nothing to check).
 
     Compares what the policy's ``policy.json`` records — the env id it was trained on, its dynamic-gain
@@ -177,8 +210,10 @@ def policy_env_problem(spec: str, agent: Any, env_id: str, gain_levels: tuple[fl
         frame = obs.get("frame_dim") or (obs.get("shape") or [None])[-1]
         env_frame = env.observation_space.shape[-1] if env.observation_space.shape else None
         if frame is not None and env_frame is not None and int(frame) != int(env_frame):
-            return (f"its observation frame has {frame} entries, {env_id}'s "
-                    f"({getattr(agent, 'env_kwargs', {}).get('observation', 'default')} observation) has {env_frame}")
+            return (
+                f"its observation frame has {frame} entries, {env_id}'s "
+                f"({getattr(agent, 'env_kwargs', {}).get('observation', 'default')} observation) has {env_frame}"
+            )
         space = act.get("space") if isinstance(act.get("space"), dict) else {}
         want = space.get("shape")
         have = env.action_space.shape

@@ -61,8 +61,13 @@ class TrialProgress:
         if enabled and total:
             from tqdm.auto import tqdm
 
-            self._bar = tqdm(total=total, desc="trials", unit="trial", dynamic_ncols=True,
-                             bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} [{elapsed}{postfix}]")
+            self._bar = tqdm(
+                total=total,
+                desc="trials",
+                unit="trial",
+                dynamic_ncols=True,
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} [{elapsed}{postfix}]",
+            )
             self._bar.set_postfix_str("ETA after warm-up", refresh=True)
 
     def update(self, record: dict[str, Any]) -> None:
@@ -72,8 +77,9 @@ class TrialProgress:
             return
         eta = eta_s(self._done, self.total, self.warm)
         when = "ETA after warm-up" if eta is None else f"ETA {_fmt(eta)}"
-        self._bar.set_postfix_str(f"{when}, last: {agent_display_name(record['agent'])} on {record['condition']}",
-                                  refresh=False)
+        self._bar.set_postfix_str(
+            f"{when}, last: {agent_display_name(record['agent'])} on {record['condition']}", refresh=False
+        )
         self._bar.update(1)
 
     def close(self) -> None:

@@ -33,8 +33,10 @@ CONNECT_TIMEOUT_S = 3.0
 PROBE_TIMEOUT_S = 60.0
 #: The probe: join the cluster at argv[1] and leave. In a child process, so that Ray's retry messages (printed
 #: by its C++ core while it waits for an address that is not a Ray cluster) never reach the user's terminal.
-_PROBE = ("import logging, sys\nimport ray\n"
-          "ray.init(address=sys.argv[1], logging_level=logging.ERROR, log_to_driver=False)\nray.shutdown()\n")
+_PROBE = (
+    "import logging, sys\nimport ray\n"
+    "ray.init(address=sys.argv[1], logging_level=logging.ERROR, log_to_driver=False)\nray.shutdown()\n"
+)
 _INSTALL = "pip install 'electroloc-gym[ray]' (or pip install ray)"
 
 
@@ -68,11 +70,12 @@ def check_ray_address(address: str | None) -> None:
     if address is None:
         return
     if not isinstance(address, str) or not address.strip():
-        raise ValueError(f"--address must be a Ray cluster address ('auto', 'host:6379', 'ray://host:10001'), "
-                         f"got {address!r}")
+        raise ValueError(
+            f"--address must be a Ray cluster address ('auto', 'host:6379', 'ray://host:10001'), got {address!r}"
+        )
     target = address.strip()
     if target.startswith("ray://"):
-        target = target[len("ray://"):]
+        target = target[len("ray://") :]
     elif target in ("auto", "local") or _host_port(target) is None:
         try:
             from ray._private.services import canonicalize_bootstrap_address_or_die
@@ -81,9 +84,11 @@ def check_ray_address(address: str | None) -> None:
         try:
             target = canonicalize_bootstrap_address_or_die(None if target == "local" else target)
         except (ConnectionError, ValueError) as exc:
-            raise ValueError(f"--address {address!r}: no running Ray cluster found (start one with "
-                             f"`ray start --head`, or omit --address for a local Ray); Ray says: "
-                             f"{str(exc).splitlines()[0]}") from None
+            raise ValueError(
+                f"--address {address!r}: no running Ray cluster found (start one with "
+                f"`ray start --head`, or omit --address for a local Ray); Ray says: "
+                f"{str(exc).splitlines()[0]}"
+            ) from None
     hp = _host_port(target)
     if hp is None:
         raise ValueError(f"--address {address!r} is not a Ray address ('auto', 'host:6379', 'ray://host:10001')")
@@ -91,8 +96,10 @@ def check_ray_address(address: str | None) -> None:
         with socket.create_connection(hp, timeout=CONNECT_TIMEOUT_S):
             pass
     except OSError as exc:
-        raise ValueError(f"--address {address!r}: no Ray cluster answers at {hp[0]}:{hp[1]} "
-                         f"({exc.strerror or exc}); start one with `ray start --head` or omit --address") from None
+        raise ValueError(
+            f"--address {address!r}: no Ray cluster answers at {hp[0]}:{hp[1]} "
+            f"({exc.strerror or exc}); start one with `ray start --head` or omit --address"
+        ) from None
     _probe(address, ray)
 
 
@@ -101,15 +108,24 @@ def _probe(address: str, ray: Any) -> None:
     if ray.is_initialized():
         return
     try:
-        proc = subprocess.run([sys.executable, "-c", _PROBE, address], capture_output=True, text=True,
-                              timeout=PROBE_TIMEOUT_S, check=False)
+        proc = subprocess.run(
+            [sys.executable, "-c", _PROBE, address],
+            capture_output=True,
+            text=True,
+            timeout=PROBE_TIMEOUT_S,
+            check=False,
+        )
     except subprocess.TimeoutExpired:
-        raise ValueError(f"--address {address!r}: no Ray cluster answered within {PROBE_TIMEOUT_S:g} s; start one "
-                         f"with `ray start --head` or omit --address") from None
+        raise ValueError(
+            f"--address {address!r}: no Ray cluster answered within {PROBE_TIMEOUT_S:g} s; start one "
+            f"with `ray start --head` or omit --address"
+        ) from None
     if proc.returncode != 0:
         lines = [ln for ln in proc.stderr.splitlines() if "Error" in ln] or proc.stderr.splitlines() or ["no answer"]
-        raise ValueError(f"--address {address!r}: could not join a Ray cluster there ({lines[-1].strip()}); "
-                         f"start one with `ray start --head` or omit --address")
+        raise ValueError(
+            f"--address {address!r}: could not join a Ray cluster there ({lines[-1].strip()}); "
+            f"start one with `ray start --head` or omit --address"
+        )
 
 
 def _run_in_worker(worker_fn: Callable[[Any], Any], spec: Any) -> Any:
@@ -163,8 +179,11 @@ class RayBackend(Backend):
         started = False
         if not ray.is_initialized():
             env_vars = {v: "1" for v in THREAD_VARS}  # workers read these at numpy import
-            kwargs: dict[str, Any] = {"runtime_env": {"env_vars": env_vars}, "log_to_driver": False,
-                                      "include_dashboard": False}
+            kwargs: dict[str, Any] = {
+                "runtime_env": {"env_vars": env_vars},
+                "log_to_driver": False,
+                "include_dashboard": False,
+            }
             if self.address is None:
                 kwargs["num_cpus"] = self.workers
             try:

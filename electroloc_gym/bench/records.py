@@ -40,10 +40,27 @@ from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules, TrialRecord
 from electroloc_gym.fileio import FolderBusyError, FolderLock, atomic_write_text, strict_json
 from electroloc_gym.registry import env_entry
 
-__all__ = ["prepare_out_dir", "run_lock", "FolderBusyError", "LoadedRecords", "load_records", "read_trials",
-           "CONFIG_FILE",
-           "parse_line", "RecordWriter", "set_aside", "record_key", "validate_record", "foreign_reason",
-           "TRIALS_FILE", "REJECTED_FILE", "LOCK_FILE", "MAX_LINE_CHARS", "MAX_DEPTH", "MAX_DIGITS"]
+__all__ = [
+    "prepare_out_dir",
+    "run_lock",
+    "FolderBusyError",
+    "LoadedRecords",
+    "load_records",
+    "read_trials",
+    "CONFIG_FILE",
+    "parse_line",
+    "RecordWriter",
+    "set_aside",
+    "record_key",
+    "validate_record",
+    "foreign_reason",
+    "TRIALS_FILE",
+    "REJECTED_FILE",
+    "LOCK_FILE",
+    "MAX_LINE_CHARS",
+    "MAX_DEPTH",
+    "MAX_DIGITS",
+]
 
 TRIALS_FILE = "trials.jsonl"
 CONFIG_FILE = "config.json"
@@ -92,8 +109,12 @@ def run_lock(folder: str | os.PathLike) -> FolderLock:
     Raises:
         FolderBusyError: on ``acquire`` when another run holds it.
     """
-    return FolderLock(folder, LOCK_FILE, f"--out {os.fspath(folder)!r} is in use by another electroloc bench run; "
-                                         f"wait for it to finish or choose another --out")
+    return FolderLock(
+        folder,
+        LOCK_FILE,
+        f"--out {os.fspath(folder)!r} is in use by another electroloc bench run; "
+        f"wait for it to finish or choose another --out",
+    )
 
 
 def record_key(rec: dict[str, Any]) -> tuple[str, str, int]:
@@ -209,8 +230,9 @@ class LoadedRecords:
         return len(self.foreign)
 
 
-def load_records(path: str | os.PathLike, config: BenchConfig | None = None,
-                 rules: RecordRules | None = None) -> LoadedRecords:
+def load_records(
+    path: str | os.PathLike, config: BenchConfig | None = None, rules: RecordRules | None = None
+) -> LoadedRecords:
     """Read a trials.jsonl (missing file: no records), keyed by (condition, agent, trial).
 
     Args:
@@ -321,4 +343,3 @@ class RecordWriter:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
-

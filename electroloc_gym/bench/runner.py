@@ -60,9 +60,22 @@ from electroloc_gym.bench.trials import TrialFailed, describe_trial, run_trial
 from electroloc_gym.fileio import atomic_write_bytes, strict_json, write_json_atomic
 
 # The run, plus the names a caller of the runner needs (defined in config, records and trials).
-__all__ = ["run_benchmark", "read_config", "record_rules", "OUTPUT_FILES", "BenchConfig", "TrialSpec", "DEFAULT_AGENTS",
-           "MAP_CONDITIONS", "resolve_conditions", "trial_seeds", "make_trial_specs",
-           "read_trials", "TIMING_KEYS", "run_trial"]
+__all__ = [
+    "run_benchmark",
+    "read_config",
+    "record_rules",
+    "OUTPUT_FILES",
+    "BenchConfig",
+    "TrialSpec",
+    "DEFAULT_AGENTS",
+    "MAP_CONDITIONS",
+    "resolve_conditions",
+    "trial_seeds",
+    "make_trial_specs",
+    "read_trials",
+    "TIMING_KEYS",
+    "run_trial",
+]
 
 _Log = Callable[[str], None] | None
 #: Most trials a run plans (agents × conditions × trials; the plan is held in memory, ≈1 KB a trial).
@@ -73,8 +86,9 @@ OUTPUT_FILES = ("summary.json", "table.md", "steps.png")
 SLOW_DECISION_S = 10.0
 
 
-def _resume(config: BenchConfig, out: Path, log: _Log,
-            trust_pickle: bool) -> tuple[LoadedRecords, dict[str, Any] | None]:
+def _resume(
+    config: BenchConfig, out: Path, log: _Log, trust_pickle: bool
+) -> tuple[LoadedRecords, dict[str, Any] | None]:
     """Check a stored run against ``config``; set damaged lines aside. Returns its records and config."""
     stored = read_config(out / "config.json", log)
     if stored is not None:
@@ -86,8 +100,10 @@ def _resume(config: BenchConfig, out: Path, log: _Log,
     if loaded.foreign:
         n, why = loaded.foreign[0]
         more = f" (and {len(loaded.foreign) - 1} more)" if len(loaded.foreign) > 1 else ""
-        raise ValueError(f"cannot resume {out}: {loaded.path}:{n}{more} is not a trial of this run — {why}; "
-                         f"resume with that run's settings or choose another --out")
+        raise ValueError(
+            f"cannot resume {out}: {loaded.path}:{n}{more} is not a trial of this run — {why}; "
+            f"resume with that run's settings or choose another --out"
+        )
     if loaded.rejected:
         set_aside(loaded)
         if log is not None:
@@ -116,21 +132,26 @@ def _check_agents(config: BenchConfig, trust_pickle: bool) -> tuple[str, list[st
                 raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
         why = layout_problem(agent, config.sensor_layout)
         if why is not None:
-            raise ValueError(f"agent {spec!r} cannot run with --sensor-layout {config.sensor_layout or 'single'}: "
-                             f"{why}")
+            raise ValueError(
+                f"agent {spec!r} cannot run with --sensor-layout {config.sensor_layout or 'single'}: {why}"
+            )
         try:
             need = planner_memory_bytes(agent, config.n_particles)
         except Exception as exc:  # noqa: BLE001 - a plug-in agent's own estimate: any failure is one line
             raise ValueError(f"agent {spec!r}: its memory_bytes() raised {type(exc).__name__}: {exc}") from None
         if need > _memory_budget():
-            raise ValueError(f"agent {spec!r} needs ≈{need / 2**30:.3g} GiB per decision with {config.n_particles} "
-                             f"particles; this machine has ≈{_memory_budget() / 2**30:.3g} GiB to spare: choose "
-                             f"smaller options")
+            raise ValueError(
+                f"agent {spec!r} needs ≈{need / 2**30:.3g} GiB per decision with {config.n_particles} "
+                f"particles; this machine has ≈{_memory_budget() / 2**30:.3g} GiB to spare: choose "
+                f"smaller options"
+            )
         slow = decision_seconds(agent, config.n_particles)
         if slow > SLOW_DECISION_S:
-            warnings.append(f"electroloc bench: warning: agent {spec!r} takes ≈{slow:.3g} s per decision by its own "
-                            f"estimate (up to {config.max_observations} decisions a trial, {config.trials} trial(s) "
-                            f"per condition): choose smaller options for a shorter run")
+            warnings.append(
+                f"electroloc bench: warning: agent {spec!r} takes ≈{slow:.3g} s per decision by its own "
+                f"estimate (up to {config.max_observations} decisions a trial, {config.trials} trial(s) "
+                f"per condition): choose smaller options for a shorter run"
+            )
         probe_env(config, spec, agent)
         if kind in ("baseline", "factory", "object"):
             described.append(spec)
@@ -138,8 +159,10 @@ def _check_agents(config: BenchConfig, trust_pickle: bool) -> tuple[str, list[st
         why = policy_env_problem(spec, agent, config.env_id, config.gain_levels, config.sensor_layout)
         if why is not None:
             raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
-        described.append(f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
-                         f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)")
+        described.append(
+            f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
+            f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)"
+        )
     return "agents: " + "; ".join(described), warnings
 
 
@@ -168,11 +191,20 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
     """
     import gymnasium as gym
 
-    kwargs = bench_env_kwargs(config.env_id, agent, config.gain_levels, condition=config.conditions[0],
-                              signal=config.signal, sensor_model=config.sensor_model, n_particles=config.n_particles,
-                              max_observations=config.max_observations, sensor_layout=config.sensor_layout,
-                              distractors=config.distractors, success_spread_mm=config.success_spread_mm,
-                              builtin=resolve_agent(spec).builtin)
+    kwargs = bench_env_kwargs(
+        config.env_id,
+        agent,
+        config.gain_levels,
+        condition=config.conditions[0],
+        signal=config.signal,
+        sensor_model=config.sensor_model,
+        n_particles=config.n_particles,
+        max_observations=config.max_observations,
+        sensor_layout=config.sensor_layout,
+        distractors=config.distractors,
+        success_spread_mm=config.success_spread_mm,
+        builtin=resolve_agent(spec).builtin,
+    )
     try:
         gym.make(config.env_id, **kwargs).close()
     except (TypeError, ValueError, MemoryError) as exc:
@@ -189,8 +221,11 @@ def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
     from electroloc_gym.bench.tables import render_table_md
 
     try:
-        content = {"summary.json": strict_json(summary).encode("utf-8"),
-                   "table.md": render_table_md(summary).encode("utf-8"), "steps.png": steps_png(summary)}
+        content = {
+            "summary.json": strict_json(summary).encode("utf-8"),
+            "table.md": render_table_md(summary).encode("utf-8"),
+            "steps.png": steps_png(summary),
+        }
     except BaseException:  # the old files describe other records: none stays beside trials.jsonl
         for name in OUTPUT_FILES:
             (out / name).unlink(missing_ok=True)
@@ -204,10 +239,18 @@ def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
         raise
 
 
-def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: int | None = None,
-                  backend: str = "process", resume: bool = False, progress: bool = True,
-                  backend_options: dict[str, Any] | None = None, trust_pickle: bool = False,
-                  log: _Log = print) -> dict[str, Any]:
+def run_benchmark(
+    config: BenchConfig,
+    out_dir: str | os.PathLike,
+    *,
+    workers: int | None = None,
+    backend: str = "process",
+    resume: bool = False,
+    progress: bool = True,
+    backend_options: dict[str, Any] | None = None,
+    trust_pickle: bool = False,
+    log: _Log = print,
+) -> dict[str, Any]:
     """Run (or resume) a benchmark and write its files; returns the summary.
 
     Args:
@@ -230,8 +273,10 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
 
     planned = len(config.agents) * len(config.conditions) * config.trials
     if planned > MAX_PLANNED_TRIALS:
-        raise ValueError(f"--trials {config.trials} × {len(config.agents)} agent(s) × {len(config.conditions)} "
-                         f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run")
+        raise ValueError(
+            f"--trials {config.trials} × {len(config.agents)} agent(s) × {len(config.conditions)} "
+            f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run"
+        )
     described, warnings = _check_agents(config, trust_pickle)  # before the folder is touched: nothing written
     out = prepare_out_dir(out_dir)
     with run_lock(out):
@@ -244,8 +289,9 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
         loaded = LoadedRecords(trials_path)
         if trials_path.exists() and trials_path.stat().st_size > 0:
             if not resume:
-                raise ValueError(f"{trials_path} already holds trials; pass --resume to continue that run "
-                                 f"or choose another --out")
+                raise ValueError(
+                    f"{trials_path} already holds trials; pass --resume to continue that run or choose another --out"
+                )
             loaded, stored = _resume(config, out, log, trust_pickle)
         be = make_backend(backend, workers, **(backend_options or {}))
 
@@ -262,9 +308,11 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
         cost = {"rnd-wlk": 0, "zero-crossing": 1}
         specs.sort(key=lambda s: -cost.get(s.agent, 2))
         if log is not None:
-            log(f"electroloc bench: {len(config.agents)} agents × {len(config.conditions)} conditions × "
+            log(
+                f"electroloc bench: {len(config.agents)} agents × {len(config.conditions)} conditions × "
                 f"{config.trials} trials; {len(records)} already done, {len(specs)} to run on backend {be.name!r} "
-                f"with {be.workers} worker(s) → {out}")
+                f"with {be.workers} worker(s) → {out}"
+            )
         t0 = time.perf_counter()
         bar = TrialProgress(len(specs), be.workers, enabled=progress)
         done_before = len(records)
@@ -276,14 +324,17 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
                     bar.update(rec)
         except (TrialFailed, WorkerLost) as exc:
             what = str(exc) if isinstance(exc, TrialFailed) else _lost_text(exc)
-            raise ValueError(f"{what}; the {len(records)} finished trial(s) ({len(records) - done_before} this time) "
-                             f"are kept in {trials_path}: fix the agent, then run again with --resume") from None
+            raise ValueError(
+                f"{what}; the {len(records)} finished trial(s) ({len(records) - done_before} this time) "
+                f"are kept in {trials_path}: fix the agent, then run again with --resume"
+            ) from None
         finally:
             bar.close()
         wall = time.perf_counter() - t0
 
-        wanted = [r for (c, a, k), r in records.items()
-                  if c in config.conditions and a in config.agents and k < config.trials]
+        wanted = [
+            r for (c, a, k), r in records.items() if c in config.conditions and a in config.agents and k < config.trials
+        ]
         summary = summarize(wanted, agents=list(config.agents), conditions=list(config.conditions))
         summary["config"] = asdict(config)
         summary["wall_s_this_run"] = wall
@@ -292,4 +343,3 @@ def run_benchmark(config: BenchConfig, out_dir: str | os.PathLike, *, workers: i
     if log is not None:
         log(f"{len(specs)} trials in {wall:.1f} s; wrote {trials_path}, summary.json, table.md, steps.png")
     return summary
-

@@ -45,10 +45,19 @@ from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import FAR_ERROR_MM
 from electroloc_gym.sensor_array import LAYOUT_NAMES
 
-__all__ = ["TrialRecord", "FAR_ERROR_MM", "is_far_success",
-           "RecordRules", "RECORD_KEYS", "OPTIONAL_RECORD_KEYS", "TIMING_KEYS", "SHAPE_RECORD_KEYS",
-           "OLD_KEY_NAMES", "POSITION_BOUND_MM", "MAX_TEXT_CHARS"]
-
+__all__ = [
+    "TrialRecord",
+    "FAR_ERROR_MM",
+    "is_far_success",
+    "RecordRules",
+    "RECORD_KEYS",
+    "OPTIONAL_RECORD_KEYS",
+    "TIMING_KEYS",
+    "SHAPE_RECORD_KEYS",
+    "OLD_KEY_NAMES",
+    "POSITION_BOUND_MM",
+    "MAX_TEXT_CHARS",
+]
 
 
 def is_far_success(success: bool, error_mm: float | None) -> bool:
@@ -68,16 +77,15 @@ Check = Callable[[Any], bool]
 
 
 def _int(low: int, high: int | None = None) -> Check:
-    return lambda v: (isinstance(v, int) and not isinstance(v, bool) and v >= low
-                      and (high is None or v <= high))
+    return lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= low and (high is None or v <= high)
 
 
 def _num(low: float = -math.inf, high: float = math.inf, none: bool = True) -> Check:
     def ok(v: Any) -> bool:
         if v is None:
             return none
-        return (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                and low <= v <= high)
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and low <= v <= high
+
     return ok
 
 
@@ -103,8 +111,9 @@ def _xy(none: bool) -> Check:
 
 
 def _gains(v: Any) -> bool:
-    return v is None or (isinstance(v, list) and 0 < len(v) <= 64 and all(_num(0.0, 1e12, none=False)(g) and g > 0
-                                                                            for g in v))
+    return v is None or (
+        isinstance(v, list) and 0 < len(v) <= 64 and all(_num(0.0, 1e12, none=False)(g) and g > 0 for g in v)
+    )
 
 
 _SHAPE_CHECKS: dict[str, tuple[Check, str]] = {
@@ -122,8 +131,11 @@ _SHAPE_CHECKS: dict[str, tuple[Check, str]] = {
 
 
 def _shape(v: Any) -> bool:
-    return v is None or (isinstance(v, dict) and set(v) == set(SHAPE_RECORD_KEYS)
-                         and all(ok(v[k]) for k, (ok, _) in _SHAPE_CHECKS.items()))
+    return v is None or (
+        isinstance(v, dict)
+        and set(v) == set(SHAPE_RECORD_KEYS)
+        and all(ok(v[k]) for k, (ok, _) in _SHAPE_CHECKS.items())
+    )
 
 
 def _f(check: Check, what: str, optional: bool = False, timing: bool = False) -> Any:
@@ -163,11 +175,13 @@ class TrialRecord:
     n_particles: int = _f(_int(1), "an integer ≥ 1")
     env_id: str = _f(_text, "an env id")
     wall_s: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 s or null", timing=True)
-    shape: dict[str, Any] | None = _f(_shape, f"null or an object with exactly the keys {list(SHAPE_RECORD_KEYS)} "
-                                              f"in their ranges", optional=True)
+    shape: dict[str, Any] | None = _f(
+        _shape, f"null or an object with exactly the keys {list(SHAPE_RECORD_KEYS)} in their ranges", optional=True
+    )
     gain_levels: list[float] | None = _f(_gains, "null or a list of positive gain factors", optional=True)
-    sensor_layout: str | None = _f(lambda v: v is None or v in LAYOUT_NAMES, f"null or one of {list(LAYOUT_NAMES)}",
-                                   optional=True)
+    sensor_layout: str | None = _f(
+        lambda v: v is None or v in LAYOUT_NAMES, f"null or one of {list(LAYOUT_NAMES)}", optional=True
+    )
     distractors: int = _f(_int(0, MAX_DISTRACTORS), f"an integer in [0, {MAX_DISTRACTORS}]", optional=True)
     far_success: bool = _f(lambda v: isinstance(v, bool), "true or false", optional=True)
 
@@ -214,21 +228,25 @@ class TrialRecord:
                 return "an error without an estimate"
         else:
             dx, dy = self.estimate[0] - self.target[0], self.estimate[1] - self.target[1]
-            for name, got, want in (("error_x_mm", self.error_x_mm, dx), ("error_y_mm", self.error_y_mm, dy),
-                                    ("error_mm", self.error_mm, math.hypot(dx, dy))):
+            for name, got, want in (
+                ("error_x_mm", self.error_x_mm, dx),
+                ("error_y_mm", self.error_y_mm, dy),
+                ("error_mm", self.error_mm, math.hypot(dx, dy)),
+            ):
                 if got is None or not math.isclose(got, want, rel_tol=1e-9, abs_tol=1e-9):
                     return f"{name!r} is {got!r}, but estimate − target gives {want!r}"
         if self.far_success != is_far_success(self.success, self.error_mm):
-            return (f"'far_success' {self.far_success} contradicts 'success' {self.success} and 'error_mm' "
-                    f"{self.error_mm} (far: a success more than {FAR_ERROR_MM} mm off)")
+            return (
+                f"'far_success' {self.far_success} contradicts 'success' {self.success} and 'error_mm' "
+                f"{self.error_mm} (far: a success more than {FAR_ERROR_MM} mm off)"
+            )
         if self.table_layout == "table4" and self.readings > self.max_observations:  # Table 1: the agent's own budget
             return f"'readings' {self.readings} exceeds the record's cap 'max_observations' {self.max_observations}"
         if self.ended_by == "agent":
             if self.decisions != self.readings:
                 return f"'decisions' {self.decisions} ≠ 'readings' {self.readings} (the agent ended the trial)"
         elif self.decisions != self.readings - 1:
-            return (f"'decisions' {self.decisions} ≠ 'readings' − 1 = {self.readings - 1} "
-                    f"(the env ended the trial)")
+            return f"'decisions' {self.decisions} ≠ 'readings' − 1 = {self.readings - 1} (the env ended the trial)"
         if self.ended_by == "agent" or self.table_layout == "table1":  # the agent's own estimate decides
             if self.success != (self.ended_by == "agent" and self.estimate is not None):
                 return "'success' must be true exactly when an agent that ended the trial reported an estimate"
@@ -246,8 +264,10 @@ class TrialRecord:
         if self.agent not in rules.agents:
             return f"agent {self.agent!r} is not one of the run's {sorted(rules.agents)}"
         if self.table_layout != rules.table_layouts.get(self.agent, self.table_layout):
-            return (f"table_layout {self.table_layout!r}, but agent {self.agent!r} reports to "
-                    f"{rules.table_layouts[self.agent]!r}")
+            return (
+                f"table_layout {self.table_layout!r}, but agent {self.agent!r} reports to "
+                f"{rules.table_layouts[self.agent]!r}"
+            )
         if self.trial >= rules.trials:
             return f"trial {self.trial} is outside the run's range 0–{rules.trials - 1}"
         cap = rules.caps.get(self.agent, self.max_observations)
@@ -259,17 +279,22 @@ class TrialRecord:
             criterion = rules.criteria.get(self.agent, rules.success_spread_mm)
             assert self.spread_mm is not None  # checked by from_json
             if (self.spread_mm <= criterion) != self.success:
-                return (f"'success' {self.success} but 'spread_mm' {self.spread_mm} vs the criterion "
-                        f"{criterion} mm")
+                return f"'success' {self.success} but 'spread_mm' {self.spread_mm} vs the criterion {criterion} mm"
         if (self.shape is not None) != rules.shape:
-            return ("'shape' must be " + ("the identification results (unknown-target env)" if rules.shape else
-                                          "null (only the unknown-target env identifies the target)"))
+            return "'shape' must be " + (
+                "the identification results (unknown-target env)"
+                if rules.shape
+                else "null (only the unknown-target env identifies the target)"
+            )
         if rules.start_of is not None:
             want = rules.start_of(self.condition, self.agent, self.seed)
-            if want is not None and not all(math.isclose(a, b, rel_tol=0.0, abs_tol=1e-6)
-                                            for a, b in zip(self.start, want)):
-                return (f"'start' {self.start} is not the start {[round(w, 6) for w in want]} mm the trial's "
-                        f"seed {self.seed} draws")
+            if want is not None and not all(
+                math.isclose(a, b, rel_tol=0.0, abs_tol=1e-6) for a, b in zip(self.start, want)
+            ):
+                return (
+                    f"'start' {self.start} is not the start {[round(w, 6) for w in want]} mm the trial's "
+                    f"seed {self.seed} draws"
+                )
         return None
 
 

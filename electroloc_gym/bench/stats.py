@@ -105,13 +105,16 @@ def _identification(successes: Sequence[dict[str, Any]]) -> dict[str, Any]:
     shapes = [r["shape"] for r in successes if r.get("shape")]
     if not shapes:
         return {}
-    return {"identified_trials": len(shapes),
-            "material_correct_frac": _mean(float(s["material_correct"]) for s in shapes),
-            "radius_error_median_frac": _median(s["radius_error_frac"] for s in shapes)}
+    return {
+        "identified_trials": len(shapes),
+        "material_correct_frac": _mean(float(s["material_correct"]) for s in shapes),
+        "radius_error_median_frac": _median(s["radius_error_frac"] for s in shapes),
+    }
 
 
-def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = None,
-              conditions: Sequence[str] | None = None) -> dict[str, Any]:
+def summarize(
+    records: Sequence[dict[str, Any]], agents: Sequence[str] | None = None, conditions: Sequence[str] | None = None
+) -> dict[str, Any]:
     """Rows per condition × agent plus ``"condition": "all"`` rows (see the module docstring).
 
     Args:
@@ -131,8 +134,9 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
         by.setdefault((r["condition"], r["agent"]), []).append(r)
     for recs in by.values():
         recs.sort(key=lambda r: int(r["trial"]))
-    table_layout = {a: next((r.get("table_layout", "table4") for r in records if r["agent"] == a), "table4")
-                    for a in agents}
+    table_layout = {
+        a: next((r.get("table_layout", "table4") for r in records if r["agent"] == a), "table4") for a in agents
+    }
     table4 = [a for a in agents if table_layout[a] == "table4"]
     rows: list[dict[str, Any]] = []
     per_agent: dict[str, list[dict[str, Any]]] = {a: [] for a in agents}
@@ -153,28 +157,30 @@ def summarize(records: Sequence[dict[str, Any]], agents: Sequence[str] | None = 
         if not crow:
             continue
         recs = [r for c in conditions for r in by.get((c, a), [])]
-        rows.append({
-            "condition": "all",
-            "agent": a,
-            "label": crow[0]["label"],
-            "table_layout": table_layout[a],
-            "conditions": len(crow),
-            "trials": sum(r["trials"] for r in crow),
-            "successes": sum(r["successes"] for r in crow),
-            "failures": sum(r["failures"] for r in crow),
-            "error_mean_mm": _avg_of(crow, "error_mean_mm"),
-            "error_median_mm": _avg_of(crow, "error_median_mm"),
-            "readings_mean": _avg_of(crow, "readings_mean"),
-            "readings_median": _avg_of(crow, "readings_median"),
-            "decision_ms_median": _median(r.get("decision_ms_median") for r in recs),
-            "paired_trials": sum(r["paired_trials"] for r in crow),
-            "error_mean_paired_mm": _avg_of(crow, "error_mean_paired_mm"),
-            "readings_mean_paired": _avg_of(crow, "readings_mean_paired"),
-            "error_median_pooled_mm": _median(r["error_mm"] for r in recs),
-            "readings_median_pooled": _median(r["readings"] for r in recs),
-            "far_successes": sum(is_far_success(r["success"], r["error_mm"]) for r in recs),
-            "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
-            "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),
-            **_identification([r for r in recs if r["success"]]),  # pooled over the conditions' successes
-        })
+        rows.append(
+            {
+                "condition": "all",
+                "agent": a,
+                "label": crow[0]["label"],
+                "table_layout": table_layout[a],
+                "conditions": len(crow),
+                "trials": sum(r["trials"] for r in crow),
+                "successes": sum(r["successes"] for r in crow),
+                "failures": sum(r["failures"] for r in crow),
+                "error_mean_mm": _avg_of(crow, "error_mean_mm"),
+                "error_median_mm": _avg_of(crow, "error_median_mm"),
+                "readings_mean": _avg_of(crow, "readings_mean"),
+                "readings_median": _avg_of(crow, "readings_median"),
+                "decision_ms_median": _median(r.get("decision_ms_median") for r in recs),
+                "paired_trials": sum(r["paired_trials"] for r in crow),
+                "error_mean_paired_mm": _avg_of(crow, "error_mean_paired_mm"),
+                "readings_mean_paired": _avg_of(crow, "readings_mean_paired"),
+                "error_median_pooled_mm": _median(r["error_mm"] for r in recs),
+                "readings_median_pooled": _median(r["readings"] for r in recs),
+                "far_successes": sum(is_far_success(r["success"], r["error_mm"]) for r in recs),
+                "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
+                "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),
+                **_identification([r for r in recs if r["success"]]),  # pooled over the conditions' successes
+            }
+        )
     return {"rules": RULES, "agents": agents, "conditions": conditions, "rows": rows}

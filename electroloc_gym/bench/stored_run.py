@@ -99,11 +99,20 @@ class _StartReplay:
         own = builtin_agent(agent)  # a built-in agent may set its own workspace; a plug-in's kwargs cannot move it
         key = (condition, agent if own is not None else "")
         if key not in self._envs:
-            kwargs = bench_env_kwargs(cfg.env_id, own, cfg.gain_levels, condition=condition, signal=cfg.signal,
-                                      sensor_model=cfg.sensor_model, n_particles=cfg.n_particles,
-                                      max_observations=cfg.max_observations, sensor_layout=cfg.sensor_layout,
-                                      distractors=cfg.distractors, success_spread_mm=cfg.success_spread_mm,
-                                      builtin=own is not None)
+            kwargs = bench_env_kwargs(
+                cfg.env_id,
+                own,
+                cfg.gain_levels,
+                condition=condition,
+                signal=cfg.signal,
+                sensor_model=cfg.sensor_model,
+                n_particles=cfg.n_particles,
+                max_observations=cfg.max_observations,
+                sensor_layout=cfg.sensor_layout,
+                distractors=cfg.distractors,
+                success_spread_mm=cfg.success_spread_mm,
+                builtin=own is not None,
+            )
             try:
                 self._envs[key] = gym.make(cfg.env_id, **kwargs)
             except (TypeError, ValueError):
@@ -116,8 +125,9 @@ class _StartReplay:
         return float(start[0]), float(start[1])
 
 
-def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
-                 trust_pickle: bool = False) -> RecordRules:
+def record_rules(
+    config: BenchConfig, stored: dict[str, Any] | None = None, *, trust_pickle: bool = False
+) -> RecordRules:
     """What a record of ``config``'s run (continuing ``stored``, a config.json) may hold.
 
     Only the built-in agents set their own cap, success criterion and table layout (zero-crossing, the
@@ -137,11 +147,17 @@ def record_rules(config: BenchConfig, stored: dict[str, Any] | None = None, *,
         if "success_spread_mm" in kwargs:
             criteria[spec] = float(kwargs["success_spread_mm"])
         table_layouts[spec] = str(getattr(agent, "table_layout", "table4"))
-    return RecordRules(conditions=conditions, agents=agents, trials=trials,
-                       success_spread_mm=float(config.success_spread_mm),
-                       shape=bool(env_entry(config.env_id).record_keys),
-                       caps=caps, criteria=criteria, table_layouts=table_layouts,
-                       start_of=_StartReplay(config, trust_pickle))
+    return RecordRules(
+        conditions=conditions,
+        agents=agents,
+        trials=trials,
+        success_spread_mm=float(config.success_spread_mm),
+        shape=bool(env_entry(config.env_id).record_keys),
+        caps=caps,
+        criteria=criteria,
+        table_layouts=table_layouts,
+        start_of=_StartReplay(config, trust_pickle),
+    )
 
 
 @dataclass(frozen=True)
@@ -171,8 +187,9 @@ class RunRecords:
 
     def messages(self) -> list[str]:
         """One line per line not kept: ``FILE:LINE: reason``."""
-        return self.loaded.messages() + [f"{self.loaded.path}:{n}: not of this run: {why}"
-                                         for n, why in self.loaded.foreign]
+        return self.loaded.messages() + [
+            f"{self.loaded.path}:{n}: not of this run: {why}" for n, why in self.loaded.foreign
+        ]
 
 
 def read_run_records(out_dir: str | os.PathLike) -> RunRecords:

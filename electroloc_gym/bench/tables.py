@@ -17,8 +17,16 @@ from electroloc_gym.conditions import PRESET_NAMES
 from electroloc_gym.markdown import markdown_table
 from electroloc_gym.registry import ENVS
 
-__all__ = ["PAPER_TABLE4", "PAPER_TABLE4_ALL", "PAPER_TABLE1", "PAPER_TABLE2", "render_table_md", "paper_agent_key",
-           "aggregate_label", "is_all_conditions"]
+__all__ = [
+    "PAPER_TABLE4",
+    "PAPER_TABLE4_ALL",
+    "PAPER_TABLE1",
+    "PAPER_TABLE2",
+    "render_table_md",
+    "paper_agent_key",
+    "aggregate_label",
+    "is_all_conditions",
+]
 
 # Table 4 (App. B): (successes, failures, error mean, error median (mm), steps mean, steps median).
 PAPER_TABLE4: dict[tuple[str, str], tuple[int, int, float, float, float, float]] = {
@@ -104,7 +112,7 @@ def _paper_cells(paper: tuple | None, row: dict[str, Any] | None = None) -> tupl
 
 
 def _interval_mark(paper: tuple, row: dict[str, Any]) -> str:
-    """"[lo–hi] ✓/✗": the paper's 90 % interval as counts of the run's trials, and whether the run is in it."""
+    """The mark "[lo–hi] ✓/✗": the paper's 90 % interval as counts of the run's trials, and whether the run is in it."""
     n = int(row["successes"]) + int(row["failures"])
     paper_n = int(paper[0]) + int(paper[1])
     if n <= 0 or paper_n <= 0:
@@ -118,14 +126,20 @@ def _inside_counts(rows: list[dict[str, Any]]) -> str:
     parts = []
     for agent in dict.fromkeys(r["agent"] for r in rows if r["condition"] != "all"):
         key = paper_agent_key(agent) or ""
-        cells = [(PAPER_TABLE4[(r["condition"], key)], r) for r in rows
-                 if r["agent"] == agent and (r["condition"], key) in PAPER_TABLE4]
+        cells = [
+            (PAPER_TABLE4[(r["condition"], key)], r)
+            for r in rows
+            if r["agent"] == agent and (r["condition"], key) in PAPER_TABLE4
+        ]
         if cells:
             inside = sum(_interval_mark(p, r).endswith("✓") for p, r in cells)
             parts.append(f"{agent} {inside} of {len(cells)}")
-    return ("Success counts inside the paper's 90 % binomial interval (Wilson, of its "
-            f"{PAPER_TRIALS} trials; [lo–hi] = that interval in this run's trials): " + "; ".join(parts) + "."
-            if parts else "")
+    return (
+        "Success counts inside the paper's 90 % binomial interval (Wilson, of its "
+        f"{PAPER_TRIALS} trials; [lo–hi] = that interval in this run's trials): " + "; ".join(parts) + "."
+        if parts
+        else ""
+    )
 
 
 def is_all_conditions(row: dict[str, Any]) -> bool:
@@ -134,7 +148,7 @@ def is_all_conditions(row: dict[str, Any]) -> bool:
 
 
 def aggregate_label(row: dict[str, Any]) -> str:
-    """"All conditions" for an aggregate row over the paper's eight conditions, else "Subset (k conditions)"."""
+    """The label of an aggregate row: "All conditions" over the paper's eight, else "Subset (k conditions)"."""
     if is_all_conditions(row):
         return "All conditions"
     k = row.get("conditions")
@@ -162,29 +176,37 @@ def render_table_md(summary: dict[str, Any]) -> str:
     out.append(f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}")
     out.append("")
     if cfg:
-        out.append(f"{cfg.get('trials')} trials per condition and agent, seed {cfg.get('seed')}, sensor model "
-                   f"`{cfg.get('sensor_model')}`, signal `{cfg.get('signal')}`, {cfg.get('n_particles')} particles, "
-                   f"cap {cfg.get('max_observations')} observations. Paper values (Solberg, Lynch & MacIver 2008) "
-                   f"in the right-hand columns.")
+        out.append(
+            f"{cfg.get('trials')} trials per condition and agent, seed {cfg.get('seed')}, sensor model "
+            f"`{cfg.get('sensor_model')}`, signal `{cfg.get('signal')}`, {cfg.get('n_particles')} particles, "
+            f"cap {cfg.get('max_observations')} observations. Paper values (Solberg, Lynch & MacIver 2008) "
+            f"in the right-hand columns."
+        )
         out.append("")
         if cfg.get("gain_levels"):
-            out.append(f"Dynamic gain (§7): every reading's amplifier gain is part of the action, factors "
-                       f"{', '.join(f'{g:g}' for g in cfg['gain_levels'])} of the preset gain; `min-var` votes over "
-                       f"moves × gains, `min-var[gain=preset]` and the other controllers read at the preset gain.")
+            out.append(
+                f"Dynamic gain (§7): every reading's amplifier gain is part of the action, factors "
+                f"{', '.join(f'{g:g}' for g in cfg['gain_levels'])} of the preset gain; `min-var` votes over "
+                f"moves × gains, `min-var[gain=preset]` and the other controllers read at the preset gain."
+            )
             out.append("")
     if t4:
         out.append("## Table 4 layout (particle-filter agents)")
         out.append("")
         subset = any(r["condition"] == "all" and not is_all_conditions(r) for r in t4)
-        aggregate = ("the *Subset* row averages the per-condition values over this run's conditions (as the paper's "
-                     "*All conditions* row does over all eight; the paper's totals are not shown beside a subset)"
-                     if subset else
-                     "the *All conditions* row averages the per-condition values (as the paper's row does: its 12.4 "
-                     "and 6.7 median steps are the averages of the eight medians)")
-        out.append("Appendix B rules, followed here: *success (failure)* counts trials with √trace Σ ≤ 10 mm within "
-                   "the cap; the **mean** error and mean steps omit every start position on which either (here: any) "
-                   f"Table-4 agent of the run failed; the **medians** use all trials, failures included; {aggregate}. "
-                   "Steps = observations fused.")
+        aggregate = (
+            "the *Subset* row averages the per-condition values over this run's conditions (as the paper's "
+            "*All conditions* row does over all eight; the paper's totals are not shown beside a subset)"
+            if subset
+            else "the *All conditions* row averages the per-condition values (as the paper's row does: its 12.4 "
+            "and 6.7 median steps are the averages of the eight medians)"
+        )
+        out.append(
+            "Appendix B rules, followed here: *success (failure)* counts trials with √trace Σ ≤ 10 mm within "
+            "the cap; the **mean** error and mean steps omit every start position on which either (here: any) "
+            f"Table-4 agent of the run failed; the **medians** use all trials, failures included; {aggregate}. "
+            "Steps = observations fused."
+        )
         out.append("")
         cells = []
         for r in t4:
@@ -194,13 +216,35 @@ def render_table_md(summary: dict[str, Any]) -> str:
             else:
                 water, sphere = _cond_label(r["condition"])
                 paper = PAPER_TABLE4.get((r["condition"], paper_agent_key(r["agent"]) or ""))
-            cells.append((water, sphere, r.get("label", r["agent"]), f"{r['successes']}({r['failures']})",
-                          _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
-                          _pair(r["readings_mean_paired"], r["readings_median"]), _f(r["decision_ms_median"], 2),
-                          *_paper_cells(paper, r)))
-        out.extend(markdown_table(("Water", "Sphere (mm)/material", "Agent", "Success (failure)",
-                                   "Error (mm) mean/median", "No. steps mean/median", "Decision ms",
-                                   "Paper success (failure)", "Paper error", "Paper steps"), cells))
+            cells.append(
+                (
+                    water,
+                    sphere,
+                    r.get("label", r["agent"]),
+                    f"{r['successes']}({r['failures']})",
+                    _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
+                    _pair(r["readings_mean_paired"], r["readings_median"]),
+                    _f(r["decision_ms_median"], 2),
+                    *_paper_cells(paper, r),
+                )
+            )
+        out.extend(
+            markdown_table(
+                (
+                    "Water",
+                    "Sphere (mm)/material",
+                    "Agent",
+                    "Success (failure)",
+                    "Error (mm) mean/median",
+                    "No. steps mean/median",
+                    "Decision ms",
+                    "Paper success (failure)",
+                    "Paper error",
+                    "Paper steps",
+                ),
+                cells,
+            )
+        )
         out.append("")
         inside = _inside_counts(t4)
         if inside:
@@ -208,13 +252,21 @@ def render_table_md(summary: dict[str, Any]) -> str:
             out.append("")
         alls = [r for r in t4 if r["condition"] == "all"]
         if alls:
-            out.append("Pooled over all trials (not the paper's convention): " + "; ".join(
-                f"{r.get('label', r['agent'])}: median steps {_f(r.get('readings_median_pooled'))}, median error "
-                f"{_f(r.get('error_median_pooled_mm'), 2)} mm, own-success means: error "
-                f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('readings_mean'))}"
-                + ("" if r.get("far_successes") is None
-                   else f", far successes (> {FAR_ERROR_MM:g} mm off) {r['far_successes']}")
-                for r in alls) + ".")
+            out.append(
+                "Pooled over all trials (not the paper's convention): "
+                + "; ".join(
+                    f"{r.get('label', r['agent'])}: median steps {_f(r.get('readings_median_pooled'))}, median error "
+                    f"{_f(r.get('error_median_pooled_mm'), 2)} mm, own-success means: error "
+                    f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('readings_mean'))}"
+                    + (
+                        ""
+                        if r.get("far_successes") is None
+                        else f", far successes (> {FAR_ERROR_MM:g} mm off) {r['far_successes']}"
+                    )
+                    for r in alls
+                )
+                + "."
+            )
             out.append("")
     ident = [r for r in t4 if r.get("identified_trials") and r["condition"] != "all"]
     if ident:
@@ -222,10 +274,12 @@ def render_table_md(summary: dict[str, Any]) -> str:
     if t1:
         out.append("## Table 1 layout (zero-crossing)")
         out.append("")
-        out.append("Workspace 160 × 160 mm centred at a random point within ±75 mm (paper §6.4); mean absolute error "
-                   "of the final estimate in x and y over successful trials. *Repeatability* is the mean distance "
-                   "of the estimates from their own mean (what the paper's text says its table measures). Steps = "
-                   "readings taken (the paper does not report them).")
+        out.append(
+            "Workspace 160 × 160 mm centred at a random point within ±75 mm (paper §6.4); mean absolute error "
+            "of the final estimate in x and y over successful trials. *Repeatability* is the mean distance "
+            "of the estimates from their own mean (what the paper's text says its table measures). Steps = "
+            "readings taken (the paper does not report them)."
+        )
         out.append("")
         cells = []
         for r in t1:
@@ -240,22 +294,49 @@ def render_table_md(summary: dict[str, Any]) -> str:
                 label = f"{water} {sphere}"
                 paper = PAPER_TABLE1.get(r["condition"])
                 rep = _pair(r.get("error_x_repeatability_mm"), r.get("error_y_repeatability_mm"), 2)
-            cells.append((label, r.get("label", r["agent"]), f"{r['successes']}({r['failures']})",
-                          _f(r.get("error_x_mean_abs_mm"), 2), _f(r.get("error_y_mean_abs_mm"), 2), rep,
-                          _f(r["readings_median"], 0), _f(paper[0], 2) if paper else "",
-                          _f(paper[1], 2) if paper else ""))
-        out.extend(markdown_table(("Condition", "Agent", "Success (failure)", "Mean abs. error x (mm)", "y (mm)",
-                                   "Repeatability x/y (mm)", "Steps median", "Paper x (mm)", "Paper y (mm)"), cells))
+            cells.append(
+                (
+                    label,
+                    r.get("label", r["agent"]),
+                    f"{r['successes']}({r['failures']})",
+                    _f(r.get("error_x_mean_abs_mm"), 2),
+                    _f(r.get("error_y_mean_abs_mm"), 2),
+                    rep,
+                    _f(r["readings_median"], 0),
+                    _f(paper[0], 2) if paper else "",
+                    _f(paper[1], 2) if paper else "",
+                )
+            )
+        out.extend(
+            markdown_table(
+                (
+                    "Condition",
+                    "Agent",
+                    "Success (failure)",
+                    "Mean abs. error x (mm)",
+                    "y (mm)",
+                    "Repeatability x/y (mm)",
+                    "Steps median",
+                    "Paper x (mm)",
+                    "Paper y (mm)",
+                ),
+                cells,
+            )
+        )
         out.append("")
     return "\n".join(out)
 
 
 def _identification_rows(t4: list[dict[str, Any]]) -> list[str]:
     """The unknown-target env's size and material identification, over each agent's successes."""
-    out = ["## Identification (unknown target, §7)", "",
-           "Over each agent's successful trials: the material estimate (conductor when more than half the particles "
-           "have χ > 0) against the true one, and the median relative error of the radius estimate (the particles' "
-           "median radius). The paper has no such numbers.", ""]
+    out = [
+        "## Identification (unknown target, §7)",
+        "",
+        "Over each agent's successful trials: the material estimate (conductor when more than half the particles "
+        "have χ > 0) against the true one, and the median relative error of the radius estimate (the particles' "
+        "median radius). The paper has no such numbers.",
+        "",
+    ]
     cells = []
     for r in t4:
         if not r.get("identified_trials"):
@@ -263,10 +344,21 @@ def _identification_rows(t4: list[dict[str, Any]]) -> list[str]:
         pooled = r["condition"] == "all"
         water, sphere = (f"{aggregate_label(r)} (pooled)", "") if pooled else _cond_label(r["condition"])
         frac, rad = (r.get(k) for k in ("material_correct_frac", "radius_error_median_frac"))
-        cells.append((water, sphere, r.get("label", r["agent"]), r["successes"],
-                      f"{_f(None if frac is None else 100 * frac)} %", f"{_f(None if rad is None else 100 * rad)} %"))
-    out.extend(markdown_table(("Water", "Sphere (mm)/material", "Agent", "Successes", "Material correct",
-                               "Radius error median"), cells))
+        cells.append(
+            (
+                water,
+                sphere,
+                r.get("label", r["agent"]),
+                r["successes"],
+                f"{_f(None if frac is None else 100 * frac)} %",
+                f"{_f(None if rad is None else 100 * rad)} %",
+            )
+        )
+    out.extend(
+        markdown_table(
+            ("Water", "Sphere (mm)/material", "Agent", "Successes", "Material correct", "Radius error median"), cells
+        )
+    )
     out.append("")
     return out
 
@@ -275,18 +367,44 @@ def _render_table2(summary: dict[str, Any]) -> str:
     """table.md for ElectroLocGlobal-v0: the paper's Table 2 layout (§6.5), same Appendix-B rules."""
     cfg = summary.get("config", {})
     rows = [r for r in summary["rows"] if r["condition"] != "all"]
-    out = [f"# electroloc bench — {cfg.get('env_id')}", "",
-           (f"Global self-localisation among six cylinders (paper §6.5, Table 2): {cfg.get('trials')} trials per "
-           f"agent, seed {cfg.get('seed')}, sensor model `{cfg.get('sensor_model')}`, {cfg.get('n_particles')} "
-           f"particles, cap {cfg.get('max_observations')} observations; the map is "
-           f"`electroloc_gym.scene.BENCHMARK_SCENE`. Error = |belief mean − true carriage position|. Same "
-           f"Appendix-B rules as Table 4 (mean error/steps over the trials every agent solved, medians over all "
-           f"trials). Paper values in the right-hand columns."), ""]
-    cells = [(r.get("label", r["agent"]), f"{r['successes']}({r['failures']})",
-              _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
-              _pair(r["readings_mean_paired"], r["readings_median"]), _f(r["decision_ms_median"], 2),
-              *_paper_cells(PAPER_TABLE2.get(paper_agent_key(r["agent"]) or ""), r)) for r in rows]
-    out.extend(markdown_table(("Control type", "Success (failure)", "Error (mm) mean/median", "No. steps mean/median",
-                               "Decision ms", "Paper success (failure)", "Paper error", "Paper steps"), cells))
+    out = [
+        f"# electroloc bench — {cfg.get('env_id')}",
+        "",
+        (
+            f"Global self-localisation among six cylinders (paper §6.5, Table 2): {cfg.get('trials')} trials per "
+            f"agent, seed {cfg.get('seed')}, sensor model `{cfg.get('sensor_model')}`, {cfg.get('n_particles')} "
+            f"particles, cap {cfg.get('max_observations')} observations; the map is "
+            f"`electroloc_gym.scene.BENCHMARK_SCENE`. Error = |belief mean − true carriage position|. Same "
+            f"Appendix-B rules as Table 4 (mean error/steps over the trials every agent solved, medians over all "
+            f"trials). Paper values in the right-hand columns."
+        ),
+        "",
+    ]
+    cells = [
+        (
+            r.get("label", r["agent"]),
+            f"{r['successes']}({r['failures']})",
+            _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
+            _pair(r["readings_mean_paired"], r["readings_median"]),
+            _f(r["decision_ms_median"], 2),
+            *_paper_cells(PAPER_TABLE2.get(paper_agent_key(r["agent"]) or ""), r),
+        )
+        for r in rows
+    ]
+    out.extend(
+        markdown_table(
+            (
+                "Control type",
+                "Success (failure)",
+                "Error (mm) mean/median",
+                "No. steps mean/median",
+                "Decision ms",
+                "Paper success (failure)",
+                "Paper error",
+                "Paper steps",
+            ),
+            cells,
+        )
+    )
     out.append("")
     return "\n".join(out)

@@ -36,17 +36,27 @@ def describe_trial(spec: TrialSpec) -> str:
     """``agent 'X' in trial K of CONDITION`` (the words of every failure message)."""
     return f"agent {spec.agent!r} in trial {spec.trial} of {spec.condition}"
 
+
 _ENVS: dict[tuple[Any, ...], Any] = {}
 
 
 def _env(spec: TrialSpec, agent: Any) -> Any:
     import gymnasium as gym
 
-    kwargs = bench_env_kwargs(spec.env_id, agent, spec.gain_levels, condition=spec.condition, signal=spec.signal,
-                              sensor_model=spec.sensor_model, n_particles=spec.n_particles,
-                              max_observations=spec.max_observations, sensor_layout=spec.sensor_layout,
-                              distractors=spec.distractors, success_spread_mm=spec.success_spread_mm,
-                              builtin=resolve_agent(spec.agent).builtin)
+    kwargs = bench_env_kwargs(
+        spec.env_id,
+        agent,
+        spec.gain_levels,
+        condition=spec.condition,
+        signal=spec.signal,
+        sensor_model=spec.sensor_model,
+        n_particles=spec.n_particles,
+        max_observations=spec.max_observations,
+        sensor_layout=spec.sensor_layout,
+        distractors=spec.distractors,
+        success_spread_mm=spec.success_spread_mm,
+        builtin=resolve_agent(spec.agent).builtin,
+    )
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
     if key not in _ENVS:
         if len(_ENVS) > 16:
@@ -100,39 +110,41 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
     else:
         error = error_x = error_y = None
     dms = np.asarray(ep.decision_s) * 1e3
-    return TrialRecord.from_json({
-        "condition": spec.condition,
-        "agent": spec.agent,
-        "agent_label": str(getattr(agent, "name", spec.agent)),
-        "table_layout": table_layout,
-        "trial": spec.trial,
-        "seed": spec.env_seed,
-        "agent_seed": spec.agent_seed,
-        "success": success,
-        "ended_by": ep.ended_by,
-        "readings": int(info["n_observations"]),
-        "error_mm": to_json_data(error),
-        "error_x_mm": to_json_data(error_x),
-        "error_y_mm": to_json_data(error_y),
-        "estimate": estimate,
-        "target": [float(target[0]), float(target[1])],
-        "start": [float(start[0]), float(start[1])],
-        "spread_mm": to_json_data(info.get("spread_mm")),
-        "decisions": int(dms.size),
-        "decision_ms_median": float(np.median(dms)) if dms.size else None,
-        "decision_ms_mean": float(np.mean(dms)) if dms.size else None,
-        "sensor_model": spec.sensor_model,
-        "signal": spec.signal,
-        "max_observations": spec.max_observations,
-        "n_particles": spec.n_particles,
-        "env_id": spec.env_id,
-        "wall_s": time.perf_counter() - t_start,
-        "shape": _shape_record(info, core.entry().record_keys) or None,
-        "gain_levels": None if spec.gain_levels is None else list(spec.gain_levels),
-        "sensor_layout": spec.sensor_layout,
-        "distractors": spec.distractors,
-        "far_success": is_far_success(success, error),
-    }).to_json()
+    return TrialRecord.from_json(
+        {
+            "condition": spec.condition,
+            "agent": spec.agent,
+            "agent_label": str(getattr(agent, "name", spec.agent)),
+            "table_layout": table_layout,
+            "trial": spec.trial,
+            "seed": spec.env_seed,
+            "agent_seed": spec.agent_seed,
+            "success": success,
+            "ended_by": ep.ended_by,
+            "readings": int(info["n_observations"]),
+            "error_mm": to_json_data(error),
+            "error_x_mm": to_json_data(error_x),
+            "error_y_mm": to_json_data(error_y),
+            "estimate": estimate,
+            "target": [float(target[0]), float(target[1])],
+            "start": [float(start[0]), float(start[1])],
+            "spread_mm": to_json_data(info.get("spread_mm")),
+            "decisions": int(dms.size),
+            "decision_ms_median": float(np.median(dms)) if dms.size else None,
+            "decision_ms_mean": float(np.mean(dms)) if dms.size else None,
+            "sensor_model": spec.sensor_model,
+            "signal": spec.signal,
+            "max_observations": spec.max_observations,
+            "n_particles": spec.n_particles,
+            "env_id": spec.env_id,
+            "wall_s": time.perf_counter() - t_start,
+            "shape": _shape_record(info, core.entry().record_keys) or None,
+            "gain_levels": None if spec.gain_levels is None else list(spec.gain_levels),
+            "sensor_layout": spec.sensor_layout,
+            "distractors": spec.distractors,
+            "far_success": is_far_success(success, error),
+        }
+    ).to_json()
 
 
 def _shape_record(info: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:

@@ -71,14 +71,16 @@ class ArrayLocalizeTask(LocalizeTask):
         self.sensor_layout = make_sensor_layout(params.sensor_layout, self.pool[0].geometry)
         for c in self.pool:
             if c.geometry != self.sensor_layout.geometry:
-                raise ValueError(f"sensor_layout: was built for {self.sensor_layout.geometry}, condition {c.name} has "
-                                 f"{c.geometry}")
+                raise ValueError(
+                    f"sensor_layout: was built for {self.sensor_layout.geometry}, condition {c.name} has {c.geometry}"
+                )
         self.array = not is_paper_pair(self.sensor_layout)
         if not self.array:
             return
         if self.dynamic_gain:
-            raise ValueError("sensor_layout: an array of pairs reads at the preset gain; gain_levels needs "
-                             "sensor_layout='single'")
+            raise ValueError(
+                "sensor_layout: an array of pairs reads at the preset gain; gain_levels needs sensor_layout='single'"
+            )
         k = self.sensor_layout.n_pairs
         self.n_readings = k
         self.info_keys = ("pair_readings_V", "n_readings")
@@ -124,8 +126,15 @@ class ArrayLocalizeTask(LocalizeTask):
             out[rows] = array_reading(c, self.sensor_layout, offsets[rows], saturate=False).T
         return out if self.n_readings > 1 else out[:, 0]
 
-    def assimilate(self, state: State, ids: NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
-                   jitter: NDArray[np.uint16], normal_table: NDArray[np.float32]) -> int:
+    def assimilate(
+        self,
+        state: State,
+        ids: NDArray[np.intp],
+        reading: NDArray[np.float64],
+        u0: NDArray[np.float64],
+        jitter: NDArray[np.uint16],
+        normal_table: NDArray[np.float32],
+    ) -> int:
         """The paper's pair: :meth:`Task.assimilate`. The array path: K particle-filter updates, one per pair's
         reading (module docstring), each a compiled :func:`~electroloc_gym.kernels.loglik_assimilate`.
         """
@@ -148,8 +157,9 @@ class ArrayLocalizeTask(LocalizeTask):
                     u0[r] = g.random()
                     jitter[r] = table_normal_indices(g, draws)
             ll = self._pair_log_likelihood(s, ids, src, origin, j, pairs[:, j])
-            bad = loglik_assimilate(ll, src, origin, u0, jitter, normal_table, half, src, mean, cov, 2 * half,
-                                    HIST_BINS, counts)
+            bad = loglik_assimilate(
+                ll, src, origin, u0, jitter, normal_table, half, src, mean, cov, 2 * half, HIST_BINS, counts
+            )
             if bad >= 0:
                 return bad
         s.mean_mm[sel], s.cov_mm2[sel], s.counts[sel] = mean, cov, counts
@@ -157,8 +167,15 @@ class ArrayLocalizeTask(LocalizeTask):
             s.particles_mm[ids] = src
         return -1
 
-    def _pair_log_likelihood(self, state: State, ids: NDArray[np.intp], src: NDArray[np.float32],
-                             origin: NDArray[np.float32], j: int, reading: NDArray[np.float64]) -> NDArray[np.float32]:
+    def _pair_log_likelihood(
+        self,
+        state: State,
+        ids: NDArray[np.intp],
+        src: NDArray[np.float32],
+        origin: NDArray[np.float32],
+        j: int,
+        reading: NDArray[np.float64],
+    ) -> NDArray[np.float32]:
         """(k, M) float32 log-likelihoods of pair ``j``'s readings (k,) at every env's particles."""
         off = ((src - origin[:, :, None]) * self.offset_sign).transpose(0, 2, 1)  # (k, M, 2) offsets
         ll = np.empty((len(ids), src.shape[2]), dtype=np.float32)
@@ -184,9 +201,20 @@ class ArrayLocalizeTask(LocalizeTask):
         if p.observation == "raw":
             ref = np.clip(self.reference_mm(s, sel) / half[:, None], -1.0, 1.0).astype(np.float32)
             return np.concatenate([ref, scaled], axis=1)
-        obs = belief_observation(self.belief_origin_mm(s, sel), pairs[:, 0], s.mean_mm[sel], s.cov_mm2[sel],
-                                 s.counts[sel] / s.n_particles, s.n_observations[sel], p.max_observations, half,
-                                 s.noise_V[sel], sat, p.success_spread_mm, s.descriptor[sel])
+        obs = belief_observation(
+            self.belief_origin_mm(s, sel),
+            pairs[:, 0],
+            s.mean_mm[sel],
+            s.cov_mm2[sel],
+            s.counts[sel] / s.n_particles,
+            s.n_observations[sel],
+            p.max_observations,
+            half,
+            s.noise_V[sel],
+            sat,
+            p.success_spread_mm,
+            s.descriptor[sel],
+        )
         return np.concatenate([obs, scaled[:, 1:]], axis=1)
 
     def info(self, state: State, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray]:
@@ -217,12 +245,14 @@ class ArrayLocalizeTask(LocalizeTask):
             return super().sensor_model(state, i, level)
         models = state.model[i]
         if models[0] is None:
-            models[0] = ArrayCalibratedSensorModel(state.world[i], self.sensor_layout, int(state.cal_seed[i]),
-                                                   self.protocol)
+            models[0] = ArrayCalibratedSensorModel(
+                state.world[i], self.sensor_layout, int(state.cal_seed[i]), self.protocol
+            )
         return models[0]
 
-    def predicted_mean_std(self, state: State, i: int, particles: NDArray, moves_mm: NDArray,
-                           level: int | None = None) -> tuple[NDArray, NDArray]:
+    def predicted_mean_std(
+        self, state: State, i: int, particles: NDArray, moves_mm: NDArray, level: int | None = None
+    ) -> tuple[NDArray, NDArray]:
         """Mean and std (V) of each hypothesis' reading after the moves: (…) for one pair, (…, K) for K ≥ 2
         (the pair axis last).
         """

@@ -66,14 +66,16 @@ class LocalizeDistractorsTask(LocalizeTask):
         self.spec: DistractorDraw | DistractorSet = spec
         if isinstance(spec, DistractorSet) and len(spec):
             if params.randomize_target:
-                raise ValueError("distractors: an explicit layout needs randomize_target=False (a drawn target "
-                                 "could overlap it); pass a count or a DistractorDraw to draw them per episode")
+                raise ValueError(
+                    "distractors: an explicit layout needs randomize_target=False (a drawn target "
+                    "could overlap it); pass a count or a DistractorDraw to draw them per episode"
+                )
             for c in self.pool:
                 try:
                     spec.validate(c, c.target_xy_mm)
                 except ValueError as exc:
                     raise ValueError(f"distractors in condition {c.name!r}: {exc}") from None
-        if isinstance(spec, DistractorDraw):     # every target the env can draw must leave room for the draw
+        if isinstance(spec, DistractorDraw):  # every target the env can draw must leave room for the draw
             for c in self.pool:
                 try:
                     spec.check_fits(c, c.start_half_width_mm if params.randomize_target else None)
@@ -81,8 +83,9 @@ class LocalizeDistractorsTask(LocalizeTask):
                     raise ValueError(f"distractors: {exc}") from None
         #: D, the most distractors an episode has (0: the plain task).
         self.count = len(spec) if isinstance(spec, DistractorSet) else spec.max_count
-        self.info_keys = tuple(self.info_keys) + ((DISTRACTOR_INFO_KEY, DISTRACTOR_COUNT_INFO_KEY)
-                                                  if self.count else ())
+        self.info_keys = tuple(self.info_keys) + (
+            (DISTRACTOR_INFO_KEY, DISTRACTOR_COUNT_INFO_KEY) if self.count else ()
+        )
 
     def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
         """The plain task's draws (:meth:`LocalizeTask.begin_episode`), then the distractor set's (none for D = 0).
@@ -106,8 +109,13 @@ class LocalizeDistractorsTask(LocalizeTask):
         if not self.count:
             return out
         scenes = state.distractor_scenes
-        extra = np.array([0.0 if scenes[i] is None else scenes[i].expected_reading(state.position_mm[i], saturate=False)
-                          for i in ids.tolist()], dtype=np.float64)
+        extra = np.array(
+            [
+                0.0 if scenes[i] is None else scenes[i].expected_reading(state.position_mm[i], saturate=False)
+                for i in ids.tolist()
+            ],
+            dtype=np.float64,
+        )
         if len(self.gains) > 1:
             extra *= self._gain_array[state.gain_index[ids]]
         return out + extra
@@ -128,7 +136,7 @@ class LocalizeDistractorsTask(LocalizeTask):
             scene = state.distractor_scenes[i]
             if scene is not None:
                 n[row] = len(scene.objects)
-                xy[row, :n[row]] = [o.xy_mm for o in scene.objects]
+                xy[row, : n[row]] = [o.xy_mm for o in scene.objects]
         return {**base, DISTRACTOR_INFO_KEY: xy, DISTRACTOR_COUNT_INFO_KEY: n}
 
     def distractor_scene(self, state: State, i: int) -> Any:

@@ -32,5 +32,7 @@ class ElectroLocTask(LocalizeDistractorsTask, ArrayLocalizeTask):
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
         if self.count and self.array:
-            raise ValueError("distractors: distractors are simulated for the paper's one electrode pair; use "
-                             "sensor_layout='single' with distractors, or distractors=0 with an array")
+            raise ValueError(
+                "distractors: distractors are simulated for the paper's one electrode pair; use "
+                "sensor_layout='single' with distractors, or distractors=0 with an array"
+            )

@@ -47,8 +47,9 @@ class GlobalTask(Task):
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
         layout = params.layout
-        self.fixed_scene: Scene | None = layout if isinstance(layout, Scene) else (
-            BENCHMARK_SCENE if layout == "benchmark" else None)
+        self.fixed_scene: Scene | None = (
+            layout if isinstance(layout, Scene) else (BENCHMARK_SCENE if layout == "benchmark" else None)
+        )
         self.scene_template = self.fixed_scene if self.fixed_scene is not None else BENCHMARK_SCENE
         self.blur_mm = params.position_blur_mm
 

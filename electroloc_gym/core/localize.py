@@ -35,8 +35,7 @@ class LocalizeTask(Task):
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
         self.pool: tuple[Condition, ...] = params.conditions()
-        self._analytic = [[AnalyticSensorModel(self.at_gain(c, j)) for j in range(len(self.gains))]
-                          for c in self.pool]
+        self._analytic = [[AnalyticSensorModel(self.at_gain(c, j)) for j in range(len(self.gains))] for c in self.pool]
         self._descriptors = [condition_descriptor(c) for c in self.pool]
         self._grids: list[NDArray[np.float64]] = []  # built after the memory check (table_cells)
 
@@ -123,6 +122,7 @@ class LocalizeTask(Task):
         j = int(state.gain_index[i]) if level is None else level
         models = state.model[i]
         if models[j] is None:
-            models[j] = make_sensor_model("calibrated", self.at_gain(state.world[i], j),
-                                          self.gain_seed(int(state.cal_seed[i]), j), self.protocol)
+            models[j] = make_sensor_model(
+                "calibrated", self.at_gain(state.world[i], j), self.gain_seed(int(state.cal_seed[i]), j), self.protocol
+            )
         return models[j]

@@ -44,8 +44,16 @@ BELIEF_OBS_DIM = N_SCALARS + HIST_BINS * HIST_BINS + N_DESCRIPTOR
 RAW_OBS_DIM = 3
 OBSERVATION_MODES = ("belief", "raw")
 #: The info keys of every step and reset, in order (a task adds its own after them, ``Task.info_keys``).
-INFO_KEYS = ("position_mm", "estimate_mm", "error_mm", "spread_mm", "reading_V", "n_observations", "success",
-             "condition")
+INFO_KEYS = (
+    "position_mm",
+    "estimate_mm",
+    "error_mm",
+    "spread_mm",
+    "reading_V",
+    "n_observations",
+    "success",
+    "condition",
+)
 
 __all__ = [
     "BELIEF_OBS_DIM",
@@ -61,18 +69,21 @@ __all__ = [
 
 def condition_descriptor(condition: Condition) -> NDArray[np.float32]:
     """Five numbers in [−1, 1] that tell the policy which condition it is in."""
-    d = np.array([
-        condition.target.radius_mm / 25.0,
-        condition.chi,
-        np.log10(condition.amplifier.gain) / 4.0,
-        condition.noise_std_V,
-        condition.signal_scale / 8.0,
-    ])
+    d = np.array(
+        [
+            condition.target.radius_mm / 25.0,
+            condition.chi,
+            np.log10(condition.amplifier.gain) / 4.0,
+            condition.noise_std_V,
+            condition.signal_scale / 8.0,
+        ]
+    )
     return np.clip(d, -1.0, 1.0).astype(np.float32)
 
 
-def raw_observation(carriage_mm: NDArray, reading_V: NDArray, half_width_mm: NDArray | float,
-                    saturation_V: NDArray | float = 10.0) -> NDArray[np.float32]:
+def raw_observation(
+    carriage_mm: NDArray, reading_V: NDArray, half_width_mm: NDArray | float, saturation_V: NDArray | float = 10.0
+) -> NDArray[np.float32]:
     """[x/H, y/H, Φ/V_sat] with batch dims (..., 3)."""
     hw = np.asarray(half_width_mm, dtype=np.float64)[..., None]
     pos = np.asarray(carriage_mm) / hw
@@ -111,12 +122,25 @@ def belief_observation(
         success_spread_mm: the success threshold on √trace Σ, mm.
         descriptor: (k, 5) float32 from :func:`condition_descriptor`.
     """
+
     def rows(x: Any, dtype: Any = np.float64) -> NDArray:
         return np.ascontiguousarray(x, dtype=dtype)
 
     k = len(reading_V)
     out = np.empty((k, BELIEF_OBS_DIM), dtype=np.float32)
-    belief_observation_rows(rows(carriage_mm), rows(reading_V), rows(mean_mm), rows(cov_mm2), rows(n_observations),
-                            float(max_observations), rows(half_width_mm), rows(noise_std_V), rows(saturation_V),
-                            float(success_spread_mm), rows(hist), rows(descriptor, np.float32), out)
+    belief_observation_rows(
+        rows(carriage_mm),
+        rows(reading_V),
+        rows(mean_mm),
+        rows(cov_mm2),
+        rows(n_observations),
+        float(max_observations),
+        rows(half_width_mm),
+        rows(noise_std_V),
+        rows(saturation_V),
+        float(success_spread_mm),
+        rows(hist),
+        rows(descriptor, np.float32),
+        out,
+    )
     return out

@@ -32,9 +32,25 @@ from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, SENSOR_MODEL_NAMES
 from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM
 from electroloc_gym.sensor_models.shape import DEFAULT_EEV_RADII_MM
 
-__all__ = ["EnvParams", "OBSERVATION_MODES", "ACTION_TYPES", "TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM",
-           "LAYOUTS", "RADIUS_LIMITS_MM", "GAIN_FACTOR_LIMITS", "MAX_POSITION_BLUR_MM", "SIGNAL_LIMITS", "MAX_STEP_MM",
-           "DISCRETE_MOVES_MM", "memory_limit_bytes", "check_int", "check_float", "check_bool"]
+__all__ = [
+    "EnvParams",
+    "OBSERVATION_MODES",
+    "ACTION_TYPES",
+    "TARGET_DRAWS",
+    "CONTRASTS",
+    "DEFAULT_RADIUS_RANGE_MM",
+    "LAYOUTS",
+    "RADIUS_LIMITS_MM",
+    "GAIN_FACTOR_LIMITS",
+    "MAX_POSITION_BLUR_MM",
+    "SIGNAL_LIMITS",
+    "MAX_STEP_MM",
+    "DISCRETE_MOVES_MM",
+    "memory_limit_bytes",
+    "check_int",
+    "check_float",
+    "check_bool",
+]
 
 ACTION_TYPES = ("continuous", "discrete")
 #: The unknown-target env: how the episode's sphere is drawn (``"prior"``: radius uniform in
@@ -176,8 +192,10 @@ class EnvParams:
         put("radius_range_mm", _numbers_in("radius_range_mm", self.radius_range_mm, 2, *RADIUS_LIMITS_MM, " mm"))
         if self.radius_range_mm[0] >= self.radius_range_mm[1]:
             raise ValueError(f"radius_range_mm must be (low, high) with low < high, got {self.radius_range_mm!r}")
-        put("eev_radii_mm", tuple(sorted(_numbers_in("eev_radii_mm", self.eev_radii_mm, None, *RADIUS_LIMITS_MM,
-                                                     " mm"))))
+        put(
+            "eev_radii_mm",
+            tuple(sorted(_numbers_in("eev_radii_mm", self.eev_radii_mm, None, *RADIUS_LIMITS_MM, " mm"))),
+        )
         if len(set(self.eev_radii_mm)) != len(self.eev_radii_mm):
             raise ValueError(f"eev_radii_mm must be distinct, got {self.eev_radii_mm!r}")
         if self.gain_levels is not None:
@@ -198,8 +216,10 @@ class EnvParams:
             from electroloc_gym.sensor_array import named_layout
 
             named_layout(self.sensor_layout)  # an unknown name: one error naming sensor_layout
-        put("position_blur_mm", check_float("position_blur_mm", self.position_blur_mm, 0.0, inclusive=True,
-                                            high=MAX_POSITION_BLUR_MM))
+        put(
+            "position_blur_mm",
+            check_float("position_blur_mm", self.position_blur_mm, 0.0, inclusive=True, high=MAX_POSITION_BLUR_MM),
+        )
         if self.calibration_seed is not None:
             put("calibration_seed", check_int("calibration_seed", self.calibration_seed, 0, 2**63 - 1))
         if self.max_episode_steps is not None:
@@ -242,8 +262,7 @@ class EnvParams:
         allowed = entry.all_arguments
         unknown = [k for k in kwargs if k not in allowed]
         if unknown:
-            raise ValueError(f"{env_id} got unexpected argument(s) {unknown}; its arguments are "
-                             f"{sorted(allowed)}")
+            raise ValueError(f"{env_id} got unexpected argument(s) {unknown}; its arguments are {sorted(allowed)}")
         return cls(task=task, **{"sensor_model": entry.sensor_models[0], **entry.defaults, **kwargs})
 
     @property
@@ -278,16 +297,22 @@ class EnvParams:
         limit = memory_limit_bytes()
         need = num_envs * self.n_particles * BYTES_PER_PARTICLE
         if need > limit:
-            raise ValueError(f"n_particles × num_envs = {self.n_particles} × {num_envs} needs ≈{need / 2**30:.3g} GiB "
-                             f"({BYTES_PER_PARTICLE} bytes per particle), more than this machine's "
-                             f"{limit / 2**30:.3g} GiB: at most {limit // (BYTES_PER_PARTICLE * num_envs)} "
-                             f"particles per env")
+            raise ValueError(
+                f"n_particles × num_envs = {self.n_particles} × {num_envs} needs ≈{need / 2**30:.3g} GiB "
+                f"({BYTES_PER_PARTICLE} bytes per particle), more than this machine's "
+                f"{limit / 2**30:.3g} GiB: at most {limit // (BYTES_PER_PARTICLE * num_envs)} "
+                f"particles per env"
+            )
         n = calibration_points
         cal = 8 * self.calibration.samples_per_point * n * n + num_envs * 32 * n * n
         if n and cal > limit:
-            raise ValueError(f"calibration grid of {n}×{n} points × {self.calibration.samples_per_point} "
-                             f"readings needs ≈{cal / 2**30:.3g} GiB, more than this machine's "
-                             f"{limit / 2**30:.3g} GiB: choose a coarser calibration grid_step_mm")
+            raise ValueError(
+                f"calibration grid of {n}×{n} points × {self.calibration.samples_per_point} "
+                f"readings needs ≈{cal / 2**30:.3g} GiB, more than this machine's "
+                f"{limit / 2**30:.3g} GiB: choose a coarser calibration grid_step_mm"
+            )
         if n and num_envs * ((n - 1) ** 2 + 1) >= 2**31:
-            raise ValueError(f"calibration tables of {num_envs} envs × {(n - 1) ** 2 + 1} cells exceed the "
-                             f"kernels' int32 row index (2**31 rows): fewer envs or a coarser grid_step_mm")
+            raise ValueError(
+                f"calibration tables of {num_envs} envs × {(n - 1) ** 2 + 1} cells exceed the "
+                f"kernels' int32 row index (2**31 rows): fewer envs or a coarser grid_step_mm"
+            )

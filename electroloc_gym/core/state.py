@@ -107,30 +107,48 @@ class State:
     distractor_scenes: list[Any] = field(default_factory=list)
 
     @classmethod
-    def empty(cls, num_envs: int, n_particles: int, table_cells: int, shape_dims: int = 0,
-              n_readings: int = 1) -> State:
+    def empty(
+        cls, num_envs: int, n_particles: int, table_cells: int, shape_dims: int = 0, n_readings: int = 1
+    ) -> State:
         """A state of ``num_envs`` envs of ``n_particles`` particles, room for ``table_cells`` calibration
         rows per env (0: no calibrated model), ``shape_dims`` shape coordinates per particle and
         ``n_readings`` readings per step (``reading_V`` is (N,) for one, (N, K) for K).
         """
         n, m = num_envs, n_particles
         return cls(
-            gens=[None] * n, seeds=[None] * n, world=[None] * n, world_key=np.full(n, -1, dtype=np.int64),
+            gens=[None] * n,
+            seeds=[None] * n,
+            world=[None] * n,
+            world_key=np.full(n, -1, dtype=np.int64),
             model=[None] * n,
-            cal_seed=np.zeros(n, dtype=np.int64), half_mm=np.ones(n), noise_V=np.ones(n), saturation_V=np.ones(n),
-            descriptor=np.zeros((n, 5), dtype=np.float32), names=np.full(n, "", dtype=object),
-            position_mm=np.zeros((n, 2)), target_mm=np.zeros((n, 2)), odometry_mm=np.zeros((n, 2)),
+            cal_seed=np.zeros(n, dtype=np.int64),
+            half_mm=np.ones(n),
+            noise_V=np.ones(n),
+            saturation_V=np.ones(n),
+            descriptor=np.zeros((n, 5), dtype=np.float32),
+            names=np.full(n, "", dtype=object),
+            position_mm=np.zeros((n, 2)),
+            target_mm=np.zeros((n, 2)),
+            odometry_mm=np.zeros((n, 2)),
             particles_mm=np.zeros((n, 2, m), dtype=np.float32),
             reading_V=np.zeros(n) if n_readings == 1 else np.zeros((n, n_readings)),
-            n_observations=np.zeros(n, dtype=np.int64), elapsed=np.zeros(n, dtype=np.int64),
-            mean_mm=np.zeros((n, 2)), cov_mm2=np.zeros((n, 2, 2)), counts=np.zeros((n, HIST_BINS * HIST_BINS)),
+            n_observations=np.zeros(n, dtype=np.int64),
+            elapsed=np.zeros(n, dtype=np.int64),
+            mean_mm=np.zeros((n, 2)),
+            cov_mm2=np.zeros((n, 2, 2)),
+            counts=np.zeros((n, HIST_BINS * HIST_BINS)),
             done=np.zeros(n, dtype=bool),
-            grid_lo_mm=np.zeros(n, dtype=np.float32), grid_inv_mm=np.ones(n, dtype=np.float32),
-            grid_cells=np.ones(n, dtype=np.int64), table_row=np.arange(n, dtype=np.int64) * table_cells,
+            grid_lo_mm=np.zeros(n, dtype=np.float32),
+            grid_inv_mm=np.ones(n, dtype=np.float32),
+            grid_cells=np.ones(n, dtype=np.int64),
+            table_row=np.arange(n, dtype=np.int64) * table_cells,
             table=np.zeros((max(n * table_cells, 1), 8), dtype=np.float32),
             jitter_idx=np.empty((n, (2 + shape_dims) * m), dtype=np.uint16),
-            shape_particles=np.zeros((n, shape_dims, m), dtype=np.float32), target_shape=np.zeros((n, 2)),
-            shape_mean=np.zeros((n, 2)), shape_std=np.zeros((n, 2)), radius_median_mm=np.zeros(n),
+            shape_particles=np.zeros((n, shape_dims, m), dtype=np.float32),
+            target_shape=np.zeros((n, 2)),
+            shape_mean=np.zeros((n, 2)),
+            shape_std=np.zeros((n, 2)),
+            radius_median_mm=np.zeros(n),
             p_conductor=np.zeros(n),
             gain_index=np.zeros(n, dtype=np.int64),
         )

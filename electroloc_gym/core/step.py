@@ -71,8 +71,9 @@ class Simulation:
         self.num_envs = int(num_envs)
         self.task = make_task(params)
         params.check_memory(self.num_envs, self.task.calibration_points())
-        self.state = State.empty(self.num_envs, params.n_particles, self.task.table_cells(), self.task.shape_dims,
-                                 self.task.n_readings)
+        self.state = State.empty(
+            self.num_envs, params.n_particles, self.task.table_cells(), self.task.shape_dims, self.task.n_readings
+        )
         self.obs_dim = self.task.obs_dim
         self._normal_table = normal_table()
         self._all_ids = np.arange(self.num_envs)
@@ -118,9 +119,9 @@ class Simulation:
         self.state.done[ids] = False
         self.state.started = True
 
-    def step(self, moves_mm: NDArray[np.float64], autoreset: str = "next_step",
-             gains: NDArray[np.int64] | None = None
-             ) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+    def step(
+        self, moves_mm: NDArray[np.float64], autoreset: str = "next_step", gains: NDArray[np.int64] | None = None
+    ) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         """One step of every env: (observations, rewards, terminated, truncated, info); ``gains``: each
         env's gain level of this step's reading (dynamic gain; None: unchanged).
 

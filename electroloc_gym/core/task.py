@@ -154,8 +154,15 @@ class Task(ABC):
     def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
         """(k,) noise-free, unsaturated true readings of envs ``ids``, V (float64; (k, K) for K readings)."""
 
-    def assimilate(self, state: State, ids: NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
-                   jitter: NDArray[np.uint16], normal_table: NDArray[np.float32]) -> int:
+    def assimilate(
+        self,
+        state: State,
+        ids: NDArray[np.intp],
+        reading: NDArray[np.float64],
+        u0: NDArray[np.float64],
+        jitter: NDArray[np.uint16],
+        normal_table: NDArray[np.float32],
+    ) -> int:
         """Fuse each env's reading into its x–y cloud in one compiled call (calibrated: the table lookup in
         the kernel; analytic: the sensor model's float32 log-likelihoods from numpy), ending with the
         statistics; returns −1, or the first env whose log-likelihood is NaN.
@@ -181,20 +188,45 @@ class Task(ABC):
             mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         if self.calibrated:
             rows = self.table_rows(s, sel)  # each env's rows at its current gain level
-            bad = calibrated_assimilate(src, origin, self.offset_sign, s.grid_lo_mm[sel], s.grid_inv_mm[sel],
-                                        s.grid_cells[sel], rows, s.table, reading.astype(np.float32), u0,
-                                        jitter, normal_table, half, src, mean, cov, 2 * half, HIST_BINS, counts)
+            bad = calibrated_assimilate(
+                src,
+                origin,
+                self.offset_sign,
+                s.grid_lo_mm[sel],
+                s.grid_inv_mm[sel],
+                s.grid_cells[sel],
+                rows,
+                s.table,
+                reading.astype(np.float32),
+                u0,
+                jitter,
+                normal_table,
+                half,
+                src,
+                mean,
+                cov,
+                2 * half,
+                HIST_BINS,
+                counts,
+            )
         else:
             ll = self._analytic_log_likelihood(s, ids, src, origin, reading)
-            bad = loglik_assimilate(ll, src, origin, u0, jitter, normal_table, half, src, mean, cov, 2 * half,
-                                    HIST_BINS, counts)
+            bad = loglik_assimilate(
+                ll, src, origin, u0, jitter, normal_table, half, src, mean, cov, 2 * half, HIST_BINS, counts
+            )
         if bad < 0 and not full:
             s.particles_mm[ids] = src
             s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
         return bad
 
-    def _analytic_log_likelihood(self, state: State, ids: NDArray[np.intp], src: NDArray[np.float32],
-                                 origin: NDArray[np.float32], reading: NDArray[np.float64]) -> NDArray[np.float32]:
+    def _analytic_log_likelihood(
+        self,
+        state: State,
+        ids: NDArray[np.intp],
+        src: NDArray[np.float32],
+        origin: NDArray[np.float32],
+        reading: NDArray[np.float64],
+    ) -> NDArray[np.float32]:
         """(k, M) float32 log-likelihoods of the analytic models, one numpy evaluation per world (and gain
         level, with dynamic gain).
         """
@@ -216,8 +248,7 @@ class Task(ABC):
         k = len(x)
         mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
         mean_cov_rows(x, y, mean, cov)
-        egocentric_counts(x, y, self.histogram_origin(s, ids), 2 * s.half_mm[ids].astype(np.float32), HIST_BINS,
-                          counts)
+        egocentric_counts(x, y, self.histogram_origin(s, ids), 2 * s.half_mm[ids].astype(np.float32), HIST_BINS, counts)
         s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
 
     # ---- what is reported -------------------------------------------------------------------------
@@ -256,9 +287,20 @@ class Task(ABC):
                 level = s.gain_index[sel] * (2.0 / max(len(self.gains) - 1, 1)) - 1.0
                 obs = np.concatenate([obs, level.astype(np.float32)[:, None]], axis=1)
             return obs
-        return belief_observation(self.belief_origin_mm(s, sel), s.reading_V[sel], s.mean_mm[sel], s.cov_mm2[sel],
-                                  s.counts[sel] / s.n_particles, s.n_observations[sel], p.max_observations, half,
-                                  s.noise_V[sel], sat, p.success_spread_mm, s.descriptor[sel])
+        return belief_observation(
+            self.belief_origin_mm(s, sel),
+            s.reading_V[sel],
+            s.mean_mm[sel],
+            s.cov_mm2[sel],
+            s.counts[sel] / s.n_particles,
+            s.n_observations[sel],
+            p.max_observations,
+            half,
+            s.noise_V[sel],
+            sat,
+            p.success_spread_mm,
+            s.descriptor[sel],
+        )
 
     def info(self, state: State, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray]:
         """The info arrays of envs ``ids`` (all if None): :data:`~electroloc_gym.core.observation.INFO_KEYS`,
@@ -268,14 +310,23 @@ class Task(ABC):
         est = s.mean_mm[sel]
         spread = np.sqrt(np.maximum(s.cov_mm2[sel, 0, 0] + s.cov_mm2[sel, 1, 1], 0.0))
         d = est - self.truth_mm(s, sel)
-        values = (s.position_mm[sel].copy(), est.copy(), np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]), spread,
-                  s.reading_V[sel].copy(), s.n_observations[sel].copy(), spread <= self.params.success_spread_mm,
-                  s.names[sel].copy())
+        values = (
+            s.position_mm[sel].copy(),
+            est.copy(),
+            np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]),
+            spread,
+            s.reading_V[sel].copy(),
+            s.n_observations[sel].copy(),
+            spread <= self.params.success_spread_mm,
+            s.names[sel].copy(),
+        )
         out = dict(zip(INFO_KEYS, values, strict=True))
         out.update(self.task_info(s, sel))
         if self.dynamic_gain:
-            out["gain"] = np.array([w.amplifier.gain for w in s.world], dtype=np.float64)[sel] * \
-                self._gain_array[s.gain_index[sel]]
+            out["gain"] = (
+                np.array([w.amplifier.gain for w in s.world], dtype=np.float64)[sel]
+                * self._gain_array[s.gain_index[sel]]
+            )
         return out
 
     def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
@@ -297,16 +348,18 @@ class Task(ABC):
         mm, by the env's own motion rule (what an agent predicts, paper Algorithm 1).
         """
 
-    def predicted_mean_std(self, state: State, i: int, particles: NDArray, moves_mm: NDArray,
-                           level: int | None = None) -> tuple[NDArray, NDArray]:
+    def predicted_mean_std(
+        self, state: State, i: int, particles: NDArray, moves_mm: NDArray, level: int | None = None
+    ) -> tuple[NDArray, NDArray]:
         """Sensor-model mean and std (V) of the reading each hypothesis predicts after the moves (at gain
         level ``level``; default the current one).
         """
         return self.sensor_model(state, i, level).mean_std(self.offsets_after_move(state, i, particles, moves_mm))
 
     # ---- shared helpers of the episode draws ------------------------------------------------------
-    def _set_world(self, state: State, i: int, world: Any, key: int, condition: Condition,
-                   world_descriptor: NDArray[np.float32]) -> None:
+    def _set_world(
+        self, state: State, i: int, world: Any, key: int, condition: Condition, world_descriptor: NDArray[np.float32]
+    ) -> None:
         state.world[i] = world
         state.world_key[i] = key
         state.half_mm[i] = condition.allowed_half_width_mm
@@ -319,8 +372,9 @@ class Task(ABC):
         s = self.params.calibration_seed
         return s if s is not None else int(g.integers(SEED_BOUND))
 
-    def _set_grid(self, state: State, i: int, grid_mm: NDArray[np.float64], step_mm: float,
-                  level: int = 0) -> NDArray[np.float32]:
+    def _set_grid(
+        self, state: State, i: int, grid_mm: NDArray[np.float64], step_mm: float, level: int = 0
+    ) -> NDArray[np.float32]:
         """Env ``i``'s grid arguments of the lookup kernel; returns its rows of the coefficient table
         (those of gain level ``level``).
         """
@@ -328,7 +382,7 @@ class Task(ABC):
         state.grid_inv_mm[i] = np.float32(1.0 / step_mm)
         state.grid_cells[i] = grid_mm.size - 1
         start = int(state.table_row[i]) + level * self.cells_per_gain
-        return state.table[start:start + cells(grid_mm)]
+        return state.table[start : start + cells(grid_mm)]
 
     def table_rows(self, state: State, sel: Any) -> NDArray[np.int64]:
         """(k,) first coefficient row of each env's current gain level (the lookup kernel's ``base``)."""
@@ -341,7 +395,12 @@ class Task(ABC):
         state.position_mm[i] = g.uniform(-start_half_mm, start_half_mm, size=2)
         state.odometry_mm[i] = 0.0
         h = state.half_mm[i]
-        uniform_in_box(g, np.array([-h, -h]), np.array([h, h]), state.n_particles,
-                       out_xy=(state.particles_mm[i, 0], state.particles_mm[i, 1]))
+        uniform_in_box(
+            g,
+            np.array([-h, -h]),
+            np.array([h, h]),
+            state.n_particles,
+            out_xy=(state.particles_mm[i, 0], state.particles_mm[i, 1]),
+        )
         state.n_observations[i] = 0
         state.elapsed[i] = 0

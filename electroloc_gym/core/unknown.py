@@ -50,8 +50,15 @@ from electroloc_gym.kernels import egocentric_counts, jitter_resampled, mean_cov
 from electroloc_gym.sensor import sphere_reading
 from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
 
-__all__ = ["UnknownTargetTask", "CONDUCTOR_CHI", "INSULATOR_CHI", "RADIUS_JITTER_MM", "CHI_JITTER", "SHAPE_INFO_KEYS",
-           "SHAPE_RECORD_KEYS"]
+__all__ = [
+    "UnknownTargetTask",
+    "CONDUCTOR_CHI",
+    "INSULATOR_CHI",
+    "RADIUS_JITTER_MM",
+    "CHI_JITTER",
+    "SHAPE_INFO_KEYS",
+    "SHAPE_RECORD_KEYS",
+]
 
 #: The contrasts of a perfect conductor and a perfect insulator (Eq. 4).
 CONDUCTOR_CHI = 1.0
@@ -61,9 +68,19 @@ INSULATOR_CHI = -0.5
 RADIUS_JITTER_MM = 0.5
 CHI_JITTER = 0.02
 #: The info keys the unknown-target env adds.
-SHAPE_INFO_KEYS = ("radius_estimate_mm", "radius_mean_mm", "radius_spread_mm", "chi_estimate", "chi_spread",
-                   "p_conductor", "material_estimate", "target_radius_mm", "target_chi", "radius_error_frac",
-                   "material_correct")
+SHAPE_INFO_KEYS = (
+    "radius_estimate_mm",
+    "radius_mean_mm",
+    "radius_spread_mm",
+    "chi_estimate",
+    "chi_spread",
+    "p_conductor",
+    "material_estimate",
+    "target_radius_mm",
+    "target_chi",
+    "radius_error_frac",
+    "material_correct",
+)
 #: The identification results a benchmark record keeps (``"shape"``): the info keys but the χ spread.
 SHAPE_RECORD_KEYS = tuple(k for k in SHAPE_INFO_KEYS if k != "chi_spread")
 
@@ -85,10 +102,12 @@ class UnknownTargetTask(LocalizeTask):
         self.radius_range_mm = params.radius_range_mm
         self.continuous = params.contrast == "continuous"
         #: The jitter's std per coordinate (x, y mm; radius mm; χ, none for a binary contrast).
-        self._jitter_scale = np.array([1.0, 1.0, RADIUS_JITTER_MM, CHI_JITTER if self.continuous else 0.0],
-                                      dtype=np.float32)
-        self._theoretical = [[TheoreticalShapeModel(self.at_gain(c, j)) for j in range(len(self.gains))]
-                             for c in self.pool]
+        self._jitter_scale = np.array(
+            [1.0, 1.0, RADIUS_JITTER_MM, CHI_JITTER if self.continuous else 0.0], dtype=np.float32
+        )
+        self._theoretical = [
+            [TheoreticalShapeModel(self.at_gain(c, j)) for j in range(len(self.gains))] for c in self.pool
+        ]
 
     # ---- the episode ------------------------------------------------------------------------------
     def _draw_chi(self, g: np.random.Generator, size: int | None = None) -> Any:
@@ -139,8 +158,12 @@ class UnknownTargetTask(LocalizeTask):
             if self.params.sensor_model == "analytic":
                 models[j] = self._theoretical[int(state.world_key[i])][j]
             else:
-                models[j] = InterpolatedShapeModel(self.at_gain(state.world[i], j), self.params.eev_radii_mm,
-                                                   self.gain_seed(int(state.cal_seed[i]), j), self.protocol)
+                models[j] = InterpolatedShapeModel(
+                    self.at_gain(state.world[i], j),
+                    self.params.eev_radii_mm,
+                    self.gain_seed(int(state.cal_seed[i]), j),
+                    self.protocol,
+                )
         return models[j]
 
     def true_condition(self, state: State, i: int) -> Condition:
@@ -153,12 +176,14 @@ class UnknownTargetTask(LocalizeTask):
         sw = c.water.conductivity_uScm
         sigma = 1.4e10 if chi >= 1.0 else sw * (1.0 + 2.0 * chi) / (1.0 - chi)
         material = "steel" if chi >= 1.0 else ("delrin" if chi <= -0.5 else "custom")
-        return c.replace(target=Target(radius_mm=float(radius), conductivity_uScm=max(float(sigma), 0.0),
-                                       material=material))
+        return c.replace(
+            target=Target(radius_mm=float(radius), conductivity_uScm=max(float(sigma), 0.0), material=material)
+        )
 
     # ---- predictions for agents ------------------------------------------------------------------
-    def predicted_mean_std(self, state: State, i: int, particles: NDArray, moves_mm: NDArray,
-                           level: int | None = None) -> tuple[NDArray, NDArray]:
+    def predicted_mean_std(
+        self, state: State, i: int, particles: NDArray, moves_mm: NDArray, level: int | None = None
+    ) -> tuple[NDArray, NDArray]:
         """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves (the
         offsets from columns 0–1, :meth:`LocalizeTask.offsets_after_move`).
         """
@@ -166,8 +191,15 @@ class UnknownTargetTask(LocalizeTask):
         return self.sensor_model(state, i, level).mean_std(off, particles[..., 2], particles[..., 3])
 
     # ---- the measurement update ------------------------------------------------------------------
-    def assimilate(self, state: State, ids: NDArray[np.intp], reading: NDArray[np.float64], u0: NDArray[np.float64],
-                   jitter: NDArray[np.uint16], normal_table: NDArray[np.float32]) -> int:
+    def assimilate(
+        self,
+        state: State,
+        ids: NDArray[np.intp],
+        reading: NDArray[np.float64],
+        u0: NDArray[np.float64],
+        jitter: NDArray[np.uint16],
+        normal_table: NDArray[np.float32],
+    ) -> int:
         """Fuse each env's reading into its 4-D cloud (module docstring); returns −1 or the first env whose
         log-likelihood is NaN.
         """
@@ -184,7 +216,7 @@ class UnknownTargetTask(LocalizeTask):
         bad = resample_indices(ll, u0, idx)
         if bad >= 0:
             return bad
-        cloud = np.concatenate([xy, shape], axis=1)                             # (k, 4, M): x, y, radius, χ
+        cloud = np.concatenate([xy, shape], axis=1)  # (k, 4, M): x, y, radius, χ
         half = s.half_mm[ids].astype(np.float32)
         lo = np.empty((k, 4), dtype=np.float32)
         hi = np.empty((k, 4), dtype=np.float32)

@@ -19,8 +19,16 @@ from electroloc_gym.core.state import State
 from electroloc_gym.scene import Scene
 from electroloc_gym.sensor_models import CalibrationProtocol, calibration_coefficients, calibration_grid_for
 
-__all__ = ["group_by_world", "descriptor", "fixed_coefficients", "with_gain_factor", "scene_condition", "cells",
-           "grid_points_bound", "SEED_BOUND"]
+__all__ = [
+    "group_by_world",
+    "descriptor",
+    "fixed_coefficients",
+    "with_gain_factor",
+    "scene_condition",
+    "cells",
+    "grid_points_bound",
+    "SEED_BOUND",
+]
 
 #: Calibration seeds are drawn in [0, 2**31 − 1).
 SEED_BOUND = 2**31 - 1

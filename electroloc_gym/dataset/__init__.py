@@ -7,5 +7,13 @@ not import it.
 from electroloc_gym.dataset.collect import DatasetRequest, build_dataset, dataset_env_kwargs, dataset_id, step_infos
 from electroloc_gym.dataset.protocol import episode_seeds, evaluation_overlap, reference_scores
 
-__all__ = ["DatasetRequest", "build_dataset", "dataset_env_kwargs", "dataset_id", "step_infos", "episode_seeds",
-           "evaluation_overlap", "reference_scores"]
+__all__ = [
+    "DatasetRequest",
+    "build_dataset",
+    "dataset_env_kwargs",
+    "dataset_id",
+    "step_infos",
+    "episode_seeds",
+    "evaluation_overlap",
+    "reference_scores",
+]

@@ -45,8 +45,15 @@ from electroloc_gym.dataset.protocol import (
     reference_scores,
 )
 
-__all__ = ["DatasetRequest", "build_dataset", "dataset_id", "step_infos", "dataset_env_kwargs", "MAX_EPISODES",
-           "MINARI_HINT"]
+__all__ = [
+    "DatasetRequest",
+    "build_dataset",
+    "dataset_id",
+    "step_infos",
+    "dataset_env_kwargs",
+    "MAX_EPISODES",
+    "MINARI_HINT",
+]
 
 MINARI_HINT = "pip install 'electroloc-gym[minari]'"
 #: Most episodes one dataset may plan.
@@ -97,8 +104,11 @@ class DatasetRequest:
 
         if self.env_id not in ENV_IDS:
             raise ValueError(f"env must be one of {list(ENV_IDS)}, got {self.env_id!r}")
-        for name, val, low, high in (("episodes", self.episodes, 1, MAX_EPISODES), ("seed", self.seed, 1, 2**63 - 1),
-                                     ("version", self.version, 0, 10**6)):
+        for name, val, low, high in (
+            ("episodes", self.episodes, 1, MAX_EPISODES),
+            ("seed", self.seed, 1, 2**63 - 1),
+            ("version", self.version, 0, 10**6),
+        ):
             if isinstance(val, bool) or not isinstance(val, int) or not low <= val <= high:
                 extra = " (0 is the benchmark's evaluation seed)" if name == "seed" else ""
                 raise ValueError(f"{name} must be an integer in [{low}, {high}]{extra}, got {val!r}")
@@ -160,8 +170,9 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
     for key, value in zip(core.hidden_keys[2:], hidden[2:]):  # the hidden shape beyond the position
         out["truth_" + key.removeprefix("target_")] = np.float64(value)
     if core.entry().record_keys:  # its estimates
-        out.update(radius_estimate_mm=np.float64(info["radius_estimate_mm"]),
-                   p_conductor=np.float64(info["p_conductor"]))
+        out.update(
+            radius_estimate_mm=np.float64(info["radius_estimate_mm"]), p_conductor=np.float64(info["p_conductor"])
+        )
     return out
 
 
@@ -200,11 +211,21 @@ def _episode_buffer(env: Any, agent: Any, k: int, root_seed: int) -> Any:
 
     episode = run_episode(_Recorder(env), agent, env_seed, agent_seed=agent_seed)
     if episode.ended_by == "agent" or not acts:
-        raise ValueError(f"agent {getattr(agent, 'name', agent)!r} ends episodes itself (zero-crossing's Table 1 "
-                         f"layout); a dataset needs episodes the env ends")
+        raise ValueError(
+            f"agent {getattr(agent, 'name', agent)!r} ends episodes itself (zero-crossing's Table 1 "
+            f"layout); a dataset needs episodes the env ends"
+        )
     stacked = {key: [i[key] for i in infos] for key in infos[0]}
-    return EpisodeBuffer(id=k, seed=env_seed, observations=obs, actions=acts, rewards=rews, terminations=terms,
-                         truncations=truncs, infos=stacked)
+    return EpisodeBuffer(
+        id=k,
+        seed=env_seed,
+        observations=obs,
+        actions=acts,
+        rewards=rews,
+        terminations=terms,
+        truncations=truncs,
+        infos=stacked,
+    )
 
 
 def _fast(storage: Any) -> Any:
@@ -228,8 +249,7 @@ def _existing(ds_id: str) -> Any:
     return minari.load_dataset(ds_id)
 
 
-def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool = False,
-                  progress: bool = True) -> Any:
+def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool = False, progress: bool = True) -> Any:
     """Collect ``request`` into a local Minari dataset; returns the loaded ``MinariDataset``.
 
     Raises:
@@ -252,18 +272,27 @@ def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool 
     if why is not None:
         raise ValueError(f"agent {request.agent!r} cannot run on {request.env_id}: {why}")
     if getattr(agent, "table_layout", None) == "table1":  # the agent reports its own estimate and stops (Table 1)
-        raise ValueError(f"agent {request.agent!r} ends episodes itself (zero-crossing's Table 1 layout); a dataset "
-                         f"needs episodes the env ends")
+        raise ValueError(
+            f"agent {request.agent!r} ends episodes itself (zero-crossing's Table 1 layout); a dataset "
+            f"needs episodes the env ends"
+        )
     kwargs = dataset_env_kwargs(request.env_id, agent, request.condition)
     refs = None if request.reference is None else reference_scores(request.reference, request.env_id)
     seeds = [episode_seeds(request.seed, k)[0] for k in range(request.episodes)]
     clash = evaluation_overlap(seeds)
     if clash:  # pragma: no cover - the stream is disjoint by construction; this guards a changed protocol
         raise ValueError(f"dataset seeds {clash[:3]} are evaluation seeds; choose another seed")
-    block = {"agent": request.agent.strip(), "env_id": request.env_id, "env_kwargs": kwargs, "seed": request.seed,
-             "evaluation_seed": EVALUATION_SEED, "episodes_planned": request.episodes, "complete": False,
-             "reference": refs, "seed_protocol": "SeedSequence(seed, spawn_key=(9, episode)); benchmark trials use "
-                                                  "root seed 0, streams 0-8"}
+    block = {
+        "agent": request.agent.strip(),
+        "env_id": request.env_id,
+        "env_kwargs": kwargs,
+        "seed": request.seed,
+        "evaluation_seed": EVALUATION_SEED,
+        "episodes_planned": request.episodes,
+        "complete": False,
+        "reference": refs,
+        "seed_protocol": "SeedSequence(seed, spawn_key=(9, episode)); benchmark trials use root seed 0, streams 0-8",
+    }
     existing = _existing(ds_id)
     start = 0
     if existing is not None and force:
@@ -276,8 +305,10 @@ def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool 
         old = old if isinstance(old, dict) else {}
         if old.get("complete", True) or not resume:
             state = "a complete" if old.get("complete", True) else "an unfinished"
-            raise ValueError(f"dataset {ds_id!r} exists ({state} one at {get_dataset_path(ds_id)}); pass --force "
-                             f"to replace it" + ("" if old.get("complete", True) else " or --resume to continue it"))
+            raise ValueError(
+                f"dataset {ds_id!r} exists ({state} one at {get_dataset_path(ds_id)}); pass --force "
+                f"to replace it" + ("" if old.get("complete", True) else " or --resume to continue it")
+            )
         same = {k: old.get(k) for k in ("agent", "env_id", "env_kwargs", "seed")}
         if same != {k: block[k] for k in same}:
             raise ValueError(f"dataset {ds_id!r} was started with other settings {same}; pass --force to replace it")
@@ -290,14 +321,25 @@ def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool 
             for k in range(start, request.episodes):
                 buffer = _episode_buffer(env, agent, k, request.seed)
                 if k == 0:
-                    extra = {} if refs is None else {"ref_min_score": refs["ref_min_score"],
-                                                     "ref_max_score": refs["ref_max_score"]}
+                    extra = (
+                        {}
+                        if refs is None
+                        else {"ref_min_score": refs["ref_min_score"], "ref_max_score": refs["ref_max_score"]}
+                    )
                     minari.create_dataset_from_buffers(
-                        ds_id, [buffer], env=env.spec, algorithm_name=request.agent.strip(),
+                        ds_id,
+                        [buffer],
+                        env=env.spec,
+                        algorithm_name=request.agent.strip(),
                         description=f"{request.agent.strip()} on {request.env_id} (electroloc-gym), episodes on "
-                                    f"training seeds", author="electroloc-gym", author_email="none",
-                        code_permalink="electroloc_gym/dataset/collect.py", data_format="arrow",
-                        requirements=["electroloc-gym"], **extra)
+                        f"training seeds",
+                        author="electroloc-gym",
+                        author_email="none",
+                        code_permalink="electroloc_gym/dataset/collect.py",
+                        data_format="arrow",
+                        requirements=["electroloc-gym"],
+                        **extra,
+                    )
                     storage = _fast(minari.load_dataset(ds_id).storage)
                     storage.update_metadata({"electroloc": block})
                 else:
@@ -306,8 +348,9 @@ def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool 
                 bar.update(1)
             bar.close()
             storage = storage if request.episodes > start else minari.load_dataset(ds_id).storage
-            storage.update_metadata({"electroloc": {**block, "complete": True},
-                                     "dataset_size": type(storage).get_size(storage)})
+            storage.update_metadata(
+                {"electroloc": {**block, "complete": True}, "dataset_size": type(storage).get_size(storage)}
+            )
     finally:
         env.close()
     return minari.load_dataset(ds_id)

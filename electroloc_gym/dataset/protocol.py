@@ -29,8 +29,16 @@ import numpy as np
 
 from electroloc_gym.conditions import PRESET_NAMES
 
-__all__ = ["DATASET_STREAM", "DEFAULT_DATASET_SEED", "EVALUATION_SEED", "episode_seeds", "evaluation_overlap",
-           "reference_scores", "RND_AGENT", "PLANNERS"]
+__all__ = [
+    "DATASET_STREAM",
+    "DEFAULT_DATASET_SEED",
+    "EVALUATION_SEED",
+    "episode_seeds",
+    "evaluation_overlap",
+    "reference_scores",
+    "RND_AGENT",
+    "PLANNERS",
+]
 
 #: The benchmark's evaluation root seed (``electroloc bench --seed 0``): never a dataset's.
 EVALUATION_SEED = 0
@@ -60,16 +68,19 @@ def evaluation_overlap(env_seeds: Iterable[int]) -> list[int]:
     """
     from electroloc_gym.bench.config import MAP_CONDITIONS, trial_seeds
 
-    evaluation = {trial_seeds(EVALUATION_SEED, c, k)[0] for c in (*PRESET_NAMES, *MAP_CONDITIONS)
-                  for k in range(_CHECKED_TRIALS)} | set(range(100_000, 100_064))
+    evaluation = {
+        trial_seeds(EVALUATION_SEED, c, k)[0] for c in (*PRESET_NAMES, *MAP_CONDITIONS) for k in range(_CHECKED_TRIALS)
+    } | set(range(100_000, 100_064))
     return sorted(set(int(s) for s in env_seeds) & evaluation)
 
 
 def _mean_readings(rows: list[dict[str, Any]]) -> float:
     """Mean over conditions of the per-condition mean readings, a failure counted as the cap."""
     conditions = sorted({r["condition"] for r in rows})
-    per = [np.mean([r["readings"] if r["success"] else r["max_observations"]
-                    for r in rows if r["condition"] == c]) for c in conditions]
+    per = [
+        np.mean([r["readings"] if r["success"] else r["max_observations"] for r in rows if r["condition"] == c])
+        for c in conditions
+    ]
     return float(np.mean(per))
 
 
@@ -83,20 +94,30 @@ def reference_scores(bench_dir: str | Path, env_id: str) -> dict[str, Any]:
     path = Path(bench_dir)
     path = path / "trials.jsonl" if path.is_dir() else path
     if not path.is_file():
-        raise ValueError(f"reference must be a benchmark folder or trials.jsonl with rnd-wlk and a planner on "
-                         f"{env_id}; {str(path)!r} does not exist")
+        raise ValueError(
+            f"reference must be a benchmark folder or trials.jsonl with rnd-wlk and a planner on "
+            f"{env_id}; {str(path)!r} does not exist"
+        )
     from electroloc_gym.bench.records import read_trials
 
     rows = [r for r in read_trials(path) if r.get("env_id", "ElectroLoc-v0") == env_id]  # the bench's own schema
     agents = {r["agent"] for r in rows}
     planners = [p for p in PLANNERS if p in agents]
     if RND_AGENT not in agents or not planners:
-        raise ValueError(f"reference {str(path)!r} must hold {RND_AGENT} and one of {list(PLANNERS)} on {env_id}; "
-                         f"it holds {sorted(agents)}")
+        raise ValueError(
+            f"reference {str(path)!r} must hold {RND_AGENT} and one of {list(PLANNERS)} on {env_id}; "
+            f"it holds {sorted(agents)}"
+        )
     rnd = _mean_readings([r for r in rows if r["agent"] == RND_AGENT])
     scores = {p: _mean_readings([r for r in rows if r["agent"] == p]) for p in planners}
     best = min(scores, key=scores.__getitem__)
     if scores[best] >= rnd:
         raise ValueError(f"reference {str(path)!r}: rnd-wlk is not worse than the best planner; no score scale")
-    return {"ref_min_score": 1.0 - rnd, "ref_max_score": 1.0 - scores[best], "rnd_readings": rnd,
-            "best_planner": best, "best_readings": scores[best], "source": str(path)}
+    return {
+        "ref_min_score": 1.0 - rnd,
+        "ref_max_score": 1.0 - scores[best],
+        "rnd_readings": rnd,
+        "best_planner": best,
+        "best_readings": scores[best],
+        "source": str(path),
+    }

@@ -11,5 +11,11 @@ from electroloc_gym.envs.localize import ElectroLocEnv
 from electroloc_gym.envs.unknown_target import UnknownTargetEnv
 from electroloc_gym.envs.vector import ElectroLocVectorEnv, GlobalVectorEnv, UnknownTargetVectorEnv
 
-__all__ = ["ElectroLocEnv", "GlobalEnv", "UnknownTargetEnv", "ElectroLocVectorEnv", "GlobalVectorEnv",
-           "UnknownTargetVectorEnv"]
+__all__ = [
+    "ElectroLocEnv",
+    "GlobalEnv",
+    "UnknownTargetEnv",
+    "ElectroLocVectorEnv",
+    "GlobalVectorEnv",
+    "UnknownTargetVectorEnv",
+]

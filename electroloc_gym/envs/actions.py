@@ -49,8 +49,9 @@ def _as_real_array(actions: Any, what: str, shape: tuple[int, ...]) -> NDArray:
     except (ValueError, TypeError) as exc:  # ragged sequences
         raise ValueError(f"{what} must be a number array of shape {shape}, got {actions!r}") from exc
     if a.dtype == np.bool_ or not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
-        raise ValueError(f"{what} must be a number array of shape {shape} (integers or reals), got {actions!r} "
-                         f"of dtype {a.dtype}")
+        raise ValueError(
+            f"{what} must be a number array of shape {shape} (integers or reals), got {actions!r} of dtype {a.dtype}"
+        )
     return a
 
 
@@ -85,10 +86,10 @@ class ActionParser:
             shape = (2,) if single else (n, 2)
             what = "action" if single else f"actions of {n} envs"
             a = _as_real_array(actions, what, shape)
-            if a.shape != shape or not np.issubdtype(a.dtype, np.integer) or \
-                    np.any((a[..., 1] < 0) | (a[..., 1] >= k)):
-                raise ValueError(f"{what} must be (move index in [0, 8], gain level in [0, {k - 1}]) integers, "
-                                 f"got {actions!r}")
+            if a.shape != shape or not np.issubdtype(a.dtype, np.integer) or np.any((a[..., 1] < 0) | (a[..., 1] >= k)):
+                raise ValueError(
+                    f"{what} must be (move index in [0, 8], gain level in [0, {k - 1}]) integers, got {actions!r}"
+                )
             a = a.reshape(n, 2)
             return self._moves(a[:, 0], False), a[:, 1].astype(np.int64)
         shape = (3,) if single else (n, 3)

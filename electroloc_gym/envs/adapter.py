@@ -220,8 +220,9 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
             raise ValueError(f"level must be an integer in [0, {k - 1}], got {level!r}")
         return int(level) if self.params.action_type == "discrete" else -1.0 + (2 * int(level) + 1) / k
 
-    def predicted_reading_model(self, particles_mm: ArrayLike, moves_mm: ArrayLike,
-                                gain_level: int | None = None) -> tuple[NDArray, NDArray]:
+    def predicted_reading_model(
+        self, particles_mm: ArrayLike, moves_mm: ArrayLike, gain_level: int | None = None
+    ) -> tuple[NDArray, NDArray]:
         """Sensor-model mean and std (V) of the reading each hypothesis predicts after a commanded move
         (the env's motion rule applied; the noise-free reading "that particle predicts" of min-var,
         paper Algorithm 1).
@@ -257,8 +258,9 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         return p, np.clip(u, -MAX_STEP_MM, MAX_STEP_MM)
 
     # ---- gymnasium API ------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
-              ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
         self._sim.set_generator(0, self.np_random)
         self._sim.reset()
@@ -280,8 +282,11 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     @staticmethod
     def _info_row(info: dict[str, NDArray]) -> dict[str, Any]:
         """Row 0 of the core's info arrays as Python values (positions as tuples of float)."""
-        extra = {k: v[0].item() if isinstance(v[0], np.generic) else v[0] for k, v in info.items()
-                 if k not in INFO_KEYS} if len(info) > len(INFO_KEYS) else {}
+        extra = (
+            {k: v[0].item() if isinstance(v[0], np.generic) else v[0] for k, v in info.items() if k not in INFO_KEYS}
+            if len(info) > len(INFO_KEYS)
+            else {}
+        )
         return {
             "position_mm": tuple(info["position_mm"][0].tolist()),
             "estimate_mm": tuple(info["estimate_mm"][0].tolist()),

@@ -39,8 +39,9 @@ def make_backend_vector_env(entry: EnvEntry, backend: Any, *args: Any, **kwargs:
         raise ValueError(f"backend must be one of {list(known)}, got {backend!r}")
     if backend not in entry.backends:
         implementing = [e.env_id for e in ENVS if backend in e.backends]
-        raise ValueError(f"backend={backend!r} implements {implementing} only, not {entry.env_id!r}; use "
-                         f"backend={DEFAULT_BACKEND!r}")
+        raise ValueError(
+            f"backend={backend!r} implements {implementing} only, not {entry.env_id!r}; use backend={DEFAULT_BACKEND!r}"
+        )
     module, _, name = entry.backends[backend].partition(":")
     try:
         cls = getattr(importlib.import_module(module), name)

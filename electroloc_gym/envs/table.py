@@ -26,41 +26,82 @@ DYNAMIC_GAIN_LEVELS = (0.25, 1.0, 4.0)
 
 BUILTIN_ENVS: tuple[EnvEntry, ...] = (
     EnvEntry(
-        env_id="ElectroLoc-v0", task="localize", task_class=ElectroLocTask,
-        env_class=ElectroLocEnv, vector_class=ElectroLocVectorEnv,
-        arguments=("condition", "signal", "randomize_target", "gain_levels", "sensor_layout", "fixed_carriage",
-                   "distractors"),
+        env_id="ElectroLoc-v0",
+        task="localize",
+        task_class=ElectroLocTask,
+        env_class=ElectroLocEnv,
+        vector_class=ElectroLocVectorEnv,
+        arguments=(
+            "condition",
+            "signal",
+            "randomize_target",
+            "gain_levels",
+            "sensor_layout",
+            "fixed_carriage",
+            "distractors",
+        ),
         sensor_models=SENSOR_MODEL_NAMES,
-        bench=(BenchEnv("target", summary="on the presets (Tables 4 and 1)"),
-               BenchEnv("dynamic-gain", frozen({"gain_levels": DYNAMIC_GAIN_LEVELS}),
-                        summary="with the amplifier gain (×1/4, ×1, ×4 the preset) in every action (§7)")),
+        bench=(
+            BenchEnv("target", summary="on the presets (Tables 4 and 1)"),
+            BenchEnv(
+                "dynamic-gain",
+                frozen({"gain_levels": DYNAMIC_GAIN_LEVELS}),
+                summary="with the amplifier gain (×1/4, ×1, ×4 the preset) in every action (§7)",
+            ),
+        ),
         backends=frozen({"torch": "electroloc_gym.torch_core.vector_env:TorchElectroLocVectorEnv"}),
         summary="localise a target sphere with a particle-filter belief",
     ),
     EnvEntry(
-        env_id="ElectroLocGlobal-v0", task="global", task_class=GlobalTask,
-        env_class=GlobalEnv, vector_class=GlobalVectorEnv,
+        env_id="ElectroLocGlobal-v0",
+        task="global",
+        task_class=GlobalTask,
+        env_class=GlobalEnv,
+        vector_class=GlobalVectorEnv,
         arguments=("layout", "position_blur_mm"),
         sensor_models=SENSOR_MODEL_NAMES,
-        bench=(BenchEnv("global", agents=("rnd-wlk", "min-var"),
-                        summary="self-localisation among six cylinders (Table 2; default agents rnd-wlk,min-var; "
-                                "--conditions and --signal do not apply)"),),
-        map_condition=BENCHMARK_SCENE.name, paper_table="table2",
+        bench=(
+            BenchEnv(
+                "global",
+                agents=("rnd-wlk", "min-var"),
+                summary="self-localisation among six cylinders (Table 2; default agents rnd-wlk,min-var; "
+                "--conditions and --signal do not apply)",
+            ),
+        ),
+        map_condition=BENCHMARK_SCENE.name,
+        paper_table="table2",
         summary="the robot localises itself in a mapped tank of six cylinders (§6.5)",
     ),
     EnvEntry(
-        env_id="ElectroLocUnknownTarget-v0", task="unknown", task_class=UnknownTargetTask,
-        env_class=UnknownTargetEnv, vector_class=UnknownTargetVectorEnv,
-        arguments=("condition", "signal", "randomize_target", "target_draw", "radius_range_mm", "contrast",
-                   "eev_radii_mm", "gain_levels"),
+        env_id="ElectroLocUnknownTarget-v0",
+        task="unknown",
+        task_class=UnknownTargetTask,
+        env_class=UnknownTargetEnv,
+        vector_class=UnknownTargetVectorEnv,
+        arguments=(
+            "condition",
+            "signal",
+            "randomize_target",
+            "target_draw",
+            "radius_range_mm",
+            "contrast",
+            "eev_radii_mm",
+            "gain_levels",
+        ),
         sensor_models=SHAPE_SENSOR_MODELS,
         # the eight tanks, the theoretical EEV, and 5000 particles for the 4-D belief (with the paper's 2500
         # one success in seven was more than 10 mm off, measured on validation seeds, docs/extensions.md)
         defaults=frozen({"condition": "random", "n_particles": 5000}),
-        bench=(BenchEnv("unknown-target", summary="on the presets' sphere/water pairs, the sphere's size and "
-                        "material hidden (§7), with the identification results beside the Table-4 layout"),),
+        bench=(
+            BenchEnv(
+                "unknown-target",
+                summary="on the presets' sphere/water pairs, the sphere's size and "
+                "material hidden (§7), with the identification results beside the Table-4 layout",
+            ),
+        ),
         # the paper's sphere/water pairs, the sphere hidden from the agent
-        bench_kwargs=frozen({"target_draw": "condition"}), record_keys=SHAPE_RECORD_KEYS,
+        bench_kwargs=frozen({"target_draw": "condition"}),
+        record_keys=SHAPE_RECORD_KEYS,
         summary="localise a sphere of unknown size and material (§7)",
     ),
 )

@@ -50,9 +50,12 @@ from electroloc_gym.registry import EnvEntry, entry_of_class
 __all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalVectorEnv", "UnknownTargetVectorEnv", "sub_env_seeds"]
 
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
-    AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP: AutoresetMode.SAME_STEP,
-    "next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP,
-    AutoresetMode.NEXT_STEP.value: AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP.value: AutoresetMode.SAME_STEP,
+    AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP,
+    AutoresetMode.SAME_STEP: AutoresetMode.SAME_STEP,
+    "next_step": AutoresetMode.NEXT_STEP,
+    "same_step": AutoresetMode.SAME_STEP,
+    AutoresetMode.NEXT_STEP.value: AutoresetMode.NEXT_STEP,
+    AutoresetMode.SAME_STEP.value: AutoresetMode.SAME_STEP,
 }
 #: The core's name of each mode.
 _CORE_MODE = {AutoresetMode.NEXT_STEP: "next_step", AutoresetMode.SAME_STEP: "same_step"}
@@ -70,8 +73,11 @@ def _check_seed(seed: Any, n: int) -> None:
     if seed is None or _is_seed(seed):
         return
     what = f"seed must be None, an integer ≥ 0 or a sequence of {n} seeds (each None or an integer ≥ 0)"
-    if isinstance(seed, (str, bytes, Mapping)) or not isinstance(seed, (Sequence, np.ndarray)) or \
-            (isinstance(seed, np.ndarray) and seed.ndim != 1):
+    if (
+        isinstance(seed, (str, bytes, Mapping))
+        or not isinstance(seed, (Sequence, np.ndarray))
+        or (isinstance(seed, np.ndarray) and seed.ndim != 1)
+    ):
         raise ValueError(f"{what}, got {seed!r}")
     if len(seed) != n:
         raise ValueError(f"{what}, got {len(seed)} seeds")
@@ -88,8 +94,10 @@ def sub_env_seeds(seed: int, num_envs: int) -> list[int]:
         ValueError: ``seed`` not an int ≥ 0 or ``num_envs`` not an int ≥ 1 (names the argument).
     """
     root = np.random.SeedSequence(check_int("seed", seed, 0))
-    return [int.from_bytes(child.generate_state(4, np.uint32).tobytes(), "little")
-            for child in root.spawn(check_int("num_envs", num_envs, 1))]
+    return [
+        int.from_bytes(child.generate_state(4, np.uint32).tobytes(), "little")
+        for child in root.spawn(check_int("num_envs", num_envs, 1))
+    ]
 
 
 class CoreVectorEnv(ParamAccessors, VectorEnv):
@@ -119,17 +127,25 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
             return super().__new__(cls)
         return make_backend_vector_env(cls.entry(), backend, *args, **kwargs)
 
-    def __init__(self, num_envs: int = 1, render_mode: str | None = None,
-                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, backend: str = "numba",
-                 **kwargs: Any) -> None:
+    def __init__(
+        self,
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        backend: str = "numba",
+        **kwargs: Any,
+    ) -> None:
         n = check_int("num_envs", num_envs, 1)
         if render_mode is not None:
-            raise ValueError(f"render_mode must be None for the native vector env (got {render_mode!r}); "
-                             "render a single env instead")
+            raise ValueError(
+                f"render_mode must be None for the native vector env (got {render_mode!r}); render a single env instead"
+            )
         mode = _AUTORESET_MODES.get(autoreset_mode if isinstance(autoreset_mode, (str, AutoresetMode)) else None)
         if mode is None:
-            raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or 'next_step', "
-                             f"'same_step'), got {autoreset_mode!r}")
+            raise ValueError(
+                f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or 'next_step', "
+                f"'same_step'), got {autoreset_mode!r}"
+            )
         entry = self.entry()
         self.params = EnvParams.from_kwargs(entry.task, kwargs, entry.env_id)
         self._sim = Simulation(self.params, n)
@@ -195,8 +211,9 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         return self._state.reading_V.copy()
 
     # ---- gymnasium API ------------------------------------------------------------------------
-    def reset(self, *, seed: int | Sequence[int | None] | None = None,
-              options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         """Reset all sub-envs (or those in ``options["reset_mask"]``); an int seed as :func:`sub_env_seeds`."""
         n = self.num_envs
         _check_seed(seed, n)  # everything is checked before any sub-env changes
@@ -218,8 +235,9 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         self._sim.reset(ids)
         return self._sim.observation(), self._with_masks(self._sim.info())
 
-    def step(self, actions: Any) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
-                                          NDArray[np.bool_], dict[str, Any]]:
+    def step(
+        self, actions: Any
+    ) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         if not self._state.started:
             raise RuntimeError("call reset() before step()")
         moves, gains = self._actions(actions)

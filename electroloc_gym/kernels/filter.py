@@ -27,8 +27,32 @@ _INF = np.float32(np.inf)
 
 
 @njit(**JIT)
-def _resample_one(w, t, u, src_x, src_y, jitter_idx, normal_table, h, out_x, out_y,  # pragma: no cover - compiled
-                  mean, cov, cx, cy, scale, bins, counts, e, cum, ptr, kest, first, cells, hist):
+def _resample_one(
+    w,
+    t,
+    u,
+    src_x,
+    src_y,
+    jitter_idx,
+    normal_table,
+    h,
+    out_x,
+    out_y,  # pragma: no cover - compiled
+    mean,
+    cov,
+    cx,
+    cy,
+    scale,
+    bins,
+    counts,
+    e,
+    cum,
+    ptr,
+    kest,
+    first,
+    cells,
+    hist,
+):
     """Normalise, systematically resample, jitter and clip one cloud, then the new cloud's mean,
     covariance (:func:`~electroloc_gym.kernels.mean_cov_rows`'s sums) and histogram counts
     (:func:`~electroloc_gym.kernels.egocentric_counts`'s cells) while it is still in cache.
@@ -109,8 +133,14 @@ def _resample_one(w, t, u, src_x, src_y, jitter_idx, normal_table, h, out_x, out
 @njit(**JIT)
 def _resample_scratch(m, bins):  # pragma: no cover - compiled
     """Scratch of :func:`_resample_one` for M particles: cum, ptr (M + 1), kest, first (M + 1), cells, hist."""
-    return (np.empty(m), np.empty(m + 1), np.empty(m, dtype=np.int32), np.empty(m + 1, dtype=np.int64),
-            np.empty(m, dtype=np.int32), np.empty((4, bins * bins), dtype=np.int32))
+    return (
+        np.empty(m),
+        np.empty(m + 1),
+        np.empty(m, dtype=np.int32),
+        np.empty(m + 1, dtype=np.int64),
+        np.empty(m, dtype=np.int32),
+        np.empty((4, bins * bins), dtype=np.int32),
+    )
 
 
 @njit(**JIT)
@@ -140,8 +170,27 @@ def _shifted_exp_one(ll, w):  # pragma: no cover - compiled
 
 
 @njit(**JIT)
-def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, u0, jitter_idx,  # pragma: no cover
-                          normal_table, half, out, mean, cov, scale, bins, counts):
+def calibrated_assimilate(
+    src,
+    origin,
+    sign,
+    lo,
+    inv,
+    n1,
+    base,
+    table,
+    reading,
+    u0,
+    jitter_idx,  # pragma: no cover
+    normal_table,
+    half,
+    out,
+    mean,
+    cov,
+    scale,
+    bins,
+    counts,
+):
     """One calibrated measurement update of k clouds, one env at a time in cache:
     the calibrated model's log-likelihood (:mod:`.lookup`) at the offsets ``sign·(particle − origin)``,
     ``belief.normalise_log_weights`` (the shifted ``exp32`` and its :func:`row_sums` total), then
@@ -190,20 +239,67 @@ def calibrated_assimilate(src, origin, sign, lo, inv, n1, base, table, reading, 
     for e in range(k):
         px[:] = src[e, 0]
         py[:] = src[e, 1]
-        _calibrated_ll_one(px, py, origin[e, 0], origin[e, 1], sign, lo[e], inv[e], n1[e], base[e],
-                           table, reading[e], ll, sd, rows, txs, tys)
+        _calibrated_ll_one(
+            px,
+            py,
+            origin[e, 0],
+            origin[e, 1],
+            sign,
+            lo[e],
+            inv[e],
+            n1[e],
+            base[e],
+            table,
+            reading[e],
+            ll,
+            sd,
+            rows,
+            txs,
+            tys,
+        )
         total = _shifted_exp_one(ll, w)  # float32 weights (a separate buffer: in place, the exp pass
-        if total != total:             # fails LLVM's runtime overlap check and does not vectorise)
+        if total != total:  # fails LLVM's runtime overlap check and does not vectorise)
             return e
-        _resample_one(w, total, u0[e], px, py, jitter_idx[e], normal_table, half[e],
-                      out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
-                      *scratch)
+        _resample_one(
+            w,
+            total,
+            u0[e],
+            px,
+            py,
+            jitter_idx[e],
+            normal_table,
+            half[e],
+            out[e, 0],
+            out[e, 1],
+            mean,
+            cov,
+            origin[e, 0],
+            origin[e, 1],
+            scale[e],
+            bins,
+            counts,
+            e,
+            *scratch,
+        )
     return -1
 
 
 @njit(**JIT)
-def loglik_assimilate(ll, src, origin, u0, jitter_idx, normal_table, half, out,  # pragma: no cover - compiled
-                      mean, cov, scale, bins, counts):
+def loglik_assimilate(
+    ll,
+    src,
+    origin,
+    u0,
+    jitter_idx,
+    normal_table,
+    half,
+    out,  # pragma: no cover - compiled
+    mean,
+    cov,
+    scale,
+    bins,
+    counts,
+):
     """One measurement update of k clouds from their float32 log-likelihoods ``ll`` (k, M): the shifted
     ``exp32`` weights and their fixed-order total, then ``_resample_one``'s resampling,
     jitter, clip, statistics and histogram, one env at a time in cache.
@@ -223,9 +319,27 @@ def loglik_assimilate(ll, src, origin, u0, jitter_idx, normal_table, half, out, 
         total = _shifted_exp_one(ll[e], w)
         if total != total:
             return e
-        _resample_one(w, total, u0[e], px, py, jitter_idx[e], normal_table, half[e],
-                      out[e, 0], out[e, 1], mean, cov, origin[e, 0], origin[e, 1], scale[e], bins, counts, e,
-                      *scratch)
+        _resample_one(
+            w,
+            total,
+            u0[e],
+            px,
+            py,
+            jitter_idx[e],
+            normal_table,
+            half[e],
+            out[e, 0],
+            out[e, 1],
+            mean,
+            cov,
+            origin[e, 0],
+            origin[e, 1],
+            scale[e],
+            bins,
+            counts,
+            e,
+            *scratch,
+        )
     return -1
 
 

@@ -75,8 +75,9 @@ def sum_over_pairs(terms: Sequence[NDArray]) -> NDArray:
     return total
 
 
-def grid_posterior(log_likelihoods: NDArray, *, at_once: bool, order: Sequence[int] | None = None,
-                   log_prior: NDArray | None = None) -> NDArray[np.float64]:
+def grid_posterior(
+    log_likelihoods: NDArray, *, at_once: bool, order: Sequence[int] | None = None, log_prior: NDArray | None = None
+) -> NDArray[np.float64]:
     """The normalised posterior (G,) on a grid of G hypotheses from K readings' log-likelihoods (K, G).
 
     Args:
@@ -93,15 +94,21 @@ def grid_posterior(log_likelihoods: NDArray, *, at_once: bool, order: Sequence[i
         return p / p.sum()
     p = np.exp(prior - prior.max())
     p /= p.sum()
-    for k in (range(ll.shape[0]) if order is None else order):
+    for k in range(ll.shape[0]) if order is None else order:
         p = p * np.exp(ll[k] - ll[k].max())
         p /= p.sum()
     return p
 
 
-def assimilate_readings(pair_loglik: Callable[[int, NDArray[np.float32]], NDArray], n_pairs: int,
-                        clouds: NDArray[np.float32], half_mm: NDArray, generators: Sequence[np.random.Generator], *,
-                        at_once: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def assimilate_readings(
+    pair_loglik: Callable[[int, NDArray[np.float32]], NDArray],
+    n_pairs: int,
+    clouds: NDArray[np.float32],
+    half_mm: NDArray,
+    generators: Sequence[np.random.Generator],
+    *,
+    at_once: bool,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Fuse K readings into k particle clouds in place; returns the clouds' mean (k, 2) mm and covariance (k, 2, 2) mm².
 
     Args:
@@ -132,7 +139,9 @@ def assimilate_readings(pair_loglik: Callable[[int, NDArray[np.float32]], NDArra
         for i, g in enumerate(generators):
             u0[i] = g.random()
             jitter[i] = table_normal_indices(g, 2 * m)
-        if loglik_assimilate(ll, clouds, origin, u0, jitter, table, half, clouds, mean, cov, 2 * half, _BINS,
-                             counts) >= 0:
+        if (
+            loglik_assimilate(ll, clouds, origin, u0, jitter, table, half, clouds, mean, cov, 2 * half, _BINS, counts)
+            >= 0
+        ):
             raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
     return mean, cov

@@ -20,8 +20,24 @@ _ZERO = np.float32(0.0)
 
 
 @njit(**JIT)
-def _calibrated_ll_one(px, py, ox0, oy0, sign, lo, inv, n1, base, table, reading, ll, sd, rows,  # pragma: no cover
-                       txs, tys):
+def _calibrated_ll_one(
+    px,
+    py,
+    ox0,
+    oy0,
+    sign,
+    lo,
+    inv,
+    n1,
+    base,
+    table,
+    reading,
+    ll,
+    sd,
+    rows,  # pragma: no cover
+    txs,
+    tys,
+):
     """One env's calibrated log-likelihoods into ``ll`` (M,) float32 at the offsets ``off = sign·(p − o)``
     of the particles ``px``, ``py`` (M,) from the origin (ox0, oy0), all float32 (sign ±1: exact).
 

@@ -24,6 +24,7 @@ JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
 
 _F32_HALF = np.float32(0.5)
 
+
 @intrinsic
 def _pow2(typingctx, n):  # pragma: no cover - compiled
     """2**n as float32 for a float32 integer value n in [−126, 127] (built from the exponent bits)."""
@@ -50,9 +51,11 @@ def _frexp32(typingctx, x):  # pragma: no cover - compiled
         bits = builder.bitcast(args[0], i32)
         f = builder.or_(builder.and_(bits, ir.Constant(i32, 0x007FFFFF)), ir.Constant(i32, 0x3F000000))
         e = builder.and_(builder.lshr(bits, ir.Constant(i32, 23)), ir.Constant(i32, 0xFF))
-        return context.make_tuple(builder, signature.return_type,
-                                  (builder.bitcast(f, ir.FloatType()),
-                                   builder.sitofp(builder.sub(e, ir.Constant(i32, 126)), ir.FloatType())))
+        return context.make_tuple(
+            builder,
+            signature.return_type,
+            (builder.bitcast(f, ir.FloatType()), builder.sitofp(builder.sub(e, ir.Constant(i32, 126)), ir.FloatType())),
+        )
 
     return sig, codegen
 
@@ -67,12 +70,26 @@ _LN2_LO = _F(-2.12194440e-4)
 _LOG2E = _F(1.44269504088896341)
 _EXP_MAX = _F(88.72283)  # exp(x) overflows above
 _EXP_MIN = _F(-103.972084)  # exp(x) < 2**−150 below: 0
-_E0, _E1, _E2, _E3, _E4, _E5 = (_F(1.9875691500e-4), _F(1.3981999507e-3), _F(8.3334519073e-3),
-                                _F(4.1665795894e-2), _F(1.6666665459e-1), _F(5.0000001201e-1))
+_E0, _E1, _E2, _E3, _E4, _E5 = (
+    _F(1.9875691500e-4),
+    _F(1.3981999507e-3),
+    _F(8.3334519073e-3),
+    _F(4.1665795894e-2),
+    _F(1.6666665459e-1),
+    _F(5.0000001201e-1),
+)
 _SQRT_HALF = _F(0.707106781186547524)
 _L0, _L1, _L2, _L3, _L4, _L5, _L6, _L7, _L8 = (
-    _F(7.0376836292e-2), _F(-1.1514610310e-1), _F(1.1676998740e-1), _F(-1.2420140846e-1), _F(1.4249322787e-1),
-    _F(-1.6668057665e-1), _F(2.0000714765e-1), _F(-2.4999993993e-1), _F(3.3333331174e-1))
+    _F(7.0376836292e-2),
+    _F(-1.1514610310e-1),
+    _F(1.1676998740e-1),
+    _F(-1.2420140846e-1),
+    _F(1.4249322787e-1),
+    _F(-1.6668057665e-1),
+    _F(2.0000714765e-1),
+    _F(-2.4999993993e-1),
+    _F(3.3333331174e-1),
+)
 _F32_MIN_NORMAL = _F(1.17549435e-38)
 _TWO23 = _F(8388608.0)
 _TWENTY3 = _F(23.0)

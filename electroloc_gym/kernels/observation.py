@@ -22,8 +22,21 @@ def _clip1(v):  # pragma: no cover - compiled
 
 
 @njit(**JIT)
-def belief_observation_rows(carriage, reading, mean, cov, n_obs, max_obs, hw, noise, sat, success,  # pragma: no cover
-                            hist, desc, out):
+def belief_observation_rows(
+    carriage,
+    reading,
+    mean,
+    cov,
+    n_obs,
+    max_obs,
+    hw,
+    noise,
+    sat,
+    success,  # pragma: no cover
+    hist,
+    desc,
+    out,
+):
     """The belief observations (k, 81) float32 of k clouds from their statistics (see
     :mod:`electroloc_gym.core.observation` for the layout), float64 arithmetic, then cast.
 

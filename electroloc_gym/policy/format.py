@@ -41,9 +41,22 @@ import numpy as np
 
 from electroloc_gym.fileio import atomic_write_bytes, write_json_atomic
 
-__all__ = ["ACTIVATIONS", "FORMAT", "FORMAT_VERSION", "POLICY_CLASSES", "POLICY_JSON", "WEIGHTS_FILE",
-           "ObsNormalization", "PolicyExport", "PolicyFormatError", "read_export", "read_weights", "space_from_json",
-           "space_to_json", "write_export"]
+__all__ = [
+    "ACTIVATIONS",
+    "FORMAT",
+    "FORMAT_VERSION",
+    "POLICY_CLASSES",
+    "POLICY_JSON",
+    "WEIGHTS_FILE",
+    "ObsNormalization",
+    "PolicyExport",
+    "PolicyFormatError",
+    "read_export",
+    "read_weights",
+    "space_from_json",
+    "space_to_json",
+    "write_export",
+]
 
 FORMAT = "electroloc-gym-policy"
 FORMAT_VERSION = 1
@@ -60,9 +73,14 @@ POLICY_CLASSES: dict[str, str] = {
 }
 
 #: Activation name (as written in policy.json) → ``torch.nn`` class name.
-ACTIVATIONS: dict[str, str] = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
-                               "gelu": "GELU", "silu": "SiLU"}
-
+ACTIVATIONS: dict[str, str] = {
+    "tanh": "Tanh",
+    "relu": "ReLU",
+    "elu": "ELU",
+    "leaky_relu": "LeakyReLU",
+    "gelu": "GELU",
+    "silu": "SiLU",
+}
 
 
 class PolicyFormatError(ValueError):
@@ -96,11 +114,17 @@ class ObsNormalization:
         mean = np.asarray(self.mean, dtype=np.float64)
         var = np.asarray(self.var, dtype=np.float64)
         if mean.ndim != 1 or var.shape != mean.shape or mean.size == 0:
-            raise PolicyFormatError(f"normalisation mean and var must be equal-length 1-D arrays, got shapes "
-                                    f"{mean.shape} and {var.shape}")
+            raise PolicyFormatError(
+                f"normalisation mean and var must be equal-length 1-D arrays, got shapes {mean.shape} and {var.shape}"
+            )
         big = float(np.finfo(np.float32).max)  # the observations are float32: statistics beyond it describe none
-        if not (np.isfinite(mean).all() and np.isfinite(var).all() and (var >= 0).all()
-                and (np.abs(mean) <= big).all() and (var <= big).all()):
+        if not (
+            np.isfinite(mean).all()
+            and np.isfinite(var).all()
+            and (var >= 0).all()
+            and (np.abs(mean) <= big).all()
+            and (var <= big).all()
+        ):
             raise PolicyFormatError(f"normalisation mean/var must be finite, within ±{big:.3g} and var ≥ 0")
         for name in ("clip_obs", "epsilon"):
             v = getattr(self, name)
@@ -168,8 +192,13 @@ def space_to_json(space: Any) -> dict[str, Any]:
     from gymnasium import spaces
 
     if isinstance(space, spaces.Box):
-        return {"type": "Box", "shape": list(space.shape), "dtype": str(space.dtype),
-                "low": floats_to_json(space.low), "high": floats_to_json(space.high)}
+        return {
+            "type": "Box",
+            "shape": list(space.shape),
+            "dtype": str(space.dtype),
+            "low": floats_to_json(space.low),
+            "high": floats_to_json(space.high),
+        }
     if isinstance(space, spaces.Discrete):
         return {"type": "Discrete", "n": int(space.n), "start": int(space.start)}
     raise PolicyFormatError(f"cannot export a {type(space).__name__} space (only Box and Discrete)")
@@ -261,9 +290,12 @@ def write_export(folder: str | Path, meta: Mapping[str, Any], tensors: Mapping[s
     """
     d = Path(folder)
     blob = _safetensors_bytes(tensors)
-    full = {"format": FORMAT, "format_version": FORMAT_VERSION,
-            "weights": {"file": WEIGHTS_FILE, "sha256": hashlib.sha256(blob).hexdigest(), "tensors": len(tensors)},
-            **json_value(dict(meta), "policy")}
+    full = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "weights": {"file": WEIGHTS_FILE, "sha256": hashlib.sha256(blob).hexdigest(), "tensors": len(tensors)},
+        **json_value(dict(meta), "policy"),
+    }
     atomic_write_bytes(d / WEIGHTS_FILE, blob)
     write_json_atomic(d / POLICY_JSON, full)
     return d
@@ -288,14 +320,21 @@ def _normalization(norm: Any, obs: Mapping[str, Any], where: str) -> ObsNormaliz
     if not norm.get("norm_obs", False):
         return None
     if norm.get("obs_mean") is None or norm.get("obs_var") is None:
-        raise PolicyFormatError(f"{where}: normalization.norm_obs is true but the observation statistics "
-                                f"(obs_mean, obs_var) are missing — refusing to run on raw observations")
-    stats = ObsNormalization(floats_from_json(norm["obs_mean"], f"{where} obs_mean"),
-                             floats_from_json(norm["obs_var"], f"{where} obs_var"),
-                             clip_obs=norm.get("clip_obs", 10.0), epsilon=norm.get("epsilon", 1e-8))
+        raise PolicyFormatError(
+            f"{where}: normalization.norm_obs is true but the observation statistics "
+            f"(obs_mean, obs_var) are missing — refusing to run on raw observations"
+        )
+    stats = ObsNormalization(
+        floats_from_json(norm["obs_mean"], f"{where} obs_mean"),
+        floats_from_json(norm["obs_var"], f"{where} obs_var"),
+        clip_obs=norm.get("clip_obs", 10.0),
+        epsilon=norm.get("epsilon", 1e-8),
+    )
     if stats.mean.shape[0] not in (obs["shape"][0], obs["frame_dim"]):
-        raise PolicyFormatError(f"{where}: normalisation statistics have {stats.mean.shape[0]} features, the "
-                                f"observation has {obs['frame_dim']} per frame and {obs['shape'][0]} stacked")
+        raise PolicyFormatError(
+            f"{where}: normalisation statistics have {stats.mean.shape[0]} features, the "
+            f"observation has {obs['frame_dim']} per frame and {obs['shape'][0]} stacked"
+        )
     return stats
 
 
@@ -332,30 +371,40 @@ def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise PolicyFormatError(f"{where} is not an {FORMAT} file")
     if meta.get("format_version") != FORMAT_VERSION:
-        raise PolicyFormatError(f"{where}: format_version {meta.get('format_version')!r} is not supported "
-                                f"(this version reads {FORMAT_VERSION})")
+        raise PolicyFormatError(
+            f"{where}: format_version {meta.get('format_version')!r} is not supported "
+            f"(this version reads {FORMAT_VERSION})"
+        )
     weights = _need(meta, "weights", dict, where)
     if weights.get("file") != WEIGHTS_FILE or not isinstance(weights.get("sha256"), str):
         raise PolicyFormatError(f"{where}: weights must name {WEIGHTS_FILE!r} and its sha256")
     _need(meta, "algo", str, where)
     arch = _need(meta, "architecture", dict, where)
     if not isinstance(arch.get("policy_class"), str) or arch["policy_class"] not in POLICY_CLASSES:
-        raise PolicyFormatError(f"{where}: architecture.policy_class must be one of {sorted(POLICY_CLASSES)}, "
-                                f"got {arch.get('policy_class')!r}")
+        raise PolicyFormatError(
+            f"{where}: architecture.policy_class must be one of {sorted(POLICY_CLASSES)}, "
+            f"got {arch.get('policy_class')!r}"
+        )
     pk = _need(arch, "policy_kwargs", dict, f"{where} architecture")
     if "activation_fn" in pk and (not isinstance(pk["activation_fn"], str) or pk["activation_fn"] not in ACTIVATIONS):
-        raise PolicyFormatError(f"{where}: activation_fn must be one of {list(ACTIVATIONS)}, "
-                                f"got {pk['activation_fn']!r}")
+        raise PolicyFormatError(
+            f"{where}: activation_fn must be one of {list(ACTIVATIONS)}, got {pk['activation_fn']!r}"
+        )
     if arch.get("recurrent") is not None and not isinstance(arch["recurrent"], dict):
         raise PolicyFormatError(f"{where}: architecture.recurrent must be null or an object")
     obs = _need(meta, "observation", dict, where)
     for key, types in (("env_id", str), ("mode", str), ("frame_stack", int), ("frame_dim", int), ("shape", list)):
         _need(obs, key, types, f"{where} observation")
     space = space_from_json(obs.get("space"), f"{where} observation.space")
-    if list(space.shape) != obs["shape"] or obs["frame_stack"] < 1 or \
-            obs["frame_dim"] * obs["frame_stack"] != obs["shape"][0]:
-        raise PolicyFormatError(f"{where}: observation shape {obs['shape']} does not match its space, frame_stack "
-                                f"{obs['frame_stack']} and frame_dim {obs['frame_dim']}")
+    if (
+        list(space.shape) != obs["shape"]
+        or obs["frame_stack"] < 1
+        or obs["frame_dim"] * obs["frame_stack"] != obs["shape"][0]
+    ):
+        raise PolicyFormatError(
+            f"{where}: observation shape {obs['shape']} does not match its space, frame_stack "
+            f"{obs['frame_stack']} and frame_dim {obs['frame_dim']}"
+        )
     act = _need(meta, "action", dict, where)
     _need(act, "action_type", str, f"{where} action")
     space_from_json(act.get("space"), f"{where} action.space")

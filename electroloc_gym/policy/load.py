@@ -57,8 +57,13 @@ class LearnedAgent:
         name: a label for tables.
     """
 
-    def __init__(self, meta: Mapping[str, Any], weights: Mapping[str, NDArray],
-                 normalization: ObsNormalization | None, name: str = "learned") -> None:
+    def __init__(
+        self,
+        meta: Mapping[str, Any],
+        weights: Mapping[str, NDArray],
+        normalization: ObsNormalization | None,
+        name: str = "learned",
+    ) -> None:
         self.meta = dict(meta)
         self.weights = dict(weights)
         self.name = name
@@ -66,8 +71,9 @@ class LearnedAgent:
         self.frame_stack, self.obs_dim = int(obs["frame_stack"]), int(obs["frame_dim"])
         self.env_kwargs: dict[str, Any] = {"observation": obs["mode"], "action_type": meta["action"]["action_type"]}
         self.normalization = normalization
-        self.normalize_frames = normalization is not None and normalization.mean.shape[0] == self.obs_dim \
-            and self.frame_stack > 1
+        self.normalize_frames = (
+            normalization is not None and normalization.mean.shape[0] == self.obs_dim and self.frame_stack > 1
+        )
         self.actor = build_actor(meta, weights)
         self.recurrent = self.actor.recurrent
         self._stack: NDArray | None = None
@@ -76,9 +82,11 @@ class LearnedAgent:
         self._sb3_policy: Any = None
 
     def __repr__(self) -> str:
-        return (f"LearnedAgent({self.meta['architecture']['policy_class']}, name={self.name!r}, "
-                f"frame_stack={self.frame_stack}, normalised={self.normalization is not None}, "
-                f"env_kwargs={self.env_kwargs})")
+        return (
+            f"LearnedAgent({self.meta['architecture']['policy_class']}, name={self.name!r}, "
+            f"frame_stack={self.frame_stack}, normalised={self.normalization is not None}, "
+            f"env_kwargs={self.env_kwargs})"
+        )
 
     def reset(self, env: Any = None) -> None:
         """Start of a trial: clear the frame stack and the recurrent state (``env`` is not used)."""
@@ -104,8 +112,9 @@ class LearnedAgent:
             x = self.normalization.apply(x)
         return x.astype(np.float32)
 
-    def predict(self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None,
-                deterministic: bool = True) -> tuple[NDArray, Any]:
+    def predict(
+        self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None, deterministic: bool = True
+    ) -> tuple[NDArray, Any]:
         """SB3-style decision for one observation (d,) or a batch (n, d).
 
         Returns:
@@ -131,8 +140,9 @@ class LearnedAgent:
 
                 self._sb3_policy = sb3_policy(self.meta, self.weights)
             except ImportError as exc:
-                raise ValueError(f"stochastic actions of a learned policy need torch and SB3 ({TRAIN_EXTRA}): "
-                                 f"{exc}") from exc
+                raise ValueError(
+                    f"stochastic actions of a learned policy need torch and SB3 ({TRAIN_EXTRA}): {exc}"
+                ) from exc
         if self.recurrent:
             start = np.zeros(x.shape[0], dtype=bool) if episode_start is None else np.asarray(episode_start, bool)
             return self._sb3_policy.predict(x, state=state, episode_start=start, deterministic=False)
@@ -152,8 +162,9 @@ def agent_from_export(export: PolicyExport, name: str | None = None) -> LearnedA
     except PolicyFormatError:
         raise
     except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RecursionError) as exc:
-        raise PolicyFormatError(f"{export.folder / POLICY_JSON}: its architecture and weights do not make a "
-                                f"network: {one_line(exc)}") from exc
+        raise PolicyFormatError(
+            f"{export.folder / POLICY_JSON}: its architecture and weights do not make a network: {one_line(exc)}"
+        ) from exc
 
 
 def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
@@ -183,16 +194,21 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
     if not p.exists():
         raise ValueError(f"policy path {str(path)!r} does not exist (expected a folder with {POLICY_JSON})")
     if not trust_pickle:
-        raise ValueError(f"refusing to load {str(path)!r}: it has no {POLICY_JSON} (the pickle-free policy format). "
-                         f"SB3's .zip and vecnormalize.pkl contain pickles, which run code when loaded; read them "
-                         f"only with trust_pickle=True (--trust-pickle) for files you trust, or export a run you "
-                         f"trust with `python -m electroloc_gym.train.export`")
+        raise ValueError(
+            f"refusing to load {str(path)!r}: it has no {POLICY_JSON} (the pickle-free policy format). "
+            f"SB3's .zip and vecnormalize.pkl contain pickles, which run code when loaded; read them "
+            f"only with trust_pickle=True (--trust-pickle) for files you trust, or export a run you "
+            f"trust with `python -m electroloc_gym.train.export`"
+        )
     try:
         from electroloc_gym.policy.sb3 import model_from_sb3_zip
     except ImportError as exc:
         raise ValueError(f"loading an SB3 zip needs SB3 ({TRAIN_EXTRA}): {exc}") from exc
-    logger.warning("loading %s with pickle (trust_pickle=True): a pickle-based model runs code from the file; "
-                   "load only files you trust", p)
+    logger.warning(
+        "loading %s with pickle (trust_pickle=True): a pickle-based model runs code from the file; "
+        "load only files you trust",
+        p,
+    )
     model, meta = model_from_sb3_zip(p)
     return agent_from_model(model, meta, p.stem)
 

@@ -37,8 +37,13 @@ _ACT: dict[str, Callable[[NDArray], NDArray]] = {
 }
 
 #: SB3's default activation of each policy class.
-_DEFAULT_ACT = {"ActorCriticPolicy": "tanh", "RecurrentActorCriticPolicy": "tanh", "SACPolicy": "relu",
-                "DQNPolicy": "relu", "QRDQNPolicy": "relu"}
+_DEFAULT_ACT = {
+    "ActorCriticPolicy": "tanh",
+    "RecurrentActorCriticPolicy": "tanh",
+    "SACPolicy": "relu",
+    "DQNPolicy": "relu",
+    "QRDQNPolicy": "relu",
+}
 
 
 def _sigmoid(x: NDArray) -> NDArray:
@@ -51,8 +56,9 @@ class _Mlp:
     def __init__(self, w: Mapping[str, NDArray], prefix: str, act: str, last_linear: bool) -> None:
         pat = re.compile(re.escape(prefix) + r"\.(\d+)\.weight$")
         idx = sorted(int(m.group(1)) for k in w if (m := pat.match(k)))
-        self.layers = [(w[f"{prefix}.{i}.weight"].astype(np.float64).T, w[f"{prefix}.{i}.bias"].astype(np.float64))
-                       for i in idx]
+        self.layers = [
+            (w[f"{prefix}.{i}.weight"].astype(np.float64).T, w[f"{prefix}.{i}.bias"].astype(np.float64)) for i in idx
+        ]
         if act not in _ACT:
             raise PolicyFormatError(f"activation {act!r} has no numpy forward pass; supported: {sorted(_ACT)}")
         self.act = _ACT[act]
@@ -104,10 +110,14 @@ class Actor:
             if self.recurrent:
                 rec = arch["recurrent"]
                 self.n_layers, self.hidden = int(rec["n_lstm_layers"]), int(rec["lstm_hidden_size"])
-                self._lstm = [(w[f"lstm_actor.weight_ih_l{k}"].astype(np.float64).T,
-                               w[f"lstm_actor.weight_hh_l{k}"].astype(np.float64).T,
-                               (w[f"lstm_actor.bias_ih_l{k}"] + w[f"lstm_actor.bias_hh_l{k}"]).astype(np.float64))
-                              for k in range(self.n_layers)]
+                self._lstm = [
+                    (
+                        w[f"lstm_actor.weight_ih_l{k}"].astype(np.float64).T,
+                        w[f"lstm_actor.weight_hh_l{k}"].astype(np.float64).T,
+                        (w[f"lstm_actor.bias_ih_l{k}"] + w[f"lstm_actor.bias_hh_l{k}"]).astype(np.float64),
+                    )
+                    for k in range(self.n_layers)
+                ]
         except (KeyError, TypeError) as exc:
             raise PolicyFormatError(f"the weights do not fit a {self.kind}: missing {exc}") from exc
 
@@ -115,8 +125,7 @@ class Actor:
         z = np.zeros((self.n_layers, n, self.hidden))
         return z, z.copy()
 
-    def __call__(self, x: NDArray, state: Any = None,
-                 episode_start: NDArray | None = None) -> tuple[NDArray, Any]:
+    def __call__(self, x: NDArray, state: Any = None, episode_start: NDArray | None = None) -> tuple[NDArray, Any]:
         h = np.asarray(x, dtype=np.float64)
         if self.recurrent:
             hs, cs = self.initial_state(h.shape[0]) if state is None else (np.array(state[0]), np.array(state[1]))

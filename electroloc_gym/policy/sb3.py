@@ -25,8 +25,14 @@ from electroloc_gym.policy.format import (
     space_to_json,
 )
 
-__all__ = ["model_from_sb3_zip", "export_meta", "model_weights", "normalization_from_vecnormalize",
-           "read_zoo_yaml", "sb3_policy"]
+__all__ = [
+    "model_from_sb3_zip",
+    "export_meta",
+    "model_weights",
+    "normalization_from_vecnormalize",
+    "read_zoo_yaml",
+    "sb3_policy",
+]
 
 # Constructor keywords that only matter for training (the optimiser) or that are rebuilt here.
 _DROPPED_KWARGS = ("optimizer_class", "optimizer_kwargs", "features_extractor_class", "features_extractor_kwargs")
@@ -71,15 +77,24 @@ def normalization_from_vecnormalize(vn: Any) -> dict[str, Any] | None:
     if vn is None:
         return None
     out: dict[str, Any] = {
-        "norm_obs": bool(vn.norm_obs), "norm_reward": bool(vn.norm_reward), "clip_obs": float(vn.clip_obs),
-        "clip_reward": float(vn.clip_reward), "epsilon": float(vn.epsilon), "gamma": float(vn.gamma),
-        "obs_mean": None, "obs_var": None, "obs_count": None,
+        "norm_obs": bool(vn.norm_obs),
+        "norm_reward": bool(vn.norm_reward),
+        "clip_obs": float(vn.clip_obs),
+        "clip_reward": float(vn.clip_reward),
+        "epsilon": float(vn.epsilon),
+        "gamma": float(vn.gamma),
+        "obs_mean": None,
+        "obs_var": None,
+        "obs_count": None,
     }
     if vn.norm_obs:
         if isinstance(vn.obs_rms, dict):
             raise PolicyFormatError("cannot export normalisation of a Dict observation space")
-        out.update(obs_mean=floats_to_json(vn.obs_rms.mean), obs_var=floats_to_json(vn.obs_rms.var),
-                   obs_count=float(vn.obs_rms.count))
+        out.update(
+            obs_mean=floats_to_json(vn.obs_rms.mean),
+            obs_var=floats_to_json(vn.obs_rms.var),
+            obs_count=float(vn.obs_rms.count),
+        )
     return out
 
 
@@ -91,8 +106,9 @@ def _architecture(model: Any) -> dict[str, Any]:
     policy = model.policy
     name = type(policy).__name__
     if POLICY_CLASSES.get(name) != f"{type(policy).__module__}:{name}":
-        raise PolicyFormatError(f"cannot export a {type(policy).__module__}.{name} policy; supported: "
-                                f"{sorted(POLICY_CLASSES)}")
+        raise PolicyFormatError(
+            f"cannot export a {type(policy).__module__}.{name} policy; supported: {sorted(POLICY_CLASSES)}"
+        )
     kwargs = dict(model.policy_kwargs or {})
     if kwargs.get("features_extractor_class", FlattenExtractor) is not FlattenExtractor:
         raise PolicyFormatError("cannot export a custom features extractor (only the flat MLP input)")
@@ -107,9 +123,12 @@ def _architecture(model: Any) -> dict[str, Any]:
         kwargs["use_sde"] = False
     recurrent = None
     if name == "RecurrentActorCriticPolicy":
-        recurrent = {"lstm_hidden_size": int(policy.lstm_actor.hidden_size),
-                     "n_lstm_layers": int(policy.lstm_actor.num_layers), "shared_lstm": bool(policy.shared_lstm),
-                     "enable_critic_lstm": policy.lstm_critic is not None}
+        recurrent = {
+            "lstm_hidden_size": int(policy.lstm_actor.hidden_size),
+            "n_lstm_layers": int(policy.lstm_actor.num_layers),
+            "shared_lstm": bool(policy.shared_lstm),
+            "enable_critic_lstm": policy.lstm_critic is not None,
+        }
         kwargs.update(recurrent)
     act = kwargs.get("activation_fn")
     if act is not None:
@@ -125,8 +144,16 @@ def model_weights(model: Any) -> dict[str, np.ndarray]:
     return {k: v.detach().cpu().numpy().copy() for k, v in model.policy.state_dict().items()}
 
 
-def export_meta(model: Any, *, env_id: str, env_kwargs: Mapping[str, Any], frame_stack: int, vecnormalize: Any,
-                provenance: Mapping[str, Any], evaluation: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def export_meta(
+    model: Any,
+    *,
+    env_id: str,
+    env_kwargs: Mapping[str, Any],
+    frame_stack: int,
+    vecnormalize: Any,
+    provenance: Mapping[str, Any],
+    evaluation: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
     """``policy.json`` content (without ``weights``) for a live SB3 model.
 
     Args:
@@ -147,10 +174,18 @@ def export_meta(model: Any, *, env_id: str, env_kwargs: Mapping[str, Any], frame
     return {
         "algo": type(model).__name__.lower(),
         "architecture": _architecture(model),
-        "observation": {"env_id": env_id, "mode": str(kw.get("observation", "belief")), "frame_stack": int(frame_stack),
-                        "frame_dim": shape[0] // frame_stack, "shape": shape, "space": space_to_json(obs_space)},
-        "action": {"action_type": str(kw.get("action_type", "continuous")),
-                   "space": space_to_json(model.policy.action_space)},
+        "observation": {
+            "env_id": env_id,
+            "mode": str(kw.get("observation", "belief")),
+            "frame_stack": int(frame_stack),
+            "frame_dim": shape[0] // frame_stack,
+            "shape": shape,
+            "space": space_to_json(obs_space),
+        },
+        "action": {
+            "action_type": str(kw.get("action_type", "continuous")),
+            "space": space_to_json(model.policy.action_space),
+        },
         "normalization": normalization_from_vecnormalize(vecnormalize),
         "env_kwargs": kw,
         "provenance": dict(provenance),
@@ -169,8 +204,12 @@ def sb3_policy(meta: Mapping[str, Any], weights: Mapping[str, np.ndarray]) -> An
     if "activation_fn" in kwargs:
         kwargs["activation_fn"] = getattr(torch.nn, ACTIVATIONS[kwargs["activation_fn"]])
     try:
-        policy = cls(space_from_json(meta["observation"]["space"]), space_from_json(meta["action"]["space"]),
-                     lambda _: 0.0, **kwargs)
+        policy = cls(
+            space_from_json(meta["observation"]["space"]),
+            space_from_json(meta["action"]["space"]),
+            lambda _: 0.0,
+            **kwargs,
+        )
         policy.load_state_dict({k: torch.as_tensor(v) for k, v in weights.items()}, strict=True)
     except (TypeError, ValueError, RuntimeError, KeyError) as exc:
         raise PolicyFormatError(f"the weights do not fit the architecture: {type(exc).__name__}: {exc}") from exc
@@ -209,9 +248,14 @@ def model_from_sb3_zip(zip_path: str | Path) -> tuple[Any, dict[str, Any]]:
     model, vn, run = load_zoo_run(zip_path)
     args = run["args"]
     env_kwargs = {**dict(run["config"].get("env_kwargs") or {}), **dict(args.get("env_kwargs") or {})}
-    meta = export_meta(model, env_id=str(args.get("env", "ElectroLoc-v0")), env_kwargs=env_kwargs,
-                       frame_stack=int(run["config"].get("frame_stack") or 1), vecnormalize=vn,
-                       provenance={"converted_from": str(zip_path)})
+    meta = export_meta(
+        model,
+        env_id=str(args.get("env", "ElectroLoc-v0")),
+        env_kwargs=env_kwargs,
+        frame_stack=int(run["config"].get("frame_stack") or 1),
+        vecnormalize=vn,
+        provenance={"converted_from": str(zip_path)},
+    )
     if vn is not None and vn.norm_obs:
         ObsNormalization(np.asarray(vn.obs_rms.mean), np.asarray(vn.obs_rms.var))  # validates the statistics
     return model, meta

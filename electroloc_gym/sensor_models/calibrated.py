@@ -131,8 +131,9 @@ def calibration_grid_mm(half_span_mm: float, grid_step_mm: float) -> NDArray[np.
     return -half_span_mm + grid_step_mm * np.arange(n)
 
 
-def calibration_grid_for(condition: Condition, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
-                         ) -> NDArray[np.float64]:
+def calibration_grid_for(
+    condition: Condition, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
+) -> NDArray[np.float64]:
     """The grid coordinates per axis (mm) that ``protocol`` visits for ``condition``."""
     if protocol.half_span_mm is not None:
         half = protocol.half_span_mm
@@ -141,8 +142,9 @@ def calibration_grid_for(condition: Condition, protocol: CalibrationProtocol = D
     return calibration_grid_mm(half, protocol.grid_step_mm)
 
 
-def bilinear_cells(offsets_mm: ArrayLike, grid_mm: NDArray[np.float64], grid_step_mm: float
-                   ) -> tuple[NDArray[np.intp], NDArray, NDArray]:
+def bilinear_cells(
+    offsets_mm: ArrayLike, grid_mm: NDArray[np.float64], grid_step_mm: float
+) -> tuple[NDArray[np.intp], NDArray, NDArray]:
     """(cell, tx, ty) of offsets (..., 2) on a calibration grid: the coefficient row (the extra last
     row ``n1²`` outside the grid) and the fractional position in the cell, in the offsets' precision.
     """
@@ -175,8 +177,9 @@ def _grid_offsets(grid_mm: NDArray[np.float64], samples: int) -> NDArray[np.floa
 
 
 @functools.lru_cache(maxsize=32)
-def noise_free_calibration_grid(condition: Condition, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
-                                ) -> NDArray[np.float64]:
+def noise_free_calibration_grid(
+    condition: Condition, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
+) -> NDArray[np.float64]:
     """The calibration's noise-free, unsaturated readings (samples, n, n), V — the same for every seed."""
     grid = calibration_grid_for(condition, protocol)
     offs = np.asarray(_grid_offsets(grid, protocol.samples_per_point), dtype=np.float64)
@@ -185,8 +188,9 @@ def noise_free_calibration_grid(condition: Condition, protocol: CalibrationProto
     return mean
 
 
-def calibration_statistics(samples_V: NDArray, protocol: CalibrationProtocol, noise_std_V: float,
-                           saturation_V: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def calibration_statistics(
+    samples_V: NDArray, protocol: CalibrationProtocol, noise_std_V: float, saturation_V: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The model's mean and std tables (n, n), V, from the readings ``samples_V`` (samples, n, n).
 
     The one place where the calibration's statistics are computed (see :class:`CalibrationProtocol`).
@@ -206,8 +210,9 @@ def calibration_statistics(samples_V: NDArray, protocol: CalibrationProtocol, no
     return mean, std
 
 
-def calibration_coefficients(condition: Condition, seed: int, protocol: CalibrationProtocol = DEFAULT_CALIBRATION,
-                             out: NDArray | None = None) -> NDArray:
+def calibration_coefficients(
+    condition: Condition, seed: int, protocol: CalibrationProtocol = DEFAULT_CALIBRATION, out: NDArray | None = None
+) -> NDArray:
     """``CalibratedSensorModel(condition, seed, protocol)._coef`` without building the model (tested equal).
 
     The per-cell bilinear coefficients (n1² + 1, 8) — the only part of the model a batched lookup needs
@@ -240,8 +245,14 @@ class CalibratedSensorModel:
 
     name = "calibrated"
 
-    def __init__(self, condition: Condition, seed: int = 0, protocol: CalibrationProtocol = DEFAULT_CALIBRATION, *,
-                 reading_fn: Callable[[NDArray, np.random.Generator], NDArray] | None = None) -> None:
+    def __init__(
+        self,
+        condition: Condition,
+        seed: int = 0,
+        protocol: CalibrationProtocol = DEFAULT_CALIBRATION,
+        *,
+        reading_fn: Callable[[NDArray, np.random.Generator], NDArray] | None = None,
+    ) -> None:
         if not isinstance(protocol, CalibrationProtocol):
             raise TypeError(f"protocol must be a CalibrationProtocol, got {type(protocol).__name__}")
         self.condition = condition
@@ -256,7 +267,8 @@ class CalibratedSensorModel:
         else:
             samples = reading_fn(_grid_offsets(self.grid_mm, protocol.samples_per_point), rng)
         self.mean_table_V, self.std_table_V = calibration_statistics(
-            samples, protocol, self.noise_std_V, float(condition.saturation_V))
+            samples, protocol, self.noise_std_V, float(condition.saturation_V)
+        )
         self._coef = self._bilinear_coefficients()
 
     def _bilinear_coefficients(self) -> NDArray[np.float64]:
@@ -292,8 +304,9 @@ def _cached_calibration(condition: Condition, seed: int, protocol: CalibrationPr
 SensorModelType = AnalyticSensorModel | CalibratedSensorModel
 
 
-def make_sensor_model(kind: str, condition: Condition, seed: int = 0,
-                      protocol: CalibrationProtocol = DEFAULT_CALIBRATION) -> SensorModelType:
+def make_sensor_model(
+    kind: str, condition: Condition, seed: int = 0, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
+) -> SensorModelType:
     """Build (calibrated: cached per (condition, seed, protocol)) a sensor model by name."""
     if kind == "analytic":
         return AnalyticSensorModel(condition)

@@ -37,7 +37,6 @@ def gaussian_log_likelihood(reading_V: ArrayLike, mean_V: NDArray, std_V: ArrayL
     return out
 
 
-
 @runtime_checkable
 class SensorModel(Protocol):
     """The sensor-model accessor an agent may read: ``env.unwrapped.sensor_model``."""
@@ -46,7 +45,7 @@ class SensorModel(Protocol):
 
     @property
     def name(self) -> str:
-        """"analytic" or "calibrated"."""
+        """The model's name: "analytic" or "calibrated"."""
         ...
 
     def mean_std(self, offsets_mm: ArrayLike) -> tuple[NDArray, NDArray]:

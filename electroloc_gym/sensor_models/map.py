@@ -99,9 +99,13 @@ def _cached_map_calibration(scene: Scene, seed: int, protocol: CalibrationProtoc
     return CalibratedSensorModel(scene.as_condition(), seed, protocol, reading_fn=scene.noisy_reading_at_offsets)
 
 
-def make_map_sensor_model(kind: str, scene: Scene, seed: int = 0, position_blur_mm: float = DEFAULT_POSITION_BLUR_MM,
-                          protocol: CalibrationProtocol = DEFAULT_CALIBRATION
-                          ) -> MapAnalyticSensorModel | CalibratedSensorModel:
+def make_map_sensor_model(
+    kind: str,
+    scene: Scene,
+    seed: int = 0,
+    position_blur_mm: float = DEFAULT_POSITION_BLUR_MM,
+    protocol: CalibrationProtocol = DEFAULT_CALIBRATION,
+) -> MapAnalyticSensorModel | CalibratedSensorModel:
     """The agent's model of the map's reading, ``offsets_mm = −carriage`` (map origin − carriage).
 
     ``"analytic"``: the scene's noise-free reading (:class:`MapAnalyticSensorModel`). ``"calibrated"``:
@@ -115,6 +119,7 @@ def make_map_sensor_model(kind: str, scene: Scene, seed: int = 0, position_blur_
     if kind == "analytic":
         return MapAnalyticSensorModel(scene, blur)
     if kind == "calibrated":
-        return _cached_map_calibration(scene, int(seed),
-                                       protocol.replace(position_blur_mm=blur, grid_extent="allowed-box"))
+        return _cached_map_calibration(
+            scene, int(seed), protocol.replace(position_blur_mm=blur, grid_extent="allowed-box")
+        )
     raise ValueError(f"sensor_model must be one of {list(SENSOR_MODEL_NAMES)}, got {kind!r}")

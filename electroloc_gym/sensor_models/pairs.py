@@ -42,24 +42,30 @@ from electroloc_gym.sensor_models.calibrated import (
 )
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
 
-__all__ = ["ArrayAnalyticSensorModel", "ArrayCalibratedSensorModel", "make_array_sensor_model", "pair_seeds",
-           "pair_noise_free_grid"]
+__all__ = [
+    "ArrayAnalyticSensorModel",
+    "ArrayCalibratedSensorModel",
+    "make_array_sensor_model",
+    "pair_seeds",
+    "pair_noise_free_grid",
+]
 
 
 def pair_seeds(seed: int, n_pairs: int) -> tuple[int, ...]:
     """Calibration seeds of K pairs: ``seed`` for pair 0, independent 63-bit seeds (``SeedSequence([seed, k])``)
     for pair k ≥ 1.
     """
-    extra = [int(np.random.SeedSequence([int(seed), k]).generate_state(1, np.uint64)[0] >> np.uint64(1))
-             for k in range(1, n_pairs)]
+    extra = [
+        int(np.random.SeedSequence([int(seed), k]).generate_state(1, np.uint64)[0] >> np.uint64(1))
+        for k in range(1, n_pairs)
+    ]
     return (int(seed), *extra)
 
 
 def _pair_readings(readings_V: ArrayLike, n_pairs: int) -> NDArray:
     r = np.asarray(readings_V)
     if r.ndim == 0 or r.shape[0] != n_pairs:
-        raise ValueError(f"readings_V must hold one reading per pair (leading axis K = {n_pairs}), "
-                         f"got shape {r.shape}")
+        raise ValueError(f"readings_V must hold one reading per pair (leading axis K = {n_pairs}), got shape {r.shape}")
     return r
 
 
@@ -111,8 +117,13 @@ class ArrayCalibratedSensorModel:
 
     name = "calibrated"
 
-    def __init__(self, condition: Condition, layout: SensorLayout, seed: int = 0,
-                 protocol: CalibrationProtocol = DEFAULT_CALIBRATION) -> None:
+    def __init__(
+        self,
+        condition: Condition,
+        layout: SensorLayout,
+        seed: int = 0,
+        protocol: CalibrationProtocol = DEFAULT_CALIBRATION,
+    ) -> None:
         self.condition = condition
         self.sensor_layout = layout
         self.n_pairs = layout.n_pairs
@@ -121,8 +132,9 @@ class ArrayCalibratedSensorModel:
         array_reading(condition, layout, np.zeros(2))  # the layout must fit the condition's geometry
         self.centres_mm = layout.centres_mm
         pairs = []
-        for k, (unit, pair_seed) in enumerate(zip(layout.paper_unit_centres, pair_seeds(seed, self.n_pairs),
-                                                  strict=True)):
+        for k, (unit, pair_seed) in enumerate(
+            zip(layout.paper_unit_centres, pair_seeds(seed, self.n_pairs), strict=True)
+        ):
             if unit is not None:  # the paper's unit, translated: the paper's calibration (cached per seed)
                 pairs.append(make_sensor_model("calibrated", condition, pair_seed, protocol))
             else:
@@ -165,23 +177,29 @@ class ArrayCalibratedSensorModel:
 
 
 @functools.lru_cache(maxsize=64)
-def pair_noise_free_grid(condition: Condition, pair: SensorLayout, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
-                         ) -> NDArray[np.float64]:
+def pair_noise_free_grid(
+    condition: Condition, pair: SensorLayout, protocol: CalibrationProtocol = DEFAULT_CALIBRATION
+) -> NDArray[np.float64]:
     """A one-pair layout's calibration readings without noise or clip, (samples, n, n), V, on the grid of
     ``protocol`` laid over ``u = target − carriage − centre`` (the same for every seed; cached, read-only).
     """
     grid = calibration_grid_for(condition, protocol)
     gx, gy = np.meshgrid(grid, grid, indexing="ij")
     u = np.stack([gx, gy], axis=-1) + pair.centres_mm[0]
-    mean = np.broadcast_to(array_reading(condition, pair, u, saturate=False)[0],
-                           (protocol.samples_per_point, grid.size, grid.size)).copy()
+    mean = np.broadcast_to(
+        array_reading(condition, pair, u, saturate=False)[0], (protocol.samples_per_point, grid.size, grid.size)
+    ).copy()
     mean.flags.writeable = False
     return mean
 
 
-def make_array_sensor_model(kind: str, condition: Condition, layout: SensorLayout, seed: int = 0,
-                            protocol: CalibrationProtocol = DEFAULT_CALIBRATION
-                            ) -> ArrayAnalyticSensorModel | ArrayCalibratedSensorModel:
+def make_array_sensor_model(
+    kind: str,
+    condition: Condition,
+    layout: SensorLayout,
+    seed: int = 0,
+    protocol: CalibrationProtocol = DEFAULT_CALIBRATION,
+) -> ArrayAnalyticSensorModel | ArrayCalibratedSensorModel:
     """A K-pair sensor model by name, ``"analytic"`` or ``"calibrated"``."""
     if kind == "analytic":
         return ArrayAnalyticSensorModel(condition, layout)

@@ -39,8 +39,7 @@ from electroloc_gym.sensor_models.calibrated import (
 )
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
 
-__all__ = ["TheoreticalShapeModel", "InterpolatedShapeModel", "SHAPE_SENSOR_MODELS",
-           "DEFAULT_EEV_RADII_MM"]
+__all__ = ["TheoreticalShapeModel", "InterpolatedShapeModel", "SHAPE_SENSOR_MODELS", "DEFAULT_EEV_RADII_MM"]
 
 #: The unknown-target env's sensor models (the theoretical EEV first: the env's default).
 SHAPE_SENSOR_MODELS = ("analytic", "interpolated")
@@ -69,16 +68,19 @@ class TheoreticalShapeModel:
         mean = sphere_reading(self.condition, offsets_mm, radius_mm, chi)
         return mean, np.full_like(mean, self.noise_std_V)
 
-    def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike, radius_mm: ArrayLike,
-                       chi: ArrayLike) -> NDArray:
+    def log_likelihood(
+        self, reading_V: ArrayLike, offsets_mm: ArrayLike, radius_mm: ArrayLike, chi: ArrayLike
+    ) -> NDArray:
         """Log p(reading | hypothesis) up to a constant (the −log σ term is the same for all and dropped)."""
-        return gaussian_log_likelihood(reading_V, sphere_reading(self.condition, offsets_mm, radius_mm, chi),
-                                       self.noise_std_V)
+        return gaussian_log_likelihood(
+            reading_V, sphere_reading(self.condition, offsets_mm, radius_mm, chi), self.noise_std_V
+        )
 
 
 @functools.lru_cache(maxsize=64)
-def _calibrated_eev(condition: Condition, radius_mm: float, material: str, seed: int,
-                    protocol: CalibrationProtocol) -> CalibratedSensorModel:
+def _calibrated_eev(
+    condition: Condition, radius_mm: float, material: str, seed: int, protocol: CalibrationProtocol
+) -> CalibratedSensorModel:
     target = Target(radius_mm=radius_mm, conductivity_uScm=MATERIAL_CONDUCTIVITY_uScm[material], material=material)
     return CalibratedSensorModel(condition.replace(target=target), seed, protocol)
 
@@ -100,8 +102,13 @@ class InterpolatedShapeModel:
 
     name = "interpolated"
 
-    def __init__(self, condition: Condition, radii_mm: tuple[float, ...] = DEFAULT_EEV_RADII_MM, seed: int = 0,
-                 protocol: CalibrationProtocol = DEFAULT_CALIBRATION) -> None:
+    def __init__(
+        self,
+        condition: Condition,
+        radii_mm: tuple[float, ...] = DEFAULT_EEV_RADII_MM,
+        seed: int = 0,
+        protocol: CalibrationProtocol = DEFAULT_CALIBRATION,
+    ) -> None:
         self.condition = condition
         self.noise_std_V = float(condition.noise_std_V)
         self.radii_mm = np.array(sorted(float(r) for r in radii_mm))
@@ -109,10 +116,16 @@ class InterpolatedShapeModel:
         water = condition.water.conductivity_uScm
         materials = ("steel", "delrin")
         #: The calibrated spheres' contrasts χ (steel ≈ +1, Delrin ≈ −½).
-        self.chi_ref = {m: float(physics.contrast_factor_sphere(MATERIAL_CONDUCTIVITY_uScm[m], water))
-                        for m in materials}
-        tables = [[_calibrated_eev(condition, float(r), m, self.seed + 2 * k + j, protocol)
-                   for k, r in enumerate(self.radii_mm)] for j, m in enumerate(materials)]
+        self.chi_ref = {
+            m: float(physics.contrast_factor_sphere(MATERIAL_CONDUCTIVITY_uScm[m], water)) for m in materials
+        }
+        tables = [
+            [
+                _calibrated_eev(condition, float(r), m, self.seed + 2 * k + j, protocol)
+                for k, r in enumerate(self.radii_mm)
+            ]
+            for j, m in enumerate(materials)
+        ]
         self.grid_mm, self.grid_step_mm = tables[0][0].grid_mm, tables[0][0].grid_step_mm
         coef = np.stack([np.stack([t._coef for t in row]) for row in tables])  # (2, K, cells + 1, 8)
         strength = np.array([[self.chi_ref[m] * r * r * r for r in self.radii_mm] for m in materials])
@@ -144,8 +157,9 @@ class InterpolatedShapeModel:
         sat = dtype.type(self.condition.saturation_V)
         return np.clip(mean, -sat, sat), (one - t) * s0 + t * s1
 
-    def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike, radius_mm: ArrayLike,
-                       chi: ArrayLike) -> NDArray:
+    def log_likelihood(
+        self, reading_V: ArrayLike, offsets_mm: ArrayLike, radius_mm: ArrayLike, chi: ArrayLike
+    ) -> NDArray:
         """Log p(reading | hypothesis) up to a constant."""
         mean, std = self.mean_std(offsets_mm, radius_mm, chi)
         return gaussian_log_likelihood(reading_V, mean, std)

@@ -26,8 +26,9 @@ from electroloc_gym.torch_core.rng import STREAMS, bits32, stream_key
 __all__ = ["calibration_tables", "tables_from_draws"]
 
 
-def calibration_tables(c: TorchConsts, cond: torch.Tensor, k0: torch.Tensor, k1: torch.Tensor,
-                       episode: torch.Tensor) -> torch.Tensor:
+def calibration_tables(
+    c: TorchConsts, cond: torch.Tensor, k0: torch.Tensor, k1: torch.Tensor, episode: torch.Tensor
+) -> torch.Tensor:
     """(N, (n − 1)² + 1, 8) float32 bilinear coefficients of each env's calibration of its episode.
 
     Args:

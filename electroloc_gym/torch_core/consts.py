@@ -36,14 +36,20 @@ def check_supported(params: EnvParams) -> None:
     """One ValueError naming the first argument the torch core does not implement (the numba core does)."""
     entry = torch_entry()
     if task_entry(params.task) is not entry:
-        raise ValueError(f"backend='torch' implements {entry.env_id} only (task {entry.task!r}), got task "
-                         f"{params.task!r}; use backend='numba'")
+        raise ValueError(
+            f"backend='torch' implements {entry.env_id} only (task {entry.task!r}), got task "
+            f"{params.task!r}; use backend='numba'"
+        )
     if params.gain_levels is not None:
-        raise ValueError("gain_levels: backend='torch' has no dynamic gain (one calibration per level); use "
-                         "gain_levels=None or backend='numba'")
+        raise ValueError(
+            "gain_levels: backend='torch' has no dynamic gain (one calibration per level); use "
+            "gain_levels=None or backend='numba'"
+        )
     if params.sensor_layout != "single" or params.fixed_carriage:
-        raise ValueError("sensor_layout, fixed_carriage: backend='torch' simulates the paper's one electrode pair "
-                         "on a moving carriage; use sensor_layout='single', fixed_carriage=False or backend='numba'")
+        raise ValueError(
+            "sensor_layout, fixed_carriage: backend='torch' simulates the paper's one electrode pair "
+            "on a moving carriage; use sensor_layout='single', fixed_carriage=False or backend='numba'"
+        )
     if getattr(params.distractors, "count", params.distractors) not in (0, (0,)):
         raise ValueError("distractors: backend='torch' has no distractors; use distractors=0 or backend='numba'")
     if params.sensor_model == "calibrated" and params.calibration.position_blur_mm > 0:
@@ -125,7 +131,7 @@ class TorchConsts:
         if calibrated:
             for i, c in enumerate(pool):
                 g = noise_free_calibration_grid(c, proto)[0]
-                grid_mean[i, :g.shape[0], :g.shape[1]] = g
+                grid_mean[i, : g.shape[0], : g.shape[1]] = g
         fixed = None
         if calibrated and params.calibration_seed is not None:
             n1 = n - 1
@@ -139,16 +145,26 @@ class TorchConsts:
         geo = [c.geometry for c in pool]
         depth = [c.target.radius_mm + g.electrode_radius_mm + g.clearance_mm for c, g in zip(pool, geo, strict=True)]
         return cls(
-            device=device, pool=len(pool), n_particles=params.n_particles, calibrated=calibrated,
-            pooled_std=proto.std_estimator == "pooled", samples_per_point=proto.samples_per_point,
-            fixed_calibration_seed=params.calibration_seed, belief_obs=params.observation == "belief",
-            discrete=params.action_type == "discrete", randomize_target=params.randomize_target,
-            max_observations=params.max_observations, max_episode_steps=params.max_episode_steps,
-            success_spread_mm=float(params.success_spread_mm), max_step_mm=float(MAX_STEP_MM), grid_n=n,
+            device=device,
+            pool=len(pool),
+            n_particles=params.n_particles,
+            calibrated=calibrated,
+            pooled_std=proto.std_estimator == "pooled",
+            samples_per_point=proto.samples_per_point,
+            fixed_calibration_seed=params.calibration_seed,
+            belief_obs=params.observation == "belief",
+            discrete=params.action_type == "discrete",
+            randomize_target=params.randomize_target,
+            max_observations=params.max_observations,
+            max_episode_steps=params.max_episode_steps,
+            success_spread_mm=float(params.success_spread_mm),
+            max_step_mm=float(MAX_STEP_MM),
+            grid_n=n,
             half_mm=f64([c.allowed_half_width_mm for c in pool]),
             start_half_mm=f64([c.start_half_width_mm for c in pool]),
             target_mm=f64([c.target_xy_mm for c in pool]),
-            noise_V=f64([c.noise_std_V for c in pool]), saturation_V=f64([c.saturation_V for c in pool]),
+            noise_V=f64([c.noise_std_V for c in pool]),
+            saturation_V=f64([c.saturation_V for c in pool]),
             descriptor=torch.tensor(np.stack([condition_descriptor(c) for c in pool]), device=device),
             dip_h=f64([g.spacing_mm / 2.0 for g in geo]),
             dip_k=f64([g.emitter_voltage_V * g.electrode_radius_mm for g in geo]),
@@ -161,5 +177,6 @@ class TorchConsts:
             grid_inv_mm=torch.tensor(np.full(len(grids), 1.0 / proto.grid_step_mm, dtype=np.float32), device=device),
             floor_V=f64([proto.min_std_fraction * c.noise_std_V for c in pool]),
             normal_table=torch.tensor(normal_table(), device=device),
-            moves_mm=torch.tensor(DISCRETE_MOVES_MM, device=device), fixed_table=fixed,
+            moves_mm=torch.tensor(DISCRETE_MOVES_MM, device=device),
+            fixed_table=fixed,
         )

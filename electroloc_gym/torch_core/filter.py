@@ -14,15 +14,24 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["dipole_difference", "calibrated_log_likelihood", "analytic_log_likelihood", "resample",
-           "statistics", "belief_observation", "raw_observation", "HIST_BINS"]
+__all__ = [
+    "dipole_difference",
+    "calibrated_log_likelihood",
+    "analytic_log_likelihood",
+    "resample",
+    "statistics",
+    "belief_observation",
+    "raw_observation",
+    "HIST_BINS",
+]
 
 #: Histogram cells per axis of the belief observation (:data:`electroloc_gym.core.observation.HIST_BINS`).
 HIST_BINS = 8
 
 
-def dipole_difference(x: torch.Tensor, y: torch.Tensor, h: torch.Tensor, z2: torch.Tensor, k: torch.Tensor,
-                      strength: torch.Tensor) -> torch.Tensor:
+def dipole_difference(
+    x: torch.Tensor, y: torch.Tensor, h: torch.Tensor, z2: torch.Tensor, k: torch.Tensor, strength: torch.Tensor
+) -> torch.Tensor:
     """``physics._dipole_difference`` (Eq. 4 + Eq. 7, a sphere's point dipole) elementwise in the inputs'
     precision: δV(S1) − δV(S2) (V) of a sphere at offsets (x, y) mm, half-spacing ``h`` mm, depth² ``z2``
     mm², ``k`` = V_e·E (V·mm), ``strength`` = χ·A³ (mm³) (broadcasting).
@@ -49,9 +58,16 @@ def dipole_difference(x: torch.Tensor, y: torch.Tensor, h: torch.Tensor, z2: tor
     return strength * (dot1 * r1 - dot2 * r2)
 
 
-def calibrated_log_likelihood(particles: torch.Tensor, origin: torch.Tensor, lo: torch.Tensor, inv: torch.Tensor,
-                              cells: torch.Tensor, stride: int, table: torch.Tensor,
-                              reading: torch.Tensor) -> torch.Tensor:
+def calibrated_log_likelihood(
+    particles: torch.Tensor,
+    origin: torch.Tensor,
+    lo: torch.Tensor,
+    inv: torch.Tensor,
+    cells: torch.Tensor,
+    stride: int,
+    table: torch.Tensor,
+    reading: torch.Tensor,
+) -> torch.Tensor:
     """(N, M) float32 log-likelihoods of the calibrated model (``kernels.lookup._calibrated_ll_one``).
 
     Args:
@@ -82,9 +98,15 @@ def calibrated_log_likelihood(particles: torch.Tensor, origin: torch.Tensor, lo:
     return (-0.5 * z) * z - torch.log(std)
 
 
-def analytic_log_likelihood(particles: torch.Tensor, origin: torch.Tensor, dip: tuple[torch.Tensor, ...],
-                            scale: torch.Tensor, saturation: torch.Tensor, noise: torch.Tensor,
-                            reading: torch.Tensor) -> torch.Tensor:
+def analytic_log_likelihood(
+    particles: torch.Tensor,
+    origin: torch.Tensor,
+    dip: tuple[torch.Tensor, ...],
+    scale: torch.Tensor,
+    saturation: torch.Tensor,
+    noise: torch.Tensor,
+    reading: torch.Tensor,
+) -> torch.Tensor:
     """(N, M) float32 log-likelihoods of the analytic model (mean = the physics, saturated; std G·σ_s; the
     constant −log σ dropped), as ``AnalyticSensorModel.log_likelihood`` on float32 offsets.
 
@@ -100,8 +122,15 @@ def analytic_log_likelihood(particles: torch.Tensor, origin: torch.Tensor, dip: 
     return (-0.5 * z) * z
 
 
-def resample(ll: torch.Tensor, particles: torch.Tensor, u0: torch.Tensor, jx: torch.Tensor, jy: torch.Tensor,
-             normal_table: torch.Tensor, half: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+def resample(
+    ll: torch.Tensor,
+    particles: torch.Tensor,
+    u0: torch.Tensor,
+    jx: torch.Tensor,
+    jy: torch.Tensor,
+    normal_table: torch.Tensor,
+    half: torch.Tensor,
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Systematic resampling, jitter and clip of N clouds (``kernels.filter._resample_one``); returns the
     new (N, 2, M) float32 particles and the (N, M) int64 resampling indices.
 
@@ -133,8 +162,9 @@ def resample(ll: torch.Tensor, particles: torch.Tensor, u0: torch.Tensor, jx: to
     return torch.stack([x, y], dim=1), idx
 
 
-def statistics(particles: torch.Tensor, centre: torch.Tensor, scale: torch.Tensor
-               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def statistics(
+    particles: torch.Tensor, centre: torch.Tensor, scale: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Mean (N, 2) and population covariance (N, 2, 2), float64, and the (N, 64) float64 histogram counts
     of N unweighted clouds (``kernels.moments``): cells of ``((p − centre)/scale + ½)·8`` in float32,
     truncated, clipped to [0, 7]; ``centre`` (N, 2) float32 the carriage, ``scale`` (N,) float32 2H.
@@ -157,10 +187,20 @@ def statistics(particles: torch.Tensor, centre: torch.Tensor, scale: torch.Tenso
     return mean, cov, counts
 
 
-def belief_observation(carriage: torch.Tensor, reading: torch.Tensor, mean: torch.Tensor, cov: torch.Tensor,
-                       hist: torch.Tensor, n_obs: torch.Tensor, max_obs: int, half: torch.Tensor,
-                       noise: torch.Tensor, saturation: torch.Tensor, success_mm: float,
-                       descriptor: torch.Tensor) -> torch.Tensor:
+def belief_observation(
+    carriage: torch.Tensor,
+    reading: torch.Tensor,
+    mean: torch.Tensor,
+    cov: torch.Tensor,
+    hist: torch.Tensor,
+    n_obs: torch.Tensor,
+    max_obs: int,
+    half: torch.Tensor,
+    noise: torch.Tensor,
+    saturation: torch.Tensor,
+    success_mm: float,
+    descriptor: torch.Tensor,
+) -> torch.Tensor:
     """(N, 81) float32 belief observations (layout: :mod:`electroloc_gym.core.observation`), float64
     arithmetic then a float32 cast, as ``kernels.observation.belief_observation_rows``.
     """
@@ -171,15 +211,27 @@ def belief_observation(carriage: torch.Tensor, reading: torch.Tensor, mean: torc
     sxy = sx * sy
     rho = torch.where(sxy > 1e-12, c01 / torch.clamp(sxy, min=1e-12), torch.zeros_like(sxy))
     spread = torch.sqrt(torch.clamp(c00 + c11, min=0.0))
-    cols = [carriage[:, 0] / h, carriage[:, 1] / h, reading / saturation, torch.tanh(reading / (3.0 * noise)),
-            (mean[:, 0] - carriage[:, 0]) / (2.0 * h), (mean[:, 1] - carriage[:, 1]) / (2.0 * h), sx / h, sy / h,
-            rho, spread / h, torch.log10(torch.clamp(spread, min=1e-6) / success_mm), n_obs.to(torch.float64) / max_obs]
+    cols = [
+        carriage[:, 0] / h,
+        carriage[:, 1] / h,
+        reading / saturation,
+        torch.tanh(reading / (3.0 * noise)),
+        (mean[:, 0] - carriage[:, 0]) / (2.0 * h),
+        (mean[:, 1] - carriage[:, 1]) / (2.0 * h),
+        sx / h,
+        sy / h,
+        rho,
+        spread / h,
+        torch.log10(torch.clamp(spread, min=1e-6) / success_mm),
+        n_obs.to(torch.float64) / max_obs,
+    ]
     scalars = torch.clamp(torch.stack(cols, dim=1), -1.0, 1.0).to(torch.float32)
     return torch.cat([scalars, hist.to(torch.float32), descriptor], dim=1)
 
 
-def raw_observation(carriage: torch.Tensor, reading: torch.Tensor, half: torch.Tensor,
-                    saturation: torch.Tensor) -> torch.Tensor:
+def raw_observation(
+    carriage: torch.Tensor, reading: torch.Tensor, half: torch.Tensor, saturation: torch.Tensor
+) -> torch.Tensor:
     """(N, 3) float32 ``clip([x/H, y/H, Φ/V_sat], −1, 1)`` (:func:`electroloc_gym.core.observation.raw_observation`)."""
     cols = torch.stack([carriage[:, 0] / half, carriage[:, 1] / half, reading / saturation], dim=1)
     return torch.clamp(cols, -1.0, 1.0).to(torch.float32)

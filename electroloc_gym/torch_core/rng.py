@@ -28,8 +28,16 @@ _MASK32 = 0xFFFFFFFF
 _MASK16 = 0xFFFF
 _GOLDEN = 0x9E3779B9
 #: The streams of one reading or one reset, each with its own draws.
-STREAMS = {"noise": 0, "resample": 1, "jitter": 2, "condition": 3, "target": 4, "start": 5, "particles": 6,
-           "calibration": 7}
+STREAMS = {
+    "noise": 0,
+    "resample": 1,
+    "jitter": 2,
+    "condition": 3,
+    "target": 4,
+    "start": 5,
+    "particles": 6,
+    "calibration": 7,
+}
 
 
 def _mul32(x: torch.Tensor, c: int) -> torch.Tensor:
@@ -51,8 +59,9 @@ def hash32(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return mix32(a ^ mix32((b + _GOLDEN) & _MASK32))
 
 
-def stream_key(k0: torch.Tensor, k1: torch.Tensor, episode: torch.Tensor, reading: torch.Tensor,
-               stream: int) -> torch.Tensor:
+def stream_key(
+    k0: torch.Tensor, k1: torch.Tensor, episode: torch.Tensor, reading: torch.Tensor, stream: int
+) -> torch.Tensor:
     """(N,) the key of one stream of each env: its seed words ``k0``, ``k1`` (N,), episode and reading
     index (N,) int64, and the stream's number (:data:`STREAMS`).
     """

@@ -40,12 +40,19 @@ def empty_state(c: TorchConsts, num_envs: int) -> State:
     f64 = dict(dtype=torch.float64, device=dev)
     s1 = c.grid_n - 1
     return {
-        "k0": torch.zeros(n, **i64), "k1": torch.zeros(n, **i64), "episode": torch.full((n,), -1, **i64),
-        "cond": torch.zeros(n, **i64), "position_mm": torch.zeros(n, 2, **f64), "target_mm": torch.zeros(n, 2, **f64),
+        "k0": torch.zeros(n, **i64),
+        "k1": torch.zeros(n, **i64),
+        "episode": torch.full((n,), -1, **i64),
+        "cond": torch.zeros(n, **i64),
+        "position_mm": torch.zeros(n, 2, **f64),
+        "target_mm": torch.zeros(n, 2, **f64),
         "particles_mm": torch.zeros(n, 2, m, dtype=torch.float32, device=dev),
         "table": torch.zeros(n, s1 * s1 + 1 if c.calibrated else 1, 8, dtype=torch.float32, device=dev),
-        "reading_V": torch.zeros(n, **f64), "n_observations": torch.zeros(n, **i64), "elapsed": torch.zeros(n, **i64),
-        "mean_mm": torch.zeros(n, 2, **f64), "cov_mm2": torch.zeros(n, 2, 2, **f64),
+        "reading_V": torch.zeros(n, **f64),
+        "n_observations": torch.zeros(n, **i64),
+        "elapsed": torch.zeros(n, **i64),
+        "mean_mm": torch.zeros(n, 2, **f64),
+        "cov_mm2": torch.zeros(n, 2, 2, **f64),
         "counts": torch.zeros(n, F.HIST_BINS * F.HIST_BINS, **f64),
         "done": torch.zeros(n, dtype=torch.bool, device=dev),
     }
@@ -105,11 +112,19 @@ def log_likelihood(c: TorchConsts, s: State, particles: torch.Tensor, reading: t
     origin = s["position_mm"].to(torch.float32)
     r32 = reading.to(torch.float32)
     if c.calibrated:
-        return F.calibrated_log_likelihood(particles, origin, c.grid_lo_mm[k], c.grid_inv_mm[k],
-                                           c.grid_points[k] - 1, c.grid_n - 1, s["table"], r32)
+        return F.calibrated_log_likelihood(
+            particles, origin, c.grid_lo_mm[k], c.grid_inv_mm[k], c.grid_points[k] - 1, c.grid_n - 1, s["table"], r32
+        )
     dip = tuple(d[k].to(torch.float32) for d in (c.dip_h, c.dip_z2, c.dip_k, c.dip_strength))
-    return F.analytic_log_likelihood(particles, origin, dip, c.dip_scale[k].to(torch.float32),
-                                     c.saturation_V[k].to(torch.float32), c.noise_V[k].to(torch.float32), r32)
+    return F.analytic_log_likelihood(
+        particles,
+        origin,
+        dip,
+        c.dip_scale[k].to(torch.float32),
+        c.saturation_V[k].to(torch.float32),
+        c.noise_V[k].to(torch.float32),
+        r32,
+    )
 
 
 def observe(c: TorchConsts, s: State, mask: torch.Tensor | None = None) -> State:
@@ -124,16 +139,23 @@ def observe(c: TorchConsts, s: State, mask: torch.Tensor | None = None) -> State
     table = c.normal_table
     noise_idx, _ = normal_pair_indices(key("noise"), 1)
     sat = c.saturation_V[k]
-    reading = torch.clamp(true_reading_V(c, s) + table[noise_idx[:, 0]].to(torch.float64) * c.noise_V[k],
-                          min=-sat, max=sat)
+    reading = torch.clamp(
+        true_reading_V(c, s) + table[noise_idx[:, 0]].to(torch.float64) * c.noise_V[k], min=-sat, max=sat
+    )
     u0 = uniform53(key("resample"), 1)[:, 0]
     jx, jy = normal_pair_indices(key("jitter"), c.n_particles)
     ll = log_likelihood(c, s, s["particles_mm"], reading)
     half = c.half_mm[k]
     particles, _ = F.resample(ll, s["particles_mm"], u0, jx, jy, table, half.to(torch.float32))
     mean, cov, counts = F.statistics(particles, s["position_mm"].to(torch.float32), (2.0 * half).to(torch.float32))
-    new = {"reading_V": reading, "n_observations": t + 1, "particles_mm": particles, "mean_mm": mean, "cov_mm2": cov,
-           "counts": counts}
+    new = {
+        "reading_V": reading,
+        "n_observations": t + 1,
+        "particles_mm": particles,
+        "mean_mm": mean,
+        "cov_mm2": cov,
+        "counts": counts,
+    }
     for name, value in new.items():
         s[name] = value if mask is None else _keep(mask, value, s[name])
     return s
@@ -151,19 +173,36 @@ def observation(c: TorchConsts, s: State) -> torch.Tensor:
     half = c.half_mm[k]
     if not c.belief_obs:
         return F.raw_observation(s["position_mm"], s["reading_V"], half, c.saturation_V[k])
-    return F.belief_observation(s["position_mm"], s["reading_V"], s["mean_mm"], s["cov_mm2"],
-                                s["counts"] / c.n_particles, s["n_observations"], c.max_observations, half,
-                                c.noise_V[k], c.saturation_V[k], c.success_spread_mm, c.descriptor[k])
+    return F.belief_observation(
+        s["position_mm"],
+        s["reading_V"],
+        s["mean_mm"],
+        s["cov_mm2"],
+        s["counts"] / c.n_particles,
+        s["n_observations"],
+        c.max_observations,
+        half,
+        c.noise_V[k],
+        c.saturation_V[k],
+        c.success_spread_mm,
+        c.descriptor[k],
+    )
 
 
 def info(c: TorchConsts, s: State) -> dict[str, torch.Tensor]:
     """The info tensors (the numba core's numeric ``INFO_KEYS``; the condition as its pool index)."""
     spread = spread_mm(s)
     d = s["mean_mm"] - s["target_mm"]
-    return {"position_mm": s["position_mm"], "estimate_mm": s["mean_mm"],
-            "error_mm": torch.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]), "spread_mm": spread,
-            "reading_V": s["reading_V"], "n_observations": s["n_observations"],
-            "success": spread <= c.success_spread_mm, "condition_index": s["cond"]}
+    return {
+        "position_mm": s["position_mm"],
+        "estimate_mm": s["mean_mm"],
+        "error_mm": torch.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]),
+        "spread_mm": spread,
+        "reading_V": s["reading_V"],
+        "n_observations": s["n_observations"],
+        "success": spread <= c.success_spread_mm,
+        "condition_index": s["cond"],
+    }
 
 
 def moves_of(c: TorchConsts, actions: torch.Tensor) -> torch.Tensor:
@@ -173,8 +212,9 @@ def moves_of(c: TorchConsts, actions: torch.Tensor) -> torch.Tensor:
     return torch.clamp(actions.to(torch.float64), -1.0, 1.0) * c.max_step_mm
 
 
-def step(c: TorchConsts, s: State, actions: torch.Tensor
-         ) -> tuple[State, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+def step(
+    c: TorchConsts, s: State, actions: torch.Tensor
+) -> tuple[State, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """One step of every env (module docstring): (state, observations, rewards, terminated, truncated)."""
     reset = s["done"]
     moving = ~reset

@@ -34,7 +34,6 @@ from electroloc_gym.torch_core.consts import TorchConsts, torch_entry
 __all__ = ["TorchElectroLocVectorEnv", "numpy_view"]
 
 
-
 def _device(value: Any) -> torch.device:
     try:
         return torch.device(value)
@@ -61,11 +60,11 @@ def _key_words(seed: Any, n: int) -> list[tuple[int, int] | None]:
         return [None] * n
     if _is_seed(seed):
         return [_seed_words(child) for child in np.random.SeedSequence(int(seed)).spawn(n)]
-    ok = isinstance(seed, (list, tuple, np.ndarray)) and len(seed) == n and \
-        all(v is None or _is_seed(v) for v in seed)
+    ok = isinstance(seed, (list, tuple, np.ndarray)) and len(seed) == n and all(v is None or _is_seed(v) for v in seed)
     if not ok:
-        raise ValueError(f"seed must be None, an integer ≥ 0 or a sequence of {n} seeds (each None or an integer "
-                         f"≥ 0), got {seed!r}")
+        raise ValueError(
+            f"seed must be None, an integer ≥ 0 or a sequence of {n} seeds (each None or an integer ≥ 0), got {seed!r}"
+        )
     return [None if v is None else _seed_words(int(v)) for v in seed]
 
 
@@ -84,15 +83,23 @@ class TorchElectroLocVectorEnv(VectorEnv):
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, device: Any = "cpu", compile: bool = False,  # noqa: A002 - torch's word
-                 compile_backend: str = "inductor", render_mode: str | None = None,
-                 autoreset_mode: Any = AutoresetMode.NEXT_STEP, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        num_envs: int = 1,
+        device: Any = "cpu",
+        compile: bool = False,  # noqa: A002 - torch's word
+        compile_backend: str = "inductor",
+        render_mode: str | None = None,
+        autoreset_mode: Any = AutoresetMode.NEXT_STEP,
+        **kwargs: Any,
+    ) -> None:
         n = check_int("num_envs", num_envs, 1)
         if render_mode is not None:
             raise ValueError(f"render_mode must be None for the torch vector env, got {render_mode!r}")
         if autoreset_mode not in (AutoresetMode.NEXT_STEP, "next_step", AutoresetMode.NEXT_STEP.value):
-            raise ValueError(f"autoreset_mode: backend='torch' implements AutoresetMode.NEXT_STEP only, got "
-                             f"{autoreset_mode!r}")
+            raise ValueError(
+                f"autoreset_mode: backend='torch' implements AutoresetMode.NEXT_STEP only, got {autoreset_mode!r}"
+            )
         if not isinstance(compile, bool):
             raise ValueError(f"compile must be a bool, got {compile!r}")
         entry = torch_entry()
@@ -124,8 +131,9 @@ class TorchElectroLocVectorEnv(VectorEnv):
         return sum(t.element_size() * t[0].numel() for t in self._state.values())
 
     # ---- gymnasium API ------------------------------------------------------------------------
-    def reset(self, *, seed: int | Sequence[int | None] | None = None,
-              options: dict[str, Any] | None = None) -> tuple[torch.Tensor, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[torch.Tensor, dict[str, Any]]:
         """Reset every sub-env (or those of ``options["reset_mask"]``, a bool (N,) tensor or array)."""
         n = self.num_envs
         words = _key_words(seed, n)  # checked before any sub-env changes
@@ -175,8 +183,8 @@ def numpy_view(env: VectorEnv) -> VectorEnv:
     try:
         from gymnasium.wrappers.vector import ArrayConversion
     except ImportError:  # added in gymnasium 1.2
-        raise RuntimeError("numpy_view needs gymnasium >= 1.2 (its ArrayConversion wrapper); "
-                           f"this is gymnasium {gym.__version__}") from None
+        raise RuntimeError(
+            f"numpy_view needs gymnasium >= 1.2 (its ArrayConversion wrapper); this is gymnasium {gym.__version__}"
+        ) from None
 
     return ArrayConversion(env, env_xp=torch, target_xp=np, env_device=env.device, target_device=None)
-

@@ -66,20 +66,36 @@ def run_trial(layout: str, agent_name: str, condition: str, trial: int, seed: in
     else:  # a learned policy: its own observation mode, the bench's settings (bench_env_kwargs)
         agent = make_bench_agent(agent_name, seed=agent_seed)
         kwargs = bench_env_kwargs("ElectroLoc-v0", agent, None)
-    env = gym.make("ElectroLoc-v0", **kwargs, condition=get_condition(condition), sensor_layout=layout_of(layout),
-                   fixed_carriage=fixed)
+    env = gym.make(
+        "ElectroLoc-v0",
+        **kwargs,
+        condition=get_condition(condition),
+        sensor_layout=layout_of(layout),
+        fixed_carriage=fixed,
+    )
     positions: list[tuple[float, float]] = []
     t0 = time.perf_counter()
-    ep = run_episode(env, agent, env_seed, agent_seed=agent_seed,
-                     on_step=lambda info: positions.append(tuple(info["position_mm"])))
+    ep = run_episode(
+        env, agent, env_seed, agent_seed=agent_seed, on_step=lambda info: positions.append(tuple(info["position_mm"]))
+    )
     k = env.unwrapped.sensor_layout.n_pairs
     moved = np.any(np.diff(np.asarray(positions), axis=0) != 0.0, axis=1)
     env.close()
     snapshots = int(ep.info["n_observations"])
-    return {"layout": layout, "K": k, "agent": agent_name, "condition": condition, "trial": trial,
-            "seed": env_seed, "success": bool(ep.terminated), "error_mm": float(ep.info["error_mm"]),
-            "snapshots": snapshots, "readings": snapshots * k, "motions": int(moved.sum()),
-            "wall_s": time.perf_counter() - t0}
+    return {
+        "layout": layout,
+        "K": k,
+        "agent": agent_name,
+        "condition": condition,
+        "trial": trial,
+        "seed": env_seed,
+        "success": bool(ep.terminated),
+        "error_mm": float(ep.info["error_mm"]),
+        "snapshots": snapshots,
+        "readings": snapshots * k,
+        "motions": int(moved.sum()),
+        "wall_s": time.perf_counter() - t0,
+    }
 
 
 def run(args: argparse.Namespace) -> None:
@@ -120,8 +136,7 @@ def _order(agent: str) -> int:
 def summarise(recs: list[dict]) -> list[dict]:
     """Per layout and agent, pooled over the conditions: trials, success rate, errors, means to localise."""
     rows = []
-    keys = sorted({(r["K"], r["layout"], r["agent"]) for r in recs},
-                  key=lambda x: (x[0], _order(x[2]), x[2]))
+    keys = sorted({(r["K"], r["layout"], r["agent"]) for r in recs}, key=lambda x: (x[0], _order(x[2]), x[2]))
     for k, lay, ag in keys:
         rs = [r for r in recs if r["layout"] == lay and r["agent"] == ag]
         ok = [r for r in rs if r["success"]]
@@ -130,12 +145,23 @@ def summarise(recs: list[dict]) -> list[dict]:
         def mean(key: str, sel: list[dict]) -> float:
             return float(np.mean([r[key] for r in sel])) if sel else float("nan")
 
-        rows.append({"K": k, "layout": lay, "agent": ag, "trials": len(rs), "success": len(ok),
-                     "success_rate": len(ok) / len(rs), "success_within_10mm": len(good),
-                     "error_median_mm": float(np.median([r["error_mm"] for r in rs])),
-                     "error_mean_success_mm": mean("error_mm", ok), "snapshots": mean("snapshots", ok),
-                     "readings": mean("readings", ok), "motions": mean("motions", ok),
-                     "motions_all": mean("motions", rs)})
+        rows.append(
+            {
+                "K": k,
+                "layout": lay,
+                "agent": ag,
+                "trials": len(rs),
+                "success": len(ok),
+                "success_rate": len(ok) / len(rs),
+                "success_within_10mm": len(good),
+                "error_median_mm": float(np.median([r["error_mm"] for r in rs])),
+                "error_mean_success_mm": mean("error_mm", ok),
+                "snapshots": mean("snapshots", ok),
+                "readings": mean("readings", ok),
+                "motions": mean("motions", ok),
+                "motions_all": mean("motions", rs),
+            }
+        )
     return rows
 
 
@@ -143,16 +169,41 @@ def report(args: argparse.Namespace) -> None:
     recs = _load(args.jsonl)
     rows = summarise(recs)
     n_trials = len({r["trial"] for r in recs})
-    lines = [f"Seed 0, the paper's eight conditions × {n_trials} trials per cell (calibrated model, 2500 particles, "
-             "cap 35 snapshots). Means to localise over the successful trials; *success ≤ 10 mm*: successes whose "
-             "estimate is within 10 mm of the target.", "",
-             *markdown_table(("K", "layout", "agent", "success / trials", "success ≤ 10 mm", "error median (mm)",
-                              "error mean, successes (mm)", "snapshots (= readings per pair)", "readings", "motions"),
-                             [(r["K"], r["layout"], r["agent"],
-                               f"{r['success']}/{r['trials']} ({100 * r['success_rate']:.0f} %)",
-                               r["success_within_10mm"], f"{r['error_median_mm']:.1f}",
-                               f"{r['error_mean_success_mm']:.1f}", f"{r['snapshots']:.1f}", f"{r['readings']:.1f}",
-                               f"{r['motions']:.1f}") for r in rows])]
+    lines = [
+        f"Seed 0, the paper's eight conditions × {n_trials} trials per cell (calibrated model, 2500 particles, "
+        "cap 35 snapshots). Means to localise over the successful trials; *success ≤ 10 mm*: successes whose "
+        "estimate is within 10 mm of the target.",
+        "",
+        *markdown_table(
+            (
+                "K",
+                "layout",
+                "agent",
+                "success / trials",
+                "success ≤ 10 mm",
+                "error median (mm)",
+                "error mean, successes (mm)",
+                "snapshots (= readings per pair)",
+                "readings",
+                "motions",
+            ),
+            [
+                (
+                    r["K"],
+                    r["layout"],
+                    r["agent"],
+                    f"{r['success']}/{r['trials']} ({100 * r['success_rate']:.0f} %)",
+                    r["success_within_10mm"],
+                    f"{r['error_median_mm']:.1f}",
+                    f"{r['error_mean_success_mm']:.1f}",
+                    f"{r['snapshots']:.1f}",
+                    f"{r['readings']:.1f}",
+                    f"{r['motions']:.1f}",
+                )
+                for r in rows
+            ],
+        ),
+    ]
     ks = sorted({(r["K"], r["layout"]) for r in recs})
     per_condition = []
     for c in PRESET_NAMES:
@@ -163,8 +214,12 @@ def report(args: argparse.Namespace) -> None:
             good = sum(r["success"] and r["error_mm"] <= 10.0 for r in rs)
             cells.append(f"{ok}/{len(rs)} ({good})")
         per_condition.append(cells)
-    lines += ["", "The stationary array per condition: successes (those within 10 mm of the target) of the trials.", "",
-              *markdown_table(("condition", *(f"K = {k} {lay}" for k, lay in ks)), per_condition)]
+    lines += [
+        "",
+        "The stationary array per condition: successes (those within 10 mm of the target) of the trials.",
+        "",
+        *markdown_table(("condition", *(f"K = {k} {lay}" for k, lay in ks)), per_condition),
+    ]
     with open(args.table, "w", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))

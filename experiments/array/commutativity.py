@@ -43,13 +43,24 @@ STATISTICS = ("mean_x_mm", "mean_y_mm", "error_mm", "spread_mm")
 
 
 def _summaries(mean: np.ndarray, cov: np.ndarray, target: np.ndarray) -> dict[str, np.ndarray]:
-    return {"mean_x_mm": mean[:, 0], "mean_y_mm": mean[:, 1],
-            "error_mm": np.hypot(mean[:, 0] - target[0], mean[:, 1] - target[1]),
-            "spread_mm": np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1], 0.0))}
+    return {
+        "mean_x_mm": mean[:, 0],
+        "mean_y_mm": mean[:, 1],
+        "error_mm": np.hypot(mean[:, 0] - target[0], mean[:, 1] - target[1]),
+        "spread_mm": np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1], 0.0)),
+    }
 
 
-def run_trials(condition_name: str, layout_name: str, seed: int, trials: int, n_particles: int,
-               grid_mm: float = 1.0, drop_last_control: bool = True, signal: str = "fitted") -> dict[str, object]:
+def run_trials(
+    condition_name: str,
+    layout_name: str,
+    seed: int,
+    trials: int,
+    n_particles: int,
+    grid_mm: float = 1.0,
+    drop_last_control: bool = True,
+    signal: str = "fitted",
+) -> dict[str, object]:
     """One condition's trials: the posterior summaries of every method (arrays over trials) and the exact check.
 
     Trial i draws from ``SeedSequence([seed, i])``: its carriage position and readings, its initial cloud,
@@ -73,13 +84,17 @@ def run_trials(condition_name: str, layout_name: str, seed: int, trials: int, n_
         return model.pair_log_likelihood(j, readings[:, j, None], off)
 
     out: dict[str, object] = {}
-    for method, stream, at_once, pairs in (("at_once", 2, True, k_pairs), ("one_by_one", 3, False, k_pairs),
-                                           ("control_drop_last", 4, False, k_pairs - 1)):
+    for method, stream, at_once, pairs in (
+        ("at_once", 2, True, k_pairs),
+        ("one_by_one", 3, False, k_pairs),
+        ("control_drop_last", 4, False, k_pairs - 1),
+    ):
         if method.startswith("control") and not drop_last_control:
             continue
         clouds = clouds0.copy()
-        mean, cov = assimilate_readings(pair_loglik, pairs, clouds, np.full(trials, half), [g[stream] for g in gens],
-                                        at_once=at_once)
+        mean, cov = assimilate_readings(
+            pair_loglik, pairs, clouds, np.full(trials, half), [g[stream] for g in gens], at_once=at_once
+        )
         out[method] = _summaries(mean, cov, target)
 
     axis = np.arange(-half, half + 1e-9, grid_mm)
@@ -104,8 +119,13 @@ def compare(a: np.ndarray, b: np.ndarray, seed: int, paired: bool = True) -> dic
     """KS two-sample p-value, and (paired) the sign-flip permutation p-value of mean(a − b)."""
     res = {"ks_p": float(stats.ks_2samp(a, b).pvalue), "mean_a": float(np.mean(a)), "mean_b": float(np.mean(b))}
     if paired:
-        perm = stats.permutation_test((a, b), lambda x, y, axis=-1: np.mean(x - y, axis=axis),
-                                      permutation_type="samples", n_resamples=9999, random_state=seed)
+        perm = stats.permutation_test(
+            (a, b),
+            lambda x, y, axis=-1: np.mean(x - y, axis=axis),
+            permutation_type="samples",
+            n_resamples=9999,
+            random_state=seed,
+        )
         res["perm_p"] = float(perm.pvalue)
     return res
 
@@ -121,18 +141,30 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--signal", default="fitted", choices=SIGNAL_CHOICES, help="the conditions' signal scale")
     ap.add_argument("--out", default=None, help="JSON file of the results")
     args = ap.parse_args(argv)
-    report: dict[str, object] = {"seed": args.seed, "trials": args.trials, "particles": args.particles,
-                                 "layout": args.layout, "signal": args.signal, "conditions": {}}
-    pairs = (("at_once", "one_by_one"), ("at_once", "exact"), ("one_by_one", "exact"),
-             ("one_by_one", "control_drop_last"))
+    report: dict[str, object] = {
+        "seed": args.seed,
+        "trials": args.trials,
+        "particles": args.particles,
+        "layout": args.layout,
+        "signal": args.signal,
+        "conditions": {},
+    }
+    pairs = (
+        ("at_once", "one_by_one"),
+        ("at_once", "exact"),
+        ("one_by_one", "exact"),
+        ("one_by_one", "control_drop_last"),
+    )
     print(f"{'condition':18s} {'a vs b':32s} " + " ".join(f"{s:>22s}" for s in STATISTICS))
     for name in args.conditions:
         res = run_trials(name, args.layout, args.seed, args.trials, args.particles, signal=args.signal)
         rows = {}
         for a, b in pairs:
             rows[f"{a} vs {b}"] = {s: compare(res[a][s], res[b][s], args.seed) for s in STATISTICS}
-            cells = " ".join(f"{r['mean_a']:6.2f}/{r['mean_b']:6.2f} {r['ks_p']:.2f} {r['perm_p']:.2f}"
-                             for r in rows[f"{a} vs {b}"].values())
+            cells = " ".join(
+                f"{r['mean_a']:6.2f}/{r['mean_b']:6.2f} {r['ks_p']:.2f} {r['perm_p']:.2f}"
+                for r in rows[f"{a} vs {b}"].values()
+            )
             print(f"{name:18s} {a + ' vs ' + b:32s} {cells}")
         print(f"{name:18s} exact: max |p_at_once − p_one_by_one| = {res['exact_max_abs_diff']:.2e}")
         report["conditions"][name] = {"exact_max_abs_diff": res["exact_max_abs_diff"], "tests": rows}

@@ -42,13 +42,23 @@ SUCCESS_SPREAD_MM = 10.0
 
 def trace(agent_name: str, condition: str, d: int, seed: int, trial: int, budget: int) -> dict:
     """One episode to ``budget`` readings: per reading (spread mm, error mm)."""
-    env = gym.make("ElectroLoc-v0", condition=get_condition(condition), distractors=d, max_observations=budget,
-                   success_spread_mm=1e-6)
+    env = gym.make(
+        "ElectroLoc-v0",
+        condition=get_condition(condition),
+        distractors=d,
+        max_observations=budget,
+        success_spread_mm=1e-6,
+    )
     agent = make_agent(agent_name)
     env_seed, agent_seed = trial_seeds(seed, condition, trial)
     steps: list[tuple[float, float]] = []
-    run_episode(env, agent, env_seed, agent_seed=agent_seed,
-                on_step=lambda info: steps.append((float(info["spread_mm"]), float(info["error_mm"]))))
+    run_episode(
+        env,
+        agent,
+        env_seed,
+        agent_seed=agent_seed,
+        on_step=lambda info: steps.append((float(info["spread_mm"]), float(info["error_mm"]))),
+    )
     return {"agent": agent_name, "condition": condition, "trial": trial, "distractors": d, "steps": steps}
 
 
@@ -69,10 +79,18 @@ def summarize(traces: list[dict]) -> list[dict]:
                 if s[k, 1] > FAR_ERROR_MM:
                     far_first += 1
                     recovered += not end_far
-        out.append({"agent": a, "trials": len(ts), "tight": len(first),
-                    "first_tight_reading_median": float(np.median(first)) if first else None,
-                    "far_at_first_tight": far_first, "recovered_by_budget": recovered, "far_at_budget": far_end,
-                    "error_median_at_budget_mm": float(np.median([t["steps"][-1][1] for t in ts]))})
+        out.append(
+            {
+                "agent": a,
+                "trials": len(ts),
+                "tight": len(first),
+                "first_tight_reading_median": float(np.median(first)) if first else None,
+                "far_at_first_tight": far_first,
+                "recovered_by_budget": recovered,
+                "far_at_budget": far_end,
+                "error_median_at_budget_mm": float(np.median([t["steps"][-1][1] for t in ts])),
+            }
+        )
     return out
 
 
@@ -85,15 +103,38 @@ def main() -> None:
     p.add_argument("--budget", type=int, default=15)
     p.add_argument("--out", default=None, help="JSON of the traces and the summary")
     a = p.parse_args()
-    traces = [trace(agent, c, a.distractors, a.seed, k, a.budget)
-              for k in range(a.trials) for c in PRESET_NAMES for agent in a.agents.split(",")]
+    traces = [
+        trace(agent, c, a.distractors, a.seed, k, a.budget)
+        for k in range(a.trials)
+        for c in PRESET_NAMES
+        for agent in a.agents.split(",")
+    ]
     rows = summarize(traces)
-    for line in markdown_table(("agent", "trials", "tight within budget", "first tight (median reading)",
-                                "far when first tight", "of those, back within 15 mm at the budget",
-                                "far at the budget", "median error at the budget (mm)"),
-                               [(r["agent"], r["trials"], r["tight"], r["first_tight_reading_median"],
-                                 r["far_at_first_tight"], r["recovered_by_budget"], r["far_at_budget"],
-                                 f"{r['error_median_at_budget_mm']:.1f}") for r in rows]):
+    for line in markdown_table(
+        (
+            "agent",
+            "trials",
+            "tight within budget",
+            "first tight (median reading)",
+            "far when first tight",
+            "of those, back within 15 mm at the budget",
+            "far at the budget",
+            "median error at the budget (mm)",
+        ),
+        [
+            (
+                r["agent"],
+                r["trials"],
+                r["tight"],
+                r["first_tight_reading_median"],
+                r["far_at_first_tight"],
+                r["recovered_by_budget"],
+                r["far_at_budget"],
+                f"{r['error_median_at_budget_mm']:.1f}",
+            )
+            for r in rows
+        ],
+    ):
         print(line)
     if a.out:
         with open(a.out, "w", encoding="utf-8") as fh:

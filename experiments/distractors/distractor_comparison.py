@@ -61,8 +61,9 @@ def run(agents: list[str], ds: list[int], rounds: list[int], seed: int, out: Pat
                 return
             config = BenchConfig(agents=(agent,), conditions=PRESET_NAMES, trials=n, seed=seed, distractors=d)
             t = time.perf_counter()
-            run_benchmark(config, out / f"D{d}" / agent, workers=1, backend="serial", resume=True, progress=False,
-                          log=None)
+            run_benchmark(
+                config, out / f"D{d}" / agent, workers=1, backend="serial", resume=True, progress=False, log=None
+            )
             print(f"round {n}: D={d} {agent} done ({time.perf_counter() - t:.0f} s)", flush=True)
 
 
@@ -88,14 +89,21 @@ def summarize(agents: list[str], ds: list[int], out: Path) -> tuple[int, list[di
         ok_obs = np.array([r.get("readings", r.get("observations")) for r in ok], dtype=float)
         err = np.array([r["error_mm"] for r in ok], dtype=float)
         dms = np.array([r["decision_ms_median"] for r in rs if r["decision_ms_median"] is not None], dtype=float)
-        rows.append({"agent": a, "distractors": d, "trials": len(rs), "successes": len(ok),
-                     "far_successes": sum(bool(r.get("far_success")) for r in rs),
-                     "far_near_distractor": sum(near_distractor(r) for r in rs),
-                     "readings_mean_success": float(ok_obs.mean()) if ok_obs.size else None,
-                     "readings_median_all": float(np.median(obs)) if obs.size else None,
-                     "readings_mean_all": float(obs.mean()) if obs.size else None,
-                     "error_median_mm": float(np.median(err)) if err.size else None,
-                     "decision_ms_median": float(np.median(dms)) if dms.size else None})
+        rows.append(
+            {
+                "agent": a,
+                "distractors": d,
+                "trials": len(rs),
+                "successes": len(ok),
+                "far_successes": sum(bool(r.get("far_success")) for r in rs),
+                "far_near_distractor": sum(near_distractor(r) for r in rs),
+                "readings_mean_success": float(ok_obs.mean()) if ok_obs.size else None,
+                "readings_median_all": float(np.median(obs)) if obs.size else None,
+                "readings_mean_all": float(obs.mean()) if obs.size else None,
+                "error_median_mm": float(np.median(err)) if err.size else None,
+                "decision_ms_median": float(np.median(dms)) if dms.size else None,
+            }
+        )
     return n, rows
 
 
@@ -107,8 +115,13 @@ def _distractors_of(rec: dict) -> np.ndarray:
 
     from electroloc_gym.conditions import get_condition
 
-    env = gym.make("ElectroLoc-v0", condition=get_condition(rec["condition"], rec["signal"]),
-                   distractors=rec["distractors"], n_particles=rec["n_particles"], sensor_model=rec["sensor_model"])
+    env = gym.make(
+        "ElectroLoc-v0",
+        condition=get_condition(rec["condition"], rec["signal"]),
+        distractors=rec["distractors"],
+        n_particles=rec["n_particles"],
+        sensor_model=rec["sensor_model"],
+    )
     _, info = env.reset(seed=rec["seed"])
     assert np.allclose(env.unwrapped.target_mm, rec["target"])
     return np.asarray(info["distractors_mm"], dtype=float).reshape(-1, 2)
@@ -137,15 +150,23 @@ def paired(agents: list[str], ds: list[int], out: Path, n: int, ref: str = "eedi
                 continue
             theirs = {(r["condition"], r["trial"]): r for r in _records(out, d, other) if r["trial"] < n}
             keys = sorted(set(mine) & set(theirs))
-            ok = {k: (mine[k]["success"] and not mine[k].get("far_success"),
-                      theirs[k]["success"] and not theirs[k].get("far_success")) for k in keys}
+            ok = {
+                k: (
+                    mine[k]["success"] and not mine[k].get("far_success"),
+                    theirs[k]["success"] and not theirs[k].get("far_success"),
+                )
+                for k in keys
+            }
             win = sum(a and not b for a, b in ok.values())
             loss = sum(b and not a for a, b in ok.values())
             p = binomtest(win, win + loss).pvalue if win + loss else 1.0
             cells.append((d, other, len(keys), win, loss, f"{p:.2f}"))
-    return [f"Paired on the same trials: {ref} against each agent — trials where only {ref} / only the other "
-            f"localised correctly (a success that is not far), and the sign test's two-sided p.", "",
-            *markdown_table(("D", "against", "trials", f"only {ref}", "only the other", "p"), cells)]
+    return [
+        f"Paired on the same trials: {ref} against each agent — trials where only {ref} / only the other "
+        f"localised correctly (a success that is not far), and the sign test's two-sided p.",
+        "",
+        *markdown_table(("D", "against", "trials", f"only {ref}", "only the other", "p"), cells),
+    ]
 
 
 def _f(x: float | None, digits: int = 1) -> str:
@@ -155,20 +176,39 @@ def _f(x: float | None, digits: int = 1) -> str:
 def table_md(n: int, rows: list[dict], seed: int) -> str:
     """The comparison as Markdown."""
     ordered = sorted(rows, key=lambda r: (AGENTS.index(r["agent"]) if r["agent"] in AGENTS else 99, r["distractors"]))
-    out = [f"Seed {seed}, the paper's eight conditions × {n} trials = {8 * n} trials per agent and D "
-           f"(`experiments/distractors/distractor_comparison.py`). *Successes (far)*: √trace Σ ≤ 10 mm within 35 "
-           f"readings "
-           f"(of which far: the estimate more than {FAR_ERROR_MM:g} mm from the target). *Far on a distractor*: of the "
-           f"far ones, those whose estimate is nearer a distractor's centre than the target's. *Readings*: mean over "
-           f"successes / median over all trials (a failure counts 35). *Error*: median over successes. "
-           f"*Decision*: median ms per decision on the shared 2-core machine.", "",
-           *markdown_table(("Agent", "D", "Successes (far)", "Far on a distractor", "Readings mean succ. / median all",
-                            "Error median mm", "Decision ms"),
-                           [(r["agent"], r["distractors"], f"{r['successes']}/{r['trials']} ({r['far_successes']})",
-                             r["far_near_distractor"],
-                             f"{_f(r['readings_mean_success'], 2)} / {_f(r['readings_median_all'])}",
-                             _f(r["error_median_mm"]), _f(r["decision_ms_median"], 1))
-                            for r in ordered])]
+    out = [
+        f"Seed {seed}, the paper's eight conditions × {n} trials = {8 * n} trials per agent and D "
+        f"(`experiments/distractors/distractor_comparison.py`). *Successes (far)*: √trace Σ ≤ 10 mm within 35 "
+        f"readings "
+        f"(of which far: the estimate more than {FAR_ERROR_MM:g} mm from the target). *Far on a distractor*: of the "
+        f"far ones, those whose estimate is nearer a distractor's centre than the target's. *Readings*: mean over "
+        f"successes / median over all trials (a failure counts 35). *Error*: median over successes. "
+        f"*Decision*: median ms per decision on the shared 2-core machine.",
+        "",
+        *markdown_table(
+            (
+                "Agent",
+                "D",
+                "Successes (far)",
+                "Far on a distractor",
+                "Readings mean succ. / median all",
+                "Error median mm",
+                "Decision ms",
+            ),
+            [
+                (
+                    r["agent"],
+                    r["distractors"],
+                    f"{r['successes']}/{r['trials']} ({r['far_successes']})",
+                    r["far_near_distractor"],
+                    f"{_f(r['readings_mean_success'], 2)} / {_f(r['readings_median_all'])}",
+                    _f(r["error_median_mm"]),
+                    _f(r["decision_ms_median"], 1),
+                )
+                for r in ordered
+            ],
+        ),
+    ]
     return "\n".join(out) + "\n"
 
 
@@ -187,10 +227,16 @@ def plot(rows: list[dict], n: int, path: Path) -> None:
         style = "-o" if a in ("eedi", "infotaxis", "min-var") else "--s"
         axes[0].plot(d, [r["readings_mean_all"] for r in rs], style, label=a)
         axes[1].plot(d, [r["far_successes"] / max(r["trials"], 1) for r in rs], style, label=a)
-    axes[0].set(xlabel="distractors D", ylabel="mean readings (all trials, failure = 35)",
-                title=f"readings to localise ({8 * n} trials per point)")
-    axes[1].set(xlabel="distractors D", ylabel=f"far successes (error > {FAR_ERROR_MM:g} mm) / trials",
-                title="successes on the wrong place")
+    axes[0].set(
+        xlabel="distractors D",
+        ylabel="mean readings (all trials, failure = 35)",
+        title=f"readings to localise ({8 * n} trials per point)",
+    )
+    axes[1].set(
+        xlabel="distractors D",
+        ylabel=f"far successes (error > {FAR_ERROR_MM:g} mm) / trials",
+        title="successes on the wrong place",
+    )
     for ax in axes:
         ax.set_xticks(sorted({r["distractors"] for r in rows}))
         ax.grid(alpha=0.3)

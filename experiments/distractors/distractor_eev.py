@@ -56,18 +56,28 @@ def main() -> None:
         ax.add_patch(plt.Circle(target, cond.target.radius_mm, fill=False, ls="--", color="k"))
         for o in layout.objects:
             ax.add_patch(plt.Circle(o.xy_mm, o.radius_mm, fill=False, color="g"))
-            ax.annotate(f"{o.shape} {o.diameter_mm:g} mm {o.material}", o.xy_mm, fontsize=7, color="g",
-                        xytext=(0, o.radius_mm + 3), textcoords="offset points", ha="center")
+            ax.annotate(
+                f"{o.shape} {o.diameter_mm:g} mm {o.material}",
+                o.xy_mm,
+                fontsize=7,
+                color="g",
+                xytext=(0, o.radius_mm + 3),
+                textcoords="offset points",
+                ha="center",
+            )
         ax.set_aspect("equal")
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("carriage x (mm)")
     axes[0].set_ylabel("carriage y (mm)")
     fig.colorbar(im, ax=axes, label="noise-free reading Φ (V)", shrink=0.85)
-    fig.suptitle(f"{args.condition}, target at the centre, distractors drawn with seed {args.seed}; "
-                 f"black: |Φ| = 2σ", fontsize=10)
+    fig.suptitle(
+        f"{args.condition}, target at the centre, distractors drawn with seed {args.seed}; black: |Φ| = 2σ", fontsize=10
+    )
     fig.savefig(args.out, dpi=100)
-    print(f"wrote {args.out}: " + "; ".join(f"{o.shape} {o.diameter_mm:g} mm {o.material} at {o.xy_mm}"
-                                            for o in layout.objects))
+    print(
+        f"wrote {args.out}: "
+        + "; ".join(f"{o.shape} {o.diameter_mm:g} mm {o.material} at {o.xy_mm}" for o in layout.objects)
+    )
 
 
 if __name__ == "__main__":

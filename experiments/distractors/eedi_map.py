@@ -67,11 +67,14 @@ def main() -> None:
         ax.set_yticks([])
         obs, _, term, trunc, _ = env.step(action)
         if term or trunc:
-            for extra in axes[0][k + 1:]:
+            for extra in axes[0][k + 1 :]:
                 extra.axis("off")
             break
-    fig.suptitle(f"eedi on {args.condition} (seed {args.seed}): EID (colour), particles (cyan), path (white), "
-                 "next move (green arrow), target (+)", fontsize=9)
+    fig.suptitle(
+        f"eedi on {args.condition} (seed {args.seed}): EID (colour), particles (cyan), path (white), "
+        "next move (green arrow), target (+)",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(args.out, dpi=110)
     print(f"wrote {args.out}")

@@ -47,18 +47,42 @@ def table3() -> list[str]:
     rows = []
     for n in PRESET_NAMES:
         c = {s: get_condition(n, s) for s in SIGNALS}
-        rows.append((n, f"{c['paper'].amplifier.noise_rms_mV:.2f}", f"{PAPER_TABLE3_THEORY_MM[n]:.1f}",
-                     f"{PAPER_TABLE3_MEASURED_MM[n]:.1f}", f"{c['paper'].detection_distance_mm():.1f}",
-                     f"{c['fitted'].signal_scale:.2f}", f"{c['fitted'].detection_distance_mm():.1f}",
-                     f"{c['coverage'].signal_scale:.2f}", f"{c['coverage'].detection_distance_mm():.1f}"))
-    return markdown_table(("Condition", "σ_s (mV)", "paper theory", "paper measured", "model, scale 1", "fitted scale",
-                           "model, fitted", "coverage scale", "model, coverage"), rows)
+        rows.append(
+            (
+                n,
+                f"{c['paper'].amplifier.noise_rms_mV:.2f}",
+                f"{PAPER_TABLE3_THEORY_MM[n]:.1f}",
+                f"{PAPER_TABLE3_MEASURED_MM[n]:.1f}",
+                f"{c['paper'].detection_distance_mm():.1f}",
+                f"{c['fitted'].signal_scale:.2f}",
+                f"{c['fitted'].detection_distance_mm():.1f}",
+                f"{c['coverage'].signal_scale:.2f}",
+                f"{c['coverage'].detection_distance_mm():.1f}",
+            )
+        )
+    return markdown_table(
+        (
+            "Condition",
+            "σ_s (mV)",
+            "paper theory",
+            "paper measured",
+            "model, scale 1",
+            "fitted scale",
+            "model, fitted",
+            "coverage scale",
+            "model, coverage",
+        ),
+        rows,
+    )
 
 
 def coverage() -> list[str]:
     # Built by hand, not by markdown_table: the **mean** row's empty cell is "| |", one space, not the helper's "|  |".
-    out = ["| Condition | paper signal | fitted | coverage (default) | peak \\|Φ\\| at coverage (V) "
-           "| saturated share of the start box at coverage |", "|---|---|---|---|---|---|"]
+    out = [
+        "| Condition | paper signal | fitted | coverage (default) | peak \\|Φ\\| at coverage (V) "
+        "| saturated share of the start box at coverage |",
+        "|---|---|---|---|---|---|",
+    ]
     cov = {s: [] for s in SIGNALS}
     for n in PRESET_NAMES:
         row = []
@@ -72,8 +96,11 @@ def coverage() -> list[str]:
         gx, gy = np.meshgrid(g, g, indexing="ij")
         phi = expected_reading(c, -np.stack([gx, gy], axis=-1))
         out.append(f"| {n} | " + " | ".join(row) + f" | {np.abs(phi).max():.2f} | {np.mean(np.abs(phi) >= 10.0):.2f} |")
-    out.append("| **mean** | " + " | ".join(f"**{np.mean(cov[s]):.2f}**" for s in SIGNALS)
-               + f" | | paper §6.3: **{PAPER_START_COVERAGE:.2f}** |")
+    out.append(
+        "| **mean** | "
+        + " | ".join(f"**{np.mean(cov[s]):.2f}**" for s in SIGNALS)
+        + f" | | paper §6.3: **{PAPER_START_COVERAGE:.2f}** |"
+    )
     return out
 
 
@@ -84,9 +111,10 @@ def fig5_slopes() -> list[str]:
     near, far = rd < 0.1, rd > 3.0
     s_near = np.polyfit(np.log(ns[near]), np.log(rd[near]), 1)[0] if near.sum() > 2 else float("nan")
     s_far = np.polyfit(np.log(ns[far]), np.log(rd[far]), 1)[0] if far.sum() > 2 else float("nan")
-    return markdown_table(("Regime", "paper (Fig. 5)", "model (Eq. 5–6)"),
-                          [("near field, r_d < 0.1 L", "−1/2", f"{s_near:.3f}"),
-                           ("far field, r_d > 3 L", "−1/5", f"{s_far:.3f}")])
+    return markdown_table(
+        ("Regime", "paper (Fig. 5)", "model (Eq. 5–6)"),
+        [("near field, r_d < 0.1 L", "−1/2", f"{s_near:.3f}"), ("far field, r_d > 3 L", "−1/5", f"{s_far:.3f}")],
+    )
 
 
 def _load(folder: str | None) -> tuple[list[dict[str, Any]], list[dict[str, Any]], dict[str, Any]] | None:
@@ -115,11 +143,35 @@ def table4(rows: list[dict[str, Any]], label: str) -> list[str]:
                 p_s, p_steps, p_err = f"{paper[0]}", f"{paper[5]:g}", f"{paper[3]:g}"
             else:
                 cell, p_s, p_steps, p_err = f"{r['successes']}", "", "", ""
-            cells.append(("All conditions" if n == "all" else n, r.get("label", r["agent"]), cell, p_s,
-                          f"{r['readings_median']:.3g}", p_steps, f"{r['error_median_mm']:.1f}", p_err))
-    return [f"Run: {label}.", "",
-            *markdown_table(("Condition", "Agent", "success [paper 90 % interval]", "paper", "median steps", "paper",
-                             "median error (mm)", "paper"), cells)]
+            cells.append(
+                (
+                    "All conditions" if n == "all" else n,
+                    r.get("label", r["agent"]),
+                    cell,
+                    p_s,
+                    f"{r['readings_median']:.3g}",
+                    p_steps,
+                    f"{r['error_median_mm']:.1f}",
+                    p_err,
+                )
+            )
+    return [
+        f"Run: {label}.",
+        "",
+        *markdown_table(
+            (
+                "Condition",
+                "Agent",
+                "success [paper 90 % interval]",
+                "paper",
+                "median steps",
+                "paper",
+                "median error (mm)",
+                "paper",
+            ),
+            cells,
+        ),
+    ]
 
 
 def fig12(rows: list[dict[str, Any]]) -> list[str]:
@@ -129,13 +181,24 @@ def fig12(rows: list[dict[str, Any]]) -> list[str]:
     fewer_fail = sum(by[(n, "min-var")]["failures"] <= by[(n, "rnd-wlk")]["failures"] for n in both)
     a, b = by.get(("all", "min-var")), by.get(("all", "rnd-wlk"))
     ratio = a["readings_median"] / b["readings_median"] if a and b else float("nan")
-    return markdown_table(("Fig. 12 statement", "paper", "simulation"), [
-        ("conditions where min-var needs fewer median steps", "8 of 8", f"{fewer_steps} of 8"),
-        ("conditions where min-var fails no more often", "8 of 8", f"{fewer_fail} of 8"),
-        ("min-var / rnd-wlk, mean of the 8 median steps", "6.7 / 12.4 = 0.54",
-         f"{a['readings_median'] if a else float('nan'):.3g} / {b['readings_median'] if b else float('nan'):.3g} "
-         f"= {ratio:.2f}"),
-        ("failures min-var / rnd-wlk", "19 / 113", f"{a['failures'] if a else '–'} / {b['failures'] if b else '–'}")])
+    return markdown_table(
+        ("Fig. 12 statement", "paper", "simulation"),
+        [
+            ("conditions where min-var needs fewer median steps", "8 of 8", f"{fewer_steps} of 8"),
+            ("conditions where min-var fails no more often", "8 of 8", f"{fewer_fail} of 8"),
+            (
+                "min-var / rnd-wlk, mean of the 8 median steps",
+                "6.7 / 12.4 = 0.54",
+                f"{a['readings_median'] if a else float('nan'):.3g} / "
+                f"{b['readings_median'] if b else float('nan'):.3g} = {ratio:.2f}",
+            ),
+            (
+                "failures min-var / rnd-wlk",
+                "19 / 113",
+                f"{a['failures'] if a else '–'} / {b['failures'] if b else '–'}",
+            ),
+        ],
+    )
 
 
 def _median_obs(xs: list[dict[str, Any]]) -> str:
@@ -148,10 +211,27 @@ def inside_outside(records: list[dict[str, Any]], signal: str) -> list[str]:
         rs = [r for r in records if r["agent"] == agent]
         ins = [r for r in rs if _inside(r, signal)]
         outs = [r for r in rs if not _inside(r, signal)]
-        rows.append((agent, f"{len(ins)}/{len(rs)} ({len(ins) / len(rs):.0%})", _median_obs(ins), _median_obs(outs),
-                     f"{sum(x['success'] for x in ins)}/{len(ins)}", f"{sum(x['success'] for x in outs)}/{len(outs)}"))
-    return markdown_table(("Agent", "starts inside", "median steps inside", "median steps outside", "successes inside",
-                           "successes outside"), rows)
+        rows.append(
+            (
+                agent,
+                f"{len(ins)}/{len(rs)} ({len(ins) / len(rs):.0%})",
+                _median_obs(ins),
+                _median_obs(outs),
+                f"{sum(x['success'] for x in ins)}/{len(ins)}",
+                f"{sum(x['success'] for x in outs)}/{len(outs)}",
+            )
+        )
+    return markdown_table(
+        (
+            "Agent",
+            "starts inside",
+            "median steps inside",
+            "median steps outside",
+            "successes inside",
+            "successes outside",
+        ),
+        rows,
+    )
 
 
 def table1(rows: list[dict[str, Any]]) -> list[str]:
@@ -160,10 +240,19 @@ def table1(rows: list[dict[str, Any]]) -> list[str]:
         if r.get("table_layout") != "table1" or r["condition"] == "all":
             continue
         px, py = PAPER_TABLE1[r["condition"]]
-        cells.append((r["condition"], f"{r['successes']}({r['failures']})", f"{r['error_x_mean_abs_mm']:.2f}",
-                      f"{px:.2f}", f"{r['error_y_mean_abs_mm']:.2f}", f"{py:.2f}"))
-    return markdown_table(("Condition", "success", "mean \\|error x\\| (mm)", "paper", "mean \\|error y\\| (mm)",
-                           "paper"), cells)
+        cells.append(
+            (
+                r["condition"],
+                f"{r['successes']}({r['failures']})",
+                f"{r['error_x_mean_abs_mm']:.2f}",
+                f"{px:.2f}",
+                f"{r['error_y_mean_abs_mm']:.2f}",
+                f"{py:.2f}",
+            )
+        )
+    return markdown_table(
+        ("Condition", "success", "mean \\|error x\\| (mm)", "paper", "mean \\|error y\\| (mm)", "paper"), cells
+    )
 
 
 def table2(rows: list[dict[str, Any]]) -> list[str]:
@@ -175,10 +264,21 @@ def table2(rows: list[dict[str, Any]]) -> list[str]:
         if not paper:
             continue
         cell = _mark(r["successes"], r["successes"] + r["failures"], paper[0], paper[0] + paper[1])
-        cells.append((r["agent"], cell, paper[0], f"{r['readings_median']:g}", f"{paper[5]:g}",
-                      f"{r['error_median_mm']:.1f}", f"{paper[3]:g}"))
-    return markdown_table(("Agent", "success [paper 90 % interval]", "paper", "median steps", "paper",
-                           "median error (mm)", "paper"), cells)
+        cells.append(
+            (
+                r["agent"],
+                cell,
+                paper[0],
+                f"{r['readings_median']:g}",
+                f"{paper[5]:g}",
+                f"{r['error_median_mm']:.1f}",
+                f"{paper[3]:g}",
+            )
+        )
+    return markdown_table(
+        ("Agent", "success [paper 90 % interval]", "paper", "median steps", "paper", "median error (mm)", "paper"),
+        cells,
+    )
 
 
 def main() -> None:
@@ -205,12 +305,20 @@ def main() -> None:
             records = [r for r in records if "vote=" in r["agent"]]
         if label == "other settings":
             label = f"signal `{cfg.get('signal')}`"
-        sections.append((f"Table 4, {label} (`{folder}`, seed {cfg.get('seed')}, {cfg.get('trials')} trials)",
-                         table4(rows, f"signal `{cfg.get('signal')}`")))
+        sections.append(
+            (
+                f"Table 4, {label} (`{folder}`, seed {cfg.get('seed')}, {cfg.get('trials')} trials)",
+                table4(rows, f"signal `{cfg.get('signal')}`"),
+            )
+        )
         if any(r["agent"] == "min-var" for r in rows) and any(r["agent"] == "rnd-wlk" for r in rows):
             sections.append((f"Fig. 12, {label}", fig12(rows)))
-        sections.append((f"Starts inside and outside the detection region, {label}",
-                         inside_outside(records, cfg.get("signal", "coverage"))))
+        sections.append(
+            (
+                f"Starts inside and outside the detection region, {label}",
+                inside_outside(records, cfg.get("signal", "coverage")),
+            )
+        )
         if any(r.get("table_layout") == "table1" for r in rows):
             sections.append((f"Table 1 (zero-crossing), {label}", table1(rows)))
     loaded = _load(args.global_)

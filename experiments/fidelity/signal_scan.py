@@ -64,11 +64,23 @@ def main() -> None:
         rows.append((k, cov, scan_one(k, agents, args.trials, args.seed)))
     n = args.trials * len(PRESET_NAMES)
     print(f"\nseed {args.seed}, {args.trials} trials per condition ({n} per agent)\n")
-    header = ("k × fitted", "start coverage", *(f"{a} {s}" for a in agents for s in ("successes", "median steps")),
-              f"ratio {agents[-1]}/{agents[0]}", f"per-condition medians ({agents[-1]})")
-    cells = [(f"{k:g}", f"{cov:.2f}", *(c for a in agents for c in (f"{res[a][0]}/{n}", f"{res[a][1]:.1f}")),
-              f"{res[agents[-1]][1] / res[agents[0]][1]:.2f}", " ".join(f"{m:g}" for m in res[agents[-1]][2]))
-             for k, cov, res in rows]
+    header = (
+        "k × fitted",
+        "start coverage",
+        *(f"{a} {s}" for a in agents for s in ("successes", "median steps")),
+        f"ratio {agents[-1]}/{agents[0]}",
+        f"per-condition medians ({agents[-1]})",
+    )
+    cells = [
+        (
+            f"{k:g}",
+            f"{cov:.2f}",
+            *(c for a in agents for c in (f"{res[a][0]}/{n}", f"{res[a][1]:.1f}")),
+            f"{res[agents[-1]][1] / res[agents[0]][1]:.2f}",
+            " ".join(f"{m:g}" for m in res[agents[-1]][2]),
+        )
+        for k, cov, res in rows
+    ]
     for line in markdown_table(header, cells):
         print(line)
 

@@ -47,13 +47,17 @@ def tank(condition: Condition, setting: str, daq_mV: float) -> Condition:
     """The condition in one of the three tanks of the module docstring."""
     if setting == "paper":
         return condition
-    amp = dataclasses.replace(condition.amplifier, noise_factor=1.0 if setting == "paper+daq" else 1.0 / 32.0,
-                              output_noise_mV=daq_mV if setting.endswith("+daq") else 0.0)
+    amp = dataclasses.replace(
+        condition.amplifier,
+        noise_factor=1.0 if setting == "paper+daq" else 1.0 / 32.0,
+        output_noise_mV=daq_mV if setting.endswith("+daq") else 0.0,
+    )
     return condition.replace(amplifier=amp)
 
 
-def run(setting: str, levels: tuple[float, ...], trials: int, seed: int, daq_mV: float,
-        bar: tqdm) -> dict[str, dict[str, list[tuple[bool, int]]]]:
+def run(
+    setting: str, levels: tuple[float, ...], trials: int, seed: int, daq_mV: float, bar: tqdm
+) -> dict[str, dict[str, list[tuple[bool, int]]]]:
     """{agent: {condition: [(success, readings), ...]}}."""
     out: dict[str, dict[str, list[tuple[bool, int]]]] = {a: {} for a in AGENTS}
     for name in PRESET_NAMES:
@@ -83,12 +87,19 @@ def main() -> None:
     with tqdm(total=len(args.settings) * len(PRESET_NAMES) * len(AGENTS) * args.trials, desc="episodes") as bar:
         for setting in args.settings:
             results[setting] = run(setting, levels, args.trials, args.seed, args.daq_mV, bar)
-    print(f"gain levels {levels} × the preset gain; {args.trials} trials per condition, seed {args.seed}; "
-          f"median readings (successes) per condition, then the mean of the eight medians")
+    print(
+        f"gain levels {levels} × the preset gain; {args.trials} trials per condition, seed {args.seed}; "
+        f"median readings (successes) per condition, then the mean of the eight medians"
+    )
     for setting, res in results.items():
         print(f"\n{setting}:")
-        rows = [(name, *(f"{np.median([n for _, n in res[a][name]]):.1f} ({sum(s for s, _ in res[a][name])})"
-                         for a in AGENTS)) for name in PRESET_NAMES]
+        rows = [
+            (
+                name,
+                *(f"{np.median([n for _, n in res[a][name]]):.1f} ({sum(s for s, _ in res[a][name])})" for a in AGENTS),
+            )
+            for name in PRESET_NAMES
+        ]
         means = [np.mean([np.median([n for _, n in res[a][c]]) for c in PRESET_NAMES]) for a in AGENTS]
         succ = [sum(s for c in PRESET_NAMES for s, _ in res[a][c]) for a in AGENTS]
         rows.append(("mean of medians (successes)", *(f"{m:.2f} ({s})" for m, s in zip(means, succ))))
@@ -107,8 +118,9 @@ def main() -> None:
             for j, a in enumerate(AGENTS):
                 med = [np.median([n for _, n in res[a][c]]) for c in PRESET_NAMES]
                 ax.bar(x + (j - 0.5) * 0.38, med, 0.38, label=a)
-            ax.set_xticks(x, [c.replace("fresh-", "f-").replace("salt-", "s-") for c in PRESET_NAMES], rotation=60,
-                          fontsize=7)
+            ax.set_xticks(
+                x, [c.replace("fresh-", "f-").replace("salt-", "s-") for c in PRESET_NAMES], rotation=60, fontsize=7
+            )
             ax.set_title(setting)
         axes[0].set_ylabel("median readings to localise")
         axes[0].legend(fontsize=7)

@@ -54,11 +54,20 @@ def runs(args: argparse.Namespace) -> list[tuple[str, dict[str, object], str]]:
     """(label, env kwargs, run folder) of the four policies."""
     out = []
     for k, f in enumerate(args.levels):
-        out.append((f"ppo fixed ×{f:g}", {"condition": floor_tank(args.condition, args.output_noise_mV, f)},
-                    f"runs/gain-floor-{args.condition}-fixed{f:g}-s{TRAIN_SEED + k}"))
-    out.append(("ppo choosing the gain", {"condition": floor_tank(args.condition, args.output_noise_mV),
-                                          "gain_levels": list(args.levels)},
-                f"runs/gain-floor-{args.condition}-choice-s{TRAIN_SEED + len(args.levels)}"))
+        out.append(
+            (
+                f"ppo fixed ×{f:g}",
+                {"condition": floor_tank(args.condition, args.output_noise_mV, f)},
+                f"runs/gain-floor-{args.condition}-fixed{f:g}-s{TRAIN_SEED + k}",
+            )
+        )
+    out.append(
+        (
+            "ppo choosing the gain",
+            {"condition": floor_tank(args.condition, args.output_noise_mV), "gain_levels": list(args.levels)},
+            f"runs/gain-floor-{args.condition}-choice-s{TRAIN_SEED + len(args.levels)}",
+        )
+    )
     return out
 
 
@@ -68,11 +77,38 @@ def train_commands(args: argparse.Namespace) -> list[str]:
         kv = [f"condition={json.dumps(kwargs['condition'].to_dict())}"]  # JSON is YAML's flow syntax
         if "gain_levels" in kwargs:
             kv.append(f"gain_levels={json.dumps(kwargs['gain_levels'])}")
-        cmd = ["python", "-m", "electroloc_gym.train", "--algo", "ppo", "--env", "ElectroLoc-v0", "--env-kwargs", *kv,
-               "observation=belief", "randomize_target=true", "--timesteps", str(args.timesteps), "--n-envs", "16",
-               "--vec-env", "native", "--seed", str(TRAIN_SEED + k), "--hyperparams", "train/hyperparams/ppo.yml",
-               "--out", folder, "--eval-freq", "50000", "--eval-episodes", "64", "--eval-env-kwargs",
-               "randomize_target=false", "--no-progress"]
+        cmd = [
+            "python",
+            "-m",
+            "electroloc_gym.train",
+            "--algo",
+            "ppo",
+            "--env",
+            "ElectroLoc-v0",
+            "--env-kwargs",
+            *kv,
+            "observation=belief",
+            "randomize_target=true",
+            "--timesteps",
+            str(args.timesteps),
+            "--n-envs",
+            "16",
+            "--vec-env",
+            "native",
+            "--seed",
+            str(TRAIN_SEED + k),
+            "--hyperparams",
+            "train/hyperparams/ppo.yml",
+            "--out",
+            folder,
+            "--eval-freq",
+            "50000",
+            "--eval-episodes",
+            "64",
+            "--eval-env-kwargs",
+            "randomize_target=false",
+            "--no-progress",
+        ]
         lines.append(" ".join(shlex.quote(a) for a in cmd))
     return lines
 
@@ -93,8 +129,10 @@ def main() -> None:
         return
     gain_env = {"condition": floor_tank(args.condition, args.output_noise_mV), "gain_levels": args.levels}
     agents = [(label, f"{folder}/best", kwargs) for label, kwargs, folder in runs(args)]
-    agents += [("min-var choosing the gain", "min-var", gain_env),
-               ("min-var at the preset gain", "min-var[gain=preset]", gain_env)]
+    agents += [
+        ("min-var choosing the gain", "min-var", gain_env),
+        ("min-var at the preset gain", "min-var[gain=preset]", gain_env),
+    ]
     rows = []
     for label, spec, kwargs in tqdm(agents, desc="agents"):
         agent = make_bench_agent(spec)
@@ -106,11 +144,14 @@ def main() -> None:
             res.append((bool(ep.terminated), int(ep.info["n_observations"])))
         n = np.array([r for _, r in res])
         rows.append((label, sum(s for s, _ in res), np.median(n), n.mean()))
-    print(f"{args.condition} with a {args.output_noise_mV:g} mV output noise, gain levels {args.levels} × G; "
-          f"{args.trials} trials, seed {args.seed} (readings: failures count at the cap)")
-    for line in markdown_table(("agent", "successes", "median readings", "mean readings"),
-                               [(label, f"{s}/{args.trials}", f"{med:.1f}", f"{mean:.2f}")
-                                for label, s, med, mean in rows]):
+    print(
+        f"{args.condition} with a {args.output_noise_mV:g} mV output noise, gain levels {args.levels} × G; "
+        f"{args.trials} trials, seed {args.seed} (readings: failures count at the cap)"
+    )
+    for line in markdown_table(
+        ("agent", "successes", "median readings", "mean readings"),
+        [(label, f"{s}/{args.trials}", f"{med:.1f}", f"{mean:.2f}") for label, s, med, mean in rows],
+    ):
         print(line)
 
 

@@ -61,23 +61,34 @@ def table(analyses: Sequence[dict[str, Any]]) -> str:
 
     # The main table is built by hand, not by markdown_table: a baseline row's empty cells are "| |", one space,
     # not the helper's "|  |".
-    lines = ["| env | algorithm | seeds | readings IQM [95 % CI] | readings mean [CI] | success mean [CI] | "
-             "normalised IQM [CI] | P(better than min-var) [CI] | P(better than lookahead) [CI] |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| env | algorithm | seeds | readings IQM [95 % CI] | readings mean [CI] | success mean [CI] | "
+        "normalised IQM [CI] | P(better than min-var) [CI] | P(better than lookahead) [CI] |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for a in analyses:
         for algo, row in a["algorithms"].items():
             norm = _fmt(row["normalised_iqm"]) if "normalised_iqm" in row else "–"
             poi = [_fmt(row["p_improvement"][r]) if r in row["p_improvement"] else "–" for r in REFERENCES]
-            lines.append(f"| {a['env_id']} | {algo} | {len(a['seeds'][algo])} | {_fmt(row['readings_iqm'])} | "
-                         f"{_fmt(row['readings_mean'])} | {_fmt(row['success_mean'])} | {norm} | {poi[0]} | {poi[1]} |")
+            lines.append(
+                f"| {a['env_id']} | {algo} | {len(a['seeds'][algo])} | {_fmt(row['readings_iqm'])} | "
+                f"{_fmt(row['readings_mean'])} | {_fmt(row['success_mean'])} | {norm} | {poi[0]} | {poi[1]} |"
+            )
         for agent, row in a["baselines"].items():
             norm = f"{row['normalised_mean']:.2f}" if "normalised_mean" in row else "–"
-            lines.append(f"| {a['env_id']} | {agent} (not learned) | 1 | – | {row['readings_mean']:.2f} | "
-                         f"{row['success_mean']:.2f} | {norm} | | |")
+            lines.append(
+                f"| {a['env_id']} | {agent} (not learned) | 1 | – | {row['readings_mean']:.2f} | "
+                f"{row['success_mean']:.2f} | {norm} | | |"
+            )
     pairs = [(a["env_id"], c) for a in analyses for c in a.get("comparisons", [])]
     if pairs:
-        lines += ["", *markdown_table(("env", "A", "B", "P(A needs fewer readings than B) [95 % CI]"),
-                                      [(env, c["better"], c["than"], _fmt(c["p"])) for env, c in pairs])]
+        lines += [
+            "",
+            *markdown_table(
+                ("env", "A", "B", "P(A needs fewer readings than B) [95 % CI]"),
+                [(env, c["better"], c["than"], _fmt(c["p"])) for env, c in pairs],
+            ),
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -97,8 +108,12 @@ def condition_table(a: dict[str, Any]) -> str:
         rows.append(cells)
     for agent, row in a["baselines"].items():
         rows.append([agent, *(f"{row['per_condition_readings'][c]:.2f}" for c in conds)])
-    lines = [f"{a['env_id']}: readings to localise per condition (a failure counts as the cap), learned: mean over "
-             "seeds (min–max)", "", *markdown_table(("agent", *conds), rows)]
+    lines = [
+        f"{a['env_id']}: readings to localise per condition (a failure counts as the cap), learned: mean over "
+        "seeds (min–max)",
+        "",
+        *markdown_table(("agent", *conds), rows),
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -117,8 +132,11 @@ def figures(analyses: Sequence[dict[str, Any]], out: Path) -> list[Path]:
         norm = a["_matrices"]["normalised"]
         if not norm:
             continue
-        taus = np.linspace(min(-0.5, min(float(v.min()) for v in norm.values())),
-                           max(1.5, max(float(v.max()) for v in norm.values())), 101)
+        taus = np.linspace(
+            min(-0.5, min(float(v.min()) for v in norm.values())),
+            max(1.5, max(float(v.max()) for v in norm.values())),
+            101,
+        )
         # rliable's create_performance_profile with its default score distributions, seeded like the table
         profiles, cis = bootstrap(norm, lambda s, t=taus: rly.score_distributions(s, t), a["reps"], a["seed"])
         fig, ax = plt.subplots(figsize=(6, 4))
@@ -166,8 +184,9 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
                 try:
                     data = json.loads(summary.read_text(encoding="utf-8"))
                     wall = data.get("wall_time_s")
-                    if wall is not None and (isinstance(wall, bool) or not isinstance(wall, (int, float))
-                                             or not np.isfinite(wall)):
+                    if wall is not None and (
+                        isinstance(wall, bool) or not isinstance(wall, (int, float)) or not np.isfinite(wall)
+                    ):
                         raise ValueError("wall_time_s is not a finite number")
                 except (AttributeError, ValueError, UnicodeDecodeError, RecursionError) as exc:
                     raise ReportError(f"{summary}: not a readable training summary ({exc})") from None
@@ -177,8 +196,10 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
         grid = sorted(set.intersection(*(set(r) for r, _ in runs)))
         out[algo_dir.name] = {
             "timesteps": np.array(grid),
-            **{k: np.array([[float(r[t][k]) for t in grid] for r, _ in runs])
-               for k in ("success_rate", "mean_readings")},
+            **{
+                k: np.array([[float(r[t][k]) for t in grid] for r, _ in runs])
+                for k in ("success_rate", "mean_readings")
+            },
             "wall_time_s": [w for _, w in runs],
         }
     return out
@@ -209,13 +230,24 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
         for algo, c in curves.items():  # one call per algorithm: each has its own evaluation steps
             y = c[key]
             m = y.mean(axis=0)
-            half = (stats.t.ppf(0.975, y.shape[0] - 1) * y.std(axis=0, ddof=1) / np.sqrt(y.shape[0])
-                    if y.shape[0] > 1 else np.zeros_like(m))
+            half = (
+                stats.t.ppf(0.975, y.shape[0] - 1) * y.std(axis=0, ddof=1) / np.sqrt(y.shape[0])
+                if y.shape[0] > 1
+                else np.zeros_like(m)
+            )
             label = f"{algo} ({y.shape[0]} seeds)"
             plot_utils.plot_sample_efficiency_curve(
-                c["timesteps"], {label: m}, {label: np.clip([m - half, m + half], *ranges[key])},
-                colors={label: f"C{list(curves).index(algo)}"}, ax=ax, xlabel="", ylabel="", marker=".",
-                labelsize="medium", ticklabelsize="small")
+                c["timesteps"],
+                {label: m},
+                {label: np.clip([m - half, m + half], *ranges[key])},
+                colors={label: f"C{list(curves).index(algo)}"},
+                ax=ax,
+                xlabel="",
+                ylabel="",
+                marker=".",
+                labelsize="medium",
+                ticklabelsize="small",
+            )
     axes[0].set_ylabel("success rate (validation episodes)")
     axes[1].set_ylabel("mean readings to localise (failure = cap)")
     for ax in axes:
@@ -234,9 +266,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("results", type=Path, help="the results folder (RESULTS/<env-id>/<algo>/seed-<k>/)")
     parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (≥ 100)")
     parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (0 to 2**32 - 1)")
-    parser.add_argument("--compare", action="append", metavar="A:B",
-                        help="learned labels A:B whose P(A better than B) to state (repeatable; default "
-                             + ", ".join(f"{a}:{b}" for a, b in COMPARISONS) + ")")
+    parser.add_argument(
+        "--compare",
+        action="append",
+        metavar="A:B",
+        help="learned labels A:B whose P(A better than B) to state (repeatable; default "
+        + ", ".join(f"{a}:{b}" for a, b in COMPARISONS)
+        + ")",
+    )
     args = parser.parse_args(argv)
     comparisons = COMPARISONS
     if args.compare:
@@ -290,12 +327,15 @@ def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tup
         for algo, c in curves.items():
             walls = [w for w in c["wall_time_s"] if w is not None]
             compute.append((env, algo, ", ".join(f"{w:.0f}" for w in walls) or "–"))
-    text += "\n".join(["", *markdown_table(("env", "algorithm", "training wall time per seed, s (2-core CPU)"),
-                                           compute)]) + "\n"
+    text += (
+        "\n".join(["", *markdown_table(("env", "algorithm", "training wall time per seed, s (2-core CPU)"), compute)])
+        + "\n"
+    )
     atomic_write_text(args.results / "report.md", text)
-    write_json_atomic(args.results / "report.json",
-                      [{k: v for k, v in a.items() if not k.startswith("_") and not (k == "set_aside" and not v)}
-                       for a in analyses])
+    write_json_atomic(
+        args.results / "report.json",
+        [{k: v for k, v in a.items() if not k.startswith("_") and not (k == "set_aside" and not v)} for a in analyses],
+    )
     print(text)
     return 0
 

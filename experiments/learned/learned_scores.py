@@ -24,6 +24,7 @@ BASELINES_DIR = "_baselines"
 class NoLearnedRuns(ValueError):
     """An env of the results folder has no learned run with a finished benchmark yet."""
 
+
 RND = "rnd-wlk"
 #: The non-learned agents the probability of improvement is stated against (when they were benched).
 REFERENCES = ("min-var", "lookahead")
@@ -46,8 +47,13 @@ def _config(bench: Path) -> dict[str, Any]:
         cfg = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise ReportError(f"{path}: not a readable benchmark config ({type(exc).__name__})") from None
-    if not (isinstance(cfg, dict) and isinstance(cfg.get("conditions"), list) and isinstance(cfg.get("agents"), list)
-            and isinstance(cfg.get("trials"), int) and isinstance(cfg.get("env_id"), str)):
+    if not (
+        isinstance(cfg, dict)
+        and isinstance(cfg.get("conditions"), list)
+        and isinstance(cfg.get("agents"), list)
+        and isinstance(cfg.get("trials"), int)
+        and isinstance(cfg.get("env_id"), str)
+    ):
         raise ReportError(f"{path}: a benchmark config names its conditions, agents, trials and env_id")
     return cfg
 
@@ -70,9 +76,13 @@ def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str
     if not path.is_file():
         raise ReportError(f"{path} is missing")
     cfg = _config(path.parent)
-    rules = RecordRules(conditions=frozenset(c for c in cfg["conditions"] if isinstance(c, str)),
-                        agents=frozenset(a for a in cfg["agents"] if isinstance(a, str)), trials=cfg["trials"],
-                        success_spread_mm=SUCCESS_SPREAD_MM, shape=bool(env_entry(cfg["env_id"]).record_keys))
+    rules = RecordRules(
+        conditions=frozenset(c for c in cfg["conditions"] if isinstance(c, str)),
+        agents=frozenset(a for a in cfg["agents"] if isinstance(a, str)),
+        trials=cfg["trials"],
+        success_spread_mm=SUCCESS_SPREAD_MM,
+        shape=bool(env_entry(cfg["env_id"]).record_keys),
+    )
     loaded = load_records(path, rules=rules)
     if set_aside is not None:
         set_aside.extend(loaded.messages())
@@ -95,8 +105,9 @@ def condition_scores(records: Sequence[dict[str, Any]], conditions: Sequence[str
     return {"readings": np.array(readings), "success": np.array(success)}
 
 
-def collect(results: Path, env_id: str, set_aside: list[str] | None = None) -> tuple[
-        list[str], dict[str, dict[str, np.ndarray]], dict[str, dict[str, np.ndarray]], dict[str, list[str]]]:
+def collect(
+    results: Path, env_id: str, set_aside: list[str] | None = None
+) -> tuple[list[str], dict[str, dict[str, np.ndarray]], dict[str, dict[str, np.ndarray]], dict[str, list[str]]]:
     """(conditions, learned, baselines, seeds) of one env; what was left out is appended to ``set_aside``.
 
     ``learned[algo][metric]`` is a (seeds × conditions) matrix; ``baselines[agent][metric]`` is (1 ×
@@ -115,7 +126,7 @@ def collect(results: Path, env_id: str, set_aside: list[str] | None = None) -> t
     seeds: dict[str, list[str]] = {}
     for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
         runs = sorted(p for p in algo_dir.glob("seed-*") if (p / "bench" / "summary.json").is_file())
-        odd = [p for p in runs if not p.name[len("seed-"):].isdecimal() or not p.name.isascii()]
+        odd = [p for p in runs if not p.name[len("seed-") :].isdecimal() or not p.name.isascii()]
         set_aside.extend(f"{p}: not a seed-<integer> folder" for p in odd)
         runs = [p for p in runs if p not in odd]
         if not runs:
@@ -167,8 +178,7 @@ def bootstrap(score_dict: dict[str, Any], func: Any, reps: int, seed: int) -> tu
 def interval(score_dict: dict[str, Any], func: Any, reps: int, seed: int) -> dict[str, list[float]]:
     """``{name: [point, lower, upper]}`` of ``func`` with a 95 % stratified bootstrap CI (rliable)."""
     point, ci = bootstrap(score_dict, func, reps, seed)
-    return {k: [float(np.ravel(point[k])[0]), float(np.ravel(ci[k])[0]), float(np.ravel(ci[k])[1])]
-            for k in score_dict}
+    return {k: [float(np.ravel(point[k])[0]), float(np.ravel(ci[k])[0]), float(np.ravel(ci[k])[1])] for k in score_dict}
 
 
 def p_better(x: np.ndarray, y: np.ndarray, reps: int, seed: int) -> list[float]:
@@ -181,8 +191,9 @@ def p_better(x: np.ndarray, y: np.ndarray, reps: int, seed: int) -> list[float]:
     return interval({"p": (-x, -y)}, func, reps, seed)["p"]
 
 
-def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0,
-            comparisons: Sequence[tuple[str, str]] = COMPARISONS) -> dict[str, Any]:
+def analyse(
+    results: Path, env_id: str, reps: int = 2000, seed: int = 0, comparisons: Sequence[tuple[str, str]] = COMPARISONS
+) -> dict[str, Any]:
     """Every statistic of one env (plain data, see the module docstring); ``comparisons`` are the
     (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env.
     """
@@ -194,30 +205,50 @@ def analyse(results: Path, env_id: str, reps: int = 2000, seed: int = 0,
         raise NoLearnedRuns(f"no learned runs with a benchmark under {results / env_id}")
     iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
     mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
-    out: dict[str, Any] = {"env_id": env_id, "conditions": conditions, "seeds": seeds, "reps": reps, "seed": seed,
-                           "algorithms": {}, "baselines": {}}
+    out: dict[str, Any] = {
+        "env_id": env_id,
+        "conditions": conditions,
+        "seeds": seeds,
+        "reps": reps,
+        "seed": seed,
+        "algorithms": {},
+        "baselines": {},
+    }
     readings = {a: v["readings"] for a, v in learned.items()}
     success = {a: v["success"] for a, v in learned.items()}
     norm = {a: normalised(v, baselines) for a, v in readings.items()} if RND in baselines else {}
-    stats = {"readings_iqm": interval(readings, iqm, reps, seed), "readings_mean": interval(readings, mean, reps, seed),
-             "success_iqm": interval(success, iqm, reps, seed), "success_mean": interval(success, mean, reps, seed)}
+    stats = {
+        "readings_iqm": interval(readings, iqm, reps, seed),
+        "readings_mean": interval(readings, mean, reps, seed),
+        "success_iqm": interval(success, iqm, reps, seed),
+        "success_mean": interval(success, mean, reps, seed),
+    }
     if norm:
         stats["normalised_iqm"] = interval(norm, iqm, reps, seed)
     for algo in learned:
         row = {k: v[algo] for k, v in stats.items()}
         row["per_condition_readings"] = {c: readings[algo][:, j].tolist() for j, c in enumerate(conditions)}
         row["per_condition_success"] = {c: success[algo][:, j].tolist() for j, c in enumerate(conditions)}
-        row["p_improvement"] = {ref: p_better(readings[algo], baselines[ref]["readings"], reps, seed)
-                                for ref in REFERENCES if ref in baselines}
+        row["p_improvement"] = {
+            ref: p_better(readings[algo], baselines[ref]["readings"], reps, seed)
+            for ref in REFERENCES
+            if ref in baselines
+        }
         out["algorithms"][algo] = row
     for agent, v in baselines.items():
-        row = {"readings_mean": float(v["readings"].mean()), "success_mean": float(v["success"].mean()),
-               "per_condition_readings": dict(zip(conditions, v["readings"][0].tolist()))}
+        row = {
+            "readings_mean": float(v["readings"].mean()),
+            "success_mean": float(v["success"].mean()),
+            "per_condition_readings": dict(zip(conditions, v["readings"][0].tolist())),
+        }
         if norm:
             row["normalised_mean"] = float(normalised(v["readings"], baselines).mean())
         out["baselines"][agent] = row
-    out["comparisons"] = [{"better": a, "than": b, "p": p_better(readings[a], readings[b], reps, seed)}
-                          for a, b in comparisons if a in readings and b in readings]
+    out["comparisons"] = [
+        {"better": a, "than": b, "p": p_better(readings[a], readings[b], reps, seed)}
+        for a, b in comparisons
+        if a in readings and b in readings
+    ]
     out["set_aside"] = set_aside
     out["_matrices"] = {"normalised": norm, "readings": readings}
     return out

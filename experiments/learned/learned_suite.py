@@ -55,9 +55,11 @@ SEEDS = (1, 2, 3, 4, 5)
 #: The env-step budget every configuration shares.
 TIMESTEPS = 300_000
 #: Checkpoints and other bulky run files the results folder does not keep in git.
-GITIGNORE = ("*.zip\n*.pkl\n*.npz\nbest/\n*.log\n*.lock\n*.monitor.csv\nsteps.png\n**/tb/\nevents.out.tfevents.*\n"
-             "# exports: only the seed the docs name is kept (a '!<env-id>/<label>/seed-<k>/policy/' line)\n"
-             "policy/\n")
+GITIGNORE = (
+    "*.zip\n*.pkl\n*.npz\nbest/\n*.log\n*.lock\n*.monitor.csv\nsteps.png\n**/tb/\nevents.out.tfevents.*\n"
+    "# exports: only the seed the docs name is kept (a '!<env-id>/<label>/seed-<k>/policy/' line)\n"
+    "policy/\n"
+)
 
 
 @dataclass(frozen=True)
@@ -88,19 +90,32 @@ SUITE: tuple[Config, ...] = (
     Config("ElectroLoc-v0", "sac", "sac", note="belief observation, continuous moves"),
     Config("ElectroLoc-v0", "a2c", "a2c", note="belief observation, continuous moves"),
     Config("ElectroLoc-v0", "qrdqn", "qrdqn", note="belief observation, the discrete action mode (9 moves)"),
-    Config("ElectroLoc-v0", "ppo_lstm-raw", "ppo_lstm", env_kwargs=_RAW,
-           note="RecurrentPPO on the raw reading: memory instead of the belief"),
-    Config("ElectroLoc-v0", "ppo-framestack-raw", "ppo", env_kwargs=_RAW, hyperparams={"frame_stack": 16, "n_envs": 8},
-           note="PPO on the last 16 raw readings"),
+    Config(
+        "ElectroLoc-v0",
+        "ppo_lstm-raw",
+        "ppo_lstm",
+        env_kwargs=_RAW,
+        note="RecurrentPPO on the raw reading: memory instead of the belief",
+    ),
+    Config(
+        "ElectroLoc-v0",
+        "ppo-framestack-raw",
+        "ppo",
+        env_kwargs=_RAW,
+        hyperparams={"frame_stack": 16, "n_envs": 8},
+        note="PPO on the last 16 raw readings",
+    ),
     Config("ElectroLocGlobal-v0", "ppo", "ppo", note="self-localisation in the mapped tank"),
     Config("ElectroLocUnknownTarget-v0", "ppo", "ppo", note="a sphere of unknown size and material"),
 )
 
 #: ``electroloc bench --env`` of each env id, and the non-learned agents benchmarked beside the learned ones.
 BENCH_ENV = {c.env_id: env_entry(c.env_id).bench[0].name for c in SUITE}
-BASELINE_AGENTS = {"ElectroLoc-v0": "rnd-wlk,min-var,lookahead,infotaxis,eedi",
-                   "ElectroLocGlobal-v0": "rnd-wlk,min-var,lookahead",
-                   "ElectroLocUnknownTarget-v0": "rnd-wlk,min-var,infotaxis"}   # lookahead plans over positions only
+BASELINE_AGENTS = {
+    "ElectroLoc-v0": "rnd-wlk,min-var,lookahead,infotaxis,eedi",
+    "ElectroLocGlobal-v0": "rnd-wlk,min-var,lookahead",
+    "ElectroLocUnknownTarget-v0": "rnd-wlk,min-var,infotaxis",
+}  # lookahead plans over positions only
 
 
 @dataclass
@@ -122,8 +137,10 @@ class Plan:
         picked = [c for c in SUITE if f"{c.env_id}/{c.label}" in self.only or c.label in self.only]
         unknown = [o for o in self.only if not any(o in (c.label, f"{c.env_id}/{c.label}") for c in SUITE)]
         if unknown:
-            raise ValueError(f"--only names no configuration: {unknown}; choose from "
-                             f"{sorted({c.label for c in SUITE} | {f'{c.env_id}/{c.label}' for c in SUITE})}")
+            raise ValueError(
+                f"--only names no configuration: {unknown}; choose from "
+                f"{sorted({c.label for c in SUITE} | {f'{c.env_id}/{c.label}' for c in SUITE})}"
+            )
         return picked
 
 
@@ -133,8 +150,23 @@ def _bench(plan: Plan, env_id: str, agents: str, out: Path) -> None:
     """
     if (out / "summary.json").is_file():
         return
-    argv = [sys.executable, "-m", "electroloc_gym.cli", "bench", "--env", BENCH_ENV[env_id], "--agents", agents,
-            "--trials", str(plan.trials), "--seed", "0", "--out", str(out), "--no-progress"]
+    argv = [
+        sys.executable,
+        "-m",
+        "electroloc_gym.cli",
+        "bench",
+        "--env",
+        BENCH_ENV[env_id],
+        "--agents",
+        agents,
+        "--trials",
+        str(plan.trials),
+        "--seed",
+        "0",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     if plan.conditions and env_entry(env_id).takes("condition"):
         argv += ["--conditions", plan.conditions]
     if plan.workers is not None:
@@ -157,14 +189,30 @@ def run_config(plan: Plan, cfg: Config, seed: int) -> dict[str, Any]:
     folder = plan.out / cfg.env_id / cfg.label / f"seed-{seed}"
     hyper = {**(cfg.hyperparams or {}), **plan.extra_hyperparams} or None
     t0 = time.time()
-    run = train(cfg.algo, cfg.env_id, seed, timesteps=plan.timesteps, log_folder=folder / "zoo",
-                out=folder / "policy", env_kwargs=cfg.env_kwargs, hyperparams=hyper, quiet=True)
+    run = train(
+        cfg.algo,
+        cfg.env_id,
+        seed,
+        timesteps=plan.timesteps,
+        log_folder=folder / "zoo",
+        out=folder / "policy",
+        env_kwargs=cfg.env_kwargs,
+        hyperparams=hyper,
+        quiet=True,
+    )
     trained = time.time() - t0
     _bench(plan, cfg.env_id, str(folder / "policy"), folder / "bench")
     summary = json.loads((run / "summary.json").read_text(encoding="utf-8"))
-    return {"env_id": cfg.env_id, "label": cfg.label, "algo": cfg.algo, "seed": seed, "run": str(run),
-            "train_wall_time_s": summary.get("wall_time_s"), "fps_training_only": summary.get("fps_training_only"),
-            "this_call_s": round(trained, 1)}
+    return {
+        "env_id": cfg.env_id,
+        "label": cfg.label,
+        "algo": cfg.algo,
+        "seed": seed,
+        "run": str(run),
+        "train_wall_time_s": summary.get("wall_time_s"),
+        "fps_training_only": summary.get("fps_training_only"),
+        "this_call_s": round(trained, 1),
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -176,9 +224,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--conditions", default=None, help="benchmark conditions (default: the paper's eight)")
     parser.add_argument("--trials", type=int, default=50, help="benchmark trials per condition (paper: 50)")
     parser.add_argument("--workers", type=int, default=None, help="benchmark worker processes")
-    parser.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE",
-                        help="extra overrides for every run, as `electroloc train` takes them (e.g. a smaller "
-                             "n_envs or eval_freq for a smoke test)")
+    parser.add_argument(
+        "--hyperparams",
+        nargs="*",
+        default=[],
+        metavar="KEY=VALUE",
+        help="extra overrides for every run, as `electroloc train` takes them (e.g. a smaller "
+        "n_envs or eval_freq for a smoke test)",
+    )
     parser.add_argument("--list", action="store_true", help="print the plan and exit")
     args = parser.parse_args(argv)
     try:
@@ -195,9 +248,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         extra = parse_options(args.hyperparams, "--hyperparams")
     except ValueError as exc:
         parser.error(str(exc))
-    plan = Plan(out=args.out, seeds=seeds, timesteps=args.timesteps,
-                only=tuple(s.strip() for s in args.only.split(",") if s.strip()), conditions=args.conditions,
-                trials=args.trials, workers=args.workers, extra_hyperparams=extra)
+    plan = Plan(
+        out=args.out,
+        seeds=seeds,
+        timesteps=args.timesteps,
+        only=tuple(s.strip() for s in args.only.split(",") if s.strip()),
+        conditions=args.conditions,
+        trials=args.trials,
+        workers=args.workers,
+        extra_hyperparams=extra,
+    )
     try:
         configs = plan.configs()
     except ValueError as exc:
@@ -221,8 +281,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             line = run_config(plan, cfg, seed)
         except (ValueError, RuntimeError, OSError) as exc:  # a failed training run or benchmark: one line
             text = str(exc).strip().splitlines()
-            print(f"learned_suite: {cfg.env_id}/{cfg.label} seed {seed} failed: {text[0] if text else exc!r}",
-                  file=sys.stderr)
+            print(
+                f"learned_suite: {cfg.env_id}/{cfg.label} seed {seed} failed: {text[0] if text else exc!r}",
+                file=sys.stderr,
+            )
             return 2
         with FileLock(str(log_path) + ".lock", timeout=600):  # invocations on disjoint --only share the log
             done = json.loads(log_path.read_text(encoding="utf-8")) if log_path.is_file() else []

@@ -20,8 +20,11 @@ CONDS = ("a", "b")
 
 
 RESULTS = ROOT / "experiments" / "learned" / "results"
-TEMPLATE = json.loads((RESULTS / "ElectroLoc-v0" / "ppo" / "seed-1" / "bench" / "trials.jsonl")
-                      .read_text(encoding="utf-8").splitlines()[0])
+TEMPLATE = json.loads(
+    (RESULTS / "ElectroLoc-v0" / "ppo" / "seed-1" / "bench" / "trials.jsonl")
+    .read_text(encoding="utf-8")
+    .splitlines()[0]
+)
 
 
 def _record(cond: str, agent: str, trial: int, n: int) -> dict:
@@ -41,8 +44,11 @@ def _write(path: Path, agent: str, readings: dict[str, list[int]]) -> None:
     with open(path, "a", encoding="utf-8") as fh:
         fh.write("".join(json.dumps(r) + "\n" for r in rows))
     cfg_path = path.parent / "config.json"
-    cfg = json.loads(cfg_path.read_text()) if cfg_path.is_file() else {
-        "agents": [], "conditions": sorted(readings), "trials": 3, "env_id": "ElectroLoc-v0"}
+    cfg = (
+        json.loads(cfg_path.read_text())
+        if cfg_path.is_file()
+        else {"agents": [], "conditions": sorted(readings), "trials": 3, "env_id": "ElectroLoc-v0"}
+    )
     cfg["agents"] = sorted(set(cfg["agents"]) | {agent})
     cfg_path.write_text(json.dumps(cfg))
     (path.parent / "summary.json").write_text("{}")  # the benchmark finished
@@ -54,8 +60,9 @@ def _results(tmp_path: Path) -> Path:
     _write(base, "rnd-wlk", {"a": [20, 30, 99], "b": [25, 25, 25]})  # 99: a failure, scored as the cap 35
     _write(base, "min-var", {"a": [10, 10, 10], "b": [15, 15, 15]})
     for k, shift in enumerate((0, 1, 2)):
-        _write(env / "ppo" / f"seed-{k}" / "bench" / "trials.jsonl", "ppo",
-               {"a": [5 + shift] * 3, "b": [6 + shift] * 3})
+        _write(
+            env / "ppo" / f"seed-{k}" / "bench" / "trials.jsonl", "ppo", {"a": [5 + shift] * 3, "b": [6 + shift] * 3}
+        )
     return tmp_path
 
 
@@ -108,8 +115,11 @@ def test_main_writes_report_and_figure(tmp_path):
 def test_pairs_of_learned_configurations_are_compared(tmp_path, capsys):
     res = _results(tmp_path)
     for k in range(2):  # a2c needs more readings than every ppo run on both conditions
-        _write(res / "ElectroLoc-v0" / "a2c" / f"seed-{k}" / "bench" / "trials.jsonl", "a2c",
-               {"a": [20 + k] * 3, "b": [21] * 3})
+        _write(
+            res / "ElectroLoc-v0" / "a2c" / f"seed-{k}" / "bench" / "trials.jsonl",
+            "a2c",
+            {"a": [20 + k] * 3, "b": [21] * 3},
+        )
     assert report.main([str(res), "--reps", "200", "--compare", "ppo:a2c", "--compare", "a2c:sac"]) == 0
     text = (res / "report.md").read_text()
     assert "| ElectroLoc-v0 | ppo | a2c | 1.00 [1.00, 1.00] |" in text and "sac" not in text  # sac never ran
@@ -158,8 +168,17 @@ def _clean_table(res: Path) -> dict:
     return scores.analyse(res, "ElectroLoc-v0", reps=200)
 
 
-@pytest.mark.parametrize("key, value", [("observations", 1000), ("observations", -5), ("observations", float("nan")),
-                                        ("success", None), ("condition", "nowhere"), ("observations", "x")])
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("observations", 1000),
+        ("observations", -5),
+        ("observations", float("nan")),
+        ("success", None),
+        ("condition", "nowhere"),
+        ("observations", "x"),
+    ],
+)
 def test_an_impossible_record_is_set_aside_and_named(tmp_path, key, value):
     res = _results(tmp_path)
     _damage_line(res, key, value)
@@ -189,13 +208,20 @@ def test_a_damaged_line_is_set_aside(tmp_path, damage):
     res = _results(tmp_path)
     path = _lines(res)
     raw = path.read_bytes()
-    extra = {"torn": raw[:40], "garbage": b"%%%\n", "utf8": b"\xff\xfe\n", "nested": b"[" * 50_000 + b"\n",
-             "list": b"[1, 2]\n", "missing-key": json.dumps({"condition": "a"}).encode() + b"\n"}[damage]
+    extra = {
+        "torn": raw[:40],
+        "garbage": b"%%%\n",
+        "utf8": b"\xff\xfe\n",
+        "nested": b"[" * 50_000 + b"\n",
+        "list": b"[1, 2]\n",
+        "missing-key": json.dumps({"condition": "a"}).encode() + b"\n",
+    }[damage]
     path.write_bytes(raw + extra)
     a = scores.analyse(res, "ElectroLoc-v0", reps=200)
     assert len(a["set_aside"]) == 1
-    np.testing.assert_array_equal(a["_matrices"]["readings"]["ppo"], _clean_table(_results(tmp_path / "c"))
-                                  ["_matrices"]["readings"]["ppo"])
+    np.testing.assert_array_equal(
+        a["_matrices"]["readings"]["ppo"], _clean_table(_results(tmp_path / "c"))["_matrices"]["readings"]["ppo"]
+    )
 
 
 @pytest.mark.parametrize("damage", ["empty", "missing", "eval-nan", "summary-garbage"])

@@ -22,8 +22,19 @@ def _run(*args: str) -> subprocess.CompletedProcess:
 
 def test_a_failed_training_run_is_one_line(tmp_path):
     """Smoke test: the suite reaches rl-zoo3, whose run fails at once (no envs); one line, exit 2."""
-    proc = _run("experiments/learned/learned_suite.py", "--out", str(tmp_path / "o"), "--only", "ElectroLoc-v0/ppo",
-                "--seeds", "1", "--timesteps", "64", "--hyperparams", "n_envs=0")
+    proc = _run(
+        "experiments/learned/learned_suite.py",
+        "--out",
+        str(tmp_path / "o"),
+        "--only",
+        "ElectroLoc-v0/ppo",
+        "--seeds",
+        "1",
+        "--timesteps",
+        "64",
+        "--hyperparams",
+        "n_envs=0",
+    )
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "learned_suite: ElectroLoc-v0/ppo seed 1 failed:" in proc.stderr
 
@@ -31,9 +42,25 @@ def test_a_failed_training_run_is_one_line(tmp_path):
 @pytest.mark.slow
 def test_suite_trains_exports_benches_and_reports(tmp_path):
     out = tmp_path / "learned"
-    suite = ["experiments/learned/learned_suite.py", "--out", str(out), "--only", "ElectroLoc-v0/ppo,ElectroLoc-v0/a2c",
-             "--seeds", "1,2", "--timesteps", "512", "--conditions", "fresh-steel-12.7,salt-delrin-38.1",
-             "--trials", "2", "--workers", "1", "--hyperparams", "n_envs=2"]
+    suite = [
+        "experiments/learned/learned_suite.py",
+        "--out",
+        str(out),
+        "--only",
+        "ElectroLoc-v0/ppo,ElectroLoc-v0/a2c",
+        "--seeds",
+        "1,2",
+        "--timesteps",
+        "512",
+        "--conditions",
+        "fresh-steel-12.7,salt-delrin-38.1",
+        "--trials",
+        "2",
+        "--workers",
+        "1",
+        "--hyperparams",
+        "n_envs=2",
+    ]
     proc = _run(*suite)
     assert proc.returncode == 0, proc.stderr[-2000:]
     for algo in ("ppo", "a2c"):
@@ -43,8 +70,10 @@ def test_suite_trains_exports_benches_and_reports(tmp_path):
             records = [json.loads(line) for line in (folder / "bench" / "trials.jsonl").read_text().splitlines()]
             assert len(records) == 4 and {r["condition"] for r in records} == {"fresh-steel-12.7", "salt-delrin-38.1"}
             assert list(folder.glob("zoo/*/*/eval.csv")), "the validation evaluations are kept"
-    base = [json.loads(line) for line in
-            (out / "ElectroLoc-v0" / "_baselines" / "bench" / "trials.jsonl").read_text().splitlines()]
+    base = [
+        json.loads(line)
+        for line in (out / "ElectroLoc-v0" / "_baselines" / "bench" / "trials.jsonl").read_text().splitlines()
+    ]
     assert {"rnd-wlk", "min-var", "lookahead"} <= {r["agent"] for r in base}
     runs = json.loads((out / "suite.json").read_text())
     assert len(runs) == 4 and all(r["train_wall_time_s"] > 0 for r in runs)
@@ -62,8 +91,12 @@ def test_suite_trains_exports_benches_and_reports(tmp_path):
 
 
 def test_suite_bad_arguments_are_one_line(tmp_path):
-    for args, word in ((["--seeds", "x"], "--seeds"), (["--timesteps", "0"], "--timesteps"),
-                       (["--only", "nope"], "--only"), (["--trials", "0"], "--trials")):
+    for args, word in (
+        (["--seeds", "x"], "--seeds"),
+        (["--timesteps", "0"], "--timesteps"),
+        (["--only", "nope"], "--only"),
+        (["--trials", "0"], "--trials"),
+    ):
         proc = _run("experiments/learned/learned_suite.py", "--out", str(tmp_path / "o"), *args)
         assert proc.returncode == 2 and word in proc.stderr and "Traceback" not in proc.stderr
         assert not (tmp_path / "o").exists()
@@ -86,14 +119,15 @@ def test_every_env_takes_its_baseline_agents(tmp_path):
 
     spec = importlib.util.spec_from_file_location("learned_suite", Path(__file__).with_name("learned_suite.py"))
     suite = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("learned_suite", suite)      # its dataclasses look their module up
+    sys.modules.setdefault("learned_suite", suite)  # its dataclasses look their module up
     spec.loader.exec_module(suite)
     assert set(suite.BASELINE_AGENTS) == set(suite.BENCH_ENV) == {c.env_id for c in suite.SUITE}
     for env_id, agents in suite.BASELINE_AGENTS.items():
         bench_env = suite.BENCH_ENV[env_id]
         conditions = "all" if bench_env == "global" else "fresh-steel-38.1"
-        result = run(agents.split(","), env=bench_env, conditions=conditions, trials=1, workers=1,
-                     out=tmp_path / bench_env)
+        result = run(
+            agents.split(","), env=bench_env, conditions=conditions, trials=1, workers=1, out=tmp_path / bench_env
+        )
         assert result.summary["agents"] == agents.split(","), env_id
         records = [json.loads(line) for line in (result.out / "trials.jsonl").read_text().splitlines()]
         assert {r["agent"] for r in records} == set(agents.split(",")), env_id

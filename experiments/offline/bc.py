@@ -68,12 +68,25 @@ def train(config: TrainConfig) -> dict:
         if step % config.eval_every == 0 or step == config.steps:
             v = common.validate(actor, norm, env, config.eval_episodes)
             curve.append({"step": step, "loss": loss.item(), **v, "wall_s": round(common.timer() - t0, 1)})
-            print(f"step {step}: loss {loss.item():.4f} readings {v['readings']:.2f} success {v['success']:.2f}",
-                  flush=True)
+            print(
+                f"step {step}: loss {loss.item():.4f} readings {v['readings']:.2f} success {v['success']:.2f}",
+                flush=True,
+            )
             if best is None or v["readings"] < best["readings"]:
                 best, best_state = curve[-1], copy.deepcopy(actor.state_dict())
-    return common.finish(actor, best_state, best, curve, norm=norm, config=config, algo="bc",
-                         trainer="experiments/offline/bc.py", datasets=ids, transitions=len(obs), t0=t0)
+    return common.finish(
+        actor,
+        best_state,
+        best,
+        curve,
+        norm=norm,
+        config=config,
+        algo="bc",
+        trainer="experiments/offline/bc.py",
+        datasets=ids,
+        transitions=len(obs),
+        t0=t0,
+    )
 
 
 main = common.main_of(TrainConfig, train, __doc__, ("steps", "batch_size", "eval_every", "eval_episodes"))

@@ -47,8 +47,9 @@ def load_transitions(dataset_ids: Sequence[str]) -> dict[str, np.ndarray]:
     """
     import minari
 
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("observations", "actions", "rewards", "next_observations",
-                                                          "terminals", "source")}
+    parts: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("observations", "actions", "rewards", "next_observations", "terminals", "source")
+    }
     for j, ds_id in enumerate(dataset_ids):
         ds = minari.load_dataset(ds_id)
         for ep in ds.iterate_episodes():
@@ -78,8 +79,14 @@ class Normalizer:
         return np.clip((x - self.mean) / np.sqrt(self.var + EPSILON), -CLIP_OBS, CLIP_OBS).astype(np.float32)
 
     def to_json(self) -> dict[str, Any]:
-        return {"norm_obs": True, "norm_reward": False, "clip_obs": CLIP_OBS, "epsilon": EPSILON,
-                "obs_mean": self.mean.tolist(), "obs_var": self.var.tolist()}
+        return {
+            "norm_obs": True,
+            "norm_reward": False,
+            "clip_obs": CLIP_OBS,
+            "epsilon": EPSILON,
+            "obs_mean": self.mean.tolist(),
+            "obs_var": self.var.tolist(),
+        }
 
 
 class Actor(nn.Module):
@@ -104,8 +111,16 @@ class Actor(nn.Module):
         return self(torch.as_tensor(np.asarray(x, dtype=np.float32)[None])).numpy()[0]
 
 
-def export_actor(actor: Actor, norm: Normalizer, out: str | Path, *, algo: str, env_id: str,
-                 provenance: dict[str, Any], evaluation: dict[str, Any] | None = None) -> Path:
+def export_actor(
+    actor: Actor,
+    norm: Normalizer,
+    out: str | Path,
+    *,
+    algo: str,
+    env_id: str,
+    provenance: dict[str, Any],
+    evaluation: dict[str, Any] | None = None,
+) -> Path:
     """Write ``actor`` as a policy folder (policy.json + policy.safetensors) and check that the numpy
     loader's actions equal torch's on standardised random observations (to 1e-4).
     """
@@ -119,15 +134,27 @@ def export_actor(actor: Actor, norm: Normalizer, out: str | Path, *, algo: str, 
     obs_space, act_space = env.observation_space, env.action_space
     env.close()
     tensors = {f"actor.{k}": v.detach().cpu().numpy().astype(np.float32) for k, v in actor.state_dict().items()}
-    meta = {"algo": algo,
-            "architecture": {"policy_class": "SACPolicy",
-                             "policy_kwargs": {"net_arch": list(actor.hidden), "activation_fn": "relu"},
-                             "recurrent": None},
-            "observation": {"env_id": env_id, "mode": "belief", "frame_stack": 1, "frame_dim": int(obs_space.shape[0]),
-                            "shape": [int(obs_space.shape[0])], "space": space_to_json(obs_space)},
-            "action": {"action_type": "continuous", "space": space_to_json(act_space)},
-            "normalization": norm.to_json(), "env_kwargs": {"observation": "belief"},
-            "provenance": provenance, "evaluation": evaluation or {}}
+    meta = {
+        "algo": algo,
+        "architecture": {
+            "policy_class": "SACPolicy",
+            "policy_kwargs": {"net_arch": list(actor.hidden), "activation_fn": "relu"},
+            "recurrent": None,
+        },
+        "observation": {
+            "env_id": env_id,
+            "mode": "belief",
+            "frame_stack": 1,
+            "frame_dim": int(obs_space.shape[0]),
+            "shape": [int(obs_space.shape[0])],
+            "space": space_to_json(obs_space),
+        },
+        "action": {"action_type": "continuous", "space": space_to_json(act_space)},
+        "normalization": norm.to_json(),
+        "env_kwargs": {"observation": "belief"},
+        "provenance": provenance,
+        "evaluation": evaluation or {},
+    }
     folder = write_export(out, meta, tensors)
     agent = load_policy(folder)
     x = np.random.default_rng(0).uniform(-1, 1, size=(64, obs_space.shape[0])).astype(np.float32)
@@ -147,8 +174,9 @@ class _TorchAgent:
     def reset(self, env: Any) -> None:
         pass
 
-    def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
-                deterministic: bool = True) -> tuple[np.ndarray, Any]:
+    def predict(
+        self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ) -> tuple[np.ndarray, Any]:
         return self.actor.act(self.norm(np.asarray(observation, dtype=np.float32)[None])[0]), None
 
 
@@ -165,8 +193,11 @@ def validate(actor: Actor, norm: Normalizer, env: Any, episodes: int) -> dict[st
         readings.append(int(ep.info["n_observations"]) if ok else cap)
         success.append(ok)
         decision += ep.decision_s
-    return {"readings": float(np.mean(readings)), "success": float(np.mean(success)),
-            "decision_ms": float(np.median(decision) * 1e3)}
+    return {
+        "readings": float(np.mean(readings)),
+        "success": float(np.mean(success)),
+        "decision_ms": float(np.median(decision) * 1e3),
+    }
 
 
 def seed_everything(seed: int) -> None:
@@ -193,19 +224,35 @@ def read_json(path: Path) -> Any:
     return json.loads(Path(path).read_text(encoding="utf-8"))
 
 
-def finish(actor: Actor, best_state: dict[str, Any], best: dict[str, Any], curve: list[dict[str, Any]], *,
-           norm: Normalizer, config: Any, algo: str, trainer: str, datasets: Sequence[str], transitions: int,
-           t0: float) -> dict[str, Any]:
+def finish(
+    actor: Actor,
+    best_state: dict[str, Any],
+    best: dict[str, Any],
+    curve: list[dict[str, Any]],
+    *,
+    norm: Normalizer,
+    config: Any,
+    algo: str,
+    trainer: str,
+    datasets: Sequence[str],
+    transitions: int,
+    t0: float,
+) -> dict[str, Any]:
     """Load the chosen checkpoint into ``actor``, write ``curve.json`` and export the policy to ``config.out``."""
     from dataclasses import asdict
 
     out = Path(config.out)
     actor.load_state_dict(best_state)
     write_curve(out / "curve.json", curve)
-    provenance = {"trainer": trainer, "config": asdict(config), "datasets": list(datasets),
-                  "transitions": int(transitions), "wall_time_s": round(timer() - t0, 1),
-                  "checkpoint_chosen_by": "fewest mean readings (failures as the cap) on the validation episodes",
-                  "validation": {"episodes": config.eval_episodes, "first_seed": VALIDATION_SEED}}
+    provenance = {
+        "trainer": trainer,
+        "config": asdict(config),
+        "datasets": list(datasets),
+        "transitions": int(transitions),
+        "wall_time_s": round(timer() - t0, 1),
+        "checkpoint_chosen_by": "fewest mean readings (failures as the cap) on the validation episodes",
+        "validation": {"episodes": config.eval_episodes, "first_seed": VALIDATION_SEED},
+    }
     export_actor(actor, norm, out / "policy", algo=algo, env_id=config.env_id, provenance=provenance, evaluation=best)
     return {"best": best, "curve": curve}
 

@@ -37,8 +37,11 @@ DATASETS = (
 
 def file_digests(folder: Path) -> dict[str, str]:
     """sha256 of every file under ``folder``, by path relative to it (sorted)."""
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -62,8 +65,9 @@ def main(argv: list[str] | None = None) -> int:
         if only and f"{env_id}/{agent}" not in only:
             continue
         n = max(1, round(episodes * args.scale))
-        request = DatasetRequest(env_id, agent, n, version=args.version,
-                                 reference=LEARNED / env_id / "_baselines" / "bench")
+        request = DatasetRequest(
+            env_id, agent, n, version=args.version, reference=LEARNED / env_id / "_baselines" / "bench"
+        )
         t0 = time.perf_counter()
         try:
             ds = build_dataset(request, resume=True)
@@ -74,24 +78,32 @@ def main(argv: list[str] | None = None) -> int:
 
             ds = minari.load_dataset(request.id)
             if ds.total_episodes != n:
-                raise ValueError(f"{request.id} holds {ds.total_episodes} episodes, not {n}: pass another "
-                                 f"--version or remove it") from None
+                raise ValueError(
+                    f"{request.id} holds {ds.total_episodes} episodes, not {n}: pass another --version or remove it"
+                ) from None
         wall = time.perf_counter() - t0
         folder = Path(get_dataset_path(request.id))
         digests = file_digests(folder)
         size = sum((folder / p).stat().st_size for p in digests)
         old = manifest.get(request.id, {})
-        manifest[request.id] = {"env_id": env_id, "agent": agent, "episodes": ds.total_episodes,
-                                "steps": ds.total_steps, "bytes": size, "files": len(digests),
-                                "wall_s": round(wall, 1) if wall > 5 or "wall_s" not in old else old["wall_s"],
-                                "s_per_episode": round(wall / n, 4) if wall > 5 or "wall_s" not in old
-                                else old.get("s_per_episode"),
-                                "ref_min_score": ds.storage.metadata.get("ref_min_score"),
-                                "ref_max_score": ds.storage.metadata.get("ref_max_score"),
-                                "sha256": digests}
+        manifest[request.id] = {
+            "env_id": env_id,
+            "agent": agent,
+            "episodes": ds.total_episodes,
+            "steps": ds.total_steps,
+            "bytes": size,
+            "files": len(digests),
+            "wall_s": round(wall, 1) if wall > 5 or "wall_s" not in old else old["wall_s"],
+            "s_per_episode": round(wall / n, 4) if wall > 5 or "wall_s" not in old else old.get("s_per_episode"),
+            "ref_min_score": ds.storage.metadata.get("ref_min_score"),
+            "ref_max_score": ds.storage.metadata.get("ref_max_score"),
+            "sha256": digests,
+        }
         write_json_atomic(args.manifest, manifest)
-        print(f"{request.id}: {ds.total_episodes} episodes, {ds.total_steps} steps, {size / 2**20:.2f} MiB, "
-              f"{wall:.0f} s", flush=True)
+        print(
+            f"{request.id}: {ds.total_episodes} episodes, {ds.total_steps} steps, {size / 2**20:.2f} MiB, {wall:.0f} s",
+            flush=True,
+        )
     return 0
 
 

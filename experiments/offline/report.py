@@ -31,8 +31,11 @@ import learned_scores  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Per method label: its data and the controller it is compared with ("best": the best of the mix).
-METHODS = {"bc-lookahead": ("lookahead", "lookahead"), "bc-min-var": ("min-var", "min-var"),
-           "td3bc-mixed": ("rnd-wlk, min-var, lookahead, infotaxis, ppo-belief", "best")}
+METHODS = {
+    "bc-lookahead": ("lookahead", "lookahead"),
+    "bc-min-var": ("min-var", "min-var"),
+    "td3bc-mixed": ("rnd-wlk, min-var, lookahead, infotaxis, ppo-belief", "best"),
+}
 MIX = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "ppo-belief")
 PLANNERS = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "eedi")
 
@@ -58,14 +61,18 @@ def analyse(results: Path, learned: Path, env_id: str, reps: int, seed: int) -> 
 
     lr = learned_scores
     env_dir = results / env_id
-    runs = {m: sorted(p for p in (env_dir / m).glob("seed-*") if (p / "bench" / "summary.json").is_file())
-            for m in METHODS}
+    runs = {
+        m: sorted(p for p in (env_dir / m).glob("seed-*") if (p / "bench" / "summary.json").is_file()) for m in METHODS
+    }
     runs = {m: v for m, v in runs.items() if v}
     trials = {m: [lr.read_trials(p / "bench" / "trials.jsonl") for p in v] for m, v in runs.items()}
     keys = {(r["condition"], int(r["trial"])) for r in next(iter(trials.values()))[0]}
     conditions = sorted({c for c, _ in keys})
-    ctrl = _controllers(lr, [learned / env_id / "_baselines" / "bench" / "trials.jsonl",
-                             env_dir / "_sources" / "bench" / "trials.jsonl"], keys)
+    ctrl = _controllers(
+        lr,
+        [learned / env_id / "_baselines" / "bench" / "trials.jsonl", env_dir / "_sources" / "bench" / "trials.jsonl"],
+        keys,
+    )
     base = {a: {k: v[None, :] for k, v in lr.condition_scores(rows, conditions).items()} for a, rows in ctrl.items()}
     planners = {a: v for a, v in base.items() if a in PLANNERS}
     iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
@@ -76,31 +83,42 @@ def analyse(results: Path, learned: Path, env_id: str, reps: int, seed: int) -> 
     mix = [a for a in MIX if a in base]
     best_mix = min(mix, key=lambda a: base[a]["readings"].mean()) if mix else None
     best_planner = min((a for a in planners if a != "rnd-wlk"), key=lambda a: base[a]["readings"].mean())
-    stats = {"readings_iqm": lr.interval(readings, iqm, reps, seed),
-             "readings_mean": lr.interval(readings, mean, reps, seed),
-             "success_mean": lr.interval(success, mean, reps, seed),
-             "normalised_iqm": lr.interval({m: lr.normalised(v, planners) for m, v in readings.items()}, iqm, reps,
-                                           seed)}
-    out: dict[str, Any] = {"env_id": env_id, "conditions": conditions,
-                           "trials_per_condition": len(keys) // len(conditions), "reps": reps, "seed": seed,
-                           "best_of_mix": best_mix, "methods": {}, "controllers": {}}
+    stats = {
+        "readings_iqm": lr.interval(readings, iqm, reps, seed),
+        "readings_mean": lr.interval(readings, mean, reps, seed),
+        "success_mean": lr.interval(success, mean, reps, seed),
+        "normalised_iqm": lr.interval({m: lr.normalised(v, planners) for m, v in readings.items()}, iqm, reps, seed),
+    }
+    out: dict[str, Any] = {
+        "env_id": env_id,
+        "conditions": conditions,
+        "trials_per_condition": len(keys) // len(conditions),
+        "reps": reps,
+        "seed": seed,
+        "best_of_mix": best_mix,
+        "methods": {},
+        "controllers": {},
+    }
     for m in readings:
         ref = best_mix if METHODS[m][1] == "best" else METHODS[m][1]
-        out["methods"][m] = {**{k: v[m] for k, v in stats.items()}, "seeds": [p.name for p in runs[m]],
-                             "data": METHODS[m][0], "reference": ref,
-                             "p_improvement": lr.p_better(readings[m], base[ref]["readings"], reps, seed)
-                             if ref in base else None,
-                             "best_planner": best_planner,
-                             "p_improvement_best_planner": lr.p_better(readings[m], base[best_planner]["readings"],
-                                                                       reps, seed),
-                             "decision_ms": _ms([r for t in trials[m] for r in t]),
-                             "per_condition_readings": {c: readings[m][:, j].tolist()
-                                                        for j, c in enumerate(conditions)}}
+        out["methods"][m] = {
+            **{k: v[m] for k, v in stats.items()},
+            "seeds": [p.name for p in runs[m]],
+            "data": METHODS[m][0],
+            "reference": ref,
+            "p_improvement": lr.p_better(readings[m], base[ref]["readings"], reps, seed) if ref in base else None,
+            "best_planner": best_planner,
+            "p_improvement_best_planner": lr.p_better(readings[m], base[best_planner]["readings"], reps, seed),
+            "decision_ms": _ms([r for t in trials[m] for r in t]),
+            "per_condition_readings": {c: readings[m][:, j].tolist() for j, c in enumerate(conditions)},
+        }
     for a, v in base.items():
-        out["controllers"][a] = {"readings_mean": float(v["readings"].mean()),
-                                 "success_mean": float(v["success"].mean()),
-                                 "normalised_mean": float(lr.normalised(v["readings"], planners).mean()),
-                                 "decision_ms": _ms(ctrl[a])}
+        out["controllers"][a] = {
+            "readings_mean": float(v["readings"].mean()),
+            "success_mean": float(v["success"].mean()),
+            "normalised_mean": float(lr.normalised(v["readings"], planners).mean()),
+            "decision_ms": _ms(ctrl[a]),
+        }
     return out
 
 
@@ -109,20 +127,27 @@ def table(a: dict[str, Any]) -> str:
     f = lambda v: f"{v[0]:.2f} [{v[1]:.2f}, {v[2]:.2f}]"  # noqa: E731
     # Built by hand, not by electroloc_gym.markdown: a controller row's empty cells are "| |", one space, not
     # the helper's "|  |".
-    lines = [f"### {a['env_id']} ({len(a['conditions'])} conditions × {a['trials_per_condition']} trials of the "
-             f"benchmark's seed 0)", "",
-             "| agent | data | seeds | readings IQM [95 % CI] | readings mean [CI] | success | normalised IQM [CI] | "
-             "P(better than the reference) [CI] | reference | P(better than the best planner) [CI] | ms / decision |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"### {a['env_id']} ({len(a['conditions'])} conditions × {a['trials_per_condition']} trials of the "
+        f"benchmark's seed 0)",
+        "",
+        "| agent | data | seeds | readings IQM [95 % CI] | readings mean [CI] | success | normalised IQM [CI] | "
+        "P(better than the reference) [CI] | reference | P(better than the best planner) [CI] | ms / decision |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for m, r in a["methods"].items():
         p = "–" if r["p_improvement"] is None else f(r["p_improvement"])
-        lines.append(f"| {m} | {r['data']} | {len(r['seeds'])} | {f(r['readings_iqm'])} | {f(r['readings_mean'])} | "
-                     f"{r['success_mean'][0]:.2f} | {f(r['normalised_iqm'])} | {p} | {r['reference']} | "
-                     f"{f(r['p_improvement_best_planner'])} ({r['best_planner']}) | {r['decision_ms']:.3f} |")
+        lines.append(
+            f"| {m} | {r['data']} | {len(r['seeds'])} | {f(r['readings_iqm'])} | {f(r['readings_mean'])} | "
+            f"{r['success_mean'][0]:.2f} | {f(r['normalised_iqm'])} | {p} | {r['reference']} | "
+            f"{f(r['p_improvement_best_planner'])} ({r['best_planner']}) | {r['decision_ms']:.3f} |"
+        )
     for c, r in sorted(a["controllers"].items(), key=lambda kv: kv[1]["readings_mean"]):
         ms = "–" if r["decision_ms"] is None else f"{r['decision_ms']:.3f}"
-        lines.append(f"| {c} (controller) | | 1 | | {r['readings_mean']:.2f} | {r['success_mean']:.2f} | "
-                     f"{r['normalised_mean']:.2f} (mean) | | | | {ms} |")
+        lines.append(
+            f"| {c} (controller) | | 1 | | {r['readings_mean']:.2f} | {r['success_mean']:.2f} | "
+            f"{r['normalised_mean']:.2f} (mean) | | | | {ms} |"
+        )
     return "\n".join(lines)
 
 
@@ -165,8 +190,12 @@ def main(argv: list[str] | None = None) -> int:
     """Analyse, print and write the report."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("results", type=Path, help="the offline results folder")
-    parser.add_argument("--learned", type=Path, default=ROOT / "experiments" / "learned" / "results",
-                        help="the learned suite's results (its _baselines runs)")
+    parser.add_argument(
+        "--learned",
+        type=Path,
+        default=ROOT / "experiments" / "learned" / "results",
+        help="the learned suite's results (its _baselines runs)",
+    )
     parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (≥ 100)")
     parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (0 … 2**32 − 1)")
     args = parser.parse_args(argv)
@@ -178,8 +207,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"{args.results} is not a folder")
     from electroloc_gym.fileio import atomic_write_text, write_json_atomic
 
-    envs = sorted(p.name for p in args.results.iterdir()
-                  if p.is_dir() and any((p / m).glob("seed-*/bench/summary.json") for m in METHODS))
+    envs = sorted(
+        p.name
+        for p in args.results.iterdir()
+        if p.is_dir() and any((p / m).glob("seed-*/bench/summary.json") for m in METHODS)
+    )
     if not envs:
         parser.error(f"{args.results} holds no benchmarked offline runs")
     analyses = [analyse(args.results, args.learned, e, args.reps, args.seed) for e in envs]

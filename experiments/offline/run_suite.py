@@ -22,10 +22,11 @@ HERE = Path(__file__).resolve().parent
 ENV = "ElectroLoc-v0"
 #: label → (trainer, its options)
 SUITE = {
-    "bc-lookahead": ("bc.py", ["--datasets", f"electroloc/{ENV}/lookahead-v0", "--steps", "10000",
-                               "--eval-every", "2000"]),
-    "bc-min-var": ("bc.py", ["--datasets", f"electroloc/{ENV}/min-var-v0", "--steps", "10000",
-                             "--eval-every", "2000"]),
+    "bc-lookahead": (
+        "bc.py",
+        ["--datasets", f"electroloc/{ENV}/lookahead-v0", "--steps", "10000", "--eval-every", "2000"],
+    ),
+    "bc-min-var": ("bc.py", ["--datasets", f"electroloc/{ENV}/min-var-v0", "--steps", "10000", "--eval-every", "2000"]),
     "td3bc-mixed": ("td3_bc.py", ["--steps", "20000", "--eval-every", "4000"]),
 }
 THREADS = {v: "1" for v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
@@ -34,8 +35,23 @@ THREADS = {v: "1" for v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_
 def _bench(agent: str, out: Path, trials: int) -> None:
     if (out / "summary.json").is_file():
         return
-    argv = [sys.executable, "-m", "electroloc_gym.cli", "bench", "--agents", agent, "--trials", str(trials),
-            "--seed", "0", "--workers", "1", "--out", str(out), "--no-progress"]
+    argv = [
+        sys.executable,
+        "-m",
+        "electroloc_gym.cli",
+        "bench",
+        "--agents",
+        agent,
+        "--trials",
+        str(trials),
+        "--seed",
+        "0",
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     if (out / "trials.jsonl").is_file():
         argv.append("--resume")
     subprocess.run(argv, check=True, env={**os.environ, **THREADS}, capture_output=True, text=True)
@@ -62,8 +78,11 @@ def main(argv: list[str] | None = None) -> int:
         for seed in seeds:
             folder = args.out / ENV / label / f"seed-{seed}"
             if not (folder / "policy" / "policy.json").is_file():
-                subprocess.run([sys.executable, str(HERE / trainer), *opts, "--seed", str(seed), "--out", str(folder)],
-                               check=True, env={**os.environ, **THREADS})
+                subprocess.run(
+                    [sys.executable, str(HERE / trainer), *opts, "--seed", str(seed), "--out", str(folder)],
+                    check=True,
+                    env={**os.environ, **THREADS},
+                )
             _bench(str(folder / "policy"), folder / "bench", args.trials)
             print(f"{label} seed {seed}: done", flush=True)
     return 0

@@ -26,8 +26,9 @@ from torch import nn
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
-MIXED = ",".join(f"electroloc/ElectroLoc-v0/{a}-v0" for a in ("rnd-wlk", "min-var", "lookahead", "infotaxis",
-                                                               "ppo-belief"))
+MIXED = ",".join(
+    f"electroloc/ElectroLoc-v0/{a}-v0" for a in ("rnd-wlk", "min-var", "lookahead", "infotaxis", "ppo-belief")
+)
 
 
 @dataclass
@@ -56,8 +57,9 @@ class Critic(nn.Module):
 
     def __init__(self, obs_dim: int, act_dim: int, hidden: int = 256) -> None:
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(obs_dim + act_dim, hidden), nn.ReLU(), nn.Linear(hidden, hidden), nn.ReLU(),
-                                 nn.Linear(hidden, 1))
+        self.net = nn.Sequential(
+            nn.Linear(obs_dim + act_dim, hidden), nn.ReLU(), nn.Linear(hidden, hidden), nn.ReLU(), nn.Linear(hidden, 1)
+        )
 
     def forward(self, s: torch.Tensor, a: torch.Tensor) -> torch.Tensor:
         return self.net(torch.cat([s, a], 1))
@@ -120,18 +122,40 @@ def train(config: TrainConfig) -> dict:
             soft_update(actor_t, actor, config.tau)
         if step % config.eval_every == 0 or step == config.steps:
             v = common.validate(actor, norm, env, config.eval_episodes)
-            curve.append({"step": step, "critic_loss": critic_loss.item(), "actor_loss": actor_loss.item(), **v,
-                          "wall_s": round(common.timer() - t0, 1)})
-            print(f"step {step}: critic {critic_loss.item():.3f} actor {actor_loss.item():.3f} "
-                  f"readings {v['readings']:.2f} success {v['success']:.2f}", flush=True)
+            curve.append(
+                {
+                    "step": step,
+                    "critic_loss": critic_loss.item(),
+                    "actor_loss": actor_loss.item(),
+                    **v,
+                    "wall_s": round(common.timer() - t0, 1),
+                }
+            )
+            print(
+                f"step {step}: critic {critic_loss.item():.3f} actor {actor_loss.item():.3f} "
+                f"readings {v['readings']:.2f} success {v['success']:.2f}",
+                flush=True,
+            )
             if best is None or v["readings"] < best["readings"]:
                 best, best_state = curve[-1], copy.deepcopy(actor.state_dict())
-    return common.finish(actor, best_state, best, curve, norm=norm, config=config, algo="td3_bc",
-                         trainer="experiments/offline/td3_bc.py", datasets=ids, transitions=len(s_all), t0=t0)
+    return common.finish(
+        actor,
+        best_state,
+        best,
+        curve,
+        norm=norm,
+        config=config,
+        algo="td3_bc",
+        trainer="experiments/offline/td3_bc.py",
+        datasets=ids,
+        transitions=len(s_all),
+        t0=t0,
+    )
 
 
-main = common.main_of(TrainConfig, train, __doc__,
-                      ("steps", "batch_size", "eval_every", "eval_episodes", "policy_freq"))
+main = common.main_of(
+    TrainConfig, train, __doc__, ("steps", "batch_size", "eval_every", "eval_episodes", "policy_freq")
+)
 
 
 if __name__ == "__main__":

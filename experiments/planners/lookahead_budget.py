@@ -59,8 +59,15 @@ AGENTS = (
 )
 
 
-def run(env_id: str, conditions: tuple[str, ...], trials: int, seed: int, agents: tuple[str, ...],
-        max_observations: int, n_particles: int) -> dict[str, dict[str, list[float]]]:
+def run(
+    env_id: str,
+    conditions: tuple[str, ...],
+    trials: int,
+    seed: int,
+    agents: tuple[str, ...],
+    max_observations: int,
+    n_particles: int,
+) -> dict[str, dict[str, list[float]]]:
     """Per agent: steps, success flags and per-decision times (s) over every trial."""
     out = {a: {"steps": [], "success": [], "decision_s": []} for a in agents}
     built = {a: make_agent(a) for a in agents}
@@ -85,10 +92,22 @@ def run(env_id: str, conditions: tuple[str, ...], trials: int, seed: int, agents
 
 def table(env_id: str, res: dict[str, dict[str, list[float]]]) -> list[str]:
     """Markdown rows of one env's results."""
-    return markdown_table(("env", "agent", "trials", "successes", "median steps", "mean steps", "median decision (ms)"),
-                          [(env_id, f"`{a}`", len(r["steps"]), sum(r["success"]), f"{np.median(r['steps']):.1f}",
-                            f"{np.mean(r['steps']):.2f}", f"{1000 * np.median(r['decision_s']):.1f}")
-                           for a, r in res.items()], align="llrrrrr")
+    return markdown_table(
+        ("env", "agent", "trials", "successes", "median steps", "mean steps", "median decision (ms)"),
+        [
+            (
+                env_id,
+                f"`{a}`",
+                len(r["steps"]),
+                sum(r["success"]),
+                f"{np.median(r['steps']):.1f}",
+                f"{np.mean(r['steps']):.2f}",
+                f"{1000 * np.median(r['decision_s']):.1f}",
+            )
+            for a, r in res.items()
+        ],
+        align="llrrrrr",
+    )
 
 
 def main() -> None:
@@ -116,22 +135,34 @@ def main() -> None:
     t0 = time.perf_counter()
     results = {}
     if args.global_trials:
-        results[GLOBAL_ENV_ID] = run(GLOBAL_ENV_ID, (GLOBAL_CONDITION,), args.global_trials, args.seed, AGENTS,
-                                     args.max_observations, args.n_particles)
+        results[GLOBAL_ENV_ID] = run(
+            GLOBAL_ENV_ID,
+            (GLOBAL_CONDITION,),
+            args.global_trials,
+            args.seed,
+            AGENTS,
+            args.max_observations,
+            args.n_particles,
+        )
     if args.trials:
-        results["ElectroLoc-v0"] = run("ElectroLoc-v0", conditions, args.trials, args.seed, AGENTS,
-                                       args.max_observations, args.n_particles)
-    print(f"\nseed {args.seed}; ElectroLoc-v0: {len(conditions)} conditions × {args.trials} trials; "
-          f"{GLOBAL_ENV_ID}: {args.global_trials} trials; "
-          f"{args.n_particles} particles, cap {args.max_observations}; {time.perf_counter() - t0:.0f} s\n")
+        results["ElectroLoc-v0"] = run(
+            "ElectroLoc-v0", conditions, args.trials, args.seed, AGENTS, args.max_observations, args.n_particles
+        )
+    print(
+        f"\nseed {args.seed}; ElectroLoc-v0: {len(conditions)} conditions × {args.trials} trials; "
+        f"{GLOBAL_ENV_ID}: {args.global_trials} trials; "
+        f"{args.n_particles} particles, cap {args.max_observations}; {time.perf_counter() - t0:.0f} s\n"
+    )
     lines = []
     for env_id, res in results.items():
-        lines += table(env_id, res)[(0 if not lines else 2):]
+        lines += table(env_id, res)[(0 if not lines else 2) :]
     print("\n".join(lines))
 
-    summary = {"title": f"lookahead budgets, seed {args.seed}: ElectroLoc-v0 {len(conditions)} conditions × "
-                        f"{args.trials} trials, {GLOBAL_ENV_ID} {args.global_trials} trials",
-               "envs": {env_id: summarise(res) for env_id, res in results.items()}}
+    summary = {
+        "title": f"lookahead budgets, seed {args.seed}: ElectroLoc-v0 {len(conditions)} conditions × "
+        f"{args.trials} trials, {GLOBAL_ENV_ID} {args.global_trials} trials",
+        "envs": {env_id: summarise(res) for env_id, res in results.items()},
+    }
     write_json(os.path.splitext(args.out)[0] + ".json", summary)
     plot(summary, args.out)
     print(f"\nfigure: {args.out} (numbers: {os.path.splitext(args.out)[0]}.json)")
@@ -139,9 +170,16 @@ def main() -> None:
 
 def summarise(res: dict[str, dict[str, list[float]]]) -> dict[str, dict[str, float]]:
     """Per agent: trials, successes, median and mean steps, median decision time (ms)."""
-    return {a: {"trials": len(r["steps"]), "successes": int(sum(r["success"])),
-                "median_steps": float(np.median(r["steps"])), "mean_steps": float(np.mean(r["steps"])),
-                "decision_ms": float(1000 * np.median(r["decision_s"]))} for a, r in res.items()}
+    return {
+        a: {
+            "trials": len(r["steps"]),
+            "successes": int(sum(r["success"])),
+            "median_steps": float(np.median(r["steps"])),
+            "mean_steps": float(np.mean(r["steps"])),
+            "decision_ms": float(1000 * np.median(r["decision_s"])),
+        }
+        for a, r in res.items()
+    }
 
 
 def write_json(path: str, obj: Any) -> None:
@@ -181,11 +219,18 @@ def plot(summary: dict[str, Any], out: str) -> None:
             ax.plot(xs[1:], ys[1:], "o-", color=colour, label=f"lookahead, {env_id}")
             ax.plot(xs[:1], ys[:1], "s", ms=9, color=colour, mfc="none", label=f"min-var, {env_id}")
             for x, y, a in zip(xs[1:], ys[1:], agents[1:]):
-                ax.annotate(short_label(a), (x, y), fontsize=6.5, rotation=20, color=colour,
-                            xytext=(4, 4 if colour == "C1" else -10), textcoords="offset points")
+                ax.annotate(
+                    short_label(a),
+                    (x, y),
+                    fontsize=6.5,
+                    rotation=20,
+                    color=colour,
+                    xytext=(4, 4 if colour == "C1" else -10),
+                    textcoords="offset points",
+                )
         ax.set_xscale("log")
         times = [r["decision_ms"] for res in summary["envs"].values() for r in res.values()]
-        ax.set_xlim(min(times) / 2, max(times) * 8)                  # room for the labels
+        ax.set_xlim(min(times) / 2, max(times) * 8)  # room for the labels
         ax.set_xlabel("median decision time (ms, one core)")
         ax.set_ylabel(f"{label} readings to localise (first included)")
         ax.grid(alpha=0.3)

@@ -63,8 +63,12 @@ def main() -> None:
     ap.add_argument("--grid-mm", type=float, default=2.0, help="x–y step of the posterior grid, mm")
     args = ap.parse_args()
     agent = make_bench_agent(args.agent)
-    errors: dict[str, list[float]] = {"the particles' median (the env's estimate)": [], "the particles' mean": [],
-                                      "the exact posterior's median": [], "the exact posterior's mode": []}
+    errors: dict[str, list[float]] = {
+        "the particles' median (the env's estimate)": [],
+        "the particles' mean": [],
+        "the exact posterior's median": [],
+        "the exact posterior's mode": [],
+    }
     for name in tqdm(PRESET_NAMES, desc="conditions"):
         env = gym.make("ElectroLocUnknownTarget-v0", condition=get_condition(name), target_draw="condition")
         for t in range(args.trials):
@@ -79,15 +83,23 @@ def main() -> None:
                 continue
             info, truth = episode.info, float(episode.info["target_radius_mm"])
             p = grid_posterior(env, history, args.grid_mm)
-            estimates = (info["radius_estimate_mm"], info["radius_mean_mm"],
-                         RADII_MM[np.searchsorted(np.cumsum(p), 0.5)], RADII_MM[np.argmax(p)])
+            estimates = (
+                info["radius_estimate_mm"],
+                info["radius_mean_mm"],
+                RADII_MM[np.searchsorted(np.cumsum(p), 0.5)],
+                RADII_MM[np.argmax(p)],
+            )
             for key, est in zip(errors, estimates, strict=True):
                 errors[key].append(abs(float(est) - truth) / truth)
     n = len(next(iter(errors.values())))
     print(f"{args.agent}, seed {args.seed}, {args.trials} trials per condition: {n} successes")
-    for line in markdown_table(("radius estimate", "median relative error", "within 20 %"),
-                               [(key, f"{100 * np.median(e):.1f} %", f"{100 * np.mean(np.asarray(e) <= 0.2):.0f} %")
-                                for key, e in errors.items()]):
+    for line in markdown_table(
+        ("radius estimate", "median relative error", "within 20 %"),
+        [
+            (key, f"{100 * np.median(e):.1f} %", f"{100 * np.mean(np.asarray(e) <= 0.2):.0f} %")
+            for key, e in errors.items()
+        ],
+    ):
         print(line)
 
 

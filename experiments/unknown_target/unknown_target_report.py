@@ -34,8 +34,13 @@ def main() -> None:
     x = np.arange(len(PRESET_NAMES))
     width = 0.8 / max(len(agents), 1)
     for j, a in enumerate(agents):
-        med = [np.median([r.get("readings", r.get("observations")) for r in recs
-                          if r["agent"] == a and r["condition"] == c] or [np.nan]) for c in PRESET_NAMES]
+        med = [
+            np.median(
+                [r.get("readings", r.get("observations")) for r in recs if r["agent"] == a and r["condition"] == c]
+                or [np.nan]
+            )
+            for c in PRESET_NAMES
+        ]
         ax.bar(x + (j - (len(agents) - 1) / 2) * width, med, width, label=a)
     ax.set_xticks(x, [c.replace("fresh-", "f-").replace("salt-", "s-") for c in PRESET_NAMES], rotation=60, fontsize=7)
     ax.set_ylabel("median readings (failures at the cap)")
