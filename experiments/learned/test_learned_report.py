@@ -16,6 +16,10 @@ report = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(report)
 import learned_scores as scores  # noqa: E402  (beside the report, which put its folder on sys.path)
 
+from electroloc_gym.registry import bench_env  # noqa: E402
+
+TARGET_ID, GLOBAL_ID = bench_env("target")[0].env_id, bench_env("global")[0].env_id
+
 CONDS = ("a", "b")
 
 
@@ -108,7 +112,7 @@ def test_main_writes_report_and_figure(tmp_path):
     assert "| ElectroLoc-v0 | ppo | 3 |" in text
     assert "| ppo (3 seeds) | 6.00 (5.0–7.0) | 7.00 (6.0–8.0) |" in text  # per condition: mean (min–max) of seeds
     assert "| rnd-wlk | 28.33 | 25.00 |" in text
-    assert json.loads((res / "report.json").read_text())[0]["env_id"] == "ElectroLoc-v0"
+    assert json.loads((res / "report.json").read_text())[0]["env_id"] == TARGET_ID
     assert (res / "profile_ElectroLoc-v0.png").stat().st_size > 0
 
 
@@ -137,7 +141,7 @@ def test_a_suite_still_running_reports_what_is_finished(tmp_path, capsys):
     _write(res / "ElectroLocGlobal-v0" / "_baselines" / "bench" / "trials.jsonl", "rnd-wlk", {"g": [9] * 3})
     assert report.main([str(res), "--reps", "200"]) == 0
     text = (res / "report.md").read_text()
-    assert "| ElectroLoc-v0 | ppo | 3 |" in text and "ElectroLocGlobal-v0" not in text
+    assert "| ElectroLoc-v0 | ppo | 3 |" in text and GLOBAL_ID not in text
     assert "ElectroLocGlobal-v0 left out: no learned runs" in capsys.readouterr().err
 
 
