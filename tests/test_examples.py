@@ -102,11 +102,36 @@ def test_ppo_torch_trains_with_the_rollouts_on_the_env_device(tmp_path, capsys) 
     assert "update 2/2" in text and "evaluation (8 episodes" in text
     minimal = _load("ppo_minimal")
     agent = minimal.Agent(81, 2)  # the same network as the CPU example's
-    agent.load_state_dict(torch.load(out, weights_only=True))
+    saved = torch.load(out, weights_only=True)
+    agent.load_state_dict(saved["agent"])
+    norm = ppo.RunningNorm(81, torch.device("cpu"))
+    norm.load_state_dict(saved["norm"])
+    assert float(norm.count) > 512 and bool((norm.var > 0).all())  # every rollout observation merged
     envs = ppo.make_envs(ppo.parse_args(["--device", "cpu"]), 2, randomize_target=False)
     obs, _ = envs.reset(seed=0)
     assert isinstance(obs, torch.Tensor)  # the loop's inputs are tensors on the env's device, no numpy
     envs.close()
+
+
+def test_ppo_torch_normaliser_and_shaping_follow_sb3_and_the_training_wrapper() -> None:
+    torch = pytest.importorskip("torch")
+    from electroloc_gym.train.wrappers import spread_potential
+
+    ppo = _load("ppo_torch")
+    gen = torch.Generator().manual_seed(0)
+    x = torch.randn((300, 5), generator=gen, dtype=torch.float64) * 3.0 + 7.0
+    norm = ppo.RunningNorm(5, torch.device("cpu"))
+    for part in x.split([1, 99, 200]):  # batches merged one by one give the whole set's moments
+        norm.update(part)
+    assert torch.allclose(norm.mean, x.mean(0), atol=1e-6)
+    assert torch.allclose(norm.var, x.var(0, unbiased=False), rtol=1e-4)
+    z = norm(x)
+    assert z.dtype == torch.float32
+    assert torch.allclose(z.double().mean(0), torch.zeros(5, dtype=torch.float64), atol=1e-4)
+    assert float(norm(torch.full((1, 5), 1e6, dtype=torch.float64)).max()) == 10.0  # clipped as VecNormalize
+    spread = torch.tensor([40.0, 10.0, 2.5], dtype=torch.float64)
+    expect = spread_potential(spread.numpy(), 10.0, 0.7)
+    assert torch.allclose(ppo.potential(spread, 0.7, 10.0), torch.as_tensor(expect))
 
 
 def test_ppo_minimal_rejects_a_budget_below_one_rollout(capsys) -> None:
