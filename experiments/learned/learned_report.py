@@ -23,7 +23,11 @@ The conditions are rliable's tasks (stratified bootstrap: runs are resampled wit
 non-learned agents are deterministic given the benchmark seed, so each is one run. rliable computes every
 aggregate and interval; this script only arranges the records into its (runs × tasks) matrices.
 
-Run: ``python experiments/learned/learned_report.py RESULTS [--reps 2000]``.
+``--extra DIR`` (repeatable) adds the runs of another folder with the same layout — the offline and
+imitation baselines of ``experiments/offline/results`` — to the same table, scored against this folder's
+non-learned run (their benchmarks must use the same trials).
+
+Run: ``python experiments/learned/learned_report.py RESULTS [--reps 2000] [--extra experiments/offline/results]``.
 """
 
 from __future__ import annotations
@@ -274,7 +278,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         + ", ".join(f"{a}:{b}" for a, b in COMPARISONS)
         + ")",
     )
+    parser.add_argument(
+        "--extra",
+        action="append",
+        type=Path,
+        default=[],
+        metavar="DIR",
+        help="another results folder (DIR/<env-id>/<label>/seed-<k>/bench/) whose labels join the table (repeatable)",
+    )
     args = parser.parse_args(argv)
+    missing = [str(d) for d in args.extra if not d.is_dir()]
+    if missing:
+        parser.error(f"--extra folder(s) {missing} do not exist")
     comparisons = COMPARISONS
     if args.compare:
         pairs = [c.split(":") for c in args.compare]
@@ -306,7 +321,7 @@ def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tup
     analyses = []
     for env in list(envs):  # a suite still running: an env without a benchmarked learned run is left out
         try:
-            analyses.append(analyse(args.results, env, args.reps, args.seed, comparisons))
+            analyses.append(analyse(args.results, env, args.reps, args.seed, comparisons, args.extra))
         except NoLearnedRuns as exc:
             print(f"learned_report: {env} left out: {exc}", file=sys.stderr)
             envs.remove(env)

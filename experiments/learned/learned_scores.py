@@ -106,32 +106,48 @@ def condition_scores(records: Sequence[dict[str, Any]], conditions: Sequence[str
 
 
 def collect(
-    results: Path, env_id: str, set_aside: list[str] | None = None
+    results: Path, env_id: str, set_aside: list[str] | None = None, extra: Sequence[Path] = ()
 ) -> tuple[list[str], dict[str, dict[str, np.ndarray]], dict[str, dict[str, np.ndarray]], dict[str, list[str]]]:
     """(conditions, learned, baselines, seeds) of one env; what was left out is appended to ``set_aside``.
 
     ``learned[algo][metric]`` is a (seeds × conditions) matrix; ``baselines[agent][metric]`` is (1 ×
-    conditions); ``seeds[algo]`` names the runs in row order (``seed-<integer>`` folders only).
+    conditions); ``seeds[algo]`` names the runs in row order (``seed-<integer>`` folders only). ``extra``
+    folders (laid out as ``EXTRA/<env-id>/<label>/seed-<k>/bench/``, e.g. the offline suite's results) add
+    their labels beside the suite's, scored against the same baselines' run; a label in two folders is an
+    error, and their runs must cover the baselines' conditions.
     """
     set_aside = [] if set_aside is None else set_aside
     env_dir = results / env_id
     base_path = env_dir / BASELINES_DIR / "bench" / "trials.jsonl"
     base_rows = read_trials(base_path, set_aside)
     conditions = sorted({r["condition"] for r in base_rows})
+    base_keys = {(r["condition"], int(r["trial"])) for r in base_rows}
     baselines: dict[str, dict[str, np.ndarray]] = {}
     for agent in sorted({r["agent"] for r in base_rows}):
         s = condition_scores([r for r in base_rows if r["agent"] == agent], conditions)
         baselines[agent] = {k: v[None, :] for k, v in s.items()}
     learned: dict[str, dict[str, np.ndarray]] = {}
     seeds: dict[str, list[str]] = {}
-    for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
+    algo_dirs = sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR)
+    for folder in extra:
+        more = sorted(p for p in (folder / env_id).iterdir() if p.is_dir()) if (folder / env_id).is_dir() else []
+        clash = sorted({p.name for p in more} & {p.name for p in algo_dirs if any(p.glob("seed-*"))})
+        if clash:
+            raise ReportError(f"{folder}: labels {clash} are already in {results} (each label once)")
+        algo_dirs += more
+    for algo_dir in algo_dirs:
         runs = sorted(p for p in algo_dir.glob("seed-*") if (p / "bench" / "summary.json").is_file())
         odd = [p for p in runs if not p.name[len("seed-") :].isdecimal() or not p.name.isascii()]
         set_aside.extend(f"{p}: not a seed-<integer> folder" for p in odd)
         runs = [p for p in runs if p not in odd]
         if not runs:
             continue
-        per_run = [condition_scores(read_trials(p / "bench" / "trials.jsonl", set_aside), conditions) for p in runs]
+        records = [read_trials(p / "bench" / "trials.jsonl", set_aside) for p in runs]
+        if not algo_dir.is_relative_to(env_dir):  # an extra folder's run: on the baselines' very trials
+            for p, rows in zip(runs, records):
+                if {(r["condition"], int(r["trial"])) for r in rows} != base_keys:
+                    raise ReportError(f"{p}: its benchmark ran other trials than {base_path} (run it on the same)")
+        per_run = [condition_scores(rows, conditions) for rows in records]
         learned[algo_dir.name] = {k: np.stack([s[k] for s in per_run]) for k in ("readings", "success")}
         seeds[algo_dir.name] = [p.name for p in runs]
     return conditions, learned, baselines, seeds
@@ -192,15 +208,21 @@ def p_better(x: np.ndarray, y: np.ndarray, reps: int, seed: int) -> list[float]:
 
 
 def analyse(
-    results: Path, env_id: str, reps: int = 2000, seed: int = 0, comparisons: Sequence[tuple[str, str]] = COMPARISONS
+    results: Path,
+    env_id: str,
+    reps: int = 2000,
+    seed: int = 0,
+    comparisons: Sequence[tuple[str, str]] = COMPARISONS,
+    extra: Sequence[Path] = (),
 ) -> dict[str, Any]:
     """Every statistic of one env (plain data, see the module docstring); ``comparisons`` are the
-    (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env.
+    (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env;
+    ``extra``: more results folders whose labels join the table (:func:`collect`).
     """
     from rliable import metrics
 
     set_aside: list[str] = []
-    conditions, learned, baselines, seeds = collect(results, env_id, set_aside)
+    conditions, learned, baselines, seeds = collect(results, env_id, set_aside, extra)
     if not learned:
         raise NoLearnedRuns(f"no learned runs with a benchmark under {results / env_id}")
     iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731

@@ -105,6 +105,27 @@ def test_intervals_are_reproducible_and_independent_of_the_other_algorithms():
     assert scores.interval({"a": a}, mean, reps=300, seed=1)["a"] != alone  # the seed does reach the draws
 
 
+def test_an_extra_folder_joins_the_table_on_the_same_trials_only(tmp_path):
+    res = _results(tmp_path / "suite")
+    extra = tmp_path / "offline"
+    bc = extra / "ElectroLoc-v0" / "bc-min-var"
+    for k in (1, 2):
+        _write(bc / f"seed-{k}" / "bench" / "trials.jsonl", f"{bc}/seed-{k}/policy", {"a": [9, 11, 10], "b": [14] * 3})
+    a = scores.analyse(res, "ElectroLoc-v0", reps=200, extra=[extra])
+    assert set(a["algorithms"]) == {"ppo", "bc-min-var"} and a["seeds"]["bc-min-var"] == ["seed-1", "seed-2"]
+    assert a["algorithms"]["bc-min-var"]["readings_mean"][0] == pytest.approx(12.0)
+    assert a["algorithms"]["ppo"] == scores.analyse(res, "ElectroLoc-v0", reps=200)["algorithms"]["ppo"]
+    assert report.main([str(res), "--reps", "200", "--extra", str(extra)]) == 0
+    assert "| ElectroLoc-v0 | bc-min-var | 2 |" in (res / "report.md").read_text()
+    _write(bc / "seed-3" / "bench" / "trials.jsonl", "bc", {"a": [9, 11], "b": [14, 14]})  # two trials, not three
+    with pytest.raises(scores.ReportError, match="other trials"):
+        scores.analyse(res, "ElectroLoc-v0", reps=200, extra=[extra])
+    clash = tmp_path / "clash"
+    _write(clash / "ElectroLoc-v0" / "ppo" / "seed-1" / "bench" / "trials.jsonl", "ppo", {"a": [5] * 3, "b": [6] * 3})
+    with pytest.raises(scores.ReportError, match="already in"):
+        scores.analyse(res, "ElectroLoc-v0", reps=200, extra=[clash])
+
+
 def test_main_writes_report_and_figure(tmp_path):
     res = _results(tmp_path)
     assert report.main([str(res), "--reps", "200"]) == 0
