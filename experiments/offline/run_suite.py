@@ -3,17 +3,20 @@
     python experiments/offline/run_suite.py --out experiments/offline/results [--only bc-lookahead] [--seeds 1,2,3,4,5]
 
 Per (method, seed): ``bc.py`` or ``td3_bc.py`` into ``OUT/<env-id>/<label>/seed-<k>/`` (policy/, curve.json),
-then ``electroloc bench --agents <policy> --trials T --seed 0`` into its ``bench/`` — the benchmark's
-evaluation trials (the first T of each of the eight conditions), never seen in training. The shipped
-policy of the mixed data (ppo-belief) is benched once on the same trials into ``OUT/<env-id>/_sources/bench``;
-the controllers' runs are the learned suite's (``experiments/learned/results/<env-id>/_baselines/bench``).
-The reference datasets (``make_datasets.py``) must exist under ``MINARI_DATASETS_PATH``.
+then ``electroloc bench --agents <policy> --trials T --seed 0`` into its ``bench/``: the benchmark's
+evaluation trials (the first T of each of the eight conditions; all 50 by default, the trials of the
+learned suite's table), never seen in training. The shipped policy of the mixed data (ppo-belief) is
+benched once on the same trials into ``OUT/<env-id>/_sources/bench``; the controllers' runs are the
+learned suite's (``experiments/learned/results/<env-id>/_baselines/bench``). The reference datasets
+(``make_datasets.py``) must exist under ``MINARI_DATASETS_PATH``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -33,6 +36,13 @@ THREADS = {v: "1" for v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_
 
 
 def _bench(agent: str, out: Path, trials: int) -> None:
+    """``electroloc bench`` of ``agent`` into ``out``: kept when finished with ``trials``, resumed, or (finished
+    with another trial count) run again from nothing.
+    """
+    config = out / "config.json"
+    if config.is_file() and json.loads(config.read_text(encoding="utf-8")).get("trials") != trials:
+        print(f"{out}: its benchmark ran another number of trials; running it again with {trials}", flush=True)
+        shutil.rmtree(out)
     if (out / "summary.json").is_file():
         return
     argv = [
@@ -63,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=HERE / "results")
     parser.add_argument("--only", default="", help="comma-separated labels; default all")
     parser.add_argument("--seeds", default="1,2,3,4,5")
-    parser.add_argument("--trials", type=int, default=10, help="benchmark trials per condition (1 … 50)")
+    parser.add_argument("--trials", type=int, default=50, help="trials per condition (1 … 50)")
     args = parser.parse_args(argv)
     if not 1 <= args.trials <= 50:
         parser.error(f"--trials must be in [1, 50], got {args.trials}")
