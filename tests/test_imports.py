@@ -165,6 +165,7 @@ def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
         "electroloc_gym.cli",
         "electroloc_gym.demo",
         "electroloc_gym.render",
+        "electroloc_gym.eev_maps",
     )
     bad = sorted(
         f"{m} → {t}"
@@ -193,7 +194,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("sensor", ("sensor", "sensor_array", "scene", "distractors")),
     ("sensor models", ("sensor_models",)),
     ("core", ("core",)),
-    ("views", ("belief", "render")),
+    ("views", ("belief", "render", "eev_maps")),
     ("adapters", ("envs", "torch_core", "privileged")),
     ("agents", ("baselines", "policy", "rollout")),
     ("benchmark", ("bench",)),
