@@ -291,12 +291,13 @@ def _cmd_eev(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from electroloc_gym.render import plot_eev, save_figure_atomic
+    from electroloc_gym.eev_maps import plot_eev
+    from electroloc_gym.fileio import save_figure_atomic
 
     if bench_env(getattr(args, "env", "target"))[0].map_condition is not None:
         # Fig. 14: the map of an env of one fixed map (ElectroLocGlobal-v0's six cylinders), physics and the
         # calibrated grid side by side.
-        from electroloc_gym.render import plot_map_eev
+        from electroloc_gym.eev_maps import plot_map_eev
         from electroloc_gym.scene import BENCHMARK_SCENE
 
         fig, axes = plt.subplots(1, 2, figsize=(12, 5))

@@ -28,7 +28,8 @@ The reading is ``Φ = clip(s·G·Σ_k (δV_k(S1) − δV_k(S2)) + ε, ±V_sat)``
 for one sphere (:mod:`electroloc_gym.sensor`), with one ``signal_scale`` for the whole scene.
 
 The agent's sensor models of the map (analytic and calibrated, with a position blur) are in
-:mod:`electroloc_gym.sensor_models.map`; the map's plots in :mod:`electroloc_gym.render`.
+:mod:`electroloc_gym.sensor_models.map`; the map's EEV plot in :mod:`electroloc_gym.eev_maps`, its episode
+frames in :mod:`electroloc_gym.render`.
 
 The benchmark layout (:data:`BENCHMARK_SCENE`, ``layout="benchmark"``) is fixed in code: six cylinders
 drawn once by :func:`random_cylinder_layout` with seed :data:`BENCHMARK_LAYOUT_SEED` (a test checks the

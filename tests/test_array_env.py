@@ -300,7 +300,7 @@ def test_a_policy_runs_only_on_the_layout_it_was_trained_with(
 ) -> None:
     import json
 
-    from electroloc_gym.bench.agents import default_agents
+    from electroloc_gym.bench.default_run import default_agents
     from electroloc_gym.cli import main
 
     base = [

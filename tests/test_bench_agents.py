@@ -16,15 +16,15 @@ import pytest
 
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.baselines.agent import make_agent
-from electroloc_gym.bench import agents as registry
+from electroloc_gym.bench import default_run
 from electroloc_gym.bench.agents import (
     agent_display_name,
     agent_kind,
-    default_agents,
     make_bench_agent,
     shipped_models,
 )
 from electroloc_gym.bench.config import BenchConfig, make_trial_specs
+from electroloc_gym.bench.default_run import default_agents
 from electroloc_gym.bench.trials import run_trial
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.conditions import get_condition
@@ -167,7 +167,7 @@ def test_crafted_model_files_run_no_code_by_default(tmp_path) -> None:
 
 
 def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys) -> None:
-    monkeypatch.setattr(registry, "_training_extra_missing", lambda: "the training extra is not installed (test)")
+    monkeypatch.setattr(default_run, "_training_extra_missing", lambda: "the training extra is not installed (test)")
     choices = default_agents()
     assert [c.spec for c in choices if not c.skipped] == ["rnd-wlk", "min-var", "zero-crossing"]
     other_env = {

@@ -165,6 +165,7 @@ def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
         "electroloc_gym.cli",
         "electroloc_gym.demo",
         "electroloc_gym.render",
+        "electroloc_gym.eev_maps",
     )
     bad = sorted(
         f"{m} → {t}"
@@ -190,10 +191,10 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ),
     ("physics", ("physics", "apparatus", "conditions")),
     ("kernels", ("kernels", "draws")),
-    ("sensor", ("sensor", "sensor_array", "scene", "distractors")),
+    ("sensor", ("sensor", "sensor_layouts", "sensor_array", "scene", "distractors")),
     ("sensor models", ("sensor_models",)),
     ("core", ("core",)),
-    ("views", ("belief", "render")),
+    ("views", ("belief", "render", "eev_maps")),
     ("adapters", ("envs", "torch_core", "privileged")),
     ("agents", ("baselines", "policy", "rollout")),
     ("benchmark", ("bench",)),

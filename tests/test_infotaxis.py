@@ -88,7 +88,8 @@ def test_bad_inputs_are_one_clear_error() -> None:
 
 
 def test_registry_and_bench_name() -> None:
-    from electroloc_gym.bench.agents import agent_kind, default_agents
+    from electroloc_gym.bench.agents import agent_kind
+    from electroloc_gym.bench.default_run import default_agents
 
     agent = make_agent("infotaxis[n_voters=64]", seed=0)
     assert isinstance(agent, InfotaxisAgent) and agent.n_voters == 64

@@ -168,7 +168,8 @@ def test_posterior_spreads_uninformative_and_exact_readings() -> None:
 
 
 def test_bench_accepts_the_planner_by_name() -> None:
-    from electroloc_gym.bench.agents import agent_kind, default_agents
+    from electroloc_gym.bench.agents import agent_kind
+    from electroloc_gym.bench.default_run import default_agents
 
     assert agent_kind("lookahead[depth=1,branches=4]") == "baseline"
     assert "lookahead" not in [c.spec for c in default_agents()]  # beyond the paper: asked for by name

@@ -4,6 +4,7 @@ Modules, in the order a run uses them:
 
 * :mod:`~electroloc_gym.bench.config` — what a run is (:class:`BenchConfig`), its trials and their seeds;
 * :mod:`~electroloc_gym.bench.agents` — agent specs → agents (controllers, shipped models, paths);
+* :mod:`~electroloc_gym.bench.default_run` — the agents of a run without ``--agents``, and why any is skipped;
 * :mod:`~electroloc_gym.bench.schema` — the trial record (:class:`~electroloc_gym.bench.schema.TrialRecord`),
   the one declaration of what a line of trials.jsonl holds and how it is checked;
 * :mod:`~electroloc_gym.bench.records` — the output folder: checked, locked, records parsed within bounds,

@@ -25,20 +25,20 @@ trial runs.
 Learned policies load through :func:`electroloc_gym.policy.load.load_policy`, which reads the
 project's pickle-free policy files; a bare SB3 ``.zip`` (pickle inside) loads only with
 ``trust_pickle=True`` (``--trust-pickle``). The paper's controllers never import the training package.
-Nothing is picked up from the working directory: a default run uses the shipped models only.
+Nothing is picked up from the working directory: a default run uses the shipped models only (which ones,
+and why the others are skipped: :mod:`electroloc_gym.bench.default_run`).
 """
 
 from __future__ import annotations
 
 import importlib
-import importlib.util
 import inspect
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from electroloc_gym.agentspec import AgentSpec, is_path_like, parse_agent_spec
-from electroloc_gym.baselines.agent import AGENT_NAMES, PAPER_AGENTS, make_agent
+from electroloc_gym.baselines.agent import AGENT_NAMES, make_agent
 from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
     AGENT_ENV_KWARGS,
     bench_env_kwargs,
@@ -49,10 +49,8 @@ from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (r
     shipped_models,
     trained_sensor_layout,
 )
-from electroloc_gym.registry import BENCH_ENVS
 
 __all__ = [
-    "AgentChoice",
     "AgentRef",
     "resolve_agent",
     "builtin_agent",
@@ -68,35 +66,17 @@ __all__ = [
     "make_factory_agent",
     "protocol_problem",
     "policy_env_problem",
+    "policy_meta",
+    "shipped_model_env",
+    "trained_sensor_layout",
     "cached_agent",
     "register_object_agent",
     "bench_env_kwargs",
     "planner_memory_bytes",
-    "default_agents",
     "TRAIN_EXTRA_HINT",
 ]
 
 TRAIN_EXTRA_HINT = "pip install 'electroloc-gym[train]'"
-
-
-@dataclass(frozen=True)
-class AgentChoice:
-    """An agent a default run considered: its spec, why it was skipped (None: it runs), and for a shipped
-    policy trained on other settings the ``electroloc bench`` options it runs with (None: unknown).
-    """
-
-    spec: str
-    skipped: str | None = None
-    runs_with: str | None = None
-
-
-def _bench_options_of(env_id: str, gain_levels: tuple[float, ...] | None) -> str | None:
-    """The ``--env`` option of the bench row that runs ``env_id`` with these gain levels (None: no row)."""
-    for name, (entry, row) in BENCH_ENVS.items():
-        levels = row.env_kwargs.get("gain_levels")
-        if entry.env_id == env_id and (None if levels is None else tuple(levels)) == gain_levels:
-            return f"--env {name}"
-    return None
 
 
 def is_policy_path(spec: str) -> bool:
@@ -380,77 +360,3 @@ def decision_seconds(agent: Any, n_particles: int) -> float:
         return float(own(n_particles)) if callable(own) else 0.0
     except (TypeError, ValueError, OverflowError):
         return 0.0
-
-
-def _training_extra_missing() -> str | None:
-    """Why learned policies cannot run here (None: they can)."""
-    for module in ("electroloc_gym.policy",):
-        try:
-            if importlib.util.find_spec(module) is None:
-                return f"the training extra is not installed ({module} missing; {TRAIN_EXTRA_HINT})"
-        except (ImportError, ValueError) as exc:
-            return f"the training extra is not importable ({module}: {exc})"
-    return None
-
-
-def default_agents(
-    *,
-    names: tuple[str, ...] | None = None,
-    trust_pickle: bool = False,
-    env_id: str = "ElectroLoc-v0",
-    gain_levels: tuple[float, ...] | None = None,
-    sensor_layout: str | None = None,
-) -> list[AgentChoice]:
-    """What a run without ``--agents`` considers: the paper's controllers, then every shipped model
-    trained on ``env_id``.
-
-    A shipped model that cannot run here is listed with the reason it is skipped (the training
-    extra missing, its files not loading, or another env).
-
-    Args:
-        names: the controllers to run first (a bench row's ``agents``; None: the paper's three), then the
-            shipped models trained on ``env_id``.
-        trust_pickle: passed to the policy loader.
-        env_id: the run's env.
-        gain_levels: the run's dynamic-gain levels (then min-var runs twice: choosing the gain, and at the
-            preset gain).
-        sensor_layout: the run's named sensor layout (None: the paper's single pair); a shipped model
-            trained with another layout is skipped.
-    """
-    choices = [AgentChoice(name) for name in (PAPER_AGENTS if names is None else names)]
-    if gain_levels is not None:
-        choices.insert(2, AgentChoice("min-var[gain=preset]"))
-    models = shipped_models()
-    missing = _training_extra_missing() if models else None
-    for name, folder in models.items():
-        trained_on = shipped_model_env(folder)
-        if trained_on is not None and trained_on != (env_id, gain_levels):
-            what = trained_on[0] + ("" if trained_on[1] is None else f" with gain_levels={list(trained_on[1])}")
-            here = env_id + ("" if gain_levels is None else f" with gain_levels={list(gain_levels)}")
-            levels = None if trained_on[1] is None else tuple(trained_on[1])
-            choices.append(
-                AgentChoice(
-                    name, skipped=f"trained on {what}, not {here}", runs_with=_bench_options_of(trained_on[0], levels)
-                )
-            )
-            continue
-        layout = trained_sensor_layout(policy_meta(name))
-        if layout is not None and layout != (sensor_layout or "single"):
-            choices.append(
-                AgentChoice(
-                    name,
-                    skipped=f"trained with sensor_layout={layout!r}, not {sensor_layout or 'single'!r}",
-                    runs_with=f"--sensor-layout {layout}",
-                )
-            )
-            continue
-        if missing:
-            choices.append(AgentChoice(name, skipped=missing))
-            continue
-        try:
-            cached_agent(name, trust_pickle=trust_pickle)
-        except ValueError as exc:
-            choices.append(AgentChoice(name, skipped=str(exc)))
-        else:
-            choices.append(AgentChoice(name))
-    return choices

@@ -10,7 +10,6 @@ from electroloc_gym.agentspec import split_specs
 from electroloc_gym.bench.agents import (
     agent_kind,
     cached_agent,
-    default_agents,
     policy_meta,
     shipped_model_env,
     shipped_models,
@@ -26,13 +25,14 @@ from electroloc_gym.bench.config import (
     BenchConfig,
     run_conditions,
 )
+from electroloc_gym.bench.default_run import default_agents
 from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
 from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import MAX_OBSERVATIONS
 from electroloc_gym.registry import BENCH_ENVS, BenchEnv, bench_env
-from electroloc_gym.sensor_array import LAYOUT_NAMES
+from electroloc_gym.sensor_layouts import LAYOUT_NAMES
 
 __all__ = [
     "add_arguments",

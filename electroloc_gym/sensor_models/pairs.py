@@ -31,7 +31,8 @@ from numpy.typing import ArrayLike, NDArray
 from electroloc_gym.conditions import Condition
 from electroloc_gym.kernels.fusion import sum_over_pairs
 from electroloc_gym.sensor import add_calibration_noise
-from electroloc_gym.sensor_array import SensorLayout, array_reading
+from electroloc_gym.sensor_array import array_reading
+from electroloc_gym.sensor_layouts import SensorLayout
 from electroloc_gym.sensor_models.calibrated import (
     DEFAULT_CALIBRATION,
     SENSOR_MODEL_NAMES,
