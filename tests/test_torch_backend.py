@@ -184,6 +184,35 @@ def test_resampling_and_statistics_match_numba(seed):
     np.testing.assert_array_equal(n3.numpy(), counts2)
 
 
+def test_systematic_indices_are_the_search_bit_for_bit():
+    gen = torch.Generator().manual_seed(4)
+    m = 257
+    w = torch.rand((40, m), generator=gen, dtype=torch.float64)
+    w[:8] = 0.0  # flat runs of the cumulative weights: repeated entries
+    w[:8, ::7] = 1.0
+    w[8:12] = torch.rand((4, m), generator=gen, dtype=torch.float64) ** 40  # a few heavy particles
+    cum = torch.cumsum(w / w.sum(1, keepdim=True), 1)
+    cum = cum / cum[:, -1:]
+    u0 = torch.rand(40, generator=gen, dtype=torch.float64)
+    u0[:4] = 0.0
+    ptr = (u0[:, None] + torch.arange(m, dtype=torch.float64)[None, :]) / m
+    cum[12:20, 5:20] = ptr[12:20, 10:25]  # ties: entries that are pointers exactly
+    cum[12:20] = torch.cummax(cum[12:20], 1).values
+    want = torch.searchsorted(cum, ptr, right=True)
+    assert torch.equal(F.systematic_indices(cum, u0), want)
+
+
+def test_blocked_hash_is_the_one_pass_hash(monkeypatch):
+    from electroloc_gym.torch_core import rng
+
+    key = torch.randint(0, 2**32, (37,), dtype=torch.int64, generator=torch.Generator().manual_seed(0))
+    whole = bits32(key, 300, start=5)  # 11,100 words: one pass at the default block size
+    monkeypatch.setattr(rng, "CPU_BLOCK_WORDS", 1000)  # 3 envs per block
+    assert torch.equal(bits32(key, 300, start=5), whole)
+    monkeypatch.setattr(rng, "CPU_BLOCK_WORDS", 10)  # fewer words than one env's: one env per block
+    assert torch.equal(bits32(key, 300, start=5), whole)
+
+
 def test_resample_degenerate_weights_are_uniform():
     """All log-likelihoods −inf (no finite maximum): every weight 1, as the numba kernel."""
     ll = torch.full((1, 8), -float("inf"))
@@ -255,6 +284,29 @@ def test_same_seed_same_trajectory_and_independent_of_n():
     for x, y, z in zip(a, b, c, strict=True):
         assert torch.equal(x, y)
         assert torch.equal(x[:2, : z.shape[1]] if x.shape[1] == z.shape[1] else x[:2], z)
+
+
+@pytest.mark.parametrize("kw", [dict(condition="random", randomize_target=True), dict(sensor_model="analytic")])
+def test_gathered_resets_give_the_dense_step_bit_for_bit(kw):
+    """The CPU's eager step (reset draws for the resetting envs only) against the one-graph step (every env's
+    draws, kept where an env resets): the same state, bit for bit, over steps where some envs reset."""
+    env = TorchElectroLocVectorEnv(num_envs=6, n_particles=300, max_observations=4, **kw)
+    assert env.gather_resets  # eager on the CPU
+    env.reset(seed=11)
+    dense = gathered = env.state
+    rng = np.random.default_rng(2)
+    resets = 0
+    for _ in range(12):
+        a = torch.as_tensor(rng.uniform(-1, 1, (6, 2)).astype(np.float32))
+        resets += int(dense["done"].sum())
+        dense, *out_d = sim.step(env.consts, dense, a, gather=False)
+        gathered, *out_g = sim.step(env.consts, gathered, a, gather=True)
+        assert dense.keys() == gathered.keys()
+        for name in dense:
+            assert torch.equal(dense[name], gathered[name]), name
+        for x, y in zip(out_d, out_g, strict=True):
+            assert torch.equal(x, y)
+    assert resets >= 6  # the cap of 4 readings ends every episode: the reset path ran, more than once
 
 
 def test_episodes_end_and_autoreset():

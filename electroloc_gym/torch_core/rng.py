@@ -22,7 +22,17 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["mix32", "hash32", "stream_key", "bits32", "uniform53", "uniform24", "normal_pair_indices", "STREAMS"]
+__all__ = [
+    "CPU_BLOCK_WORDS",
+    "mix32",
+    "hash32",
+    "stream_key",
+    "bits32",
+    "uniform53",
+    "uniform24",
+    "normal_pair_indices",
+    "STREAMS",
+]
 
 _MASK32 = 0xFFFFFFFF
 _MASK16 = 0xFFFF
@@ -71,13 +81,29 @@ def stream_key(
     return mix32(h ^ k0)
 
 
+#: Words per block when the hash runs eagerly on the CPU: each of its ~40 elementwise passes then stays in
+#: the cache instead of streaming the whole (N, count) int64 array through memory (the same bits).
+CPU_BLOCK_WORDS = 1 << 16
+
+
+def _words(key: torch.Tensor, j: torch.Tensor) -> torch.Tensor:
+    k = key[:, None]
+    return mix32(mix32(k ^ j) ^ k)
+
+
 def bits32(key: torch.Tensor, count: int, start: int = 0) -> torch.Tensor:
     """(N, count) 32-bit words (int64) of each env's stream ``key`` (N,): word j (from ``start``) is
     ``mix32(mix32(key ⊕ j·φ mod 2³²) ⊕ key)``.
+
+    Eager on the CPU, large requests are hashed in blocks of envs (:data:`CPU_BLOCK_WORDS` words: a
+    loop over cache-sized blocks, not over envs); compiled or on an accelerator, in one pass.
     """
     j = _mul32(torch.arange(start, start + count, device=key.device, dtype=torch.int64), _GOLDEN)
-    k = key[:, None]
-    return mix32(mix32(k ^ j) ^ k)
+    n = key.shape[0]
+    if key.device.type == "cpu" and n * count > CPU_BLOCK_WORDS and not torch.compiler.is_compiling():
+        rows = max(1, CPU_BLOCK_WORDS // count)
+        return torch.cat([_words(key[i : i + rows], j) for i in range(0, n, rows)])
+    return _words(key, j)
 
 
 def uniform53(key: torch.Tensor, count: int) -> torch.Tensor:

@@ -16,7 +16,9 @@ Every draw is the env's counter-based stream (:mod:`.rng`) at (key, episode, rea
 reading's noise and the resampling offset, the jitter (2M table normals), and at a reset the
 condition (``condition="random"``), the target (``randomize_target``), the start (2 uniforms), the
 particles (2M uniforms) and the calibration. A reset's draws are computed for every env and kept where
-the env resets (the price of no host synchronisation: about one reset's work per env per step).
+the env resets (the price of no host synchronisation: about one reset's work per env per step), or, with
+``gather=True`` (the CPU's eager default, where the host is the device), for the resetting envs only —
+the same values either way.
 """
 
 from __future__ import annotations
@@ -63,14 +65,14 @@ def _keep(mask: torch.Tensor, new: torch.Tensor, old: torch.Tensor) -> torch.Ten
     return torch.where(mask.reshape(mask.shape + (1,) * (new.dim() - 1)), new, old)
 
 
-def begin_episodes(c: TorchConsts, s: State, mask: torch.Tensor) -> State:
-    """The envs of ``mask`` (N,) bool start a new episode (the reset draws; no reading yet)."""
-    s = dict(s)
-    ep = torch.where(mask, s["episode"] + 1, s["episode"])
+def _reset_draws(c: TorchConsts, k0: torch.Tensor, k1: torch.Tensor, ep: torch.Tensor) -> State:
+    """The new episode ``ep`` (n,) of the envs with keys ``k0``, ``k1`` (n,): condition, target, start,
+    particles and (calibrated) the calibration table — any subset of the envs, the same values for each.
+    """
     zero = torch.zeros_like(ep)
 
     def key(name: str) -> torch.Tensor:
-        return stream_key(s["k0"], s["k1"], ep, zero, STREAMS[name])
+        return stream_key(k0, k1, ep, zero, STREAMS[name])
 
     if c.pool > 1:
         cond = (bits32(key("condition"), 1)[:, 0] * c.pool) >> 32
@@ -85,16 +87,40 @@ def begin_episodes(c: TorchConsts, s: State, mask: torch.Tensor) -> State:
     m = c.n_particles
     h = c.half_mm[cond][:, None]
     u = uniform24(key("particles"), 2 * m)
-    particles = (-h + 2.0 * h * u).to(torch.float32).reshape(-1, 2, m)
-    s["episode"] = ep
-    s["cond"] = torch.where(mask, cond, s["cond"])
-    s["target_mm"] = _keep(mask, target, s["target_mm"])
-    s["position_mm"] = _keep(mask, position, s["position_mm"])
-    s["particles_mm"] = _keep(mask, particles, s["particles_mm"])
+    draws = {
+        "cond": cond,
+        "target_mm": target,
+        "position_mm": position,
+        "particles_mm": (-h + 2.0 * h * u).to(torch.float32).reshape(-1, 2, m),
+        "n_observations": zero,
+        "elapsed": zero,
+    }
     if c.calibrated:
-        s["table"] = _keep(mask, calibration_tables(c, s["cond"], s["k0"], s["k1"], ep), s["table"])
-    s["n_observations"] = torch.where(mask, zero, s["n_observations"])
-    s["elapsed"] = torch.where(mask, zero, s["elapsed"])
+        draws["table"] = calibration_tables(c, cond, k0, k1, ep)
+    return draws
+
+
+def begin_episodes(c: TorchConsts, s: State, mask: torch.Tensor, gather: bool = False) -> State:
+    """The envs of ``mask`` (N,) bool start a new episode (the reset draws; no reading yet).
+
+    By default every env's draws are computed and kept where ``mask`` holds: no host synchronisation, one
+    graph. ``gather=True`` computes them for the resetting envs only (``nonzero``: a data-dependent shape,
+    so a host synchronisation on an accelerator and a graph break under ``torch.compile``; on the CPU the
+    host is the device and it saves most of a step's work). Both give the same bits: each draw is a hash
+    of the env's own coordinates (:mod:`.rng`).
+    """
+    s = dict(s)
+    ep = torch.where(mask, s["episode"] + 1, s["episode"])
+    s["episode"] = ep
+    if not gather:
+        for name, value in _reset_draws(c, s["k0"], s["k1"], ep).items():
+            s[name] = _keep(mask, value, s[name])
+        return s
+    idx = torch.nonzero(mask).reshape(-1)
+    if idx.numel() == 0:
+        return s
+    for name, value in _reset_draws(c, s["k0"][idx], s["k1"][idx], ep[idx]).items():
+        s[name] = s[name].index_copy(0, idx, value)
     return s
 
 
@@ -213,12 +239,14 @@ def moves_of(c: TorchConsts, actions: torch.Tensor) -> torch.Tensor:
 
 
 def step(
-    c: TorchConsts, s: State, actions: torch.Tensor
+    c: TorchConsts, s: State, actions: torch.Tensor, gather: bool = False
 ) -> tuple[State, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """One step of every env (module docstring): (state, observations, rewards, terminated, truncated)."""
+    """One step of every env (module docstring): (state, observations, rewards, terminated, truncated);
+    ``gather``: the resets' draws for the resetting envs only (:func:`begin_episodes`).
+    """
     reset = s["done"]
     moving = ~reset
-    s = begin_episodes(c, s, reset)
+    s = begin_episodes(c, s, reset, gather)
     h = c.half_mm[s["cond"]][:, None]
     moved = torch.clamp(s["position_mm"] + moves_of(c, actions), min=-h, max=h)
     s["position_mm"] = _keep(moving, moved, s["position_mm"])

@@ -10,7 +10,8 @@ Seeding is Gymnasium's: ``reset(seed=s)`` gives sub-env i child i of ``SeedSeque
 vector env spreads an int seed), ``reset(seed=[...])`` one seed per sub-env (its ``SeedSequence``),
 None fresh entropy; a sub-env's key is the first two words of its seed sequence, so its episodes depend
 on its seed and its actions only (:mod:`.rng`). ``compile=True`` runs the step through
-``torch.compile`` (``compile_backend``: inductor by default).
+``torch.compile`` (``compile_backend``: inductor by default). Eager on the CPU, a step computes the
+reset draws for the resetting envs only (:func:`.sim.begin_episodes`' ``gather``; the same values).
 """
 
 from __future__ import annotations
@@ -117,7 +118,10 @@ class TorchElectroLocVectorEnv(VectorEnv):
         self._state = sim.empty_state(self.consts, n)
         self._started = False
         c = self.consts
-        step_fn = lambda state, actions: sim.step(c, state, actions)  # noqa: E731 - the compiled unit
+        #: the resets' draws for the resetting envs only: eager on the CPU, where no host synchronisation exists
+        self.gather_resets = self.device.type == "cpu" and not compile
+        gather = self.gather_resets
+        step_fn = lambda state, actions: sim.step(c, state, actions, gather)  # noqa: E731 - the compiled unit
         self._step_fn = torch.compile(step_fn, fullgraph=True, backend=compile_backend) if compile else step_fn
 
     # ---- accessors ------------------------------------------------------------------------------
