@@ -190,7 +190,7 @@ class Simulation:
         """(k, obs_dim) float32 observations of envs ``ids`` (all if None): the task's."""
         return self.task.observation(self.state, ids)
 
-    def info(self, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray]:
+    def info(self, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray[Any]]:
         """The info arrays of envs ``ids`` (all if None): the task's (``INFO_KEYS`` first)."""
         return self.task.info(self.state, ids)
 

@@ -302,7 +302,7 @@ class Task(ABC):
             s.descriptor[sel],
         )
 
-    def info(self, state: State, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray]:
+    def info(self, state: State, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray[Any]]:
         """The info arrays of envs ``ids`` (all if None): :data:`~electroloc_gym.core.observation.INFO_KEYS`,
         the task's :attr:`info_keys`, and ``gain`` with dynamic gain (the amplifier gain G of the last reading).
         """
