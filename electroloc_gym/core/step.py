@@ -161,7 +161,8 @@ class Simulation:
         self._observe(self._all_ids)
         s.elapsed += 1
         terminated, truncated = self._flags()
-        obs, info = self.observation(), self.info()
+        obs = self.observation()
+        info: dict[str, Any] = self.info()  # the step's arrays, then (same_step) final_obs, final_info, done
         done = terminated | truncated
         s.done = done.copy()
         if autoreset == "same_step" and done.any():

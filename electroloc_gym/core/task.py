@@ -320,7 +320,7 @@ class Task(ABC):
             spread <= self.params.success_spread_mm,
             s.names[sel].copy(),
         )
-        out = dict(zip(INFO_KEYS, values, strict=True))
+        out: dict[str, NDArray[Any]] = dict(zip(INFO_KEYS, values, strict=True))
         out.update(self.task_info(s, sel))
         if self.dynamic_gain:
             out["gain"] = (
@@ -329,7 +329,7 @@ class Task(ABC):
             )
         return out
 
-    def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
         """The task's own info arrays (keys :attr:`info_keys`) of envs ``sel``."""
         return {}
 
