@@ -40,7 +40,7 @@ from __future__ import annotations
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym.protocol import MAX_STEP_MM  # the largest move per axis per step, mm (paper §4.1.3)
 
@@ -58,8 +58,12 @@ class Agent(Protocol):
         ...
 
     def predict(
-        self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None, deterministic: bool = True
-    ) -> tuple[NDArray, Any]:
+        self,
+        observation: NDArray[np.floating[Any]],
+        state: Any = None,
+        episode_start: NDArray[Any] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[Any], Any]:
         """The next action (2,) in [−1, 1]² and the recurrent state (``None`` for stateless agents)."""
         ...
 
@@ -105,7 +109,11 @@ class BaselineAgent:
         return self._env
 
     def predict(
-        self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None, deterministic: bool = True
+        self,
+        observation: NDArray[np.floating[Any]],
+        state: Any = None,
+        episode_start: NDArray[Any] | None = None,
+        deterministic: bool = True,
     ) -> tuple[NDArray[np.float32], Any]:
         """SB3-style call; subclasses implement :meth:`choose_move_mm` (and may set :attr:`gain_level`).
 
@@ -116,7 +124,7 @@ class BaselineAgent:
 
     def action_of(self, move_mm: Any) -> NDArray[np.float32]:
         """The env action of a carriage move (dx, dy), mm, with the gain entry under dynamic gain."""
-        action = np.clip(np.asarray(move_mm, dtype=np.float64) / MAX_STEP_MM, -1.0, 1.0)
+        action = (np.asarray(move_mm, dtype=np.float64) / MAX_STEP_MM).clip(-1.0, 1.0)
         if getattr(self.env, "gain_levels", None) is not None:
             level = self.env.preset_gain_level if self.gain_level is None else self.gain_level
             action = np.append(action, self.env.gain_action(level))
@@ -149,7 +157,7 @@ def move_bounds_mm(env: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
 
 
 def sample_options_mm(
-    rng: np.random.Generator, lo_mm: NDArray, hi_mm: NDArray, n_options: int = 16
+    rng: np.random.Generator, lo_mm: ArrayLike, hi_mm: ArrayLike, n_options: int = 16
 ) -> NDArray[np.float64]:
     """The paper's control options (§4.1.3): stay, plus ``n_options − 1`` uniform moves in ±10 mm.
 
@@ -171,7 +179,7 @@ def sample_options_mm(
 
 def sample_belief(
     belief: Any, n: int | None, rng: np.random.Generator, keep_weights: bool = False
-) -> tuple[NDArray, NDArray[np.float64] | None]:
+) -> tuple[NDArray[Any], NDArray[np.float64] | None]:
     """A planner's hypotheses: the belief's particles, or ``n`` of them drawn from its weights.
 
     Args:

@@ -28,6 +28,8 @@ over the T ≤ 3 steps, each of which adds one step's log-likelihood.
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -57,7 +59,8 @@ def _step_log_likelihoods(mu: NDArray, sd: NDArray, hyp: NDArray[np.intp], eps: 
     so the step's log-likelihood is the sum over the pairs.
     """
     if mu.ndim == 4:
-        return sum(_step_log_likelihoods(mu[..., q], sd[..., q], hyp, eps[..., q]) for q in range(mu.shape[-1]))
+        total = sum(_step_log_likelihoods(mu[..., q], sd[..., q], hyp, eps[..., q]) for q in range(mu.shape[-1]))
+        return cast("NDArray[np.float64]", total)  # K ≥ 1 pairs: a sum of arrays, never sum()'s start 0
     z = mu[:, :, hyp] + sd[:, :, hyp] * eps.T[:, None, :]  # (T, N, B)
     r = (z[..., None] - mu[:, :, None, :]) / sd[:, :, None, :]  # (T, N, B, S)
     return -0.5 * r * r - np.log(sd)[:, :, None, :]

@@ -216,6 +216,8 @@ class ZeroCrossingAgent(BaselineAgent):
         self._pos = core.position_mm
         self._phi = float(core.last_reading_V)
         self._count = 1
+        if self.workspace_mm is None:
+            raise RuntimeError(f"{type(self).__name__}.reset(env) must set the workspace before the search")
         lo, hi = self.workspace_mm
         centre = 0.5 * (lo + hi)
         try:

@@ -262,8 +262,6 @@ def coverage_signal_multiplier() -> float:
     the dipole model of Eq. 4). The ``"coverage"`` variant multiplies every fitted scale by the single k
     (solved here, ≈8.6) at which the mean coverage over the eight presets is 78 %.
     """
-    from scipy.optimize import brentq
-
     base = [_paper_condition(n).replace(signal_scale=fitted_signal_scale(n)) for n in PRESET_NAMES]
 
     def gap(k: float) -> float:
@@ -272,7 +270,7 @@ def coverage_signal_multiplier() -> float:
             - PAPER_START_COVERAGE
         )
 
-    return float(brentq(gap, 1.0, 1000.0, xtol=1e-3))
+    return physics.brent_root(gap, 1.0, 1000.0, xtol=1e-3)
 
 
 def get_condition(

@@ -187,7 +187,7 @@ def plot_episode(episode: Episode, max_panels: int = MAX_PANELS) -> Any:
     cax = fig.add_axes((0.905, 1.05 / fig.get_figheight(), 0.012, 1 - 1.8 / fig.get_figheight()))
     eev_colorbar(fig, snaps[0], cax=cax)
     cax.tick_params(labelsize=7)
-    cax.yaxis.label.set_size(8)
+    cax.yaxis.label.set_fontsize(8)
     first = snaps[0]
     info = episode.final_info
     name = first.scene.name if first.is_global else first.condition.name
@@ -233,7 +233,7 @@ def _plot_progress(ax: Any, episode: Episode) -> None:
 
 
 def save_gif(
-    frames: list[NDArray[np.uint8]], path: str | os.PathLike, fps: float = 3.0, hold_last_s: float = 2.0
+    frames: list[NDArray[np.uint8]], path: str | os.PathLike[str], fps: float = 3.0, hold_last_s: float = 2.0
 ) -> None:
     """Write RGB frames (H, W, 3 uint8) as a looping GIF, atomically (temp file, then rename).
 
@@ -273,7 +273,7 @@ def figure_suffixes() -> tuple[str, ...]:
     return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
 
 
-def check_output_path(name: str, path: str | os.PathLike, suffixes: tuple[str, ...] | None = None) -> None:
+def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[str, ...] | None = None) -> None:
     """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``).
 
     Args:
@@ -334,8 +334,8 @@ def demo(
     condition: str = "fresh-steel-12.7",
     sensor_model: str = "calibrated",
     seed: int = 0,
-    out: str | os.PathLike | None = "demo.png",
-    gif: str | os.PathLike | None = None,
+    out: str | os.PathLike[str] | None = "demo.png",
+    gif: str | os.PathLike[str] | None = None,
 ) -> Episode:
     """``electroloc demo``: one random-move episode of ElectroLoc-v0 as a snapshot grid and/or a GIF."""
     import gymnasium as gym

@@ -29,7 +29,9 @@ MAX_COLUMN_SETS = 250_000
 EDGE_MM = 1e-9
 
 
-def _column_counts(h: float, spacing: float, clearance: float, dx: NDArray, ty: NDArray) -> NDArray[np.int64]:
+def _column_counts(
+    h: float, spacing: float, clearance: float, dx: NDArray[np.float64], ty: NDArray[np.float64] | np.float64
+) -> NDArray[np.int64]:
     """Most centres spaced ≥ ``spacing`` in [−h, h] along a column ``dx`` from the target (target at height
     ``ty``), avoiding the open interval the target's disc of radius ``clearance`` cuts from it: the greedy
     bottom-up sweep (closed form; broadcasts over ``dx`` and ``ty``).
@@ -82,7 +84,7 @@ def column_layout(h: float, spacing: float, clearance: float, tx: float, ty: flo
             lo, hi = py - w, py + w
         y = -h
         while y <= h:
-            if lo is not None and lo < y < hi:
+            if lo is not None and hi is not None and lo < y < hi:
                 y = hi
                 continue
             out.append((y, x) if transpose else (x, y))
@@ -105,4 +107,6 @@ def least_capacity(h: float, spacing: float, clearance: float, half_width: float
         by_rows = _column_counts(h, spacing, clearance + margin, xs[None, :] - ty, col)  # the transpose
         best = np.maximum(by_columns[:, index].sum(axis=2).max(axis=1), by_rows[:, index].sum(axis=2).max(axis=1))
         least = int(best.min()) if least is None else min(least, int(best.min()))
+    if least is None:
+        raise ValueError(f"no grid of targets in ±{half_width!r} mm (half_width must be ≥ 0)")
     return int(least)

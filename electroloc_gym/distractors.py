@@ -79,6 +79,16 @@ def _tuple_of(name: str, values: Any, allowed: Sequence[str]) -> tuple[str, ...]
     return tuple(values)
 
 
+def _checked_count(v: object, count: object) -> int:
+    """One distractor count ``v`` (of the ``count`` given) as an int, or a ValueError naming ``count``."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= MAX_DISTRACTORS:
+        raise ValueError(
+            f"count (distractors) must be an integer in [0, {MAX_DISTRACTORS}] or a non-empty "
+            f"tuple of such integers, got {count!r}"
+        )
+    return int(v)
+
+
 @dataclass(frozen=True)
 class DistractorDraw:
     """How a distractor set is drawn per episode (all draws from the episode's generator).
@@ -104,14 +114,11 @@ class DistractorDraw:
 
     def __post_init__(self) -> None:
         c = self.count
-        mix = isinstance(c, (tuple, list)) and len(c) > 0
-        for v in c if mix else (c,):
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= MAX_DISTRACTORS:
-                raise ValueError(
-                    f"count (distractors) must be an integer in [0, {MAX_DISTRACTORS}] or a non-empty "
-                    f"tuple of such integers, got {c!r}"
-                )
-        object.__setattr__(self, "count", tuple(int(v) for v in c) if mix else int(c))
+        if isinstance(c, (tuple, list)) and len(c) > 0:
+            counts = [_checked_count(v, c) for v in c]  # every entry checked before any is stored
+            object.__setattr__(self, "count", tuple(counts))
+        else:
+            object.__setattr__(self, "count", _checked_count(c, c))
         object.__setattr__(self, "shapes", _tuple_of("shapes", self.shapes, SHAPES))
         object.__setattr__(
             self, "materials", _tuple_of("materials", self.materials, tuple(SCENE_MATERIAL_CONDUCTIVITY_uScm))

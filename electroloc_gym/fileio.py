@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (parent folders are created)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
@@ -57,12 +57,12 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         raise
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     """UTF-8 text version of :func:`atomic_write_bytes`."""
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def save_figure_atomic(fig: Any, path: str | os.PathLike, **kwargs: Any) -> None:
+def save_figure_atomic(fig: Any, path: str | os.PathLike[str], **kwargs: Any) -> None:
     """Save a matplotlib figure atomically; the format follows the suffix (default PNG)."""
     suffix = os.path.splitext(os.fspath(path))[1].lstrip(".") or "png"
     buf = io.BytesIO()
@@ -95,7 +95,7 @@ def strict_json(obj: Any, indent: int | None = 2) -> str:
     return json.dumps(to_json_data(obj), indent=indent, allow_nan=False, ensure_ascii=False) + "\n"
 
 
-def write_json_atomic(path: str | os.PathLike, obj: Any, indent: int | None = 2) -> None:
+def write_json_atomic(path: str | os.PathLike[str], obj: Any, indent: int | None = 2) -> None:
     """Write :func:`strict_json` of ``obj`` to ``path`` atomically."""
     atomic_write_text(path, strict_json(obj, indent=indent))
 
@@ -116,7 +116,7 @@ class FolderLock:
         FolderBusyError: on :meth:`acquire` when another process holds the lock.
     """
 
-    def __init__(self, folder: str | os.PathLike, name: str, busy_message: str) -> None:
+    def __init__(self, folder: str | os.PathLike[str], name: str, busy_message: str) -> None:
         self.path = Path(folder) / name
         self._busy = busy_message
         self._lock: FileLock | None = None

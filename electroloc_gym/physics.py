@@ -27,6 +27,9 @@ four 38.1 mm rows are not (docs/design.md, "Physics", says why); ``electroloc de
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any, cast
+
 import numpy as np
 from numba import vectorize
 from numpy.typing import ArrayLike, NDArray
@@ -154,9 +157,9 @@ def cylinder_perturbation(
 
 def differential_perturbation(
     offsets_mm: ArrayLike,
-    radius_mm: float,
-    chi: float,
-    depth_mm: float,
+    radius_mm: float | FloatArray,
+    chi: float | FloatArray,
+    depth_mm: float | FloatArray,
     spacing_mm: float = 50.0,
     emitter_voltage_V: float = 2.0,
     electrode_radius_mm: float = 1.0,
@@ -230,8 +233,8 @@ _DIPOLE_UFUNC = _dipole_difference.ufunc
 
 def _differential_dipole(
     offsets_mm: ArrayLike,
-    strength: ArrayLike,
-    depth_mm: ArrayLike,
+    strength: float | FloatArray,
+    depth_mm: float | FloatArray,
     power: float,
     spacing_mm: float,
     emitter_voltage_V: float,
@@ -303,17 +306,33 @@ def eq5_single_detector(r: ArrayLike, a: float, e: float, chi: float) -> FloatAr
     return -2.0 * (a * a * a) * chi * e * (N1 - N2) / D
 
 
-def _last_crossing(r: FloatArray, g: FloatArray, func) -> float:
-    """Largest root of ``func`` given samples ``g = func(r)`` on an increasing grid ``r``."""
+def brent_root(
+    f: Callable[[float], float | NDArray[np.floating[Any]]],
+    a: float,
+    b: float,
+    *,
+    xtol: float,
+    rtol: float | None = None,
+) -> float:
+    """The root of ``f`` in the bracket [a, b]: scipy's ``brentq`` (``rtol`` None: scipy's default)."""
     from scipy.optimize import brentq
 
+    if rtol is None:
+        root = brentq(f, a, b, xtol=xtol)
+    else:
+        root = brentq(f, a, b, xtol=xtol, rtol=rtol)  # pyright: ignore[reportArgumentType]  # scipy is unannotated: pyright takes rtol's type from its float64 default
+    return float(cast(float, root))  # full_output False: brentq returns the root alone, not (root, results)
+
+
+def _last_crossing(r: FloatArray, g: FloatArray, func: Callable[[float], float | FloatArray]) -> float:
+    """Largest root of ``func`` given samples ``g = func(r)`` on an increasing grid ``r``."""
     above = np.nonzero(g >= 0.0)[0]
     if above.size == 0:
         return float("nan")
     i = int(above[-1])
     if i == r.size - 1:
         return float("inf")
-    return float(brentq(func, r[i], r[i + 1], xtol=1e-12, rtol=1e-12))
+    return brent_root(func, r[i], r[i + 1], xtol=1e-12, rtol=1e-12)
 
 
 def eq6_detection_distance(n: float, a: float, e: float, chi: float, r_max: float = 50.0) -> float:
@@ -410,7 +429,7 @@ def fit_signal_scale(
     45° line, the maximum is the peak of the far branch, i.e. the scale at which the detection
     distance jumps past the gap (where "the near branch ends").
     """
-    from scipy.optimize import minimize_scalar
+    from scipy.optimize import OptimizeResult, minimize_scalar
 
     kw = dict(
         radius_mm=radius_mm,
@@ -431,6 +450,7 @@ def fit_signal_scale(
         res = minimize_scalar(
             lambda r: -layout_signal_on_45deg(r, **kw), bounds=(lo, hi), method="bounded", options={"xatol": 1e-10}
         )
+        res = cast(OptimizeResult, res)  # scipy is unannotated: minimize_scalar returns an OptimizeResult
         best = max(best, float(-res.fun))
     # Nudge up by 1e-6 (relative) so that the returned scale attains R_meas also when s* is the jump
     # scale, where the far-branch peak only touches the threshold (a grid search could miss it).

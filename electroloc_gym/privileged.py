@@ -24,11 +24,12 @@ each task's own hidden state, declared with the task).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 
+from electroloc_gym.envs.adapter import CoreEnv
 from electroloc_gym.registry import ENV_IDS, env_entry
 
 __all__ = ["PrivilegedInfo", "privileged_keys", "PRIVILEGED_MODES"]
@@ -61,8 +62,9 @@ class PrivilegedInfo(gym.Wrapper):
         if mode not in PRIVILEGED_MODES:
             raise ValueError(f"mode must be one of {list(PRIVILEGED_MODES)}, got {mode!r}")
         core = env.unwrapped
-        if not hasattr(core, "hidden_state"):
+        if not isinstance(core, CoreEnv):
             raise ValueError(f"env must be an env of the env table ({list(ENV_IDS)}), got {type(core).__name__}")
+        self._core = core
         self.env_id = core.entry().env_id
         self.keys = core.hidden_keys
         self.mode = mode
@@ -73,7 +75,7 @@ class PrivilegedInfo(gym.Wrapper):
 
     def privileged(self, info: dict[str, Any]) -> np.ndarray:
         """The hidden state now (:func:`privileged_keys`), float64."""
-        return np.asarray(self.env.unwrapped.hidden_state(), dtype=np.float64)
+        return np.asarray(self._core.hidden_state(), dtype=np.float64)
 
     def _wrap(self, obs: Any, info: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
         p = self.privileged(info)
@@ -85,7 +87,7 @@ class PrivilegedInfo(gym.Wrapper):
         obs, info = self.env.reset(**kwargs)
         return self._wrap(obs, info)
 
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         obs, info = self._wrap(obs, info)
         return obs, reward, terminated, truncated, info

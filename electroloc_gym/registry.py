@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, TypeVar, overload
+from typing import Any, TypeVar, cast, overload
 
 __all__ = [
     "EnvEntry",
@@ -169,7 +169,7 @@ class LiveSequence(Sequence[_T]):
     def __getitem__(self, i: int) -> _T: ...
     @overload
     def __getitem__(self, i: slice) -> Sequence[_T]: ...
-    def __getitem__(self, i: Any) -> Any:
+    def __getitem__(self, i: int | slice) -> _T | Sequence[_T]:
         return tuple(self._compute())[i]
 
     def __len__(self) -> int:
@@ -178,7 +178,8 @@ class LiveSequence(Sequence[_T]):
     def __eq__(self, other: object) -> bool:
         """Equal to a tuple or list with the same items (as the tuple it stands for)."""
         if isinstance(other, (LiveSequence, tuple, list)):
-            return tuple(self) == tuple(other)
+            items = cast("Sequence[object]", other)  # isinstance: a LiveSequence, tuple or list (of anything)
+            return tuple(self) == tuple(items)
         return NotImplemented
 
     __hash__ = None  # type: ignore[assignment]  # it changes when the table does
@@ -221,14 +222,19 @@ BENCH_ENVS: Mapping[str, tuple[EnvEntry, BenchEnv]] = LiveMapping(
 )
 
 
+def _check_is_entry(entry: object) -> None:
+    """``add_entry``'s argument: an :class:`EnvEntry`, else a ValueError."""
+    if not isinstance(entry, EnvEntry):
+        raise ValueError(f"entry must be an EnvEntry, got {type(entry).__name__}")
+
+
 def add_entry(entry: EnvEntry) -> bool:
     """Add ``entry`` to the table (False if the same entry is there already).
 
     Raises:
         ValueError: another entry with the same id, task, class or bench name.
     """
-    if not isinstance(entry, EnvEntry):
-        raise ValueError(f"entry must be an EnvEntry, got {type(entry).__name__}")
+    _check_is_entry(entry)
     if entry in _TABLE:
         return False
     for e in _TABLE:

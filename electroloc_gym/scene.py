@@ -48,7 +48,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -133,7 +133,7 @@ class SceneObject:
             raise ValueError(f"material must be one of {sorted(SCENE_MATERIAL_CONDUCTIVITY_uScm)}, got {material!r}")
         return cls(
             shape,
-            tuple(xy_mm),
+            cast("tuple[float, float]", tuple(xy_mm)),  # the pair as a tuple (SceneObject checks its length)
             check_float("diameter_mm", diameter_mm, 0.0) / 2.0,
             SCENE_MATERIAL_CONDUCTIVITY_uScm[key],
             key,

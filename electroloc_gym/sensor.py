@@ -6,9 +6,10 @@
 
 from __future__ import annotations
 
+from typing import overload
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq
 
 from electroloc_gym import physics
 from electroloc_gym.conditions import Condition
@@ -27,6 +28,16 @@ __all__ = [
 ]
 
 
+@overload
+def expected_reading(
+    condition: Condition, offsets_mm: NDArray[np.float32], *, saturate: bool = True
+) -> NDArray[np.float32]: ...
+@overload
+def expected_reading(
+    condition: Condition, offsets_mm: NDArray[np.float64], *, saturate: bool = True
+) -> NDArray[np.float64]: ...
+@overload
+def expected_reading(condition: Condition, offsets_mm: ArrayLike, *, saturate: bool = True) -> NDArray[np.floating]: ...
 def expected_reading(condition: Condition, offsets_mm: ArrayLike, *, saturate: bool = True) -> NDArray[np.floating]:
     """Noise-free reading Φ (V) for targets at ``offsets_mm`` = target − carriage centre, shape (..., 2).
 
@@ -151,4 +162,4 @@ def zero_crossing_mm(condition: Condition, r_max_mm: float = 400.0) -> float:
     if flips.size == 0:
         return float("nan")
     i = int(flips[0])
-    return float(brentq(lambda r: float(signed(r)), R[i], R[i + 1], xtol=1e-9))
+    return physics.brent_root(lambda r: float(signed(r)), R[i], R[i + 1], xtol=1e-9)

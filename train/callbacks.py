@@ -113,10 +113,14 @@ def env_of(venv: VecEnv) -> tuple[str, dict[str, Any], int, Path | None]:
     monitor_file = None
     mon = next((w for w in chain if isinstance(w, VecMonitor)), None)
     if isinstance(base, NativeVecEnv):
+        if base.env_id is None:
+            raise ValueError("BenchEvalCallback needs a NativeVecEnv built by make_native_vec_env (it has no env id)")
         env_id, kwargs = base.env_id, dict(base.env_kwargs)
         writer = getattr(mon, "results_writer", None)
     elif isinstance(base, DummyVecEnv):
         spec = base.envs[0].unwrapped.spec
+        if spec is None:
+            raise ValueError("BenchEvalCallback needs envs made with gym.make (the DummyVecEnv's env has no spec)")
         env_id, kwargs = spec.id, dict(spec.kwargs)
         m = base.envs[0]
         while not isinstance(m, Monitor) and isinstance(m, gym.Wrapper):

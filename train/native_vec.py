@@ -63,7 +63,7 @@ class NativeVecEnv(VecEnv):
     def reset(self) -> VecEnvObs:
         seeds = None if all(s is None for s in self._seeds) else list(self._seeds)
         options = self._options[0] if self._options and self._options[0] else None
-        obs, info = self.venv.reset(seed=seeds, options=options)
+        obs, info = self.venv.reset(seed=seeds, options=options)  # pyright: ignore[reportArgumentType]  # VectorEnv.reset says int; its vector envs take one seed per sub-env
         self.reset_infos = self._split_info(info)
         self._reset_seeds()
         self._reset_options()
@@ -94,6 +94,8 @@ class NativeVecEnv(VecEnv):
         for i, d in enumerate(infos):
             d["TimeLimit.truncated"] = timeout[i]
         for i in np.flatnonzero(dones):
+            if final_obs is None:
+                raise RuntimeError("the vector env gave no info['final_obs'] for an env that finished (SAME_STEP)")
             infos[i]["terminal_observation"] = final_obs[i]
             infos[i]["is_success"] = bool(infos[i]["success"])
         return obs, rewards.astype(np.float32), dones, infos
@@ -228,22 +230,24 @@ def zoo_vec_env(env_fns: list[Callable[[], gym.Env]], **vec_env_kwargs: Any) -> 
     """
     probe = env_fns[0]()
     spec = probe.unwrapped.spec
-    native = (
+    native: tuple[str, str | None, tuple[str, ...], dict[str, Any]] | None = None  # id, monitor file, keys, kwargs
+    if (
         isinstance(probe, Monitor)
         and spec is not None
         and spec.vector_entry_point is not None
         and spec.kwargs.get("render_mode") is None
         and not vec_env_kwargs
-    )
-    if native:
+    ):
         writer = probe.results_writer
         monitor_file = None if writer is None else writer.file_handler.name
         info_keywords = tuple(probe.info_keywords)
         kwargs = {k: v for k, v in spec.kwargs.items() if k != "render_mode"}
+        native = (spec.id, monitor_file, info_keywords, kwargs)
     probe.close()
-    if native:
+    if native is not None:
+        env_id, monitor_file, info_keywords, kwargs = native
         venv = make_native_vec_env(
-            spec.id, len(env_fns), seed=None, env_kwargs=kwargs, monitor_file=monitor_file, info_keywords=info_keywords
+            env_id, len(env_fns), seed=None, env_kwargs=kwargs, monitor_file=monitor_file, info_keywords=info_keywords
         )
     else:
         venv = DummyVecEnv(env_fns, **vec_env_kwargs)

@@ -208,6 +208,8 @@ def train(
                 [sys.executable, *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env
             ) as proc,
         ):
+            if proc.stdout is None:
+                raise RuntimeError("the training subprocess has no stdout pipe")
             for line in proc.stdout:
                 fh.write(line)
                 lines.append(line)

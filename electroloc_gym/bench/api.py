@@ -64,6 +64,12 @@ def _object_name(agent: Any, taken: set[str]) -> str:
     return name
 
 
+def _check_agents(agents: object) -> None:
+    """``run``'s ``agents``: a non-empty list (or tuple), else a ValueError."""
+    if not isinstance(agents, (list, tuple)) or not agents:
+        raise ValueError(f"agents must be a non-empty list of agent objects or specs, got {agents!r}")
+
+
 def run(
     agents: list[Any],
     *,
@@ -71,7 +77,7 @@ def run(
     conditions: str | list[str] = "all",
     trials: int = 50,
     seed: int = 0,
-    out: str | os.PathLike | None = None,
+    out: str | os.PathLike[str] | None = None,
     sensor_model: str | None = None,
     signal: str = DEFAULT_SIGNAL,
     max_observations: int | None = None,
@@ -107,8 +113,7 @@ def run(
         ValueError: a bad argument, an object without the agent protocol, a non-serial ``backend``
             with agent objects, or anything ``electroloc bench`` refuses.
     """
-    if not isinstance(agents, (list, tuple)) or not agents:
-        raise ValueError(f"agents must be a non-empty list of agent objects or specs, got {agents!r}")
+    _check_agents(agents)
     if env not in ENV_CHOICES:
         raise ValueError(f"env must be one of {list(ENV_CHOICES)}, got {env!r}")
     env_id = ENV_CHOICES[env]

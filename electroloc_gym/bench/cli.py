@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from typing import Any
 
 from electroloc_gym.agentspec import split_specs
 from electroloc_gym.bench.agents import (
@@ -186,7 +187,8 @@ def _runs_on_map_env(spec: str, env_id: str) -> bool:
         return shipped_model_env(shipped_models()[spec]) == (env_id, None)
     if kind == "path":
         meta = policy_meta(spec) or {}
-        obs = meta.get("observation") if isinstance(meta.get("observation"), dict) else {}
+        obs_entry = meta.get("observation")
+        obs: dict[str, Any] = obs_entry if isinstance(obs_entry, dict) else {}
         return bool(obs.get("env_id") == env_id)
     return kind in ("factory", "object")
 

@@ -12,7 +12,7 @@ from electroloc_gym.bench.tables import PAPER_TABLE4, _cond_label, paper_agent_k
 __all__ = ["plot_steps", "steps_png"]
 
 
-def plot_steps(summary: dict[str, Any], path: str | os.PathLike) -> None:
+def plot_steps(summary: dict[str, Any], path: str | os.PathLike[str]) -> None:
     """:func:`steps_png` written atomically to ``path``."""
     from electroloc_gym.fileio import atomic_write_bytes
 

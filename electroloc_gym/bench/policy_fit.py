@@ -105,6 +105,8 @@ def bench_env_kwargs(
     }
     entry = env_entry(env_id)
     if entry.takes("condition") and condition is not None:  # an env with one fixed map takes no condition
+        if signal is None:
+            raise ValueError(f"signal must be 'fitted', 'paper', 'coverage' or a positive float, got {signal!r}")
         cond = get_condition(condition, signal)
         adapt = getattr(agent, "adapt_condition", None) if builtin else None
         if callable(adapt):
@@ -187,12 +189,14 @@ def policy_env_problem(
     meta = policy_meta(spec)
     if meta is None:
         return None
-    obs = meta.get("observation") if isinstance(meta.get("observation"), dict) else {}
-    act = meta.get("action") if isinstance(meta.get("action"), dict) else {}
+    obs_entry, act_entry = meta.get("observation"), meta.get("action")
+    obs: dict[str, Any] = obs_entry if isinstance(obs_entry, dict) else {}
+    act: dict[str, Any] = act_entry if isinstance(act_entry, dict) else {}
     trained = obs.get("env_id")
     if isinstance(trained, str) and trained != env_id:
         return f"it was trained on {trained}, this run is on {env_id}"
-    recorded = (meta.get("env_kwargs") or {}).get("gain_levels") if isinstance(meta.get("env_kwargs"), dict) else None
+    env_kwargs = meta.get("env_kwargs")
+    recorded = (env_kwargs or {}).get("gain_levels") if isinstance(env_kwargs, dict) else None
     mine = None if gain_levels is None else [float(g) for g in gain_levels]
     theirs = None if recorded is None else [float(g) for g in recorded]
     if theirs != mine:
@@ -214,7 +218,8 @@ def policy_env_problem(
                 f"its observation frame has {frame} entries, {env_id}'s "
                 f"({getattr(agent, 'env_kwargs', {}).get('observation', 'default')} observation) has {env_frame}"
             )
-        space = act.get("space") if isinstance(act.get("space"), dict) else {}
+        space_entry = act.get("space")
+        space: dict[str, Any] = space_entry if isinstance(space_entry, dict) else {}
         want = space.get("shape")
         have = env.action_space.shape
         if space.get("type") == "Discrete" or act.get("action_type") == "discrete":

@@ -82,7 +82,7 @@ def check_ray_address(address: str | None) -> None:
         except ImportError:  # pragma: no cover - Ray moved its resolver; ray.init reports instead
             return
         try:
-            target = canonicalize_bootstrap_address_or_die(None if target == "local" else target)
+            target = canonicalize_bootstrap_address_or_die(None if target == "local" else target)  # pyright: ignore[reportArgumentType]  # Ray annotates addr as str; its docstring and code take None
         except (ConnectionError, ValueError) as exc:
             raise ValueError(
                 f"--address {address!r}: no running Ray cluster found (start one with "

@@ -73,7 +73,7 @@ MAX_DIGITS = 24
 MAX_NUMBER_CHARS = 40
 
 
-def prepare_out_dir(out: str | os.PathLike | None) -> Path:
+def prepare_out_dir(out: str | os.PathLike[str] | None) -> Path:
     """Create the output folder (parents too) and check that files can be written in it.
 
     Raises:
@@ -103,7 +103,7 @@ def prepare_out_dir(out: str | os.PathLike | None) -> Path:
     return path
 
 
-def run_lock(folder: str | os.PathLike) -> FolderLock:
+def run_lock(folder: str | os.PathLike[str]) -> FolderLock:
     """The exclusive lock a run holds on its output folder (``OUT/.bench.lock``, a :class:`FolderLock`).
 
     Raises:
@@ -231,7 +231,7 @@ class LoadedRecords:
 
 
 def load_records(
-    path: str | os.PathLike, config: BenchConfig | None = None, rules: RecordRules | None = None
+    path: str | os.PathLike[str], config: BenchConfig | None = None, rules: RecordRules | None = None
 ) -> LoadedRecords:
     """Read a trials.jsonl (missing file: no records), keyed by (condition, agent, trial).
 
@@ -300,7 +300,7 @@ def load_records(
     return out
 
 
-def read_trials(path: str | os.PathLike) -> list[dict[str, Any]]:
+def read_trials(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
     """The valid records of a trials.jsonl, each (condition, agent, trial) once, in file order."""
     return list(load_records(path).records.values())
 
@@ -326,7 +326,7 @@ def set_aside(loaded: LoadedRecords) -> Path | None:
 class RecordWriter:
     """Append records to trials.jsonl, one line each, flushed and fsync'ed before the next."""
 
-    def __init__(self, path: str | os.PathLike) -> None:
+    def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
         self._fh = open(self.path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()/__exit__
 

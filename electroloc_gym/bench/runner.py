@@ -241,7 +241,7 @@ def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
 
 def run_benchmark(
     config: BenchConfig,
-    out_dir: str | os.PathLike,
+    out_dir: str | os.PathLike[str],
     *,
     workers: int | None = None,
     backend: str = "process",

@@ -71,7 +71,7 @@ def config_from_json(stored: Any, where: str = CONFIG_FILE) -> BenchConfig:
     why = _config_problem(stored)
     if why is None:
         names = {f.name for f in fields(BenchConfig)}
-        kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in stored.items() if k in names}
+        kwargs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in stored.items() if k in names}
         try:
             return BenchConfig(**kwargs)
         except (TypeError, ValueError) as exc:
@@ -192,7 +192,7 @@ class RunRecords:
         ]
 
 
-def read_run_records(out_dir: str | os.PathLike) -> RunRecords:
+def read_run_records(out_dir: str | os.PathLike[str]) -> RunRecords:
     """Read a benchmark run's folder (``electroloc bench --out``) as ``--resume`` reads it.
 
     ``OUT/config.json`` gives the run; every line of ``OUT/trials.jsonl`` is parsed within bounds and

@@ -120,7 +120,7 @@ class LocalizeDistractorsTask(LocalizeTask):
             extra *= self._gain_array[state.gain_index[ids]]
         return out + extra
 
-    def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
         """``distractors_mm``: (k, D, 2) float64 distractor centres, mm, D the env's most distractors (fixed per
         env), rows past the episode's own count 0 (read only the first ``distractors_count``);
         ``distractors_count``: (k,) int64, the episode's count

@@ -26,6 +26,7 @@ from electroloc_gym.core.worlds import cells, descriptor, grid_points_bound, gro
 from electroloc_gym.kernels import bilinear_coefficients
 from electroloc_gym.scene import BENCHMARK_SCENE, Scene, random_cylinder_layout
 from electroloc_gym.sensor_models import calibration_grid_for
+from electroloc_gym.sensor_models.calibrated import CalibratedSensorModel
 from electroloc_gym.sensor_models.map import make_map_sensor_model
 
 __all__ = ["GlobalTask"]
@@ -87,6 +88,8 @@ class GlobalTask(Task):
         model = make_map_sensor_model(self.params.sensor_model, scene, seed, self.blur_mm, self.protocol)
         state.model[i] = model
         if self.calibrated:
+            if not isinstance(model, CalibratedSensorModel):
+                raise TypeError(f"a calibrated map needs a CalibratedSensorModel, got {type(model).__name__}")
             rows = self._set_grid(state, i, model.grid_mm, model.grid_step_mm)
             bilinear_coefficients(model.mean_table_V, model.std_table_V, model.noise_std_V, rows)
         self._place(state, i, g, scene.start_half_width_mm)

@@ -161,7 +161,8 @@ class Simulation:
         self._observe(self._all_ids)
         s.elapsed += 1
         terminated, truncated = self._flags()
-        obs, info = self.observation(), self.info()
+        obs = self.observation()
+        info: dict[str, Any] = self.info()  # the step's arrays, then (same_step) final_obs, final_info, done
         done = terminated | truncated
         s.done = done.copy()
         if autoreset == "same_step" and done.any():
@@ -190,7 +191,7 @@ class Simulation:
         """(k, obs_dim) float32 observations of envs ``ids`` (all if None): the task's."""
         return self.task.observation(self.state, ids)
 
-    def info(self, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray]:
+    def info(self, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray[Any]]:
         """The info arrays of envs ``ids`` (all if None): the task's (``INFO_KEYS`` first)."""
         return self.task.info(self.state, ids)
 

@@ -302,7 +302,7 @@ class Task(ABC):
             s.descriptor[sel],
         )
 
-    def info(self, state: State, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray]:
+    def info(self, state: State, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray[Any]]:
         """The info arrays of envs ``ids`` (all if None): :data:`~electroloc_gym.core.observation.INFO_KEYS`,
         the task's :attr:`info_keys`, and ``gain`` with dynamic gain (the amplifier gain G of the last reading).
         """
@@ -320,7 +320,7 @@ class Task(ABC):
             spread <= self.params.success_spread_mm,
             s.names[sel].copy(),
         )
-        out = dict(zip(INFO_KEYS, values, strict=True))
+        out: dict[str, NDArray[Any]] = dict(zip(INFO_KEYS, values, strict=True))
         out.update(self.task_info(s, sel))
         if self.dynamic_gain:
             out["gain"] = (
@@ -329,7 +329,7 @@ class Task(ABC):
             )
         return out
 
-    def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
         """The task's own info arrays (keys :attr:`info_keys`) of envs ``sel``."""
         return {}
 

@@ -265,7 +265,7 @@ class UnknownTargetTask(LocalizeTask):
         """Env ``i``'s target centre (mm), radius (mm) and contrast χ, float64 (ground truth)."""
         return np.array([*state.target_mm[i], *state.target_shape[i, :2]], dtype=np.float64)
 
-    def task_info(self, state: State, sel: Any) -> dict[str, NDArray]:
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
         """The info arrays :data:`SHAPE_INFO_KEYS` of envs ``sel``."""
         s = state
         est_r, true_r = s.radius_median_mm[sel], s.target_shape[sel, 0]

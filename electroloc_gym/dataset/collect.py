@@ -92,7 +92,7 @@ class DatasetRequest:
     agent: str
     episodes: int
     seed: int = DEFAULT_DATASET_SEED
-    reference: str | os.PathLike | None = None
+    reference: str | os.PathLike[str] | None = None
     version: int = 0
     dataset_id: str | None = None
     condition: str = "random"

@@ -21,6 +21,7 @@ the dataset's uses the means over the same conditions).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -84,7 +85,7 @@ def _mean_readings(rows: list[dict[str, Any]]) -> float:
     return float(np.mean(per))
 
 
-def reference_scores(bench_dir: str | Path, env_id: str) -> dict[str, Any]:
+def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str, Any]:
     """``{"ref_min_score", "ref_max_score", "rnd_readings", "best_planner", "best_readings", "source"}`` from
     a benchmark run's ``trials.jsonl`` holding rnd-wlk and at least one planner on ``env_id``.
 

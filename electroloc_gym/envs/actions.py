@@ -23,12 +23,12 @@ from electroloc_gym.core.params import DISCRETE_MOVES_MM, MAX_STEP_MM, EnvParams
 __all__ = ["ActionParser", "spaces_of"]
 
 
-def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space, spaces.Box]:
+def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space[Any], spaces.Box]:
     """(action space, observation space) of one env (module docstring)."""
     k = len(params.gains)
     if params.action_type == "continuous":
         dims = 3 if params.gain_levels is not None else 2
-        action: spaces.Space = spaces.Box(-1.0, 1.0, shape=(dims,), dtype=np.float32)
+        action: spaces.Space[Any] = spaces.Box(-1.0, 1.0, shape=(dims,), dtype=np.float32)
     elif params.gain_levels is not None:
         action = spaces.MultiDiscrete([len(DISCRETE_MOVES_MM), k])
     else:

@@ -304,10 +304,11 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'.")
             return None
         if self._renderer is None:
-            self._renderer = self._make_renderer()
+            self._renderer = self._make_renderer(self.render_mode)
         return self._renderer.draw(self)
 
-    def _make_renderer(self) -> Any:
+    def _make_renderer(self, render_mode: str) -> Any:
+        """The renderer of ``render_mode`` ("human" or "rgb_array"), built on the first ``render()``."""
         raise NotImplementedError
 
     def close(self) -> None:

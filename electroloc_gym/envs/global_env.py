@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.core.global_task import GlobalTask
 from electroloc_gym.core.params import MAX_STEP_MM
 from electroloc_gym.envs.adapter import CoreEnv
 from electroloc_gym.scene import Scene
@@ -141,7 +142,12 @@ class GlobalEnv(CoreEnv):
     def scene(self) -> Scene:
         """The current episode's map."""
         w = self._state.world[0]
-        return self._task.scene_template if w is None else w
+        if w is not None:
+            return w
+        task = self._task
+        if not isinstance(task, GlobalTask):
+            raise TypeError(f"{type(self).__name__} runs a GlobalTask, got {type(task).__name__}")
+        return task.scene_template
 
     @property
     def odometry_mm(self) -> NDArray[np.float64]:
@@ -153,7 +159,7 @@ class GlobalEnv(CoreEnv):
         """(−10, −10), (10, 10) mm: the robot does not know where it is, hence not where the walls are."""
         return np.full(2, -MAX_STEP_MM), np.full(2, MAX_STEP_MM)
 
-    def _make_renderer(self) -> Any:
+    def _make_renderer(self, render_mode: str) -> Any:
         from electroloc_gym.render import GlobalEpisodeRenderer
 
-        return GlobalEpisodeRenderer(self.render_mode)
+        return GlobalEpisodeRenderer(render_mode)

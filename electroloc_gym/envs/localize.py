@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.core.array import ArrayLocalizeTask
 from electroloc_gym.core.params import MAX_STEP_MM
 from electroloc_gym.envs.adapter import CoreEnv
 from electroloc_gym.sensor_layouts import SensorLayout
@@ -149,7 +150,10 @@ class ElectroLocEnv(CoreEnv):
     @property
     def sensor_layout(self) -> SensorLayout:
         """The carriage's sensing pairs (K, 2, 2 electrode offsets in mm: ``.electrodes``, ``.n_pairs``)."""
-        return self._task.sensor_layout
+        task = self._task
+        if not isinstance(task, ArrayLocalizeTask):  # the unknown-target task has one fixed pair, no layout
+            raise AttributeError(f"{type(self).__name__} has no sensor_layout")
+        return task.sensor_layout
 
     @property
     def fixed_carriage(self) -> bool:
@@ -169,7 +173,7 @@ class ElectroLocEnv(CoreEnv):
         hi = np.maximum(np.minimum(MAX_STEP_MM, high - p), 0.0)
         return lo, hi
 
-    def _make_renderer(self) -> Any:
+    def _make_renderer(self, render_mode: str) -> Any:
         from electroloc_gym.render import EpisodeRenderer
 
-        return EpisodeRenderer(self.render_mode)
+        return EpisodeRenderer(render_mode)

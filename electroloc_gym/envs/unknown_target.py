@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from electroloc_gym.conditions import Condition
+from electroloc_gym.core.unknown import UnknownTargetTask
 from electroloc_gym.envs.localize import ElectroLocEnv
 
 __all__ = ["UnknownTargetEnv"]
@@ -92,7 +93,10 @@ class UnknownTargetEnv(ElectroLocEnv):
         """The episode's tank with its hidden sphere (ground truth; before the first reset: the first tank)."""
         if self._state.world[0] is None:
             return self._task.default_world()
-        return self._task.true_condition(self._state, 0)
+        task = self._task
+        if not isinstance(task, UnknownTargetTask):
+            raise TypeError(f"{type(self).__name__} runs an UnknownTargetTask, got {type(task).__name__}")
+        return task.true_condition(self._state, 0)
 
     @property
     def target_draw(self) -> str:
@@ -109,7 +113,7 @@ class UnknownTargetEnv(ElectroLocEnv):
         """``"binary"`` or ``"continuous"``."""
         return self.params.contrast
 
-    def _make_renderer(self) -> Any:
+    def _make_renderer(self, render_mode: str) -> Any:
         from electroloc_gym.render import EpisodeRenderer
 
-        return EpisodeRenderer(self.render_mode)
+        return EpisodeRenderer(render_mode)

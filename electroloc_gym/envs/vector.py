@@ -31,7 +31,7 @@ plain float arrays. Rendering is not supported (``render_mode`` must be None): r
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -63,7 +63,12 @@ _CORE_MODE = {AutoresetMode.NEXT_STEP: "next_step", AutoresetMode.SAME_STEP: "sa
 
 def _is_seed(value: Any) -> bool:
     """A seed: an integer ≥ 0 (Python or numpy; not a bool)."""
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and bool(value >= 0)
+
+
+def _autoreset_mode(value: object) -> AutoresetMode | None:
+    """The mode of an ``autoreset_mode`` argument (None: not a mode; unhashable values included)."""
+    return _AUTORESET_MODES.get(value if isinstance(value, (str, AutoresetMode)) else None)
 
 
 def _check_seed(seed: Any, n: int) -> None:
@@ -79,11 +84,23 @@ def _check_seed(seed: Any, n: int) -> None:
         or (isinstance(seed, np.ndarray) and seed.ndim != 1)
     ):
         raise ValueError(f"{what}, got {seed!r}")
-    if len(seed) != n:
-        raise ValueError(f"{what}, got {len(seed)} seeds")
-    bad = [s for s in seed if not (s is None or _is_seed(s))]
+    seq = cast("Sequence[Any] | NDArray[Any]", seed)  # the isinstance checks above: a sequence or a 1-D array
+    if len(seq) != n:
+        raise ValueError(f"{what}, got {len(seq)} seeds")
+    bad = [s for s in seq if not (s is None or _is_seed(s))]
     if bad:
-        raise ValueError(f"{what}, got {list(seed)!r} (bad: {bad!r})")
+        raise ValueError(f"{what}, got {list(seq)!r} (bad: {bad!r})")
+
+
+def _reset_mask(value: object, n: int) -> NDArray[np.bool_]:
+    """``options["reset_mask"]``: a bool array (n,) with a True entry, or a ValueError."""
+    what = f"options['reset_mask'] must be a bool array of shape ({n},) with a True entry"
+    if not isinstance(value, np.ndarray):
+        raise ValueError(what)
+    mask = cast("NDArray[Any]", value)  # an ndarray (isinstance above); its dtype and shape are checked next
+    if not (mask.dtype == np.bool_ and mask.shape == (n,) and mask.any()):
+        raise ValueError(what)
+    return mask
 
 
 def sub_env_seeds(seed: int, num_envs: int) -> list[int]:
@@ -94,13 +111,11 @@ def sub_env_seeds(seed: int, num_envs: int) -> list[int]:
         ValueError: ``seed`` not an int ≥ 0 or ``num_envs`` not an int ≥ 1 (names the argument).
     """
     root = np.random.SeedSequence(check_int("seed", seed, 0))
-    return [
-        int.from_bytes(child.generate_state(4, np.uint32).tobytes(), "little")
-        for child in root.spawn(check_int("num_envs", num_envs, 1))
-    ]
+    children: list[np.random.SeedSequence] = root.spawn(check_int("num_envs", num_envs, 1))  # pyright: ignore[reportUnknownMemberType, reportUnknownVariableType]  # numpy types spawn with typing.Self, absent from Python 3.10
+    return [int.from_bytes(child.generate_state(4, np.uint32).tobytes(), "little") for child in children]
 
 
-class CoreVectorEnv(ParamAccessors, VectorEnv):
+class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[Any]]):
     """N envs of the simulation core (see the module docstring); subclasses set the task.
 
     Args:
@@ -140,7 +155,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
             raise ValueError(
                 f"render_mode must be None for the native vector env (got {render_mode!r}); render a single env instead"
             )
-        mode = _AUTORESET_MODES.get(autoreset_mode if isinstance(autoreset_mode, (str, AutoresetMode)) else None)
+        mode = _autoreset_mode(autoreset_mode)
         if mode is None:
             raise ValueError(
                 f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP (or 'next_step', "
@@ -156,30 +171,31 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         self._mode = _CORE_MODE[mode]
         self.metadata = {"autoreset_mode": mode, "render_modes": []}
         self.render_mode = None
-        self.single_action_space, self.single_observation_space = spaces_of(self.params, self._sim.obs_dim)
-        self.action_space = batch_space(self.single_action_space, n)
-        self.observation_space = batch_space(self.single_observation_space, n)
+        action_space, observation_space = spaces_of(self.params, self._sim.obs_dim)
+        self.single_action_space, self.single_observation_space = action_space, observation_space
+        self.action_space = batch_space(action_space, n)
+        self.observation_space = batch_space(observation_space, n)
 
     # ---- parameters and read-only accessors ---------------------------------------------------
     @property
-    def np_random(self) -> tuple[np.random.Generator, ...]:
+    def np_random(self) -> tuple[np.random.Generator, ...]:  # pyright: ignore[reportIncompatibleMethodOverride]  # VectorEnv says one Generator; its SyncVectorEnv returns a tuple too
         """The sub-envs' generators (created unseeded on first use, as a single env's)."""
         return tuple(self._sim.generator(i) for i in range(self.num_envs))
 
     @property
-    def np_random_seed(self) -> tuple[int | None, ...]:
+    def np_random_seed(self) -> tuple[int | None, ...]:  # pyright: ignore[reportIncompatibleMethodOverride]  # a tuple per sub-env, as in Gymnasium's SyncVectorEnv
         """The seeds the sub-envs' generators were last created from."""
         return tuple(self._state.seeds)
 
     @property
     def particles_mm(self) -> NDArray[np.float32]:
         """Particles (N, M, 2), mm (a copy); the weights are uniform after every update."""
-        return self._state.particles_mm.transpose(0, 2, 1).copy()
+        return np.copy(np.transpose(self._state.particles_mm, (0, 2, 1)), order="C")
 
     @property
     def position_mm(self) -> NDArray[np.float64]:
         """True carriage centres (N, 2), mm (a copy)."""
-        return self._state.position_mm.copy()
+        return np.copy(self._state.position_mm, order="C")
 
     @property
     def conditions(self) -> tuple[Condition, ...]:
@@ -198,17 +214,17 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
     @property
     def allowed_half_width_mm(self) -> NDArray[np.float64]:
         """Half-width H of each sub-env's allowed box (N,), mm (the box is [−H, H]²)."""
-        return self._state.half_mm.copy()
+        return np.copy(self._state.half_mm, order="C")
 
     @property
     def n_observations(self) -> NDArray[np.int64]:
         """Readings fused so far in each sub-env's episode (N,) (a copy)."""
-        return self._state.n_observations.copy()
+        return np.copy(self._state.n_observations, order="C")
 
     @property
     def last_reading_V(self) -> NDArray[np.float64]:
         """Each sub-env's last reading Φ (N,), V (a copy)."""
-        return self._state.reading_V.copy()
+        return np.copy(self._state.reading_V, order="C")
 
     # ---- gymnasium API ------------------------------------------------------------------------
     def reset(
@@ -219,19 +235,19 @@ class CoreVectorEnv(ParamAccessors, VectorEnv):
         _check_seed(seed, n)  # everything is checked before any sub-env changes
         if seed is None:
             seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
-            seeds = list(sub_env_seeds(int(seed), n))
-        else:
+        elif isinstance(seed, (Sequence, np.ndarray)):  # checked: one entry per sub-env
             seeds = [None if s is None else int(s) for s in seed]
+        else:  # checked: an integer ≥ 0
+            seeds = list(sub_env_seeds(int(seed), n))
         mask = np.ones(n, dtype=bool)
         if options is not None and "reset_mask" in options:
-            mask = options["reset_mask"]
-            if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,) and mask.any()):
-                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},) with a True entry")
+            mask = _reset_mask(options["reset_mask"], n)
         ids = np.flatnonzero(mask)
-        for i in ids.tolist():
-            if seeds[i] is not None:
-                self._sim.seed(i, seeds[i])
+        reset_ids: list[int] = ids.tolist()
+        for i in reset_ids:
+            seed_i = seeds[i]
+            if seed_i is not None:
+                self._sim.seed(i, seed_i)
         self._sim.reset(ids)
         return self._sim.observation(), self._with_masks(self._sim.info())
 
@@ -280,7 +296,7 @@ class GlobalVectorEnv(CoreVectorEnv):
     @property
     def odometry_mm(self) -> NDArray[np.float64]:
         """Sum of the commanded moves since each sub-env's reset (N, 2), mm (a copy)."""
-        return self._state.odometry_mm.copy()
+        return np.copy(self._state.odometry_mm, order="C")
 
 
 class UnknownTargetVectorEnv(CoreVectorEnv):

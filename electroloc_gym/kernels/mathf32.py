@@ -109,7 +109,7 @@ def exp32(x):  # pragma: no cover - compiled
     r = (xc - n * _LN2_HI) - n * _LN2_LO
     p = (((((_E0 * r + _E1) * r + _E2) * r + _E3) * r + _E4) * r + _E5) * (r * r) + r + _ONE
     n1 = np.floor(n * _F32_HALF)
-    y = (p * _pow2(n1)) * _pow2(n - n1)
+    y = (p * _pow2(n1)) * _pow2(n - n1)  # pyright: ignore[reportCallIssue]  # numba's @intrinsic supplies typingctx
     y = y if x > _EXP_MIN else _ZERO
     y = y if x < _EXP_MAX else _INF
     return y if x == x else x
@@ -124,7 +124,7 @@ def log32(x):  # pragma: no cover - compiled
     """
     small = x < _F32_MIN_NORMAL
     xs = x * _TWO23 if small else x
-    f, e = _frexp32(xs)
+    f, e = _frexp32(xs)  # pyright: ignore[reportCallIssue]  # numba's @intrinsic supplies typingctx
     e = e - (_TWENTY3 if small else _ZERO)
     low = f < _SQRT_HALF
     e = e - _ONE if low else e

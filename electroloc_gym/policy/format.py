@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from electroloc_gym.fileio import atomic_write_bytes, write_json_atomic
 
@@ -133,7 +134,7 @@ class ObsNormalization:
         object.__setattr__(self, "mean", mean)
         object.__setattr__(self, "var", var)
 
-    def apply(self, x: np.ndarray) -> np.ndarray:
+    def apply(self, x: NDArray[np.floating[Any]]) -> NDArray[np.float64]:
         """Normalise rows of ``x`` exactly as SB3's ``VecNormalize.normalize_obs`` does.
 
         A quotient that overflows (a tiny variance under a far mean) is ±inf before the clip, which gives
@@ -226,7 +227,7 @@ def space_from_json(d: Any, where: str = "space") -> Any:
         raise PolicyFormatError(f"{where}: low/high must have {size} values for shape {shape}")
     if not (low <= high).all():
         raise PolicyFormatError(f"{where}: Box low must not exceed high")
-    dtype = np.dtype(d["dtype"])
+    dtype = np.float32 if d["dtype"] == "float32" else np.float64
     return spaces.Box(low.reshape(shape).astype(dtype), high.reshape(shape).astype(dtype), dtype=dtype)
 
 
@@ -312,7 +313,8 @@ def _need(d: Mapping[str, Any], key: str, types: type | tuple[type, ...], where:
     return v
 
 
-def _normalization(norm: Any, obs: Mapping[str, Any], where: str) -> ObsNormalization | None:
+def normalization_from_json(norm: Any, obs: Mapping[str, Any], where: str) -> ObsNormalization | None:
+    """The validated observation statistics of a ``normalization`` entry (None: no normalisation)."""
     if norm is None:
         return None
     if not isinstance(norm, dict):
@@ -408,4 +410,6 @@ def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
     act = _need(meta, "action", dict, where)
     _need(act, "action_type", str, f"{where} action")
     space_from_json(act.get("space"), f"{where} action.space")
-    return PolicyExport(folder=d, meta=meta, normalization=_normalization(meta.get("normalization"), obs, where))
+    return PolicyExport(
+        folder=d, meta=meta, normalization=normalization_from_json(meta.get("normalization"), obs, where)
+    )

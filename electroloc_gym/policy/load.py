@@ -33,7 +33,7 @@ from electroloc_gym.policy.format import (
     ObsNormalization,
     PolicyExport,
     PolicyFormatError,
-    _normalization,
+    normalization_from_json,
     one_line,
     read_export,
     read_weights,
@@ -60,7 +60,7 @@ class LearnedAgent:
     def __init__(
         self,
         meta: Mapping[str, Any],
-        weights: Mapping[str, NDArray],
+        weights: Mapping[str, NDArray[Any]],
         normalization: ObsNormalization | None,
         name: str = "learned",
     ) -> None:
@@ -76,7 +76,7 @@ class LearnedAgent:
         )
         self.actor = build_actor(meta, weights)
         self.recurrent = self.actor.recurrent
-        self._stack: NDArray | None = None
+        self._stack: NDArray[np.float32] | None = None
         self._state: Any = None
         self._fresh = True
         self._sb3_policy: Any = None
@@ -92,29 +92,45 @@ class LearnedAgent:
         """Start of a trial: clear the frame stack and the recurrent state (``env`` is not used)."""
         self._stack, self._state, self._fresh = None, None, True
 
-    def preprocess(self, observation: NDArray, episode_start: NDArray | None = None) -> NDArray[np.float32]:
-        """Raw env observation(s) (d,) or (n, d) → the network's input (n, k·d), updating the frame stack."""
+    def preprocess(
+        self, observation: NDArray[np.floating[Any]], episode_start: NDArray[Any] | None = None
+    ) -> NDArray[np.float32]:
+        """Raw env observation(s) (d,) or (n, d) → the network's input (n, k·d), updating the frame stack.
+
+        ``episode_start`` (n,) of any dtype is read as bool: the envs whose frame stack restarts.
+        """
         obs = np.asarray(observation, dtype=np.float32)
         obs = obs[None] if obs.ndim == 1 else obs
         if obs.ndim != 2 or obs.shape[1] != self.obs_dim:
             raise ValueError(f"observation must have shape ({self.obs_dim},) or (n, {self.obs_dim}), got {obs.shape}")
-        if self.normalize_frames:
-            obs = self.normalization.apply(obs).astype(np.float32)
-        n = obs.shape[0]
-        if self._stack is None or self._stack.shape[0] != n:
-            self._stack = np.zeros((n, self.frame_stack, self.obs_dim), dtype=np.float32)
+        norm = self.normalization
+        if self.normalize_frames and norm is not None:  # normalize_frames implies statistics
+            obs = norm.apply(obs).astype(np.float32)
+        n: int = obs.shape[0]
+        stack = self._stack_of(n)
         if episode_start is not None:
-            self._stack[np.asarray(episode_start, dtype=bool).reshape(n)] = 0.0
-        self._stack = np.roll(self._stack, -1, axis=1)
-        self._stack[:, -1] = obs
-        x = self._stack.reshape(n, -1).copy()
-        if self.normalization is not None and not self.normalize_frames:
-            x = self.normalization.apply(x)
+            stack[np.reshape(np.asarray(episode_start, dtype=bool), n)] = 0.0
+        stack = np.roll(stack, -1, axis=1)
+        stack[:, -1] = obs
+        self._stack = stack
+        x = np.reshape(stack, (n, -1))  # a view of the stack: both returns below are new arrays
+        if norm is not None and not self.normalize_frames:
+            return norm.apply(x).astype(np.float32)
         return x.astype(np.float32)
 
+    def _stack_of(self, n: int) -> NDArray[np.float32]:
+        """The frame stack (n, k, d): the current one, or zeros at a trial start or a new batch size."""
+        if self._stack is None or self._stack.shape[0] != n:
+            return np.zeros((n, self.frame_stack, self.obs_dim), dtype=np.float32)
+        return self._stack
+
     def predict(
-        self, observation: NDArray, state: Any = None, episode_start: NDArray | None = None, deterministic: bool = True
-    ) -> tuple[NDArray, Any]:
+        self,
+        observation: NDArray[np.floating[Any]],
+        state: Any = None,
+        episode_start: NDArray[Any] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[Any], Any]:
         """SB3-style decision for one observation (d,) or a batch (n, d).
 
         Returns:
@@ -123,7 +139,8 @@ class LearnedAgent:
         single = np.ndim(observation) == 1
         x = self.preprocess(observation, episode_start)
         if self.recurrent and episode_start is None:
-            episode_start = np.full(x.shape[0], self._fresh, dtype=bool)
+            n: int = x.shape[0]
+            episode_start = np.full(n, self._fresh, dtype=bool)
         st = self._state if state is None else state
         if deterministic:
             action, st = self.actor(x, st, episode_start)
@@ -133,7 +150,9 @@ class LearnedAgent:
         self._fresh = False
         return (action[0] if single else action), st
 
-    def _stochastic(self, x: NDArray, state: Any, episode_start: NDArray | None) -> tuple[NDArray, Any]:
+    def _stochastic(
+        self, x: NDArray[np.float32], state: Any, episode_start: NDArray[Any] | None
+    ) -> tuple[NDArray[Any], Any]:
         if self._sb3_policy is None:
             try:
                 from electroloc_gym.policy.sb3 import sb3_policy
@@ -219,5 +238,5 @@ def agent_from_model(model: Any, meta: Mapping[str, Any], name: str = "learned")
     """
     from electroloc_gym.policy.sb3 import model_weights
 
-    norm = _normalization(meta["normalization"], meta["observation"], "model")
+    norm = normalization_from_json(meta["normalization"], meta["observation"], "model")
     return LearnedAgent(meta, model_weights(model), norm, name)

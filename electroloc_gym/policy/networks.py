@@ -28,7 +28,10 @@ from electroloc_gym.policy.format import PolicyFormatError
 
 __all__ = ["Actor", "build_actor"]
 
-_ACT: dict[str, Callable[[NDArray], NDArray]] = {
+#: A float64 array (the numpy forward pass computes in float64).
+_F64 = NDArray[np.float64]
+
+_ACT: dict[str, Callable[[_F64], _F64]] = {
     "tanh": np.tanh,
     "relu": lambda h: np.maximum(h, 0.0),
     "elu": lambda h: np.where(h > 0, h, np.expm1(np.minimum(h, 0.0))),
@@ -46,14 +49,14 @@ _DEFAULT_ACT = {
 }
 
 
-def _sigmoid(x: NDArray) -> NDArray:
+def _sigmoid(x: _F64) -> _F64:
     return 0.5 * (1.0 + np.tanh(0.5 * x))
 
 
 class _Mlp:
     """The ``nn.Linear`` layers ``prefix.<i>`` in index order; the activation after each (or all but the last)."""
 
-    def __init__(self, w: Mapping[str, NDArray], prefix: str, act: str, last_linear: bool) -> None:
+    def __init__(self, w: Mapping[str, NDArray[Any]], prefix: str, act: str, last_linear: bool) -> None:
         pat = re.compile(re.escape(prefix) + r"\.(\d+)\.weight$")
         idx = sorted(int(m.group(1)) for k in w if (m := pat.match(k)))
         self.layers = [
@@ -64,7 +67,7 @@ class _Mlp:
         self.act = _ACT[act]
         self.last_linear = last_linear
 
-    def __call__(self, x: NDArray) -> NDArray:
+    def __call__(self, x: _F64) -> _F64:
         for j, (wt, b) in enumerate(self.layers):
             x = x @ wt + b
             if not (self.last_linear and j == len(self.layers) - 1):
@@ -72,7 +75,7 @@ class _Mlp:
         return x
 
 
-def _linear(w: Mapping[str, NDArray], name: str) -> Callable[[NDArray], NDArray]:
+def _linear(w: Mapping[str, NDArray[Any]], name: str) -> Callable[[_F64], _F64]:
     wt, b = w[f"{name}.weight"].astype(np.float64).T, w[f"{name}.bias"].astype(np.float64)
     return lambda x: x @ wt + b
 
@@ -84,7 +87,7 @@ class Actor:
     arrays (n_layers, n, hidden) or None.
     """
 
-    def __init__(self, meta: Mapping[str, Any], w: Mapping[str, NDArray]) -> None:
+    def __init__(self, meta: Mapping[str, Any], w: Mapping[str, NDArray[Any]]) -> None:
         from electroloc_gym.policy.format import space_from_json
 
         arch = meta["architecture"]
@@ -106,7 +109,10 @@ class Actor:
                 self._net = _Mlp(w, "q_net.q_net", act, True)
             else:  # QRDQNPolicy: (n, n_quantiles · n_actions) viewed as (n, n_quantiles, n_actions)
                 q = _Mlp(w, "quantile_net.quantile_net", act, True)
-                self._net = lambda x: q(x).reshape(x.shape[0], -1, self.n_actions).mean(axis=1)
+                n_actions = self.n_actions
+                if n_actions is None:
+                    raise PolicyFormatError(f"a {self.kind} needs a Discrete action space, got {space}")
+                self._net = lambda x: q(x).reshape(x.shape[0], -1, n_actions).mean(axis=1)
             if self.recurrent:
                 rec = arch["recurrent"]
                 self.n_layers, self.hidden = int(rec["n_lstm_layers"]), int(rec["lstm_hidden_size"])
@@ -121,11 +127,13 @@ class Actor:
         except (KeyError, TypeError) as exc:
             raise PolicyFormatError(f"the weights do not fit a {self.kind}: missing {exc}") from exc
 
-    def initial_state(self, n: int) -> tuple[NDArray, NDArray]:
+    def initial_state(self, n: int) -> tuple[_F64, _F64]:
         z = np.zeros((self.n_layers, n, self.hidden))
         return z, z.copy()
 
-    def __call__(self, x: NDArray, state: Any = None, episode_start: NDArray | None = None) -> tuple[NDArray, Any]:
+    def __call__(
+        self, x: NDArray[Any], state: Any = None, episode_start: NDArray[Any] | None = None
+    ) -> tuple[NDArray[Any], Any]:
         h = np.asarray(x, dtype=np.float64)
         if self.recurrent:
             hs, cs = self.initial_state(h.shape[0]) if state is None else (np.array(state[0]), np.array(state[1]))
@@ -142,11 +150,14 @@ class Actor:
         out = self._net(h)
         if self.n_actions is not None:
             return np.argmax(out, axis=-1), state
+        low, high = self.low, self.high
+        if low is None or high is None:
+            raise PolicyFormatError(f"a {self.kind} with continuous actions needs a Box action space")
         if self.kind == "SACPolicy":  # SB3 unscale_action of the tanh-squashed mean
-            return (self.low + 0.5 * (out + 1.0) * (self.high - self.low)).astype(np.float32), state
-        return np.clip(out, self.low, self.high).astype(np.float32), state
+            return (low + 0.5 * (out + 1.0) * (high - low)).astype(np.float32), state
+        return np.clip(out, low, high).astype(np.float32), state
 
 
-def build_actor(meta: Mapping[str, Any], weights: Mapping[str, NDArray]) -> Actor:
+def build_actor(meta: Mapping[str, Any], weights: Mapping[str, NDArray[Any]]) -> Actor:
     """The numpy :class:`Actor` of a validated ``policy.json`` and its tensors."""
     return Actor(meta, weights)

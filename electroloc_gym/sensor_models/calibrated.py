@@ -20,6 +20,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -92,8 +93,13 @@ class CalibrationProtocol:
 
     def __post_init__(self) -> None:
         def number(name: str, value: object, low: float, inclusive: bool) -> float:
-            ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-            if not ok or not math.isfinite(value) or value < low or (value == low and not inclusive):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float, np.integer, np.floating))
+                or not math.isfinite(value)
+                or value < low
+                or (value == low and not inclusive)
+            ):
                 raise ValueError(f"{name} must be a finite number {'≥' if inclusive else '>'} {low}, got {value!r}")
             return float(value)
 
@@ -128,7 +134,7 @@ def calibration_grid_mm(half_span_mm: float, grid_step_mm: float) -> NDArray[np.
     ``2H`` is a multiple of the step).
     """
     n = int(np.floor(2 * half_span_mm / grid_step_mm + 1e-9)) + 1
-    return -half_span_mm + grid_step_mm * np.arange(n)
+    return cast("NDArray[np.float64]", -half_span_mm + grid_step_mm * np.arange(n))  # float × int64: float64
 
 
 def calibration_grid_for(

@@ -48,8 +48,12 @@ DEFAULT_POSITION_BLUR_MM = 2.0
 
 
 def _blur(value: object) -> float:
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not ok or not np.isfinite(value) or value < 0:
+    if (
+        isinstance(value, (bool, np.bool_))
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not np.isfinite(value)
+        or value < 0
+    ):
         raise ValueError(f"position_blur_mm must be a finite number ≥ 0, got {value!r}")
     return float(value)
 

@@ -58,7 +58,7 @@ class TorchSB3VecEnv(VecEnv):
         self.env.close()
 
     def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
-        return [getattr(self.env, attr_name)] * len(self._get_indices(indices))
+        return [getattr(self.env, attr_name)] * len(list(self._get_indices(indices)))
 
     def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
         raise AttributeError(f"set_attr: the torch vector env's attributes are read-only ({attr_name!r})")
@@ -67,7 +67,7 @@ class TorchSB3VecEnv(VecEnv):
         raise AttributeError(f"env_method: the torch vector env has no per-sub-env methods ({method_name!r})")
 
     def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
-        return [False] * len(self._get_indices(indices))
+        return [False] * len(list(self._get_indices(indices)))
 
     def seed(self, seed: int | None = None) -> list[int | None]:
         self._seed = seed

@@ -23,6 +23,8 @@ the same values either way.
 
 from __future__ import annotations
 
+from typing import TypedDict
+
 import torch
 
 from electroloc_gym.torch_core import filter as F
@@ -35,11 +37,18 @@ __all__ = ["empty_state", "begin_episodes", "observe", "step", "observation", "i
 State = dict[str, torch.Tensor]
 
 
+class _TensorOptions(TypedDict):
+    """The ``dtype`` and ``device`` keywords of a tensor factory (``torch.zeros(n, **opts)``)."""
+
+    dtype: torch.dtype
+    device: torch.device
+
+
 def empty_state(c: TorchConsts, num_envs: int) -> State:
     """The state of ``num_envs`` envs before their first reset (keys 0; call :func:`begin_episodes`)."""
     n, m, dev = num_envs, c.n_particles, c.device
-    i64 = dict(dtype=torch.int64, device=dev)
-    f64 = dict(dtype=torch.float64, device=dev)
+    i64 = _TensorOptions(dtype=torch.int64, device=dev)
+    f64 = _TensorOptions(dtype=torch.float64, device=dev)
     s1 = c.grid_n - 1
     return {
         "k0": torch.zeros(n, **i64),

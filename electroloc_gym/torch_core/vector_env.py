@@ -50,7 +50,7 @@ def _seed_words(seed: int | np.random.SeedSequence | None) -> tuple[int, int]:
 
 
 def _is_seed(value: Any) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 0
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and bool(value >= 0)
 
 
 def _key_words(seed: Any, n: int) -> list[tuple[int, int] | None]:
@@ -191,4 +191,7 @@ def numpy_view(env: VectorEnv) -> VectorEnv:
             f"numpy_view needs gymnasium >= 1.2 (its ArrayConversion wrapper); this is gymnasium {gym.__version__}"
         ) from None
 
-    return ArrayConversion(env, env_xp=torch, target_xp=np, env_device=env.device, target_device=None)
+    device = getattr(env, "device", None)
+    if not isinstance(device, torch.device):
+        raise TypeError(f"numpy_view needs a torch vector env (a torch.device in its `device`), got {env!r}")
+    return ArrayConversion(env, env_xp=torch, target_xp=np, env_device=device, target_device=None)
