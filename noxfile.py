@@ -9,8 +9,9 @@
   installed alone into an empty venv outside the checkout, then every registered id made, a shipped
   policy benchmarked, and the CLI's help printed.
 * ``docs``   — the docs site built with ``mkdocs build --strict``.
-* ``types``  — pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml); run on its own
-  (``nox -s types``), not among the default sessions while the basic and strict checks still report errors.
+* ``types``  — pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml: basic checks on
+  every module, strict on the public API), with every extra the package's modules import installed so
+  that no import is unresolved; it fails on any error.
 
 Installs are shared: each session's venv is reused (``.nox/``) and pip's download cache serves every
 session; ``constraints.txt`` pins the CPU-only torch wheel. Sessions pin numeric libraries to one thread
@@ -28,7 +29,7 @@ import nox
 ROOT = Path(__file__).resolve().parent
 nox.options.reuse_venv = "yes"
 nox.options.default_venv_backend = "venv"
-nox.options.sessions = ["tests", "lowest", "rllib", "wheel", "docs"]
+nox.options.sessions = ["tests", "lowest", "rllib", "wheel", "docs", "types"]
 
 CONSTRAINTS = ("-c", str(ROOT / "constraints.txt"))
 ONE_THREAD = {
@@ -145,6 +146,7 @@ def docs(session: nox.Session) -> None:
 
 @nox.session
 def types(session: nox.Session) -> None:
-    """Type-check the package with pyright, the training extra installed so SB3's and torch's types resolve."""
-    session.install(*CONSTRAINTS, "-e", ".[train,types]")
+    """Type-check the package with pyright; every extra the modules import is installed (SB3, torch, rl-zoo3,
+    Ray/RLlib, Minari), so every import resolves and its types are checked."""
+    session.install(*CONSTRAINTS, "-e", ".[dev,zoo,rllib,minari,types]")
     session.run("pyright", *session.posargs)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,6 +28,9 @@ from electroloc_gym.conditions import Condition
 from electroloc_gym.eev_maps import _CONDUCTOR, _INSULATOR, eev_map, plot_eev, plot_map_eev
 from electroloc_gym.fileio import save_figure_atomic
 from electroloc_gym.sensor import electrode_positions_mm, expected_reading
+
+if TYPE_CHECKING:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 __all__ = [
     "eev_map",
@@ -265,7 +268,8 @@ class FrameRenderer:
         """Draw the canvas; the RGB array for ``rgb_array``, a short GUI pause for ``human``."""
         self.fig.canvas.draw()
         if self.render_mode == "rgb_array":
-            buf = np.asarray(self.fig.canvas.buffer_rgba())
+            canvas = cast("FigureCanvasAgg", self.fig.canvas)  # rgb_array figures are built on an Agg canvas
+            buf = np.asarray(canvas.buffer_rgba())
             return np.ascontiguousarray(buf[..., :3])
         import matplotlib.pyplot as plt
 
@@ -280,7 +284,7 @@ class FrameRenderer:
         draw_snapshot(self.ax, snap)
         eev_colorbar(self.fig, snap, cax=self.cax)
         self.cax.tick_params(labelsize=7)
-        self.cax.yaxis.label.set_size(7)
+        self.cax.yaxis.label.set_fontsize(7)
         name = snap.scene.name if snap.is_global else snap.condition.name
         self.ax.set_title(
             f"{name} — observation {snap.n_observations}\nΦ = {snap.reading_V:+.2f} V, spread {snap.spread_mm:.1f} mm",

@@ -208,7 +208,7 @@ class SensorLayout:
         d = np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
         d[np.diag_indices_from(d)] = np.inf
         min_sep = 2.0 * self.geometry.electrode_radius_mm
-        i, j = np.unravel_index(int(np.argmin(d)), d.shape)
+        i, j = (int(v) for v in np.unravel_index(int(np.argmin(d)), d.shape))
         if d[i, j] < min_sep:
             i, j = min(i, j), max(i, j)
 

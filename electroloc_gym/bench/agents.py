@@ -310,7 +310,8 @@ def planner_memory_bytes(agent: Any, n_particles: int) -> int:
     """
     own = getattr(agent, "memory_bytes", None)
     if callable(own):
-        return int(own(n_particles))
+        bytes_: Any = own(n_particles)  # the agent's own figure, any int-like
+        return int(bytes_)
     try:
         depth, k, c, b = int(agent.depth), int(agent.n_options), int(agent.continuations), int(agent.branches)
         s = min(int(agent.n_particles), int(n_particles))
@@ -357,6 +358,7 @@ def decision_seconds(agent: Any, n_particles: int) -> float:
     """The agent's own estimate of one decision's time, s (``decision_seconds(n_particles)``; 0: none)."""
     own = getattr(agent, "decision_seconds", None)
     try:
-        return float(own(n_particles)) if callable(own) else 0.0
+        seconds: Any = own(n_particles) if callable(own) else 0.0  # the agent's own figure, any float-like
+        return float(seconds)
     except (TypeError, ValueError, OverflowError):
         return 0.0
