@@ -90,12 +90,11 @@ def calibrated_log_likelihood(
     ty = fy - iy.to(torch.float32)
     inside = (fx >= 0) & (fx <= n1f) & (fy >= 0) & (fy <= n1f)
     rows = torch.where(inside, ix * stride + iy, stride * stride)
-    n, m = rows.shape
-    flat = rows + (torch.arange(n, device=rows.device, dtype=torch.int64) * table.shape[1])[:, None]
-    coef = table.reshape(-1, 8).index_select(0, flat.reshape(-1)).reshape(n, m, 8)  # one 32-byte row each
+    planes = table.transpose(1, 2)  # (N, 8, rows): one gather per coefficient, contiguous (N, M) results
+    c0, c1, c2, c3, c4, c5, c6, c7 = (torch.gather(planes[:, j], 1, rows) for j in range(8))
     txy = tx * ty
-    mean = coef[..., 0] + coef[..., 1] * tx + coef[..., 2] * ty + coef[..., 3] * txy
-    std = coef[..., 4] + coef[..., 5] * tx + coef[..., 6] * ty + coef[..., 7] * txy
+    mean = c0 + c1 * tx + c2 * ty + c3 * txy
+    std = c4 + c5 * tx + c6 * ty + c7 * txy
     z = (reading[:, None] - mean) / std
     return (-0.5 * z) * z - torch.log(std)
 
