@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from tiny_bench_run import TINY  # the tiny run the reliability tests use too
 
 from electroloc_gym.bench.backends import BACKENDS, Backend, SerialBackend, make_backend, register_backend
 from electroloc_gym.bench.config import BenchConfig, make_trial_specs, resolve_conditions, trial_seeds
@@ -18,14 +19,6 @@ from electroloc_gym.bench.tables import PAPER_TABLE4, PAPER_TABLE4_ALL, render_t
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.conditions import PRESET_NAMES
 
-TINY = dict(
-    conditions=("fresh-steel-12.7", "salt-delrin-38.1"),
-    trials=2,
-    seed=3,
-    n_particles=300,
-    max_observations=6,
-    sensor_model="analytic",
-)
 SUMMARY_KEYS = {
     "condition",
     "agent",
