@@ -128,7 +128,8 @@ def table(a: dict[str, Any]) -> str:
     # Built by hand, not by electroloc_gym.markdown: a controller row's empty cells are "| |", one space, not
     # the helper's "|  |".
     lines = [
-        f"### {a['env_id']} ({len(a['conditions'])} conditions × {a['trials_per_condition']} trials of the "
+        f"### {a['env_id']} ({len(a['conditions'])} condition{'s' if len(a['conditions']) != 1 else ''} × "
+        f"{a['trials_per_condition']} trials of the "
         f"benchmark's seed 0)",
         "",
         "| agent | data | seeds | readings IQM [95 % CI] | readings mean [CI] | success | normalised IQM [CI] | "

@@ -2,9 +2,10 @@
 
     python experiments/offline/run_suite.py --out experiments/offline/results [--only bc-lookahead] [--seeds 1,2,3,4,5]
 
-Per (method, seed): ``bc.py`` or ``td3_bc.py`` into ``OUT/<env-id>/<label>/seed-<k>/`` (policy/, curve.json),
-then ``electroloc bench --agents <policy> --trials T --seed 0`` into its ``bench/``: the benchmark's
-evaluation trials (the first T of each of the eight conditions; all 50 by default, the trials of the
+Per (env, method, seed) of :data:`SUITE`: ``bc.py`` or ``td3_bc.py`` into
+``OUT/<env-id>/<label>/seed-<k>/`` (policy/, curve.json), then ``electroloc bench --env NAME --agents <policy>
+--trials T --seed 0`` into its ``bench/``: the benchmark's evaluation trials (the first T of each of the
+env's conditions — eight, or the mapped tank's one; all 50 by default, the trials of the
 learned suite's table), never seen in training. The shipped policy of the mixed data (ppo-belief) is
 benched once on the same trials into ``OUT/<env-id>/_sources/bench``; the controllers' runs are the
 learned suite's (``experiments/learned/results/<env-id>/_baselines/bench``). The reference datasets
@@ -22,20 +23,31 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ENV = "ElectroLoc-v0"
-#: label → (trainer, its options)
+TARGET, GLOBAL = "ElectroLoc-v0", "ElectroLocGlobal-v0"
+BC = ["--steps", "10000", "--eval-every", "2000"]
+#: env id → label → (trainer, its options). The global env has the two planners' datasets only (no mix).
 SUITE = {
-    "bc-lookahead": (
-        "bc.py",
-        ["--datasets", f"electroloc/{ENV}/lookahead-v0", "--steps", "10000", "--eval-every", "2000"],
-    ),
-    "bc-min-var": ("bc.py", ["--datasets", f"electroloc/{ENV}/min-var-v0", "--steps", "10000", "--eval-every", "2000"]),
-    "td3bc-mixed": ("td3_bc.py", ["--steps", "20000", "--eval-every", "4000"]),
+    TARGET: {
+        "bc-lookahead": ("bc.py", ["--datasets", f"electroloc/{TARGET}/lookahead-v0", *BC]),
+        "bc-min-var": ("bc.py", ["--datasets", f"electroloc/{TARGET}/min-var-v0", *BC]),
+        "td3bc-mixed": ("td3_bc.py", ["--steps", "20000", "--eval-every", "4000"]),
+    },
+    GLOBAL: {
+        "bc-lookahead": ("bc.py", ["--env-id", GLOBAL, "--datasets", f"electroloc/{GLOBAL}/lookahead-v0", *BC]),
+        "bc-min-var": ("bc.py", ["--env-id", GLOBAL, "--datasets", f"electroloc/{GLOBAL}/min-var-v0", *BC]),
+    },
 }
 THREADS = {v: "1" for v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
 
 
-def _bench(agent: str, out: Path, trials: int) -> None:
+def _bench_name(env_id: str) -> str:
+    """The ``electroloc bench --env`` name of ``env_id`` (its row without extra arguments)."""
+    from electroloc_gym.registry import BENCH_ENVS
+
+    return next(name for name, (entry, row) in BENCH_ENVS.items() if entry.env_id == env_id and not row.env_kwargs)
+
+
+def _bench(agent: str, out: Path, trials: int, env_id: str = TARGET) -> None:
     """``electroloc bench`` of ``agent`` into ``out``: kept when finished with ``trials``, resumed, or (finished
     with another trial count) run again from nothing.
     """
@@ -50,6 +62,8 @@ def _bench(agent: str, out: Path, trials: int) -> None:
         "-m",
         "electroloc_gym.cli",
         "bench",
+        "--env",
+        _bench_name(env_id),
         "--agents",
         agent,
         "--trials",
@@ -71,30 +85,35 @@ def main(argv: list[str] | None = None) -> int:
     """Run the plan."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=HERE / "results")
-    parser.add_argument("--only", default="", help="comma-separated labels; default all")
+    parser.add_argument("--only", default="", help="comma-separated labels or env-id/label; default all")
     parser.add_argument("--seeds", default="1,2,3,4,5")
     parser.add_argument("--trials", type=int, default=50, help="trials per condition (1 … 50)")
     args = parser.parse_args(argv)
     if not 1 <= args.trials <= 50:
         parser.error(f"--trials must be in [1, 50], got {args.trials}")
-    labels = [s.strip() for s in args.only.split(",") if s.strip()] or list(SUITE)
-    bad = [x for x in labels if x not in SUITE]
+    plan = [(env, label) for env, labels in SUITE.items() for label in labels]
+    only = [x.strip() for x in args.only.split(",") if x.strip()]
+    known = {label for _, label in plan} | {f"{env}/{label}" for env, label in plan}
+    bad = [x for x in only if x not in known]
     if bad:
-        parser.error(f"--only names {bad}; choose from {list(SUITE)}")
+        parser.error(f"--only names {bad}; choose from {sorted(known)}")
+    if only:
+        plan = [(env, label) for env, label in plan if label in only or f"{env}/{label}" in only]
     seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
-    _bench("ppo-belief", args.out / ENV / "_sources" / "bench", args.trials)
-    for label in labels:
-        trainer, opts = SUITE[label]
+    if any(env == TARGET for env, _ in plan):
+        _bench("ppo-belief", args.out / TARGET / "_sources" / "bench", args.trials)
+    for env, label in plan:
+        trainer, opts = SUITE[env][label]
         for seed in seeds:
-            folder = args.out / ENV / label / f"seed-{seed}"
+            folder = args.out / env / label / f"seed-{seed}"
             if not (folder / "policy" / "policy.json").is_file():
                 subprocess.run(
                     [sys.executable, str(HERE / trainer), *opts, "--seed", str(seed), "--out", str(folder)],
                     check=True,
                     env={**os.environ, **THREADS},
                 )
-            _bench(str(folder / "policy"), folder / "bench", args.trials)
-            print(f"{label} seed {seed}: done", flush=True)
+            _bench(str(folder / "policy"), folder / "bench", args.trials, env)
+            print(f"{env} {label} seed {seed}: done", flush=True)
     return 0
 
 
