@@ -1,10 +1,12 @@
 """The torch backend episode by episode in distribution: the benchmark's 400 trial seeds (8 conditions × 50,
-seed 0, the paper's fixed target) run on both backends by two observation-only agents — uniform random
-moves and the shipped ppo-belief (the agents that read the single env's accessors, min-var among them,
-need the accessors the torch vector env does not have). The two backends draw different streams, so the
-episodes differ one by one; the torch backend's success rate must lie inside the numba core's 95 % Wilson
-interval and its mean readings (a failure counts as the 35-reading cap) inside the numba core's 95 %
-t-interval. Fixed seeds: the check is deterministic."""
+seed 0, the paper's fixed target) run on both backends by uniform random moves, the paper's rnd-wlk (its
+16 options drawn in the carriage's box: it reads the carriage's position from the info, the box from the
+condition; each sub-env's agent on the trial's agent seed) and the shipped ppo-belief. min-var is not
+among them: it predicts readings through the single env's sensor model, which the torch vector env does
+not expose. The two backends draw different streams, so the episodes differ one by one; the torch
+backend's success rate must lie inside the numba core's 95 % Wilson interval and its mean readings (a
+failure counts as the 35-reading cap) inside the numba core's 95 % t-interval. Fixed seeds: the check
+is deterministic."""
 
 from __future__ import annotations
 
@@ -17,10 +19,37 @@ torch = pytest.importorskip("torch")
 
 import electroloc_gym  # noqa: E402, F401
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
+from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
 from electroloc_gym.protocol import MAX_OBSERVATIONS  # noqa: E402
 
 TRIALS = 50
+
+
+class _CarriageView:
+    """What rnd-wlk reads of its env — the carriage's position and its allowed box, mm — for one sub-env."""
+
+    def __init__(self, half_mm: float) -> None:
+        self.allowed_box_mm = (np.array([-half_mm, -half_mm]), np.array([half_mm, half_mm]))
+        self.position_mm = np.zeros(2)
+        self.unwrapped = self
+
+
+def _rnd_wlk_policy(condition: str):
+    """A batch policy of one rnd-wlk per sub-env (trial k's agent seed), fed the info's carriage positions."""
+    from electroloc_gym.baselines.random_walk import RandomWalkAgent
+
+    half = get_condition(condition).allowed_half_width_mm
+    views = [_CarriageView(half) for _ in range(TRIALS)]
+    agents = [RandomWalkAgent(seed=trial_seeds(0, condition, k)[1]) for k in range(TRIALS)]
+    for agent, view in zip(agents, views):
+        agent.reset(view)
+
+    def act(positions: np.ndarray) -> np.ndarray:
+        for view, p in zip(views, positions):
+            view.position_mm = np.asarray(p, dtype=np.float64)
+        return np.stack([agent.predict(None)[0] for agent in agents])
+
+    return act
 
 
 def _first_episodes(backend: str, condition: str, policy) -> tuple[np.ndarray, np.ndarray]:
@@ -34,13 +63,19 @@ def _first_episodes(backend: str, condition: str, policy) -> tuple[np.ndarray, n
         randomize_target=False,
         **kw,
     )
-    obs, _ = env.reset(seed=[trial_seeds(0, condition, k)[0] for k in range(TRIALS)])
+    obs, info = env.reset(seed=[trial_seeds(0, condition, k)[0] for k in range(TRIALS)])
     done, success, readings = np.zeros(TRIALS, bool), np.zeros(TRIALS, bool), np.zeros(TRIALS)
     rng = np.random.default_rng(7)
     host = (lambda x: x.cpu().numpy()) if backend == "torch" else np.asarray
+    walk = _rnd_wlk_policy(condition) if policy == "rnd-wlk" else None
     while not done.all():
         o = host(obs)
-        action = policy.predict(o)[0] if policy is not None else rng.uniform(-1, 1, (TRIALS, 2)).astype(np.float32)
+        if walk is not None:
+            action = walk(host(info["position_mm"])).astype(np.float32)
+        elif policy is not None:
+            action = policy.predict(o)[0]
+        else:
+            action = rng.uniform(-1, 1, (TRIALS, 2)).astype(np.float32)
         obs, _, term, trunc, info = env.step(torch.as_tensor(action) if backend == "torch" else action)
         new = (host(term) | host(trunc)) & ~done
         success[new], readings[new] = host(info["success"])[new], host(info["n_observations"])[new]
@@ -56,9 +91,9 @@ def ppo_belief():
     return cached_agent("ppo-belief")
 
 
-@pytest.mark.parametrize("agent", ["random", "ppo-belief"])
+@pytest.mark.parametrize("agent", ["random", "rnd-wlk", "ppo-belief"])
 def test_the_torch_backend_localises_as_the_numba_core_does(agent, request) -> None:
-    policy = request.getfixturevalue("ppo_belief") if agent == "ppo-belief" else None
+    policy = request.getfixturevalue("ppo_belief") if agent == "ppo-belief" else agent if agent == "rnd-wlk" else None
     runs = {b: [_first_episodes(b, c, policy) for c in PRESET_NAMES] for b in ("numba", "torch")}
     success = {b: np.concatenate([s for s, _ in r]) for b, r in runs.items()}
     readings = {b: np.concatenate([x for _, x in r]) for b, r in runs.items()}
@@ -66,6 +101,10 @@ def test_the_torch_backend_localises_as_the_numba_core_does(agent, request) -> N
     assert n == 8 * TRIALS
     ci = stats.binomtest(int(success["numba"].sum()), n).proportion_ci(0.95, method="wilson")
     assert ci.low <= success["torch"].mean() <= ci.high, (agent, success["torch"].mean(), ci)
+    print(
+        f"{agent}: successes {int(success['numba'].sum())} / {int(success['torch'].sum())}, mean readings "
+        f"{readings['numba'].mean():.2f} / {readings['torch'].mean():.2f} (numba / torch)"
+    )
     r = readings["numba"]
     half = stats.t.ppf(0.975, n - 1) * r.std(ddof=1) / np.sqrt(n)
     assert abs(readings["torch"].mean() - r.mean()) <= half, (agent, readings["torch"].mean(), r.mean(), half)
