@@ -4,7 +4,8 @@ The state is a dict of tensors (:func:`empty_state`); :func:`begin_episodes`, :f
 :func:`step` are pure functions of it, with no host synchronisation — no ``.item()``, no transfer, no
 Python loop over envs, no branch on tensor values: which envs reset, which are in the box, which
 resample which particle are all masks and ``torch.where``. ``torch.compile(step, fullgraph=True)``
-captures a whole step in one graph (tested).
+captures a whole step in one graph (tested). The one exception is opt-in: ``gather=True`` (below), which
+the vector env uses eagerly on the CPU only.
 
 One step, as :mod:`electroloc_gym.core.step` with ``autoreset="next_step"``: the envs whose episode
 ended at the last step start a new one (their draws: condition, calibration, target, start, particles;
