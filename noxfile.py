@@ -147,6 +147,7 @@ def docs(session: nox.Session) -> None:
 @nox.session
 def types(session: nox.Session) -> None:
     """Type-check the package with pyright; every extra the modules import is installed (SB3, torch, rl-zoo3,
-    Ray/RLlib, Minari), so every import resolves and its types are checked."""
+    Ray/RLlib, Minari), so every import resolves and its types are checked.
+    """
     session.install(*CONSTRAINTS, "-e", ".[dev,zoo,rllib,minari,types]")
     session.run("pyright", *session.posargs)
