@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym import physics
+from electroloc_gym import detection, physics
 from electroloc_gym.apparatus import (
     Amplifier,
     Geometry,
@@ -124,7 +124,7 @@ class Condition:
     def detection_distance_mm(self, threshold_sigmas: float = 2.0) -> float:
         """Model detection distance (mm) along the 45° line (§6.7), signal scale and σ_s·noise_factor applied."""
         g = self.geometry
-        return physics.layout_detection_distance(
+        return detection.layout_detection_distance(
             self.target.radius_mm,
             self.chi,
             self.amplifier.effective_noise_rms_mV * 1e-3,
@@ -215,7 +215,7 @@ def fitted_signal_scale(name: str) -> float:
         raise ValueError(f"condition must be one of {list(PRESET_NAMES)}, got {name!r}")
     c = _paper_condition(name)
     g = c.geometry
-    return physics.fit_signal_scale(
+    return detection.fit_signal_scale(
         PAPER_TABLE3_MEASURED_MM[name],
         c.target.radius_mm,
         c.chi,

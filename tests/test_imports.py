@@ -189,7 +189,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
         "data",
         ("protocol", "registry", "checks", "runtime", "fileio", "agentspec", "distractor_layout", "markdown", "models"),
     ),
-    ("physics", ("physics", "apparatus", "conditions")),
+    ("physics", ("physics", "detection", "apparatus", "conditions")),
     ("kernels", ("kernels", "draws")),
     ("sensor", ("sensor", "sensor_layouts", "sensor_array", "scene", "distractors")),
     ("sensor models", ("sensor_models",)),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from electroloc_gym import detection as D
 from electroloc_gym import physics as P
 from electroloc_gym.conditions import (
     PAPER_TABLE3_MEASURED_MM,
@@ -27,8 +28,8 @@ def _eq4_single_detector(r: np.ndarray, sx: float, sy: float, chi: float = CHI) 
 
 def test_eq4_equals_eq5_on_the_45_degree_line() -> None:
     r = np.geomspace(0.02, 20.0, 400)
-    r = r[np.abs(r - P.EQ5_ZERO_R) > 1e-3]  # avoid the zero itself for a relative comparison
-    nu5 = P.eq5_single_detector(r, A, E, CHI)
+    r = r[np.abs(r - D.EQ5_ZERO_R) > 1e-3]  # avoid the zero itself for a relative comparison
+    nu5 = D.eq5_single_detector(r, A, E, CHI)
     # Eq. 5's sign convention is the ray towards the negative emitter, (−r/√2, ±r/√2).
     np.testing.assert_allclose(_eq4_single_detector(r, -1, 1), nu5, rtol=1e-9)
     np.testing.assert_allclose(_eq4_single_detector(r, -1, -1), nu5, rtol=1e-9)
@@ -108,7 +109,7 @@ def test_cylinder_perturbation_is_two_dimensional_dipole() -> None:
 
 def test_fig5_power_laws_and_knee() -> None:
     ns = np.geomspace(1e-14, 1e-2, 160)
-    rd = np.array([P.eq6_detection_distance(n, A, E, CHI) for n in ns])
+    rd = np.array([D.eq6_detection_distance(n, A, E, CHI) for n in ns])
     near, far = rd < 0.1, rd > 3
     assert near.sum() >= 10 and far.sum() >= 10
     assert np.polyfit(np.log(ns[near]), np.log(rd[near]), 1)[0] == pytest.approx(-0.5, abs=0.05)
@@ -116,15 +117,15 @@ def test_fig5_power_laws_and_knee() -> None:
     # The knee: the detection distance jumps across the zero of ν on the 45° line at r ≈ 0.41.
     from scipy.optimize import brentq
 
-    zero = brentq(lambda r: P.eq5_single_detector(r, A, E, CHI), 0.3, 0.5)
-    assert zero == pytest.approx(0.41, abs=0.01) and zero == pytest.approx(P.EQ5_ZERO_R, abs=1e-4)
-    fine = np.array([P.eq6_detection_distance(n, A, E, CHI) for n in np.geomspace(1e-6, 1e-3, 400)])
+    zero = brentq(lambda r: D.eq5_single_detector(r, A, E, CHI), 0.3, 0.5)
+    assert zero == pytest.approx(0.41, abs=0.01) and zero == pytest.approx(D.EQ5_ZERO_R, abs=1e-4)
+    fine = np.array([D.eq6_detection_distance(n, A, E, CHI) for n in np.geomspace(1e-6, 1e-3, 400)])
     assert fine[fine < zero].max() < zero < fine[fine > zero].min()
 
 
 def test_eq6_rejects_bad_noise() -> None:
     with pytest.raises(ValueError, match="n"):
-        P.eq6_detection_distance(0.0, A, E, CHI)
+        D.eq6_detection_distance(0.0, A, E, CHI)
 
 
 SMALL = [n for n in PRESET_NAMES if n.endswith("12.7")]

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import electroloc_gym  # noqa: F401  (registers the envs)
-from electroloc_gym import physics as P
+from electroloc_gym import detection as D
 from electroloc_gym.cli import parse_noise_factor, quiet_tank_table, zero_crossing_mm
 from electroloc_gym.conditions import PRESET_NAMES, Amplifier, Condition, get_condition
 from electroloc_gym.sensor import expected_reading
@@ -80,7 +80,7 @@ def test_eq5_layout_ratio_lies_between_far_and_near_field_laws() -> None:
     """Fig. 5 (one detector, a = 0.05, e = 0.005): a 32× noise cut multiplies r_d by 2 (far) to 5.7 (near)."""
 
     def rd(n: float) -> float:
-        return P.eq6_detection_distance(n, 0.05, 0.005, 1.0)
+        return D.eq6_detection_distance(n, 0.05, 0.005, 1.0)
 
     ratios = np.array([rd(n * QUIET) / rd(n) for n in np.geomspace(1e-9, 1e-2, 15)])
     assert np.all(ratios >= 0.97 * FAR_EQ5) and np.all(ratios <= 1.01 * NEAR_EQ5)

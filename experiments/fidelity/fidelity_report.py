@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym import physics
+from electroloc_gym import detection
 from electroloc_gym.bench.fidelity import paper_count_interval
 from electroloc_gym.bench.tables import PAPER_TABLE1, PAPER_TABLE2, PAPER_TABLE4, PAPER_TABLE4_ALL
 from electroloc_gym.conditions import (
@@ -107,7 +107,7 @@ def coverage() -> list[str]:
 def fig5_slopes() -> list[str]:
     a, e, chi = 0.05, 0.005, 1.0  # the paper's Fig. 4/5 example
     ns = np.geomspace(1e-9, 1e-2, 60)
-    rd = np.array([physics.eq6_detection_distance(n, a, e, chi) for n in ns])
+    rd = np.array([detection.eq6_detection_distance(n, a, e, chi) for n in ns])
     near, far = rd < 0.1, rd > 3.0
     s_near = np.polyfit(np.log(ns[near]), np.log(rd[near]), 1)[0] if near.sum() > 2 else float("nan")
     s_far = np.polyfit(np.log(ns[far]), np.log(rd[far]), 1)[0] if far.sum() > 2 else float("nan")
