@@ -286,29 +286,6 @@ def test_same_seed_same_trajectory_and_independent_of_n():
         assert torch.equal(x[:2, : z.shape[1]] if x.shape[1] == z.shape[1] else x[:2], z)
 
 
-@pytest.mark.parametrize("kw", [dict(condition="random", randomize_target=True), dict(sensor_model="analytic")])
-def test_gathered_resets_give_the_dense_step_bit_for_bit(kw):
-    """The CPU's eager step (reset draws for the resetting envs only) against the one-graph step (every env's
-    draws, kept where an env resets): the same state, bit for bit, over steps where some envs reset."""
-    env = TorchElectroLocVectorEnv(num_envs=6, n_particles=300, max_observations=4, **kw)
-    assert env.gather_resets  # eager on the CPU
-    env.reset(seed=11)
-    dense = gathered = env.state
-    rng = np.random.default_rng(2)
-    resets = 0
-    for _ in range(12):
-        a = torch.as_tensor(rng.uniform(-1, 1, (6, 2)).astype(np.float32))
-        resets += int(dense["done"].sum())
-        dense, *out_d = sim.step(env.consts, dense, a, gather=False)
-        gathered, *out_g = sim.step(env.consts, gathered, a, gather=True)
-        assert dense.keys() == gathered.keys()
-        for name in dense:
-            assert torch.equal(dense[name], gathered[name]), name
-        for x, y in zip(out_d, out_g, strict=True):
-            assert torch.equal(x, y)
-    assert resets >= 6  # the cap of 4 readings ends every episode: the reset path ran, more than once
-
-
 def test_episodes_end_and_autoreset():
     env = TorchElectroLocVectorEnv(num_envs=8, n_particles=500, max_observations=5)
     env.reset(seed=0)
@@ -346,17 +323,6 @@ def test_fixed_calibration_seed_is_the_numba_table():
         get_condition("fresh-steel-12.7"), 5, DEFAULT_CALIBRATION, out=np.empty((50 * 50 + 1, 8), dtype=np.float32)
     )
     np.testing.assert_array_equal(k.fixed_table[0].numpy(), to_torch_layout(want, 50, k.grid_n - 1))
-
-
-def test_step_compiles_without_graph_break():
-    env = TorchElectroLocVectorEnv(
-        num_envs=2, n_particles=64, compile=True, compile_backend="eager", condition="random"
-    )
-    env.reset(seed=0)
-    for _ in range(3):
-        env.step(torch.zeros(2, 2))
-    explain = torch._dynamo.explain(lambda s, a: sim.step(env.consts, s, a))(env.state, torch.zeros(2, 2))
-    assert explain.graph_break_count == 0 and explain.graph_count == 1
 
 
 def test_make_vec_backend_torch():

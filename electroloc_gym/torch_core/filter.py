@@ -16,7 +16,9 @@ import torch
 
 __all__ = [
     "dipole_difference",
+    "calibrated_mean_std",
     "calibrated_log_likelihood",
+    "analytic_mean",
     "analytic_log_likelihood",
     "resample",
     "statistics",
@@ -58,6 +60,45 @@ def dipole_difference(
     return strength * (dot1 * r1 - dot2 * r2)
 
 
+def calibrated_mean_std(
+    x: torch.Tensor,
+    y: torch.Tensor,
+    lo: torch.Tensor,
+    inv: torch.Tensor,
+    cells: torch.Tensor,
+    stride: int,
+    table: torch.Tensor,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(N, M) float32 mean and std (V) of the calibrated model at offsets (target − carriage) ``x``, ``y``
+    (N, M) float32 mm: the bilinear lookup of ``kernels.lookup._calibrated_ll_one``.
+
+    Args:
+        x: (N, M) float32 offsets along x, mm.
+        y: (N, M) float32 offsets along y, mm.
+        lo: (N,) float32 each grid's first coordinate, mm.
+        inv: (N,) float32 each grid's inverse step, 1/mm.
+        cells: (N,) int64 each grid's cells per axis n1.
+        stride: the row stride of ``table`` (the pool's largest n1); the last row is "outside".
+        table: (N, stride² + 1, 8) float32 bilinear coefficients.
+    """
+    fx = (x - lo[:, None]) * inv[:, None]
+    fy = (y - lo[:, None]) * inv[:, None]
+    n1f = cells.to(torch.float32)[:, None]
+    top = (cells - 1)[:, None]
+    ix = torch.minimum(torch.clamp(fx, min=-1.0).clamp(max=n1f + 1).to(torch.int64), top)
+    iy = torch.minimum(torch.clamp(fy, min=-1.0).clamp(max=n1f + 1).to(torch.int64), top)
+    tx = fx - ix.to(torch.float32)
+    ty = fy - iy.to(torch.float32)
+    inside = (fx >= 0) & (fx <= n1f) & (fy >= 0) & (fy <= n1f)
+    rows = torch.where(inside, ix * stride + iy, stride * stride)
+    planes = table.transpose(1, 2)  # (N, 8, rows): one gather per coefficient, contiguous (N, M) results
+    c0, c1, c2, c3, c4, c5, c6, c7 = (torch.gather(planes[:, j], 1, rows) for j in range(8))
+    txy = tx * ty
+    mean = c0 + c1 * tx + c2 * ty + c3 * txy
+    std = c4 + c5 * tx + c6 * ty + c7 * txy
+    return mean, std
+
+
 def calibrated_log_likelihood(
     particles: torch.Tensor,
     origin: torch.Tensor,
@@ -80,23 +121,27 @@ def calibrated_log_likelihood(
         table: (N, stride² + 1, 8) float32 bilinear coefficients.
         reading: (N,) float32 readings, V.
     """
-    fx = (particles[:, 0] - origin[:, 0:1] - lo[:, None]) * inv[:, None]
-    fy = (particles[:, 1] - origin[:, 1:2] - lo[:, None]) * inv[:, None]
-    n1f = cells.to(torch.float32)[:, None]
-    top = (cells - 1)[:, None]
-    ix = torch.minimum(torch.clamp(fx, min=-1.0).clamp(max=n1f + 1).to(torch.int64), top)
-    iy = torch.minimum(torch.clamp(fy, min=-1.0).clamp(max=n1f + 1).to(torch.int64), top)
-    tx = fx - ix.to(torch.float32)
-    ty = fy - iy.to(torch.float32)
-    inside = (fx >= 0) & (fx <= n1f) & (fy >= 0) & (fy <= n1f)
-    rows = torch.where(inside, ix * stride + iy, stride * stride)
-    planes = table.transpose(1, 2)  # (N, 8, rows): one gather per coefficient, contiguous (N, M) results
-    c0, c1, c2, c3, c4, c5, c6, c7 = (torch.gather(planes[:, j], 1, rows) for j in range(8))
-    txy = tx * ty
-    mean = c0 + c1 * tx + c2 * ty + c3 * txy
-    std = c4 + c5 * tx + c6 * ty + c7 * txy
+    x = particles[:, 0] - origin[:, 0:1]
+    y = particles[:, 1] - origin[:, 1:2]
+    mean, std = calibrated_mean_std(x, y, lo, inv, cells, stride, table)
     z = (reading[:, None] - mean) / std
     return (-0.5 * z) * z - torch.log(std)
+
+
+def analytic_mean(
+    x: torch.Tensor,
+    y: torch.Tensor,
+    dip: tuple[torch.Tensor, ...],
+    scale: torch.Tensor,
+    saturation: torch.Tensor,
+) -> torch.Tensor:
+    """(N, M) float32 mean (V) of the analytic model at offsets ``x``, ``y`` (N, M) float32 mm: the physics,
+    saturated (its std is the constant G·σ_s). ``dip`` = (h, z2, k, strength), each (N,) float32;
+    ``scale`` (N,) float32 s·G; ``saturation`` (N,) float32 V_sat.
+    """
+    h, z2, k, strength = (d[:, None] for d in dip)
+    sat = saturation[:, None]
+    return torch.clamp(dipole_difference(x, y, h, z2, k, strength) * scale[:, None], min=-sat, max=sat)
 
 
 def analytic_log_likelihood(
@@ -108,17 +153,13 @@ def analytic_log_likelihood(
     noise: torch.Tensor,
     reading: torch.Tensor,
 ) -> torch.Tensor:
-    """(N, M) float32 log-likelihoods of the analytic model (mean = the physics, saturated; std G·σ_s; the
-    constant −log σ dropped), as ``AnalyticSensorModel.log_likelihood`` on float32 offsets.
-
-    ``dip`` = (h, z2, k, strength), each (N,) float32; ``scale`` (N,) float32 s·G; ``saturation``,
-    ``noise`` (N,) float32 V_sat and G·σ_s; ``reading`` (N,) float32, V.
+    """(N, M) float32 log-likelihoods of the analytic model (mean :func:`analytic_mean`; std G·σ_s; the
+    constant −log σ dropped), as ``AnalyticSensorModel.log_likelihood`` on float32 offsets; ``noise`` (N,)
+    float32 G·σ_s, ``reading`` (N,) float32, V.
     """
-    h, z2, k, strength = (d[:, None] for d in dip)
     x = particles[:, 0] - origin[:, 0:1]
     y = particles[:, 1] - origin[:, 1:2]
-    sat = saturation[:, None]
-    mean = torch.clamp(dipole_difference(x, y, h, z2, k, strength) * scale[:, None], min=-sat, max=sat)
+    mean = analytic_mean(x, y, dip, scale, saturation)
     z = (reading[:, None] - mean) / noise[:, None]
     return (-0.5 * z) * z
 

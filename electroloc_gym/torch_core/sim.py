@@ -5,7 +5,7 @@ The state is a dict of tensors (:func:`empty_state`); :func:`begin_episodes`, :f
 Python loop over envs, no branch on tensor values: which envs reset, which are in the box, which
 resample which particle are all masks and ``torch.where``. ``torch.compile(step, fullgraph=True)``
 captures a whole step in one graph (tested). The one exception is opt-in: ``gather=True`` (below), which
-the vector env uses eagerly on the CPU only.
+the vector env uses on the CPU only (where it compiles :func:`advance`, the step after the resets).
 
 One step, as :mod:`electroloc_gym.core.step` with ``autoreset="next_step"``: the envs whose episode
 ended at the last step start a new one (their draws: condition, calibration, target, start, particles;
@@ -18,8 +18,8 @@ reading's noise and the resampling offset, the jitter (2M table normals), and at
 condition (``condition="random"``), the target (``randomize_target``), the start (2 uniforms), the
 particles (2M uniforms) and the calibration. A reset's draws are computed for every env and kept where
 the env resets (the price of no host synchronisation: about one reset's work per env per step), or, with
-``gather=True`` (the CPU's eager default, where the host is the device), for the resetting envs only —
-the same values either way.
+``gather=True`` (the CPU's default, where the host is the device), for the resetting envs only — the
+same values either way.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from electroloc_gym.torch_core.calibration import calibration_tables
 from electroloc_gym.torch_core.consts import TorchConsts
 from electroloc_gym.torch_core.rng import STREAMS, bits32, normal_pair_indices, stream_key, uniform24, uniform53
 
-__all__ = ["empty_state", "begin_episodes", "observe", "step", "observation", "info", "State"]
+__all__ = ["empty_state", "begin_episodes", "observe", "step", "advance", "observation", "info", "State"]
 
 State = dict[str, torch.Tensor]
 
@@ -252,11 +252,22 @@ def step(
     c: TorchConsts, s: State, actions: torch.Tensor, gather: bool = False
 ) -> tuple[State, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """One step of every env (module docstring): (state, observations, rewards, terminated, truncated);
-    ``gather``: the resets' draws for the resetting envs only (:func:`begin_episodes`).
+    ``gather``: the resets' draws for the resetting envs only (:func:`begin_episodes`). It is
+    :func:`begin_episodes` of the envs whose episode ended, then :func:`advance`.
     """
     reset = s["done"]
+    return advance(c, begin_episodes(c, s, reset, gather), actions, reset)
+
+
+def advance(
+    c: TorchConsts, s: State, actions: torch.Tensor, reset: torch.Tensor
+) -> tuple[State, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The step after the resets' draws: the envs not in ``reset`` (N,) bool move, every env reads and fuses,
+    then reward, termination and truncation (:func:`step`). One graph with no data-dependent shape: what
+    the CPU compiles when its resets are gathered eagerly.
+    """
+    s = dict(s)
     moving = ~reset
-    s = begin_episodes(c, s, reset, gather)
     h = c.half_mm[s["cond"]][:, None]
     moved = torch.clamp(s["position_mm"] + moves_of(c, actions), min=-h, max=h)
     s["position_mm"] = _keep(moving, moved, s["position_mm"])

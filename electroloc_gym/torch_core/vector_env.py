@@ -4,14 +4,18 @@
 device="cuda")`` builds a :class:`TorchElectroLocVectorEnv`: observations (N, 81) float32, rewards (N,)
 float64, terminated and truncated (N,) bool and the info's entries are tensors on ``device``; actions
 may be tensors there (or anything ``torch.as_tensor`` takes). Autoreset is Gymnasium's
-``NEXT_STEP``. A numpy view: :func:`numpy_view` (Gymnasium's ``ArrayConversion`` wrapper).
+``NEXT_STEP``. A numpy view: :func:`numpy_view` (Gymnasium's ``ArrayConversion`` wrapper). The paper's controllers
+read a sub-env through :meth:`TorchElectroLocVectorEnv.sub_env` (the single env's agent accessors).
 
 Seeding is Gymnasium's: ``reset(seed=s)`` gives sub-env i child i of ``SeedSequence(s)`` (as the numba
 vector env spreads an int seed), ``reset(seed=[...])`` one seed per sub-env (its ``SeedSequence``),
 None fresh entropy; a sub-env's key is the first two words of its seed sequence, so its episodes depend
 on its seed and its actions only (:mod:`.rng`). ``compile=True`` runs the step through
-``torch.compile`` (``compile_backend``: inductor by default). Eager on the CPU, a step computes the
-reset draws for the resetting envs only (:func:`.sim.begin_episodes`' ``gather``; the same values).
+``torch.compile(fullgraph=True)`` (``compile_backend``: inductor by default). On the CPU a step computes
+the reset draws for the resetting envs only (:func:`.sim.begin_episodes`' ``gather``; the same values),
+eagerly, and compiles the rest (:func:`.sim.advance`); on an accelerator the whole step is one graph.
+Inductor's generated code rounds its exponentials and sums its own way, so a compiled step agrees with
+the eager one to float rounding (the same distribution), not bit for bit.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from electroloc_gym.core.params import EnvParams
 from electroloc_gym.envs.actions import spaces_of
 from electroloc_gym.torch_core import sim
 from electroloc_gym.torch_core.consts import TorchConsts, torch_entry
+from electroloc_gym.torch_core.sub_env import TorchSubEnv
 
 __all__ = ["TorchElectroLocVectorEnv", "numpy_view"]
 
@@ -117,18 +122,42 @@ class TorchElectroLocVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, n)
         self._state = sim.empty_state(self.consts, n)
         self._started = False
+        #: the resets' draws for the resetting envs only: on the CPU, where no host synchronisation exists
+        self.gather_resets = self.device.type == "cpu"
+        self._step_fn = self._make_step(compile, compile_backend)
+
+    def _make_step(self, compile_step: bool, backend: str) -> Any:
+        """The step function: on the CPU the gathered resets (eager) then :func:`.sim.advance` (compiled with
+        ``compile``); elsewhere :func:`.sim.step` as one graph (compiled with ``compile``).
+        """
         c = self.consts
-        #: the resets' draws for the resetting envs only: eager on the CPU, where no host synchronisation exists
-        self.gather_resets = self.device.type == "cpu" and not compile
-        gather = self.gather_resets
-        step_fn = lambda state, actions: sim.step(c, state, actions, gather)  # noqa: E731 - the compiled unit
-        self._step_fn = torch.compile(step_fn, fullgraph=True, backend=compile_backend) if compile else step_fn
+        if not self.gather_resets:
+            whole = lambda state, actions: sim.step(c, state, actions)  # noqa: E731 - the compiled unit
+            return torch.compile(whole, fullgraph=True, backend=backend) if compile_step else whole
+        rest = lambda state, actions, reset: sim.advance(c, state, actions, reset)  # noqa: E731
+        if compile_step:
+            rest = torch.compile(rest, fullgraph=True, backend=backend)
+
+        def step_fn(state: sim.State, actions: torch.Tensor) -> Any:
+            reset = state["done"]
+            return rest(sim.begin_episodes(c, state, reset, gather=True), actions, reset)
+
+        return step_fn
 
     # ---- accessors ------------------------------------------------------------------------------
     @property
     def state(self) -> dict[str, torch.Tensor]:
         """The core's state tensors (read-only use: the particles (N, 2, M) mm, the means, …)."""
         return self._state
+
+    def sub_env(self, index: int) -> TorchSubEnv:
+        """Sub-env ``index`` through the single env's agent accessors (belief, carriage, predicted readings:
+        :class:`~.sub_env.TorchSubEnv`), so the paper's controllers run on this backend; call after ``reset``.
+        """
+        i = check_int("index", index, 0, self.num_envs - 1)
+        if not self._started:
+            raise RuntimeError("call reset() before sub_env()")
+        return TorchSubEnv(self, i)
 
     def memory_bytes_per_env(self) -> int:
         """Bytes of state per env on the device (the step's temporaries come on top, :mod:`.sim`)."""
