@@ -1,14 +1,19 @@
 """The torch backend episode by episode in distribution: the benchmark's 400 trial seeds (8 conditions × 50,
 seed 0, the paper's fixed target) run on both backends by uniform random moves, the paper's rnd-wlk (its
 16 options drawn in the carriage's box: it reads the carriage's position from the info, the box from the
-condition; each sub-env's agent on the trial's agent seed) and the shipped ppo-belief. min-var is not
-among them: it predicts readings through the single env's sensor model, which the torch vector env does
-not expose. The two backends draw different streams, so the episodes differ one by one; the torch
+condition; each sub-env's agent on the trial's agent seed), the shipped ppo-belief and the paper's
+min-var (one agent per sub-env on the trial's agent seed, reading its sub-env through
+``TorchElectroLocVectorEnv.sub_env``: the belief, the carriage and the torch core's predicted readings).
+min-var's numba side is the reference benchmark run's 400 trials (experiments/reference/bench), checked
+to be the numba core's by rerunning trial 0 of every condition. The two backends draw different
+streams, so the episodes differ one by one; the torch
 backend's success rate must lie inside the numba core's 95 % Wilson interval and its mean readings (a
 failure counts as the 35-reading cap) inside the numba core's 95 % t-interval. Fixed seeds: the check
 is deterministic."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -18,11 +23,15 @@ from scipy import stats
 torch = pytest.importorskip("torch")
 
 import electroloc_gym  # noqa: E402, F401
+from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.bench import run  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
+from electroloc_gym.bench.records import read_trials  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
 from electroloc_gym.protocol import MAX_OBSERVATIONS  # noqa: E402
 
 TRIALS = 50
+REFERENCE = Path(__file__).resolve().parents[1] / "experiments" / "reference" / "bench" / "trials.jsonl"
 
 
 class _CarriageView:
@@ -91,14 +100,11 @@ def ppo_belief():
     return cached_agent("ppo-belief")
 
 
-@pytest.mark.parametrize("agent", ["random", "rnd-wlk", "ppo-belief"])
-def test_the_torch_backend_localises_as_the_numba_core_does(agent, request) -> None:
-    policy = request.getfixturevalue("ppo_belief") if agent == "ppo-belief" else agent if agent == "rnd-wlk" else None
-    runs = {b: [_first_episodes(b, c, policy) for c in PRESET_NAMES] for b in ("numba", "torch")}
-    success = {b: np.concatenate([s for s, _ in r]) for b, r in runs.items()}
-    readings = {b: np.concatenate([x for _, x in r]) for b, r in runs.items()}
+def _assert_inside_numba_intervals(agent: str, success: dict, readings: dict) -> None:
+    """The torch backend's success rate inside the numba core's 95 % Wilson interval, its mean readings
+    inside the numba core's 95 % t-interval (over the same trial seeds)."""
     n = len(success["numba"])
-    assert n == 8 * TRIALS
+    assert n == len(success["torch"]) == 8 * TRIALS
     ci = stats.binomtest(int(success["numba"].sum()), n).proportion_ci(0.95, method="wilson")
     assert ci.low <= success["torch"].mean() <= ci.high, (agent, success["torch"].mean(), ci)
     print(
@@ -108,3 +114,71 @@ def test_the_torch_backend_localises_as_the_numba_core_does(agent, request) -> N
     r = readings["numba"]
     half = stats.t.ppf(0.975, n - 1) * r.std(ddof=1) / np.sqrt(n)
     assert abs(readings["torch"].mean() - r.mean()) <= half, (agent, readings["torch"].mean(), r.mean(), half)
+
+
+@pytest.mark.parametrize("agent", ["random", "rnd-wlk", "ppo-belief"])
+def test_the_torch_backend_localises_as_the_numba_core_does(agent, request) -> None:
+    policy = request.getfixturevalue("ppo_belief") if agent == "ppo-belief" else agent if agent == "rnd-wlk" else None
+    runs = {b: [_first_episodes(b, c, policy) for c in PRESET_NAMES] for b in ("numba", "torch")}
+    success = {b: np.concatenate([s for s, _ in r]) for b, r in runs.items()}
+    readings = {b: np.concatenate([x for _, x in r]) for b, r in runs.items()}
+    _assert_inside_numba_intervals(agent, success, readings)
+
+
+def _min_var_torch_episodes(condition: str) -> tuple[np.ndarray, np.ndarray]:
+    """(success, readings) of min-var's first episode on each torch sub-env, sub-env k on trial k's seeds."""
+    env = gym.make_vec(
+        "ElectroLoc-v0",
+        num_envs=TRIALS,
+        vectorization_mode="vector_entry_point",
+        backend="torch",
+        device="cpu",
+        condition=condition,
+        randomize_target=False,
+    )
+    env.reset(seed=[trial_seeds(0, condition, k)[0] for k in range(TRIALS)])
+    agents = [make_agent("min-var", seed=trial_seeds(0, condition, k)[1]) for k in range(TRIALS)]
+    for k, agent in enumerate(agents):
+        agent.reset(env.unwrapped.sub_env(k))
+    done, success, readings = np.zeros(TRIALS, bool), np.zeros(TRIALS, bool), np.zeros(TRIALS)
+    while not done.all():
+        action = np.zeros((TRIALS, 2), dtype=np.float32)
+        for k in np.flatnonzero(~done):  # a finished sub-env's agent is not asked again
+            action[k] = agents[k].predict(None)[0]
+        _, _, term, trunc, info = env.step(torch.as_tensor(action))
+        new = (term | trunc).numpy() & ~done
+        success[new], readings[new] = info["success"].numpy()[new], info["n_observations"].numpy()[new]
+        done |= new
+    env.close()
+    return success, np.where(success, readings, MAX_OBSERVATIONS)
+
+
+def _reference_min_var() -> dict[tuple[str, int], dict]:
+    rows = [r for r in read_trials(REFERENCE) if r["agent"] == "min-var"]
+    return {(r["condition"], int(r["trial"])): r for r in rows}
+
+
+def test_the_reference_min_var_trials_are_the_numba_cores(tmp_path) -> None:
+    """Trial 0 of every condition, rerun now on the numba core, gives the reference run's record."""
+    reference = _reference_min_var()
+    result = run(agents=["min-var"], conditions="all", trials=1, seed=0, out=tmp_path / "bench")
+    rerun = read_trials(result.out / "trials.jsonl")
+    assert len(rerun) == len(PRESET_NAMES)
+    for r in rerun:
+        ref = reference[(r["condition"], 0)]
+        assert (r["seed"], r["agent_seed"]) == (ref["seed"], ref["agent_seed"])
+        keys = ("success", "readings", "error_mm")
+        assert [r[k] for k in keys] == [ref[k] for k in keys], r["condition"]
+
+
+def test_min_var_on_the_torch_backend_localises_as_on_the_numba_core() -> None:
+    reference = _reference_min_var()
+    numba = [reference[(c, k)] for c in PRESET_NAMES for k in range(TRIALS)]
+    assert all(r["seed"] == trial_seeds(0, r["condition"], r["trial"])[0] for r in numba)
+    ok = np.array([bool(r["success"]) for r in numba])
+    success = {"numba": ok}
+    readings = {"numba": np.where(ok, [r["readings"] for r in numba], MAX_OBSERVATIONS)}
+    runs = [_min_var_torch_episodes(c) for c in PRESET_NAMES]
+    success["torch"] = np.concatenate([s for s, _ in runs])
+    readings["torch"] = np.concatenate([x for _, x in runs])
+    _assert_inside_numba_intervals("min-var", success, readings)

@@ -13,7 +13,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 import electroloc_gym  # noqa: E402,F401 - registers the ids
-from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
+from electroloc_gym.baselines.agent import make_agent  # noqa: E402
 from electroloc_gym.conditions import get_condition  # noqa: E402
 from electroloc_gym.sensor_models import AnalyticSensorModel, CalibratedSensorModel  # noqa: E402
 from electroloc_gym.sensor_models.calibrated import DEFAULT_CALIBRATION  # noqa: E402
@@ -92,18 +92,20 @@ def test_accessors_have_the_single_envs_shapes_and_follow_the_state():
     assert view.last_reading_V == float(env.state["reading_V"][0])
 
 
-def test_min_var_runs_on_a_sub_env():
-    """The paper's controller reads only the accessors: it binds to a view and returns an action in range."""
-    env = TorchElectroLocVectorEnv(num_envs=2)
+@pytest.mark.parametrize("name", ["min-var", "lookahead", "infotaxis"])
+def test_planners_run_on_a_sub_env(name):
+    """The planners read only the accessors: each binds to a view and returns actions in range."""
+    env = TorchElectroLocVectorEnv(num_envs=2, n_particles=500)
     env.reset(seed=1)
-    agents = [MinVarianceAgent(seed=k) for k in range(2)]
+    agents = [make_agent(name, seed=k) for k in range(2)]
     for k, agent in enumerate(agents):
         agent.reset(env.sub_env(k))
-    for _ in range(3):
+    for _ in range(2):
         actions = np.stack([agent.predict(None)[0] for agent in agents])
         assert actions.shape == (2, 2) and np.all(np.abs(actions) <= 1)
         env.step(torch.as_tensor(actions))
-    assert agents[0].last_votes is not None and agents[0].last_votes.sum() == 256
+    if name == "min-var":
+        assert agents[0].last_votes is not None and agents[0].last_votes.sum() == 256
 
 
 def test_bad_inputs_are_one_clear_error():
