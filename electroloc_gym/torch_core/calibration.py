@@ -21,7 +21,7 @@ from collections.abc import Callable
 import torch
 
 from electroloc_gym.torch_core.consts import TorchConsts
-from electroloc_gym.torch_core.rng import STREAMS, bits32, stream_key
+from electroloc_gym.torch_core.rng import STREAMS, bits32, lookup, stream_key
 
 __all__ = ["calibration_tables", "tables_from_draws"]
 
@@ -65,7 +65,7 @@ def tables_from_draws(c: TorchConsts, cond: torch.Tensor, draws: Callable[[int],
     sum_d2 = torch.zeros_like(mu)
     saturated = torch.zeros(mu.shape, dtype=torch.bool, device=mu.device)
     for t in range(s):  # a fixed number of samples: no data-dependent loop
-        reading = torch.clamp(mu + table[draws(t)].to(torch.float64) * sigma, min=-sat, max=sat)
+        reading = torch.clamp(mu + lookup(table, draws(t)).to(torch.float64) * sigma, min=-sat, max=sat)
         d = reading - mu
         sum_d = sum_d + d
         sum_d2 = sum_d2 + d * d

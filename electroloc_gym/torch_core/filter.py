@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import torch
 
+from electroloc_gym.torch_core.rng import lookup
+
 __all__ = [
     "dipole_difference",
     "calibrated_mean_std",
@@ -198,8 +200,8 @@ def resample(
     cum = cum / cum[:, -1:]
     idx = torch.clamp(systematic_indices(cum, u0), max=m - 1)
     h = half[:, None]
-    x = torch.clamp(torch.gather(particles[:, 0], 1, idx) + normal_table[jx], min=-h, max=h)
-    y = torch.clamp(torch.gather(particles[:, 1], 1, idx) + normal_table[jy], min=-h, max=h)
+    x = torch.clamp(torch.gather(particles[:, 0], 1, idx) + lookup(normal_table, jx), min=-h, max=h)
+    y = torch.clamp(torch.gather(particles[:, 1], 1, idx) + lookup(normal_table, jy), min=-h, max=h)
     return torch.stack([x, y], dim=1), idx
 
 

@@ -31,6 +31,7 @@ __all__ = [
     "uniform53",
     "uniform24",
     "normal_pair_indices",
+    "lookup",
     "STREAMS",
 ]
 
@@ -122,3 +123,10 @@ def normal_pair_indices(key: torch.Tensor, count: int) -> tuple[torch.Tensor, to
     """Two (N, count) int64 indices into the 65536-entry normal table: the low and high 16 bits of each word."""
     w = bits32(key, count)
     return w & _MASK16, w >> 16
+
+
+def lookup(table: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """``table[index]`` for a 1-D ``table`` and int64 ``index`` of any shape, as one ``index_select`` of the
+    flattened indices (the same values; on the CPU several times faster than advanced indexing).
+    """
+    return torch.index_select(table, 0, index.reshape(-1)).reshape(index.shape)
