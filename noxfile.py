@@ -3,7 +3,8 @@
 * ``tests``  — the suite on the main job's install: ``-e .[dev,zoo,minari]``, the newest releases the resolver
   picks (no RLlib pin), without the Ray/RLlib tests.
 * ``lowest`` — the suite on every declared minimum (``constraints-lowest.txt``); the tests of extras that
-  cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker.
+  cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker, and
+  so are the ``long`` tests (minutes of episodes, version-independent: the tests session runs them).
 * ``rllib``  — exactly the Ray/RLlib tests (marker ``rllib``), with RLlib's gymnasium pin.
 * ``wheel``  — sdist and wheel built (``python -m build``) and checked (``twine check``); the wheel
   installed alone into an empty venv outside the checkout, then every registered id made, a shipped
@@ -44,7 +45,7 @@ ONE_THREAD = {
 }
 #: What the default sessions leave out (the fast suite's ``not slow`` plus the extras they do not install).
 NOT_RLLIB = "not slow and not rllib"
-NOT_LOWEST = "not slow and not rllib and not zoo and not minari"
+NOT_LOWEST = "not slow and not rllib and not zoo and not minari and not long"
 
 #: What each session's optional-path tests import (checked before the tests run: a skipped test checks nothing).
 ZOO_IMPORTS = ("rl_zoo3", "sb3_contrib", "rliable", "safetensors", "requests", "moviepy", "hypothesis", "minari")
