@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["check_int", "check_float", "check_bool", "check_choice"]
+__all__ = ["check_int", "check_float", "check_bool", "check_choice", "check_prediction_args"]
 
 
 def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
@@ -61,3 +61,23 @@ def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
     if not isinstance(value, str) or value not in choices:
         raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
     return value
+
+
+def check_prediction_args(
+    particles_mm: Any, moves_mm: Any, particle_dims: int, max_step_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The arguments of the envs' ``predicted_*`` accessors: (M, ``particle_dims``) hypotheses (float32 kept,
+    other dtypes as float64) and (2,) or (C, 2) finite moves, clipped to ±``max_step_mm`` as a step clips
+    them (float64); else one ValueError naming the argument and the shape.
+    """
+    p = np.asarray(particles_mm)
+    if p.dtype not in (np.float32, np.float64):
+        p = p.astype(np.float64)
+    if p.ndim != 2 or p.shape[-1] != particle_dims:
+        raise ValueError(f"particles_mm must have shape (M, {particle_dims}), got {p.shape}")
+    u = np.asarray(moves_mm, dtype=np.float64)
+    if u.ndim not in (1, 2) or u.shape[-1] != 2:
+        raise ValueError(f"moves_mm must have shape (2,) or (C, 2), got {u.shape}")
+    if not np.all(np.isfinite(u)):
+        raise ValueError("moves_mm must be finite")
+    return p, np.clip(u, -max_step_mm, max_step_mm)

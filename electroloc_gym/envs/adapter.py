@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym.belief import BeliefView
+from electroloc_gym.checks import check_prediction_args
 from electroloc_gym.conditions import Condition
 from electroloc_gym.core.observation import INFO_KEYS
 from electroloc_gym.core.params import MAX_STEP_MM, EnvParams
@@ -244,18 +245,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     def _check_prediction_args(self, particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
         if not self._state.started:
             raise RuntimeError("call reset() before predicting readings")
-        p = np.asarray(particles_mm)
-        if p.dtype not in (np.float32, np.float64):
-            p = p.astype(np.float64)
-        d = self._task.particle_dims
-        if p.ndim != 2 or p.shape[-1] != d:
-            raise ValueError(f"particles_mm must have shape (M, {d}), got {p.shape}")
-        u = np.asarray(moves_mm, dtype=np.float64)
-        if u.ndim not in (1, 2) or u.shape[-1] != 2:
-            raise ValueError(f"moves_mm must have shape (2,) or (C, 2), got {u.shape}")
-        if not np.all(np.isfinite(u)):
-            raise ValueError("moves_mm must be finite")
-        return p, np.clip(u, -MAX_STEP_MM, MAX_STEP_MM)
+        return check_prediction_args(particles_mm, moves_mm, self._task.particle_dims, MAX_STEP_MM)
 
     # ---- gymnasium API ------------------------------------------------------------------------
     def reset(

@@ -22,6 +22,7 @@ import numpy as np
 import torch
 from numpy.typing import ArrayLike, NDArray
 
+from electroloc_gym.checks import check_prediction_args
 from electroloc_gym.conditions import Condition
 from electroloc_gym.protocol import MAX_STEP_MM
 from electroloc_gym.torch_core import filter as F
@@ -161,17 +162,7 @@ class TorchSubEnv:
 
     @staticmethod
     def _check(particles_mm: ArrayLike, moves_mm: ArrayLike) -> tuple[NDArray, NDArray]:
-        p = np.asarray(particles_mm)
-        if p.dtype not in (np.float32, np.float64):
-            p = p.astype(np.float64)
-        if p.ndim != 2 or p.shape[-1] != 2:
-            raise ValueError(f"particles_mm must have shape (M, 2), got {p.shape}")
-        u = np.asarray(moves_mm, dtype=np.float64)
-        if u.ndim not in (1, 2) or u.shape[-1] != 2:
-            raise ValueError(f"moves_mm must have shape (2,) or (C, 2), got {u.shape}")
-        if not np.all(np.isfinite(u)):
-            raise ValueError("moves_mm must be finite")
-        return p, np.clip(u, -MAX_STEP_MM, MAX_STEP_MM)
+        return check_prediction_args(particles_mm, moves_mm, 2, MAX_STEP_MM)
 
     def __repr__(self) -> str:
         return f"TorchSubEnv(index={self._index}, num_envs={self._env.num_envs})"
