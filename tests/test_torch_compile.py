@@ -12,7 +12,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from electroloc_gym.torch_core import sim  # noqa: E402
-from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.torch_core.vector_env import OWN_IN_PLACE, TorchElectroLocVectorEnv  # noqa: E402
 
 torch.set_num_threads(1)
 
@@ -56,6 +56,26 @@ def test_compiled_cpu_step_is_the_eager_step_when_the_backend_is_eager():
         for name in eager.state:
             assert torch.equal(compiled.state[name], eager.state[name]), name
     assert int(eager.state["episode"].min()) >= 1  # the cap of 3 readings: every sub-env reset on the way
+
+
+def test_a_cpu_step_leaves_what_it_returned_unchanged():
+    """The CPU step updates only the calibration tables in place: the observations, infos and state tensors
+    of earlier steps (the particles, the means, …), which a user may keep, are not written to by later
+    steps and resets."""
+    env = TorchElectroLocVectorEnv(num_envs=4, n_particles=200, max_observations=2)
+    obs, info = env.reset(seed=3)
+    kept = []
+    for _ in range(6):
+        state = {k: v for k, v in env.state.items() if k != "table"}
+        kept.append(
+            ([obs, *info.values(), *state.values()], [t.clone() for t in [obs, *info.values(), *state.values()]])
+        )
+        obs, _, _, _, info = env.step(torch.zeros(4, 2))
+    assert OWN_IN_PLACE == ("table",)
+    assert int(env.state["episode"].min()) >= 2  # every sub-env reset on the way
+    for live, snapshot in kept:
+        for x, y in zip(live, snapshot, strict=True):
+            assert torch.equal(x, y)
 
 
 def test_step_compiles_without_graph_break():

@@ -110,14 +110,18 @@ def _reset_draws(c: TorchConsts, k0: torch.Tensor, k1: torch.Tensor, ep: torch.T
     return draws
 
 
-def begin_episodes(c: TorchConsts, s: State, mask: torch.Tensor, gather: bool = False) -> State:
+def begin_episodes(
+    c: TorchConsts, s: State, mask: torch.Tensor, gather: bool = False, in_place: tuple[str, ...] = ()
+) -> State:
     """The envs of ``mask`` (N,) bool start a new episode (the reset draws; no reading yet).
 
     By default every env's draws are computed and kept where ``mask`` holds: no host synchronisation, one
     graph. ``gather=True`` computes them for the resetting envs only (``nonzero``: a data-dependent shape,
     so a host synchronisation on an accelerator and a graph break under ``torch.compile``; on the CPU the
     host is the device and it saves most of a step's work). Both give the same bits: each draw is a hash
-    of the env's own coordinates (:mod:`.rng`).
+    of the env's own coordinates (:mod:`.rng`). With ``gather``, the state tensors named in ``in_place``
+    take the new rows in place (for a caller that owns them: the vector env's calibration tables, 80 kB
+    per env, which a copy per step would stream through memory); the others are new tensors.
     """
     s = dict(s)
     ep = torch.where(mask, s["episode"] + 1, s["episode"])
@@ -130,7 +134,7 @@ def begin_episodes(c: TorchConsts, s: State, mask: torch.Tensor, gather: bool = 
     if idx.numel() == 0:
         return s
     for name, value in _reset_draws(c, s["k0"][idx], s["k1"][idx], ep[idx]).items():
-        s[name] = s[name].index_copy(0, idx, value)
+        s[name] = s[name].index_copy_(0, idx, value) if name in in_place else s[name].index_copy(0, idx, value)
     return s
 
 

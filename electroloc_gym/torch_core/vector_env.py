@@ -37,7 +37,11 @@ from electroloc_gym.torch_core import sim
 from electroloc_gym.torch_core.consts import TorchConsts, torch_entry
 from electroloc_gym.torch_core.sub_env import TorchSubEnv
 
-__all__ = ["TorchElectroLocVectorEnv", "numpy_view"]
+__all__ = ["TorchElectroLocVectorEnv", "numpy_view", "OWN_IN_PLACE"]
+
+#: The state tensors a CPU step updates in place (the calibration tables: never handed out by ``step`` or
+#: ``reset``; ``state["table"]`` is the live buffer). Every other tensor a step returns is new.
+OWN_IN_PLACE = ("table",)
 
 
 def _device(value: Any) -> torch.device:
@@ -140,14 +144,16 @@ class TorchElectroLocVectorEnv(VectorEnv):
 
         def step_fn(state: sim.State, actions: torch.Tensor) -> Any:
             reset = state["done"]
-            return rest(sim.begin_episodes(c, state, reset, gather=True), actions, reset)
+            return rest(sim.begin_episodes(c, state, reset, gather=True, in_place=OWN_IN_PLACE), actions, reset)
 
         return step_fn
 
     # ---- accessors ------------------------------------------------------------------------------
     @property
     def state(self) -> dict[str, torch.Tensor]:
-        """The core's state tensors (read-only use: the particles (N, 2, M) mm, the means, …)."""
+        """The core's state tensors (read-only use: the particles (N, 2, M) mm, the means, …); a step replaces
+        them with new tensors, except those of :data:`OWN_IN_PLACE`, which a CPU step updates in place.
+        """
         return self._state
 
     def sub_env(self, index: int) -> TorchSubEnv:
