@@ -4,8 +4,9 @@
 device="cuda")`` builds a :class:`TorchElectroLocVectorEnv`: observations (N, 81) float32, rewards (N,)
 float64, terminated and truncated (N,) bool and the info's entries are tensors on ``device``; actions
 may be tensors there (or anything ``torch.as_tensor`` takes). Autoreset is Gymnasium's
-``NEXT_STEP``. A numpy view: :func:`numpy_view` (Gymnasium's ``ArrayConversion`` wrapper). The paper's controllers
-read a sub-env through :meth:`TorchElectroLocVectorEnv.sub_env` (the single env's agent accessors).
+``NEXT_STEP``. A numpy view: :func:`numpy_view` (Gymnasium's ``ArrayConversion`` wrapper). The paper's
+controllers read a sub-env through :meth:`TorchElectroLocVectorEnv.sub_env` (the single env's agent
+accessors).
 
 Seeding is Gymnasium's: ``reset(seed=s)`` gives sub-env i child i of ``SeedSequence(s)`` (as the numba
 vector env spreads an int seed), ``reset(seed=[...])`` one seed per sub-env (its ``SeedSequence``),
@@ -13,7 +14,8 @@ None fresh entropy; a sub-env's key is the first two words of its seed sequence,
 on its seed and its actions only (:mod:`.rng`). ``compile=True`` runs the step through
 ``torch.compile(fullgraph=True)`` (``compile_backend``: inductor by default). On the CPU a step computes
 the reset draws for the resetting envs only (:func:`.sim.begin_episodes`' ``gather``; the same values),
-eagerly, and compiles the rest (:func:`.sim.advance`); on an accelerator the whole step is one graph.
+eagerly, writing them into the calibration tables in place (:data:`OWN_IN_PLACE`), and compiles the rest
+(:func:`.sim.advance`); on an accelerator the whole step is one graph.
 Inductor's generated code rounds its exponentials and sums its own way, so a compiled step agrees with
 the eager one to float rounding (the same distribution), not bit for bit.
 """
@@ -84,7 +86,8 @@ class TorchElectroLocVectorEnv(VectorEnv):
     Args:
         num_envs: N (≥ 1).
         device: the torch device ("cpu", "cuda", "cuda:1", …).
-        compile: run the step through ``torch.compile(fullgraph=True)``.
+        compile: run the step through ``torch.compile(fullgraph=True)`` (on the CPU: the step after the
+            resets' draws).
         compile_backend: ``torch.compile``'s backend ("inductor", or "eager" to check the capture only).
         render_mode: must be None.
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` (the only mode of the torch core).
