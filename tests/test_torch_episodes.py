@@ -62,7 +62,8 @@ def _rnd_wlk_policy(condition: str):
 
 
 def _first_episodes(backend: str, condition: str, policy) -> tuple[np.ndarray, np.ndarray]:
-    """(success, readings) of each sub-env's first episode, sub-env k on trial k's env seed."""
+    """(success, readings) of each sub-env's first episode, sub-env k on trial k's env seed; ``policy``: None
+    (uniform random moves), "rnd-wlk", "min-var" (torch only) or a batch policy with ``predict``."""
     kw = {"backend": "torch", "device": "cpu"} if backend == "torch" else {}
     env = gym.make_vec(
         "ElectroLoc-v0",
@@ -77,10 +78,19 @@ def _first_episodes(backend: str, condition: str, policy) -> tuple[np.ndarray, n
     rng = np.random.default_rng(7)
     host = (lambda x: x.cpu().numpy()) if backend == "torch" else np.asarray
     walk = _rnd_wlk_policy(condition) if policy == "rnd-wlk" else None
+    planners = None
+    if policy == "min-var":  # one agent per sub-env, reading it through the torch env's sub_env view
+        planners = [make_agent("min-var", seed=trial_seeds(0, condition, k)[1]) for k in range(TRIALS)]
+        for k, agent in enumerate(planners):
+            agent.reset(env.unwrapped.sub_env(k))
     while not done.all():
         o = host(obs)
         if walk is not None:
             action = walk(host(info["position_mm"])).astype(np.float32)
+        elif planners is not None:
+            action = np.zeros((TRIALS, 2), dtype=np.float32)
+            for k in np.flatnonzero(~done):  # a finished sub-env's agent is not asked again
+                action[k] = planners[k].predict(None)[0]
         elif policy is not None:
             action = policy.predict(o)[0]
         else:
@@ -125,34 +135,6 @@ def test_the_torch_backend_localises_as_the_numba_core_does(agent, request) -> N
     _assert_inside_numba_intervals(agent, success, readings)
 
 
-def _min_var_torch_episodes(condition: str) -> tuple[np.ndarray, np.ndarray]:
-    """(success, readings) of min-var's first episode on each torch sub-env, sub-env k on trial k's seeds."""
-    env = gym.make_vec(
-        "ElectroLoc-v0",
-        num_envs=TRIALS,
-        vectorization_mode="vector_entry_point",
-        backend="torch",
-        device="cpu",
-        condition=condition,
-        randomize_target=False,
-    )
-    env.reset(seed=[trial_seeds(0, condition, k)[0] for k in range(TRIALS)])
-    agents = [make_agent("min-var", seed=trial_seeds(0, condition, k)[1]) for k in range(TRIALS)]
-    for k, agent in enumerate(agents):
-        agent.reset(env.unwrapped.sub_env(k))
-    done, success, readings = np.zeros(TRIALS, bool), np.zeros(TRIALS, bool), np.zeros(TRIALS)
-    while not done.all():
-        action = np.zeros((TRIALS, 2), dtype=np.float32)
-        for k in np.flatnonzero(~done):  # a finished sub-env's agent is not asked again
-            action[k] = agents[k].predict(None)[0]
-        _, _, term, trunc, info = env.step(torch.as_tensor(action))
-        new = (term | trunc).numpy() & ~done
-        success[new], readings[new] = info["success"].numpy()[new], info["n_observations"].numpy()[new]
-        done |= new
-    env.close()
-    return success, np.where(success, readings, MAX_OBSERVATIONS)
-
-
 def _reference_min_var() -> dict[tuple[str, int], dict]:
     rows = [r for r in read_trials(REFERENCE) if r["agent"] == "min-var"]
     return {(r["condition"], int(r["trial"])): r for r in rows}
@@ -179,7 +161,7 @@ def test_min_var_on_the_torch_backend_localises_as_on_the_numba_core() -> None:
     ok = np.array([bool(r["success"]) for r in numba])
     success = {"numba": ok}
     readings = {"numba": np.where(ok, [r["readings"] for r in numba], MAX_OBSERVATIONS)}
-    runs = [_min_var_torch_episodes(c) for c in PRESET_NAMES]
+    runs = [_first_episodes("torch", c, "min-var") for c in PRESET_NAMES]
     success["torch"] = np.concatenate([s for s, _ in runs])
     readings["torch"] = np.concatenate([x for _, x in runs])
     _assert_inside_numba_intervals("min-var", success, readings)
