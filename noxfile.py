@@ -1,14 +1,15 @@
 """The project's checks as nox sessions; `nox` runs them all (the README's test command, and .ci/run).
 
 * ``tests``  — the suite on the main job's install: ``-e .[dev,zoo,minari]``, the newest releases the resolver
-  picks (no RLlib pin), without the Ray/RLlib tests.
+  picks (no RLlib pin), without the Ray/RLlib tests and the release build (``wheel`` runs those).
 * ``lowest`` — the suite on every declared minimum (``constraints-lowest.txt``); the tests of extras that
   cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker, and
   so are the ``long`` tests (minutes of episodes, version-independent: the tests session runs them).
 * ``rllib``  — exactly the Ray/RLlib tests (marker ``rllib``), with RLlib's gymnasium pin.
-* ``wheel``  — sdist and wheel built (``python -m build``) and checked (``twine check``); the wheel
-  installed alone into an empty venv outside the checkout, then every registered id made, a shipped
-  policy benchmarked, and the CLI's help printed.
+* ``wheel``  — sdist and wheel built once (``python -m build``, by tests/test_wheel.py, marker ``wheel``, which
+  checks what they hold) and checked (``twine check``); the wheel installed alone into an empty venv
+  outside the checkout, then every registered id made, a shipped policy benchmarked, and the CLI's help
+  printed.
 * ``docs``   — the docs site built with ``mkdocs build --strict``.
 * ``types``  — pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml: basic checks on
   every module, strict on the public API), with every extra the package's modules import installed so
@@ -16,7 +17,8 @@
 
 Installs are shared: each session's venv is reused (``.nox/``) and pip's download cache serves every
 session; ``constraints.txt`` pins the CPU-only torch wheel. Sessions pin numeric libraries to one thread
-(the processes fill the cores). Arguments after ``--`` go to pytest (``nox -s tests -- tests/test_env.py``).
+per process and run pytest on every core (pytest-xdist, one worker per core, a test module per worker).
+Arguments after ``--`` go to pytest (``nox -s tests -- tests/test_env.py``).
 """
 
 from __future__ import annotations
@@ -44,8 +46,12 @@ ONE_THREAD = {
     )
 }
 #: What the default sessions leave out (the fast suite's ``not slow`` plus the extras they do not install).
-NOT_RLLIB = "not slow and not rllib"
-NOT_LOWEST = "not slow and not rllib and not zoo and not minari and not long"
+NOT_RLLIB = "not slow and not rllib and not wheel"
+NOT_LOWEST = "not slow and not rllib and not wheel and not zoo and not minari and not long"
+#: Where tests/test_wheel.py copies the sdist and the wheel it built (the wheel session installs that wheel).
+WHEEL_DIST = "ELECTROLOC_WHEEL_DIST"
+#: pytest-xdist: one worker per core, each test module on one worker (its module fixtures built once).
+PARALLEL = ("-n", "auto", "--dist", "loadfile")
 
 #: What each session's optional-path tests import (checked before the tests run: a skipped test checks nothing).
 ZOO_IMPORTS = ("rl_zoo3", "sb3_contrib", "rliable", "safetensors", "requests", "moviepy", "hypothesis", "minari")
@@ -56,8 +62,9 @@ def _imports(modules: tuple[str, ...]) -> str:
     return f"import {', '.join(modules)}; print('imports ok: {' '.join(modules)}')"
 
 
-def _pytest(session: nox.Session, markexpr: str) -> None:
-    session.run("python", "-m", "pytest", "-m", markexpr, *session.posargs, env=ONE_THREAD)
+def _pytest(session: nox.Session, markexpr: str, *, parallel: bool = True) -> None:
+    workers = PARALLEL if parallel else ()
+    session.run("python", "-m", "pytest", "-m", markexpr, *workers, *session.posargs, env=ONE_THREAD)
 
 
 @nox.session
@@ -81,7 +88,7 @@ def rllib(session: nox.Session) -> None:
     """The Ray/RLlib tests (marker ``rllib``) on the rllib extra, which pins gymnasium to RLlib's version."""
     session.install(*CONSTRAINTS, "-e", ".[dev,rllib]")
     session.run("python", "-c", _imports(RLLIB_IMPORTS))
-    _pytest(session, "rllib and not slow")
+    _pytest(session, "rllib and not slow", parallel=False)  # Ray starts its own worker processes
 
 
 _WHEEL_SMOKE = """
@@ -102,14 +109,19 @@ print(f"electroloc-gym {electroloc_gym.__version__}: made {len(ENV_IDS)} ids: {'
 
 @nox.session
 def wheel(session: nox.Session) -> None:
-    """Build sdist and wheel, check them, install the wheel alone into an empty venv and run it from there."""
-    session.install("build", "twine")
+    """Build sdist and wheel once (tests/test_wheel.py, marker ``wheel``: their contents checked), check them
+    with twine, install the wheel alone into an empty venv and run it from there.
+    """
+    session.install("build", "twine", "pytest", "hypothesis")  # the root conftest.py imports hypothesis
     tmp = Path(session.create_tmp()).resolve()
     dist, venv, work = tmp / "dist", tmp / "wheel-venv", tmp / "work"
     for folder in (dist, venv, work):
         shutil.rmtree(folder, ignore_errors=True)
     work.mkdir()
-    session.run("python", "-m", "build", "--outdir", str(dist), str(ROOT))
+    # the build of the release, on a copy of the checkout with leftovers planted; the artefacts land in dist
+    session.run(
+        "python", "-m", "pytest", "-m", "wheel", "tests/test_wheel.py", env={**ONE_THREAD, WHEEL_DIST: str(dist)}
+    )
     (sdist,) = dist.glob("electroloc_gym-*.tar.gz")
     (whl,) = dist.glob("electroloc_gym-*.whl")
     session.run("twine", "check", "--strict", str(sdist), str(whl))

@@ -3,8 +3,11 @@
 The build runs on a copy of the checkout with leftovers planted where they collect (``build/lib``,
 ``results/``, ``experiments/``), so a packaging change that lets them in fails here. The wheel must hold
 the package, the shipped policies (without pickles) and the hyper-parameter files, nothing of
-``tests/``, ``results/``, ``build/``, ``experiments/`` or ``benchmarks/``, and stay small. nox's ``wheel``
-session installs the same wheel alone into an empty venv and runs it.
+``tests/``, ``results/``, ``build/``, ``experiments/`` or ``benchmarks/``, and stay small. The build is
+the release's (``python -m build``, in an isolated build environment). These tests carry the marker
+``wheel``: nox's ``wheel`` session runs exactly them, with ``ELECTROLOC_WHEEL_DIST`` naming a folder that
+receives the sdist and the wheel, then checks them with twine and installs that wheel alone into an empty
+venv and runs it (one build per run of the test command).
 """
 
 from __future__ import annotations
@@ -19,6 +22,8 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+
+pytestmark = pytest.mark.wheel
 
 ROOT = Path(__file__).resolve().parents[1]
 MAX_WHEEL_MB = 12.0  # the shipped policies are about 6.6 MB of it
@@ -54,7 +59,7 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
         (src / leftover).write_text("# a leftover that must not ship\n", encoding="utf-8")
     dist = src.parent / "dist"
     proc = subprocess.run(
-        [sys.executable, "-m", "build", "--no-isolation", "--outdir", str(dist), str(src)],
+        [sys.executable, "-m", "build", "--outdir", str(dist), str(src)],
         capture_output=True,
         text=True,
         timeout=900,
@@ -63,6 +68,11 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     (sdist,) = dist.glob("electroloc_gym-*.tar.gz")
     (wheel,) = dist.glob("electroloc_gym-*.whl")
+    keep = os.environ.get("ELECTROLOC_WHEEL_DIST")
+    if keep:  # nox's wheel session installs this very wheel
+        Path(keep).mkdir(parents=True, exist_ok=True)
+        for artefact in (sdist, wheel):
+            shutil.copy2(artefact, Path(keep) / artefact.name)
     return sdist, wheel
 
 
