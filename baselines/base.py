@@ -5,9 +5,12 @@ Every agent the benchmark runs answers SB3's call (``PolicyPredictor``)::
     action, state = agent.predict(observation, state=None, episode_start=None, deterministic=True)
 
 plus ``agent.reset(env)``, called at the start of each trial *after* ``env.reset(...)``, which binds
-the agent to the env (agents that need the belief or the sensor model read ``env.unwrapped.belief``
-and ``env.unwrapped.sensor_model``; none ever reads the true target). Actions are the env's
-continuous action, ``(dx, dy) ∈ [−1, 1]²`` = move / 10 mm (paper §4.1.3: at most 10 mm per axis).
+the agent to the env. What the benchmark and the rollout hand ``reset`` is the env's *agent view*
+(:func:`electroloc_gym.envs.agent_view.agent_view`): the documented agent accessors — the belief, the
+sensor model, the carriage, the predicted readings — and no route to the true target. A controller given
+a plain env binds to that env's agent view itself, so it reads the same accessors either way. Actions
+are the env's continuous action, ``(dx, dy) ∈ [−1, 1]²`` = move / 10 mm (paper §4.1.3: at most 10 mm per
+axis).
 
 Attributes and optional hooks the benchmark runner understands:
 
@@ -24,7 +27,8 @@ Attributes and optional hooks the benchmark runner understands:
   the agent's results belong to.
 * ``sensor_layouts: tuple[str, ...] | None`` (optional) — the named sensor layouts
   (``electroloc_gym.sensor_array.LAYOUT_NAMES``) the agent can run on; None (default): every one. The
-  benchmark refuses a run on another layout before it writes anything.
+  benchmark refuses a run on another layout before it writes anything, and a controller's ``reset``
+  refuses an env of another layout (one ValueError): the same rule, :func:`layout_problem`.
 * ``memory_bytes(n_particles) -> int`` and ``decision_seconds(n_particles) -> float`` (optional) — the
   agent's estimate of one decision's peak memory and time with a belief of ``n_particles``; the
   benchmark refuses a run that cannot fit in memory and warns before one whose decisions are slow.
@@ -42,9 +46,18 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from electroloc_gym.envs.agent_view import AgentView, agent_view
 from electroloc_gym.protocol import MAX_STEP_MM  # the largest move per axis per step, mm (paper §4.1.3)
 
-__all__ = ["Agent", "BaselineAgent", "sample_options_mm", "move_bounds_mm", "sample_belief", "MAX_STEP_MM"]
+__all__ = [
+    "Agent",
+    "BaselineAgent",
+    "layout_problem",
+    "sample_options_mm",
+    "move_bounds_mm",
+    "sample_belief",
+    "MAX_STEP_MM",
+]
 
 
 @runtime_checkable
@@ -54,7 +67,7 @@ class Agent(Protocol):
     env_kwargs: dict[str, Any]
 
     def reset(self, env: Any) -> None:
-        """Bind to ``env`` at the start of a trial (after ``env.reset``)."""
+        """Bind to ``env`` at the start of a trial (after ``env.reset``): the env's agent view."""
         ...
 
     def predict(
@@ -96,14 +109,22 @@ class BaselineAgent:
         self.rng = np.random.default_rng(seed)
 
     def reset(self, env: Any) -> None:
-        """Bind to ``env`` (its ``unwrapped`` core) at the start of a trial."""
-        self._env = env.unwrapped
+        """Bind to ``env``'s agent view (``env`` is one already in the benchmark) at the start of a trial.
+
+        Raises:
+            ValueError: the env's sensor layout is not one of :attr:`sensor_layouts` (:func:`layout_problem`).
+        """
+        view = agent_view(env)
+        why = layout_problem(self, getattr(view, "sensor_layout", None))
+        if why is not None:
+            raise ValueError(f"{self.name} cannot run on this env's sensor layout: {why}")
+        self._env = view
         self.done = False
         self.estimate_mm = None
 
     @property
-    def env(self) -> Any:
-        """The bound env core (``env.unwrapped``)."""
+    def env(self) -> AgentView:
+        """The bound env's agent view (:func:`electroloc_gym.envs.agent_view.agent_view`)."""
         if self._env is None:
             raise RuntimeError(f"{type(self).__name__}.reset(env) must be called before predict()")
         return self._env
@@ -138,14 +159,29 @@ class BaselineAgent:
         return f"{type(self).__name__}()"
 
 
+def layout_problem(agent: Any, sensor_layout: Any) -> str | None:
+    """Why ``agent`` cannot run on a sensor layout (None: it can): its ``sensor_layouts`` (None or absent:
+    every layout) lacks the layout's name.
+
+    Args:
+        agent: any agent (a plug-in's ``sensor_layouts`` is read the same way).
+        sensor_layout: a layout name, an env's ``SensorLayout`` (its ``name``), or None (the paper's single pair).
+    """
+    supported = getattr(agent, "sensor_layouts", None)
+    layout = getattr(sensor_layout, "name", sensor_layout) or "single"
+    if supported is None or layout in supported:
+        return None
+    return f"it runs on the sensor layout(s) {list(supported)} only, not {layout!r}"
+
+
 def move_bounds_mm(env: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(lo, hi) moves per axis, mm, within ±10 mm that keep the carriage in the allowed box.
 
     Uses the env's ``move_bounds_mm`` accessor when it has one (the global-localisation env, where the
     robot cannot know where the walls are, answers ±10 mm), else derives it from ``position_mm`` and
-    ``allowed_box_mm``. 0 is always inside.
+    ``allowed_box_mm``. 0 is always inside. ``env``: an agent view, an env or its core.
     """
-    core = env.unwrapped if hasattr(env, "unwrapped") else env
+    core = agent_view(env)
     if hasattr(core, "move_bounds_mm"):
         lo, hi = core.move_bounds_mm
         return np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)

@@ -177,8 +177,6 @@ class ZeroCrossingAgent(BaselineAgent):
     def reset(self, env: Any) -> None:
         super().reset(env)
         core = self.env
-        if getattr(core, "sensor_layout", None) is not None and core.sensor_layout.n_pairs > 1:
-            raise ValueError("zero-crossing follows one pair's zero crossings (§4.2); use sensor_layout='single'")
         start = core.position_mm
         low, high = core.allowed_box_mm
         self.workspace_mm = (

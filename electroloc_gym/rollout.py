@@ -4,14 +4,16 @@ The loop is the agent protocol of :mod:`electroloc_gym.baselines.agent` and noth
 
     obs, info = env.reset(seed=seed)
     agent.seed(agent_seed)            # if given and the agent has its own generator
-    agent.reset(env)                  # bind to the env after the reset
+    agent.reset(agent_view(env))      # bind to the env's agent view after the reset
     repeat: action, state = agent.predict(obs, state, episode_start, deterministic)
             stop if agent.done        # an agent that ends the episode itself (zero-crossing)
             obs, ..., terminated, truncated, info = env.step(action)
     until terminated or truncated
 
-so an episode counted by ``electroloc bench`` and one counted by the training's seeded evaluation
-are the same episode. Whatever an agent's ``seed``, ``reset`` or ``predict`` raises (any exception,
+so an episode counted by ``electroloc bench``, one recorded into a dataset and one counted by the
+training's seeded evaluation are the same episode. The agent is handed the env's agent view
+(:func:`electroloc_gym.envs.agent_view.agent_view`: the documented agent accessors, never the ground
+truth), not the env. Whatever an agent's ``seed``, ``reset`` or ``predict`` raises (any exception,
 ``SystemExit`` included) comes out as one :class:`AgentCallError` naming the method, so a caller can
 tell the agent's failure from the env's.
 """
@@ -24,6 +26,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from electroloc_gym.envs.agent_view import agent_view
 
 __all__ = ["Episode", "run_episode", "AgentCallError"]
 
@@ -99,7 +103,8 @@ def run_episode(
     Args:
         env: a Gymnasium env (single, not vectorised).
         agent: anything with ``reset(env)`` and SB3's ``predict(obs, state, episode_start, deterministic)``;
-            optional ``seed(int)`` and ``done`` (see :mod:`electroloc_gym.baselines.agent`).
+            optional ``seed(int)`` and ``done`` (see :mod:`electroloc_gym.baselines.agent`). Its ``reset``
+            receives the env's agent view, built after ``env.reset``.
         seed: the ``env.reset`` seed.
         agent_seed: re-seeds the agent's own generator before the episode (ignored when None or when
             the agent has no ``seed`` method).
@@ -113,7 +118,8 @@ def run_episode(
     obs, info = env.reset(seed=int(seed))
     if agent_seed is not None and hasattr(agent, "seed"):
         _call("seed", agent.seed, int(agent_seed))
-    _call("reset", agent.reset, env)
+    view = agent_view(env)
+    _call("reset", agent.reset, view)
     episode = Episode(start_info=info, info=info)
     if on_step is not None:
         on_step(info)

@@ -116,7 +116,8 @@ def test_record_episode_with_an_agent() -> None:
     env = gym.make("ElectroLoc-v0", max_observations=3, **SMALL)
     agent = StayAgent()
     ep = record_episode(env, seed=0, agent=agent)
-    assert agent.bound is env
+    assert agent.bound is not env and not hasattr(agent.bound, "unwrapped")  # bound to the env's agent view
+    assert agent.bound.n_observations == env.unwrapped.n_observations
     assert len({i["position_mm"] for i in ep.infos}) == 1  # it never moved
     assert ep.label == "stay, seed 0"
 

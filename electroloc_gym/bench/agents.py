@@ -39,6 +39,7 @@ from typing import Any
 
 from electroloc_gym.agentspec import AgentSpec, is_path_like, parse_agent_spec
 from electroloc_gym.baselines.agent import AGENT_NAMES, make_agent
+from electroloc_gym.baselines.base import layout_problem  # the agents' layout rule (re-exported: the registry's API)
 from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
     AGENT_ENV_KWARGS,
     bench_env_kwargs,
@@ -341,17 +342,6 @@ def builtin_agent(spec: str) -> Any | None:
         return cached_agent(ref) if ref.builtin else None
     except ValueError:
         return None
-
-
-def layout_problem(agent: Any, sensor_layout: str | None) -> str | None:
-    """Why ``agent`` cannot run on the named sensor layout (None: it can): its ``sensor_layouts``
-    (None or absent: every layout) lacks the layout (None: the paper's ``"single"`` pair).
-    """
-    supported = getattr(agent, "sensor_layouts", None)
-    layout = sensor_layout or "single"
-    if supported is None or layout in supported:
-        return None
-    return f"it runs on the sensor layout(s) {list(supported)} only, not {layout!r}"
 
 
 def decision_seconds(agent: Any, n_particles: int) -> float:

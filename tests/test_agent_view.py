@@ -1,0 +1,281 @@
+"""Agents see only the agent view: no route to the ground truth from what the benchmark, the rollout, the
+controllers and the torch backend's ``sub_env`` hand them (electroloc_gym/envs/agent_view.py)."""
+
+from __future__ import annotations
+
+import copy
+import pickle
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import electroloc_gym  # noqa: F401
+from electroloc_gym.baselines import make_agent
+from electroloc_gym.bench import run
+from electroloc_gym.bench.agents import register_object_agent
+from electroloc_gym.bench.config import BenchConfig
+from electroloc_gym.bench.runner import run_benchmark
+from electroloc_gym.envs.agent_view import AGENT_METHODS, AGENT_VALUES, AgentView, agent_view
+from electroloc_gym.rollout import run_episode
+
+SMALL = {"n_particles": 200, "max_observations": 4}
+#: What an agent must never reach: the truth, the env itself, its internals, its noise stream, its controls.
+FORBIDDEN = (
+    "truth_mm",
+    "target_mm",
+    "hidden_state",
+    "hidden_keys",
+    "unwrapped",
+    "env",
+    "_env",
+    "_core",
+    "_state",
+    "_sim",
+    "_task",
+    "state",
+    "params",
+    "spec",
+    "np_random",
+    "step",
+    "reset",
+    "render",
+    "close",
+    "entry",
+    "get_wrapper_attr",
+    "__dict__",
+)
+
+
+class Peeker:
+    """A plug-in agent that tries to read the truth through what ``reset`` hands it, and records what it got."""
+
+    name = "peeker"
+
+    def __init__(self) -> None:
+        self.env_kwargs: dict[str, Any] = {}
+        self.got: dict[str, str] = {}
+        self.bound: list[Any] = []
+
+    def reset(self, env: Any) -> None:
+        self.bound.append(env)
+        self.shape = env.action_space.shape
+        targets = {"": env, "belief.": env.belief, "sensor_model.": env.sensor_model, "condition.": env.condition}
+        for prefix, obj in targets.items():
+            for name in (*FORBIDDEN, "target_xy_mm", "condition", "_state", "_index"):
+                try:
+                    getattr(obj, name)
+                except AttributeError:
+                    continue
+                if prefix == "" and name == "condition":
+                    continue  # the condition's view: checked under "condition."
+                self.got[prefix + name] = type(getattr(obj, name)).__name__
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return np.zeros(self.shape, dtype=np.float32), state
+
+
+def _assert_no_peek(agent: Peeker) -> None:
+    assert agent.bound and all(isinstance(v, AgentView) for v in agent.bound)
+    assert agent.got == {}, f"the agent reached {agent.got}"
+
+
+# ---- through the benchmark, the rollout and the torch backend ----------------------------------------------------
+@pytest.mark.parametrize("env", ["target", "global", "unknown-target", "dynamic-gain"])
+def test_a_benchmark_agent_cannot_read_the_truth(env: str) -> None:
+    agent = Peeker()
+    result = run([agent], env=env, conditions="fresh-steel-12.7" if env != "global" else "all", trials=1, **SMALL)
+    assert len((result.out / "trials.jsonl").read_text().splitlines()) == 1
+    _assert_no_peek(agent)
+
+
+@pytest.mark.parametrize("extra", [{"distractors": 2}, {"sensor_layout": "ring-8"}])
+def test_a_benchmark_agent_cannot_read_the_truth_with_distractors_or_an_array(tmp_path, extra: dict) -> None:
+    agent = Peeker()
+    register_object_agent("peeker-extra", agent)
+    config = BenchConfig(
+        agents=("peeker-extra",),
+        conditions=("fresh-steel-12.7",),
+        trials=1,
+        seed=0,
+        sensor_model="analytic",
+        **SMALL,
+        **extra,
+    )
+    run_benchmark(config, tmp_path / "out", backend="serial", progress=False, log=None)
+    _assert_no_peek(agent)
+
+
+def test_the_rollout_hands_the_agent_view_not_the_env() -> None:
+    env = gym.make("ElectroLoc-v0", **SMALL)
+    agent = Peeker()
+    run_episode(env, agent, 0)
+    _assert_no_peek(agent)
+    assert agent.bound[0] is not env and agent.bound[0] is not env.unwrapped
+
+
+def test_the_torch_sub_env_is_an_agent_view() -> None:
+    torch = pytest.importorskip("torch")
+    from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv
+
+    env = TorchElectroLocVectorEnv(num_envs=2, n_particles=200)
+    env.reset(seed=0)
+    view = env.sub_env(1)
+    assert isinstance(view, AgentView)
+    for name in (*FORBIDDEN, "_index", "consts"):
+        with pytest.raises(AttributeError):
+            getattr(view, name)
+    for name in ("_env", "_index", "_state"):
+        with pytest.raises(AttributeError):
+            getattr(view.belief, name)
+    assert not hasattr(view.condition, "target_xy_mm")
+    agent = make_agent("min-var", seed=0)
+    agent.reset(view)  # the controllers read only the agent accessors
+    action, _ = agent.predict(None)
+    env.step(torch.as_tensor(np.stack([np.zeros(2, dtype=np.float32), action])))
+    assert view.n_observations == 2
+
+
+# ---- what each env's view shows and hides ------------------------------------------------------------------------
+def _view(env_id: str, **kwargs: Any) -> tuple[Any, AgentView]:
+    env = gym.make(env_id, **SMALL, **kwargs)
+    env.reset(seed=3)
+    return env.unwrapped, agent_view(env)
+
+
+def test_the_target_env_shows_its_sphere_but_never_the_target_position() -> None:
+    core, view = _view("ElectroLoc-v0")
+    c = view.condition
+    assert c.target == core.condition.target and c.name == core.condition.name
+    assert (
+        c.noise_std_V == core.condition.noise_std_V and c.allowed_half_width_mm == core.condition.allowed_half_width_mm
+    )
+    with pytest.raises(AttributeError, match="target_xy_mm"):
+        _ = c.target_xy_mm
+    for name in ("replace", "to_dict", "with_noise_factor"):  # no route back to a full Condition
+        assert not hasattr(c, name)
+    np.testing.assert_array_equal(view.position_mm, core.position_mm)  # the carriage is not hidden here
+
+
+def test_the_unknown_target_env_hides_the_sphere_and_the_condition_name() -> None:
+    core, view = _view("ElectroLocUnknownTarget-v0")
+    c = view.condition
+    for name in ("target", "name", "chi", "depth_mm", "detection_distance_mm", "target_xy_mm"):
+        assert not hasattr(c, name), name
+    assert c.noise_std_V == core.condition.noise_std_V and c.saturation_V == core.condition.saturation_V
+    assert view.belief.particles.shape[1] == 4
+    assert not hasattr(view.sensor_model, "condition")
+
+
+def test_the_global_env_hides_the_true_carriage_position_and_path() -> None:
+    core, view = _view("ElectroLocGlobal-v0")
+    for name in ("position_mm", "path_mm", "truth_mm"):
+        assert not hasattr(view, name), name
+    np.testing.assert_array_equal(view.odometry_mm, core.odometry_mm)
+    assert view.scene == core.scene and view.belief_frame == "robot"
+    np.testing.assert_array_equal(view.move_bounds_mm[1], core.move_bounds_mm[1])
+
+
+@pytest.mark.parametrize("env_id", ["ElectroLoc-v0", "ElectroLocGlobal-v0", "ElectroLocUnknownTarget-v0"])
+def test_the_view_answers_as_the_env_does(env_id: str) -> None:
+    core, view = _view(env_id)
+    p = view.belief.particles
+    assert p is not None and np.array_equal(p, core.belief.particles)
+    np.testing.assert_array_equal(view.belief.covariance(), core.belief.covariance())
+    moves = np.array([[1.0, 2.0], [-3.0, 0.5]])
+    for got, want in zip(view.predicted_reading_model(p, moves), core.predicted_reading_model(p, moves)):
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(view.predicted_particles_mm(p, moves), core.predicted_particles_mm(p, moves))
+    offsets = np.zeros((3, 2)) if p.shape[1] == 2 else None
+    if offsets is not None:
+        for got, want in zip(view.sensor_model.mean_std(offsets), core.sensor_model.mean_std(offsets)):
+            np.testing.assert_array_equal(got, want)
+    assert view.n_observations == core.n_observations == 1
+    assert view.action_space is core.action_space and view.success_spread_mm == core.success_spread_mm
+    with pytest.raises(ValueError, match="moves_mm"):  # the env's own argument checks
+        view.predicted_reading_model(p, np.zeros(3))
+
+
+def test_the_view_reads_the_live_state() -> None:
+    env = gym.make("ElectroLoc-v0", **SMALL)
+    env.reset(seed=0)
+    view = agent_view(env)
+    env.step(np.array([1.0, 0.0], dtype=np.float32))
+    assert view.n_observations == 2
+    np.testing.assert_array_equal(view.position_mm, env.unwrapped.position_mm)
+    env.reset(seed=1)
+    assert view.n_observations == 1
+
+
+@pytest.mark.parametrize("env_id", ["ElectroLoc-v0", "ElectroLocGlobal-v0", "ElectroLocUnknownTarget-v0"])
+def test_no_attribute_walk_reaches_the_env(env_id: str) -> None:
+    """Every value reachable by public or private (non-dunder) attribute names, four levels deep, is neither the
+    env, its core, its state nor its task."""
+    env = gym.make(env_id, **SMALL, distractors=1) if env_id == "ElectroLoc-v0" else gym.make(env_id, **SMALL)
+    env.reset(seed=0)
+    core = env.unwrapped
+    forbidden = {id(env), id(core), id(core._state), id(core._task), id(core._sim), id(core.params)}
+    seen: set[int] = set()
+    frontier = [("view", agent_view(env))]
+    for _ in range(4):
+        nxt = []
+        for path, obj in frontier:
+            if id(obj) in seen or isinstance(obj, (str, bytes, int, float, bool, type(None), np.ndarray, np.generic)):
+                continue
+            seen.add(id(obj))
+            assert id(obj) not in forbidden, f"{path} is the env or its internals"
+            assert getattr(obj, "__self__", None) is not core, f"{path} is a bound method of the env"
+            for name in dir(obj):
+                if name.startswith("__"):
+                    continue
+                try:
+                    value = getattr(obj, name)
+                except Exception:  # noqa: BLE001 - an accessor that needs arguments or a state: nothing to walk
+                    continue
+                nxt.append((f"{path}.{name}", value))
+            if isinstance(obj, (tuple, list)):
+                nxt += [(f"{path}[{i}]", v) for i, v in enumerate(obj)]
+        frontier = nxt
+
+
+def test_a_view_cannot_be_written_or_unpickled_and_copies_are_itself() -> None:
+    _, view = _view("ElectroLoc-v0")
+    with pytest.raises(AttributeError, match="read-only"):
+        view.position_mm = np.zeros(2)
+    with pytest.raises(AttributeError, match="read-only"):
+        view.belief.particles = None
+    with pytest.raises(TypeError):
+        vars(view)
+    with pytest.raises(TypeError, match="cannot be pickled"):
+        pickle.dumps(view)
+    assert copy.copy(view) is view and copy.deepcopy(view) is view
+    assert set(dir(view)) <= set(AGENT_VALUES) | set(AGENT_METHODS)
+    with pytest.raises(AttributeError, match="an agent sees only"):
+        _ = view.truth_mm
+    assert agent_view(view) is view
+
+
+# ---- the controllers run on the view; the layouts they cannot run on are one ValueError --------------------------
+@pytest.mark.parametrize(
+    "name", ["rnd-wlk", "min-var", "zero-crossing", "lookahead[depth=2,branches=4]", "infotaxis", "eedi"]
+)
+def test_every_controller_binds_to_the_view(name: str) -> None:
+    env = gym.make("ElectroLoc-v0", **SMALL)
+    agent = make_agent(name, seed=0)
+    ep = run_episode(env, agent, 0, agent_seed=1)
+    assert isinstance(agent.env, AgentView) and ep.decision_s
+    agent.reset(env)  # given the env itself, a controller binds to its view too
+    assert isinstance(agent.env, AgentView)
+
+
+@pytest.mark.parametrize("name", ["infotaxis", "eedi", "zero-crossing"])
+@pytest.mark.parametrize("layout", ["line-4", "grid-2x2", "ring-8"])
+def test_single_pair_controllers_refuse_an_array_at_reset(name: str, layout: str) -> None:
+    env = gym.make("ElectroLoc-v0", sensor_layout=layout, **SMALL)
+    env.reset(seed=0)
+    agent = make_agent(name, seed=0)
+    with pytest.raises(
+        ValueError, match=rf"^{name} cannot run on this env's sensor layout: .*\['single'\] only, not '{layout}'$"
+    ):
+        agent.reset(env)
