@@ -11,12 +11,11 @@ env (draws, true reading, sensor model on all particles, weights, resampling, ji
 from __future__ import annotations
 
 import argparse
-import os
 import time
 
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("MKL_NUM_THREADS", "1")
+from electroloc_gym.runtime import pin_threads
+
+pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
 import numpy as np  # noqa: E402
 

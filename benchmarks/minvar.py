@@ -23,12 +23,11 @@ Timings are best-of-N to resist a busy machine.
 from __future__ import annotations
 
 import argparse
-import os
 import time
 
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("MKL_NUM_THREADS", "1")
+from electroloc_gym.runtime import pin_threads
+
+pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402

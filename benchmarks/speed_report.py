@@ -21,10 +21,9 @@ ratios are per CPU-second, best of several rounds (see the two scripts).
 
 from __future__ import annotations
 
-import os
+from electroloc_gym.runtime import pin_threads
 
-for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
+pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
 import argparse  # noqa: E402
 import json  # noqa: E402

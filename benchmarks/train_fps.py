@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.fileio import atomic_write_text
-from electroloc_gym.runtime import THREAD_VARS
+from electroloc_gym.runtime import thread_env
 from electroloc_gym.train.run import zoo_argv
 
 #: One validation episode at the start and the end only: the timing is of training.
@@ -34,7 +34,7 @@ CALLBACK = "callback:[{'electroloc_gym.train.callbacks.BenchEvalCallback':{'eval
 def one_run(native: bool, timesteps: int, log_folder: Path, n_envs: int = 16) -> dict[str, Any]:
     """Run rl-zoo3 once in a fresh log folder; its summary.json's timing."""
     argv = zoo_argv("ppo", "ElectroLoc-v0", 0, timesteps=timesteps, log_folder=log_folder, native=native)
-    env = {**os.environ, **{v: "1" for v in THREAD_VARS}}
+    env = {**os.environ, **thread_env()}
     subprocess.run(
         [sys.executable, *argv, "--hyperparams", CALLBACK, f"n_envs:{n_envs}"],
         capture_output=True,

@@ -27,8 +27,9 @@ from __future__ import annotations
 
 import os
 
-for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
+from electroloc_gym.runtime import pin_threads
+
+pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
 import argparse  # noqa: E402
 import json  # noqa: E402

@@ -25,7 +25,7 @@ from electroloc_gym.conditions import (
 )
 from electroloc_gym.fileio import strict_json
 from electroloc_gym.registry import BENCH_ENVS, bench_env
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.runtime import add_threads_argument, pin_threads
 from electroloc_gym.sensor import zero_crossing_mm
 
 __all__ = ["main", "detection_table", "quiet_tank_table", "parse_noise_factor", "build_parser", "HelpFormatter"]
@@ -409,12 +409,14 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=bench_cli.EPILOG,
     )
     bench_cli.add_arguments(b)
+    add_threads_argument(b)
     b.set_defaults(func=bench_cli.run)
 
     from electroloc_gym.dataset import cli as dataset_cli
 
     ds = command("dataset", "write an agent's episodes as a local Minari dataset", description=dataset_cli.DESCRIPTION)
     dataset_cli.add_arguments(ds)
+    add_threads_argument(ds)
     ds.set_defaults(func=dataset_cli.run)
 
     t = sub.add_parser(
@@ -425,20 +427,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the console script."""
-    pin_threads()
+    """Entry point of the console script.
+
+    The numeric libraries are pinned first (:func:`~electroloc_gym.runtime.pin_threads`: ``$ELECTROLOC_THREADS``
+    or one thread), then to a sub-command's ``--threads``; the benchmark's workers and the training run
+    start with the same count.
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "train":
-        try:
-            from electroloc_gym.train.__main__ import main as train_main
-        except ImportError as exc:  # torch / SB3 missing
-            print(
-                f"electroloc train needs the training extra: pip install 'electroloc-gym[train]' ({exc})",
-                file=sys.stderr,
-            )
-            return 2
+    try:
+        pin_threads()
+    except ValueError as exc:  # a bad $ELECTROLOC_THREADS
+        print(f"electroloc: error: {exc}", file=sys.stderr)
+        return 2
+    if argv and argv[0] == "train":  # its own parser; it names the zoo extra when rl-zoo3 is missing
+        from electroloc_gym.train.__main__ import main as train_main
+
         return int(train_main(argv[1:]) or 0)
     args = build_parser().parse_args(argv)
+    if getattr(args, "threads", None) is not None:
+        pin_threads(args.threads)
     return int(args.func(args) or 0)
 
 

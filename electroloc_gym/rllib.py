@@ -15,8 +15,9 @@ so no two runners share a sub-env. Autoreset: RLlib's runner handles Gymnasium's
 (the step after an episode's last returns the next episode's first observation, and its action is
 ignored), the native vector env's default; the creator refuses ``autoreset_mode="same_step"``.
 
-Processes: :func:`runner_env_vars` pins numba, BLAS and torch to one thread in every runner (set in
-Ray's ``runtime_env``; the creator also calls :func:`~electroloc_gym.runtime.pin_threads`), and
+Processes: :func:`runner_env_vars` pins numba, BLAS and torch in every runner to the driver's thread count
+(one unless chosen; set in Ray's ``runtime_env``; the creator also calls
+:func:`~electroloc_gym.runtime.pin_threads`), and
 :func:`warm_kernels` compiles the env's numba kernels once into their on-disk cache before the runners
 start, so that they load them instead of each compiling (and writing) them.
 
@@ -38,7 +39,7 @@ import gymnasium as gym
 import numpy as np
 
 from electroloc_gym.registry import ENV_IDS
-from electroloc_gym.runtime import THREAD_VARS, pin_threads
+from electroloc_gym.runtime import pin_threads, thread_env
 
 __all__ = [
     "ENV_IDS",
@@ -86,8 +87,9 @@ def _split_config(config: Mapping[str, Any]) -> tuple[str, int | None, dict[str,
 def make_env(config: Mapping[str, Any]) -> gym.Env | gym.vector.VectorEnv:
     """The creator for ``register_env``: a single env, or the native vector env when RLlib passes ``num_envs``.
 
-    It runs in the env runner's process and first pins that process's numeric libraries to one thread
-    (:func:`~electroloc_gym.runtime.pin_threads`; called in a driver, it pins the driver too).
+    It runs in the env runner's process and first pins that process's numeric libraries to the chosen thread
+    count, one unless chosen (:func:`~electroloc_gym.runtime.pin_threads`; called in a driver, it pins the
+    driver too).
 
     Args:
         config: the env kwargs (:class:`~electroloc_gym.core.params.EnvParams`), plus ``env_id`` (one of
@@ -114,8 +116,10 @@ def register(name: str = RLLIB_ENV_NAME) -> str:
 
 
 def runner_env_vars() -> dict[str, str]:
-    """Environment variables of every Ray worker: one numba, OpenMP and BLAS thread (Ray ``runtime_env``)."""
-    return {**{v: "1" for v in THREAD_VARS}, "NUMBA_NUM_THREADS": "1"}
+    """Environment variables of every Ray worker: the driver's chosen numba, OpenMP and BLAS threads (one
+    unless chosen, :func:`~electroloc_gym.runtime.thread_env`; Ray ``runtime_env``).
+    """
+    return thread_env()
 
 
 def warm_kernels(env_config: Mapping[str, Any]) -> float:

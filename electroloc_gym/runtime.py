@@ -1,17 +1,38 @@
-"""Process set-up shared by the benchmark workers, the training path, RLlib runners and the CLI.
+"""Process set-up shared by the CLI, the benchmark workers, the training path, RLlib runners and the scripts.
 
-:func:`pin_threads` pins every numeric library of the process to one thread. On a small machine two
-BLAS/torch/numba threads per process run slower than one (the processes already fill the cores), so
-the package parallelises by process and never by library thread.
+:func:`pin_threads` sizes every numeric library's thread pool of the process — torch's intra-op pool,
+the BLAS and OpenMP pools (``threadpoolctl``), numba's — to one chosen count, and writes that count into
+the environment (:func:`thread_env`) so that the child processes the package starts (benchmark workers,
+the training run, Ray workers) start with it. The count is :func:`chosen_threads`: an explicit argument
+(the CLI's ``--threads``), else ``$ELECTROLOC_THREADS``, else :data:`DEFAULT_THREADS` = 1.
+
+Why one: the package parallelises by process (``electroloc bench --workers``, the vector envs' batches),
+and the processes already fill the cores. Library threads on top of them oversubscribe the CPU: on a busy
+2-core machine the torch backend ran 10–25× slower with torch's default threads than with one, and SB3's
+PPO 3.6–10× slower (docs/performance.md). The generic variables (``OMP_NUM_THREADS`` …) are overwritten
+with the chosen count rather than read: a cluster job sets them to its cores for one process, which is
+exactly the oversubscription above once the package starts a process per core.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 from pathlib import Path
 
-__all__ = ["pin_threads", "THREAD_VARS", "use_user_numba_cache", "user_numba_cache_dir"]
+__all__ = [
+    "pin_threads",
+    "chosen_threads",
+    "thread_env",
+    "add_threads_argument",
+    "THREAD_VARS",
+    "THREADS_VAR",
+    "DEFAULT_THREADS",
+    "MAX_THREADS",
+    "use_user_numba_cache",
+    "user_numba_cache_dir",
+]
 
 #: The environment variables that size the thread pools of OpenMP, OpenBLAS, MKL, numexpr, Accelerate
 #: (read when those libraries load, so set them before the first import where it matters).
@@ -22,26 +43,123 @@ THREAD_VARS = (
     "NUMEXPR_NUM_THREADS",
     "VECLIB_MAXIMUM_THREADS",
 )
+#: numba's pool size (read when numba's configuration loads).
+NUMBA_THREADS_VAR = "NUMBA_NUM_THREADS"
+#: The package's own setting: threads per process of every numeric library.
+THREADS_VAR = "ELECTROLOC_THREADS"
+#: Threads per process when nothing is chosen.
+DEFAULT_THREADS = 1
+#: The largest thread count accepted.
+MAX_THREADS = 1024
 
 
-def pin_threads() -> None:
-    """Pin numeric libraries of this process to one thread.
-
-    Sets :data:`THREAD_VARS` to 1 (for libraries loaded later), limits the thread pools already loaded
-    (``threadpoolctl``, when installed) and torch's intra-op pool if torch is already imported (this
-    never imports torch).
+def _check_threads(name: str, value: object, text: bool = False) -> int:
+    """``value`` (an int; with ``text`` a string of digits) as a thread count in [1, MAX_THREADS], else one
+    ValueError naming ``name``.
     """
-    for var in THREAD_VARS:
-        os.environ[var] = "1"
+    if text and isinstance(value, str):
+        text = value.strip()
+        number = int(text) if text.isdigit() else None
+    elif isinstance(value, int) and not isinstance(value, bool):
+        number = value
+    else:
+        number = None
+    if number is None or not 1 <= number <= MAX_THREADS:
+        raise ValueError(f"{name} must be an integer in [1, {MAX_THREADS}], got {value!r}")
+    return number
+
+
+def chosen_threads(threads: int | None = None) -> int:
+    """The thread count of this process's numeric libraries: ``threads`` if given, else ``$ELECTROLOC_THREADS``,
+    else :data:`DEFAULT_THREADS`.
+
+    Raises:
+        ValueError: ``threads`` or ``$ELECTROLOC_THREADS`` not an integer in [1, :data:`MAX_THREADS`].
+    """
+    if threads is not None:
+        return _check_threads("threads", threads)
+    text = os.environ.get(THREADS_VAR, "")
+    if not text.strip():
+        return DEFAULT_THREADS
+    return _check_threads(THREADS_VAR, text, text=True)
+
+
+def thread_env(threads: int | None = None) -> dict[str, str]:
+    """The environment variables a child process needs to start with :func:`chosen_threads` ``(threads)``:
+    :data:`THREAD_VARS`, numba's ``NUMBA_NUM_THREADS`` and :data:`THREADS_VAR`.
+    """
+    n = str(chosen_threads(threads))
+    return {**{v: n for v in THREAD_VARS}, NUMBA_THREADS_VAR: n, THREADS_VAR: n}
+
+
+def _threads_arg(text: str) -> int:
+    """``--threads``: an integer in [1, MAX_THREADS] (argparse's one-line error otherwise)."""
+    try:
+        return _check_threads("--threads", text, text=True)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer in [1, {MAX_THREADS}], got {text!r}") from None
+
+
+def add_threads_argument(parser: argparse.ArgumentParser) -> None:
+    """Add ``--threads N`` (threads per process of every numeric library; see :func:`chosen_threads`)."""
+    parser.add_argument(
+        "--threads",
+        type=_threads_arg,
+        default=None,
+        metavar="N",
+        help=f"threads per process of torch, BLAS/OpenMP and numba (default: ${THREADS_VAR}, else "
+        f"{DEFAULT_THREADS}: the package parallelises by process, and library threads on top of busy "
+        "processes slow them down)",
+    )
+
+
+def pin_threads(threads: int | None = None) -> int:
+    """Pin every numeric library of this process to :func:`chosen_threads` ``(threads)`` threads; return it.
+
+    Writes :func:`thread_env` into ``os.environ`` (for libraries loaded later and for child processes),
+    limits the BLAS/OpenMP pools already loaded (``threadpoolctl``, when installed), sets torch's intra-op
+    pool if torch is already imported (this never imports torch) and numba's pool if numba is loaded.
+
+    Raises:
+        ValueError: a bad ``threads`` or ``$ELECTROLOC_THREADS`` (one line naming it and the range).
+    """
+    n = chosen_threads(threads)
+    env = thread_env(n)
+    if _numba_threads_started():  # numba refuses a new pool size once its threads run (it masks them instead)
+        env.pop(NUMBA_THREADS_VAR)
+    os.environ.update(env)
     try:
         from threadpoolctl import threadpool_limits
 
-        threadpool_limits(1)
-    except ImportError:  # pragma: no cover - optional
+        threadpool_limits(n)
+    except ImportError:  # pragma: no cover - a dependency; kept optional for a partial install
         pass
     torch = sys.modules.get("torch")
     if torch is not None:
-        torch.set_num_threads(1)
+        torch.set_num_threads(n)
+    _pin_numba(n)
+    return n
+
+
+def _numba_threads_started() -> bool:
+    """Numba's threading layer is running (its pool size is then fixed)."""
+    parallel = sys.modules.get("numba.np.ufunc.parallel")
+    return parallel is not None and bool(getattr(parallel, "_is_initialized", False))
+
+
+def _pin_numba(n: int) -> None:
+    """Numba's pool: its configured size before its threads start, its active threads after. The package's
+    kernels are serial; this pins what user code compiles with ``parallel=True``.
+    """
+    config = sys.modules.get("numba.core.config")
+    if config is None:  # numba reads NUMBA_NUM_THREADS when it loads
+        return
+    if _numba_threads_started():
+        import numba
+
+        numba.set_num_threads(min(n, int(config.NUMBA_NUM_THREADS)))
+    else:
+        config.NUMBA_NUM_THREADS = n  # as the compiler's next reload of the environment reads it
 
 
 def user_numba_cache_dir() -> Path:

@@ -20,6 +20,7 @@ from torch import nn
 
 import electroloc_gym  # noqa: F401  (registers the envs)
 from electroloc_gym.privileged import PrivilegedInfo
+from electroloc_gym.runtime import pin_threads
 
 #: The truth is given to the critic in units of this, mm (the tank's scale).
 TRUTH_SCALE_MM = 100.0
@@ -43,7 +44,7 @@ def train(
 ) -> dict[str, float]:
     """Train; returns the input sizes of actor and critic, the last losses and the mean episode length."""
     torch.manual_seed(seed)
-    torch.set_num_threads(1)
+    pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
     env = PrivilegedInfo(gym.make("ElectroLoc-v0", condition="random", randomize_target=True, n_particles=n_particles))
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     priv_dim = env.privileged_space.shape[0]

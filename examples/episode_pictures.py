@@ -20,6 +20,7 @@ from electroloc_gym.baselines import make_agent
 from electroloc_gym.demo import check_output_path, plot_episode, record_episode, save_gif
 from electroloc_gym.fileio import save_figure_atomic
 from electroloc_gym.registry import env_entry
+from electroloc_gym.runtime import pin_threads
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -42,6 +43,7 @@ def main(argv: list[str] | None = None) -> dict:
         agent = None if args.agent == "random" else make_agent(args.agent, seed=args.seed)
     except ValueError as exc:
         p.error(str(exc))
+    pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
     kwargs = {"condition": args.condition} if env_entry(args.env).takes("condition") else {}
     env = gym.make(args.env, render_mode="rgb_array" if args.gif else None, **kwargs)
     episode = record_episode(env, seed=args.seed, agent=agent, frames=args.gif is not None)

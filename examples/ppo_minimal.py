@@ -27,6 +27,7 @@ import torch.nn as nn
 from torch.distributions import Normal
 
 import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0)
+from electroloc_gym.runtime import pin_threads
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -227,7 +228,7 @@ def evaluate(agent: Agent, args: argparse.Namespace) -> tuple[float, float]:
 
 def main(argv: list[str] | None = None) -> dict[str, float]:
     """Train, evaluate, optionally save; returns the evaluation figures."""
-    torch.set_num_threads(1)  # small networks: one thread is fastest, and leaves the other cores free
+    pin_threads()  # small networks: one thread (unless $ELECTROLOC_THREADS) is fastest and leaves the cores free
     args = parse_args(argv)
     agent = train(args)
     success, median_obs = evaluate(agent, args)

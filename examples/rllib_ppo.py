@@ -114,8 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     import ray
     import torch
 
-    pin_threads()  # the learner: one torch/BLAS thread (the runners are pinned by runner_env_vars)
-    torch.set_num_threads(1)
+    pin_threads()  # the learner: one torch/BLAS thread unless $ELECTROLOC_THREADS (the runners: runner_env_vars)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     warm_s = erl.warm_kernels(env_config(args))  # compile the numba kernels once, before the runners load them

@@ -15,7 +15,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from electroloc_gym.agentspec import parse_options
-from electroloc_gym.train.run import ALGO_FILES, train, zoo_argv
+from electroloc_gym.runtime import add_threads_argument, pin_threads
+from electroloc_gym.train.run import ALGO_FILES, check_zoo_installed, train, zoo_argv
 
 EPILOG = """examples:
   electroloc train --algo ppo --env ElectroLoc-v0 --seed 3000 --out models/ppo-belief
@@ -54,9 +55,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE", help="override hyper-parameters")
     p.add_argument("--dummy", action="store_true", help="rl-zoo3's default DummyVecEnv instead of the native env")
     p.add_argument("--print-command", action="store_true", help="print the rl-zoo3 command and exit")
+    add_threads_argument(p)
     a = p.parse_args(argv)
     try:
         kw = dict(
+            threads=pin_threads(a.threads),
             timesteps=a.timesteps,
             log_folder=a.log_folder,
             native=not a.dummy,
@@ -64,11 +67,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             hyperparams=parse_options(a.hyperparams, "--hyperparams"),
         )
         args = zoo_argv(a.algo, a.env, a.seed, **kw)
+        if not a.print_command:
+            check_zoo_installed()
         print(shlex.join(["python", *args]), flush=True)
         if a.print_command:
             return 0
         run = train(a.algo, a.env, a.seed, out=a.out, **kw)
-    except ValueError as exc:
+    except (ValueError, ModuleNotFoundError) as exc:
         print(f"electroloc train: error: {exc}", file=sys.stderr)
         return 2
     print(f"run folder: {run}" + (f"; exported to {a.out}" if a.out else ""))

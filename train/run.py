@@ -22,6 +22,7 @@ fps).
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import subprocess
@@ -30,12 +31,37 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.runtime import THREAD_VARS
+from electroloc_gym.runtime import chosen_threads, thread_env
 
-__all__ = ["ALGO_FILES", "find_finished_run", "hyperparams_file", "train", "zoo_argv"]
+__all__ = [
+    "ALGO_FILES",
+    "ZOO_EXTRA_HINT",
+    "check_zoo_installed",
+    "find_finished_run",
+    "hyperparams_file",
+    "train",
+    "zoo_argv",
+]
 
 #: rl-zoo3 algorithm name → the project's hyper-parameter file (train/hyperparams/, keyed by env id).
 ALGO_FILES = {"ppo": "ppo.yml", "a2c": "a2c.yml", "sac": "sac.yml", "ppo_lstm": "ppo_lstm.yml", "qrdqn": "qrdqn.yml"}
+
+
+#: What a training run imports beyond the package's own dependencies (rl-zoo3 brings SB3 and torch).
+ZOO_MODULES = ("rl_zoo3", "stable_baselines3", "sb3_contrib", "torch")
+#: The one line a missing training dependency gets: the extra that installs all of them.
+ZOO_EXTRA_HINT = 'training needs the zoo extra: pip install -c constraints.txt "electroloc-gym[zoo]"'
+
+
+def check_zoo_installed() -> None:
+    """Refuse to start a run that cannot import rl-zoo3 and its stack (checked before the run's process starts).
+
+    Raises:
+        ModuleNotFoundError: one line naming the missing modules and :data:`ZOO_EXTRA_HINT`.
+    """
+    missing = [m for m in ZOO_MODULES if importlib.util.find_spec(m) is None]
+    if missing:
+        raise ModuleNotFoundError(f"{ZOO_EXTRA_HINT} (missing: {', '.join(missing)})", name=missing[0])
 
 
 def hyperparams_file(algo: str) -> Path:
@@ -91,6 +117,7 @@ def zoo_argv(
     env_kwargs: Mapping[str, Any] | None = None,
     hyperparams: Mapping[str, Any] | None = None,
     native: bool = True,
+    threads: int | None = None,
 ) -> list[str]:
     """The ``python -m rl_zoo3.train`` arguments (without the interpreter) for one run.
 
@@ -104,7 +131,10 @@ def zoo_argv(
         env_kwargs: replaces the file's ``env_kwargs`` (rl-zoo3's rule), values as Python literals.
         hyperparams: overrides of single hyper-parameters.
         native: train on the native vector env (False: rl-zoo3's default DummyVecEnv).
+        threads: torch's threads in the run (rl-zoo3's ``--num-threads``; default
+            :func:`~electroloc_gym.runtime.chosen_threads`: ``$ELECTROLOC_THREADS`` or 1).
     """
+    n_threads = chosen_threads(threads)
     conf = Path(conf_file) if conf_file is not None else hyperparams_file(algo)
     if conf.is_absolute() and conf.is_relative_to(Path.cwd()):
         conf = conf.relative_to(Path.cwd())  # the command as typed from the repository root
@@ -142,7 +172,7 @@ def zoo_argv(
         "--eval-freq",
         "-1",
         "--num-threads",
-        "1",
+        str(n_threads),
     ]
     if timesteps is not None:
         argv += ["-n", str(timesteps)]
@@ -179,11 +209,15 @@ def train(
     hyperparams: Mapping[str, Any] | None = None,
     native: bool = True,
     quiet: bool = False,
+    threads: int | None = None,
 ) -> Path:
     """Train (or find the finished run of) one configuration; export it to ``out``; return the run folder.
 
+    The run's process starts with ``threads`` threads per numeric library (:func:`zoo_argv`).
+
     Raises:
         ValueError: a bad argument (one line naming it), or a run that fails (its log named).
+        ModuleNotFoundError: rl-zoo3 or its stack missing (:func:`check_zoo_installed`: the zoo extra).
     """
     argv = zoo_argv(
         algo,
@@ -195,12 +229,14 @@ def train(
         env_kwargs=env_kwargs,
         hyperparams=hyperparams,
         native=native,
+        threads=threads,
     )
     run = find_finished_run(log_folder, algo, env_id, argv)
     if run is None:
+        check_zoo_installed()
         log = Path(log_folder, algo, f"{env_id}_s{seed}.log")
         log.parent.mkdir(parents=True, exist_ok=True)
-        env = {**os.environ, **{v: "1" for v in THREAD_VARS}}
+        env = {**os.environ, **thread_env(threads)}
         lines = []
         with (
             log.open("w", encoding="utf-8") as fh,

@@ -7,7 +7,8 @@ and trial, see :mod:`electroloc_gym.bench.config`), and workers build their envs
 themselves.
 
 Built in: ``"process"`` (default; a local ``concurrent.futures`` process pool, ``spawn`` start
-method, every worker pinned to one numeric thread, and every worker exits when the process that
+method, every worker pinned to the calling process's thread count —
+:func:`~electroloc_gym.runtime.chosen_threads`, one unless chosen — and every worker exits when the process that
 started it dies — :func:`exit_with_parent`) and ``"serial"`` (in-process, for
 debugging and tests). More backends (e.g. Ray) register with :func:`register_backend`::
 
@@ -32,7 +33,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, ClassVar
 
-from electroloc_gym.runtime import THREAD_VARS, pin_threads
+from electroloc_gym.runtime import chosen_threads, pin_threads, thread_env
 
 __all__ = [
     "Backend",
@@ -87,10 +88,10 @@ def exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-def _init_worker(parent_pid: int) -> None:
-    """Initializer of a process-pool worker."""
+def _init_worker(parent_pid: int, threads: int) -> None:
+    """Initializer of a process-pool worker: it exits with ``parent_pid`` and runs ``threads`` numeric threads."""
     exit_with_parent(parent_pid)
-    pin_threads()
+    pin_threads(threads)
 
 
 def default_workers() -> int:
@@ -138,7 +139,8 @@ class SerialBackend(Backend):
 
 
 class ProcessBackend(Backend):
-    """A local process pool (``concurrent.futures.ProcessPoolExecutor``, spawn), one thread per worker.
+    """A local process pool (``concurrent.futures.ProcessPoolExecutor``, spawn); every worker runs
+    :func:`~electroloc_gym.runtime.chosen_threads` numeric threads (one unless chosen).
 
     At most one trial per worker is in flight, so a worker that dies (the pool breaks) is known to have
     been running one of those few (:class:`WorkerLost` lists them).
@@ -149,20 +151,21 @@ class ProcessBackend(Backend):
     def run_trials(self, specs: Sequence[Any], worker_fn: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
         if not specs:
             return
+        threads = chosen_threads()
         if self.workers == 1:
-            pin_threads()
+            pin_threads(threads)
             yield from SerialBackend(1).run_trials(specs, worker_fn)
             return
         ctx = mp.get_context("spawn")  # no inherited locks/threads (tqdm's monitor, BLAS pools)
-        saved = {v: os.environ.get(v) for v in THREAD_VARS}
-        for v in THREAD_VARS:  # children read these at numpy import, before the initializer runs
-            os.environ[v] = "1"
+        child_env = thread_env(threads)
+        saved = {v: os.environ.get(v) for v in child_env}
+        os.environ.update(child_env)  # children read these at numpy import, before the initializer runs
         try:
             with cf.ProcessPoolExecutor(
                 max_workers=min(self.workers, len(specs)),
                 mp_context=ctx,
                 initializer=_init_worker,
-                initargs=(os.getpid(),),
+                initargs=(os.getpid(), threads),
             ) as pool:
                 todo = iter(specs)
                 futures: dict[cf.Future, Any] = {}

@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from electroloc_gym.bench.backends import Backend, WorkerLost, register_backend
-from electroloc_gym.runtime import THREAD_VARS, pin_threads
+from electroloc_gym.runtime import pin_threads, thread_env
 
 __all__ = ["RayBackend", "check_ray_address"]
 
@@ -178,7 +178,7 @@ class RayBackend(Backend):
         ray = _import_ray()
         started = False
         if not ray.is_initialized():
-            env_vars = {v: "1" for v in THREAD_VARS}  # workers read these at numpy import
+            env_vars = thread_env()  # workers read these at numpy import; pin_threads reads the count
             kwargs: dict[str, Any] = {
                 "runtime_env": {"env_vars": env_vars},
                 "log_to_driver": False,

@@ -12,10 +12,10 @@ Table-4 convention), and their ratio (paper: 6.7 / 12.4 = 0.54).
 from __future__ import annotations
 
 import argparse
-import os
 
-for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
+from electroloc_gym.runtime import pin_threads
+
+pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402

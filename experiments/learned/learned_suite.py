@@ -47,7 +47,7 @@ from typing import Any
 
 from electroloc_gym.agentspec import parse_options
 from electroloc_gym.registry import env_entry
-from electroloc_gym.runtime import THREAD_VARS
+from electroloc_gym.runtime import thread_env
 
 #: Training seeds of every configuration (disjoint from the benchmark's trial seeds by construction:
 #: they seed the training envs and networks, not benchmark trials).
@@ -173,7 +173,7 @@ def _bench(plan: Plan, env_id: str, agents: str, out: Path) -> None:
         argv += ["--workers", str(plan.workers)]
     if (out / "trials.jsonl").is_file():
         argv.append("--resume")
-    env = {**os.environ, **{v: "1" for v in THREAD_VARS}}
+    env = {**os.environ, **thread_env()}
     proc = subprocess.run(argv, env=env, capture_output=True, text=True)
     if proc.returncode != 0 and "in use by another electroloc bench run" in proc.stderr:
         print(f"{out} is being benchmarked by another invocation; it finishes it", flush=True)
