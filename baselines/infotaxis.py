@@ -155,8 +155,8 @@ def _entropy_inplace(log_w: NDArray[np.float32]) -> NDArray[np.float64]:
 class InfotaxisAgent(BaselineAgent):
     """Greedy expected entropy reduction over the paper's 16 options (module docstring).
 
-    Reads ``env.unwrapped.belief``, ``predicted_reading_model``, ``predicted_particles_mm``,
-    ``position_mm`` and ``allowed_box_mm`` / ``move_bounds_mm``; never the true target.
+    Reads its agent view's ``belief``, ``belief_frame``, ``predicted_reading_model`` and ``move_bounds_mm``
+    (or ``position_mm`` and ``allowed_box_mm``); never the true target.
 
     Args:
         seed: seed or generator of the options, the voters and the tie breaks.

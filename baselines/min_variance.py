@@ -289,8 +289,9 @@ def count_votes(variances: NDArray) -> tuple[int, NDArray[np.int64]]:
 class MinVarianceAgent(BaselineAgent):
     """Greedy minimum variance by particle voting (paper §4.1.3 policy #2, Algorithm 1).
 
-    Reads ``env.unwrapped.belief`` (particles, weights), ``.sensor_model`` (``mean_std``),
-    ``.position_mm`` and ``.allowed_box_mm``; never the true target.
+    Reads its agent view's ``belief`` (particles, weights), ``predicted_particles_mm``,
+    ``predicted_reading_model``, ``gain_levels`` and ``move_bounds_mm`` (or ``position_mm`` and
+    ``allowed_box_mm``); never the true target.
 
     Args:
         seed: seed or generator for the option draws, the voter subset and the resampling draws.

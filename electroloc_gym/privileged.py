@@ -16,8 +16,10 @@ What the vector holds (:func:`privileged_keys`), all in the tank's frame:
   observation; the truth is what it localises);
 * ``ElectroLocUnknownTarget-v0``: the target centre (x, y), mm, its radius, mm, and contrast factor χ.
 
-It is off by default: ``gym.make`` never adds it, the benchmark builds its envs with ``gym.make`` and so
-never shows it to an agent, and the datasets store the same truth in their infos, not in observations.
+It is off by default: ``gym.make`` never adds it; the benchmark builds its envs with ``gym.make`` and hands
+its agents the env's agent view (:mod:`electroloc_gym.envs.agent_view`: the agent accessors, no
+``hidden_state``, no ``unwrapped``), so it never shows the hidden state to an agent; and the datasets
+store the same truth in their infos, not in observations.
 The values come from the envs' documented evaluation accessors (``hidden_keys``, ``hidden_state()``:
 each task's own hidden state, declared with the task).
 """
