@@ -258,3 +258,16 @@ def test_the_design_diagram_names_every_module(graph: dict[str, set[str]]) -> No
     assert not missing, f"modules docs/design.md's diagram does not show: {missing}"
     for name, _ in LAYERS:
         assert name in block, f"layer {name!r} is not named in docs/design.md's diagram"
+
+
+def test_the_repository_map_names_every_top_level_folder() -> None:
+    """docs/design.md's map of the repository ("## The repository") has a row for each top-level folder in git."""
+    import subprocess
+
+    text = (ROOT / "docs" / "design.md").read_text(encoding="utf-8")
+    table = text.split("## The repository", 1)[1].split("\n## ", 1)[0]
+    tracked = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    folders = sorted({line.split("/", 1)[0] for line in tracked.splitlines() if "/" in line})
+    assert {"electroloc_gym", "tests", "docs"} <= set(folders)
+    missing = [f for f in folders if f"| `{f}/` |" not in table]
+    assert not missing, f"top-level folders docs/design.md's repository map does not describe: {missing}"
