@@ -41,21 +41,19 @@ class TrainConfig:
 
 
 def train(config: TrainConfig) -> dict:
-    """Train, validate, export the best checkpoint; returns its validation row and the curve."""
-    import gymnasium as gym
+    """Train, validate, export the best checkpoint; returns its validation row and the curve.
 
-    import electroloc_gym  # noqa: F401
-    from electroloc_gym.registry import env_entry
-
+    Raises:
+        common.ArgumentError: a setting or a dataset that cannot be used (:func:`common.prepare`), before
+            anything is trained or written.
+    """
+    ids, data, env = common.prepare(config)
     common.seed_everything(config.seed)
-    ids = [s.strip() for s in config.datasets.split(",") if s.strip()]
-    data = common.load_transitions(ids)
     norm = common.Normalizer.fit(data["observations"])
     obs = torch.as_tensor(norm(data["observations"]))
     act = torch.as_tensor(data["actions"])
     actor = common.Actor(obs.shape[1], act.shape[1])
     optim = torch.optim.Adam(actor.parameters(), lr=config.lr)
-    env = gym.make(config.env_id, **({"condition": "random"} if env_entry(config.env_id).takes("condition") else {}))
     rng = np.random.default_rng(config.seed)
     curve, best, best_state = [], None, None
     t0 = common.timer()
@@ -89,7 +87,7 @@ def train(config: TrainConfig) -> dict:
     )
 
 
-main = common.main_of(TrainConfig, train, __doc__, ("steps", "batch_size", "eval_every", "eval_episodes"))
+main = common.main_of(TrainConfig, train, __doc__)
 
 
 if __name__ == "__main__":

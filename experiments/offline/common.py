@@ -1,5 +1,10 @@
 """What the offline trainers share: Minari datasets as transition arrays, the actor, its export, validation.
 
+* :func:`prepare` checks a trainer's settings and datasets before anything is trained or written (one
+  :class:`ArgumentError` naming the option and what it allows): every option in its range, ``--env-id`` an
+  env of the table, ``--out`` a folder that can be written, and every dataset an id of Minari's form, present,
+  complete, collected on ``--env-id`` (its ``electroloc`` block's ``env_id``; datasets of different envs are
+  not mixed), with the validation env's observation and action spaces, holding finite transitions.
 * :func:`load_transitions` reads local Minari datasets (``minari.load_dataset``) into flat arrays
   (observations, actions, rewards, next observations, terminals), episodes in id order.
 * :class:`Normalizer` is the observation standardisation the actor trains with; it is written into the
@@ -23,9 +28,11 @@ gymnasium~=0.29; d3rlpy 2.8.1: gymnasium==1.0.0).
 from __future__ import annotations
 
 import json
+import math
+import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -39,19 +46,220 @@ VALIDATION_SEED = 100_000
 CLIP_OBS = 10.0
 #: Added to the variance before the square root.
 EPSILON = 1e-6
+#: Each option's allowed values: (low, high, low allowed). Integers are counts ≥ 1 unless listed; every
+#: float is finite. The learning rate is a step size in (0, 1].
+RANGES: dict[str, tuple[float, float, bool]] = {
+    "seed": (0, 2**32 - 1, True),  # numpy's global seed
+    "steps": (1, 10**9, True),
+    "batch_size": (1, 10**6, True),
+    "eval_every": (1, 10**9, True),
+    "eval_episodes": (1, 10**5, True),
+    "policy_freq": (1, 10**6, True),
+    "lr": (0.0, 1.0, False),
+    "discount": (0.0, 1.0, True),
+    "tau": (0.0, 1.0, False),
+    "policy_noise": (0.0, 1.0, True),
+    "noise_clip": (0.0, 1.0, True),
+    "alpha": (0.0, 1000.0, False),
+}
 
 
-def load_transitions(dataset_ids: Sequence[str]) -> dict[str, np.ndarray]:
-    """Flat transition arrays of the datasets (``observations``, ``actions``, ``rewards``,
-    ``next_observations``, ``terminals``, ``source`` — the index of the dataset in ``dataset_ids``).
+class ArgumentError(ValueError):
+    """A trainer's option or dataset that cannot be used: one line naming it and what is allowed."""
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def check_settings(config: Any) -> None:
+    """Every number of ``config`` in its :data:`RANGES` range, ``env_id`` an env of the table and ``out`` a
+    folder that can be written (checked without creating anything).
+
+    Raises:
+        ArgumentError: the first option out of range, named as its command-line flag.
+    """
+    from electroloc_gym.registry import ENV_IDS
+
+    for f in fields(config):
+        value = getattr(config, f.name)
+        if f.name not in RANGES:
+            continue
+        low, high, closed = RANGES[f.name]
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        if isinstance(f.default, int) and not isinstance(value, int):
+            ok = False
+        if not ok or not ((value >= low if closed else value > low) and value <= high):
+            integer = isinstance(f.default, int)
+            what = "an integer" if integer else "a finite number"
+            lo, hi = (f"{int(low)}", f"{int(high)}") if integer else (f"{low:g}", f"{high:g}")
+            rng = f"in [{lo}, {hi}]" if closed else f"in ({lo}, {hi}]"
+            raise ArgumentError(f"{_flag(f.name)} must be {what} {rng}, got {value!r}")
+    if config.env_id not in ENV_IDS:
+        raise ArgumentError(f"--env-id must be one of {list(ENV_IDS)}, got {config.env_id!r}")
+    check_out(config.out)
+
+
+def check_folder(flag: str, folder: Any) -> Path:
+    """``folder`` (the value of option ``flag``) names a folder that can be created or written into, checked
+    without creating anything.
+
+    Raises:
+        ArgumentError: empty, a file, under a file, or no write permission where it would be created.
+    """
+    if not isinstance(folder, (str, os.PathLike)) or not str(folder).strip():
+        raise ArgumentError(f"{flag} must name a folder, got {folder!r}")
+    path = Path(folder).expanduser()
+    if path.exists() and not path.is_dir():
+        raise ArgumentError(f"{flag} {str(folder)!r} is a file, not a folder")
+    for parent in path.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise ArgumentError(f"{flag} {str(folder)!r} is under {str(parent)!r}, which is a file")
+            break
+    existing = next(p for p in (path.absolute(), *path.absolute().parents) if p.exists())
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ArgumentError(f"{flag} {str(folder)!r}: {str(existing)!r} is not writable")
+    return path
+
+
+def check_out(out: str) -> None:
+    """``--out`` names a folder this trainer can create or write into (``curve.json`` and ``policy/``).
+
+    Raises:
+        ArgumentError: what :func:`check_folder` refuses, or a folder holding ``curve.json`` or ``policy``
+            of the other kind (a folder, a file).
+    """
+    path = check_folder("--out", out)
+    for name, want_dir in (("curve.json", False), ("policy", True)):
+        p = path / name
+        if p.exists() and p.is_dir() != want_dir:
+            kind = "a folder" if p.is_dir() else "a file"
+            raise ArgumentError(f"--out {out!r} holds {name!r} as {kind}; the trainer writes it as the other")
+
+
+def dataset_ids(text: str) -> list[str]:
+    """The comma-separated ids of ``--datasets``, each of Minari's form ``NAMESPACE/NAME-vN``, none twice.
+
+    Raises:
+        ArgumentError: no id, a malformed id or one named twice.
+    """
+    from minari.dataset.minari_dataset import DATASET_ID_RE
+
+    ids = [t.strip() for t in str(text).split(",")]
+    if not any(ids):
+        raise ArgumentError(f"--datasets names no dataset (comma-separated Minari ids), got {text!r}")
+    for ds_id in ids:
+        match = DATASET_ID_RE.fullmatch(ds_id)
+        if not ds_id or match is None or match["version"] is None:
+            raise ArgumentError(f"--datasets: {ds_id!r} is not a Minari dataset id NAMESPACE/NAME-vN")
+    twice = sorted({i for i in ids if ids.count(i) > 1})
+    if twice:
+        raise ArgumentError(f"--datasets names {twice} more than once")
+    return ids
+
+
+def dataset_env_id(ds: Any, ds_id: str) -> str:
+    """The env a dataset was collected on: its ``electroloc`` block's ``env_id`` (``electroloc dataset``'s).
+
+    Raises:
+        ArgumentError: a dataset without that block (not made by ``electroloc dataset``) or not complete.
+    """
+    block = ds.storage.metadata.get("electroloc")
+    if not isinstance(block, dict) or not isinstance(block.get("env_id"), str):
+        raise ArgumentError(
+            f"--datasets: {ds_id!r} was not made by `electroloc dataset` (its metadata has no electroloc env_id)"
+        )
+    if block.get("complete") is not True:
+        raise ArgumentError(
+            f"--datasets: {ds_id!r} is not complete (its collection did not finish): continue it with "
+            f"`electroloc dataset ... --resume`"
+        )
+    return block["env_id"]
+
+
+def load_datasets(ids: Sequence[str], env_id: str, env: Any) -> list[Any]:
+    """The Minari datasets ``ids``, each checked against ``env_id`` and ``env``'s spaces.
+
+    Raises:
+        ArgumentError: a dataset that is missing or unreadable, not complete, collected on another env (or
+            datasets of different envs mixed), or whose observation or action space is not ``env``'s.
+    """
+    import minari
+
+    root = os.environ.get("MINARI_DATASETS_PATH") or "~/.minari/datasets (MINARI_DATASETS_PATH unset)"
+    out, envs = [], {}
+    for ds_id in ids:
+        try:
+            ds = minari.load_dataset(ds_id)
+        except FileNotFoundError:
+            raise ArgumentError(f"--datasets: no dataset {ds_id!r} in {root}") from None
+        except Exception as exc:  # noqa: BLE001 - a damaged dataset: Minari's error in one line
+            first = (str(exc).strip().splitlines() or [""])[0][:200]
+            raise ArgumentError(f"--datasets: {ds_id!r} cannot be read: {type(exc).__name__}: {first}") from None
+        envs[ds_id] = dataset_env_id(ds, ds_id)
+        out.append(ds)
+    if len(set(envs.values())) > 1:
+        raise ArgumentError(f"--datasets mixes datasets of different envs: {envs}")
+    for ds_id, ds in zip(ids, out):
+        if envs[ds_id] != env_id:
+            raise ArgumentError(f"--datasets: {ds_id!r} was collected on {envs[ds_id]}, not --env-id {env_id}")
+        for what, got, want in (
+            ("observation", ds.observation_space, env.observation_space),
+            ("action", ds.action_space, env.action_space),
+        ):
+            if got != want:
+                raise ArgumentError(
+                    f"--datasets: {ds_id!r} has the {what} space {got}, the trainer's {env_id} env {want} "
+                    f"(collected with other env arguments: {ds.storage.metadata['electroloc'].get('env_kwargs')})"
+                )
+        if ds.total_steps < 1:
+            raise ArgumentError(f"--datasets: {ds_id!r} holds no transitions")
+    return out
+
+
+def validation_env(env_id: str) -> Any:
+    """The env the actor is validated on (and the datasets checked against): ``env_id`` over the eight presets
+    (``condition="random"``) where it takes a condition, its defaults otherwise.
+    """
+    import gymnasium as gym
+
+    import electroloc_gym  # noqa: F401
+    from electroloc_gym.registry import env_entry
+
+    return gym.make(env_id, **({"condition": "random"} if env_entry(env_id).takes("condition") else {}))
+
+
+def prepare(config: Any) -> tuple[list[str], dict[str, np.ndarray], Any]:
+    """Everything a trainer checks before it trains (``ids``, the transitions, the validation env).
+
+    Raises:
+        ArgumentError: an option or a dataset that cannot be used (:func:`check_settings`,
+            :func:`dataset_ids`, :func:`load_datasets`), or transitions that are not finite.
+    """
+    check_settings(config)
+    ids = dataset_ids(config.datasets)
+    env = validation_env(config.env_id)
+    data = load_transitions(load_datasets(ids, config.env_id, env))
+    for key in ("observations", "actions", "rewards"):
+        bad = ~np.isfinite(data[key]).reshape(len(data[key]), -1).all(axis=1)
+        if bad.any():
+            ds_id = ids[int(data["source"][np.argmax(bad)])]
+            raise ArgumentError(f"--datasets: {ds_id!r} holds non-finite {key} ({int(bad.sum())} transitions)")
+    return ids, data, env
+
+
+def load_transitions(datasets: Sequence[Any]) -> dict[str, np.ndarray]:
+    """Flat transition arrays of the datasets (ids or loaded Minari datasets): ``observations``, ``actions``,
+    ``rewards``, ``next_observations``, ``terminals``, ``source`` — the index of the dataset in ``datasets``.
     """
     import minari
 
     parts: dict[str, list[np.ndarray]] = {
         k: [] for k in ("observations", "actions", "rewards", "next_observations", "terminals", "source")
     }
-    for j, ds_id in enumerate(dataset_ids):
-        ds = minari.load_dataset(ds_id)
+    for j, dataset in enumerate(datasets):
+        ds = minari.load_dataset(dataset) if isinstance(dataset, str) else dataset
         for ep in ds.iterate_episodes():
             obs = np.asarray(ep.observations, dtype=np.float32)
             n = len(ep.actions)
@@ -257,20 +465,26 @@ def finish(
     return {"best": best, "curve": curve}
 
 
-def main_of(config_class: type, train: Any, doc: str, positive: Sequence[str]) -> Any:
-    """A trainer's command line: every field of ``config_class`` as an option, ``positive`` ones ≥ 1."""
+def main_of(config_class: type, train: Any, doc: str) -> Any:
+    """A trainer's command line: every field of ``config_class`` as an option (integers in ASCII digits).
+
+    Whatever :func:`prepare` refuses — before anything is trained or written — is argparse's one-line
+    ``prog: error: ...`` and exit status 2.
+    """
     import argparse
-    from dataclasses import fields
+
+    from electroloc_gym.bench.cli import ascii_int
 
     def main(argv: list[str] | None = None) -> int:
         parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])
         for f in fields(config_class):
-            parser.add_argument(f"--{f.name.replace('_', '-')}", type=type(f.default), default=f.default)
+            kind = ascii_int if isinstance(f.default, int) else type(f.default)
+            parser.add_argument(_flag(f.name), type=kind, default=f.default)
         config = config_class(**vars(parser.parse_args(argv)))
-        for name in positive:
-            if getattr(config, name) < 1:
-                parser.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(config, name)}")
-        train(config)
+        try:
+            train(config)
+        except ArgumentError as exc:
+            parser.error(str(exc))
         return 0
 
     return main

@@ -47,13 +47,24 @@ def file_digests(folder: Path) -> dict[str, str]:
 def main(argv: list[str] | None = None) -> int:
     """Build (or resume) every dataset of the plan and update the manifest."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    from electroloc_gym.bench.cli import ascii_int
+
     parser.add_argument("--scale", type=float, default=1.0, help="fraction of each dataset's episodes (0, 1]")
     parser.add_argument("--only", default="", help="comma-separated env-id/agent to build; default all")
     parser.add_argument("--manifest", type=Path, default=ROOT / "experiments" / "offline" / "manifest.json")
-    parser.add_argument("--version", type=int, default=0, help="the ids' version")
+    parser.add_argument("--version", type=ascii_int, default=0, help="the ids' version (0 … 10**6)")
     args = parser.parse_args(argv)
     if not 0 < args.scale <= 1:
         parser.error(f"--scale must be in (0, 1], got {args.scale}")
+    if not 0 <= args.version <= 10**6:
+        parser.error(f"--version must be an integer in [0, 1000000], got {args.version}")
+    plan = [f"{env_id}/{agent}" for env_id, agent, _ in DATASETS]
+    bad = [x for x in (s.strip() for s in args.only.split(",")) if x and x not in plan]
+    if bad:
+        parser.error(f"--only names {bad}; choose from {plan}")
+    manifest_path = args.manifest.expanduser()
+    if manifest_path.is_dir() or any(p.exists() and not p.is_dir() for p in manifest_path.absolute().parents):
+        parser.error(f"--manifest {str(args.manifest)!r} must be a file in a folder (it is a folder or under a file)")
     from minari.storage.datasets_root_dir import get_dataset_path
 
     from electroloc_gym.dataset import DatasetRequest, build_dataset

@@ -189,6 +189,8 @@ def curves(results: Path, env_id: str) -> Path | None:
 
 def main(argv: list[str] | None = None) -> int:
     """Analyse, print and write the report."""
+    from electroloc_gym.bench.cli import ascii_int
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("results", type=Path, help="the offline results folder")
     parser.add_argument(
@@ -197,11 +199,11 @@ def main(argv: list[str] | None = None) -> int:
         default=ROOT / "experiments" / "learned" / "results",
         help="the learned suite's results (its _baselines runs)",
     )
-    parser.add_argument("--reps", type=int, default=2000, help="bootstrap replications (≥ 100)")
-    parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (0 … 2**32 − 1)")
+    parser.add_argument("--reps", type=ascii_int, default=2000, help="bootstrap replications (100 … 10**6)")
+    parser.add_argument("--seed", type=ascii_int, default=0, help="the bootstrap's seed (0 … 2**32 − 1)")
     args = parser.parse_args(argv)
-    if args.reps < 100:
-        parser.error(f"--reps must be ≥ 100, got {args.reps}")
+    if not 100 <= args.reps <= 10**6:
+        parser.error(f"--reps must be an integer in [100, 1000000], got {args.reps}")
     if not 0 <= args.seed < 2**32:
         parser.error(f"--seed must be in [0, 2**32 − 1], got {args.seed}")
     if not args.results.is_dir():

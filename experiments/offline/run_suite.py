@@ -17,12 +17,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+import common  # noqa: E402
+
 TARGET, GLOBAL = "ElectroLoc-v0", "ElectroLocGlobal-v0"
 BC = ["--steps", "10000", "--eval-every", "2000"]
 #: env id → label → (trainer, its options). The global env has the two planners' datasets only (no mix).
@@ -81,16 +85,37 @@ def _bench(agent: str, out: Path, trials: int, env_id: str = TARGET) -> None:
     subprocess.run(argv, check=True, env={**os.environ, **THREADS}, capture_output=True, text=True)
 
 
+def _seeds(parser: argparse.ArgumentParser, text: str) -> list[int]:
+    """``--seeds``: comma-separated integers in ASCII digits, each in [0, 2**32 − 1] (the trainers' range),
+    at least one, none twice (else argparse's one-line error).
+    """
+    low, high, _ = common.RANGES["seed"]
+    parts = [t.strip() for t in text.split(",")]
+    if not all(re.fullmatch(r"[0-9]{1,10}", t) and low <= int(t) <= high for t in parts):
+        parser.error(f"--seeds must be comma-separated integers in [{low}, {high}], got {text!r}")
+    seeds = [int(t) for t in parts]
+    if len(set(seeds)) != len(seeds):
+        parser.error(f"--seeds names a seed more than once: {text!r}")
+    return seeds
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the plan."""
+    from electroloc_gym.bench.cli import ascii_int
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=HERE / "results")
     parser.add_argument("--only", default="", help="comma-separated labels or env-id/label; default all")
-    parser.add_argument("--seeds", default="1,2,3,4,5")
-    parser.add_argument("--trials", type=int, default=50, help="trials per condition (1 … 50)")
+    parser.add_argument("--seeds", default="1,2,3,4,5", help="comma-separated training seeds (0 … 2**32 − 1)")
+    parser.add_argument("--trials", type=ascii_int, default=50, help="trials per condition (1 … 50)")
     args = parser.parse_args(argv)
     if not 1 <= args.trials <= 50:
         parser.error(f"--trials must be in [1, 50], got {args.trials}")
+    try:
+        common.check_folder("--out", args.out)
+    except common.ArgumentError as exc:
+        parser.error(str(exc))
+    seeds = _seeds(parser, args.seeds)
     plan = [(env, label) for env, labels in SUITE.items() for label in labels]
     only = [x.strip() for x in args.only.split(",") if x.strip()]
     known = {label for _, label in plan} | {f"{env}/{label}" for env, label in plan}
@@ -99,7 +124,6 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--only names {bad}; choose from {sorted(known)}")
     if only:
         plan = [(env, label) for env, label in plan if label in only or f"{env}/{label}" in only]
-    seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
     if any(env == TARGET for env, _ in plan):
         _bench("ppo-belief", args.out / TARGET / "_sources" / "bench", args.trials)
     for env, label in plan:

@@ -72,15 +72,14 @@ def soft_update(target: nn.Module, source: nn.Module, tau: float) -> None:
 
 
 def train(config: TrainConfig) -> dict:
-    """Train, validate, export the best checkpoint; returns its validation row and the curve."""
-    import gymnasium as gym
+    """Train, validate, export the best checkpoint; returns its validation row and the curve.
 
-    import electroloc_gym  # noqa: F401
-    from electroloc_gym.registry import env_entry
-
+    Raises:
+        common.ArgumentError: a setting or a dataset that cannot be used (:func:`common.prepare`), before
+            anything is trained or written.
+    """
+    ids, data, env = common.prepare(config)
     common.seed_everything(config.seed)
-    ids = [s.strip() for s in config.datasets.split(",") if s.strip()]
-    data = common.load_transitions(ids)
     norm = common.Normalizer.fit(data["observations"])
     s_all, s2_all = torch.as_tensor(norm(data["observations"])), torch.as_tensor(norm(data["next_observations"]))
     a_all = torch.as_tensor(data["actions"])
@@ -93,7 +92,6 @@ def train(config: TrainConfig) -> dict:
     q1_t, q2_t = copy.deepcopy(q1), copy.deepcopy(q2)
     a_opt = torch.optim.Adam(actor.parameters(), lr=config.lr)
     q_opt = torch.optim.Adam([*q1.parameters(), *q2.parameters()], lr=config.lr)
-    env = gym.make(config.env_id, **({"condition": "random"} if env_entry(config.env_id).takes("condition") else {}))
     rng = np.random.default_rng(config.seed)
     curve, best, best_state = [], None, None
     t0 = common.timer()
@@ -153,9 +151,7 @@ def train(config: TrainConfig) -> dict:
     )
 
 
-main = common.main_of(
-    TrainConfig, train, __doc__, ("steps", "batch_size", "eval_every", "eval_episodes", "policy_freq")
-)
+main = common.main_of(TrainConfig, train, __doc__)
 
 
 if __name__ == "__main__":
