@@ -105,8 +105,10 @@ def test_info_contract_truth_and_odometry() -> None:
         "n_observations",
         "success",
         "condition",
+        "condition_index",
     }
     assert info["n_observations"] == 1 and info["condition"] == BENCHMARK_SCENE.name
+    assert info["condition_index"] == -1  # not one of the eight presets
     np.testing.assert_array_equal(obs[:2], 0.0)  # raw: odometry, not the (unknown) true position
     assert np.all(np.abs(env.position_mm) <= BENCHMARK_SCENE.start_half_width_mm)
     obs, _, _, _, info = env.step(np.array([0.5, -1.0], np.float32))

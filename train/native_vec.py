@@ -28,16 +28,22 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper, VecMonitor
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
+from electroloc_gym.conditions import PRESET_NAMES
 from electroloc_gym.core.observation import INFO_KEYS  # the info keys copied into every per-env info dict
 from electroloc_gym.train.wrappers import VecPotentialShaping
 
 __all__ = ["NativeVecEnv", "VecEpisodeReport", "make_native_vec_env", "zoo_vec_env"]
 
+#: The vector info's keys behind the per-env info dicts: the single env's, the condition as its index (the
+#: vector info is numeric; the name is rebuilt from the index, :meth:`NativeVecEnv._split_info`).
+_VECTOR_KEYS = (*(k for k in INFO_KEYS if k != "condition"), "condition_index")
+
 
 class NativeVecEnv(VecEnv):
     """SB3 ``VecEnv`` over a native Gymnasium vector env that autoresets in the same step.
 
-    Per-env infos hold the single env's keys, ``"TimeLimit.truncated"`` and, for the envs that
+    Per-env infos hold the single env's keys (``condition`` and ``condition_index`` included),
+    ``"TimeLimit.truncated"`` and, for the envs that
     finished this step, ``"terminal_observation"`` and ``"is_success"``; ``reset_infos[i]`` is the
     info of env ``i``'s latest reset. Seeds set with :meth:`seed` apply at the next :meth:`reset`
     (env ``i`` gets ``seed + i``), as SB3's ``DummyVecEnv`` seeds its envs: both train on identical
@@ -87,7 +93,7 @@ class NativeVecEnv(VecEnv):
             info = {
                 k: np.where(dones.reshape((-1,) + (1,) * (np.ndim(v) - 1)), final_info[k], v)
                 for k, v in info.items()
-                if k in INFO_KEYS
+                if k in _VECTOR_KEYS
             }
         infos = self._split_info(info)
         timeout = (truncated & ~terminated).tolist()
@@ -126,12 +132,21 @@ class NativeVecEnv(VecEnv):
         return [None for _ in range(self.num_envs)]
 
     def _split_info(self, info: dict[str, Any]) -> list[dict[str, Any]]:
-        """The vector env's dict of arrays as SB3's list of per-env dicts."""
+        """The vector env's dict of arrays as SB3's list of per-env dicts.
+
+        The condition's name is the preset's of ``condition_index``, or (−1: another world) the sub-env's
+        current one: such a world is the env's only one, the same in every episode.
+        """
         cols = {
             k: ([tuple(r) for r in info[k].tolist()] if info[k].ndim == 2 else info[k].tolist())
-            for k in INFO_KEYS
+            for k in _VECTOR_KEYS
             if k in info
         }
+        if "condition_index" in cols:
+            current = self.venv.unwrapped.condition_names  # pyright: ignore[reportAttributeAccessIssue]  # a native vector env (CoreVectorEnv)
+            index = cols.pop("condition_index")
+            cols["condition"] = [PRESET_NAMES[k] if k >= 0 else current[i] for i, k in enumerate(index)]
+            cols["condition_index"] = index
         return [dict(zip(cols, row, strict=True)) for row in zip(*cols.values(), strict=True)]
 
 

@@ -11,6 +11,10 @@ rendering, and the read-only accessors agents use (``belief``, ``sensor_model``,
 (:mod:`electroloc_gym.registry`) is this class with its id: ``ElectroLoc-v0`` (:mod:`.localize`),
 ``ElectroLocGlobal-v0`` (:mod:`.global_env`), ``ElectroLocUnknownTarget-v0`` (:mod:`.unknown_target`).
 Actions are parsed and checked here (:mod:`.actions`), before the core sees them.
+
+Info: the core's keys as Python values, plus ``condition_index`` (:func:`condition_index`: the condition's
+index in ``PRESET_NAMES``, −1 for any other world), the numeric form of the ``condition`` name that the
+native vector env's info carries instead of names.
 """
 
 from __future__ import annotations
@@ -23,14 +27,24 @@ from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym.belief import BeliefView
 from electroloc_gym.checks import check_prediction_args
-from electroloc_gym.conditions import Condition
+from electroloc_gym.conditions import PRESET_NAMES, Condition
 from electroloc_gym.core.observation import INFO_KEYS
 from electroloc_gym.core.params import MAX_STEP_MM, EnvParams
 from electroloc_gym.core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.registry import EnvEntry, entry_of_class
 
-__all__ = ["CoreEnv", "ParamAccessors", "spaces_of"]
+__all__ = ["CoreEnv", "ParamAccessors", "condition_index", "spaces_of"]
+
+_PRESET_INDEX = {name: i for i, name in enumerate(PRESET_NAMES)}
+
+
+def condition_index(names: ArrayLike) -> NDArray[np.int64]:
+    """``info["condition_index"]`` of worlds named ``names``: each name's index in
+    :data:`~electroloc_gym.conditions.PRESET_NAMES`, −1 for a world that is not one of the eight presets (a
+    custom condition, a map of the global env).
+    """
+    return np.array([_PRESET_INDEX.get(str(n), -1) for n in np.ravel(np.asarray(names, dtype=object))], np.int64)
 
 
 class ParamAccessors:
@@ -286,6 +300,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
             "n_observations": int(info["n_observations"][0]),
             "success": bool(info["success"][0]),
             "condition": str(info["condition"][0]),
+            "condition_index": int(condition_index(info["condition"][:1])[0]),
             **extra,
         }
 

@@ -16,16 +16,21 @@ second would repeat sub-env ``i + 1`` of the first).
 
 Autoreset: ``metadata["autoreset_mode"]`` is :attr:`gymnasium.vector.AutoresetMode.NEXT_STEP` by
 default, like Gymnasium's built-in vector envs; ``autoreset_mode="same_step"`` resets an ending
-sub-env within its last step and returns the final observation and info in ``info["final_obs"]`` /
-``info["final_info"]`` (masks ``info["_final_obs"]`` / ``info["_final_info"]``) — what the SB3 adapter
+sub-env within its last step and returns the final observation and info in ``info["final_obs"]`` (an
+(N, obs_dim) float32 array, zero rows for the sub-envs that did not end) / ``info["final_info"]`` (masks
+``info["_final_obs"]`` / ``info["_final_info"]``) — what the SB3 adapter
 (``electroloc_gym.train.native_vec``) uses. ``reset(options={"reset_mask": mask})`` resets only the
 masked sub-envs.
 
 Info: a dict of arrays over the N envs (Gymnasium's vector convention), each key with an all-true
 ``"_key"`` mask: ``position_mm`` (N, 2), ``estimate_mm`` (N, 2), ``error_mm``, ``spread_mm``,
-``reading_V`` (N,) float64, ``n_observations`` (N,) int64, ``success`` (N,) bool, ``condition`` (N,)
-object (names). ``SyncVectorEnv`` stores the tuple-valued keys as object arrays of tuples; here they are
-plain float arrays. Rendering is not supported (``render_mode`` must be None): render a single env.
+``reading_V`` (N,) float64, ``n_observations`` (N,) int64, ``success`` (N,) bool, ``condition_index`` (N,)
+int64 (:func:`~electroloc_gym.envs.adapter.condition_index`: the index in ``PRESET_NAMES``, −1 for another
+world). Every entry is a numeric array, so Gymnasium's array wrappers (``NumpyToTorch``,
+``ArrayConversion``) convert it: the single env's name-valued keys (:data:`NAME_INFO_KEYS`) are left out —
+the condition's name is :attr:`CoreVectorEnv.condition_names`, the unknown target's ``material_estimate``
+is ``p_conductor > ½``. ``SyncVectorEnv`` stores the tuple-valued keys as object arrays of tuples; here they
+are plain float arrays. Rendering is not supported (``render_mode`` must be None): render a single env.
 """
 
 from __future__ import annotations
@@ -43,11 +48,23 @@ from electroloc_gym.conditions import Condition
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
-from electroloc_gym.envs.adapter import ParamAccessors
+from electroloc_gym.envs.adapter import ParamAccessors, condition_index
 from electroloc_gym.envs.sim_backends import make_backend_vector_env
 from electroloc_gym.registry import EnvEntry, entry_of_class
 
-__all__ = ["CoreVectorEnv", "ElectroLocVectorEnv", "GlobalVectorEnv", "UnknownTargetVectorEnv", "sub_env_seeds"]
+__all__ = [
+    "CoreVectorEnv",
+    "ElectroLocVectorEnv",
+    "GlobalVectorEnv",
+    "UnknownTargetVectorEnv",
+    "NAME_INFO_KEYS",
+    "sub_env_seeds",
+]
+
+#: The single env's name-valued info keys, which the vector info leaves out (its entries are numeric arrays):
+#: ``condition`` is given as ``condition_index``, the unknown target's ``material_estimate`` is
+#: ``p_conductor > ½``.
+NAME_INFO_KEYS = ("condition", "material_estimate")
 
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
     AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP,
@@ -90,6 +107,19 @@ def _check_seed(seed: Any, n: int) -> None:
     bad = [s for s in seq if not (s is None or _is_seed(s))]
     if bad:
         raise ValueError(f"{what}, got {list(seq)!r} (bad: {bad!r})")
+
+
+def _numeric_info(info: dict[str, Any]) -> dict[str, Any]:
+    """The core's info without its name-valued arrays (:data:`NAME_INFO_KEYS`); ``condition`` becomes
+    ``condition_index`` in its place.
+    """
+    out: dict[str, Any] = {}
+    for key, value in info.items():
+        if key == "condition":
+            out["condition_index"] = condition_index(value)
+        elif key not in NAME_INFO_KEYS:
+            out[key] = value
+    return out
 
 
 def _reset_mask(value: object, n: int) -> NDArray[np.bool_]:
@@ -205,6 +235,13 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
         return tuple(self._sim.task.world_condition(w) for w in self._state.world)
 
     @property
+    def condition_names(self) -> tuple[str, ...]:
+        """Each sub-env's current condition name (the single env's ``info["condition"]``)."""
+        if not self._state.started:
+            raise RuntimeError("call reset() first")
+        return tuple(str(n) for n in self._state.names)
+
+    @property
     def sensor_models(self) -> tuple[Any, ...]:
         """Each sub-env's sensor model of its current episode (calibrated ones built on first use)."""
         if not self._state.started:
@@ -249,7 +286,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
             if seed_i is not None:
                 self._sim.seed(i, seed_i)
         self._sim.reset(ids)
-        return self._sim.observation(), self._with_masks(self._sim.info())
+        return self._sim.observation(), self._with_masks(_numeric_info(self._sim.info()))
 
     def step(
         self, actions: Any
@@ -258,9 +295,13 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
             raise RuntimeError("call reset() before step()")
         moves, gains = self._actions(actions)
         obs, rewards, terminated, truncated, info = self._sim.step(moves, self._mode, gains)
+        info = _numeric_info(info)
         if "done" in info:
             done = info.pop("done")
-            info["final_info"] = self._with_masks(info["final_info"], done)
+            final_obs = np.zeros_like(obs)  # numeric, as every info entry: zero rows where the mask is False
+            final_obs[done] = np.stack(list(info["final_obs"][done]))
+            info["final_obs"] = final_obs
+            info["final_info"] = self._with_masks(_numeric_info(info["final_info"]), done)
             info["_final_obs"], info["_final_info"] = done, done.copy()
         return obs, rewards, terminated, truncated, self._with_masks(info)
 
