@@ -20,6 +20,12 @@ A policy folder holds::
   vector normalise after stacking (files written before the rl-zoo3 path).
 * ``env_kwargs`` (training env kwargs, for reference), ``provenance`` and ``evaluation`` (plain data).
 
+Every field is read with its JSON type checked (:func:`read_export`): a number where a number goes (finite,
+never a boolean), a boolean where a flag goes (``"norm_obs": "yes"`` is refused, not read as true),
+integers ≥ 1 for sizes, ``policy_kwargs`` only with the keys :data:`POLICY_KWARGS` lists (they are passed to
+SB3's policy class for stochastic actions), ``recurrent`` exactly for the recurrent policy class, and the
+``action_type`` the action space's type (:data:`ACTION_SPACE_TYPES`).
+
 Reading never unpickles or executes anything: JSON is parsed, spaces are rebuilt from plain values,
 and the safetensors file is read and written by the reference library's numpy interface
 (``safetensors.numpy``: no torch needed). What this module adds is what the format does not say:
@@ -32,6 +38,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +50,9 @@ from numpy.typing import NDArray
 from electroloc_gym.fileio import atomic_write_bytes, write_json_atomic
 
 __all__ = [
+    "ACTION_SPACE_TYPES",
     "ACTIVATIONS",
+    "POLICY_KWARGS",
     "FORMAT",
     "FORMAT_VERSION",
     "POLICY_CLASSES",
@@ -81,6 +90,56 @@ ACTIVATIONS: dict[str, str] = {
     "leaky_relu": "LeakyReLU",
     "gelu": "GELU",
     "silu": "SiLU",
+}
+
+
+#: ``policy_kwargs`` keys a policy file may hold, by the JSON value each takes: ``"arch"`` a network layout
+#: (a list of layer sizes, or ``{"pi": [...], "vf" | "qf": [...]}``), ``"activation"`` a name of
+#: :data:`ACTIVATIONS`, ``"flag"`` a boolean, ``"count"`` an integer ≥ 1, ``"number"`` a finite number.
+POLICY_KWARGS: dict[str, str] = {
+    "net_arch": "arch",
+    "activation_fn": "activation",
+    "log_std_init": "number",
+    "ortho_init": "flag",
+    "share_features_extractor": "flag",
+    "use_sde": "flag",
+    "squash_output": "flag",
+    "full_std": "flag",
+    "use_expln": "flag",
+    "normalize_images": "flag",
+    "n_quantiles": "count",
+    "n_critics": "count",
+    "lstm_hidden_size": "count",
+    "n_lstm_layers": "count",
+    "shared_lstm": "flag",
+    "enable_critic_lstm": "flag",
+}
+#: ``architecture.recurrent``'s keys (the recurrent policy class's LSTM), by kind as above.
+RECURRENT_KEYS: dict[str, str] = {
+    "lstm_hidden_size": "count",
+    "n_lstm_layers": "count",
+    "shared_lstm": "flag",
+    "enable_critic_lstm": "flag",
+}
+#: The policy class whose file holds ``recurrent`` (null for every other class).
+RECURRENT_CLASS = "RecurrentActorCriticPolicy"
+#: ``action.action_type`` → the type of ``action.space`` it needs.
+ACTION_SPACE_TYPES: dict[str, str] = {"continuous": "Box", "discrete": "Discrete"}
+#: ``normalization``'s keys by kind (``"stats"``: a list of numbers or null; the others as above, ``"number?"``
+#: a number or null). Keys beyond these are VecNormalize's and unused.
+NORMALIZATION_KEYS: dict[str, str] = {
+    "norm_obs": "flag",
+    "norm_reward": "flag",
+    "clip_obs": "number",
+    "clip_reward": "number",
+    "epsilon": "number",
+    "gamma": "number",
+    "obs_mean": "stats",
+    "obs_var": "stats",
+    "obs_count": "number?",
+    "return_mean": "number?",
+    "return_var": "number?",
+    "return_count": "number?",
 }
 
 
@@ -313,12 +372,59 @@ def _need(d: Mapping[str, Any], key: str, types: type | tuple[type, ...], where:
     return v
 
 
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _is_count(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and v >= 1
+
+
+def _is_layers(v: Any) -> bool:
+    return isinstance(v, list) and all(_is_count(x) for x in v)
+
+
+def _is_arch(v: Any) -> bool:
+    """A list of layer sizes, or the actor's and critic's: ``{"pi": [...], "vf" | "qf": [...]}``."""
+    if isinstance(v, dict):
+        return bool(v) and set(v) <= {"pi", "vf", "qf"} and all(_is_layers(x) for x in v.values())
+    return _is_layers(v)
+
+
+_KINDS: dict[str, tuple[Any, str]] = {
+    "flag": (lambda v: isinstance(v, bool), "true or false"),
+    "number": (_is_number, "a finite number"),
+    "number?": (lambda v: v is None or _is_number(v), "a finite number or null"),
+    "count": (_is_count, "an integer ≥ 1"),
+    "stats": (lambda v: v is None or isinstance(v, list), "a list of numbers or null"),
+    "activation": (lambda v: isinstance(v, str) and v in ACTIVATIONS, f"one of {list(ACTIVATIONS)}"),
+    "arch": (_is_arch, 'a list of layer sizes (integers ≥ 1) or {"pi": [...], "vf"/"qf": [...]}'),
+}
+
+
+def _check_fields(d: Mapping[str, Any], kinds: Mapping[str, str], where: str, *, closed: bool) -> None:
+    """Each key of ``d`` listed in ``kinds`` holds a value of its kind; with ``closed`` no other key is allowed."""
+    if closed:
+        unknown = sorted(str(k) for k in d if k not in kinds)
+        if unknown:
+            raise PolicyFormatError(f"{where} has unknown key(s) {unknown}; allowed: {sorted(kinds)}")
+    for key, kind in kinds.items():
+        if key in d:
+            ok, what = _KINDS[kind]
+            if not ok(d[key]):
+                raise PolicyFormatError(f"{where}.{key} must be {what}, got {d[key]!r}")
+
+
 def normalization_from_json(norm: Any, obs: Mapping[str, Any], where: str) -> ObsNormalization | None:
-    """The validated observation statistics of a ``normalization`` entry (None: no normalisation)."""
+    """The validated observation statistics of a ``normalization`` entry (None: no normalisation).
+
+    Every key of :data:`NORMALIZATION_KEYS` present must be of its type (``norm_obs`` a boolean, not ``"yes"``).
+    """
     if norm is None:
         return None
     if not isinstance(norm, dict):
         raise PolicyFormatError(f"{where}: normalization must be null or an object")
+    _check_fields(norm, NORMALIZATION_KEYS, f"{where}: normalization", closed=False)
     if not norm.get("norm_obs", False):
         return None
     if norm.get("obs_mean") is None or norm.get("obs_var") is None:
@@ -372,15 +478,21 @@ def read_export(folder: str | Path) -> PolicyExport:
 def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise PolicyFormatError(f"{where} is not an {FORMAT} file")
-    if meta.get("format_version") != FORMAT_VERSION:
+    version = meta.get("format_version")
+    if not (isinstance(version, int) and not isinstance(version, bool) and version == FORMAT_VERSION):
         raise PolicyFormatError(
-            f"{where}: format_version {meta.get('format_version')!r} is not supported "
-            f"(this version reads {FORMAT_VERSION})"
+            f"{where}: format_version {version!r} is not supported (this version reads {FORMAT_VERSION})"
         )
     weights = _need(meta, "weights", dict, where)
     if weights.get("file") != WEIGHTS_FILE or not isinstance(weights.get("sha256"), str):
         raise PolicyFormatError(f"{where}: weights must name {WEIGHTS_FILE!r} and its sha256")
-    _need(meta, "algo", str, where)
+    if not re.fullmatch(r"[0-9a-f]{64}", weights["sha256"]):
+        raise PolicyFormatError(f"{where}: weights.sha256 must be 64 lowercase hex digits, got {weights['sha256']!r}")
+    tensors = weights.get("tensors", 0)
+    if not (isinstance(tensors, int) and not isinstance(tensors, bool) and tensors >= 0):
+        raise PolicyFormatError(f"{where}: weights.tensors must be an integer ≥ 0, got {tensors!r}")
+    if not _need(meta, "algo", str, where):
+        raise PolicyFormatError(f"{where}: algo must be a non-empty string")
     arch = _need(meta, "architecture", dict, where)
     if not isinstance(arch.get("policy_class"), str) or arch["policy_class"] not in POLICY_CLASSES:
         raise PolicyFormatError(
@@ -392,11 +504,25 @@ def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
         raise PolicyFormatError(
             f"{where}: activation_fn must be one of {list(ACTIVATIONS)}, got {pk['activation_fn']!r}"
         )
-    if arch.get("recurrent") is not None and not isinstance(arch["recurrent"], dict):
-        raise PolicyFormatError(f"{where}: architecture.recurrent must be null or an object")
+    _check_fields(pk, POLICY_KWARGS, f"{where}: architecture.policy_kwargs", closed=True)
+    recurrent = arch.get("recurrent")
+    if arch["policy_class"] == RECURRENT_CLASS:
+        if not isinstance(recurrent, dict) or set(recurrent) != set(RECURRENT_KEYS):
+            raise PolicyFormatError(
+                f"{where}: architecture.recurrent of a {RECURRENT_CLASS} must be an object with exactly "
+                f"{sorted(RECURRENT_KEYS)}, got {recurrent!r}"
+            )
+        _check_fields(recurrent, RECURRENT_KEYS, f"{where}: architecture.recurrent", closed=True)
+    elif recurrent is not None:
+        raise PolicyFormatError(f"{where}: architecture.recurrent must be null for a {arch['policy_class']}")
     obs = _need(meta, "observation", dict, where)
     for key, types in (("env_id", str), ("mode", str), ("frame_stack", int), ("frame_dim", int), ("shape", list)):
         _need(obs, key, types, f"{where} observation")
+    for key in ("env_id", "mode"):
+        if not obs[key]:
+            raise PolicyFormatError(f"{where}: observation.{key} must be a non-empty string")
+    if obs["frame_dim"] < 1:
+        raise PolicyFormatError(f"{where}: observation.frame_dim must be an integer ≥ 1, got {obs['frame_dim']!r}")
     space = space_from_json(obs.get("space"), f"{where} observation.space")
     if (
         list(space.shape) != obs["shape"]
@@ -408,8 +534,17 @@ def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
             f"{obs['frame_stack']} and frame_dim {obs['frame_dim']}"
         )
     act = _need(meta, "action", dict, where)
-    _need(act, "action_type", str, f"{where} action")
-    space_from_json(act.get("space"), f"{where} action.space")
+    action_type = _need(act, "action_type", str, f"{where} action")
+    action_space = space_from_json(act.get("space"), f"{where} action.space")
+    if ACTION_SPACE_TYPES.get(action_type) != type(action_space).__name__:
+        raise PolicyFormatError(
+            f"{where}: action.action_type must be one of {list(ACTION_SPACE_TYPES)} and match the action space "
+            f"({ACTION_SPACE_TYPES}), got {action_type!r} with a {type(action_space).__name__}"
+        )
+    for key, allow_null in (("env_kwargs", False), ("provenance", False), ("evaluation", True)):
+        if key in meta and not (isinstance(meta[key], dict) or (allow_null and meta[key] is None)):
+            kind = "an object or null" if allow_null else "an object"
+            raise PolicyFormatError(f"{where}: {key} must be {kind}, got {type(meta[key]).__name__}")
     return PolicyExport(
         folder=d, meta=meta, normalization=normalization_from_json(meta.get("normalization"), obs, where)
     )
