@@ -12,12 +12,20 @@ This module is data-layer: it imports nothing of the package, so every layer may
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-__all__ = ["check_int", "check_float", "check_bool", "check_choice", "check_prediction_args"]
+__all__ = [
+    "check_int",
+    "check_float",
+    "check_bool",
+    "check_choice",
+    "check_options",
+    "check_seeds",
+    "check_prediction_args",
+]
 
 
 def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
@@ -61,6 +69,45 @@ def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
     if not isinstance(value, str) or value not in choices:
         raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
     return value
+
+
+def check_options(name: str, value: Any, allowed: Sequence[str]) -> dict[str, Any]:
+    """``value`` as a dict: None (no options) or a mapping whose keys are among ``allowed``; else one
+    ValueError naming ``name`` and the allowed keys (a reset's ``options``).
+    """
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{name} must be None or a dict with keys among {list(allowed)}, got {value!r}")
+    unknown = [k for k in value if k not in allowed]
+    if unknown:
+        raise ValueError(f"{name} has unknown key(s) {unknown}; allowed: {list(allowed)}")
+    return dict(value)
+
+
+def _is_seed(value: Any) -> bool:
+    """A seed: an integer ≥ 0 (Python or numpy; not a bool)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and bool(value >= 0)
+
+
+def check_seeds(seed: Any, n: int) -> None:
+    """A vector env's ``reset`` ``seed``: None, an integer ≥ 0, or a sequence (or 1-d array) of ``n``
+    entries each None or an integer ≥ 0; anything else is one ValueError naming it.
+    """
+    if seed is None or _is_seed(seed):
+        return
+    what = f"seed must be None, an integer ≥ 0 or a sequence of {n} seeds (each None or an integer ≥ 0)"
+    if (
+        isinstance(seed, (str, bytes, Mapping))
+        or not isinstance(seed, (Sequence, np.ndarray))
+        or (isinstance(seed, np.ndarray) and seed.ndim != 1)
+    ):
+        raise ValueError(f"{what}, got {seed!r}")
+    if len(seed) != n:
+        raise ValueError(f"{what}, got {len(seed)} seeds")
+    bad = [s for s in seed if not (s is None or _is_seed(s))]
+    if bad:
+        raise ValueError(f"{what}, got {list(seed)!r} (bad: {bad!r})")
 
 
 def check_prediction_args(

@@ -357,7 +357,7 @@ def test_make_vec_backend_torch():
         ("ElectroLoc-v0", {"backend": "jax"}, "backend must be one of"),
         ("ElectroLoc-v0", {"gain_levels": (0.5, 1.0)}, "gain_levels"),
         ("ElectroLoc-v0", {"distractors": 2}, "distractors"),
-        ("ElectroLoc-v0", {"sensor_layout": "array-3"}, "sensor_layout"),
+        ("ElectroLoc-v0", {"sensor_layout": "line-4"}, "sensor_layout: backend='torch' takes only"),
         ("ElectroLoc-v0", {"device": "nonsense"}, "device must be"),
         ("ElectroLoc-v0", {"autoreset_mode": "same_step"}, "autoreset_mode"),
     ],

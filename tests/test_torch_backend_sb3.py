@@ -36,3 +36,23 @@ def test_adapter_resets_ended_envs_in_the_same_step():
             assert infos[i]["terminal_observation"].shape == (81,)
             assert obs[i][11] == pytest.approx(1 / 2)  # the new episode's first reading of 2
     assert seen
+
+
+@pytest.mark.parametrize(
+    ("actions", "match"),
+    [
+        (np.array([[np.nan, 0.0], [0.0, 0.0]], dtype=np.float32), "finite"),
+        (np.array([[np.inf, 0.0], [0.0, 0.0]]), "finite"),
+        (None, "actions"),
+        (np.zeros((3, 2), dtype=np.float32), "shape"),
+    ],
+)
+def test_adapter_refuses_bad_actions_in_one_error_before_anything_changes(actions, match):
+    env = TorchElectroLocVectorEnv(num_envs=2, n_particles=50)
+    venv = TorchSB3VecEnv(env, seed=0)
+    venv.reset()
+    before = {k: v.clone() for k, v in env.state.items()}
+    with pytest.raises(ValueError, match=match):
+        venv.step(actions)
+    assert all(torch.equal(before[k], v) for k, v in env.state.items())
+    venv.step(np.zeros((2, 2), dtype=np.float32))  # the adapter still steps

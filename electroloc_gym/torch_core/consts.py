@@ -5,7 +5,8 @@ Per condition of the episode pool (one, or the eight presets with ``condition="r
 dipole constants (:func:`electroloc_gym.physics.differential_perturbation`'s, in float32 as the numba
 core's belief) and the calibration's noise-free grid (:func:`~electroloc_gym.sensor_models.calibrated.
 noise_free_calibration_grid`, padded to the pool's largest grid). What the torch core does not
-implement is refused here with one error naming the argument.
+implement is refused here with one error naming the argument, as the capability table says
+(:mod:`electroloc_gym.core.capabilities`).
 """
 
 from __future__ import annotations
@@ -15,14 +16,19 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from electroloc_gym.core.capabilities import check_engine, params_options
 from electroloc_gym.core.electroloc import ElectroLocTask
 from electroloc_gym.core.observation import condition_descriptor
-from electroloc_gym.core.params import DISCRETE_MOVES_MM, EnvParams
-from electroloc_gym.core.worlds import fixed_coefficients
+from electroloc_gym.core.params import DISCRETE_MOVES_MM, EnvParams, memory_limit_bytes
+from electroloc_gym.core.worlds import fixed_coefficients, grid_points_bound
 from electroloc_gym.draws import normal_table
 from electroloc_gym.protocol import MAX_STEP_MM
-from electroloc_gym.registry import ENVS, EnvEntry, task_entry
-from electroloc_gym.sensor_models.calibrated import calibration_grid_for, noise_free_calibration_grid
+from electroloc_gym.registry import ENVS, EnvEntry
+from electroloc_gym.sensor_models.calibrated import (
+    CalibrationProtocol,
+    calibration_grid_for,
+    noise_free_calibration_grid,
+)
 
 __all__ = ["TorchConsts", "check_supported", "torch_entry"]
 
@@ -33,27 +39,30 @@ def torch_entry() -> EnvEntry:
 
 
 def check_supported(params: EnvParams) -> None:
-    """One ValueError naming the first argument the torch core does not implement (the numba core does)."""
-    entry = torch_entry()
-    if task_entry(params.task) is not entry:
+    """One ValueError naming the first option value the torch engine does not implement (the capability
+    table's limits, :mod:`electroloc_gym.core.capabilities`).
+    """
+    check_engine("torch", params_options(params))
+
+
+#: Host bytes per calibration reading while the constants are built: its offset (2 float64) and its
+#: noise-free value (float64), one condition at a time (:func:`~electroloc_gym.sensor_models.calibrated.
+#: noise_free_calibration_grid`).
+HOST_BYTES_PER_READING = 24
+
+
+def _check_host_calibration(proto: CalibrationProtocol, points: int) -> None:
+    """Refuse a calibration grid whose noise-free readings cannot fit in the host's memory (the numba
+    engine's message), before any is computed.
+    """
+    limit = memory_limit_bytes()
+    need = HOST_BYTES_PER_READING * proto.samples_per_point * points * points
+    if need > limit:
         raise ValueError(
-            f"backend='torch' implements {entry.env_id} only (task {entry.task!r}), got task "
-            f"{params.task!r}; use backend='numba'"
+            f"calibration grid of {points}×{points} points × {proto.samples_per_point} "
+            f"readings needs ≈{need / 2**30:.3g} GiB, more than this machine's "
+            f"{limit / 2**30:.3g} GiB: choose a coarser calibration grid_step_mm"
         )
-    if params.gain_levels is not None:
-        raise ValueError(
-            "gain_levels: backend='torch' has no dynamic gain (one calibration per level); use "
-            "gain_levels=None or backend='numba'"
-        )
-    if params.sensor_layout != "single" or params.fixed_carriage:
-        raise ValueError(
-            "sensor_layout, fixed_carriage: backend='torch' simulates the paper's one electrode pair "
-            "on a moving carriage; use sensor_layout='single', fixed_carriage=False or backend='numba'"
-        )
-    if getattr(params.distractors, "count", params.distractors) not in (0, (0,)):
-        raise ValueError("distractors: backend='torch' has no distractors; use distractors=0 or backend='numba'")
-    if params.sensor_model == "calibrated" and params.calibration.position_blur_mm > 0:
-        raise ValueError("calibration: backend='torch' needs position_blur_mm=0 in the calibration protocol")
 
 
 @dataclass(frozen=True)
@@ -120,6 +129,8 @@ class TorchConsts:
         check_supported(params)
         pool = params.conditions()
         proto = params.calibration
+        if params.sensor_model == "calibrated":
+            _check_host_calibration(proto, max(grid_points_bound(proto, c.allowed_half_width_mm) for c in pool))
 
         def f64(values: list) -> torch.Tensor:
             return torch.tensor(np.asarray(values, dtype=np.float64), device=device)

@@ -3,7 +3,9 @@
 SB3 expects a same-step reset: the step that ends an episode returns the next episode's first
 observation, the last one in ``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]``. The
 adapter steps the torch env, then resets the ended envs at once (``reset(options={"reset_mask": …})``)
-— a host round trip per step, which SB3's numpy rollouts need anyway.
+— a host round trip per step, which SB3's numpy rollouts need anyway. SB3's actions are numpy arrays, so
+they are checked on the host, as the numba engine checks them (:meth:`~electroloc_gym.torch_core.
+vector_env.TorchElectroLocVectorEnv.host_actions`).
 """
 
 from __future__ import annotations
@@ -11,7 +13,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import torch
 from stable_baselines3.common.vec_env import VecEnv
 
 from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv
@@ -39,7 +40,10 @@ class TorchSB3VecEnv(VecEnv):
         return obs.cpu().numpy()
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = torch.as_tensor(np.asarray(actions), device=self.env.device)
+        """Check ``actions`` on the host (the numba engine's rules: NaN, None, a wrong shape or dtype is one
+        ValueError naming ``actions``, before anything changes) and keep them for :meth:`step_wait`.
+        """
+        self._actions = self.env.host_actions(actions)
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         obs, rew, term, trunc, _ = self.env.step(self._actions)
