@@ -11,7 +11,7 @@ from typing import Any
 
 from electroloc_gym.agentspec import parse_agent_spec
 from electroloc_gym.baselines.agent import PAPER_AGENTS
-from electroloc_gym.bench.fidelity import PAPER_TRIALS, paper_count_interval
+from electroloc_gym.bench.fidelity import PAPER_TRIALS, UNTESTED, interval_mark
 from electroloc_gym.bench.schema import FAR_ERROR_MM
 from electroloc_gym.conditions import PRESET_NAMES
 from electroloc_gym.markdown import markdown_table
@@ -112,31 +112,48 @@ def _paper_cells(paper: tuple | None, row: dict[str, Any] | None = None) -> tupl
 
 
 def _interval_mark(paper: tuple, row: dict[str, Any]) -> str:
-    """The mark "[lo–hi] ✓/✗": the paper's 90 % interval as counts of the run's trials, and whether the run is in it."""
+    """The mark "[lo–hi] ✓/✗": the paper's 90 % interval as counts of the run's trials, and whether the run is
+    in it ("[none of N] –" when no count of the run's trials is: :func:`~electroloc_gym.bench.fidelity.interval_mark`).
+    """
     n = int(row["successes"]) + int(row["failures"])
     paper_n = int(paper[0]) + int(paper[1])
     if n <= 0 or paper_n <= 0:
         return ""
-    lo, hi = paper_count_interval(int(paper[0]), n, paper_n)
-    return f"[{lo}–{hi}] {'✓' if lo <= int(row['successes']) <= hi else '✗'}"
+    return interval_mark(int(row["successes"]), n, int(paper[0]), paper_n)
+
+
+def _untested_note(marks: list[str]) -> str:
+    """The sentence under a table with untestable marks ("" when every mark tests something)."""
+    untested = [m for m in marks if m.endswith(UNTESTED)]
+    if not untested:
+        return ""
+    return (
+        f"{UNTESTED}: no count of this run's trials lies inside the paper's interval (too few trials to compare); "
+        f"{len(untested)} such cell{'' if len(untested) == 1 else 's'}, not counted."
+    )
 
 
 def _inside_counts(rows: list[dict[str, Any]]) -> str:
     """One line: per paper controller, in how many conditions the run's count is inside the paper's interval."""
-    parts = []
+    parts, marks = [], []
     for agent in dict.fromkeys(r["agent"] for r in rows if r["condition"] != "all"):
         key = paper_agent_key(agent) or ""
         cells = [
-            (PAPER_TABLE4[(r["condition"], key)], r)
+            _interval_mark(PAPER_TABLE4[(r["condition"], key)], r)
             for r in rows
             if r["agent"] == agent and (r["condition"], key) in PAPER_TABLE4
         ]
+        tested = [m for m in cells if not m.endswith(UNTESTED)]
+        marks += cells
         if cells:
-            inside = sum(_interval_mark(p, r).endswith("✓") for p, r in cells)
-            parts.append(f"{agent} {inside} of {len(cells)}")
+            parts.append(f"{agent} {sum(m.endswith('✓') for m in tested)} of {len(tested)}")
+    note = _untested_note(marks)
     return (
         "Success counts inside the paper's 90 % binomial interval (Wilson, of its "
-        f"{PAPER_TRIALS} trials; [lo–hi] = that interval in this run's trials): " + "; ".join(parts) + "."
+        f"{PAPER_TRIALS} trials; [lo–hi] = that interval in this run's trials): "
+        + "; ".join(parts)
+        + "."
+        + (f" {note}" if note else "")
         if parts
         else ""
     )
@@ -391,6 +408,7 @@ def _render_table2(summary: dict[str, Any]) -> str:
         )
         for r in rows
     ]
+    note = _untested_note([str(c[5]) for c in cells])
     out.extend(
         markdown_table(
             (
@@ -407,4 +425,6 @@ def _render_table2(summary: dict[str, Any]) -> str:
         )
     )
     out.append("")
+    if note:
+        out += [note, ""]
     return "\n".join(out)
