@@ -28,7 +28,8 @@ Actions, and the rule that keeps a check from costing an accelerator a host sync
 * checked on the device — a tensor already on the env's accelerator (``action_check="auto"`` there, or
   ``"device"``): its dtype and shape on the host (metadata, no synchronisation: bool, complex, a float
   tensor for discrete actions and a wrong shape are one ValueError); its values on the device, without
-  a synchronisation: an invalid action (NaN or infinite, a discrete index outside [0, 8]) never enters
+  a synchronisation (a few elementwise operations before the step, outside its compiled graph): an
+  invalid action (NaN or infinite, a discrete index outside [0, 8]) never enters
   the state — that env's move is zero (the discrete "stay") — and it is reported: ``info["invalid_action"]``
   (N,) bool marks it at that step, :attr:`~TorchElectroLocVectorEnv.invalid_action_count` counts them
   since the last ``reset()``, and the next ``reset()`` — a synchronisation point anyway — raises one
@@ -384,7 +385,6 @@ class TorchElectroLocVectorEnv(VectorEnv):
     def close_extras(self, **kwargs: Any) -> None:
         """Release the state (the device memory); ``step``, ``reset`` and ``sub_env`` raise from now on."""
         self._state = {}
-        self._step_fn = None
 
 
 def numpy_view(env: VectorEnv) -> VectorEnv:
