@@ -9,20 +9,28 @@ controller rows (Tables 4, 1, 2, Fig. 12) are read from finished ``electroloc be
 Success counts carry the paper's 90 % binomial interval (Wilson; about ±4 of 50) and ✓/✗ for
 inside/outside; "inside/outside the detection region" splits trials by whether the noise-free
 reading at the start exceeded 2σ (the paper's §6.3 criterion).
+
+A folder is read as ``electroloc bench --resume`` reads it (:func:`electroloc_gym.bench.stored_run.read_run_records`:
+its config, its records in the current key names, damaged or foreign lines set aside and counted on stderr),
+and its rows are the package's summary of those records (:func:`electroloc_gym.bench.stats.summarize`), so a
+folder written by any version reads the same; a folder without ``summary.json`` (an unfinished run) is left out.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
+import sys
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from electroloc_gym import detection
-from electroloc_gym.bench.fidelity import paper_count_interval
+from electroloc_gym.bench.fidelity import interval_mark
+from electroloc_gym.bench.stats import summarize
+from electroloc_gym.bench.stored_run import read_run_records
 from electroloc_gym.bench.tables import PAPER_TABLE1, PAPER_TABLE2, PAPER_TABLE4, PAPER_TABLE4_ALL
 from electroloc_gym.conditions import (
     PAPER_START_COVERAGE,
@@ -38,9 +46,13 @@ from electroloc_gym.sensor import expected_reading
 SIGNALS = ("paper", "fitted", "coverage")
 
 
+def _fmt(value: Any, spec: str) -> str:
+    """``value`` formatted by ``spec``; "–" for a statistic a run has none of (None: no successes)."""
+    return "–" if value is None else format(value, spec)
+
+
 def _mark(sim_s: int, sim_n: int, paper_s: int, paper_n: int) -> str:
-    lo, hi = paper_count_interval(paper_s, sim_n, paper_n)
-    return f"{sim_s} [{lo}–{hi}] {'✓' if lo <= sim_s <= hi else '✗'}"
+    return f"{sim_s} {interval_mark(sim_s, sim_n, paper_s, paper_n)}"
 
 
 def table3() -> list[str]:
@@ -118,11 +130,15 @@ def fig5_slopes() -> list[str]:
 
 
 def _load(folder: str | None) -> tuple[list[dict[str, Any]], list[dict[str, Any]], dict[str, Any]] | None:
+    """A finished run's summary rows, records and config (None: no folder given, or the run is unfinished)."""
     if not folder or not (Path(folder) / "summary.json").is_file():
         return None
-    summary = json.loads((Path(folder) / "summary.json").read_text())
-    records = [json.loads(line) for line in (Path(folder) / "trials.jsonl").read_text().splitlines() if line.strip()]
-    return summary["rows"], records, summary.get("config", {})
+    run = read_run_records(folder)
+    for line in run.messages():
+        print(f"fidelity_report: set aside {line}", file=sys.stderr)
+    records = run.records
+    rows = summarize(records, agents=list(run.config.agents), conditions=list(run.config.conditions))["rows"]
+    return rows, records, asdict(run.config)
 
 
 def _inside(record: dict[str, Any], signal: str) -> bool:
@@ -149,9 +165,9 @@ def table4(rows: list[dict[str, Any]], label: str) -> list[str]:
                     r.get("label", r["agent"]),
                     cell,
                     p_s,
-                    f"{r['readings_median']:.3g}",
+                    _fmt(r["readings_median"], ".3g"),
                     p_steps,
-                    f"{r['error_median_mm']:.1f}",
+                    _fmt(r["error_median_mm"], ".1f"),
                     p_err,
                 )
             )
@@ -202,7 +218,7 @@ def fig12(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def _median_obs(xs: list[dict[str, Any]]) -> str:
-    return f"{statistics.median(x['observations'] for x in xs):g}" if xs else "–"
+    return f"{statistics.median(x['readings'] for x in xs):g}" if xs else "–"
 
 
 def inside_outside(records: list[dict[str, Any]], signal: str) -> list[str]:
@@ -244,9 +260,9 @@ def table1(rows: list[dict[str, Any]]) -> list[str]:
             (
                 r["condition"],
                 f"{r['successes']}({r['failures']})",
-                f"{r['error_x_mean_abs_mm']:.2f}",
+                _fmt(r["error_x_mean_abs_mm"], ".2f"),
                 f"{px:.2f}",
-                f"{r['error_y_mean_abs_mm']:.2f}",
+                _fmt(r["error_y_mean_abs_mm"], ".2f"),
                 f"{py:.2f}",
             )
         )
@@ -269,9 +285,9 @@ def table2(rows: list[dict[str, Any]]) -> list[str]:
                 r["agent"],
                 cell,
                 paper[0],
-                f"{r['readings_median']:g}",
+                _fmt(r["readings_median"], "g"),
                 f"{paper[5]:g}",
-                f"{r['error_median_mm']:.1f}",
+                _fmt(r["error_median_mm"], ".1f"),
                 f"{paper[3]:g}",
             )
         )
@@ -281,13 +297,13 @@ def table2(rows: list[dict[str, Any]]) -> list[str]:
     )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bench", default="results/bench", help="the default main-job run")
     ap.add_argument("--other", nargs="*", default=[], help="runs with other settings (e.g. --signal coverage)")
     ap.add_argument("--expected", default=None, help="min-var[vote=expected] with the default settings")
     ap.add_argument("--global", dest="global_", default=None, help="an --env global run")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     sections: list[tuple[str, list[str]]] = [
         ("Table 3: detection distance along the 45° line (mm)", table3()),
         ("Start coverage: share of the start box inside the 2σ detection region (§6.3)", coverage()),
