@@ -117,7 +117,8 @@ class BaselineAgent:
         view = agent_view(env)
         why = layout_problem(self, getattr(view, "sensor_layout", None))
         if why is not None:
-            raise ValueError(f"{self.name} cannot run on this env's sensor layout: {why}")
+            make = " or ".join(f"sensor_layout={n!r}" for n in self.sensor_layouts or ())
+            raise ValueError(f"{self.name} cannot run on this env's sensor layout: {why} (make the env with {make})")
         self._env = view
         self.done = False
         self.estimate_mm = None

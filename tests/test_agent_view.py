@@ -276,6 +276,8 @@ def test_single_pair_controllers_refuse_an_array_at_reset(name: str, layout: str
     env.reset(seed=0)
     agent = make_agent(name, seed=0)
     with pytest.raises(
-        ValueError, match=rf"^{name} cannot run on this env's sensor layout: .*\['single'\] only, not '{layout}'$"
+        ValueError,
+        match=rf"^{name} cannot run on this env's sensor layout: .*\['single'\] only, not '{layout}' "
+        r"\(make the env with sensor_layout='single'\)$",
     ):
         agent.reset(env)

@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -196,7 +196,7 @@ def _view_class(what: str, values: tuple[str, ...], methods: tuple[str, ...]) ->
     namespace.update({n: _value(n) for n in values})
     namespace.update({n: _method(n) for n in methods})
     title = "".join(w.capitalize() for w in what.split())
-    return type(title, (AgentView,), namespace)
+    return cast("type[AgentView]", type(title, (AgentView,), namespace))
 
 
 def _has(obj: Any, name: str) -> bool:
