@@ -281,3 +281,14 @@ def test_single_pair_controllers_refuse_an_array_at_reset(name: str, layout: str
         r"\(make the env with sensor_layout='single'\)$",
     ):
         agent.reset(env)
+
+
+def test_the_spaces_are_the_wrapped_envs() -> None:
+    """The agent acts on the env the rollout steps: a wrapper's spaces, not the core's."""
+    low, high = np.full(2, -2.0, dtype=np.float32), np.full(2, 2.0, dtype=np.float32)
+    env = gym.wrappers.RescaleAction(gym.make("ElectroLoc-v0", **SMALL), low, high)
+    env.reset(seed=0)
+    view = agent_view(env)
+    assert view.action_space is env.action_space and float(view.action_space.high[0]) == 2.0
+    assert view.observation_space is env.observation_space
+    assert float(env.unwrapped.action_space.high[0]) == 1.0

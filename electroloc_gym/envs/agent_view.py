@@ -11,7 +11,8 @@ the belief (:data:`BELIEF_VALUES`, :data:`BELIEF_METHODS`), the agent's sensor m
 ``mean_std`` and ``log_likelihood``), the condition's tank (:data:`TANK_FIELDS`), the carriage's
 position, path, box and move bounds, the reading count and the last readings, the predicted readings
 and hypotheses after a move, the dynamic-gain accessors, the sensor layout, the global env's map and
-odometry, the env's settings (particles, cap, success spread, observation mode, …) and its spaces.
+odometry, the env's settings (particles, cap, success spread, observation mode, …) and its spaces (those
+of the env as given, wrappers included: what the agent's actions and observations are).
 
 **What it hides**: the true target (``target_mm``, ``truth_mm``, ``hidden_state()``, ``hidden_keys``),
 ``params`` and ``spec`` (they hold the condition, whose ``target_xy_mm`` is the true target position),
@@ -122,6 +123,9 @@ TANK_FIELDS: tuple[str, ...] = (
 #: The condition's sphere and name: shown unless the belief estimates the sphere (its hypotheses carry it).
 SPHERE_FIELDS: tuple[str, ...] = ("name", "target", "chi", "depth_mm", "detection_distance_mm")
 
+#: Values read from the env as given (its wrappers' spaces), not from its core.
+_OUTER_VALUES: tuple[str, ...] = ("action_space", "observation_space")
+
 _Access = Callable[..., Any]
 
 
@@ -210,9 +214,13 @@ def _view(
     values: tuple[str, ...],
     methods: tuple[str, ...],
     wrap: Callable[[str, Any], Any] | None = None,
+    outer: dict[str, Any] | None = None,
 ) -> AgentView:
-    """A view of ``source`` through the ``values`` and ``methods`` it has (``wrap`` filters the values)."""
-    shown = tuple(n for n in values if _has(source, n))
+    """A view of ``source`` through the ``values`` and ``methods`` it has (``wrap`` filters the values;
+    ``outer`` maps a value's name to the object it is read from instead).
+    """
+    outer = outer or {}
+    shown = tuple(n for n in values if (hasattr(outer[n], n) if n in outer else _has(source, n)))
     callable_ = tuple(n for n in methods if _has(source, n))
     allowed_values, allowed_methods = frozenset(shown), frozenset(callable_)
 
@@ -220,7 +228,7 @@ def _view(
         if args is None:
             if name not in allowed_values:
                 raise AttributeError(name)
-            value = getattr(source, name)
+            value = getattr(outer.get(name, source), name)
             return value if wrap is None else wrap(name, value)
         if name not in allowed_methods:
             raise AttributeError(name)
@@ -263,4 +271,5 @@ def agent_view(env: Any) -> AgentView:
             return _condition_view(value, sphere_hidden())
         return value
 
-    return _view("agent view", core, values, AGENT_METHODS, wrap)
+    # the spaces are those of the env the rollout steps (a wrapper may change them), the rest the core's
+    return _view("agent view", core, values, AGENT_METHODS, wrap, outer={n: env for n in _OUTER_VALUES})
