@@ -53,6 +53,7 @@ __all__ = [
     "Agent",
     "BaselineAgent",
     "layout_problem",
+    "require_target_belief",
     "sample_options_mm",
     "move_bounds_mm",
     "sample_belief",
@@ -173,6 +174,18 @@ def layout_problem(agent: Any, sensor_layout: Any) -> str | None:
     if supported is None or layout in supported:
         return None
     return f"it runs on the sensor layout(s) {list(supported)} only, not {layout!r}"
+
+
+def require_target_belief(env: Any, agent_name: str) -> None:
+    """Raise one ValueError unless ``env``'s belief is over the target's position (hypotheses that do not
+    move with the robot): ElectroLoc-v0 and ElectroLocUnknownTarget-v0, not ElectroLocGlobal-v0.
+    """
+    if env.belief_frame == "robot":
+        raise ValueError(
+            f"{agent_name} needs a belief over the target's position (ElectroLoc-v0, "
+            "ElectroLocUnknownTarget-v0); this env's belief is over the robot's own position "
+            "(ElectroLocGlobal-v0): use min-var or lookahead there"
+        )
 
 
 def move_bounds_mm(env: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -48,7 +48,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_belief
+from electroloc_gym.baselines.base import (
+    MAX_STEP_MM,
+    BaselineAgent,
+    move_bounds_mm,
+    require_target_belief,
+    sample_belief,
+)
 from electroloc_gym.baselines.ergodic import (
     CRITERIA,
     CosineBasis,
@@ -56,7 +62,6 @@ from electroloc_gym.baselines.ergodic import (
     information_density,
     workspace_grid,
 )
-from electroloc_gym.baselines.infotaxis import require_target_belief
 from electroloc_gym.checks import check_float, check_int
 
 __all__ = ["EEDIAgent"]

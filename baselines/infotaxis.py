@@ -46,7 +46,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.base import BaselineAgent, move_bounds_mm, sample_belief, sample_options_mm
+from electroloc_gym.baselines.base import (  # require_target_belief: re-exported
+    BaselineAgent,
+    move_bounds_mm,
+    require_target_belief,
+    sample_belief,
+    sample_options_mm,
+)
 from electroloc_gym.checks import check_int
 
 __all__ = [
@@ -59,18 +65,6 @@ __all__ = [
 
 #: Largest Gauss–Hermite rule offered (the readings' noise is Gaussian; a few nodes are exact enough).
 MAX_NODES = 16
-
-
-def require_target_belief(env: Any, agent_name: str) -> None:
-    """Raise one ValueError unless ``env``'s belief is over the target's position (hypotheses that do not
-    move with the robot): ElectroLoc-v0 and ElectroLocUnknownTarget-v0, not ElectroLocGlobal-v0.
-    """
-    if env.belief_frame == "robot":
-        raise ValueError(
-            f"{agent_name} needs a belief over the target's position (ElectroLoc-v0, "
-            "ElectroLocUnknownTarget-v0); this env's belief is over the robot's own position "
-            "(ElectroLocGlobal-v0): use min-var or lookahead there"
-        )
 
 
 def gauss_hermite(nodes: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -69,6 +69,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -180,6 +181,23 @@ class LookaheadAgent(BaselineAgent):
         self.last_options_mm: NDArray[np.float64] | None = None
         self.last_rounds = 0
 
+    def reset(self, env: Any) -> None:
+        """Bind to ``env``'s agent view.
+
+        Raises:
+            ValueError: an env of another sensor layout, or hypotheses that are not positions (M, 2).
+        """
+        super().reset(env)
+        self._require_positions(np.shape(self.env.belief.particles))
+
+    @staticmethod
+    def _require_positions(shape: tuple[int, ...]) -> None:
+        if len(shape) != 2 or shape[1] != 2:
+            raise ValueError(
+                f"lookahead plans over position hypotheses (M, 2); this env's are {shape} "
+                "(ElectroLocUnknownTarget-v0 carries a radius and a contrast): use min-var there"
+            )
+
     def _success_spread_mm(self) -> float:
         return float(getattr(self.env, "success_spread_mm", 10.0))
 
@@ -187,11 +205,7 @@ class LookaheadAgent(BaselineAgent):
     def _subsample(self) -> NDArray[np.float64]:
         belief = self.env.belief
         x = np.asarray(belief.particles, dtype=np.float64)
-        if x.shape[1] != 2:
-            raise ValueError(
-                f"lookahead plans over position hypotheses (M, 2); this env's are {x.shape} "
-                "(ElectroLocUnknownTarget-v0 carries a radius and a contrast): use min-var there"
-            )
+        self._require_positions(x.shape)
         return sample_belief(belief, self.n_particles, self.rng)[0].astype(np.float64, copy=False)
 
     def _moves_with_robot(self) -> bool:

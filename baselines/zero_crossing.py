@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent
+from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, require_target_belief
 
 __all__ = ["ZeroCrossingAgent", "TABLE1_WORKSPACE_HALF_MM", "TABLE1_CENTRE_HALF_MM"]
 
@@ -175,7 +175,14 @@ class ZeroCrossingAgent(BaselineAgent):
         )
 
     def reset(self, env: Any) -> None:
+        """Bind to ``env``'s agent view and set the workspace around the start (the carriage's position).
+
+        Raises:
+            ValueError: an env of another sensor layout, or one whose belief is over the robot's own position
+                (ElectroLocGlobal-v0: the robot does not know where it is, so it cannot follow a crossing).
+        """
         super().reset(env)
+        require_target_belief(self.env, self.name)
         core = self.env
         start = core.position_mm
         low, high = core.allowed_box_mm

@@ -292,3 +292,19 @@ def test_the_spaces_are_the_wrapped_envs() -> None:
     assert view.action_space is env.action_space and float(view.action_space.high[0]) == 2.0
     assert view.observation_space is env.observation_space
     assert float(env.unwrapped.action_space.high[0]) == 1.0
+
+
+@pytest.mark.parametrize(
+    "env_id,name,pattern",
+    [
+        ("ElectroLocGlobal-v0", "zero-crossing", "zero-crossing needs a belief over the target's position"),
+        ("ElectroLocGlobal-v0", "infotaxis", "infotaxis needs a belief over the target's position"),
+        ("ElectroLocGlobal-v0", "eedi", "eedi needs a belief over the target's position"),
+        ("ElectroLocUnknownTarget-v0", "lookahead", r"lookahead plans over position hypotheses \(M, 2\)"),
+    ],
+)
+def test_controllers_refuse_an_env_they_cannot_act_in_at_reset(env_id: str, name: str, pattern: str) -> None:
+    env = gym.make(env_id, **SMALL)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=pattern):
+        make_agent(name, seed=0).reset(env)

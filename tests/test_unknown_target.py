@@ -294,6 +294,5 @@ def test_lookahead_refuses_shape_hypotheses_with_a_clear_error() -> None:
     env = gym.make(ENV_ID, n_particles=200)
     obs, _ = env.reset(seed=0)
     agent = make_agent("lookahead")
-    agent.reset(env.unwrapped)
-    with pytest.raises(ValueError, match="position hypotheses"):
-        agent.predict(obs)
+    with pytest.raises(ValueError, match="position hypotheses"):  # at reset, before any decision
+        agent.reset(env.unwrapped)
