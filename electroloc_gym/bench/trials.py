@@ -1,7 +1,9 @@
 """The worker side of a benchmark: one trial spec → one trial record.
 
 A worker builds (and caches) its agents and envs itself from the spec, runs the seeded episode
-(:func:`electroloc_gym.rollout.run_episode`) and returns the record written to trials.jsonl.
+(:func:`electroloc_gym.rollout.run_episode`, which hands the agent the env's agent view, never the env) and
+returns the record written to trials.jsonl; only here, after the episode, are the env's evaluation
+accessors read (the true target or position, the hidden shape).
 
 Steps-to-localize is the number of observations fused (``info["n_observations"]``, the first
 reading taken by ``reset`` included), as the paper counts. A trial succeeds when the env terminates
