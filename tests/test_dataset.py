@@ -187,3 +187,52 @@ def test_reference_refuses_a_run_without_a_planner(tmp_path):
     (tmp_path / "trials.jsonl").write_text("\n".join(json.dumps(r) for r in rows), encoding="utf-8")
     with pytest.raises(ValueError, match="must hold rnd-wlk and one of"):
         reference_scores(tmp_path, "ElectroLoc-v0")
+
+
+def test_the_files_are_minaris_own(store):
+    """The episode files equal those minari.create_dataset_from_buffers writes for the same episodes, and
+    the header its header (but for the counts, the size and the electroloc block).
+    """
+    import gymnasium as gym
+
+    from electroloc_gym.bench.agents import make_bench_agent
+    from electroloc_gym.dataset.collect import _episode_buffer, dataset_env_kwargs
+
+    ours = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 2, reference=REFERENCE), progress=False)
+    refs = reference_scores(REFERENCE, "ElectroLoc-v0")
+    agent = make_bench_agent("rnd-wlk")
+    env = gym.make("ElectroLoc-v0", **dataset_env_kwargs("ElectroLoc-v0", agent))
+    buffers = [_episode_buffer(env, agent, k, 1) for k in range(2)]
+    with pytest.warns(UserWarning):  # Minari's reminder that no eval_env is given
+        theirs = minari.create_dataset_from_buffers(
+            "test/theirs-v0",
+            buffers,
+            env=env.spec,
+            algorithm_name="rnd-wlk",
+            description="rnd-wlk on ElectroLoc-v0 (electroloc-gym), episodes on training seeds",
+            author="electroloc-gym",
+            author_email="none",
+            code_permalink="electroloc_gym/dataset/collect.py",
+            data_format="arrow",
+            requirements=["electroloc-gym"],
+            ref_min_score=refs["ref_min_score"],
+            ref_max_score=refs["ref_max_score"],
+        )
+    a, b = ours.storage.data_path, theirs.storage.data_path
+    for k in range(2):
+        for name in ("part-0.arrow", "metadata.json"):
+            assert (a / str(k) / name).read_bytes() == (b / str(k) / name).read_bytes()
+    skip = {"dataset_id", "dataset_size", "electroloc", "num_episodes_average_score"}
+    mine = json.loads((a / "metadata.json").read_text(encoding="utf-8"))
+    minaris = json.loads((b / "metadata.json").read_text(encoding="utf-8"))
+    assert {k: v for k, v in mine.items() if k not in skip} == {k: v for k, v in minaris.items() if k not in skip}
+    assert set(minaris) - set(mine) == {"num_episodes_average_score"}  # Minari's default 100: not how ours are made
+
+
+def test_default_ids_of_agents_with_options_are_valid_ids():
+    from electroloc_gym.dataset.store import check_dataset_id
+
+    for spec in ("min-var[sigma=0.5]", "lookahead[depth=2,objective='a.b']", "/x/runs/bc.seed1/", "pkg.mod:make"):
+        ds_id = dataset_id("ElectroLoc-v0", spec)
+        assert check_dataset_id(ds_id) == ds_id
+    assert dataset_id("ElectroLoc-v0", "min-var[sigma=0.5]") == "electroloc/ElectroLoc-v0/min-var_sigma_0_5-v0"

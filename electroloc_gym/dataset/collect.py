@@ -1,8 +1,7 @@
 """Minari datasets of any benchmark agent: ``electroloc dataset`` and :func:`build_dataset`.
 
-A dataset is the episodes of one agent on one env, written with Minari's own storage
-(``minari.create_dataset_from_buffers``, then ``storage.update_episodes``; the arrow format) under
-``MINARI_DATASETS_PATH`` (Minari's default folder when unset), with the id
+A dataset is the episodes of one agent on one env in Minari's own format (its arrow storage and header)
+under ``MINARI_DATASETS_PATH`` (Minari's default folder when unset), with the id
 ``electroloc/<env-id>/<agent>-v<N>``. Nothing goes to a hub. What it holds:
 
 * the env spec of the episodes' env (``minari.load_dataset(id).recover_environment()`` rebuilds it:
@@ -14,29 +13,35 @@ A dataset is the episodes of one agent on one env, written with Minari's own sto
   spread, readings fused), the reading, the condition's index and the truth (the hidden position; for the
   unknown target its radius and contrast) — for analysis and privileged critics, never an agent's input;
 * in the metadata: ``ref_min_score`` / ``ref_max_score`` (rnd-wlk and the best planner,
-  :func:`~electroloc_gym.dataset.protocol.reference_scores`), the agent spec (its options included) as
-  ``algorithm_name``, and an ``electroloc`` block: agent, env kwargs, root seed, the planned episode count,
-  the reference's provenance, and ``complete``.
+  :func:`~electroloc_gym.dataset.protocol.reference_scores`; absent without a reference), the agent spec
+  (its options included) as ``algorithm_name``, and an ``electroloc`` block: agent, env kwargs, root seed,
+  the planned episode count, the reference's provenance, and ``complete``;
+* beside ``data/``, ``checksums.jsonl``: the sha256 of every episode's files.
 
 The episodes are the benchmark's rollout loop (:func:`electroloc_gym.rollout.run_episode`) with the
 agent built by the benchmark's own constructor (:func:`electroloc_gym.bench.agents.make_bench_agent`):
-every spec ``electroloc bench --agents`` takes works here. Writing is resumable: each episode is written
-as it ends, ``complete`` is set after the last, and ``resume=True`` continues an unfinished dataset from
-its next episode (the same seeds, so the same episodes); an existing id is refused unless ``force``.
+every spec ``electroloc bench --agents`` takes works here. How the files are written — nothing rewritten
+in place, a kill at any moment resumable, every kept episode checked on resume, a replacement swapped in
+only when complete — is :mod:`electroloc_gym.dataset.store`. An existing id is refused unless ``resume``
+(continue an unfinished dataset of the same settings from the episodes that pass the checks: the same
+seeds, so the same episodes) or ``force`` (replace it).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
-import warnings
+import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from electroloc_gym.dataset import store
 from electroloc_gym.dataset.protocol import (
     DEFAULT_DATASET_SEED,
     EVALUATION_SEED,
@@ -58,16 +63,16 @@ __all__ = [
 MINARI_HINT = "pip install 'electroloc-gym[minari]'"
 #: Most episodes one dataset may plan.
 MAX_EPISODES = 1_000_000
-_NAME_RE = re.compile(r"[^A-Za-z0-9_.-]+")
+_NAME_RE = re.compile(r"[^A-Za-z0-9_-]+")
 
 
 def dataset_id(env_id: str, agent: str, version: int = 0) -> str:
-    """Minari's ``electroloc/<env-id>/<agent>-v<version>``; the agent's display name with anything but
-    letters, digits, ``_ . -`` replaced by ``_`` (``min-var[n_voters=500]`` → ``min-var_n_voters_500_``).
+    """Minari's ``electroloc/<env-id>/<agent>-v<version>``; the agent's display name with anything but ASCII
+    letters, digits, ``_`` and ``-`` replaced by ``_`` (``min-var[n_voters=500]`` → ``min-var_n_voters_500``).
     """
     from electroloc_gym.bench.agents import agent_display_name
 
-    name = _NAME_RE.sub("_", agent_display_name(agent.strip())).strip("_.-") or "agent"
+    name = _NAME_RE.sub("_", agent_display_name(agent.strip())).strip("_-") or "agent"
     return f"electroloc/{env_id}/{name}-v{int(version)}"
 
 
@@ -83,7 +88,8 @@ class DatasetRequest:
         reference: a benchmark folder or trials.jsonl with rnd-wlk and a planner on ``env_id`` (the
             reference scores), or None: no reference scores.
         version: the id's version N.
-        dataset_id: the id, or None: :func:`dataset_id`.
+        dataset_id: the id (``NAMESPACE/NAME-vN``, at most :data:`~.store.MAX_ID_CHARS` characters), or
+            None: :func:`dataset_id`.
         condition: localize and unknown-target envs: ``"random"`` (a preset per episode) or a preset name.
         trust_pickle: let a learned policy whose files need unpickling load (SB3's bare zip).
     """
@@ -117,10 +123,7 @@ class DatasetRequest:
         if not isinstance(self.agent, str) or not self.agent.strip():
             raise ValueError(f"agent must be a non-empty agent spec, got {self.agent!r}")
         if self.dataset_id is not None:
-            from minari.dataset.minari_dataset import DATASET_ID_RE
-
-            if not DATASET_ID_RE.fullmatch(self.dataset_id) or "/" not in self.dataset_id:
-                raise ValueError(f"dataset id must be NAMESPACE/NAME-vN (Minari's form), got {self.dataset_id!r}")
+            store.check_dataset_id(self.dataset_id)
 
     @property
     def id(self) -> str:
@@ -228,44 +231,117 @@ def _episode_buffer(env: Any, agent: Any, k: int, root_seed: int) -> Any:
     )
 
 
-def _fast(storage: Any) -> Any:
-    """``storage`` with its size left uncounted while episodes are appended.
-
-    Minari's storage recounts the size of every file of the dataset after each episode it writes (a walk of
-    the whole folder), which makes writing N episodes one by one O(N²); the size is counted once at the end.
-    """
-    storage.get_size = lambda: 0.0
-    return storage
-
-
-def _existing(ds_id: str) -> Any:
-    """The local dataset ``ds_id`` (None: none)."""
+def _dataset_fields(request: DatasetRequest, refs: dict[str, Any] | None) -> dict[str, Any]:
+    """The dataset fields of the header, as ``minari.create_dataset_from_buffers`` writes them."""
     import minari
-    from minari.storage.datasets_root_dir import get_dataset_path
 
-    path = Path(get_dataset_path(ds_id))
-    if not (path / "data" / "metadata.json").is_file():
-        return None if not path.exists() else path
-    return minari.load_dataset(ds_id)
+    agent = request.agent.strip()
+    fields: dict[str, Any] = {
+        "dataset_id": request.id,
+        "code_permalink": "electroloc_gym/dataset/collect.py",
+        "author": ["electroloc-gym"],
+        "author_email": ["none"],
+        "algorithm_name": agent,
+        "description": f"{agent} on {request.env_id} (electroloc-gym), episodes on training seeds",
+        "minari_version": minari.__version__,
+    }
+    if refs is not None:
+        fields.update(ref_max_score=refs["ref_max_score"], ref_min_score=refs["ref_min_score"])
+    fields["requirements"] = ["electroloc-gym"]
+    return fields
 
 
-def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool = False, progress: bool = True) -> Any:
+def _storage_fields(env: Any) -> dict[str, Any]:
+    """The storage fields of the header (format, spaces, env spec), as Minari's own storage writes them."""
+    import tempfile
+
+    from minari.dataset.minari_storage import MinariStorage
+
+    with tempfile.TemporaryDirectory(prefix="electroloc-header-") as tmp:
+        MinariStorage.new(
+            tmp,
+            observation_space=env.observation_space,
+            action_space=env.action_space,
+            env_spec=env.spec,
+            data_format="arrow",
+        )
+        with open(Path(tmp) / "metadata.json", encoding="utf-8") as fh:
+            return json.load(fh)
+
+
+def _staging_storage(folder: Path, env: Any) -> Any:
+    """Minari's arrow storage in ``folder``'s staging folder (made afresh), where episodes are written
+    before they are moved into ``data/``.
+    """
+    from minari.dataset.minari_storage import MinariStorage
+
+    staging = folder / store.STAGING
+    if staging.exists():
+        shutil.rmtree(staging)
+    staging.mkdir()
+    return MinariStorage.new(
+        staging, observation_space=env.observation_space, action_space=env.action_space, data_format="arrow"
+    )
+
+
+def _write_episode(folder: Path, staging: Any, buffer: Any) -> dict[str, Any]:
+    """Write ``buffer`` into ``folder/data/<id>``: by Minari's ``staging`` storage, its checksums journaled,
+    then moved in whole (see :mod:`.store`); returns its journal record.
+    """
+    k = int(buffer.id)
+    staging.update_episodes([buffer])
+    staged = Path(staging.data_path) / str(k)
+    record = store.episode_record(staged, k, int(buffer.seed), len(buffer.rewards))
+    store.kill_point("staged")
+    store.append_journal(folder, record)
+    store.kill_point("journaled")
+    os.rename(staged, folder / "data" / str(k))
+    store.kill_point("moved")
+    return record
+
+
+def _notify_stderr(message: str) -> None:
+    print(f"electroloc_gym.dataset: {message}", file=sys.stderr)
+
+
+def build_dataset(
+    request: DatasetRequest,
+    *,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool = True,
+    notify: Callable[[str], None] | None = None,
+) -> Any:
     """Collect ``request`` into a local Minari dataset; returns the loaded ``MinariDataset``.
+
+    Args:
+        request: the dataset.
+        resume: continue an unfinished dataset of the same settings, checking every episode it keeps;
+            a damaged one is set aside (``quarantine/<n>/`` in the dataset's folder) and re-collected.
+        force: replace an existing dataset of the id, once the new one is complete (the old one is
+            kept if the run fails or is killed).
+        progress: show a progress bar.
+        notify: called with one line when a resume sets something aside (default: printed to stderr).
 
     Raises:
         ValueError: bad input, an existing id without ``resume``/``force``, a resumed dataset of other
-            settings, an agent the env refuses, Minari not installed — one line each.
+            settings, an id that is not exactly one dataset's, an agent the env refuses or whose
+            ``seed``/``reset``/``predict`` raises, ``MINARI_DATASETS_PATH`` unusable, Minari not
+            installed — one line each.
     """
     try:
         import minari
-        from minari.storage.datasets_root_dir import get_dataset_path
     except ImportError as exc:
         raise ValueError(f"datasets need Minari ({MINARI_HINT}): {exc}") from None
     import gymnasium as gym
     from tqdm import tqdm
 
     from electroloc_gym.bench.agents import make_bench_agent, policy_env_problem
+    from electroloc_gym.rollout import AgentCallError
 
+    if resume and force:
+        raise ValueError("resume and force exclude each other")
+    notify = notify or _notify_stderr
     ds_id = request.id
     agent = make_bench_agent(request.agent, trust_pickle=request.trust_pickle)
     why = policy_env_problem(request.agent, agent, request.env_id, None)
@@ -276,81 +352,183 @@ def build_dataset(request: DatasetRequest, *, resume: bool = False, force: bool 
             f"agent {request.agent!r} ends episodes itself (zero-crossing's Table 1 layout); a dataset "
             f"needs episodes the env ends"
         )
+    if request.dataset_id is None:  # the default id, from the agent's name
+        try:
+            store.check_dataset_id(ds_id)
+        except ValueError as exc:
+            raise ValueError(f"the default {exc}; pass a shorter --id") from None
     kwargs = dataset_env_kwargs(request.env_id, agent, request.condition)
     refs = None if request.reference is None else reference_scores(request.reference, request.env_id)
     seeds = [episode_seeds(request.seed, k)[0] for k in range(request.episodes)]
     clash = evaluation_overlap(seeds)
     if clash:  # pragma: no cover - the stream is disjoint by construction; this guards a changed protocol
         raise ValueError(f"dataset seeds {clash[:3]} are evaluation seeds; choose another seed")
-    block = {
-        "agent": request.agent.strip(),
-        "env_id": request.env_id,
-        "env_kwargs": kwargs,
-        "seed": request.seed,
-        "evaluation_seed": EVALUATION_SEED,
-        "episodes_planned": request.episodes,
-        "complete": False,
-        "reference": refs,
-        "seed_protocol": "SeedSequence(seed, spawn_key=(9, episode)); benchmark trials use root seed 0, streams 0-8",
-    }
-    existing = _existing(ds_id)
-    start = 0
-    if existing is not None and force:
-        shutil.rmtree(get_dataset_path(ds_id))
-        existing = None
-    if isinstance(existing, Path):
-        raise ValueError(f"{existing} exists but holds no Minari dataset; remove it or pass --force")
-    if existing is not None:
-        old = existing.storage.metadata.get("electroloc")
-        old = old if isinstance(old, dict) else {}
-        if old.get("complete", True) or not resume:
-            state = "a complete" if old.get("complete", True) else "an unfinished"
-            raise ValueError(
-                f"dataset {ds_id!r} exists ({state} one at {get_dataset_path(ds_id)}); pass --force "
-                f"to replace it" + ("" if old.get("complete", True) else " or --resume to continue it")
-            )
-        same = {k: old.get(k) for k in ("agent", "env_id", "env_kwargs", "seed")}
-        if same != {k: block[k] for k in same}:
-            raise ValueError(f"dataset {ds_id!r} was started with other settings {same}; pass --force to replace it")
-        start = int(existing.storage.total_episodes)
-    env = gym.make(request.env_id, **kwargs)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # Minari's reminders of optional metadata
-            bar = tqdm(total=request.episodes, initial=start, desc=ds_id, unit="episode", disable=not progress)
-            for k in range(start, request.episodes):
-                buffer = _episode_buffer(env, agent, k, request.seed)
-                if k == 0:
-                    extra = (
-                        {}
-                        if refs is None
-                        else {"ref_min_score": refs["ref_min_score"], "ref_max_score": refs["ref_max_score"]}
-                    )
-                    minari.create_dataset_from_buffers(
-                        ds_id,
-                        [buffer],
-                        env=env.spec,
-                        algorithm_name=request.agent.strip(),
-                        description=f"{request.agent.strip()} on {request.env_id} (electroloc-gym), episodes on "
-                        f"training seeds",
-                        author="electroloc-gym",
-                        author_email="none",
-                        code_permalink="electroloc_gym/dataset/collect.py",
-                        data_format="arrow",
-                        requirements=["electroloc-gym"],
-                        **extra,
-                    )
-                    storage = _fast(minari.load_dataset(ds_id).storage)
-                    storage.update_metadata({"electroloc": block})
-                else:
-                    storage = storage if k > start else _fast(minari.load_dataset(ds_id).storage)
-                    storage.update_episodes([buffer])
-                bar.update(1)
-            bar.close()
-            storage = storage if request.episodes > start else minari.load_dataset(ds_id).storage
-            storage.update_metadata(
-                {"electroloc": {**block, "complete": True}, "dataset_size": type(storage).get_size(storage)}
-            )
-    finally:
-        env.close()
+    settings = {"agent": request.agent.strip(), "env_id": request.env_id, "env_kwargs": kwargs, "seed": request.seed}
+    paths = store.DatasetFolder(store.datasets_root(), ds_id)
+    paths.check_location()
+    with paths.lock():
+        store.recover_swap(paths)
+        paths.check_location()
+        env = gym.make(request.env_id, **kwargs)
+        try:
+            run = _Run(request, paths, env, settings, refs, seeds, notify)
+            run.prepare(resume=resume, force=force)
+            bar = tqdm(total=request.episodes, initial=len(run.kept), desc=ds_id, unit="episode", disable=not progress)
+            try:
+                for k in range(request.episodes):
+                    if k in run.kept:
+                        continue
+                    try:
+                        buffer = _episode_buffer(env, agent, k, request.seed)
+                    except AgentCallError as exc:
+                        raise ValueError(f"agent {request.agent!r} in episode {k} of {ds_id}: {exc}") from None
+                    run.write(buffer)
+                    bar.update(1)
+                run.finish()
+            except BaseException:
+                run.discard()
+                raise
+            finally:
+                bar.close()
+            run.swap()
+        finally:
+            env.close()
     return minari.load_dataset(ds_id)
+
+
+class _Run:
+    """One run's writing: where the episodes go, the header and journal it keeps, the episodes kept."""
+
+    def __init__(
+        self,
+        request: DatasetRequest,
+        paths: store.DatasetFolder,
+        env: Any,
+        settings: dict[str, Any],
+        refs: dict[str, Any] | None,
+        seeds: list[int],
+        notify: Callable[[str], None],
+    ) -> None:
+        self.request, self.paths, self.env, self.settings, self.seeds = request, paths, env, settings, seeds
+        self.refs, self.notify = refs, notify
+        self.storage_fields = _storage_fields(env)
+        self.kept: dict[int, dict[str, Any]] = {}
+        self.folder: Path | None = None  # where the episodes go (None until the first one is ready)
+        self.staging: Any = None  # Minari's storage in the folder's staging folder
+        self.replacing = False
+
+    def header(self, *, complete: bool = False, size: float | None = None) -> dict[str, Any]:
+        """The header of the episodes kept so far (Minari counts only the unbroken run 0, 1, …)."""
+        n = 0
+        while n in self.kept:
+            n += 1
+        block = {
+            **self.settings,
+            "evaluation_seed": EVALUATION_SEED,
+            "episodes_planned": self.request.episodes,
+            "complete": complete,
+            "reference": self.refs,
+            "seed_protocol": _SEED_PROTOCOL,
+            "checksums": f"{store.JOURNAL} beside data/: sha256 of each episode's files",
+        }
+        header = {
+            **self.storage_fields,
+            "total_episodes": n,
+            "total_steps": sum(self.kept[k]["steps"] for k in range(n)),
+            **_dataset_fields(self.request, self.refs),
+        }
+        if size is not None:
+            header["dataset_size"] = size
+        header["electroloc"] = block
+        return header
+
+    def prepare(self, *, resume: bool, force: bool) -> None:
+        """Decide where the episodes go; on resume, check the kept ones and set the damaged ones aside."""
+        path, ds_id = self.paths.path, self.request.id
+        if not path.exists():
+            return
+        if force:
+            self.replacing = True
+            return
+        if not resume:
+            header, _ = store.read_header(path)
+            old = header.get("electroloc") if header is not None else None
+            complete = isinstance(old, dict) and old.get("complete") is True
+            state = "a complete" if complete else "an unfinished"
+            raise ValueError(
+                f"dataset {ds_id!r} exists ({state} one at {path}); pass --force to replace it"
+                + ("" if complete else " or --resume to continue it")
+            )
+        found = store.inspect_dataset(ds_id, path, self.settings, self.seeds, self.header())
+        if self.refs is None and found.header is not None:  # the reference it was started with
+            old_refs = found.header["electroloc"].get("reference")
+            self.refs = old_refs if isinstance(old_refs, dict) and _REF_KEYS <= old_refs.keys() else None
+        moved_to = store.set_aside(path, found)
+        self.kept = found.kept
+        line = found.report(moved_to, self.request.episodes - len(self.kept))
+        if line is not None:
+            self.notify(f"{ds_id}: {line}")
+        store.write_journal(path, ds_id, self.settings, [self.kept[k] for k in sorted(self.kept)])
+        store.write_header(path, self.header())
+        self.folder = path
+
+    def _create(self) -> Path:
+        """A new dataset with no episode yet: header and journal built aside, then moved in (or, replacing,
+        left aside until complete).
+        """
+        from minari.namespace import create_namespace, list_local_namespaces
+
+        namespace = self.request.id.rsplit("/", 1)[0]
+        if namespace not in list_local_namespaces():
+            try:
+                create_namespace(namespace)
+            except ValueError:  # another id's run created it meanwhile
+                if namespace not in list_local_namespaces():
+                    raise
+        new = self.paths.new
+        if new.exists():
+            shutil.rmtree(new)
+        (new / "data").mkdir(parents=True)
+        store.write_header(new, self.header())
+        store.write_journal(new, self.request.id, self.settings, [])
+        store.kill_point("created")
+        if self.replacing:
+            return new
+        os.rename(new, self.paths.path)
+        return self.paths.path
+
+    def write(self, buffer: Any) -> None:
+        """Write one episode and count it in the header."""
+        if self.folder is None:
+            self.folder = self._create()
+        if self.staging is None:
+            self.staging = _staging_storage(self.folder, self.env)
+        self.kept[int(buffer.id)] = _write_episode(self.folder, self.staging, buffer)
+        store.write_header(self.folder, self.header(), durable=False)
+        store.kill_point("header")
+
+    def finish(self) -> None:
+        """Flush every file to the disk, then mark the dataset complete (with its size)."""
+        from minari.dataset.minari_storage import MinariStorage
+
+        folder = self.folder or self.paths.path
+        store.kill_point("final")
+        if (folder / store.STAGING).exists():
+            shutil.rmtree(folder / store.STAGING)
+        store.flush_to_disk(folder)
+        size = MinariStorage.read(folder / "data").get_size()
+        store.write_header(folder, self.header(complete=True, size=size))
+        self.folder = folder
+
+    def discard(self) -> None:
+        """A failed replacement: delete it (the old dataset stays as it was)."""
+        if self.replacing and self.paths.new.exists():
+            shutil.rmtree(self.paths.new)
+
+    def swap(self) -> None:
+        if self.replacing:
+            store.swap_in(self.paths)
+
+
+_REF_KEYS = {"ref_min_score", "ref_max_score"}
+_SEED_PROTOCOL = "SeedSequence(seed, spawn_key=(9, episode)); benchmark trials use root seed 0, streams 0-8"

@@ -21,6 +21,7 @@ the dataset's uses the means over the same conditions).
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Iterable
 from pathlib import Path
@@ -67,12 +68,18 @@ def evaluation_overlap(env_seeds: Iterable[int]) -> list[int]:
     every condition and the global map, the first 1000 trials of each) or of the training callback's
     validation episodes (100000–100063); empty for a valid dataset.
     """
+    return sorted(set(int(s) for s in env_seeds) & _evaluation_seeds())
+
+
+@functools.cache
+def _evaluation_seeds() -> frozenset[int]:
+    """The reset seeds :func:`evaluation_overlap` checks against (computed once per process)."""
     from electroloc_gym.bench.config import MAP_CONDITIONS, trial_seeds
 
-    evaluation = {
+    trials = {
         trial_seeds(EVALUATION_SEED, c, k)[0] for c in (*PRESET_NAMES, *MAP_CONDITIONS) for k in range(_CHECKED_TRIALS)
-    } | set(range(100_000, 100_064))
-    return sorted(set(int(s) for s in env_seeds) & evaluation)
+    }
+    return frozenset(trials | set(range(100_000, 100_064)))
 
 
 def _mean_readings(rows: list[dict[str, Any]]) -> float:

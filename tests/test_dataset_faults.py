@@ -1,0 +1,612 @@
+"""Datasets under faults: killed runs resume to the uninterrupted dataset, damaged files are set aside and
+re-collected, --force replaces exactly the dataset it names, and bad input is one line before any write.
+
+The kills are real SIGKILLs: most in a forked copy of this process (no interpreter start, so each takes
+a fraction of a second) stopped by the writer's own test hook at a named point
+(``ELECTROLOC_DATASET_KILL_AT``, :mod:`electroloc_gym.dataset.store`), two of the command itself in a
+subprocess (one at a hook point, one at whatever moment a poll finds three episodes written).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+minari = pytest.importorskip("minari")  # the dev extra installs it; the numpy lower-bound session deselects these
+
+from electroloc_gym.cli import main as cli_main  # noqa: E402
+from electroloc_gym.dataset import DatasetRequest, build_dataset  # noqa: E402
+from electroloc_gym.dataset import store as st  # noqa: E402
+from electroloc_gym.fileio import FolderLock  # noqa: E402
+
+pytestmark = pytest.mark.minari
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE = ROOT / "experiments" / "learned" / "results" / "ElectroLoc-v0" / "_baselines" / "bench"
+ID = "electroloc/ElectroLoc-v0/rnd-wlk-v0"
+N = 4  # episodes of the datasets below (rnd-wlk: about 0.01 s each)
+THREADS = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def _request(episodes: int = N, **kwargs) -> DatasetRequest:
+    return DatasetRequest("ElectroLoc-v0", "rnd-wlk", episodes, **kwargs)
+
+
+def _build(episodes: int = N, notes: list[str] | None = None, **kwargs):
+    options = {k: kwargs.pop(k) for k in ("resume", "force") if k in kwargs}
+    sink = notes if notes is not None else []
+    return build_dataset(_request(episodes, **kwargs), progress=False, notify=sink.append, **options)
+
+
+def _tree(folder: Path) -> dict[str, str]:
+    """sha256 of every file under ``folder``/data, by relative path (the header included)."""
+    data = folder / "data"
+    files = [p for p in data.rglob("*") if p.is_file()]
+    return {str(p.relative_to(data)): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
+
+
+@pytest.fixture()
+def root(tmp_path, monkeypatch) -> Path:
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    monkeypatch.delenv(st.KILL_ENV, raising=False)
+    return tmp_path / "minari"
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory) -> dict[int, dict[str, str]]:
+    """The files of uninterrupted runs: episodes → their data/ tree."""
+    out = {}
+    with pytest.MonkeyPatch.context() as mp:
+        for episodes in (N, 30):
+            base = tmp_path_factory.mktemp(f"uninterrupted{episodes}")
+            mp.setenv("MINARI_DATASETS_PATH", str(base))
+            _build(episodes)
+            out[episodes] = _tree(base.joinpath(*ID.split("/")))
+    return out
+
+
+def _folder(root: Path, ds_id: str = ID) -> Path:
+    return root.joinpath(*ds_id.split("/"))
+
+
+def _forked_kill(point: str, **build_kwargs) -> None:
+    """Run ``_build(**build_kwargs)`` in a forked copy of this process that SIGKILLs itself at ``point``."""
+    pid = os.fork()
+    if pid == 0:  # the child: never returns into pytest
+        code = 3
+        try:
+            os.environ[st.KILL_ENV] = point
+            _build(**build_kwargs)
+            code = 0  # the point was not reached
+        except BaseException:  # noqa: BLE001 - any failure is the child's exit code
+            code = 4
+        finally:
+            os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (point, status)
+
+
+def _mark_unfinished(folder: Path) -> None:
+    header, _ = st.read_header(folder)
+    header["electroloc"]["complete"] = False
+    st.write_header(folder, header)
+
+
+# ---- kills -----------------------------------------------------------------------------------------------
+FRESH_POINTS = ["created", "staged", "staged:3", "journaled:2", "moved:2", "moved:4", "header", "header:3", "final"]
+
+
+@pytest.mark.parametrize("point", FRESH_POINTS)
+def test_a_run_killed_at_any_point_resumes_to_the_uninterrupted_dataset(root, uninterrupted, point):
+    _forked_kill(point)
+    notes: list[str] = []
+    ds = _build(resume=True, notes=notes)
+    assert ds.total_episodes == N and ds.storage.metadata["electroloc"]["complete"]
+    assert _tree(_folder(root)) == uninterrupted[N]
+    assert notes == []  # a kill leaves nothing damaged to report
+    assert not (_folder(root) / st.QUARANTINE).exists() and not (_folder(root) / st.STAGING).exists()
+    assert not _folder(root).with_name("." + _folder(root).name + ".electroloc-new").exists()
+
+
+def test_a_torn_header_of_a_killed_run_is_rebuilt_on_resume(root, uninterrupted):
+    """What a kill inside a non-atomic rewrite of data/metadata.json leaves: an empty header, a temporary."""
+    _forked_kill("header:2")
+    folder = _folder(root)
+    (folder / "data" / "metadata.json").write_bytes(b"")
+    (folder / "data" / ".metadata.json.x1y2.tmp").write_text('{"total_ep', encoding="utf-8")
+    notes: list[str] = []
+    _build(resume=True, notes=notes)
+    assert _tree(folder) == uninterrupted[N]
+    assert len(notes) == 1 and "data/metadata.json" in notes[0] and "rebuilt" in notes[0]
+    assert (folder / "quarantine" / "1" / "data" / "metadata.json").read_bytes() == b""
+
+
+def test_a_resume_killed_while_setting_aside_resumes_again(root, uninterrupted):
+    _build()
+    folder = _folder(root)
+    _mark_unfinished(folder)
+    for k in (1, 2):
+        (folder / "data" / str(k) / "part-0.arrow").write_bytes(b"damaged")
+    _forked_kill("quarantined", resume=True)
+    notes: list[str] = []
+    _build(resume=True, notes=notes)
+    assert _tree(folder) == uninterrupted[N]
+    quarantine = folder / "quarantine"
+    moved = sorted(p.relative_to(quarantine).as_posix() for p in quarantine.rglob("part-0.arrow"))
+    assert moved == ["1/data/1/part-0.arrow", "2/data/2/part-0.arrow"]  # both kept, one per resume
+
+
+def test_the_command_killed_by_sigkill_at_a_hook_point_resumes(root, uninterrupted):
+    env = {**os.environ, **THREADS, "MINARI_DATASETS_PATH": str(root), st.KILL_ENV: "moved:2"}
+    argv = [sys.executable, "-m", "electroloc_gym.cli", "dataset", "--no-progress", "--agent", "rnd-wlk"]
+    proc = subprocess.run([*argv, "--episodes", str(N)], env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    env.pop(st.KILL_ENV)
+    proc = subprocess.run(
+        [*argv, "--episodes", str(N), "--resume"], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert f"{ID}: {N} episodes" in proc.stdout
+    assert _tree(_folder(root)) == uninterrupted[N]
+
+
+def test_the_command_killed_at_an_arbitrary_moment_resumes(root, uninterrupted):
+    env = {**os.environ, **THREADS, "MINARI_DATASETS_PATH": str(root)}
+    argv = [sys.executable, "-m", "electroloc_gym.cli", "dataset", "--no-progress", "--agent", "rnd-wlk"]
+    proc = subprocess.Popen([*argv, "--episodes", "30"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    data = _folder(root) / "data"
+    deadline = time.monotonic() + 300
+    while not (data / "2").exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.001)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL  # killed mid-run, not finished
+    _build(30, resume=True)
+    assert _tree(_folder(root)) == uninterrupted[30]
+
+
+# ---- damaged files ---------------------------------------------------------------------------------------
+def _flip(path: Path, offsets=(0.3, 0.5, 0.7)) -> None:
+    data = bytearray(path.read_bytes())
+    for f in offsets:
+        data[int(f * len(data))] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def _truncate(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _rewrite_header(folder: Path, **changes) -> None:
+    header = json.loads((folder / "data" / "metadata.json").read_text(encoding="utf-8"))
+    header.update(changes)
+    (folder / "data" / "metadata.json").write_text(json.dumps(header), encoding="utf-8")
+
+
+def _journal_lines(folder: Path) -> list[str]:
+    return (folder / st.JOURNAL).read_text(encoding="utf-8").splitlines()
+
+
+def _tear_last_journal_line(folder: Path) -> None:
+    text = (folder / st.JOURNAL).read_text(encoding="utf-8")
+    (folder / st.JOURNAL).write_text(text[: len(text) - 40], encoding="utf-8")
+
+
+def _flip_journal_digest(folder: Path) -> None:
+    lines = _journal_lines(folder)
+    row = json.loads(lines[2])  # episode 1
+    digest = row["sha256"]["part-0.arrow"]
+    row["sha256"]["part-0.arrow"] = ("0" if digest[0] != "0" else "1") + digest[1:]
+    lines[2] = json.dumps(row)
+    (folder / st.JOURNAL).write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+# (damage, what is set aside under quarantine/1, words of the one line)
+DAMAGES = {
+    "truncated arrow": (lambda f: _truncate(f / "data/1/part-0.arrow"), ["data/1/part-0.arrow"], "1: part-0.arrow"),
+    "flipped arrow bytes": (lambda f: _flip(f / "data/2/part-0.arrow"), ["data/2/part-0.arrow"], "2: part-0.arrow"),
+    "flipped episode metadata": (
+        lambda f: _flip(f / "data/0/metadata.json", (0.5,)),
+        ["data/0/metadata.json"],
+        "0: metadata.json",
+    ),
+    "missing arrow": (lambda f: (f / "data/1/part-0.arrow").unlink(), ["data/1/metadata.json"], "1: no part-0.arrow"),
+    "missing episode metadata": (
+        lambda f: (f / "data/3/metadata.json").unlink(),
+        ["data/3/part-0.arrow"],
+        "3: no metadata.json",
+    ),
+    "missing episode": (lambda f: shutil.rmtree(f / "data/2"), [], "episode 2 missing"),
+    "another episode's metadata": (
+        lambda f: shutil.copy(f / "data/2/metadata.json", f / "data/1/metadata.json"),
+        ["data/1/metadata.json"],
+        "1: metadata.json does not match",
+    ),
+    "junk file in data": (
+        lambda f: (f / "data/junk.bin").write_bytes(b"\0junk"),
+        ["data/junk.bin"],
+        "data/junk.bin: not part of the dataset",
+    ),
+    "junk folder in data": (
+        lambda f: (f / "data/tmp").mkdir(),
+        ["data/tmp"],
+        "data/tmp: not part of the dataset",
+    ),
+    "an episode that is a file": (
+        lambda f: (shutil.rmtree(f / "data/3"), (f / "data/3").write_text("x")),
+        ["data/3"],
+        "1 damaged episode (3: not part of the dataset)",
+    ),
+    "extra arrow in an episode": (
+        lambda f: shutil.copy(f / "data/2/part-0.arrow", f / "data/2/part-1.arrow"),
+        ["data/2/part-1.arrow"],
+        "data/2/part-1.arrow: not a file of episode 2",
+    ),
+    "empty header": (
+        lambda f: (f / "data/metadata.json").write_bytes(b""),
+        ["data/metadata.json"],
+        "data/metadata.json unreadable",
+    ),
+    "garbage header": (lambda f: _flip(f / "data/metadata.json", (0.0,)), ["data/metadata.json"], "unreadable"),
+    "header of a list": (
+        lambda f: (f / "data/metadata.json").write_text("[1, 2]"),
+        ["data/metadata.json"],
+        "not a JSON object",
+    ),
+    "altered header": (
+        lambda f: _rewrite_header(f, env_spec="{}"),
+        ["data/metadata.json"],
+        "differs from the header of these settings",
+    ),
+    "miscounted header": (
+        lambda f: _rewrite_header(f, total_steps=3, total_episodes=1),
+        [],
+        None,  # the counts are rewritten from the kept episodes; nothing is damaged
+    ),
+    "missing header": (lambda f: (f / "data/metadata.json").unlink(), [], "data/metadata.json missing"),
+    "torn journal line": (_tear_last_journal_line, ["data/3"], "3: no recorded checksum"),
+    "flipped journal digest": (_flip_journal_digest, ["data/1"], "1: part-0.arrow does not match its checksum"),
+    "missing journal": (
+        lambda f: (f / st.JOURNAL).unlink(),
+        ["data/0", "data/1", "data/2", "data/3"],
+        "4 damaged episodes (0: no recorded checksum",
+    ),
+    "missing journal and header": (
+        lambda f: ((f / st.JOURNAL).unlink(), (f / "data/metadata.json").unlink()),
+        ["data/0", "data/3"],
+        "4 damaged episodes",
+    ),
+    "leftover temporaries": (
+        lambda f: ((f / "data/.metadata.json.ab12.tmp").write_text("{"), (f / ".staging" / "1").mkdir(parents=True)),
+        [],
+        None,  # this package's own leftovers: deleted, nothing to say
+    ),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGES))
+def test_resume_sets_aside_every_damaged_file_and_recollects(root, uninterrupted, damage):
+    spoil, set_aside, words = DAMAGES[damage]
+    _build()
+    folder = _folder(root)
+    _mark_unfinished(folder)
+    spoil(folder)
+    notes: list[str] = []
+    ds = _build(resume=True, notes=notes)
+    assert _tree(folder) == uninterrupted[N]  # the uninterrupted dataset, every byte
+    assert ds.total_episodes == N and len(list(ds.iterate_episodes())) == N
+    if words is None:
+        assert notes == [] and not (folder / "quarantine").exists()
+        return
+    assert len(notes) == 1 and "\n" not in notes[0] and words in notes[0], notes
+    quarantine = folder / "quarantine" / "1"
+    for rel in set_aside:
+        assert (quarantine / rel).exists(), (rel, sorted(quarantine.rglob("*")))  # moved, not deleted
+    if set_aside:
+        assert str(quarantine) in notes[0]
+
+
+def test_the_command_says_what_it_set_aside_in_one_line(root, capsys):
+    _build()
+    folder = _folder(root)
+    _mark_unfinished(folder)
+    _truncate(folder / "data/1/part-0.arrow")
+    assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", str(N), "--resume"]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "set aside" in line]
+    assert len(err) == 1 and err[0].startswith("electroloc dataset: ") and "1 damaged episode" in err[0]
+
+
+def test_resume_refuses_before_moving_anything(root):
+    _build()
+    folder = _folder(root)
+    _mark_unfinished(folder)
+    (folder / "data/metadata.json").write_bytes(b"")  # header unreadable: the journal's settings decide
+    (folder / "data/9").mkdir()
+    snapshot = sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
+    with pytest.raises(ValueError, match="holds episode 9; resume it with --episodes 10 or more"):
+        _build(resume=True)
+    (folder / "data/9").rmdir()
+    with pytest.raises(ValueError, match="other settings"):
+        _build(resume=True, seed=2)
+    assert sorted(str(p.relative_to(folder)) for p in folder.rglob("*")) == [s for s in snapshot if s != "data/9"]
+
+
+def test_resume_refuses_a_complete_dataset_and_one_it_did_not_write(root, tmp_path):
+    _build()
+    with pytest.raises(ValueError, match=r"exists \(a complete one"):
+        _build(resume=True)
+    env = minari.load_dataset(ID).recover_environment()
+    buffer = minari.load_dataset(ID).storage.get_episodes([0])
+    episode = next(iter(buffer))
+    from minari.data_collector.episode_buffer import EpisodeBuffer
+
+    minari.create_dataset_from_buffers(
+        "other/plain-v0",
+        [
+            EpisodeBuffer(
+                observations=list(episode["observations"]),
+                actions=list(episode["actions"]),
+                rewards=list(episode["rewards"]),
+                terminations=list(episode["terminations"]),
+                truncations=list(episode["truncations"]),
+            )
+        ],
+        env=env.spec,
+        data_format="arrow",
+        eval_env=env.spec,
+        algorithm_name="x",
+        author="x",
+        author_email="x",
+        code_permalink="x",
+        description="x",
+    )
+    with pytest.raises(ValueError, match="not written by electroloc dataset"):
+        _build(resume=True, dataset_id="other/plain-v0")
+    ds = _build(force=True, dataset_id="other/plain-v0")  # exactly a dataset: --force replaces it
+    assert ds.total_episodes == N and ds.storage.metadata["electroloc"]["complete"]
+
+
+# ---- --force ---------------------------------------------------------------------------------------------
+def _two_datasets(root: Path) -> dict[str, dict[str, str]]:
+    _build(2)
+    build_dataset(DatasetRequest("ElectroLoc-v0", "min-var", 1), progress=False)
+    ids = [ID, "electroloc/ElectroLoc-v0/min-var-v0"]
+    return {i: _tree(_folder(root, i)) for i in ids}
+
+
+@pytest.mark.parametrize(
+    ("ds_id", "words"),
+    [
+        ("electroloc/ElectroLoc-v0", "names a namespace folder"),
+        ("electroloc/ElectroLoc-v0/min-var-v0/data", "dataset id must be NAMESPACE/NAME-vN"),
+        ("electroloc/ElectroLoc-v0/min-var-v0/data-v0", "lies inside the dataset 'electroloc/ElectroLoc-v0/min-var"),
+        ("electroloc/ElectroLoc-v0/min-var-v0/data/0-v0", "lies inside the dataset"),
+        ("electroloc-v0", "dataset id must be NAMESPACE/NAME-vN"),
+    ],
+)
+def test_force_refuses_an_id_that_is_not_exactly_a_dataset(root, capsys, ds_id, words):
+    before = _two_datasets(root)
+    argv = ["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1", "--id", ds_id, "--force"]
+    assert cli_main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("electroloc dataset: error: ") and words in err[0], err
+    assert {i: _tree(_folder(root, i)) for i in before} == before  # nothing deleted
+    assert minari.load_dataset(ID).total_episodes == 2
+
+
+def test_force_refuses_folders_that_hold_more_than_a_dataset(root):
+    _build(1)
+    folder = _folder(root)
+    (folder / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match=r"holds \['notes.txt'\] besides the dataset"):
+        _build(force=True)
+    plain = root / "mine" / "plain-v0"
+    plain.mkdir(parents=True)
+    (plain / "keep.txt").write_text("mine")
+    with pytest.raises(ValueError, match="names a folder"):
+        _build(force=True, dataset_id="mine/plain-v0")
+    (root / "file").write_text("mine")
+    with pytest.raises(ValueError, match="is a file"):
+        _build(force=True, dataset_id="file/x-v0")
+    assert (folder / "notes.txt").read_text() == "mine" and (plain / "keep.txt").read_text() == "mine"
+    assert (root / "file").read_text() == "mine" and minari.load_dataset(ID).total_episodes == 1
+
+
+def test_force_replaces_exactly_the_dataset_it_names(root, uninterrupted):
+    before = _two_datasets(root)
+    ds = _build(force=True)
+    assert ds.total_episodes == N and _tree(_folder(root)) == uninterrupted[N]
+    other = "electroloc/ElectroLoc-v0/min-var-v0"
+    assert _tree(_folder(root, other)) == before[other]
+    siblings = sorted(p.name for p in _folder(root).parent.iterdir())
+    assert siblings == ["min-var-v0", "namespace_metadata.json", "rnd-wlk-v0"]
+
+
+@pytest.fixture()
+def user_module(tmp_path, monkeypatch):
+    (tmp_path / "ds_fault_agents.py").write_text(
+        textwrap.dedent(
+            """
+            import numpy as np
+
+            class Agent:
+                name = "faulty"
+
+                def __init__(self, where):
+                    self.where = where
+                    self.calls = 0
+
+                def reset(self, env):
+                    if self.where == "reset":
+                        raise RuntimeError("no reset today")
+
+                def predict(self, obs, state=None, episode_start=None, deterministic=True):
+                    self.calls += 1
+                    if self.where == "predict":
+                        raise RuntimeError("boom")
+                    return np.zeros(2, dtype=np.float32), state
+
+            def make(where="predict"):
+                return Agent(where)
+            """
+        )
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    return "ds_fault_agents"
+
+
+def test_force_with_an_agent_that_fails_at_once_keeps_the_old_dataset(root, capsys, user_module):
+    _build(2)
+    before = _tree(_folder(root))
+    argv = ["dataset", "--no-progress", "--agent", f"{user_module}:make", "--episodes", "2", "--id", ID, "--force"]
+    assert cli_main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0] == (
+        f"electroloc dataset: error: agent '{user_module}:make' in episode 0 of {ID}: its predict() raised "
+        "RuntimeError: boom"
+    )
+    assert _tree(_folder(root)) == before and minari.load_dataset(ID).total_episodes == 2
+    assert sorted(p.name for p in _folder(root).parent.iterdir()) == ["namespace_metadata.json", "rnd-wlk-v0"]
+
+
+@pytest.mark.parametrize("point", ["created", "staged:2", "final"])
+def test_force_killed_before_the_swap_leaves_the_old_dataset(root, uninterrupted, point):
+    _build(2, seed=5)
+    before = _tree(_folder(root))
+    _forked_kill(point, force=True)
+    assert _tree(_folder(root)) == before and minari.load_dataset(ID).total_episodes == 2
+    with pytest.raises(ValueError, match=r"exists \(a complete one"):
+        _build(resume=True)  # the dataset of the id is the old one, complete
+    _build(force=True)  # a new --force starts again, the killed run's leftovers discarded
+    assert _tree(_folder(root)) == uninterrupted[N]
+    assert sorted(p.name for p in _folder(root).parent.iterdir()) == ["namespace_metadata.json", "rnd-wlk-v0"]
+
+
+@pytest.mark.parametrize("point", ["swap", "swapped"])
+def test_force_killed_during_the_swap_is_finished_by_the_next_run(root, uninterrupted, point):
+    _build(2, seed=5)
+    _forked_kill(point, force=True)
+    with pytest.raises(ValueError, match=r"exists \(a complete one"):
+        _build()  # any run on the id finishes the swap first
+    assert _tree(_folder(root)) == uninterrupted[N] and minari.load_dataset(ID).total_episodes == N
+    assert sorted(p.name for p in _folder(root).parent.iterdir()) == ["namespace_metadata.json", "rnd-wlk-v0"]
+
+
+# ---- one-line errors -------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["--id", "mine/noversion"], "dataset id must be NAMESPACE/NAME-vN"),
+        (["--id", "mine/" + "x" * 300 + "-v0"], "dataset id must be at most 200 characters"),
+        (["--id", "a/x-v0"], "a namespace of 2 or more characters"),
+        (["--id", "mine/x-v\uff10"], "dataset id must be NAMESPACE/NAME-vN"),
+        (["--id", "mine/../x-v0"], "dataset id must be NAMESPACE/NAME-vN"),
+        (["--id", "/abs/x-v0"], "dataset id must be NAMESPACE/NAME-vN"),
+        (["--id", "mine/x-v0", "--version", "1"], "--version sets the default id's version"),
+        (["--seed", "\uff13"], "argument --seed: must be an integer in ASCII digits, got '３'"),
+        (["--seed", "1_0"], "argument --seed: must be an integer in ASCII digits"),
+        (["--seed", "0"], "evaluation seed"),
+        (["--version", "\uff11"], "argument --version: must be an integer in ASCII digits"),
+        (["--episodes", "\uff12"], "argument --episodes: must be an integer in ASCII digits"),
+        (["--resume", "--force"], "--resume and --force exclude each other"),
+        (["--agent", "{m}:make"], "agent '{m}:make' in episode 0 of electroloc/ElectroLoc-v0/"),
+        (["--agent", "{m}:make[where='reset']"], "its reset() raised RuntimeError: no reset today"),
+    ],
+)
+def test_bad_input_is_one_line_before_anything_is_written(root, capsys, user_module, argv, words):
+    argv = [a.format(m=user_module) for a in argv]
+    words = words.format(m=user_module)
+    if "--agent" not in argv:
+        argv = ["--agent", "rnd-wlk", *argv]
+    if "--episodes" not in argv:
+        argv = [*argv, "--episodes", "2"]
+    assert _cli(["dataset", "--no-progress", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("electroloc dataset: error: ") and words in err[0], err
+    assert not [p for p in root.rglob("*") if p.name == "data"]  # no dataset, not even a partial one
+
+
+def _cli(argv: list[str]) -> int:
+    """``electroloc`` in this process: its return code, or argparse's exit code."""
+    try:
+        return cli_main(argv)
+    except SystemExit as exc:
+        return int(exc.code)
+
+
+@pytest.mark.parametrize(
+    ("setting", "words"),
+    [
+        ("", "MINARI_DATASETS_PATH is set but empty"),
+        ("   ", "MINARI_DATASETS_PATH is set but empty"),
+        ("{tmp}/a-file", "is not a folder"),
+        ("{tmp}/no/such/place", "does not exist and neither does its parent folder"),
+        ("{tmp}/a-file/below", "does not exist and neither does its parent folder"),
+        ("/proc", "is not writable"),
+    ],
+)
+def test_an_unusable_datasets_path_is_one_line(tmp_path, monkeypatch, capsys, setting, words):
+    (tmp_path / "a-file").write_text("mine")
+    monkeypatch.setenv("MINARI_DATASETS_PATH", setting.format(tmp=tmp_path))
+    assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("electroloc dataset: error: ") and words in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"] and (tmp_path / "a-file").read_text() == "mine"
+
+
+def test_a_missing_datasets_folder_is_created_when_its_parent_exists(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "new"))
+    assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1"]) == 0
+    assert minari.load_dataset(ID).total_episodes == 1 and (tmp_path / "new" / "electroloc").is_dir()
+
+
+def test_a_dataset_without_reference_scores_says_so(root, capsys):
+    assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("electroloc dataset: note: no reference scores"), err
+    assert "--reference" in err[0] and "ref_min_score" not in minari.load_dataset(ID).storage.metadata
+    argv = ["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1", "--reference", str(REFERENCE)]
+    assert cli_main([*argv, "--force"]) == 0
+    assert capsys.readouterr().err.strip() == ""
+    assert minari.load_dataset(ID).storage.metadata["ref_min_score"] is not None
+
+
+def test_a_resume_without_reference_keeps_the_one_it_started_with(root):
+    _build(2, reference=REFERENCE)
+    _mark_unfinished(_folder(root))
+    ds = _build(3, resume=True)
+    meta = ds.storage.metadata
+    assert meta["ref_min_score"] is not None and meta["electroloc"]["reference"]["source"].endswith("trials.jsonl")
+
+
+def test_a_second_writer_of_the_same_id_is_refused(root, capsys):
+    root.mkdir(parents=True)
+    with st.DatasetFolder(root, ID).lock():
+        assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is being written by another process" in err[0], err
+    assert not _folder(root).exists()
+    with FolderLock(root / ".electroloc-locks", "other--x-v0.lock", "busy"):  # another id's lock: no effect
+        _build(1)
+
+
+def test_dataset_ids_are_checked_in_python_too():
+    for bad in ("mine/noversion", "mine/" + "x" * 300 + "-v0", "x-v0", "mine/x.y-v0", "mine//x-v0", 3):
+        with pytest.raises(ValueError, match="dataset id must") as info:
+            st.check_dataset_id(bad)
+        assert "\n" not in str(info.value)
+    assert st.check_dataset_id("mine/sub/x_y-z-v12") == "mine/sub/x_y-z-v12"
+    with pytest.raises(ValueError, match="dataset id must be NAMESPACE"):
+        DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1, dataset_id="mine/noversion")
