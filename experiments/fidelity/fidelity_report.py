@@ -11,14 +11,16 @@ inside/outside; "inside/outside the detection region" splits trials by whether t
 reading at the start exceeded 2σ (the paper's §6.3 criterion).
 
 A folder is read as ``electroloc bench --resume`` reads it (:func:`electroloc_gym.bench.stored_run.read_run_records`:
-its config, its records in the current key names, damaged or foreign lines set aside and counted on stderr),
-and its rows are the package's summary of those records (:func:`electroloc_gym.bench.stats.summarize`), so a
-folder written by any version reads the same; a folder without ``summary.json`` (an unfinished run) is left out.
+its config, its records in the current key names, damaged or foreign lines set aside and named on stderr),
+and its rows are the package's summary (:func:`electroloc_gym.bench.stats.summarize`) of the records of the
+agents and conditions its ``summary.json`` was written for, so a folder written by any version reads the same;
+a folder without ``summary.json`` (an unfinished run) is left out.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import sys
 from dataclasses import asdict
@@ -136,8 +138,12 @@ def _load(folder: str | None) -> tuple[list[dict[str, Any]], list[dict[str, Any]
     run = read_run_records(folder)
     for line in run.messages():
         print(f"fidelity_report: set aside {line}", file=sys.stderr)
-    records = run.records
-    rows = summarize(records, agents=list(run.config.agents), conditions=list(run.config.conditions))["rows"]
+    # the agents and conditions the summary was written for (config.json holds every one ever asked for)
+    summarised = json.loads((Path(folder) / "summary.json").read_text(encoding="utf-8")).get("config", {})
+    agents = [a for a in summarised.get("agents", run.config.agents) if isinstance(a, str)]
+    conditions = [c for c in summarised.get("conditions", run.config.conditions) if isinstance(c, str)]
+    records = [r for r in run.records if r["agent"] in agents and r["condition"] in conditions]
+    rows = summarize(records, agents=agents, conditions=conditions)["rows"]
     return rows, records, asdict(run.config)
 
 
