@@ -287,7 +287,11 @@ DAMAGES = {
         "4 damaged episodes",
     ),
     "leftover temporaries": (
-        lambda f: ((f / "data/.metadata.json.ab12.tmp").write_text("{"), (f / ".staging" / "1").mkdir(parents=True)),
+        lambda f: (
+            (f / "data/.metadata.json.ab12.tmp").write_text("{"),
+            (f / ".checksums.jsonl.cd34.tmp").write_text("{"),
+            (f / ".staging" / "1").mkdir(parents=True),
+        ),
         [],
         None,  # this package's own leftovers: deleted, nothing to say
     ),
@@ -305,6 +309,7 @@ def test_resume_sets_aside_every_damaged_file_and_recollects(root, uninterrupted
     ds = _build(resume=True, notes=notes)
     assert _tree(folder) == uninterrupted[N]  # the uninterrupted dataset, every byte
     assert ds.total_episodes == N and len(list(ds.iterate_episodes())) == N
+    assert not list(folder.rglob("*.tmp")) and not (folder / st.STAGING).exists()
     if words is None:
         assert notes == [] and not (folder / "quarantine").exists()
         return
@@ -420,6 +425,28 @@ def test_force_refuses_folders_that_hold_more_than_a_dataset(root):
         _build(force=True, dataset_id="file/x-v0")
     assert (folder / "notes.txt").read_text() == "mine" and (plain / "keep.txt").read_text() == "mine"
     assert (root / "file").read_text() == "mine" and minari.load_dataset(ID).total_episodes == 1
+
+
+def test_force_replaces_a_linked_dataset_by_a_folder_and_leaves_the_link_target(root, tmp_path, uninterrupted):
+    _build(2, seed=5)
+    elsewhere = tmp_path / "elsewhere-v0"
+    _folder(root).rename(elsewhere)
+    _folder(root).symlink_to(elsewhere, target_is_directory=True)
+    before = _tree(elsewhere)
+    assert _build(2, resume=False, force=True).total_episodes == 2
+    assert not _folder(root).is_symlink() and _tree(elsewhere) == before  # the link went, not what it named
+    assert sorted(p.name for p in _folder(root).parent.iterdir()) == ["namespace_metadata.json", "rnd-wlk-v0"]
+
+
+def test_deeply_nested_json_is_damage_not_a_crash(root, uninterrupted):
+    _build()
+    folder = _folder(root)
+    _mark_unfinished(folder)
+    (folder / "data/metadata.json").write_text("[" * 100_000 + "]" * 100_000)
+    (folder / "data/1/metadata.json").write_text("[" * 100_000)
+    notes: list[str] = []
+    _build(resume=True, notes=notes)
+    assert _tree(folder) == uninterrupted[N] and len(notes) == 1 and "1 damaged episode" in notes[0]
 
 
 def test_force_replaces_exactly_the_dataset_it_names(root, uninterrupted):

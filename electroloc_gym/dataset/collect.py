@@ -486,8 +486,7 @@ class _Run:
                 if namespace not in list_local_namespaces():
                     raise
         new = self.paths.new
-        if new.exists():
-            shutil.rmtree(new)
+        store.remove(new)
         (new / "data").mkdir(parents=True)
         store.write_header(new, self.header())
         store.write_journal(new, self.request.id, self.settings, [])
@@ -522,8 +521,8 @@ class _Run:
 
     def discard(self) -> None:
         """A failed replacement: delete it (the old dataset stays as it was)."""
-        if self.replacing and self.paths.new.exists():
-            shutil.rmtree(self.paths.new)
+        if self.replacing:
+            store.remove(self.paths.new)
 
     def swap(self) -> None:
         if self.replacing:

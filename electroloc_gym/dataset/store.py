@@ -248,12 +248,19 @@ class DatasetFolder:
                 f"give the id of one dataset, NAMESPACE/NAME-vN"
             )
         own = {"data", JOURNAL, QUARANTINE, STAGING}
-        others = sorted(p.name for p in path.iterdir() if p.name not in own)
+        others = sorted(p.name for p in path.iterdir() if p.name not in own and not _is_temporary(p.name, JOURNAL))
         if others:
             raise ValueError(
                 f"dataset folder {path} holds {others[:3]} besides the dataset; nothing was changed: move "
                 f"{'them' if len(others) > 1 else 'it'} out first"
             )
+
+
+def _is_temporary(name: str, of: str) -> bool:
+    """``name`` is a temporary file of an atomic write of ``of`` (:func:`electroloc_gym.fileio.atomic_write_bytes`
+    and :func:`write_header` name them ``.<of>.<random>.tmp``) that a kill left behind.
+    """
+    return name.startswith(f".{of}.") and name.endswith(".tmp")
 
 
 def header_path(folder: Path) -> Path:
@@ -267,7 +274,7 @@ def read_header(folder: Path) -> tuple[dict[str, Any] | None, str | None]:
         header = json.loads(path.read_bytes())
     except FileNotFoundError:
         return None, "missing"
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, RecursionError) as exc:
         return None, f"unreadable ({type(exc).__name__})"
     if not isinstance(header, dict):
         return None, "not a JSON object"
@@ -332,7 +339,7 @@ def read_journal(folder: Path) -> tuple[dict[str, Any] | None, dict[int, dict[st
     for i, line in enumerate(text.splitlines()):
         try:
             row = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):
             bad += 1
             continue
         if i == 0 and isinstance(row, dict) and isinstance(row.get("settings"), dict):
@@ -385,7 +392,7 @@ def _episode_problem(folder: Path, k: int, seed: int, record: dict[str, Any] | N
             return f"{name} does not match its checksum"
     try:
         meta = json.loads((folder / "metadata.json").read_bytes())
-    except ValueError:
+    except (ValueError, RecursionError):
         return "metadata.json unreadable"
     if not isinstance(meta, dict) or (meta.get("id"), meta.get("seed"), meta.get("total_steps")) != (
         k,
@@ -541,7 +548,7 @@ def inspect_dataset(
         name = entry.name
         if name == "metadata.json":
             continue
-        if name.startswith(".metadata.json.") and name.endswith(".tmp"):
+        if _is_temporary(name, "metadata.json"):
             found.temporaries.append(entry)
             continue
         k = _episode_index(name)
@@ -555,8 +562,7 @@ def inspect_dataset(
         found.kept[k] = records[k]
         for extra in sorted(p.name for p in entry.iterdir() if p.name not in EPISODE_FILES):
             found.damaged.append((f"data/{name}/{extra}", f"not a file of episode {k}"))
-    if (folder / STAGING).exists():
-        found.temporaries.append(folder / STAGING)
+    found.temporaries += [p for p in folder.iterdir() if p.name == STAGING or _is_temporary(p.name, JOURNAL)]
     counted = header.get("total_episodes") if header is not None else None
     if type(counted) is int:
         present = {int(p.name) for p in data.iterdir() if _episode_index(p.name) is not None}
@@ -574,10 +580,7 @@ def set_aside(folder: Path, found: Inspection) -> Path | None:
     first unused n); returns that folder (None: nothing moved).
     """
     for tmp in found.temporaries:
-        if tmp.is_dir():
-            shutil.rmtree(tmp)
-        elif tmp.exists():
-            tmp.unlink()
+        remove(tmp)
     if not found.damaged:
         return None
     base = folder / QUARANTINE
@@ -637,13 +640,21 @@ def recover_swap(paths: DatasetFolder) -> None:
     complete, the old dataset moved back).
     """
     path, new, old = paths.path, paths.new, paths.old
-    if old.exists():
-        if not path.exists():
-            os.rename(new if new.exists() and is_complete(new) else old, path)
-        if old.exists():
-            shutil.rmtree(old)
-    if new.exists():
-        shutil.rmtree(new)
+    if os.path.lexists(old):
+        if not os.path.lexists(path):
+            os.rename(new if new.is_dir() and is_complete(new) else old, path)
+        remove(old)
+    remove(new)
+
+
+def remove(path: Path) -> None:
+    """Delete a file, a folder and all it holds, or a symbolic link itself (never what a link points to);
+    nothing if ``path`` does not exist.
+    """
+    if path.is_symlink() or path.is_file():
+        path.unlink()
+    elif path.is_dir():
+        shutil.rmtree(path)
 
 
 def swap_in(paths: DatasetFolder) -> None:
@@ -654,4 +665,4 @@ def swap_in(paths: DatasetFolder) -> None:
     os.rename(paths.new, paths.path)
     _fsync_dir(paths.path.parent)
     kill_point("swapped")
-    shutil.rmtree(paths.old)
+    remove(paths.old)
