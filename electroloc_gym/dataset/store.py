@@ -388,11 +388,15 @@ def _episode_problem(folder: Path, k: int, seed: int, record: dict[str, Any] | N
     if record is None:
         return "no recorded checksum"
     for name in EPISODE_FILES:
-        if file_sha256(folder / name) != record["sha256"][name]:
+        try:
+            digest = file_sha256(folder / name)
+        except OSError as exc:
+            return f"{name} unreadable ({exc.strerror or type(exc).__name__})"
+        if digest != record["sha256"][name]:
             return f"{name} does not match its checksum"
     try:
         meta = json.loads((folder / "metadata.json").read_bytes())
-    except (ValueError, RecursionError):
+    except (OSError, ValueError, RecursionError):
         return "metadata.json unreadable"
     if not isinstance(meta, dict) or (meta.get("id"), meta.get("seed"), meta.get("total_steps")) != (
         k,
