@@ -27,38 +27,43 @@ import torch.nn as nn
 from torch.distributions import Normal
 
 import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0)
+from electroloc_gym.cli import HelpFormatter
 from electroloc_gym.runtime import pin_threads
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    """Command-line options (CleanRL's names)."""
-    p = argparse.ArgumentParser(
-        description=__doc__.split("\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
-    )
-    p.add_argument("--env-id", default="ElectroLoc-v0")
+def build_parser() -> argparse.ArgumentParser:
+    """The command line (CleanRL's option names); ``--help`` shows every option's default."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0], formatter_class=HelpFormatter)
+    p.add_argument("--env-id", default="ElectroLoc-v0", help="a registered id with a native vector env")
     p.add_argument("--condition", default="fresh-steel-12.7", help="a preset name, or 'random' (all eight)")
     p.add_argument(
         "--randomize-target",
         action=argparse.BooleanOptionalAction,
         default=True,
         help="train with the target anywhere in the start box (else the policy can memorise the "
-        "paper's centred target); evaluation always uses the paper's fixed target",
+        "paper's centred target); evaluation always uses the paper's fixed target (default: on)",
     )
-    p.add_argument("--num-envs", type=int, default=8)
-    p.add_argument("--total-timesteps", type=int, default=300_000)
+    p.add_argument("--num-envs", type=int, default=8, help="sub-envs of the native vector env (N ≥ 1)")
+    p.add_argument("--total-timesteps", type=int, default=300_000, help="env steps to train for (all sub-envs)")
     p.add_argument("--num-steps", type=int, default=128, help="steps per env per rollout")
-    p.add_argument("--learning-rate", type=float, default=3e-4)
-    p.add_argument("--gamma", type=float, default=0.99)
-    p.add_argument("--gae-lambda", type=float, default=0.95)
-    p.add_argument("--num-minibatches", type=int, default=8)
-    p.add_argument("--update-epochs", type=int, default=10)
-    p.add_argument("--clip-coef", type=float, default=0.2)
-    p.add_argument("--ent-coef", type=float, default=0.0)
-    p.add_argument("--vf-coef", type=float, default=0.5)
-    p.add_argument("--max-grad-norm", type=float, default=0.5)
-    p.add_argument("--eval-episodes", type=int, default=64)
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--learning-rate", type=float, default=3e-4, help="Adam's step size")
+    p.add_argument("--gamma", type=float, default=0.99, help="discount factor")
+    p.add_argument("--gae-lambda", type=float, default=0.95, help="λ of the generalised advantage estimate")
+    p.add_argument("--num-minibatches", type=int, default=8, help="minibatches per rollout")
+    p.add_argument("--update-epochs", type=int, default=10, help="passes over each rollout")
+    p.add_argument("--clip-coef", type=float, default=0.2, help="PPO's clip range of the probability ratio")
+    p.add_argument("--ent-coef", type=float, default=0.0, help="weight of the entropy bonus")
+    p.add_argument("--vf-coef", type=float, default=0.5, help="weight of the value loss")
+    p.add_argument("--max-grad-norm", type=float, default=0.5, help="gradients clipped to this global norm")
+    p.add_argument("--eval-episodes", type=int, default=64, help="evaluation episodes at the end (fresh seeds)")
+    p.add_argument("--seed", type=int, default=1, help="seed of the envs, the network and the sampling")
     p.add_argument("--save", default=None, help="write the policy's state_dict here (torch.save)")
+    return p
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The options of ``argv`` (the command line when None), checked."""
+    p = build_parser()
     args = p.parse_args(argv)
     if args.num_envs < 1 or args.num_steps < 1 or args.total_timesteps < args.num_envs * args.num_steps:
         p.error("need num_envs ≥ 1, num_steps ≥ 1 and total_timesteps ≥ num_envs × num_steps")

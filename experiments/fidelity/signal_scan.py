@@ -4,28 +4,35 @@ The default signal was chosen by a principle (docs/fidelity.md); this scan shows
 choice of one common factor k on the fitted scales gives, on validation seeds (never the benchmark's
 seed 0). Per k: start coverage (share of starts inside the 2σ detection region, paper §6.3: 78 %),
 successes and the mean of the eight per-condition median steps of each controller (the paper's
-Table-4 convention), and their ratio (paper: 6.7 / 12.4 = 0.54).
+Table-4 convention), and their ratio (paper: 6.7 / 12.4 = 0.54). ``--k coverage`` is the coverage signal's
+factor itself (:func:`electroloc_gym.conditions.coverage_signal_multiplier`, 8.64 to two decimals), so that
+row is ``signal="coverage"`` exactly.
 
-    python experiments/fidelity/signal_scan.py --k 1 2 4 8.65 30 --trials 12 --seed 101
+    python experiments/fidelity/signal_scan.py --k 1 2 4 coverage 30 --trials 10 --seed 101
 """
 
 from __future__ import annotations
 
 import argparse
 
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+import electroloc_gym  # noqa: F401
+from electroloc_gym.baselines.agent import make_agent
+from electroloc_gym.conditions import (
+    PRESET_NAMES,
+    coverage_signal_multiplier,
+    fitted_signal_scale,
+    get_condition,
+    start_box_coverage,
+)
+from electroloc_gym.markdown import markdown_table
+from electroloc_gym.rollout import run_episode
 from electroloc_gym.runtime import pin_threads
 
 pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
-
-import gymnasium as gym  # noqa: E402
-import numpy as np  # noqa: E402
-from tqdm import tqdm  # noqa: E402
-
-import electroloc_gym  # noqa: E402,F401
-from electroloc_gym.baselines.agent import make_agent  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES, fitted_signal_scale, get_condition, start_box_coverage  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
-from electroloc_gym.rollout import run_episode  # noqa: E402
 
 
 def scan_one(k: float, agents: list[str], trials: int, seed: int) -> dict[str, tuple[int, float, list[float]]]:
@@ -48,9 +55,28 @@ def scan_one(k: float, agents: list[str], trials: int, seed: int) -> dict[str, t
     return out
 
 
+def factor(text: str) -> float:
+    """``--k``: a factor > 0, or ``coverage`` (the coverage signal's own factor)."""
+    if text == "coverage":
+        return coverage_signal_multiplier()
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number > 0 or 'coverage', got {text!r}")
+    return value
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--k", type=float, nargs="+", default=[1.0, 2.0, 4.0, 30.0])
+    ap.add_argument(
+        "--k",
+        type=factor,
+        nargs="+",
+        default=[1.0, 2.0, 4.0, 30.0],
+        help="factors on the fitted scales ('coverage': the coverage signal's)",
+    )
     ap.add_argument("--trials", type=int, default=12, help="trials per condition and agent")
     ap.add_argument("--seed", type=int, default=101, help="validation seed (not the benchmark's 0)")
     ap.add_argument("--agents", default="rnd-wlk,min-var")
@@ -73,7 +99,7 @@ def main() -> None:
     )
     cells = [
         (
-            f"{k:g}",
+            f"{k:.2f} (coverage)" if k == coverage_signal_multiplier() else f"{k:g}",
             f"{cov:.2f}",
             *(c for a in agents for c in (f"{res[a][0]}/{n}", f"{res[a][1]:.1f}")),
             f"{res[agents[-1]][1] / res[agents[0]][1]:.2f}",
