@@ -29,6 +29,7 @@ from gymnasium.vector import AutoresetMode
 
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.markdown import markdown_table
+from electroloc_gym.registry import ENVS
 
 __all__ = [
     "ENGINES",
@@ -125,6 +126,12 @@ _GLOBAL_ONLY = Absent("ElectroLocGlobal-v0's; the torch engine implements Electr
 _UNKNOWN_ONLY = Absent("ElectroLocUnknownTarget-v0's; the torch engine implements ElectroLoc-v0 only")
 _CPU_ONLY = Absent("numba's compiled kernels run on the host's CPU")
 
+
+def _tasks_on(backend: str) -> frozenset[str]:
+    """The tasks whose env table entries declare ``backend`` (read when an env is built: the table is filled)."""
+    return frozenset(e.task for e in ENVS if backend in e.backends)
+
+
 #: option → engine → how the engine treats it (module docstring). The order is the docs table's.
 CAPABILITIES: Mapping[str, Mapping[str, Support]] = MappingProxyType(
     {
@@ -136,7 +143,7 @@ CAPABILITIES: Mapping[str, Mapping[str, Support]] = MappingProxyType(
                 "torch": Limit(
                     "'localize'",
                     "implements ElectroLoc-v0 only",
-                    lambda v, _: v == "localize",
+                    lambda v, _: v in _tasks_on("torch"),
                     "global",
                 ),
             },
