@@ -192,3 +192,4 @@ def test_one_step_from_the_same_state_and_draws_is_the_same(engine, kw, monkeypa
         np.testing.assert_allclose(info_o[key], info_r[key], rtol=1e-6, atol=1e-3, err_msg=key)
     np.testing.assert_array_equal(info_o["n_observations"], info_r["n_observations"])
     np.testing.assert_array_equal(info_o["success"], info_r["success"])
+    np.testing.assert_array_equal(info_o["condition_index"], info_r["condition_index"])

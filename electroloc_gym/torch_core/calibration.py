@@ -4,10 +4,17 @@ The numba core's protocol, operation for operation (:func:`~electroloc_gym.senso
 calibration_coefficients`): at every grid point, ``samples_per_point`` readings ``clip(μ + z·G·σ_s,
 ±V_sat)`` with ``z`` from the normal quantile table; per point the mean and the sample variance
 (ddof = 1); the std per point (floored) or pooled over the points none of whose readings saturated;
-the bilinear coefficients of each cell and the "outside the grid" row (0 V, G·σ_s), stored as float32.
+and, from these, the bilinear coefficients of each cell and the "outside the grid" row (0 V, G·σ_s),
+rounded to float32.
 The draws are the env's counter-based stream ``"calibration"`` (:mod:`.rng`), so the tables are the
 numba core's in distribution, not in value (a fixed ``calibration_seed`` takes the numba core's own
 tables, :class:`~.consts.TorchConsts`).
+
+What an env keeps of its episode's calibration is the two float64 grids, mean and std (n² points each,
+:func:`calibration_grids`): the coefficients are differences of neighbouring points, computed where a
+particle looks them up (:func:`~.filter.grid_mean_std`) with the same float64 operations and the same
+float32 rounding as :func:`tables_from_draws`' table — the same bits in half the bytes of the
+coefficient table (16·n² against 32·((n − 1)² + 1)), and the "outside" row is the condition's G·σ_s.
 
 The sums over the samples run over the deviations from the noise-free value μ (one pass: Σd, Σd²), so
 the variance keeps float64's precision without a second pass over the draws. The pool's grids are
@@ -23,13 +30,14 @@ import torch
 from electroloc_gym.torch_core.consts import TorchConsts
 from electroloc_gym.torch_core.rng import STREAMS, bits32, lookup, stream_key
 
-__all__ = ["calibration_tables", "tables_from_draws"]
+__all__ = ["calibration_grids", "grids_from_draws", "tables_from_draws", "coefficients"]
 
 
-def calibration_tables(
+def calibration_grids(
     c: TorchConsts, cond: torch.Tensor, k0: torch.Tensor, k1: torch.Tensor, episode: torch.Tensor
 ) -> torch.Tensor:
-    """(N, (n − 1)² + 1, 8) float32 bilinear coefficients of each env's calibration of its episode.
+    """(N, 2, n²) float64 each env's calibration of its episode: the mean and the std grids (V), point
+    (a, b) at a·n + b (padded points: never looked up).
 
     Args:
         c: the constants.
@@ -38,8 +46,6 @@ def calibration_tables(
         k1: (N,) int64 its second key word.
         episode: (N,) int64 its episode (with the key: the draws' coordinates).
     """
-    if c.fixed_table is not None:
-        return c.fixed_table[cond]
     n = c.grid_n
     per = n * n
     half = (per + 1) // 2  # words per sample: two 16-bit indices each
@@ -49,12 +55,23 @@ def calibration_tables(
         w = bits32(key, half, start=t * half)
         return torch.cat([w & 0xFFFF, w >> 16], dim=1)[:, :per].reshape(-1, n, n)
 
-    return tables_from_draws(c, cond, draws)
+    mean, std = grids_from_draws(c, cond, draws)
+    return torch.stack([mean, std], dim=1).reshape(-1, 2, per)
 
 
 def tables_from_draws(c: TorchConsts, cond: torch.Tensor, draws: Callable[[int], torch.Tensor]) -> torch.Tensor:
-    """The coefficients of :func:`calibration_tables` from given draws: ``draws(t)`` (N, n, n) int64 the
-    normal-table indices of sample t at every grid point (the equivalence tests inject numpy's).
+    """(N, (n − 1)² + 1, 8) float32 the bilinear coefficients (:func:`coefficients`) of the grids of
+    :func:`grids_from_draws` (the numba core's table, row a·(n − 1) + b; the equivalence tests' form).
+    """
+    mean, std = grids_from_draws(c, cond, draws)
+    return coefficients(mean, std, c.noise_V[cond])
+
+
+def grids_from_draws(
+    c: TorchConsts, cond: torch.Tensor, draws: Callable[[int], torch.Tensor]
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(N, n, n) float64 mean and std grids (V) of the calibration from given draws: ``draws(t)`` (N, n, n)
+    int64 the normal-table indices of sample t at every grid point (the equivalence tests inject numpy's).
     """
     s = c.samples_per_point
     mu = c.grid_mean_V[cond]  # (N, n, n)
@@ -84,10 +101,10 @@ def tables_from_draws(c: TorchConsts, cond: torch.Tensor, draws: Callable[[int],
         pooled = torch.sqrt((var * clean).sum(dim=(1, 2)) / torch.clamp(n_clean, min=1.0))
         pooled = torch.maximum(pooled, c.floor_V[cond])[:, None, None]
         std = torch.where(clean, pooled, std)
-    return _coefficients(mean, std, c.noise_V[cond])
+    return mean, std
 
 
-def _coefficients(mean: torch.Tensor, std: torch.Tensor, outside_std: torch.Tensor) -> torch.Tensor:
+def coefficients(mean: torch.Tensor, std: torch.Tensor, outside_std: torch.Tensor) -> torch.Tensor:
     """Each cell's ``t00, t10 − t00, t01 − t00, t11 − t10 − t01 + t00`` of the mean and std tables (float64,
     stored float32), row a·(n − 1) + b, then the outside row (0, 0, 0, 0, ``outside_std``, 0, 0, 0).
     """

@@ -22,6 +22,7 @@ from electroloc_gym.core.observation import condition_descriptor
 from electroloc_gym.core.params import DISCRETE_MOVES_MM, EnvParams, memory_limit_bytes
 from electroloc_gym.core.worlds import fixed_coefficients, grid_points_bound
 from electroloc_gym.draws import normal_table
+from electroloc_gym.envs.adapter import condition_index
 from electroloc_gym.protocol import MAX_STEP_MM
 from electroloc_gym.registry import ENVS, EnvEntry
 from electroloc_gym.sensor_models.calibrated import (
@@ -74,6 +75,8 @@ class TorchConsts:
         target_mm: (P, 2) float64 the preset target centre, mm.
         noise_V, saturation_V: (P,) float64 G·σ_s and V_sat, V.
         descriptor: (P, 5) float32 observation entries 76–80.
+        preset_index: (P,) int64 each condition's ``info["condition_index"]``: its index in
+            :data:`~electroloc_gym.conditions.PRESET_NAMES`, −1 for a custom condition (as the numba envs').
         dip_h, dip_k, dip_strength, dip_z2, dip_scale: (P,) float64 the dipole's L/2 (mm), V_e·E (V·mm),
             χ·A³ (mm³), depth² (mm²) and s·G (the true reading uses them in float64, the analytic
             belief model rounded once to float32, as the numba core).
@@ -109,6 +112,7 @@ class TorchConsts:
     noise_V: torch.Tensor
     saturation_V: torch.Tensor
     descriptor: torch.Tensor
+    preset_index: torch.Tensor
     dip_h: torch.Tensor
     dip_k: torch.Tensor
     dip_strength: torch.Tensor
@@ -177,6 +181,7 @@ class TorchConsts:
             noise_V=f64([c.noise_std_V for c in pool]),
             saturation_V=f64([c.saturation_V for c in pool]),
             descriptor=torch.tensor(np.stack([condition_descriptor(c) for c in pool]), device=device),
+            preset_index=torch.tensor(condition_index([c.name for c in pool]), device=device),
             dip_h=f64([g.spacing_mm / 2.0 for g in geo]),
             dip_k=f64([g.emitter_voltage_V * g.electrode_radius_mm for g in geo]),
             dip_strength=f64([c.chi * (c.target.radius_mm * c.target.radius_mm * c.target.radius_mm) for c in pool]),

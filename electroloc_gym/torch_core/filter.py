@@ -19,7 +19,9 @@ from electroloc_gym.torch_core.rng import lookup
 __all__ = [
     "dipole_difference",
     "calibrated_mean_std",
+    "grid_mean_std",
     "calibrated_log_likelihood",
+    "gaussian_log_likelihood",
     "analytic_mean",
     "analytic_log_likelihood",
     "resample",
@@ -62,26 +64,11 @@ def dipole_difference(
     return strength * (dot1 * r1 - dot2 * r2)
 
 
-def calibrated_mean_std(
-    x: torch.Tensor,
-    y: torch.Tensor,
-    lo: torch.Tensor,
-    inv: torch.Tensor,
-    cells: torch.Tensor,
-    stride: int,
-    table: torch.Tensor,
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """(N, M) float32 mean and std (V) of the calibrated model at offsets (target − carriage) ``x``, ``y``
-    (N, M) float32 mm: the bilinear lookup of ``kernels.lookup._calibrated_ll_one``.
-
-    Args:
-        x: (N, M) float32 offsets along x, mm.
-        y: (N, M) float32 offsets along y, mm.
-        lo: (N,) float32 each grid's first coordinate, mm.
-        inv: (N,) float32 each grid's inverse step, 1/mm.
-        cells: (N,) int64 each grid's cells per axis n1.
-        stride: the row stride of ``table`` (the pool's largest n1); the last row is "outside".
-        table: (N, stride² + 1, 8) float32 bilinear coefficients.
+def _cells(
+    x: torch.Tensor, y: torch.Tensor, lo: torch.Tensor, inv: torch.Tensor, cells: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The cell (ix, iy) (N, M) int64 of each offset, its fractions (tx, ty) float32 and whether it is on
+    the grid (``kernels.lookup._calibrated_ll_one``'s arithmetic); arguments as :func:`calibrated_mean_std`.
     """
     fx = (x - lo[:, None]) * inv[:, None]
     fy = (y - lo[:, None]) * inv[:, None]
@@ -92,12 +79,95 @@ def calibrated_mean_std(
     tx = fx - ix.to(torch.float32)
     ty = fy - iy.to(torch.float32)
     inside = (fx >= 0) & (fx <= n1f) & (fy >= 0) & (fy <= n1f)
-    rows = torch.where(inside, ix * stride + iy, stride * stride)
-    planes = table.transpose(1, 2)  # (N, 8, rows): one gather per coefficient, contiguous (N, M) results
-    c0, c1, c2, c3, c4, c5, c6, c7 = (torch.gather(planes[:, j], 1, rows) for j in range(8))
+    return ix, iy, tx, ty, inside
+
+
+def _which(which: torch.Tensor | None, x: torch.Tensor) -> torch.Tensor:
+    """(N, 1) int64 the table of each row of ``x`` (None: row i reads table i)."""
+    if which is None:
+        which = torch.arange(x.shape[0], device=x.device)
+    return which.to(torch.int64)[:, None]
+
+
+def calibrated_mean_std(
+    x: torch.Tensor,
+    y: torch.Tensor,
+    lo: torch.Tensor,
+    inv: torch.Tensor,
+    cells: torch.Tensor,
+    stride: int,
+    table: torch.Tensor,
+    which: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(N, M) float32 mean and std (V) of the calibrated model at offsets (target − carriage) ``x``, ``y``
+    (N, M) float32 mm from a coefficient table: the bilinear lookup of ``kernels.lookup._calibrated_ll_one``.
+
+    Args:
+        x: (N, M) float32 offsets along x, mm.
+        y: (N, M) float32 offsets along y, mm.
+        lo: (N,) float32 each grid's first coordinate, mm.
+        inv: (N,) float32 each grid's inverse step, 1/mm.
+        cells: (N,) int64 each grid's cells per axis n1.
+        stride: the row stride of ``table`` (the pool's largest n1); the last row is "outside".
+        table: (T, stride² + 1, 8) float32 bilinear coefficients (:func:`.calibration.coefficients`).
+        which: (N,) int64 the table each row reads (None: row i reads table i; a fixed calibration: the
+            condition's own table, kept once).
+    """
+    ix, iy, tx, ty, inside = _cells(x, y, lo, inv, cells)
+    per = stride * stride + 1
+    rows = _which(which, x) * per + torch.where(inside, ix * stride + iy, stride * stride)
+    coef = torch.index_select(table.reshape(-1, 8), 0, rows.reshape(-1)).reshape(rows.shape + (8,))
+    c0, c1, c2, c3, c4, c5, c6, c7 = coef.unbind(-1)
     txy = tx * ty
     mean = c0 + c1 * tx + c2 * ty + c3 * txy
     std = c4 + c5 * tx + c6 * ty + c7 * txy
+    return mean, std
+
+
+def grid_mean_std(
+    x: torch.Tensor,
+    y: torch.Tensor,
+    lo: torch.Tensor,
+    inv: torch.Tensor,
+    cells: torch.Tensor,
+    n: int,
+    grids: torch.Tensor,
+    outside_std: torch.Tensor,
+    which: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`calibrated_mean_std` from the float64 mean and std grids, bit for bit: each cell's
+    coefficients ``t00, t10 − t00, t01 − t00, t11 − t10 − t01 + t00`` computed in float64 from its four
+    corners and rounded to float32 as :func:`.calibration.coefficients` rounds them; off the grid 0 V and
+    ``outside_std``.
+
+    Args:
+        x: (N, M) float32 offsets along x, mm.
+        y: (N, M) float32 offsets along y, mm.
+        lo: (N,) float32 each grid's first coordinate, mm.
+        inv: (N,) float32 each grid's inverse step, 1/mm.
+        cells: (N,) int64 each grid's cells per axis n1.
+        n: the grids' points per axis (the pool's largest grid).
+        grids: (T, 2, n²) float64 the mean and std grids, V (:func:`.calibration.calibration_grids`).
+        outside_std: (N,) float64 G·σ_s, V (the std off the grid).
+        which: (N,) int64 the grids each row reads (None: row i reads grids i).
+    """
+    ix, iy, tx, ty, inside = _cells(x, y, lo, inv, cells)
+    per = n * n
+    base = _which(which, x) * (2 * per) + torch.where(inside, ix * n + iy, 0)
+    flat = grids.reshape(-1)
+    txy = tx * ty
+    out = []
+    for plane in (0, per):  # the mean, then the std
+        i00 = base + plane
+        v00, v10 = lookup(flat, i00), lookup(flat, i00 + n)
+        v01, v11 = lookup(flat, i00 + 1), lookup(flat, i00 + (n + 1))
+        c0 = v00.to(torch.float32)
+        c1 = (v10 - v00).to(torch.float32)
+        c2 = (v01 - v00).to(torch.float32)
+        c3 = (v11 - v10 - v01 + v00).to(torch.float32)
+        out.append(c0 + c1 * tx + c2 * ty + c3 * txy)
+    mean = torch.where(inside, out[0], 0.0)
+    std = torch.where(inside, out[1], outside_std.to(torch.float32)[:, None])
     return mean, std
 
 
@@ -126,6 +196,13 @@ def calibrated_log_likelihood(
     x = particles[:, 0] - origin[:, 0:1]
     y = particles[:, 1] - origin[:, 1:2]
     mean, std = calibrated_mean_std(x, y, lo, inv, cells, stride, table)
+    return gaussian_log_likelihood(mean, std, reading)
+
+
+def gaussian_log_likelihood(mean: torch.Tensor, std: torch.Tensor, reading: torch.Tensor) -> torch.Tensor:
+    """(N, M) float32 ``−z²/2 − log σ`` of the readings (N,) V under the (N, M) means and stds (V), the
+    constant dropped (the calibrated model's likelihood).
+    """
     z = (reading[:, None] - mean) / std
     return (-0.5 * z) * z - torch.log(std)
 

@@ -16,24 +16,51 @@ walls; every env takes one reading and fuses it (:mod:`.filter`); reward −1, t
 Every draw is the env's counter-based stream (:mod:`.rng`) at (key, episode, reading index): the
 reading's noise and the resampling offset, the jitter (2M table normals), and at a reset the
 condition (``condition="random"``), the target (``randomize_target``), the start (2 uniforms), the
-particles (2M uniforms) and the calibration. A reset's draws are computed for every env and kept where
-the env resets (the price of no host synchronisation: about one reset's work per env per step), or, with
-``gather=True`` (the CPU's default, where the host is the device), for the resetting envs only — the
-same values either way.
+particles (2M uniforms) and the calibration. Each draw is a hash of the env's own coordinates, so a
+reset's draws can be computed for any subset of the envs with the same values; three schedules
+(:func:`begin_episodes`) give the same bits:
+
+* the all-env path: every env's draws, kept where the env resets — a whole reset's work per env per
+  step, where one env in 5 to 20 resets;
+* ``capacity=K`` (:func:`reset_capacity`; the accelerator's schedule): the first K resetting envs
+  gathered into a fixed-shape block (``torch.nonzero_static``), their draws only, scattered back — no
+  data-dependent shape, no host synchronisation in the gather. More than K resets at one step (the
+  synchronised first episodes of a ``reset()``, all truncated at the reading cap together) take the
+  all-env path instead, chosen on the device by ``torch.cond`` on the count: no episode changes;
+* ``gather=True`` (the CPU's, where the host is the device): ``nonzero``'s exact count, eagerly.
+
+The state's memory (:func:`state_bytes_per_env`): per env, the particles (2M float32), the histogram
+counts and the scalars, and with a per-episode calibration its two float64 grids (mean and std,
+:func:`.calibration.calibration_grids`, 2·n² values), from which a lookup forms each cell's
+coefficients (:func:`.filter.grid_mean_std`). What is per condition — a fixed ``calibration_seed``'s
+table, the noise-free grid, the boxes — is kept once (:class:`~.consts.TorchConsts`), not per env.
 """
 
 from __future__ import annotations
 
+import math
 from typing import TypedDict
 
 import torch
 
 from electroloc_gym.torch_core import filter as F
-from electroloc_gym.torch_core.calibration import calibration_tables
+from electroloc_gym.torch_core.calibration import calibration_grids
 from electroloc_gym.torch_core.consts import TorchConsts
 from electroloc_gym.torch_core.rng import STREAMS, bits32, normal_pair_indices, stream_key, uniform24, uniform53
 
-__all__ = ["empty_state", "begin_episodes", "observe", "step", "advance", "observation", "info", "State"]
+__all__ = [
+    "empty_state",
+    "state_bytes_per_env",
+    "reset_capacity",
+    "begin_episodes",
+    "observe",
+    "step",
+    "advance",
+    "observation",
+    "info",
+    "sensor_mean_std",
+    "State",
+]
 
 State = dict[str, torch.Tensor]
 
@@ -45,12 +72,21 @@ class _TensorOptions(TypedDict):
     device: torch.device
 
 
+def per_episode_calibration(c: TorchConsts) -> bool:
+    """Whether each episode draws its own calibration (the state then holds each env's grids)."""
+    return c.calibrated and c.fixed_table is None
+
+
 def empty_state(c: TorchConsts, num_envs: int) -> State:
-    """The state of ``num_envs`` envs before their first reset (keys 0; call :func:`begin_episodes`)."""
+    """The state of ``num_envs`` envs before their first reset (keys 0; call :func:`begin_episodes`).
+
+    ``"table"``: (N, 2, n²) float64 each env's calibration grids with a per-episode calibration, else
+    (N, 0) (nothing per env: a fixed calibration's table is the condition's, in the constants).
+    """
     n, m, dev = num_envs, c.n_particles, c.device
     i64 = _TensorOptions(dtype=torch.int64, device=dev)
     f64 = _TensorOptions(dtype=torch.float64, device=dev)
-    s1 = c.grid_n - 1
+    table = (n, 2, c.grid_n * c.grid_n) if per_episode_calibration(c) else (n, 0)
     return {
         "k0": torch.zeros(n, **i64),
         "k1": torch.zeros(n, **i64),
@@ -59,7 +95,7 @@ def empty_state(c: TorchConsts, num_envs: int) -> State:
         "position_mm": torch.zeros(n, 2, **f64),
         "target_mm": torch.zeros(n, 2, **f64),
         "particles_mm": torch.zeros(n, 2, m, dtype=torch.float32, device=dev),
-        "table": torch.zeros(n, s1 * s1 + 1 if c.calibrated else 1, 8, dtype=torch.float32, device=dev),
+        "table": torch.zeros(table, **f64),
         "reading_V": torch.zeros(n, **f64),
         "n_observations": torch.zeros(n, **i64),
         "elapsed": torch.zeros(n, **i64),
@@ -68,6 +104,36 @@ def empty_state(c: TorchConsts, num_envs: int) -> State:
         "counts": torch.zeros(n, F.HIST_BINS * F.HIST_BINS, **f64),
         "done": torch.zeros(n, dtype=torch.bool, device=dev),
     }
+
+
+def state_bytes_per_env(c: TorchConsts) -> int:
+    """Bytes of state per env on the device (:func:`empty_state`; a step's temporaries come on top)."""
+    return sum(t.element_size() * t[0].numel() for t in empty_state(c, 1).values())
+
+
+#: The reset rate :func:`reset_capacity` provisions for: one reset per 4 steps per env (an episode of
+#: 3 moves and its reset step; the paper's controllers and ppo-belief need 5–6 readings on average,
+#: random moves about 11).
+RESET_RATE = 0.25
+#: The margin above the expected number of resets, in binomial standard deviations.
+RESET_SIGMAS = 4.0
+
+
+def reset_capacity(num_envs: int) -> int:
+    """K, the rows of the static reset gather for N envs: ⌈N·p + 4·√(N·p·(1 − p))⌉ with p = 1/4
+    (:data:`RESET_RATE`), at most N.
+
+    With next-step autoreset an env resets at most every other step; N·p is the expected number of
+    resets when episodes average 4 steps, and 4 binomial standard deviations above it the chance that
+    independent episodes overflow is about 3·10⁻⁵ per step (episodes of realistic lengths, 6 steps or
+    more, far less). What does overflow — synchronised episodes, such as a whole ``reset()``'s first
+    episodes ending at the reading cap together — takes the all-env path for that step
+    (:func:`begin_episodes`), so K sets the work, never the result. For N = 1024, K = 312 (30 %); for
+    N = 262 144, K = 66 423 (25.3 %).
+    """
+    n = int(num_envs)
+    p = RESET_RATE
+    return min(n, math.ceil(n * p + RESET_SIGMAS * math.sqrt(n * p * (1.0 - p))))
 
 
 def _keep(mask: torch.Tensor, new: torch.Tensor, old: torch.Tensor) -> torch.Tensor:
@@ -105,37 +171,102 @@ def _reset_draws(c: TorchConsts, k0: torch.Tensor, k1: torch.Tensor, ep: torch.T
         "n_observations": zero,
         "elapsed": zero,
     }
-    if c.calibrated:
-        draws["table"] = calibration_tables(c, cond, k0, k1, ep)
+    if per_episode_calibration(c):
+        draws["table"] = calibration_grids(c, cond, k0, k1, ep)
     return draws
 
 
 def begin_episodes(
-    c: TorchConsts, s: State, mask: torch.Tensor, gather: bool = False, in_place: tuple[str, ...] = ()
+    c: TorchConsts,
+    s: State,
+    mask: torch.Tensor,
+    gather: bool = False,
+    in_place: tuple[str, ...] = (),
+    capacity: int | None = None,
 ) -> State:
     """The envs of ``mask`` (N,) bool start a new episode (the reset draws; no reading yet).
 
-    By default every env's draws are computed and kept where ``mask`` holds: no host synchronisation, one
-    graph. ``gather=True`` computes them for the resetting envs only (``nonzero``: a data-dependent shape,
-    so a host synchronisation on an accelerator and a graph break under ``torch.compile``; on the CPU the
-    host is the device and it saves most of a step's work). Both give the same bits: each draw is a hash
-    of the env's own coordinates (:mod:`.rng`). With ``gather``, the state tensors named in ``in_place``
-    take the new rows in place (for a caller that owns them: the vector env's calibration tables, 80 kB
-    per env, which a copy per step would stream through memory); the others are new tensors.
+    Three schedules with the same bits (module docstring): by default the all-env path (every env's draws,
+    kept where ``mask`` holds); ``capacity=K`` the static gather of up to K resetting envs, the all-env
+    path under ``torch.cond`` when more reset (one graph, no data-dependent shape; K ≥ N is the all-env
+    path); ``gather=True`` the exact ``nonzero`` (a data-dependent shape: a host synchronisation on an
+    accelerator and a graph break under ``torch.compile``; on the CPU it saves most of a step's work).
+    With ``gather``, the state tensors named in ``in_place`` take the new rows in place (for a caller
+    that owns them: the vector env's calibration grids, which a copy per step would stream through
+    memory); otherwise every changed tensor is new.
     """
     s = dict(s)
     ep = torch.where(mask, s["episode"] + 1, s["episode"])
     s["episode"] = ep
-    if not gather:
-        for name, value in _reset_draws(c, s["k0"], s["k1"], ep).items():
-            s[name] = _keep(mask, value, s[name])
+    if gather:
+        idx = torch.nonzero(mask).reshape(-1)
+        if idx.numel() == 0:
+            return s
+        for name, value in _reset_draws(c, s["k0"][idx], s["k1"][idx], ep[idx]).items():
+            s[name] = s[name].index_copy_(0, idx, value) if name in in_place else s[name].index_copy(0, idx, value)
         return s
-    idx = torch.nonzero(mask).reshape(-1)
-    if idx.numel() == 0:
-        return s
-    for name, value in _reset_draws(c, s["k0"][idx], s["k1"][idx], ep[idx]).items():
-        s[name] = s[name].index_copy_(0, idx, value) if name in in_place else s[name].index_copy(0, idx, value)
+    names = _reset_names(c)
+    old = tuple(s[name] for name in names)
+    n = mask.shape[0]
+    if capacity is None or capacity >= n:
+        new = _all_env_draws(c, names, mask, s["k0"], s["k1"], ep, *old)
+    else:
+        k = int(capacity)
+        if k < 1:
+            raise ValueError(f"capacity must be an integer ≥ 1, got {capacity!r}")
+
+        def all_env(mask: torch.Tensor, k0: torch.Tensor, k1: torch.Tensor, ep: torch.Tensor, *old: torch.Tensor):
+            return _all_env_draws(c, names, mask, k0, k1, ep, *old)
+
+        def gathered(mask: torch.Tensor, k0: torch.Tensor, k1: torch.Tensor, ep: torch.Tensor, *old: torch.Tensor):
+            return _gathered_draws(c, names, k, mask, k0, k1, ep, *old)
+
+        overflow = mask.sum() > k
+        new = torch.cond(overflow, all_env, gathered, (mask, s["k0"], s["k1"], ep, *old))
+    s.update(zip(names, new, strict=True))
     return s
+
+
+def _reset_names(c: TorchConsts) -> tuple[str, ...]:
+    """The state tensors a reset draws (:func:`_reset_draws`' keys, in a fixed order)."""
+    names = ("cond", "target_mm", "position_mm", "particles_mm", "n_observations", "elapsed")
+    return names + ("table",) if per_episode_calibration(c) else names
+
+
+def _all_env_draws(
+    c: TorchConsts,
+    names: tuple[str, ...],
+    mask: torch.Tensor,
+    k0: torch.Tensor,
+    k1: torch.Tensor,
+    ep: torch.Tensor,
+    *old: torch.Tensor,
+) -> tuple[torch.Tensor, ...]:
+    """The all-env path: every env's draws of episode ``ep``, kept where ``mask`` (new tensors)."""
+    draws = _reset_draws(c, k0, k1, ep)
+    return tuple(_keep(mask, draws[name], o) for name, o in zip(names, old, strict=True))
+
+
+def _gathered_draws(
+    c: TorchConsts,
+    names: tuple[str, ...],
+    k: int,
+    mask: torch.Tensor,
+    k0: torch.Tensor,
+    k1: torch.Tensor,
+    ep: torch.Tensor,
+    *old: torch.Tensor,
+) -> tuple[torch.Tensor, ...]:
+    """The static gather: the first ``k`` resetting envs (``nonzero_static``), their draws only, scattered
+    into new tensors; correct when at most ``k`` envs reset. A padding row stands for env N − 1 and writes
+    what that env's own row writes (its draws where it resets, its old values where not), so rows that
+    land on the same env agree and the scatter's order cannot matter.
+    """
+    n = mask.shape[0]
+    rows = torch.clamp(torch.nonzero_static(mask, size=k, fill_value=n).reshape(-1), max=n - 1)
+    resets = mask[rows]
+    draws = _reset_draws(c, k0[rows], k1[rows], ep[rows])
+    return tuple(o.index_copy(0, rows, _keep(resets, draws[name], o[rows])) for name, o in zip(names, old, strict=True))
 
 
 def true_reading_V(c: TorchConsts, s: State) -> torch.Tensor:
@@ -146,15 +277,31 @@ def true_reading_V(c: TorchConsts, s: State) -> torch.Tensor:
     return delta * c.dip_scale[k]
 
 
+def sensor_mean_std(
+    c: TorchConsts, s: State, x: torch.Tensor, y: torch.Tensor, env: torch.Tensor | None = None
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(R, M) float32 mean and std (V) of the calibrated model at offsets (target − carriage) ``x``, ``y``
+    (R, M) float32 mm: row r is env ``env[r]``'s model (None: row i is env i) — its episode's grids, or its
+    condition's fixed table.
+    """
+    env_ = torch.arange(x.shape[0], device=x.device) if env is None else env
+    k = s["cond"][env_]
+    args = (x, y, c.grid_lo_mm[k], c.grid_inv_mm[k], c.grid_points[k] - 1)
+    if c.fixed_table is not None:
+        return F.calibrated_mean_std(*args, c.grid_n - 1, c.fixed_table, which=k)
+    return F.grid_mean_std(*args, c.grid_n, s["table"], c.noise_V[k], which=env)
+
+
 def log_likelihood(c: TorchConsts, s: State, particles: torch.Tensor, reading: torch.Tensor) -> torch.Tensor:
     """(N, M) float32 log-likelihoods of the readings (N,) V under each env's sensor model."""
     k = s["cond"]
     origin = s["position_mm"].to(torch.float32)
     r32 = reading.to(torch.float32)
     if c.calibrated:
-        return F.calibrated_log_likelihood(
-            particles, origin, c.grid_lo_mm[k], c.grid_inv_mm[k], c.grid_points[k] - 1, c.grid_n - 1, s["table"], r32
-        )
+        x = particles[:, 0] - origin[:, 0:1]
+        y = particles[:, 1] - origin[:, 1:2]
+        mean, std = sensor_mean_std(c, s, x, y)
+        return F.gaussian_log_likelihood(mean, std, r32)
     dip = tuple(d[k].to(torch.float32) for d in (c.dip_h, c.dip_z2, c.dip_k, c.dip_strength))
     return F.analytic_log_likelihood(
         particles,
@@ -230,7 +377,9 @@ def observation(c: TorchConsts, s: State) -> torch.Tensor:
 
 
 def info(c: TorchConsts, s: State) -> dict[str, torch.Tensor]:
-    """The info tensors (the numba core's numeric ``INFO_KEYS``; the condition as its pool index)."""
+    """The info tensors (the numba core's numeric ``INFO_KEYS``; ``condition_index``: the condition's index
+    in :data:`~electroloc_gym.conditions.PRESET_NAMES`, −1 for a custom condition, as the numba envs').
+    """
     spread = spread_mm(s)
     d = s["mean_mm"] - s["target_mm"]
     return {
@@ -241,7 +390,7 @@ def info(c: TorchConsts, s: State) -> dict[str, torch.Tensor]:
         "reading_V": s["reading_V"],
         "n_observations": s["n_observations"],
         "success": spread <= c.success_spread_mm,
-        "condition_index": s["cond"],
+        "condition_index": c.preset_index[s["cond"]],
     }
 
 
@@ -253,14 +402,14 @@ def moves_of(c: TorchConsts, actions: torch.Tensor) -> torch.Tensor:
 
 
 def step(
-    c: TorchConsts, s: State, actions: torch.Tensor, gather: bool = False
+    c: TorchConsts, s: State, actions: torch.Tensor, gather: bool = False, capacity: int | None = None
 ) -> tuple[State, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """One step of every env (module docstring): (state, observations, rewards, terminated, truncated);
-    ``gather``: the resets' draws for the resetting envs only (:func:`begin_episodes`). It is
+    ``gather`` or ``capacity``: the resets' schedule (:func:`begin_episodes`; the same bits). It is
     :func:`begin_episodes` of the envs whose episode ended, then :func:`advance`.
     """
     reset = s["done"]
-    return advance(c, begin_episodes(c, s, reset, gather), actions, reset)
+    return advance(c, begin_episodes(c, s, reset, gather, capacity=capacity), actions, reset)
 
 
 def advance(

@@ -26,6 +26,7 @@ from electroloc_gym.checks import check_prediction_args
 from electroloc_gym.conditions import Condition
 from electroloc_gym.protocol import MAX_STEP_MM
 from electroloc_gym.torch_core import filter as F
+from electroloc_gym.torch_core import sim
 
 __all__ = ["TorchSubEnv", "TorchBeliefView"]
 
@@ -145,10 +146,8 @@ class TorchSubEnv:
         rows = moves.shape[0]
         kk = k.expand(rows)
         if c.calibrated:
-            table = s["table"][i : i + 1].expand(rows, -1, -1)
-            mean, std = F.calibrated_mean_std(
-                x, y, c.grid_lo_mm[kk], c.grid_inv_mm[kk], c.grid_points[kk] - 1, c.grid_n - 1, table
-            )
+            env = torch.full((rows,), i, dtype=torch.int64, device=c.device)
+            mean, std = sim.sensor_mean_std(c, s, x, y, env)
         else:
             dip = tuple(d[kk].to(torch.float32) for d in (c.dip_h, c.dip_z2, c.dip_k, c.dip_strength))
             mean = F.analytic_mean(x, y, dip, c.dip_scale[kk].to(torch.float32), c.saturation_V[kk].to(torch.float32))

@@ -204,7 +204,8 @@ class TorchElectroLocVectorEnv(VectorEnv):
         """
         c = self.consts
         if not self.gather_resets:
-            whole = lambda state, actions: sim.step(c, state, actions)  # noqa: E731 - the compiled unit
+            k = sim.reset_capacity(self.num_envs)  # the static reset gather's rows
+            whole = lambda state, actions: sim.step(c, state, actions, capacity=k)  # noqa: E731 - the compiled unit
             return torch.compile(whole, fullgraph=True, backend=backend) if compile_step else whole
         rest = lambda state, actions, reset: sim.advance(c, state, actions, reset)  # noqa: E731
         if compile_step:
