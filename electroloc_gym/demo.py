@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.fileio import atomic_write_bytes, save_figure_atomic
+from electroloc_gym.fileio import atomic_write_bytes, check_output_path, save_figure_atomic
 from electroloc_gym.render import Snapshot, draw_snapshot, eev_colorbar, legend_handles, snapshot
 from electroloc_gym.rollout import run_episode
 
@@ -271,33 +271,6 @@ def figure_suffixes() -> tuple[str, ...]:
     from matplotlib.backend_bases import FigureCanvasBase
 
     return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
-
-
-def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[str, ...] | None = None) -> None:
-    """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``).
-
-    Args:
-        name: the option or argument, for the message.
-        path: the file to write.
-        suffixes: the allowed suffixes without the dot (None: any); a path without a suffix is refused too.
-    """
-    p = Path(path)
-    if not str(path).strip():
-        raise ValueError(f"{name} must be a file path, got an empty string")
-    if p.is_dir():
-        raise ValueError(f"{name} must be a file path, got the directory {str(p)!r}")
-    parent = p.parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise ValueError(f"{name}: cannot create {str(p)!r}, {str(parent)!r} is a file")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{name}: cannot write {str(p)!r}, folder {str(parent)!r} is not writable")
-    if suffixes is not None and p.suffix.lower().lstrip(".") not in suffixes:
-        raise ValueError(
-            f"{name} {str(p)!r}: the format {p.suffix or '(none)'!r} is not supported; "
-            f"use one of {', '.join('.' + x for x in suffixes)}"
-        )
 
 
 #: Marker colours every GIF palette keeps (matplotlib's tab colours, black, grey), RGB.

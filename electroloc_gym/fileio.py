@@ -1,5 +1,6 @@
 """The package's one I/O layer: atomic writes, strict JSON and exclusive folder locks.
 
+* :func:`check_output_path`: an output path refused before any work when it cannot be written as a file.
 * Atomic writes: a temp file in the target's folder, fsync, then ``os.replace`` — results, models and
   figures are never left half-written: a reader sees the old file or the new one.
 * Strict JSON (:func:`to_json_data`, :func:`strict_json`, :func:`write_json_atomic`): NaN and ±inf
@@ -26,6 +27,7 @@ import numpy as np
 from filelock import FileLock, Timeout
 
 __all__ = [
+    "check_output_path",
     "atomic_write_bytes",
     "atomic_write_text",
     "save_figure_atomic",
@@ -35,6 +37,33 @@ __all__ = [
     "FolderLock",
     "FolderBusyError",
 ]
+
+
+def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[str, ...] | None = None) -> None:
+    """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``).
+
+    Args:
+        name: the option or argument, for the message.
+        path: the file to write.
+        suffixes: the allowed suffixes without the dot (None: any); a path without a suffix is refused too.
+    """
+    p = Path(path)
+    if not str(path).strip():
+        raise ValueError(f"{name} must be a file path, got an empty string")
+    if p.is_dir():
+        raise ValueError(f"{name} must be a file path, got the directory {str(p)!r}")
+    parent = p.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ValueError(f"{name}: cannot create {str(p)!r}, {str(parent)!r} is a file")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{name}: cannot write {str(p)!r}, folder {str(parent)!r} is not writable")
+    if suffixes is not None and p.suffix.lower().lstrip(".") not in suffixes:
+        raise ValueError(
+            f"{name} {str(p)!r}: the format {p.suffix or '(none)'!r} is not supported; "
+            f"use one of {', '.join('.' + x for x in suffixes)}"
+        )
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:

@@ -38,45 +38,106 @@ import torch.nn as nn
 
 import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0)
 from electroloc_gym.bench.config import trial_seeds
+from electroloc_gym.checks import check_float
+from electroloc_gym.cli import HelpFormatter
 from electroloc_gym.conditions import PRESET_NAMES
+from electroloc_gym.fileio import check_output_path
+from electroloc_gym.runtime import add_threads_argument, pin_threads
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ppo_minimal import Agent, ppo_update  # noqa: E402  (the network and the update, on any device)
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    """Command-line options (CleanRL's names, plus the device)."""
-    p = argparse.ArgumentParser(
-        description=__doc__.split("\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    """Command-line options (CleanRL's names, plus the device), each checked before any work: one
+    ``ppo_torch.py: error: …`` line and exit 2 for a value out of range, a device this machine lacks or a
+    ``--save`` path that cannot be written.
+    """
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0], formatter_class=HelpFormatter)
+    p.add_argument(
+        "--device",
+        default="cuda" if torch.cuda.is_available() else "cpu",
+        help="the env's and the network's torch device",
     )
-    p.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu")
-    p.add_argument("--compile", action="store_true", help="torch.compile the env's step (fullgraph)")
-    p.add_argument("--condition", default="random", help="a preset name, or 'random' (all eight)")
-    p.add_argument("--num-envs", type=int, default=256)
-    p.add_argument("--total-timesteps", type=int, default=2_000_000)
+    add_threads_argument(p)
+    p.add_argument("--compile", action="store_true", help="torch.compile the env's step (fullgraph; default: off)")
+    p.add_argument(
+        "--condition", default="random", help=f"a preset name ({', '.join(PRESET_NAMES)}) or 'random' (all eight)"
+    )
+    p.add_argument("--num-envs", type=int, default=256, help="envs stepped together on the device")
+    p.add_argument(
+        "--total-timesteps", type=int, default=2_000_000, help="env steps of training (at least one rollout)"
+    )
     p.add_argument("--num-steps", type=int, default=64, help="steps per env per rollout")
-    p.add_argument("--learning-rate", type=float, default=3e-4)
-    p.add_argument("--gamma", type=float, default=0.99)
-    p.add_argument("--gae-lambda", type=float, default=0.95)
-    p.add_argument("--num-minibatches", type=int, default=8)
-    p.add_argument("--update-epochs", type=int, default=4)
-    p.add_argument("--clip-coef", type=float, default=0.2)
-    p.add_argument("--ent-coef", type=float, default=0.0)
-    p.add_argument("--vf-coef", type=float, default=0.5)
-    p.add_argument("--max-grad-norm", type=float, default=0.5)
+    p.add_argument("--learning-rate", type=float, default=3e-4, help="Adam's initial step size (decays linearly to 0)")
+    p.add_argument("--gamma", type=float, default=0.99, help="discount factor, in [0, 1]")
+    p.add_argument("--gae-lambda", type=float, default=0.95, help="GAE's λ, in [0, 1]")
+    p.add_argument("--num-minibatches", type=int, default=8, help="minibatches per epoch, 1 … num_envs × num_steps")
+    p.add_argument("--update-epochs", type=int, default=4, help="passes over each rollout per update")
+    p.add_argument("--clip-coef", type=float, default=0.2, help="PPO's ratio clip ε (> 0)")
+    p.add_argument("--ent-coef", type=float, default=0.0, help="entropy bonus coefficient (≥ 0)")
+    p.add_argument("--vf-coef", type=float, default=0.5, help="value loss coefficient (≥ 0)")
+    p.add_argument("--max-grad-norm", type=float, default=0.5, help="gradient norm clip (> 0)")
     p.add_argument("--shaping-coef", type=float, default=1.0, help="c of the spread potential (0: no shaping)")
     p.add_argument(
-        "--norm-obs", action=argparse.BooleanOptionalAction, default=True, help="running observation normalisation"
+        "--norm-obs",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="running observation normalisation (default: on)",
     )
-    p.add_argument("--eval-episodes", type=int, default=256)
+    p.add_argument("--eval-episodes", type=int, default=256, help="validation episodes after training (≥ 1)")
     p.add_argument("--bench-trials", type=int, default=0, help="also evaluate on the benchmark's trials 0…K−1")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--save", default=None, help="write the policy's state_dict here (torch.save)")
+    p.add_argument("--seed", type=int, default=1, help="seed of the network, the envs and the validation (≥ 0)")
+    p.add_argument("--save", default=None, help="write the policy's state_dict here (torch.save; default: not saved)")
     args = p.parse_args(argv)
-    if args.num_envs < 1 or args.num_steps < 1 or args.total_timesteps < args.num_envs * args.num_steps:
-        p.error("need num_envs ≥ 1, num_steps ≥ 1 and total_timesteps ≥ num_envs × num_steps")
-    if not args.shaping_coef >= 0 or args.bench_trials < 0:
-        p.error("need shaping_coef ≥ 0 and bench_trials ≥ 0")
+    ints = {
+        "--num-envs": (args.num_envs, 1),
+        "--num-steps": (args.num_steps, 1),
+        "--update-epochs": (args.update_epochs, 1),
+        "--eval-episodes": (args.eval_episodes, 1),
+        "--bench-trials": (args.bench_trials, 0),
+        "--seed": (args.seed, 0),
+    }
+    for name, (value, low) in ints.items():
+        if value < low:
+            p.error(f"argument {name}: must be an integer ≥ {low}, got {value}")
+    batch = args.num_envs * args.num_steps
+    if args.total_timesteps < batch:
+        p.error(f"argument --total-timesteps: must be ≥ num_envs × num_steps = {batch}, got {args.total_timesteps}")
+    if not 1 <= args.num_minibatches <= batch:
+        p.error(
+            f"argument --num-minibatches: must be an integer in [1, {batch}] (num_envs × num_steps), "
+            f"got {args.num_minibatches}"
+        )
+    floats = {  # name: (value, low, low included, high)
+        "--learning-rate": (args.learning_rate, 0.0, False, None),
+        "--gamma": (args.gamma, 0.0, True, 1.0),
+        "--gae-lambda": (args.gae_lambda, 0.0, True, 1.0),
+        "--clip-coef": (args.clip_coef, 0.0, False, None),
+        "--ent-coef": (args.ent_coef, 0.0, True, None),
+        "--vf-coef": (args.vf_coef, 0.0, True, None),
+        "--max-grad-norm": (args.max_grad_norm, 0.0, False, None),
+        "--shaping-coef": (args.shaping_coef, 0.0, True, None),
+    }
+    for name, (value, low, inclusive, high) in floats.items():
+        try:
+            check_float(name, value, low, inclusive=inclusive, high=high)
+        except ValueError as exc:
+            p.error(f"argument {exc}")
+    if args.condition != "random" and args.condition not in PRESET_NAMES:
+        p.error(f"argument --condition: must be 'random' or one of {', '.join(PRESET_NAMES)}, got {args.condition!r}")
+    try:
+        dev = torch.empty(0, device=args.device).device
+        if dev.type == "meta":
+            raise ValueError("meta holds shapes and no data")
+    except Exception as exc:  # noqa: BLE001 - torch raises AssertionError, RuntimeError, ValueError …
+        text = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
+        p.error(f"argument --device: {args.device!r} is not a device this machine can compute on ({text})")
+    if args.save is not None:
+        try:
+            check_output_path("--save", args.save)
+        except ValueError as exc:
+            p.error(f"argument {exc}")
     return args
 
 
@@ -231,8 +292,7 @@ def evaluate_bench(agent: Agent, norm: RunningNorm, args: argparse.Namespace) ->
 def main(argv: list[str] | None = None) -> dict[str, float]:
     """Train, evaluate, optionally save; returns the evaluation figures."""
     args = parse_args(argv)
-    if torch.device(args.device).type == "cpu":
-        torch.set_num_threads(1)  # small networks on a CPU: one thread, the other cores left free
+    pin_threads(args.threads)  # chosen, not torch's default of every core (busy machines slow down)
     agent, norm = train(args)
     result = evaluate(agent, norm, args)
     print(
