@@ -31,6 +31,7 @@ __all__ = [
     "PAPER_AGENTS",
     "EXTRA_AGENTS",
     "AGENT_NAMES",
+    "belief_agents",
     "agent_class",
     "make_agent",
     "parse_agent_spec",
@@ -75,6 +76,13 @@ def agent_class(name: str) -> type:
     if name not in registry:
         raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_NAMES)}")
     return registry[name]
+
+
+def belief_agents() -> tuple[str, ...]:
+    """The built-in agents judged by the belief (the Table-4 layout), in registry order: every controller but
+    those that end trials with their own estimate (zero-crossing, the paper's Table 1).
+    """
+    return tuple(name for name, cls in _registry().items() if getattr(cls, "table_layout", "table4") == "table4")
 
 
 def make_agent(spec: str | AgentSpec, seed: int | np.random.Generator | None = None) -> BaselineAgent:

@@ -33,6 +33,7 @@ __all__ = [
     "BENCH_ENVS",
     "COMMON_ARGUMENTS",
     "PAPER_TABLES",
+    "PAPER_ENV_ID",
     "env_entry",
     "task_entry",
     "bench_env",
@@ -59,6 +60,9 @@ COMMON_ARGUMENTS = (
 #: The paper's result tables a benchmark's table.md is laid out like: Table 4 (the target's position per
 #: condition and agent) or Table 2 (global self-localisation on one map).
 PAPER_TABLES = ("table4", "table2")
+#: The paper's env (the target's position, Tables 4 and 1): its row in the table
+#: (:mod:`electroloc_gym.envs.table`) and the default env of the benchmark, training and the policy tools.
+PAPER_ENV_ID = "ElectroLoc-v0"
 
 _T = TypeVar("_T")
 

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from electroloc_gym.agentspec import parse_options
+from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.runtime import add_threads_argument, pin_threads
 from electroloc_gym.train.run import ALGO_FILES, check_zoo_installed, train, zoo_argv
 
@@ -40,7 +41,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--algo", required=True, choices=sorted(ALGO_FILES), help="rl-zoo3 algorithm")
-    p.add_argument("--env", default="ElectroLoc-v0", help="env id (a section of the algorithm's file)")
+    p.add_argument("--env", default=PAPER_ENV_ID, help="env id (a section of the algorithm's file)")
     p.add_argument("--seed", type=int, required=True, help="the run's seed")
     p.add_argument("--timesteps", type=int, default=None, help="env-step budget (default: the file's)")
     p.add_argument("--log-folder", default="logs", help="rl-zoo3's log folder (default logs)")
@@ -58,7 +59,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_threads_argument(p)
     a = p.parse_args(argv)
     try:
-        kw = dict(
+        kw: dict[str, Any] = dict(
             threads=pin_threads(a.threads),
             timesteps=a.timesteps,
             log_folder=a.log_folder,

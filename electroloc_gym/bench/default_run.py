@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.bench.agents import TRAIN_EXTRA_HINT, cached_agent
 from electroloc_gym.bench.policy_fit import policy_meta, shipped_model_env, shipped_models, trained_sensor_layout
-from electroloc_gym.registry import BENCH_ENVS
+from electroloc_gym.registry import BENCH_ENVS, PAPER_ENV_ID
 
 __all__ = ["AgentChoice", "default_agents"]
 
@@ -62,7 +62,7 @@ def default_agents(
     *,
     names: tuple[str, ...] | None = None,
     trust_pickle: bool = False,
-    env_id: str = "ElectroLoc-v0",
+    env_id: str = PAPER_ENV_ID,
     gain_levels: tuple[float, ...] | None = None,
     sensor_layout: str | None = None,
 ) -> list[AgentChoice]:

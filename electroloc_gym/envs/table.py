@@ -13,7 +13,7 @@ from electroloc_gym.envs.global_env import GlobalEnv
 from electroloc_gym.envs.localize import ElectroLocEnv
 from electroloc_gym.envs.unknown_target import UnknownTargetEnv
 from electroloc_gym.envs.vector import ElectroLocVectorEnv, GlobalVectorEnv, UnknownTargetVectorEnv
-from electroloc_gym.registry import BenchEnv, EnvEntry, frozen
+from electroloc_gym.registry import PAPER_ENV_ID, BenchEnv, EnvEntry, frozen
 from electroloc_gym.scene import BENCHMARK_SCENE
 from electroloc_gym.sensor_models.calibrated import SENSOR_MODEL_NAMES
 from electroloc_gym.sensor_models.shape import SHAPE_SENSOR_MODELS
@@ -26,7 +26,7 @@ DYNAMIC_GAIN_LEVELS = (0.25, 1.0, 4.0)
 
 BUILTIN_ENVS: tuple[EnvEntry, ...] = (
     EnvEntry(
-        env_id="ElectroLoc-v0",
+        env_id=PAPER_ENV_ID,
         task="localize",
         task_class=ElectroLocTask,
         env_class=ElectroLocEnv,

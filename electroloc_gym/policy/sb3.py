@@ -24,6 +24,7 @@ from electroloc_gym.policy.format import (
     space_from_json,
     space_to_json,
 )
+from electroloc_gym.registry import PAPER_ENV_ID
 
 __all__ = [
     "model_from_sb3_zip",
@@ -250,7 +251,7 @@ def model_from_sb3_zip(zip_path: str | Path) -> tuple[Any, dict[str, Any]]:
     env_kwargs = {**dict(run["config"].get("env_kwargs") or {}), **dict(args.get("env_kwargs") or {})}
     meta = export_meta(
         model,
-        env_id=str(args.get("env", "ElectroLoc-v0")),
+        env_id=str(args.get("env", PAPER_ENV_ID)),
         env_kwargs=env_kwargs,
         frame_stack=int(run["config"].get("frame_stack") or 1),
         vecnormalize=vn,
