@@ -25,17 +25,9 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.bench.agents import register_object_agent, shipped_models
-from electroloc_gym.bench.config import (
-    ENV_CHOICES,
-    ENV_MAX_OBSERVATIONS,
-    ENV_N_PARTICLES,
-    ENV_SENSOR_MODELS,
-    BenchConfig,
-    run_conditions,
-)
+from electroloc_gym.bench.config import ENV_CHOICES, BenchConfig
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
-from electroloc_gym.registry import bench_env
 
 __all__ = ["run", "BenchResult"]
 
@@ -116,7 +108,6 @@ def run(
     _check_agents(agents)
     if env not in ENV_CHOICES:
         raise ValueError(f"env must be one of {list(ENV_CHOICES)}, got {env!r}")
-    env_id = ENV_CHOICES[env]
     taken = {a for a in agents if isinstance(a, str)} | set(shipped_models())
     specs: list[str] = []
     objects = False
@@ -136,17 +127,16 @@ def run(
             f"agent objects run in this process, so backend must be 'serial' (got {backend!r}); "
             f"pass a spec (package.module:factory[...]) to run on {backend!r}"
         )
-    config = BenchConfig(
-        agents=tuple(specs),
-        conditions=run_conditions(env_id, conditions),
+    config = BenchConfig.build(
+        specs,
+        env=env,
+        conditions=conditions,
         trials=trials,
         seed=seed,
-        sensor_model=sensor_model or ENV_SENSOR_MODELS[env_id][0],
+        sensor_model=sensor_model,
         signal=signal,
-        max_observations=ENV_MAX_OBSERVATIONS[env_id] if max_observations is None else max_observations,
-        n_particles=ENV_N_PARTICLES[env_id] if n_particles is None else n_particles,
-        env_id=env_id,
-        gain_levels=bench_env(env)[1].env_kwargs.get("gain_levels"),
+        max_observations=max_observations,
+        n_particles=n_particles,
     )
     folder = Path(tempfile.mkdtemp(prefix="electroloc-bench-")) if out is None else Path(out)
     summary = run_benchmark(

@@ -8,6 +8,7 @@ import sys
 from typing import Any
 
 from electroloc_gym.agentspec import split_specs
+from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.bench.agents import (
     agent_kind,
     cached_agent,
@@ -17,22 +18,22 @@ from electroloc_gym.bench.agents import (
 )
 from electroloc_gym.bench.backends import BACKENDS, default_workers
 from electroloc_gym.bench.config import (
+    DEFAULT_ENV,
     ENV_CHOICES,
-    ENV_MAX_OBSERVATIONS,
     ENV_N_PARTICLES,
-    ENV_SENSOR_MODELS,
+    MAX_READINGS,
     SENSOR_MODELS,
     SIGNALS,
     BenchConfig,
-    run_conditions,
+    SettingError,
 )
 from electroloc_gym.bench.default_run import default_agents
 from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.conditions import DEFAULT_SIGNAL
 from electroloc_gym.distractors import MAX_DISTRACTORS
-from electroloc_gym.protocol import MAX_OBSERVATIONS
-from electroloc_gym.registry import BENCH_ENVS, BenchEnv, bench_env
+from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES
+from electroloc_gym.registry import BENCH_ENVS, PAPER_ENV_ID, BenchEnv, bench_env
 from electroloc_gym.sensor_layouts import LAYOUT_NAMES
 
 __all__ = [
@@ -47,11 +48,11 @@ __all__ = [
     "MAX_PARTICLES",
 ]
 
-#: Bounds of the numeric options: far beyond the paper (50 trials, 35 observations, 2500 particles), short
-#: of what cannot run (the plan is held in memory: at most MAX_PLANNED_TRIALS trials in all).
+#: Bounds of the numeric options: far beyond the paper (50 trials, 2500 particles), short of what cannot run
+#: (the plan is held in memory: at most MAX_PLANNED_TRIALS trials in all). The cap of readings is a run
+#: setting, checked by the settings object (:data:`~electroloc_gym.bench.config.MAX_READINGS`).
 MAX_TRIALS = 100_000
 MAX_WORKERS = 1024
-MAX_READINGS = 100_000
 MAX_PARTICLES = 1_000_000
 
 DESCRIPTION = (
@@ -85,7 +86,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--agents",
         default=None,
-        help="comma-separated agents: rnd-wlk, min-var, zero-crossing, NAME[key=value,...] "
+        help=f"comma-separated agents: {', '.join(PAPER_AGENTS)}, NAME[key=value,...] "
         "(e.g. min-var[n_voters=2500]), a shipped model by name (e.g. ppo-belief), or a "
         "path to a model folder, or package.module:factory[key=value,...] (a factory of your "
         "own, imported like any module: it runs your code) (default: the three controllers "
@@ -94,7 +95,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--conditions", default="all", help="'all' or comma-separated preset names")
     parser.add_argument(
         "--env",
-        default="target",
+        default=DEFAULT_ENV,
         choices=list(ENV_CHOICES),
         help="; ".join(f"{name}: {entry.env_id} {row.summary}".rstrip() for name, (entry, row) in BENCH_ENVS.items()),
     )
@@ -139,7 +140,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--sensor-layout",
         default=None,
         choices=list(LAYOUT_NAMES),
-        help="ElectroLoc-v0's sensing pairs (§7; observations = snapshots, K readings each)",
+        help=f"{PAPER_ENV_ID}'s sensing pairs (§7; observations = snapshots, K readings each)",
     )
     parser.add_argument(
         "--distractors",
@@ -158,7 +159,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--n-particles",
         type=ascii_int,
         default=None,
-        help="particles of the belief (default: the env's, 2500 as the paper; unknown-target: 5000)",
+        help=f"particles of the belief (default: the env's, {N_PARTICLES} as the paper; unknown-target: "
+        f"{ENV_N_PARTICLES[ENV_CHOICES['unknown-target']]})",
     )
     parser.add_argument("--out", default="bench_out", help="output folder (locked while the run writes to it)")
     parser.add_argument(
@@ -193,9 +195,9 @@ def _runs_on_map_env(spec: str, env_id: str) -> bool:
     return kind in ("factory", "object")
 
 
-def _agents(args: argparse.Namespace, env_id: str, row: BenchEnv) -> list[str]:
-    """The run's agent specs (``--agents``, else the bench row's defaults); a default list says what it
-    skipped and why.
+def _agents(args: argparse.Namespace, env_id: str, row: BenchEnv) -> tuple[list[str], list[str]]:
+    """The run's agent specs (``--agents``, else the bench row's defaults), and the notes a default list
+    prints once the run's settings are valid: what it skipped and why.
     """
     if args.agents is not None:
         try:
@@ -211,7 +213,7 @@ def _agents(args: argparse.Namespace, env_id: str, row: BenchEnv) -> list[str]:
                 agent_kind(spec)
             except ValueError as exc:
                 raise ValueError(f"--agents: {exc}") from None
-        return specs
+        return specs, []
     choices = default_agents(
         names=row.agents,
         trust_pickle=args.trust_pickle,
@@ -219,16 +221,19 @@ def _agents(args: argparse.Namespace, env_id: str, row: BenchEnv) -> list[str]:
         gain_levels=row.env_kwargs.get("gain_levels"),
         sensor_layout=args.sensor_layout,
     )
+    notes = []
     elsewhere = [f"{c.spec} ({c.runs_with})" for c in choices if c.skipped and c.runs_with]
     if elsewhere:  # expected, not a warning: the policy belongs to another run
-        print(
-            f"electroloc bench: the shipped policies trained for other settings run there: {', '.join(elsewhere)}",
-            file=sys.stderr,
+        notes.append(
+            f"electroloc bench: the shipped policies trained for other settings run there: {', '.join(elsewhere)}"
         )
-    for c in choices:
-        if c.skipped and not c.runs_with:
-            print(f"electroloc bench: skipping {c.spec}: {c.skipped}", file=sys.stderr)
-    return [c.spec for c in choices if not c.skipped]
+    notes += [f"electroloc bench: skipping {c.spec}: {c.skipped}" for c in choices if c.skipped and not c.runs_with]
+    return [c.spec for c in choices if not c.skipped], notes
+
+
+def _print_notes(notes: list[str]) -> None:
+    for note in notes:
+        print(note, file=sys.stderr)
 
 
 def _check_ranges(args: argparse.Namespace) -> None:
@@ -237,7 +242,6 @@ def _check_ranges(args: argparse.Namespace) -> None:
         ("--trials", args.trials, 1, MAX_TRIALS),
         ("--seed", args.seed, 0, 2**63 - 1),
         ("--workers", args.workers, 1, MAX_WORKERS),
-        ("--max-observations", args.max_observations, 1, MAX_READINGS),
         ("--distractors", getattr(args, "distractors", 0), 0, MAX_DISTRACTORS),
         ("--n-particles", args.n_particles, 2, MAX_PARTICLES),
     ):
@@ -249,26 +253,46 @@ def _check_ranges(args: argparse.Namespace) -> None:
         raise ValueError(f"--out must name a folder, got {args.out!r}")
 
 
+def _config(args: argparse.Namespace, env_name: str, agents: list[str]) -> BenchConfig:
+    """The run's settings from the options (:meth:`BenchConfig.build`, as the Python API builds them); a
+    setting out of its range is reported under its option's name.
+    """
+    try:
+        return BenchConfig.build(
+            agents,
+            env=env_name,
+            conditions=args.conditions,
+            trials=args.trials,
+            seed=args.seed,
+            sensor_model=args.sensor_model,
+            signal=args.signal,
+            max_observations=args.max_observations,
+            n_particles=args.n_particles,
+            sensor_layout=args.sensor_layout,
+            distractors=getattr(args, "distractors", 0),
+        )
+    except SettingError as exc:
+        raise ValueError(f"--{exc.setting.replace('_', '-')} must be {exc.allowed}, got {exc.got}") from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark described by ``args``; print table.md; 0 on success, 2 on bad input."""
     try:
         _check_ranges(args)
         if args.backend == "ray":  # Ray installed and the cluster reachable, before --out is touched
             check_ray_address(args.address)
-        env_name = getattr(args, "env", "target")
+        env_name = getattr(args, "env", DEFAULT_ENV)
         entry, row = bench_env(env_name)
         env_id = entry.env_id
-        gain_levels = row.env_kwargs.get("gain_levels")  # the row's own arguments
-        agents = _agents(args, env_id, row)
-        sensor_model = args.sensor_model or ENV_SENSOR_MODELS[env_id][0]
-        n_particles = ENV_N_PARTICLES[env_id] if args.n_particles is None else args.n_particles
-        max_observations = ENV_MAX_OBSERVATIONS[env_id] if args.max_observations is None else args.max_observations
-        if not agents:
+        agents, notes = _agents(args, env_id, row)
+        if not agents:  # every default skipped: the notes say why
+            _print_notes(notes)
             raise ValueError("--agents names no agent")
         layout_rows = [n for n, (e, r) in BENCH_ENVS.items() if e.takes("sensor_layout") and not r.env_kwargs]
         if args.sensor_layout is not None and env_name not in layout_rows:
             raise ValueError(f"--sensor-layout applies to --env {' or '.join(layout_rows)}, got --env {env_name}")
-        conditions = run_conditions(env_id, args.conditions)
+        config = _config(args, env_name, agents)
+        _print_notes(notes)
         if entry.map_condition is not None:  # zero-crossing looks for one sphere; a policy must know the map
             bad = [a for a in agents if not _runs_on_map_env(a, env_id)]
             if bad:
@@ -276,20 +300,6 @@ def run(args: argparse.Namespace) -> int:
                     f"--env {env_name} runs the particle-filter controllers (Table 2), policies "
                     f"trained on {env_id} and users' factory agents; not applicable: {bad}"
                 )
-        config = BenchConfig(
-            agents=tuple(agents),
-            conditions=conditions,
-            trials=args.trials,
-            seed=args.seed,
-            sensor_model=sensor_model,
-            signal=args.signal,
-            max_observations=max_observations,
-            n_particles=n_particles,
-            env_id=env_id,
-            gain_levels=gain_levels,
-            sensor_layout=args.sensor_layout,
-            distractors=getattr(args, "distractors", 0),
-        )
         options = {} if args.address is None else {"address": args.address}
         run_benchmark(
             config,

@@ -1,5 +1,11 @@
 """What a benchmark run is: its settings (:class:`BenchConfig`), its trials (:class:`TrialSpec`), their seeds.
 
+A run's settings are one object, built and validated once (:meth:`BenchConfig.build`, from the command
+line or from Python; the defaults read from the env table there) and carried unchanged: stored in
+``config.json``, held by every :class:`TrialSpec`, written into every record
+(:meth:`BenchConfig.record_settings`), and the only source of a trial env's ``gym.make`` kwargs
+(:meth:`BenchConfig.env_kwargs`).
+
 Protocol (paper §5.4, Appendix B): every agent runs ``trials`` trials per condition. Trial ``k`` of
 condition ``c`` gets its seeds from ``numpy.random.SeedSequence(seed).spawn(...)`` indexed by
 (condition, trial) — i.e. ``SeedSequence(seed, spawn_key=(preset index of c, k))`` — so
@@ -13,7 +19,7 @@ condition ``c`` gets its seeds from ``numpy.random.SeedSequence(seed).spawn(...)
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -44,7 +50,14 @@ __all__ = [
     "IDENTITY_KEYS",
     "IDENTITY_DEFAULTS",
     "ENV_TAKES_DISTRACTORS",
+    "MAX_READINGS",
+    "SettingError",
+    "DEFAULT_ENV",
 ]
+
+#: Most readings a trial may be capped at (``max_observations``): far beyond the paper's 35, short of a
+#: trial that cannot run.
+MAX_READINGS = 100_000
 
 #: The paper's three controllers (the baselines' registry's :data:`~electroloc_gym.baselines.agent.PAPER_AGENTS`).
 DEFAULT_AGENTS: tuple[str, ...] = PAPER_AGENTS
@@ -54,6 +67,8 @@ SIGNALS = SIGNAL_CHOICES
 #: ``electroloc bench --env`` names → environment ids (``dynamic-gain``: ElectroLoc-v0 with its row's
 #: ``gain_levels``, the gain part of every action).
 ENV_CHOICES: LiveMapping[str] = LiveMapping(lambda: {name: entry.env_id for name, (entry, _) in BENCH_ENVS.items()})
+#: The ``--env`` row a run is on by default (its env id is :attr:`BenchConfig.env_id`'s default, read from the table).
+DEFAULT_ENV = "target"
 #: The bench's default particle count per env (the env's own default).
 ENV_N_PARTICLES: LiveMapping[int] = LiveMapping(
     lambda: {e.env_id: e.defaults.get("n_particles", EnvParams.n_particles) for e in ENVS}
@@ -92,6 +107,21 @@ IDENTITY_KEYS = (
 )
 
 
+class SettingError(ValueError):
+    """A run setting out of its range: ``setting`` names the field, ``allowed`` the range, ``got`` the value.
+
+    ``str()`` names the field as Python spells it; a front end names it its own way (``--max-observations``)
+    from the same three parts, so the check and its words live here once.
+    """
+
+    def __init__(self, setting: str, allowed: str, got: Any) -> None:
+        super().__init__(f"{setting} must be {allowed}, got {got!r}")
+        self.setting, self.allowed, self.got = setting, allowed, got
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (SettingError, (self.setting, self.allowed, self.got))
+
+
 @dataclass(frozen=True)
 class BenchConfig:
     """What a benchmark run is (stored in ``config.json``; ``--resume`` checks it).
@@ -106,7 +136,7 @@ class BenchConfig:
         signal: the presets' signal scale (:data:`electroloc_gym.conditions.DEFAULT_SIGNAL` by default):
             "fitted" (fitted to Table 3's measured detection distances), "coverage" (fitted × one factor
             matching the paper's §6.3 start coverage) or "paper" (scale 1); see conditions.get_condition.
-        max_observations: the cap of readings of a trial (paper: 35).
+        max_observations: the cap of readings of a trial (paper: 35; 1 to :data:`MAX_READINGS`).
         n_particles: particles of the belief (paper: 2500).
         success_spread_mm: the success criterion, mm: a trial succeeds when the belief's spread √trace Σ is
             at most this (paper: 10 mm). With the cap, the particles, the sensor model, the signal, the
@@ -127,11 +157,82 @@ class BenchConfig:
     signal: str = DEFAULT_SIGNAL
     max_observations: int = MAX_OBSERVATIONS
     n_particles: int = N_PARTICLES
-    env_id: str = "ElectroLoc-v0"
+    env_id: str = field(default_factory=lambda: ENV_CHOICES[DEFAULT_ENV])
     gain_levels: tuple[float, ...] | None = None
     sensor_layout: str | None = None
     distractors: int = 0
     success_spread_mm: float = SUCCESS_SPREAD_MM
+
+    @classmethod
+    def build(
+        cls,
+        agents: Sequence[str],
+        *,
+        env: str = "target",
+        conditions: str | Sequence[str] = "all",
+        trials: int = 50,
+        seed: int = 0,
+        sensor_model: str | None = None,
+        signal: str = DEFAULT_SIGNAL,
+        max_observations: int | None = None,
+        n_particles: int | None = None,
+        sensor_layout: str | None = None,
+        distractors: int = 0,
+    ) -> BenchConfig:
+        """The run ``electroloc bench`` (and :func:`electroloc_gym.bench.run`) describe: ``env`` is a bench row
+        (``--env``), and every setting left None is the env's own default, read from the env table here.
+
+        Raises:
+            ValueError: an unknown ``env`` or a setting out of its range (:class:`SettingError`).
+        """
+        if env not in ENV_CHOICES:
+            raise ValueError(f"env must be one of {list(ENV_CHOICES)}, got {env!r}")
+        entry, row = BENCH_ENVS[env]
+        env_id = entry.env_id
+        return cls(
+            agents=tuple(agents),
+            conditions=run_conditions(env_id, conditions),
+            trials=trials,
+            seed=seed,
+            sensor_model=sensor_model or ENV_SENSOR_MODELS[env_id][0],
+            signal=signal,
+            max_observations=ENV_MAX_OBSERVATIONS[env_id] if max_observations is None else max_observations,
+            n_particles=ENV_N_PARTICLES[env_id] if n_particles is None else n_particles,
+            env_id=env_id,
+            gain_levels=row.env_kwargs.get("gain_levels"),
+            sensor_layout=sensor_layout,
+            distractors=distractors,
+        )
+
+    def env_kwargs(self, agent: Any = None, condition: str | None = None, *, builtin: bool = False) -> dict[str, Any]:
+        """The ``gym.make(self.env_id, ...)`` kwargs of this run's trial of ``agent`` in ``condition``: the run's
+        settings, then what the agent declares (:func:`electroloc_gym.bench.policy_fit.bench_env_kwargs`; a
+        built-in controller's ``env_kwargs`` and ``adapt_condition`` apply, a plug-in agent's observation mode
+        only). ``condition`` None: no condition (the agent's protocol without a tank).
+        """
+        from electroloc_gym.bench.policy_fit import bench_env_kwargs
+
+        return bench_env_kwargs(
+            self.env_id,
+            agent,
+            self.gain_levels,
+            condition=condition,
+            signal=self.signal,
+            sensor_model=self.sensor_model,
+            n_particles=self.n_particles,
+            max_observations=self.max_observations,
+            sensor_layout=self.sensor_layout,
+            distractors=self.distractors,
+            success_spread_mm=self.success_spread_mm,
+            builtin=builtin,
+        )
+
+    def record_settings(self) -> dict[str, Any]:
+        """The settings every record of this run carries (:data:`IDENTITY_KEYS`, as JSON stores them)."""
+        plain = {k: getattr(self, k) for k in IDENTITY_KEYS}
+        if plain["gain_levels"] is not None:
+            plain["gain_levels"] = list(plain["gain_levels"])
+        return plain
 
     def __post_init__(self) -> None:
         if self.env_id not in ENV_SENSOR_MODELS:
@@ -153,11 +254,13 @@ class BenchConfig:
         for name, val, low in (
             ("trials", self.trials, 1),
             ("seed", self.seed, 0),
-            ("max_observations", self.max_observations, 1),
             ("n_particles", self.n_particles, 1),
         ):
             if isinstance(val, bool) or not isinstance(val, int) or val < low:
                 raise ValueError(f"{name} must be an integer ≥ {low}, got {val!r}")
+        cap = self.max_observations
+        if isinstance(cap, bool) or not isinstance(cap, int) or not 1 <= cap <= MAX_READINGS:
+            raise SettingError("max_observations", f"an integer in [1, {MAX_READINGS}]", cap)
         allowed = ENV_SENSOR_MODELS[self.env_id]
         if self.sensor_model not in allowed:
             raise ValueError(f"sensor_model of {self.env_id} must be one of {list(allowed)}, got {self.sensor_model!r}")
@@ -170,32 +273,22 @@ class BenchConfig:
 
     def identity(self) -> dict[str, Any]:
         """The fields that must match for ``--resume`` to append to an existing run."""
-        plain = {k: getattr(self, k) for k in IDENTITY_KEYS}
-        if plain["gain_levels"] is not None:  # as JSON stores it
-            plain["gain_levels"] = list(plain["gain_levels"])
-        return {"seed": self.seed, **plain, "success_spread_mm": self.success_spread_mm}
+        return {"seed": self.seed, **self.record_settings(), "success_spread_mm": self.success_spread_mm}
 
 
 @dataclass(frozen=True)
 class TrialSpec:
-    """One trial, self-contained and picklable (what a worker receives)."""
+    """One trial, self-contained and picklable (what a worker receives): its key, its seeds and the run's
+    settings (:class:`BenchConfig`, the same object for every trial of the run).
+    """
 
     condition: str
     agent: str
     trial: int
     env_seed: int
     agent_seed: int
-    sensor_model: str
-    signal: str
-    max_observations: int
-    n_particles: int
-    env_id: str = "ElectroLoc-v0"
-    gain_levels: tuple[float, ...] | None = None
-    sensor_layout: str | None = None
-    #: D, distractors drawn per trial (0: none).
-    distractors: int = 0
-    #: The run's success criterion, mm (:attr:`BenchConfig.success_spread_mm`).
-    success_spread_mm: float = SUCCESS_SPREAD_MM
+    #: The run's settings.
+    config: BenchConfig
     #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
     trust_pickle: bool = False
 
@@ -203,6 +296,20 @@ class TrialSpec:
     def key(self) -> tuple[str, str, int]:
         """(condition, agent, trial): the identity of a trial in trials.jsonl."""
         return (self.condition, self.agent, self.trial)
+
+    @property
+    def env_id(self) -> str:
+        """The run's environment id."""
+        return self.config.env_id
+
+    @property
+    def signal(self) -> str:
+        """The run's signal scale."""
+        return self.config.signal
+
+    def env_kwargs(self, agent: Any, *, builtin: bool) -> dict[str, Any]:
+        """The ``gym.make`` kwargs of this trial's env (:meth:`BenchConfig.env_kwargs` in its condition)."""
+        return self.config.env_kwargs(agent, self.condition, builtin=builtin)
 
 
 def resolve_conditions(spec: str | Sequence[str]) -> list[str]:
@@ -254,23 +361,5 @@ def make_trial_specs(config: BenchConfig, *, trust_pickle: bool = False) -> list
         for k in range(config.trials):
             env_seed, agent_seed = trial_seeds(config.seed, cond, k)
             for agent in config.agents:
-                specs.append(
-                    TrialSpec(
-                        cond,
-                        agent,
-                        k,
-                        env_seed,
-                        agent_seed,
-                        config.sensor_model,
-                        config.signal,
-                        config.max_observations,
-                        config.n_particles,
-                        config.env_id,
-                        gain_levels=config.gain_levels,
-                        sensor_layout=config.sensor_layout,
-                        distractors=config.distractors,
-                        success_spread_mm=config.success_spread_mm,
-                        trust_pickle=trust_pickle,
-                    )
-                )
+                specs.append(TrialSpec(cond, agent, k, env_seed, agent_seed, config, trust_pickle=trust_pickle))
     return specs

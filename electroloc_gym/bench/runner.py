@@ -22,7 +22,6 @@ from typing import Any
 
 from electroloc_gym.bench.agents import (
     agent_display_name,
-    bench_env_kwargs,
     cached_agent,
     decision_seconds,
     layout_problem,
@@ -191,20 +190,7 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
     """
     import gymnasium as gym
 
-    kwargs = bench_env_kwargs(
-        config.env_id,
-        agent,
-        config.gain_levels,
-        condition=config.conditions[0],
-        signal=config.signal,
-        sensor_model=config.sensor_model,
-        n_particles=config.n_particles,
-        max_observations=config.max_observations,
-        sensor_layout=config.sensor_layout,
-        distractors=config.distractors,
-        success_spread_mm=config.success_spread_mm,
-        builtin=resolve_agent(spec).builtin,
-    )
+    kwargs = config.env_kwargs(agent, config.conditions[0], builtin=resolve_agent(spec).builtin)
     try:
         gym.make(config.env_id, **kwargs).close()
     except (TypeError, ValueError, MemoryError) as exc:

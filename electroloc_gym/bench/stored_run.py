@@ -93,26 +93,13 @@ class _StartReplay:
     def __call__(self, condition: str, agent: str, seed: int) -> tuple[float, float] | None:
         import gymnasium as gym
 
-        from electroloc_gym.bench.agents import bench_env_kwargs, builtin_agent
+        from electroloc_gym.bench.agents import builtin_agent
 
         cfg = self.config
         own = builtin_agent(agent)  # a built-in agent may set its own workspace; a plug-in's kwargs cannot move it
         key = (condition, agent if own is not None else "")
         if key not in self._envs:
-            kwargs = bench_env_kwargs(
-                cfg.env_id,
-                own,
-                cfg.gain_levels,
-                condition=condition,
-                signal=cfg.signal,
-                sensor_model=cfg.sensor_model,
-                n_particles=cfg.n_particles,
-                max_observations=cfg.max_observations,
-                sensor_layout=cfg.sensor_layout,
-                distractors=cfg.distractors,
-                success_spread_mm=cfg.success_spread_mm,
-                builtin=own is not None,
-            )
+            kwargs = cfg.env_kwargs(own, condition, builtin=own is not None)
             try:
                 self._envs[key] = gym.make(cfg.env_id, **kwargs)
             except (TypeError, ValueError):
@@ -130,8 +117,10 @@ def record_rules(
 ) -> RecordRules:
     """What a record of ``config``'s run (continuing ``stored``, a config.json) may hold.
 
-    Only the built-in agents set their own cap, success criterion and table layout (zero-crossing, the
-    paper's Table-1 protocol); every other agent is held to the run's, so no plug-in code is run here.
+    Each agent's cap and success criterion are those its trials' env is built with
+    (:meth:`~electroloc_gym.bench.config.BenchConfig.env_kwargs`): only the built-in agents declare their own
+    (zero-crossing, the paper's Table-1 protocol, in its ``env_kwargs``); every other agent is held to the
+    run's, so no plug-in code is run here.
     """
     from electroloc_gym.bench.agents import builtin_agent
 
@@ -142,10 +131,9 @@ def record_rules(
     caps, criteria, table_layouts = {}, {}, {}
     for spec in agents:
         agent = builtin_agent(spec)
-        kwargs = dict(getattr(agent, "env_kwargs", {}) or {}) if agent is not None else {}
-        caps[spec] = int(kwargs.get("max_observations", config.max_observations))
-        if "success_spread_mm" in kwargs:
-            criteria[spec] = float(kwargs["success_spread_mm"])
+        kwargs = config.env_kwargs(agent, builtin=agent is not None)
+        caps[spec] = int(kwargs["max_observations"])
+        criteria[spec] = float(kwargs["success_spread_mm"])
         table_layouts[spec] = str(getattr(agent, "table_layout", "table4"))
     return RecordRules(
         conditions=conditions,

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym.bench.agents import bench_env_kwargs, cached_agent, resolve_agent
+from electroloc_gym.bench.agents import cached_agent, resolve_agent
 from electroloc_gym.bench.config import TrialSpec
 from electroloc_gym.bench.schema import TrialRecord, is_far_success
 from electroloc_gym.fileio import to_json_data
@@ -45,20 +45,7 @@ _ENVS: dict[tuple[Any, ...], Any] = {}
 def _env(spec: TrialSpec, agent: Any) -> Any:
     import gymnasium as gym
 
-    kwargs = bench_env_kwargs(
-        spec.env_id,
-        agent,
-        spec.gain_levels,
-        condition=spec.condition,
-        signal=spec.signal,
-        sensor_model=spec.sensor_model,
-        n_particles=spec.n_particles,
-        max_observations=spec.max_observations,
-        sensor_layout=spec.sensor_layout,
-        distractors=spec.distractors,
-        success_spread_mm=spec.success_spread_mm,
-        builtin=resolve_agent(spec.agent).builtin,
-    )
+    kwargs = spec.env_kwargs(agent, builtin=resolve_agent(spec.agent).builtin)
     key = (spec.env_id, spec.condition, spec.signal, spec.agent, repr(sorted(kwargs.items(), key=lambda kv: kv[0])))
     if key not in _ENVS:
         if len(_ENVS) > 16:
@@ -134,16 +121,9 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
             "decisions": int(dms.size),
             "decision_ms_median": float(np.median(dms)) if dms.size else None,
             "decision_ms_mean": float(np.mean(dms)) if dms.size else None,
-            "sensor_model": spec.sensor_model,
-            "signal": spec.signal,
-            "max_observations": spec.max_observations,
-            "n_particles": spec.n_particles,
-            "env_id": spec.env_id,
             "wall_s": time.perf_counter() - t_start,
             "shape": _shape_record(info, core.entry().record_keys) or None,
-            "gain_levels": None if spec.gain_levels is None else list(spec.gain_levels),
-            "sensor_layout": spec.sensor_layout,
-            "distractors": spec.distractors,
+            **spec.config.record_settings(),
             "far_success": is_far_success(success, error),
         }
     ).to_json()
