@@ -77,6 +77,7 @@ from numpy.typing import NDArray
 from electroloc_gym.baselines.base import MAX_STEP_MM, BaselineAgent, move_bounds_mm, sample_belief, sample_options_mm
 from electroloc_gym.baselines.lookahead_objectives import OBJECTIVES, adaptive_costs, posterior_spreads, sequence_costs
 from electroloc_gym.checks import check_int
+from electroloc_gym.protocol import SUCCESS_SPREAD_MM
 
 __all__ = ["LookaheadAgent", "posterior_spreads", "MAX_DEPTH", "COMPASS_MM", "CONTINUATIONS", "OBJECTIVES"]
 
@@ -199,7 +200,7 @@ class LookaheadAgent(BaselineAgent):
             )
 
     def _success_spread_mm(self) -> float:
-        return float(getattr(self.env, "success_spread_mm", 10.0))
+        return float(getattr(self.env, "success_spread_mm", SUCCESS_SPREAD_MM))
 
     # ---- the planner's cloud and motion ---------------------------------------------------------
     def _subsample(self) -> NDArray[np.float64]:

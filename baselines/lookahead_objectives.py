@@ -33,6 +33,8 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.protocol import SUCCESS_SPREAD_MM
+
 __all__ = ["OBJECTIVES", "LOG_FLOOR_MM", "posterior_spreads", "sequence_costs", "adaptive_costs"]
 
 #: The planner's objectives (see the module docstring).
@@ -84,7 +86,7 @@ def sequence_costs(
     eps: NDArray,
     objective: str = "spread",
     *,
-    success_spread_mm: float = 10.0,
+    success_spread_mm: float = SUCCESS_SPREAD_MM,
     tail: float = 1.0,
 ) -> NDArray[np.float64]:
     """The objective (B, N) of every future and sequence (lower is better).
@@ -161,7 +163,7 @@ def adaptive_costs(
     eps2: NDArray,
     objective: str = "steps",
     *,
-    success_spread_mm: float = 10.0,
+    success_spread_mm: float = SUCCESS_SPREAD_MM,
     tail: float = 1.0,
 ) -> NDArray[np.float64]:
     """Each first move's expected objective (C,) when the second move is chosen after the first reading.

@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401
 from electroloc_gym.fileio import write_json_atomic  # noqa: E402
+from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 
 LAYOUTS = ("single", "grid-2x2", "line-4", "ring-8")
 
@@ -53,7 +54,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--n-particles", type=int, default=2500)
+    p.add_argument("--n-particles", type=int, default=N_PARTICLES)
     p.add_argument("--out", default=None)
     args = p.parse_args()
     rows = []

@@ -20,6 +20,7 @@ pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says 
 import numpy as np  # noqa: E402
 
 from electroloc_gym.envs.localize import ElectroLocEnv  # noqa: E402
+from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 
 
 def best_of(fn, n: int, repeats: int = 5) -> float:
@@ -57,7 +58,7 @@ def env_step_cost(env: ElectroLocEnv, n: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=2000)
-    ap.add_argument("--particles", type=int, default=2500)
+    ap.add_argument("--particles", type=int, default=N_PARTICLES)
     args = ap.parse_args()
     print(f"{'sensor model':<12} {'env steps/s':>12} {'env step ms':>12} {'bare update ms':>15} {'ratio':>7}")
     for model in ("analytic", "calibrated"):

@@ -42,6 +42,7 @@ from electroloc_gym.baselines.min_variance import (  # noqa: E402
     predicted_variances,
 )
 from electroloc_gym.baselines.min_variance_reference import literal_predicted_variances  # noqa: E402
+from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 
 
 def best_of(fn, repeats: int = 5) -> float:
@@ -93,7 +94,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--states", type=int, default=30, help="belief states for the agreement rate")
     ap.add_argument("--voters", type=int, default=256)
-    ap.add_argument("--particles", type=int, default=2500)
+    ap.add_argument("--particles", type=int, default=N_PARTICLES)
     ap.add_argument("--literal-m", type=int, default=200, help="M of the timed literal loop")
     args = ap.parse_args()
     m, c = args.particles, 16

@@ -39,9 +39,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import train_fps  # noqa: E402
 import vector_env  # noqa: E402
 
+from electroloc_gym.baselines.agent import PAPER_AGENTS  # noqa: E402
 from electroloc_gym.fileio import atomic_write_text  # noqa: E402
 
-TABLE4_AGENTS = "rnd-wlk,min-var,zero-crossing"
+TABLE4_AGENTS = ",".join(PAPER_AGENTS)
 
 
 def table4_wall_s(trials: int, workers: int = 2) -> float:

@@ -46,6 +46,7 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
 from electroloc_gym.fileio import atomic_write_text  # noqa: E402
+from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 from electroloc_gym.registry import env_entry  # noqa: E402
 
 
@@ -149,7 +150,7 @@ def profile_native(env_id: str, n: int, kwargs: dict[str, Any], n_steps: int = 3
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n-envs", type=int, nargs="+", default=[16, 64])
-    ap.add_argument("--particles", type=int, default=2500)
+    ap.add_argument("--particles", type=int, default=N_PARTICLES)
     ap.add_argument("--observation", default="belief", choices=["belief", "raw"])
     ap.add_argument("--sensor-model", default="calibrated", choices=["calibrated", "analytic"])
     ap.add_argument("--condition", default="fresh-steel-12.7", help="ElectroLoc-v0 only")

@@ -20,6 +20,7 @@ from torch import nn
 
 import electroloc_gym  # noqa: F401  (registers the envs)
 from electroloc_gym.privileged import PrivilegedInfo
+from electroloc_gym.protocol import N_PARTICLES
 from electroloc_gym.runtime import pin_threads
 
 #: The truth is given to the critic in units of this, mm (the tank's scale).
@@ -36,7 +37,7 @@ def mlp(d_in: int, d_out: int, hidden: int = 64) -> nn.Sequential:
 def train(
     updates: int = 200,
     n_steps: int = 128,
-    n_particles: int = 2500,
+    n_particles: int = N_PARTICLES,
     seed: int = 0,
     gamma: float = 0.99,
     lam: float = 0.95,

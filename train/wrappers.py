@@ -22,10 +22,9 @@ from numpy.typing import ArrayLike
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
-__all__ = ["PotentialShaping", "VecPotentialShaping", "check_shaping", "shaped_reward", "spread_potential"]
+from electroloc_gym.protocol import SUCCESS_SPREAD_MM
 
-#: The env's success spread (mm) when the env does not say (ElectroLoc-v0's default).
-DEFAULT_SUCCESS_SPREAD_MM = 10.0
+__all__ = ["PotentialShaping", "VecPotentialShaping", "check_shaping", "shaped_reward", "spread_potential"]
 
 
 def check_shaping(coef: float, gamma: float) -> None:
@@ -69,7 +68,7 @@ class PotentialShaping(gym.Wrapper):
         super().__init__(env)
         check_shaping(coef, gamma)
         self.coef, self.gamma = float(coef), float(gamma)
-        self.success_spread_mm = float(getattr(env.unwrapped, "success_spread_mm", DEFAULT_SUCCESS_SPREAD_MM))
+        self.success_spread_mm = float(getattr(env.unwrapped, "success_spread_mm", SUCCESS_SPREAD_MM))
         self._phi = 0.0
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -114,7 +113,7 @@ class VecPotentialShaping(VecEnvWrapper):
         try:
             self.success_spread_mm = float(venv.get_attr("success_spread_mm", [0])[0])
         except AttributeError:
-            self.success_spread_mm = DEFAULT_SUCCESS_SPREAD_MM
+            self.success_spread_mm = SUCCESS_SPREAD_MM
         self._phi = np.zeros(self.num_envs)
 
     def _reset_phi(self, rows: np.ndarray) -> None:

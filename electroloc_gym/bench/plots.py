@@ -46,6 +46,7 @@ def steps_png(summary: dict[str, Any]) -> bytes:
     x = np.arange(len(conditions))
     width = 0.8 / max(1, len(agents))
     lookup = {(r["condition"], r["agent"]): r for r in rows}
+    table4_agents = {a for _, a in PAPER_TABLE4}  # the paper's agents with Table-4 (Fig. 12) values
     for j, agent in enumerate(agents):
         label = next((r.get("label", agent) for r in rows if r["agent"] == agent), agent)
         fails = [lookup.get((c, agent), {}).get("failures", np.nan) for c in conditions]
@@ -54,7 +55,7 @@ def steps_png(summary: dict[str, Any]) -> bytes:
         axes[0].bar(xs, [np.nan if v is None else v for v in fails], width, label=label)
         axes[1].bar(xs, [np.nan if v is None else v for v in med], width, label=label)
         key = paper_agent_key(agent)
-        if key in ("rnd-wlk", "min-var"):
+        if key in table4_agents:
             n_trials = summary.get("config", {}).get("trials") or 50
             # the paper ran 50 trials per condition: scale its failure counts to this run's trial count
             pf = [PAPER_TABLE4.get((c, key), (None, np.nan))[1] * n_trials / 50 for c in conditions]

@@ -36,6 +36,7 @@ from scipy import stats  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES, SIGNAL_CHOICES, get_condition  # noqa: E402
 from electroloc_gym.fileio import write_json_atomic  # noqa: E402
 from electroloc_gym.kernels.fusion import assimilate_readings, grid_posterior  # noqa: E402
+from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 from electroloc_gym.sensor_array import array_noisy_reading, named_layout  # noqa: E402
 from electroloc_gym.sensor_models.pairs import ArrayAnalyticSensorModel  # noqa: E402
 
@@ -135,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--trials", type=int, default=200)
-    ap.add_argument("--particles", type=int, default=2500)
+    ap.add_argument("--particles", type=int, default=N_PARTICLES)
     ap.add_argument("--layout", default="grid-2x2")
     ap.add_argument("--conditions", nargs="*", default=list(PRESET_NAMES))
     ap.add_argument("--signal", default="fitted", choices=SIGNAL_CHOICES, help="the conditions' signal scale")

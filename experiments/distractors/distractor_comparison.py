@@ -35,13 +35,14 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
+from electroloc_gym.baselines.agent import belief_agents  # noqa: E402
 from electroloc_gym.bench.agents import shipped_models  # noqa: E402
 from electroloc_gym.bench.runner import BenchConfig, run_benchmark  # noqa: E402
 from electroloc_gym.bench.schema import FAR_ERROR_MM  # noqa: E402
 from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
 from electroloc_gym.markdown import markdown_table  # noqa: E402
 
-AGENTS = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "eedi", "ppo-belief", "ppo-belief-distractors")
+AGENTS = (*belief_agents(), "ppo-belief", "ppo-belief-distractors")
 DISTRACTORS = (0, 1, 2)
 
 

@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.agentspec import parse_options
+from electroloc_gym.baselines.agent import belief_agents
 from electroloc_gym.registry import env_entry
 from electroloc_gym.runtime import thread_env
 
@@ -112,7 +113,7 @@ SUITE: tuple[Config, ...] = (
 #: ``electroloc bench --env`` of each env id, and the non-learned agents benchmarked beside the learned ones.
 BENCH_ENV = {c.env_id: env_entry(c.env_id).bench[0].name for c in SUITE}
 BASELINE_AGENTS = {
-    "ElectroLoc-v0": "rnd-wlk,min-var,lookahead,infotaxis,eedi",
+    "ElectroLoc-v0": ",".join(belief_agents()),
     "ElectroLocGlobal-v0": "rnd-wlk,min-var,lookahead",
     "ElectroLocUnknownTarget-v0": "rnd-wlk,min-var,infotaxis",
 }  # lookahead plans over positions only

@@ -41,6 +41,7 @@ from tqdm import tqdm  # noqa: E402
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
 from electroloc_gym.bench.config import resolve_conditions, trial_seeds  # noqa: E402
+from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 from electroloc_gym.registry import env_entry  # noqa: E402
 
 GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
@@ -116,7 +117,7 @@ def main() -> None:
     p.add_argument("--global-trials", type=int, default=50, help="ElectroLocGlobal-v0 trials (default 50; 0: skip)")
     p.add_argument("--seed", type=int, default=0, help="root seed of the trial seeds (default 0, the benchmark's)")
     p.add_argument("--conditions", default="all", help="'all' or comma-separated ElectroLoc-v0 presets")
-    p.add_argument("--n-particles", type=int, default=2500)
+    p.add_argument("--n-particles", type=int, default=N_PARTICLES)
     p.add_argument("--max-observations", type=int, default=35)
     p.add_argument("--out", default="lookahead_budget.png", help="figure path (default lookahead_budget.png)")
     p.add_argument("--replot", metavar="JSON", help="only redraw the figure from a run's saved numbers")
