@@ -53,11 +53,11 @@ DEFAULT_THREADS = 1
 MAX_THREADS = 1024
 
 
-def _check_threads(name: str, value: object, text: bool = False) -> int:
-    """``value`` (an int; with ``text`` a string of digits) as a thread count in [1, MAX_THREADS], else one
+def _check_threads(name: str, value: object, from_text: bool = False) -> int:
+    """``value`` (an int; with ``from_text`` a string of digits) as a thread count in [1, MAX_THREADS], else one
     ValueError naming ``name``.
     """
-    if text and isinstance(value, str):
+    if from_text and isinstance(value, str):
         text = value.strip()
         number = int(text) if text.isdigit() else None
     elif isinstance(value, int) and not isinstance(value, bool):
@@ -81,7 +81,7 @@ def chosen_threads(threads: int | None = None) -> int:
     text = os.environ.get(THREADS_VAR, "")
     if not text.strip():
         return DEFAULT_THREADS
-    return _check_threads(THREADS_VAR, text, text=True)
+    return _check_threads(THREADS_VAR, text, from_text=True)
 
 
 def thread_env(threads: int | None = None) -> dict[str, str]:
@@ -95,7 +95,7 @@ def thread_env(threads: int | None = None) -> dict[str, str]:
 def _threads_arg(text: str) -> int:
     """``--threads``: an integer in [1, MAX_THREADS] (argparse's one-line error otherwise)."""
     try:
-        return _check_threads("--threads", text, text=True)
+        return _check_threads("--threads", text, from_text=True)
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be an integer in [1, {MAX_THREADS}], got {text!r}") from None
 
@@ -159,7 +159,8 @@ def _pin_numba(n: int) -> None:
 
         numba.set_num_threads(min(n, int(config.NUMBA_NUM_THREADS)))
     else:
-        config.NUMBA_NUM_THREADS = n  # as the compiler's next reload of the environment reads it
+        # as the compiler's next reload of the environment reads it
+        config.NUMBA_NUM_THREADS = n  # pyright: ignore[reportAttributeAccessIssue]  # numba's config module
 
 
 def user_numba_cache_dir() -> Path:

@@ -142,9 +142,10 @@ class NativeVecEnv(VecEnv):
             for k in _VECTOR_KEYS
             if k in info
         }
-        if "condition_index" in cols:
+        if "condition_index" in info:
             current = self.venv.unwrapped.condition_names  # pyright: ignore[reportAttributeAccessIssue]  # a native vector env (CoreVectorEnv)
-            index = cols.pop("condition_index")
+            index: list[int] = info["condition_index"].tolist()
+            del cols["condition_index"]
             cols["condition"] = [PRESET_NAMES[k] if k >= 0 else current[i] for i, k in enumerate(index)]
             cols["condition_index"] = index
         return [dict(zip(cols, row, strict=True)) for row in zip(*cols.values(), strict=True)]
