@@ -125,20 +125,17 @@ def graph() -> dict[str, set[str]]:
     return import_graph(package_modules())
 
 
-def test_the_scan_sees_function_level_and_relative_imports() -> None:
+def test_the_scan_sees_function_level_and_relative_imports(tmp_path: Path) -> None:
     """The resolver on a fixed example: a function-level import is an edge, TYPE_CHECKING is not."""
     src = (
         "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from electroloc_gym.envs import adapter\n"
         "def f():\n    from electroloc_gym.core import step\n    import electroloc_gym.registry\n"
         "from . import worlds\n"
     )
-    tmp = ROOT / "tests" / "_import_scan_example.py"
-    try:
-        tmp.write_text(src, encoding="utf-8")
-        mods = {**package_modules(), "electroloc_gym.core.example": tmp}
-        edges = import_graph(mods)["electroloc_gym.core.example"]
-    finally:
-        tmp.unlink()
+    tmp = tmp_path / "_import_scan_example.py"
+    tmp.write_text(src, encoding="utf-8")
+    mods = {**package_modules(), "electroloc_gym.core.example": tmp}
+    edges = import_graph(mods)["electroloc_gym.core.example"]
     assert edges == {"electroloc_gym.core.step", "electroloc_gym.registry", "electroloc_gym.core.worlds"}
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [frozenset("abc")]
 
