@@ -346,10 +346,46 @@ def test_resume_refuses_before_moving_anything(root):
     assert sorted(str(p.relative_to(folder)) for p in folder.rglob("*")) == [s for s in snapshot if s != "data/9"]
 
 
-def test_resume_refuses_a_complete_dataset_and_one_it_did_not_write(root, tmp_path):
+COMPLETE_DAMAGES = {
+    "flipped arrow": (lambda f: _flip(f / "data/1/part-0.arrow"), "data/1"),
+    "truncated arrow": (lambda f: _truncate(f / "data/0/part-0.arrow"), "data/0"),
+    "deleted arrow": (lambda f: (f / "data/2/part-0.arrow").unlink(), "data/2"),
+    "deleted episode": (lambda f: shutil.rmtree(f / "data/3"), None),
+    "flipped episode metadata": (lambda f: _flip(f / "data/2/metadata.json", (0.5,)), "data/2"),
+    "journal made a folder": (lambda f: ((f / st.JOURNAL).unlink(), (f / st.JOURNAL).mkdir()), st.JOURNAL),
+}
+
+
+@pytest.mark.parametrize("damage", list(COMPLETE_DAMAGES))
+def test_resume_repairs_a_damaged_complete_dataset(root, uninterrupted, damage):
+    spoil, set_aside = COMPLETE_DAMAGES[damage]
     _build()
-    with pytest.raises(ValueError, match=r"exists \(a complete one"):
-        _build(resume=True)
+    folder = _folder(root)
+    spoil(folder)
+    with pytest.raises(ValueError, match=r"exists \(a complete one.*or --resume to check its episodes"):
+        _build()
+    notes: list[str] = []
+    ds = _build(resume=True, notes=notes)
+    assert _tree(folder) == uninterrupted[N] and ds.storage.metadata["electroloc"]["complete"]
+    assert len(notes) == 1 and "\n" not in notes[0], notes
+    if set_aside is not None:
+        assert (folder / "quarantine" / "1" / set_aside).exists() and set_aside.split("/")[-1] in notes[0]
+
+
+def test_resume_of_an_intact_complete_dataset_changes_no_episode(root, uninterrupted, capsys):
+    _build()
+    folder = _folder(root)
+    journal = (folder / st.JOURNAL).read_bytes()
+    argv = ["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", str(N), "--resume"]
+    assert cli_main(argv) == 0
+    err = capsys.readouterr().err
+    assert "complete; all 4 episodes match their checksums and read back: nothing to collect" in err
+    assert _tree(folder) == uninterrupted[N] and (folder / st.JOURNAL).read_bytes() == journal
+    assert not (folder / "quarantine").exists()
+
+
+def test_resume_refuses_a_dataset_it_did_not_write(root, tmp_path):
+    _build()
     env = minari.load_dataset(ID).recover_environment()
     buffer = minari.load_dataset(ID).storage.get_episodes([0])
     episode = next(iter(buffer))
@@ -407,6 +443,32 @@ def test_force_refuses_an_id_that_is_not_exactly_a_dataset(root, capsys, ds_id, 
     assert len(err) == 1 and err[0].startswith("electroloc dataset: error: ") and words in err[0], err
     assert {i: _tree(_folder(root, i)) for i in before} == before  # nothing deleted
     assert minari.load_dataset(ID).total_episodes == 2
+
+
+def test_a_file_where_the_set_aside_folder_goes_is_refused_before_anything_moves(root):
+    _build()
+    folder = _folder(root)
+    _mark_unfinished(folder)
+    _flip(folder / "data/1/part-0.arrow")
+    (folder / st.QUARANTINE).write_text("mine")
+    before = sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
+    for options in ({"resume": True}, {"force": True}):
+        with pytest.raises(ValueError, match="holds a file 'quarantine' where its set-aside folder goes"):
+            _build(**options)
+    assert sorted(str(p.relative_to(folder)) for p in folder.rglob("*")) == before
+
+
+def test_an_id_a_case_insensitive_file_system_finds_under_another_spelling_is_refused(root, monkeypatch):
+    _build(2, dataset_id="mine/keep-v0")
+    before = _tree(_folder(root, "mine/keep-v0"))
+    real = os.listdir
+    # what a case-insensitive file system shows: the id's path exists, the listing spells it otherwise
+    monkeypatch.setattr(st.os, "listdir", lambda p: [n.replace("keep", "KEEP") for n in real(p)])
+    for options in ({"force": True}, {"resume": True}, {}):
+        with pytest.raises(ValueError, match=r"does not tell upper from lower case, and 'mine/KEEP-v0' exists"):
+            _build(dataset_id="mine/keep-v0", **options)
+    monkeypatch.undo()
+    assert _tree(_folder(root, "mine/keep-v0")) == before
 
 
 def test_force_refuses_folders_that_hold_more_than_a_dataset(root):
@@ -481,6 +543,8 @@ def user_module(tmp_path, monkeypatch):
                     self.calls += 1
                     if self.where == "predict":
                         raise RuntimeError("boom")
+                    if self.where == "nan":
+                        return np.array([np.nan, 0.0]), state
                     return np.zeros(2, dtype=np.float32), state
 
             def make(where="predict"):
@@ -514,8 +578,8 @@ def test_force_killed_before_the_swap_leaves_the_old_dataset(root, uninterrupted
     before = _tree(_folder(root))
     _forked_kill(point, force=True)
     assert _tree(_folder(root)) == before and minari.load_dataset(ID).total_episodes == 2
-    with pytest.raises(ValueError, match=r"exists \(a complete one"):
-        _build(resume=True)  # the dataset of the id is the old one, complete
+    with pytest.raises(ValueError, match=r"was started with other settings .*'seed': 5"):
+        _build(resume=True)  # the dataset of the id is the old one
     _build(force=True)  # a new --force starts again, the killed run's leftovers discarded
     assert _tree(_folder(root)) == uninterrupted[N]
     assert sorted(p.name for p in _folder(root).parent.iterdir()) == ["namespace_metadata.json", "rnd-wlk-v0"]
@@ -550,6 +614,9 @@ def test_force_killed_during_the_swap_is_finished_by_the_next_run(root, uninterr
         (["--resume", "--force"], "--resume and --force exclude each other"),
         (["--agent", "{m}:make"], "agent '{m}:make' in episode 0 of electroloc/ElectroLoc-v0/"),
         (["--agent", "{m}:make[where='reset']"], "its reset() raised RuntimeError: no reset today"),
+        (["--agent", "{m}:make[where='nan']"], "in episode 0 of electroloc/ElectroLoc-v0/{m}_make_where_nan-v0: "),
+        (["--agent", "{m}:make[where='nan']"], "{m}:make[where='nan']\" in episode 0 of"),
+        (["--agent", "{m}:make[where='nan']"], "action must be finite"),
     ],
 )
 def test_bad_input_is_one_line_before_anything_is_written(root, capsys, user_module, argv, words):
@@ -611,11 +678,12 @@ def test_a_dataset_without_reference_scores_says_so(root, capsys):
 
 
 def test_a_resume_without_reference_keeps_the_one_it_started_with(root):
-    _build(2, reference=REFERENCE)
+    first = _build(2, reference=REFERENCE).storage.metadata
     _mark_unfinished(_folder(root))
     ds = _build(3, resume=True)
     meta = ds.storage.metadata
-    assert meta["ref_min_score"] is not None and meta["electroloc"]["reference"]["source"].endswith("trials.jsonl")
+    assert meta["ref_min_score"] is not None and meta["ref_min_score"] == first["ref_min_score"]
+    assert meta["electroloc"]["reference"] == first["electroloc"]["reference"] is not None
 
 
 def test_a_second_writer_of_the_same_id_is_refused(root, capsys):

@@ -63,8 +63,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--resume",
         action="store_true",
-        help="continue an unfinished dataset of the same settings (every kept episode checked; a damaged one "
-        "set aside in the dataset's quarantine/ folder and collected again)",
+        help="continue an unfinished dataset of the same settings, or check a complete one (every kept episode "
+        "checked; a damaged one set aside in the dataset's quarantine/ folder and collected again)",
     )
     parser.add_argument(
         "--force",

@@ -24,7 +24,8 @@ every spec ``electroloc bench --agents`` takes works here. How the files are wri
 in place, a kill at any moment resumable, every kept episode checked on resume, a replacement swapped in
 only when complete — is :mod:`electroloc_gym.dataset.store`. An existing id is refused unless ``resume``
 (continue an unfinished dataset of the same settings from the episodes that pass the checks: the same
-seeds, so the same episodes) or ``force`` (replace it).
+seeds, so the same episodes; on a complete dataset it checks every episode and re-collects the damaged
+ones, or says there is nothing to collect) or ``force`` (replace it).
 """
 
 from __future__ import annotations
@@ -317,7 +318,8 @@ def build_dataset(
     Args:
         request: the dataset.
         resume: continue an unfinished dataset of the same settings, checking every episode it keeps;
-            a damaged one is set aside (``quarantine/<n>/`` in the dataset's folder) and re-collected.
+            a damaged one is set aside (``quarantine/<n>/`` in the dataset's folder) and re-collected. A
+            complete dataset is checked the same way (repaired, or left as it is when every episode passes).
         force: replace an existing dataset of the id, once the new one is complete (the old one is
             kept if the run fails or is killed).
         progress: show a progress bar.
@@ -380,7 +382,7 @@ def build_dataset(
                         continue
                     try:
                         buffer = _episode_buffer(env, agent, k, request.seed)
-                    except AgentCallError as exc:
+                    except (AgentCallError, ValueError) as exc:  # a method raised, or the env refused an action
                         raise ValueError(f"agent {request.agent!r} in episode {k} of {ds_id}: {exc}") from None
                     run.write(buffer)
                     bar.update(1)
@@ -457,12 +459,23 @@ class _Run:
             state = "a complete" if complete else "an unfinished"
             raise ValueError(
                 f"dataset {ds_id!r} exists ({state} one at {path}); pass --force to replace it"
-                + ("" if complete else " or --resume to continue it")
+                + (
+                    " or --resume to check its episodes and re-collect damaged ones"
+                    if complete
+                    else " or --resume to continue it"
+                )
             )
         found = store.inspect_dataset(ds_id, path, self.settings, self.seeds, self.header())
         if self.refs is None and found.header is not None:  # the reference it was started with
             old_refs = found.header["electroloc"].get("reference")
             self.refs = old_refs if isinstance(old_refs, dict) and _REF_KEYS <= old_refs.keys() else None
+        if found.complete and found.intact(self.request.episodes):  # nothing to repair: written as it is
+            self.kept, self.folder = found.kept, path
+            self.notify(
+                f"{ds_id}: complete; all {len(self.kept)} episodes match their checksums and read back: "
+                "nothing to collect"
+            )
+            return
         moved_to = store.set_aside(path, found)
         self.kept = found.kept
         line = found.report(moved_to, self.request.episodes - len(self.kept))

@@ -224,7 +224,8 @@ class DatasetFolder:
 
         Raises:
             ValueError: a namespace or other folder at the id, an id inside another dataset's folder, a
-                file on the way, a dataset folder holding files this package did not write — one line.
+                file on the way, a dataset folder holding files this package did not write, an id that a
+                case-insensitive file system finds under another spelling — one line.
         """
         parts = self.ds_id.split("/")
         for i in range(1, len(parts)):
@@ -236,6 +237,13 @@ class DatasetFolder:
                 raise ValueError(
                     f"dataset id {self.ds_id!r} lies inside the dataset {prefix!r} ({folder}); choose another id"
                 )
+        spelled = self._spelling_on_disk()
+        if spelled is not None:
+            raise ValueError(
+                f"dataset id {self.ds_id!r}: this file system does not tell upper from lower case, and "
+                f"{spelled!r} exists ({self.root.joinpath(*spelled.split('/'))}); nothing was changed: use "
+                "that spelling or another id"
+            )
         path = self.path
         if not path.exists():
             return
@@ -247,6 +255,11 @@ class DatasetFolder:
                 f"dataset id {self.ds_id!r} names {kind} ({path}), not a dataset; nothing was changed: "
                 f"give the id of one dataset, NAMESPACE/NAME-vN"
             )
+        if (path / QUARANTINE).exists() and not (path / QUARANTINE).is_dir():
+            raise ValueError(
+                f"dataset folder {path} holds a file {QUARANTINE!r} where its set-aside folder goes; nothing was "
+                "changed: move it out first"
+            )
         own = {"data", JOURNAL, QUARANTINE, STAGING}
         others = sorted(p.name for p in path.iterdir() if p.name not in own and not _is_temporary(p.name, JOURNAL))
         if others:
@@ -254,6 +267,25 @@ class DatasetFolder:
                 f"dataset folder {path} holds {others[:3]} besides the dataset; nothing was changed: move "
                 f"{'them' if len(others) > 1 else 'it'} out first"
             )
+
+    def _spelling_on_disk(self) -> str | None:
+        """The existing part of the id's path as the folder listings spell it, where that differs from the id
+        (a case-insensitive file system finds ``Mine/X-v0`` at ``mine/x-v0``); None where it does not.
+        """
+        folder, spelled = self.root, []
+        for part in self.ds_id.split("/"):
+            if not os.path.lexists(folder / part):
+                break
+            try:
+                names = os.listdir(folder)
+            except OSError:
+                return None
+            if part not in names:
+                same = [n for n in names if n.casefold() == part.casefold()]
+                return "/".join([*spelled, same[0] if same else part])
+            spelled.append(part)
+            folder = folder / part
+        return None
 
 
 def _is_temporary(name: str, of: str) -> bool:
@@ -430,6 +462,7 @@ class Inspection:
         temporaries: this module's own leftovers of a killed run (deleted).
         missing: episodes the header counted that are not there.
         journal_lines_bad: unreadable journal lines.
+        complete: the (kept) header says the dataset is complete.
     """
 
     header: dict[str, Any] | None
@@ -439,6 +472,18 @@ class Inspection:
     temporaries: list[Path] = field(default_factory=list)
     missing: list[int] = field(default_factory=list)
     journal_lines_bad: int = 0
+    complete: bool = False
+
+    def intact(self, planned: int) -> bool:
+        """Nothing to set aside, rebuild or collect: every one of ``planned`` episodes kept, header and journal good."""
+        return (
+            not self.damaged
+            and not self.temporaries
+            and not self.missing
+            and not self.journal_lines_bad
+            and self.header_problem is None
+            and sorted(self.kept) == list(range(planned))
+        )
 
     def report(self, moved_to: Path | None, recollect: int) -> str | None:
         """One line saying what was set aside, where, and what is re-collected (None: nothing to say)."""
@@ -503,9 +548,11 @@ def inspect_dataset(
         expected_header: the header these settings give, without counts; a readable header whose
             fields differ from it is set aside and rebuilt.
 
+    A complete dataset is checked the same way (a resume repairs it: its damaged episodes are re-collected).
+
     Raises:
-        ValueError: a complete dataset, one of other settings, one not written by this package, or one
-            holding episodes beyond ``len(episode_seeds)`` — one line; nothing is moved.
+        ValueError: a dataset of other settings, one not written by this package, or one holding episodes
+            beyond ``len(episode_seeds)`` — one line; nothing is moved.
     """
     header, problem = read_header(folder)
     if header is not None:
@@ -516,8 +563,6 @@ def inspect_dataset(
                 f"dataset {ds_id!r} ({folder}) was not written by electroloc dataset (its metadata has no "
                 f"'electroloc' block); pass --force to replace it"
             )
-        if block.get("complete", False) is True:
-            raise ValueError(f"dataset {ds_id!r} exists (a complete one at {folder}); pass --force to replace it")
         if old != dict(settings):
             raise ValueError(f"dataset {ds_id!r} was started with other settings {old}; pass --force to replace it")
         fixed = {k: v for k, v in header.items() if k not in _COUNTED}
@@ -536,9 +581,13 @@ def inspect_dataset(
         records, bad = {}, bad + 1  # a journal of other settings beside this header: not this dataset's
     if journal_settings is None and header is None:
         records = {}  # nothing says which settings these episodes were written with
-    found = Inspection(header=header, header_problem=problem, journal_lines_bad=bad)
+    complete = header is not None and header["electroloc"].get("complete") is True
+    found = Inspection(header=header, header_problem=problem, journal_lines_bad=bad, complete=complete)
     if problem is not None and header_path(folder).exists():
         found.damaged.append((_HEADER_REL, problem))
+    journal = folder / JOURNAL
+    if os.path.lexists(journal) and (journal.is_symlink() or not journal.is_file()):
+        found.damaged.append((JOURNAL, "not a file"))
     planned = len(episode_seeds)
     data = folder / "data"
     beyond = sorted(
