@@ -78,6 +78,24 @@ def test_host_checked_actions_are_refused_before_anything_changes(kw, actions, m
     assert_same_state(before, snapshot(env))
 
 
+@pytest.mark.parametrize("check", ["host", "device"])
+@pytest.mark.parametrize(
+    ("actions", "match"),
+    [
+        (torch.zeros(3, 2, device="meta"), "got a meta tensor"),
+        (torch.zeros(3, 2).to_sparse(), "got a sparse_coo tensor"),
+        (torch.zeros(3, 2).to_sparse_csr(), "got a sparse_csr tensor"),
+    ],
+)
+def test_tensors_without_readable_values_are_one_error_naming_actions(check, actions, match):
+    env = make(action_check=check)
+    env.reset(seed=0)
+    before = snapshot(env)
+    with pytest.raises(ValueError, match=f"actions must be a number array or a dense tensor holding values, {match}"):
+        env.step(actions)
+    assert_same_state(before, snapshot(env))
+
+
 def test_host_check_gives_the_numba_engines_messages():
     numba = ElectroLocVectorEnv(num_envs=3, n_particles=50)
     torch_env = make()
@@ -203,6 +221,14 @@ def test_numpy_view_checks_actions_on_the_host():
         view.step(np.array([[NAN, 0.0], [0.0, 0.0], [0.0, 0.0]], dtype=np.float32))
     view.step(np.zeros((3, 2), dtype=np.float32))
     view.reset(options={"reset_mask": np.array([True, False, False])})
+    for bad in (
+        np.zeros((3, 2), dtype=object),
+        np.array([[0.0, None], [0.0, 0.0], [0.0, 0.0]], dtype=object),
+        np.full((3, 2), "a"),
+        np.zeros((3, 2), dtype="M8[s]"),
+    ):  # dtypes the conversion cannot carry: the host check's message, not the conversion's BufferError
+        with pytest.raises(ValueError, match=r"actions must be a number array of shape \(3, 2\)"):
+            view.step(bad)
 
 
 # ---- the constructor --------------------------------------------------------------------------------
@@ -333,6 +359,8 @@ def test_bad_seeds_give_the_numba_engines_message(seed):
         ({"reset_mask": torch.zeros(3, dtype=torch.bool)}, "with a True entry"),
         ({"reset_mask": np.ones(4, dtype=bool)}, r"shape \(3,\)"),
         ({"reset_mask": torch.ones(3)}, "bool array"),
+        ({"reset_mask": torch.ones(3, dtype=torch.bool, device="meta")}, "with a True entry, got a meta tensor"),
+        ({"reset_mask": torch.ones(3, dtype=torch.bool).to_sparse()}, "with a True entry, got a sparse_coo tensor"),
         ({"reset_mask": "abc"}, "bool array"),
     ],
 )
@@ -380,3 +408,17 @@ def test_a_closed_env_refuses_every_use():
         with pytest.raises(RuntimeError, match="closed env"):
             call()
     env.close()  # closing twice is nothing
+
+
+@pytest.mark.parametrize("seed", [-1, "x", 2.5, True, [1, 2], b"1"])
+def test_the_sb3_adapter_checks_a_seed_when_it_is_given(seed):
+    pytest.importorskip("stable_baselines3")
+    from electroloc_gym.torch_core.sb3 import TorchSB3VecEnv
+
+    match = r"seed must be None, an integer ≥ 0 or a sequence of 3 seeds"
+    with pytest.raises(ValueError, match=match):
+        TorchSB3VecEnv(make(), seed=seed)
+    venv = TorchSB3VecEnv(make(), seed=0)
+    with pytest.raises(ValueError, match=match):
+        venv.seed(seed)
+    assert venv.seed(5) == [5, 5, 5] and venv.reset().shape == (3, 81)

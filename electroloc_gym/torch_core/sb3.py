@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
+from electroloc_gym.checks import check_seeds
 from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv
 
 __all__ = ["TorchSB3VecEnv"]
@@ -25,10 +26,11 @@ class TorchSB3VecEnv(VecEnv):
 
     Args:
         env: the torch vector env.
-        seed: the seed of the first reset (None: fresh entropy).
+        seed: the seed of the first reset (None: fresh entropy; checked here as ``reset`` checks it).
     """
 
     def __init__(self, env: TorchElectroLocVectorEnv, seed: int | None = None) -> None:
+        check_seeds(seed, env.num_envs)
         super().__init__(env.num_envs, env.single_observation_space, env.single_action_space)
         self.env = env
         self._seed = seed
@@ -74,5 +76,7 @@ class TorchSB3VecEnv(VecEnv):
         return [False] * len(list(self._get_indices(indices)))
 
     def seed(self, seed: int | None = None) -> list[int | None]:
+        """The seed of the next reset, checked now (one ValueError naming ``seed``, as ``reset`` gives)."""
+        check_seeds(seed, self.num_envs)
         self._seed = seed
         return [seed] * self.num_envs

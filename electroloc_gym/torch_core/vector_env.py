@@ -23,8 +23,9 @@ Actions, and the rule that keeps a check from costing an accelerator a host sync
   tensors for a GPU env), and everything when ``action_check="host"`` or the env is on the CPU (the
   default ``"auto"``): the numba engine's rules and messages (:class:`~electroloc_gym.envs.actions.
   ActionParser`): NaN or infinite continuous actions, discrete ones outside [0, 8] or not integers,
-  bool, complex, strings, None, a wrong shape — one ValueError naming ``actions``, before anything
-  changes. A device tensor checked on the host costs one synchronisation per step.
+  bool, complex, strings, None, a wrong shape, a meta or sparse tensor (also on the device path) — one
+  ValueError naming ``actions``, before anything changes. A device tensor checked on the host costs one
+  synchronisation per step.
 * checked on the device — a tensor already on the env's accelerator (``action_check="auto"`` there, or
   ``"device"``): its dtype and shape on the host (metadata, no synchronisation: bool, complex, a float
   tensor for discrete actions and a wrong shape are one ValueError); its values on the device, without
@@ -110,6 +111,17 @@ def _compile_backend(value: Any) -> str:
     return value
 
 
+def _data_tensor_problem(value: torch.Tensor) -> str | None:
+    """Why ``value`` holds no values a check can read (None: it does): a meta tensor (shapes only) or a
+    sparse or other non-strided layout.
+    """
+    if value.is_meta:
+        return "a meta tensor (shapes only, no values)"
+    if value.layout != torch.strided:
+        return f"a {str(value.layout).removeprefix('torch.')} tensor (pass .to_dense())"
+    return None
+
+
 def _seed_words(seed: int | np.random.SeedSequence | None) -> tuple[int, int]:
     """The two 32-bit key words of a sub-env seed or seed sequence (None: fresh entropy)."""
     seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
@@ -132,6 +144,13 @@ def _key_words(seed: Any, n: int) -> list[tuple[int, int] | None]:
     if _is_seed(seed):
         return [_seed_words(child) for child in np.random.SeedSequence(int(seed)).spawn(n)]
     return [None if v is None else _seed_words(int(v)) for v in seed]
+
+
+def _refuse_dataless(actions: torch.Tensor) -> None:
+    """One ValueError naming ``actions`` for a tensor whose values cannot be read (:func:`_data_tensor_problem`)."""
+    why = _data_tensor_problem(actions)
+    if why is not None:
+        raise ValueError(f"actions must be a number array or a dense tensor holding values, got {why}")
 
 
 class TorchElectroLocVectorEnv(VectorEnv):
@@ -308,6 +327,9 @@ class TorchElectroLocVectorEnv(VectorEnv):
             return torch.as_tensor(value, device=self.device)
         if not isinstance(value, torch.Tensor) or value.dtype != torch.bool or tuple(value.shape) != (n,):
             raise ValueError(what)
+        why = _data_tensor_problem(value)
+        if why is not None:
+            raise ValueError(f"{what}, got {why}")
         mask = value.detach().to(self.device)
         if not bool(mask.any()):  # reset is a synchronisation point anyway
             raise ValueError(what)
@@ -331,6 +353,7 @@ class TorchElectroLocVectorEnv(VectorEnv):
         """
         a = actions
         if isinstance(a, torch.Tensor):
+            _refuse_dataless(a)
             a = a.detach()
             if a.is_floating_point() and a.dtype not in _NUMPY_FLOATS:
                 a = a.to(torch.float32)
@@ -371,6 +394,7 @@ class TorchElectroLocVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError("call reset() before step()")
         if self.action_check == "device" and isinstance(actions, torch.Tensor) and actions.device == self.device:
+            _refuse_dataless(actions)
             a, invalid = self._device_actions(actions)
         else:
             a, invalid = self.host_actions(actions), torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
@@ -410,4 +434,15 @@ def numpy_view(env: VectorEnv) -> VectorEnv:
     device = getattr(env, "device", None)
     if not isinstance(device, torch.device):
         raise TypeError(f"numpy_view needs a torch vector env (a torch.device in its `device`), got {env!r}")
-    return ArrayConversion(env, env_xp=np, target_xp=np, env_device=None, target_device=None)
+
+    class NumpyView(ArrayConversion):
+        """Gymnasium's ``ArrayConversion``; an action array it cannot convert (object, string or other
+        non-number dtypes) reaches the env's host check instead, for its ValueError.
+        """
+
+        def step(self, actions: Any) -> Any:
+            if isinstance(actions, np.ndarray) and actions.dtype.kind not in "biufc":
+                env.unwrapped.host_actions(actions)  # raises: the numba engine's message
+            return super().step(actions)
+
+    return NumpyView(env, env_xp=np, target_xp=np, env_device=None, target_device=None)
