@@ -660,6 +660,17 @@ def test_an_unusable_datasets_path_is_one_line(tmp_path, monkeypatch, capsys, se
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"] and (tmp_path / "a-file").read_text() == "mine"
 
 
+@pytest.mark.parametrize("setting", ["rel", "./rel/", "sub/../rel"])
+def test_a_relative_datasets_path_holds_the_same_dataset(tmp_path, monkeypatch, uninterrupted, setting):
+    (tmp_path / "sub").mkdir()
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", setting)
+    monkeypatch.delenv(st.KILL_ENV, raising=False)
+    ds = _build()  # the episodes were written to a doubled relative path before
+    assert ds.total_episodes == N and _tree(_folder(tmp_path / "rel")) == uninterrupted[N]
+    assert minari.load_dataset(ID).total_episodes == N
+
+
 def test_a_missing_datasets_folder_is_created_when_its_parent_exists(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "new"))
     assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1"]) == 0

@@ -168,7 +168,7 @@ def datasets_root() -> Path:
                 "MINARI_DATASETS_PATH is set but empty: unset it (Minari's default ~/.minari/datasets) or set "
                 "it to a folder"
             )
-        root = Path(raw)
+        root = Path(raw).absolute()  # Minari's storage mislays episodes under a relative folder
         if root.exists() and not root.is_dir():
             raise ValueError(f"{what} is not a folder")
         if not root.exists():

@@ -51,7 +51,7 @@ the eager one to float rounding (the same distribution), not bit for bit.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -442,7 +442,8 @@ def numpy_view(env: VectorEnv) -> VectorEnv:
 
         def step(self, actions: Any) -> Any:
             if isinstance(actions, np.ndarray) and actions.dtype.kind not in "biufc":
-                env.unwrapped.host_actions(actions)  # raises: the numba engine's message
+                torch_env = cast(TorchElectroLocVectorEnv, env.unwrapped)  # a torch env: its `device` says so
+                torch_env.host_actions(actions)  # raises: the numba engine's message
             return super().step(actions)
 
     return NumpyView(env, env_xp=np, target_xp=np, env_device=None, target_device=None)
