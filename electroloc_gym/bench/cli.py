@@ -34,7 +34,7 @@ from electroloc_gym.conditions import DEFAULT_SIGNAL
 from electroloc_gym.distractors import MAX_DISTRACTORS
 from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES
 from electroloc_gym.registry import BENCH_ENVS, PAPER_ENV_ID, BenchEnv, bench_env
-from electroloc_gym.sensor_layouts import LAYOUT_NAMES
+from electroloc_gym.sensor_array import LAYOUT_NAMES
 
 __all__ = [
     "add_arguments",

@@ -3,7 +3,7 @@
 :class:`ArrayLocalizeTask` is ElectroLoc-v0's task. With the paper's one pair at the carriage centre (the
 default ``sensor_layout="single"``, or any one-pair layout that is the paper's unit untranslated) every
 reading, likelihood and draw is :class:`~electroloc_gym.core.localize.LocalizeTask`'s, bit for bit: its
-methods are used unchanged. Any other layout of K pairs (:mod:`electroloc_gym.sensor_layouts`) is the
+methods are used unchanged. Any other layout of K pairs (:mod:`electroloc_gym.sensor_array`) is the
 *array path*:
 
 * **reading**: each step takes K readings, one per pair, each with its own N(0, (G·σ_s)²) noise and the
@@ -46,8 +46,7 @@ from electroloc_gym.core.state import State
 from electroloc_gym.core.worlds import group_by_world
 from electroloc_gym.draws import table_normal_indices
 from electroloc_gym.kernels import loglik_assimilate
-from electroloc_gym.sensor_array import array_reading
-from electroloc_gym.sensor_layouts import SensorLayout, make_sensor_layout
+from electroloc_gym.sensor_array import SensorLayout, array_reading, make_sensor_layout
 from electroloc_gym.sensor_models.pairs import ArrayAnalyticSensorModel, ArrayCalibratedSensorModel
 
 __all__ = ["ArrayLocalizeTask", "is_paper_pair"]

@@ -209,11 +209,11 @@ class EnvParams:
         put("randomize_target", check_bool("randomize_target", self.randomize_target))
         put("fixed_carriage", check_bool("fixed_carriage", self.fixed_carriage))
         if not isinstance(self.sensor_layout, str):
-            from electroloc_gym.sensor_layouts import make_sensor_layout
+            from electroloc_gym.sensor_array import make_sensor_layout
 
             put("sensor_layout", make_sensor_layout(self.sensor_layout))  # one error naming sensor_layout
         elif self.sensor_layout != "single":
-            from electroloc_gym.sensor_layouts import named_layout
+            from electroloc_gym.sensor_array import named_layout
 
             named_layout(self.sensor_layout)  # an unknown name: one error naming sensor_layout
         put(

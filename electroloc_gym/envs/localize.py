@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from electroloc_gym.core.array import ArrayLocalizeTask
 from electroloc_gym.core.params import MAX_STEP_MM
 from electroloc_gym.envs.adapter import CoreEnv
-from electroloc_gym.sensor_layouts import SensorLayout
+from electroloc_gym.sensor_array import SensorLayout
 
 __all__ = ["ElectroLocEnv"]
 

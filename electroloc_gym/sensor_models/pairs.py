@@ -1,5 +1,6 @@
-"""Sensor models of a K-pair array (:mod:`electroloc_gym.sensor_array`): per pair a mean and a std of its reading,
-and the log-likelihood of the K readings of one step.
+"""Sensor models of a K-pair array (:mod:`electroloc_gym.sensor_array`) and the likelihood of its readings.
+
+Per pair a mean and a std of its reading, and the log-likelihood of the K readings of one step.
 
 The pairs' noises are independent (each pair has its own amplifier input noise, §3.2), so
 ``log p(Φ_1..Φ_K | x) = Σ_k log p(Φ_k | x)``, summed in pair order (a fixed order: the same bits on every CPU).
@@ -31,8 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from electroloc_gym.conditions import Condition
 from electroloc_gym.kernels.fusion import sum_over_pairs
 from electroloc_gym.sensor import add_calibration_noise
-from electroloc_gym.sensor_array import array_reading
-from electroloc_gym.sensor_layouts import SensorLayout
+from electroloc_gym.sensor_array import SensorLayout, array_reading
 from electroloc_gym.sensor_models.calibrated import (
     DEFAULT_CALIBRATION,
     SENSOR_MODEL_NAMES,
