@@ -1,5 +1,6 @@
-"""The built-in agents: the paper's three controllers (Solberg, Lynch & MacIver 2008, §4.1.3, §4.2,
-Algorithm 1) and three planners.
+"""The built-in agents: the paper's three controllers and three planners.
+
+The controllers are those of Solberg, Lynch & MacIver 2008 (§4.1.3, §4.2, Algorithm 1).
 
 * ``rnd-wlk`` — :class:`~electroloc_gym.baselines.random_walk.RandomWalkAgent`
 * ``min-var`` — :class:`~electroloc_gym.baselines.min_variance.MinVarianceAgent` (particle voting, Algorithm 1)

@@ -1,5 +1,7 @@
-"""The apparatus of one experimental condition: the target sphere, the water, the amplifier and the
-carriage geometry, as frozen, validated dataclasses (units in every field name: mm, V, mV, µS/cm).
+"""The apparatus of one experimental condition, as frozen, validated dataclasses.
+
+The target sphere, the water, the amplifier and the carriage geometry (units in every field name: mm, V,
+mV, µS/cm).
 
 :class:`electroloc_gym.conditions.Condition` combines them with the workspace and the signal scale.
 """

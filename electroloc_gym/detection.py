@@ -1,7 +1,8 @@
-"""Detection distances of the electrolocation robot (no Gymnasium, no randomness): paper Eq. 5 (one
-detector), Eq. 6 (the largest distance at which the signal exceeds twice the noise) and the experimental
-two-sensor layout along the 45° line (§6.7, Table 3's theory column), and the signal scale fitted to
-Table 3's measured distances (docs/physics.md).
+"""Detection distances of the electrolocation robot (no Gymnasium, no randomness).
+
+Paper Eq. 5 (one detector), Eq. 6 (the largest distance at which the signal exceeds twice the noise)
+and the experimental two-sensor layout along the 45° line (§6.7, Table 3's theory column), and the
+signal scale fitted to Table 3's measured distances (docs/physics.md).
 
 Units: lengths in mm (Eq. 5 and Eq. 6 dimensionless, divided by the emitter spacing L), potentials in
 V. The signal itself is :mod:`electroloc_gym.physics`' (``differential_perturbation``); a detection

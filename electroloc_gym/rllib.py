@@ -1,5 +1,6 @@
-"""Training on RLlib: the env creator its env runners call, their process set-up, and the export of
-RLlib's PPO module to the project's pickle-free policy format.
+"""Training on RLlib: the env runners' env creator and process set-up, and the policy export.
+
+The export turns RLlib's PPO module into the project's pickle-free policy format.
 
 The one creator, :func:`make_env`, serves both of RLlib's entry points. Registered with
 ``ray.tune.registry.register_env`` (:func:`register`), RLlib's ``SingleAgentEnvRunner`` calls it with the

@@ -268,3 +268,59 @@ def test_the_repository_map_names_every_top_level_folder() -> None:
     assert {"electroloc_gym", "tests", "docs"} <= set(folders)
     missing = [f for f in folders if f"| `{f}/` |" not in table]
     assert not missing, f"top-level folders docs/design.md's repository map does not describe: {missing}"
+
+
+#: First words that open a history note (what a module was, where it came from) instead of its concern.
+HISTORY_WORDS = frozenset(
+    "formerly previously was were moved renamed now new newly split originally legacy deprecated replaces "
+    "replaced since added fixed until old initially historically refactored extracted merged continued "
+    "continuation rest part changed".split()
+)
+
+
+def concern_line_problem(docstring: str | None) -> str | None:
+    """Why a module docstring's first line does not name the module's concern (None: it does): it must be
+    there, be one whole sentence (one final full stop, no second sentence) and not open with a history word.
+    """
+    import re
+
+    first = (docstring or "").split("\n", 1)[0].strip()
+    if not first:
+        return "no first line (no module docstring, or it starts with an empty line)"
+    if not first.endswith("."):
+        return f"the first line is not one whole sentence (it ends {first[-20:]!r}, not with a full stop)"
+    second = re.search(r"[.!?]\s+[A-Z]", first[:-1])
+    if second:
+        return f"the first line holds more than one sentence ({first[max(0, second.start() - 20) : second.end()]!r})"
+    word = re.match(r"[A-Za-z]+", first)
+    if word and word.group().lower() in HISTORY_WORDS:
+        return f"the first line opens with the history word {word.group()!r}"
+    return None
+
+
+def test_every_module_names_its_concern_in_its_first_line() -> None:
+    """Each module of the package (electroloc_gym/, baselines/, train/, models/) opens its docstring with one
+    sentence that names what it holds."""
+    bad = []
+    for path in package_modules().values():
+        doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8")), clean=False)
+        why = concern_line_problem(doc)
+        if why is not None:
+            bad.append(f"{path.relative_to(ROOT)}: {why}")
+    assert not bad, "module docstrings whose first line does not name the concern:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize(
+    ("docstring", "says"),
+    [
+        (None, "no first line"),
+        ("\nThe sensor array.", "no first line"),
+        ("The sensor array: where K pairs sit and what they\nread.", "not one whole sentence"),
+        ("The sensor array. It reads K pairs.", "more than one sentence"),
+        ("Moved here from sensor_layouts: the layouts.", "history word 'Moved'"),
+        ("Formerly the layouts module.", "history word 'Formerly'"),
+    ],
+)
+def test_the_concern_check_refuses_what_names_no_concern(docstring: str | None, says: str) -> None:
+    assert says in (concern_line_problem(docstring) or "")
+    assert concern_line_problem("The sensor array (paper §7): where K pairs sit (Eq. 4), and what each reads.") is None

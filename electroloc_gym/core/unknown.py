@@ -1,5 +1,6 @@
-"""The unknown-target task (ElectroLocUnknownTarget-v0): the belief estimates the sphere's position,
-radius and contrast together (paper §7).
+"""The unknown-target task (ElectroLocUnknownTarget-v0): position, radius and contrast estimated together.
+
+The belief estimates the sphere's position, radius and contrast together (paper §7).
 
 Each particle is a hypothesis (x, y, a, χ): position (mm), radius a (mm) and contrast χ (Eq. 4). The
 position is stored as in the other tasks (``State.particles_mm``), the shape beside it

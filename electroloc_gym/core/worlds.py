@@ -1,5 +1,7 @@
-"""Helpers the tasks share about worlds (an episode's ``Condition`` or ``Scene``): grouping envs by world,
-and the cached per-world values (descriptors, calibration coefficients, a condition at another gain).
+"""Helpers the tasks share about worlds (an episode's ``Condition`` or ``Scene``).
+
+Grouping envs by world, and the cached per-world values (descriptors, calibration coefficients, a
+condition at another gain).
 
 Batched numpy work is grouped by world (one call for all envs sharing a condition or map) and uses
 only exact operations, so every env's values are those it would get alone (docs/design.md).

@@ -1,5 +1,7 @@
-"""Minari datasets of the benchmark's agents (:mod:`electroloc_gym.dataset.collect`), their seed protocol and
-reference scores (:mod:`electroloc_gym.dataset.protocol`), and the ``electroloc dataset`` command
+"""Minari datasets of the benchmark's agents: collection, seed protocol, reference scores and the command.
+
+The datasets (:mod:`electroloc_gym.dataset.collect`), their seed protocol and reference scores
+(:mod:`electroloc_gym.dataset.protocol`), and the ``electroloc dataset`` command
 (:mod:`electroloc_gym.dataset.cli`). Minari is the optional ``minari`` extra; importing this package does
 not import it.
 """

@@ -1,5 +1,7 @@
-"""A dataset's folder on disk while it is written: ids, the datasets root, the atomic header, the checksum
-journal, the check of every kept episode, the set-aside folder and the replacement of a dataset.
+"""A dataset's folder on disk while it is written.
+
+Its ids, the datasets root, the atomic header, the checksum journal, the check of every kept episode, the
+set-aside folder and the replacement of a dataset.
 
 Layout, under the datasets root (``MINARI_DATASETS_PATH``, Minari's default ``~/.minari/datasets`` when
 unset; :func:`datasets_root`)::

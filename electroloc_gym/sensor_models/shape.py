@@ -1,5 +1,6 @@
-"""Sensor models of a sphere of unknown size and material (paper §7: "the conductivity and diameter of
-the target could be two more dimensions in the search space").
+"""Sensor models of a sphere of unknown size and material (paper §7).
+
+"The conductivity and diameter of the target could be two more dimensions in the search space" (§7).
 
 A hypothesis is a target position and a shape: radius ``a`` (mm) and contrast ``χ`` (Eq. 4; +1 a
 perfect conductor, −½ a perfect insulator). Both models give the mean and standard deviation (V) of

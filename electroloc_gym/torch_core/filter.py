@@ -1,5 +1,6 @@
-"""The belief update of N envs as tensor operations (paper §4.1, Algorithm 1): likelihoods, systematic
-resampling, jitter, clip, statistics, histogram and the observation.
+"""The belief update of N envs as tensor operations (paper §4.1, Algorithm 1).
+
+Likelihoods, systematic resampling, jitter, clip, statistics, histogram and the observation.
 
 Each function is the numba kernel's arithmetic (:mod:`electroloc_gym.kernels`) batched over envs:
 float32 for the particles, the likelihoods and the weights (as the numba core), float64 for the
