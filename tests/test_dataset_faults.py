@@ -20,6 +20,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 minari = pytest.importorskip("minari")  # the dev extra installs it; the numpy lower-bound session deselects these
@@ -706,6 +707,42 @@ def test_a_second_writer_of_the_same_id_is_refused(root, capsys):
     assert not _folder(root).exists()
     with FolderLock(root / ".electroloc-locks", "other--x-v0.lock", "busy"):  # another id's lock: no effect
         _build(1)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "words"),
+    [
+        ({"reference": 5}, "reference must be None or a benchmark folder or trials.jsonl path, got 5"),
+        ({"reference": ""}, "reference must be None or a benchmark folder"),
+        ({"trust_pickle": "yes"}, "trust_pickle must be True or False, got 'yes'"),
+        ({"episodes": np.float64(2.0)}, r"episodes must be an integer in \[1, 1000000\], got np.float64\(2.0\)"),
+        ({"seed": np.bool_(True)}, r"seed must be an integer in \[1, "),
+    ],
+)
+def test_request_arguments_of_the_wrong_type_are_one_error(kwargs, words):
+    with pytest.raises(ValueError, match=words):
+        _request(**kwargs)
+
+
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        ({"resume": "yes"}, "resume must be True or False, got 'yes'"),
+        ({"force": 1}, "force must be True or False, got 1"),
+        ({"notify": 5}, "notify must be None or a callable taking one line, got 5"),
+    ],
+)
+def test_build_options_of_the_wrong_type_are_one_error_before_anything_is_written(root, options, words):
+    with pytest.raises(ValueError, match=words):
+        build_dataset(_request(), progress=False, **options)
+    assert not root.exists() or not [p for p in root.rglob("*") if p.name == "data"]
+
+
+def test_numpy_integers_are_taken_as_the_integers_they_are(root, uninterrupted):
+    request = _request(np.int64(N), seed=np.uint32(1), version=np.int8(0))
+    assert (type(request.episodes), type(request.seed), type(request.version)) == (int, int, int)
+    build_dataset(request, progress=False)
+    assert _tree(_folder(root)) == uninterrupted[N]
 
 
 def test_dataset_ids_are_checked_in_python_too():

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.checks import check_bool
 from electroloc_gym.dataset import store
 from electroloc_gym.dataset.protocol import (
     DEFAULT_DATASET_SEED,
@@ -116,9 +117,18 @@ class DatasetRequest:
             ("seed", self.seed, 1, 2**63 - 1),
             ("version", self.version, 0, 10**6),
         ):
-            if isinstance(val, bool) or not isinstance(val, int) or not low <= val <= high:
+            whole = isinstance(val, (int, np.integer)) and not isinstance(val, (bool, np.bool_))
+            if not whole or not low <= val <= high:
                 extra = " (0 is the benchmark's evaluation seed)" if name == "seed" else ""
                 raise ValueError(f"{name} must be an integer in [{low}, {high}]{extra}, got {val!r}")
+            object.__setattr__(self, name, int(val))  # a numpy integer as the int the metadata records
+        if self.reference is not None and (
+            not isinstance(self.reference, (str, os.PathLike)) or not str(self.reference)
+        ):
+            raise ValueError(
+                f"reference must be None or a benchmark folder or trials.jsonl path, got {self.reference!r}"
+            )
+        check_bool("trust_pickle", self.trust_pickle)
         if self.condition != "random" and self.condition not in PRESET_NAMES:
             raise ValueError(f"condition must be 'random' or one of {list(PRESET_NAMES)}, got {self.condition!r}")
         if not isinstance(self.agent, str) or not self.agent.strip():
@@ -341,8 +351,12 @@ def build_dataset(
     from electroloc_gym.bench.agents import make_bench_agent, policy_env_problem
     from electroloc_gym.rollout import AgentCallError
 
+    check_bool("resume", resume)
+    check_bool("force", force)
     if resume and force:
         raise ValueError("resume and force exclude each other")
+    if notify is not None and not callable(notify):
+        raise ValueError(f"notify must be None or a callable taking one line, got {notify!r}")
     notify = notify or _notify_stderr
     ds_id = request.id
     agent = make_bench_agent(request.agent, trust_pickle=request.trust_pickle)
