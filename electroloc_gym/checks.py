@@ -115,16 +115,33 @@ def check_prediction_args(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The arguments of the envs' ``predicted_*`` accessors: (M, ``particle_dims``) hypotheses (float32 kept,
     other dtypes as float64) and (2,) or (C, 2) finite moves, clipped to ±``max_step_mm`` as a step clips
-    them (float64); else one ValueError naming the argument and the shape.
+    them (float64); else one ValueError naming the argument and the shape (or the values: not real numbers,
+    not finite).
     """
-    p = np.asarray(particles_mm)
+    p = _real_array("particles_mm", particles_mm, f"(M, {particle_dims})")
     if p.dtype not in (np.float32, np.float64):
         p = p.astype(np.float64)
     if p.ndim != 2 or p.shape[-1] != particle_dims:
         raise ValueError(f"particles_mm must have shape (M, {particle_dims}), got {p.shape}")
-    u = np.asarray(moves_mm, dtype=np.float64)
+    if not np.all(np.isfinite(p)):
+        raise ValueError("particles_mm must be finite")
+    u = _real_array("moves_mm", moves_mm, "(2,) or (C, 2)").astype(np.float64)
     if u.ndim not in (1, 2) or u.shape[-1] != 2:
         raise ValueError(f"moves_mm must have shape (2,) or (C, 2), got {u.shape}")
     if not np.all(np.isfinite(u)):
         raise ValueError("moves_mm must be finite")
     return p, np.clip(u, -max_step_mm, max_step_mm)
+
+
+def _real_array(name: str, value: Any, shape: str) -> np.ndarray:
+    """``value`` as a numpy array of real numbers (integers or floats), else one ValueError naming ``name``."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):  # ragged nesting
+        arr = None
+    if arr is None or arr.dtype.kind not in "iuf":
+        kind = "no array" if arr is None else f"dtype {arr.dtype}"
+        shown = " ".join(repr(value).split())
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
+        raise ValueError(f"{name} must be a real number array of shape {shape}, got {kind}: {shown}")
+    return arr

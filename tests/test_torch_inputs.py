@@ -422,3 +422,30 @@ def test_the_sb3_adapter_checks_a_seed_when_it_is_given(seed):
     with pytest.raises(ValueError, match=match):
         venv.seed(seed)
     assert venv.seed(5) == [5, 5, 5] and venv.reset().shape == (3, 81)
+
+
+# ---- the sub-env's prediction accessors ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("particles", "moves", "match"),
+    [
+        (np.array([[NAN, 0.0], [0.0, 0.0]]), np.zeros(2), "particles_mm must be finite"),
+        (np.array([[INF, 0.0], [0.0, 0.0]]), np.zeros(2), "particles_mm must be finite"),
+        ("x", np.zeros(2), r"particles_mm must be a real number array of shape \(M, 2\), got dtype <U1: 'x'"),
+        (np.zeros((2, 2), dtype=complex), np.zeros(2), "particles_mm must be a real number array .* complex128"),
+        (np.zeros((2, 2), dtype=bool), np.zeros(2), "particles_mm must be a real number array .* bool"),
+        ([[0.0, 1.0], [2.0]], np.zeros(2), "particles_mm must be a real number array .* got no array"),
+        (np.zeros((2, 2)), "x", r"moves_mm must be a real number array of shape \(2,\) or \(C, 2\)"),
+        (np.zeros((2, 2)), np.zeros(2, dtype=complex), "moves_mm must be a real number array .* complex128"),
+    ],
+)
+def test_prediction_accessors_refuse_what_is_not_finite_real_numbers_on_both_engines(particles, moves, match):
+    numba = gym.make("ElectroLoc-v0", n_particles=50).unwrapped
+    numba.reset(seed=0)
+    torch_env = make()
+    torch_env.reset(seed=0)
+    for env in (numba, torch_env.sub_env(0)):
+        for accessor in (env.predicted_reading_model, env.predicted_particles_mm):
+            with pytest.raises(ValueError, match=match):
+                accessor(particles, moves)
