@@ -6,6 +6,7 @@
   :class:`electroloc_gym.fileio.FolderLock`) held for the whole run: a second run on the same folder
   refuses at once (the lock goes with the process that holds it).
 * :func:`load_records` — reads ``trials.jsonl`` keyed by (condition, agent, trial), each line parsed
+  (or, where it is absent, the ``trials.jsonl.gz`` of a kept run stored compressed: :func:`stored_trials`)
   within bounds (:func:`parse_line`: length, nesting depth, digits) and checked field by field
   through the one schema (:class:`~electroloc_gym.bench.schema.TrialRecord`) and against the run
   (:class:`~electroloc_gym.bench.schema.RecordRules`): a damaged or impossible line (not UTF-8, not
@@ -15,16 +16,22 @@
   or settings are not the run's is *foreign* (the runner refuses to resume). No record is ever
   counted twice. A kept record is returned in the current key names
   (:data:`~electroloc_gym.bench.schema.OLD_KEY_NAMES`).
+* :func:`compress_trials` — stores a finished run's ``trials.jsonl`` as ``trials.jsonl.gz`` (gzip, level 9,
+  mtime 0 and no file name: the same records give the same bytes); every reader reads it where
+  ``trials.jsonl`` is absent, and a run never appends to it (``--resume`` on such a folder is refused).
 * :class:`RecordWriter` — appends one line per finished trial, flushed and fsync'ed at once (a killed
   run loses no finished trial).
 """
 
 from __future__ import annotations
 
+import gzip
+import io
 import json
 import os
 import re
 import tempfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,6 +62,10 @@ __all__ = [
     "validate_record",
     "foreign_reason",
     "TRIALS_FILE",
+    "TRIALS_GZ_FILE",
+    "stored_trials",
+    "open_trials",
+    "compress_trials",
     "REJECTED_FILE",
     "LOCK_FILE",
     "MAX_LINE_CHARS",
@@ -63,6 +74,8 @@ __all__ = [
 ]
 
 TRIALS_FILE = "trials.jsonl"
+#: A kept run's records stored compressed (:func:`compress_trials`); read where ``trials.jsonl`` is absent.
+TRIALS_GZ_FILE = TRIALS_FILE + ".gz"
 CONFIG_FILE = "config.json"
 REJECTED_FILE = "trials.rejected.jsonl"
 LOCK_FILE = ".bench.lock"
@@ -230,74 +243,136 @@ class LoadedRecords:
         return len(self.foreign)
 
 
+def stored_trials(path: str | os.PathLike[str]) -> Path:
+    """The file holding a run's records: ``path`` (a ``trials.jsonl``), or, where it is absent, the
+    ``trials.jsonl.gz`` beside it (a kept run stored compressed by :func:`compress_trials`).
+    """
+    plain = Path(path)
+    if plain.name == TRIALS_FILE and not plain.exists():
+        packed = plain.with_name(TRIALS_GZ_FILE)
+        if packed.is_file():
+            return packed
+    return plain
+
+
+def open_trials(path: str | os.PathLike[str]) -> io.BufferedIOBase:
+    """A run's records opened for reading, as bytes: the file :func:`stored_trials` names (a ``.gz`` decompressed)."""
+    found = stored_trials(path)
+    return gzip.open(found, "rb") if found.name.endswith(".gz") else open(found, "rb")  # noqa: SIM115
+
+
+def compress_trials(folder: str | os.PathLike[str]) -> Path:
+    """Store ``folder/trials.jsonl`` as ``folder/trials.jsonl.gz`` and remove the plain file.
+
+    gzip at level 9 with mtime 0 and no file name in the header, so the same records give the same
+    bytes on every machine. The compressed file is written atomically and read back before the plain
+    one is removed: its records must equal the plain file's.
+
+    Raises:
+        ValueError: no ``trials.jsonl`` in ``folder``, or a ``trials.jsonl.gz`` already there.
+    """
+    plain, packed = Path(folder) / TRIALS_FILE, Path(folder) / TRIALS_GZ_FILE
+    if not plain.is_file():
+        raise ValueError(f"{plain}: missing (nothing to compress)")
+    if packed.exists():
+        raise ValueError(f"{packed} already exists (a run keeps one of trials.jsonl and trials.jsonl.gz)")
+    data = plain.read_bytes()
+    buf = io.BytesIO()
+    with gzip.GzipFile(filename="", mode="wb", fileobj=buf, compresslevel=9, mtime=0) as gz:
+        gz.write(data)
+    fd, tmp = tempfile.mkstemp(dir=plain.parent, prefix=".trials-", suffix=".gz")
+    try:
+        os.chmod(tmp, plain.stat().st_mode & 0o777)  # the plain file's permissions, not mkstemp's 0600
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(buf.getvalue())
+            fh.flush()
+            os.fsync(fh.fileno())
+        if gzip.decompress(Path(tmp).read_bytes()) != data:
+            raise ValueError(f"{tmp}: the compressed records do not read back equal")
+        os.replace(tmp, packed)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    plain.unlink()
+    return packed
+
+
 def load_records(
     path: str | os.PathLike[str], config: BenchConfig | None = None, rules: RecordRules | None = None
 ) -> LoadedRecords:
     """Read a trials.jsonl (missing file: no records), keyed by (condition, agent, trial).
 
     Args:
-        path: the file.
+        path: the file; where it is absent, the ``trials.jsonl.gz`` beside it (:func:`stored_trials`).
         config: if given, every valid record is also checked against the run (seeds, settings);
             those that do not match are listed in ``foreign`` (and not in ``records``).
         rules: if given, every record is also checked against what the run allows (conditions,
             agents, trial range, caps, success criterion, the env's keys); a record that breaks them
             is rejected (set aside and run again), like a damaged line.
     """
-    out = LoadedRecords(Path(path))
+    out = LoadedRecords(stored_trials(path))
     if not out.path.exists():
         return out
     try:
-        fh = open(out.path, "rb")  # noqa: SIM115 - closed by the with below
+        fh = open_trials(out.path)
     except OSError as exc:
         raise ValueError(f"cannot read {out.path}: {exc.strerror or exc}") from None
-    seen: dict[tuple[str, str, int], tuple[int, dict[str, Any]]] = {}
-    with fh:
-        for n, raw in enumerate(iter(lambda: fh.readline(MAX_LINE_CHARS * 4 + 2), b""), start=1):
-            if len(raw) > MAX_LINE_CHARS * 4 + 1:  # a line longer than any record: read it to its end, reject it
-                while raw[-1:] != b"\n":
-                    more = fh.readline(1 << 20)
-                    if not more:
-                        break
-                    raw = raw[:64] + more[-1:]
-                out.rejected.append((n, f"a line longer than {MAX_LINE_CHARS} characters", raw[:64] + b"...\n"))
-                continue
-            if not raw.strip():
-                continue
-            try:
-                text = raw.decode("utf-8")
-            except UnicodeDecodeError as exc:
-                out.rejected.append((n, f"not UTF-8 ({exc.reason} at byte {exc.start})", raw))
-                continue
-            try:
-                rec = parse_line(text)
-            except ValueError as exc:
-                torn = "" if raw.endswith(b"\n") else ", the last line torn (a run killed mid-write)"
-                out.rejected.append((n, f"{exc}{torn}", raw))
-                continue
-            try:
-                record = TrialRecord.from_json(rec)
-            except ValueError as exc:
-                out.rejected.append((n, str(exc), raw))
-                continue
-            why = None if rules is None else record.problem(rules)
-            if why is not None:
-                out.rejected.append((n, why, raw))
-                continue
-            rec = record.to_json()
-            key = record_key(rec)
-            if key in seen:
-                first, kept = seen[key]
-                what = "duplicate" if _same_result(rec, kept) else "a second, different result"
-                out.rejected.append((n, f"{what} of line {first} (same condition, agent, trial {list(key)})", raw))
-                continue
-            seen[key] = (n, rec)
-            if config is not None:
-                why = foreign_reason(rec, config)
-                if why is not None:
-                    out.foreign.append((n, f"{list(key)}: {why}"))
-                    continue
-            out.records[key] = rec
+    try:
+        with fh:
+            _read_lines(fh, out, config, rules)
+    except (OSError, EOFError, zlib.error) as exc:  # e.g. a damaged .gz: the stream itself cannot be read
+        raise ValueError(f"cannot read {out.path}: {exc}") from None
     return out
+
+
+def _read_lines(fh: Any, out: LoadedRecords, config: BenchConfig | None, rules: RecordRules | None) -> None:
+    """:func:`load_records`' loop over the lines of an open (binary) records file, filling ``out``."""
+    seen: dict[tuple[str, str, int], tuple[int, dict[str, Any]]] = {}
+    for n, raw in enumerate(iter(lambda: fh.readline(MAX_LINE_CHARS * 4 + 2), b""), start=1):
+        if len(raw) > MAX_LINE_CHARS * 4 + 1:  # a line longer than any record: read it to its end, reject it
+            while raw[-1:] != b"\n":
+                more = fh.readline(1 << 20)
+                if not more:
+                    break
+                raw = raw[:64] + more[-1:]
+            out.rejected.append((n, f"a line longer than {MAX_LINE_CHARS} characters", raw[:64] + b"...\n"))
+            continue
+        if not raw.strip():
+            continue
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            out.rejected.append((n, f"not UTF-8 ({exc.reason} at byte {exc.start})", raw))
+            continue
+        try:
+            rec = parse_line(text)
+        except ValueError as exc:
+            torn = "" if raw.endswith(b"\n") else ", the last line torn (a run killed mid-write)"
+            out.rejected.append((n, f"{exc}{torn}", raw))
+            continue
+        try:
+            record = TrialRecord.from_json(rec)
+        except ValueError as exc:
+            out.rejected.append((n, str(exc), raw))
+            continue
+        why = None if rules is None else record.problem(rules)
+        if why is not None:
+            out.rejected.append((n, why, raw))
+            continue
+        rec = record.to_json()
+        key = record_key(rec)
+        if key in seen:
+            first, kept = seen[key]
+            what = "duplicate" if _same_result(rec, kept) else "a second, different result"
+            out.rejected.append((n, f"{what} of line {first} (same condition, agent, trial {list(key)})", raw))
+            continue
+        seen[key] = (n, rec)
+        if config is not None:
+            why = foreign_reason(rec, config)
+            if why is not None:
+                out.foreign.append((n, f"{list(key)}: {why}"))
+                continue
+        out.records[key] = rec
 
 
 def read_trials(path: str | os.PathLike[str]) -> list[dict[str, Any]]:

@@ -45,6 +45,7 @@ from electroloc_gym.bench.progress import TrialProgress
 from electroloc_gym.bench.records import (
     REJECTED_FILE,
     TRIALS_FILE,
+    TRIALS_GZ_FILE,
     LoadedRecords,
     RecordWriter,
     load_records,
@@ -253,7 +254,8 @@ def run_benchmark(
 
     Raises:
         ValueError: a bad output folder, a folder in use by another run, bad agents, an existing
-            run without ``resume``, or a stored run whose seed or settings differ.
+            run without ``resume``, a stored run whose seed or settings differ, or a kept run's
+            ``trials.jsonl.gz`` in the folder (read by the reports, never appended to).
     """
     from electroloc_gym.bench.stats import summarize
 
@@ -264,6 +266,11 @@ def run_benchmark(
             f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run"
         )
     described, warnings = _check_agents(config, trust_pickle)  # before the folder is touched: nothing written
+    packed = Path(os.fspath(out_dir or "")).expanduser() / TRIALS_GZ_FILE
+    if packed.is_file():  # a kept run stored compressed is read, never appended to; nothing is written
+        raise ValueError(
+            f"{packed} holds a kept run's trials (compressed); gunzip it to continue that run, or choose another --out"
+        )
     out = prepare_out_dir(out_dir)
     with run_lock(out):
         if log is not None:

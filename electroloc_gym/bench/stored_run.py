@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.bench.config import IDENTITY_KEYS, BenchConfig
-from electroloc_gym.bench.records import CONFIG_FILE, TRIALS_FILE, LoadedRecords, load_records
+from electroloc_gym.bench.records import CONFIG_FILE, TRIALS_FILE, LoadedRecords, load_records, stored_trials
 from electroloc_gym.bench.schema import RecordRules
 from electroloc_gym.registry import env_entry
 
@@ -183,11 +183,11 @@ class RunRecords:
 def read_run_records(out_dir: str | os.PathLike[str]) -> RunRecords:
     """Read a benchmark run's folder (``electroloc bench --out``) as ``--resume`` reads it.
 
-    ``OUT/config.json`` gives the run; every line of ``OUT/trials.jsonl`` is parsed within bounds and
-    checked through the record schema and the run's rules (:func:`record_rules`: its conditions,
-    agents, trial range, cap, success criterion, the start each seed draws); a line that fails is
-    set aside and counted, a valid record of another run (other seeds or settings) is counted as
-    foreign. Nothing is written.
+    ``OUT/config.json`` gives the run; every line of ``OUT/trials.jsonl`` (or of a kept run's
+    ``trials.jsonl.gz``) is parsed within bounds and checked through the record schema and the run's
+    rules (:func:`record_rules`: its conditions, agents, trial range, cap, success criterion, the start
+    each seed draws); a line that fails is set aside and counted, a valid record of another run (other
+    seeds or settings) is counted as foreign. Nothing is written.
 
     Raises:
         ValueError: one line naming the file: the folder, its config.json or its trials.jsonl missing or
@@ -196,7 +196,7 @@ def read_run_records(out_dir: str | os.PathLike[str]) -> RunRecords:
     folder = Path(os.fspath(out_dir)).expanduser()
     if not folder.is_dir():
         raise ValueError(f"{folder}: not a benchmark output folder (no such folder)")
-    config_path, trials_path = folder / CONFIG_FILE, folder / TRIALS_FILE
+    config_path, trials_path = folder / CONFIG_FILE, stored_trials(folder / TRIALS_FILE)
     for path in (config_path, trials_path):
         if not path.is_file():
             raise ValueError(f"{path}: missing (not a benchmark output folder)")

@@ -99,15 +99,15 @@ def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str
     Raises:
         ValueError: no such file, another env, or rnd-wlk or every planner missing — one line.
     """
+    from electroloc_gym.bench.records import TRIALS_FILE, read_trials, stored_trials
+
     path = Path(bench_dir)
-    path = path / "trials.jsonl" if path.is_dir() else path
+    path = stored_trials(path / TRIALS_FILE if path.is_dir() else path)  # a kept run's .gz where it is absent
     if not path.is_file():
         raise ValueError(
             f"reference must be a benchmark folder or trials.jsonl with rnd-wlk and a planner on "
             f"{env_id}; {str(path)!r} does not exist"
         )
-    from electroloc_gym.bench.records import read_trials
-
     rows = [r for r in read_trials(path) if r.get("env_id", "ElectroLoc-v0") == env_id]  # the bench's own schema
     agents = {r["agent"] for r in rows}
     planners = [p for p in PLANNERS if p in agents]

@@ -59,21 +59,21 @@ def _config(bench: Path) -> dict[str, Any]:
 
 
 def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str, Any]]:
-    """The valid trial records of one benchmark run's ``trials.jsonl``, read through the bench's own
-    record schema (:func:`electroloc_gym.bench.records.load_records` with the run's
-    :class:`~electroloc_gym.bench.schema.RecordRules` from its ``config.json``): a damaged or impossible
+    """The valid trial records of one benchmark run's ``trials.jsonl`` (or its kept ``trials.jsonl.gz``),
+    read through the bench's own record schema (:func:`electroloc_gym.bench.records.load_records` with the
+    run's :class:`~electroloc_gym.bench.schema.RecordRules` from its ``config.json``): a damaged or impossible
     line — out of range, inconsistent, another run's agent or condition, a duplicate — is left out and
     named in ``set_aside``.
 
     Raises:
         ReportError: the file is missing or holds no valid record.
     """
-    from electroloc_gym.bench.records import load_records
+    from electroloc_gym.bench.records import load_records, stored_trials
     from electroloc_gym.bench.schema import RecordRules
     from electroloc_gym.protocol import SUCCESS_SPREAD_MM
     from electroloc_gym.registry import env_entry
 
-    if not path.is_file():
+    if not stored_trials(path).is_file():
         raise ReportError(f"{path} is missing")
     cfg = _config(path.parent)
     rules = RecordRules(

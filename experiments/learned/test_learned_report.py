@@ -16,6 +16,7 @@ report = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(report)
 import learned_scores as scores  # noqa: E402  (beside the report, which put its folder on sys.path)
 
+from electroloc_gym.bench.records import open_trials  # noqa: E402
 from electroloc_gym.registry import bench_env  # noqa: E402
 
 TARGET_ID, GLOBAL_ID = bench_env("target")[0].env_id, bench_env("global")[0].env_id
@@ -24,11 +25,8 @@ CONDS = ("a", "b")
 
 
 RESULTS = ROOT / "experiments" / "learned" / "results"
-TEMPLATE = json.loads(
-    (RESULTS / "ElectroLoc-v0" / "ppo" / "seed-1" / "bench" / "trials.jsonl")
-    .read_text(encoding="utf-8")
-    .splitlines()[0]
-)
+with open_trials(RESULTS / "ElectroLoc-v0" / "ppo" / "seed-1" / "bench" / "trials.jsonl") as _kept:  # or its .gz
+    TEMPLATE = json.loads(_kept.readline())
 
 
 def _record(cond: str, agent: str, trial: int, n: int) -> dict:

@@ -42,8 +42,10 @@ PLANNERS = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "eedi")
 
 def _controllers(lr: Any, paths: list[Path], keys: set[tuple[str, int]]) -> dict[str, list[dict[str, Any]]]:
     rows: dict[str, list[dict[str, Any]]] = {}
+    from electroloc_gym.bench.records import stored_trials
+
     for p in paths:
-        if p.is_file():
+        if stored_trials(p).is_file():
             for r in lr.read_trials(p):
                 if (r["condition"], int(r["trial"])) in keys:
                     rows.setdefault(r["agent"], []).append(r)
