@@ -188,7 +188,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ),
     ("physics", ("physics", "detection", "apparatus", "conditions")),
     ("kernels", ("kernels", "draws")),
-    ("sensor", ("sensor", "sensor_layouts", "sensor_array", "scene", "distractors")),
+    ("sensor", ("sensor", "sensor_array", "scene", "distractors")),
     ("sensor models", ("sensor_models",)),
     ("core", ("core",)),
     ("views", ("belief", "render", "eev_maps")),
