@@ -9,7 +9,7 @@ This module is data: it imports nothing of the package, so every layer may read 
 
 from __future__ import annotations
 
-__all__ = ["MAX_OBSERVATIONS", "N_PARTICLES", "SUCCESS_SPREAD_MM", "MAX_STEP_MM", "FAR_ERROR_MM"]
+__all__ = ["MAX_OBSERVATIONS", "N_PARTICLES", "SUCCESS_SPREAD_MM", "MAX_STEP_MM", "FAR_ERROR_MM", "HIST_BINS"]
 
 #: Readings per episode before truncation (paper §5.4: 35).
 MAX_OBSERVATIONS = 35
@@ -23,3 +23,6 @@ MAX_STEP_MM = 10.0
 #: target, mm: 1.5 × the success criterion, so the tight cloud does not hold the target — a belief locked on
 #: the wrong object (a distractor, or a wrong mode of the target's own map).
 FAR_ERROR_MM = 15.0
+#: Cells per axis of the belief observation's egocentric particle histogram (8×8 entries, layout:
+#: :mod:`electroloc_gym.core.observation`); the compiled kernels and the torch engine read it too.
+HIST_BINS = 8

@@ -36,8 +36,8 @@ from numpy.typing import NDArray
 
 from electroloc_gym.conditions import Condition
 from electroloc_gym.kernels import belief_observation_rows
+from electroloc_gym.protocol import HIST_BINS
 
-HIST_BINS = 8
 N_SCALARS = 12
 N_DESCRIPTOR = 5
 BELIEF_OBS_DIM = N_SCALARS + HIST_BINS * HIST_BINS + N_DESCRIPTOR

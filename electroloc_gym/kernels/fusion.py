@@ -28,11 +28,9 @@ from numpy.typing import NDArray
 
 from electroloc_gym.draws import normal_table, table_normal_indices
 from electroloc_gym.kernels.filter import loglik_assimilate
+from electroloc_gym.protocol import HIST_BINS
 
 __all__ = ["sum_over_pairs", "grid_posterior", "assimilate_readings", "general_pair_difference"]
-
-#: Histogram bins the filter kernel fills as it goes (unused here, but the kernel needs its buffer).
-_BINS = 8
 
 
 @vectorize(["float64(" + ", ".join(["float64"] * 13) + ")"], cache=True)
@@ -130,7 +128,7 @@ def assimilate_readings(
     table = normal_table()
     half = np.asarray(half_mm, dtype=np.float32).reshape(k)
     origin = np.zeros((k, 2), dtype=np.float32)
-    mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, _BINS * _BINS))
+    mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
     groups = [list(range(n_pairs))] if at_once else [[j] for j in range(n_pairs)]
     for group in groups:
         ll = np.ascontiguousarray(sum_over_pairs([pair_loglik(j, clouds) for j in group]), dtype=np.float32)
@@ -140,7 +138,9 @@ def assimilate_readings(
             u0[i] = g.random()
             jitter[i] = table_normal_indices(g, 2 * m)
         if (
-            loglik_assimilate(ll, clouds, origin, u0, jitter, table, half, clouds, mean, cov, 2 * half, _BINS, counts)
+            loglik_assimilate(
+                ll, clouds, origin, u0, jitter, table, half, clouds, mean, cov, 2 * half, HIST_BINS, counts
+            )
             >= 0
         ):
             raise ValueError("log-likelihood contains NaN (reading or sensor model produced NaN)")
