@@ -385,6 +385,12 @@ def test_resume_of_an_intact_complete_dataset_changes_no_episode(root, uninterru
     assert not (folder / "quarantine").exists()
 
 
+def test_resume_extends_a_complete_dataset_to_more_episodes(root, uninterrupted):
+    _build(2)
+    ds = _build(resume=True)  # the same seeds: the first two episodes kept, the rest collected
+    assert ds.total_episodes == N and _tree(_folder(root)) == uninterrupted[N]
+
+
 def test_resume_refuses_a_dataset_it_did_not_write(root, tmp_path):
     _build()
     env = minari.load_dataset(ID).recover_environment()
@@ -649,6 +655,7 @@ def _cli(argv: list[str]) -> int:
         ("{tmp}/a-file", "is not a folder"),
         ("{tmp}/no/such/place", "does not exist and neither does its parent folder"),
         ("{tmp}/a-file/below", "does not exist and neither does its parent folder"),
+        ("~/no-such-place-xyz/datasets", "(a leading ~ is not expanded: give the full path)"),
         ("/proc", "is not writable"),
     ],
 )

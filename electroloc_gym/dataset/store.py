@@ -176,7 +176,8 @@ def datasets_root() -> Path:
         if not root.exists():
             parent = root.absolute().parent
             if not parent.is_dir():
-                raise ValueError(f"{what} does not exist and neither does its parent folder {str(parent)!r}")
+                tilde = " (a leading ~ is not expanded: give the full path)" if raw.startswith("~") else ""
+                raise ValueError(f"{what} does not exist and neither does its parent folder {str(parent)!r}{tilde}")
             try:
                 root.mkdir()
             except OSError as exc:
