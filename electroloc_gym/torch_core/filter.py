@@ -154,14 +154,22 @@ def grid_mean_std(
     """
     ix, iy, tx, ty, inside = _cells(x, y, lo, inv, cells)
     per = n * n
-    base = _which(which, x) * (2 * per) + torch.where(inside, ix * n + iy, 0)
-    flat = grids.reshape(-1)
+    point = torch.where(inside, ix * n + iy, 0)
+    if which is None:  # row i reads env i's grids: a gather along the rows, no flattened view
+        rows = grids.reshape(grids.shape[0], 2 * per)
+
+        def at(offset: int) -> torch.Tensor:
+            return torch.gather(rows, 1, point + offset)
+    else:
+        flat, base = grids.reshape(-1), _which(which, x) * (2 * per) + point
+
+        def at(offset: int) -> torch.Tensor:
+            return lookup(flat, base + offset)
+
     txy = tx * ty
     out = []
     for plane in (0, per):  # the mean, then the std
-        i00 = base + plane
-        v00, v10 = lookup(flat, i00), lookup(flat, i00 + n)
-        v01, v11 = lookup(flat, i00 + 1), lookup(flat, i00 + (n + 1))
+        v00, v10, v01, v11 = at(plane), at(plane + n), at(plane + 1), at(plane + n + 1)
         c0 = v00.to(torch.float32)
         c1 = (v10 - v00).to(torch.float32)
         c2 = (v01 - v00).to(torch.float32)
