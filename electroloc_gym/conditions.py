@@ -112,6 +112,21 @@ class Condition:
         return self.target.radius_mm + self.geometry.electrode_radius_mm + self.geometry.clearance_mm
 
     @property
+    def dipole_constants(self) -> tuple[float, float, float, float, float]:
+        """The analytic reading's constants in float64, each computed as
+        :func:`~electroloc_gym.sensor.expected_reading` computes it: half the spacing L/2 (mm), V_e·E
+        (V·mm), the sphere's strength χ·A³ (mm³), the depth² (mm²) and the reading's scale s·G.
+        """
+        g, a, depth = self.geometry, self.target.radius_mm, self.depth_mm
+        return (
+            g.spacing_mm / 2.0,
+            g.emitter_voltage_V * g.electrode_radius_mm,
+            self.chi * (a * a * a),
+            depth * depth,
+            self.signal_scale * self.amplifier.gain,
+        )
+
+    @property
     def noise_std_V(self) -> float:
         """Standard deviation of the amplified reading, V (G·σ_s·noise_factor)."""
         return self.amplifier.noise_std_V

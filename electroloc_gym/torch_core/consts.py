@@ -78,8 +78,9 @@ class TorchConsts:
         preset_index: (P,) int64 each condition's ``info["condition_index"]``: its index in
             :data:`~electroloc_gym.conditions.PRESET_NAMES`, −1 for a custom condition (as the numba envs').
         dip_h, dip_k, dip_strength, dip_z2, dip_scale: (P,) float64 the dipole's L/2 (mm), V_e·E (V·mm),
-            χ·A³ (mm³), depth² (mm²) and s·G (the true reading uses them in float64, the analytic
-            belief model rounded once to float32, as the numba core).
+            χ·A³ (mm³), depth² (mm²) and s·G, read from :attr:`~electroloc_gym.conditions.Condition.
+            dipole_constants` (the true reading uses them in float64, the analytic belief model rounded once
+            to float32, as the numba core).
         grid_mean_V: (P, n, n) float64 the calibration's noise-free readings (padded with 0), V.
         grid_points: (P,) int64 points per axis of each condition's grid; grid_lo_mm, grid_inv_mm: (P,)
             float32 its first coordinate (mm) and inverse step (1/mm).
@@ -157,8 +158,7 @@ class TorchConsts:
                 fixed_np[i, rows] = coef[:-1]
                 fixed_np[i, -1] = coef[-1]
             fixed = torch.tensor(fixed_np, device=device)
-        geo = [c.geometry for c in pool]
-        depth = [c.target.radius_mm + g.electrode_radius_mm + g.clearance_mm for c, g in zip(pool, geo, strict=True)]
+        dip = np.array([c.dipole_constants for c in pool], dtype=np.float64)  # (P, 5): h, k, strength, z², s·G
         return cls(
             device=device,
             pool=len(pool),
@@ -182,11 +182,11 @@ class TorchConsts:
             saturation_V=f64([c.saturation_V for c in pool]),
             descriptor=torch.tensor(np.stack([condition_descriptor(c) for c in pool]), device=device),
             preset_index=torch.tensor(condition_index([c.name for c in pool]), device=device),
-            dip_h=f64([g.spacing_mm / 2.0 for g in geo]),
-            dip_k=f64([g.emitter_voltage_V * g.electrode_radius_mm for g in geo]),
-            dip_strength=f64([c.chi * (c.target.radius_mm * c.target.radius_mm * c.target.radius_mm) for c in pool]),
-            dip_z2=f64([d * d for d in depth]),
-            dip_scale=f64([c.signal_scale * c.amplifier.gain for c in pool]),
+            dip_h=f64(dip[:, 0]),
+            dip_k=f64(dip[:, 1]),
+            dip_strength=f64(dip[:, 2]),
+            dip_z2=f64(dip[:, 3]),
+            dip_scale=f64(dip[:, 4]),
             grid_mean_V=torch.tensor(grid_mean, device=device),
             grid_points=torch.tensor([g.size for g in grids], device=device, dtype=torch.int64),
             grid_lo_mm=torch.tensor(np.asarray([g[0] for g in grids], dtype=np.float32), device=device),
