@@ -62,6 +62,7 @@ __all__ = [
     "INFO_KEYS",
     "HIST_BINS",
     "condition_descriptor",
+    "episode_flags",
     "belief_observation",
     "raw_observation",
 ]
@@ -79,6 +80,27 @@ def condition_descriptor(condition: Condition) -> NDArray[np.float32]:
         ]
     )
     return np.clip(d, -1.0, 1.0).astype(np.float32)
+
+
+def episode_flags(
+    spread_mm: Any,
+    n_observations: Any,
+    elapsed: Any,
+    success_spread_mm: float,
+    max_observations: int,
+    max_episode_steps: int | None,
+) -> tuple[Any, Any]:
+    """(terminated, truncated) per env, the rule of both engines: terminated when the belief's spread
+    √trace Σ (mm) is at most ``success_spread_mm``; truncated when not terminated and ``n_observations``
+    reached ``max_observations``, or (terminated or not) when ``elapsed`` steps reached
+    ``max_episode_steps``. Comparisons and boolean operators only, so numpy arrays and torch tensors
+    (any device, traced or not) alike.
+    """
+    terminated = spread_mm <= success_spread_mm
+    truncated = ~terminated & (n_observations >= max_observations)
+    if max_episode_steps is not None:
+        truncated = truncated | (elapsed >= max_episode_steps)
+    return terminated, truncated
 
 
 def raw_observation(

@@ -36,6 +36,7 @@ import numpy as np
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
 
+from electroloc_gym.core.observation import episode_flags
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.state import State
 from electroloc_gym.core.task import Task
@@ -180,12 +181,10 @@ class Simulation:
 
     # ---- observation, flags, info --------------------------------------------------------------
     def _flags(self) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-        s = self.state
-        success = s.spread_mm() <= self.params.success_spread_mm
-        truncated = ~success & (s.n_observations >= self.params.max_observations)
-        if self.params.max_episode_steps is not None:
-            truncated |= s.elapsed >= self.params.max_episode_steps
-        return success, truncated
+        s, p = self.state, self.params
+        return episode_flags(
+            s.spread_mm(), s.n_observations, s.elapsed, p.success_spread_mm, p.max_observations, p.max_episode_steps
+        )
 
     def observation(self, ids: NDArray[np.intp] | None = None) -> NDArray[np.float32]:
         """(k, obs_dim) float32 observations of envs ``ids`` (all if None): the task's."""

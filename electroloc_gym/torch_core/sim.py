@@ -43,6 +43,7 @@ from typing import TypedDict
 
 import torch
 
+from electroloc_gym.core.observation import episode_flags
 from electroloc_gym.torch_core import filter as F
 from electroloc_gym.torch_core.calibration import calibration_grids
 from electroloc_gym.torch_core.consts import TorchConsts
@@ -426,11 +427,10 @@ def advance(
     s["position_mm"] = _keep(moving, moved, s["position_mm"])
     s = observe(c, s)
     s["elapsed"] = s["elapsed"] + moving.to(torch.int64)
-    terminated = (spread_mm(s) <= c.success_spread_mm) & moving
-    truncated = ~terminated & (s["n_observations"] >= c.max_observations)
-    if c.max_episode_steps is not None:
-        truncated = truncated | (s["elapsed"] >= c.max_episode_steps)
-    truncated = truncated & moving
+    terminated, truncated = episode_flags(
+        spread_mm(s), s["n_observations"], s["elapsed"], c.success_spread_mm, c.max_observations, c.max_episode_steps
+    )
+    terminated, truncated = terminated & moving, truncated & moving
     s["done"] = terminated | truncated
     rewards = torch.where(moving, -1.0, 0.0).to(torch.float64)
     return s, observation(c, s), rewards, terminated, truncated
