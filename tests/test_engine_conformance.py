@@ -15,10 +15,15 @@ equal for ≥ 99.9 % (a pointer within rounding of a cumulative weight may pick 
 to 1e-3 mm, the covariance to 1e-3 relative, the histogram counts to twice the differing particles; the
 observation to 1e-4 (it is computed from those); reward, terminated, truncated and the counters exactly.
 
-Not covered here: a step in which an env resets (the reset draws — condition, target, start, particles,
-calibration — are not injected), and per-episode calibrations (the engines keep different tables: the
-numba engine the coefficients, the torch engine the grids); a fixed ``calibration_seed``'s table is the
-same in both (tests/test_torch_backend.py) and is used for the calibrated cases.
+Autoreset steps: some envs are marked ended (their done flag, as the step that ended them leaves it), so
+this step resets them (next-step autoreset) and every env reads once. Their reset draws are injected too —
+the condition's index, the target's and the start's uniforms, the particles' uniforms (on the 2⁻²⁴ grid of
+the torch engine's float32 draws) — and the same tolerances hold for them; their reward is 0 and their flags
+false in both engines.
+
+Not covered here: per-episode calibrations (the engines keep different tables: the numba engine the
+coefficients, the torch engine the grids); a fixed ``calibration_seed``'s table is the same in both
+(tests/test_torch_backend.py) and is used for the calibrated cases.
 """
 
 from __future__ import annotations
@@ -48,18 +53,43 @@ TABLE = normal_table()
 STATE_KEYS = ("position_mm", "target_mm", "particles_mm", "reading_V", "n_observations", "elapsed")
 
 
-class _Draws:
-    """One env's injected draws, as the numba engine's generator would hand them out."""
+class _Reset:
+    """One env's injected reset draws: the condition's pool index, the target's and the start's two
+    uniforms each, the particles' (M, 2) uniforms (x, y)."""
 
-    def __init__(self, noise_idx: int, u0: float, jitter: np.ndarray) -> None:
-        self.noise_idx, self.u0, self.jitter = noise_idx, u0, jitter
+    def __init__(self, rng: np.random.Generator, pool: int) -> None:
+        self.cond = int(rng.integers(0, pool))
+        self.target_u, self.start_u = rng.random(2), rng.random(2)
+        self.particles_u = rng.integers(0, 2**24, (M, 2)) / 2.0**24  # the torch engine's float32 grid
+
+
+class _Draws:
+    """One env's injected draws, as the numba engine's generator would hand them out: a reset's (when it
+    resets this step, in :meth:`ElectroLocTask.begin_episode`'s order), then the reading's."""
+
+    def __init__(
+        self, noise_idx: int, u0: float, jitter: np.ndarray, reset: _Reset, randomize_target: bool = False
+    ) -> None:
+        self.noise_idx, self.u0, self.jitter, self.reset = noise_idx, u0, jitter, reset
+        self._boxes = [reset.target_u, reset.start_u] if randomize_target else [reset.start_u]
+
+    def integers(self, high: int) -> int:
+        assert self.reset.cond < high
+        return self.reset.cond
+
+    def uniform(self, low: float, high: float, size: int) -> np.ndarray:
+        assert size == 2
+        return low + (high - low) * self._boxes.pop(0)  # numpy's construction of uniform(low, high)
 
     def normal(self, loc: float, scale: float, size: Any = None) -> float:
         assert size is None and loc == 0.0
         return float(np.float64(TABLE[self.noise_idx]) * scale)
 
-    def random(self) -> float:
-        return self.u0
+    def random(self, size: Any = None) -> Any:
+        if size is None:
+            return self.u0
+        assert tuple(size) == (M, 2)
+        return self.reset.particles_u.copy()
 
 
 class NumbaHarness:
@@ -105,6 +135,17 @@ class TorchHarness:
         noise = torch.tensor([[d.noise_idx] for d in draws], dtype=torch.int64)
         u0 = torch.tensor([[d.u0] for d in draws], dtype=torch.float64)
         jit = torch.tensor(np.stack([d.jitter for d in draws]).astype(np.int64))
+        pool = self.env.consts.pool
+        cond_bits = torch.tensor([[-(-(d.reset.cond << 32) // pool)] for d in draws])  # (bits · pool) >> 32 = cond
+        uniforms = {
+            STREAMS["target"]: torch.tensor(np.stack([d.reset.target_u for d in draws])),
+            STREAMS["start"]: torch.tensor(np.stack([d.reset.start_u for d in draws])),
+        }
+        particles = torch.tensor(np.stack([d.reset.particles_u.T.reshape(-1) for d in draws]))  # x then y
+        resetting = torch.nonzero(self.env.state["done"]).reshape(-1)
+
+        def rows(key: torch.Tensor) -> torch.Tensor:  # every env's draws, or the resetting envs' (gathered)
+            return torch.arange(N) if key.shape[0] == N else resetting
 
         def stream_key(k0, k1, ep, t, stream):  # the stream's id stands for its key
             return torch.full_like(k0, int(stream))
@@ -116,12 +157,25 @@ class TorchHarness:
             return jit[:, 0::2], jit[:, 1::2]
 
         def uniform53(key, count):
-            assert int(key[0]) == STREAMS["resample"] and count == 1
-            return u0
+            if int(key[0]) == STREAMS["resample"]:
+                assert count == 1
+                return u0
+            assert count == 2
+            return uniforms[int(key[0])][rows(key)]
+
+        def uniform24(key, count):
+            assert int(key[0]) == STREAMS["particles"] and count == 2 * M
+            return particles[rows(key)]
+
+        def bits32(key, count):
+            assert int(key[0]) == STREAMS["condition"] and count == 1
+            return cond_bits[rows(key)]
 
         monkeypatch.setattr(sim, "stream_key", stream_key)
         monkeypatch.setattr(sim, "normal_pair_indices", normal_pair_indices)
         monkeypatch.setattr(sim, "uniform53", uniform53)
+        monkeypatch.setattr(sim, "uniform24", uniform24)
+        monkeypatch.setattr(sim, "bits32", bits32)
         out = self.env.step(torch.as_tensor(actions))
         monkeypatch.undo()
         return tuple(v.numpy() if isinstance(v, torch.Tensor) else v for v in out[:4]) + (
@@ -147,9 +201,11 @@ def test_every_registered_engine_has_a_harness():
     assert set(backends_of(env_entry("ElectroLoc-v0"))) == set(HARNESSES)
 
 
-@pytest.mark.parametrize("engine", OTHERS)
-@pytest.mark.parametrize("kw", GRID, ids=[f"{i}" for i in range(len(GRID))])
-def test_one_step_from_the_same_state_and_draws_is_the_same(engine, kw, monkeypatch):
+def _one_step_of_both(engine: str, kw: dict[str, Any], monkeypatch: pytest.MonkeyPatch, ended: list[int]) -> tuple:
+    """From the same state (the envs ``ended`` marked ended: this step resets them) and the same draws, one
+    step of the reference and of ``engine``; returns both results, checked equal within the module's
+    tolerances.
+    """
     ref = NumbaHarness(kw)
     rng = np.random.default_rng(7)
     discrete = kw.get("action_type") == "discrete"
@@ -164,11 +220,22 @@ def test_one_step_from_the_same_state_and_draws_is_the_same(engine, kw, monkeypa
         if not start["done"].any():
             break
     assert not start["done"].any()
+    ref.env._sim.state.done[ended] = True
+    start = ref.state()
     other = HARNESSES[engine](kw)
     pool = list(PRESET_NAMES) if kw["condition"] == "random" else [kw["condition"]]
     other.load(start, np.array([pool.index(c.name) for c in ref.env.conditions]))  # the engine's pool index
     a = actions()
-    draws = [_Draws(int(rng.integers(0, 2**16)), rng.random(), table_normal_indices(rng, 2 * M)) for _ in range(N)]
+    draws = [
+        _Draws(
+            int(rng.integers(0, 2**16)),
+            rng.random(),
+            table_normal_indices(rng, 2 * M),
+            _Reset(rng, len(pool)),
+            kw.get("randomize_target", False),
+        )
+        for _ in range(N)
+    ]
     obs_r, rew_r, te_r, tr_r, info_r = ref.step(a, draws, monkeypatch)
     obs_o, rew_o, te_o, tr_o, info_o = other.step(a, draws, monkeypatch)
     got, want = other.state(), ref.state()
@@ -193,3 +260,27 @@ def test_one_step_from_the_same_state_and_draws_is_the_same(engine, kw, monkeypa
     np.testing.assert_array_equal(info_o["n_observations"], info_r["n_observations"])
     np.testing.assert_array_equal(info_o["success"], info_r["success"])
     np.testing.assert_array_equal(info_o["condition_index"], info_r["condition_index"])
+    return (obs_r, rew_r, te_r, tr_r, info_r, want), (obs_o, rew_o, te_o, tr_o, info_o, got), draws, ref.env
+
+
+@pytest.mark.parametrize("engine", OTHERS)
+@pytest.mark.parametrize("kw", GRID, ids=[f"{i}" for i in range(len(GRID))])
+def test_one_step_from_the_same_state_and_draws_is_the_same(engine, kw, monkeypatch):
+    _one_step_of_both(engine, kw, monkeypatch, ended=[])
+
+
+@pytest.mark.parametrize("engine", OTHERS)
+@pytest.mark.parametrize("kw", GRID, ids=[f"{i}" for i in range(len(GRID))])
+def test_an_autoreset_step_from_the_same_state_and_draws_is_the_same(engine, kw, monkeypatch):
+    ended = [1, 4]
+    ref, other, draws, env = _one_step_of_both(engine, kw, monkeypatch, ended=ended)
+    for _obs, rew, te, tr, _info, state in (ref, other):
+        assert (rew[ended] == 0.0).all() and not te[ended].any() and not tr[ended].any()
+        assert (rew[[0, 2, 3, 5]] == -1.0).all()
+        assert (state["elapsed"][ended] == 0).all() and (state["n_observations"][ended] == 1).all()
+    for i in ended:  # the injected reset draws are the episode's: its condition and its start
+        c = env.conditions[i]
+        pool = list(PRESET_NAMES) if kw["condition"] == "random" else [kw["condition"]]
+        assert c.name == pool[draws[i].reset.cond]
+        h = c.start_half_width_mm
+        np.testing.assert_array_equal(ref[5]["position_mm"][i], -h + (h - -h) * draws[i].reset.start_u)
