@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import torch
 
+from electroloc_gym.protocol import HIST_BINS
 from electroloc_gym.torch_core.rng import lookup
 
 __all__ = [
@@ -31,9 +32,6 @@ __all__ = [
     "raw_observation",
     "HIST_BINS",
 ]
-
-#: Histogram cells per axis of the belief observation (:data:`electroloc_gym.core.observation.HIST_BINS`).
-HIST_BINS = 8
 
 
 def dipole_difference(
