@@ -43,6 +43,10 @@ N_DESCRIPTOR = 5
 BELIEF_OBS_DIM = N_SCALARS + HIST_BINS * HIST_BINS + N_DESCRIPTOR
 RAW_OBS_DIM = 3
 OBSERVATION_MODES = ("belief", "raw")
+#: The reward of a step that takes a reading (the task: as few readings as possible), and of the step in
+#: which an ended env resets (next-step autoreset: the action is ignored).
+STEP_REWARD = -1.0
+RESET_REWARD = 0.0
 #: The info keys of every step and reset, in order (a task adds its own after them, ``Task.info_keys``).
 INFO_KEYS = (
     "position_mm",
@@ -61,6 +65,8 @@ __all__ = [
     "OBSERVATION_MODES",
     "INFO_KEYS",
     "HIST_BINS",
+    "STEP_REWARD",
+    "RESET_REWARD",
     "condition_descriptor",
     "episode_flags",
     "belief_observation",

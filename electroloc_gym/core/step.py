@@ -36,7 +36,7 @@ import numpy as np
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
 
-from electroloc_gym.core.observation import episode_flags
+from electroloc_gym.core.observation import RESET_REWARD, STEP_REWARD, episode_flags
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.state import State
 from electroloc_gym.core.task import Task
@@ -135,7 +135,7 @@ class Simulation:
         s = self.state
         if not s.started:
             raise RuntimeError("call reset() before step()")
-        rewards = np.full(self.num_envs, -1.0)
+        rewards = np.full(self.num_envs, STEP_REWARD)
         if s.done.any():
             if autoreset == "disabled":
                 raise RuntimeError("the episode has ended (terminated or truncated): call reset() before step()")
@@ -153,7 +153,7 @@ class Simulation:
                 terminated, truncated = self._flags()
                 terminated[reset_ids] = False
                 truncated[reset_ids] = False
-                rewards[reset_ids] = 0.0
+                rewards[reset_ids] = RESET_REWARD
                 s.done = terminated | truncated
                 return self.observation(), rewards, terminated, truncated, self.info()
         if gains is not None:

@@ -43,7 +43,7 @@ from typing import TypedDict
 
 import torch
 
-from electroloc_gym.core.observation import episode_flags
+from electroloc_gym.core.observation import RESET_REWARD, STEP_REWARD, episode_flags
 from electroloc_gym.torch_core import filter as F
 from electroloc_gym.torch_core.calibration import calibration_grids
 from electroloc_gym.torch_core.consts import TorchConsts
@@ -432,5 +432,5 @@ def advance(
     )
     terminated, truncated = terminated & moving, truncated & moving
     s["done"] = terminated | truncated
-    rewards = torch.where(moving, -1.0, 0.0).to(torch.float64)
+    rewards = torch.where(moving, STEP_REWARD, RESET_REWARD).to(torch.float64)
     return s, observation(c, s), rewards, terminated, truncated
