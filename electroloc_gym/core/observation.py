@@ -71,6 +71,7 @@ __all__ = [
     "episode_flags",
     "belief_observation",
     "raw_observation",
+    "raw_observation_values",
 ]
 
 
@@ -109,14 +110,22 @@ def episode_flags(
     return terminated, truncated
 
 
+def raw_observation_values(xp: Any, carriage_mm: Any, reading_V: Any, half_width_mm: Any, saturation_V: Any) -> Any:
+    """``clip([x/H, y/H, Φ/V_sat], −1, 1)`` with batch dims (..., 3), in the inputs' precision: the raw
+    layout of both engines. ``xp`` is the arrays' namespace — numpy, or torch for the torch engine's
+    tensors (only ``stack`` and ``clip``, which both have); the caller casts to float32.
+    """
+    cols = [carriage_mm[..., 0] / half_width_mm, carriage_mm[..., 1] / half_width_mm, reading_V / saturation_V]
+    return xp.clip(xp.stack(cols, -1), -1.0, 1.0)
+
+
 def raw_observation(
     carriage_mm: NDArray, reading_V: NDArray, half_width_mm: NDArray | float, saturation_V: NDArray | float = 10.0
 ) -> NDArray[np.float32]:
-    """[x/H, y/H, Φ/V_sat] with batch dims (..., 3)."""
-    hw = np.asarray(half_width_mm, dtype=np.float64)[..., None]
-    pos = np.asarray(carriage_mm) / hw
-    r = np.asarray(reading_V) / np.asarray(saturation_V)
-    return np.clip(np.concatenate([pos, r[..., None]], axis=-1), -1.0, 1.0).astype(np.float32)
+    """[x/H, y/H, Φ/V_sat] with batch dims (..., 3), float32 (:func:`raw_observation_values`)."""
+    hw = np.asarray(half_width_mm, dtype=np.float64)
+    values = raw_observation_values(np, np.asarray(carriage_mm), np.asarray(reading_V), hw, np.asarray(saturation_V))
+    return values.astype(np.float32)
 
 
 def belief_observation(

@@ -29,7 +29,6 @@ __all__ = [
     "resample",
     "statistics",
     "belief_observation",
-    "raw_observation",
     "HIST_BINS",
 ]
 
@@ -380,11 +379,3 @@ def belief_observation(
     ]
     scalars = torch.clamp(torch.stack(cols, dim=1), -1.0, 1.0).to(torch.float32)
     return torch.cat([scalars, hist.to(torch.float32), descriptor], dim=1)
-
-
-def raw_observation(
-    carriage: torch.Tensor, reading: torch.Tensor, half: torch.Tensor, saturation: torch.Tensor
-) -> torch.Tensor:
-    """(N, 3) float32 ``clip([x/H, y/H, Φ/V_sat], −1, 1)`` (:func:`electroloc_gym.core.observation.raw_observation`)."""
-    cols = torch.stack([carriage[:, 0] / half, carriage[:, 1] / half, reading / saturation], dim=1)
-    return torch.clamp(cols, -1.0, 1.0).to(torch.float32)

@@ -43,7 +43,7 @@ from typing import TypedDict
 
 import torch
 
-from electroloc_gym.core.observation import RESET_REWARD, STEP_REWARD, episode_flags
+from electroloc_gym.core.observation import RESET_REWARD, STEP_REWARD, episode_flags, raw_observation_values
 from electroloc_gym.torch_core import filter as F
 from electroloc_gym.torch_core.calibration import calibration_grids
 from electroloc_gym.torch_core.consts import TorchConsts
@@ -360,7 +360,8 @@ def observation(c: TorchConsts, s: State) -> torch.Tensor:
     k = s["cond"]
     half = c.half_mm[k]
     if not c.belief_obs:
-        return F.raw_observation(s["position_mm"], s["reading_V"], half, c.saturation_V[k])
+        raw = raw_observation_values(torch, s["position_mm"], s["reading_V"], half, c.saturation_V[k])
+        return raw.to(torch.float32)
     return F.belief_observation(
         s["position_mm"],
         s["reading_V"],
