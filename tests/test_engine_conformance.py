@@ -144,7 +144,7 @@ class TorchHarness:
         particles = torch.tensor(np.stack([d.reset.particles_u.T.reshape(-1) for d in draws]))  # x then y
         resetting = torch.nonzero(self.env.state["done"]).reshape(-1)
 
-        def rows(key: torch.Tensor) -> torch.Tensor:  # every env's draws, or the resetting envs' (gathered)
+        def rows(key):  # every env's draws, or the resetting envs' (gathered)
             return torch.arange(N) if key.shape[0] == N else resetting
 
         def stream_key(k0, k1, ep, t, stream):  # the stream's id stands for its key

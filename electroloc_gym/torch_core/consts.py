@@ -137,7 +137,7 @@ class TorchConsts:
         if params.sensor_model == "calibrated":
             _check_host_calibration(proto, max(grid_points_bound(proto, c.allowed_half_width_mm) for c in pool))
 
-        def f64(values: list) -> torch.Tensor:
+        def f64(values: list | np.ndarray) -> torch.Tensor:
             return torch.tensor(np.asarray(values, dtype=np.float64), device=device)
 
         calibrated = params.sensor_model == "calibrated"
