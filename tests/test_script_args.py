@@ -161,14 +161,21 @@ def _norm(name: str) -> str:
 
 
 def _gpu_machine_dists() -> set[str]:
-    """The GPU machine's distributions: its five packages and everything they require (no extras)."""
+    """The GPU machine's distributions: its five packages and everything they require on this Python (no
+    extras; a requirement whose environment marker is false here, such as ``importlib-metadata; python <
+    3.10``, is not one)."""
+    from packaging.requirements import Requirement  # pytest's own dependency
+
     dists, todo = set(), list(GPU_MACHINE)
     while todo:
         name = _norm(re.split(r"[ ;<>=!~\[(]", todo.pop(), maxsplit=1)[0])
         if name in dists:
             continue
         dists.add(name)
-        todo += [req for req in md.requires(name) or [] if "extra ==" not in req]
+        for req in md.requires(name) or []:
+            marker = Requirement(req).marker
+            if marker is None or marker.evaluate({"extra": ""}):
+                todo.append(req)
     return dists
 
 
