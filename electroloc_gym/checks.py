@@ -13,9 +13,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = [
     "check_int",
@@ -103,11 +106,12 @@ def check_seeds(seed: Any, n: int) -> None:
         or (isinstance(seed, np.ndarray) and seed.ndim != 1)
     ):
         raise ValueError(f"{what}, got {seed!r}")
-    if len(seed) != n:
-        raise ValueError(f"{what}, got {len(seed)} seeds")
-    bad = [s for s in seed if not (s is None or _is_seed(s))]
+    seq = cast("Sequence[Any] | NDArray[Any]", seed)  # the isinstance checks above: a sequence or a 1-D array
+    if len(seq) != n:
+        raise ValueError(f"{what}, got {len(seq)} seeds")
+    bad = [s for s in seq if not (s is None or _is_seed(s))]
     if bad:
-        raise ValueError(f"{what}, got {list(seed)!r} (bad: {bad!r})")
+        raise ValueError(f"{what}, got {list(seq)!r} (bad: {bad!r})")
 
 
 def check_prediction_args(

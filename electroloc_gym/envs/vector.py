@@ -35,7 +35,7 @@ are plain float arrays. Rendering is not supported (``render_mode`` must be None
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any, cast
 
 import numpy as np
@@ -43,7 +43,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from electroloc_gym.checks import check_int
+from electroloc_gym.checks import check_int, check_seeds
 from electroloc_gym.conditions import Condition
 from electroloc_gym.core.params import EnvParams
 from electroloc_gym.core.step import Simulation
@@ -78,35 +78,9 @@ _AUTORESET_MODES: dict[Any, AutoresetMode] = {
 _CORE_MODE = {AutoresetMode.NEXT_STEP: "next_step", AutoresetMode.SAME_STEP: "same_step"}
 
 
-def _is_seed(value: Any) -> bool:
-    """A seed: an integer ≥ 0 (Python or numpy; not a bool)."""
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and bool(value >= 0)
-
-
 def _autoreset_mode(value: object) -> AutoresetMode | None:
     """The mode of an ``autoreset_mode`` argument (None: not a mode; unhashable values included)."""
     return _AUTORESET_MODES.get(value if isinstance(value, (str, AutoresetMode)) else None)
-
-
-def _check_seed(seed: Any, n: int) -> None:
-    """``reset``'s ``seed``: None, an integer ≥ 0, or a sequence of ``n`` entries each None or an integer ≥ 0;
-    anything else is one ValueError naming it.
-    """
-    if seed is None or _is_seed(seed):
-        return
-    what = f"seed must be None, an integer ≥ 0 or a sequence of {n} seeds (each None or an integer ≥ 0)"
-    if (
-        isinstance(seed, (str, bytes, Mapping))
-        or not isinstance(seed, (Sequence, np.ndarray))
-        or (isinstance(seed, np.ndarray) and seed.ndim != 1)
-    ):
-        raise ValueError(f"{what}, got {seed!r}")
-    seq = cast("Sequence[Any] | NDArray[Any]", seed)  # the isinstance checks above: a sequence or a 1-D array
-    if len(seq) != n:
-        raise ValueError(f"{what}, got {len(seq)} seeds")
-    bad = [s for s in seq if not (s is None or _is_seed(s))]
-    if bad:
-        raise ValueError(f"{what}, got {list(seq)!r} (bad: {bad!r})")
 
 
 def _numeric_info(info: dict[str, Any]) -> dict[str, Any]:
@@ -269,7 +243,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         """Reset all sub-envs (or those in ``options["reset_mask"]``); an int seed as :func:`sub_env_seeds`."""
         n = self.num_envs
-        _check_seed(seed, n)  # everything is checked before any sub-env changes
+        check_seeds(seed, n)  # everything is checked before any sub-env changes
         if seed is None:
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, (Sequence, np.ndarray)):  # checked: one entry per sub-env
