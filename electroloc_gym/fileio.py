@@ -66,16 +66,30 @@ def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[s
         )
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (parent folders are created)."""
+def probe_write(folder: str | os.PathLike[str]) -> None:
+    """Create and remove a temporary file in ``folder``: a real write, since permission bits say nothing for
+    root or a read-only file system. Raises the ``OSError`` of a folder that cannot be written.
+    """
+    fd, probe = tempfile.mkstemp(dir=folder, prefix=".electroloc-probe-")
+    os.close(fd)
+    os.unlink(probe)
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, durable: bool = True) -> None:
+    """Write ``data`` to ``path`` atomically (parent folders are created).
+
+    ``durable=False`` skips the fsync: the replacement is as atomic for a killed process; only a crash of
+    the machine can lose it.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                fh.flush()
+                os.fsync(fh.fileno())
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; results are meant to be shared like any file
@@ -86,9 +100,9 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         raise
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
+def atomic_write_text(path: str | os.PathLike[str], text: str, *, durable: bool = True) -> None:
     """UTF-8 text version of :func:`atomic_write_bytes`."""
-    atomic_write_bytes(path, text.encode("utf-8"))
+    atomic_write_bytes(path, text.encode("utf-8"), durable=durable)
 
 
 def save_figure_atomic(fig: Any, path: str | os.PathLike[str], **kwargs: Any) -> None:

@@ -44,7 +44,7 @@ from electroloc_gym.bench.config import (
     trial_seeds,
 )
 from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules, TrialRecord
-from electroloc_gym.fileio import FolderBusyError, FolderLock, atomic_write_text, strict_json
+from electroloc_gym.fileio import FolderBusyError, FolderLock, atomic_write_text, probe_write, strict_json
 from electroloc_gym.registry import env_entry
 
 __all__ = [
@@ -108,9 +108,7 @@ def prepare_out_dir(out: str | os.PathLike[str] | None) -> Path:
     except OSError as exc:
         raise ValueError(f"--out {text!r} cannot be created: {exc.strerror or exc}") from exc
     try:
-        fd, probe = tempfile.mkstemp(dir=path, prefix=".write-test-")
-        os.close(fd)
-        os.unlink(probe)
+        probe_write(path)
     except OSError as exc:
         raise ValueError(f"--out {text!r} is not writable: {exc.strerror or exc}") from exc
     return path

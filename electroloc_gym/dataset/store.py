@@ -16,8 +16,8 @@ unset; :func:`datasets_root`)::
     .electroloc-locks/<id>.lock                 one writer per id
 
 **Writes.** Nothing of a dataset is rewritten in place. ``data/metadata.json`` is replaced atomically
-(a temporary file in the same folder, fsync, ``os.replace``: :func:`electroloc_gym.fileio.atomic_write_text`)
-after every episode. An episode is written by Minari's own arrow storage into a staging folder
+(a temporary file in the same folder, then ``os.replace``: :func:`electroloc_gym.fileio.atomic_write_text`)
+after every episode, fsynced when the dataset is created and when it is complete. An episode is written by Minari's own arrow storage into a staging folder
 (``<dataset>/.staging``), its files' sha256 appended to the journal, and then moved into ``data/`` whole
 (one ``rename``). A SIGKILL at any moment therefore leaves old or new files, never torn ones, except a
 half-appended last journal line (its episode is then re-collected); a torn file left by a crash of the
@@ -47,14 +47,13 @@ import os
 import re
 import shutil
 import signal
-import tempfile
 from collections import Counter
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.fileio import FolderLock, atomic_write_text
+from electroloc_gym.fileio import FolderLock, atomic_write_text, probe_write
 
 __all__ = [
     "MAX_ID_CHARS",
@@ -182,10 +181,8 @@ def datasets_root() -> Path:
                 root.mkdir()
             except OSError as exc:
                 raise ValueError(f"{what} does not exist and cannot be created: {exc.strerror or exc}") from None
-    try:  # a real write: permission bits say nothing for root or a read-only file system
-        fd, probe = tempfile.mkstemp(dir=root, prefix=".electroloc-probe-")
-        os.close(fd)
-        os.unlink(probe)
+    try:
+        probe_write(root)
     except OSError as exc:
         raise ValueError(f"{what} is not writable: {exc.strerror or exc}") from None
     return root
@@ -322,20 +319,8 @@ def write_header(folder: Path, header: Mapping[str, Any], *, durable: bool = Tru
     ``durable=False`` (the count after each episode) skips the fsync: the replacement is as atomic for a
     killed process, and a header a machine crash loses is rebuilt on resume.
     """
-    path, text = header_path(folder), json.dumps(header, default=_json_default, allow_nan=False)
-    if durable:
-        atomic_write_text(path, text)
-        return
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    text = json.dumps(header, default=_json_default, allow_nan=False)
+    atomic_write_text(header_path(folder), text, durable=durable)
 
 
 def _json_default(obj: Any) -> Any:
