@@ -15,13 +15,14 @@ unset; :func:`datasets_root`)::
     <namespace>/.<name>-vN.electroloc-old/      the replaced dataset during the swap
     .electroloc-locks/<id>.lock                 one writer per id
 
-**Writes.** Nothing of a dataset is rewritten in place. ``data/metadata.json`` is replaced atomically
-(a temporary file in the same folder, then ``os.replace``: :func:`electroloc_gym.fileio.atomic_write_text`)
-after every episode, fsynced when the dataset is created and when it is complete. An episode is written by Minari's own arrow storage into a staging folder
-(``<dataset>/.staging``), its files' sha256 appended to the journal, and then moved into ``data/`` whole
-(one ``rename``). A SIGKILL at any moment therefore leaves old or new files, never torn ones, except a
-half-appended last journal line (its episode is then re-collected); a torn file left by a crash of the
-machine is caught by the checksums. Before the header says ``complete`` every file is fsynced.
+**Writes.** Nothing of a dataset is rewritten in place. ``data/metadata.json`` is replaced atomically (a
+temporary file in the same folder, then ``os.replace``: :func:`electroloc_gym.fileio.atomic_write_text`)
+after every episode, fsynced when the dataset is created and when it is complete. An episode is written by
+Minari's own arrow storage into a staging folder (``<dataset>/.staging``), its files' sha256 appended to the
+journal, and then moved into ``data/`` whole (one ``rename``). A SIGKILL at any moment therefore leaves old
+or new files, never torn ones, except a half-appended last journal line (its episode is then re-collected);
+a torn file left by a crash of the machine is caught by the checksums. Before the header says ``complete``
+every file is fsynced.
 
 **Resume** (:func:`inspect_dataset`, :func:`set_aside`) checks every episode folder against the journal:
 both files present and nothing else, their sha256 the recorded ones, the episode's own metadata naming
