@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
@@ -20,8 +20,8 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401
-from electroloc_gym.fileio import write_json_atomic  # noqa: E402
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
+from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
 
 LAYOUTS = ("single", "grid-2x2", "line-4", "ring-8")
 

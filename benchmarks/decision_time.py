@@ -8,7 +8,7 @@ the agents are compared on identical beliefs. Printed: a Markdown table of the m
 percentile per agent, for the 12.7 mm and the 38.1 mm presets (their calibration grids and boxes
 differ) and overall, and each agent's median relative to min-var's.
 
-Numeric libraries are pinned to one thread (:func:`electroloc_gym.runtime.pin_threads`); timings are
+Numeric libraries are pinned to one thread (:func:`electroloc_gym.utils.runtime.pin_threads`); timings are
 best-of-N to resist a busy machine, but they are this machine's: compare the columns, not the values
 across machines.
 
@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 pin_threads()
 
@@ -28,11 +28,11 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
-from electroloc_gym.agentspec import split_specs  # noqa: E402
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
-from electroloc_gym.fileio import write_json_atomic  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
+from electroloc_gym.utils.agentspec import split_specs  # noqa: E402
+from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
+from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES  # noqa: E402
 
 
 def collect_envs(n_states: int, seed: int = 101) -> list[tuple[str, object]]:

@@ -23,7 +23,7 @@ the largest N down. A row that would pass ``--budget-s`` seconds (a compiled row
 the longest compilation so far) is listed as skipped, so the command ends in a bounded time on a bare
 machine. Writes JSON and a
 markdown table naming the device, torch and CUDA (atomically; ``--md`` defaults to the JSON's path with
-``.md``). Numeric libraries run on ``--threads`` threads (:func:`electroloc_gym.runtime.pin_threads`:
+``.md``). Numeric libraries run on ``--threads`` threads (:func:`electroloc_gym.utils.runtime.pin_threads`:
 default ``$ELECTROLOC_THREADS``, else 1 — the documented per-core figures).
 """
 
@@ -48,8 +48,8 @@ import torch  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
 from electroloc_gym.cli import HelpFormatter  # noqa: E402
-from electroloc_gym.fileio import atomic_write_text, check_output_path  # noqa: E402
-from electroloc_gym.runtime import add_threads_argument, pin_threads  # noqa: E402
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_path  # noqa: E402
+from electroloc_gym.utils.runtime import add_threads_argument, pin_threads  # noqa: E402
 
 CPU_N = (64, 256, 1024)
 DEVICE_N = (1024, 4096, 16384, 65536, 262144, 524288)

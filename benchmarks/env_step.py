@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
@@ -57,7 +57,7 @@ def best_of(fn, repeats: int = 5) -> float:
 
 def collect_states(n_states: int, n_particles: int, seed: int = 0) -> list[dict]:
     """Belief snapshots along min-var episodes over the eight presets (calibrated model)."""
-    from electroloc_gym.conditions import PRESET_NAMES
+    from electroloc_gym.world.conditions import PRESET_NAMES
 
     states = []
     rng = np.random.default_rng(seed)

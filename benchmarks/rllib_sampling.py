@@ -29,15 +29,15 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import electroloc_gym.rllib as erl
-from electroloc_gym.fileio import write_json_atomic
-from electroloc_gym.markdown import markdown_table
-from electroloc_gym.runtime import pin_threads
+import electroloc_gym.train.rllib as erl
+from electroloc_gym.utils.fileio import write_json_atomic
+from electroloc_gym.utils.markdown import markdown_table
+from electroloc_gym.utils.runtime import pin_threads
 
 STARTUP_CODE = """
 import time
 t0 = time.perf_counter()
-from electroloc_gym.rllib import make_env
+from electroloc_gym.train.rllib import make_env
 env = make_env({"num_envs": %d})
 env.reset(seed=0)
 env.step(env.action_space.sample())

@@ -6,7 +6,7 @@ one thread):
 1. ``benchmarks/vector_env.py``: single env, SyncVectorEnv and the native vector env at N = 16 and 64
    (belief observation, calibrated model, 2500 particles);
 2. ``benchmarks/train_fps.py``: rl-zoo3 PPO training fps, DummyVecEnv vs the native adapter, N = 16 and
-   64 (the current code only: ``--before`` compares the env rows, since a previous checkout's ``train/``
+   64 (the current code only: ``--before`` compares the env rows, since a previous checkout's ``electroloc_gym/train/``
    is not importable beside this one's editable install);
 3. unless ``--skip-table4``: the Table-4 reproduction, ``electroloc bench --agents
    rnd-wlk,min-var,zero-crossing`` (8 conditions × 3 agents × 50 trials, 2 workers), wall time.
@@ -21,7 +21,7 @@ ratios are per CPU-second, best of several rounds (see the two scripts).
 
 from __future__ import annotations
 
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
@@ -40,7 +40,7 @@ import train_fps  # noqa: E402
 import vector_env  # noqa: E402
 
 from electroloc_gym.baselines.agent import PAPER_AGENTS  # noqa: E402
-from electroloc_gym.fileio import atomic_write_text  # noqa: E402
+from electroloc_gym.utils.fileio import atomic_write_text  # noqa: E402
 
 TABLE4_AGENTS = ",".join(PAPER_AGENTS)
 

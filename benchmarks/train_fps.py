@@ -1,7 +1,7 @@
 """Training throughput of the rl-zoo3 path: PPO with the native vector env vs rl-zoo3's default DummyVecEnv.
 
 Both rows are the same command of :func:`electroloc_gym.train.run.zoo_argv` — ``python -m rl_zoo3.train
---algo ppo --env ElectroLoc-v0 --conf-file train/hyperparams/ppo.yml`` with the same seed, budget and
+--algo ppo --env ElectroLoc-v0 --conf-file electroloc_gym/train/hyperparams/ppo.yml`` with the same seed, budget and
 hyper-parameters — once with ``--gym-packages electroloc_gym.train.zoo`` (the native batched env behind
 SB3's VecEnv) and once with ``--gym-packages electroloc_gym`` (rl-zoo3's DummyVecEnv). Each row is a
 fresh rl-zoo3 process; its env steps per second of training (rollouts *and* gradient updates, the
@@ -23,9 +23,9 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.fileio import atomic_write_text
-from electroloc_gym.runtime import thread_env
 from electroloc_gym.train.run import zoo_argv
+from electroloc_gym.utils.fileio import atomic_write_text
+from electroloc_gym.utils.runtime import thread_env
 
 #: One validation episode at the start and the end only: the timing is of training.
 CALLBACK = "callback:[{'electroloc_gym.train.callbacks.BenchEvalCallback':{'eval_freq':10**9,'n_episodes':1}}]"
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     print(
-        f"rl-zoo3 PPO on ElectroLoc-v0 (train/hyperparams/ppo.yml: n_steps 256, 10 epochs, 128x128; "
+        f"rl-zoo3 PPO on ElectroLoc-v0 (electroloc_gym/train/hyperparams/ppo.yml: n_steps 256, 10 epochs, 128x128; "
         f"{a.n_envs} envs), "
         f"{a.timesteps} steps per run, torch 1 thread, {a.passes} interleaved passes",
         flush=True,

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import os
 
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 
@@ -45,9 +45,9 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
-from electroloc_gym.fileio import atomic_write_text  # noqa: E402
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 from electroloc_gym.registry import env_entry  # noqa: E402
+from electroloc_gym.utils.fileio import atomic_write_text  # noqa: E402
 
 
 class _Single:

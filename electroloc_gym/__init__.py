@@ -14,12 +14,12 @@ from importlib.metadata import PackageNotFoundError, version
 
 from gymnasium.envs import registration
 
-from electroloc_gym.runtime import use_user_numba_cache
+from electroloc_gym.utils.runtime import use_user_numba_cache
 
 use_user_numba_cache()  # before the first numba import (below): the compiled kernels are cached once per user
 
-from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
 from electroloc_gym.registry import ENV_IDS, EnvEntry, add_entry, class_path  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
 
 try:  # the version is declared once, in pyproject.toml
     __version__ = version("electroloc-gym")

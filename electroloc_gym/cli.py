@@ -15,7 +15,10 @@ from collections.abc import Sequence
 from fractions import Fraction
 from typing import Any
 
-from electroloc_gym.conditions import (
+from electroloc_gym.registry import BENCH_ENVS, bench_env
+from electroloc_gym.utils.fileio import strict_json
+from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
+from electroloc_gym.world.conditions import (
     DEFAULT_SIGNAL,
     PAPER_TABLE3_MEASURED_MM,
     PAPER_TABLE3_THEORY_MM,
@@ -23,10 +26,7 @@ from electroloc_gym.conditions import (
     SIGNAL_CHOICES,
     get_condition,
 )
-from electroloc_gym.fileio import strict_json
-from electroloc_gym.registry import BENCH_ENVS, bench_env
-from electroloc_gym.runtime import add_threads_argument, pin_threads
-from electroloc_gym.sensor import zero_crossing_mm
+from electroloc_gym.world.sensor import zero_crossing_mm
 
 __all__ = ["main", "detection_table", "quiet_tank_table", "parse_noise_factor", "build_parser", "HelpFormatter"]
 
@@ -190,7 +190,7 @@ def _plot_quiet_tank(path: str, factor: float) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from electroloc_gym.fileio import save_figure_atomic
+    from electroloc_gym.utils.fileio import save_figure_atomic
 
     factors = np.geomspace(min(factor, QUIET_TANK_FACTOR) / 4.0, 4.0, 49)
     fig, (ax_mm, ax_ratio) = plt.subplots(1, 2, figsize=(12, 5))
@@ -274,7 +274,7 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     print("\n* The 38.1 mm rows are not reproducible from the paper's stated equations (uniform-field dipole,")
     print("  Eq. 4): the model gives ≈30–38 mm where the paper's theory column says 39–47 mm. The paper's values")
     print("  sit near the EEV's zero-crossing on the 45° line, where the detection distance jumps. The fitted")
-    print("  scale then puts the detection distance past that gap (the far branch), see electroloc_gym.physics.")
+    print("  scale then puts the detection distance past that gap (the far branch), see electroloc_gym.world.physics.")
     return 0
 
 
@@ -291,14 +291,14 @@ def _cmd_eev(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from electroloc_gym.eev_maps import plot_eev
-    from electroloc_gym.fileio import save_figure_atomic
+    from electroloc_gym.utils.fileio import save_figure_atomic
+    from electroloc_gym.views.eev_maps import plot_eev
 
     if bench_env(getattr(args, "env", "target"))[0].map_condition is not None:
         # Fig. 14: the map of an env of one fixed map (ElectroLocGlobal-v0's six cylinders), physics and the
         # calibrated grid side by side.
-        from electroloc_gym.eev_maps import plot_map_eev
-        from electroloc_gym.scene import BENCHMARK_SCENE
+        from electroloc_gym.views.eev_maps import plot_map_eev
+        from electroloc_gym.world.scene import BENCHMARK_SCENE
 
         fig, axes = plt.subplots(1, 2, figsize=(12, 5))
         for ax, kind in zip(axes, ("analytic", "calibrated")):
@@ -335,7 +335,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``electroloc``."""
-    from electroloc_gym.bench import cli as bench_cli
+    from electroloc_gym.bench import bench_command as bench_cli
 
     p = Parser(prog="electroloc", description=textwrap.fill(DESCRIPTION, 100), formatter_class=HelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
@@ -412,7 +412,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_threads_argument(b)
     b.set_defaults(func=bench_cli.run)
 
-    from electroloc_gym.dataset import cli as dataset_cli
+    from electroloc_gym.dataset import dataset_command as dataset_cli
 
     ds = command("dataset", "write an agent's episodes as a local Minari dataset", description=dataset_cli.DESCRIPTION)
     dataset_cli.add_arguments(ds)
@@ -429,7 +429,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the console script.
 
-    The numeric libraries are pinned first (:func:`~electroloc_gym.runtime.pin_threads`: ``$ELECTROLOC_THREADS``
+    The numeric libraries are pinned first (:func:`~electroloc_gym.utils.runtime.pin_threads`: ``$ELECTROLOC_THREADS``
     or one thread), then to a sub-command's ``--threads``; the benchmark's workers and the training run
     start with the same count.
     """

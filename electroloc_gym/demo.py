@@ -1,6 +1,6 @@
 """One episode as pictures: a grid of belief snapshots (like the paper's Fig. 10 / 13) and an animated GIF.
 
-:func:`record_episode` runs one seeded episode and keeps a :class:`~electroloc_gym.render.Snapshot`
+:func:`record_episode` runs one seeded episode and keeps a :class:`~electroloc_gym.views.render.Snapshot`
 after every observation (and the env's ``rgb_array`` frames if asked); :func:`plot_episode` lays the
 snapshots out as a grid with one EEV colorbar, one legend for every marker, and a last panel of the
 belief's spread and the estimate's error against the observations used; :func:`save_gif` writes the
@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.fileio import atomic_write_bytes, check_output_path, save_figure_atomic
-from electroloc_gym.render import Snapshot, draw_snapshot, eev_colorbar, legend_handles, snapshot
-from electroloc_gym.rollout import run_episode
+from electroloc_gym.baselines.rollout import run_episode
+from electroloc_gym.utils.fileio import atomic_write_bytes, check_output_path, save_figure_atomic
+from electroloc_gym.views.render import Snapshot, draw_snapshot, eev_colorbar, legend_handles, snapshot
 
 __all__ = ["Episode", "record_episode", "plot_episode", "save_gif", "demo", "check_output_path", "MAX_PANELS"]
 
@@ -67,7 +67,7 @@ def record_episode(
 ) -> Episode:
     """Run one episode of ``env`` from ``reset(seed=seed)`` and record it.
 
-    The episode is the benchmark's (:func:`electroloc_gym.rollout.run_episode`): an agent that
+    The episode is the benchmark's (:func:`electroloc_gym.baselines.rollout.run_episode`): an agent that
     sets ``done`` ends it.
 
     Args:

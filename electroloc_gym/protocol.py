@@ -1,6 +1,6 @@
 """The localisation protocol's constants, declared once (paper §4.1.3, §5.4).
 
-Every layer reads these names: the core's parameters (:mod:`electroloc_gym.core.params`), the
+Every layer reads these names: the core's parameters (:mod:`electroloc_gym.contract.params`), the
 benchmark, the agents, the demo and the training wrappers. The benchmark fixes them for every trial
 (an agent's ``env_kwargs`` may not change them); an env takes them as keyword arguments.
 
@@ -24,5 +24,5 @@ MAX_STEP_MM = 10.0
 #: the wrong object (a distractor, or a wrong mode of the target's own map).
 FAR_ERROR_MM = 15.0
 #: Cells per axis of the belief observation's egocentric particle histogram (8×8 entries, layout:
-#: :mod:`electroloc_gym.core.observation`); the compiled kernels and the torch engine read it too.
+#: :mod:`electroloc_gym.contract.observation`); the compiled kernels and the torch engine read it too.
 HIST_BINS = 8

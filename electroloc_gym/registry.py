@@ -5,7 +5,7 @@
 * :func:`electroloc_gym.register_env` adds an entry and registers its id with Gymnasium (the built-in
   entries are in :mod:`electroloc_gym.envs.table`);
 * the simulation core builds an entry's task from ``task_class`` (:func:`task_entry`) and validates its
-  arguments against ``arguments`` and ``sensor_models`` (:mod:`electroloc_gym.core.params`);
+  arguments against ``arguments`` and ``sensor_models`` (:mod:`electroloc_gym.contract.params`);
 * the single and native vector envs find their entry by class (:func:`entry_of_class`);
 * ``electroloc bench`` takes its ``--env`` names, conditions, default particle counts, sensor models,
   default agents and table layout from the entries (:mod:`electroloc_gym.bench.config`); RLlib's creator
@@ -102,7 +102,7 @@ class EnvEntry:
     Attributes:
         env_id: the Gymnasium id.
         task: the core's task name (``EnvParams.task``).
-        task_class: the task (a :class:`electroloc_gym.core.task.Task` subclass, built with the params).
+        task_class: the task (a :class:`electroloc_gym.engines.numba_core.task.Task` subclass, built with the params).
         env_class: the single env (a ``CoreEnv`` subclass; Gymnasium's ``entry_point``).
         vector_class: the native vector env (a ``CoreVectorEnv`` subclass; ``vector_entry_point``).
         arguments: the task's own arguments (the env also takes :data:`COMMON_ARGUMENTS`).

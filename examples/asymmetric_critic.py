@@ -1,6 +1,6 @@
 """An asymmetric actor-critic in one file: the critic sees the true target, the actor only the belief.
 
-``PrivilegedInfo`` (:mod:`electroloc_gym.privileged`) adds the hidden target position to ``info``; the
+``PrivilegedInfo`` (:mod:`electroloc_gym.envs.privileged`) adds the hidden target position to ``info``; the
 critic V(observation, truth) uses it to judge how far the belief is from localising, the Gaussian actor
 π(a | observation) never sees it, so the trained actor is an ordinary policy of ``ElectroLoc-v0``.
 The update is advantage actor-critic with generalised advantage estimation (A2C with GAE) on one env.
@@ -19,9 +19,9 @@ import torch
 from torch import nn
 
 import electroloc_gym  # noqa: F401  (registers the envs)
-from electroloc_gym.privileged import PrivilegedInfo
+from electroloc_gym.envs.privileged import PrivilegedInfo
 from electroloc_gym.protocol import N_PARTICLES
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 #: The truth is given to the critic in units of this, mm (the tank's scale).
 TRUTH_SCALE_MM = 100.0

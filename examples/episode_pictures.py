@@ -18,9 +18,9 @@ import gymnasium as gym
 import electroloc_gym  # noqa: F401  (registers the env ids)
 from electroloc_gym.baselines import make_agent
 from electroloc_gym.demo import check_output_path, plot_episode, record_episode, save_gif
-from electroloc_gym.fileio import save_figure_atomic
 from electroloc_gym.registry import env_entry
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.fileio import save_figure_atomic
+from electroloc_gym.utils.runtime import pin_threads
 
 
 def main(argv: list[str] | None = None) -> dict:

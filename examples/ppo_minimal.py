@@ -28,7 +28,7 @@ from torch.distributions import Normal
 
 import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0)
 from electroloc_gym.cli import HelpFormatter
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -38,11 +38,11 @@ import torch.nn as nn
 
 import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0)
 from electroloc_gym.bench.config import trial_seeds
-from electroloc_gym.checks import check_float
 from electroloc_gym.cli import HelpFormatter
-from electroloc_gym.conditions import PRESET_NAMES
-from electroloc_gym.fileio import check_output_path
-from electroloc_gym.runtime import add_threads_argument, pin_threads
+from electroloc_gym.utils.checks import check_float
+from electroloc_gym.utils.fileio import check_output_path
+from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
+from electroloc_gym.world.conditions import PRESET_NAMES
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ppo_minimal import Agent, ppo_update  # noqa: E402  (the network and the update, on any device)

@@ -11,7 +11,7 @@ project's pickle-free format (``OUT/model``), which ``electroloc bench --agents 
     python examples/rllib_ppo.py --address auto --num-env-runners 16 --timesteps 2000000 --out runs/rllib-ppo
     electroloc bench --agents runs/rllib-ppo/model --trials 50 --out bench_rllib
 
-The network and PPO settings follow train/hyperparams/ppo.yml (SB3's run): a tanh MLP 128-128 for the
+The network and PPO settings follow electroloc_gym/train/hyperparams/ppo.yml (SB3's run): a tanh MLP 128-128 for the
 policy and another for the value, observations normalised by running statistics, 2048 steps per update
 in minibatches of 256 for 10 epochs. ``OUT/progress.csv`` logs the return, length and success rate of the
 training episodes per iteration, ``OUT/learning_curve.png`` plots it.
@@ -26,8 +26,8 @@ import sys
 import time
 from pathlib import Path
 
-import electroloc_gym.rllib as erl
-from electroloc_gym.runtime import pin_threads
+import electroloc_gym.train.rllib as erl
+from electroloc_gym.utils.runtime import pin_threads
 
 ENV_ID = "ElectroLoc-v0"
 ENV_KWARGS = {"condition": "random", "observation": "belief", "randomize_target": True}
@@ -56,7 +56,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def env_config(args: argparse.Namespace) -> dict:
-    """What the creator (electroloc_gym.rllib.make_env) receives in every runner, plus RLlib's num_envs."""
+    """What the creator (electroloc_gym.train.rllib.make_env) receives in every runner, plus RLlib's num_envs."""
     extra = {} if args.n_particles is None else {"n_particles": args.n_particles}
     return {"env_id": ENV_ID, **ENV_KWARGS, **extra}
 

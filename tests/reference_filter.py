@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.draws import normal_table, table_normal_indices, uniform_in_box
 from electroloc_gym.kernels import exp_f32, mean_cov_rows, row_sums
+from electroloc_gym.kernels.streams import normal_table, table_normal_indices, uniform_in_box
 
 
 def table_standard_normal(rng: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float32]:

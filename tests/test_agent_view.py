@@ -13,12 +13,12 @@ import pytest
 
 import electroloc_gym  # noqa: F401
 from electroloc_gym.baselines import make_agent
+from electroloc_gym.baselines.rollout import run_episode
 from electroloc_gym.bench import run
 from electroloc_gym.bench.agents import register_object_agent
 from electroloc_gym.bench.config import BenchConfig
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.envs.agent_view import AGENT_METHODS, AGENT_VALUES, AgentView, agent_view
-from electroloc_gym.rollout import run_episode
 
 SMALL = {"n_particles": 200, "max_observations": 4}
 #: What an agent must never reach: the truth, the env itself, its internals, its noise stream, its controls.
@@ -117,7 +117,7 @@ def test_the_rollout_hands_the_agent_view_not_the_env() -> None:
 
 def test_the_torch_sub_env_is_an_agent_view() -> None:
     torch = pytest.importorskip("torch")
-    from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv
+    from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv
 
     env = TorchElectroLocVectorEnv(num_envs=2, n_particles=200)
     env.reset(seed=0)

@@ -10,13 +10,13 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.core import step as core_step
-from electroloc_gym.core.localize import LocalizeTask
-from electroloc_gym.core.params import EnvParams
-from electroloc_gym.draws import normal_table, table_normal_indices
+from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.engines.numba_core import step as core_step
+from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
 from electroloc_gym.kernels import loglik_assimilate
-from electroloc_gym.sensor import saturated_reading
-from electroloc_gym.sensor_array import LAYOUT_NAMES, SensorLayout, array_reading, named_layout
+from electroloc_gym.kernels.streams import normal_table, table_normal_indices
+from electroloc_gym.world.sensor import saturated_reading
+from electroloc_gym.world.sensor_array import LAYOUT_NAMES, SensorLayout, array_reading, named_layout
 
 ID = "ElectroLoc-v0"
 PAPER_PAIR = [[[0.0, 25.0], [0.0, -25.0]]]
@@ -238,7 +238,7 @@ def test_lookahead_step_log_likelihood_sums_the_pairs() -> None:
 @pytest.mark.parametrize("agent", ["min-var", "lookahead", "rnd-wlk"])
 def test_agents_run_on_an_array(agent: str) -> None:
     from electroloc_gym.baselines import make_agent
-    from electroloc_gym.rollout import run_episode
+    from electroloc_gym.baselines.rollout import run_episode
 
     env = gym.make(
         ID,

@@ -18,8 +18,8 @@ import pytest
 import torch
 
 import electroloc_gym  # noqa: F401  (registers the ids)
+from electroloc_gym.envs.torch_vector import numpy_view
 from electroloc_gym.registry import ENV_IDS, env_entry
-from electroloc_gym.torch_core.vector_env import numpy_view
 
 torch.set_num_threads(1)
 HAS_ARRAY_CONVERSION = hasattr(gym.wrappers.vector, "ArrayConversion")

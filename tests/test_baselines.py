@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 import electroloc_gym  # noqa: F401  (registers the ids)
-from electroloc_gym.agentspec import AgentSpec
 from electroloc_gym.baselines.agent import (
     MAX_STEP_MM,
     BaselineAgent,
@@ -31,8 +30,9 @@ from electroloc_gym.baselines.min_variance_reference import (
 )
 from electroloc_gym.baselines.random_walk import RandomWalkAgent
 from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
-from electroloc_gym.conditions import get_condition
-from electroloc_gym.sensor import expected_reading
+from electroloc_gym.utils.agentspec import AgentSpec
+from electroloc_gym.world.conditions import get_condition
+from electroloc_gym.world.sensor import expected_reading
 
 
 def _run(agent, condition="fresh-steel-12.7", seed=0, n_particles=300, max_steps=None, **env_kwargs):
@@ -127,7 +127,7 @@ def test_make_agent_bad_names(spec: str, match: str) -> None:
 
 def test_make_agent_builds_only_the_papers_controllers() -> None:
     # Learned policies load through the benchmark's registry (electroloc_gym.bench.agents), not here.
-    for spec in ("models/ppo-belief", "ppo-belief", "run/model.zip"):
+    for spec in ("electroloc_gym/models/ppo-belief", "ppo-belief", "run/model.zip"):
         with pytest.raises(ValueError, match="unknown agent|malformed"):
             make_agent(spec)
 

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from reference_filter import ParticleBelief, spread_from_cov, systematic_resample, weighted_mean_cov
 
-from electroloc_gym.conditions import get_condition
-from electroloc_gym.sensor import noisy_reading
 from electroloc_gym.sensor_models import AnalyticSensorModel
+from electroloc_gym.world.conditions import get_condition
+from electroloc_gym.world.sensor import noisy_reading
 
 
 def test_uniform_start_statistics() -> None:
@@ -149,8 +149,8 @@ def test_belief_view_is_a_read_only_view_of_the_core_cloud() -> None:
 
 def _update(ll: np.ndarray) -> tuple[np.ndarray, int]:
     """The core's update kernel on one cloud of 3 particles at 0, 1, 2 mm (u0 = 0.5, no jitter)."""
-    from electroloc_gym.draws import normal_table
     from electroloc_gym.kernels import loglik_assimilate
+    from electroloc_gym.kernels.streams import normal_table
 
     src = np.array([[[0.0, 1.0, 2.0], [0.0, 0.0, 0.0]]], dtype=np.float32)
     table = normal_table()

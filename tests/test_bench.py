@@ -17,7 +17,7 @@ from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.bench.stats import summarize
 from electroloc_gym.bench.tables import PAPER_TABLE4, PAPER_TABLE4_ALL, render_table_md
 from electroloc_gym.cli import main as cli_main
-from electroloc_gym.conditions import PRESET_NAMES
+from electroloc_gym.world.conditions import PRESET_NAMES
 
 SUMMARY_KEYS = {
     "condition",

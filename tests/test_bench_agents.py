@@ -16,6 +16,7 @@ import pytest
 
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.baselines.agent import make_agent
+from electroloc_gym.baselines.rollout import run_episode
 from electroloc_gym.bench import default_run
 from electroloc_gym.bench.agents import (
     agent_display_name,
@@ -27,9 +28,8 @@ from electroloc_gym.bench.config import BenchConfig, make_trial_specs
 from electroloc_gym.bench.default_run import default_agents
 from electroloc_gym.bench.trials import run_trial
 from electroloc_gym.cli import main as cli_main
-from electroloc_gym.conditions import get_condition
 from electroloc_gym.registry import BENCH_ENVS
-from electroloc_gym.rollout import run_episode
+from electroloc_gym.world.conditions import get_condition
 
 HAS_TRAIN = all(importlib.util.find_spec(m) is not None for m in ("torch", "stable_baselines3"))
 ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -84,7 +84,8 @@ def test_display_names_are_short(spec, name) -> None:
 
 def test_controllers_do_not_import_the_training_package() -> None:
     code = (
-        "import sys, electroloc_gym.baselines as b; b.make_agent('min-var'); import electroloc_gym.bench.cli\n"
+        "import sys, electroloc_gym.baselines as b; b.make_agent('min-var')\n"
+        "import electroloc_gym.bench.bench_command\n"
         "bad = [m for m in sys.modules if m.startswith(('electroloc_gym.train', 'torch', 'stable_baselines3'))]\n"
         "assert not bad, bad"
     )
@@ -289,7 +290,7 @@ def test_run_trial_is_run_episode_plus_the_record() -> None:
 
 
 def test_agents_list_splits_only_outside_brackets() -> None:
-    from electroloc_gym.agentspec import split_specs as split_agents
+    from electroloc_gym.utils.agentspec import split_specs as split_agents
 
     assert split_agents("lookahead[depth=3,branches=16],min-var") == ["lookahead[depth=3,branches=16]", "min-var"]
     assert split_agents("rnd-wlk") == ["rnd-wlk"]
@@ -297,7 +298,7 @@ def test_agents_list_splits_only_outside_brackets() -> None:
 
 
 def test_global_env_runs_the_policy_trained_on_it() -> None:
-    from electroloc_gym.bench.cli import _runs_on_map_env
+    from electroloc_gym.bench.bench_command import _runs_on_map_env
 
     def _runs_on_global(spec: str) -> bool:
         return _runs_on_map_env(spec, "ElectroLocGlobal-v0")

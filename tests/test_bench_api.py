@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from electroloc_gym.agentspec import parse_agent_spec, split_specs
 from electroloc_gym.bench.agents import make_bench_agent, protocol_problem
 from electroloc_gym.cli import main as cli_main
+from electroloc_gym.utils.agentspec import parse_agent_spec, split_specs
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "benchmark.md"
 TINY_CLI = [

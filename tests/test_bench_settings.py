@@ -7,7 +7,7 @@ import argparse
 import pytest
 
 from electroloc_gym.baselines.agent import AGENT_NAMES, agent_class, belief_agents
-from electroloc_gym.bench import cli as bench_cli
+from electroloc_gym.bench import bench_command as bench_cli
 from electroloc_gym.bench.config import (
     BENCH_ENVS,
     ENV_MAX_OBSERVATIONS,

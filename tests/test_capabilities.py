@@ -1,4 +1,4 @@
-"""The capability table (electroloc_gym/core/capabilities.py): an entry for every env option on every engine,
+"""The capability table (electroloc_gym/contract/capabilities.py): an entry for every env option on every engine,
 each engine refusing exactly what the table says it refuses, and the docs' table generated from it.
 """
 
@@ -13,7 +13,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 import electroloc_gym  # noqa: E402,F401 - registers the ids
-from electroloc_gym.core.capabilities import (  # noqa: E402
+from electroloc_gym.contract.capabilities import (  # noqa: E402
     CAPABILITIES,
     CONSTRUCTOR_OPTIONS,
     ENGINES,
@@ -23,12 +23,12 @@ from electroloc_gym.core.capabilities import (  # noqa: E402
     capability_table_markdown,
     check_engine,
 )
-from electroloc_gym.core.params import EnvParams  # noqa: E402
+from electroloc_gym.contract.params import EnvParams  # noqa: E402
+from electroloc_gym.engines.torch_core.consts import TorchConsts  # noqa: E402
 from electroloc_gym.envs.sim_backends import backends_of  # noqa: E402
+from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.envs.vector import CoreVectorEnv, ElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.registry import env_entry  # noqa: E402
-from electroloc_gym.torch_core.consts import TorchConsts  # noqa: E402
-from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 VECTOR_ENVS = {"numba": CoreVectorEnv, "torch": TorchElectroLocVectorEnv}

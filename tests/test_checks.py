@@ -1,4 +1,4 @@
-"""The argument checks every parameter dataclass and agent option uses (electroloc_gym.checks)."""
+"""The argument checks every parameter dataclass and agent option uses (electroloc_gym.utils.checks)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from electroloc_gym.apparatus import Target
-from electroloc_gym.checks import check_bool, check_choice, check_float, check_int
-from electroloc_gym.scene import SceneObject
+from electroloc_gym.utils.checks import check_bool, check_choice, check_float, check_int
+from electroloc_gym.world.apparatus import Target
+from electroloc_gym.world.scene import SceneObject
 
 
 def test_good_values_come_back_as_python_types() -> None:

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from electroloc_gym.conditions import PAPER_TABLE3_THEORY_MM, PRESET_NAMES
+from electroloc_gym.world.conditions import PAPER_TABLE3_THEORY_MM, PRESET_NAMES
 
 ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 

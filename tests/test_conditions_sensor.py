@@ -8,16 +8,6 @@ import numpy as np
 import pytest
 from scipy.interpolate import RegularGridInterpolator
 
-from electroloc_gym.conditions import (
-    PRESET_NAMES,
-    Amplifier,
-    Condition,
-    Geometry,
-    Target,
-    Water,
-    get_condition,
-)
-from electroloc_gym.sensor import calibration_readings, electrode_positions_mm, expected_reading, noisy_reading
 from electroloc_gym.sensor_models import (
     PAPER_CALIBRATION,
     AnalyticSensorModel,
@@ -28,6 +18,16 @@ from electroloc_gym.sensor_models import (
     calibration_statistics,
     make_sensor_model,
 )
+from electroloc_gym.world.conditions import (
+    PRESET_NAMES,
+    Amplifier,
+    Condition,
+    Geometry,
+    Target,
+    Water,
+    get_condition,
+)
+from electroloc_gym.world.sensor import calibration_readings, electrode_positions_mm, expected_reading, noisy_reading
 
 # ---- conditions -------------------------------------------------------------------------------
 
@@ -319,7 +319,7 @@ def test_unknown_sensor_model_name() -> None:
 
 def test_coverage_signal_matches_paper_start_coverage() -> None:
     """§6.3: 78 % of the paper's starts were inside the 2σ detection region; the Table-3 fit gives ≈26 %."""
-    from electroloc_gym.conditions import PAPER_START_COVERAGE, coverage_signal_multiplier, start_box_coverage
+    from electroloc_gym.world.conditions import PAPER_START_COVERAGE, coverage_signal_multiplier, start_box_coverage
 
     fitted = np.mean([start_box_coverage(get_condition(n, "fitted")) for n in PRESET_NAMES])
     assert 0.15 < fitted < 0.35
@@ -332,7 +332,7 @@ def test_coverage_signal_matches_paper_start_coverage() -> None:
 
 
 def test_start_box_coverage_limits() -> None:
-    from electroloc_gym.conditions import start_box_coverage
+    from electroloc_gym.world.conditions import start_box_coverage
 
     c = get_condition("fresh-steel-12.7")
     assert start_box_coverage(c.replace(signal_scale=1e-6)) == 0.0

@@ -15,9 +15,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.conditions import PRESET_NAMES
-from electroloc_gym.core.params import GAIN_FACTOR_LIMITS, MAX_POSITION_BLUR_MM, RADIUS_LIMITS_MM, SIGNAL_LIMITS
+from electroloc_gym.contract.params import GAIN_FACTOR_LIMITS, MAX_POSITION_BLUR_MM, RADIUS_LIMITS_MM, SIGNAL_LIMITS
 from electroloc_gym.envs.vector import sub_env_seeds
+from electroloc_gym.world.conditions import PRESET_NAMES
 
 ENV_IDS = ("ElectroLoc-v0", "ElectroLocGlobal-v0", "ElectroLocUnknownTarget-v0")
 

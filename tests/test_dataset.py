@@ -13,7 +13,6 @@ import pytest
 minari = pytest.importorskip("minari")  # the dev extra installs it; the numpy lower-bound session deselects these
 
 from electroloc_gym.bench.config import MAP_CONDITIONS, trial_seeds  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
 from electroloc_gym.dataset import (  # noqa: E402
     DatasetRequest,
     build_dataset,
@@ -22,6 +21,7 @@ from electroloc_gym.dataset import (  # noqa: E402
     evaluation_overlap,
     reference_scores,
 )
+from electroloc_gym.world.conditions import PRESET_NAMES  # noqa: E402
 
 pytestmark = pytest.mark.minari
 

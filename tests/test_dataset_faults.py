@@ -28,7 +28,7 @@ minari = pytest.importorskip("minari")  # the dev extra installs it; the numpy l
 from electroloc_gym.cli import main as cli_main  # noqa: E402
 from electroloc_gym.dataset import DatasetRequest, build_dataset  # noqa: E402
 from electroloc_gym.dataset import store as st  # noqa: E402
-from electroloc_gym.fileio import FolderLock  # noqa: E402
+from electroloc_gym.utils.fileio import FolderLock  # noqa: E402
 
 pytestmark = pytest.mark.minari
 

@@ -7,18 +7,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from electroloc_gym import physics
-from electroloc_gym.conditions import PRESET_NAMES, get_condition
-from electroloc_gym.distractor_layout import column_layout
-from electroloc_gym.distractors import (
+from electroloc_gym.world import physics
+from electroloc_gym.world.conditions import PRESET_NAMES, get_condition
+from electroloc_gym.world.distractor_layout import column_layout
+from electroloc_gym.world.distractors import (
     MAX_DISTRACTORS,
     DistractorDraw,
     DistractorSet,
     resolve_distractors,
     superposed_reading_V,
 )
-from electroloc_gym.scene import SceneObject
-from electroloc_gym.sensor import expected_reading
+from electroloc_gym.world.scene import SceneObject
+from electroloc_gym.world.sensor import expected_reading
 
 COND = get_condition("fresh-steel-12.7")
 

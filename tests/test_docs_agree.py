@@ -101,7 +101,7 @@ def test_the_decision_time_paragraph_states_the_command_it_ran() -> None:
 
 
 def test_the_coverage_factor_is_the_codes_everywhere() -> None:
-    from electroloc_gym.conditions import coverage_signal_multiplier
+    from electroloc_gym.world.conditions import coverage_signal_multiplier
 
     k = f"{coverage_signal_multiplier():.2f}"
     texts = {

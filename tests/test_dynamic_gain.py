@@ -14,8 +14,8 @@ from vector_equivalence import assert_native_equals_sync
 
 import electroloc_gym  # noqa: F401
 from electroloc_gym.baselines import make_agent
-from electroloc_gym.conditions import Amplifier, get_condition
 from electroloc_gym.sensor_models import AnalyticSensorModel
+from electroloc_gym.world.conditions import Amplifier, get_condition
 
 LEVELS = (0.25, 1.0, 4.0)
 

@@ -36,15 +36,15 @@ import pytest
 torch = pytest.importorskip("torch")
 
 import electroloc_gym  # noqa: E402,F401 - registers the ids
-from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
-from electroloc_gym.core import step as numba_step  # noqa: E402
-from electroloc_gym.draws import normal_table, table_normal_indices  # noqa: E402
+from electroloc_gym.engines.numba_core import step as numba_step  # noqa: E402
+from electroloc_gym.engines.torch_core import sim  # noqa: E402
+from electroloc_gym.engines.torch_core.rng import STREAMS  # noqa: E402
 from electroloc_gym.envs.sim_backends import backends_of  # noqa: E402
+from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.envs.vector import ElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.kernels.streams import normal_table, table_normal_indices  # noqa: E402
 from electroloc_gym.registry import env_entry  # noqa: E402
-from electroloc_gym.torch_core import sim  # noqa: E402
-from electroloc_gym.torch_core.rng import STREAMS  # noqa: E402
-from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES  # noqa: E402
 
 torch.set_num_threads(1)
 N, M = 6, 400

@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import electroloc_gym
-from electroloc_gym.conditions import Amplifier, Condition, Target, Water
 from electroloc_gym.envs.localize import ElectroLocEnv
+from electroloc_gym.world.conditions import Amplifier, Condition, Target, Water
 
 # Warnings we accept from the checkers, and why:
 # - gymnasium's check_env warns when an env's observation space bounds are not checked for infinite
@@ -350,7 +350,7 @@ def test_calibration_protocol_reaches_the_sensor_model() -> None:
 
 
 def test_default_signal_is_get_conditions_default() -> None:
-    from electroloc_gym.conditions import get_condition
+    from electroloc_gym.world.conditions import get_condition
 
     env = ElectroLocEnv(n_particles=100)
     env.reset(seed=0)

@@ -15,10 +15,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.core.localize import LocalizeTask
-from electroloc_gym.distractors import DistractorDraw, DistractorSet, superposed_reading_V
+from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
 from electroloc_gym.envs.vector import NAME_INFO_KEYS
-from electroloc_gym.scene import SceneObject
+from electroloc_gym.world.distractors import DistractorDraw, DistractorSet, superposed_reading_V
+from electroloc_gym.world.scene import SceneObject
 
 _DIGEST = Path(__file__).resolve().parents[1] / ".ci" / "trajectory_digest.py"
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from electroloc_gym.registry import ENVS
 
 ROOT = Path(__file__).resolve().parents[1]
-SCANNED = ("electroloc_gym", "baselines", "train", "benchmarks", "experiments", "examples")
+SCANNED = ("electroloc_gym", "benchmarks", "experiments", "examples")
 
 
 def _names() -> set[str]:

@@ -11,7 +11,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import electroloc_gym
 from electroloc_gym.envs.global_env import GlobalEnv
-from electroloc_gym.scene import BENCHMARK_SCENE
+from electroloc_gym.world.scene import BENCHMARK_SCENE
 
 GLOBAL_ID = "ElectroLocGlobal-v0"
 

@@ -5,8 +5,7 @@ function-level imports included, only those under ``if TYPE_CHECKING:`` left out
 resolved to the package's modules (``from electroloc_gym.x import y`` is an edge to the module
 ``electroloc_gym.x.y`` if there is one, else to ``electroloc_gym.x``). A package's ``__init__`` running
 before its submodules is Python's order, not an edge. The modules are found from pyproject.toml's
-package list and ``package-dir`` (``baselines/``, ``train/`` and ``models/`` install as
-``electroloc_gym.baselines`` …).
+package list (the tree on disk is the import tree).
 """
 
 from __future__ import annotations
@@ -27,10 +26,9 @@ ROOT = Path(__file__).resolve().parents[1]
 def package_modules() -> dict[str, Path]:
     """Every module of the package (dotted name → file), from pyproject.toml's package list."""
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
-    dirs = cfg.get("package-dir", {})
     out: dict[str, Path] = {}
     for pkg in cfg["packages"]:
-        folder = ROOT / dirs[pkg] if pkg in dirs else ROOT / pkg.replace(".", "/")
+        folder = ROOT / pkg.replace(".", "/")
         for f in sorted(folder.glob("*.py")):
             out[pkg if f.stem == "__init__" else f"{pkg}.{f.stem}"] = f
     return out
@@ -129,31 +127,35 @@ def test_the_scan_sees_function_level_and_relative_imports(tmp_path: Path) -> No
     """The resolver on a fixed example: a function-level import is an edge, TYPE_CHECKING is not."""
     src = (
         "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from electroloc_gym.envs import adapter\n"
-        "def f():\n    from electroloc_gym.core import step\n    import electroloc_gym.registry\n"
+        "def f():\n    from electroloc_gym.engines.numba_core import step\n    import electroloc_gym.registry\n"
         "from . import worlds\n"
     )
     tmp = tmp_path / "_import_scan_example.py"
     tmp.write_text(src, encoding="utf-8")
-    mods = {**package_modules(), "electroloc_gym.core.example": tmp}
-    edges = import_graph(mods)["electroloc_gym.core.example"]
-    assert edges == {"electroloc_gym.core.step", "electroloc_gym.registry", "electroloc_gym.core.worlds"}
+    mods = {**package_modules(), "electroloc_gym.engines.numba_core.example": tmp}
+    edges = import_graph(mods)["electroloc_gym.engines.numba_core.example"]
+    assert edges == {
+        "electroloc_gym.engines.numba_core.step",
+        "electroloc_gym.registry",
+        "electroloc_gym.engines.numba_core.worlds",
+    }
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [frozenset("abc")]
 
 
 def test_the_graph_covers_the_package(graph: dict[str, set[str]]) -> None:
     for name in (
-        "electroloc_gym.core.step",
+        "electroloc_gym.engines.numba_core.step",
         "electroloc_gym.envs.adapter",
         "electroloc_gym.baselines.agent",
         "electroloc_gym.train",
         "electroloc_gym.registry",
     ):
         assert name in graph
-    assert "electroloc_gym.core.task" in graph["electroloc_gym.core.step"]
+    assert "electroloc_gym.engines.numba_core.task" in graph["electroloc_gym.engines.numba_core.step"]
 
 
 def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
-    """core/ imports nothing from the adapters or anything above them (one-way data flow)."""
+    """engines/numba_core/ imports nothing from the adapters or anything above them (one-way data flow)."""
     upper = (
         "electroloc_gym.envs",
         "electroloc_gym.baselines",
@@ -161,13 +163,13 @@ def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
         "electroloc_gym.train",
         "electroloc_gym.cli",
         "electroloc_gym.demo",
-        "electroloc_gym.render",
-        "electroloc_gym.eev_maps",
+        "electroloc_gym.views.render",
+        "electroloc_gym.views.eev_maps",
     )
     bad = sorted(
         f"{m} → {t}"
         for m, ts in graph.items()
-        if m.startswith("electroloc_gym.core")
+        if m.startswith("electroloc_gym.engines.numba_core")
         for t in ts
         if t.startswith(upper)
     )
@@ -180,22 +182,20 @@ def test_no_import_cycle_anywhere(graph: dict[str, set[str]]) -> None:
 
 
 #: The package's layers, bottom to top (docs/design.md's diagram): a module imports only its own layer and
-#: those below. Names are relative to ``electroloc_gym``; a package name covers its submodules.
+#: those below. Names are relative to ``electroloc_gym``; a package name covers its submodules. Each layer is
+#: whole subpackages (the tree on disk shows the layers) but for the root's five modules.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    (
-        "data",
-        ("protocol", "registry", "checks", "runtime", "fileio", "agentspec", "distractor_layout", "markdown", "models"),
-    ),
-    ("physics", ("physics", "detection", "apparatus", "conditions")),
-    ("kernels", ("kernels", "draws")),
-    ("sensor", ("sensor", "sensor_array", "scene", "distractors")),
+    ("data", ("protocol", "registry", "utils", "models")),
+    ("kernels", ("kernels",)),
+    ("world", ("world",)),
     ("sensor models", ("sensor_models",)),
-    ("core", ("core",)),
-    ("views", ("belief", "render", "eev_maps")),
-    ("adapters", ("envs", "torch_core", "privileged")),
-    ("agents", ("baselines", "policy", "rollout")),
+    ("contract", ("contract",)),
+    ("engines", ("engines",)),
+    ("views", ("views",)),
+    ("adapters", ("envs",)),
+    ("agents", ("baselines", "policy")),
     ("benchmark", ("bench",)),
-    ("tools", ("dataset", "train", "rllib", "demo")),
+    ("tools", ("dataset", "train", "demo")),
     ("entry points", ("cli", "")),  # "" is the package's __init__ (registers the table's envs)
 )
 
@@ -235,24 +235,61 @@ def test_the_layers_import_only_downward(graph: dict[str, set[str]]) -> None:
 
 
 def test_the_check_sees_an_upward_import() -> None:
-    assert layer_of("electroloc_gym.core.step") < layer_of("electroloc_gym.envs.adapter")
+    assert layer_of("electroloc_gym.engines.numba_core.step") < layer_of("electroloc_gym.envs.adapter")
     assert layer_of("electroloc_gym.sensor_models.map") == layer_of("electroloc_gym.sensor_models")
     assert layer_of("electroloc_gym") == len(LAYERS) - 1
     with pytest.raises(KeyError):
         layer_of("electroloc_gym.nothing_here")
 
 
+def diagram_paths(block: str) -> set[str]:
+    """The module paths (relative to ``electroloc_gym/``) a diagram shows: parenthesised notes are dropped,
+    a folder token (``engines/numba_core/``) is the base of the file names after it until the next folder
+    or the next layer's line, and a file name with no folder before it is a root module."""
+    import re
+
+    text = block
+    while re.search(r"\([^()]*\)", text):
+        text = re.sub(r"\([^()]*\)", " ", text)
+    shown: set[str] = set()
+    folder = ""
+    for line in text.splitlines():
+        if re.match(r"^ [a-z]", line):  # a layer's first line
+            folder = ""
+        for tok in re.findall(r"[\w/]+/|[\w]+\.py", line):
+            if tok.endswith("/"):
+                folder = tok
+                shown.add(folder)
+            else:
+                shown.add(folder + tok)
+    return shown
+
+
+def test_the_diagram_reader_resolves_folders() -> None:
+    block = " data  protocol.py (see x.py)  utils/ checks.py\n   │  fileio.py\n tools  demo.py train/ run.py\n"
+    assert diagram_paths(block) == {
+        "protocol.py",
+        "utils/",
+        "utils/checks.py",
+        "utils/fileio.py",
+        "demo.py",
+        "train/",
+        "train/run.py",
+    }
+
+
 def test_the_design_diagram_names_every_module(graph: dict[str, set[str]]) -> None:
-    """docs/design.md's architecture diagram lists each module (its file name) and each layer's name."""
+    """docs/design.md's architecture diagram shows each module by its path in the package, and each layer's name."""
     text = (ROOT / "docs" / "design.md").read_text(encoding="utf-8")
     block = text.split("## Architecture", 1)[1].split("```text", 1)[1].split("```", 1)[0]
-    missing = []
-    for m in graph:
-        rel = m.removeprefix("electroloc_gym").removeprefix(".")
-        leaf = rel.rpartition(".")[2] if rel else "__init__"
-        if f"{leaf}.py" not in block and f"{leaf}/" not in block:
-            missing.append(m)
-    assert not missing, f"modules docs/design.md's diagram does not show: {missing}"
+    shown = diagram_paths(block)
+    root = ROOT / "electroloc_gym"
+    missing = sorted(
+        str(path.relative_to(root)) for path in package_modules().values() if str(path.relative_to(root)) not in shown
+    )
+    assert not missing, f"modules docs/design.md's diagram does not show (by path): {missing}"
+    stale = sorted(p for p in shown if p.endswith(".py") and not (root / p).is_file())
+    assert not stale, f"docs/design.md's diagram shows modules that are not in the package: {stale}"
     for name, _ in LAYERS:
         assert name in block, f"layer {name!r} is not named in docs/design.md's diagram"
 
@@ -299,7 +336,7 @@ def concern_line_problem(docstring: str | None) -> str | None:
 
 
 def test_every_module_names_its_concern_in_its_first_line() -> None:
-    """Each module of the package (electroloc_gym/, baselines/, train/, models/) opens its docstring with one
+    """Each module of the package (electroloc_gym/ and its subpackages) opens its docstring with one
     sentence that names what it holds."""
     bad = []
     for path in package_modules().values():

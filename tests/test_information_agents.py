@@ -6,7 +6,7 @@ import pytest
 
 import electroloc_gym  # noqa: F401
 from electroloc_gym.baselines.agent import make_agent
-from electroloc_gym.rollout import run_episode
+from electroloc_gym.baselines.rollout import run_episode
 
 AGENTS = {"infotaxis": ("infotaxis[n_voters=32]", 600), "eedi": ("eedi[n_particles=64,grid_mm=10]", 500)}
 

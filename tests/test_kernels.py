@@ -16,10 +16,10 @@ from reference_filter import (
 from scipy import stats
 
 from electroloc_gym import kernels as K
-from electroloc_gym.conditions import get_condition
-from electroloc_gym.core.observation import HIST_BINS, belief_observation
-from electroloc_gym.draws import normal_table, uniform_in_box
+from electroloc_gym.contract.observation import HIST_BINS, belief_observation
+from electroloc_gym.kernels.streams import normal_table, uniform_in_box
 from electroloc_gym.sensor_models import CalibratedSensorModel
+from electroloc_gym.world.conditions import get_condition
 
 
 def _mean_cov(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -9,9 +9,9 @@ import pytest
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.baselines.agent import MAX_STEP_MM, make_agent, move_bounds_mm
 from electroloc_gym.baselines.lookahead import LookaheadAgent, posterior_spreads
-from electroloc_gym.conditions import get_condition
-from electroloc_gym.rollout import run_episode
+from electroloc_gym.baselines.rollout import run_episode
 from electroloc_gym.sensor_models import make_sensor_model
+from electroloc_gym.world.conditions import get_condition
 
 
 def _moves(agent, env_id="ElectroLoc-v0", seed=5, steps=4, **env_kwargs):

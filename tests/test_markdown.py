@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from electroloc_gym.markdown import markdown_table
+from electroloc_gym.utils.markdown import markdown_table
 
 
 def test_the_format_on_a_fixed_example() -> None:

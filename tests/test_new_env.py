@@ -11,12 +11,13 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import electroloc_gym
-from electroloc_gym import registry, rllib
-from electroloc_gym.bench import cli as bench_cli
-from electroloc_gym.core.electroloc import ElectroLocTask
+from electroloc_gym import registry
+from electroloc_gym.bench import bench_command as bench_cli
+from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
 from electroloc_gym.envs.localize import ElectroLocEnv
 from electroloc_gym.envs.vector import CoreVectorEnv
 from electroloc_gym.registry import BenchEnv, EnvEntry, env_entry
+from electroloc_gym.train import rllib
 
 
 class FewReadingsTask(ElectroLocTask):
@@ -91,7 +92,7 @@ def test_one_entry_makes_a_new_env(registered, tmp_path, capsys) -> None:
 
 
 def test_the_rllib_creator_makes_the_new_env(registered) -> None:
-    """RLlib's env runners call :func:`electroloc_gym.rllib.make_env`; it reads the live table."""
+    """RLlib's env runners call :func:`electroloc_gym.train.rllib.make_env`; it reads the live table."""
     env = rllib.make_env({"env_id": "ElectroLocFewReadings-v0"})
     assert type(env.unwrapped) is FewReadingsEnv
     vec = rllib.make_env({"env_id": "ElectroLocFewReadings-v0", "num_envs": 3})

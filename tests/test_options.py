@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from electroloc_gym.agentspec import parse_agent_spec, parse_options
+from electroloc_gym.utils.agentspec import parse_agent_spec, parse_options
 
 
 def test_values_by_the_agent_spec_rule() -> None:

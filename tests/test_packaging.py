@@ -1,4 +1,4 @@
-"""Packaging: baselines/, train/ and models/ install inside electroloc_gym; nothing else is a top-level name."""
+"""Packaging: the package tree on disk is the installed tree (no remapped folder); nothing else is a top-level name."""
 
 from __future__ import annotations
 
@@ -14,28 +14,28 @@ tomllib = pytest.importorskip("tomllib")  # Python ≥ 3.11
 
 ROOT = Path(__file__).resolve().parents[1]
 PYPROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
-MAPPED = {"electroloc_gym.baselines": "baselines", "electroloc_gym.train": "train", "electroloc_gym.models": "models"}
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 
 
 def _packages_on_disk() -> set[str]:
     """Every folder holding Python modules, as a dotted package name (with or without ``__init__.py``)."""
     found = set()
-    roots = {"electroloc_gym": ROOT / "electroloc_gym", **{name: ROOT / folder for name, folder in MAPPED.items()}}
-    for name, root in roots.items():
-        for module in root.rglob("*.py"):
-            if "__pycache__" not in module.parts:
-                found.add(".".join((name, *module.parent.relative_to(root).parts)))
+    root = ROOT / "electroloc_gym"
+    for module in root.rglob("*.py"):
+        if "__pycache__" not in module.parts:
+            found.add(".".join(("electroloc_gym", *module.parent.relative_to(root).parts)))
     return found
 
 
 def test_every_package_is_listed_in_pyproject() -> None:
     setuptools = PYPROJECT["tool"]["setuptools"]
-    assert setuptools["package-dir"] == MAPPED
+    assert "package-dir" not in setuptools, "the tree on disk is the import tree: no package-dir remap"
+    assert not (ROOT / ".pyright-paths").exists()
     listed = set(setuptools["packages"])
     missing = _packages_on_disk() - listed
     assert not missing, f"add {sorted(missing)} to [tool.setuptools] packages in pyproject.toml"
     assert all(p == "electroloc_gym" or p.startswith("electroloc_gym.") for p in listed)
+    assert not listed - _packages_on_disk(), "pyproject.toml lists a package that is not on disk"
 
 
 def test_namespaced_imports_and_no_top_level_names(tmp_path) -> None:
@@ -52,9 +52,14 @@ def test_namespaced_imports_and_no_top_level_names(tmp_path) -> None:
     assert proc.stdout.strip() == "rnd-wlk"
 
 
-def test_python_m_train_works_from_the_repository_root() -> None:
+def test_python_m_electroloc_gym_train_works() -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "train", "--help"], capture_output=True, text=True, cwd=ROOT, env=ENV, timeout=120
+        [sys.executable, "-m", "electroloc_gym.train", "--help"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        env=ENV,
+        timeout=120,
     )
     if proc.returncode != 0 and "No module named" in proc.stderr and "torch" in proc.stderr:
         pytest.skip("the training extra is not installed")

@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from electroloc_gym import detection as D
-from electroloc_gym import physics as P
-from electroloc_gym.conditions import (
+from electroloc_gym.world import detection as D
+from electroloc_gym.world import physics as P
+from electroloc_gym.world.conditions import (
     PAPER_TABLE3_MEASURED_MM,
     PAPER_TABLE3_THEORY_MM,
     PRESET_NAMES,
     fitted_signal_scale,
     get_condition,
 )
-from electroloc_gym.sensor import expected_reading
+from electroloc_gym.world.sensor import expected_reading
 
 A, E, CHI = 0.05, 0.005, 1.0  # Fig. 4–5 parameters (a = A/L, e = E/L)
 

@@ -130,7 +130,7 @@ def test_qrdqn_and_recurrent_ppo_act_as_sb3(tmp_path):
 @needs_numpy2_pickles
 def test_shipped_models_act_as_their_sb3_zip():
     checked = 0
-    for folder in sorted((ROOT / "models").iterdir()):
+    for folder in sorted((ROOT / "electroloc_gym" / "models").iterdir()):
         if not (folder / "model.zip").is_file():
             continue
         agent = load_policy(folder)
@@ -139,7 +139,7 @@ def test_shipped_models_act_as_their_sb3_zip():
         got, _ = agent.actor(x)
         np.testing.assert_allclose(got, model.predict(x, deterministic=True)[0], atol=1e-5)
         checked += 1
-    for folder in sorted((ROOT / "models").iterdir()):
+    for folder in sorted((ROOT / "electroloc_gym" / "models").iterdir()):
         if folder.is_dir() and (folder / "policy.json").is_file():
             assert load_policy(folder).env_kwargs["observation"] in ("belief", "raw")
 
@@ -279,7 +279,7 @@ def test_a_shipped_policy_runs_without_torch_and_sb3():
 
 
 # ------------------------------------------------------------------ damaged folders: one error naming the file
-SHIPPED = ROOT / "models" / "ppo-belief"
+SHIPPED = ROOT / "electroloc_gym" / "models" / "ppo-belief"
 
 
 def _copy_shipped(tmp: Path) -> Path:

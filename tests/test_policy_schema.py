@@ -14,7 +14,7 @@ from electroloc_gym.policy import PolicyFormatError, load_policy
 from electroloc_gym.policy.format import POLICY_KWARGS
 
 ROOT = Path(__file__).resolve().parents[1]
-SHIPPED = ROOT / "models" / "ppo-belief"
+SHIPPED = ROOT / "electroloc_gym" / "models" / "ppo-belief"
 
 
 def _copy(tmp_path: Path, edit) -> Path:

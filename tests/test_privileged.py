@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.privileged import PrivilegedInfo, privileged_keys
+from electroloc_gym.envs.privileged import PrivilegedInfo, privileged_keys
 
 
 @pytest.mark.parametrize("env_id", ["ElectroLoc-v0", "ElectroLocGlobal-v0", "ElectroLocUnknownTarget-v0"])

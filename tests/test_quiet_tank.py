@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import electroloc_gym  # noqa: F401  (registers the envs)
-from electroloc_gym import detection as D
 from electroloc_gym.cli import parse_noise_factor, quiet_tank_table, zero_crossing_mm
-from electroloc_gym.conditions import PRESET_NAMES, Amplifier, Condition, get_condition
-from electroloc_gym.sensor import expected_reading
+from electroloc_gym.world import detection as D
+from electroloc_gym.world.conditions import PRESET_NAMES, Amplifier, Condition, get_condition
+from electroloc_gym.world.sensor import expected_reading
 
 QUIET = 1.0 / 32.0
 FAR_EQ5, NEAR_EQ5, FAR_LAYOUT = 32**0.2, 32**0.5, 32 ** (1 / 6)

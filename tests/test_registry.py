@@ -10,9 +10,9 @@ import pytest
 
 import electroloc_gym
 from electroloc_gym.bench import config as bench_config
-from electroloc_gym.core.params import EnvParams
-from electroloc_gym.core.step import make_task
-from electroloc_gym.core.task import Task
+from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.engines.numba_core.step import make_task
+from electroloc_gym.engines.numba_core.task import Task
 from electroloc_gym.registry import (
     BENCH_ENVS,
     ENV_IDS,

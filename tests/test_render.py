@@ -10,7 +10,7 @@ import pytest
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.cli import main
 from electroloc_gym.demo import check_output_path, plot_episode, record_episode, save_gif
-from electroloc_gym.render import (
+from electroloc_gym.views.render import (
     EpisodeRenderer,
     GlobalEpisodeRenderer,
     legend_handles,
@@ -216,7 +216,7 @@ def test_global_frames_and_snapshot() -> None:
 def test_map_eev_labels_every_object() -> None:
     import matplotlib.pyplot as plt
 
-    from electroloc_gym.scene import BENCHMARK_SCENE
+    from electroloc_gym.world.scene import BENCHMARK_SCENE
 
     ax = plot_map_eev(BENCHMARK_SCENE)
     n = len(BENCHMARK_SCENE.objects)

@@ -14,7 +14,7 @@ import pytest
 
 pytestmark = pytest.mark.rllib  # the rllib extra; the nox session rllib runs these
 
-import electroloc_gym.rllib as erl  # noqa: E402
+import electroloc_gym.train.rllib as erl  # noqa: E402
 from electroloc_gym.envs.vector import ElectroLocVectorEnv, sub_env_seeds  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

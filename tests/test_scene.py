@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from electroloc_gym import physics
-from electroloc_gym.conditions import Amplifier, Condition, Target, Water
-from electroloc_gym.scene import (
+from electroloc_gym.sensor_models.map import make_map_sensor_model
+from electroloc_gym.world import physics
+from electroloc_gym.world.conditions import Amplifier, Condition, Target, Water
+from electroloc_gym.world.scene import (
     BENCHMARK_LAYOUT_SEED,
     BENCHMARK_SCENE,
     STOCK_DIAMETERS_MM,
@@ -17,8 +18,7 @@ from electroloc_gym.scene import (
     map_eev,
     random_cylinder_layout,
 )
-from electroloc_gym.sensor import expected_reading
-from electroloc_gym.sensor_models.map import make_map_sensor_model
+from electroloc_gym.world.sensor import expected_reading
 
 
 def _mixed_scene() -> Scene:

@@ -7,10 +7,17 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from electroloc_gym import physics, sensor
-from electroloc_gym.conditions import PRESET_NAMES, Geometry, get_condition
 from electroloc_gym.kernels.fusion import assimilate_readings, grid_posterior
-from electroloc_gym.sensor_array import (
+from electroloc_gym.sensor_models import AnalyticSensorModel, make_sensor_model
+from electroloc_gym.sensor_models.pairs import (
+    ArrayAnalyticSensorModel,
+    ArrayCalibratedSensorModel,
+    make_array_sensor_model,
+    pair_seeds,
+)
+from electroloc_gym.world import physics, sensor
+from electroloc_gym.world.conditions import PRESET_NAMES, Geometry, get_condition
+from electroloc_gym.world.sensor_array import (
     BASELINE_TOLERANCE_V,
     LAYOUT_DESIGNS,
     LAYOUT_NAMES,
@@ -19,13 +26,6 @@ from electroloc_gym.sensor_array import (
     array_reading,
     make_sensor_layout,
     named_layout,
-)
-from electroloc_gym.sensor_models import AnalyticSensorModel, make_sensor_model
-from electroloc_gym.sensor_models.pairs import (
-    ArrayAnalyticSensorModel,
-    ArrayCalibratedSensorModel,
-    make_array_sensor_model,
-    pair_seeds,
 )
 
 FRESH = "fresh-steel-12.7"
@@ -70,7 +70,7 @@ def test_general_physics_path_equals_compiled_path() -> None:
     """The general path (emitter_field + sphere_perturbation per electrode) on the paper's pair and on a translated
     unit agrees with the compiled fast path: one physics, two evaluations.
     """
-    from electroloc_gym.sensor_array import _general_pair
+    from electroloc_gym.world.sensor_array import _general_pair
 
     c = get_condition("fresh-delrin-38.1")
     off = _offsets(3, 2000)
@@ -86,7 +86,7 @@ def test_compiled_general_pairs_equal_the_physics_module() -> None:
     """Pairs in the carriage's field and explicit pairs anywhere (own emitters, front end): the compiled pass of
     array_reading equals the physics module's emitter_field + sphere_perturbation.
     """
-    from electroloc_gym.sensor_array import _general_pair
+    from electroloc_gym.world.sensor_array import _general_pair
 
     c = get_condition("salt-steel-38.1")
     off = _offsets(8, 3000)
@@ -365,8 +365,8 @@ def test_particle_filter_sharp_posterior_one_by_one_is_wider() -> None:
 
 
 def test_detection_coverage_of_single_is_the_conditions() -> None:
-    from electroloc_gym.conditions import start_box_coverage
-    from electroloc_gym.sensor_array import detection_coverage
+    from electroloc_gym.world.conditions import start_box_coverage
+    from electroloc_gym.world.sensor_array import detection_coverage
 
     for name in ("fresh-steel-12.7", "salt-delrin-38.1"):
         c = get_condition(name)

@@ -1,6 +1,6 @@
 """Threads: what the package starts runs its numeric libraries on the chosen count (one unless chosen).
 
-The count comes from ``--threads``, else ``$ELECTROLOC_THREADS``, else 1 (:mod:`electroloc_gym.runtime`); the CLI
+The count comes from ``--threads``, else ``$ELECTROLOC_THREADS``, else 1 (:mod:`electroloc_gym.utils.runtime`); the CLI
 pins itself to it and hands it to the benchmark's worker processes and the training run.
 """
 
@@ -12,7 +12,7 @@ import pytest
 import torch
 from threadpoolctl import threadpool_info
 
-from electroloc_gym.runtime import (
+from electroloc_gym.utils.runtime import (
     THREAD_VARS,
     THREADS_VAR,
     chosen_threads,
@@ -88,7 +88,7 @@ def test_pin_threads_sets_every_pool_of_the_process(restore_threads) -> None:
 
 
 def test_the_cli_runs_on_the_chosen_count(restore_threads, capsys) -> None:
-    from electroloc_gym.bench import cli as bench_cli
+    from electroloc_gym.bench import bench_command as bench_cli
     from electroloc_gym.cli import main
 
     seen: list[dict[str, object]] = []

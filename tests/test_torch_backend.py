@@ -11,11 +11,16 @@ import pytest
 torch = pytest.importorskip("torch")
 
 import electroloc_gym  # noqa: E402,F401 - registers the ids
-from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
-from electroloc_gym.core.observation import belief_observation, condition_descriptor  # noqa: E402
-from electroloc_gym.core.params import EnvParams  # noqa: E402
-from electroloc_gym.draws import normal_table, table_normal_indices  # noqa: E402
+from electroloc_gym.contract.observation import belief_observation, condition_descriptor  # noqa: E402
+from electroloc_gym.contract.params import EnvParams  # noqa: E402
+from electroloc_gym.engines.torch_core import belief_update as F  # noqa: E402
+from electroloc_gym.engines.torch_core import sim  # noqa: E402
+from electroloc_gym.engines.torch_core.calibration import tables_from_draws  # noqa: E402
+from electroloc_gym.engines.torch_core.consts import TorchConsts  # noqa: E402
+from electroloc_gym.engines.torch_core.rng import bits32, mix32  # noqa: E402
+from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv, numpy_view  # noqa: E402
 from electroloc_gym.kernels import loglik_assimilate  # noqa: E402
+from electroloc_gym.kernels.streams import normal_table, table_normal_indices  # noqa: E402
 from electroloc_gym.sensor_models import AnalyticSensorModel, CalibratedSensorModel  # noqa: E402
 from electroloc_gym.sensor_models.calibrated import (  # noqa: E402
     DEFAULT_CALIBRATION,
@@ -23,12 +28,7 @@ from electroloc_gym.sensor_models.calibrated import (  # noqa: E402
     calibration_coefficients,
     noise_free_calibration_grid,
 )
-from electroloc_gym.torch_core import filter as F  # noqa: E402
-from electroloc_gym.torch_core import sim  # noqa: E402
-from electroloc_gym.torch_core.calibration import tables_from_draws  # noqa: E402
-from electroloc_gym.torch_core.consts import TorchConsts  # noqa: E402
-from electroloc_gym.torch_core.rng import bits32, mix32  # noqa: E402
-from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv, numpy_view  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
 
 torch.set_num_threads(1)
 CPU = torch.device("cpu")
@@ -125,7 +125,7 @@ def test_analytic_likelihood_matches_numba():
 
 
 def test_true_reading_matches_physics():
-    from electroloc_gym.sensor import expected_reading
+    from electroloc_gym.world.sensor import expected_reading
 
     k = consts(condition="random")
     s = sim.empty_state(k, 8)
@@ -203,7 +203,7 @@ def test_systematic_indices_are_the_search_bit_for_bit():
 
 
 def test_blocked_hash_is_the_one_pass_hash(monkeypatch):
-    from electroloc_gym.torch_core import rng
+    from electroloc_gym.engines.torch_core import rng
 
     key = torch.randint(0, 2**32, (37,), dtype=torch.int64, generator=torch.Generator().manual_seed(0))
     whole = bits32(key, 300, start=5)  # 11,100 words: one pass at the default block size

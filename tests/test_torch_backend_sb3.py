@@ -10,8 +10,8 @@ pytest.importorskip("stable_baselines3")
 
 from stable_baselines3 import PPO  # noqa: E402
 
-from electroloc_gym.torch_core.sb3 import TorchSB3VecEnv  # noqa: E402
-from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.envs.torch_sb3 import TorchSB3VecEnv  # noqa: E402
+from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv  # noqa: E402
 
 
 def test_sb3_ppo_runs_through_the_adapter():

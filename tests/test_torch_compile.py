@@ -11,8 +11,8 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from electroloc_gym.torch_core import sim  # noqa: E402
-from electroloc_gym.torch_core.vector_env import OWN_IN_PLACE, TorchElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.engines.torch_core import sim  # noqa: E402
+from electroloc_gym.envs.torch_vector import OWN_IN_PLACE, TorchElectroLocVectorEnv  # noqa: E402
 
 torch.set_num_threads(1)
 

@@ -27,8 +27,8 @@ from electroloc_gym.baselines.agent import make_agent  # noqa: E402
 from electroloc_gym.bench import run  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.bench.records import read_trials  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
 from electroloc_gym.protocol import MAX_OBSERVATIONS  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
 
 TRIALS = 50
 REFERENCE = Path(__file__).resolve().parents[1] / "experiments" / "reference" / "bench" / "trials.jsonl"

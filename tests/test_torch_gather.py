@@ -14,10 +14,10 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from electroloc_gym.torch_core import filter as F  # noqa: E402
-from electroloc_gym.torch_core import sim  # noqa: E402
-from electroloc_gym.torch_core.calibration import coefficients  # noqa: E402
-from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.engines.torch_core import belief_update as F  # noqa: E402
+from electroloc_gym.engines.torch_core import sim  # noqa: E402
+from electroloc_gym.engines.torch_core.calibration import coefficients  # noqa: E402
+from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv  # noqa: E402
 
 torch.set_num_threads(1)
 

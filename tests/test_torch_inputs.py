@@ -16,9 +16,9 @@ torch = pytest.importorskip("torch")
 from torch.utils._python_dispatch import TorchDispatchMode  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401 - registers the ids
+from electroloc_gym.engines.torch_core import device as D  # noqa: E402
+from electroloc_gym.envs.torch_vector import MAX_NUM_ENVS, TorchElectroLocVectorEnv, numpy_view  # noqa: E402
 from electroloc_gym.envs.vector import ElectroLocVectorEnv  # noqa: E402
-from electroloc_gym.torch_core import device as D  # noqa: E402
-from electroloc_gym.torch_core.vector_env import MAX_NUM_ENVS, TorchElectroLocVectorEnv, numpy_view  # noqa: E402
 
 torch.set_num_threads(1)
 NAN, INF = float("nan"), float("inf")
@@ -413,7 +413,7 @@ def test_a_closed_env_refuses_every_use():
 @pytest.mark.parametrize("seed", [-1, "x", 2.5, True, [1, 2], b"1"])
 def test_the_sb3_adapter_checks_a_seed_when_it_is_given(seed):
     pytest.importorskip("stable_baselines3")
-    from electroloc_gym.torch_core.sb3 import TorchSB3VecEnv
+    from electroloc_gym.envs.torch_sb3 import TorchSB3VecEnv
 
     match = r"seed must be None, an integer ≥ 0 or a sequence of 3 seeds"
     with pytest.raises(ValueError, match=match):

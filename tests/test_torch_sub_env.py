@@ -14,10 +14,10 @@ torch = pytest.importorskip("torch")
 
 import electroloc_gym  # noqa: E402,F401 - registers the ids
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
-from electroloc_gym.conditions import get_condition  # noqa: E402
+from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.sensor_models import AnalyticSensorModel, CalibratedSensorModel  # noqa: E402
 from electroloc_gym.sensor_models.calibrated import DEFAULT_CALIBRATION  # noqa: E402
-from electroloc_gym.torch_core.vector_env import TorchElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.world.conditions import get_condition  # noqa: E402
 
 torch.set_num_threads(1)
 

@@ -163,7 +163,9 @@ def test_the_front_door_prints_the_exact_rl_zoo3_command(capsys, monkeypatch):
     words = shlex.split(out)
     tail = ["--env-kwargs", "observation:'raw'", "--hyperparams", "frame_stack:16"]
     assert words[words.index("--env-kwargs") :] == tail
-    assert words[words.index("--conf-file") + 1] == "train/hyperparams/ppo.yml"  # relative to the repository root
+    assert (
+        words[words.index("--conf-file") + 1] == "electroloc_gym/train/hyperparams/ppo.yml"
+    )  # relative to the repository root
 
 
 @pytest.fixture(scope="module")
@@ -178,7 +180,7 @@ def tiny_run(tmp_path_factory):
 
 def test_a_run_folder_is_never_shared(tiny_run, monkeypatch):
     """A second run into a folder that holds a run's eval.csv is refused; the first run's files are intact."""
-    from electroloc_gym.fileio import FolderBusyError, FolderLock
+    from electroloc_gym.utils.fileio import FolderBusyError, FolderLock
 
     before = (tiny_run / "eval.csv").read_text()
     from stable_baselines3 import PPO

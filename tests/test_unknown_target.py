@@ -12,14 +12,14 @@ from gymnasium.vector import AutoresetMode
 from vector_equivalence import assert_native_equals_sync
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym import physics
 from electroloc_gym.baselines import make_agent
-from electroloc_gym.conditions import PRESET_NAMES, Target, get_condition
-from electroloc_gym.core.unknown import CONDUCTOR_CHI, INSULATOR_CHI, SHAPE_INFO_KEYS
+from electroloc_gym.engines.numba_core.unknown import CONDUCTOR_CHI, INSULATOR_CHI, SHAPE_INFO_KEYS
 from electroloc_gym.kernels import resample_indices
-from electroloc_gym.sensor import expected_reading, sphere_reading
 from electroloc_gym.sensor_models import CalibratedSensorModel
 from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
+from electroloc_gym.world import physics
+from electroloc_gym.world.conditions import PRESET_NAMES, Target, get_condition
+from electroloc_gym.world.sensor import expected_reading, sphere_reading
 
 ENV_ID = "ElectroLocUnknownTarget-v0"
 _GRID = np.stack(np.meshgrid(np.linspace(-60, 60, 41), np.linspace(-60, 60, 37), indexing="ij"), axis=-1)

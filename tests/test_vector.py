@@ -11,10 +11,10 @@ from gymnasium.vector import AutoresetMode
 from reference_filter import ParticleBelief, egocentric_histogram
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.core.observation import HIST_BINS, INFO_KEYS
-from electroloc_gym.draws import normal_table
+from electroloc_gym.contract.observation import HIST_BINS, INFO_KEYS
 from electroloc_gym.envs.vector import NAME_INFO_KEYS, ElectroLocVectorEnv, sub_env_seeds
 from electroloc_gym.kernels import loglik_assimilate
+from electroloc_gym.kernels.streams import normal_table
 from electroloc_gym.sensor_models import CalibratedSensorModel
 
 
@@ -281,7 +281,7 @@ def test_bad_actions_and_step_before_reset() -> None:
         denv.step(np.array([0, 9]))
 
 
-# ---- SB3 adapter (train/native_vec.py) --------------------------------------------------------
+# ---- SB3 adapter (electroloc_gym/train/native_vec.py) --------------------------------------------------------
 def test_sb3_adapter_equals_dummy_vec_env() -> None:
     pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.monitor import Monitor

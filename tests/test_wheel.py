@@ -53,7 +53,7 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
         "build/lib/electroloc_gym/leftover.py",
         "results/bench/table.md",
         "experiments/leftover/run.py",
-        "models/ppo-belief/stale.pkl",
+        "electroloc_gym/models/ppo-belief/stale.pkl",
     ):
         (src / leftover).parent.mkdir(parents=True, exist_ok=True)
         (src / leftover).write_text("# a leftover that must not ship\n", encoding="utf-8")
@@ -90,9 +90,11 @@ def test_wheel_holds_the_package_and_the_shipped_policies(built: tuple[Path, Pat
         "electroloc_gym/models/__init__.py",
     ):
         assert needed in names, needed
-    for model in sorted(p.name for p in (ROOT / "models").iterdir() if p.is_dir() and p.name != "__pycache__"):
+    for model in sorted(
+        p.name for p in (ROOT / "electroloc_gym" / "models").iterdir() if p.is_dir() and p.name != "__pycache__"
+    ):
         shipped = {Path(n).name for n in names if n.startswith(f"electroloc_gym/models/{model}/")}
-        on_disk = {p.name for p in (ROOT / "models" / model).iterdir() if p.suffix != ".pkl"}
+        on_disk = {p.name for p in (ROOT / "electroloc_gym" / "models" / model).iterdir() if p.suffix != ".pkl"}
         assert shipped == on_disk, (model, on_disk - shipped)
         assert {"policy.json", "policy.safetensors"} <= shipped, model
 
@@ -121,8 +123,8 @@ def test_sdist_holds_the_sources_not_the_results(built: tuple[Path, Path]) -> No
         "README.md",
         "LICENSE",
         "electroloc_gym/__init__.py",
-        "baselines/agent.py",
-        "models/ppo-belief/policy.safetensors",
+        "electroloc_gym/baselines/agent.py",
+        "electroloc_gym/models/ppo-belief/policy.safetensors",
     ):
         assert needed in names, needed
     assert not [n for n in names if n.startswith(("results/", "build/", "experiments/")) or "leftover" in n]

@@ -5,7 +5,7 @@ An agent *spec* (what ``--agents`` takes, and the ``agent`` key of every trial r
 * a controller of the paper, optionally with options: ``rnd-wlk``, ``min-var``, ``zero-crossing``,
   ``min-var[n_voters=2500]`` — built by :func:`electroloc_gym.baselines.make_agent`;
 * the name of a shipped learned policy, ``ppo-belief`` — a folder of ``electroloc_gym.models``
-  (the repository's ``models/``, installed with the package);
+  (the repository's ``electroloc_gym/models/``, installed with the package);
 * a path to a model folder or a policy file (anything with a ``/``, starting with ``.`` or ``~``,
   ending in ``.zip``, or an existing folder);
 * a user's factory, ``package.module:factory[key=value,...]``: the module is imported (it must be
@@ -13,7 +13,7 @@ An agent *spec* (what ``--agents`` takes, and the ``agent`` key of every trial r
   factory called with the options, and the object it returns must have the agent protocol
   (:func:`protocol_problem`). Importing the module runs its code, as ``import`` would.
 
-Specs are parsed by the package's one parser (:mod:`electroloc_gym.agentspec`), once per process:
+Specs are parsed by the package's one parser (:mod:`electroloc_gym.utils.agentspec`), once per process:
 :func:`resolve_agent` turns a spec's text into an :class:`AgentRef` (its kind and parsed form) that
 everything else here reads. The built-in controllers' names are the baselines' registry's
 (:data:`electroloc_gym.baselines.agent.AGENT_NAMES`). Every failure —
@@ -37,7 +37,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.agentspec import AgentSpec, is_path_like, parse_agent_spec
 from electroloc_gym.baselines.agent import AGENT_NAMES, make_agent
 from electroloc_gym.baselines.base import layout_problem  # the agents' layout rule (re-exported: the registry's API)
 from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
@@ -50,6 +49,7 @@ from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (r
     shipped_models,
     trained_sensor_layout,
 )
+from electroloc_gym.utils.agentspec import AgentSpec, is_path_like, parse_agent_spec
 
 __all__ = [
     "AgentRef",

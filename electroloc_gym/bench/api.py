@@ -27,7 +27,7 @@ from typing import Any
 from electroloc_gym.bench.agents import register_object_agent, shipped_models
 from electroloc_gym.bench.config import ENV_CHOICES, BenchConfig
 from electroloc_gym.bench.runner import run_benchmark
-from electroloc_gym.conditions import DEFAULT_SIGNAL
+from electroloc_gym.world.conditions import DEFAULT_SIGNAL
 
 __all__ = ["run", "BenchResult"]
 

@@ -8,7 +8,7 @@ themselves.
 
 Built in: ``"process"`` (default; a local ``concurrent.futures`` process pool, ``spawn`` start
 method, every worker pinned to the calling process's thread count —
-:func:`~electroloc_gym.runtime.chosen_threads`, one unless chosen — and every worker exits when the process that
+:func:`~electroloc_gym.utils.runtime.chosen_threads`, one unless chosen — and every worker exits when the process that
 started it dies — :func:`exit_with_parent`) and ``"serial"`` (in-process, for
 debugging and tests). More backends (e.g. Ray) register with :func:`register_backend`::
 
@@ -33,7 +33,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, ClassVar
 
-from electroloc_gym.runtime import chosen_threads, pin_threads, thread_env
+from electroloc_gym.utils.runtime import chosen_threads, pin_threads, thread_env
 
 __all__ = [
     "Backend",
@@ -140,7 +140,7 @@ class SerialBackend(Backend):
 
 class ProcessBackend(Backend):
     """A local process pool (``concurrent.futures.ProcessPoolExecutor``, spawn); every worker runs
-    :func:`~electroloc_gym.runtime.chosen_threads` numeric threads (one unless chosen).
+    :func:`~electroloc_gym.utils.runtime.chosen_threads` numeric threads (one unless chosen).
 
     At most one trial per worker is in flight, so a worker that dies (the pool breaks) is known to have
     been running one of those few (:class:`WorkerLost` lists them).

@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.baselines.agent import PAPER_AGENTS
-from electroloc_gym.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOICES
-from electroloc_gym.core.params import EnvParams
-from electroloc_gym.distractors import MAX_DISTRACTORS
+from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES, SUCCESS_SPREAD_MM
 from electroloc_gym.registry import BENCH_ENVS, ENVS, LiveMapping, LiveSequence, env_entry
+from electroloc_gym.world.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOICES
+from electroloc_gym.world.distractors import MAX_DISTRACTORS
 
 __all__ = [
     "BenchConfig",
@@ -133,7 +133,7 @@ class BenchConfig:
         seed: root seed of the trial seeds.
         sensor_model: the filter's sensor model, "calibrated" (the paper's) or "analytic"; the unknown-target
             env: "analytic" (the theoretical EEV) or "interpolated" (:data:`ENV_SENSOR_MODELS`).
-        signal: the presets' signal scale (:data:`electroloc_gym.conditions.DEFAULT_SIGNAL` by default):
+        signal: the presets' signal scale (:data:`electroloc_gym.world.conditions.DEFAULT_SIGNAL` by default):
             "fitted" (fitted to Table 3's measured detection distances), "coverage" (fitted × one factor
             matching the paper's §6.3 start coverage) or "paper" (scale 1); see conditions.get_condition.
         max_observations: the cap of readings of a trial (paper: 35; 1 to :data:`MAX_READINGS`).
@@ -144,7 +144,7 @@ class BenchConfig:
             plug-in agent's ``env_kwargs`` cannot change it) and compared by ``--resume``.
         env_id: the environment id.
         gain_levels: dynamic gain: the factors of the amplifier gain in the action (None: the preset gain).
-        sensor_layout: ElectroLoc-v0's named sensor layout (``electroloc_gym.sensor_array.LAYOUT_NAMES``), or
+        sensor_layout: ElectroLoc-v0's named sensor layout (``electroloc_gym.world.sensor_array.LAYOUT_NAMES``), or
             None: the env's default (the paper's pair).
         distractors: D, distractors drawn per trial in ElectroLoc-v0's tank (``distractors=D``; 0: none).
     """

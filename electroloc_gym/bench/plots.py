@@ -14,7 +14,7 @@ __all__ = ["plot_steps", "steps_png"]
 
 def plot_steps(summary: dict[str, Any], path: str | os.PathLike[str]) -> None:
     """:func:`steps_png` written atomically to ``path``."""
-    from electroloc_gym.fileio import atomic_write_bytes
+    from electroloc_gym.utils.fileio import atomic_write_bytes
 
     atomic_write_bytes(path, steps_png(summary))
 

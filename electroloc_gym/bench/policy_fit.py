@@ -12,8 +12,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.conditions import get_condition
 from electroloc_gym.registry import env_entry
+from electroloc_gym.world.conditions import get_condition
 
 
 def shipped_models() -> dict[str, Path]:

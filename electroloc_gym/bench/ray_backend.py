@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from electroloc_gym.bench.backends import Backend, WorkerLost, register_backend
-from electroloc_gym.runtime import pin_threads, thread_env
+from electroloc_gym.utils.runtime import pin_threads, thread_env
 
 __all__ = ["RayBackend", "check_ray_address"]
 

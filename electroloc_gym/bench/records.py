@@ -3,7 +3,7 @@
 * :func:`prepare_out_dir` — ``--out`` must be a folder that can be created and written (an empty
   path, an existing file, a path under a file or an unwritable folder is one clear error).
 * :func:`run_lock` — an exclusive lock on ``OUT/.bench.lock`` (``filelock``, through
-  :class:`electroloc_gym.fileio.FolderLock`) held for the whole run: a second run on the same folder
+  :class:`electroloc_gym.utils.fileio.FolderLock`) held for the whole run: a second run on the same folder
   refuses at once (the lock goes with the process that holds it).
 * :func:`load_records` — reads ``trials.jsonl`` keyed by (condition, agent, trial), each line parsed
   (or, where it is absent, the ``trials.jsonl.gz`` of a kept run stored compressed: :func:`stored_trials`)
@@ -44,8 +44,8 @@ from electroloc_gym.bench.config import (
     trial_seeds,
 )
 from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules, TrialRecord
-from electroloc_gym.fileio import FolderBusyError, FolderLock, atomic_write_text, probe_write, strict_json
 from electroloc_gym.registry import env_entry
+from electroloc_gym.utils.fileio import FolderBusyError, FolderLock, atomic_write_text, probe_write, strict_json
 
 __all__ = [
     "prepare_out_dir",

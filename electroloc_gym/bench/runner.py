@@ -57,7 +57,7 @@ from electroloc_gym.bench.records import (
 from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.bench.stored_run import read_config, record_rules
 from electroloc_gym.bench.trials import TrialFailed, describe_trial, run_trial
-from electroloc_gym.fileio import atomic_write_bytes, strict_json, write_json_atomic
+from electroloc_gym.utils.fileio import atomic_write_bytes, strict_json, write_json_atomic
 
 # The run, plus the names a caller of the runner needs (defined in config, records and trials).
 __all__ = [

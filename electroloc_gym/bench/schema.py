@@ -39,11 +39,11 @@ from dataclasses import asdict, dataclass, field, fields
 from types import MappingProxyType
 from typing import Any
 
-from electroloc_gym.agentspec import is_path_like, parse_agent_spec
-from electroloc_gym.core.unknown import SHAPE_RECORD_KEYS
-from electroloc_gym.distractors import MAX_DISTRACTORS
+from electroloc_gym.engines.numba_core.unknown import SHAPE_RECORD_KEYS
 from electroloc_gym.protocol import FAR_ERROR_MM
-from electroloc_gym.sensor_array import LAYOUT_NAMES
+from electroloc_gym.utils.agentspec import is_path_like, parse_agent_spec
+from electroloc_gym.world.distractors import MAX_DISTRACTORS
+from electroloc_gym.world.sensor_array import LAYOUT_NAMES
 
 __all__ = [
     "TrialRecord",

@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym.agentspec import is_path_like
 from electroloc_gym.bench.schema import is_far_success
+from electroloc_gym.utils.agentspec import is_path_like
 
 __all__ = ["summarize", "agent_label", "RULES"]
 

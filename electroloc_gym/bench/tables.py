@@ -9,13 +9,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from electroloc_gym.agentspec import parse_agent_spec
 from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.bench.fidelity import PAPER_TRIALS, UNTESTED, interval_mark
 from electroloc_gym.bench.schema import FAR_ERROR_MM
-from electroloc_gym.conditions import PRESET_NAMES
-from electroloc_gym.markdown import markdown_table
 from electroloc_gym.registry import ENVS
+from electroloc_gym.utils.agentspec import parse_agent_spec
+from electroloc_gym.utils.markdown import markdown_table
+from electroloc_gym.world.conditions import PRESET_NAMES
 
 __all__ = [
     "PAPER_TABLE4",
@@ -391,7 +391,7 @@ def _render_table2(summary: dict[str, Any]) -> str:
             f"Global self-localisation among six cylinders (paper §6.5, Table 2): {cfg.get('trials')} trials per "
             f"agent, seed {cfg.get('seed')}, sensor model `{cfg.get('sensor_model')}`, {cfg.get('n_particles')} "
             f"particles, cap {cfg.get('max_observations')} observations; the map is "
-            f"`electroloc_gym.scene.BENCHMARK_SCENE`. Error = |belief mean − true carriage position|. Same "
+            f"`electroloc_gym.world.scene.BENCHMARK_SCENE`. Error = |belief mean − true carriage position|. Same "
             f"Appendix-B rules as Table 4 (mean error/steps over the trials every agent solved, medians over all "
             f"trials). Paper values in the right-hand columns."
         ),

@@ -1,7 +1,7 @@
 """The worker side of a benchmark: one trial spec → one trial record.
 
 A worker builds (and caches) its agents and envs itself from the spec, runs the seeded episode
-(:func:`electroloc_gym.rollout.run_episode`, which hands the agent the env's agent view, never the env) and
+(:func:`electroloc_gym.baselines.rollout.run_episode`, which hands the agent the env's agent view, never the env) and
 returns the record written to trials.jsonl; only here, after the episode, are the env's evaluation
 accessors read (the true target or position, the hidden shape).
 
@@ -18,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.baselines.rollout import AgentCallError, exception_line, run_episode
 from electroloc_gym.bench.agents import cached_agent, resolve_agent
 from electroloc_gym.bench.config import TrialSpec
 from electroloc_gym.bench.schema import TrialRecord, is_far_success
-from electroloc_gym.fileio import to_json_data
-from electroloc_gym.rollout import AgentCallError, exception_line, run_episode
+from electroloc_gym.utils.fileio import to_json_data
 
 __all__ = ["run_trial", "TrialFailed", "describe_trial"]
 

@@ -2,7 +2,7 @@
 
 The datasets (:mod:`electroloc_gym.dataset.collect`), their seed protocol and reference scores
 (:mod:`electroloc_gym.dataset.protocol`), and the ``electroloc dataset`` command
-(:mod:`electroloc_gym.dataset.cli`). Minari is the optional ``minari`` extra; importing this package does
+(:mod:`electroloc_gym.dataset.dataset_command`). Minari is the optional ``minari`` extra; importing this package does
 not import it.
 """
 

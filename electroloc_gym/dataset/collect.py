@@ -18,7 +18,7 @@ under ``MINARI_DATASETS_PATH`` (Minari's default folder when unset), with the id
   the planned episode count, the reference's provenance, and ``complete``;
 * beside ``data/``, ``checksums.jsonl``: the sha256 of every episode's files.
 
-The episodes are the benchmark's rollout loop (:func:`electroloc_gym.rollout.run_episode`) with the
+The episodes are the benchmark's rollout loop (:func:`electroloc_gym.baselines.rollout.run_episode`) with the
 agent built by the benchmark's own constructor (:func:`electroloc_gym.bench.agents.make_bench_agent`):
 every spec ``electroloc bench --agents`` takes works here. How the files are written — nothing rewritten
 in place, a kill at any moment resumable, every kept episode checked on resume, a replacement swapped in
@@ -42,7 +42,6 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym.checks import check_bool
 from electroloc_gym.dataset import store
 from electroloc_gym.dataset.protocol import (
     DEFAULT_DATASET_SEED,
@@ -51,6 +50,7 @@ from electroloc_gym.dataset.protocol import (
     evaluation_overlap,
     reference_scores,
 )
+from electroloc_gym.utils.checks import check_bool
 
 __all__ = [
     "DatasetRequest",
@@ -107,8 +107,8 @@ class DatasetRequest:
     trust_pickle: bool = False
 
     def __post_init__(self) -> None:
-        from electroloc_gym.conditions import PRESET_NAMES
         from electroloc_gym.registry import ENV_IDS
+        from electroloc_gym.world.conditions import PRESET_NAMES
 
         if self.env_id not in ENV_IDS:
             raise ValueError(f"env must be one of {list(ENV_IDS)}, got {self.env_id!r}")
@@ -163,7 +163,7 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
     own in the mapped tank) and ``error_mm``; for the unknown target ``truth_radius_mm``, ``truth_chi``,
     ``radius_estimate_mm``, ``p_conductor``. Read from the env's documented evaluation accessors.
     """
-    from electroloc_gym.conditions import PRESET_NAMES
+    from electroloc_gym.world.conditions import PRESET_NAMES
 
     core = env.unwrapped
     cov = np.asarray(core.belief.covariance(), dtype=np.float64)
@@ -194,7 +194,7 @@ def _episode_buffer(env: Any, agent: Any, k: int, root_seed: int) -> Any:
     """Episode ``k``: the benchmark's rollout, recorded step by step into a Minari ``EpisodeBuffer``."""
     from minari.data_collector.episode_buffer import EpisodeBuffer
 
-    from electroloc_gym.rollout import run_episode
+    from electroloc_gym.baselines.rollout import run_episode
 
     env_seed, agent_seed = episode_seeds(root_seed, k)
     obs, acts, rews, terms, truncs, infos = [], [], [], [], [], []
@@ -348,8 +348,8 @@ def build_dataset(
     import gymnasium as gym
     from tqdm import tqdm
 
+    from electroloc_gym.baselines.rollout import AgentCallError
     from electroloc_gym.bench.agents import make_bench_agent, policy_env_problem
-    from electroloc_gym.rollout import AgentCallError
 
     check_bool("resume", resume)
     check_bool("force", force)

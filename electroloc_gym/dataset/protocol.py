@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym.conditions import PRESET_NAMES
+from electroloc_gym.world.conditions import PRESET_NAMES
 
 __all__ = [
     "DATASET_STREAM",

@@ -16,7 +16,7 @@ unset; :func:`datasets_root`)::
     .electroloc-locks/<id>.lock                 one writer per id
 
 **Writes.** Nothing of a dataset is rewritten in place. ``data/metadata.json`` is replaced atomically (a
-temporary file in the same folder, then ``os.replace``: :func:`electroloc_gym.fileio.atomic_write_text`)
+temporary file in the same folder, then ``os.replace``: :func:`electroloc_gym.utils.fileio.atomic_write_text`)
 after every episode, fsynced when the dataset is created and when it is complete. An episode is written by
 Minari's own arrow storage into a staging folder (``<dataset>/.staging``), its files' sha256 appended to the
 journal, and then moved into ``data/`` whole (one ``rename``). A SIGKILL at any moment therefore leaves old
@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.fileio import FolderLock, atomic_write_text, probe_write
+from electroloc_gym.utils.fileio import FolderLock, atomic_write_text, probe_write
 
 __all__ = [
     "MAX_ID_CHARS",
@@ -290,7 +290,7 @@ class DatasetFolder:
 
 
 def _is_temporary(name: str, of: str) -> bool:
-    """``name`` is a temporary file of an atomic write of ``of`` (:func:`electroloc_gym.fileio.atomic_write_bytes`
+    """``name`` is a temporary file of an atomic write of ``of`` (:func:`electroloc_gym.utils.fileio.atomic_write_bytes`
     and :func:`write_header` name them ``.<of>.<random>.tmp``) that a kill left behind.
     """
     return name.startswith(f".{of}.") and name.endswith(".tmp")

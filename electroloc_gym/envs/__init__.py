@@ -1,4 +1,4 @@
-"""Gymnasium environments of electroloc-gym: thin adapters over the simulation core (:mod:`electroloc_gym.core`).
+"""Gymnasium environments of electroloc-gym: thin adapters over the simulation engines.
 
 Each env of the table (:mod:`electroloc_gym.registry`) is a :class:`~.adapter.CoreEnv` (single) and a
 :class:`~.vector.CoreVectorEnv` (native vector) with its id; :mod:`.actions` parses the actions.

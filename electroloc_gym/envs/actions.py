@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from electroloc_gym.core.params import DISCRETE_MOVES_MM, MAX_STEP_MM, EnvParams
+from electroloc_gym.contract.params import DISCRETE_MOVES_MM, MAX_STEP_MM, EnvParams
 
 __all__ = ["ActionParser", "spaces_of"]
 

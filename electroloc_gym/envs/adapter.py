@@ -1,6 +1,6 @@
 """The Gymnasium single-env adapter: the simulation core with N = 1.
 
-:class:`CoreEnv` turns ``gym.Env`` calls into the core's (:class:`~electroloc_gym.core.step.Simulation`
+:class:`CoreEnv` turns ``gym.Env`` calls into the core's (:class:`~electroloc_gym.engines.numba_core.step.Simulation`
 with one env): ``reset`` hands the env's seeded ``np_random`` to the core and resets it; ``step``
 converts the action, steps the core with autoreset disabled (stepping after the episode ended,
 terminated or truncated, is an error: call reset) and returns row 0 of its arrays as Python
@@ -12,7 +12,8 @@ rendering, and the read-only accessors agents use (``belief``, ``sensor_model``,
 ``ElectroLocGlobal-v0`` (:mod:`.global_env`), ``ElectroLocUnknownTarget-v0`` (:mod:`.unknown_target`).
 Actions are parsed and checked here (:mod:`.actions`), before the core sees them.
 
-Info: the core's keys as Python values, plus ``condition_index`` (:func:`condition_index`: the condition's
+Info: the core's keys as Python values, plus ``condition_index``
+(:func:`~electroloc_gym.contract.observation.condition_index`: the condition's
 index in ``PRESET_NAMES``, −1 for any other world), the numeric form of the ``condition`` name that the
 native vector env's info carries instead of names.
 """
@@ -25,30 +26,20 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.belief import BeliefView
-from electroloc_gym.checks import check_prediction_args
-from electroloc_gym.conditions import PRESET_NAMES, Condition
-from electroloc_gym.core.observation import INFO_KEYS
-from electroloc_gym.core.params import MAX_STEP_MM, EnvParams
-from electroloc_gym.core.step import Simulation
+from electroloc_gym.contract.observation import INFO_KEYS, condition_index
+from electroloc_gym.contract.params import MAX_STEP_MM, EnvParams
+from electroloc_gym.engines.numba_core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.registry import EnvEntry, entry_of_class
+from electroloc_gym.utils.checks import check_prediction_args
+from electroloc_gym.views.belief import BeliefView
+from electroloc_gym.world.conditions import Condition
 
-__all__ = ["CoreEnv", "ParamAccessors", "condition_index", "spaces_of"]
-
-_PRESET_INDEX = {name: i for i, name in enumerate(PRESET_NAMES)}
-
-
-def condition_index(names: ArrayLike) -> NDArray[np.int64]:
-    """``info["condition_index"]`` of worlds named ``names``: each name's index in
-    :data:`~electroloc_gym.conditions.PRESET_NAMES`, −1 for a world that is not one of the eight presets (a
-    custom condition, a map of the global env).
-    """
-    return np.array([_PRESET_INDEX.get(str(n), -1) for n in np.ravel(np.asarray(names, dtype=object))], np.int64)
+__all__ = ["CoreEnv", "ParamAccessors", "spaces_of"]
 
 
 class ParamAccessors:
-    """Read-only views of the env's :class:`~electroloc_gym.core.params.EnvParams` (single and vector env)."""
+    """Read-only views of the env's :class:`~electroloc_gym.contract.params.EnvParams` (single and vector env)."""
 
     params: EnvParams
 
@@ -187,7 +178,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
 
     def hidden_state(self) -> NDArray[np.float64]:
         """The episode's hidden state (:attr:`hidden_keys`), float64: ground truth, for evaluation and
-        privileged critics (:class:`electroloc_gym.privileged.PrivilegedInfo`), never for agents.
+        privileged critics (:class:`electroloc_gym.envs.privileged.PrivilegedInfo`), never for agents.
         """
         self._require_reset()
         return self._task.hidden_state(self._state, 0)

@@ -1,7 +1,7 @@
 """The agent view: what an agent is handed of its env — the documented agent accessors, nothing else.
 
 An agent binds to its env at the start of every episode (``agent.reset(env)``). The benchmark, the
-datasets' rollout (:func:`electroloc_gym.rollout.run_episode`), the paper's controllers and the torch
+datasets' rollout (:func:`electroloc_gym.baselines.rollout.run_episode`), the paper's controllers and the torch
 backend's ``sub_env(i)`` hand it :func:`agent_view` of the env instead of the env itself: an object with
 the read-only accessors an agent may use (docs/environments.md, "Accessors") and no route to the
 episode's ground truth.

@@ -1,7 +1,7 @@
 """ElectroLocGlobal-v0: the robot localises itself in a pre-mapped tank of six cylinders (paper §6.5).
 
 A thin adapter (:class:`~electroloc_gym.envs.adapter.CoreEnv`) over the simulation core with one env
-of the ``"global"`` task (:mod:`electroloc_gym.core.global_task`).
+of the ``"global"`` task (:mod:`electroloc_gym.engines.numba_core.global_task`).
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.core.global_task import GlobalTask
-from electroloc_gym.core.params import MAX_STEP_MM
+from electroloc_gym.contract.params import MAX_STEP_MM
+from electroloc_gym.engines.numba_core.global_task import GlobalTask
 from electroloc_gym.envs.adapter import CoreEnv
-from electroloc_gym.scene import Scene
+from electroloc_gym.world.scene import Scene
 
 __all__ = ["GlobalEnv"]
 
@@ -28,16 +28,17 @@ class GlobalEnv(CoreEnv):
     conductivities within ±80 mm; their EEV map (Fig. 14) is known to the robot. The robot does
     *not* know where it is: the particle belief (2500 particles, uniform over the tank box at start)
     is over the carriage's own position in the map frame. Every commanded move shifts all particles
-    by the move (deterministic motion, :meth:`electroloc_gym.core.global_task.GlobalTask.move`: clipped at the
+    by the move (deterministic motion, :meth:`electroloc_gym.engines.numba_core.global_task.GlobalTask.move`: clipped
+    at the
     walls exactly as the true carriage is); every reading reweights them with the map's sensor model.
     The agent moves the carriage until the belief is tight: √trace Σ ≤ 10 mm. The filter, sensor-model machinery, action
     space, success rule, observation cap and observation layout are those of ``ElectroLoc-v0`` (the
-    same simulation core, :mod:`electroloc_gym.core`): the hidden state differs, the machinery does not.
+    same simulation core, :mod:`electroloc_gym.engines.numba_core`): the hidden state differs, the machinery does not.
 
-    The map (``layout="benchmark"``): :data:`electroloc_gym.scene.BENCHMARK_SCENE`, six cylinders
+    The map (``layout="benchmark"``): :data:`electroloc_gym.world.scene.BENCHMARK_SCENE`, six cylinders
     (Ø 6.35–38.1 mm; steel, brass, aluminium, Delrin, PVC and a 1000 µS/cm gel) in fresh water
     (160 µS/cm) with the fresh-water amplifier (G = 191, σ_s = 0.25 mV RMS) and signal scale 1;
-    carriage box ±80 mm, start box ±70 mm. See :mod:`electroloc_gym.scene` for the physics and
+    carriage box ±80 mm, start box ±70 mm. See :mod:`electroloc_gym.world.scene` for the physics and
     :mod:`electroloc_gym.sensor_models.map` for the map's sensor models.
 
     ## Action Space
@@ -49,7 +50,7 @@ class GlobalEnv(CoreEnv):
     ## Observation Space
 
     ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``, the layout of ``ElectroLoc-v0``
-    (:mod:`electroloc_gym.core.observation`) built by the same code with the *map origin* as the
+    (:mod:`electroloc_gym.contract.observation`) built by the same code with the *map origin* as the
     reference point instead of the (here unknown) carriage. What differs: entries 0–1 are the odometry
     (the sum of the commanded moves since reset, start = 0) / H, clipped; entries 4–5 the belief mean,
     i.e. the estimated carriage position in the map frame, / 2H; entries 12–75 the histogram of the
@@ -103,12 +104,12 @@ class GlobalEnv(CoreEnv):
              render_mode=None)
     ```
 
-    Every argument is a field of :class:`electroloc_gym.core.params.EnvParams`; any other argument
+    Every argument is a field of :class:`electroloc_gym.contract.params.EnvParams`; any other argument
     (``condition``, for instance), or a value out of range, is a ValueError naming it.
 
     * ``layout``: ``"benchmark"`` (the fixed map), ``"random"`` (a new six-cylinder map per episode,
-      drawn from the env's seeded generator by :func:`electroloc_gym.scene.random_cylinder_layout`),
-      or a :class:`~electroloc_gym.scene.Scene`.
+      drawn from the env's seeded generator by :func:`electroloc_gym.world.scene.random_cylinder_layout`),
+      or a :class:`~electroloc_gym.world.scene.Scene`.
     * ``sensor_model``: ``"analytic"`` or ``"calibrated"`` (the paper's 4 mm grid of 10 readings over
       the carriage box, drawn per episode from ``calibration_seed`` or the env's generator).
     * ``position_blur_mm``: the map sensor model's position blur b (std ⊕ |∇Φ|·b), 2 mm by default;
@@ -160,6 +161,6 @@ class GlobalEnv(CoreEnv):
         return np.full(2, -MAX_STEP_MM), np.full(2, MAX_STEP_MM)
 
     def _make_renderer(self, render_mode: str) -> Any:
-        from electroloc_gym.render import GlobalEpisodeRenderer
+        from electroloc_gym.views.render import GlobalEpisodeRenderer
 
         return GlobalEpisodeRenderer(render_mode)

@@ -1,7 +1,7 @@
 """ElectroLoc-v0: move the sensing carriage until the particle belief pins the target down.
 
 A thin adapter (:class:`~electroloc_gym.envs.adapter.CoreEnv`) over the simulation core with one env
-of the ``"localize"`` task (:mod:`electroloc_gym.core.localize`).
+of the ``"localize"`` task (:mod:`electroloc_gym.engines.numba_core.localize_task`).
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.core.array import ArrayLocalizeTask
-from electroloc_gym.core.params import MAX_STEP_MM
+from electroloc_gym.contract.params import MAX_STEP_MM
+from electroloc_gym.engines.numba_core.array import ArrayLocalizeTask
 from electroloc_gym.envs.adapter import CoreEnv
-from electroloc_gym.sensor_array import SensorLayout
+from electroloc_gym.world.sensor_array import SensorLayout
 
 __all__ = ["ElectroLocEnv"]
 
@@ -41,7 +41,7 @@ class ElectroLocEnv(CoreEnv):
 
     ``observation="belief"`` (default): ``Box(-1, 1, (81,), float32)``: the carriage position, the last
     reading, the belief's mean, spread, correlation and 8×8 egocentric histogram, the observations used
-    and a condition descriptor; the layout table is :mod:`electroloc_gym.core.observation`'s (also in
+    and a condition descriptor; the layout table is :mod:`electroloc_gym.contract.observation`'s (also in
     docs/environments.md).
 
     ``observation="raw"``: ``Box(-1, 1, (3,), float32)`` = [x/H, y/H, Φ/10 V] (no belief).
@@ -81,14 +81,15 @@ class ElectroLocEnv(CoreEnv):
 
     ## Accessors (read-only, on ``env.unwrapped``)
 
-    ``belief`` (:class:`~electroloc_gym.belief.BeliefView` over the target position: ``particles``,
+    ``belief`` (:class:`~electroloc_gym.views.belief.BeliefView` over the target position: ``particles``,
     ``weights``, ``mean()``, ``covariance()``, ``spread()``), ``sensor_model``, ``condition``,
     ``position_mm`` (carriage), ``allowed_box_mm``, ``move_bounds_mm``, ``n_observations``,
     ``last_reading_V``, ``path_mm``, ``target_mm`` (ground truth, for evaluation and rendering only);
     ``predicted_reading_model(particles_mm, moves_mm)`` → (mean_V, std_V) of the reading each target
     hypothesis predicts after a commanded move (offsets = particle − clip(carriage + move)), and
     ``predicted_particles_mm`` (the target does not move: the particles unchanged). The same calls
-    exist on ``ElectroLocGlobal-v0`` (the same core, :mod:`electroloc_gym.core`). With a sensor array of K ≥ 2
+    exist on ``ElectroLocGlobal-v0`` (the same core, :mod:`electroloc_gym.engines.numba_core`). With a sensor array of
+    K ≥ 2
     pairs ``predicted_reading_model`` returns (…, K) means and stds (the pair axis last), ``sensor_model`` the
     K-pair model, ``last_readings_V`` every pair's last reading, ``sensor_layout`` the pairs, and
     ``fixed_carriage`` says whether moves are ignored (``move_bounds_mm`` is then (0, 0)).
@@ -103,7 +104,7 @@ class ElectroLocEnv(CoreEnv):
              max_episode_steps=None, render_mode=None)
     ```
 
-    Every argument is a field of :class:`electroloc_gym.core.params.EnvParams` (units and ranges
+    Every argument is a field of :class:`electroloc_gym.contract.params.EnvParams` (units and ranges
     there); any other argument, or a value out of range, is a ValueError naming it.
 
     * ``condition``: a preset name (``electroloc_gym.PRESET_NAMES``), a ``Condition``, or ``"random"`` to
@@ -111,16 +112,17 @@ class ElectroLocEnv(CoreEnv):
     * ``sensor_model``: the agent's (and the filter's) sensor model, ``"analytic"`` or ``"calibrated"``
       (the paper's 4 mm grid of 10 readings, §5.3, drawn per episode from ``calibration_seed`` or,
       if None, from the env's seeded generator; ``calibration`` changes the protocol).
-    * ``signal``: the presets' signal scale (:func:`electroloc_gym.conditions.get_condition`:
+    * ``signal``: the presets' signal scale (:func:`electroloc_gym.world.conditions.get_condition`:
       ``"fitted"`` to the hardware's detection distances, Table 3, ``"paper"``: the paper's equations,
       ``"coverage"``, or a number); ignored for a ``Condition``.
-    * ``distractors``: objects that are not the target (:mod:`electroloc_gym.core.distractors`): a count D
+    * ``distractors``: objects that are not the target (:mod:`electroloc_gym.engines.numba_core.distractor_task`): a
+    count D
       (0–8) drawn per episode clear of the target, a list of counts (one drawn per episode), or an explicit
       layout; they add to the true reading only (the agent's model knows the target alone), and the info
       then has ``distractors_mm`` (their centres, for evaluation and rendering only). 0 (default): none.
 
-    * ``sensor_layout``: the carriage's sensing pairs (§7, :mod:`electroloc_gym.core.array`): a name of
-      ``electroloc_gym.sensor_array.LAYOUT_NAMES``, a ``SensorLayout``, or (K, 2, 2) electrode offsets in mm;
+    * ``sensor_layout``: the carriage's sensing pairs (§7, :mod:`electroloc_gym.engines.numba_core.array`): a name of
+      ``electroloc_gym.world.sensor_array.LAYOUT_NAMES``, a ``SensorLayout``, or (K, 2, 2) electrode offsets in mm;
       ``"single"`` (default) is the paper's pair. Each step takes K readings, fused one filter update per reading.
     * ``fixed_carriage``: the carriage never moves (the stationary array); actions are accepted and ignored.
 
@@ -174,6 +176,6 @@ class ElectroLocEnv(CoreEnv):
         return lo, hi
 
     def _make_renderer(self, render_mode: str) -> Any:
-        from electroloc_gym.render import EpisodeRenderer
+        from electroloc_gym.views.render import EpisodeRenderer
 
         return EpisodeRenderer(render_mode)

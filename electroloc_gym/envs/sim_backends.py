@@ -1,7 +1,7 @@
 """The native vector env's ``backend`` argument: the simulation backends an env table entry declares.
 
 Every env runs on the numba core (the default and the reference); an entry's ``backends`` names its
-other backends as ``"module:Class"`` (for ElectroLoc-v0: ``"torch"``, :mod:`electroloc_gym.torch_core`).
+other backends as ``"module:Class"`` (for ElectroLoc-v0: ``"torch"``, :mod:`electroloc_gym.engines.torch_core`).
 The class is imported only when that backend is asked for, which is why the table holds a string here
 and not the class: an optional dependency (torch) stays optional for everyone who does not use it.
 """

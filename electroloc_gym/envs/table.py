@@ -6,17 +6,17 @@ and every fact the layers above read from it; ``electroloc_gym/__init__.py`` reg
 
 from __future__ import annotations
 
-from electroloc_gym.core.electroloc import ElectroLocTask
-from electroloc_gym.core.global_task import GlobalTask
-from electroloc_gym.core.unknown import SHAPE_RECORD_KEYS, UnknownTargetTask
+from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
+from electroloc_gym.engines.numba_core.global_task import GlobalTask
+from electroloc_gym.engines.numba_core.unknown import SHAPE_RECORD_KEYS, UnknownTargetTask
 from electroloc_gym.envs.global_env import GlobalEnv
 from electroloc_gym.envs.localize import ElectroLocEnv
 from electroloc_gym.envs.unknown_target import UnknownTargetEnv
 from electroloc_gym.envs.vector import ElectroLocVectorEnv, GlobalVectorEnv, UnknownTargetVectorEnv
 from electroloc_gym.registry import PAPER_ENV_ID, BenchEnv, EnvEntry, frozen
-from electroloc_gym.scene import BENCHMARK_SCENE
 from electroloc_gym.sensor_models.calibrated import SENSOR_MODEL_NAMES
 from electroloc_gym.sensor_models.shape import SHAPE_SENSOR_MODELS
+from electroloc_gym.world.scene import BENCHMARK_SCENE
 
 __all__ = ["BUILTIN_ENVS", "DYNAMIC_GAIN_LEVELS"]
 
@@ -49,7 +49,7 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
                 summary="with the amplifier gain (×1/4, ×1, ×4 the preset) in every action (§7)",
             ),
         ),
-        backends=frozen({"torch": "electroloc_gym.torch_core.vector_env:TorchElectroLocVectorEnv"}),
+        backends=frozen({"torch": "electroloc_gym.envs.torch_vector:TorchElectroLocVectorEnv"}),
         summary="localise a target sphere with a particle-filter belief",
     ),
     EnvEntry(

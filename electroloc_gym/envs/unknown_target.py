@@ -1,16 +1,16 @@
 """ElectroLocUnknownTarget-v0: localise a sphere whose size and material the robot does not know (paper §7).
 
 A thin adapter over the simulation core with one env of the ``"unknown"`` task
-(:mod:`electroloc_gym.core.unknown`).
+(:mod:`electroloc_gym.engines.numba_core.unknown`).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from electroloc_gym.conditions import Condition
-from electroloc_gym.core.unknown import UnknownTargetTask
+from electroloc_gym.engines.numba_core.unknown import UnknownTargetTask
 from electroloc_gym.envs.localize import ElectroLocEnv
+from electroloc_gym.world.conditions import Condition
 
 __all__ = ["UnknownTargetEnv"]
 
@@ -78,7 +78,7 @@ class UnknownTargetEnv(ElectroLocEnv):
              calibration=DEFAULT_CALIBRATION, max_episode_steps=None, render_mode=None)
     ```
 
-    Every argument is a field of :class:`electroloc_gym.core.params.EnvParams`; any other argument, or a
+    Every argument is a field of :class:`electroloc_gym.contract.params.EnvParams`; any other argument, or a
     value out of range, is a ValueError naming it. ``sensor_model`` is ``"analytic"`` (the theoretical
     EEV) or ``"interpolated"`` (calibrated steel and Delrin EEVs at ``eev_radii_mm``, the paper's
     protocol ``calibration``, seeded per episode as ElectroLoc-v0's calibration).
@@ -114,6 +114,6 @@ class UnknownTargetEnv(ElectroLocEnv):
         return self.params.contrast
 
     def _make_renderer(self, render_mode: str) -> Any:
-        from electroloc_gym.render import EpisodeRenderer
+        from electroloc_gym.views.render import EpisodeRenderer
 
         return EpisodeRenderer(render_mode)

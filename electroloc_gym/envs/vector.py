@@ -3,7 +3,7 @@
 ``gym.make_vec("ElectroLoc-v0", num_envs=N, vectorization_mode="vector_entry_point")`` builds an
 :class:`ElectroLocVectorEnv`, ``"ElectroLocGlobal-v0"`` a :class:`GlobalVectorEnv` (each entry's
 ``vector_entry_point`` in :mod:`electroloc_gym.registry`): one
-:class:`~electroloc_gym.core.step.Simulation` of N envs, whose every step is one batched core step —
+:class:`~electroloc_gym.engines.numba_core.step.Simulation` of N envs, whose every step is one batched core step —
 the same code, with the same per-env arithmetic, as the single env (:mod:`.adapter`, N = 1). Sub-env
 ``i`` reset with seed ``t`` (the i-th of ``reset(seed=[...])``, or ``t = sub_env_seeds(s, N)[i]`` for
 ``reset(seed=s)``) therefore produces exactly what the single env reset with ``t`` produces: observations,
@@ -25,7 +25,7 @@ masked sub-envs.
 Info: a dict of arrays over the N envs (Gymnasium's vector convention), each key with an all-true
 ``"_key"`` mask: ``position_mm`` (N, 2), ``estimate_mm`` (N, 2), ``error_mm``, ``spread_mm``,
 ``reading_V`` (N,) float64, ``n_observations`` (N,) int64, ``success`` (N,) bool, ``condition_index`` (N,)
-int64 (:func:`~electroloc_gym.envs.adapter.condition_index`: the index in ``PRESET_NAMES``, −1 for another
+int64 (:func:`~electroloc_gym.contract.observation.condition_index`: the index in ``PRESET_NAMES``, −1 for another
 world). Every entry is a numeric array, so Gymnasium's array wrappers (``NumpyToTorch``,
 ``ArrayConversion``) convert it: the single env's name-valued keys (:data:`NAME_INFO_KEYS`) are left out —
 the condition's name is :attr:`CoreVectorEnv.condition_names`, the unknown target's ``material_estimate``
@@ -43,14 +43,15 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from electroloc_gym.checks import check_int, check_seeds
-from electroloc_gym.conditions import Condition
-from electroloc_gym.core.params import EnvParams
-from electroloc_gym.core.step import Simulation
+from electroloc_gym.contract.observation import condition_index
+from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.engines.numba_core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
-from electroloc_gym.envs.adapter import ParamAccessors, condition_index
+from electroloc_gym.envs.adapter import ParamAccessors
 from electroloc_gym.envs.sim_backends import make_backend_vector_env
 from electroloc_gym.registry import EnvEntry, entry_of_class
+from electroloc_gym.utils.checks import check_int, check_seeds
+from electroloc_gym.world.conditions import Condition
 
 __all__ = [
     "CoreVectorEnv",
@@ -127,8 +128,8 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
         render_mode: must be None.
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` / ``SAME_STEP`` or their values.
         backend: ``"numba"`` (this class) or ``"torch"`` (ElectroLoc-v0 only: the torch core on ``device``,
-            :mod:`electroloc_gym.torch_core.vector_env`).
-        **kwargs: the single env's arguments (:class:`~electroloc_gym.core.params.EnvParams`).
+            :mod:`electroloc_gym.envs.torch_vector`).
+        **kwargs: the single env's arguments (:class:`~electroloc_gym.contract.params.EnvParams`).
     """
 
     metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -139,7 +140,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
         return entry_of_class(cls)
 
     def __new__(cls, *args: Any, backend: Any = "numba", **kwargs: Any) -> Any:
-        """Another ``backend`` of the entry (``"torch"``: the torch core, :mod:`electroloc_gym.torch_core`)
+        """Another ``backend`` of the entry (``"torch"``: the torch core, :mod:`electroloc_gym.engines.torch_core`)
         builds that backend's vector env instead.
         """
         if backend == "numba":

@@ -211,7 +211,7 @@ def calibrated_assimilate(
         reading: (k,) float32 readings, V.
         u0: (k,) float64 resampling offsets U in [0, 1).
         jitter_idx: (k, 2·M) uint16 indices into ``normal_table`` (x, y of particle j at 2j, 2j + 1).
-        normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.draws.normal_table`).
+        normal_table: (65536,) float32 standard-normal quantiles (:func:`electroloc_gym.kernels.streams.normal_table`).
         half: (k,) float32 half-width H of the box, mm.
         out: (k, 2, M) float32 new particles.
         mean: (k, 2) float64 output: the new clouds' means, mm.

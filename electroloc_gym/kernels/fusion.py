@@ -15,7 +15,7 @@ The sum over pairs needs no compiled loop: elementwise additions in pair order (
 IEEE-exact and CPU-independent, and each update is the existing kernel. One compiled loop is here,
 :func:`general_pair_difference`: Eq. 4 and Eq. 7 for a pair of electrodes anywhere in the field of any two
 emitters, in one elementwise pass (the general counterpart of the paper's pair's fast path in
-:mod:`electroloc_gym.physics`; tested equal to ``physics.emitter_field`` + ``physics.sphere_perturbation``).
+:mod:`electroloc_gym.world.physics`; tested equal to ``physics.emitter_field`` + ``physics.sphere_perturbation``).
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ import numpy as np
 from numba import vectorize
 from numpy.typing import NDArray
 
-from electroloc_gym.draws import normal_table, table_normal_indices
 from electroloc_gym.kernels.filter import loglik_assimilate
+from electroloc_gym.kernels.streams import normal_table, table_normal_indices
 from electroloc_gym.protocol import HIST_BINS
 
 __all__ = ["sum_over_pairs", "grid_posterior", "assimilate_readings", "general_pair_difference"]

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.fileio import atomic_write_bytes, write_json_atomic
+from electroloc_gym.utils.fileio import atomic_write_bytes, write_json_atomic
 
 __all__ = [
     "ACTION_SPACE_TYPES",

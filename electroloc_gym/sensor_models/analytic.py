@@ -8,9 +8,9 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.conditions import Condition
-from electroloc_gym.sensor import expected_reading
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
+from electroloc_gym.world.conditions import Condition
+from electroloc_gym.world.sensor import expected_reading
 
 __all__ = ["AnalyticSensorModel"]
 
@@ -21,8 +21,8 @@ class AnalyticSensorModel:
     Args:
         condition: the condition (amplifier noise; and the target, unless ``expected_fn`` is given).
         expected_fn: optional noise-free reading (V) of ``offsets_mm`` (..., 2); default the
-            condition's single sphere, :func:`electroloc_gym.sensor.expected_reading`. A multi-object
-            map passes its own (:func:`electroloc_gym.scene.make_map_sensor_model`).
+            condition's single sphere, :func:`electroloc_gym.world.sensor.expected_reading`. A multi-object
+            map passes its own (:func:`electroloc_gym.world.scene.make_map_sensor_model`).
     """
 
     name = "analytic"

@@ -25,11 +25,11 @@ from typing import cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.conditions import Condition
 from electroloc_gym.kernels import bilinear_coefficients, calibration_tables, pooled_calibration_tables
-from electroloc_gym.sensor import add_calibration_noise, expected_reading
 from electroloc_gym.sensor_models.analytic import AnalyticSensorModel
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
+from electroloc_gym.world.conditions import Condition
+from electroloc_gym.world.sensor import add_calibration_noise, expected_reading
 
 __all__ = [
     "CalibrationProtocol",
@@ -80,7 +80,7 @@ class CalibrationProtocol:
         position_blur_mm: position uncertainty b, mm (0: off). The std becomes
             ``sqrt(std² + (|∇mean|·b)²)`` (central differences of the mean table): a particle stands for
             a neighbourhood of radius ≈ b, which keeps a sparse cloud from collapsing on a very steep
-            map (the multi-object map, :mod:`electroloc_gym.scene`).
+            map (the multi-object map, :mod:`electroloc_gym.world.scene`).
     """
 
     grid_step_mm: float = 4.0
@@ -222,7 +222,7 @@ def calibration_coefficients(
     """``CalibratedSensorModel(condition, seed, protocol)._coef`` without building the model (tested equal).
 
     The per-cell bilinear coefficients (n1² + 1, 8) — the only part of the model a batched lookup needs
-    (a new calibration per episode): the same draws (:func:`~electroloc_gym.sensor.add_calibration_noise`
+    (a new calibration per episode): the same draws (:func:`~electroloc_gym.world.sensor.add_calibration_noise`
     from ``default_rng(seed)``) on the cached noise-free grid, the same :func:`calibration_statistics`.
     ``out`` (float32 or float64) receives the values cast as ``astype`` would.
     """

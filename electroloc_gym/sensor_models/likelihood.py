@@ -11,8 +11,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.conditions import Condition
 from electroloc_gym.kernels import log_f32
+from electroloc_gym.world.conditions import Condition
 
 __all__ = ["SensorModel", "gaussian_log_likelihood"]
 

@@ -39,7 +39,7 @@ from electroloc_gym.sensor_models.calibrated import (
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
 
 if TYPE_CHECKING:
-    from electroloc_gym.scene import Scene
+    from electroloc_gym.world.scene import Scene
 
 __all__ = ["DEFAULT_POSITION_BLUR_MM", "MapAnalyticSensorModel", "make_map_sensor_model"]
 

@@ -1,4 +1,4 @@
-"""Sensor models of a K-pair array (:mod:`electroloc_gym.sensor_array`) and the likelihood of its readings.
+"""Sensor models of a K-pair array (:mod:`electroloc_gym.world.sensor_array`) and the likelihood of its readings.
 
 Per pair a mean and a std of its reading, and the log-likelihood of the K readings of one step.
 
@@ -8,7 +8,7 @@ With K = 1 the sum is the one term itself, so the ``"single"`` layout's likeliho
 for bit.
 
 * :class:`ArrayAnalyticSensorModel` — each pair's noise-free reading from the physics
-  (:func:`~electroloc_gym.sensor_array.array_reading`) and the amplifier noise G·σ_s.
+  (:func:`~electroloc_gym.world.sensor_array.array_reading`) and the amplifier noise G·σ_s.
 * :class:`ArrayCalibratedSensorModel` — one calibration per pair, each a
   :class:`~electroloc_gym.sensor_models.CalibratedSensorModel` (same protocol, grid, statistics and bilinear
   lookup). The grid of pair k is laid over ``u = target − carriage − c_k`` (c_k the pair's centre): the
@@ -29,10 +29,7 @@ import functools
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.conditions import Condition
 from electroloc_gym.kernels.fusion import sum_over_pairs
-from electroloc_gym.sensor import add_calibration_noise
-from electroloc_gym.sensor_array import SensorLayout, array_reading
 from electroloc_gym.sensor_models.calibrated import (
     DEFAULT_CALIBRATION,
     SENSOR_MODEL_NAMES,
@@ -42,6 +39,9 @@ from electroloc_gym.sensor_models.calibrated import (
     make_sensor_model,
 )
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
+from electroloc_gym.world.conditions import Condition
+from electroloc_gym.world.sensor import add_calibration_noise
+from electroloc_gym.world.sensor_array import SensorLayout, array_reading
 
 __all__ = [
     "ArrayAnalyticSensorModel",
@@ -144,7 +144,7 @@ class ArrayCalibratedSensorModel:
 
     def _reading_fn(self, k: int):
         """Pair k's calibration readings: its cached noise-free grid (:func:`pair_noise_free_grid`) plus noise from
-        the quantile table, as :func:`~electroloc_gym.sensor.calibration_readings`.
+        the quantile table, as :func:`~electroloc_gym.world.sensor.calibration_readings`.
         """
         mean = pair_noise_free_grid(self.condition, self.sensor_layout.pair(k), self.protocol)
 

@@ -28,9 +28,6 @@ import functools
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym import physics
-from electroloc_gym.conditions import Condition, MATERIAL_CONDUCTIVITY_uScm, Target
-from electroloc_gym.sensor import sphere_reading
 from electroloc_gym.sensor_models.calibrated import (
     DEFAULT_CALIBRATION,
     CalibratedSensorModel,
@@ -39,6 +36,9 @@ from electroloc_gym.sensor_models.calibrated import (
     bilinear_mean_std,
 )
 from electroloc_gym.sensor_models.likelihood import gaussian_log_likelihood
+from electroloc_gym.world import physics
+from electroloc_gym.world.conditions import Condition, MATERIAL_CONDUCTIVITY_uScm, Target
+from electroloc_gym.world.sensor import sphere_reading
 
 __all__ = ["TheoreticalShapeModel", "InterpolatedShapeModel", "SHAPE_SENSOR_MODELS", "DEFAULT_EEV_RADII_MM"]
 

@@ -37,12 +37,12 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401
 from electroloc_gym.baselines import make_agent  # noqa: E402
+from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.agents import bench_env_kwargs, make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
-from electroloc_gym.rollout import run_episode  # noqa: E402
-from electroloc_gym.sensor_array import SensorLayout, named_layout  # noqa: E402
+from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
+from electroloc_gym.world.sensor_array import SensorLayout, named_layout  # noqa: E402
 
 AGENTS = ("rnd-wlk", "min-var", "lookahead")
 STATIONARY = "stationary"

@@ -5,7 +5,7 @@ The paper: "Because of the commutative property of Bayesian filters, the final b
 have been achieved by four stationary sensor pairs positioned at the four asterisks." Per condition and trial:
 
 1. the carriage stands still at a uniform point of the start box; the ``grid-2x2`` array (four copies of the
-   paper's unit, :mod:`electroloc_gym.sensor_array`) takes one noisy reading per pair: four readings from four
+   paper's unit, :mod:`electroloc_gym.world.sensor_array`) takes one noisy reading per pair: four readings from four
    positions, exactly what the paper's single pair would read with its carriage at those four positions;
 2. **exact**: the posterior on a 1 mm grid over the allowed box (uniform prior), as one product and as four
    normalised updates in order 0..3 and in reverse; the largest |Δp| between them (rounding only);
@@ -33,12 +33,12 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from electroloc_gym.conditions import PRESET_NAMES, SIGNAL_CHOICES, get_condition  # noqa: E402
-from electroloc_gym.fileio import write_json_atomic  # noqa: E402
 from electroloc_gym.kernels.fusion import assimilate_readings, grid_posterior  # noqa: E402
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
-from electroloc_gym.sensor_array import array_noisy_reading, named_layout  # noqa: E402
 from electroloc_gym.sensor_models.pairs import ArrayAnalyticSensorModel  # noqa: E402
+from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES, SIGNAL_CHOICES, get_condition  # noqa: E402
+from electroloc_gym.world.sensor_array import array_noisy_reading, named_layout  # noqa: E402
 
 STATISTICS = ("mean_x_mm", "mean_y_mm", "error_mm", "spread_mm")
 

@@ -30,11 +30,11 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.bench.schema import FAR_ERROR_MM  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
-from electroloc_gym.rollout import run_episode  # noqa: E402
+from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
 
 #: The env's success criterion, mm (the benchmark's; here only measured, the episode does not stop on it).
 SUCCESS_SPREAD_MM = 10.0

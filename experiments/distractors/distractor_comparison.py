@@ -39,8 +39,8 @@ from electroloc_gym.baselines.agent import belief_agents  # noqa: E402
 from electroloc_gym.bench.agents import shipped_models  # noqa: E402
 from electroloc_gym.bench.runner import BenchConfig, run_benchmark  # noqa: E402
 from electroloc_gym.bench.schema import FAR_ERROR_MM  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
+from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES  # noqa: E402
 
 AGENTS = (*belief_agents(), "ppo-belief", "ppo-belief-distractors")
 DISTRACTORS = (0, 1, 2)
@@ -114,7 +114,7 @@ def _distractors_of(rec: dict) -> np.ndarray:
     """
     import gymnasium as gym
 
-    from electroloc_gym.conditions import get_condition
+    from electroloc_gym.world.conditions import get_condition
 
     env = gym.make(
         "ElectroLoc-v0",

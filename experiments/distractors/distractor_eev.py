@@ -1,9 +1,9 @@
 """The EEV of a target with distractors: the target alone, the distractors alone, and their superposition.
 
 The noise-free reading (V) over carriage positions in the allowed box, for ``--condition``'s sphere at the
-tank centre and ``--distractors`` objects drawn by :class:`electroloc_gym.distractors.DistractorDraw` from
+tank centre and ``--distractors`` objects drawn by :class:`electroloc_gym.world.distractors.DistractorDraw` from
 ``--seed`` (validation seeds 101, 102), the third panel being
-:func:`electroloc_gym.distractors.superposed_reading_V` (the reading the robot sees; the agent's sensor
+:func:`electroloc_gym.world.distractors.superposed_reading_V` (the reading the robot sees; the agent's sensor
 model knows only the first panel). Black contours: |Φ| at 2σ of the reading noise; outlines: the
 objects' footprints (target dashed).
 
@@ -17,8 +17,8 @@ import argparse
 
 import numpy as np
 
-from electroloc_gym.conditions import get_condition
-from electroloc_gym.distractors import MAX_DISTRACTORS, DistractorDraw, DistractorSet, superposed_reading_V
+from electroloc_gym.world.conditions import get_condition
+from electroloc_gym.world.distractors import MAX_DISTRACTORS, DistractorDraw, DistractorSet, superposed_reading_V
 
 
 def main() -> None:

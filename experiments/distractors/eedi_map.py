@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import argparse
 
-from electroloc_gym.runtime import pin_threads
+from electroloc_gym.utils.runtime import pin_threads
 
 pin_threads()
 

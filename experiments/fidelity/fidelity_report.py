@@ -29,12 +29,13 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym import detection
 from electroloc_gym.bench.fidelity import interval_mark
 from electroloc_gym.bench.stats import summarize
 from electroloc_gym.bench.stored_run import read_run_records
 from electroloc_gym.bench.tables import PAPER_TABLE1, PAPER_TABLE2, PAPER_TABLE4, PAPER_TABLE4_ALL
-from electroloc_gym.conditions import (
+from electroloc_gym.utils.markdown import markdown_table
+from electroloc_gym.world import detection
+from electroloc_gym.world.conditions import (
     PAPER_START_COVERAGE,
     PAPER_TABLE3_MEASURED_MM,
     PAPER_TABLE3_THEORY_MM,
@@ -42,8 +43,7 @@ from electroloc_gym.conditions import (
     get_condition,
     start_box_coverage,
 )
-from electroloc_gym.markdown import markdown_table
-from electroloc_gym.sensor import expected_reading
+from electroloc_gym.world.sensor import expected_reading
 
 SIGNALS = ("paper", "fitted", "coverage")
 

@@ -5,7 +5,7 @@ choice of one common factor k on the fitted scales gives, on validation seeds (n
 seed 0). Per k: start coverage (share of starts inside the 2σ detection region, paper §6.3: 78 %),
 successes and the mean of the eight per-condition median steps of each controller (the paper's
 Table-4 convention), and their ratio (paper: 6.7 / 12.4 = 0.54). ``--k coverage`` is the coverage signal's
-factor itself (:func:`electroloc_gym.conditions.coverage_signal_multiplier`, 8.64 to two decimals), so that
+factor itself (:func:`electroloc_gym.world.conditions.coverage_signal_multiplier`, 8.64 to two decimals), so that
 row is ``signal="coverage"`` exactly.
 
     python experiments/fidelity/signal_scan.py --k 1 2 4 coverage 30 --trials 10 --seed 101
@@ -21,16 +21,16 @@ from tqdm import tqdm
 
 import electroloc_gym  # noqa: F401
 from electroloc_gym.baselines.agent import make_agent
-from electroloc_gym.conditions import (
+from electroloc_gym.baselines.rollout import run_episode
+from electroloc_gym.utils.markdown import markdown_table
+from electroloc_gym.utils.runtime import pin_threads
+from electroloc_gym.world.conditions import (
     PRESET_NAMES,
     coverage_signal_multiplier,
     fitted_signal_scale,
     get_condition,
     start_box_coverage,
 )
-from electroloc_gym.markdown import markdown_table
-from electroloc_gym.rollout import run_episode
-from electroloc_gym.runtime import pin_threads
 
 pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says otherwise
 

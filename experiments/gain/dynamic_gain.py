@@ -35,10 +35,10 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
-from electroloc_gym.rollout import run_episode  # noqa: E402
+from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
 
 AGENTS = ("min-var", "min-var[gain=preset]")
 

@@ -33,11 +33,11 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
+from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.agents import make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
-from electroloc_gym.conditions import Condition, get_condition  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
-from electroloc_gym.rollout import run_episode  # noqa: E402
+from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
+from electroloc_gym.world.conditions import Condition, get_condition  # noqa: E402
 
 TRAIN_SEED = 7000
 
@@ -98,7 +98,7 @@ def train_commands(args: argparse.Namespace) -> list[str]:
             "--seed",
             str(TRAIN_SEED + k),
             "--hyperparams",
-            "train/hyperparams/ppo.yml",
+            "electroloc_gym/train/hyperparams/ppo.yml",
             "--out",
             folder,
             "--eval-freq",

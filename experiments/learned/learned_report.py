@@ -61,7 +61,7 @@ def _fmt(v: Sequence[float], digits: int = 2) -> str:
 
 def table(analyses: Sequence[dict[str, Any]]) -> str:
     """The aggregate table (markdown): algorithm × env."""
-    from electroloc_gym.markdown import markdown_table
+    from electroloc_gym.utils.markdown import markdown_table
 
     # The main table is built by hand, not by markdown_table: a baseline row's empty cells are "| |", one space,
     # not the helper's "|  |".
@@ -100,7 +100,7 @@ def condition_table(a: dict[str, Any]) -> str:
     """Per condition of one env: each algorithm's readings score, mean over its seeds (min–max), and each
     non-learned agent's (markdown).
     """
-    from electroloc_gym.markdown import markdown_table
+    from electroloc_gym.utils.markdown import markdown_table
 
     conds = a["conditions"]
     rows = []
@@ -129,7 +129,7 @@ def figures(analyses: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
     from rliable import library as rly
 
-    from electroloc_gym.fileio import save_figure_atomic
+    from electroloc_gym.utils.fileio import save_figure_atomic
 
     paths = []
     for a in analyses:
@@ -225,8 +225,8 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
     from rliable import plot_utils
     from scipy import stats
 
-    from electroloc_gym.core.params import EnvParams
-    from electroloc_gym.fileio import save_figure_atomic
+    from electroloc_gym.contract.params import EnvParams
+    from electroloc_gym.utils.fileio import save_figure_atomic
 
     ranges = {"success_rate": (0.0, 1.0), "mean_readings": (0.0, float(EnvParams().max_observations))}
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
@@ -315,8 +315,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tuple[str, str]]) -> int:
-    from electroloc_gym.fileio import atomic_write_text, write_json_atomic
-    from electroloc_gym.markdown import markdown_table
+    from electroloc_gym.utils.fileio import atomic_write_text, write_json_atomic
+    from electroloc_gym.utils.markdown import markdown_table
 
     analyses = []
     for env in list(envs):  # a suite still running: an env without a benchmarked learned run is left out

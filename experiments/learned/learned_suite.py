@@ -27,7 +27,7 @@ Invocations with disjoint ``--only`` sets may run side by side on one results fo
 each trains its own runs, the shared ``suite.json`` is updated under a lock, and a baseline benchmark
 another invocation is running is left to it.
 
-Hyper-parameters are the repository's files (train/hyperparams/, chosen on validation episodes,
+Hyper-parameters are the repository's files (electroloc_gym/train/hyperparams/, chosen on validation episodes,
 reset seeds 100000+, never the benchmark's seed 0); every run shares one env-step budget
 (``--timesteps``).
 """
@@ -45,10 +45,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.agentspec import parse_options
 from electroloc_gym.baselines.agent import belief_agents
 from electroloc_gym.registry import env_entry
-from electroloc_gym.runtime import thread_env
+from electroloc_gym.utils.agentspec import parse_options
+from electroloc_gym.utils.runtime import thread_env
 
 #: Training seeds of every configuration (disjoint from the benchmark's trial seeds by construction:
 #: they seed the training envs and networks, not benchmark trials).
@@ -70,7 +70,7 @@ class Config:
     Attributes:
         env_id: the registered env id.
         label: the results folder's name for it (``<results>/<env-id>/<label>/``).
-        algo: the rl-zoo3 algorithm (its hyper-parameter file in train/hyperparams/).
+        algo: the rl-zoo3 algorithm (its hyper-parameter file in electroloc_gym/train/hyperparams/).
         env_kwargs: env kwargs replacing the file's (rl-zoo3's ``--env-kwargs`` rule), or None.
         hyperparams: single hyper-parameter overrides, or None.
         note: what the configuration tests.
@@ -273,7 +273,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from filelock import FileLock
     from tqdm import tqdm
 
-    from electroloc_gym.fileio import write_json_atomic
+    from electroloc_gym.utils.fileio import write_json_atomic
 
     log_path = plan.out / "suite.json"
     jobs = [(c, s) for c in configs for s in plan.seeds]

@@ -390,7 +390,7 @@ class _TorchAgent:
 
 def validate(actor: Actor, norm: Normalizer, env: Any, episodes: int) -> dict[str, float]:
     """Mean readings (a failure counted as the cap), success rate and ms per decision on validation episodes."""
-    from electroloc_gym.rollout import run_episode
+    from electroloc_gym.baselines.rollout import run_episode
 
     agent = _TorchAgent(actor, norm)
     readings, success, decision = [], [], []
@@ -417,7 +417,7 @@ def seed_everything(seed: int) -> None:
 
 def write_curve(path: Path, rows: list[dict[str, Any]]) -> None:
     """The learning curve as JSON (list of {step, readings, success, ...})."""
-    from electroloc_gym.fileio import write_json_atomic
+    from electroloc_gym.utils.fileio import write_json_atomic
 
     write_json_atomic(path, rows)
 
@@ -473,7 +473,7 @@ def main_of(config_class: type, train: Any, doc: str) -> Any:
     """
     import argparse
 
-    from electroloc_gym.bench.cli import ascii_int
+    from electroloc_gym.bench.bench_command import ascii_int
 
     def main(argv: list[str] | None = None) -> int:
         parser = argparse.ArgumentParser(description=doc.split("\n\n")[0])

@@ -47,7 +47,7 @@ def file_digests(folder: Path) -> dict[str, str]:
 def main(argv: list[str] | None = None) -> int:
     """Build (or resume) every dataset of the plan and update the manifest."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    from electroloc_gym.bench.cli import ascii_int
+    from electroloc_gym.bench.bench_command import ascii_int
 
     parser.add_argument("--scale", type=float, default=1.0, help="fraction of each dataset's episodes (0, 1]")
     parser.add_argument("--only", default="", help="comma-separated env-id/agent to build; default all")
@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     from minari.storage.datasets_root_dir import get_dataset_path
 
     from electroloc_gym.dataset import DatasetRequest, build_dataset
-    from electroloc_gym.fileio import write_json_atomic
+    from electroloc_gym.utils.fileio import write_json_atomic
 
     only = {s.strip() for s in args.only.split(",") if s.strip()}
     manifest = json.loads(args.manifest.read_text(encoding="utf-8")) if args.manifest.is_file() else {}

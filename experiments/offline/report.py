@@ -127,7 +127,7 @@ def analyse(results: Path, learned: Path, env_id: str, reps: int, seed: int) -> 
 def table(a: dict[str, Any]) -> str:
     """The markdown table of one env."""
     f = lambda v: f"{v[0]:.2f} [{v[1]:.2f}, {v[2]:.2f}]"  # noqa: E731
-    # Built by hand, not by electroloc_gym.markdown: a controller row's empty cells are "| |", one space, not
+    # Built by hand, not by electroloc_gym.utils.markdown: a controller row's empty cells are "| |", one space, not
     # the helper's "|  |".
     lines = [
         f"### {a['env_id']} ({len(a['conditions'])} condition{'s' if len(a['conditions']) != 1 else ''} × "
@@ -161,7 +161,7 @@ def curves(results: Path, env_id: str) -> Path | None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from electroloc_gym.fileio import save_figure_atomic
+    from electroloc_gym.utils.fileio import save_figure_atomic
 
     fig, ax = plt.subplots(figsize=(6, 3.5))
     drawn = False
@@ -191,7 +191,7 @@ def curves(results: Path, env_id: str) -> Path | None:
 
 def main(argv: list[str] | None = None) -> int:
     """Analyse, print and write the report."""
-    from electroloc_gym.bench.cli import ascii_int
+    from electroloc_gym.bench.bench_command import ascii_int
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("results", type=Path, help="the offline results folder")
@@ -210,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--seed must be in [0, 2**32 − 1], got {args.seed}")
     if not args.results.is_dir():
         parser.error(f"{args.results} is not a folder")
-    from electroloc_gym.fileio import atomic_write_text, write_json_atomic
+    from electroloc_gym.utils.fileio import atomic_write_text, write_json_atomic
 
     envs = sorted(
         p.name

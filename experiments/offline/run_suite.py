@@ -101,7 +101,7 @@ def _seeds(parser: argparse.ArgumentParser, text: str) -> list[int]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the plan."""
-    from electroloc_gym.bench.cli import ascii_int
+    from electroloc_gym.bench.bench_command import ascii_int
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=HERE / "results")

@@ -26,7 +26,7 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from electroloc_gym.fileio import atomic_write_text, check_output_path  # noqa: E402
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_path  # noqa: E402
 
 
 def extract(commit: str, folder: Path) -> str:

@@ -46,9 +46,9 @@ from electroloc_gym.registry import env_entry  # noqa: E402
 
 GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
 GLOBAL_CONDITION = env_entry(GLOBAL_ENV_ID).map_condition
-from electroloc_gym.conditions import DEFAULT_SIGNAL, get_condition  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
-from electroloc_gym.rollout import run_episode  # noqa: E402
+from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
+from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
+from electroloc_gym.world.conditions import DEFAULT_SIGNAL, get_condition  # noqa: E402
 
 #: min-var, then the planner at increasing budgets.
 AGENTS = (

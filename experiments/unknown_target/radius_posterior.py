@@ -24,13 +24,13 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
+from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.agents import make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
-from electroloc_gym.conditions import PRESET_NAMES, get_condition  # noqa: E402
-from electroloc_gym.core.unknown import CONDUCTOR_CHI, INSULATOR_CHI  # noqa: E402
-from electroloc_gym.markdown import markdown_table  # noqa: E402
-from electroloc_gym.rollout import run_episode  # noqa: E402
+from electroloc_gym.engines.numba_core.unknown import CONDUCTOR_CHI, INSULATOR_CHI  # noqa: E402
 from electroloc_gym.sensor_models.shape import TheoreticalShapeModel  # noqa: E402
+from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
+from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
 
 RADII_MM = np.arange(5.0, 20.0 + 1e-9, 0.25)
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from electroloc_gym.conditions import PRESET_NAMES
+from electroloc_gym.world.conditions import PRESET_NAMES
 
 
 def main() -> None:

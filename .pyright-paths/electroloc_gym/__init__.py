@@ -1,1 +1,0 @@
-../../electroloc_gym/__init__.py

@@ -1,0 +1,11 @@
+"""The contract every simulation engine keeps: the env's parameters, what a step reports, which engine does what.
+
+* :mod:`.params` — :class:`~electroloc_gym.contract.params.EnvParams`, every env argument declared and validated once;
+* :mod:`.observation` — the observation layouts, the info keys and the rules both engines share (flags, reward,
+  the belief observation's scalars);
+* :mod:`.capabilities` — for each engine, each env option: implemented, or refused with its reason.
+
+The engines (:mod:`electroloc_gym.engines`) read it; ``tests/test_engine_conformance.py`` checks that they keep it.
+"""
+
+__all__: list[str] = []

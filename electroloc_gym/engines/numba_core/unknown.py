@@ -1,0 +1,286 @@
+"""The unknown-target task (ElectroLocUnknownTarget-v0): position, radius and contrast estimated together.
+
+The belief estimates the sphere's position, radius and contrast together (paper §7).
+
+Each particle is a hypothesis (x, y, a, χ): position (mm), radius a (mm) and contrast χ (Eq. 4). The
+position is stored as in the other tasks (``State.particles_mm``), the shape beside it
+(``State.shape_particles``: radius, χ). The tank of an episode — water, amplifier, workspace, signal
+scale — is a condition of the pool (by default the eight presets); its sphere is hidden: with
+``target_draw="condition"`` the true sphere is the condition's own (the benchmark over the paper's
+eight pairs), with ``"prior"`` it is drawn from the belief's prior (radius uniform in
+``radius_range_mm``; ``contrast="binary"``: a conductor, χ = +1, or an insulator, χ = −½, with equal
+probability; ``"continuous"``: χ uniform in [−½, 1]).
+
+**Measurement update.** The log-likelihood of every hypothesis comes from the shape sensor model
+(:mod:`electroloc_gym.sensor_models.shape`; exact elementwise numpy operations, as the analytic
+models' of the other tasks), then the kernel layer does the rest as for the x–y clouds: the systematic
+resampling indices (:func:`~electroloc_gym.kernels.resample_indices`), the resampling of position and
+shape with the same indices, the jitter and the clip (:func:`~electroloc_gym.kernels.jitter_resampled`),
+the statistics (:func:`~electroloc_gym.kernels.mean_cov_rows`, ``egocentric_counts``, ``row_sums``).
+The one-pass x–y kernels (``loglik_assimilate``) are not used because they carry two coordinates
+per particle; the two passes here carry any number. Jitter: N(0, 1 mm²) per position axis (as
+the other tasks), N(0, (0.5 mm)²) on the radius, N(0, 0.02²) on a continuous χ (none on a binary
+one); each coordinate is clipped to its range (the box, the radius range, [−½, 1]). The draws per
+step: the reading's noise, U, then 4·M normal-table indices (x, y of particle j at 2j, 2j + 1; radius,
+χ at 2M + 2j, 2M + 2j + 1). The statistics — position mean and covariance, histogram, the shape's
+means and stds, the conductor fraction — come from the kernels' fixed-order sums, so every env's
+values are those it gets alone, whatever N and the CPU.
+
+**Reported estimates.** Radius: the particles' median radius. The posterior of the radius is skewed
+toward big spheres (a weak reading cannot rule out a bigger, deeper sphere), which pulls the mean
+upward; the median is the estimate that minimises the expected absolute error, chosen over the mean
+on validation seeds (docs/extensions.md). The mean is reported beside it (``radius_mean_mm``) and is
+the observation's entry 76. Material: conductor if more than half of the particles have χ > 0.
+Success stays the position criterion (√trace Σ of x–y ≤ 10 mm).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from electroloc_gym.contract.observation import HIST_BINS
+from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
+from electroloc_gym.engines.numba_core.state import State
+from electroloc_gym.engines.numba_core.worlds import group_by_world
+from electroloc_gym.kernels import egocentric_counts, jitter_resampled, mean_cov_rows, resample_indices, row_sums
+from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
+from electroloc_gym.world.conditions import Condition, Target
+from electroloc_gym.world.sensor import sphere_reading
+
+__all__ = [
+    "UnknownTargetTask",
+    "CONDUCTOR_CHI",
+    "INSULATOR_CHI",
+    "RADIUS_JITTER_MM",
+    "CHI_JITTER",
+    "SHAPE_INFO_KEYS",
+    "SHAPE_RECORD_KEYS",
+]
+
+#: The contrasts of a perfect conductor and a perfect insulator (Eq. 4).
+CONDUCTOR_CHI = 1.0
+INSULATOR_CHI = -0.5
+#: Jitter of the radius after resampling, mm; of a continuous χ. (0.5 mm with 5000 particles: chosen on
+#: validation seeds 101 and 102 over 0.25 mm with 2500 and 10 000 particles, docs/extensions.md.)
+RADIUS_JITTER_MM = 0.5
+CHI_JITTER = 0.02
+#: The info keys the unknown-target env adds.
+SHAPE_INFO_KEYS = (
+    "radius_estimate_mm",
+    "radius_mean_mm",
+    "radius_spread_mm",
+    "chi_estimate",
+    "chi_spread",
+    "p_conductor",
+    "material_estimate",
+    "target_radius_mm",
+    "target_chi",
+    "radius_error_frac",
+    "material_correct",
+)
+#: The identification results a benchmark record keeps (``"shape"``): the info keys but the χ spread.
+SHAPE_RECORD_KEYS = tuple(k for k in SHAPE_INFO_KEYS if k != "chi_spread")
+
+
+def _material(chi: NDArray) -> NDArray[np.object_]:
+    return np.where(np.asarray(chi) > 0, "conductor", "insulator").astype(object)
+
+
+class UnknownTargetTask(LocalizeTask):
+    """ElectroLocUnknownTarget-v0 (module docstring)."""
+
+    #: A hypothesis is (x, y, a, χ): two shape coordinates (radius, χ) per particle.
+    particle_dims = 4
+    info_keys = SHAPE_INFO_KEYS
+    hidden_keys = ("target_x_mm", "target_y_mm", "target_radius_mm", "target_chi")
+
+    def __init__(self, params: EnvParams) -> None:
+        super().__init__(params)
+        self.radius_range_mm = params.radius_range_mm
+        self.continuous = params.contrast == "continuous"
+        #: The jitter's std per coordinate (x, y mm; radius mm; χ, none for a binary contrast).
+        self._jitter_scale = np.array(
+            [1.0, 1.0, RADIUS_JITTER_MM, CHI_JITTER if self.continuous else 0.0], dtype=np.float32
+        )
+        self._theoretical = [
+            [TheoreticalShapeModel(self.at_gain(c, j)) for j in range(len(self.gains))] for c in self.pool
+        ]
+
+    # ---- the episode ------------------------------------------------------------------------------
+    def _draw_chi(self, g: np.random.Generator, size: int | None = None) -> Any:
+        if self.continuous:
+            return g.uniform(INSULATOR_CHI, CONDUCTOR_CHI, size=size)
+        return np.where(g.random(size) < 0.5, CONDUCTOR_CHI, INSULATOR_CHI)
+
+    def _draw_radius(self, g: np.random.Generator, size: int | None = None) -> Any:
+        lo, hi = self.radius_range_mm
+        return g.uniform(lo, hi, size=size)
+
+    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+        """Env ``i``'s reset draws, in order: condition (pool of several), calibration seed (unless fixed),
+        the sphere (``target_draw="prior"``: radius, then material or χ), target position
+        (``randomize_target``), start position, particle positions, particle radii, particle χ.
+        """
+        c = self._draw_condition(state, i, g)
+        state.cal_seed[i] = self._cal_seed(g)
+        state.model[i] = [None] * len(self.gains)
+        if self.params.target_draw == "prior":
+            radius = float(self._draw_radius(g))
+            state.target_shape[i] = (radius, float(self._draw_chi(g)))
+        else:
+            state.target_shape[i] = (c.target.radius_mm, c.chi)
+        s = c.start_half_width_mm
+        state.target_mm[i] = g.uniform(-s, s, size=2) if self.params.randomize_target else c.target_xy_mm
+        self._place(state, i, g, s)
+        m = state.n_particles
+        state.shape_particles[i, 0] = self._draw_radius(g, m)
+        state.shape_particles[i, 1] = self._draw_chi(g, m)
+
+    def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
+        """(k,) noise-free, unsaturated true readings of the hidden spheres, V (float64)."""
+        offsets = state.target_mm[ids] - state.position_mm[ids]
+        shape = state.target_shape[ids]
+        out = np.empty(len(ids))
+        for c, rows in group_by_world(state, ids):
+            out[rows] = sphere_reading(c, offsets[rows], shape[rows, 0], shape[rows, 1], saturate=False)
+        return out if len(self.gains) == 1 else out * self._gain_array[state.gain_index[ids]]
+
+    def sensor_model(self, state: State, i: int, level: int | None = None) -> Any:
+        """Env ``i``'s shape sensor model (``mean_std(offsets, radius_mm, chi)``) at gain level ``level``
+        (default: the current one; interpolated: built on first use).
+        """
+        j = int(state.gain_index[i]) if level is None else level
+        models = state.model[i]
+        if models[j] is None:
+            if self.params.sensor_model == "analytic":
+                models[j] = self._theoretical[int(state.world_key[i])][j]
+            else:
+                models[j] = InterpolatedShapeModel(
+                    self.at_gain(state.world[i], j),
+                    self.params.eev_radii_mm,
+                    self.gain_seed(int(state.cal_seed[i]), j),
+                    self.protocol,
+                )
+        return models[j]
+
+    def true_condition(self, state: State, i: int) -> Condition:
+        """Env ``i``'s tank with its hidden sphere (ground truth, for evaluation only)."""
+        c: Condition = state.world[i]
+        radius, chi = state.target_shape[i]
+        if c.target.radius_mm == radius and c.chi == chi:
+            return c
+        # χ = (σ_t − σ_w)/(σ_t + 2σ_w)  ⇔  σ_t = σ_w (1 + 2χ)/(1 − χ) (χ = 1: a perfect conductor)
+        sw = c.water.conductivity_uScm
+        sigma = 1.4e10 if chi >= 1.0 else sw * (1.0 + 2.0 * chi) / (1.0 - chi)
+        material = "steel" if chi >= 1.0 else ("delrin" if chi <= -0.5 else "custom")
+        return c.replace(
+            target=Target(radius_mm=float(radius), conductivity_uScm=max(float(sigma), 0.0), material=material)
+        )
+
+    # ---- predictions for agents ------------------------------------------------------------------
+    def predicted_mean_std(
+        self, state: State, i: int, particles: NDArray, moves_mm: NDArray, level: int | None = None
+    ) -> tuple[NDArray, NDArray]:
+        """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves (the
+        offsets from columns 0–1, :meth:`LocalizeTask.offsets_after_move`).
+        """
+        off = self.offsets_after_move(state, i, particles, moves_mm)
+        return self.sensor_model(state, i, level).mean_std(off, particles[..., 2], particles[..., 3])
+
+    # ---- the measurement update ------------------------------------------------------------------
+    def assimilate(
+        self,
+        state: State,
+        ids: NDArray[np.intp],
+        reading: NDArray[np.float64],
+        u0: NDArray[np.float64],
+        jitter: NDArray[np.uint16],
+        normal_table: NDArray[np.float32],
+    ) -> int:
+        """Fuse each env's reading into its 4-D cloud (module docstring); returns −1 or the first env whose
+        log-likelihood is NaN.
+        """
+        s = state
+        k, m = len(ids), s.n_particles
+        xy = s.particles_mm[ids]
+        shape = s.shape_particles[ids]
+        origin = s.position_mm[ids].astype(np.float32)
+        off = (xy - origin[:, :, None]).transpose(0, 2, 1)
+        ll = np.empty((k, m), dtype=np.float32)
+        for e, i in enumerate(ids.tolist()):
+            ll[e] = self.sensor_model(s, i).log_likelihood(np.float32(reading[e]), off[e], shape[e, 0], shape[e, 1])
+        idx = np.empty((k, m), dtype=np.int64)
+        bad = resample_indices(ll, u0, idx)
+        if bad >= 0:
+            return bad
+        cloud = np.concatenate([xy, shape], axis=1)  # (k, 4, M): x, y, radius, χ
+        half = s.half_mm[ids].astype(np.float32)
+        lo = np.empty((k, 4), dtype=np.float32)
+        hi = np.empty((k, 4), dtype=np.float32)
+        lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1] = -half, -half, half, half
+        lo[:, 2], hi[:, 2] = self.radius_range_mm
+        lo[:, 3], hi[:, 3] = INSULATOR_CHI, CONDUCTOR_CHI
+        out = np.empty_like(cloud)
+        jitter_resampled(idx, cloud, jitter[:k], normal_table, self._jitter_scale, lo, hi, out)
+        s.particles_mm[ids] = out[:, :2]
+        s.shape_particles[ids] = out[:, 2:]
+        mean, cov, counts = np.empty((k, 2)), np.empty((k, 2, 2)), np.empty((k, HIST_BINS * HIST_BINS))
+        x, y = s.particles_mm[ids, 0], s.particles_mm[ids, 1]
+        mean_cov_rows(x, y, mean, cov)
+        egocentric_counts(x, y, origin, 2 * half, HIST_BINS, counts)
+        s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
+        self._shape_statistics(s, ids)
+        return -1
+
+    def update_statistics(self, state: State, ids: NDArray[np.intp] | slice) -> None:
+        """The x–y statistics and the shape's (:meth:`_shape_statistics`)."""
+        super().update_statistics(state, ids)
+        self._shape_statistics(state, np.arange(state.num_envs)[ids])
+
+    def _shape_statistics(self, s: State, ids: NDArray[np.intp]) -> None:
+        """The shape's means and stds (fixed-order sums) and the conductor fraction of envs ``ids``."""
+        m = s.n_particles
+        for d in range(2):
+            v = s.shape_particles[ids, d].astype(np.float64)
+            total = np.empty(len(ids))
+            row_sums(v, total)
+            mu = total / m
+            dev = v - mu[:, None]
+            row_sums(dev * dev, total)
+            s.shape_mean[ids, d] = mu
+            s.shape_std[ids, d] = np.sqrt(total / m)
+        # the median radius: the two middle values of the exact order (float64), no rounding but one mean
+        v = np.partition(s.shape_particles[ids, 0].astype(np.float64), (m - 1) // 2 + np.arange(2 - m % 2), axis=1)
+        s.radius_median_mm[ids] = 0.5 * (v[:, (m - 1) // 2] + v[:, m // 2])
+        s.p_conductor[ids] = np.count_nonzero(s.shape_particles[ids, 1] > 0, axis=1) / m
+        # the observation's condition entries 76–77: the belief's radius / 25 mm (clipped to 1, as the condition
+        # descriptor's: radii above 25 mm read 1) and χ instead of the truth
+        s.descriptor[ids, 0] = np.minimum(s.shape_mean[ids, 0] / 25.0, 1.0).astype(np.float32)
+        s.descriptor[ids, 1] = s.shape_mean[ids, 1].astype(np.float32)
+
+    def hidden_state(self, state: State, i: int) -> NDArray[np.float64]:
+        """Env ``i``'s target centre (mm), radius (mm) and contrast χ, float64 (ground truth)."""
+        return np.array([*state.target_mm[i], *state.target_shape[i, :2]], dtype=np.float64)
+
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
+        """The info arrays :data:`SHAPE_INFO_KEYS` of envs ``sel``."""
+        s = state
+        est_r, true_r = s.radius_median_mm[sel], s.target_shape[sel, 0]
+        material = _material(s.p_conductor[sel] - 0.5)
+        return {
+            "radius_estimate_mm": est_r.copy(),
+            "radius_mean_mm": s.shape_mean[sel, 0].copy(),
+            "radius_spread_mm": s.shape_std[sel, 0].copy(),
+            "chi_estimate": s.shape_mean[sel, 1].copy(),
+            "chi_spread": s.shape_std[sel, 1].copy(),
+            "p_conductor": s.p_conductor[sel].copy(),
+            "material_estimate": material,
+            "target_radius_mm": true_r.copy(),
+            "target_chi": s.target_shape[sel, 1].copy(),
+            "radius_error_frac": np.abs(est_r - true_r) / true_r,
+            "material_correct": material == _material(s.target_shape[sel, 1]),
+        }

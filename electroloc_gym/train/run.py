@@ -1,0 +1,273 @@
+"""One call from (algorithm, env, seed, budget) to an rl-zoo3 run folder and its export — resumable.
+
+    from electroloc_gym.train.run import train
+    run = train("ppo", "ElectroLoc-v0", seed=3000, timesteps=1_000_000, out="electroloc_gym/models/ppo-belief")
+
+:func:`zoo_argv` is the exact ``python -m rl_zoo3.train`` command (through the native-vector-env
+hook :mod:`electroloc_gym.train.zoo`); :func:`train` runs it in a child process (its own thread
+pinning, its output teed to ``<log_folder>/<algo>/<env>_s<seed>.log``), then exports the chosen
+checkpoint when ``out`` is given. The run folder is the one whose ``summary.json`` (written by the
+evaluation callback, :mod:`electroloc_gym.train.callbacks`) records this command as finished.
+
+Why a child process and not rl-zoo3's ``ExperimentManager`` in this one: the command a run records
+is then exactly what rl-zoo3's own front door parsed (a user re-runs it as printed), the numeric
+libraries of the run are pinned to one thread before they load, and a run that dies (out of memory,
+an interrupt) leaves the caller — a suite of many runs — standing.
+
+A run whose ``summary.json`` records the same command and finished is found again instead of
+retrained, and an ``out`` already exported from it is kept: re-running a script of calls only trains
+what is missing. Timing is the run's own (``summary.json``: wall time, validation time, training-only
+fps).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from electroloc_gym.utils.runtime import chosen_threads, thread_env
+
+__all__ = [
+    "ALGO_FILES",
+    "ZOO_EXTRA_HINT",
+    "check_zoo_installed",
+    "find_finished_run",
+    "hyperparams_file",
+    "train",
+    "zoo_argv",
+]
+
+#: rl-zoo3 algorithm name → the project's hyper-parameter file (electroloc_gym/train/hyperparams/, keyed by env id).
+ALGO_FILES = {"ppo": "ppo.yml", "a2c": "a2c.yml", "sac": "sac.yml", "ppo_lstm": "ppo_lstm.yml", "qrdqn": "qrdqn.yml"}
+
+
+#: What a training run imports beyond the package's own dependencies (rl-zoo3 brings SB3 and torch).
+ZOO_MODULES = ("rl_zoo3", "stable_baselines3", "sb3_contrib", "torch")
+#: The one line a missing training dependency gets: the extra that installs all of them.
+ZOO_EXTRA_HINT = 'training needs the zoo extra: pip install -c constraints.txt "electroloc-gym[zoo]"'
+
+
+def check_zoo_installed() -> None:
+    """Refuse to start a run that cannot import rl-zoo3 and its stack (checked before the run's process starts).
+
+    Raises:
+        ModuleNotFoundError: one line naming the missing modules and :data:`ZOO_EXTRA_HINT`.
+    """
+    missing = [m for m in ZOO_MODULES if importlib.util.find_spec(m) is None]
+    if missing:
+        raise ModuleNotFoundError(f"{ZOO_EXTRA_HINT} (missing: {', '.join(missing)})", name=missing[0])
+
+
+def hyperparams_file(algo: str) -> Path:
+    """The shipped hyper-parameter file of ``algo`` (one of :data:`ALGO_FILES`)."""
+    if algo not in ALGO_FILES:
+        raise ValueError(f"algo must be one of {sorted(ALGO_FILES)}, got {algo!r}")
+    return Path(__file__).parent / "hyperparams" / ALGO_FILES[algo]
+
+
+def _py_literal(v: Any) -> str:
+    return repr(v)  # rl-zoo3's StoreDict evaluates each value as a Python literal
+
+
+#: Seeds rl-zoo3 hands to ``np.random.seed`` (which takes [0, 2**32)).
+SEED_LIMIT = 2**32
+#: The largest env-step budget accepted (a trillion steps: far past any run, well inside SB3's int counters).
+MAX_TIMESTEPS = 10**12
+
+
+def _check_log_folder(folder: Path) -> None:
+    """``folder`` can be a folder: nothing on its way is a file."""
+    for part in (folder, *folder.parents):
+        if part.exists():
+            if not part.is_dir():
+                raise ValueError(f"log_folder {str(folder)!r} cannot be made: {str(part)!r} is a file")
+            return
+
+
+def check_env_kwargs(env_id: str, env_kwargs: Mapping[str, Any]) -> None:
+    """Refuse env kwargs the env would refuse, before rl-zoo3 starts: the env is built once with them
+    (its parameter dataclasses validate every value) and closed.
+    """
+    import gymnasium as gym
+
+    try:
+        gym.make(env_id, **dict(env_kwargs)).close()
+    except (TypeError, ValueError) as exc:
+        text = str(exc).strip().splitlines()
+        raise ValueError(
+            f"env_kwargs {dict(env_kwargs)!r} are refused by {env_id}: "
+            f"{(text[0] if text else type(exc).__name__)[:300]}"
+        ) from None
+
+
+def zoo_argv(
+    algo: str,
+    env_id: str,
+    seed: int,
+    *,
+    timesteps: int | None = None,
+    log_folder: str | Path = "logs",
+    conf_file: str | Path | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    hyperparams: Mapping[str, Any] | None = None,
+    native: bool = True,
+    threads: int | None = None,
+) -> list[str]:
+    """The ``python -m rl_zoo3.train`` arguments (without the interpreter) for one run.
+
+    Args:
+        algo: an rl-zoo3 algorithm with a file in :data:`ALGO_FILES`.
+        env_id: a registered id the file has a section for.
+        seed: the run's seed (≥ 0).
+        timesteps: env-step budget (None: the file's ``n_timesteps``).
+        log_folder: rl-zoo3's ``--log-folder`` (runs go to ``<log_folder>/<algo>/<env>_<n>``).
+        conf_file: another hyper-parameter file (default: :func:`hyperparams_file`).
+        env_kwargs: replaces the file's ``env_kwargs`` (rl-zoo3's rule), values as Python literals.
+        hyperparams: overrides of single hyper-parameters.
+        native: train on the native vector env (False: rl-zoo3's default DummyVecEnv).
+        threads: torch's threads in the run (rl-zoo3's ``--num-threads``; default
+            :func:`~electroloc_gym.utils.runtime.chosen_threads`: ``$ELECTROLOC_THREADS`` or 1).
+    """
+    n_threads = chosen_threads(threads)
+    conf = Path(conf_file) if conf_file is not None else hyperparams_file(algo)
+    if conf.is_absolute() and conf.is_relative_to(Path.cwd()):
+        conf = conf.relative_to(Path.cwd())  # the command as typed from the repository root
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < SEED_LIMIT:
+        raise ValueError(f"seed must be an integer in [0, 2**32) (NumPy's seed range), got {seed!r}")
+    if timesteps is not None and (
+        isinstance(timesteps, bool) or not isinstance(timesteps, int) or not 1 <= timesteps <= MAX_TIMESTEPS
+    ):
+        raise ValueError(f"timesteps must be an integer in [1, {MAX_TIMESTEPS:.0e}], got {timesteps!r}")
+    _check_log_folder(Path(log_folder))
+    import gymnasium as gym
+
+    if env_id not in gym.registry:
+        raise ValueError(
+            f"env_id {env_id!r} is not registered (electroloc ids: "
+            f"{sorted(k for k in gym.registry if k.startswith('ElectroLoc'))})"
+        )
+    if env_kwargs:
+        check_env_kwargs(env_id, env_kwargs)
+    argv = [
+        "-m",
+        "rl_zoo3.train",
+        "--algo",
+        algo,
+        "--env",
+        env_id,
+        "--gym-packages",
+        "electroloc_gym.train.zoo" if native else "electroloc_gym",
+        "--conf-file",
+        str(conf),
+        "--seed",
+        str(seed),
+        "--log-folder",
+        str(log_folder),
+        "--eval-freq",
+        "-1",
+        "--num-threads",
+        str(n_threads),
+    ]
+    if timesteps is not None:
+        argv += ["-n", str(timesteps)]
+    if env_kwargs:
+        argv += ["--env-kwargs", *(f"{k}:{_py_literal(v)}" for k, v in env_kwargs.items())]
+    if hyperparams:
+        argv += ["--hyperparams", *(f"{k}:{_py_literal(v)}" for k, v in hyperparams.items())]
+    return argv
+
+
+def find_finished_run(log_folder: str | Path, algo: str, env_id: str, argv: Sequence[str]) -> Path | None:
+    """The newest finished run folder whose ``summary.json`` records exactly ``argv``, or None."""
+    found = []
+    for summary in Path(log_folder, algo).glob(f"{env_id}_*/summary.json"):
+        try:
+            s = json.loads(summary.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if s.get("finished") and list(s.get("argv", [])) == list(argv):
+            found.append(summary.parent)
+    return max(found, key=lambda p: p.stat().st_mtime) if found else None
+
+
+def train(
+    algo: str,
+    env_id: str,
+    seed: int,
+    *,
+    timesteps: int | None = None,
+    log_folder: str | Path = "logs",
+    out: str | Path | None = None,
+    conf_file: str | Path | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    hyperparams: Mapping[str, Any] | None = None,
+    native: bool = True,
+    quiet: bool = False,
+    threads: int | None = None,
+) -> Path:
+    """Train (or find the finished run of) one configuration; export it to ``out``; return the run folder.
+
+    The run's process starts with ``threads`` threads per numeric library (:func:`zoo_argv`).
+
+    Raises:
+        ValueError: a bad argument (one line naming it), or a run that fails (its log named).
+        ModuleNotFoundError: rl-zoo3 or its stack missing (:func:`check_zoo_installed`: the zoo extra).
+    """
+    argv = zoo_argv(
+        algo,
+        env_id,
+        seed,
+        timesteps=timesteps,
+        log_folder=log_folder,
+        conf_file=conf_file,
+        env_kwargs=env_kwargs,
+        hyperparams=hyperparams,
+        native=native,
+        threads=threads,
+    )
+    run = find_finished_run(log_folder, algo, env_id, argv)
+    if run is None:
+        check_zoo_installed()
+        log = Path(log_folder, algo, f"{env_id}_s{seed}.log")
+        log.parent.mkdir(parents=True, exist_ok=True)
+        env = {**os.environ, **thread_env(threads)}
+        lines = []
+        with (
+            log.open("w", encoding="utf-8") as fh,
+            subprocess.Popen(
+                [sys.executable, *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env
+            ) as proc,
+        ):
+            if proc.stdout is None:
+                raise RuntimeError("the training subprocess has no stdout pipe")
+            for line in proc.stdout:
+                fh.write(line)
+                lines.append(line)
+                if not quiet:
+                    print(line, end="", flush=True)
+        if proc.returncode != 0:
+            tail = "".join(lines[-3:]).strip().splitlines()
+            raise ValueError(f"rl-zoo3 run failed (exit {proc.returncode}; log {log}): {tail[-1] if tail else ''}")
+        run = find_finished_run(log_folder, algo, env_id, argv)  # the callback's summary.json records argv
+        if run is None:
+            raise ValueError(
+                f"rl-zoo3 finished but no run folder under {Path(log_folder, algo)} records this "
+                f"command as finished (log {log})"
+            )
+    if out is not None:
+        from electroloc_gym.train.export import export_run
+
+        dest = Path(out)
+        done = dest / "summary.json"
+        same = done.is_file() and json.loads(done.read_text(encoding="utf-8")).get("argv") == json.loads(
+            (run / "summary.json").read_text(encoding="utf-8")
+        ).get("argv")
+        if not same:
+            export_run(run, dest)
+    return run
