@@ -145,3 +145,13 @@ def test_numba_cache_set_by_the_user_is_kept(tmp_path) -> None:
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == [str(tmp_path / "mine")] * 2
+
+
+def test_every_module_name_is_used_once() -> None:
+    """A traceback or a search names one file: no two modules of the package share a file name."""
+    seen: dict[str, list[str]] = {}
+    for module in (ROOT / "electroloc_gym").rglob("*.py"):
+        if "__pycache__" not in module.parts and module.stem not in ("__init__", "__main__"):
+            seen.setdefault(module.name, []).append(str(module.relative_to(ROOT)))
+    twice = {name: paths for name, paths in seen.items() if len(paths) > 1}
+    assert not twice, f"module names used more than once: {twice}"

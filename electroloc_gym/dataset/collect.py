@@ -7,13 +7,13 @@ under ``MINARI_DATASETS_PATH`` (Minari's default folder when unset), with the id
 * the env spec of the episodes' env (``minari.load_dataset(id).recover_environment()`` rebuilds it:
   the benchmark's env kwargs for the agent — its sensor model, particles, cap, observation mode — with
   ``condition="random"``, one of the paper's eight presets drawn per episode from the reset seed);
-* per episode the reset seed (:func:`~electroloc_gym.dataset.protocol.episode_seeds`: training seeds,
+* per episode the reset seed (:func:`~electroloc_gym.dataset.seed_protocol.episode_seeds`: training seeds,
   disjoint from the benchmark's evaluation seeds), the observations, actions, rewards, flags;
 * per step (reset included) the infos of :func:`step_infos`: the belief summary (estimate, covariance,
   spread, readings fused), the reading, the condition's index and the truth (the hidden position; for the
   unknown target its radius and contrast) — for analysis and privileged critics, never an agent's input;
 * in the metadata: ``ref_min_score`` / ``ref_max_score`` (rnd-wlk and the best planner,
-  :func:`~electroloc_gym.dataset.protocol.reference_scores`; absent without a reference), the agent spec
+  :func:`~electroloc_gym.dataset.seed_protocol.reference_scores`; absent without a reference), the agent spec
   (its options included) as ``algorithm_name``, and an ``electroloc`` block: agent, env kwargs, root seed,
   the planned episode count, the reference's provenance, and ``complete``;
 * beside ``data/``, ``checksums.jsonl``: the sha256 of every episode's files.
@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.dataset import store
-from electroloc_gym.dataset.protocol import (
+from electroloc_gym.dataset.seed_protocol import (
     DEFAULT_DATASET_SEED,
     EVALUATION_SEED,
     episode_seeds,

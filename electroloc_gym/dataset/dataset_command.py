@@ -83,7 +83,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build the dataset ``args`` describe; print its id, size and path. 0 on success, 2 on bad input."""
     from electroloc_gym.dataset.collect import DatasetRequest, build_dataset
-    from electroloc_gym.dataset.protocol import DEFAULT_DATASET_SEED
+    from electroloc_gym.dataset.seed_protocol import DEFAULT_DATASET_SEED
 
     def notify(message: str) -> None:
         print(f"{PROG}: {message}", file=sys.stderr)
