@@ -6,6 +6,7 @@ idempotent); :func:`register_env` adds another:
 * ``ElectroLoc-v0`` — localise a target sphere with a particle-filter belief.
 * ``ElectroLocGlobal-v0`` — the robot localises itself in a mapped tank of six cylinders (§6.5).
 * ``ElectroLocUnknownTarget-v0`` — localise a sphere of unknown size and material (§7).
+* ``ElectroLocTrack-v0`` — follow a target sphere that swims during the episode (the prey-capture task).
 """
 
 from __future__ import annotations

@@ -5,6 +5,7 @@ there fails later; every bad argument, action or seed one ValueError naming it; 
 
 from __future__ import annotations
 
+import math
 import warnings
 from typing import Any
 
@@ -15,7 +16,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.contract.params import GAIN_FACTOR_LIMITS, MAX_POSITION_BLUR_MM, RADIUS_LIMITS_MM, SIGNAL_LIMITS
+from electroloc_gym.contract.params import (
+    GAIN_FACTOR_LIMITS,
+    MAX_POSITION_BLUR_MM,
+    MAX_TARGET_SPEED_MM,
+    MOTION_MODELS,
+    RADIUS_LIMITS_MM,
+    SIGNAL_LIMITS,
+    TARGET_MOTIONS,
+)
 from electroloc_gym.envs.vector import sub_env_seeds
 from electroloc_gym.world.conditions import PRESET_NAMES
 
@@ -82,6 +91,17 @@ ARGUMENTS = {
             "radius_range_mm": st.lists(_radii, min_size=2, max_size=2, unique=True).map(lambda r: tuple(sorted(r))),
         }
     ),
+    "ElectroLocTrack-v0": st.fixed_dictionaries(
+        {
+            **_common,
+            **{k: v for k, v in _target.items() if k != "gain_levels"},
+            "target_motion": st.sampled_from(TARGET_MOTIONS),
+            "target_speed_mm": st.floats(0.0, MAX_TARGET_SPEED_MM),
+            "turn_std_rad": st.floats(0.0, math.pi),
+            "motion_model": st.sampled_from(MOTION_MODELS),
+            "motion_step_mm": st.one_of(st.none(), st.floats(0.0, MAX_TARGET_SPEED_MM)),
+        }
+    ),
 }
 
 
@@ -103,6 +123,8 @@ def test_every_observation_is_in_its_space_for_valid_arguments(env_id: str, data
         ("ElectroLoc-v0", {"gain_levels": GAIN_FACTOR_LIMITS, "sensor_model": "analytic"}),
         ("ElectroLoc-v0", {"signal": SIGNAL_LIMITS[1], "condition": "salt-steel-12.7"}),
         ("ElectroLocGlobal-v0", {"position_blur_mm": MAX_POSITION_BLUR_MM}),
+        ("ElectroLocTrack-v0", {"target_speed_mm": MAX_TARGET_SPEED_MM, "turn_std_rad": math.pi}),
+        ("ElectroLocTrack-v0", {"target_motion": "random_walk", "motion_step_mm": MAX_TARGET_SPEED_MM}),
         ("ElectroLocUnknownTarget-v0", {"radius_range_mm": RADIUS_LIMITS_MM, "gain_levels": GAIN_FACTOR_LIMITS}),
         (
             "ElectroLocUnknownTarget-v0",

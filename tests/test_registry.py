@@ -76,12 +76,13 @@ def test_defaults_and_arguments_come_from_the_entry(entry) -> None:
 
 def test_the_benchmark_reads_the_table() -> None:
     assert bench_config.ENV_CHOICES == {name: e.env_id for name, (e, _) in BENCH_ENVS.items()}
-    assert set(bench_config.ENV_CHOICES) == {"target", "global", "unknown-target", "dynamic-gain"}
+    assert set(bench_config.ENV_CHOICES) == {"target", "global", "unknown-target", "dynamic-gain", "track"}
     assert bench_config.ENV_SENSOR_MODELS == {e.env_id: e.sensor_models for e in ENVS}
     assert bench_config.ENV_N_PARTICLES == {
         "ElectroLoc-v0": 2500,
         "ElectroLocGlobal-v0": 2500,
         "ElectroLocUnknownTarget-v0": 5000,
+        "ElectroLocTrack-v0": 2500,
     }
     assert bench_config.MAP_CONDITIONS == ("six-cylinders",)
     assert gym.make("ElectroLocGlobal-v0").reset(seed=0)[1]["condition"] == "six-cylinders"
@@ -92,7 +93,7 @@ def test_the_benchmark_reads_the_table() -> None:
 def test_unknown_names_are_one_clear_error() -> None:
     with pytest.raises(ValueError, match=r"env_id must be one of \['ElectroLoc-v0'"):
         env_entry("ElectroLoc-v9")
-    with pytest.raises(ValueError, match=r"task must be one of \['localize', 'global', 'unknown'\]"):
+    with pytest.raises(ValueError, match=r"task must be one of \['localize', 'global', 'unknown', 'track'\]"):
         task_entry("map")
     with pytest.raises(ValueError, match=r"--env must be one of"):
         bench_env("tank")

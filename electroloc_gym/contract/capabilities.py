@@ -124,6 +124,7 @@ def _no_position_blur(value: Any, options: Mapping[str, Any]) -> bool:
 
 _GLOBAL_ONLY = Absent("ElectroLocGlobal-v0's; the torch engine implements ElectroLoc-v0 only")
 _UNKNOWN_ONLY = Absent("ElectroLocUnknownTarget-v0's; the torch engine implements ElectroLoc-v0 only")
+_TRACK_ONLY = Absent("ElectroLocTrack-v0's; the torch engine implements ElectroLoc-v0 only")
 _CPU_ONLY = Absent("numba's compiled kernels run on the host's CPU")
 
 
@@ -194,6 +195,11 @@ CAPABILITIES: Mapping[str, Mapping[str, Support]] = MappingProxyType(
                 "numba": IMPLEMENTED,
                 "torch": Limit("0", "has no distractors", _no_distractors, 2),
             },
+            "target_motion": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
+            "target_speed_mm": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
+            "turn_std_rad": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
+            "motion_model": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
+            "motion_step_mm": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
             # ---- the vector envs' constructor arguments ------------------------------------------------
             "num_envs": {"numba": IMPLEMENTED, "torch": IMPLEMENTED},
             "render_mode": {

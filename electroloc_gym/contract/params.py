@@ -46,6 +46,9 @@ __all__ = [
     "SIGNAL_LIMITS",
     "MAX_STEP_MM",
     "DISCRETE_MOVES_MM",
+    "TARGET_MOTIONS",
+    "MOTION_MODELS",
+    "MAX_TARGET_SPEED_MM",
     "memory_limit_bytes",
     "check_int",
     "check_float",
@@ -73,6 +76,15 @@ GAIN_FACTOR_LIMITS = (1e-3, 1e3)
 MAX_POSITION_BLUR_MM = 100.0
 #: The presets' signal scale as a number (``signal``): a thousandth to a thousand (the fitted scales are ≈1–8).
 SIGNAL_LIMITS = (1e-3, 1e3)
+
+#: The moving target's true motion (ElectroLocTrack-v0, :mod:`electroloc_gym.engines.numba_core.track_task`):
+#: Gaussian steps, or a constant-speed swimmer whose heading turns by Gaussian increments.
+TARGET_MOTIONS = ("random_walk", "swimmer")
+#: The motion model the moving target's filter is told (its prediction before every update): a random walk,
+#: or none (a static target, the paper's filter).
+MOTION_MODELS = ("random_walk", "static")
+#: The largest target speed and filter step, mm per reading: twice the carriage's largest move per axis.
+MAX_TARGET_SPEED_MM = 20.0
 
 #: The discrete action set: stay plus the 8 king moves of 10 mm per axis (index = 3·(dx+1) + (dy+1)).
 DISCRETE_MOVES_MM = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.float64) * MAX_STEP_MM
@@ -155,6 +167,15 @@ class EnvParams:
             ``DistractorDraw``, a
             dict of its fields, or an explicit layout (a ``DistractorSet`` or a sequence of ``SceneObject``);
             stored resolved (0: none, the plain env).
+        target_motion: moving target: the target's true motion, ``"random_walk"`` or ``"swimmer"``
+            (:data:`TARGET_MOTIONS`).
+        target_speed_mm: moving target: its speed, mm per reading, in [0, 20]: the random walk's RMS step
+            (per-axis std ``target_speed_mm``/√2), the swimmer's constant step length.
+        turn_std_rad: moving target, ``"swimmer"``: std of the heading's change per reading, rad, in [0, π].
+        motion_model: moving target: the filter's motion model, ``"random_walk"`` (every particle takes a
+            Gaussian step before each update) or ``"static"`` (none: the paper's filter) (:data:`MOTION_MODELS`).
+        motion_step_mm: moving target: the filter's random-walk RMS step, mm per reading, in [0, 20], or
+            None: the target's ``target_speed_mm`` (a different value is a model mismatch).
     """
 
     task: str = "localize"
@@ -180,6 +201,11 @@ class EnvParams:
     sensor_layout: Any = "single"
     fixed_carriage: bool = False
     distractors: Any = 0
+    target_motion: str = "swimmer"
+    target_speed_mm: float = 1.0
+    turn_std_rad: float = 0.5
+    motion_model: str = "random_walk"
+    motion_step_mm: float | None = None
 
     def __post_init__(self) -> None:
         def put(name: str, value: Any) -> None:
@@ -204,6 +230,13 @@ class EnvParams:
             if len(set(self.gain_levels)) != len(self.gain_levels):
                 raise ValueError(f"gain_levels must be distinct factors of the gain, got {self.gain_levels!r}")
         check_choice("action_type", self.action_type, ACTION_TYPES)
+        check_choice("target_motion", self.target_motion, TARGET_MOTIONS)
+        check_choice("motion_model", self.motion_model, MOTION_MODELS)
+        top = MAX_TARGET_SPEED_MM
+        put("target_speed_mm", check_float("target_speed_mm", self.target_speed_mm, 0.0, inclusive=True, high=top))
+        put("turn_std_rad", check_float("turn_std_rad", self.turn_std_rad, 0.0, inclusive=True, high=math.pi))
+        if self.motion_step_mm is not None:
+            put("motion_step_mm", check_float("motion_step_mm", self.motion_step_mm, 0.0, inclusive=True, high=top))
         put("n_particles", check_int("n_particles", self.n_particles, 1, 2**31 - 2))
         put("max_observations", check_int("max_observations", self.max_observations, 1))
         put("success_spread_mm", check_float("success_spread_mm", self.success_spread_mm, 0.0))

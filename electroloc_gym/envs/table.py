@@ -1,4 +1,4 @@
-"""The built-in entries of the env table (:mod:`electroloc_gym.registry`): the paper's three environments.
+"""The built-in entries of the env table (:mod:`electroloc_gym.registry`): the paper's three envs and the moving target.
 
 Each entry names its task class (the core), its single and native vector env classes (this package)
 and every fact the layers above read from it; ``electroloc_gym/__init__.py`` registers them.
@@ -8,9 +8,11 @@ from __future__ import annotations
 
 from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
 from electroloc_gym.engines.numba_core.global_task import GlobalTask
+from electroloc_gym.engines.numba_core.track_task import TRACK_EPISODE_READINGS, TRACK_RECORD_KEYS, TrackTask
 from electroloc_gym.engines.numba_core.unknown import SHAPE_RECORD_KEYS, UnknownTargetTask
 from electroloc_gym.envs.global_env import GlobalEnv
 from electroloc_gym.envs.localize import ElectroLocEnv
+from electroloc_gym.envs.track_env import TrackEnv, TrackVectorEnv
 from electroloc_gym.envs.unknown_target import UnknownTargetEnv
 from electroloc_gym.envs.vector import ElectroLocVectorEnv, GlobalVectorEnv, UnknownTargetVectorEnv
 from electroloc_gym.registry import PAPER_ENV_ID, BenchEnv, EnvEntry, frozen
@@ -103,5 +105,35 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         bench_kwargs=frozen({"target_draw": "condition"}),
         record_keys=SHAPE_RECORD_KEYS,
         summary="localise a sphere of unknown size and material (§7)",
+    ),
+    EnvEntry(
+        env_id="ElectroLocTrack-v0",
+        task="track",
+        task_class=TrackTask,
+        env_class=TrackEnv,
+        vector_class=TrackVectorEnv,
+        arguments=(
+            "condition",
+            "signal",
+            "randomize_target",
+            "target_motion",
+            "target_speed_mm",
+            "turn_std_rad",
+            "motion_model",
+            "motion_step_mm",
+        ),
+        sensor_models=SENSOR_MODEL_NAMES,
+        # 70 readings: the paper's cap of 35 to localise, then 35 scored readings of tracking
+        defaults=frozen({"max_observations": TRACK_EPISODE_READINGS}),
+        bench=(
+            BenchEnv(
+                "track",
+                agents=("rnd-wlk", "min-var"),
+                summary="follow a swimming target (tracking error over the second half, capture rate; "
+                "default agents rnd-wlk,min-var)",
+            ),
+        ),
+        record_keys=TRACK_RECORD_KEYS,
+        summary="follow a target sphere that swims during the episode (the prey-capture task)",
     ),
 )

@@ -62,6 +62,10 @@ class State:
         radius_median_mm: (N,) the belief's median radius, mm (unknown target: the reported estimate).
         p_conductor: (N,) the belief's fraction of particles with χ > 0 (unknown target).
         gain_index: (N,) the gain level of each env's last reading (dynamic gain; 0 without).
+        target_heading_rad: (N,) the moving target's heading, rad (the swimmer;
+            :mod:`electroloc_gym.engines.numba_core.track_task`).
+        track_error_sum_mm: (N,) the moving target's tracking errors summed over the episode's second half, mm.
+        track_error_count: (N,) the readings in that sum.
         worlds_drawn: worlds drawn per episode so far (the global task's random maps: each new map's
             ``world_key``).
         distractor_scenes: each env's episode distractors as a ``Scene`` in its world's water (None: none;
@@ -103,6 +107,9 @@ class State:
     radius_median_mm: NDArray[np.float64]
     p_conductor: NDArray[np.float64]
     gain_index: NDArray[np.int64]
+    target_heading_rad: NDArray[np.float64]
+    track_error_sum_mm: NDArray[np.float64]
+    track_error_count: NDArray[np.int64]
     started: bool = field(default=False)
     worlds_drawn: int = field(default=0)
     distractor_scenes: list[Any] = field(default_factory=list)
@@ -152,6 +159,9 @@ class State:
             radius_median_mm=np.zeros(n),
             p_conductor=np.zeros(n),
             gain_index=np.zeros(n, dtype=np.int64),
+            target_heading_rad=np.zeros(n),
+            track_error_sum_mm=np.zeros(n),
+            track_error_count=np.zeros(n, dtype=np.int64),
         )
 
     @property

@@ -13,8 +13,9 @@ One step of env i (paper §4.1, Algorithm 1):
 4. the task's belief update (``assimilate``: one compiled call per step for the x–y beliefs — the
    sensor model's log-likelihood of every particle, the weights, systematic resampling, jitter, the
    clip to the box, the new cloud's mean, covariance and histogram, :mod:`electroloc_gym.kernels.filter`);
-5. reward −1; terminated when √trace Σ ≤ ``success_spread_mm``; truncated after
-   ``max_observations`` readings (or ``max_episode_steps`` steps);
+5. the task's reward and flags (``rewards``, ``flags``; the paper's tasks: −1; terminated when
+   √trace Σ ≤ ``success_spread_mm``; truncated after ``max_observations`` readings (or
+   ``max_episode_steps`` steps));
 6. the task's observation (:mod:`electroloc_gym.contract.observation`) and info arrays.
 
 A reset draws the episode (the task's ``begin_episode``) and takes the first reading (steps 2–4),
@@ -36,7 +37,7 @@ import numpy as np
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
 
-from electroloc_gym.contract.observation import RESET_REWARD, STEP_REWARD, episode_flags
+from electroloc_gym.contract.observation import RESET_REWARD
 from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.engines.numba_core.state import State
 from electroloc_gym.engines.numba_core.task import Task
@@ -135,7 +136,6 @@ class Simulation:
         s = self.state
         if not s.started:
             raise RuntimeError("call reset() before step()")
-        rewards = np.full(self.num_envs, STEP_REWARD)
         if s.done.any():
             if autoreset == "disabled":
                 raise RuntimeError("the episode has ended (terminated or truncated): call reset() before step()")
@@ -153,6 +153,7 @@ class Simulation:
                 terminated, truncated = self._flags()
                 terminated[reset_ids] = False
                 truncated[reset_ids] = False
+                rewards = self.task.rewards(s)
                 rewards[reset_ids] = RESET_REWARD
                 s.done = terminated | truncated
                 return self.observation(), rewards, terminated, truncated, self.info()
@@ -162,6 +163,7 @@ class Simulation:
         self._observe(self._all_ids)
         s.elapsed += 1
         terminated, truncated = self._flags()
+        rewards = self.task.rewards(s)
         obs = self.observation()
         info: dict[str, Any] = self.info()  # the step's arrays, then (same_step) final_obs, final_info, done
         done = terminated | truncated
@@ -181,10 +183,7 @@ class Simulation:
 
     # ---- observation, flags, info --------------------------------------------------------------
     def _flags(self) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-        s, p = self.state, self.params
-        return episode_flags(
-            s.spread_mm(), s.n_observations, s.elapsed, p.success_spread_mm, p.max_observations, p.max_episode_steps
-        )
+        return self.task.flags(self.state)
 
     def observation(self, ids: NDArray[np.intp] | None = None) -> NDArray[np.float32]:
         """(k, obs_dim) float32 observations of envs ``ids`` (all if None): the task's."""

@@ -16,6 +16,7 @@ true reading                :meth:`~Task.true_mean_V` (noise-free, unsaturated)
 belief update               :meth:`~Task.assimilate` (through the kernels)
 statistics                  :meth:`~Task.update_statistics` (mean, covariance, histogram, the
                             task's own)
+reward and episode end      :meth:`~Task.rewards`, :meth:`~Task.flags` (the shared rule by default)
 observation and info        :meth:`~Task.observation`, :meth:`~Task.info` (+ :attr:`~Task.info_keys`)
 what agents predict         :meth:`~Task.sensor_model`, :meth:`~Task.particles_after_move`,
                             :meth:`~Task.offsets_after_move`, :meth:`~Task.predicted_mean_std`
@@ -42,7 +43,9 @@ from electroloc_gym.contract.observation import (
     HIST_BINS,
     INFO_KEYS,
     RAW_OBS_DIM,
+    STEP_REWARD,
     belief_observation,
+    episode_flags,
     raw_observation,
 )
 from electroloc_gym.contract.params import EnvParams
@@ -250,6 +253,24 @@ class Task(ABC):
         mean_cov_rows(x, y, mean, cov)
         egocentric_counts(x, y, self.histogram_origin(s, ids), 2 * s.half_mm[ids].astype(np.float32), HIST_BINS, counts)
         s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
+
+    def rewards(self, state: State) -> NDArray[np.float64]:
+        """(N,) every env's reward for this step's reading (the paper's tasks: ``STEP_REWARD``, −1 per reading)."""
+        return np.full(state.num_envs, STEP_REWARD)
+
+    def flags(self, state: State) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """(terminated, truncated) of every env after a step: the shared rule
+        (:func:`~electroloc_gym.contract.observation.episode_flags`).
+        """
+        p = self.params
+        return episode_flags(
+            state.spread_mm(),
+            state.n_observations,
+            state.elapsed,
+            p.success_spread_mm,
+            p.max_observations,
+            p.max_episode_steps,
+        )
 
     # ---- what is reported -------------------------------------------------------------------------
     @abstractmethod

@@ -1,0 +1,229 @@
+"""The ``track`` task (ElectroLocTrack-v0): the particles follow a target sphere that moves during the episode.
+
+The paper's target sits still (Solberg, Lynch & MacIver, IJRR 2008, §4); the fish that inspired the
+robot hunt moving prey in the dark. Here the sphere of the episode's condition swims in its horizontal
+plane below the carriage, and the belief must carry a motion model.
+
+**The target's motion** (``target_motion``, before every reading but the reset's): ``"random_walk"``:
+a Gaussian step of per-axis std ``target_speed_mm``/√2 (RMS step ``target_speed_mm`` mm per reading);
+``"swimmer"``: a step of exactly ``target_speed_mm`` along its heading, the heading turning by a Gaussian
+increment of std ``turn_std_rad`` per reading (drawn uniform at reset). The target stays in the
+allowed box [−H, H]²: a step that crosses a wall is reflected (the swimmer's heading reflected with it).
+
+**Why a default of 1 mm per reading.** Weakly electric fish hunt water fleas (Daphnia, 2–3 mm) that
+swim about one body length per second, a few mm/s, while the fish cruises at the order of 10 cm/s
+(Nelson & MacIver, J. Exp. Biol. 1999; MacIver, Sharabash & Nelson, J. Exp. Biol. 2001): the prey is
+2–5 % as fast as its hunter. The paper gives no time per reading, so the speed is scaled by the
+hunter's reach instead: the carriage moves at most 10 mm per axis per reading (§4.1.3), so the
+biological ratio is 0.2–0.5 mm per reading. The default (1 mm per reading, 10 % of the carriage's
+reach) is two to five times that, so that a 70-reading episode's target travels 70 mm (the swimmer)
+— across the paper's ±50 mm box — and tracking, not localisation, decides the score; ``target_speed_mm``
+goes to 20 mm per reading, where no controller can follow (docs/extensions.md's speed sweep).
+
+**The filter's motion model** (``motion_model``, what the belief is told; it may differ from the truth):
+``"random_walk"``: before every update each particle takes a Gaussian step of per-axis std
+``motion_step_mm``/√2 (None: the target's own ``target_speed_mm``), reflected at the walls like the
+target; ``"static"``: none (the paper's filter). The draws: 2M indices into the normal quantile table
+(:func:`~electroloc_gym.kernels.streams.table_normal_indices`: x of particle j at j, y at M + j).
+What an agent predicts (``predicted_particles_mm``, ``predicted_reading_model``) is the same model on
+a fixed sample of steps (the same 2M standard normals every call, no draw from the env's stream): so
+min-var's vote runs on the predicted belief (the paper's Algorithm 1 one reading ahead).
+
+**Draw order.** Reset: ElectroLoc-v0's (condition, calibration, target, start, particles), then the
+swimmer's heading (1 uniform; the random walk draws none). Every step, before the step's reading draws:
+the target's step (2 normals for the random walk, 1 for the swimmer's turn), then the particles' 2M
+table indices (none with ``"static"`` or a zero step).
+
+**Episode, metric, reward.** An episode is ``max_observations`` readings (default 70; never
+terminated: there is no "found" for prey that keeps moving). The first half is the paper's whole
+localisation budget (35 readings, §5.4), in which min-var localises a still target in 95 % of the
+paper's trials; the **tracking error** is the mean distance from the belief's mean to the true target
+over the second half's readings (info ``tracking_error_mm``, the running mean of the second half so
+far; before it, the current error). **Capture**: the carriage within :data:`CAPTURE_DISTANCE_MM` (10 mm)
+of the target after the last reading (info ``captured``, ``carriage_distance_mm``): one carriage move
+(10 mm per axis, §4.1.3) and less than the smaller sphere's diameter (12.7 mm) — a hunter that close
+strikes in one move. Reward: −(the belief mean's distance to the target)/10 mm per reading (ground
+truth, as the info's error: for learning and evaluation, never for the agent's decisions).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
+from electroloc_gym.engines.numba_core.state import State
+from electroloc_gym.kernels.streams import normal_table, table_normal_indices
+
+__all__ = [
+    "TrackTask",
+    "CAPTURE_DISTANCE_MM",
+    "TRACK_EPISODE_READINGS",
+    "TRACK_INFO_KEYS",
+    "TRACK_RECORD_KEYS",
+    "reflect",
+    "prediction_steps",
+]
+
+#: The capture distance: the carriage within this distance of the target at the end is a capture, mm.
+CAPTURE_DISTANCE_MM = 10.0
+#: Readings per episode (``max_observations``): twice the paper's cap of 35 (§5.4); the second half is scored.
+TRACK_EPISODE_READINGS = 70
+#: The info keys the track env adds: the true target now (mm), the second half's mean tracking error so
+#: far (mm), the carriage's distance to the target (mm), and whether it is within the capture distance.
+TRACK_INFO_KEYS = ("target_mm", "tracking_error_mm", "carriage_distance_mm", "captured")
+#: What a benchmark record keeps of the final info.
+TRACK_RECORD_KEYS = ("tracking_error_mm", "carriage_distance_mm", "captured")
+_SQRT_HALF = np.sqrt(0.5)
+
+
+def reflect(x: NDArray, half: Any) -> tuple[NDArray, NDArray[np.bool_]]:
+    """``x`` folded into [−half, half] by one reflection at the wall it crossed (steps shorter than 2·half),
+    and where it was reflected. Exact elementwise operations in ``x``'s precision.
+    """
+    over, under = x > half, x < -half
+    out = np.where(over, 2 * half - x, np.where(under, -2 * half - x, x))
+    return out, over | under
+
+
+@functools.cache
+def prediction_steps(n_particles: int) -> NDArray[np.float32]:
+    """(M, 2) fixed standard-normal steps of the agents' predictions (a seeded draw of the normal table;
+    read-only).
+    """
+    g = np.random.default_rng(20080501)
+    z = normal_table()[table_normal_indices(g, 2 * n_particles)].reshape(2, n_particles).T.copy()
+    z.flags.writeable = False
+    return z
+
+
+class TrackTask(LocalizeTask):
+    """ElectroLocTrack-v0: a target sphere that moves, and a filter told a motion model (module docstring)."""
+
+    info_keys = TRACK_INFO_KEYS
+
+    def __init__(self, params: EnvParams) -> None:
+        super().__init__(params)
+        self.swimmer = params.target_motion == "swimmer"
+        #: The random walk's per-axis std of the target's step, mm.
+        self.target_std_mm = params.target_speed_mm * _SQRT_HALF
+        step = params.target_speed_mm if params.motion_step_mm is None else params.motion_step_mm
+        #: The filter's per-axis step std, mm (0: the particles do not move).
+        self.filter_std_mm = 0.0 if params.motion_model == "static" else step * _SQRT_HALF
+        self._half_readings = params.max_observations // 2
+        self._table = normal_table()
+
+    # ---- the episode ------------------------------------------------------------------------------
+    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+        """ElectroLoc-v0's reset draws, then the swimmer's heading (1 uniform in [0, 2π))."""
+        super().begin_episode(state, i, g)
+        state.target_heading_rad[i] = g.uniform(0.0, 2 * np.pi) if self.swimmer else 0.0
+        state.track_error_sum_mm[i] = 0.0
+        state.track_error_count[i] = 0
+
+    def move(self, state: State, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
+        """The carriage moves (truncated at the walls), then the target takes its step and every particle
+        its predicted step (both reflected at the walls), from each env's generator.
+        """
+        super().move(state, ids, moves_mm)
+        idx = np.arange(state.num_envs)[ids]
+        if idx.size == 0:
+            return
+        speed = self.params.target_speed_mm
+        gens = [state.gens[i] for i in idx.tolist()]
+        steps = np.empty((idx.size, 2))
+        m = state.n_particles
+        noise = np.empty((idx.size, 2 * m), dtype=np.uint16) if self.filter_std_mm > 0 else None
+        for j, g in enumerate(gens):
+            assert g is not None  # reset made every env's generator
+            if self.swimmer:
+                state.target_heading_rad[idx[j]] += g.normal(0.0, self.params.turn_std_rad)
+            else:
+                steps[j] = g.normal(0.0, self.target_std_mm, 2)
+            if noise is not None:
+                noise[j] = table_normal_indices(g, 2 * m)
+        if self.swimmer:
+            h = state.target_heading_rad[idx]
+            steps[:, 0], steps[:, 1] = speed * np.cos(h), speed * np.sin(h)
+        half = state.half_mm[idx][:, None]
+        target, flipped = reflect(state.target_mm[idx] + steps, half)
+        state.target_mm[idx] = target
+        if self.swimmer:  # a reflection mirrors the heading: x wall θ → π − θ, y wall θ → −θ
+            h = state.target_heading_rad[idx]
+            h = np.where(flipped[:, 0], np.pi - h, h)
+            state.target_heading_rad[idx] = np.where(flipped[:, 1], -h, h)
+        if noise is not None:
+            p = state.particles_mm[idx] + np.float32(self.filter_std_mm) * self._table[noise].reshape(-1, 2, m)
+            state.particles_mm[idx] = reflect(p, state.half_mm[idx].astype(np.float32)[:, None, None])[0]
+
+    def assimilate(
+        self,
+        state: State,
+        ids: NDArray[np.intp],
+        reading: NDArray[np.float64],
+        u0: NDArray[np.float64],
+        jitter: NDArray[np.uint16],
+        normal_table: NDArray[np.float32],
+    ) -> int:
+        """ElectroLoc-v0's update, then the second half's tracking error accumulated (readings > T/2)."""
+        bad = super().assimilate(state, ids, reading, u0, jitter, normal_table)
+        if bad < 0:
+            second = state.n_observations[ids] > self._half_readings
+            state.track_error_sum_mm[ids] += np.where(second, self._error_mm(state, ids), 0.0)
+            state.track_error_count[ids] += second
+        return bad
+
+    # ---- reward, flags, info ----------------------------------------------------------------------
+    @staticmethod
+    def _error_mm(state: State, sel: Any) -> NDArray[np.float64]:
+        d = state.mean_mm[sel] - state.target_mm[sel]
+        return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+
+    def rewards(self, state: State) -> NDArray[np.float64]:
+        """(N,) −(belief mean's distance to the target)/:data:`CAPTURE_DISTANCE_MM` after this step's reading."""
+        return -self._error_mm(state, slice(None)) / CAPTURE_DISTANCE_MM
+
+    def flags(self, state: State) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """Never terminated; truncated after ``max_observations`` readings (or ``max_episode_steps`` steps)."""
+        p = self.params
+        truncated = state.n_observations >= p.max_observations
+        if p.max_episode_steps is not None:
+            truncated = truncated | (state.elapsed >= p.max_episode_steps)
+        return np.zeros(state.num_envs, dtype=bool), truncated
+
+    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
+        """:data:`TRACK_INFO_KEYS` of envs ``sel``."""
+        count = state.track_error_count[sel]
+        now = self._error_mm(state, sel)
+        mean = np.where(count > 0, state.track_error_sum_mm[sel] / np.maximum(count, 1), now)
+        d = state.position_mm[sel] - state.target_mm[sel]
+        dist = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+        return {
+            "target_mm": state.target_mm[sel].copy(),
+            "tracking_error_mm": mean,
+            "carriage_distance_mm": dist,
+            "captured": dist <= CAPTURE_DISTANCE_MM,
+        }
+
+    # ---- what agents predict ----------------------------------------------------------------------
+    def _predicted(self, state: State, i: int, particles: NDArray) -> NDArray:
+        """Hypotheses (…, M, 2) after the filter's step, on the fixed sample :func:`prediction_steps`."""
+        xy = np.asarray(particles)[..., :2]
+        if self.filter_std_mm == 0:
+            return xy
+        z = prediction_steps(xy.shape[-2]).astype(xy.dtype, copy=False)
+        h = np.asarray(state.half_mm[i], dtype=xy.dtype)
+        return reflect(xy + xy.dtype.type(self.filter_std_mm) * z, h)[0]
+
+    def particles_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """The hypotheses after one step of the filter's motion model (the same for every move)."""
+        pred = self._predicted(state, i, particles)
+        return np.broadcast_to(pred, moves_mm.shape[:-1] + pred.shape).copy()
+
+    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+        """Predicted target hypothesis − the carriage after the move (kept in the box)."""
+        return super().offsets_after_move(state, i, self._predicted(state, i, particles), moves_mm)

@@ -1,0 +1,233 @@
+"""ElectroLocTrack-v0: the moving target, the filter's motion model, the tracking metric and the checks."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from gymnasium.vector import AutoresetMode
+
+import electroloc_gym  # noqa: F401  (registers the ids)
+from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.engines.numba_core.step import Simulation
+from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM, prediction_steps, reflect
+from tests.vector_equivalence import assert_native_equals_sync
+
+ID = "ElectroLocTrack-v0"
+SMALL: dict[str, Any] = {"n_particles": 200, "sensor_model": "analytic", "max_observations": 12}
+TRACK_KEYS = ("tracking_error_mm", "carriage_distance_mm", "captured", "error_mm", "spread_mm")
+
+
+def _sim(n: int, **kw: Any) -> Simulation:
+    params = EnvParams.from_kwargs("track", {**SMALL, **kw}, ID)
+    sim = Simulation(params, n)
+    for i in range(n):
+        sim.seed(i, 100 + i)
+    sim.reset()
+    return sim
+
+
+def test_check_env_gymnasium_and_sb3() -> None:
+    env = gym.make(ID, **SMALL)
+    check_env(env.unwrapped)
+    sb3 = pytest.importorskip("stable_baselines3.common.env_checker")
+    sb3.check_env(gym.make(ID, **SMALL).unwrapped, warn=True)
+    assert env.unwrapped.params.task == "track"
+    assert gym.make(ID).unwrapped.params.max_observations == 70  # the entry's default episode length
+
+
+def test_same_seed_same_episode_and_different_seeds_differ() -> None:
+    def run(seed: int) -> list[Any]:
+        env = gym.make(ID, **SMALL, target_motion="random_walk", target_speed_mm=3.0)
+        env.action_space.seed(7)
+        obs, info = env.reset(seed=seed)
+        out = [obs, info["target_mm"]]
+        for _ in range(11):
+            obs, r, te, tr, info = env.step(env.action_space.sample())
+            out += [obs, r, info["target_mm"], info["tracking_error_mm"]]
+        return out
+
+    a, b, c = run(3), run(3), run(4)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert not all(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+@pytest.mark.parametrize("motion", ["random_walk", "swimmer"])
+def test_vector_env_equals_single_envs(mode: AutoresetMode, motion: str) -> None:
+    kwargs = {**SMALL, "max_observations": 6, "target_motion": motion, "target_speed_mm": 4.0, "condition": "random"}
+    assert_native_equals_sync(ID, kwargs, mode, TRACK_KEYS, n=3, steps=14, min_ended=3)
+
+
+def test_vector_env_type_and_info_shapes() -> None:
+    vec = gym.make_vec(ID, num_envs=3, vectorization_mode="vector_entry_point", **SMALL)
+    assert type(vec.unwrapped).__name__ == "TrackVectorEnv"
+    _, info = vec.reset(seed=0)
+    assert info["target_mm"].shape == (3, 2) and info["captured"].dtype == bool
+    assert np.array_equal(vec.unwrapped.target_mm, info["target_mm"])
+    vec.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"target_motion": "levy"}, r"target_motion must be one of \['random_walk', 'swimmer'\]"),
+        ({"target_motion": 3}, r"target_motion must be one of"),
+        ({"target_speed_mm": -0.1}, r"target_speed_mm must be a finite number ≥ 0 and ≤ 20"),
+        ({"target_speed_mm": 20.5}, r"target_speed_mm must be a finite number ≥ 0 and ≤ 20"),
+        ({"target_speed_mm": float("nan")}, r"target_speed_mm must be a finite number"),
+        ({"target_speed_mm": True}, r"target_speed_mm must be a finite number"),
+        ({"turn_std_rad": -1.0}, r"turn_std_rad must be a finite number ≥ 0 and ≤ 3.14159"),
+        ({"turn_std_rad": 4.0}, r"turn_std_rad must be a finite number ≥ 0 and ≤ 3.14159"),
+        ({"motion_model": "kalman"}, r"motion_model must be one of \['random_walk', 'static'\]"),
+        ({"motion_step_mm": 21.0}, r"motion_step_mm must be a finite number ≥ 0 and ≤ 20"),
+        ({"motion_step_mm": "big"}, r"motion_step_mm must be a finite number"),
+    ],
+)
+def test_every_bad_motion_option_is_one_clear_error(kwargs: dict[str, Any], match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        gym.make(ID, **SMALL, **kwargs)
+    with pytest.raises(ValueError, match=match):
+        gym.make_vec(ID, num_envs=2, vectorization_mode="vector_entry_point", **SMALL, **kwargs)
+
+
+def test_motion_options_belong_to_the_track_env_only() -> None:
+    with pytest.raises(ValueError, match=r"unexpected argument\(s\) \['target_speed_mm'\]"):
+        gym.make("ElectroLoc-v0", target_speed_mm=2.0)
+
+
+def test_torch_engine_refuses_the_track_env() -> None:
+    with pytest.raises(ValueError, match="backend"):
+        gym.make_vec(ID, num_envs=2, vectorization_mode="vector_entry_point", backend="torch", **SMALL)
+
+
+@pytest.mark.parametrize("motion", ["random_walk", "swimmer"])
+def test_target_and_particles_stay_in_the_box(motion: str) -> None:
+    sim = _sim(4, target_motion=motion, target_speed_mm=20.0, turn_std_rad=0.2, max_observations=200)
+    h = sim.state.half_mm[:, None]
+    for _ in range(150):
+        sim.step(np.zeros((4, 2)))
+        assert np.all(np.abs(sim.state.target_mm) <= h)
+        assert np.all(np.abs(sim.state.particles_mm) <= sim.state.half_mm[:, None, None].astype(np.float32))
+
+
+def test_reflect_folds_once_at_the_crossed_wall() -> None:
+    x, flipped = reflect(np.array([55.0, -53.0, 10.0, 50.0]), 50.0)
+    assert np.array_equal(x, [45.0, -47.0, 10.0, 50.0]) and flipped.tolist() == [True, True, False, False]
+
+
+def _steps_from_origin(sim: Simulation, n_steps: int) -> np.ndarray:
+    """The target's steps from the tank's centre (set there before every step, so no wall is reached)."""
+    out = []
+    for _ in range(n_steps):
+        sim.state.target_mm[:] = 0.0
+        sim.step(np.zeros((sim.num_envs, 2)))
+        out.append(sim.state.target_mm.copy())
+    return np.concatenate(out)
+
+
+def test_random_walk_step_std_is_speed_over_root_two() -> None:
+    speed = 3.0
+    sim = _sim(8, target_motion="random_walk", target_speed_mm=speed, max_observations=1000)
+    d = _steps_from_origin(sim, 500)  # 4000 steps of 2 axes
+    sigma = speed / math.sqrt(2)
+    assert abs(d.std(axis=0) - sigma).max() < 0.04 * sigma  # the sample std's std ≈ σ/√8000 ≈ 1.1 %
+    assert abs(d.mean(axis=0)).max() < 4 * sigma / math.sqrt(d.shape[0])
+    assert abs(np.sqrt(np.mean(np.sum(d * d, axis=1))) - speed) < 0.03 * speed  # RMS step = the speed
+
+
+def test_swimmer_speed_is_constant_and_its_turns_have_the_given_std() -> None:
+    speed, turn = 2.5, 0.4
+    sim = _sim(8, target_motion="swimmer", target_speed_mm=speed, turn_std_rad=turn, max_observations=1000)
+    steps = []
+    for _ in range(400):
+        sim.state.target_mm[:] = 0.0
+        sim.step(np.zeros((8, 2)))
+        steps.append(sim.state.target_mm.copy())
+    d = np.stack(steps)  # (T, N, 2)
+    np.testing.assert_allclose(np.hypot(d[..., 0], d[..., 1]), speed, rtol=1e-12)
+    heading = np.arctan2(d[..., 1], d[..., 0])
+    turns = np.angle(np.exp(1j * np.diff(heading, axis=0))).ravel()  # wrapped to (−π, π]
+    assert abs(turns.std() - turn) < 0.04 * turn
+    assert abs(turns.mean()) < 4 * turn / math.sqrt(turns.size)
+
+
+def test_filter_step_std_and_static_filter() -> None:
+    sim = _sim(2, motion_model="random_walk", motion_step_mm=4.0, n_particles=4000)
+    sim.state.particles_mm[:] = 0.0
+    sim.task.move(sim.state, np.arange(2), np.zeros((2, 2)))
+    p = sim.state.particles_mm.astype(float)
+    assert abs(p.std(axis=2) - 4.0 / math.sqrt(2)).max() < 0.04 * 4.0 / math.sqrt(2)
+    static = _sim(2, motion_model="static")
+    before = static.state.particles_mm.copy()
+    static.task.move(static.state, np.arange(2), np.zeros((2, 2)))
+    assert np.array_equal(before, static.state.particles_mm)
+
+
+def test_predicted_particles_are_the_motion_models_fixed_sample() -> None:
+    env = gym.make(ID, **SMALL, target_speed_mm=2.0)
+    env.reset(seed=1)
+    core = env.unwrapped
+    parts = core.belief.particles
+    moves = np.array([[0.0, 0.0], [5.0, -5.0]])
+    pred = core.predicted_particles_mm(parts, moves)
+    h = np.float32(core.allowed_box_mm[1][0])
+    want = reflect(parts + np.float32(2.0 * math.sqrt(0.5)) * prediction_steps(parts.shape[0]), h)[0]
+    assert pred.shape == (2, *parts.shape)
+    np.testing.assert_allclose(pred[1], want, rtol=1e-6, atol=1e-5)
+    np.testing.assert_array_equal(pred, core.predicted_particles_mm(parts, moves))  # no draw from the env
+    still = gym.make(ID, **SMALL, motion_model="static")
+    still.reset(seed=1)
+    p2 = still.unwrapped.belief.particles
+    np.testing.assert_array_equal(still.unwrapped.predicted_particles_mm(p2, moves)[0], p2)
+
+
+def test_tracking_metric_capture_reward_and_episode_end() -> None:
+    env = gym.make(ID, **{**SMALL, "max_observations": 10}, target_speed_mm=2.0)
+    env.action_space.seed(0)
+    _, info = env.reset(seed=11)
+    errors = {int(info["n_observations"]): float(info["error_mm"])}
+    terminated = truncated = False
+    while not (terminated or truncated):
+        _, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        errors[int(info["n_observations"])] = float(info["error_mm"])
+        d = np.asarray(info["estimate_mm"]) - info["target_mm"]
+        assert float(info["error_mm"]) == pytest.approx(math.hypot(*d))
+        assert reward == pytest.approx(-float(info["error_mm"]) / CAPTURE_DISTANCE_MM)
+        dist = math.hypot(*(np.asarray(info["position_mm"]) - info["target_mm"]))
+        assert float(info["carriage_distance_mm"]) == pytest.approx(dist)
+        assert bool(info["captured"]) == (dist <= CAPTURE_DISTANCE_MM)
+    assert not terminated and truncated and info["n_observations"] == 10  # never terminated: a fixed length
+    second = [errors[n] for n in range(6, 11)]  # readings 6..10 of 10: the second half
+    assert float(info["tracking_error_mm"]) == pytest.approx(float(np.mean(second)), rel=1e-12)
+
+
+def test_the_target_moves_and_the_static_filter_tracks_worse() -> None:
+    """The motion model matters: at 4 mm per reading the told filter follows the target better than the
+    paper's static one (the same seeds and a carriage that stays put over the target's start).
+    """
+
+    def mean_error(model: str) -> float:
+        errs = []
+        for seed in range(4):
+            env = gym.make(
+                ID,
+                n_particles=500,
+                sensor_model="analytic",
+                max_observations=30,
+                target_motion="random_walk",
+                target_speed_mm=4.0,
+                motion_model=model,
+                condition="fresh-steel-38.1",
+            )
+            env.reset(seed=seed)
+            for _ in range(29):
+                _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+            errs.append(float(info["tracking_error_mm"]))
+        return float(np.mean(errs))
+
+    assert mean_error("random_walk") < mean_error("static")
