@@ -231,3 +231,55 @@ def test_the_target_moves_and_the_static_filter_tracks_worse() -> None:
         return float(np.mean(errs))
 
     assert mean_error("random_walk") < mean_error("static")
+
+
+# ---- the controllers ------------------------------------------------------------------------------
+def test_pursuit_moves_toward_the_predicted_mean_through_the_agent_view() -> None:
+    from electroloc_gym.baselines.agent import make_agent
+
+    env = gym.make(ID, **SMALL)
+    env.reset(seed=2)
+    agent = make_agent("pursuit", seed=0)
+    agent.reset(env)
+    core = env.unwrapped
+    pred = core.predicted_particles_mm(core.belief.particles, np.zeros(2))
+    goal = pred.astype(float).mean(axis=0)
+    lo, hi = core.move_bounds_mm
+    want = np.clip(goal - core.position_mm, lo, hi)
+    action, _ = agent.predict(None)
+    np.testing.assert_allclose(action, want / 10.0, rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match="pursuit needs a belief over the target's position"):
+        g = gym.make("ElectroLocGlobal-v0", n_particles=50, sensor_model="analytic")
+        g.reset(seed=0)
+        agent.reset(g)
+        agent.predict(None)
+
+
+def test_min_var_votes_on_the_predicted_belief() -> None:
+    """min-var's vote reads ``predicted_particles_mm``: on the track env that is the motion model's prediction."""
+    from electroloc_gym.baselines.agent import make_agent
+
+    env = gym.make(ID, **SMALL, target_speed_mm=3.0)
+    env.reset(seed=4)
+    parts = env.unwrapped.belief.particles
+    assert not np.array_equal(env.unwrapped.predicted_particles_mm(parts, np.zeros((1, 2)))[0], parts)
+    for name in ("rnd-wlk", "min-var", "pursuit"):
+        agent = make_agent(name, seed=1)
+        agent.reset(env)
+        action, _ = agent.predict(None)
+        assert env.action_space.contains(action)
+
+
+def test_pursuit_keeps_closer_to_a_slow_target_than_the_random_walk() -> None:
+    from electroloc_gym.baselines.agent import make_agent
+    from electroloc_gym.baselines.rollout import run_episode
+
+    def distance(name: str) -> float:
+        env = gym.make(ID, n_particles=500, sensor_model="analytic", max_observations=40, condition="fresh-steel-38.1")
+        out = []
+        for seed in range(3):
+            ep = run_episode(env, make_agent(name, seed=seed), seed, agent_seed=seed)
+            out.append(float(ep.info["carriage_distance_mm"]))
+        return float(np.mean(out))
+
+    assert distance("pursuit") < distance("rnd-wlk")

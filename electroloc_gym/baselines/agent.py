@@ -49,10 +49,19 @@ def _registry() -> dict[str, type]:
     from electroloc_gym.baselines.infotaxis import InfotaxisAgent
     from electroloc_gym.baselines.lookahead import LookaheadAgent
     from electroloc_gym.baselines.min_variance import MinVarianceAgent
+    from electroloc_gym.baselines.pursuit import PursuitAgent
     from electroloc_gym.baselines.random_walk import RandomWalkAgent
     from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 
-    classes = (RandomWalkAgent, MinVarianceAgent, ZeroCrossingAgent, LookaheadAgent, InfotaxisAgent, EEDIAgent)
+    classes = (
+        RandomWalkAgent,
+        MinVarianceAgent,
+        ZeroCrossingAgent,
+        LookaheadAgent,
+        InfotaxisAgent,
+        EEDIAgent,
+        PursuitAgent,
+    )
     return {cls.name: cls for cls in classes}
 
 
@@ -61,7 +70,7 @@ PAPER_AGENTS: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
 #: The paper's controllers under their older name.
 AGENT_REGISTRY = PAPER_AGENTS
 #: Agents beyond the paper's controllers, built by :func:`make_agent` but not in default benchmark runs.
-EXTRA_AGENTS: tuple[str, ...] = ("lookahead", "infotaxis", "eedi")
+EXTRA_AGENTS: tuple[str, ...] = ("lookahead", "infotaxis", "eedi", "pursuit")
 #: Every built-in agent's name.
 AGENT_NAMES: tuple[str, ...] = PAPER_AGENTS + EXTRA_AGENTS
 

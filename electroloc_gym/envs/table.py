@@ -128,9 +128,9 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         bench=(
             BenchEnv(
                 "track",
-                agents=("rnd-wlk", "min-var"),
+                agents=("rnd-wlk", "min-var", "pursuit"),
                 summary="follow a swimming target (tracking error over the second half, capture rate; "
-                "default agents rnd-wlk,min-var)",
+                "default agents rnd-wlk,min-var,pursuit)",
             ),
         ),
         record_keys=TRACK_RECORD_KEYS,
