@@ -2,7 +2,9 @@
 
 * :mod:`.params` — :class:`~electroloc_gym.contract.params.EnvParams`, every env argument declared and validated once;
 * :mod:`.observation` — the observation layouts, the info keys and the rules both engines share (flags, reward,
-  the belief observation's scalars);
+  the raw observation);
+* :mod:`.motion` — how an action becomes the carriage's move and how the walls stop it;
+* :mod:`.belief_summary` — the belief observation's scalars (declared as data) and the info's error and spread;
 * :mod:`.capabilities` — for each engine, each env option: implemented, or refused with its reason.
 
 The engines (:mod:`electroloc_gym.engines`) read it; ``tests/test_engine_conformance.py`` checks that they keep it.

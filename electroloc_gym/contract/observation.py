@@ -20,6 +20,9 @@ index  feature                                        normalisation
                                                        G·σ_s (V), signal_scale/8 (clipped)
 =====  =============================================  ==========================================
 
+Entries 0–11 are declared as data, each entry's quantity, scale, factor and transform, in
+:data:`electroloc_gym.contract.belief_summary.BELIEF_SCALARS` (the numbers both engines read).
+
 The "raw" observation is ``[x/H, y/H, Φ/10 V]`` (with dynamic gain a fourth entry, the reading's gain
 level in [−1, 1]). Entries 0–1 are what the robot knows of its own position, the task's
 :meth:`~electroloc_gym.engines.numba_core.task.Task.reference_mm` (the carriage; the odometry in the mapped tank);
@@ -34,11 +37,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.contract.belief_summary import (
+    BELIEF_SCALAR_FACTORS,
+    CORRELATION_FLOOR_MM2,
+    LOG_SPREAD_FLOOR_MM,
+    N_SCALARS,
+)
 from electroloc_gym.kernels import belief_observation_rows
 from electroloc_gym.protocol import HIST_BINS
 from electroloc_gym.world.conditions import PRESET_NAMES, Condition
 
-N_SCALARS = 12
 N_DESCRIPTOR = 5
 BELIEF_OBS_DIM = N_SCALARS + HIST_BINS * HIST_BINS + N_DESCRIPTOR
 RAW_OBS_DIM = 3
@@ -47,7 +55,8 @@ OBSERVATION_MODES = ("belief", "raw")
 #: which an ended env resets (next-step autoreset: the action is ignored).
 STEP_REWARD = -1.0
 RESET_REWARD = 0.0
-#: The info keys of every step and reset, in order (a task adds its own after them, ``Task.info_keys``).
+#: The info keys of every step and reset, in order (a task adds its own after them, ``Task.info_keys``);
+#: ``error_mm``, ``spread_mm`` and ``success`` are :func:`~electroloc_gym.contract.belief_summary.belief_info_values`.
 INFO_KEYS = (
     "position_mm",
     "estimate_mm",
@@ -143,7 +152,8 @@ def belief_observation(
     descriptor: NDArray,
 ) -> NDArray[np.float32]:
     """The belief observations (k, BELIEF_OBS_DIM) of k envs from their beliefs' statistics (layout:
-    the module docstring), assembled per env by :func:`electroloc_gym.kernels.belief_observation_rows`.
+    the module docstring), assembled per env by :func:`electroloc_gym.kernels.belief_observation_rows`
+    with the scalar entries' numbers of :data:`~electroloc_gym.contract.belief_summary.BELIEF_SCALARS`.
 
     Args:
         carriage_mm: (k, 2) the reference point (the carriage; the map origin for self-localisation), mm.
@@ -178,6 +188,9 @@ def belief_observation(
         float(success_spread_mm),
         rows(hist),
         rows(descriptor, np.float32),
+        BELIEF_SCALAR_FACTORS,
+        LOG_SPREAD_FLOOR_MM,
+        CORRELATION_FLOOR_MM2,
         out,
     )
     return out

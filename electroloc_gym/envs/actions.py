@@ -1,13 +1,15 @@
 """The envs' action spaces and the parsing of actions into the core's commanded moves (mm) and gain levels.
 
-Continuous actions: ``Box(-1, 1, (2,))`` scaled to a move of at most :data:`MAX_STEP_MM` per axis
-(finite values outside [−1, 1] are clipped). Discrete: ``Discrete(9)``, stay or one of the 8 king moves
-(:data:`DISCRETE_MOVES_MM`). Dynamic gain (``gain_levels``) adds the gain in the two forms SB3 trains
-(it has no Dict or Tuple actions): a third Box coordinate cut into K equal bins (level
-⌊(g + 1)/2·K⌋), or ``MultiDiscrete([9, K])``.
+Continuous actions: ``Box(-1, 1, (2,))`` scaled to a move of at most
+:data:`~electroloc_gym.protocol.MAX_STEP_MM` per axis (finite values outside [−1, 1] are clipped).
+Discrete: ``Discrete(9)``, stay or one of the 8 king moves
+(:data:`~electroloc_gym.contract.params.DISCRETE_MOVES_MM`). Dynamic gain (``gain_levels``) adds the gain
+in the two forms SB3 trains (it has no Dict or Tuple actions): a third Box coordinate cut into K equal
+bins (level ⌊(g + 1)/2·K⌋), or ``MultiDiscrete([9, K])``.
 
 Every action is checked before it reaches the core; anything else is one ValueError naming the
-action and what is allowed (never a traceback from inside numpy).
+action and what is allowed (never a traceback from inside numpy). The checked action becomes its move
+by the rule both engines share (:func:`electroloc_gym.contract.motion.commanded_moves_mm`).
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from electroloc_gym.contract.params import DISCRETE_MOVES_MM, MAX_STEP_MM, EnvParams
+from electroloc_gym.contract.motion import commanded_moves_mm
+from electroloc_gym.contract.params import DISCRETE_MOVES_MM, EnvParams
 
 __all__ = ["ActionParser", "spaces_of"]
 
@@ -110,7 +113,7 @@ class ActionParser:
             ok = (a.size == 1 if single else a.shape == (n,)) and np.issubdtype(a.dtype, np.integer)
             if not (ok and np.all((a >= 0) & (a < len(DISCRETE_MOVES_MM)))):
                 raise ValueError(f"{what} in [0, {len(DISCRETE_MOVES_MM) - 1}], got {actions!r}")
-            return DISCRETE_MOVES_MM[a.reshape(n)]
+            return commanded_moves_mm(np, a.reshape(n), True)
         shape = (2,) if single else (n, 2)
         what = "action" if single else "actions"
         a = np.asarray(_as_real_array(actions, what, shape), dtype=np.float64)
@@ -118,4 +121,4 @@ class ActionParser:
             raise ValueError(f"{what} must have shape {shape} (dx, dy in [-1, 1]), got shape {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"{what} must be finite (dx, dy in [-1, 1]), got {actions!r}")
-        return np.minimum(np.maximum(a.reshape(n, 2), -1.0), 1.0) * MAX_STEP_MM
+        return commanded_moves_mm(np, a.reshape(n, 2), False)

@@ -22,6 +22,7 @@ import numpy as np
 import torch
 from numpy.typing import ArrayLike, NDArray
 
+from electroloc_gym.contract.motion import carriage_after_move_mm
 from electroloc_gym.engines.torch_core import belief_update as F
 from electroloc_gym.engines.torch_core import sim
 from electroloc_gym.protocol import MAX_STEP_MM
@@ -139,7 +140,7 @@ class TorchSubEnv:
         k = s["cond"][i : i + 1]
         moves = torch.as_tensor(u.reshape(-1, 2), dtype=torch.float64, device=c.device)
         h = c.half_mm[k]
-        carriage = torch.clamp(s["position_mm"][i : i + 1] + moves, min=-h, max=h).to(torch.float32)  # (C, 2)
+        carriage = carriage_after_move_mm(torch, s["position_mm"][i : i + 1], moves, h).to(torch.float32)  # (C, 2)
         pt = torch.tensor(p, dtype=torch.float32, device=c.device)
         x = pt[None, :, 0] - carriage[:, 0:1]  # (C, M)
         y = pt[None, :, 1] - carriage[:, 1:2]

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.contract.motion import carriage_after_move_mm
 from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.engines.numba_core.state import State
 from electroloc_gym.engines.numba_core.task import Task
@@ -39,8 +40,10 @@ __all__ = ["GlobalTask"]
 
 
 def _shift_in_box(points: NDArray, shift: NDArray, half: Any) -> NDArray:
-    """``min(max(points + shift, −half), half)``: the deterministic motion of position hypotheses."""
-    return np.minimum(np.maximum(points + shift, -half), half)
+    """``clip(points + shift, −half, half)``: the deterministic motion of position hypotheses, the carriage's
+    rule (:func:`~electroloc_gym.contract.motion.carriage_after_move_mm`).
+    """
+    return carriage_after_move_mm(np, points, shift, half)
 
 
 class GlobalTask(Task):

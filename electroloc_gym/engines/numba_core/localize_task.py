@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.contract.motion import carriage_after_move_mm
 from electroloc_gym.contract.observation import condition_descriptor
 from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.engines.numba_core.state import State
@@ -107,8 +108,7 @@ class LocalizeTask(Task):
 
     def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
         """Target hypothesis − the carriage after the move (kept in the box, as :meth:`move`)."""
-        h = state.half_mm[i]
-        carriage = np.minimum(np.maximum(state.position_mm[i] + moves_mm, -h), h).astype(particles.dtype)
+        carriage = carriage_after_move_mm(np, state.position_mm[i], moves_mm, state.half_mm[i]).astype(particles.dtype)
         return particles[..., :2] - carriage[..., None, :]
 
     def particles_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:

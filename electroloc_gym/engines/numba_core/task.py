@@ -38,6 +38,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.contract.belief_summary import belief_info_values
+from electroloc_gym.contract.motion import carriage_after_move_mm
 from electroloc_gym.contract.observation import (
     BELIEF_OBS_DIM,
     HIST_BINS,
@@ -149,9 +151,11 @@ class Task(ABC):
 
     # ---- one step ---------------------------------------------------------------------------------
     def move(self, state: State, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
-        """The carriage moves by the commanded moves (k, 2), kept inside the allowed box (truncated at the walls)."""
+        """The carriage moves by the commanded moves (k, 2), kept inside the allowed box (truncated at the walls;
+        the rule both engines share, :func:`~electroloc_gym.contract.motion.carriage_after_move_mm`).
+        """
         h = state.half_mm[ids][:, None]
-        state.position_mm[ids] = np.minimum(np.maximum(state.position_mm[ids] + moves_mm, -h), h)
+        state.position_mm[ids] = carriage_after_move_mm(np, state.position_mm[ids], moves_mm, h)
 
     @abstractmethod
     def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
@@ -325,20 +329,23 @@ class Task(ABC):
 
     def info(self, state: State, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray[Any]]:
         """The info arrays of envs ``ids`` (all if None): :data:`~electroloc_gym.contract.observation.INFO_KEYS`,
-        the task's :attr:`info_keys`, and ``gain`` with dynamic gain (the amplifier gain G of the last reading).
+        the task's :attr:`info_keys`, and ``gain`` with dynamic gain (the amplifier gain G of the last reading);
+        the belief's error, spread and success by the rule both engines share
+        (:func:`~electroloc_gym.contract.belief_summary.belief_info_values`).
         """
         s, sel = state, slice(None) if ids is None else ids
         est = s.mean_mm[sel]
-        spread = np.sqrt(np.maximum(s.cov_mm2[sel, 0, 0] + s.cov_mm2[sel, 1, 1], 0.0))
-        d = est - self.truth_mm(s, sel)
+        error, spread, success = belief_info_values(
+            np, est, s.cov_mm2[sel], self.truth_mm(s, sel), self.params.success_spread_mm
+        )
         values = (
             s.position_mm[sel].copy(),
             est.copy(),
-            np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]),
+            error,
             spread,
             s.reading_V[sel].copy(),
             s.n_observations[sel].copy(),
-            spread <= self.params.success_spread_mm,
+            success,
             s.names[sel].copy(),
         )
         out: dict[str, NDArray[Any]] = dict(zip(INFO_KEYS, values, strict=True))

@@ -1,6 +1,7 @@
 """The belief update of N envs as tensor operations (paper §4.1, Algorithm 1).
 
-Likelihoods, systematic resampling, jitter, clip, statistics, histogram and the observation.
+Likelihoods, systematic resampling, jitter, clip, statistics, histogram and the observation (its scalar
+entries: the shared declaration, :mod:`electroloc_gym.contract.belief_summary`).
 
 Each function is the numba kernel's arithmetic (:mod:`electroloc_gym.kernels`) batched over envs:
 float32 for the particles, the likelihoods and the weights (as the numba core), float64 for the
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import torch
 
+from electroloc_gym.contract.belief_summary import belief_scalars
 from electroloc_gym.engines.torch_core.rng import lookup
 from electroloc_gym.protocol import HIST_BINS
 
@@ -353,29 +355,10 @@ def belief_observation(
     success_mm: float,
     descriptor: torch.Tensor,
 ) -> torch.Tensor:
-    """(N, 81) float32 belief observations (layout: :mod:`electroloc_gym.contract.observation`), float64
-    arithmetic then a float32 cast, as ``kernels.observation.belief_observation_rows``.
+    """(N, 81) float32 belief observations (layout: :mod:`electroloc_gym.contract.observation`): the scalar
+    entries :func:`~electroloc_gym.contract.belief_summary.belief_scalars` in float64, then a float32 cast.
     """
-    h = half
-    c00, c11, c01 = cov[:, 0, 0], cov[:, 1, 1], cov[:, 0, 1]
-    sx = torch.sqrt(torch.clamp(c00, min=0.0))
-    sy = torch.sqrt(torch.clamp(c11, min=0.0))
-    sxy = sx * sy
-    rho = torch.where(sxy > 1e-12, c01 / torch.clamp(sxy, min=1e-12), torch.zeros_like(sxy))
-    spread = torch.sqrt(torch.clamp(c00 + c11, min=0.0))
-    cols = [
-        carriage[:, 0] / h,
-        carriage[:, 1] / h,
-        reading / saturation,
-        torch.tanh(reading / (3.0 * noise)),
-        (mean[:, 0] - carriage[:, 0]) / (2.0 * h),
-        (mean[:, 1] - carriage[:, 1]) / (2.0 * h),
-        sx / h,
-        sy / h,
-        rho,
-        spread / h,
-        torch.log10(torch.clamp(spread, min=1e-6) / success_mm),
-        n_obs.to(torch.float64) / max_obs,
-    ]
-    scalars = torch.clamp(torch.stack(cols, dim=1), -1.0, 1.0).to(torch.float32)
-    return torch.cat([scalars, hist.to(torch.float32), descriptor], dim=1)
+    scalars = belief_scalars(
+        torch, carriage, reading, mean, cov, n_obs.to(torch.float64), max_obs, half, noise, saturation, success_mm
+    )
+    return torch.cat([scalars.to(torch.float32), hist.to(torch.float32), descriptor], dim=1)

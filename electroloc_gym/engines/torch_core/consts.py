@@ -22,7 +22,6 @@ from electroloc_gym.contract.params import DISCRETE_MOVES_MM, EnvParams, memory_
 from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
 from electroloc_gym.engines.numba_core.worlds import fixed_coefficients, grid_points_bound
 from electroloc_gym.kernels.streams import normal_table
-from electroloc_gym.protocol import MAX_STEP_MM
 from electroloc_gym.registry import ENVS, EnvEntry
 from electroloc_gym.sensor_models.calibrated import (
     CalibrationProtocol,
@@ -104,7 +103,6 @@ class TorchConsts:
     max_observations: int
     max_episode_steps: int | None
     success_spread_mm: float
-    max_step_mm: float
     grid_n: int
     half_mm: torch.Tensor
     start_half_mm: torch.Tensor
@@ -172,7 +170,6 @@ class TorchConsts:
             max_observations=params.max_observations,
             max_episode_steps=params.max_episode_steps,
             success_spread_mm=float(params.success_spread_mm),
-            max_step_mm=float(MAX_STEP_MM),
             grid_n=n,
             half_mm=f64([c.allowed_half_width_mm for c in pool]),
             start_half_mm=f64([c.start_half_width_mm for c in pool]),

@@ -10,8 +10,12 @@ the vector env uses on the CPU only (where it compiles :func:`advance`, the step
 One step, as :mod:`electroloc_gym.engines.numba_core.step` with ``autoreset="next_step"``: the envs whose episode
 ended at the last step start a new one (their draws: condition, calibration, target, start, particles;
 reward 0, flags false, the action ignored); the others move by their commanded move, truncated at the
-walls; every env takes one reading and fuses it (:mod:`.filter`); reward −1, terminated when
-√trace Σ ≤ the success spread, truncated at the reading cap (or ``max_episode_steps``).
+walls; every env takes one reading and fuses it (:mod:`.belief_update`); reward −1, terminated when
+√trace Σ ≤ the success spread, truncated at the reading cap (or ``max_episode_steps``). The rules that
+are not inner loops are the contract's, shared with the numba engine: the move and the walls
+(:mod:`electroloc_gym.contract.motion`), the rewards, the flags and the raw observation
+(:mod:`electroloc_gym.contract.observation`), the belief observation's scalars and the info's error and
+spread (:mod:`electroloc_gym.contract.belief_summary`).
 
 Every draw is the env's counter-based stream (:mod:`.rng`) at (key, episode, reading index): the
 reading's noise and the resampling offset, the jitter (2M table normals), and at a reset the
@@ -32,7 +36,7 @@ reset's draws can be computed for any subset of the envs with the same values; t
 The state's memory (:func:`state_bytes_per_env`): per env, the particles (2M float32), the histogram
 counts and the scalars, and with a per-episode calibration its two float64 grids (mean and std,
 :func:`.calibration.calibration_grids`, 2·n² values), from which a lookup forms each cell's
-coefficients (:func:`.filter.grid_mean_std`). What is per condition — a fixed ``calibration_seed``'s
+coefficients (:func:`.belief_update.grid_mean_std`). What is per condition — a fixed ``calibration_seed``'s
 table, the noise-free grid, the boxes — is kept once (:class:`~.consts.TorchConsts`), not per env.
 """
 
@@ -43,6 +47,8 @@ from typing import TypedDict
 
 import torch
 
+from electroloc_gym.contract.belief_summary import belief_info_values, belief_spread_mm
+from electroloc_gym.contract.motion import carriage_after_move_mm, commanded_moves_mm
 from electroloc_gym.contract.observation import RESET_REWARD, STEP_REWARD, episode_flags, raw_observation_values
 from electroloc_gym.engines.torch_core import belief_update as F
 from electroloc_gym.engines.torch_core.calibration import calibration_grids
@@ -349,12 +355,6 @@ def observe(c: TorchConsts, s: State, mask: torch.Tensor | None = None) -> State
     return s
 
 
-def spread_mm(s: State) -> torch.Tensor:
-    """(N,) √trace Σ of each belief, mm."""
-    cov = s["cov_mm2"]
-    return torch.sqrt(torch.clamp(cov[:, 0, 0] + cov[:, 1, 1], min=0.0))
-
-
 def observation(c: TorchConsts, s: State) -> torch.Tensor:
     """(N, obs_dim) float32 observations (the "belief" or "raw" layout)."""
     k = s["cond"]
@@ -382,25 +382,25 @@ def info(c: TorchConsts, s: State) -> dict[str, torch.Tensor]:
     """The info tensors (the numba core's numeric ``INFO_KEYS``; ``condition_index``: the condition's index
     in :data:`~electroloc_gym.world.conditions.PRESET_NAMES`, −1 for a custom condition, as the numba envs').
     """
-    spread = spread_mm(s)
-    d = s["mean_mm"] - s["target_mm"]
+    error, spread, success = belief_info_values(torch, s["mean_mm"], s["cov_mm2"], s["target_mm"], c.success_spread_mm)
     return {
         "position_mm": s["position_mm"],
         "estimate_mm": s["mean_mm"],
-        "error_mm": torch.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]),
+        "error_mm": error,
         "spread_mm": spread,
         "reading_V": s["reading_V"],
         "n_observations": s["n_observations"],
-        "success": spread <= c.success_spread_mm,
+        "success": success,
         "condition_index": c.preset_index[s["cond"]],
     }
 
 
 def moves_of(c: TorchConsts, actions: torch.Tensor) -> torch.Tensor:
-    """(N, 2) float64 commanded moves (mm) of the actions: continuous clip(a, ±1)·10 mm, or a discrete index."""
-    if c.discrete:
-        return c.moves_mm[actions.to(torch.int64).reshape(-1)]
-    return torch.clamp(actions.to(torch.float64), -1.0, 1.0) * c.max_step_mm
+    """(N, 2) float64 commanded moves (mm) of the actions, by the rule both engines share
+    (:func:`~electroloc_gym.contract.motion.commanded_moves_mm`).
+    """
+    a = actions.to(torch.int64).reshape(-1) if c.discrete else actions.to(torch.float64)
+    return commanded_moves_mm(torch, a, c.discrete, c.moves_mm)
 
 
 def step(
@@ -423,13 +423,13 @@ def advance(
     """
     s = dict(s)
     moving = ~reset
-    h = c.half_mm[s["cond"]][:, None]
-    moved = torch.clamp(s["position_mm"] + moves_of(c, actions), min=-h, max=h)
+    moved = carriage_after_move_mm(torch, s["position_mm"], moves_of(c, actions), c.half_mm[s["cond"]][:, None])
     s["position_mm"] = _keep(moving, moved, s["position_mm"])
     s = observe(c, s)
     s["elapsed"] = s["elapsed"] + moving.to(torch.int64)
+    spread = belief_spread_mm(torch, s["cov_mm2"])
     terminated, truncated = episode_flags(
-        spread_mm(s), s["n_observations"], s["elapsed"], c.success_spread_mm, c.max_observations, c.max_episode_steps
+        spread, s["n_observations"], s["elapsed"], c.success_spread_mm, c.max_observations, c.max_episode_steps
     )
     terminated, truncated = terminated & moving, truncated & moving
     s["done"] = terminated | truncated
