@@ -12,7 +12,7 @@ tables, :class:`~.consts.TorchConsts`).
 
 What an env keeps of its episode's calibration is the two float64 grids, mean and std (n² points each,
 :func:`calibration_grids`): the coefficients are differences of neighbouring points, computed where a
-particle looks them up (:func:`~.filter.grid_mean_std`) with the same float64 operations and the same
+particle looks them up (:func:`~.belief_update.grid_mean_std`) with the same float64 operations and the same
 float32 rounding as :func:`tables_from_draws`' table — the same bits in half the bytes of the
 coefficient table (16·n² against 32·((n − 1)² + 1)), and the "outside" row is the condition's G·σ_s.
 
