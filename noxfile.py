@@ -1,24 +1,26 @@
 """The project's checks as nox sessions; `nox` runs them all (the README's test command, and .ci/run).
 
-* ``tests``  — the suite on the main job's install: ``-e .[dev,zoo,minari]``, the newest releases the resolver
-  picks (no RLlib pin), without the Ray/RLlib tests and the release build (``wheel`` runs those).
+* ``tests``  — the suite on the main job's install: ``-e .[dev,zoo,minari,docs]``, the newest releases the
+  resolver picks (no RLlib pin), without the Ray/RLlib tests and the release build (``wheel`` runs those);
+  then, in the same venv, the docs site built with ``mkdocs build --strict`` (a broken link, anchor or API
+  reference fails it).
 * ``lowest`` — the suite on every declared minimum (``constraints-lowest.txt``); the tests of extras that
   cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker, and
   so are the ``long`` tests (minutes of episodes, version-independent: the tests session runs them).
-* ``rllib``  — exactly the Ray/RLlib tests (marker ``rllib``), with RLlib's gymnasium pin.
+* ``rllib``  — every extra at once, with RLlib's gymnasium pin: exactly the Ray/RLlib tests (marker
+  ``rllib``), then pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml: basic
+  checks on every module, strict on the public API), every import resolved; it fails on any error.
 * ``wheel``  — sdist and wheel built once (``python -m build``, by tests/test_wheel.py, marker ``wheel``, which
   checks what they hold) and checked (``twine check``); the wheel installed alone into an empty venv
   outside the checkout, then every registered id made, a shipped policy benchmarked, and the CLI's help
   printed.
-* ``docs``   — the docs site built with ``mkdocs build --strict``.
-* ``types``  — pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml: basic checks on
-  every module, strict on the public API), with every extra the package's modules import installed so
-  that no import is unresolved; it fails on any error.
 
-Installs are shared: each session's venv is reused (``.nox/``) and pip's download cache serves every
-session; ``constraints.txt`` pins the CPU-only torch wheel. Sessions pin numeric libraries to one thread
-per process and run pytest on every core (pytest-xdist, one worker per core, a test module per worker).
-Arguments after ``--`` go to pytest (``nox -s tests -- tests/test_env.py``).
+Installs are shared: each session's venv is reused (``.nox/``), pip's download cache serves every session,
+and pip does not byte-compile what it installs (``--no-compile``: Python compiles the modules a test
+imports, not the whole of torch and Ray); ``constraints.txt`` pins the CPU-only torch wheel. Before the
+suite, one process compiles the numba kernels into the cache every worker then loads. Sessions pin numeric
+libraries to one thread per process and run pytest on every core (pytest-xdist, one worker per core, a
+test module per worker). Arguments after ``--`` go to pytest (``nox -s tests -- tests/test_env.py``).
 """
 
 from __future__ import annotations
@@ -32,9 +34,11 @@ import nox
 ROOT = Path(__file__).resolve().parent
 nox.options.reuse_venv = "yes"
 nox.options.default_venv_backend = "venv"
-nox.options.sessions = ["tests", "lowest", "rllib", "wheel", "docs", "types"]
+nox.options.sessions = ["tests", "lowest", "rllib", "wheel"]
 
 CONSTRAINTS = ("-c", str(ROOT / "constraints.txt"))
+#: pip: no byte-compiling of every installed module (the tests compile what they import).
+NO_COMPILE = "--no-compile"
 ONE_THREAD = {
     var: "1"
     for var in (
@@ -62,33 +66,56 @@ def _imports(modules: tuple[str, ...]) -> str:
     return f"import {', '.join(modules)}; print('imports ok: {' '.join(modules)}')"
 
 
+#: Compiles the numba kernels of every registered env once, before the workers start (they load the cache).
+_WARM_KERNELS = """
+import gymnasium as gym
+import electroloc_gym
+from electroloc_gym.registry import ENV_IDS
+
+for env_id in ENV_IDS:
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+print(f"numba kernels compiled for {len(ENV_IDS)} ids")
+"""
+
+
 def _pytest(session: nox.Session, markexpr: str, *, parallel: bool = True) -> None:
     workers = PARALLEL if parallel else ()
+    if parallel:
+        session.run("python", "-c", _WARM_KERNELS, env=ONE_THREAD)
     session.run("python", "-m", "pytest", "-m", markexpr, *workers, *session.posargs, env=ONE_THREAD)
 
 
 @nox.session
 def tests(session: nox.Session) -> None:
-    """The default suite on the newest releases: the install of the README's main job plus dev and zoo."""
-    session.install(*CONSTRAINTS, "-e", ".[dev,zoo,minari]")
+    """The default suite on the newest releases (the install of the README's main job plus dev, zoo and minari),
+    then the docs site with every warning an error.
+    """
+    session.install(NO_COMPILE, *CONSTRAINTS, "-e", ".[dev,zoo,minari,docs]")
     session.run("python", "-c", _imports(ZOO_IMPORTS))  # a test of an extra never skips for a missing import
     _pytest(session, NOT_RLLIB)
+    session.run("mkdocs", "build", "--strict", "--site-dir", str(Path(session.create_tmp()) / "site"))
 
 
 @nox.session
 def lowest(session: nox.Session) -> None:
     """The default suite on each declared minimum (constraints-lowest.txt), the zoo and minari tests deselected."""
-    session.install("-c", str(ROOT / "constraints-lowest.txt"), "-e", ".[dev,train]")
+    session.install(NO_COMPILE, "-c", str(ROOT / "constraints-lowest.txt"), "-e", ".[dev,train]")
     session.run("python", "-m", "pip", "list", "--format=freeze", silent=False)
     _pytest(session, NOT_LOWEST)
 
 
 @nox.session
 def rllib(session: nox.Session) -> None:
-    """The Ray/RLlib tests (marker ``rllib``) on the rllib extra, which pins gymnasium to RLlib's version."""
-    session.install(*CONSTRAINTS, "-e", ".[dev,rllib]")
+    """Every extra at once (the rllib extra pins gymnasium to RLlib's version): the Ray/RLlib tests (marker
+    ``rllib``), then pyright over the package, every import it makes resolved (SB3, torch, rl-zoo3, Ray/RLlib,
+    Minari), so every import's types are checked.
+    """
+    session.install(NO_COMPILE, *CONSTRAINTS, "-e", ".[dev,zoo,rllib,minari,types]")
     session.run("python", "-c", _imports(RLLIB_IMPORTS))
     _pytest(session, "rllib and not slow", parallel=False)  # Ray starts its own worker processes
+    session.run("pyright")
 
 
 _WHEEL_SMOKE = """
@@ -112,7 +139,7 @@ def wheel(session: nox.Session) -> None:
     """Build sdist and wheel once (tests/test_wheel.py, marker ``wheel``: their contents checked), check them
     with twine, install the wheel alone into an empty venv and run it from there.
     """
-    session.install("build", "twine", "pytest", "hypothesis")  # the root conftest.py imports hypothesis
+    session.install(NO_COMPILE, "build", "twine", "pytest", "hypothesis")  # the root conftest.py imports hypothesis
     tmp = Path(session.create_tmp()).resolve()
     dist, venv, work = tmp / "dist", tmp / "wheel-venv", tmp / "work"
     for folder in (dist, venv, work):
@@ -129,7 +156,7 @@ def wheel(session: nox.Session) -> None:
     py = str(venv / "bin" / "python")
     electroloc = str(venv / "bin" / "electroloc")
     # the core dependencies only: a shipped policy runs without torch or SB3 (electroloc_gym.policy)
-    session.run(py, "-m", "pip", "install", "-q", *CONSTRAINTS, str(whl), external=True)
+    session.run(py, "-m", "pip", "install", "-q", NO_COMPILE, *CONSTRAINTS, str(whl), external=True)
     session.chdir(work)  # nothing of the checkout on sys.path
     session.run(py, "-c", _WHEEL_SMOKE, external=True, env=ONE_THREAD)
     session.run(electroloc, "--help", external=True, silent=True)
@@ -148,19 +175,3 @@ def wheel(session: nox.Session) -> None:
         external=True,
         env=ONE_THREAD,
     )
-
-
-@nox.session
-def docs(session: nox.Session) -> None:
-    """The docs site with every warning an error (a broken link, anchor or API reference fails it)."""
-    session.install(*CONSTRAINTS, "-e", ".[docs]")
-    session.run("mkdocs", "build", "--strict", "--site-dir", str(Path(session.create_tmp()) / "site"))
-
-
-@nox.session
-def types(session: nox.Session) -> None:
-    """Type-check the package with pyright; every extra the modules import is installed (SB3, torch, rl-zoo3,
-    Ray/RLlib, Minari), so every import resolves and its types are checked.
-    """
-    session.install(*CONSTRAINTS, "-e", ".[dev,zoo,rllib,minari,types]")
-    session.run("pyright", *session.posargs)

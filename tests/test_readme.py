@@ -33,9 +33,9 @@ def test_ci_runs_the_readme_test_command() -> None:
 def test_nox_runs_every_default_session() -> None:
     noxfile = (ROOT / "noxfile.py").read_text(encoding="utf-8")
     sessions = re.findall(r"@nox\.session\ndef (\w+)", noxfile)
-    assert set(sessions) == {"tests", "lowest", "rllib", "wheel", "docs", "types"}
+    assert set(sessions) == {"tests", "lowest", "rllib", "wheel"}
     listed = re.search(r"nox\.options\.sessions = \[([^\]]*)\]", noxfile).group(1)
-    assert sorted(re.findall(r'"(\w+)"', listed)) == sorted(sessions)  # the type check among them
+    assert sorted(re.findall(r'"(\w+)"', listed)) == sorted(sessions)  # the docs build (tests) and the type check (rllib) among them
 
 
 def test_constraints_pin_cpu_torch() -> None:
