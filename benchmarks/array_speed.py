@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
 
 LAYOUTS = ("single", "grid-2x2", "line-4", "ring-8")
@@ -29,7 +30,7 @@ LAYOUTS = ("single", "grid-2x2", "line-4", "ring-8")
 def seconds_per_step(layout: str, sensor_model: str, steps: int, repeats: int, n_particles: int) -> float:
     """Best-of-``repeats`` wall seconds per env step."""
     env = gym.make(
-        "ElectroLoc-v0",
+        PAPER_ENV_ID,
         sensor_layout=layout,
         sensor_model=sensor_model,
         n_particles=n_particles,
@@ -62,7 +63,7 @@ def main() -> None:
         base = None
         for lay in LAYOUTS:
             t = seconds_per_step(lay, model, args.steps, args.repeats, args.n_particles)
-            k = gym.make("ElectroLoc-v0", sensor_layout=lay, n_particles=10).unwrapped.sensor_layout.n_pairs
+            k = gym.make(PAPER_ENV_ID, sensor_layout=lay, n_particles=10).unwrapped.sensor_layout.n_pairs
             base = t if lay == "single" else base
             extra = (t - base) / (k - 1) * 1e3 if k > 1 else None
             rows.append(

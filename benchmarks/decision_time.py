@@ -29,6 +29,7 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.agentspec import split_specs  # noqa: E402
 from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
@@ -41,7 +42,7 @@ def collect_envs(n_states: int, seed: int = 101) -> list[tuple[str, object]]:
     envs = []
     for k in range(n_states):
         cond = PRESET_NAMES[k % len(PRESET_NAMES)]
-        env = gym.make("ElectroLoc-v0", condition=cond)
+        env = gym.make(PAPER_ENV_ID, condition=cond)
         obs, _ = env.reset(seed=seed + k)
         agent = make_agent("min-var", seed=seed + k)
         agent.reset(env)

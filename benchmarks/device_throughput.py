@@ -48,6 +48,7 @@ import torch  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
 from electroloc_gym.cli import HelpFormatter  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.fileio import atomic_write_text, check_output_path  # noqa: E402
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads  # noqa: E402
 
@@ -81,7 +82,7 @@ def make_env(
     """The torch backend's vector env of N envs on ``device`` (``backend``: ``torch.compile``'s)."""
     extra = {"compile_backend": backend} if compile_step else {}
     return gym.make_vec(
-        "ElectroLoc-v0",
+        PAPER_ENV_ID,
         num_envs=n,
         vectorization_mode="vector_entry_point",
         backend="torch",
@@ -160,7 +161,7 @@ def torch_rate(
 
 def numba_rate(n: int, seconds: float, kwargs: dict[str, Any]) -> dict[str, Any]:
     """Env-steps per CPU-second of the numba native vector env at N = ``n``."""
-    env = gym.make_vec("ElectroLoc-v0", num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    env = gym.make_vec(PAPER_ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     env.step(rng.uniform(-1, 1, (n, 2)).astype(np.float32))

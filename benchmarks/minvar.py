@@ -43,6 +43,7 @@ from electroloc_gym.baselines.min_variance import (  # noqa: E402
 )
 from electroloc_gym.baselines.min_variance_reference import literal_predicted_variances  # noqa: E402
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 
 
 def best_of(fn, repeats: int = 5) -> float:
@@ -64,7 +65,7 @@ def collect_states(n_states: int, n_particles: int, seed: int = 0) -> list[dict]
     k = 0
     while len(states) < n_states:
         cond = PRESET_NAMES[k % len(PRESET_NAMES)]
-        env = gym.make("ElectroLoc-v0", condition=cond, n_particles=n_particles)
+        env = gym.make(PAPER_ENV_ID, condition=cond, n_particles=n_particles)
         obs, _ = env.reset(seed=1000 + k)
         agent = make_agent("min-var", seed=k)
         agent.reset(env)

@@ -30,6 +30,7 @@ import gymnasium as gym
 import numpy as np
 
 import electroloc_gym.train.rllib as erl
+from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.utils.fileio import write_json_atomic
 from electroloc_gym.utils.markdown import markdown_table
 from electroloc_gym.utils.runtime import pin_threads
@@ -38,6 +39,7 @@ STARTUP_CODE = """
 import time
 t0 = time.perf_counter()
 from electroloc_gym.train.rllib import make_env
+from electroloc_gym.registry import PAPER_ENV_ID
 env = make_env({"num_envs": %d})
 env.reset(seed=0)
 env.step(env.action_space.sample())
@@ -46,7 +48,7 @@ print(time.perf_counter() - t0)
 
 
 def native_steps_per_s(num_envs: int, seconds: float) -> float:
-    env = gym.make_vec("ElectroLoc-v0", num_envs=num_envs, vectorization_mode="vector_entry_point")
+    env = gym.make_vec(PAPER_ENV_ID, num_envs=num_envs, vectorization_mode="vector_entry_point")
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     env.step(rng.uniform(-1, 1, (num_envs, 2)).astype(np.float32))

@@ -23,6 +23,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.train.run import zoo_argv
 from electroloc_gym.utils.fileio import atomic_write_text
 from electroloc_gym.utils.runtime import thread_env
@@ -33,7 +34,7 @@ CALLBACK = "callback:[{'electroloc_gym.train.callbacks.BenchEvalCallback':{'eval
 
 def one_run(native: bool, timesteps: int, log_folder: Path, n_envs: int = 16) -> dict[str, Any]:
     """Run rl-zoo3 once in a fresh log folder; its summary.json's timing."""
-    argv = zoo_argv("ppo", "ElectroLoc-v0", 0, timesteps=timesteps, log_folder=log_folder, native=native)
+    argv = zoo_argv("ppo", PAPER_ENV_ID, 0, timesteps=timesteps, log_folder=log_folder, native=native)
     env = {**os.environ, **thread_env()}
     subprocess.run(
         [sys.executable, *argv, "--hyperparams", CALLBACK, f"n_envs:{n_envs}"],

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.baselines.rollout import run_episode
+from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.utils.fileio import atomic_write_bytes, check_output_path, save_figure_atomic
 from electroloc_gym.views.render import Snapshot, draw_snapshot, eev_colorbar, legend_handles, snapshot
 
@@ -322,7 +323,7 @@ def demo(
     if out is not None and gif is not None and Path(out).resolve() == Path(gif).resolve():
         raise ValueError(f"out and gif name the same file {str(out)!r}; one would overwrite the other")
     env = gym.make(
-        "ElectroLoc-v0",
+        PAPER_ENV_ID,
         condition=condition,
         sensor_model=sensor_model,
         render_mode="rgb_array" if gif is not None else None,

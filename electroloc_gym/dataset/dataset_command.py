@@ -29,9 +29,9 @@ DESCRIPTION = (
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``electroloc dataset``."""
     from electroloc_gym.bench.bench_command import ascii_int
-    from electroloc_gym.registry import ENV_IDS
+    from electroloc_gym.registry import ENV_IDS, PAPER_ENV_ID
 
-    parser.add_argument("--env", default="ElectroLoc-v0", choices=list(ENV_IDS), help="the registered env id")
+    parser.add_argument("--env", default=PAPER_ENV_ID, choices=list(ENV_IDS), help="the registered env id")
     parser.add_argument("--agent", required=True, help="an agent spec as electroloc bench --agents takes one")
     parser.add_argument("--episodes", type=ascii_int, required=True, help="episodes to collect (≥ 1)")
     parser.add_argument(

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.world.conditions import PRESET_NAMES
 
 __all__ = [
@@ -108,7 +109,7 @@ def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str
             f"reference must be a benchmark folder or trials.jsonl with rnd-wlk and a planner on "
             f"{env_id}; {str(path)!r} does not exist"
         )
-    rows = [r for r in read_trials(path) if r.get("env_id", "ElectroLoc-v0") == env_id]  # the bench's own schema
+    rows = [r for r in read_trials(path) if r.get("env_id", PAPER_ENV_ID) == env_id]  # records before env_id: its env
     agents = {r["agent"] for r in rows}
     planners = [p for p in PLANNERS if p in agents]
     if RND_AGENT not in agents or not planners:
