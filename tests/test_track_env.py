@@ -283,3 +283,61 @@ def test_pursuit_keeps_closer_to_a_slow_target_than_the_random_walk() -> None:
         return float(np.mean(out))
 
     assert distance("pursuit") < distance("rnd-wlk")
+
+
+# ---- the benchmark row ----------------------------------------------------------------------------
+def _bench_args(argv: list[str]) -> Any:
+    import argparse
+
+    from electroloc_gym.bench import bench_command
+
+    parser = argparse.ArgumentParser()
+    bench_command.add_arguments(parser)
+    return parser.parse_args(argv)
+
+
+def test_bench_track_row_table_and_resume(tmp_path, capsys) -> None:
+    import json
+
+    from electroloc_gym.bench import bench_command
+
+    out = tmp_path / "run"
+    argv = ["--env", "track", "--trials", "3", "--conditions", "fresh-steel-12.7,salt-steel-38.1"]
+    argv += ["--backend", "serial", "--workers", "1", "--out", str(out), "--no-progress"]
+    argv += ["--sensor-model", "analytic", "--n-particles", "300", "--max-observations", "8"]
+    assert bench_command.run(_bench_args(argv)) == 0, capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["config"]["env_id"] == ID
+    records = [json.loads(line) for line in (out / "trials.jsonl").read_text().splitlines()]
+    assert len(records) == 18 and {r["agent"] for r in records} == {"rnd-wlk", "min-var", "pursuit"}
+    assert all(r["readings"] == 8 and r["ended_by"] == "cap" and not r["success"] for r in records)
+    for row in summary["rows"]:
+        recs = [
+            r["shape"] for r in records if r["agent"] == row["agent"] and row["condition"] in ("all", r["condition"])
+        ]
+        errs = [s["tracking_error_mm"] for s in recs]
+        assert row["tracking_trials"] == len(recs)
+        assert row["tracking_error_median_mm"] == pytest.approx(float(np.median(errs)))
+        assert row["tracking_error_q25_mm"] <= row["tracking_error_median_mm"] <= row["tracking_error_q75_mm"]
+        assert row["captures"] == sum(s["captured"] for s in recs)
+        assert row["capture_rate_lo"] <= row["capture_rate"] <= row["capture_rate_hi"]
+    table = (out / "table.md").read_text()
+    assert "Tracking error median (mm)" in table and "Capture rate 95 % CI" in table and "pursuit" in table
+    capsys.readouterr()
+    assert bench_command.run(_bench_args([*argv, "--resume"])) == 0
+    printed = capsys.readouterr()
+    assert "18 already done, 0 to run" in printed.out + printed.err  # resumed: nothing ran again
+    again = [json.loads(line) for line in (out / "trials.jsonl").read_text().splitlines()]
+    key = lambda r: (r["condition"], r["agent"], r["trial"])  # noqa: E731
+    assert sorted(map(key, again)) == sorted(map(key, records))
+
+
+def test_a_bad_tracking_record_is_refused() -> None:
+    from electroloc_gym.bench.schema import TrialRecord
+
+    good = {"tracking_error_mm": 3.0, "carriage_distance_mm": 12.0, "captured": False}
+    check = TrialRecord.__dataclass_fields__["shape"].metadata["check"]
+    assert check(good) and check(None)
+    assert not check({**good, "captured": "no"})
+    assert not check({**good, "tracking_error_mm": -1.0})
+    assert not check({**good, "radius_estimate_mm": 3.0})

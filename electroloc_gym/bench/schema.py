@@ -21,8 +21,11 @@ Consistency, for every record:
   no error.
 * ``far_success`` ⇔ a success whose estimate is more than :data:`FAR_ERROR_MM` from the target
   (:func:`is_far_success`; a tight belief on the wrong object, e.g. a distractor).
-* ``shape`` (the unknown-target env's identification): exactly :data:`SHAPE_RECORD_KEYS`, on that
-  env only.
+* A moving-target trial (its ``shape`` holds the tracking results) has no success criterion: it ends by
+  the cap, ``success`` false, whatever its spread.
+* ``shape`` (the task's own results): the unknown-target env's identification, exactly
+  :data:`SHAPE_RECORD_KEYS`, or the moving target's tracking, exactly :data:`TRACK_RECORD_KEYS`; on
+  those envs only.
 * ``start`` is the start the trial's seed draws (checked on resume, :attr:`RecordRules.start_of`).
 
 Keys added to the schema later (:data:`OPTIONAL_RECORD_KEYS`) may be absent from an older record; they
@@ -39,6 +42,7 @@ from dataclasses import asdict, dataclass, field, fields
 from types import MappingProxyType
 from typing import Any
 
+from electroloc_gym.engines.numba_core.track_task import TRACK_RECORD_KEYS
 from electroloc_gym.engines.numba_core.unknown import SHAPE_RECORD_KEYS
 from electroloc_gym.protocol import FAR_ERROR_MM
 from electroloc_gym.utils.agentspec import is_path_like, parse_agent_spec
@@ -54,6 +58,7 @@ __all__ = [
     "OPTIONAL_RECORD_KEYS",
     "TIMING_KEYS",
     "SHAPE_RECORD_KEYS",
+    "TRACK_RECORD_KEYS",
     "OLD_KEY_NAMES",
     "POSITION_BOUND_MM",
     "MAX_TEXT_CHARS",
@@ -130,11 +135,20 @@ _SHAPE_CHECKS: dict[str, tuple[Check, str]] = {
 }
 
 
+_TRACK_CHECKS: dict[str, tuple[Check, str]] = {
+    "tracking_error_mm": (_num(0.0, 2 * POSITION_BOUND_MM, none=False), "a distance in [0, 2000] mm"),
+    "carriage_distance_mm": (_num(0.0, 2 * POSITION_BOUND_MM, none=False), "a distance in [0, 2000] mm"),
+    "captured": (lambda v: isinstance(v, bool), "true or false"),
+}
+
+
 def _shape(v: Any) -> bool:
     return v is None or (
         isinstance(v, dict)
-        and set(v) == set(SHAPE_RECORD_KEYS)
-        and all(ok(v[k]) for k, (ok, _) in _SHAPE_CHECKS.items())
+        and any(
+            set(v) == set(keys) and all(ok(v[k]) for k, (ok, _) in checks.items())
+            for keys, checks in ((SHAPE_RECORD_KEYS, _SHAPE_CHECKS), (TRACK_RECORD_KEYS, _TRACK_CHECKS))
+        )
     )
 
 
@@ -176,7 +190,10 @@ class TrialRecord:
     env_id: str = _f(_text, "an env id")
     wall_s: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 s or null", timing=True)
     shape: dict[str, Any] | None = _f(
-        _shape, f"null or an object with exactly the keys {list(SHAPE_RECORD_KEYS)} in their ranges", optional=True
+        _shape,
+        f"null or an object with exactly the keys {list(SHAPE_RECORD_KEYS)} or {list(TRACK_RECORD_KEYS)} in their "
+        "ranges",
+        optional=True,
     )
     gain_levels: list[float] | None = _f(_gains, "null or a list of positive gain factors", optional=True)
     sensor_layout: str | None = _f(
@@ -275,16 +292,19 @@ class TrialRecord:
             return f"'readings' {self.readings} exceeds the cap of {cap}"
         if self.ended_by == "cap" and self.readings != cap:
             return f"ended by the cap of {cap} after {self.readings} readings"
-        if self.ended_by != "agent" and self.table_layout == "table4":
+        tracking = self.shape is not None and "tracking_error_mm" in self.shape
+        if tracking and self.ended_by != "cap":  # the moving target: no success criterion, every trial runs to the cap
+            return f"a moving-target trial runs to the cap, got 'ended_by' {self.ended_by!r}"
+        if self.ended_by != "agent" and self.table_layout == "table4" and not tracking:
             criterion = rules.criteria.get(self.agent, rules.success_spread_mm)
             assert self.spread_mm is not None  # checked by from_json
             if (self.spread_mm <= criterion) != self.success:
                 return f"'success' {self.success} but 'spread_mm' {self.spread_mm} vs the criterion {criterion} mm"
         if (self.shape is not None) != rules.shape:
             return "'shape' must be " + (
-                "the identification results (unknown-target env)"
+                "the identification results (unknown-target env) or the tracking results (moving target)"
                 if rules.shape
-                else "null (only the unknown-target env identifies the target)"
+                else "null (only the unknown-target and moving-target envs report their own results)"
             )
         if rules.start_of is not None:
             want = rules.start_of(self.condition, self.agent, self.seed)

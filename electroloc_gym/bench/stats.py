@@ -19,6 +19,11 @@ Appendix B (Table 4):
 ``readings_mean``: over the agent's own successful trials, App. B item 3's wording for steps), which do
 not change when other agents join the run.
 
+The moving target (ElectroLocTrack-v0, no success criterion: every trial runs its readings): the
+tracking error's median and interquartile range over all trials (``tracking_error_median_mm``,
+``tracking_error_q25_mm``, ``tracking_error_q75_mm``) and the capture rate with its 95 % Wilson interval
+(``captures``, ``capture_rate``, ``capture_rate_lo``, ``capture_rate_hi``); the "all" rows pool the trials.
+
 Table 1 (zero-crossing): mean absolute error in x and in y of the final estimates
 (``error_x_mean_abs_mm``, ``error_y_mean_abs_mm``, successful trials), and the repeatability the
 paper's text describes (mean distance of the estimates from their own mean, ``*_repeatability_mm``).
@@ -31,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.bench.fidelity import wilson_interval
 from electroloc_gym.bench.schema import is_far_success
 from electroloc_gym.utils.agentspec import is_path_like
 
@@ -97,18 +103,46 @@ def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int
     else:
         row["error_x_repeatability_mm"] = row["error_y_repeatability_mm"] = None
     row.update(_identification(ok))
+    row.update(_tracking(recs))
     return row
 
 
 def _identification(successes: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """The unknown-target env's identification over successful trials (empty for the other envs)."""
-    shapes = [r["shape"] for r in successes if r.get("shape")]
+    shapes = [r["shape"] for r in successes if r.get("shape") and "material_correct" in r["shape"]]
     if not shapes:
         return {}
     return {
         "identified_trials": len(shapes),
         "material_correct_frac": _mean(float(s["material_correct"]) for s in shapes),
         "radius_error_median_frac": _median(s["radius_error_frac"] for s in shapes),
+    }
+
+
+#: The capture rate's interval: a 95 % Wilson score interval.
+CAPTURE_CONFIDENCE = 0.95
+
+
+def _tracking(recs: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """The moving target's tracking over all trials (empty for the other envs; module docstring)."""
+    shapes = [r["shape"] for r in recs if r.get("shape") and "tracking_error_mm" in r["shape"]]
+    if not shapes:
+        return {}
+    err = _num(s["tracking_error_mm"] for s in shapes)
+    captures = sum(bool(s["captured"]) for s in shapes)
+    lo, hi = wilson_interval(captures, len(shapes), CAPTURE_CONFIDENCE)
+    q25, q50, q75 = (float(q) for q in np.quantile(err, [0.25, 0.5, 0.75]))
+    return {
+        "tracking_trials": len(shapes),
+        "tracking_error_median_mm": q50,
+        "tracking_error_q25_mm": q25,
+        "tracking_error_q75_mm": q75,
+        "tracking_error_mean_mm": float(err.mean()),
+        "carriage_distance_median_mm": _median(s["carriage_distance_mm"] for s in shapes),
+        "captures": captures,
+        "capture_rate": captures / len(shapes),
+        "capture_rate_lo": lo,
+        "capture_rate_hi": hi,
     }
 
 
@@ -181,6 +215,7 @@ def summarize(
                 "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
                 "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),
                 **_identification([r for r in recs if r["success"]]),  # pooled over the conditions' successes
+                **_tracking(recs),  # pooled over the conditions' trials
             }
         )
     return {"rules": RULES, "agents": agents, "conditions": conditions, "rows": rows}

@@ -189,6 +189,8 @@ def render_table_md(summary: dict[str, Any]) -> str:
     t1 = [r for r in rows if r.get("table_layout") == "table1"]
     if _paper_table(cfg.get("env_id")) == "table2":
         return _render_table2(summary)
+    if any(r.get("tracking_trials") for r in rows):
+        return _render_tracking(summary)
     out: list[str] = []
     out.append(f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}")
     out.append("")
@@ -427,4 +429,64 @@ def _render_table2(summary: dict[str, Any]) -> str:
     out.append("")
     if note:
         out += [note, ""]
+    return "\n".join(out)
+
+
+def _render_tracking(summary: dict[str, Any]) -> str:
+    """table.md for the moving target (ElectroLocTrack-v0): tracking error and capture rate per condition and
+    agent (the paper has no such table).
+    """
+    cfg = summary.get("config", {})
+    out = [
+        f"# electroloc bench — {cfg.get('env_id')}",
+        "",
+        (
+            f"A target sphere that swims during the episode: {cfg.get('trials')} trials per condition and agent, "
+            f"seed {cfg.get('seed')}, sensor model `{cfg.get('sensor_model')}`, signal `{cfg.get('signal')}`, "
+            f"{cfg.get('n_particles')} particles, {cfg.get('max_observations')} readings per episode. *Tracking "
+            "error*: the mean distance from the belief's mean to the true target over the episode's second half, "
+            "per trial; its median and interquartile range over the trials. *Capture*: the carriage within 10 mm "
+            "of the target after the last reading; the rate with its 95 % Wilson interval. The *All conditions* "
+            "rows pool the trials."
+        ),
+        "",
+    ]
+    cells = []
+    for r in summary["rows"]:
+        if not r.get("tracking_trials"):
+            continue
+        if r["condition"] == "all":
+            water, sphere = aggregate_label(r), ""
+        else:
+            water, sphere = _cond_label(r["condition"])
+        cells.append(
+            (
+                water,
+                sphere,
+                r.get("label", r["agent"]),
+                r["tracking_trials"],
+                _f(r["tracking_error_median_mm"]),
+                f"{_f(r['tracking_error_q25_mm'])}–{_f(r['tracking_error_q75_mm'])}",
+                f"{r['captures']} ({_f(100 * r['capture_rate'], 0)} %)",
+                f"{_f(100 * r['capture_rate_lo'], 0)}–{_f(100 * r['capture_rate_hi'], 0)} %",
+                _f(r["decision_ms_median"], 2),
+            )
+        )
+    out.extend(
+        markdown_table(
+            (
+                "Water",
+                "Sphere (mm)/material",
+                "Agent",
+                "Trials",
+                "Tracking error median (mm)",
+                "IQR (mm)",
+                "Captures",
+                "Capture rate 95 % CI",
+                "Decision ms",
+            ),
+            cells,
+        )
+    )
+    out.append("")
     return "\n".join(out)

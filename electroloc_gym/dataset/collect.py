@@ -183,7 +183,7 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
     hidden = core.hidden_state()
     for key, value in zip(core.hidden_keys[2:], hidden[2:]):  # the hidden shape beyond the position
         out["truth_" + key.removeprefix("target_")] = np.float64(value)
-    if core.entry().record_keys:  # its estimates
+    if "radius_estimate_mm" in core.entry().record_keys:  # the unknown target's estimates
         out.update(
             radius_estimate_mm=np.float64(info["radius_estimate_mm"]), p_conductor=np.float64(info["p_conductor"])
         )

@@ -129,7 +129,7 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
             BenchEnv(
                 "track",
                 agents=("rnd-wlk", "min-var", "pursuit"),
-                summary="follow a swimming target (tracking error over the second half, capture rate; "
+                summary="with a swimming target (the second half's tracking error, the capture rate; "
                 "default agents rnd-wlk,min-var,pursuit)",
             ),
         ),
