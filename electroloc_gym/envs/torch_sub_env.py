@@ -1,14 +1,16 @@
 """One sub-env of the torch vector env seen through the single env's read-only accessors.
 
 The paper's controllers (``baselines``) read their env through a few documented accessors of
-``env.unwrapped`` — the belief's particles, the carriage's position and box, and the reading each
-hypothesis predicts after a move (min-var's Algorithm 1). :class:`TorchSubEnv` gives those of sub-env
-``i`` of a :class:`~electroloc_gym.envs.torch_vector.TorchElectroLocVectorEnv`, as numpy arrays with
-the single env's shapes, dtypes and units, so the same agent objects run on either backend (the
-benchmark's rows of both). The predictions are the torch core's own sensor model of that sub-env's
-episode — its calibration table (bilinear mean and std) or the analytic model (the saturated physics,
-std G·σ_s) — evaluated on the device and copied to the host: a host synchronisation per call, outside
-the step, as any agent that reads numpy has.
+``env.unwrapped`` — the belief's particles, weights and moments, the carriage's position, box and move
+bounds, and the reading each hypothesis predicts after a move (min-var's Algorithm 1).
+:class:`TorchSubEnv` gives those of sub-env ``i`` of a
+:class:`~electroloc_gym.envs.torch_vector.TorchElectroLocVectorEnv`, as numpy arrays with the single env's
+shapes, dtypes and units, so the same agent objects run on either backend (the benchmark's rows of both).
+The predictions are the torch core's own sensor model of that sub-env's episode — its calibration table
+(bilinear mean and std) or the analytic model (the saturated physics, std G·σ_s) — evaluated on the device
+and copied to the host: a host synchronisation per call, outside the step, as any agent that reads numpy
+has. ``tests/test_engine_conformance.py`` checks every accessor against the numba engine's from the same
+state.
 
 A view reads the vector env's current state on every access: after ``step`` it shows the new state
 (after an autoreset, the new episode's first reading).
@@ -54,6 +56,24 @@ class TorchBeliefView:
     def weights(self) -> NDArray[np.float64]:
         """Normalised weights (M,), float64: uniform (every reading ends with a resampling)."""
         return self._weights
+
+    @property
+    def uniform_weights(self) -> bool:
+        """True: the weights are uniform after every update."""
+        return True
+
+    def mean(self) -> NDArray[np.float64]:
+        """Estimate: the particle mean (2,), mm (the step's, a copy from the device)."""
+        return self._env.state["mean_mm"][self._index].cpu().numpy().astype(np.float64, copy=True)
+
+    def covariance(self) -> NDArray[np.float64]:
+        """Population covariance Σ (2, 2), mm² (the step's, a copy from the device)."""
+        return self._env.state["cov_mm2"][self._index].cpu().numpy().astype(np.float64, copy=True)
+
+    def spread(self) -> float:
+        """√trace Σ, mm (the paper's success measure, §5.4)."""
+        c = self.covariance()
+        return float(np.sqrt(max(c[0, 0] + c[1, 1], 0.0)))
 
 
 class TorchSubEnv:
@@ -103,6 +123,15 @@ class TorchSubEnv:
         """(low, high) corners of the carriage's allowed box, mm."""
         h = self.condition.allowed_half_width_mm
         return np.array([-h, -h]), np.array([h, h])
+
+    @property
+    def move_bounds_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(lo, hi) moves, mm, within ±10 mm that keep the carriage in the allowed box (0 always inside)."""
+        low, high = self.allowed_box_mm
+        p = self.position_mm
+        lo = np.minimum(np.maximum(-MAX_STEP_MM, low - p), 0.0)
+        hi = np.maximum(np.minimum(MAX_STEP_MM, high - p), 0.0)
+        return lo, hi
 
     @property
     def n_observations(self) -> int:
