@@ -17,7 +17,11 @@ the cores) and per wall second. Numeric libraries are pinned to one thread.
 
     python benchmarks/vector_env.py [--n-envs 16 64] [--particles 2500] [--observation belief]
         [--sensor-model calibrated] [--env ElectroLoc-v0] [--seconds 1.5] [--rounds 2] [--passes 3] [--json out.json]
-        [--before DIR] [--now-kwargs JSON] [--profile]
+        [--before DIR] [--now-kwargs JSON] [--beside ENV_ID] [--profile]
+
+``--beside ENV_ID`` also measures that env's native vector env at the same N, particles, observation and
+sensor model, interleaved with the others, and prints both envs' CPU cost per env-step and their ratio
+(e.g. ``--env ElectroLocTrack-v0 --beside ElectroLoc-v0``: the moving target's cost against the paper's env).
 
 ``--profile`` instead prints where a native vector step's time goes (cProfile, the first N, sorted
 by own time, per env-step).
@@ -46,7 +50,7 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
-from electroloc_gym.registry import env_entry  # noqa: E402
+from electroloc_gym.registry import ENV_IDS, env_entry  # noqa: E402
 from electroloc_gym.utils.fileio import atomic_write_text  # noqa: E402
 
 
@@ -154,7 +158,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--observation", default="belief", choices=["belief", "raw"])
     ap.add_argument("--sensor-model", default="calibrated", choices=["calibrated", "analytic"])
     ap.add_argument("--condition", default="fresh-steel-12.7", help="ElectroLoc-v0 only")
-    ap.add_argument("--env", default="ElectroLoc-v0", choices=["ElectroLoc-v0", "ElectroLocGlobal-v0"])
+    ap.add_argument("--env", default="ElectroLoc-v0", choices=list(ENV_IDS))
+    ap.add_argument(
+        "--beside",
+        default=None,
+        choices=list(ENV_IDS),
+        help="also measure this env's native vector env at the same N and particles, and print the CPU cost "
+        "per env-step of both and their ratio",
+    )
     ap.add_argument("--seconds", type=float, default=1.5, help="target CPU seconds per timed round")
     ap.add_argument("--rounds", type=int, default=2, help="timed rounds per process (the best is kept)")
     ap.add_argument("--passes", type=int, default=3, help="interleaved passes over the rows (the best is kept)")
@@ -182,9 +193,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         )
         print(json.dumps(res))
         return res
-    kwargs = {"n_particles": args.particles, "observation": args.observation, "sensor_model": args.sensor_model}
-    if env_entry(args.env).takes("condition"):
-        kwargs["condition"] = args.condition
+
+    def env_kwargs(env_id: str) -> dict[str, Any]:
+        out = {"n_particles": args.particles, "observation": args.observation, "sensor_model": args.sensor_model}
+        if env_entry(env_id).takes("condition"):
+            out["condition"] = args.condition
+        return out
+
+    kwargs = env_kwargs(args.env)
     if args.profile:
         profile_native(args.env, args.n_envs[0], kwargs)
         return {}
@@ -192,7 +208,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     now_kwargs = dict(kwargs, **json.loads(args.now_kwargs))
     trees: list[tuple[str, str | None]] = [("now", None)] + ([("before", args.before)] if args.before else [])
     rows = [("single", 1)] + [(b, n) for n in args.n_envs for b in ("sync", "native")]
-    configs = [(code, tree, b, n) for code, tree in trees for b, n in rows]
+    configs = [(code, tree, b, n, args.env) for code, tree in trees for b, n in rows]
+    if args.beside:
+        configs += [("beside", None, "native", n, args.beside) for n in args.n_envs]
     print(
         f"{args.env} {kwargs}, random actions, autoreset; {args.passes} interleaved passes over the rows, each "
         f"row in a fresh process timing the best of {args.rounds} rounds; the best pass is kept",
@@ -202,10 +220,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     # (single, sync 16, native 16, sync 64, ... , then again), so that every row sees the same phases.
     best: dict[tuple[str, str, int], dict[str, float]] = {}
     for _ in tqdm(range(args.passes), desc="passes", leave=False, disable=None):
-        for code, tree, backend, n in configs:
-            r = measure_isolated(
-                backend, n, now_kwargs if tree is None else kwargs, args.seconds, args.rounds, args.env, tree
-            )
+        for code, tree, backend, n, env_id in configs:
+            run_kwargs = env_kwargs(env_id) if code == "beside" else now_kwargs if tree is None else kwargs
+            r = measure_isolated(backend, n, run_kwargs, args.seconds, args.rounds, env_id, tree)
             old = best.get((code, backend, n))
             best[(code, backend, n)] = {
                 "steps_per_s_cpu": max(r["steps_per_s_cpu"], old["steps_per_s_cpu"] if old else 0),
@@ -213,9 +230,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 "vector_steps": r["vector_steps"],
             }
     print(f"{'code':<7} {'backend':<8} {'N':>4} {'steps/s (CPU)':>14} {'steps/s (wall)':>15} {'vs sync (CPU)':>14}")
-    for code, _, backend, n in configs:
+    for code, _, backend, n, _ in configs:
         r = best[(code, backend, n)]
-        base = best[(code, "sync", n)]["steps_per_s_cpu"] if backend == "native" else None
+        base = best[(code, "sync", n)]["steps_per_s_cpu"] if backend == "native" and (code, "sync", n) in best else None
         ratio = r["steps_per_s_cpu"] / base if base else None
         rs = f"{ratio:>13.2f}x" if ratio else f"{'':>14}"
         print(
@@ -223,6 +240,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             flush=True,
         )
         results["rows"].append({"code": code, "backend": backend, "n_envs": n, **r, "ratio_vs_sync_cpu": ratio})
+    if args.beside:
+        results["beside"] = {"env": args.beside, "kwargs": env_kwargs(args.beside), "rows": []}
+        print(f"native vector env, CPU µs per env-step: {args.env} beside {args.beside}")
+        for n in args.n_envs:
+            us, us_beside = (1e6 / best[(c, "native", n)]["steps_per_s_cpu"] for c in ("now", "beside"))
+            print(f"N={n:<5} {args.env} {us:8.1f}   {args.beside} {us_beside:8.1f}   ratio {us / us_beside:.2f}x")
+            results["beside"]["rows"].append({"n_envs": n, "us_per_env_step": us, "beside_us_per_env_step": us_beside})
     if args.json:
         atomic_write_text(args.json, json.dumps(results, indent=2))
     return results

@@ -14,7 +14,8 @@ from gymnasium.vector import AutoresetMode
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.engines.numba_core.step import Simulation
-from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM, prediction_steps, reflect
+from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM, reflect
+from electroloc_gym.kernels.streams import normal_table, table_normal_indices
 from tests.vector_equivalence import assert_native_equals_sync
 
 ID = "ElectroLocTrack-v0"
@@ -156,34 +157,38 @@ def test_swimmer_speed_is_constant_and_its_turns_have_the_given_std() -> None:
     assert abs(turns.mean()) < 4 * turn / math.sqrt(turns.size)
 
 
-def test_filter_step_std_and_static_filter() -> None:
-    sim = _sim(2, motion_model="random_walk", motion_step_mm=4.0, n_particles=4000)
-    sim.state.particles_mm[:] = 0.0
-    sim.task.move(sim.state, np.arange(2), np.zeros((2, 2)))
-    p = sim.state.particles_mm.astype(float)
-    assert abs(p.std(axis=2) - 4.0 / math.sqrt(2)).max() < 0.04 * 4.0 / math.sqrt(2)
-    static = _sim(2, motion_model="static")
-    before = static.state.particles_mm.copy()
-    static.task.move(static.state, np.arange(2), np.zeros((2, 2)))
-    assert np.array_equal(before, static.state.particles_mm)
+def _jittered_std(**kw: Any) -> float:
+    """The per-axis std of a cloud of identical particles after one update (all weights equal: the
+    resampled cloud is the point, the spread is the jitter's).
+    """
+    sim = _sim(2, n_particles=4000, **kw)
+    s = sim.state
+    s.particles_mm[:] = 0.0
+    g = np.random.default_rng(0)
+    jitter = np.stack([table_normal_indices(g, 2 * 4000) for _ in range(2)])
+    ids = np.arange(2)
+    assert sim.task.assimilate(s, ids, np.zeros(2), np.full(2, 0.5), jitter, normal_table()) < 0
+    return float(s.particles_mm.astype(float).std(axis=2).mean())
 
 
-def test_predicted_particles_are_the_motion_models_fixed_sample() -> None:
+def test_filter_motion_step_is_in_the_jitter() -> None:
+    """The random walk's step (std σ_f = motion_step_mm/√2 per axis) adds to the paper's 1 mm jitter."""
+    sigma_f = 4.0 / math.sqrt(2)
+    assert _jittered_std(motion_step_mm=4.0) == pytest.approx(math.hypot(1.0, sigma_f), rel=0.03)
+    assert _jittered_std(motion_model="static", target_speed_mm=4.0) == pytest.approx(1.0, rel=0.03)
+    assert _jittered_std(target_speed_mm=2.0) == pytest.approx(math.hypot(1.0, math.sqrt(2.0)), rel=0.03)
+
+
+def test_predicted_particles_are_the_belief_itself() -> None:
+    """Between steps the belief is already the next reading's predicted belief: the prediction is the cloud."""
     env = gym.make(ID, **SMALL, target_speed_mm=2.0)
     env.reset(seed=1)
     core = env.unwrapped
     parts = core.belief.particles
     moves = np.array([[0.0, 0.0], [5.0, -5.0]])
     pred = core.predicted_particles_mm(parts, moves)
-    h = np.float32(core.allowed_box_mm[1][0])
-    want = reflect(parts + np.float32(2.0 * math.sqrt(0.5)) * prediction_steps(parts.shape[0]), h)[0]
     assert pred.shape == (2, *parts.shape)
-    np.testing.assert_allclose(pred[1], want, rtol=1e-6, atol=1e-5)
-    np.testing.assert_array_equal(pred, core.predicted_particles_mm(parts, moves))  # no draw from the env
-    still = gym.make(ID, **SMALL, motion_model="static")
-    still.reset(seed=1)
-    p2 = still.unwrapped.belief.particles
-    np.testing.assert_array_equal(still.unwrapped.predicted_particles_mm(p2, moves)[0], p2)
+    np.testing.assert_array_equal(pred[1], parts)
 
 
 def test_tracking_metric_capture_reward_and_episode_end() -> None:
@@ -206,31 +211,20 @@ def test_tracking_metric_capture_reward_and_episode_end() -> None:
     assert float(info["tracking_error_mm"]) == pytest.approx(float(np.mean(second)), rel=1e-12)
 
 
-def test_the_target_moves_and_the_static_filter_tracks_worse() -> None:
-    """The motion model matters: at 4 mm per reading the told filter follows the target better than the
-    paper's static one (the same seeds and a carriage that stays put over the target's start).
+def test_the_told_motion_model_tracks_better_than_the_static_filter() -> None:
+    """The motion model matters: at 4 mm per reading, pursuit on the filter told the random walk follows the
+    target better than on the paper's static filter (the same six seeds; their means 15 and 29 mm).
     """
+    from electroloc_gym.baselines.agent import make_agent
+    from electroloc_gym.baselines.rollout import run_episode
 
     def mean_error(model: str) -> float:
-        errs = []
-        for seed in range(4):
-            env = gym.make(
-                ID,
-                n_particles=500,
-                sensor_model="analytic",
-                max_observations=30,
-                target_motion="random_walk",
-                target_speed_mm=4.0,
-                motion_model=model,
-                condition="fresh-steel-38.1",
-            )
-            env.reset(seed=seed)
-            for _ in range(29):
-                _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
-            errs.append(float(info["tracking_error_mm"]))
+        kw = {"n_particles": 500, "sensor_model": "analytic", "max_observations": 30, "target_speed_mm": 4.0}
+        env = gym.make(ID, **kw, target_motion="random_walk", motion_model=model, condition="fresh-steel-38.1")
+        errs = [run_episode(env, make_agent("pursuit"), s, agent_seed=s).info["tracking_error_mm"] for s in range(6)]
         return float(np.mean(errs))
 
-    assert mean_error("random_walk") < mean_error("static")
+    assert mean_error("random_walk") < 0.75 * mean_error("static")
 
 
 # ---- the controllers ------------------------------------------------------------------------------
@@ -255,14 +249,11 @@ def test_pursuit_moves_toward_the_predicted_mean_through_the_agent_view() -> Non
         agent.predict(None)
 
 
-def test_min_var_votes_on_the_predicted_belief() -> None:
-    """min-var's vote reads ``predicted_particles_mm``: on the track env that is the motion model's prediction."""
+def test_the_controllers_run_through_the_agent_view() -> None:
     from electroloc_gym.baselines.agent import make_agent
 
     env = gym.make(ID, **SMALL, target_speed_mm=3.0)
     env.reset(seed=4)
-    parts = env.unwrapped.belief.particles
-    assert not np.array_equal(env.unwrapped.predicted_particles_mm(parts, np.zeros((1, 2)))[0], parts)
     for name in ("rnd-wlk", "min-var", "pursuit"):
         agent = make_agent(name, seed=1)
         agent.reset(env)

@@ -57,9 +57,10 @@ class TrackEnv(ElectroLocEnv):
 
     ## Accessors
 
-    As ElectroLoc-v0; ``predicted_particles_mm`` returns the hypotheses after one step of the filter's
-    motion model (a fixed sample of steps, the same every call), and ``predicted_reading_model``
-    predicts from them: min-var votes on the predicted belief. ``target_mm`` is the target now.
+    As ElectroLoc-v0. The belief between steps is already the predicted belief of the next reading (the
+    motion model's step is taken in the filter's jitter after resampling), so ``predicted_particles_mm``
+    returns the hypotheses unchanged and min-var votes on the predicted belief. ``target_mm`` is the
+    target now (ground truth).
 
     ## Arguments
 
@@ -79,7 +80,8 @@ class TrackEnv(ElectroLocEnv):
       to the carriage's 10 mm per reading and doubled, :mod:`~electroloc_gym.engines.numba_core.track_task`).
     * ``turn_std_rad``: the swimmer's turn std per reading, rad, [0, π].
     * ``motion_model``: what the filter is told: ``"random_walk"`` (each particle a Gaussian step of RMS
-      ``motion_step_mm`` before each update) or ``"static"`` (the paper's filter).
+      ``motion_step_mm`` before each update: the jitter after resampling grows from the paper's 1 mm to
+      √(1 mm² + ``motion_step_mm``²/2) per axis) or ``"static"`` (the paper's filter).
     * ``motion_step_mm``: the filter's RMS step, mm per reading, [0, 20], or None: ``target_speed_mm``
       (another value is a model mismatch).
 

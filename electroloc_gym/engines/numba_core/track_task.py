@@ -21,18 +21,20 @@ reach) is two to five times that, so that a 70-reading episode's target travels 
 goes to 20 mm per reading, where no controller can follow (docs/extensions.md's speed sweep).
 
 **The filter's motion model** (``motion_model``, what the belief is told; it may differ from the truth):
-``"random_walk"``: before every update each particle takes a Gaussian step of per-axis std
-``motion_step_mm``/√2 (None: the target's own ``target_speed_mm``), reflected at the walls like the
-target; ``"static"``: none (the paper's filter). The draws: 2M indices into the normal quantile table
-(:func:`~electroloc_gym.kernels.streams.table_normal_indices`: x of particle j at j, y at M + j).
-What an agent predicts (``predicted_particles_mm``, ``predicted_reading_model``) is the same model on
-a fixed sample of steps (the same 2M standard normals every call, no draw from the env's stream): so
-min-var's vote runs on the predicted belief (the paper's Algorithm 1 one reading ahead).
+``"random_walk"``: each particle takes a Gaussian step of per-axis std σ_f = ``motion_step_mm``/√2
+(None: the target's own ``target_speed_mm``) before every update; ``"static"``: none (the paper's
+filter). The step is taken where the particle filter already draws a Gaussian per particle and axis:
+the jitter after resampling (paper §4.1.2: N(0, 1 mm²) per axis). Resample → jitter → the next
+reading's update is the same sequence as resample → predict → update, and the sum of the two
+independent Gaussians is one Gaussian, so the jitter's std becomes √(1 mm² + σ_f²): the same draws
+(the kernels' normal quantile table, scaled once), no extra cost per step, and a particle stepping past
+a wall is clipped to it as the jitter's always were. So the belief an agent reads between steps *is*
+the predicted belief of the next reading: ``predicted_particles_mm`` returns it unchanged, and min-var
+votes on the predicted belief (the paper's Algorithm 1, one reading ahead, with the motion model).
 
 **Draw order.** Reset: ElectroLoc-v0's (condition, calibration, target, start, particles), then the
 swimmer's heading (1 uniform; the random walk draws none). Every step, before the step's reading draws:
-the target's step (2 normals for the random walk, 1 for the swimmer's turn), then the particles' 2M
-table indices (none with ``"static"`` or a zero step).
+the target's step (2 normals for the random walk, 1 for the swimmer's turn).
 
 **Episode, metric, reward.** An episode is ``max_observations`` readings (default 70; never
 terminated: there is no "found" for prey that keeps moving). The first half is the paper's whole
@@ -48,7 +50,6 @@ truth, as the info's error: for learning and evaluation, never for the agent's d
 
 from __future__ import annotations
 
-import functools
 from typing import Any
 
 import numpy as np
@@ -57,7 +58,6 @@ from numpy.typing import NDArray
 from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
 from electroloc_gym.engines.numba_core.state import State
-from electroloc_gym.kernels.streams import normal_table, table_normal_indices
 
 __all__ = [
     "TrackTask",
@@ -66,7 +66,7 @@ __all__ = [
     "TRACK_INFO_KEYS",
     "TRACK_RECORD_KEYS",
     "reflect",
-    "prediction_steps",
+    "PAPER_JITTER_STD_MM",
 ]
 
 #: The capture distance: the carriage within this distance of the target at the end is a capture, mm.
@@ -78,6 +78,8 @@ TRACK_EPISODE_READINGS = 70
 TRACK_INFO_KEYS = ("target_mm", "tracking_error_mm", "carriage_distance_mm", "captured")
 #: What a benchmark record keeps of the final info.
 TRACK_RECORD_KEYS = ("tracking_error_mm", "carriage_distance_mm", "captured")
+#: The paper's jitter after resampling, per axis, mm (§4.1.2; the kernels' normal table has unit std).
+PAPER_JITTER_STD_MM = 1.0
 _SQRT_HALF = np.sqrt(0.5)
 
 
@@ -88,17 +90,6 @@ def reflect(x: NDArray, half: Any) -> tuple[NDArray, NDArray[np.bool_]]:
     over, under = x > half, x < -half
     out = np.where(over, 2 * half - x, np.where(under, -2 * half - x, x))
     return out, over | under
-
-
-@functools.cache
-def prediction_steps(n_particles: int) -> NDArray[np.float32]:
-    """(M, 2) fixed standard-normal steps of the agents' predictions (a seeded draw of the normal table;
-    read-only).
-    """
-    g = np.random.default_rng(20080501)
-    z = normal_table()[table_normal_indices(g, 2 * n_particles)].reshape(2, n_particles).T.copy()
-    z.flags.writeable = False
-    return z
 
 
 class TrackTask(LocalizeTask):
@@ -112,10 +103,12 @@ class TrackTask(LocalizeTask):
         #: The random walk's per-axis std of the target's step, mm.
         self.target_std_mm = params.target_speed_mm * _SQRT_HALF
         step = params.target_speed_mm if params.motion_step_mm is None else params.motion_step_mm
-        #: The filter's per-axis step std, mm (0: the particles do not move).
+        #: The filter's per-axis step std σ_f, mm (0: the particles do not move).
         self.filter_std_mm = 0.0 if params.motion_model == "static" else step * _SQRT_HALF
+        #: The jitter's per-axis std after resampling: √(1 mm² + σ_f²), mm (module docstring).
+        self.jitter_std_mm = float(np.hypot(PAPER_JITTER_STD_MM, self.filter_std_mm))
         self._half_readings = params.max_observations // 2
-        self._table = normal_table()
+        self._jitter_table: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
 
     # ---- the episode ------------------------------------------------------------------------------
     def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
@@ -126,26 +119,22 @@ class TrackTask(LocalizeTask):
         state.track_error_count[i] = 0
 
     def move(self, state: State, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
-        """The carriage moves (truncated at the walls), then the target takes its step and every particle
-        its predicted step (both reflected at the walls), from each env's generator.
+        """The carriage moves (truncated at the walls), then the target takes its step (reflected at the
+        walls), from each env's generator.
         """
         super().move(state, ids, moves_mm)
         idx = np.arange(state.num_envs)[ids]
         if idx.size == 0:
             return
         speed = self.params.target_speed_mm
-        gens = [state.gens[i] for i in idx.tolist()]
         steps = np.empty((idx.size, 2))
-        m = state.n_particles
-        noise = np.empty((idx.size, 2 * m), dtype=np.uint16) if self.filter_std_mm > 0 else None
-        for j, g in enumerate(gens):
+        for j, i in enumerate(idx.tolist()):
+            g = state.gens[i]
             assert g is not None  # reset made every env's generator
             if self.swimmer:
-                state.target_heading_rad[idx[j]] += g.normal(0.0, self.params.turn_std_rad)
+                state.target_heading_rad[i] += g.normal(0.0, self.params.turn_std_rad)
             else:
                 steps[j] = g.normal(0.0, self.target_std_mm, 2)
-            if noise is not None:
-                noise[j] = table_normal_indices(g, 2 * m)
         if self.swimmer:
             h = state.target_heading_rad[idx]
             steps[:, 0], steps[:, 1] = speed * np.cos(h), speed * np.sin(h)
@@ -156,9 +145,6 @@ class TrackTask(LocalizeTask):
             h = state.target_heading_rad[idx]
             h = np.where(flipped[:, 0], np.pi - h, h)
             state.target_heading_rad[idx] = np.where(flipped[:, 1], -h, h)
-        if noise is not None:
-            p = state.particles_mm[idx] + np.float32(self.filter_std_mm) * self._table[noise].reshape(-1, 2, m)
-            state.particles_mm[idx] = reflect(p, state.half_mm[idx].astype(np.float32)[:, None, None])[0]
 
     def assimilate(
         self,
@@ -169,7 +155,13 @@ class TrackTask(LocalizeTask):
         jitter: NDArray[np.uint16],
         normal_table: NDArray[np.float32],
     ) -> int:
-        """ElectroLoc-v0's update, then the second half's tracking error accumulated (readings > T/2)."""
+        """ElectroLoc-v0's update with the motion model's step in the jitter (the normal table scaled to
+        √(1 mm² + σ_f²), module docstring), then the second half's tracking error accumulated (readings > T/2).
+        """
+        if self.filter_std_mm > 0:
+            if self._jitter_table is None or self._jitter_table[0] is not normal_table:
+                self._jitter_table = (normal_table, normal_table * np.float32(self.jitter_std_mm))
+            normal_table = self._jitter_table[1]
         bad = super().assimilate(state, ids, reading, u0, jitter, normal_table)
         if bad < 0:
             second = state.n_observations[ids] > self._half_readings
@@ -208,22 +200,3 @@ class TrackTask(LocalizeTask):
             "carriage_distance_mm": dist,
             "captured": dist <= CAPTURE_DISTANCE_MM,
         }
-
-    # ---- what agents predict ----------------------------------------------------------------------
-    def _predicted(self, state: State, i: int, particles: NDArray) -> NDArray:
-        """Hypotheses (…, M, 2) after the filter's step, on the fixed sample :func:`prediction_steps`."""
-        xy = np.asarray(particles)[..., :2]
-        if self.filter_std_mm == 0:
-            return xy
-        z = prediction_steps(xy.shape[-2]).astype(xy.dtype, copy=False)
-        h = np.asarray(state.half_mm[i], dtype=xy.dtype)
-        return reflect(xy + xy.dtype.type(self.filter_std_mm) * z, h)[0]
-
-    def particles_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
-        """The hypotheses after one step of the filter's motion model (the same for every move)."""
-        pred = self._predicted(state, i, particles)
-        return np.broadcast_to(pred, moves_mm.shape[:-1] + pred.shape).copy()
-
-    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
-        """Predicted target hypothesis − the carriage after the move (kept in the box)."""
-        return super().offsets_after_move(state, i, self._predicted(state, i, particles), moves_mm)
