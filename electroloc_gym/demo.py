@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.baselines.rollout import run_episode
+from electroloc_gym.protocol import SUCCESS_SPREAD_MM
 from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.utils.fileio import atomic_write_bytes, check_output_path, save_figure_atomic
 from electroloc_gym.views.render import Snapshot, draw_snapshot, eev_colorbar, legend_handles, snapshot
@@ -55,7 +56,7 @@ class Episode:
     infos: list[dict[str, Any]] = field(default_factory=list)
     frames: list[NDArray[np.uint8]] = field(default_factory=list)
     label: str = ""
-    success_spread_mm: float = 10.0
+    success_spread_mm: float = SUCCESS_SPREAD_MM
 
     @property
     def final_info(self) -> dict[str, Any]:

@@ -31,6 +31,8 @@ __all__ = [
     "PAPER_AGENTS",
     "EXTRA_AGENTS",
     "AGENT_NAMES",
+    "RANDOM_AGENT",
+    "PLANNER_AGENTS",
     "belief_agents",
     "agent_class",
     "make_agent",
@@ -65,14 +67,19 @@ def _registry() -> dict[str, type]:
     return {cls.name: cls for cls in classes}
 
 
+#: The random walk, the chance level: the normalised scores' 0 (a dataset's reference scores, the learned
+#: and offline policies' reports).
+RANDOM_AGENT: str = "rnd-wlk"
 #: The paper's three controllers: a default benchmark run's agents, and the paper's rows of its tables.
-PAPER_AGENTS: tuple[str, ...] = ("rnd-wlk", "min-var", "zero-crossing")
+PAPER_AGENTS: tuple[str, ...] = (RANDOM_AGENT, "min-var", "zero-crossing")
 #: The paper's controllers under their older name.
 AGENT_REGISTRY = PAPER_AGENTS
 #: Agents beyond the paper's controllers, built by :func:`make_agent` but not in default benchmark runs.
 EXTRA_AGENTS: tuple[str, ...] = ("lookahead", "infotaxis", "eedi", "pursuit")
 #: Every built-in agent's name.
 AGENT_NAMES: tuple[str, ...] = PAPER_AGENTS + EXTRA_AGENTS
+#: The non-learned planners that choose moves by the belief: the best of them is the normalised scores' 1.
+PLANNER_AGENTS: tuple[str, ...] = ("min-var", "lookahead", "infotaxis", "eedi")
 
 
 def agent_class(name: str) -> type:

@@ -25,6 +25,8 @@ Attributes and optional hooks the benchmark runner understands:
   evaluated in (zero-crossing: the paper's Table-1 layout, §6.4).
 * ``table_layout: str`` (optional) — ``"table4"`` (default) or ``"table1"``: which of the paper's tables
   the agent's results belong to.
+* ``cost_rank: int`` (optional) — how long the agent's trials take, by rank (0 the quickest; default 2, as
+  a learned policy): the benchmark runs the highest ranks first, so the worker pool's tail is short.
 * ``sensor_layouts: tuple[str, ...] | None`` (optional) — the named sensor layouts
   (``electroloc_gym.world.sensor_array.LAYOUT_NAMES``) the agent can run on; None (default): every one. The
   benchmark refuses a run on another layout before it writes anything, and a controller's ``reset``
@@ -93,6 +95,8 @@ class BaselineAgent:
     name = "baseline"
     #: Which paper table the agent's results belong to.
     table_layout = "table4"
+    #: How long a trial takes, by rank (0 the quickest): the benchmark runs the highest ranks first.
+    cost_rank = 2
     #: The named sensor layouts the agent runs on (None: every one).
     sensor_layouts: tuple[str, ...] | None = None
 

@@ -24,6 +24,8 @@ class RandomWalkAgent(BaselineAgent):
     """
 
     name = "rnd-wlk"
+    #: No belief to weigh: the quickest trials.
+    cost_rank = 0
 
     def __init__(self, seed: int | np.random.Generator | None = None, n_options: int = 16) -> None:
         super().__init__(seed)

@@ -92,6 +92,8 @@ class ZeroCrossingAgent(BaselineAgent):
 
     name = "zero-crossing"
     table_layout = "table1"
+    #: A scan without a belief: quicker trials than the belief planners'.
+    cost_rank = 1
     #: It follows one pair's zero crossings (§4.2): the paper's single pair only.
     sensor_layouts = ("single",)
 

@@ -20,6 +20,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from electroloc_gym.baselines.agent import AGENT_NAMES, BaselineAgent, agent_class
 from electroloc_gym.bench.agents import (
     agent_display_name,
     cached_agent,
@@ -298,8 +299,8 @@ def run_benchmark(
         records = dict(loaded.records)
         specs = [s for s in make_trial_specs(config, trust_pickle=trust_pickle) if s.key not in records]
         # Longest jobs first (min-var, learned policies), so the pool's tail is short.
-        cost = {"rnd-wlk": 0, "zero-crossing": 1}
-        specs.sort(key=lambda s: -cost.get(s.agent, 2))
+        cost = {name: agent_class(name).cost_rank for name in AGENT_NAMES}
+        specs.sort(key=lambda s: -cost.get(s.agent, BaselineAgent.cost_rank))
         if log is not None:
             log(
                 f"electroloc bench: {len(config.agents)} agents × {len(config.conditions)} conditions × "

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.baselines.agent import PLANNER_AGENTS, RANDOM_AGENT
 from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.world.conditions import PRESET_NAMES
 
@@ -49,10 +50,10 @@ EVALUATION_SEED = 0
 DEFAULT_DATASET_SEED = 1
 #: The spawn-key stream of dataset episodes: after the presets (0–7) and the global map (8).
 DATASET_STREAM = len(PRESET_NAMES) + 1
-#: The agent that scores 0.
-RND_AGENT = "rnd-wlk"
+#: The agent that scores 0 (the registry's chance level).
+RND_AGENT = RANDOM_AGENT
 #: The non-learned planners whose best scores 1 (those a baseline run holds).
-PLANNERS = ("min-var", "lookahead", "infotaxis", "eedi")
+PLANNERS = PLANNER_AGENTS
 #: Evaluation trials per condition checked for overlap (the bench's default is 50).
 _CHECKED_TRIALS = 1000
 
