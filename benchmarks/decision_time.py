@@ -29,6 +29,9 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.baselines.eedi import EEDIAgent  # noqa: E402
+from electroloc_gym.baselines.infotaxis import InfotaxisAgent  # noqa: E402
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.agentspec import split_specs  # noqa: E402
 from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
@@ -44,7 +47,7 @@ def collect_envs(n_states: int, seed: int = 101) -> list[tuple[str, object]]:
         cond = PRESET_NAMES[k % len(PRESET_NAMES)]
         env = gym.make(PAPER_ENV_ID, condition=cond)
         obs, _ = env.reset(seed=seed + k)
-        agent = make_agent("min-var", seed=seed + k)
+        agent = make_agent(MinVarianceAgent.name, seed=seed + k)
         agent.reset(env)
         for _ in range(int(rng.integers(0, 6))):
             action, _ = agent.predict(obs)
@@ -77,7 +80,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--states", type=int, default=16, help="belief states (cycling over the 8 presets)")
     parser.add_argument("--repeats", type=int, default=3, help="timings per state (the best is kept)")
-    parser.add_argument("--agents", default="min-var,infotaxis,eedi", help="agent specs, comma-separated")
+    parser.add_argument(
+        "--agents",
+        default=",".join((MinVarianceAgent.name, InfotaxisAgent.name, EEDIAgent.name)),
+        help="agent specs, comma-separated",
+    )
     parser.add_argument("--json", default=None, help="also write the timings (ms) to this JSON file")
     args = parser.parse_args()
     if args.states < 1 or args.repeats < 1:

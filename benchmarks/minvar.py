@@ -36,6 +36,7 @@ import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent, move_bounds_mm, sample_options_mm  # noqa: E402
 from electroloc_gym.baselines.min_variance import (  # noqa: E402
     VOTES,  # noqa: E402
+    MinVarianceAgent,
     choose_voters,
     count_votes,
     option_means_stds,
@@ -67,7 +68,7 @@ def collect_states(n_states: int, n_particles: int, seed: int = 0) -> list[dict]
         cond = PRESET_NAMES[k % len(PRESET_NAMES)]
         env = gym.make(PAPER_ENV_ID, condition=cond, n_particles=n_particles)
         obs, _ = env.reset(seed=1000 + k)
-        agent = make_agent("min-var", seed=k)
+        agent = make_agent(MinVarianceAgent.name, seed=k)
         agent.reset(env)
         for _ in range(int(rng.integers(0, 6))):
             action, _ = agent.predict(obs)
@@ -130,7 +131,7 @@ def main() -> None:
         f"the exponentials alone, {args.voters * m * c * t_exp * 1e3:.1f} ms)"
     )
     for vote in VOTES:
-        agent = make_agent(f"min-var[vote={vote!r},n_voters={args.voters}]", seed=0)
+        agent = make_agent(f"{MinVarianceAgent.name}[vote={vote!r},n_voters={args.voters}]", seed=0)
         times = []
         for s in states[: (5 if vote == "multinomial" else len(states))]:
             agent._env = s["core"]  # bind without resetting the env: the state's belief is kept

@@ -37,14 +37,18 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401
 from electroloc_gym.baselines import make_agent  # noqa: E402
+from electroloc_gym.baselines.agent import RANDOM_AGENT  # noqa: E402
+from electroloc_gym.baselines.lookahead import LookaheadAgent  # noqa: E402
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.agents import bench_env_kwargs, make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
 from electroloc_gym.world.sensor_array import SensorLayout, named_layout  # noqa: E402
 
-AGENTS = ("rnd-wlk", "min-var", "lookahead")
+AGENTS = (RANDOM_AGENT, MinVarianceAgent.name, LookaheadAgent.name)
 STATIONARY = "stationary"
 LAYOUTS = ("single", "ring-2", "grid-2x2", "ring-8")
 
@@ -61,13 +65,13 @@ def run_trial(layout: str, agent_name: str, condition: str, trial: int, seed: in
     env_seed, agent_seed = trial_seeds(seed, condition, trial)
     fixed = agent_name == STATIONARY
     if fixed or agent_name in AGENTS:
-        agent = make_agent("rnd-wlk" if fixed else agent_name, seed=agent_seed)
+        agent = make_agent(RANDOM_AGENT if fixed else agent_name, seed=agent_seed)
         kwargs = {}
     else:  # a learned policy: its own observation mode, the bench's settings (bench_env_kwargs)
         agent = make_bench_agent(agent_name, seed=agent_seed)
-        kwargs = bench_env_kwargs("ElectroLoc-v0", agent, None)
+        kwargs = bench_env_kwargs(PAPER_ENV_ID, agent, None)
     env = gym.make(
-        "ElectroLoc-v0",
+        PAPER_ENV_ID,
         **kwargs,
         condition=get_condition(condition),
         sensor_layout=layout_of(layout),

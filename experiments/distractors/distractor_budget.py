@@ -30,20 +30,21 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.baselines.eedi import EEDIAgent  # noqa: E402
+from electroloc_gym.baselines.infotaxis import InfotaxisAgent  # noqa: E402
+from electroloc_gym.baselines.lookahead import LookaheadAgent  # noqa: E402
 from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
-from electroloc_gym.bench.schema import FAR_ERROR_MM  # noqa: E402
+from electroloc_gym.protocol import FAR_ERROR_MM, SUCCESS_SPREAD_MM  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
-
-#: The env's success criterion, mm (the benchmark's; here only measured, the episode does not stop on it).
-SUCCESS_SPREAD_MM = 10.0
 
 
 def trace(agent_name: str, condition: str, d: int, seed: int, trial: int, budget: int) -> dict:
     """One episode to ``budget`` readings: per reading (spread mm, error mm)."""
     env = gym.make(
-        "ElectroLoc-v0",
+        PAPER_ENV_ID,
         condition=get_condition(condition),
         distractors=d,
         max_observations=budget,
@@ -96,7 +97,7 @@ def summarize(traces: list[dict]) -> list[dict]:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--agents", default="infotaxis,eedi,lookahead")
+    p.add_argument("--agents", default=",".join((InfotaxisAgent.name, EEDIAgent.name, LookaheadAgent.name)))
     p.add_argument("--distractors", type=int, default=2)
     p.add_argument("--seed", type=int, default=101)
     p.add_argument("--trials", type=int, default=3)

@@ -36,9 +36,13 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 from electroloc_gym.baselines.agent import belief_agents  # noqa: E402
+from electroloc_gym.baselines.eedi import EEDIAgent  # noqa: E402
+from electroloc_gym.baselines.infotaxis import InfotaxisAgent  # noqa: E402
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.bench.agents import shipped_models  # noqa: E402
 from electroloc_gym.bench.runner import BenchConfig, run_benchmark  # noqa: E402
-from electroloc_gym.bench.schema import FAR_ERROR_MM  # noqa: E402
+from electroloc_gym.protocol import FAR_ERROR_MM  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES  # noqa: E402
 
@@ -117,7 +121,7 @@ def _distractors_of(rec: dict) -> np.ndarray:
     from electroloc_gym.world.conditions import get_condition
 
     env = gym.make(
-        "ElectroLoc-v0",
+        PAPER_ENV_ID,
         condition=get_condition(rec["condition"], rec["signal"]),
         distractors=rec["distractors"],
         n_particles=rec["n_particles"],
@@ -137,7 +141,7 @@ def near_distractor(rec: dict) -> bool:
     return bool(np.min(np.hypot(*(xy - est).T)) < np.hypot(*(tgt - est)))
 
 
-def paired(agents: list[str], ds: list[int], out: Path, n: int, ref: str = "eedi") -> list[str]:
+def paired(agents: list[str], ds: list[int], out: Path, n: int, ref: str = EEDIAgent.name) -> list[str]:
     """``ref`` against each other agent on the same trials (same seeds): correct localisations (a success that is
     not far) where exactly one of the two got it, and the exact two-sided binomial (sign) test of those.
     """
@@ -225,7 +229,7 @@ def plot(rows: list[dict], n: int, path: Path) -> None:
     for a in agents:
         rs = sorted((r for r in rows if r["agent"] == a), key=lambda r: r["distractors"])
         d = [r["distractors"] for r in rs]
-        style = "-o" if a in ("eedi", "infotaxis", "min-var") else "--s"
+        style = "-o" if a in (EEDIAgent.name, InfotaxisAgent.name, MinVarianceAgent.name) else "--s"
         axes[0].plot(d, [r["readings_mean_all"] for r in rs], style, label=a)
         axes[1].plot(d, [r["far_successes"] / max(r["trials"], 1) for r in rs], style, label=a)
     axes[0].set(
@@ -273,7 +277,7 @@ def main() -> None:
         run(agents, ds, rounds, a.seed, out, deadline)
     n, rows = summarize(agents, ds, out)
     text = table_md(n, rows, a.seed)
-    if "eedi" in agents and n:
+    if EEDIAgent.name in agents and n:
         text += "\n" + "\n".join(paired(agents, ds, out, n)) + "\n"
     print(text)
     out.mkdir(parents=True, exist_ok=True)

@@ -24,6 +24,9 @@ import numpy as np  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.baselines.eedi import EEDIAgent  # noqa: E402
+from electroloc_gym.protocol import MAX_STEP_MM  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 
 
 def main() -> None:
@@ -40,9 +43,9 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    env = gym.make("ElectroLoc-v0", condition=args.condition)
+    env = gym.make(PAPER_ENV_ID, condition=args.condition)
     obs, _ = env.reset(seed=args.seed)
-    agent = make_agent("eedi", seed=args.seed)
+    agent = make_agent(EEDIAgent.name, seed=args.seed)
     agent.reset(env)
     core = env.unwrapped
     h = core.condition.allowed_half_width_mm
@@ -57,7 +60,7 @@ def main() -> None:
         ax.imshow(eid.reshape(n, n).T, origin="lower", extent=(-h, h, -h, h), cmap="magma")
         ax.scatter(particles[::5, 0], particles[::5, 1], s=1, c="c", alpha=0.4, lw=0)
         ax.plot(path[:, 0], path[:, 1], "w.-", lw=1, ms=4)
-        nxt = path[-1] + np.asarray(action, dtype=np.float64) * 10.0
+        nxt = path[-1] + np.asarray(action, dtype=np.float64) * MAX_STEP_MM
         ax.annotate("", xy=nxt, xytext=path[-1], arrowprops={"arrowstyle": "->", "color": "lime"})
         ax.plot(*core.target_mm, "g+", ms=10, mew=2)
         ax.set_title(f"reading {core.n_observations}: spread {spread:.0f} mm", fontsize=9)
@@ -71,7 +74,7 @@ def main() -> None:
                 extra.axis("off")
             break
     fig.suptitle(
-        f"eedi on {args.condition} (seed {args.seed}): EID (colour), particles (cyan), path (white), "
+        f"{EEDIAgent.name} on {args.condition} (seed {args.seed}): EID (colour), particles (cyan), path (white), "
         "next move (green arrow), target (+)",
         fontsize=9,
     )

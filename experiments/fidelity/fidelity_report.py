@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.baselines.agent import RANDOM_AGENT
+from electroloc_gym.baselines.min_variance import MinVarianceAgent
 from electroloc_gym.bench.fidelity import interval_mark
 from electroloc_gym.bench.stats import summarize
 from electroloc_gym.bench.stored_run import read_run_records
@@ -198,10 +200,11 @@ def table4(rows: list[dict[str, Any]], label: str) -> list[str]:
 
 def fig12(rows: list[dict[str, Any]]) -> list[str]:
     by = {(r["condition"], r["agent"]): r for r in rows}
-    both = [n for n in PRESET_NAMES if (n, "min-var") in by and (n, "rnd-wlk") in by]
-    fewer_steps = sum(by[(n, "min-var")]["readings_median"] < by[(n, "rnd-wlk")]["readings_median"] for n in both)
-    fewer_fail = sum(by[(n, "min-var")]["failures"] <= by[(n, "rnd-wlk")]["failures"] for n in both)
-    a, b = by.get(("all", "min-var")), by.get(("all", "rnd-wlk"))
+    mv, rnd = MinVarianceAgent.name, RANDOM_AGENT
+    both = [n for n in PRESET_NAMES if (n, mv) in by and (n, rnd) in by]
+    fewer_steps = sum(by[(n, mv)]["readings_median"] < by[(n, rnd)]["readings_median"] for n in both)
+    fewer_fail = sum(by[(n, mv)]["failures"] <= by[(n, rnd)]["failures"] for n in both)
+    a, b = by.get(("all", mv)), by.get(("all", rnd))
     ratio = a["readings_median"] / b["readings_median"] if a and b else float("nan")
     return markdown_table(
         ("Fig. 12 statement", "paper", "simulation"),
@@ -333,7 +336,7 @@ def main(argv: list[str] | None = None) -> None:
                 table4(rows, f"signal `{cfg.get('signal')}`"),
             )
         )
-        if any(r["agent"] == "min-var" for r in rows) and any(r["agent"] == "rnd-wlk" for r in rows):
+        if any(r["agent"] == MinVarianceAgent.name for r in rows) and any(r["agent"] == RANDOM_AGENT for r in rows):
             sections.append((f"Fig. 12, {label}", fig12(rows)))
         sections.append(
             (

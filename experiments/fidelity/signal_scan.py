@@ -20,8 +20,10 @@ import numpy as np
 from tqdm import tqdm
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.baselines.agent import make_agent
+from electroloc_gym.baselines.agent import RANDOM_AGENT, make_agent
+from electroloc_gym.baselines.min_variance import MinVarianceAgent
 from electroloc_gym.baselines.rollout import run_episode
+from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.utils.markdown import markdown_table
 from electroloc_gym.utils.runtime import pin_threads
 from electroloc_gym.world.conditions import (
@@ -41,7 +43,7 @@ def scan_one(k: float, agents: list[str], trials: int, seed: int) -> dict[str, t
     for spec in agents:
         successes, medians = 0, []
         for ci, name in enumerate(PRESET_NAMES):
-            env = gym.make("ElectroLoc-v0", condition=name, signal=fitted_signal_scale(name) * k)
+            env = gym.make(PAPER_ENV_ID, condition=name, signal=fitted_signal_scale(name) * k)
             agent = make_agent(spec)
             steps = []
             for t in range(trials):
@@ -79,7 +81,7 @@ def main() -> None:
     )
     ap.add_argument("--trials", type=int, default=12, help="trials per condition and agent")
     ap.add_argument("--seed", type=int, default=101, help="validation seed (not the benchmark's 0)")
-    ap.add_argument("--agents", default="rnd-wlk,min-var")
+    ap.add_argument("--agents", default=",".join((RANDOM_AGENT, MinVarianceAgent.name)))
     args = ap.parse_args()
     if args.seed == 0:
         ap.error("--seed 0 is the benchmark's seed; scan on validation seeds")

@@ -35,12 +35,14 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
 
-AGENTS = ("min-var", "min-var[gain=preset]")
+AGENTS = (MinVarianceAgent.name, f"{MinVarianceAgent.name}[gain=preset]")
 
 
 def tank(condition: Condition, setting: str, daq_mV: float) -> Condition:
@@ -61,7 +63,7 @@ def run(
     """{agent: {condition: [(success, readings), ...]}}."""
     out: dict[str, dict[str, list[tuple[bool, int]]]] = {a: {} for a in AGENTS}
     for name in PRESET_NAMES:
-        env = gym.make("ElectroLoc-v0", condition=tank(get_condition(name), setting, daq_mV), gain_levels=levels)
+        env = gym.make(PAPER_ENV_ID, condition=tank(get_condition(name), setting, daq_mV), gain_levels=levels)
         for spec in AGENTS:
             agent = make_agent(spec)
             rows = out[spec].setdefault(name, [])

@@ -33,9 +33,11 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.agents import make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import Condition, get_condition  # noqa: E402
 
@@ -84,7 +86,7 @@ def train_commands(args: argparse.Namespace) -> list[str]:
             "--algo",
             "ppo",
             "--env",
-            "ElectroLoc-v0",
+            PAPER_ENV_ID,
             "--env-kwargs",
             *kv,
             "observation=belief",
@@ -130,13 +132,13 @@ def main() -> None:
     gain_env = {"condition": floor_tank(args.condition, args.output_noise_mV), "gain_levels": args.levels}
     agents = [(label, f"{folder}/best", kwargs) for label, kwargs, folder in runs(args)]
     agents += [
-        ("min-var choosing the gain", "min-var", gain_env),
-        ("min-var at the preset gain", "min-var[gain=preset]", gain_env),
+        ("min-var choosing the gain", MinVarianceAgent.name, gain_env),
+        ("min-var at the preset gain", f"{MinVarianceAgent.name}[gain=preset]", gain_env),
     ]
     rows = []
     for label, spec, kwargs in tqdm(agents, desc="agents"):
         agent = make_bench_agent(spec)
-        env = gym.make("ElectroLoc-v0", **kwargs)
+        env = gym.make(PAPER_ENV_ID, **kwargs)
         res = []
         for k in range(args.trials):
             env_seed, agent_seed = trial_seeds(args.seed, args.condition, k)

@@ -18,6 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.baselines.agent import RANDOM_AGENT
+from electroloc_gym.baselines.lookahead import LookaheadAgent
+from electroloc_gym.baselines.min_variance import MinVarianceAgent
+
 BASELINES_DIR = "_baselines"
 
 
@@ -25,9 +29,9 @@ class NoLearnedRuns(ValueError):
     """An env of the results folder has no learned run with a finished benchmark yet."""
 
 
-RND = "rnd-wlk"
+RND = RANDOM_AGENT
 #: The non-learned agents the probability of improvement is stated against (when they were benched).
-REFERENCES = ("min-var", "lookahead")
+REFERENCES = (MinVarianceAgent.name, LookaheadAgent.name)
 #: Pairs of learned configurations (suite labels) whose P(A better than B) the report states when both
 #: ran on an env: memory against stacked frames on the raw reading, and the belief given against memory.
 COMPARISONS = (("ppo_lstm-raw", "ppo-framestack-raw"), ("ppo", "ppo_lstm-raw"))

@@ -45,8 +45,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.baselines.agent import belief_agents
-from electroloc_gym.registry import env_entry
+from electroloc_gym.baselines.agent import RANDOM_AGENT, belief_agents
+from electroloc_gym.baselines.infotaxis import InfotaxisAgent
+from electroloc_gym.baselines.lookahead import LookaheadAgent
+from electroloc_gym.baselines.min_variance import MinVarianceAgent
+from electroloc_gym.registry import PAPER_ENV_ID, env_entry, task_entry
 from electroloc_gym.utils.agentspec import parse_options
 from electroloc_gym.utils.runtime import thread_env
 
@@ -85,37 +88,38 @@ class Config:
 
 
 _RAW = {"condition": "random", "observation": "raw", "randomize_target": True}
+_GLOBAL, _UNKNOWN = task_entry("global").env_id, task_entry("unknown").env_id
 
 SUITE: tuple[Config, ...] = (
-    Config("ElectroLoc-v0", "ppo", "ppo", note="belief observation, continuous moves"),
-    Config("ElectroLoc-v0", "sac", "sac", note="belief observation, continuous moves"),
-    Config("ElectroLoc-v0", "a2c", "a2c", note="belief observation, continuous moves"),
-    Config("ElectroLoc-v0", "qrdqn", "qrdqn", note="belief observation, the discrete action mode (9 moves)"),
+    Config(PAPER_ENV_ID, "ppo", "ppo", note="belief observation, continuous moves"),
+    Config(PAPER_ENV_ID, "sac", "sac", note="belief observation, continuous moves"),
+    Config(PAPER_ENV_ID, "a2c", "a2c", note="belief observation, continuous moves"),
+    Config(PAPER_ENV_ID, "qrdqn", "qrdqn", note="belief observation, the discrete action mode (9 moves)"),
     Config(
-        "ElectroLoc-v0",
+        PAPER_ENV_ID,
         "ppo_lstm-raw",
         "ppo_lstm",
         env_kwargs=_RAW,
         note="RecurrentPPO on the raw reading: memory instead of the belief",
     ),
     Config(
-        "ElectroLoc-v0",
+        PAPER_ENV_ID,
         "ppo-framestack-raw",
         "ppo",
         env_kwargs=_RAW,
         hyperparams={"frame_stack": 16, "n_envs": 8},
         note="PPO on the last 16 raw readings",
     ),
-    Config("ElectroLocGlobal-v0", "ppo", "ppo", note="self-localisation in the mapped tank"),
-    Config("ElectroLocUnknownTarget-v0", "ppo", "ppo", note="a sphere of unknown size and material"),
+    Config(_GLOBAL, "ppo", "ppo", note="self-localisation in the mapped tank"),
+    Config(_UNKNOWN, "ppo", "ppo", note="a sphere of unknown size and material"),
 )
 
 #: ``electroloc bench --env`` of each env id, and the non-learned agents benchmarked beside the learned ones.
 BENCH_ENV = {c.env_id: env_entry(c.env_id).bench[0].name for c in SUITE}
 BASELINE_AGENTS = {
-    "ElectroLoc-v0": ",".join(belief_agents()),
-    "ElectroLocGlobal-v0": "rnd-wlk,min-var,lookahead",
-    "ElectroLocUnknownTarget-v0": "rnd-wlk,min-var,infotaxis",
+    PAPER_ENV_ID: ",".join(belief_agents()),
+    _GLOBAL: ",".join((RANDOM_AGENT, MinVarianceAgent.name, LookaheadAgent.name)),
+    _UNKNOWN: ",".join((RANDOM_AGENT, MinVarianceAgent.name, InfotaxisAgent.name)),
 }  # lookahead plans over positions only
 
 

@@ -24,15 +24,18 @@ import torch.nn.functional as F
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
+from electroloc_gym.baselines.lookahead import LookaheadAgent  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
+
 
 @dataclass
 class TrainConfig:
     """BC's settings (every one a command-line option of the same name)."""
 
-    datasets: str = "electroloc/ElectroLoc-v0/lookahead-v0"  # comma-separated Minari ids
-    env_id: str = "ElectroLoc-v0"
+    datasets: str = f"electroloc/{PAPER_ENV_ID}/{LookaheadAgent.name}-v0"  # comma-separated Minari ids
+    env_id: str = PAPER_ENV_ID
     seed: int = 1
-    out: str = "experiments/offline/results/ElectroLoc-v0/bc-lookahead/seed-1"
+    out: str = f"experiments/offline/results/{PAPER_ENV_ID}/bc-{LookaheadAgent.name}/seed-1"
     steps: int = 20_000
     batch_size: int = 256
     lr: float = 3e-4

@@ -21,17 +21,23 @@ import sys
 import time
 from pathlib import Path
 
+from electroloc_gym.baselines.agent import RANDOM_AGENT
+from electroloc_gym.baselines.infotaxis import InfotaxisAgent
+from electroloc_gym.baselines.lookahead import LookaheadAgent
+from electroloc_gym.baselines.min_variance import MinVarianceAgent
+from electroloc_gym.registry import PAPER_ENV_ID, task_entry
+
 ROOT = Path(__file__).resolve().parents[2]
 LEARNED = ROOT / "experiments" / "learned" / "results"
 #: (env id, agent, episodes) of the reference datasets.
 DATASETS = (
-    ("ElectroLoc-v0", "rnd-wlk", 1000),
-    ("ElectroLoc-v0", "min-var", 300),
-    ("ElectroLoc-v0", "lookahead", 500),
-    ("ElectroLoc-v0", "infotaxis", 500),
-    ("ElectroLoc-v0", "ppo-belief", 500),
-    ("ElectroLocGlobal-v0", "min-var", 200),
-    ("ElectroLocGlobal-v0", "lookahead", 200),
+    (PAPER_ENV_ID, RANDOM_AGENT, 1000),
+    (PAPER_ENV_ID, MinVarianceAgent.name, 300),
+    (PAPER_ENV_ID, LookaheadAgent.name, 500),
+    (PAPER_ENV_ID, InfotaxisAgent.name, 500),
+    (PAPER_ENV_ID, "ppo-belief", 500),
+    (task_entry("global").env_id, MinVarianceAgent.name, 200),
+    (task_entry("global").env_id, LookaheadAgent.name, 200),
 )
 
 

@@ -29,15 +29,20 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "learned"))  # the learned report's statistics
 import learned_scores  # noqa: E402
 
+from electroloc_gym.baselines.agent import PLANNER_AGENTS, RANDOM_AGENT  # noqa: E402
+from electroloc_gym.baselines.infotaxis import InfotaxisAgent  # noqa: E402
+from electroloc_gym.baselines.lookahead import LookaheadAgent  # noqa: E402
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[2]
+MIX = (RANDOM_AGENT, MinVarianceAgent.name, LookaheadAgent.name, InfotaxisAgent.name, "ppo-belief")
+PLANNERS = (RANDOM_AGENT, *PLANNER_AGENTS)
 #: Per method label: its data and the controller it is compared with ("best": the best of the mix).
 METHODS = {
-    "bc-lookahead": ("lookahead", "lookahead"),
-    "bc-min-var": ("min-var", "min-var"),
-    "td3bc-mixed": ("rnd-wlk, min-var, lookahead, infotaxis, ppo-belief", "best"),
+    "bc-lookahead": (LookaheadAgent.name, LookaheadAgent.name),
+    "bc-min-var": (MinVarianceAgent.name, MinVarianceAgent.name),
+    "td3bc-mixed": (", ".join(MIX), "best"),
 }
-MIX = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "ppo-belief")
-PLANNERS = ("rnd-wlk", "min-var", "lookahead", "infotaxis", "eedi")
 
 
 def _controllers(lr: Any, paths: list[Path], keys: set[tuple[str, int]]) -> dict[str, list[dict[str, Any]]]:
@@ -84,7 +89,7 @@ def analyse(results: Path, learned: Path, env_id: str, reps: int, seed: int) -> 
     success = {m: np.stack([s["success"] for s in v]) for m, v in scores.items()}
     mix = [a for a in MIX if a in base]
     best_mix = min(mix, key=lambda a: base[a]["readings"].mean()) if mix else None
-    best_planner = min((a for a in planners if a != "rnd-wlk"), key=lambda a: base[a]["readings"].mean())
+    best_planner = min((a for a in planners if a != RANDOM_AGENT), key=lambda a: base[a]["readings"].mean())
     stats = {
         "readings_iqm": lr.interval(readings, iqm, reps, seed),
         "readings_mean": lr.interval(readings, mean, reps, seed),

@@ -27,7 +27,9 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 
-TARGET, GLOBAL = "ElectroLoc-v0", "ElectroLocGlobal-v0"
+from electroloc_gym.registry import PAPER_ENV_ID, task_entry  # noqa: E402
+
+TARGET, GLOBAL = PAPER_ENV_ID, task_entry("global").env_id
 BC = ["--steps", "10000", "--eval-every", "2000"]
 #: env id → label → (trainer, its options). The global env has the two planners' datasets only (no mix).
 SUITE = {

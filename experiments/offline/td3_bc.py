@@ -26,8 +26,15 @@ from torch import nn
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
+from electroloc_gym.baselines.agent import RANDOM_AGENT  # noqa: E402
+from electroloc_gym.baselines.infotaxis import InfotaxisAgent  # noqa: E402
+from electroloc_gym.baselines.lookahead import LookaheadAgent  # noqa: E402
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
+
 MIXED = ",".join(
-    f"electroloc/ElectroLoc-v0/{a}-v0" for a in ("rnd-wlk", "min-var", "lookahead", "infotaxis", "ppo-belief")
+    f"electroloc/{PAPER_ENV_ID}/{a}-v0"
+    for a in (RANDOM_AGENT, MinVarianceAgent.name, LookaheadAgent.name, InfotaxisAgent.name, "ppo-belief")
 )
 
 
@@ -36,9 +43,9 @@ class TrainConfig:
     """TD3+BC's settings (CORL's defaults; every one a command-line option of the same name)."""
 
     datasets: str = MIXED  # comma-separated Minari ids
-    env_id: str = "ElectroLoc-v0"
+    env_id: str = PAPER_ENV_ID
     seed: int = 1
-    out: str = "experiments/offline/results/ElectroLoc-v0/td3bc-mixed/seed-1"
+    out: str = f"experiments/offline/results/{PAPER_ENV_ID}/td3bc-mixed/seed-1"
     steps: int = 30_000
     batch_size: int = 256
     lr: float = 3e-4

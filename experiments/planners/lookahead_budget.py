@@ -40,11 +40,13 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
 from electroloc_gym.baselines.agent import make_agent  # noqa: E402
+from electroloc_gym.baselines.lookahead import LookaheadAgent  # noqa: E402
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.bench.config import resolve_conditions, trial_seeds  # noqa: E402
-from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
-from electroloc_gym.registry import env_entry  # noqa: E402
+from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES  # noqa: E402
+from electroloc_gym.registry import PAPER_ENV_ID, env_entry, task_entry  # noqa: E402
 
-GLOBAL_ENV_ID = "ElectroLocGlobal-v0"
+GLOBAL_ENV_ID = task_entry("global").env_id
 GLOBAL_CONDITION = env_entry(GLOBAL_ENV_ID).map_condition
 from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
@@ -52,11 +54,11 @@ from electroloc_gym.world.conditions import DEFAULT_SIGNAL, get_condition  # noq
 
 #: min-var, then the planner at increasing budgets.
 AGENTS = (
-    "min-var",
-    "lookahead[depth=1]",
-    "lookahead",
-    "lookahead[closed=True,branches=16]",
-    "lookahead[depth=3,continuations=64,branches=16]",
+    MinVarianceAgent.name,
+    f"{LookaheadAgent.name}[depth=1]",
+    LookaheadAgent.name,
+    f"{LookaheadAgent.name}[closed=True,branches=16]",
+    f"{LookaheadAgent.name}[depth=3,continuations=64,branches=16]",
 )
 
 
@@ -118,7 +120,7 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0, help="root seed of the trial seeds (default 0, the benchmark's)")
     p.add_argument("--conditions", default="all", help="'all' or comma-separated ElectroLoc-v0 presets")
     p.add_argument("--n-particles", type=int, default=N_PARTICLES)
-    p.add_argument("--max-observations", type=int, default=35)
+    p.add_argument("--max-observations", type=int, default=MAX_OBSERVATIONS)
     p.add_argument("--out", default="lookahead_budget.png", help="figure path (default lookahead_budget.png)")
     p.add_argument("--replot", metavar="JSON", help="only redraw the figure from a run's saved numbers")
     args = p.parse_args()
@@ -146,11 +148,11 @@ def main() -> None:
             args.n_particles,
         )
     if args.trials:
-        results["ElectroLoc-v0"] = run(
-            "ElectroLoc-v0", conditions, args.trials, args.seed, AGENTS, args.max_observations, args.n_particles
+        results[PAPER_ENV_ID] = run(
+            PAPER_ENV_ID, conditions, args.trials, args.seed, AGENTS, args.max_observations, args.n_particles
         )
     print(
-        f"\nseed {args.seed}; ElectroLoc-v0: {len(conditions)} conditions × {args.trials} trials; "
+        f"\nseed {args.seed}; {PAPER_ENV_ID}: {len(conditions)} conditions × {args.trials} trials; "
         f"{GLOBAL_ENV_ID}: {args.global_trials} trials; "
         f"{args.n_particles} particles, cap {args.max_observations}; {time.perf_counter() - t0:.0f} s\n"
     )
@@ -160,7 +162,7 @@ def main() -> None:
     print("\n".join(lines))
 
     summary = {
-        "title": f"lookahead budgets, seed {args.seed}: ElectroLoc-v0 {len(conditions)} conditions × "
+        "title": f"lookahead budgets, seed {args.seed}: {PAPER_ENV_ID} {len(conditions)} conditions × "
         f"{args.trials} trials, {GLOBAL_ENV_ID} {args.global_trials} trials",
         "envs": {env_id: summarise(res) for env_id, res in results.items()},
     }

@@ -24,10 +24,12 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401
+from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.agents import make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.engines.numba_core.unknown import CONDUCTOR_CHI, INSULATOR_CHI  # noqa: E402
+from electroloc_gym.registry import task_entry  # noqa: E402
 from electroloc_gym.sensor_models.shape import TheoreticalShapeModel  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
@@ -57,7 +59,7 @@ def grid_posterior(env: gym.Env, history: list[tuple[np.ndarray, float]], step_m
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--agent", default="min-var", help="an agent spec as electroloc bench takes it")
+    ap.add_argument("--agent", default=MinVarianceAgent.name, help="an agent spec as electroloc bench takes it")
     ap.add_argument("--seed", type=int, default=101, help="root seed of the trial seeds")
     ap.add_argument("--trials", type=int, default=6, help="trials per condition")
     ap.add_argument("--grid-mm", type=float, default=2.0, help="x–y step of the posterior grid, mm")
@@ -70,7 +72,7 @@ def main() -> None:
         "the exact posterior's mode": [],
     }
     for name in tqdm(PRESET_NAMES, desc="conditions"):
-        env = gym.make("ElectroLocUnknownTarget-v0", condition=get_condition(name), target_draw="condition")
+        env = gym.make(task_entry("unknown").env_id, condition=get_condition(name), target_draw="condition")
         for t in range(args.trials):
             env_seed, agent_seed = trial_seeds(args.seed, name, t)
             history: list[tuple[np.ndarray, float]] = []
