@@ -142,8 +142,14 @@ class BenchEvalCallback(BaseCallback):
         n_episodes: validation episodes (reset seeds ``seed``, ``seed + 1``, …; ≥ 1).
         seed: first validation reset seed (keep it away from the benchmark's seed-0 trials).
         env_kwargs: evaluation env kwargs on top of the training env's (e.g. ``randomize_target: false``).
+        select: what makes a checkpoint the best: ``"mean_readings"`` (fewest readings to localise; the
+            envs that end when the belief is tight) or ``"mean_return"`` (highest validation return; an env
+            of fixed length such as ElectroLocTrack-v0, whose reward is the tracking error). Ties: the later.
         verbose: 1 prints one line per evaluation.
     """
+
+    #: The selection rules: the row's key and whether a smaller value is better.
+    SELECT: Mapping[str, bool] = {"mean_readings": True, "mean_return": False}
 
     def __init__(
         self,
@@ -151,9 +157,13 @@ class BenchEvalCallback(BaseCallback):
         n_episodes: int = 64,
         seed: int = VALIDATION_SEED,
         env_kwargs: Mapping[str, Any] | None = None,
+        select: str = "mean_readings",
         verbose: int = 1,
     ) -> None:
         super().__init__(verbose)
+        if select not in self.SELECT:
+            raise ValueError(f"BenchEvalCallback select must be one of {list(self.SELECT)}, got {select!r}")
+        self.select = select
         for name, v in (("eval_freq", eval_freq), ("n_episodes", n_episodes)):
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"BenchEvalCallback {name} must be an integer ≥ 1, got {v!r}")
@@ -245,7 +255,10 @@ class BenchEvalCallback(BaseCallback):
                 f"({row['wall_time_s']:.0f} s)",
                 flush=True,
             )
-        new_best = self.best is None or res["mean_readings"] <= self.best["mean_readings"]  # ties: the later checkpoint
+        key, smaller = self.select, self.SELECT[self.select]
+        new_best = self.best is None or (  # ties: the later checkpoint
+            res[key] <= self.best[key] if smaller else res[key] >= self.best[key]
+        )
         if new_best:
             self.best = row
         if self.run_dir is not None:

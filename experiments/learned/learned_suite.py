@@ -88,7 +88,7 @@ class Config:
 
 
 _RAW = {"condition": "random", "observation": "raw", "randomize_target": True}
-_GLOBAL, _UNKNOWN = task_entry("global").env_id, task_entry("unknown").env_id
+_GLOBAL, _UNKNOWN, _TRACK = (task_entry(t).env_id for t in ("global", "unknown", "track"))
 
 SUITE: tuple[Config, ...] = (
     Config(PAPER_ENV_ID, "ppo", "ppo", note="belief observation, continuous moves"),
@@ -112,6 +112,15 @@ SUITE: tuple[Config, ...] = (
     ),
     Config(_GLOBAL, "ppo", "ppo", note="self-localisation in the mapped tank"),
     Config(_UNKNOWN, "ppo", "ppo", note="a sphere of unknown size and material"),
+    Config(_TRACK, "ppo", "ppo", note="a target that swims: belief observation (the filter told a random walk)"),
+    Config(
+        _TRACK,
+        "ppo-framestack-raw",
+        "ppo",
+        env_kwargs={"condition": "random", "observation": "raw", "randomize_target": True},
+        hyperparams={"frame_stack": 16, "n_envs": 8},
+        note="a target that swims: PPO on the last 16 raw readings",
+    ),
 )
 
 #: ``electroloc bench --env`` of each env id, and the non-learned agents benchmarked beside the learned ones.
@@ -120,6 +129,7 @@ BASELINE_AGENTS = {
     PAPER_ENV_ID: ",".join(belief_agents()),
     _GLOBAL: ",".join((RANDOM_AGENT, MinVarianceAgent.name, LookaheadAgent.name)),
     _UNKNOWN: ",".join((RANDOM_AGENT, MinVarianceAgent.name, InfotaxisAgent.name)),
+    _TRACK: ",".join(env_entry(_TRACK).bench[0].agents),  # rnd-wlk, min-var with the motion model, pursuit
 }  # lookahead plans over positions only
 
 
