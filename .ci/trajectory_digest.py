@@ -24,6 +24,11 @@ CASES = [
     ("ElectroLocGlobal-v0", {"n_particles": 200, "sensor_model": "analytic", "layout": "random"}),
     ("ElectroLocUnknownTarget-v0", {"n_particles": 400}),
     ("ElectroLocUnknownTarget-v0", {"n_particles": 300, "sensor_model": "interpolated", "contrast": "continuous"}),
+    ("ElectroLocTrack-v0", {"n_particles": 400, "target_speed_mm": 6.0}),
+    (
+        "ElectroLocTrack-v0",
+        {"n_particles": 300, "sensor_model": "analytic", "condition": "random", "target_motion": "random_walk"},
+    ),
 ]
 
 

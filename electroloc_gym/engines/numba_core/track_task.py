@@ -50,6 +50,7 @@ truth, as the info's error: for learning and evaluation, never for the agent's d
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -131,13 +132,12 @@ class TrackTask(LocalizeTask):
         for j, i in enumerate(idx.tolist()):
             g = state.gens[i]
             assert g is not None  # reset made every env's generator
-            if self.swimmer:
-                state.target_heading_rad[i] += g.normal(0.0, self.params.turn_std_rad)
+            if self.swimmer:  # scalar libm per env (docs/design.md, "Results that do not depend on the CPU")
+                h = float(state.target_heading_rad[i]) + float(g.normal(0.0, self.params.turn_std_rad))
+                state.target_heading_rad[i] = h
+                steps[j] = speed * math.cos(h), speed * math.sin(h)
             else:
                 steps[j] = g.normal(0.0, self.target_std_mm, 2)
-        if self.swimmer:
-            h = state.target_heading_rad[idx]
-            steps[:, 0], steps[:, 1] = speed * np.cos(h), speed * np.sin(h)
         half = state.half_mm[idx][:, None]
         target, flipped = reflect(state.target_mm[idx] + steps, half)
         state.target_mm[idx] = target
