@@ -25,8 +25,8 @@ import gymnasium as gym
 import numpy as np
 
 import electroloc_gym  # noqa: F401  (registers the ids)
-from electroloc_gym.baselines.agent import make_agent
 from electroloc_gym.baselines.rollout import run_episode
+from electroloc_gym.bench.agents import make_bench_agent
 from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM
 from electroloc_gym.registry import bench_env
 from electroloc_gym.utils.fileio import atomic_write_text
@@ -46,12 +46,14 @@ def episode_seeds(seed: int, trials: int) -> list[tuple[int, int]]:
 
 def run_cell(agent: str, speed_mm: float, seeds: list[tuple[int, int]], env_kwargs: dict[str, Any]) -> dict[str, Any]:
     """Every trial of one controller at one speed: tracking errors (mm), captures, the condition drawn."""
-    env = gym.make(ENV_ID, target_speed_mm=speed_mm, **env_kwargs)
+    # the agent's own env needs (a learned policy's observation mode) on top of the sweep's settings
+    needs = dict(getattr(make_bench_agent(agent), "env_kwargs", {}))
+    env = gym.make(ENV_ID, target_speed_mm=speed_mm, **{**env_kwargs, **needs})
     out: dict[str, Any] = {"agent": agent, "speed_mm": speed_mm, "tracking_error_mm": [], "captured": []}
     out["condition"] = []
     t0 = time.perf_counter()
     for env_seed, agent_seed in seeds:
-        ep = run_episode(env, make_agent(agent, seed=agent_seed), env_seed, agent_seed=agent_seed)
+        ep = run_episode(env, make_bench_agent(agent, seed=agent_seed), env_seed, agent_seed=agent_seed)
         out["tracking_error_mm"].append(float(ep.info["tracking_error_mm"]))
         out["captured"].append(bool(ep.info["captured"]))
         out["condition"].append(str(ep.info["condition"]))
@@ -124,7 +126,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     pin_threads()
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--speeds", type=float, nargs="+", default=list(DEFAULT_SPEEDS_MM), help="mm per reading")
-    p.add_argument("--agents", default=",".join(ROW.agents or ()), help="comma-separated controllers")
+    p.add_argument(
+        "--agents",
+        default=",".join(ROW.agents or ()),
+        help="comma-separated agent specs as electroloc bench --agents takes them (controllers, policy folders)",
+    )
     p.add_argument("--trials", type=int, default=16, help="episodes per speed and agent")
     p.add_argument("--seed", type=int, default=0, help="root seed of the episodes' seeds")
     p.add_argument("--motion", default="swimmer", choices=["swimmer", "random_walk"], help="the target's motion")
