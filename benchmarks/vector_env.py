@@ -50,7 +50,7 @@ from tqdm import tqdm  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
-from electroloc_gym.registry import ENV_IDS, env_entry  # noqa: E402
+from electroloc_gym.registry import ENV_IDS, PAPER_ENV_ID, env_entry  # noqa: E402
 from electroloc_gym.utils.fileio import atomic_write_text  # noqa: E402
 
 
@@ -97,7 +97,7 @@ def measure(make: Callable[[], Any], seconds: float, rounds: int, seed: int = 0)
     return {"steps_per_s_cpu": n / best_cpu, "steps_per_s_wall": n / best_wall, "vector_steps": n_steps}
 
 
-def _make(backend: str, n: int, kwargs: dict[str, Any], env_id: str = "ElectroLoc-v0") -> Any:
+def _make(backend: str, n: int, kwargs: dict[str, Any], env_id: str = PAPER_ENV_ID) -> Any:
     if backend == "single":
         return _Single(env_id, kwargs)
     if backend == "sync":
@@ -111,7 +111,7 @@ def measure_isolated(
     kwargs: dict[str, Any],
     seconds: float,
     rounds: int,
-    env_id: str = "ElectroLoc-v0",
+    env_id: str = PAPER_ENV_ID,
     tree: str | None = None,
 ) -> dict[str, float]:
     """:func:`measure` in a fresh interpreter, so that allocator state and caches of one configuration
@@ -158,7 +158,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--observation", default="belief", choices=["belief", "raw"])
     ap.add_argument("--sensor-model", default="calibrated", choices=["calibrated", "analytic"])
     ap.add_argument("--condition", default="fresh-steel-12.7", help="ElectroLoc-v0 only")
-    ap.add_argument("--env", default="ElectroLoc-v0", choices=list(ENV_IDS))
+    ap.add_argument("--env", default=PAPER_ENV_ID, choices=list(ENV_IDS))
     ap.add_argument(
         "--beside",
         default=None,
