@@ -176,6 +176,7 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
         "ppo-belief-gain": "trained on ElectroLoc-v0 with gain_levels=[0.25, 1.0, 4.0], not ElectroLoc-v0",
         "ppo-belief-global": "trained on ElectroLocGlobal-v0, not ElectroLoc-v0",
         "ppo-belief-grid-2x2": "trained with sensor_layout='grid-2x2', not 'single'",
+        "ppo-belief-track": "trained on ElectroLocTrack-v0, not ElectroLoc-v0",
     }
     assert {c.spec: c.skipped for c in choices if c.skipped} == {
         name: other_env.get(name, "the training extra is not installed (test)") for name in shipped_models()
@@ -187,10 +188,11 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
     assert (
         "electroloc bench: the shipped policies trained for other settings run there: "
         "ppo-belief-gain (--env dynamic-gain), ppo-belief-global (--env global), "
-        "ppo-belief-grid-2x2 (--sensor-layout grid-2x2), ppo-belief-unknown (--env unknown-target)"
+        "ppo-belief-grid-2x2 (--sensor-layout grid-2x2), ppo-belief-track (--env track), "
+        "ppo-belief-unknown (--env unknown-target)"
     ) in captured.err
     assert "skipping ppo-belief-global" not in captured.err
-    for env_name in ("global", "dynamic-gain", "unknown-target"):  # each option named is a real bench row
+    for env_name in ("global", "dynamic-gain", "unknown-target", "track"):  # each option named is a real bench row
         assert env_name in BENCH_ENVS
     assert "agents: rnd-wlk; min-var; zero-crossing" in captured.out
     assert [c.spec for c in default_agents(names=("rnd-wlk", "min-var")) if not c.skipped] == ["rnd-wlk", "min-var"]

@@ -300,7 +300,8 @@ def test_bench_track_row_table_and_resume(tmp_path, capsys) -> None:
     summary = json.loads((out / "summary.json").read_text())
     assert summary["config"]["env_id"] == ID
     records = [json.loads(line) for line in (out / "trials.jsonl").read_text().splitlines()]
-    assert len(records) == 18 and {r["agent"] for r in records} == {"rnd-wlk", "min-var", "pursuit"}
+    # the row's controllers, then the shipped policy trained on this env (a default run's agents)
+    assert len(records) == 24 and {r["agent"] for r in records} == {"rnd-wlk", "min-var", "pursuit", "ppo-belief-track"}
     assert all(r["readings"] == 8 and r["ended_by"] == "cap" and not r["success"] for r in records)
     for row in summary["rows"]:
         recs = [
@@ -317,7 +318,7 @@ def test_bench_track_row_table_and_resume(tmp_path, capsys) -> None:
     capsys.readouterr()
     assert bench_command.run(_bench_args([*argv, "--resume"])) == 0
     printed = capsys.readouterr()
-    assert "18 already done, 0 to run" in printed.out + printed.err  # resumed: nothing ran again
+    assert "24 already done, 0 to run" in printed.out + printed.err  # resumed: nothing ran again
     again = [json.loads(line) for line in (out / "trials.jsonl").read_text().splitlines()]
     key = lambda r: (r["condition"], r["agent"], r["trial"])  # noqa: E731
     assert sorted(map(key, again)) == sorted(map(key, records))

@@ -150,6 +150,11 @@ class BenchEvalCallback(BaseCallback):
 
     #: The selection rules: the row's key and whether a smaller value is better.
     SELECT: Mapping[str, bool] = {"mean_readings": True, "mean_return": False}
+    #: What each rule is, as the run's summary and the export's provenance say it.
+    CHOSEN_BY: Mapping[str, str] = {
+        "mean_readings": "fewest mean readings to localise (failures count as the cap) on the validation episodes",
+        "mean_return": "highest mean return (unshaped) on the validation episodes",
+    }
 
     def __init__(
         self,
@@ -296,7 +301,7 @@ class BenchEvalCallback(BaseCallback):
                     "first_seed": self.seed,
                     "env_kwargs": self.eval_env_kwargs,
                 },
-                "chosen_by": "fewest mean readings to localise (failures count as the cap) on the validation episodes",
+                "chosen_by": self.CHOSEN_BY[self.select],
                 "best": self.best,
                 "evaluations": len(self.history),
             },
