@@ -35,7 +35,8 @@ def test_nox_runs_every_default_session() -> None:
     sessions = re.findall(r"@nox\.session\ndef (\w+)", noxfile)
     assert set(sessions) == {"tests", "lowest", "rllib", "wheel"}
     listed = re.search(r"nox\.options\.sessions = \[([^\]]*)\]", noxfile).group(1)
-    assert sorted(re.findall(r'"(\w+)"', listed)) == sorted(sessions)  # the docs build (tests) and the type check (rllib) among them
+    # the docs build (tests) and the type check (rllib) among them
+    assert sorted(re.findall(r'"(\w+)"', listed)) == sorted(sessions)
 
 
 def test_constraints_pin_cpu_torch() -> None:

@@ -19,6 +19,13 @@ Scores, one per (run, condition), each over the condition's trials:
   and R_best that of the best non-learned planner on the condition (the lowest of the baselines' scores
   other than rnd-wlk): 0 at rnd-wlk, 1 at the best planner, above 1 better than every planner.
 
+A tracking env (ElectroLocTrack-v0: the target swims, every trial runs to its 70 readings) is scored by
+its **tracking error** instead (the mean over the condition's trials of ``tracking_error_mm``, mm, lower
+better) and its **capture** fraction, in a table of its own: the same aggregates, the normalised tracking
+error (0 at rnd-wlk, 1 at the best non-learned controller on the condition), the probability of a lower
+tracking error than min-var and between the learned pairs of ``TRACK_COMPARISONS``; its learning curves
+show the validation episodes' mean return and final error (``learned_scores`` says more).
+
 The conditions are rliable's tasks (stratified bootstrap: runs are resampled within each condition); the
 non-learned agents are deterministic given the benchmark seed, so each is one run. rliable computes every
 aggregate and interval; this script only arranges the records into its (runs × tasks) matrices.
@@ -48,10 +55,13 @@ from learned_scores import (  # noqa: E402
     COMPARISONS,
     MAX_REPS,
     REFERENCES,
+    TRACK_COMPARISONS,
+    TRACKING_KEY,
     NoLearnedRuns,
     ReportError,
     analyse,
     bootstrap,
+    tracks,
 )
 
 
@@ -59,9 +69,21 @@ def _fmt(v: Sequence[float], digits: int = 2) -> str:
     return f"{v[0]:.{digits}f} [{v[1]:.{digits}f}, {v[2]:.{digits}f}]"
 
 
+def _tracking(a: dict[str, Any]) -> bool:
+    """Whether an analysis is a tracking env's (scored by tracking error and capture)."""
+    return a.get("metric") == TRACKING_KEY
+
+
 def table(analyses: Sequence[dict[str, Any]]) -> str:
-    """The aggregate table (markdown): algorithm × env."""
+    """The aggregate table (markdown): algorithm × env; the tracking envs' in a table of their own after it
+    (:func:`tracking_table`).
+    """
     from electroloc_gym.utils.markdown import markdown_table
+
+    track = [a for a in analyses if _tracking(a)]
+    analyses = [a for a in analyses if not _tracking(a)]
+    if not analyses:
+        return tracking_table(track)
 
     # The main table is built by hand, not by markdown_table: a baseline row's empty cells are "| |", one space,
     # not the helper's "|  |".
@@ -93,6 +115,74 @@ def table(analyses: Sequence[dict[str, Any]]) -> str:
                 [(env, c["better"], c["than"], _fmt(c["p"])) for env, c in pairs],
             ),
         ]
+    return "\n".join(lines) + "\n" + ("\n" + tracking_table(track) if track else "")
+
+
+def tracking_table(analyses: Sequence[dict[str, Any]]) -> str:
+    """The tracking envs' aggregate table (markdown): algorithm × env, by tracking error (mm) and capture,
+    then their learned pairs' probabilities of a lower tracking error.
+    """
+    from electroloc_gym.utils.markdown import markdown_table
+
+    refs = [r for r in REFERENCES if any(r in a["baselines"] for a in analyses)]
+    rows = []
+    for a in analyses:
+        for algo, row in a["algorithms"].items():
+            norm = _fmt(row["normalised_iqm"]) if "normalised_iqm" in row else "–"
+            rows.append(
+                (
+                    a["env_id"],
+                    algo,
+                    str(len(a["seeds"][algo])),
+                    _fmt(row["tracking_error_iqm"]),
+                    _fmt(row["tracking_error_mean"]),
+                    _fmt(row["capture_mean"]),
+                    norm,
+                    *(_fmt(row["p_improvement"][r]) if r in row["p_improvement"] else "–" for r in refs),
+                )
+            )
+        for agent, row in a["baselines"].items():
+            norm = f"{row['normalised_mean']:.2f}" if "normalised_mean" in row else "–"
+            rows.append(
+                (
+                    a["env_id"],
+                    f"{agent} (not learned)",
+                    "1",
+                    "–",
+                    f"{row['tracking_error_mean']:.2f}",
+                    f"{row['capture_mean']:.2f}",
+                    norm,
+                    *("–" for _ in refs),
+                )
+            )
+    lines = [
+        "Tracking envs (the target swims; every trial runs to its reading cap): tracking error = the belief "
+        "mean's mean distance to the target over the episode's second half, mm (lower is better); capture = "
+        "the carriage within 10 mm of the target at the end",
+        "",
+        *markdown_table(
+            (
+                "env",
+                "algorithm",
+                "seeds",
+                "tracking error IQM, mm [95 % CI]",
+                "tracking error mean, mm [CI]",
+                "capture mean [CI]",
+                "normalised IQM [CI]",
+                *(f"P(lower error than {r}) [CI]" for r in refs),
+            ),
+            rows,
+        ),
+    ]
+    pairs = [(a["env_id"], c) for a in analyses for c in a.get("comparisons", [])]
+    if pairs:
+        lines += [
+            "",
+            *markdown_table(
+                ("env", "A", "B", "P(A tracks with a lower error than B) [95 % CI]"),
+                [(env, c["better"], c["than"], _fmt(c["p"])) for env, c in pairs],
+            ),
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -102,6 +192,8 @@ def condition_table(a: dict[str, Any]) -> str:
     """
     from electroloc_gym.utils.markdown import markdown_table
 
+    if _tracking(a):
+        return tracking_condition_table(a)
     conds = a["conditions"]
     rows = []
     for algo, row in a["algorithms"].items():
@@ -118,6 +210,33 @@ def condition_table(a: dict[str, Any]) -> str:
         "",
         *markdown_table(("agent", *conds), rows),
     ]
+    return "\n".join(lines) + "\n"
+
+
+def tracking_condition_table(a: dict[str, Any]) -> str:
+    """Per condition of a tracking env: each algorithm's tracking error (mm) and capture fraction, mean over
+    its seeds (min–max), and each non-learned agent's (markdown).
+    """
+    from electroloc_gym.utils.markdown import markdown_table
+
+    conds = a["conditions"]
+    lines = []
+    for key, what, digits in (("tracking_error", "tracking error, mm", 1), ("capture", "capture fraction", 2)):
+        rows = []
+        for algo, row in a["algorithms"].items():
+            cells = [f"{algo} ({len(a['seeds'][algo])} seeds)"]
+            for c in conds:
+                v = np.asarray(row[f"per_condition_{key}"][c])
+                cells.append(f"{v.mean():.2f} ({v.min():.{digits}f}–{v.max():.{digits}f})")
+            rows.append(cells)
+        for agent, row in a["baselines"].items():
+            rows.append([agent, *(f"{row[f'per_condition_{key}'][c]:.2f}" for c in conds)])
+        lines += [
+            *([""] if lines else []),
+            f"{a['env_id']}: {what} per condition, learned: mean over seeds (min–max)",
+            "",
+            *markdown_table(("agent", *conds), rows),
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -148,7 +267,8 @@ def figures(analyses: Sequence[dict[str, Any]], out: Path) -> list[Path]:
             ax.plot(taus, prof, label=algo)
             ax.fill_between(taus, cis[algo][0], cis[algo][1], alpha=0.2)
         ax.axvline(1.0, color="k", lw=0.8, ls=":")
-        ax.set_xlabel("normalised score τ (0: rnd-wlk, 1: best planner)")
+        best = "best non-learned controller" if _tracking(a) else "best planner"
+        ax.set_xlabel(f"normalised score τ (0: rnd-wlk, 1: {best})")
         ax.set_ylabel("fraction of (run, condition) with score > τ")
         ax.set_title(f"{a['env_id']}: performance profiles")
         ax.legend(fontsize=8)
@@ -159,16 +279,24 @@ def figures(analyses: Sequence[dict[str, Any]], out: Path) -> list[Path]:
     return paths
 
 
+#: The ``eval.csv`` columns the learning curves show: success and readings, or (a tracking env, whose
+#: episodes all run to the cap) the validation return and the final error.
+CURVE_KEYS = ("success_rate", "mean_readings")
+TRACK_CURVE_KEYS = ("mean_return", "mean_error_mm")
+
+
 def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
     """Per algorithm: the validation evaluations of its seeds (``eval.csv`` of each rl-zoo3 run) on a common
     step grid, and the training wall times (``summary.json``).
 
     Returns:
         ``{algo: {"timesteps": (T,), "success_rate": (seeds, T), "mean_readings": (seeds, T),
-        "wall_time_s": [per seed]}}``; the grid is the steps every seed evaluated at.
+        "wall_time_s": [per seed]}}`` (a tracking env: ``"mean_return"`` and ``"mean_error_mm"`` in place of
+        the success rate and readings); the grid is the steps every seed evaluated at.
     """
     from electroloc_gym.train.curves import read_eval_csv
 
+    keys = TRACK_CURVE_KEYS if tracks(env_id) else CURVE_KEYS
     out: dict[str, dict[str, Any]] = {}
     env_dir = results / env_id
     for algo_dir in sorted(p for p in env_dir.iterdir() if p.is_dir() and p.name != BASELINES_DIR):
@@ -181,6 +309,9 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
                 cols = read_eval_csv(found[-1])
             except ValueError as exc:
                 raise ReportError(str(exc)) from None
+            absent = [k for k in keys if k not in cols]
+            if absent:
+                raise ReportError(f"{found[-1]}: not a readable evaluation log (missing column(s) {absent})")
             rows = {int(t): {k: v[i] for k, v in cols.items()} for i, t in enumerate(cols["timesteps"])}
             summary = found[-1].parent / "summary.json"
             wall = None
@@ -200,10 +331,7 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
         grid = sorted(set.intersection(*(set(r) for r, _ in runs)))
         out[algo_dir.name] = {
             "timesteps": np.array(grid),
-            **{
-                k: np.array([[float(r[t][k]) for t in grid] for r, _ in runs])
-                for k in ("success_rate", "mean_readings")
-            },
+            **{k: np.array([[float(r[t][k]) for t in grid] for r, _ in runs]) for k in keys},
             "wall_time_s": [w for _, w in runs],
         }
     return out
@@ -213,7 +341,8 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
     """Success rate and mean readings on validation episodes against env steps: the mean over seeds and its
     95 % t-interval (scipy) clipped to the metric's range (a rate in [0, 1], readings in [0, the episode
     cap]: with five seeds an early, bimodal step's t-interval reaches past both), every algorithm of the env
-    in one figure, drawn by rliable's ``plot_sample_efficiency_curve``; saved atomically.
+    in one figure, drawn by rliable's ``plot_sample_efficiency_curve``; saved atomically. A tracking env
+    shows its validation episodes' mean return (≤ 0) and mean final error (mm, ≥ 0) instead.
     """
     if not curves:
         return None
@@ -228,9 +357,15 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
     from electroloc_gym.contract.params import EnvParams
     from electroloc_gym.utils.fileio import save_figure_atomic
 
-    ranges = {"success_rate": (0.0, 1.0), "mean_readings": (0.0, float(EnvParams().max_observations))}
+    ranges = {
+        "success_rate": (0.0, 1.0),
+        "mean_readings": (0.0, float(EnvParams().max_observations)),
+        "mean_return": (None, 0.0),
+        "mean_error_mm": (0.0, None),
+    }
+    track = tracks(env_id)
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
-    for ax, key in zip(axes, ("success_rate", "mean_readings")):
+    for ax, key in zip(axes, TRACK_CURVE_KEYS if track else CURVE_KEYS):
         for algo, c in curves.items():  # one call per algorithm: each has its own evaluation steps
             y = c[key]
             m = y.mean(axis=0)
@@ -252,8 +387,12 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
                 labelsize="medium",
                 ticklabelsize="small",
             )
-    axes[0].set_ylabel("success rate (validation episodes)")
-    axes[1].set_ylabel("mean readings to localise (failure = cap)")
+    if track:
+        axes[0].set_ylabel("mean return (validation episodes)")
+        axes[1].set_ylabel("mean error at the last reading, mm")
+    else:
+        axes[0].set_ylabel("success rate (validation episodes)")
+        axes[1].set_ylabel("mean readings to localise (failure = cap)")
     for ax in axes:
         ax.set_xlabel("env steps (thousands)")
         ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x / 1000:g}"))
@@ -276,6 +415,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="A:B",
         help="learned labels A:B whose P(A better than B) to state (repeatable; default "
         + ", ".join(f"{a}:{b}" for a, b in COMPARISONS)
+        + "; on a tracking env "
+        + ", ".join(f"{a}:{b}" for a, b in TRACK_COMPARISONS)
         + ")",
     )
     parser.add_argument(
@@ -290,7 +431,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     missing = [str(d) for d in args.extra if not d.is_dir()]
     if missing:
         parser.error(f"--extra folder(s) {missing} do not exist")
-    comparisons = COMPARISONS
+    comparisons = None  # each env's default pairs
     if args.compare:
         pairs = [c.split(":") for c in args.compare]
         if any(len(p) != 2 or not all(p) for p in pairs):
@@ -314,7 +455,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
 
 
-def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tuple[str, str]]) -> int:
+def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tuple[str, str]] | None) -> int:
     from electroloc_gym.utils.fileio import atomic_write_text, write_json_atomic
     from electroloc_gym.utils.markdown import markdown_table
 

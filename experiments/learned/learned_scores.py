@@ -7,6 +7,15 @@ their 95 % stratified bootstrap intervals and the probabilities of improvement (
 computes every aggregate and interval; this module only arranges the records and makes the bootstrap
 reproducible from a seed (:func:`bootstrap` says why that needs doing). :mod:`learned_report` turns the
 result into tables and figures; the offline report (``experiments/offline/report.py``) reuses it.
+
+A **tracking env** — one whose records carry the moving target's results (:data:`TRACKING_KEY` among its
+env-table entry's ``record_keys``: ElectroLocTrack-v0) — runs every trial to its reading cap, so readings
+and successes say nothing there. Its scores, one per (run, condition), are the **tracking error** (the
+mean over the condition's trials of ``tracking_error_mm``, the belief mean's mean distance to the
+swimming target over the episode's second half, mm; lower is better) and the **capture** fraction
+(trials ending with the carriage within 10 mm of the target); the normalised score, the probabilities of
+improvement and the learned pairs (:data:`TRACK_COMPARISONS`) are computed on the tracking error exactly
+as on the readings elsewhere (:func:`analyse`).
 """
 
 from __future__ import annotations
@@ -35,6 +44,10 @@ REFERENCES = (MinVarianceAgent.name, LookaheadAgent.name)
 #: Pairs of learned configurations (suite labels) whose P(A better than B) the report states when both
 #: ran on an env: memory against stacked frames on the raw reading, and the belief given against memory.
 COMPARISONS = (("ppo_lstm-raw", "ppo-framestack-raw"), ("ppo", "ppo_lstm-raw"))
+#: The record key (of a benchmark record's ``shape``) that marks a tracking env (module docstring).
+TRACKING_KEY = "tracking_error_mm"
+#: The pairs stated by default on a tracking env: the belief given against stacked raw readings.
+TRACK_COMPARISONS = (("ppo", "ppo-framestack-raw"),)
 
 
 class ReportError(ValueError):
@@ -43,6 +56,18 @@ class ReportError(ValueError):
 
 #: The most bootstrap replications accepted (each keeps a runs × conditions matrix per replication).
 MAX_REPS = 100_000
+
+
+def tracks(env_id: str) -> bool:
+    """Whether ``env_id`` is a tracking env: its env-table entry's records carry :data:`TRACKING_KEY`
+    (an id the table does not know is not one; its benchmark config is refused when read).
+    """
+    from electroloc_gym.registry import env_entry
+
+    try:
+        return TRACKING_KEY in env_entry(env_id).record_keys
+    except ValueError:
+        return False
 
 
 def _config(bench: Path) -> dict[str, Any]:
@@ -66,8 +91,9 @@ def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str
     """The valid trial records of one benchmark run's ``trials.jsonl`` (or its kept ``trials.jsonl.gz``),
     read through the bench's own record schema (:func:`electroloc_gym.bench.records.load_records` with the
     run's :class:`~electroloc_gym.bench.schema.RecordRules` from its ``config.json``): a damaged or impossible
-    line — out of range, inconsistent, another run's agent or condition, a duplicate — is left out and
-    named in ``set_aside``.
+    line — out of range, inconsistent, another run's agent or condition, a duplicate, or (an env whose
+    records carry their task's results) a ``shape`` with other keys than the env's ``record_keys`` — is
+    left out and named in ``set_aside``.
 
     Raises:
         ReportError: the file is missing or holds no valid record.
@@ -80,25 +106,40 @@ def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str
     if not stored_trials(path).is_file():
         raise ReportError(f"{path} is missing")
     cfg = _config(path.parent)
+    keys = env_entry(cfg["env_id"]).record_keys
     rules = RecordRules(
         conditions=frozenset(c for c in cfg["conditions"] if isinstance(c, str)),
         agents=frozenset(a for a in cfg["agents"] if isinstance(a, str)),
         trials=cfg["trials"],
         success_spread_mm=SUCCESS_SPREAD_MM,
-        shape=bool(env_entry(cfg["env_id"]).record_keys),
+        shape=bool(keys),
     )
     loaded = load_records(path, rules=rules)
     if set_aside is not None:
         set_aside.extend(loaded.messages())
     rows = list(loaded.records.values())
+    if keys:  # the schema takes either task's results; this env's records carry its own
+        odd = [r for r in rows if set(r["shape"]) != set(keys)]
+        if set_aside is not None:
+            set_aside.extend(
+                f"{path}: trial {r['trial']} of {r['agent']!r} on {r['condition']!r}: 'shape' holds another "
+                f"task's results, not {cfg['env_id']}'s {sorted(keys)}"
+                for r in odd
+            )
+        rows = [r for r in rows if set(r["shape"]) == set(keys)]
     if not rows:
         raise ReportError(f"{path} holds no valid trial record")
     return rows
 
 
-def condition_scores(records: Sequence[dict[str, Any]], conditions: Sequence[str]) -> dict[str, np.ndarray]:
-    """``{"readings", "success"}`` → (conditions,) scores of one run of one agent."""
-    readings, success = [], []
+def condition_scores(
+    records: Sequence[dict[str, Any]], conditions: Sequence[str], tracking: bool = False
+) -> dict[str, np.ndarray]:
+    """``{"readings", "success"}`` → (conditions,) scores of one run of one agent; ``tracking`` (a tracking
+    env's records) adds ``"tracking_error"`` (mean ``tracking_error_mm``, mm) and ``"capture"`` (the
+    fraction captured).
+    """
+    readings, success, error, capture = [], [], [], []
     for cond in conditions:
         rows = [r for r in records if r["condition"] == cond]
         if not rows:
@@ -106,7 +147,13 @@ def condition_scores(records: Sequence[dict[str, Any]], conditions: Sequence[str
         cap = [int(r["max_observations"]) for r in rows]
         readings.append(float(np.mean([r["readings"] if r["success"] else c for r, c in zip(rows, cap)])))
         success.append(float(np.mean([bool(r["success"]) for r in rows])))
-    return {"readings": np.array(readings), "success": np.array(success)}
+        if tracking:
+            error.append(float(np.mean([float(r["shape"][TRACKING_KEY]) for r in rows])))
+            capture.append(float(np.mean([bool(r["shape"]["captured"]) for r in rows])))
+    out = {"readings": np.array(readings), "success": np.array(success)}
+    if tracking:
+        out.update(tracking_error=np.array(error), capture=np.array(capture))
+    return out
 
 
 def collect(
@@ -118,9 +165,11 @@ def collect(
     conditions); ``seeds[algo]`` names the runs in row order (``seed-<integer>`` folders only). ``extra``
     folders (laid out as ``EXTRA/<env-id>/<label>/seed-<k>/bench/``, e.g. the offline suite's results) add
     their labels beside the suite's, scored against the same baselines' run; a label in two folders is an
-    error, and their runs must cover the baselines' conditions.
+    error, and their runs must cover the baselines' conditions. A tracking env's matrices add
+    ``"tracking_error"`` and ``"capture"`` (:func:`condition_scores`).
     """
     set_aside = [] if set_aside is None else set_aside
+    tracking = tracks(env_id)
     env_dir = results / env_id
     base_path = env_dir / BASELINES_DIR / "bench" / "trials.jsonl"
     base_rows = read_trials(base_path, set_aside)
@@ -128,7 +177,7 @@ def collect(
     base_keys = {(r["condition"], int(r["trial"])) for r in base_rows}
     baselines: dict[str, dict[str, np.ndarray]] = {}
     for agent in sorted({r["agent"] for r in base_rows}):
-        s = condition_scores([r for r in base_rows if r["agent"] == agent], conditions)
+        s = condition_scores([r for r in base_rows if r["agent"] == agent], conditions, tracking)
         baselines[agent] = {k: v[None, :] for k, v in s.items()}
     learned: dict[str, dict[str, np.ndarray]] = {}
     seeds: dict[str, list[str]] = {}
@@ -151,20 +200,24 @@ def collect(
             for p, rows in zip(runs, records):
                 if {(r["condition"], int(r["trial"])) for r in rows} != base_keys:
                     raise ReportError(f"{p}: its benchmark ran other trials than {base_path} (run it on the same)")
-        per_run = [condition_scores(rows, conditions) for rows in records]
-        learned[algo_dir.name] = {k: np.stack([s[k] for s in per_run]) for k in ("readings", "success")}
+        per_run = [condition_scores(rows, conditions, tracking) for rows in records]
+        learned[algo_dir.name] = {k: np.stack([s[k] for s in per_run]) for k in per_run[0]}
         seeds[algo_dir.name] = [p.name for p in runs]
     return conditions, learned, baselines, seeds
 
 
-def normalised(readings: np.ndarray, baselines: dict[str, dict[str, np.ndarray]]) -> np.ndarray:
-    """The normalised score of a (runs × conditions) readings matrix (0 at rnd-wlk, 1 at the best planner)."""
+def normalised(
+    readings: np.ndarray, baselines: dict[str, dict[str, np.ndarray]], metric: str = "readings"
+) -> np.ndarray:
+    """The normalised score of a (runs × conditions) matrix of ``metric`` (lower better: the readings, or
+    a tracking env's ``"tracking_error"``): 0 at rnd-wlk, 1 at the best planner on each condition.
+    """
     if RND not in baselines:
         raise ValueError(f"the baselines' run must include {RND!r} to normalise")
-    planners = [v["readings"][0] for k, v in baselines.items() if k != RND]
+    planners = [v[metric][0] for k, v in baselines.items() if k != RND]
     if not planners:
         raise ValueError("the baselines' run must include a planner besides rnd-wlk to normalise")
-    rnd = baselines[RND]["readings"][0]
+    rnd = baselines[RND][metric][0]
     best = np.min(np.stack(planners), axis=0)
     gap = rnd - best
     if np.any(gap <= 0):
@@ -203,7 +256,8 @@ def interval(score_dict: dict[str, Any], func: Any, reps: int, seed: int) -> dic
 
 def p_better(x: np.ndarray, y: np.ndarray, reps: int, seed: int) -> list[float]:
     """P(a run of X needs fewer readings than a run of Y on a condition) [95 % CI]: rliable's probability
-    of improvement of (−X) over (−Y), the readings matrices (runs × conditions) negated, lower being better.
+    of improvement of (−X) over (−Y), the readings matrices (runs × conditions) negated, lower being better
+    (a tracking env's tracking-error matrices the same way).
     """
     from rliable import metrics
 
@@ -216,12 +270,14 @@ def analyse(
     env_id: str,
     reps: int = 2000,
     seed: int = 0,
-    comparisons: Sequence[tuple[str, str]] = COMPARISONS,
+    comparisons: Sequence[tuple[str, str]] | None = None,
     extra: Sequence[Path] = (),
 ) -> dict[str, Any]:
     """Every statistic of one env (plain data, see the module docstring); ``comparisons`` are the
-    (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env;
-    ``extra``: more results folders whose labels join the table (:func:`collect`).
+    (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env (None:
+    :data:`COMPARISONS`, on a tracking env :data:`TRACK_COMPARISONS`); ``extra``: more results folders
+    whose labels join the table (:func:`collect`). A tracking env's analysis (:func:`analyse_tracking`)
+    has ``"metric": "tracking_error_mm"``.
     """
     from rliable import metrics
 
@@ -229,6 +285,10 @@ def analyse(
     conditions, learned, baselines, seeds = collect(results, env_id, set_aside, extra)
     if not learned:
         raise NoLearnedRuns(f"no learned runs with a benchmark under {results / env_id}")
+    if tracks(env_id):
+        pairs = TRACK_COMPARISONS if comparisons is None else comparisons
+        return analyse_tracking(env_id, conditions, learned, baselines, seeds, reps, seed, pairs, set_aside)
+    comparisons = COMPARISONS if comparisons is None else comparisons
     iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
     mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
     out: dict[str, Any] = {
@@ -277,4 +337,76 @@ def analyse(
     ]
     out["set_aside"] = set_aside
     out["_matrices"] = {"normalised": norm, "readings": readings}
+    return out
+
+
+def analyse_tracking(
+    env_id: str,
+    conditions: list[str],
+    learned: dict[str, dict[str, np.ndarray]],
+    baselines: dict[str, dict[str, np.ndarray]],
+    seeds: dict[str, list[str]],
+    reps: int,
+    seed: int,
+    comparisons: Sequence[tuple[str, str]],
+    set_aside: list[str],
+) -> dict[str, Any]:
+    """Every statistic of a tracking env (:func:`analyse` of ElectroLocTrack-v0's records): the IQM and
+    mean of the tracking error (mm) and of the capture fraction with their 95 % stratified bootstrap CIs,
+    the normalised tracking error's IQM (0 at rnd-wlk, 1 at the best non-learned controller on each
+    condition), and the probabilities of a lower tracking error than each of :data:`REFERENCES` benched
+    and than the other label of each ``comparisons`` pair.
+    """
+    from rliable import metrics
+
+    iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
+    mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
+    out: dict[str, Any] = {
+        "env_id": env_id,
+        "metric": TRACKING_KEY,
+        "conditions": conditions,
+        "seeds": seeds,
+        "reps": reps,
+        "seed": seed,
+        "algorithms": {},
+        "baselines": {},
+    }
+    error = {a: v["tracking_error"] for a, v in learned.items()}
+    capture = {a: v["capture"] for a, v in learned.items()}
+    norm = {a: normalised(v, baselines, "tracking_error") for a, v in error.items()} if RND in baselines else {}
+    stats = {
+        "tracking_error_iqm": interval(error, iqm, reps, seed),
+        "tracking_error_mean": interval(error, mean, reps, seed),
+        "capture_iqm": interval(capture, iqm, reps, seed),
+        "capture_mean": interval(capture, mean, reps, seed),
+    }
+    if norm:
+        stats["normalised_iqm"] = interval(norm, iqm, reps, seed)
+    for algo in learned:
+        row = {k: v[algo] for k, v in stats.items()}
+        row["per_condition_tracking_error"] = {c: error[algo][:, j].tolist() for j, c in enumerate(conditions)}
+        row["per_condition_capture"] = {c: capture[algo][:, j].tolist() for j, c in enumerate(conditions)}
+        row["p_improvement"] = {
+            ref: p_better(error[algo], baselines[ref]["tracking_error"], reps, seed)
+            for ref in REFERENCES
+            if ref in baselines
+        }
+        out["algorithms"][algo] = row
+    for agent, v in baselines.items():
+        row = {
+            "tracking_error_mean": float(v["tracking_error"].mean()),
+            "capture_mean": float(v["capture"].mean()),
+            "per_condition_tracking_error": dict(zip(conditions, v["tracking_error"][0].tolist())),
+            "per_condition_capture": dict(zip(conditions, v["capture"][0].tolist())),
+        }
+        if norm:
+            row["normalised_mean"] = float(normalised(v["tracking_error"], baselines, "tracking_error").mean())
+        out["baselines"][agent] = row
+    out["comparisons"] = [
+        {"better": a, "than": b, "p": p_better(error[a], error[b], reps, seed)}
+        for a, b in comparisons
+        if a in error and b in error
+    ]
+    out["set_aside"] = set_aside
+    out["_matrices"] = {"normalised": norm, "tracking_error": error, "capture": capture}
     return out

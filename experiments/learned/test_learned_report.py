@@ -17,7 +17,7 @@ spec.loader.exec_module(report)
 import learned_scores as scores  # noqa: E402  (beside the report, which put its folder on sys.path)
 
 from electroloc_gym.bench.records import open_trials  # noqa: E402
-from electroloc_gym.registry import bench_env  # noqa: E402
+from electroloc_gym.registry import bench_env, task_entry  # noqa: E402
 
 TARGET_ID, GLOBAL_ID = bench_env("target")[0].env_id, bench_env("global")[0].env_id
 
@@ -309,3 +309,195 @@ def test_any_single_field_damage_gives_the_clean_report_or_names_what_it_set_asi
             np.testing.assert_array_equal(a["_matrices"]["readings"]["ppo"], clean["_matrices"]["readings"]["ppo"])
 
     check()
+
+
+# ------------------------------------------------------------------ a tracking env: tracking error and capture
+TRACK_ID = task_entry("track").env_id
+TRACK_CAP = 70  # every moving-target trial runs to its 70 readings
+
+
+def _track_record(cond: str, agent: str, trial: int, err: float, captured: bool) -> dict:
+    """A schema-valid moving-target record: run to the cap, its tracking error ``err`` mm and capture."""
+    rec = {**TEMPLATE, "condition": cond, "agent": agent, "trial": trial, "env_id": TRACK_ID}
+    rec.pop("far_success", None)
+    rec.update(
+        success=False,
+        ended_by="cap",
+        observations=TRACK_CAP,
+        max_observations=TRACK_CAP,
+        decisions=TRACK_CAP - 1,
+        spread_mm=5.0,
+        shape={"tracking_error_mm": err, "carriage_distance_mm": 5.0 if captured else 30.0, "captured": captured},
+    )
+    return rec
+
+
+def _write_track(path: Path, agent: str, trials: dict[str, list[tuple[float, bool]]]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [_track_record(cond, agent, t, e, c) for cond, ts in trials.items() for t, (e, c) in enumerate(ts)]
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write("".join(json.dumps(r) + "\n" for r in rows))
+    cfg_path = path.parent / "config.json"
+    cfg = (
+        json.loads(cfg_path.read_text())
+        if cfg_path.is_file()
+        else {"agents": [], "conditions": sorted(trials), "trials": 3, "env_id": TRACK_ID}
+    )
+    cfg["agents"] = sorted(set(cfg["agents"]) | {agent})
+    cfg_path.write_text(json.dumps(cfg))
+    (path.parent / "summary.json").write_text("{}")
+
+
+def _same(err: float, captured: bool = True) -> list[tuple[float, bool]]:
+    return [(err, captured)] * 3
+
+
+def _track_results(tmp_path: Path) -> Path:
+    """Two conditions × three trials; rnd-wlk, min-var and pursuit; ppo and ppo-framestack-raw, two seeds."""
+    env = tmp_path / TRACK_ID
+    base = env / "_baselines" / "bench" / "trials.jsonl"
+    _write_track(base, "rnd-wlk", {"a": [(30.0, False), (40.0, False), (50.0, True)], "b": _same(20.0, False)})
+    _write_track(base, "min-var", {"a": _same(10.0), "b": [(12.0, True), (12.0, False), (12.0, False)]})
+    _write_track(base, "pursuit", {"a": _same(8.0), "b": _same(15.0)})
+    for k in range(2):
+        _write_track(
+            env / "ppo" / f"seed-{k}" / "bench" / "trials.jsonl", "ppo", {"a": _same(4.0 + k), "b": _same(6.0 + k)}
+        )
+        _write_track(
+            env / "ppo-framestack-raw" / f"seed-{k}" / "bench" / "trials.jsonl",
+            "ppo-framestack-raw",
+            {"a": _same(9.0), "b": [(13.0, True), (13.0, False), (13.0, False)]},
+        )
+    return tmp_path
+
+
+def _track_lines(res: Path) -> Path:
+    return res / TRACK_ID / "ppo" / "seed-0" / "bench" / "trials.jsonl"
+
+
+def test_a_tracking_env_is_scored_by_tracking_error_and_capture(tmp_path):
+    conds, learned, baselines, seeds = scores.collect(_track_results(tmp_path), TRACK_ID)
+    assert conds == list(CONDS) and seeds["ppo"] == ["seed-0", "seed-1"]
+    np.testing.assert_allclose(baselines["rnd-wlk"]["tracking_error"][0], [40, 20])
+    np.testing.assert_allclose(baselines["rnd-wlk"]["capture"][0], [1 / 3, 0])
+    np.testing.assert_allclose(learned["ppo"]["tracking_error"], [[4, 6], [5, 7]])
+    np.testing.assert_allclose(learned["ppo-framestack-raw"]["capture"], [[1, 1 / 3], [1, 1 / 3]])
+    # 0 at rnd-wlk, 1 at the best non-learned controller per condition (pursuit on a: 8 mm, min-var on b: 12 mm)
+    np.testing.assert_allclose(
+        scores.normalised(baselines["rnd-wlk"]["tracking_error"], baselines, "tracking_error"), 0
+    )
+    np.testing.assert_allclose(
+        scores.normalised(baselines["min-var"]["tracking_error"], baselines, "tracking_error"), [[30 / 32, 1]]
+    )
+    np.testing.assert_allclose(
+        scores.normalised(learned["ppo"]["tracking_error"], baselines, "tracking_error"),
+        [[36 / 32, 14 / 8], [35 / 32, 13 / 8]],
+    )
+
+
+def test_a_tracking_env_analysis(tmp_path):
+    a = scores.analyse(_track_results(tmp_path), TRACK_ID, reps=200)
+    assert a["metric"] == "tracking_error_mm" and a["set_aside"] == []
+    row = a["algorithms"]["ppo"]
+    assert "readings_iqm" not in row and "readings_mean" not in a["baselines"]["rnd-wlk"]
+    for key in ("tracking_error_iqm", "tracking_error_mean", "capture_mean", "normalised_iqm"):
+        point, lo, hi = row[key]
+        assert lo <= point <= hi
+    assert row["tracking_error_mean"][0] == pytest.approx(5.5) and row["tracking_error_iqm"][0] == pytest.approx(5.5)
+    assert row["capture_mean"][0] == pytest.approx(1.0)
+    assert a["algorithms"]["ppo-framestack-raw"]["capture_mean"][0] == pytest.approx(2 / 3)
+    assert row["p_improvement"]["min-var"][0] == pytest.approx(1.0)  # a lower error than min-var everywhere
+    assert a["algorithms"]["ppo-framestack-raw"]["p_improvement"]["min-var"][0] == pytest.approx(0.5)  # 9 < 10, 13 > 12
+    assert "lookahead" not in row["p_improvement"]
+    assert a["baselines"]["min-var"]["tracking_error_mean"] == pytest.approx(11.0)
+    assert a["baselines"]["pursuit"]["normalised_mean"] == pytest.approx((1 + 5 / 8) / 2)
+    (cmp,) = a["comparisons"]  # the default pair on a tracking env: the belief against stacked raw readings
+    assert (cmp["better"], cmp["than"]) == ("ppo", "ppo-framestack-raw") and cmp["p"][0] == pytest.approx(1.0)
+
+
+def test_main_reports_a_tracking_env_in_its_own_table(tmp_path):
+    res = _track_results(_results(tmp_path))  # ElectroLoc-v0 and the tracking env in one folder
+    zoo = res / TRACK_ID / "ppo" / "seed-0" / "zoo" / "ppo" / f"{TRACK_ID}_1"
+    zoo.mkdir(parents=True)
+    (zoo / "eval.csv").write_text(
+        "timesteps,success_rate,mean_readings,median_readings,mean_error_mm,mean_return\n"
+        "0,0.1,70,70,30.0,-170.5\n100,0.9,70,70,4.0,-30.25\n"
+    )
+    assert report.main([str(res), "--reps", "200"]) == 0
+    text = (res / "report.md").read_text()
+    main, _, rest = text.partition("Tracking envs")
+    assert "| ElectroLoc-v0 | ppo | 3 |" in main and TRACK_ID not in main.split("\n\n")[0]
+    assert f"| {TRACK_ID} | ppo | 2 | 5.50 [" in rest
+    assert f"| {TRACK_ID} | rnd-wlk (not learned) | 1 | – | 30.00 | 0.17 | 0.00 | – |" in rest
+    assert "P(lower error than min-var) [CI]" in rest and "lookahead" not in rest.split("\n\n")[1]
+    assert f"| {TRACK_ID} | ppo | ppo-framestack-raw | 1.00 [1.00, 1.00] |" in rest
+    assert "| ppo (2 seeds) | 4.50 (4.0–5.0) | 6.50 (6.0–7.0) |" in rest  # tracking error per condition, mm
+    assert "| ppo-framestack-raw (2 seeds) | 1.00 (1.00–1.00) | 0.33 (0.33–0.33) |" in rest  # capture
+    assert "| rnd-wlk | 40.00 | 20.00 |" in rest and "| rnd-wlk | 0.33 | 0.00 |" in rest
+    analyses = {a["env_id"]: a for a in json.loads((res / "report.json").read_text())}
+    assert analyses[TRACK_ID]["metric"] == "tracking_error_mm" and "metric" not in analyses[TARGET_ID]
+    assert (res / f"profile_{TRACK_ID}.png").stat().st_size > 0
+    assert (res / f"curves_{TRACK_ID}.png").stat().st_size > 0  # the validation return, not the readings
+    (zoo / "eval.csv").write_text("timesteps,success_rate,mean_readings,median_readings\n0,0.1,70,70\n")
+    assert report.main([str(res), "--reps", "200"]) == 2  # a tracking env's curves need the return: one line
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("shape", None),
+        ("shape", {"tracking_error_mm": -1.0, "carriage_distance_mm": 5.0, "captured": True}),
+        ("shape", {"tracking_error_mm": float("nan"), "carriage_distance_mm": 5.0, "captured": True}),
+        ("shape", {"tracking_error_mm": "x", "carriage_distance_mm": 5.0, "captured": True}),
+        ("shape", {"tracking_error_mm": 4.0, "carriage_distance_mm": 5.0, "captured": "yes"}),
+        ("shape", {"tracking_error_mm": 4.0, "captured": True}),
+        ("ended_by", "success"),
+        ("condition", "nowhere"),
+    ],
+)
+def test_an_impossible_tracking_record_is_set_aside_and_named(tmp_path, key, value):
+    res = _track_results(tmp_path)
+    path = _track_lines(res)
+    rows = [json.loads(x) for x in path.read_text().splitlines()]
+    rows[0][key] = value
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    a = scores.analyse(res, TRACK_ID, reps=200)
+    assert len(a["set_aside"]) == 1 and "seed-0" in a["set_aside"][0]
+    np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])  # the other trials: 4 mm
+
+
+def test_another_tasks_results_in_a_tracking_run_are_set_aside(tmp_path):
+    """The schema takes the unknown target's identification as a record's ``shape`` too; a tracking env's
+    report keeps only records carrying its own results.
+    """
+    res = _track_results(tmp_path)
+    path = _track_lines(res)
+    rows = [json.loads(x) for x in path.read_text().splitlines()]
+    rows[1]["shape"] = {
+        "radius_estimate_mm": 6.0,
+        "radius_mean_mm": 6.0,
+        "radius_spread_mm": 1.0,
+        "target_radius_mm": 6.35,
+        "radius_error_frac": 0.05,
+        "p_conductor": 0.9,
+        "material_estimate": "conductor",
+        "material_correct": True,
+        "chi_estimate": 0.9,
+        "target_chi": 1.0,
+    }
+    rows[1]["spread_mm"] = 20.0  # not tight: a consistent failure to the schema
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    a = scores.analyse(res, TRACK_ID, reps=200)
+    assert len(a["set_aside"]) == 1 and "another task's results" in a["set_aside"][0]
+    np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])
+
+
+@pytest.mark.parametrize("damage", ["torn", "garbage", "missing-key"])
+def test_a_damaged_tracking_line_is_set_aside(tmp_path, damage):
+    res = _track_results(tmp_path)
+    path = _track_lines(res)
+    raw = path.read_bytes()
+    path.write_bytes(raw + {"torn": raw[:40], "garbage": b"%%%\n", "missing-key": b'{"condition": "a"}\n'}[damage])
+    a = scores.analyse(res, TRACK_ID, reps=200)
+    assert len(a["set_aside"]) == 1
+    np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])
