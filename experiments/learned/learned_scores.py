@@ -276,23 +276,20 @@ def analyse(
     """Every statistic of one env (plain data, see the module docstring); ``comparisons`` are the
     (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env (None:
     :data:`COMPARISONS`, on a tracking env :data:`TRACK_COMPARISONS`); ``extra``: more results folders
-    whose labels join the table (:func:`collect`). A tracking env's analysis (:func:`analyse_tracking`)
-    has ``"metric": "tracking_error_mm"``.
+    whose labels join the table (:func:`collect`). A tracking env is scored by its tracking error and
+    capture (:func:`statistics`), and its analysis has ``"metric": "tracking_error_mm"``.
     """
-    from rliable import metrics
-
     set_aside: list[str] = []
     conditions, learned, baselines, seeds = collect(results, env_id, set_aside, extra)
     if not learned:
         raise NoLearnedRuns(f"no learned runs with a benchmark under {results / env_id}")
-    if tracks(env_id):
-        pairs = TRACK_COMPARISONS if comparisons is None else comparisons
-        return analyse_tracking(env_id, conditions, learned, baselines, seeds, reps, seed, pairs, set_aside)
-    comparisons = COMPARISONS if comparisons is None else comparisons
-    iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
-    mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
+    tracking = tracks(env_id)
+    if comparisons is None:
+        comparisons = TRACK_COMPARISONS if tracking else COMPARISONS
+    score, share = ("tracking_error", "capture") if tracking else ("readings", "success")
     out: dict[str, Any] = {
         "env_id": env_id,
+        **({"metric": TRACKING_KEY} if tracking else {}),
         "conditions": conditions,
         "seeds": seeds,
         "reps": reps,
@@ -300,113 +297,72 @@ def analyse(
         "algorithms": {},
         "baselines": {},
     }
-    readings = {a: v["readings"] for a, v in learned.items()}
-    success = {a: v["success"] for a, v in learned.items()}
-    norm = {a: normalised(v, baselines) for a, v in readings.items()} if RND in baselines else {}
-    stats = {
-        "readings_iqm": interval(readings, iqm, reps, seed),
-        "readings_mean": interval(readings, mean, reps, seed),
-        "success_iqm": interval(success, iqm, reps, seed),
-        "success_mean": interval(success, mean, reps, seed),
-    }
-    if norm:
-        stats["normalised_iqm"] = interval(norm, iqm, reps, seed)
-    for algo in learned:
-        row = {k: v[algo] for k, v in stats.items()}
-        row["per_condition_readings"] = {c: readings[algo][:, j].tolist() for j, c in enumerate(conditions)}
-        row["per_condition_success"] = {c: success[algo][:, j].tolist() for j, c in enumerate(conditions)}
-        row["p_improvement"] = {
-            ref: p_better(readings[algo], baselines[ref]["readings"], reps, seed)
-            for ref in REFERENCES
-            if ref in baselines
-        }
-        out["algorithms"][algo] = row
-    for agent, v in baselines.items():
-        row = {
-            "readings_mean": float(v["readings"].mean()),
-            "success_mean": float(v["success"].mean()),
-            "per_condition_readings": dict(zip(conditions, v["readings"][0].tolist())),
-        }
-        if norm:
-            row["normalised_mean"] = float(normalised(v["readings"], baselines).mean())
-        out["baselines"][agent] = row
-    out["comparisons"] = [
-        {"better": a, "than": b, "p": p_better(readings[a], readings[b], reps, seed)}
-        for a, b in comparisons
-        if a in readings and b in readings
-    ]
+    out.update(statistics(conditions, learned, baselines, reps, seed, comparisons, score, share))
     out["set_aside"] = set_aside
-    out["_matrices"] = {"normalised": norm, "readings": readings}
     return out
 
 
-def analyse_tracking(
-    env_id: str,
+def statistics(
     conditions: list[str],
     learned: dict[str, dict[str, np.ndarray]],
     baselines: dict[str, dict[str, np.ndarray]],
-    seeds: dict[str, list[str]],
     reps: int,
     seed: int,
     comparisons: Sequence[tuple[str, str]],
-    set_aside: list[str],
+    score: str,
+    share: str,
 ) -> dict[str, Any]:
-    """Every statistic of a tracking env (:func:`analyse` of ElectroLocTrack-v0's records): the IQM and
-    mean of the tracking error (mm) and of the capture fraction with their 95 % stratified bootstrap CIs,
-    the normalised tracking error's IQM (0 at rnd-wlk, 1 at the best non-learned controller on each
-    condition), and the probabilities of a lower tracking error than each of :data:`REFERENCES` benched
-    and than the other label of each ``comparisons`` pair.
+    """The statistics of one env's matrices (:func:`collect`): ``score`` is the lower-better score
+    (``"readings"``, or a tracking env's ``"tracking_error"``), ``share`` the fraction beside it (``"success"``,
+    ``"capture"``). Per learned label, the IQM and mean of both with their 95 % stratified bootstrap CIs, the
+    normalised score's IQM (0 at rnd-wlk, 1 at the best non-learned agent of each condition), each
+    condition's values and the probabilities of a lower score than each of :data:`REFERENCES` benched; per
+    baseline agent, the means and each condition's values; the probability of a lower score between the
+    labels of each ``comparisons`` pair run on the env. Keys are named after ``score`` and ``share``
+    (``readings_iqm``, ``per_condition_capture``, ...).
     """
     from rliable import metrics
 
     iqm = lambda x: np.array([metrics.aggregate_iqm(x)])  # noqa: E731
     mean = lambda x: np.array([metrics.aggregate_mean(x)])  # noqa: E731
-    out: dict[str, Any] = {
-        "env_id": env_id,
-        "metric": TRACKING_KEY,
-        "conditions": conditions,
-        "seeds": seeds,
-        "reps": reps,
-        "seed": seed,
-        "algorithms": {},
-        "baselines": {},
-    }
-    error = {a: v["tracking_error"] for a, v in learned.items()}
-    capture = {a: v["capture"] for a, v in learned.items()}
-    norm = {a: normalised(v, baselines, "tracking_error") for a, v in error.items()} if RND in baselines else {}
+    values = {a: v[score] for a, v in learned.items()}
+    shares = {a: v[share] for a, v in learned.items()}
+    norm = {a: normalised(v, baselines, score) for a, v in values.items()} if RND in baselines else {}
     stats = {
-        "tracking_error_iqm": interval(error, iqm, reps, seed),
-        "tracking_error_mean": interval(error, mean, reps, seed),
-        "capture_iqm": interval(capture, iqm, reps, seed),
-        "capture_mean": interval(capture, mean, reps, seed),
+        f"{score}_iqm": interval(values, iqm, reps, seed),
+        f"{score}_mean": interval(values, mean, reps, seed),
+        f"{share}_iqm": interval(shares, iqm, reps, seed),
+        f"{share}_mean": interval(shares, mean, reps, seed),
     }
     if norm:
         stats["normalised_iqm"] = interval(norm, iqm, reps, seed)
+    algorithms: dict[str, Any] = {}
     for algo in learned:
         row = {k: v[algo] for k, v in stats.items()}
-        row["per_condition_tracking_error"] = {c: error[algo][:, j].tolist() for j, c in enumerate(conditions)}
-        row["per_condition_capture"] = {c: capture[algo][:, j].tolist() for j, c in enumerate(conditions)}
+        row[f"per_condition_{score}"] = {c: values[algo][:, j].tolist() for j, c in enumerate(conditions)}
+        row[f"per_condition_{share}"] = {c: shares[algo][:, j].tolist() for j, c in enumerate(conditions)}
         row["p_improvement"] = {
-            ref: p_better(error[algo], baselines[ref]["tracking_error"], reps, seed)
-            for ref in REFERENCES
-            if ref in baselines
+            ref: p_better(values[algo], baselines[ref][score], reps, seed) for ref in REFERENCES if ref in baselines
         }
-        out["algorithms"][algo] = row
+        algorithms[algo] = row
+    rows: dict[str, Any] = {}
     for agent, v in baselines.items():
         row = {
-            "tracking_error_mean": float(v["tracking_error"].mean()),
-            "capture_mean": float(v["capture"].mean()),
-            "per_condition_tracking_error": dict(zip(conditions, v["tracking_error"][0].tolist())),
-            "per_condition_capture": dict(zip(conditions, v["capture"][0].tolist())),
+            f"{score}_mean": float(v[score].mean()),
+            f"{share}_mean": float(v[share].mean()),
+            f"per_condition_{score}": dict(zip(conditions, v[score][0].tolist())),
+            f"per_condition_{share}": dict(zip(conditions, v[share][0].tolist())),
         }
         if norm:
-            row["normalised_mean"] = float(normalised(v["tracking_error"], baselines, "tracking_error").mean())
-        out["baselines"][agent] = row
-    out["comparisons"] = [
-        {"better": a, "than": b, "p": p_better(error[a], error[b], reps, seed)}
-        for a, b in comparisons
-        if a in error and b in error
-    ]
-    out["set_aside"] = set_aside
-    out["_matrices"] = {"normalised": norm, "tracking_error": error, "capture": capture}
-    return out
+            row["normalised_mean"] = float(normalised(v[score], baselines, score).mean())
+        rows[agent] = row
+    return {
+        "algorithms": algorithms,
+        "baselines": rows,
+        "comparisons": [
+            {"better": a, "than": b, "p": p_better(values[a], values[b], reps, seed)}
+            for a, b in comparisons
+            if a in values and b in values
+        ],
+        "_matrices": {"normalised": norm, score: values, share: shares},
+    }
