@@ -17,14 +17,18 @@
 
 Installs are shared: each session's venv is reused (``.nox/``), pip's download cache serves every session,
 and pip does not byte-compile what it installs (``--no-compile``: Python compiles the modules a test
-imports, not the whole of torch and Ray); ``constraints.txt`` pins the CPU-only torch wheel. Before the
-suite, one process compiles the numba kernels into the cache every worker then loads. Sessions pin numeric
-libraries to one thread per process and run pytest on every core (pytest-xdist, one worker per core, a
-test module per worker). Arguments after ``--`` go to pytest (``nox -s tests -- tests/test_env.py``).
+imports, once per venv, not the whole of torch and Ray; the sessions let it write that bytecode even where
+the caller's environment sets ``PYTHONDONTWRITEBYTECODE``, which would make every process, each pytest
+worker, each subprocess a test starts, each Ray worker, compile torch, Ray and SB3 from source again);
+``constraints.txt`` pins the CPU-only torch wheel. Before the suite, one process compiles the numba
+kernels into the cache every worker then loads. Sessions pin numeric libraries to one thread per process
+and run pytest on every core (pytest-xdist, one worker per core, a test module per worker). Arguments
+after ``--`` go to pytest (``nox -s tests -- tests/test_env.py``).
 """
 
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -32,6 +36,8 @@ from pathlib import Path
 import nox
 
 ROOT = Path(__file__).resolve().parent
+# pip installs without bytecode (NO_COMPILE); the sessions' processes write it as they import (module docstring)
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 nox.options.reuse_venv = "yes"
 nox.options.default_venv_backend = "venv"
 nox.options.sessions = ["tests", "lowest", "rllib", "wheel"]
