@@ -78,8 +78,6 @@ def table(analyses: Sequence[dict[str, Any]]) -> str:
     """The aggregate table (markdown): algorithm × env; the tracking envs' in a table of their own after it
     (:func:`tracking_table`).
     """
-    from electroloc_gym.utils.markdown import markdown_table
-
     track = [a for a in analyses if _tracking(a)]
     analyses = [a for a in analyses if not _tracking(a)]
     if not analyses:
@@ -106,15 +104,7 @@ def table(analyses: Sequence[dict[str, Any]]) -> str:
                 f"| {a['env_id']} | {agent} (not learned) | 1 | – | {row['readings_mean']:.2f} | "
                 f"{row['success_mean']:.2f} | {norm} | | |"
             )
-    pairs = [(a["env_id"], c) for a in analyses for c in a.get("comparisons", [])]
-    if pairs:
-        lines += [
-            "",
-            *markdown_table(
-                ("env", "A", "B", "P(A needs fewer readings than B) [95 % CI]"),
-                [(env, c["better"], c["than"], _fmt(c["p"])) for env, c in pairs],
-            ),
-        ]
+    lines += _pairs_table(analyses, "needs fewer readings than")
     return "\n".join(lines) + "\n" + ("\n" + tracking_table(track) if track else "")
 
 
@@ -174,54 +164,41 @@ def tracking_table(analyses: Sequence[dict[str, Any]]) -> str:
             rows,
         ),
     ]
-    pairs = [(a["env_id"], c) for a in analyses for c in a.get("comparisons", [])]
-    if pairs:
-        lines += [
-            "",
-            *markdown_table(
-                ("env", "A", "B", "P(A tracks with a lower error than B) [95 % CI]"),
-                [(env, c["better"], c["than"], _fmt(c["p"])) for env, c in pairs],
-            ),
-        ]
+    lines += _pairs_table(analyses, "tracks with a lower error than")
     return "\n".join(lines) + "\n"
+
+
+def _pairs_table(analyses: Sequence[dict[str, Any]], better: str) -> list[str]:
+    """The learned pairs' table (markdown lines, after a blank one; none without pairs): P(A ``better`` B)."""
+    from electroloc_gym.utils.markdown import markdown_table
+
+    pairs = [(a["env_id"], c) for a in analyses for c in a.get("comparisons", [])]
+    if not pairs:
+        return []
+    return [
+        "",
+        *markdown_table(
+            ("env", "A", "B", f"P(A {better} B) [95 % CI]"),
+            [(env, c["better"], c["than"], _fmt(c["p"])) for env, c in pairs],
+        ),
+    ]
 
 
 def condition_table(a: dict[str, Any]) -> str:
-    """Per condition of one env: each algorithm's readings score, mean over its seeds (min–max), and each
-    non-learned agent's (markdown).
+    """Per condition of one env: each algorithm's score, mean over its seeds (min–max), and each non-learned
+    agent's (markdown): the readings to localise, or a tracking env's tracking error (mm) and capture
+    fraction, a table each.
     """
     from electroloc_gym.utils.markdown import markdown_table
 
-    if _tracking(a):
-        return tracking_condition_table(a)
+    sections = (
+        (("tracking_error", "tracking error, mm per condition", 1), ("capture", "capture fraction per condition", 2))
+        if _tracking(a)
+        else (("readings", "readings to localise per condition (a failure counts as the cap)", 1),)
+    )
     conds = a["conditions"]
-    rows = []
-    for algo, row in a["algorithms"].items():
-        cells = [f"{algo} ({len(a['seeds'][algo])} seeds)"]
-        for c in conds:
-            v = np.asarray(row["per_condition_readings"][c])
-            cells.append(f"{v.mean():.2f} ({v.min():.1f}–{v.max():.1f})")
-        rows.append(cells)
-    for agent, row in a["baselines"].items():
-        rows.append([agent, *(f"{row['per_condition_readings'][c]:.2f}" for c in conds)])
-    lines = [
-        f"{a['env_id']}: readings to localise per condition (a failure counts as the cap), learned: mean over "
-        "seeds (min–max)",
-        "",
-        *markdown_table(("agent", *conds), rows),
-    ]
-    return "\n".join(lines) + "\n"
-
-
-def tracking_condition_table(a: dict[str, Any]) -> str:
-    """Per condition of a tracking env: each algorithm's tracking error (mm) and capture fraction, mean over
-    its seeds (min–max), and each non-learned agent's (markdown).
-    """
-    from electroloc_gym.utils.markdown import markdown_table
-
-    conds = a["conditions"]
-    lines = []
-    for key, what, digits in (("tracking_error", "tracking error, mm", 1), ("capture", "capture fraction", 2)):
+    lines: list[str] = []
+    for key, what, digits in sections:
         rows = []
         for algo, row in a["algorithms"].items():
             cells = [f"{algo} ({len(a['seeds'][algo])} seeds)"]
@@ -233,7 +210,7 @@ def tracking_condition_table(a: dict[str, Any]) -> str:
             rows.append([agent, *(f"{row[f'per_condition_{key}'][c]:.2f}" for c in conds)])
         lines += [
             *([""] if lines else []),
-            f"{a['env_id']}: {what} per condition, learned: mean over seeds (min–max)",
+            f"{a['env_id']}: {what}, learned: mean over seeds (min–max)",
             "",
             *markdown_table(("agent", *conds), rows),
         ]
