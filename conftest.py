@@ -58,10 +58,11 @@ def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """The files holding a ``long`` test run first, the rest in collection order.
 
-    pytest-xdist's file scheduling (``--dist loadfile``, the nox sessions) hands files to the workers in
-    collection order; a two-minute file handed out last ran alone on one worker while the others had
-    finished (a 116 s file ended a 262 s run, the other worker idle for its last ~100 s). Started first, it
-    runs beside the rest. The order within a file is kept.
+    pytest-xdist's file scheduling (``--dist loadfile --no-loadscope-reorder``, the nox sessions) hands
+    files to the workers in collection order. A two-minute file handed out late runs alone on one worker
+    while the other has finished; xdist's default order (the files with the most tests first) handed the
+    116 s file of six tests out near the end, and the other worker sat idle for the last 85 s of a 254 s
+    run. Started first, it runs beside the rest. The order within a file is kept.
     """
     long_files = {item.path for item in items if item.get_closest_marker("long")}
     if long_files:

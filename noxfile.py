@@ -60,8 +60,10 @@ NOT_RLLIB = "not slow and not rllib and not wheel"
 NOT_LOWEST = "not slow and not rllib and not wheel and not zoo and not minari and not long"
 #: Where tests/test_wheel.py copies the sdist and the wheel it built (the wheel session installs that wheel).
 WHEEL_DIST = "ELECTROLOC_WHEEL_DIST"
-#: pytest-xdist: one worker per core, each test module on one worker (its module fixtures built once).
-PARALLEL = ("-n", "auto", "--dist", "loadfile")
+#: pytest-xdist: one worker per core, each test module on one worker (its module fixtures built once), the
+#: modules handed out in collection order (conftest.py puts the files of the long tests first), not xdist's
+#: default of the modules with the most tests first.
+PARALLEL = ("-n", "auto", "--dist", "loadfile", "--no-loadscope-reorder")
 
 #: What each session's optional-path tests import (checked before the tests run: a skipped test checks nothing).
 ZOO_IMPORTS = ("rl_zoo3", "sb3_contrib", "rliable", "safetensors", "requests", "moviepy", "hypothesis", "minari")
