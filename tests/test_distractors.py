@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from electroloc_gym.world import physics
 from electroloc_gym.world.conditions import PRESET_NAMES, get_condition
-from electroloc_gym.world.distractor_layout import column_layout
+from electroloc_gym.world.distractor_layout import _best_family_totals, _columns, _every_rising_set, column_layout
 from electroloc_gym.world.distractors import (
     MAX_DISTRACTORS,
     DistractorDraw,
@@ -214,6 +214,17 @@ def test_the_fallback_of_small_objects_in_a_large_box_stays_cheap() -> None:
     a = draw.draw(COND, (0.0, 0.0), np.random.default_rng(1))
     assert len(a) == 8
     _assert_clear(a, COND, (0.0, 0.0), draw.gap_mm)
+
+
+@pytest.mark.parametrize(("h", "spacing"), [(50.0, 43.1), (50.0, 17.7), (60.0, 17.7), (60.0, 12.0), (60.0, 3.0)])
+def test_the_capacity_bound_takes_the_best_column_set_of_the_family(h, spacing) -> None:
+    """The capacity bound's dynamic programme gives, for any counts, the largest total over every column
+    set of the family itself (each set's counts summed), rising shifts and one shared shift alike."""
+    xs, index = _columns(h, spacing)
+    k = index.shape[1]
+    counts = np.random.default_rng(k).integers(0, 9, size=(16, xs.size))
+    assert np.array_equal(_best_family_totals(counts, k), counts[:, index].sum(axis=2).max(axis=1))
+    assert _every_rising_set(k) == (spacing > 3.0)  # both kinds of family are covered
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)

@@ -46,13 +46,38 @@ def _column_counts(
     return np.where(blocked, np.minimum(below + above, free), free).astype(np.int64)
 
 
+def _every_rising_set(k: int) -> bool:
+    """Whether the family of ``k`` columns is every non-decreasing sequence of shift levels (else: one
+    shared shift, :data:`MAX_COLUMN_SETS`).
+    """
+    return math.comb(k + _SHIFT_LEVELS, _SHIFT_LEVELS) <= MAX_COLUMN_SETS
+
+
+def _best_family_totals(counts: NDArray[np.int64], k: int) -> NDArray[np.int64]:
+    """The most centres any column set of the family holds, per row of ``counts`` (rows, k·(levels+1)): the
+    count of column j at shift level l in entry j·(levels+1) + l, as :func:`_columns` lays them out.
+
+    Every non-decreasing sequence of levels is one dynamic programme over the columns (the best total of
+    columns 0…j ending at level l is column j's count plus the best ending at a level ≤ l), so the bound
+    over a grid of targets costs k·levels per target instead of a sum over every set; one shared shift is
+    the best level's column sum.
+    """
+    c = counts.reshape(counts.shape[0], k, _SHIFT_LEVELS + 1)
+    if not _every_rising_set(k):
+        return c.sum(axis=1).max(axis=1)
+    best = c[:, 0]
+    for j in range(1, k):
+        best = c[:, j] + np.maximum.accumulate(best, axis=1)
+    return best.max(axis=1)
+
+
 @functools.cache
 def _columns(h: float, spacing: float) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """The candidate column positions (u,) and the family of column sets as indices into them (F, k)."""
     k = int(math.floor(2.0 * h / spacing + 1e-12)) + 1
     slack = max(2.0 * h - (k - 1) * spacing, 0.0)
     shifts = np.linspace(0.0, slack, _SHIFT_LEVELS + 1)
-    if math.comb(k + _SHIFT_LEVELS, _SHIFT_LEVELS) <= MAX_COLUMN_SETS:
+    if _every_rising_set(k):
         combos = np.array(list(itertools.combinations_with_replacement(range(_SHIFT_LEVELS + 1), k)), dtype=np.intp)
     else:
         combos = np.repeat(np.arange(_SHIFT_LEVELS + 1, dtype=np.intp)[:, None], k, axis=1)
@@ -100,12 +125,13 @@ def least_capacity(h: float, spacing: float, clearance: float, half_width: float
     margin = grid_mm / math.sqrt(2.0)
     g = np.linspace(-half_width, half_width, int(math.ceil(2.0 * half_width / grid_mm)) + 1)
     xs, index = _columns(h, spacing)
+    k = index.shape[1]
     least = None
     col = np.reshape(g, (-1, 1))
     for ty in g.tolist():  # one row of the grid of targets at a time
         by_columns = _column_counts(h, spacing, clearance + margin, xs[None, :] - col, np.float64(ty))
         by_rows = _column_counts(h, spacing, clearance + margin, xs[None, :] - ty, col)  # the transpose
-        best = np.maximum(by_columns[:, index].sum(axis=2).max(axis=1), by_rows[:, index].sum(axis=2).max(axis=1))
+        best = np.maximum(_best_family_totals(by_columns, k), _best_family_totals(by_rows, k))
         least = int(best.min()) if least is None else min(least, int(best.min()))
     if least is None:
         raise ValueError(f"no grid of targets in ±{half_width!r} mm (half_width must be ≥ 0)")
