@@ -10,6 +10,7 @@ from __future__ import annotations
 import importlib.metadata as md
 import importlib.util
 import json
+import os
 import re
 import subprocess
 import sys
@@ -18,6 +19,8 @@ from pathlib import Path
 import pytest
 
 torch = pytest.importorskip("torch")
+
+from electroloc_gym.utils.runtime import user_numba_cache_dir  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 GPU_MACHINE = ("torch", "numpy", "numba", "scipy", "gymnasium")
@@ -214,7 +217,8 @@ runpy.run_path(script, run_name="__main__")
 def test_the_gpu_command_runs_on_a_bare_machine_and_on_the_cpu(tmp_path):
     """The benchmark with only the GPU machine's packages importable (no SB3, minari, matplotlib …), on
     the CPU at tiny N: eager and compiled rows (dynamo's eager backend: the capture, no code generation),
-    the PPO row, the profile and the peak bytes; JSON and markdown written."""
+    the PPO row, the profile and the peak bytes; JSON and markdown written. The numba kernels load from
+    this process's kernel cache (the nox sessions' warm-up fills it) instead of compiling again."""
     out = tmp_path / "res" / "cpu.json"
     site = _bare_site(tmp_path / "site")
     script = str(ROOT / "benchmarks" / "device_throughput.py")
@@ -222,6 +226,7 @@ def test_the_gpu_command_runs_on_a_bare_machine_and_on_the_cpu(tmp_path):
     cmd += ["--n-envs", "4", "--numba-n", "4", "--seconds", "0.05", "--ppo-n", "4", "--compile"]
     cmd += ["--compile-backend", "eager", "--profile", "--cpu-peak", "--out", str(out)]
     env = {"PATH": "/usr/bin:/bin", "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "HOME": str(tmp_path)}
+    env["NUMBA_CACHE_DIR"] = os.environ.get("NUMBA_CACHE_DIR") or str(user_numba_cache_dir())
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads(out.read_text())
