@@ -2,13 +2,13 @@
 
 * ``tests``  — the suite on the main job's install: ``-e .[dev,zoo,minari,docs]``, the newest releases the
   resolver picks (no RLlib pin), without the Ray/RLlib tests and the release build (``wheel`` runs those);
-  then, in the same venv, the docs site built with ``mkdocs build --strict`` (a broken link, anchor or API
+  and, in the same venv, the docs site built with ``mkdocs build --strict`` (a broken link, anchor or API
   reference fails it).
 * ``lowest`` — the suite on every declared minimum (``constraints-lowest.txt``); the tests of extras that
   cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker, and
   so are the ``long`` tests (minutes of episodes, version-independent: the tests session runs them).
 * ``rllib``  — every extra at once, with RLlib's gymnasium pin: exactly the Ray/RLlib tests (marker
-  ``rllib``), then pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml: basic
+  ``rllib``), and pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml: basic
   checks on every module, strict on the public API), every import resolved; it fails on any error.
 * ``wheel``  — sdist and wheel built once (``python -m build``, by tests/test_wheel.py, marker ``wheel``, which
   checks what they hold) and checked (``twine check``); the wheel installed alone into an empty venv
@@ -21,16 +21,22 @@ imports, once per venv, not the whole of torch and Ray; the sessions let it writ
 the caller's environment sets ``PYTHONDONTWRITEBYTECODE``, which would make every process, each pytest
 worker, each subprocess a test starts, each Ray worker, compile torch, Ray and SB3 from source again);
 ``constraints.txt`` pins the CPU-only torch wheel. Before the suite, one process compiles the numba
-kernels into the cache every worker then loads. Sessions pin numeric libraries to one thread per process
+kernels into the cache every worker then loads. A step that keeps one core busy has the session's other
+checks beside it (``_beside``): the extras' import check and the docs build beside that compile, the import
+check and pyright beside Ray's tests. Sessions pin numeric libraries to one thread per process
 and run pytest on every core (pytest-xdist, one worker per core, a test module per worker). Arguments
 after ``--`` go to pytest (``nox -s tests -- tests/test_env.py``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import subprocess
 import sys
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import nox
@@ -39,7 +45,7 @@ ROOT = Path(__file__).resolve().parent
 # pip installs without bytecode (NO_COMPILE); the sessions' processes write it as they import (module docstring)
 os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 nox.options.reuse_venv = "yes"
-nox.options.default_venv_backend = "venv"
+nox.options.default_venv_backend = "virtualenv"  # nox's default: a venv in under a second (venv: 3 s)
 nox.options.sessions = ["tests", "lowest", "rllib", "wheel"]
 
 CONSTRAINTS = ("-c", str(ROOT / "constraints.txt"))
@@ -88,22 +94,55 @@ print(f"numba kernels compiled for {len(ENV_IDS)} ids")
 """
 
 
+def _warm_kernels(session: nox.Session) -> None:
+    session.run("python", "-c", _WARM_KERNELS, env=ONE_THREAD)
+
+
 def _pytest(session: nox.Session, markexpr: str, *, parallel: bool = True) -> None:
     workers = PARALLEL if parallel else ()
-    if parallel:
-        session.run("python", "-c", _WARM_KERNELS, env=ONE_THREAD)
     session.run("python", "-m", "pytest", "-m", markexpr, *workers, *session.posargs, env=ONE_THREAD)
+
+
+@contextlib.contextmanager
+def _beside(session: nox.Session, *args: str) -> Iterator[None]:
+    """Run ``args`` (a command of the session's venv) while the block runs, on the core a serial step leaves
+    idle; then print its output, and fail the session if it failed. nox runs one command at a time and has
+    no such step of its own.
+    """
+    env = {**os.environ, **ONE_THREAD, "VIRTUAL_ENV": str(session.virtualenv.location)}
+    env["PATH"] = os.pathsep.join([str(session.bin), env.get("PATH", "")])
+    session.log(f"{' '.join(args)}  (beside the next command)")
+    with tempfile.TemporaryFile() as out:
+        proc = subprocess.Popen(
+            [str(Path(session.bin) / args[0]), *args[1:]], stdout=out, stderr=subprocess.STDOUT, env=env
+        )
+        try:
+            yield
+        except BaseException:
+            proc.kill()
+            proc.wait()
+            raise
+        code = proc.wait()
+        out.seek(0)
+        print(out.read().decode(errors="replace"), end="", flush=True)
+    if code:
+        session.error(f"{' '.join(args)} failed with exit code {code}")
 
 
 @nox.session
 def tests(session: nox.Session) -> None:
     """The default suite on the newest releases (the install of the README's main job plus dev, zoo and minari),
-    then the docs site with every warning an error.
+    and the docs site with every warning an error.
     """
     session.install(NO_COMPILE, *CONSTRAINTS, "-e", ".[dev,zoo,minari,docs]")
-    session.run("python", "-c", _imports(ZOO_IMPORTS))  # a test of an extra never skips for a missing import
+    site = str(Path(session.create_tmp()) / "site")
+    # a test of an extra never skips for a missing import
+    with (
+        _beside(session, "python", "-c", _imports(ZOO_IMPORTS)),
+        _beside(session, "mkdocs", "build", "--strict", "--site-dir", site),
+    ):
+        _warm_kernels(session)
     _pytest(session, NOT_RLLIB)
-    session.run("mkdocs", "build", "--strict", "--site-dir", str(Path(session.create_tmp()) / "site"))
 
 
 @nox.session
@@ -111,19 +150,20 @@ def lowest(session: nox.Session) -> None:
     """The default suite on each declared minimum (constraints-lowest.txt), the zoo and minari tests deselected."""
     session.install(NO_COMPILE, "-c", str(ROOT / "constraints-lowest.txt"), "-e", ".[dev,train]")
     session.run("python", "-m", "pip", "list", "--format=freeze", silent=False)
+    _warm_kernels(session)
     _pytest(session, NOT_LOWEST)
 
 
 @nox.session
 def rllib(session: nox.Session) -> None:
     """Every extra at once (the rllib extra pins gymnasium to RLlib's version): the Ray/RLlib tests (marker
-    ``rllib``), then pyright over the package, every import it makes resolved (SB3, torch, rl-zoo3, Ray/RLlib,
+    ``rllib``), and pyright over the package, every import it makes resolved (SB3, torch, rl-zoo3, Ray/RLlib,
     Minari), so every import's types are checked.
     """
     session.install(NO_COMPILE, *CONSTRAINTS, "-e", ".[dev,zoo,rllib,minari,types]")
-    session.run("python", "-c", _imports(RLLIB_IMPORTS))
-    _pytest(session, "rllib and not slow", parallel=False)  # Ray starts its own worker processes
-    session.run("pyright")
+    # Ray's tests leave a core idle about half of the time: the import check and pyright run beside them
+    with _beside(session, "python", "-c", _imports(RLLIB_IMPORTS)), _beside(session, "pyright"):
+        _pytest(session, "rllib and not slow", parallel=False)  # Ray starts its own worker processes
 
 
 _WHEEL_SMOKE = """
@@ -160,7 +200,7 @@ def wheel(session: nox.Session) -> None:
     (sdist,) = dist.glob("electroloc_gym-*.tar.gz")
     (whl,) = dist.glob("electroloc_gym-*.whl")
     session.run("twine", "check", "--strict", str(sdist), str(whl))
-    session.run(sys.executable, "-m", "venv", str(venv), external=True)
+    session.run(sys.executable, "-m", "virtualenv", "-q", str(venv), external=True)
     py = str(venv / "bin" / "python")
     electroloc = str(venv / "bin" / "electroloc")
     # the core dependencies only: a shipped policy runs without torch or SB3 (electroloc_gym.policy)
