@@ -71,7 +71,7 @@ WHEEL_DIST = "ELECTROLOC_WHEEL_DIST"
 #: default of the modules with the most tests first.
 PARALLEL = ("-n", "auto", "--dist", "loadfile", "--no-loadscope-reorder")
 
-#: What each session's optional-path tests import (checked before the tests run: a skipped test checks nothing).
+#: What each session's optional-path tests import (a missing one fails the session: a skipped test checks nothing).
 ZOO_IMPORTS = ("rl_zoo3", "sb3_contrib", "rliable", "safetensors", "requests", "moviepy", "hypothesis", "minari")
 RLLIB_IMPORTS = ("ray", "ray.rllib", "torch", "safetensors")
 
