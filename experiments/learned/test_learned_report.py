@@ -40,19 +40,24 @@ def _record(cond: str, agent: str, trial: int, n: int) -> dict:
     return rec
 
 
-def _write(path: Path, agent: str, readings: dict[str, list[int]]) -> None:
+def _append_run(path: Path, agent: str, rows: list[dict], conditions: list[str], env_id: str) -> None:
+    """Append ``agent``'s trial records to the run's trials file and add the agent to its config.json."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    rows = [_record(cond, agent, t, n) for cond, obs in readings.items() for t, n in enumerate(obs)]
     with open(path, "a", encoding="utf-8") as fh:
         fh.write("".join(json.dumps(r) + "\n" for r in rows))
     cfg_path = path.parent / "config.json"
     cfg = (
         json.loads(cfg_path.read_text())
         if cfg_path.is_file()
-        else {"agents": [], "conditions": sorted(readings), "trials": 3, "env_id": "ElectroLoc-v0"}
+        else {"agents": [], "conditions": sorted(conditions), "trials": 3, "env_id": env_id}
     )
     cfg["agents"] = sorted(set(cfg["agents"]) | {agent})
     cfg_path.write_text(json.dumps(cfg))
+
+
+def _write(path: Path, agent: str, readings: dict[str, list[int]]) -> None:
+    rows = [_record(cond, agent, t, n) for cond, obs in readings.items() for t, n in enumerate(obs)]
+    _append_run(path, agent, rows, list(readings), "ElectroLoc-v0")
     (path.parent / "summary.json").write_text("{}")  # the benchmark finished
 
 
@@ -333,18 +338,8 @@ def _track_record(cond: str, agent: str, trial: int, err: float, captured: bool)
 
 
 def _write_track(path: Path, agent: str, trials: dict[str, list[tuple[float, bool]]]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
     rows = [_track_record(cond, agent, t, e, c) for cond, ts in trials.items() for t, (e, c) in enumerate(ts)]
-    with open(path, "a", encoding="utf-8") as fh:
-        fh.write("".join(json.dumps(r) + "\n" for r in rows))
-    cfg_path = path.parent / "config.json"
-    cfg = (
-        json.loads(cfg_path.read_text())
-        if cfg_path.is_file()
-        else {"agents": [], "conditions": sorted(trials), "trials": 3, "env_id": TRACK_ID}
-    )
-    cfg["agents"] = sorted(set(cfg["agents"]) | {agent})
-    cfg_path.write_text(json.dumps(cfg))
+    _append_run(path, agent, rows, list(trials), TRACK_ID)
     (path.parent / "summary.json").write_text("{}")
 
 
