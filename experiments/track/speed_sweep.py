@@ -26,7 +26,7 @@ import numpy as np
 
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.baselines.rollout import run_episode
-from electroloc_gym.bench.agents import make_bench_agent
+from electroloc_gym.bench.agents import cached_agent
 from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM
 from electroloc_gym.registry import bench_env
 from electroloc_gym.utils.fileio import atomic_write_text
@@ -46,14 +46,16 @@ def episode_seeds(seed: int, trials: int) -> list[tuple[int, int]]:
 
 def run_cell(agent: str, speed_mm: float, seeds: list[tuple[int, int]], env_kwargs: dict[str, Any]) -> dict[str, Any]:
     """Every trial of one controller at one speed: tracking errors (mm), captures, the condition drawn."""
-    # the agent's own env needs (a learned policy's observation mode) on top of the sweep's settings
-    needs = dict(getattr(make_bench_agent(agent), "env_kwargs", {}))
+    # built once and re-seeded every trial, as the benchmark runs it; its own env needs (a learned policy's
+    # observation mode) on top of the sweep's settings
+    controller = cached_agent(agent)
+    needs = dict(getattr(controller, "env_kwargs", {}))
     env = gym.make(ENV_ID, target_speed_mm=speed_mm, **{**env_kwargs, **needs})
     out: dict[str, Any] = {"agent": agent, "speed_mm": speed_mm, "tracking_error_mm": [], "captured": []}
     out["condition"] = []
     t0 = time.perf_counter()
     for env_seed, agent_seed in seeds:
-        ep = run_episode(env, make_bench_agent(agent, seed=agent_seed), env_seed, agent_seed=agent_seed)
+        ep = run_episode(env, controller, env_seed, agent_seed=agent_seed)
         out["tracking_error_mm"].append(float(ep.info["tracking_error_mm"]))
         out["captured"].append(bool(ep.info["captured"]))
         out["condition"].append(str(ep.info["condition"]))
