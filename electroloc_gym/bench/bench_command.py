@@ -32,6 +32,7 @@ from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES
 from electroloc_gym.registry import BENCH_ENVS, PAPER_ENV_ID, BenchEnv, bench_env
 from electroloc_gym.utils.agentspec import split_specs
+from electroloc_gym.utils.fileio import check_output_folder
 from electroloc_gym.world.conditions import DEFAULT_SIGNAL
 from electroloc_gym.world.distractors import MAX_DISTRACTORS
 from electroloc_gym.world.sensor_array import LAYOUT_NAMES
@@ -249,8 +250,7 @@ def _check_ranges(args: argparse.Namespace) -> None:
             raise ValueError(f"{option} must be an integer in [{low}, {high}], got {value}")
     if args.address is not None and args.backend != "ray":
         raise ValueError(f"--address applies to --backend ray only (got --backend {args.backend})")
-    if not str(args.out).strip():
-        raise ValueError(f"--out must name a folder, got {args.out!r}")
+    check_output_folder("--out", args.out)  # the rule of every command's outputs, before any work
 
 
 def _config(args: argparse.Namespace, env_name: str, agents: list[str]) -> BenchConfig:

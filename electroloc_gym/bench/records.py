@@ -45,7 +45,14 @@ from electroloc_gym.bench.config import (
 )
 from electroloc_gym.bench.schema import TIMING_KEYS, RecordRules, TrialRecord
 from electroloc_gym.registry import env_entry
-from electroloc_gym.utils.fileio import FolderBusyError, FolderLock, atomic_write_text, probe_write, strict_json
+from electroloc_gym.utils.fileio import (
+    FolderBusyError,
+    FolderLock,
+    atomic_write_text,
+    check_output_folder,
+    probe_write,
+    strict_json,
+)
 
 __all__ = [
     "prepare_out_dir",
@@ -90,19 +97,12 @@ def prepare_out_dir(out: str | os.PathLike[str] | None) -> Path:
     """Create the output folder (parents too) and check that files can be written in it.
 
     Raises:
-        ValueError: ``out`` empty, an existing file, under a file, not creatable or not writable.
+        ValueError: what :func:`~electroloc_gym.utils.fileio.check_output_folder` refuses (empty, an existing
+            file, under a file, a dangling link, a name too long, not writable), or a folder that cannot be
+            created.
     """
-    text = "" if out is None else os.fspath(out)
-    if not str(text).strip():
-        raise ValueError(f"--out must name a folder, got {text!r}")
-    path = Path(text).expanduser()
-    if path.exists() and not path.is_dir():
-        raise ValueError(f"--out {text!r} is a file, not a folder")
-    for parent in path.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise ValueError(f"--out {text!r} is under {str(parent)!r}, which is a file, not a folder")
-            break
+    path = check_output_folder("--out", out)
+    text = os.fspath(out)  # type: ignore[arg-type]  # check_output_folder refused None
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

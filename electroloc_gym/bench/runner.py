@@ -58,7 +58,7 @@ from electroloc_gym.bench.records import (
 from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.bench.stored_run import read_config, record_rules
 from electroloc_gym.bench.trials import TrialFailed, describe_trial, run_trial
-from electroloc_gym.utils.fileio import atomic_write_bytes, strict_json, write_json_atomic
+from electroloc_gym.utils.fileio import atomic_write_bytes, check_output_folder, strict_json, write_json_atomic
 
 # The run, plus the names a caller of the runner needs (defined in config, records and trials).
 __all__ = [
@@ -267,7 +267,7 @@ def run_benchmark(
             f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run"
         )
     described, warnings = _check_agents(config, trust_pickle)  # before the folder is touched: nothing written
-    packed = Path(os.fspath(out_dir or "")).expanduser() / TRIALS_GZ_FILE
+    packed = check_output_folder("--out", out_dir) / TRIALS_GZ_FILE
     if packed.is_file():  # a kept run stored compressed is read, never appended to; nothing is written
         raise ValueError(
             f"{packed} holds a kept run's trials (compressed); gunzip it to continue that run, or choose another --out"

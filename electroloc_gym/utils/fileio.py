@@ -14,6 +14,7 @@ Used by the benchmark, the training path, the figures and the CLI.
 
 from __future__ import annotations
 
+import errno
 import io
 import json
 import math
@@ -21,6 +22,7 @@ import os
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
+from stat import S_ISLNK
 from typing import Any
 
 import numpy as np
@@ -28,6 +30,8 @@ from filelock import FileLock, Timeout
 
 __all__ = [
     "check_output_path",
+    "check_output_folder",
+    "probe_write",
     "atomic_write_bytes",
     "atomic_write_text",
     "save_figure_atomic",
@@ -39,31 +43,135 @@ __all__ = [
 ]
 
 
+#: Name lengths when the file system does not say (``os.pathconf`` unavailable): POSIX's usual limits, bytes.
+FALLBACK_NAME_MAX = 255
+FALLBACK_PATH_MAX = 4096
+#: What :func:`atomic_write_bytes` adds to a file's name for its temporary file (``.NAME.XXXXXXXX.tmp``), bytes:
+#: a file's name must leave room for it.
+TEMP_NAME_EXTRA = len(".") + len(".") + 8 + len(".tmp")
+
+
+def _pathconf(folder: Path, key: str, fallback: int) -> int:
+    try:
+        value = os.pathconf(folder, key)
+    except (OSError, ValueError, AttributeError):  # Windows, or a file system that does not say
+        return fallback
+    return value if value > 0 else fallback
+
+
+def _existing_folder(name: str, path: Path) -> tuple[Path, bool]:
+    """The nearest folder of ``path`` that exists (``path`` itself if it is one), and whether ``path`` is an
+    existing file; after refusing a symbolic link anywhere in ``path`` that leads nowhere (dangling, or a
+    loop) and a component above the last that is a file.
+    """
+    parts = path.parts
+    found = Path(parts[0]) if path.is_absolute() else Path(".")
+    for i in range(1 if path.is_absolute() else 0, len(parts)):
+        here = Path(*parts[: i + 1])
+        try:
+            st = os.lstat(here)
+        except FileNotFoundError:
+            return found, False
+        except OSError as exc:
+            if exc.errno == errno.ENAMETOOLONG:  # the name check says which name
+                return found, False
+            raise ValueError(f"{name}: cannot write {str(path)!r}: {exc.strerror or exc}") from None
+        if S_ISLNK(st.st_mode) and not here.exists():
+            raise ValueError(
+                f"{name}: cannot write {str(path)!r}: {str(here)!r} is a symbolic link to {os.readlink(here)!r}, "
+                f"which does not exist (a dangling link or a loop)"
+            )
+        if not here.is_dir():
+            if i == len(parts) - 1:
+                return found, True
+            raise ValueError(f"{name} {str(path)!r} is under {str(here)!r}, which is a file, not a folder")
+        found = here
+    return found, False
+
+
+def _check_names(name: str, path: Path, folder: Path, extra_last: int) -> None:
+    """Every component of ``path`` within ``folder``'s file system's name limit (the last one ``extra_last``
+    bytes shorter), the whole path within its path limit.
+    """
+    limit = _pathconf(folder, "PC_NAME_MAX", FALLBACK_NAME_MAX)
+    parts = [p for p in path.parts if p not in (path.anchor, "", ".", "..")]
+    for i, part in enumerate(parts):
+        size = len(os.fsencode(part))
+        allowed = limit - (extra_last if i == len(parts) - 1 else 0)
+        if size > allowed:
+            shown = part if len(part) <= 40 else part[:37] + "..."
+            room = f" (the file system's {limit}, less {extra_last} for the temporary file)" if allowed < limit else ""
+            raise ValueError(
+                f"{name}: the name {shown!r} is {size} bytes long; at most {allowed} bytes{room} are allowed"
+            )
+    path_limit = _pathconf(folder, "PC_PATH_MAX", FALLBACK_PATH_MAX)
+    size = len(os.fsencode(os.path.abspath(path)))
+    if size >= path_limit:
+        raise ValueError(f"{name}: the path is {size} bytes long; the file system allows fewer than {path_limit}")
+
+
+def _probe(folder: Path, message: str) -> None:
+    """A real write in ``folder`` (:func:`probe_write`): permission bits say nothing for root, a read-only
+    file system or ``/proc``. Refused: a ValueError of ``message`` and the system's reason.
+    """
+    try:
+        probe_write(folder)
+    except OSError as exc:
+        raise ValueError(f"{message} ({exc.strerror or exc})") from None
+
+
 def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[str, ...] | None = None) -> None:
     """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``).
+
+    The rule every command's output files follow (:func:`check_output_folder` is the folders'): not empty,
+    not a folder, no symbolic link in the path that leads nowhere, no component that is a file, every name
+    within the file system's limit (``PC_NAME_MAX``, else 255 bytes; the file's own name leaves room for the
+    temporary file of :func:`atomic_write_bytes`), and a real write succeeds in the nearest existing folder
+    (:func:`probe_write`). Nothing is created.
 
     Args:
         name: the option or argument, for the message.
         path: the file to write.
         suffixes: the allowed suffixes without the dot (None: any); a path without a suffix is refused too.
     """
-    p = Path(path)
-    if not str(path).strip():
+    text = os.fspath(path)
+    if not str(text).strip():
         raise ValueError(f"{name} must be a file path, got an empty string")
-    if p.is_dir():
-        raise ValueError(f"{name} must be a file path, got the directory {str(p)!r}")
-    parent = p.parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise ValueError(f"{name}: cannot create {str(p)!r}, {str(parent)!r} is a file")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{name}: cannot write {str(p)!r}, folder {str(parent)!r} is not writable")
+    p = Path(text)
+    folder, _ = _existing_folder(name, p)
+    if folder == p or text.endswith(("/", os.sep)):
+        raise ValueError(f"{name} must be a file path, got the directory {text!r}")
+    _check_names(name, p, folder, TEMP_NAME_EXTRA)
     if suffixes is not None and p.suffix.lower().lstrip(".") not in suffixes:
         raise ValueError(
             f"{name} {str(p)!r}: the format {p.suffix or '(none)'!r} is not supported; "
             f"use one of {', '.join('.' + x for x in suffixes)}"
         )
+    _probe(folder, f"{name}: cannot write {str(p)!r}: folder {str(folder)!r} is not writable")
+
+
+def check_output_folder(name: str, folder: str | os.PathLike[str] | None) -> Path:
+    """Refuse, before any work, an output folder that cannot be created or written (ValueError naming ``name``);
+    return it as a path (``~`` expanded). Nothing is created.
+
+    The rule of :func:`check_output_path` for a folder: not empty, not a file, no symbolic link in the path
+    that leads nowhere, no component that is a file, every name within the file system's limit, and a real
+    write succeeds in it (or, when it does not exist yet, in its nearest existing folder, where it would be
+    created).
+    """
+    text = "" if folder is None else os.fspath(folder)
+    if not str(text).strip():
+        raise ValueError(f"{name} must name a folder, got {text!r}")
+    p = Path(text).expanduser()
+    existing, is_file = _existing_folder(name, p)
+    if is_file:
+        raise ValueError(f"{name} {text!r} is a file, not a folder")
+    _check_names(name, p, existing, 0)
+    if existing == p:
+        _probe(p, f"{name} {text!r} is not writable")
+    else:
+        _probe(existing, f"{name} {text!r} cannot be created: folder {str(existing)!r} is not writable")
+    return p
 
 
 def probe_write(folder: str | os.PathLike[str]) -> None:
