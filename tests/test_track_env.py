@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -10,12 +11,15 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import electroloc_gym  # noqa: F401  (registers the ids)
-from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.params import MAX_TARGET_SPEED_MM, MOTION_MODELS, TARGET_MOTIONS, EnvParams
 from electroloc_gym.engines.numba_core.step import Simulation
 from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM, reflect
 from electroloc_gym.kernels.streams import normal_table, table_normal_indices
+from electroloc_gym.world.conditions import Condition, get_condition
 from tests.vector_equivalence import assert_native_equals_sync
 
 ID = "ElectroLocTrack-v0"
@@ -106,19 +110,113 @@ def test_torch_engine_refuses_the_track_env() -> None:
         gym.make_vec(ID, num_envs=2, vectorization_mode="vector_entry_point", backend="torch", **SMALL)
 
 
-@pytest.mark.parametrize("motion", ["random_walk", "swimmer"])
-def test_target_and_particles_stay_in_the_box(motion: str) -> None:
-    sim = _sim(4, target_motion=motion, target_speed_mm=20.0, turn_std_rad=0.2, max_observations=200)
-    h = sim.state.half_mm[:, None]
-    for _ in range(150):
-        sim.step(np.zeros((4, 2)))
-        assert np.all(np.abs(sim.state.target_mm) <= h)
-        assert np.all(np.abs(sim.state.particles_mm) <= sim.state.half_mm[:, None, None].astype(np.float32))
+def _box_condition(half_mm: float) -> Condition:
+    """fresh-steel-12.7 in an allowed box of ±``half_mm`` (the carriage starting anywhere in it, the target
+    at the centre).
+    """
+    return dataclasses.replace(
+        get_condition("fresh-steel-12.7"),
+        allowed_half_width_mm=half_mm,
+        start_half_width_mm=half_mm,
+        target_xy_mm=(0, 0),
+    )
 
 
-def test_reflect_folds_once_at_the_crossed_wall() -> None:
-    x, flipped = reflect(np.array([55.0, -53.0, 10.0, 50.0]), 50.0)
-    assert np.array_equal(x, [45.0, -47.0, 10.0, 50.0]) and flipped.tolist() == [True, True, False, False]
+def _motion_kwargs(motion: str, speed: float, turn: float = 0.5) -> dict[str, Any]:
+    """The target's motion options (``turn_std_rad`` only for the swimmer: the random walk has no heading)."""
+    return {
+        "target_motion": motion,
+        "target_speed_mm": speed,
+        **({"turn_std_rad": turn} if motion == "swimmer" else {}),
+    }
+
+
+def _widest_excursion(sim: Simulation, readings: int) -> float:
+    """Step ``readings`` times without moving; the largest |coordinate| of the target over the box's
+    half-width (≤ 1: never out of the box), the particles checked against the box at every reading too.
+    """
+    h = sim.state.half_mm
+    worst = float(np.max(np.abs(sim.state.target_mm) / h[:, None]))
+    for _ in range(readings):
+        sim.step(np.zeros((sim.num_envs, 2)))
+        worst = max(worst, float(np.max(np.abs(sim.state.target_mm) / h[:, None])))
+        assert np.all(np.abs(sim.state.particles_mm) <= h[:, None, None].astype(np.float32))
+    return worst
+
+
+def _old_single_fold(x: np.ndarray, half: Any) -> np.ndarray:
+    """The single fold at the crossed wall (exact for steps shorter than 2·half): the reference the fold
+    must equal bit for bit there.
+    """
+    return np.where(x > half, 2 * half - x, np.where(x < -half, -2 * half - x, x))
+
+
+def test_reflect_folds_at_the_crossed_wall() -> None:
+    x, flipped = reflect(np.array([55.0, -53.0, 10.0, 50.0, 160.0, -275.0, 210.0]), 50.0)
+    # 160 → 2·50 − 160 = −60 → −2·50 + 60 = −40 (two walls: the heading back as it was); −275 → −75 → −25
+    assert np.array_equal(x, [45.0, -47.0, 10.0, 50.0, -40.0, -25.0, 10.0])
+    assert flipped.tolist() == [True, True, False, False, False, True, False]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    x=st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=40),
+    half=st.floats(1e-3, 1e3),
+)
+def test_reflect_is_the_triangle_wave_and_the_single_fold_where_that_was_exact(x: list[float], half: float) -> None:
+    """The fold of a straight path in [−H, H]: the triangle wave of period 4H (closed form), always inside
+    the box in floating point, reflected an odd number of times exactly where ⌊(x + H)/2H⌋ is odd, and bit
+    for bit the single fold for |x| ≤ 3H (a step shorter than 2H from inside the box).
+    """
+    xs = np.array(x)
+    got, flipped = reflect(xs, half)
+    closed = np.abs(np.mod(xs - half, 4 * half) - 2 * half) - half
+    tol = 8 * np.finfo(float).eps * (np.abs(xs) + half)
+    assert np.all(np.abs(got - closed) <= tol), (xs, got, closed)
+    assert np.all(np.abs(got) <= half)
+    crossings = np.floor((xs + half) / (2 * half))
+    d = np.mod(xs + half, 2 * half)
+    exact = np.minimum(d, 2 * half - d) > tol  # not on a wall (where the parity is either)
+    assert np.array_equal(flipped[exact], (np.mod(crossings, 2) == 1)[exact])
+    old = _old_single_fold(xs, half)
+    near = (np.abs(xs) <= 3 * half) & (np.abs(old) <= half)
+    assert np.array_equal(got[near], old[near])
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    half=st.floats(0.5, 60.0),
+    speed=st.floats(0.0, MAX_TARGET_SPEED_MM),
+    motion=st.sampled_from(TARGET_MOTIONS),
+    turn=st.floats(0.0, math.pi),
+    model=st.sampled_from(MOTION_MODELS),
+    seed=st.integers(0, 2**20),
+)
+def test_the_target_never_leaves_its_box(
+    half: float, speed: float, motion: str, turn: float, model: str, seed: int
+) -> None:
+    """Any box, any step the options allow, either motion, either filter model: the true target and every
+    particle stay in the allowed box over many readings.
+    """
+    kw = {**_motion_kwargs(motion, speed, turn), "motion_model": model, "n_particles": 20, "max_observations": 400}
+    sim = _sim(3, condition=_box_condition(half), **kw)
+    for i in range(3):
+        sim.seed(i, seed + i)
+    sim.reset()
+    assert _widest_excursion(sim, 300) <= 1.0
+
+
+@pytest.mark.parametrize(
+    ("motion", "half", "speed"),
+    [("swimmer", 3.0, 20.0), ("swimmer", 3.0, 7.0), ("random_walk", 12.0, 20.0), ("random_walk", 3.0, 20.0)],
+)
+def test_a_box_smaller_than_the_step_keeps_the_target(motion: str, half: float, speed: float) -> None:
+    """The reproducers: a ±3 mm box with a swimmer of 20 mm per reading (drifted ≈ 640 mm in 900 readings),
+    and the random walk's Gaussian tails (RMS 20 mm) in a ±12 mm box.
+    """
+    kw = {**_motion_kwargs(motion, speed), "n_particles": 20, "max_observations": 1000}
+    sim = _sim(4, condition=_box_condition(half), **kw)
+    assert _widest_excursion(sim, 900) <= 1.0
 
 
 def _steps_from_origin(sim: Simulation, n_steps: int) -> np.ndarray:

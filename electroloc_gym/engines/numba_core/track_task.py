@@ -8,7 +8,9 @@ plane below the carriage, and the belief must carry a motion model.
 a Gaussian step of per-axis std ``target_speed_mm``/√2 (RMS step ``target_speed_mm`` mm per reading);
 ``"swimmer"``: a step of exactly ``target_speed_mm`` along its heading, the heading turning by a Gaussian
 increment of std ``turn_std_rad`` per reading (drawn uniform at reset). The target stays in the
-allowed box [−H, H]²: a step that crosses a wall is reflected (the swimmer's heading reflected with it).
+allowed box [−H, H]² for any step: a step that crosses a wall is reflected at it, as many times as the
+straight path crosses walls (a step longer than the box; :func:`reflect`), and the swimmer's heading is
+mirrored with each.
 
 **Why a default of 1 mm per reading.** Weakly electric fish hunt water fleas (Daphnia, 2–3 mm) that
 swim about one body length per second, a few mm/s, while the fish cruises at the order of 10 cm/s
@@ -85,12 +87,22 @@ _SQRT_HALF = np.sqrt(0.5)
 
 
 def reflect(x: NDArray, half: Any) -> tuple[NDArray, NDArray[np.bool_]]:
-    """``x`` folded into [−half, half] by one reflection at the wall it crossed (steps shorter than 2·half),
-    and where it was reflected. Exact elementwise operations in ``x``'s precision.
+    """``x`` folded into [−half, half] as a straight path from inside the box is by its walls, and where it
+    was reflected an odd number of times (a swimmer's heading is mirrored once per wall).
+
+    The fold is the triangle wave of period 4·half (mirror at every wall crossed): for |x| ≤ 3·half (a step
+    shorter than 2·half from inside the box) it is the single fold at the crossed wall, ``2·half − x`` or
+    ``−2·half − x``, bit for bit; farther out, ``x`` is first brought into [−half, 3·half) by the period
+    (``mod(x + half, 4·half) − half``), an even number of reflections, then folded once. The result is
+    clipped to the box, which changes nothing but a last-digit overshoot of a wall. Elementwise, in
+    ``x``'s precision; ``half`` > 0, broadcastable against ``x``.
     """
+    period = 4 * half
+    far = np.abs(x) > 3 * half
+    x = np.where(far, np.mod(x + half, period) - half, x)
     over, under = x > half, x < -half
     out = np.where(over, 2 * half - x, np.where(under, -2 * half - x, x))
-    return out, over | under
+    return np.clip(out, -half, half), over | under
 
 
 class TrackTask(LocalizeTask):
