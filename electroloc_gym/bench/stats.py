@@ -24,6 +24,11 @@ tracking error's median and interquartile range over all trials (``tracking_erro
 ``tracking_error_q25_mm``, ``tracking_error_q75_mm``) and the capture rate with its 95 % Wilson interval
 (``captures``, ``capture_rate``, ``capture_rate_lo``, ``capture_rate_hi``); the "all" rows pool the trials.
 
+What ranks agents on an env (:func:`env_score`): the tracking error on a tracking env (lower better; its
+records' ``shape`` carries :data:`TRACKING_KEY`), elsewhere the readings to success (a failure counted
+as the cap; lower better) — the score the offline trainers choose a checkpoint by and the datasets'
+reference scores compare rnd-wlk with the planners by.
+
 Table 1 (zero-crossing): mean absolute error in x and in y of the final estimates
 (``error_x_mean_abs_mm``, ``error_y_mean_abs_mm``, successful trials), and the repeatability the
 paper's text describes (mean distance of the estimates from their own mean, ``*_repeatability_mm``).
@@ -40,7 +45,7 @@ from electroloc_gym.bench.fidelity import wilson_interval
 from electroloc_gym.bench.schema import is_far_success
 from electroloc_gym.utils.agentspec import is_path_like
 
-__all__ = ["summarize", "agent_label", "RULES"]
+__all__ = ["summarize", "agent_label", "env_score", "RULES", "TRACKING_KEY"]
 
 RULES = (
     "Appendix B: success (failure) counts; mean error and mean steps over the start positions on which every "
@@ -119,16 +124,36 @@ def _identification(successes: Sequence[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+#: The record key (of a trial record's ``shape``, and the env's info) that makes an env a tracking env.
+TRACKING_KEY = "tracking_error_mm"
+
+
+def env_score(env_id: str) -> tuple[str, str]:
+    """``(score, direction)``: what ranks agents on ``env_id`` and which way is better (module docstring).
+
+    ``("tracking_error_mm", "lower")`` on an env whose env-table entry's ``record_keys`` hold
+    :data:`TRACKING_KEY` (the moving target: every trial runs to its cap, so the readings tie), the
+    episode's mean tracking error over its second half, mm; ``("readings", "lower")`` elsewhere, the
+    readings to success with a failure counted as the cap.
+
+    Raises:
+        ValueError: an env id the env table does not hold.
+    """
+    from electroloc_gym.registry import env_entry
+
+    return (TRACKING_KEY, "lower") if TRACKING_KEY in env_entry(env_id).record_keys else ("readings", "lower")
+
+
 #: The capture rate's interval: a 95 % Wilson score interval.
 CAPTURE_CONFIDENCE = 0.95
 
 
 def _tracking(recs: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """The moving target's tracking over all trials (empty for the other envs; module docstring)."""
-    shapes = [r["shape"] for r in recs if r.get("shape") and "tracking_error_mm" in r["shape"]]
+    shapes = [r["shape"] for r in recs if r.get("shape") and TRACKING_KEY in r["shape"]]
     if not shapes:
         return {}
-    err = _num(s["tracking_error_mm"] for s in shapes)
+    err = _num(s[TRACKING_KEY] for s in shapes)
     captures = sum(bool(s["captured"]) for s in shapes)
     lo, hi = wilson_interval(captures, len(shapes), CAPTURE_CONFIDENCE)
     q25, q50, q75 = (float(q) for q in np.quantile(err, [0.25, 0.5, 0.75]))

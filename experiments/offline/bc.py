@@ -2,9 +2,10 @@
 
 The actor (:class:`common.Actor`, 81 → 256 → 256 → 2, ReLU, tanh) regresses the dataset's actions on the
 standardised belief observation (mean-squared error, Adam). Every ``eval_every`` steps it runs the
-validation episodes (reset seeds 100000+, never the benchmark's seed 0); the checkpoint with the fewest
-mean readings is exported to the pickle-free policy format, so ``electroloc bench --agents OUT/policy``
-runs it like a shipped policy. The learning curve is ``OUT/curve.json``.
+validation episodes (reset seeds 100000+, never the benchmark's seed 0); the checkpoint with the best
+validation score — the env's own (:func:`common.checkpoint_score`): the fewest mean readings, on the moving
+target the lowest mean tracking error — is exported to the pickle-free policy format, so
+``electroloc bench --agents OUT/policy`` runs it like a shipped policy. The learning curve is ``OUT/curve.json``.
 
     python experiments/offline/bc.py --datasets electroloc/ElectroLoc-v0/lookahead-v0 --seed 1 \
         --out experiments/offline/results/ElectroLoc-v0/bc-lookahead/seed-1
@@ -59,6 +60,7 @@ def train(config: TrainConfig) -> dict:
     optim = torch.optim.Adam(actor.parameters(), lr=config.lr)
     rng = np.random.default_rng(config.seed)
     curve, best, best_state = [], None, None
+    score = common.checkpoint_score(config.env_id)
     t0 = common.timer()
     for step in range(1, config.steps + 1):
         idx = torch.as_tensor(rng.integers(0, len(obs), config.batch_size))
@@ -70,10 +72,10 @@ def train(config: TrainConfig) -> dict:
             v = common.validate(actor, norm, env, config.eval_episodes)
             curve.append({"step": step, "loss": loss.item(), **v, "wall_s": round(common.timer() - t0, 1)})
             print(
-                f"step {step}: loss {loss.item():.4f} readings {v['readings']:.2f} success {v['success']:.2f}",
+                f"step {step}: loss {loss.item():.4f} {common.describe(v)}",
                 flush=True,
             )
-            if best is None or v["readings"] < best["readings"]:
+            if common.improves(v, best, score):
                 best, best_state = curve[-1], copy.deepcopy(actor.state_dict())
     return common.finish(
         actor,

@@ -14,11 +14,16 @@
   (``actor.latent_pi.{0,2}``, ``actor.mu``), so :func:`export_actor` writes it in the project's pickle-free
   policy format (:mod:`electroloc_gym.policy.format`) and ``electroloc bench`` runs it with numpy like any
   shipped policy; :func:`export_actor` checks the numpy actions against torch's (to 1e-4: float64 against float32).
-* :func:`finish` keeps the checkpoint with the fewest validation readings, writes the curve and exports it
-  with its provenance; :func:`main_of` is the trainers' command line (every field of their config an option).
+* :func:`finish` loads the chosen checkpoint, writes the curve and exports it with its provenance;
+  :func:`main_of` is the trainers' command line (every field of their config an option).
 * :func:`validate` runs the torch actor on validation episodes (reset seeds 100000+, the training
   callback's, never the benchmark's seed 0) through the benchmark's rollout loop: mean readings (a failure
-  counted as the cap) and success rate — the learning curve and the checkpoint choice.
+  counted as the cap) and success rate; on a tracking env also the mean tracking error (mm) and the capture
+  rate, read from each episode's final info as the benchmark's records read them — the learning curve.
+* The checkpoint is chosen by the env's own score (:func:`checkpoint_score`, the benchmark's
+  :func:`~electroloc_gym.bench.stats.env_score`; :func:`improves`): the fewest mean validation readings, and
+  on a tracking env, where every episode runs all its readings, the lowest mean tracking error; of equal
+  scores the first is kept.
 
 The trainers are written by hand in the single-file style of CORL (Tarasov et al., 2022): the maintained
 offline-RL libraries pin gymnasium or SB3 versions this package cannot install beside it (imitation 1.0.1:
@@ -388,12 +393,36 @@ class _TorchAgent:
         return self.actor.act(self.norm(np.asarray(observation, dtype=np.float32)[None])[0]), None
 
 
+def checkpoint_score(env_id: str) -> tuple[str, str]:
+    """``(key, direction)`` of the validation row that chooses the checkpoint on ``env_id``: the env's own
+    score (:func:`electroloc_gym.bench.stats.env_score`), ``("readings", "lower")`` or, on a tracking env,
+    ``("tracking_error_mm", "lower")``.
+    """
+    from electroloc_gym.bench.stats import env_score
+
+    return env_score(env_id)
+
+
+def improves(row: dict[str, Any], best: dict[str, Any] | None, score: tuple[str, str]) -> bool:
+    """Whether validation ``row`` beats ``best`` (None: nothing yet) by ``score`` (:func:`checkpoint_score`);
+    an equal score does not (the earlier checkpoint is kept).
+    """
+    if best is None:
+        return True
+    key, direction = score
+    return row[key] < best[key] if direction == "lower" else row[key] > best[key]
+
+
 def validate(actor: Actor, norm: Normalizer, env: Any, episodes: int) -> dict[str, float]:
-    """Mean readings (a failure counted as the cap), success rate and ms per decision on validation episodes."""
+    """Mean readings (a failure counted as the cap), success rate and ms per decision on validation episodes;
+    on a tracking env (:func:`checkpoint_score`) also ``tracking_error_mm``, the mean over the episodes of the
+    final info's tracking error (mm), and ``capture``, the fraction of episodes ending captured.
+    """
     from electroloc_gym.baselines.rollout import run_episode
 
+    key, _ = checkpoint_score(env.spec.id)
     agent = _TorchAgent(actor, norm)
-    readings, success, decision = [], [], []
+    readings, success, decision, scores, captures = [], [], [], [], []
     for k in range(episodes):
         ep = run_episode(env, agent, VALIDATION_SEED + k)
         ok = bool(ep.terminated and ep.info["success"])
@@ -401,11 +430,25 @@ def validate(actor: Actor, norm: Normalizer, env: Any, episodes: int) -> dict[st
         readings.append(int(ep.info["n_observations"]) if ok else cap)
         success.append(ok)
         decision += ep.decision_s
-    return {
+        if key != "readings":  # the env's own score, from the episode's final info (the benchmark's record)
+            scores.append(float(ep.info[key]))
+            captures.append(bool(ep.info["captured"]))
+    out = {
         "readings": float(np.mean(readings)),
         "success": float(np.mean(success)),
         "decision_ms": float(np.median(decision) * 1e3),
     }
+    if scores:
+        out.update({key: float(np.mean(scores)), "capture": float(np.mean(captures))})
+    return out
+
+
+def describe(row: dict[str, Any]) -> str:
+    """A validation row in a few words for the trainers' progress lines."""
+    text = f"readings {row['readings']:.2f} success {row['success']:.2f}"
+    if "tracking_error_mm" in row:
+        text += f" tracking error {row['tracking_error_mm']:.2f} mm capture {row['capture']:.2f}"
+    return text
 
 
 def seed_everything(seed: int) -> None:
@@ -430,6 +473,16 @@ def timer() -> float:
 def read_json(path: Path) -> Any:
     """A JSON file's content."""
     return json.loads(Path(path).read_text(encoding="utf-8"))
+
+
+def _chosen_by(score: tuple[str, str]) -> str:
+    """The provenance's words for the checkpoint choice."""
+    key, direction = score
+    if key == "readings":
+        return "fewest mean readings (failures as the cap) on the validation episodes"
+    if key == "tracking_error_mm":
+        return "lowest mean tracking error (tracking_error_mm, mm) on the validation episodes"
+    return f"{'lowest' if direction == 'lower' else 'highest'} mean {key} on the validation episodes"
 
 
 def finish(
@@ -458,7 +511,7 @@ def finish(
         "datasets": list(datasets),
         "transitions": int(transitions),
         "wall_time_s": round(timer() - t0, 1),
-        "checkpoint_chosen_by": "fewest mean readings (failures as the cap) on the validation episodes",
+        "checkpoint_chosen_by": _chosen_by(checkpoint_score(config.env_id)),
         "validation": {"episodes": config.eval_episodes, "first_seed": VALIDATION_SEED},
     }
     export_actor(actor, norm, out / "policy", algo=algo, env_id=config.env_id, provenance=provenance, evaluation=best)

@@ -5,8 +5,9 @@ reading, discount ``discount``) from every transition of the datasets; the deter
 (:class:`common.Actor`) maximises ``λ·Q(s, π(s)) − (π(s) − a)²`` with ``λ = alpha / mean|Q|``, target
 policy smoothing and delayed actor updates as TD3. States are standardised (:class:`common.Normalizer`).
 Every ``eval_every`` steps the actor runs the validation episodes (reset seeds 100000+); the checkpoint
-with the fewest mean readings is exported to the pickle-free policy format (``OUT/policy``) and the
-learning curve written to ``OUT/curve.json``.
+with the best validation score — the env's own (:func:`common.checkpoint_score`): the fewest mean readings,
+on the moving target the lowest mean tracking error — is exported to the pickle-free policy format
+(``OUT/policy``) and the learning curve written to ``OUT/curve.json``.
 
     python experiments/offline/td3_bc.py --seed 1 --out experiments/offline/results/ElectroLoc-v0/td3bc-mixed/seed-1
 """
@@ -101,6 +102,7 @@ def train(config: TrainConfig) -> dict:
     q_opt = torch.optim.Adam([*q1.parameters(), *q2.parameters()], lr=config.lr)
     rng = np.random.default_rng(config.seed)
     curve, best, best_state = [], None, None
+    score = common.checkpoint_score(config.env_id)
     t0 = common.timer()
     actor_loss = torch.zeros(())
     for step in range(1, config.steps + 1):
@@ -137,11 +139,10 @@ def train(config: TrainConfig) -> dict:
                 }
             )
             print(
-                f"step {step}: critic {critic_loss.item():.3f} actor {actor_loss.item():.3f} "
-                f"readings {v['readings']:.2f} success {v['success']:.2f}",
+                f"step {step}: critic {critic_loss.item():.3f} actor {actor_loss.item():.3f} {common.describe(v)}",
                 flush=True,
             )
-            if best is None or v["readings"] < best["readings"]:
+            if common.improves(v, best, score):
                 best, best_state = curve[-1], copy.deepcopy(actor.state_dict())
     return common.finish(
         actor,

@@ -77,3 +77,80 @@ def test_bc_trains_exports_and_runs_as_a_policy(small, offline, tmp_path):
     actor.load_state_dict({k.removeprefix("actor."): torch.as_tensor(v) for k, v in agent.weights.items()})
     pred = actor(torch.as_tensor(norm(data["observations"]))).detach().numpy()
     assert np.mean((pred - data["actions"]) ** 2) < np.mean((data["actions"] - data["actions"].mean(0)) ** 2)
+
+
+# ---- the checkpoint on the moving target -------------------------------------------------------------------------
+TRACK_ID = "electroloc/ElectroLocTrack-v0/rnd-wlk-v0"
+
+
+@pytest.fixture()
+def track_data(tmp_path, monkeypatch):
+    """A two-episode rnd-wlk dataset on the moving target (every episode runs its 70 readings)."""
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    from electroloc_gym.dataset import DatasetRequest, build_dataset
+
+    build_dataset(DatasetRequest("ElectroLocTrack-v0", "rnd-wlk", 2), progress=False)
+    return TRACK_ID
+
+
+def test_the_checkpoint_is_chosen_by_the_envs_own_score(offline):
+    """On the moving target every validation episode reads its 70 readings: the tracking error decides."""
+    common, _ = offline
+    assert common.checkpoint_score("ElectroLocTrack-v0") == ("tracking_error_mm", "lower")
+    assert common.checkpoint_score("ElectroLoc-v0") == ("readings", "lower")
+    track = [{"step": s, "readings": 70.0, "success": 0.0, "tracking_error_mm": e} for s, e in ((1, 9.0), (2, 4.0))]
+    assert common.improves(track[1], track[0], ("tracking_error_mm", "lower"))
+    assert not common.improves(track[0], track[1], ("tracking_error_mm", "lower"))
+    # the localisation envs as before: fewer readings, the first of equals kept
+    loc = [{"readings": 9.0}, {"readings": 9.0}, {"readings": 8.5}]
+    score = ("readings", "lower")
+    assert common.improves(loc[0], None, score) and not common.improves(loc[1], loc[0], score)
+    assert common.improves(loc[2], loc[0], score)
+
+
+@pytest.mark.parametrize("trainer", ["bc", "td3_bc"])
+def test_a_tracking_trainer_keeps_a_later_checkpoint_when_it_tracks_better(
+    offline, track_data, tmp_path, monkeypatch, trainer
+):
+    """Validation results where the readings tie (70) and the tracking errors differ: the best tracker is
+    exported, not the first checkpoint."""
+    common, _ = offline
+    import importlib
+
+    module = importlib.import_module(trainer)
+    errors = iter([9.0, 3.0, 5.0])
+
+    def fake(*args, **kwargs):  # the readings tie, the tracking errors differ
+        return {"readings": 70.0, "success": 0.0, "decision_ms": 0.1, "tracking_error_mm": next(errors), "capture": 0.0}
+
+    monkeypatch.setattr(common, "validate", fake)
+    out = tmp_path / trainer
+    result = module.train(
+        module.TrainConfig(
+            datasets=track_data, env_id="ElectroLocTrack-v0", steps=3, eval_every=1, eval_episodes=1, out=str(out)
+        )
+    )
+    assert [r["tracking_error_mm"] for r in result["curve"]] == [9.0, 3.0, 5.0]
+    assert result["best"]["step"] == 2
+    meta = common.read_json(out / "policy" / "policy.json")
+    assert (
+        meta["evaluation"]["tracking_error_mm"] == 3.0
+        and "tracking error" in meta["provenance"]["checkpoint_chosen_by"]
+    )
+
+
+def test_a_tiny_tracking_run_validates_by_tracking_error_and_capture(offline, track_data, tmp_path):
+    common, bc = offline
+    result = bc.train(
+        bc.TrainConfig(
+            datasets=track_data,
+            env_id="ElectroLocTrack-v0",
+            steps=2,
+            eval_every=1,
+            eval_episodes=1,
+            out=str(tmp_path / "bc"),
+        )
+    )
+    curve = result["curve"]
+    assert all(r["readings"] == 70 and 0 <= r["capture"] <= 1 and r["tracking_error_mm"] >= 0 for r in curve)
+    assert result["best"] == min(curve, key=lambda r: r["tracking_error_mm"])
