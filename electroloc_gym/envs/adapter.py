@@ -26,12 +26,14 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.contract.observation import INFO_KEYS, condition_index
+from electroloc_gym.contract.observation import INFO_KEYS
+from electroloc_gym.contract.observation import condition_index as _condition_index
 from electroloc_gym.contract.params import MAX_STEP_MM, EnvParams
 from electroloc_gym.engines.numba_core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.registry import EnvEntry, entry_of_class
 from electroloc_gym.utils.checks import check_prediction_args
+from electroloc_gym.utils.moved_paths import moved_name_error
 from electroloc_gym.views.belief import BeliefView
 from electroloc_gym.world.conditions import Condition
 
@@ -291,7 +293,7 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
             "n_observations": int(info["n_observations"][0]),
             "success": bool(info["success"][0]),
             "condition": str(info["condition"][0]),
-            "condition_index": int(condition_index(info["condition"][:1])[0]),
+            "condition_index": int(_condition_index(info["condition"][:1])[0]),
             **extra,
         }
 
@@ -311,3 +313,8 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+def __getattr__(name: str) -> Any:
+    """A name that moved out of this module: one ImportError naming its new place (``utils.moved_paths``)."""
+    raise moved_name_error(__name__, name)

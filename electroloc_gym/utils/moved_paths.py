@@ -1,0 +1,159 @@
+"""The table of import paths that left their place, and the import hook that says where each one went.
+
+:data:`MOVED` maps every old path to its new one: a module (``electroloc_gym.rollout``) or a name in a
+module that still exists (``electroloc_gym.envs.adapter.condition_index``). It is the CHANGELOG's "Moved"
+table written out one path a row (``tests/test_imports.py`` checks that the two agree).
+
+* Importing an old module path raises :class:`MovedModuleError` (a ``ModuleNotFoundError``) naming the new
+  one: :class:`MovedPathFinder`, put at the end of ``sys.meta_path`` by :func:`install` (the package's
+  ``__init__`` calls it), is asked only about modules no other finder found, so it never shadows a module
+  that exists. An old package whose modules went to several places (``electroloc_gym.core``) is named with
+  where each of its modules went: Python imports the package before its module, so the error is raised at
+  the package.
+* An old name in a module that still exists is refused by that module's ``__getattr__``
+  (:func:`moved_name_error`): :class:`MovedNameError`, an ``ImportError``, so that ``from module import
+  name`` reports it too (Python replaces an ``AttributeError`` there with its own message).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from importlib.machinery import ModuleSpec
+from types import ModuleType
+
+__all__ = [
+    "MOVED",
+    "MOVED_IN",
+    "MovedModuleError",
+    "MovedNameError",
+    "MovedPathFinder",
+    "install",
+    "moved_module_error",
+    "moved_name_error",
+]
+
+#: The release whose tree the moves below made (the CHANGELOG's section holding the "Moved" table).
+MOVED_IN = "0.3.0"
+
+_P = "electroloc_gym"
+
+#: Old path → new path, one row per module or name (the CHANGELOG's "Moved" table, expanded).
+MOVED: dict[str, str] = {
+    **{f"{_P}.{m}": f"{_P}.utils.{m}" for m in ("checks", "fileio", "markdown", "runtime", "agentspec")},
+    **{
+        f"{_P}.{m}": f"{_P}.world.{m}"
+        for m in (
+            "physics",
+            "detection",
+            "apparatus",
+            "conditions",
+            "sensor",
+            "sensor_array",
+            "scene",
+            "distractors",
+            "distractor_layout",
+        )
+    },
+    f"{_P}.draws": f"{_P}.kernels.streams",
+    f"{_P}.kernels.observation": f"{_P}.kernels.belief_rows",
+    **{f"{_P}.core.{m}": f"{_P}.contract.{m}" for m in ("params", "observation", "capabilities")},
+    **{
+        f"{_P}.core.{m}": f"{_P}.engines.numba_core.{m}"
+        for m in ("step", "state", "task", "worlds", "array", "electroloc", "global_task", "unknown")
+    },
+    f"{_P}.core.localize": f"{_P}.engines.numba_core.localize_task",
+    f"{_P}.core.distractors": f"{_P}.engines.numba_core.distractor_task",
+    **{
+        f"{_P}.torch_core.{m}": f"{_P}.engines.torch_core.{m}"
+        for m in ("consts", "rng", "calibration", "sim", "device")
+    },
+    f"{_P}.torch_core.filter": f"{_P}.engines.torch_core.belief_update",
+    f"{_P}.torch_core.vector_env": f"{_P}.envs.torch_vector",
+    f"{_P}.torch_core.sub_env": f"{_P}.envs.torch_sub_env",
+    f"{_P}.torch_core.sb3": f"{_P}.envs.torch_sb3",
+    **{f"{_P}.{m}": f"{_P}.views.{m}" for m in ("belief", "render", "eev_maps")},
+    f"{_P}.privileged": f"{_P}.envs.privileged",
+    f"{_P}.rollout": f"{_P}.baselines.rollout",
+    f"{_P}.rllib": f"{_P}.train.rllib",
+    f"{_P}.bench.cli": f"{_P}.bench.bench_command",
+    f"{_P}.dataset.cli": f"{_P}.dataset.dataset_command",
+    f"{_P}.dataset.protocol": f"{_P}.dataset.seed_protocol",
+    f"{_P}.envs.adapter.condition_index": f"{_P}.contract.observation.condition_index",
+}
+
+_WHERE = f'(moved in electroloc-gym {MOVED_IN}: the CHANGELOG\'s "Moved" table)'
+
+
+class MovedModuleError(ModuleNotFoundError):
+    """An import of a module path that moved; the message names the new path."""
+
+
+class MovedNameError(ImportError):
+    """A name read from a module it moved out of; the message names its new place."""
+
+
+def _package_text(package: str) -> str | None:
+    """Where the modules of an old package went (None: ``package`` holds no moved module)."""
+    moves = {old.removeprefix(package + "."): new for old, new in MOVED.items() if old.startswith(package + ".")}
+    if not moves:
+        return None
+    same: dict[str, list[str]] = {}  # new package → the module names kept there
+    renamed: list[str] = []
+    for leaf, new in moves.items():
+        parent, _, new_leaf = new.rpartition(".")
+        if new_leaf == leaf:
+            same.setdefault(parent, []).append(leaf)
+        else:
+            renamed.append(f"{leaf} is {new}")
+    kept = [f"{', '.join(leaves)} are in {parent} (the same names)" for parent, leaves in same.items()]
+    return f"its modules moved: {'; '.join(kept + renamed)} {_WHERE}"
+
+
+def moved_module_error(fullname: str) -> MovedModuleError | None:
+    """The error for importing ``fullname`` when no module of that name exists (None: it never moved)."""
+    if fullname in MOVED:
+        return MovedModuleError(f"No module named {fullname!r}: it is {MOVED[fullname]} {_WHERE}", name=fullname)
+    text = _package_text(fullname)
+    if text is None:
+        return None
+    return MovedModuleError(f"No module named {fullname!r}: {text}", name=fullname)
+
+
+def moved_name_error(module: str, name: str) -> ImportError | AttributeError:
+    """What a module's ``__getattr__`` raises for ``name``: :class:`MovedNameError` naming the new place of a
+    name that moved out of ``module``, else Python's own ``AttributeError``.
+    """
+    new = MOVED.get(f"{module}.{name}")
+    if new is None:
+        return AttributeError(f"module {module!r} has no attribute {name!r}")
+    return MovedNameError(f"{module}.{name} is {new} {_WHERE}", name=module)
+
+
+class MovedPathFinder:
+    """A ``sys.meta_path`` finder that raises :class:`MovedModuleError` for an old module path of the package.
+
+    It sits at the end of ``sys.meta_path``: Python asks it only about a module the other finders did not
+    find, and it finds nothing itself (None for every other name).
+    """
+
+    @classmethod
+    def find_spec(
+        cls, fullname: str, path: Sequence[str] | None = None, target: ModuleType | None = None
+    ) -> ModuleSpec | None:
+        if not fullname.startswith(_P + "."):
+            return None
+        error = moved_module_error(fullname)
+        if error is not None:
+            raise error
+        return None
+
+    @classmethod
+    def invalidate_caches(cls) -> None:
+        """Nothing cached (``importlib.invalidate_caches`` calls this on every finder)."""
+
+
+def install() -> None:
+    """Put :class:`MovedPathFinder` at the end of ``sys.meta_path`` (once)."""
+    if MovedPathFinder not in sys.meta_path:
+        sys.meta_path.append(MovedPathFinder)
