@@ -7,6 +7,9 @@ idempotent); :func:`register_env` adds another:
 * ``ElectroLocGlobal-v0`` — the robot localises itself in a mapped tank of six cylinders (§6.5).
 * ``ElectroLocUnknownTarget-v0`` — localise a sphere of unknown size and material (§7).
 * ``ElectroLocTrack-v0`` — follow a target sphere that swims during the episode (the prey-capture task).
+
+An import of a module path that moved (the CHANGELOG's "Moved" table, :mod:`electroloc_gym.utils.moved_paths`)
+raises a ``ModuleNotFoundError`` naming the new path.
 """
 
 from __future__ import annotations
@@ -15,8 +18,10 @@ from importlib.metadata import PackageNotFoundError, version
 
 from gymnasium.envs import registration
 
+from electroloc_gym.utils.moved_paths import install as _install_moved_paths
 from electroloc_gym.utils.runtime import use_user_numba_cache
 
+_install_moved_paths()  # an old module path names its new one
 use_user_numba_cache()  # before the first numba import (below): the compiled kernels are cached once per user
 
 from electroloc_gym.registry import ENV_IDS, EnvEntry, add_entry, class_path  # noqa: E402

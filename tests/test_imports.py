@@ -11,6 +11,7 @@ package list (the tree on disk is the import tree).
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -361,3 +362,89 @@ def test_every_module_names_its_concern_in_its_first_line() -> None:
 def test_the_concern_check_refuses_what_names_no_concern(docstring: str | None, says: str) -> None:
     assert says in (concern_line_problem(docstring) or "")
     assert concern_line_problem("The sensor array (paper §7): where K pairs sit (Eq. 4), and what each reads.") is None
+
+
+# ---- moved import paths: the CHANGELOG's table, the package's table, and what an old import says ----------------
+def changelog_moves() -> dict[str, str]:
+    """The CHANGELOG's "Moved" table, one old → new path a row: ``a.x, .y`` is ``a.x`` and ``a.y``; ``a (m, n)`` →
+    ``b (the same module names)`` is ``a.m → b.m`` and ``a.n → b.n``; the cells' items pair in order."""
+    import re
+
+    text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    section = text.split("### Moved", 1)[1].split("\n### ", 1)[0]
+
+    def items(cell: str) -> list[tuple[str, list[str] | None]]:
+        out: list[tuple[str, list[str] | None]] = []
+        for group in re.findall(r"`([^`]*)`", cell):
+            listed = re.fullmatch(r"(\S+) \((.*)\)", group)
+            if listed:
+                out.append((listed.group(1), [s.strip() for s in listed.group(2).split(",")]))
+                continue
+            first = ""
+            for part in (p.strip() for p in group.split(",")):
+                first = first.rsplit(".", 1)[0] + part if part.startswith(".") else part
+                out.append((first, None))
+        return out
+
+    moves: dict[str, str] = {}
+    rows = [line for line in section.splitlines() if line.startswith("| `")]
+    assert rows, "the CHANGELOG has no Moved table"
+    for row in rows:
+        old_cell, new_cell = (c.strip() for c in row.strip().strip("|").split("|"))
+        olds, news = items(old_cell), items(new_cell)
+        assert len(olds) == len(news), f"a row of the Moved table pairs {len(olds)} with {len(news)} paths: {row}"
+        for (old, subs), (new, same) in zip(olds, news):
+            if subs is None:
+                moves[old] = new
+            else:
+                assert same == ["the same module names"], row
+                moves.update({f"{old}.{m}": f"{new}.{m}" for m in subs})
+    return moves
+
+
+def test_the_changelog_and_the_package_list_the_same_moves() -> None:
+    from electroloc_gym.utils.moved_paths import MOVED
+
+    assert changelog_moves() == MOVED
+
+
+@pytest.mark.parametrize("old,new", sorted(changelog_moves().items()))
+def test_an_old_path_says_where_it_went(old: str, new: str) -> None:
+    """An old module path is a ModuleNotFoundError naming the new one (its package's error, listing where each
+    module went, when the package itself is gone); an old name in a module that exists is not there any more:
+    an ImportError naming its new place, for ``from module import name`` and for the attribute alike."""
+    import importlib
+
+    import electroloc_gym  # noqa: F401 - installs the moved-path finder
+
+    assert importlib.import_module(new.rsplit(".", 1)[0]) is not None  # the new place exists
+    parent, _, leaf = old.rpartition(".")
+    try:
+        module = importlib.import_module(parent)
+    except ModuleNotFoundError:  # an old package: its own error is what an import of its module meets
+        module = None
+    if module is not None and not hasattr(module, "__path__"):  # a name in a module, not a module
+        with pytest.raises(ImportError, match=re.escape(new)):
+            exec(f"from {parent} import {leaf}", {})  # noqa: S102 - the import statement itself
+        with pytest.raises(ImportError, match=re.escape(new)):
+            getattr(module, leaf)
+        return
+    with pytest.raises(ModuleNotFoundError) as info:
+        importlib.import_module(old)
+    text = str(info.value)
+    new_parent, _, new_leaf = new.rpartition(".")
+    assert "\n" not in text
+    assert new in text or (new_leaf == leaf and re.search(rf"\b{leaf}\b[^;]* to {re.escape(new_parent)} ", text)), text
+
+
+def test_a_path_that_never_existed_is_plain_module_not_found() -> None:
+    import importlib
+
+    import electroloc_gym  # noqa: F401
+
+    with pytest.raises(ModuleNotFoundError, match=r"^No module named 'electroloc_gym\.nothing_here'$"):
+        importlib.import_module("electroloc_gym.nothing_here")
+    from electroloc_gym.envs import adapter
+
+    with pytest.raises(AttributeError, match="has no attribute 'nothing_here'"):
+        adapter.nothing_here  # noqa: B018

@@ -82,7 +82,7 @@ MOVED: dict[str, str] = {
     f"{_P}.envs.adapter.condition_index": f"{_P}.contract.observation.condition_index",
 }
 
-_WHERE = f'(moved in electroloc-gym {MOVED_IN}: the CHANGELOG\'s "Moved" table)'
+_WHEN = f'in electroloc-gym {MOVED_IN} (the CHANGELOG\'s "Moved" table)'
 
 
 class MovedModuleError(ModuleNotFoundError):
@@ -105,15 +105,15 @@ def _package_text(package: str) -> str | None:
         if new_leaf == leaf:
             same.setdefault(parent, []).append(leaf)
         else:
-            renamed.append(f"{leaf} is {new}")
-    kept = [f"{', '.join(leaves)} are in {parent} (the same names)" for parent, leaves in same.items()]
-    return f"its modules moved: {'; '.join(kept + renamed)} {_WHERE}"
+            renamed.append(f"{leaf} to {new}")
+    kept = [f"{', '.join(leaves)} to {parent} (the same names)" for parent, leaves in same.items()]
+    return f"its modules moved {_WHEN}: {'; '.join(kept + renamed)}"
 
 
 def moved_module_error(fullname: str) -> MovedModuleError | None:
     """The error for importing ``fullname`` when no module of that name exists (None: it never moved)."""
     if fullname in MOVED:
-        return MovedModuleError(f"No module named {fullname!r}: it is {MOVED[fullname]} {_WHERE}", name=fullname)
+        return MovedModuleError(f"No module named {fullname!r}: it moved to {MOVED[fullname]} {_WHEN}", name=fullname)
     text = _package_text(fullname)
     if text is None:
         return None
@@ -127,7 +127,7 @@ def moved_name_error(module: str, name: str) -> ImportError | AttributeError:
     new = MOVED.get(f"{module}.{name}")
     if new is None:
         return AttributeError(f"module {module!r} has no attribute {name!r}")
-    return MovedNameError(f"{module}.{name} is {new} {_WHERE}", name=module)
+    return MovedNameError(f"{module}.{name} moved to {new} {_WHEN}; import it from there", name=module)
 
 
 class MovedPathFinder:
