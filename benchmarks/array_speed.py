@@ -22,7 +22,7 @@ import numpy as np  # noqa: E402
 import electroloc_gym  # noqa: E402, F401
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
-from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options, write_json_atomic  # noqa: E402
 
 LAYOUTS = ("single", "grid-2x2", "line-4", "ring-8")
 
@@ -58,6 +58,7 @@ def main() -> None:
     p.add_argument("--n-particles", type=int, default=N_PARTICLES)
     p.add_argument("--out", default=None)
     args = p.parse_args()
+    check_output_options(p, files={"--out": args.out})
     rows = []
     for model in ("calibrated", "analytic"):
         base = None

@@ -34,7 +34,7 @@ from electroloc_gym.baselines.infotaxis import InfotaxisAgent  # noqa: E402
 from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
 from electroloc_gym.utils.agentspec import split_specs  # noqa: E402
-from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options, write_json_atomic  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES  # noqa: E402
 
@@ -87,6 +87,7 @@ def main() -> None:
     )
     parser.add_argument("--json", default=None, help="also write the timings (ms) to this JSON file")
     args = parser.parse_args()
+    check_output_options(parser, files={"--json": args.json})
     if args.states < 1 or args.repeats < 1:
         parser.error("--states and --repeats must be ≥ 1")
     specs = [s.strip() for s in split_specs(args.agents) if s.strip()]

@@ -19,12 +19,17 @@ step, when ``--cpu-peak``). Then the on-device PPO of ``examples/ppo_torch.py`` 
 expensive kernels of three steps at the largest N (``torch.profiler``, device time).
 
 The order: the numba row, the eager rows (smallest N first), the PPO rows, then the compiled rows from
-the largest N down. A row that would pass ``--budget-s`` seconds (a compiled row is expected to take
-the longest compilation so far) is listed as skipped, so the command ends in a bounded time on a bare
-machine. Writes JSON and a
-markdown table naming the device, torch and CUDA (atomically; ``--md`` defaults to the JSON's path with
-``.md``). Numeric libraries run on ``--threads`` threads (:func:`electroloc_gym.utils.runtime.pin_threads`:
-default ``$ELECTROLOC_THREADS``, else 1 — the documented per-core figures).
+the largest N down. Every row, the numba one first, checks the time left before it starts: one that would
+pass ``--budget-s`` seconds (a row is expected to take twice ``--seconds``, a compiled row the longest
+compilation so far on top) is listed as skipped in the JSON and the table, so the command ends in a
+bounded time on a bare machine; ``--seconds`` is therefore at most half of ``--budget-s`` (more could
+time no row at all). Every option is checked before any work: the sizes asked for against the engines'
+own memory refusals (the numba env's at ``--numba-n``, the torch engine's at each N of ``--n-envs`` and
+``--ppo-n``; a default N the device cannot hold is a row saying so), the output paths by
+:func:`electroloc_gym.utils.fileio.check_output_path`. Writes JSON and a markdown table naming the
+device, torch and CUDA (atomically; ``--md`` defaults to the JSON's path with ``.md``). Numeric
+libraries run on ``--threads`` threads (:func:`electroloc_gym.utils.runtime.pin_threads`: default
+``$ELECTROLOC_THREADS``, else 1 — the documented per-core figures).
 """
 
 from __future__ import annotations
@@ -48,8 +53,10 @@ import torch  # noqa: E402
 
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
 from electroloc_gym.cli import HelpFormatter  # noqa: E402
+from electroloc_gym.engines.torch_core.device import check_fits  # noqa: E402
+from electroloc_gym.envs.torch_vector import MAX_NUM_ENVS  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
-from electroloc_gym.utils.fileio import atomic_write_text, check_output_path  # noqa: E402
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_options  # noqa: E402
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads  # noqa: E402
 
 CPU_N = (64, 256, 1024)
@@ -57,6 +64,11 @@ DEVICE_N = (1024, 4096, 16384, 65536, 262144, 524288)
 CPU_PPO_N = (64,)
 DEVICE_PPO_N = (4096, 65536)
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+#: The longest ``--budget-s``: a day, seconds.
+MAX_BUDGET_S = 86_400.0
+#: A row is expected to take about twice its timed ``--seconds`` (building the env, warm-up steps, timing):
+#: the time left a row needs before it starts, and why ``--seconds`` is at most half of ``--budget-s``.
+ROW_COST = 2.0
 
 
 def _clock(device: torch.device) -> float:
@@ -250,17 +262,16 @@ def markdown(result: dict[str, Any]) -> str:
         "| backend | N | env-steps/s | × numba | steps timed | warm-up s | state B/env | peak B/env |",
         "|---|---|---|---|---|---|---|---|",
     ]
+    rate = numba["env_steps_per_s"] if numba is not None and "skipped" not in numba else None
     if numba is not None:
-        lines.append(
-            f"| numba native vector env (1 CPU core) | {numba['n_envs']} | {numba['env_steps_per_s']:,.0f} | 1 "
-            f"| {numba['steps']} | | | |"
-        )
+        cells = [numba["skipped"], "", ""] if rate is None else [f"{rate:,.0f}", "1", str(numba["steps"])]
+        lines.append(f"| numba native vector env (1 CPU core) | {numba['n_envs']} | {' | '.join(cells)} | | | |")
     for r in result["torch_rows"]:
         kind = "torch, compiled" if r["compile"] else "torch, eager"
         if "error" in r or "skipped" in r:
             lines.append(f"| {kind} | {r['n_envs']} | {r.get('error') or r['skipped']} | | | | | |")
             continue
-        ratio = f"{r['env_steps_per_s'] / numba['env_steps_per_s']:.2f}" if numba else ""
+        ratio = f"{r['env_steps_per_s'] / rate:.2f}" if rate else ""
         peak = f"{r['peak_bytes_per_env']:,.0f}" if "peak_bytes_per_env" in r else "—"
         lines.append(
             f"| {kind} | {r['n_envs']} | {r['env_steps_per_s']:,.0f} | {ratio} | {r['steps']} "
@@ -318,7 +329,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         f"{' '.join(map(str, DEVICE_N))} on an accelerator)",
     )
     ap.add_argument("--numba-n", type=int, default=256, help="N of the numba row (0: skip it)")
-    ap.add_argument("--seconds", type=float, default=3.0, help="timed seconds per row (after 3 warm-up steps)")
+    ap.add_argument(
+        "--seconds", type=float, default=3.0, help="timed seconds per row (after 3 warm-up steps; ≤ --budget-s / 2)"
+    )
     ap.add_argument("--compile", action="store_true", help="also time the torch.compile'd step (default: off)")
     ap.add_argument(
         "--compile-backend",
@@ -341,18 +354,30 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument(
         "--profile", action="store_true", help="torch.profiler's top 10 kernels at the largest N (default: off)"
     )
-    ap.add_argument("--budget-s", type=float, default=420.0, help="start no row after this many seconds")
+    ap.add_argument(
+        "--budget-s",
+        type=float,
+        default=420.0,
+        help="start no row that would end after this many seconds (at most 86400: a day)",
+    )
     ap.add_argument(
         "--out", type=Path, default=None, help="write the JSON here, and the markdown beside it (default: not written)"
     )
     ap.add_argument("--md", type=Path, default=None, help="write the markdown table here (default: --out's .md)")
     args = ap.parse_args(argv)
-    if args.numba_n < 0:
-        ap.error(f"argument --numba-n: must be an integer ≥ 0, got {args.numba_n}")
-    for name in ("seconds", "budget_s"):
-        value = getattr(args, name)
-        if not (math.isfinite(value) and value > 0):
-            ap.error(f"argument --{name.replace('_', '-')}: must be a finite number > 0, got {value!r}")
+    if not 0 <= args.numba_n <= MAX_NUM_ENVS:
+        ap.error(f"argument --numba-n: must be an integer in [0, {MAX_NUM_ENVS}], got {args.numba_n}")
+    if not (math.isfinite(args.budget_s) and 0 < args.budget_s <= MAX_BUDGET_S):
+        ap.error(
+            f"argument --budget-s: must be a finite number > 0 and ≤ {MAX_BUDGET_S:g} (a day), got {args.budget_s!r}"
+        )
+    high = args.budget_s / ROW_COST
+    if not (math.isfinite(args.seconds) and 0 < args.seconds <= high):
+        ap.error(
+            f"argument --seconds: must be a finite number > 0 and ≤ --budget-s / {ROW_COST:g} = {high:g} (a row "
+            f"takes about {ROW_COST:g}× its timed seconds; rows that would pass --budget-s {args.budget_s:g} are "
+            f"skipped), got {args.seconds!r}"
+        )
     try:
         args.env_kwargs = _bad_kwargs(args.env_kwargs)
     except ValueError as exc:
@@ -360,30 +385,47 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     try:  # the device and the arguments as the engine checks them: one env built, nothing stepped
         probe = make_env(1, torch.device("cpu") if args.device == "cpu" else args.device, False, args.env_kwargs)
         args.device = torch.device(probe.unwrapped.device)
+        consts = probe.unwrapped.consts
         probe.close()
     except (ValueError, TypeError, RuntimeError, AssertionError) as exc:
-        text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        ap.error(f"argument --device / --env-kwargs: {text}")
+        ap.error(f"argument --device / --env-kwargs: {_first_line(exc)}")
     if args.device.type == "meta":
         ap.error("argument --device: meta holds shapes and no data; use cpu or an accelerator")
     cpu = args.device.type == "cpu"
+    given = {"--n-envs": args.n_envs, "--ppo-n": args.ppo_n}
     args.n_envs = list(args.n_envs or (CPU_N if cpu else DEVICE_N))
     args.ppo_n = list(args.ppo_n if args.ppo_n is not None else (CPU_PPO_N if cpu else DEVICE_PPO_N))
-    if any(n < 1 for n in args.n_envs + args.ppo_n):
-        ap.error(f"arguments --n-envs and --ppo-n: each N must be an integer ≥ 1, got {args.n_envs + args.ppo_n}")
-    for name in ("out", "md"):
-        if getattr(args, name) is not None:
+    if any(not 1 <= n <= MAX_NUM_ENVS for n in args.n_envs + args.ppo_n):
+        ap.error(
+            f"arguments --n-envs and --ppo-n: each N must be an integer in [1, {MAX_NUM_ENVS}], "
+            f"got {args.n_envs + args.ppo_n}"
+        )
+    for option, sizes in given.items():  # sizes asked for that cannot fit (a default that cannot is a row saying so)
+        for n in sizes or ():
             try:
-                check_output_path(f"--{name}", getattr(args, name))
+                check_fits(consts, n)  # the torch engine's own refusal, without allocating
             except ValueError as exc:
-                ap.error(f"argument {exc}")
+                ap.error(f"argument {option}: N = {n} cannot fit: {_first_line(exc)}")
+    if args.numba_n:
+        try:  # the numba engine's own memory refusal; the state is not touched until reset
+            gym.make_vec(
+                PAPER_ENV_ID, num_envs=args.numba_n, vectorization_mode="vector_entry_point", **args.env_kwargs
+            ).close()
+        except ValueError as exc:
+            ap.error(f"argument --numba-n: N = {args.numba_n} cannot fit: {_first_line(exc)}")
     if args.md is None and args.out is not None:
         args.md = args.out.with_suffix(".md")
+    check_output_options(ap, files={"--out": args.out, "--md": args.md})
     return args
 
 
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
 def _fits_error(exc: BaseException) -> str:
-    return f"does not fit: {type(exc).__name__}: {str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ''}"
+    return f"does not fit: {type(exc).__name__}: {_first_line(exc)[:160]}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -394,19 +436,24 @@ def main(argv: list[str] | None = None) -> int:
     def over_budget(expected_s: float = 0.0) -> bool:
         return time.perf_counter() - t_start + expected_s > args.budget_s
 
-    skipped = f"skipped: the time budget ({args.budget_s:.0f} s) would be passed"
-    numba = numba_rate(args.numba_n, args.seconds, args.env_kwargs) if args.numba_n else None
-    if numba:
+    skipped = f"skipped: the time budget ({args.budget_s:g} s) would be passed"
+    numba: dict[str, Any] | None = None
+    if args.numba_n and over_budget(ROW_COST * args.seconds):  # every row, the first too, checks the time left
+        numba = {"n_envs": args.numba_n, "skipped": skipped}
+        print(f"numba native vector env, N = {args.numba_n}: {skipped}")
+    elif args.numba_n:
+        numba = numba_rate(args.numba_n, args.seconds, args.env_kwargs)
         print(
             f"numba native vector env, N = {numba['n_envs']}, 1 CPU core: {numba['env_steps_per_s']:,.0f} env-steps/s"
         )
+    rate = numba["env_steps_per_s"] if numba is not None and "skipped" not in numba else None
     rows: list[dict[str, Any]] = []
     profile: dict[str, Any] | None = None
     compile_s = 0.0  # the longest compiled warm-up so far: what the next compiled row is expected to need
 
     def time_row(n: int, comp: bool) -> None:
         nonlocal profile, compile_s
-        if over_budget((compile_s if comp else 0.0) + 2 * args.seconds):
+        if over_budget((compile_s if comp else 0.0) + ROW_COST * args.seconds):
             rows.append({"n_envs": n, "compile": comp, "skipped": skipped})
             print(f"torch N = {n:7d} compile={comp!s:5}: {skipped}")
             return
@@ -420,7 +467,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"torch N = {n:7d} compile={comp!s:5}: {row['error']}")
         else:
             compile_s = max(compile_s, row["warmup_s"]) if comp else compile_s
-            ratio = f" ({row['env_steps_per_s'] / numba['env_steps_per_s']:.2f}× numba)" if numba else ""
+            ratio = f" ({row['env_steps_per_s'] / rate:.2f}× numba)" if rate else ""
             peak = f", peak {row['peak_bytes_per_env']:,.0f} B/env" if "peak_bytes_per_env" in row else ""
             print(
                 f"torch N = {n:7d} compile={comp!s:5}: {row['env_steps_per_s']:12,.0f} env-steps/s{ratio}, "
@@ -438,7 +485,7 @@ def main(argv: list[str] | None = None) -> int:
         time_row(n, False)
     ppo_rows: list[dict[str, Any]] = []
     for n in args.ppo_n:
-        if over_budget(2 * args.seconds):
+        if over_budget(ROW_COST * args.seconds):
             ppo_rows.append({"n_envs": n, "skipped": skipped})
             continue
         try:

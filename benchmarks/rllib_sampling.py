@@ -31,7 +31,7 @@ import numpy as np
 
 import electroloc_gym.train.rllib as erl
 from electroloc_gym.registry import PAPER_ENV_ID
-from electroloc_gym.utils.fileio import write_json_atomic
+from electroloc_gym.utils.fileio import check_output_options, write_json_atomic
 from electroloc_gym.utils.markdown import markdown_table
 from electroloc_gym.utils.runtime import pin_threads
 
@@ -112,6 +112,7 @@ def main() -> None:
     p.add_argument("--seconds", type=float, default=10.0, help="measuring time per row")
     p.add_argument("--out", default=None, help="also write the numbers to this JSON file")
     args = p.parse_args()
+    check_output_options(p, files={"--out": args.out})
     pin_threads()
     erl.warm_kernels({})
     res: dict[str, float | int | str] = {

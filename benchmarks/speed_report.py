@@ -40,7 +40,7 @@ import train_fps  # noqa: E402
 import vector_env  # noqa: E402
 
 from electroloc_gym.baselines.agent import PAPER_AGENTS  # noqa: E402
-from electroloc_gym.utils.fileio import atomic_write_text  # noqa: E402
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_options  # noqa: E402
 
 TABLE4_AGENTS = ",".join(PAPER_AGENTS)
 
@@ -80,6 +80,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "the single env's and the native env's steps/s must be at least its",
     )
     args = ap.parse_args(argv)
+    check_output_options(ap, files={"--json": args.json})
 
     print("== env steps/s (benchmarks/vector_env.py)", flush=True)
     env = vector_env.main(["--n-envs", "16", "64"] + (["--before", args.before] if args.before else []))

@@ -25,7 +25,7 @@ from typing import Any
 
 from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.train.run import zoo_argv
-from electroloc_gym.utils.fileio import atomic_write_text
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_options
 from electroloc_gym.utils.runtime import thread_env
 
 #: One validation episode at the start and the end only: the timing is of training.
@@ -55,6 +55,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--passes", type=int, default=2, help="interleaved passes over the two rows (the best is kept)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
+    check_output_options(ap, files={"--json": a.json})
     print(
         f"rl-zoo3 PPO on ElectroLoc-v0 (electroloc_gym/train/hyperparams/ppo.yml: n_steps 256, 10 epochs, 128x128; "
         f"{a.n_envs} envs), "

@@ -51,7 +51,7 @@ from tqdm import tqdm  # noqa: E402
 import electroloc_gym  # noqa: E402, F401  (registers the ids)
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 from electroloc_gym.registry import ENV_IDS, PAPER_ENV_ID, env_entry  # noqa: E402
-from electroloc_gym.utils.fileio import atomic_write_text  # noqa: E402
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_options  # noqa: E402
 
 
 class _Single:
@@ -186,6 +186,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     )
     ap.add_argument("--_one", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    check_output_options(ap, files={"--json": args.json})
     if args._one:
         spec = json.loads(args._one)
         res = measure(

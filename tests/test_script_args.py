@@ -14,6 +14,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -143,13 +144,40 @@ def test_every_option_has_help_and_default(ppo, bench, capsys):
         (["--device", "cuda:7"], ["--device", "cuda:7"]),
         (["--device", "nope"], ["--device", "nope"]),
         (["--threads", "0"], ["--threads", "[1, 1024]"]),
-        (["--n-envs", "0"], ["--n-envs", "≥ 1"]),
+        (["--n-envs", "0"], ["--n-envs", "[1, 2147483647]"]),
         (["--ppo-n", "-4"], ["--ppo-n"]),
         (["--numba-n", "-1"], ["--numba-n"]),
+        (["--numba-n", "1000000000"], ["--numba-n", "GiB"]),
+        (["--numba-n", str(2**31)], ["--numba-n", "2147483647"]),
+        (["--n-envs", "4", "1000000000"], ["--n-envs", "1000000000", "GiB"]),
+        (["--ppo-n", "1000000000"], ["--ppo-n", "GiB"]),
+        (["--seconds", "1000", "--budget-s", "5"], ["--seconds", "--budget-s", "2.5"]),
+        (["--budget-s", "1e9"], ["--budget-s", "86400"]),
     ],
 )
 def test_device_throughput_refuses_bad_input_in_one_line(bench, capsys, argv, words):
     _refused(capsys, bench.parse_args, argv, *words)
+
+
+def test_device_throughput_keeps_to_its_budget(bench, tmp_path):
+    """Every row — the numba one first — checks the time left before it starts: the rows that would pass
+    --budget-s are listed as skipped in the JSON and the markdown, and the command ends within about its
+    budget."""
+    out = tmp_path / "budget.json"
+    argv = ["--n-envs", "4", "8", "16", "32", "64", "--numba-n", "4", "--ppo-n", "4", "--seconds", "0.2"]
+    t0 = time.perf_counter()
+    assert bench.main([*argv, "--budget-s", "1", "--out", str(out)]) == 0
+    wall = time.perf_counter() - t0
+    result = json.loads(out.read_text())
+    assert wall < 1 + 2 * 0.2 + 1.0, wall  # the budget, a row's expected time, and slack for the writes
+    skipped = [r for r in result["torch_rows"] + result["ppo"] if "skipped" in r]
+    assert skipped and "skipped" in out.with_suffix(".md").read_text()
+    assert result["numba"]["steps"] > 0  # the first row starts with the whole budget left
+    # a budget of exactly two rows' timed seconds: no row fits, the numba row too is skipped and said to be
+    assert bench.main([*argv, "--budget-s", "0.4", "--out", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert "skipped" in result["numba"] and all("skipped" in r for r in result["torch_rows"] + result["ppo"])
+    assert "| numba native vector env (1 CPU core) | 4 | skipped" in out.with_suffix(".md").read_text()
 
 
 def test_device_throughput_refuses_output_paths_before_timing(bench, capsys, tmp_path, monkeypatch):
@@ -242,3 +270,22 @@ def test_the_gpu_command_runs_on_a_bare_machine_and_on_the_cpu(tmp_path):
     assert "numba" in page and "PPO" in page
     for absent in ("stable_baselines3", "minari", "matplotlib", "filelock_", "rl_zoo3"):
         assert not (site / absent).exists()
+
+
+def test_the_gpu_script_refuses_seconds_beyond_its_budget():
+    """experiments/on_device/run_gpu.sh passes its own --budget-s: a --seconds that no row could keep to is
+    one line, exit 2, before anything is timed or written."""
+    results = ROOT / "experiments" / "on_device" / "results"
+    before = sorted(p.name for p in results.iterdir())
+    env = {**os.environ, "DEVICE": "cpu", "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    proc = subprocess.run(
+        ["bash", str(ROOT / "experiments" / "on_device" / "run_gpu.sh"), "--seconds", "1000"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    last = proc.stderr.strip().splitlines()[-1]
+    assert "--seconds" in last and "--budget-s" in last and "Traceback" not in proc.stderr, proc.stderr
+    assert sorted(p.name for p in results.iterdir()) == before

@@ -1,6 +1,7 @@
 """The package's one I/O layer: atomic writes, strict JSON and exclusive folder locks.
 
-* :func:`check_output_path`: an output path refused before any work when it cannot be written as a file.
+* :func:`check_output_path`, :func:`check_output_folder`: an output file or folder refused before any work
+  when it cannot be written (:func:`check_output_options`: a script's options, through its parser).
 * Atomic writes: a temp file in the target's folder, fsync, then ``os.replace`` — results, models and
   figures are never left half-written: a reader sees the old file or the new one.
 * Strict JSON (:func:`to_json_data`, :func:`strict_json`, :func:`write_json_atomic`): NaN and ±inf
@@ -31,6 +32,7 @@ from filelock import FileLock, Timeout
 __all__ = [
     "check_output_path",
     "check_output_folder",
+    "check_output_options",
     "probe_write",
     "atomic_write_bytes",
     "atomic_write_text",
@@ -172,6 +174,28 @@ def check_output_folder(name: str, folder: str | os.PathLike[str] | None) -> Pat
     else:
         _probe(existing, f"{name} {text!r} cannot be created: folder {str(existing)!r} is not writable")
     return p
+
+
+def check_output_options(
+    parser: Any,
+    files: Mapping[str, str | os.PathLike[str] | None] | None = None,
+    folders: Mapping[str, str | os.PathLike[str] | None] | None = None,
+    suffixes: Mapping[str, tuple[str, ...]] | None = None,
+) -> None:
+    """A script's output options checked by :func:`check_output_path` (``files``: option → path) and
+    :func:`check_output_folder` (``folders``), before any work; a refusal is ``parser.error`` (argparse: one
+    ``prog: error: …`` line, exit 2). None values (an option not given) are skipped; ``suffixes``: an
+    option's allowed file suffixes.
+    """
+    try:
+        for option, path in (files or {}).items():
+            if path is not None:
+                check_output_path(option, path, (suffixes or {}).get(option))
+        for option, folder in (folders or {}).items():
+            if folder is not None:
+                check_output_folder(option, folder)
+    except ValueError as exc:
+        parser.error(str(exc))
 
 
 def probe_write(folder: str | os.PathLike[str]) -> None:
