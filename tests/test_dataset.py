@@ -189,6 +189,65 @@ def test_reference_refuses_a_run_without_a_planner(tmp_path):
         reference_scores(tmp_path, "ElectroLoc-v0")
 
 
+TRACK_REFERENCE = ROOT / "experiments" / "learned" / "results" / "ElectroLocTrack-v0" / "_baselines" / "bench"
+
+
+def _track_bench(folder: Path, errors_mm: dict[str, float]) -> Path:
+    """A small moving-target benchmark folder: the committed baseline run's rnd-wlk and min-var trials 0–1 on
+    two conditions, every trial's tracking error set to its agent's value in ``errors_mm`` (the readings all
+    tie at the cap, as on every moving-target trial).
+    """
+    from electroloc_gym.bench.records import read_trials, stored_trials
+
+    rows = read_trials(stored_trials(TRACK_REFERENCE / "trials.jsonl"))
+    conditions = sorted({r["condition"] for r in rows})[:2]
+    keep = [r for r in rows if r["agent"] in errors_mm and r["condition"] in conditions and r["trial"] < 2]
+    for r in keep:
+        r["shape"] = {**r["shape"], "tracking_error_mm": errors_mm[r["agent"]]}
+    folder.mkdir()
+    (folder / "trials.jsonl").write_text("".join(json.dumps(r) + "\n" for r in keep), encoding="utf-8")
+    return folder
+
+
+def test_a_moving_target_reference_compares_by_the_tracking_error(tmp_path):
+    """The readings tie at 70 on every moving-target trial: rnd-wlk and the planners are compared by their
+    tracking error, and the reference scores are −(mean tracking error, mm)."""
+    refs = reference_scores(_track_bench(tmp_path / "good", {"rnd-wlk": 6.7, "min-var": 1.6}), "ElectroLocTrack-v0")
+    assert refs["score"] == "tracking_error_mm" and refs["best_planner"] == "min-var"
+    assert refs["ref_min_score"] == pytest.approx(-6.7) and refs["ref_max_score"] == pytest.approx(-1.6)
+    assert (refs["rnd_tracking_error_mm"], refs["best_tracking_error_mm"]) == pytest.approx((6.7, 1.6))
+    with pytest.raises(ValueError, match="rnd-wlk is not worse than the best planner by the env's own score") as info:
+        reference_scores(_track_bench(tmp_path / "bad", {"rnd-wlk": 1.6, "min-var": 6.7}), "ElectroLocTrack-v0")
+    assert "\n" not in str(info.value) and "tracking_error_mm (rnd-wlk 1.6, min-var 6.7" in str(info.value)
+    committed = reference_scores(TRACK_REFERENCE, "ElectroLocTrack-v0")  # the folder the command's note names
+    assert committed["best_planner"] == "min-var" and committed["ref_max_score"] > committed["ref_min_score"]
+
+
+def test_dataset_reference_on_the_moving_target_is_accepted_or_refused_by_tracking(store, tmp_path, capsys):
+    from electroloc_gym.cli import main
+
+    argv = ["dataset", "--no-progress", "--env", "ElectroLocTrack-v0", "--agent", "rnd-wlk", "--episodes", "1"]
+    bad = _track_bench(tmp_path / "bad", {"rnd-wlk": 1.6, "min-var": 6.7})
+    assert main([*argv, "--reference", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not worse than the best planner by the env's own score" in err[0]
+    assert not any(store.rglob("metadata.json"))  # nothing written
+    good = _track_bench(tmp_path / "good", {"rnd-wlk": 6.7, "min-var": 1.6})
+    assert main([*argv, "--reference", str(good)]) == 0
+    ds = minari.load_dataset("electroloc/ElectroLocTrack-v0/rnd-wlk-v0")
+    meta = ds.storage.metadata
+    assert (meta["ref_min_score"], meta["ref_max_score"]) == pytest.approx((-6.7, -1.6))
+    assert meta["electroloc"]["reference"]["score"] == "tracking_error_mm"
+    # an episode's score on that scale: −(its mean error over the scored second half), the env's tracking error
+    ep = next(ds.iterate_episodes())
+    n, err_mm = ep.infos["n_observations"], ep.infos["error_mm"]
+    env = ds.recover_environment()
+    env.reset(seed=int(next(iter(ds.storage.get_episode_metadata([0])))["seed"]))
+    for action in ep.actions:
+        *_, info = env.step(action)
+    assert np.mean(err_mm[n > n[-1] // 2]) == pytest.approx(info["tracking_error_mm"])
+
+
 def test_the_files_are_minaris_own(store):
     """The episode files equal those minari.create_dataset_from_buffers writes for the same episodes, and
     the header its header (but for the counts, the size and the electroloc block).

@@ -17,6 +17,14 @@ readings of rnd-wlk and ``R_best`` those of the best non-learned planner on the 
 same env (the committed baseline run of the learned suite, ``<results>/<env-id>/_baselines/bench``): 0 at
 rnd-wlk and 1 at the best planner, as in the learned table (whose score averages per-condition ratios;
 the dataset's uses the means over the same conditions).
+
+On a tracking env (the moving target, :func:`electroloc_gym.bench.stats.env_score`) every episode reads its
+cap, so the readings say nothing; agents are compared by the env's own score, the tracking error (the
+mean over conditions of each condition's mean ``tracking_error_mm``, mm; lower better), and the reference
+scores are its negatives: ``ref_min_score = −E_rnd``, ``ref_max_score = −E_best``, the block's ``score``
+saying so. An episode's score on that scale is −(its tracking error): the mean of the dataset's per-step
+``error_mm`` info over the scored second half (``n_observations`` above half the cap), the env's final
+``tracking_error_mm`` — not the return, which sums the error over every reading.
 """
 
 from __future__ import annotations
@@ -86,22 +94,28 @@ def _evaluation_seeds() -> frozenset[int]:
 
 def _mean_readings(rows: list[dict[str, Any]]) -> float:
     """Mean over conditions of the per-condition mean readings, a failure counted as the cap."""
+    return _mean_over_conditions(rows, lambda r: r["readings"] if r["success"] else r["max_observations"])
+
+
+def _mean_over_conditions(rows: list[dict[str, Any]], value: Any) -> float:
+    """Mean over conditions of the per-condition mean of ``value(record)``."""
     conditions = sorted({r["condition"] for r in rows})
-    per = [
-        np.mean([r["readings"] if r["success"] else r["max_observations"] for r in rows if r["condition"] == c])
-        for c in conditions
-    ]
+    per = [np.mean([value(r) for r in rows if r["condition"] == c]) for c in conditions]
     return float(np.mean(per))
 
 
 def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str, Any]:
     """``{"ref_min_score", "ref_max_score", "rnd_readings", "best_planner", "best_readings", "source"}`` from
-    a benchmark run's ``trials.jsonl`` holding rnd-wlk and at least one planner on ``env_id``.
+    a benchmark run's ``trials.jsonl`` holding rnd-wlk and at least one planner on ``env_id``; on a tracking env
+    (module docstring) ``{"ref_min_score", "ref_max_score", "score": "tracking_error_mm",
+    "rnd_tracking_error_mm", "best_planner", "best_tracking_error_mm", "source"}``.
 
     Raises:
-        ValueError: no such file, another env, or rnd-wlk or every planner missing — one line.
+        ValueError: no such file, another env, rnd-wlk or every planner missing, or rnd-wlk not worse than the
+            best planner by the env's score — one line.
     """
     from electroloc_gym.bench.records import TRIALS_FILE, read_trials, stored_trials
+    from electroloc_gym.bench.stats import env_score
 
     path = Path(bench_dir)
     path = stored_trials(path / TRIALS_FILE if path.is_dir() else path)  # a kept run's .gz where it is absent
@@ -118,16 +132,37 @@ def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str
             f"reference {str(path)!r} must hold {RND_AGENT} and one of {list(PLANNERS)} on {env_id}; "
             f"it holds {sorted(agents)}"
         )
-    rnd = _mean_readings([r for r in rows if r["agent"] == RND_AGENT])
-    scores = {p: _mean_readings([r for r in rows if r["agent"] == p]) for p in planners}
-    best = min(scores, key=scores.__getitem__)
-    if scores[best] >= rnd:
-        raise ValueError(f"reference {str(path)!r}: rnd-wlk is not worse than the best planner; no score scale")
+    key, direction = env_score(env_id)
+    if key == "readings":
+        score = _mean_readings
+    else:  # the task's own result, kept in the record's shape
+        score = functools.partial(_mean_over_conditions, value=lambda r: float(r["shape"][key]))
+    sign = 1.0 if direction == "lower" else -1.0  # sign · score: lower is better
+    rnd = score([r for r in rows if r["agent"] == RND_AGENT])
+    scores = {p: score([r for r in rows if r["agent"] == p]) for p in planners}
+    best = min(scores, key=lambda p: sign * scores[p])
+    if sign * scores[best] >= sign * rnd:
+        if key == "readings":
+            raise ValueError(f"reference {str(path)!r}: rnd-wlk is not worse than the best planner; no score scale")
+        raise ValueError(
+            f"reference {str(path)!r}: rnd-wlk is not worse than the best planner by the env's own score, the "
+            f"mean {key} ({RND_AGENT} {rnd:.4g}, {best} {scores[best]:.4g}; {direction} is better); no score scale"
+        )
+    if key == "readings":
+        return {
+            "ref_min_score": 1.0 - rnd,
+            "ref_max_score": 1.0 - scores[best],
+            "rnd_readings": rnd,
+            "best_planner": best,
+            "best_readings": scores[best],
+            "source": str(path),
+        }
     return {
-        "ref_min_score": 1.0 - rnd,
-        "ref_max_score": 1.0 - scores[best],
-        "rnd_readings": rnd,
+        "ref_min_score": -sign * rnd,
+        "ref_max_score": -sign * scores[best],
+        "score": key,
+        f"rnd_{key}": rnd,
         "best_planner": best,
-        "best_readings": scores[best],
+        f"best_{key}": scores[best],
         "source": str(path),
     }
