@@ -19,6 +19,7 @@ from electroloc_gym.bench.config import (
     make_trial_specs,
 )
 from electroloc_gym.bench.stored_run import record_rules
+from electroloc_gym.contract.params import MIN_OBSERVATION_CAP
 
 
 def _cli_args(argv: list[str]) -> argparse.Namespace:
@@ -68,16 +69,18 @@ def test_the_command_line_builds_what_python_builds(argv) -> None:
     assert from_cli == from_python
 
 
-@pytest.mark.parametrize("cap", [0, -3, MAX_READINGS + 1, True, 2.0])
+@pytest.mark.parametrize("cap", [1, 0, -3, MAX_READINGS + 1, True, 2.0])
 def test_the_cap_is_checked_once_and_named_by_each_front_end(cap) -> None:
-    with pytest.raises(SettingError, match=rf"max_observations must be an integer in \[1, {MAX_READINGS}\]") as exc:
+    allowed = rf"an integer in \[{MIN_OBSERVATION_CAP}, {MAX_READINGS}\]"
+    with pytest.raises(SettingError, match=rf"max_observations must be {allowed}") as exc:
         BenchConfig(agents=("rnd-wlk",), max_observations=cap)
     assert exc.value.setting == "max_observations" and exc.value.got is cap
     if isinstance(cap, int) and not isinstance(cap, bool):
         args = _cli_args(["--max-observations", str(cap)])
         with pytest.raises(ValueError) as cli_exc:
             bench_cli._config(args, args.env, ["rnd-wlk"])
-        assert str(cli_exc.value) == f"--max-observations must be an integer in [1, {MAX_READINGS}], got {cap}"
+        want = f"--max-observations must be an integer in [{MIN_OBSERVATION_CAP}, {MAX_READINGS}], got {cap}"
+        assert str(cli_exc.value) == want
 
 
 def test_every_trial_carries_the_run_settings_unchanged() -> None:

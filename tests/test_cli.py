@@ -9,6 +9,7 @@ import sys
 
 import pytest
 
+from electroloc_gym.contract.params import MIN_OBSERVATION_CAP
 from electroloc_gym.world.conditions import PAPER_TABLE3_THEORY_MM, PRESET_NAMES
 
 ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
@@ -170,7 +171,7 @@ def test_detect_json_is_strict_and_nan_rows_have_no_branch_label() -> None:
 _BENCH_INTS = {
     "--trials": (1, 100_000),
     "--workers": (1, 1024),
-    "--max-observations": (1, 100_000),
+    "--max-observations": (MIN_OBSERVATION_CAP, 100_000),
     "--n-particles": (2, 1_000_000),
     "--seed": (0, 2**63 - 1),
 }

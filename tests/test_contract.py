@@ -20,7 +20,9 @@ from electroloc_gym.contract.params import (
     GAIN_FACTOR_LIMITS,
     MAX_POSITION_BLUR_MM,
     MAX_TARGET_SPEED_MM,
+    MIN_OBSERVATION_CAP,
     MOTION_MODELS,
+    MOTION_OPTION_SCOPES,
     RADIUS_LIMITS_MM,
     SIGNAL_LIMITS,
     TARGET_MOTIONS,
@@ -28,7 +30,7 @@ from electroloc_gym.contract.params import (
 from electroloc_gym.envs.vector import sub_env_seeds
 from electroloc_gym.world.conditions import PRESET_NAMES
 
-ENV_IDS = ("ElectroLoc-v0", "ElectroLocGlobal-v0", "ElectroLocUnknownTarget-v0")
+ENV_IDS = ("ElectroLoc-v0", "ElectroLocGlobal-v0", "ElectroLocUnknownTarget-v0", "ElectroLocTrack-v0")
 
 
 def _make(env_id: str, vector: bool, **kwargs: Any) -> Any:
@@ -64,7 +66,7 @@ _radii = st.floats(RADIUS_LIMITS_MM[0], RADIUS_LIMITS_MM[1])
 _common = {
     "observation": st.sampled_from(["belief", "raw"]),
     "action_type": st.sampled_from(["continuous", "discrete"]),
-    "max_observations": st.integers(1, 12),
+    "max_observations": st.integers(MIN_OBSERVATION_CAP, 12),
     "success_spread_mm": st.floats(0.5, 1e3),
 }
 _target = {
@@ -101,8 +103,17 @@ ARGUMENTS = {
             "motion_model": st.sampled_from(MOTION_MODELS),
             "motion_step_mm": st.one_of(st.none(), st.floats(0.0, MAX_TARGET_SPEED_MM)),
         }
-    ),
+    ).map(lambda kw: _within_scopes(kw)),
 }
+
+
+def _within_scopes(kwargs: dict[str, Any]) -> dict[str, Any]:
+    """``kwargs`` without the options that do nothing under another's value (refused: MOTION_OPTION_SCOPES)."""
+    return {
+        k: v
+        for k, v in kwargs.items()
+        if not any(k == name and kwargs[mode] != acts for name, mode, acts, _ in MOTION_OPTION_SCOPES)
+    }
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -227,3 +238,74 @@ def test_render_mode_of_the_wrong_type_is_one_clear_error() -> None:
     for mode in (1, b"human", "human ", ["rgb_array"]):
         with pytest.raises(ValueError, match=r"render_mode must be one of \['human', 'rgb_array'\] or None"):
             gym.make("ElectroLoc-v0", render_mode=mode)
+
+
+# ---- the cap of readings: the reset takes the first, so the smallest cap is MIN_OBSERVATION_CAP ----------
+CAP_ERROR = rf"^max_observations must be an integer ≥ {MIN_OBSERVATION_CAP} \(the reset takes the first reading"
+
+
+@pytest.mark.parametrize("vector", [False, True])
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("cap", [1, 0])
+def test_a_cap_below_the_resets_reading_plus_one_is_one_error(env_id: str, vector: bool, cap: int) -> None:
+    with pytest.raises(ValueError, match=CAP_ERROR + rf".*, got {cap}$"):
+        _make(env_id, vector, n_particles=20, sensor_model="analytic", max_observations=cap)
+
+
+def test_the_torch_engine_refuses_cap_one_with_the_same_error() -> None:
+    pytest.importorskip("torch")
+    with pytest.raises(ValueError, match=CAP_ERROR + r".*, got 1$"):
+        gym.make_vec("ElectroLoc-v0", 2, vectorization_mode="vector_entry_point", backend="torch", max_observations=1)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_the_smallest_cap_is_a_whole_episode_of_that_many_readings(env_id: str) -> None:
+    kw = {"n_particles": 40, "sensor_model": "analytic", "max_observations": MIN_OBSERVATION_CAP}
+    spread = {} if env_id == "ElectroLocTrack-v0" else {"success_spread_mm": 1e-6}  # never a success: the cap ends it
+    env = gym.make(env_id, **kw, **spread)
+    env.reset(seed=0)
+    steps, ended = 0, False
+    while not ended:
+        _, _, terminated, truncated, info = env.step(env.action_space.sample())
+        steps, ended = steps + 1, terminated or truncated
+    assert truncated and info["n_observations"] == MIN_OBSERVATION_CAP and steps == MIN_OBSERVATION_CAP - 1
+
+
+def test_the_smallest_cap_on_the_torch_engine() -> None:
+    pytest.importorskip("torch")
+    kw = {"n_particles": 40, "sensor_model": "analytic", "success_spread_mm": 1e-6}
+    vec = gym.make_vec(
+        "ElectroLoc-v0",
+        2,
+        vectorization_mode="vector_entry_point",
+        backend="torch",
+        **kw,
+        max_observations=MIN_OBSERVATION_CAP,
+    )
+    vec.reset(seed=0)
+    for _ in range(MIN_OBSERVATION_CAP - 2):
+        _, _, terminated, truncated, _ = vec.step(vec.action_space.sample())
+        assert not (np.asarray(terminated) | np.asarray(truncated)).any()
+    _, _, terminated, truncated, info = vec.step(vec.action_space.sample())
+    assert np.asarray(truncated).all() and not np.asarray(terminated).any()
+    assert np.asarray(info["n_observations"]).tolist() == [MIN_OBSERVATION_CAP] * 2
+
+
+def test_bench_refuses_cap_one_before_any_trial_and_runs_the_smallest_cap(capsys, tmp_path) -> None:
+    import json
+
+    from electroloc_gym.bench.config import MAX_READINGS
+    from electroloc_gym.cli import main
+
+    base = ["bench", "--trials", "1", "--conditions", "fresh-steel-12.7", "--agents", "rnd-wlk"]
+    base += ["--sensor-model", "analytic", "--n-particles", "100", "--backend", "serial", "--workers", "1"]
+    base += ["--no-progress"]
+    assert main([*base, "--max-observations", "1", "--out", str(tmp_path / "one")]) == 2
+    out, err = capsys.readouterr()
+    line = f"--max-observations must be an integer in [{MIN_OBSERVATION_CAP}, {MAX_READINGS}], got 1"
+    assert err.strip().splitlines() == [f"electroloc bench: error: {line}"] and not out, err
+    assert not (tmp_path / "one").exists()  # refused before any trial: nothing written
+    run = tmp_path / "two"
+    assert main([*base, "--max-observations", str(MIN_OBSERVATION_CAP), "--out", str(run)]) == 0, capsys.readouterr()
+    (record,) = [json.loads(x) for x in (run / "trials.jsonl").read_text().splitlines()]
+    assert record["readings"] == MIN_OBSERVATION_CAP and record["ended_by"] == "cap"

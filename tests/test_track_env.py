@@ -91,6 +91,24 @@ def test_vector_env_type_and_info_shapes() -> None:
         ({"motion_model": "kalman"}, r"motion_model must be one of \['random_walk', 'static'\]"),
         ({"motion_step_mm": 21.0}, r"motion_step_mm must be a finite number ≥ 0 and ≤ 20"),
         ({"motion_step_mm": "big"}, r"motion_step_mm must be a finite number"),
+        # options that contradict each other: one set to a value that has no effect under the other
+        (
+            {"target_motion": "random_walk", "turn_std_rad": 2.0},
+            r"^turn_std_rad applies only when target_motion is 'swimmer' \(the random walk has no heading\); got "
+            r"target_motion='random_walk' with turn_std_rad=2\.0: leave turn_std_rad at its default 0\.5 or "
+            r"choose target_motion='swimmer'$",
+        ),
+        (
+            {"motion_model": "static", "motion_step_mm": 5.0},
+            r"^motion_step_mm applies only when motion_model is 'random_walk' \(the static filter takes no step\); "
+            r"got motion_model='static' with motion_step_mm=5\.0: leave motion_step_mm None or choose "
+            r"motion_model='random_walk'$",
+        ),
+        ({"motion_model": "static", "motion_step_mm": 0.0}, r"^motion_step_mm applies only when motion_model is"),
+        (
+            {"target_motion": "random_walk", "turn_std_rad": 0.0, "motion_model": "static", "motion_step_mm": 1.0},
+            r"^turn_std_rad applies only when target_motion is 'swimmer'",  # the first of two contradictions
+        ),
     ],
 )
 def test_every_bad_motion_option_is_one_clear_error(kwargs: dict[str, Any], match: str) -> None:
@@ -98,6 +116,23 @@ def test_every_bad_motion_option_is_one_clear_error(kwargs: dict[str, Any], matc
         gym.make(ID, **SMALL, **kwargs)
     with pytest.raises(ValueError, match=match):
         gym.make_vec(ID, num_envs=2, vectorization_mode="vector_entry_point", **SMALL, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"target_motion": "random_walk"},  # turn_std_rad at its default: no contradiction
+        {"target_motion": "random_walk", "turn_std_rad": 0.5},  # the default given explicitly
+        {"motion_model": "static"},
+        {"motion_model": "static", "motion_step_mm": None},
+        {"target_motion": "swimmer", "turn_std_rad": 2.0, "motion_model": "random_walk", "motion_step_mm": 5.0},
+        {"target_motion": "random_walk", "motion_step_mm": 5.0},  # a model mismatch, allowed
+        {"target_speed_mm": 0.0, "turn_std_rad": 1.0},  # a still swimmer: the speed sweep's end, allowed
+    ],
+)
+def test_options_that_do_not_contradict_each_other_are_taken(kwargs: dict[str, Any]) -> None:
+    assert gym.make(ID, **SMALL, **kwargs).unwrapped.params.task == "track"
+    gym.make_vec(ID, num_envs=2, vectorization_mode="vector_entry_point", **SMALL, **kwargs).close()
 
 
 def test_motion_options_belong_to_the_track_env_only() -> None:

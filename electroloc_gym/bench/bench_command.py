@@ -29,6 +29,7 @@ from electroloc_gym.bench.config import (
 from electroloc_gym.bench.default_run import default_agents
 from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
+from electroloc_gym.contract.params import MIN_OBSERVATION_CAP
 from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES
 from electroloc_gym.registry import BENCH_ENVS, PAPER_ENV_ID, BenchEnv, bench_env
 from electroloc_gym.utils.agentspec import split_specs
@@ -154,7 +155,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--max-observations",
         type=ascii_int,
         default=None,
-        help=f"the cap of readings of a trial (default: the env's, {MAX_OBSERVATIONS} as the paper)",
+        help=f"the cap of readings of a trial, the reset's included: {MIN_OBSERVATION_CAP}–{MAX_READINGS} "
+        f"(default: the env's, {MAX_OBSERVATIONS} as the paper)",
     )
     parser.add_argument(
         "--n-particles",

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from electroloc_gym.baselines.agent import PAPER_AGENTS
-from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.params import MIN_OBSERVATION_CAP, EnvParams
 from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES, SUCCESS_SPREAD_MM
 from electroloc_gym.registry import BENCH_ENVS, ENVS, LiveMapping, LiveSequence, env_entry
 from electroloc_gym.world.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOICES
@@ -136,7 +136,8 @@ class BenchConfig:
         signal: the presets' signal scale (:data:`electroloc_gym.world.conditions.DEFAULT_SIGNAL` by default):
             "fitted" (fitted to Table 3's measured detection distances), "coverage" (fitted × one factor
             matching the paper's §6.3 start coverage) or "paper" (scale 1); see conditions.get_condition.
-        max_observations: the cap of readings of a trial (paper: 35; 1 to :data:`MAX_READINGS`).
+        max_observations: the cap of readings of a trial (paper: 35; the env's smallest cap
+            :data:`~electroloc_gym.contract.params.MIN_OBSERVATION_CAP` to :data:`MAX_READINGS`).
         n_particles: particles of the belief (paper: 2500).
         success_spread_mm: the success criterion, mm: a trial succeeds when the belief's spread √trace Σ is
             at most this (paper: 10 mm). With the cap, the particles, the sensor model, the signal, the
@@ -259,8 +260,8 @@ class BenchConfig:
             if isinstance(val, bool) or not isinstance(val, int) or val < low:
                 raise ValueError(f"{name} must be an integer ≥ {low}, got {val!r}")
         cap = self.max_observations
-        if isinstance(cap, bool) or not isinstance(cap, int) or not 1 <= cap <= MAX_READINGS:
-            raise SettingError("max_observations", f"an integer in [1, {MAX_READINGS}]", cap)
+        if isinstance(cap, bool) or not isinstance(cap, int) or not MIN_OBSERVATION_CAP <= cap <= MAX_READINGS:
+            raise SettingError("max_observations", f"an integer in [{MIN_OBSERVATION_CAP}, {MAX_READINGS}]", cap)
         allowed = ENV_SENSOR_MODELS[self.env_id]
         if self.sensor_model not in allowed:
             raise ValueError(f"sensor_model of {self.env_id} must be one of {list(allowed)}, got {self.sensor_model!r}")

@@ -49,6 +49,8 @@ __all__ = [
     "TARGET_MOTIONS",
     "MOTION_MODELS",
     "MAX_TARGET_SPEED_MM",
+    "MIN_OBSERVATION_CAP",
+    "MOTION_OPTION_SCOPES",
     "memory_limit_bytes",
     "check_int",
     "check_float",
@@ -85,6 +87,16 @@ TARGET_MOTIONS = ("random_walk", "swimmer")
 MOTION_MODELS = ("random_walk", "static")
 #: The largest target speed and filter step, mm per reading: twice the carriage's largest move per axis.
 MAX_TARGET_SPEED_MM = 20.0
+#: The smallest cap of readings per episode (``max_observations``): the reset takes the first reading and
+#: every step one more, so the first step already makes two.
+MIN_OBSERVATION_CAP = 2
+#: The moving target's options that act under one value of another option only: (option, the other option,
+#: the value it acts under, why it does not under the other). Such an option set away from its default
+#: while the other option has another value would be silently ignored: one ValueError names both.
+MOTION_OPTION_SCOPES = (
+    ("turn_std_rad", "target_motion", "swimmer", "the random walk has no heading"),
+    ("motion_step_mm", "motion_model", "random_walk", "the static filter takes no step"),
+)
 
 #: The discrete action set: stay plus the 8 king moves of 10 mm per axis (index = 3·(dx+1) + (dy+1)).
 DISCRETE_MOVES_MM = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.float64) * MAX_STEP_MM
@@ -139,7 +151,8 @@ class EnvParams:
         sensor_model: the filter's and the agent's sensor model, ``"analytic"`` or ``"calibrated"``; unknown
             target: ``"analytic"`` (the theoretical EEV of each hypothesis) or ``"interpolated"``.
         n_particles: particles M per env (≥ 1; paper: 2500).
-        max_observations: readings per episode before truncation (≥ 1; paper §5.4: 35).
+        max_observations: readings per episode before truncation, the reset's included (≥
+            :data:`MIN_OBSERVATION_CAP`, 2: the reset's reading and one step's; paper §5.4: 35).
         success_spread_mm: success when √trace Σ ≤ this, mm (> 0; paper: 10 mm).
         action_type: ``"continuous"`` (Box(−1, 1, (2,)) × 10 mm) or ``"discrete"`` (Discrete(9)).
         calibration_seed: seed of every episode's calibration (≥ 0), or None: a new calibration per
@@ -171,11 +184,14 @@ class EnvParams:
             (:data:`TARGET_MOTIONS`).
         target_speed_mm: moving target: its speed, mm per reading, in [0, 20]: the random walk's RMS step
             (per-axis std ``target_speed_mm``/√2), the swimmer's constant step length.
-        turn_std_rad: moving target, ``"swimmer"``: std of the heading's change per reading, rad, in [0, π].
+        turn_std_rad: moving target, ``"swimmer"``: std of the heading's change per reading, rad, in [0, π]
+            (another value than the default 0.5 with ``target_motion="random_walk"`` is refused:
+            :data:`MOTION_OPTION_SCOPES`).
         motion_model: moving target: the filter's motion model, ``"random_walk"`` (every particle takes a
             Gaussian step before each update) or ``"static"`` (none: the paper's filter) (:data:`MOTION_MODELS`).
         motion_step_mm: moving target: the filter's random-walk RMS step, mm per reading, in [0, 20], or
-            None: the target's ``target_speed_mm`` (a different value is a model mismatch).
+            None: the target's ``target_speed_mm`` (a different value is a model mismatch); a number with
+            ``motion_model="static"`` is refused (:data:`MOTION_OPTION_SCOPES`).
     """
 
     task: str = "localize"
@@ -237,8 +253,15 @@ class EnvParams:
         put("turn_std_rad", check_float("turn_std_rad", self.turn_std_rad, 0.0, inclusive=True, high=math.pi))
         if self.motion_step_mm is not None:
             put("motion_step_mm", check_float("motion_step_mm", self.motion_step_mm, 0.0, inclusive=True, high=top))
+        self._check_option_scopes()
         put("n_particles", check_int("n_particles", self.n_particles, 1, 2**31 - 2))
-        put("max_observations", check_int("max_observations", self.max_observations, 1))
+        cap = self.max_observations
+        if isinstance(cap, (bool, np.bool_)) or not isinstance(cap, (int, np.integer)) or cap < MIN_OBSERVATION_CAP:
+            raise ValueError(
+                f"max_observations must be an integer ≥ {MIN_OBSERVATION_CAP} (the reset takes the first reading "
+                f"and every step one more), got {cap!r}"
+            )
+        put("max_observations", int(cap))
         put("success_spread_mm", check_float("success_spread_mm", self.success_spread_mm, 0.0))
         put("randomize_target", check_bool("randomize_target", self.randomize_target))
         put("fixed_carriage", check_bool("fixed_carriage", self.fixed_carriage))
@@ -285,6 +308,20 @@ class EnvParams:
                 get_condition("fresh-steel-12.7", self.signal)
         elif not isinstance(self.layout, Scene):
             check_choice("layout", self.layout, LAYOUTS)
+
+    def _check_option_scopes(self) -> None:
+        """Refuse an option of :data:`MOTION_OPTION_SCOPES` set away from its default while the option it
+        depends on has a value under which it does nothing (one ValueError naming both and what is allowed).
+        """
+        defaults = {f.name: f.default for f in dataclasses.fields(self)}
+        for name, mode, acts_under, why in MOTION_OPTION_SCOPES:
+            value, default, mode_value = getattr(self, name), defaults[name], getattr(self, mode)
+            if mode_value != acts_under and value != default:
+                keep = "None" if default is None else f"at its default {default!r}"
+                raise ValueError(
+                    f"{name} applies only when {mode} is {acts_under!r} ({why}); got {mode}={mode_value!r} "
+                    f"with {name}={value!r}: leave {name} {keep} or choose {mode}={acts_under!r}"
+                )
 
     @classmethod
     def from_kwargs(cls, task: str, kwargs: Mapping[str, Any], env_id: str) -> EnvParams:
