@@ -78,15 +78,17 @@ class TrackEnv(ElectroLocEnv):
       ``turn_std_rad``²) per reading); both reflect at the walls of the allowed box.
     * ``target_speed_mm``: mm per reading, [0, 20]; default 1 (prey 2–5 % as fast as its hunter, scaled
       to the carriage's 10 mm per reading and doubled, :mod:`~electroloc_gym.engines.numba_core.track_task`).
-    * ``turn_std_rad``: the swimmer's turn std per reading, rad, [0, π].
+    * ``turn_std_rad``: the swimmer's turn std per reading, rad, [0, π] (the random walk has no heading:
+      another value than 0.5 with ``target_motion="random_walk"`` is refused).
     * ``motion_model``: what the filter is told: ``"random_walk"`` (each particle a Gaussian step of RMS
       ``motion_step_mm`` before each update: the jitter after resampling grows from the paper's 1 mm to
       √(1 mm² + ``motion_step_mm``²/2) per axis) or ``"static"`` (the paper's filter).
     * ``motion_step_mm``: the filter's RMS step, mm per reading, [0, 20], or None: ``target_speed_mm``
-      (another value is a model mismatch).
+      (another value is a model mismatch; a number with ``motion_model="static"`` is refused).
 
-    Every argument is a field of :class:`electroloc_gym.contract.params.EnvParams`; any other argument, or a
-    value out of range, is one ValueError naming it and its range.
+    Every argument is a field of :class:`electroloc_gym.contract.params.EnvParams`; any other argument, a
+    value out of range, or two arguments that contradict each other, is one ValueError naming them and what
+    is allowed.
 
     ## Version History
 
