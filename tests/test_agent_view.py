@@ -4,6 +4,7 @@ controllers and the torch backend's ``sub_env`` hand them (electroloc_gym/envs/a
 from __future__ import annotations
 
 import copy
+import inspect
 import pickle
 from typing import Any
 
@@ -226,6 +227,8 @@ def test_no_attribute_walk_reaches_the_env(env_id: str) -> None:
             seen.add(id(obj))
             assert id(obj) not in forbidden, f"{path} is the env or its internals"
             assert getattr(obj, "__self__", None) is not core, f"{path} is a bound method of the env"
+            owner = getattr(obj, "__self__", None)  # a bound method holds its object: never one holding the truth
+            assert not hasattr(owner, "target_xy_mm"), f"{path} is a bound method of the condition"
             for name in dir(obj):
                 if name.startswith("__"):
                     continue
@@ -289,8 +292,10 @@ def test_the_spaces_are_the_wrapped_envs() -> None:
     env = gym.wrappers.RescaleAction(gym.make("ElectroLoc-v0", **SMALL), low, high)
     env.reset(seed=0)
     view = agent_view(env)
-    assert view.action_space is env.action_space and float(view.action_space.high[0]) == 2.0
-    assert view.observation_space is env.observation_space
+    assert view.action_space == env.action_space and float(view.action_space.high[0]) == 2.0
+    assert not view.action_space.high.flags.writeable  # the wrapper's space, as a read-only copy
+    assert env.action_space.high.flags.writeable  # the wrapper's own arrays untouched
+    assert view.observation_space is env.observation_space  # the env's own: read-only, handed out as it is
     assert float(env.unwrapped.action_space.high[0]) == 1.0
 
 
@@ -308,3 +313,145 @@ def test_controllers_refuse_an_env_they_cannot_act_in_at_reset(env_id: str, name
     env.reset(seed=0)
     with pytest.raises(ValueError, match=pattern):
         make_agent(name, seed=0).reset(env)
+
+
+# ---- nothing a view returns can write the env: every value and method result, on every env and engine -------------
+def _write_route(a: np.ndarray) -> str | None:
+    """How ``a`` could be written (itself, or an array or buffer its ``.base`` chain reaches), or None."""
+    depth, x = 0, a
+    while isinstance(x, np.ndarray):
+        if x.flags.writeable:
+            return "writable" if depth == 0 else f"its .base{'.base' * (depth - 1)} is writable"
+        depth, x = depth + 1, x.base
+    return None if x is None or isinstance(x, bytes) else f"its .base chain reaches a {type(x).__name__}"
+
+
+def _stored(obj: Any) -> list[tuple[str, Any]]:
+    """What a returned record holds: its instance fields (``__dict__`` and ``__slots__``), and a container's items."""
+    if isinstance(obj, (tuple, list)):
+        return [(f"[{i}]", v) for i, v in enumerate(obj)]
+    if isinstance(obj, dict):
+        return [(f"[{k!r}]", v) for k, v in obj.items()]
+    fields = dict(getattr(obj, "__dict__", {}))
+    for cls in type(obj).__mro__:
+        for name in getattr(cls, "__slots__", ()):
+            if name not in fields and hasattr(obj, name):
+                fields[name] = getattr(obj, name)
+    return [(f".{k}", v) for k, v in fields.items()]
+
+
+def _writable_arrays(path: str, value: Any, seen: set[int], depth: int = 0) -> list[str]:
+    """Every numpy array ``value`` reaches (records and containers walked through what they hold) that could be
+    written, as ``path: how``. Agent views are walked by their own names (:func:`_view_calls`)."""
+    if depth > 6 or id(value) in seen or isinstance(value, (AgentView, str, bytes, int, float, type(None), np.generic)):
+        return []
+    seen.add(id(value))
+    if isinstance(value, np.ndarray):
+        route = _write_route(value)
+        return [] if route is None else [f"{path}: {route}"]
+    if isinstance(value, type) or callable(value) and not isinstance(value, gym.Space):
+        return []
+    bad = []
+    for name, v in _stored(value):
+        bad += _writable_arrays(path + name, v, seen, depth + 1)
+    return bad
+
+
+def _method_args(root: AgentView) -> dict[str, list[tuple[tuple[Any, ...], dict[str, Any]]]]:
+    """Arguments for every method an agent view may show (a new method needs its arguments here)."""
+    p = np.asarray(root.belief.particles)
+    move, moves = np.array([1.0, -2.0]), np.array([[1.0, 2.0], [-3.0, 0.5], [0.0, 0.0]])
+    predict = [((p, move), {}), ((p, moves), {})]
+    if getattr(root, "gain_levels", None) is not None:
+        predict.append(((p, moves), {"gain_level": 0}))
+    offsets = p[:, :2] - np.asarray(root.position_mm if hasattr(root, "position_mm") else np.zeros(2))
+    shape = (p[:, 2], p[:, 3]) if p.shape[1] == 4 else ()
+    readings = root.last_readings_V if hasattr(root, "last_readings_V") else np.array([root.last_reading_V])
+    reading = readings if len(readings) > 1 else float(readings[0])
+    return {
+        "predicted_reading_model": predict,
+        "predicted_particles_mm": [((p, move), {}), ((p, moves), {})],
+        "gain_action": [((0,), {})],
+        "mean": [((), {})],
+        "covariance": [((), {})],
+        "spread": [((), {})],
+        "detection_distance_mm": [((), {}), ((3.0,), {})],
+        "mean_std": [((offsets, *shape), {})],
+        "log_likelihood": [((reading, offsets, *shape), {})],
+    }
+
+
+def _view_problems(root: AgentView) -> tuple[list[str], int]:
+    """(every writable route from what ``root`` and its nested views return, how many values and calls were read)."""
+    args, bad, n = _method_args(root), [], 0
+    frontier: list[tuple[str, AgentView]] = [("view", root)]
+    while frontier:
+        path, view = frontier.pop()
+        for name in dir(view):
+            if not hasattr(view, name):  # hasattr answers as on the env (the unknown target's sensor_layout)
+                continue
+            value = getattr(view, name)
+            if isinstance(inspect.getattr_static(type(view), name), property):  # a value
+                assert not callable(value) or isinstance(value, AgentView), f"{path}.{name} is a callable value"
+                calls = [(f"{path}.{name}", value)]
+            else:  # a method: called with every argument set of the table
+                assert name in args, f"{path}.{name}: a method with no arguments in this test (add them)"
+                calls = [(f"{path}.{name}{i}", value(*a, **kw)) for i, (a, kw) in enumerate(args[name])]
+            for where, got in calls:
+                n += 1
+                bad += _writable_arrays(where, got, set())
+                if isinstance(got, AgentView) and path == "view":
+                    frontier.append((where, got))
+    return bad, n
+
+
+def _views_of_every_env() -> list[Any]:
+    from electroloc_gym.registry import ENV_IDS, env_entry
+
+    cases = []
+    for env_id in ENV_IDS:
+        cases.append(pytest.param(env_id, "numba", {}, id=f"{env_id}-numba"))
+        if "torch" in env_entry(env_id).backends:
+            cases.append(pytest.param(env_id, "torch", {}, id=f"{env_id}-torch"))
+    cases.append(pytest.param("ElectroLoc-v0", "numba", {"sensor_layout": "ring-8"}, id="ElectroLoc-v0-array"))
+    cases.append(pytest.param("ElectroLoc-v0", "numba", {"gain_levels": (0.5, 1.0, 2.0)}, id="ElectroLoc-v0-gain"))
+    return cases
+
+
+def _agent_view_of(env_id: str, engine: str, kwargs: dict[str, Any]) -> tuple[AgentView, Any]:
+    """(the agent view of a reset env of ``engine``, the env)."""
+    if engine == "torch":
+        pytest.importorskip("torch")
+        from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv
+
+        venv = TorchElectroLocVectorEnv(num_envs=2, n_particles=200, **kwargs)
+        venv.reset(seed=0)
+        return venv.sub_env(1), venv
+    env = gym.make(env_id, **SMALL, **kwargs)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    return agent_view(env), env
+
+
+@pytest.mark.parametrize(("env_id", "engine", "kwargs"), _views_of_every_env())
+def test_nothing_a_view_returns_is_writable_or_has_a_writable_base(env_id: str, engine: str, kwargs: dict) -> None:
+    """Every value and every method result of the view and its belief, sensor-model and condition views: no numpy
+    array it reaches (inside tuples, dicts, records, spaces) is writable or has a ``.base`` chain to a writable
+    array or buffer (the engine's live state)."""
+    view, _ = _agent_view_of(env_id, engine, kwargs)
+    bad, n = _view_problems(view)
+    assert n >= 25, f"only {n} values and calls read"
+    print(f"{env_id} {engine} {kwargs}: {n} values and calls")
+    assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("engine", ["numba", "torch"])
+def test_an_agent_cannot_rewrite_the_belief_through_the_particles_base(engine: str) -> None:
+    view, env = _agent_view_of("ElectroLoc-v0", engine, {})
+    before = np.array(view.belief.particles)
+    x = view.belief.particles
+    while isinstance(x, np.ndarray):  # the array and every array under it
+        with pytest.raises(ValueError, match="read-only"):
+            x[...] = x[..., :1]
+        x = x.base
+    np.testing.assert_array_equal(view.belief.particles, before)

@@ -27,7 +27,9 @@ __all__ = ["ActionParser", "spaces_of"]
 
 
 def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space[Any], spaces.Box]:
-    """(action space, observation space) of one env (module docstring)."""
+    """(action space, observation space) of one env (module docstring), their arrays (bounds, ``nvec``)
+    read-only: the spaces are the env's, and an agent reads them (:mod:`electroloc_gym.envs.agent_view`).
+    """
     k = len(params.gains)
     if params.action_type == "continuous":
         dims = 3 if params.gain_levels is not None else 2
@@ -36,7 +38,12 @@ def spaces_of(params: EnvParams, obs_dim: int) -> tuple[spaces.Space[Any], space
         action = spaces.MultiDiscrete([len(DISCRETE_MOVES_MM), k])
     else:
         action = spaces.Discrete(len(DISCRETE_MOVES_MM))
-    return action, spaces.Box(-1.0, 1.0, shape=(obs_dim,), dtype=np.float32)
+    observation = spaces.Box(-1.0, 1.0, shape=(obs_dim,), dtype=np.float32)
+    for space in (action, observation):
+        for value in vars(space).values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+    return action, observation
 
 
 def _as_real_array(actions: Any, what: str, shape: tuple[int, ...]) -> NDArray:

@@ -26,10 +26,22 @@ state, and the view leaves them out: the robot knows its ``odometry_mm``.
 
 **How**: a view holds one private closure over the env that answers only the names above (and calls
 only the methods above); nothing it returns is the env, a bound method of it or an object holding it —
-the belief, the sensor model and the condition are views of their own, and the rest are arrays, numbers
-and frozen records (``SensorLayout``, ``Scene``, Gymnasium spaces). There is no ``__dict__``, no
-``unwrapped``/``env`` attribute and no ``__getattr__`` forwarding; a missing name is an
+the belief, the sensor model and the condition are views of their own (the condition's
+``detection_distance_mm`` is a method of its view, not the condition's bound method), and the rest are
+arrays, numbers and frozen records (``SensorLayout``, ``Scene``, Gymnasium spaces). There is no
+``__dict__``, no ``unwrapped``/``env`` attribute and no ``__getattr__`` forwarding; a missing name is an
 ``AttributeError`` naming what the view does have. Every access reads the env's state at that moment.
+
+**Nothing it returns can write the env** (:func:`read_only`): every value and every method's result
+passes one gate on its way out. A numpy array that is read-only all the way down its ``.base`` chain
+(ending in an array that owns its data) is handed out as it is; any other — writable, or a read-only
+view of a writable array such as the belief's particles, a view of the engine's live cloud — is handed
+out as a read-only copy of the same memory layout (the same values and the same arithmetic downstream).
+Tuples, lists (as tuples) and mappings (read-only proxies) are gated item by item, records (dataclasses,
+Gymnasium spaces) through the fields they hold: a record holding a writable array is handed out as a
+copy holding read-only ones. The envs' own spaces are read-only at construction, so they pass as
+themselves. One copy per read of the particles (M × 2 float32) and of each prediction; an array the env
+already hands out read-only costs nothing.
 
 **What it cannot guarantee**: an agent runs in the same Python process as its env, so deliberate
 introspection (``gc.get_referrers``, stack frames, a closure's ``__closure__``) can still reach the env.
@@ -39,8 +51,10 @@ sandbox. Running untrusted agents safely needs a process boundary.
 
 from __future__ import annotations
 
+import copy
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
 from typing import Any, cast
 
 import numpy as np
@@ -56,6 +70,8 @@ __all__ = [
     "SENSOR_MODEL_METHODS",
     "TANK_FIELDS",
     "SPHERE_FIELDS",
+    "SPHERE_METHODS",
+    "read_only",
     "ROBOT_FRAME_TRUTH",
 ]
 
@@ -121,7 +137,10 @@ TANK_FIELDS: tuple[str, ...] = (
     "saturation_V",
 )
 #: The condition's sphere and name: shown unless the belief estimates the sphere (its hypotheses carry it).
-SPHERE_FIELDS: tuple[str, ...] = ("name", "target", "chi", "depth_mm", "detection_distance_mm")
+SPHERE_FIELDS: tuple[str, ...] = ("name", "target", "chi", "depth_mm")
+#: The condition's sphere's methods, shown with :data:`SPHERE_FIELDS` (called by the view: its result, never
+#: the condition's bound method, which holds the condition and its ``target_xy_mm``).
+SPHERE_METHODS: tuple[str, ...] = ("detection_distance_mm",)
 
 #: Values read from the env as given (its wrappers' spaces), not from its core.
 _OUTER_VALUES: tuple[str, ...] = ("action_space", "observation_space")
@@ -174,6 +193,77 @@ class AgentView:
 
 
 _ACCESS = AgentView.__dict__["_AgentView__access"]  # the slot's descriptor: the generated accessors read it
+
+#: Values with nothing to write: handed out as they are.
+_IMMUTABLE = (str, bytes, int, float, complex, type(None), np.generic, np.dtype, range, frozenset)
+#: How deep :func:`read_only` follows records and containers (the envs' records are two levels deep).
+_MAX_DEPTH = 8
+
+
+def _has_no_write_route(a: np.ndarray) -> bool:
+    """``a`` and every array of its ``.base`` chain are read-only, and the chain ends in an array that owns its
+    data (or in immutable ``bytes``), not in another buffer (a torch tensor, a memoryview, a mmap).
+    """
+    x: Any = a
+    while isinstance(x, np.ndarray):
+        if x.flags.writeable:
+            return False
+        x = x.base
+    return x is None or isinstance(x, bytes)
+
+
+def _record_fields(obj: Any) -> dict[str, Any]:
+    """The fields a record holds: its ``__dict__`` and its ``__slots__`` (by their stored names)."""
+    fields = dict(getattr(obj, "__dict__", None) or {})
+    for cls in type(obj).__mro__:
+        slots = getattr(cls, "__slots__", ())
+        for slot in (slots,) if isinstance(slots, str) else slots:
+            if slot in ("__dict__", "__weakref__"):
+                continue
+            stored = f"_{cls.__name__.lstrip('_')}{slot}" if slot.startswith("__") else slot
+            if stored not in fields and hasattr(obj, stored):
+                fields[stored] = getattr(obj, stored)
+    return fields
+
+
+def read_only(value: Any, _depth: int = 0) -> Any:
+    """``value`` with no route to write an array it reaches (module docstring, "Nothing it returns can write the
+    env"): itself where it has none, else a copy that has none.
+
+    An array read-only down its ``.base`` chain is itself; any other array is a read-only copy in the same
+    memory layout (``order="K"``: the same values, and the same results of any arithmetic on them). Tuples
+    (named ones as their type), lists (as tuples) and mappings (as read-only proxies) are gated item by
+    item; agent views, numbers, strings and callables are themselves; any other object is a record: where a
+    field it holds (``__dict__``, ``__slots__``) changes, a shallow copy holding the gated fields.
+    """
+    if isinstance(value, (AgentView, *_IMMUTABLE)):
+        return value
+    if isinstance(value, np.ndarray):
+        if _has_no_write_route(value):
+            return value
+        out = np.array(value, copy=True, order="K")
+        out.flags.writeable = False
+        return out
+    if _depth >= _MAX_DEPTH:
+        return value
+    if isinstance(value, (tuple, list)):
+        items = [read_only(v, _depth + 1) for v in value]
+        if isinstance(value, tuple) and all(a is b for a, b in zip(items, value, strict=True)):
+            return value
+        return type(value)(*items) if isinstance(value, tuple) and hasattr(value, "_fields") else tuple(items)
+    if isinstance(value, Mapping):
+        return MappingProxyType({k: read_only(v, _depth + 1) for k, v in value.items()})
+    if isinstance(value, type) or callable(value):
+        return value
+    fields = _record_fields(value)
+    gated = {k: read_only(v, _depth + 1) for k, v in fields.items()}
+    changed = {k: v for k, v in gated.items() if v is not fields[k]}
+    if not changed:
+        return value
+    out = copy.copy(value)
+    for k, v in changed.items():
+        object.__setattr__(out, k, v)
+    return out
 
 
 def _value(name: str) -> property:
@@ -229,17 +319,17 @@ def _view(
             if name not in allowed_values:
                 raise AttributeError(name)
             value = getattr(outer.get(name, source), name)
-            return value if wrap is None else wrap(name, value)
+            return read_only(value if wrap is None else wrap(name, value))
         if name not in allowed_methods:
             raise AttributeError(name)
-        return getattr(source, name)(*args, **(kwargs or {}))
+        return read_only(getattr(source, name)(*args, **(kwargs or {})))
 
     return _view_class(what, shown, callable_)(access)
 
 
 def _condition_view(condition: Any, sphere_hidden: bool) -> AgentView:
     fields = TANK_FIELDS if sphere_hidden else SPHERE_FIELDS + TANK_FIELDS
-    return _view("agent view of the condition", condition, fields, ())
+    return _view("agent view of the condition", condition, fields, () if sphere_hidden else SPHERE_METHODS)
 
 
 def agent_view(env: Any) -> AgentView:

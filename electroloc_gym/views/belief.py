@@ -45,11 +45,12 @@ class BeliefView:
         unknown-target env (M, 4) hypotheses (x mm, y mm, radius mm, χ), a read-only copy.
         """
         s, i = self._state, self._index
-        v = (
-            s.particles_mm[i].T
-            if s.shape_particles.shape[1] == 0
-            else np.concatenate([s.particles_mm[i], s.shape_particles[i]]).T
-        )
+        if s.shape_particles.shape[1] == 0:
+            v = s.particles_mm[i].T
+        else:
+            c = np.concatenate([s.particles_mm[i], s.shape_particles[i]])
+            c.flags.writeable = False  # the copy too: nothing under the returned array can be written
+            v = c.T
         v.flags.writeable = False
         return v
 
