@@ -307,3 +307,117 @@ def test_global_env_runs_the_policy_trained_on_it() -> None:
 
     assert _runs_on_global("ppo-belief-global") and _runs_on_global("min-var")
     assert not _runs_on_global("ppo-belief") and not _runs_on_global("zero-crossing")
+
+
+# ---- a plug-in agent's code, whatever raises: one line naming the agent and the attribute ----------------------
+PLUG_MODULE = '''
+import numpy as np
+
+
+def _boom(error):
+    raise {"runtime": RuntimeError, "attribute": AttributeError, "exit": SystemExit}[error]("boom\\nsecond line")
+
+
+class Plain:
+    def reset(self, env):
+        pass
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return np.array([0.5, 0.0], dtype=np.float32), state
+
+
+def make(broken="", how="property", error="runtime", done=False):
+    """An agent whose attribute ``broken`` raises when read (``how="property"``) or called (``"method"``)."""
+    if broken == "factory":
+        _boom(error)
+    attrs = {}
+    if done:  # an agent that ends its trials itself: its estimate is read
+        attrs["done"] = True
+    if how == "property":
+        attrs[broken] = property(lambda self: _boom(error))
+    else:
+        attrs[broken] = lambda self, *args, **kwargs: _boom(error)
+    return type("Plug", (Plain,), attrs)()
+'''
+
+#: Every attribute and method of the agent protocol the benchmark reads (its checks, the rollout loop, the
+#: trial record): (attribute, read or called, what the one line says, make()'s other options).
+PROTOCOL_FAILURES = [
+    ("factory", "method", "make(broken='factory') raised RuntimeError: boom", {}),
+    ("env_kwargs", "property", "reading its env_kwargs raised RuntimeError: boom", {}),
+    ("env_kwargs", "property", "reading its env_kwargs raised AttributeError: boom", {"error": "attribute"}),
+    ("name", "property", "reading its name raised RuntimeError: boom", {}),
+    ("table_layout", "property", "reading its table_layout raised RuntimeError: boom", {}),
+    ("adapt_condition", "property", "reading its adapt_condition raised RuntimeError: boom", {}),
+    ("sensor_layouts", "property", "reading its sensor_layouts raised RuntimeError: boom", {}),
+    ("memory_bytes", "method", "its memory_bytes() raised RuntimeError: boom", {}),
+    ("depth", "property", "reading its depth raised RuntimeError: boom", {}),
+    ("decision_seconds", "method", "its decision_seconds() raised RuntimeError: boom", {}),
+    ("seed", "method", "its seed() raised RuntimeError: boom", {}),
+    ("seed", "property", "reading its seed raised SystemExit: boom", {"error": "exit"}),
+    ("reset", "method", "its reset() raised RuntimeError: boom", {}),
+    ("reset", "property", "reading its reset raised RuntimeError: boom", {}),
+    ("predict", "method", "its predict() raised RuntimeError: boom", {}),
+    ("predict", "property", "reading its predict raised RuntimeError: boom", {}),
+    ("done", "property", "reading its done raised RuntimeError: boom", {}),
+    ("estimate_mm", "property", "reading its estimate_mm raised RuntimeError: boom", {"done": True}),
+]
+
+
+@pytest.fixture
+def plug_module(tmp_path, monkeypatch):
+    import importlib
+
+    from electroloc_gym.bench import agents
+
+    (tmp_path / "ba_plug_agents.py").write_text(PLUG_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    sys.modules.pop("ba_plug_agents", None)
+    importlib.invalidate_caches()
+    agents._CACHE.clear()
+    yield "ba_plug_agents"
+    sys.modules.pop("ba_plug_agents", None)
+    agents._CACHE.clear()
+
+
+def _options(attr: str, how: str, extra: dict) -> str:
+    opts = {"broken": attr, **({} if attr == "factory" else {"how": how}), **extra}
+    return ",".join(f"{k}={v!r}" for k, v in opts.items())
+
+
+@pytest.mark.parametrize(
+    "attr,how,says,extra", PROTOCOL_FAILURES, ids=[f"{r[0]}-{r[1]}-{i}" for i, r in enumerate(PROTOCOL_FAILURES)]
+)
+def test_any_plug_in_attribute_that_raises_is_one_line_naming_the_agent_and_the_attribute(
+    plug_module, tmp_path, capsys, attr, how, says, extra
+) -> None:
+    spec = f"{plug_module}:make[{_options(attr, how, extra)}]"
+    code = cli_main(["bench", "--agents", spec, *FAST, "--backend", "serial", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert f"agent {spec!r}" in err and says in err and "second line" not in err, err
+
+
+@pytest.mark.parametrize("attr,how,says,extra", [r for r in PROTOCOL_FAILURES if r[0] != "factory"])
+def test_an_agent_object_whose_attribute_raises_is_one_value_error(
+    plug_module, tmp_path, attr, how, says, extra
+) -> None:
+    import importlib
+
+    from electroloc_gym.bench.api import run
+
+    agent = importlib.import_module(plug_module).make(broken=attr, how=how, **extra)
+    with pytest.raises(ValueError) as info:
+        run(
+            [agent],
+            conditions=["fresh-steel-12.7"],
+            trials=1,
+            n_particles=100,
+            max_observations=4,
+            sensor_model="analytic",
+            out=tmp_path / "out",
+            progress=False,
+            log=None,
+        )
+    text = str(info.value)
+    assert "\n" not in text and says in text, text

@@ -13,6 +13,15 @@ An agent *spec* (what ``--agents`` takes, and the ``agent`` key of every trial r
   factory called with the options, and the object it returns must have the agent protocol
   (:func:`protocol_problem`). Importing the module runs its code, as ``import`` would.
 
+A plug-in agent (a factory's object, or an object handed to the Python API) runs behind
+:class:`PluginAgent`: every attribute the benchmark reads of it — ``env_kwargs``, ``name``, ``reset``,
+``predict``, ``seed``, ``done``, ``table_layout``, ``sensor_layouts``, ``estimate_mm``, the cost estimates,
+whatever a check or a trial reads — goes through one guard, so an exception in its code (a property that
+raises, any exception type, ``SystemExit`` included) is one :class:`AgentAttributeError` naming the
+attribute, as a method that raises is one :class:`~electroloc_gym.baselines.rollout.AgentCallError` naming
+the method; the checks before a run (:func:`make_factory_agent`, :func:`register_object_agent`, the runner's)
+turn either into one ``ValueError`` naming the spec, a trial into one line naming the spec and the trial.
+
 Specs are parsed by the package's one parser (:mod:`electroloc_gym.utils.agentspec`), once per process:
 :func:`resolve_agent` turns a spec's text into an :class:`AgentRef` (its kind and parsed form) that
 everything else here reads. The built-in controllers' names are the baselines' registry's
@@ -33,12 +42,14 @@ from __future__ import annotations
 
 import importlib
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from electroloc_gym.baselines.agent import AGENT_NAMES, make_agent
 from electroloc_gym.baselines.base import layout_problem  # the agents' layout rule (re-exported: the registry's API)
+from electroloc_gym.baselines.rollout import AgentCallError, exception_line
 from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
     AGENT_ENV_KWARGS,
     bench_env_kwargs,
@@ -52,7 +63,10 @@ from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (r
 from electroloc_gym.utils.agentspec import AgentSpec, is_path_like, parse_agent_spec
 
 __all__ = [
+    "AgentAttributeError",
     "AgentRef",
+    "PluginAgent",
+    "call_agent",
     "resolve_agent",
     "builtin_agent",
     "plug_in_problem",
@@ -83,6 +97,86 @@ TRAIN_EXTRA_HINT = "pip install 'electroloc-gym[train]'"
 def is_policy_path(spec: str) -> bool:
     """True when ``spec`` is written as a path (``/``, leading ``.`` or ``~``, ``.zip``) or is a folder."""
     return is_path_like(spec) or Path(spec).is_dir()
+
+
+class AgentAttributeError(AgentCallError):
+    """Reading an attribute of a plug-in agent raised: ``reading its ATTRIBUTE raised Type: first line``.
+
+    An :class:`~electroloc_gym.baselines.rollout.AgentCallError` (``method`` holds the attribute's name), so
+    whatever reports an agent's failing method reports it the same way.
+    """
+
+    def __init__(self, method: str, error: str) -> None:
+        Exception.__init__(self, f"reading its {method} raised {error}")
+        self.method, self.error = method, error
+
+    def __reduce__(self) -> tuple[Any, ...]:  # picklable across worker processes
+        return (AgentAttributeError, (self.method, self.error))
+
+
+_ABSENT = object()
+
+
+def _declared(agent: Any, name: str) -> bool:
+    """``agent`` has ``name`` without running its code (an instance or class attribute, a property)."""
+    try:
+        return inspect.getattr_static(agent, name, _ABSENT) is not _ABSENT
+    except Exception:  # noqa: BLE001 - a class that cannot even be inspected: nothing is declared
+        return False
+
+
+class PluginAgent:
+    """A plug-in agent behind the benchmark's guard: attribute reads forwarded, their exceptions one line.
+
+    Reading ``proxy.x`` reads ``agent.x``. An absent attribute is an ``AttributeError`` as usual (so
+    ``getattr(agent, "done", False)`` and ``hasattr`` keep their meaning); anything else the read raises —
+    a property's exception of any type, an ``AttributeError`` raised inside a declared property,
+    ``SystemExit`` — is one :class:`AgentAttributeError` naming the attribute (``KeyboardInterrupt`` passes).
+    Methods are the agent's own bound methods: what they raise is reported where they are called
+    (:func:`call_agent`, the rollout loop's guard). Attribute writes go to the agent.
+    """
+
+    __slots__ = ("_agent",)
+
+    def __init__(self, agent: Any) -> None:
+        object.__setattr__(self, "_agent", agent)
+
+    def __getattr__(self, name: str) -> Any:
+        agent = object.__getattribute__(self, "_agent")
+        try:
+            return getattr(agent, name)
+        except KeyboardInterrupt:
+            raise
+        except AttributeError as exc:
+            if _declared(agent, name):  # declared, yet reading it failed: the agent's code raised
+                raise AgentAttributeError(name, exception_line(exc)) from None
+            raise
+        except BaseException as exc:  # noqa: BLE001 - the plug-in's failure, whatever it is, becomes one line
+            raise AgentAttributeError(name, exception_line(exc)) from None
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        setattr(object.__getattribute__(self, "_agent"), name, value)
+
+    def __repr__(self) -> str:
+        return f"PluginAgent({type(object.__getattribute__(self, '_agent')).__name__})"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (PluginAgent, (object.__getattribute__(self, "_agent"),))
+
+    @property
+    def wrapped(self) -> Any:
+        """The agent object itself."""
+        return object.__getattribute__(self, "_agent")
+
+
+def call_agent(method: str, fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)``, an agent's method: any exception it raises is one :class:`AgentCallError` naming ``method``."""
+    try:
+        return fn(*args)
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - the agent's failure, whatever it is, becomes one line
+        raise AgentCallError(method, exception_line(exc)) from None
 
 
 #: Agent objects handed to the Python API (:func:`electroloc_gym.bench.api.run`), by the name they run under.
@@ -160,10 +254,14 @@ def register_object_agent(name: str, agent: Any) -> None:
         raise ValueError(
             f"agent object name {name!r} must be a plain name other than the built-in agents' and shipped models'"
         )
-    why = protocol_problem(agent)
+    guarded = agent if isinstance(agent, PluginAgent) else PluginAgent(agent)
+    try:
+        why = protocol_problem(guarded)
+    except AgentCallError as exc:
+        raise ValueError(f"agent object {name!r} ({type(guarded.wrapped).__name__}): {exc}") from None
     if why is not None:
-        raise ValueError(f"agent object {name!r} ({type(agent).__name__}) is not an agent: it lacks {why}")
-    _OBJECTS[name] = agent
+        raise ValueError(f"agent object {name!r} ({type(guarded.wrapped).__name__}) is not an agent: it lacks {why}")
+    _OBJECTS[name] = guarded
     _REFS.pop(name, None)
     for key in [k for k in _CACHE if k[0] == name]:
         del _CACHE[key]
@@ -210,9 +308,12 @@ def protocol_problem(agent: Any) -> str | None:
 def make_factory_agent(spec: str | AgentSpec) -> Any:
     """Import ``package.module``, call ``factory(**options)`` and check the agent protocol.
 
+    Returns:
+        the object, behind the guard (:class:`PluginAgent`).
+
     Raises:
         ValueError: the module does not import, has no such callable, the factory raises, or its
-            object lacks the protocol — one line naming the spec.
+            object lacks the protocol (or reading it raises) — one line naming the spec.
     """
     parsed = spec if isinstance(spec, AgentSpec) else parse_agent_spec(spec)
     try:
@@ -220,23 +321,29 @@ def make_factory_agent(spec: str | AgentSpec) -> Any:
     except Exception as exc:  # noqa: BLE001 - any import failure is the user's module's, reported in one line
         raise ValueError(
             f"agent {parsed.text!r}: cannot import module {parsed.module!r} "
-            f"({type(exc).__name__}: {exc}); it must be installed or on PYTHONPATH"
+            f"({exception_line(exc)}); it must be installed or on PYTHONPATH"
         ) from None
     factory = getattr(module, parsed.factory, None)
     if not callable(factory):
         raise ValueError(f"agent {parsed.text!r}: module {parsed.module!r} has no callable {parsed.factory!r}")
     try:
         agent = factory(**parsed.options)
-    except Exception as exc:  # noqa: BLE001 - the user's factory: any failure is reported in one line
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - the user's factory: any failure is reported in one line
         call = f"{parsed.name}({', '.join(f'{k}={v!r}' for k, v in parsed.options.items())})"
-        raise ValueError(f"agent {parsed.text!r}: {call} raised {type(exc).__name__}: {exc}") from None
-    why = protocol_problem(agent)
+        raise ValueError(f"agent {parsed.text!r}: {call} raised {exception_line(exc)}") from None
+    guarded = PluginAgent(agent)
+    try:
+        why = protocol_problem(guarded)
+    except AgentCallError as exc:
+        raise ValueError(f"agent {parsed.text!r}: {exc}") from None
     if why is not None:
         raise ValueError(
             f"agent {parsed.text!r}: the {type(agent).__name__} object {parsed.name} returned is not an "
             f"agent: it lacks {why}"
         )
-    return agent
+    return guarded
 
 
 def agent_display_name(spec: str) -> str:
@@ -308,10 +415,13 @@ def planner_memory_bytes(agent: Any, n_particles: int) -> int:
     predicted readings (float32 (x, y) pairs, float64 means and deviations: ≈ 24 bytes each) and about
     four (C·K, B, S) float64 arrays of the futures' weights (``lookahead_objectives.sequence_costs``),
     with S its subsample of the run's particles.
+
+    Raises:
+        AgentCallError: the agent's ``memory_bytes`` raised, or reading one of those attributes did.
     """
     own = getattr(agent, "memory_bytes", None)
     if callable(own):
-        bytes_: Any = own(n_particles)  # the agent's own figure, any int-like
+        bytes_: Any = call_agent("memory_bytes", own, n_particles)  # the agent's own figure, any int-like
         return int(bytes_)
     try:
         depth, k, c, b = int(agent.depth), int(agent.n_options), int(agent.continuations), int(agent.branches)
@@ -345,10 +455,15 @@ def builtin_agent(spec: str) -> Any | None:
 
 
 def decision_seconds(agent: Any, n_particles: int) -> float:
-    """The agent's own estimate of one decision's time, s (``decision_seconds(n_particles)``; 0: none)."""
+    """The agent's own estimate of one decision's time, s (``decision_seconds(n_particles)``; 0: none, or
+    not a number).
+
+    Raises:
+        AgentCallError: the agent's ``decision_seconds`` raised.
+    """
     own = getattr(agent, "decision_seconds", None)
+    seconds: Any = call_agent("decision_seconds", own, n_particles) if callable(own) else 0.0
     try:
-        seconds: Any = own(n_particles) if callable(own) else 0.0  # the agent's own figure, any float-like
-        return float(seconds)
+        return float(seconds)  # the agent's own figure, any float-like
     except (TypeError, ValueError, OverflowError):
         return 0.0

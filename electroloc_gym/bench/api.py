@@ -24,7 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.bench.agents import register_object_agent, shipped_models
+from electroloc_gym.baselines.rollout import AgentCallError
+from electroloc_gym.bench.agents import PluginAgent, register_object_agent, shipped_models
 from electroloc_gym.bench.config import ENV_CHOICES, BenchConfig
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.world.conditions import DEFAULT_SIGNAL
@@ -48,7 +49,13 @@ class BenchResult:
 
 
 def _object_name(agent: Any, taken: set[str]) -> str:
-    raw = str(getattr(agent, "name", "") or type(agent).__name__)
+    try:
+        raw = str(PluginAgent(agent).name)
+    except AttributeError:  # no name: its class's
+        raw = ""
+    except AgentCallError as exc:
+        raise ValueError(f"agent object {type(agent).__name__}: {exc}") from None
+    raw = raw or type(agent).__name__
     base = re.sub(r"[^A-Za-z0-9_\-]+", "-", raw).strip("-") or "agent"
     name, k = base, 2
     while name in taken:

@@ -21,7 +21,9 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.baselines.agent import AGENT_NAMES, BaselineAgent, agent_class
+from electroloc_gym.baselines.rollout import AgentCallError, exception_line
 from electroloc_gym.bench.agents import (
+    AgentRef,
     agent_display_name,
     cached_agent,
     decision_seconds,
@@ -126,45 +128,62 @@ def _check_agents(config: BenchConfig, trust_pickle: bool) -> tuple[str, list[st
     for spec in config.agents:
         ref = resolve_agent(spec)
         agent = cached_agent(ref, trust_pickle=trust_pickle)
-        kind = ref.kind
-        if not ref.builtin:
-            why = plug_in_problem(agent)
-            if why is not None:
-                raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
-        why = layout_problem(agent, config.sensor_layout)
-        if why is not None:
-            raise ValueError(
-                f"agent {spec!r} cannot run with --sensor-layout {config.sensor_layout or 'single'}: {why}"
-            )
         try:
-            need = planner_memory_bytes(agent, config.n_particles)
-        except Exception as exc:  # noqa: BLE001 - a plug-in agent's own estimate: any failure is one line
-            raise ValueError(f"agent {spec!r}: its memory_bytes() raised {type(exc).__name__}: {exc}") from None
-        if need > _memory_budget():
-            raise ValueError(
-                f"agent {spec!r} needs ≈{need / 2**30:.3g} GiB per decision with {config.n_particles} "
-                f"particles; this machine has ≈{_memory_budget() / 2**30:.3g} GiB to spare: choose "
-                f"smaller options"
-            )
-        slow = decision_seconds(agent, config.n_particles)
-        if slow > SLOW_DECISION_S:
-            warnings.append(
-                f"electroloc bench: warning: agent {spec!r} takes ≈{slow:.3g} s per decision by its own "
-                f"estimate (up to {config.max_observations} decisions a trial, {config.trials} trial(s) "
-                f"per condition): choose smaller options for a shorter run"
-            )
-        probe_env(config, spec, agent)
-        if kind in ("baseline", "factory", "object"):
-            described.append(spec)
-            continue
-        why = policy_env_problem(spec, agent, config.env_id, config.gain_levels, config.sensor_layout)
+            text, warning = _check_agent(config, ref, agent)
+        except AgentCallError as exc:  # the agent's own code raised: a method, or reading an attribute
+            raise ValueError(f"agent {spec!r}: {exc}") from None
+        described.append(text)
+        if warning is not None:
+            warnings.append(warning)
+    return "agents: " + "; ".join(described), warnings
+
+
+def _check_agent(config: BenchConfig, ref: AgentRef, agent: Any) -> tuple[str, str | None]:
+    """:func:`_check_agents` for one agent: what runs, and a warning (or None).
+
+    Raises:
+        ValueError: the agent cannot run on this benchmark.
+        AgentCallError: the agent's own code raised (a plug-in agent's attributes are read through
+            :class:`~electroloc_gym.bench.agents.PluginAgent`).
+    """
+    spec, kind, warning = ref.text, ref.kind, None
+    if not ref.builtin:
+        why = plug_in_problem(agent)
         if why is not None:
             raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
-        described.append(
-            f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
-            f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)"
+    why = layout_problem(agent, config.sensor_layout)
+    if why is not None:
+        raise ValueError(f"agent {spec!r} cannot run with --sensor-layout {config.sensor_layout or 'single'}: {why}")
+    try:
+        need = planner_memory_bytes(agent, config.n_particles)
+    except AgentCallError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - an estimate that is not a number: one line
+        raise ValueError(f"agent {spec!r}: its memory_bytes() gave no byte count ({exception_line(exc)})") from None
+    if need > _memory_budget():
+        raise ValueError(
+            f"agent {spec!r} needs ≈{need / 2**30:.3g} GiB per decision with {config.n_particles} "
+            f"particles; this machine has ≈{_memory_budget() / 2**30:.3g} GiB to spare: choose "
+            f"smaller options"
         )
-    return "agents: " + "; ".join(described), warnings
+    slow = decision_seconds(agent, config.n_particles)
+    if slow > SLOW_DECISION_S:
+        warning = (
+            f"electroloc bench: warning: agent {spec!r} takes ≈{slow:.3g} s per decision by its own "
+            f"estimate (up to {config.max_observations} decisions a trial, {config.trials} trial(s) "
+            f"per condition): choose smaller options for a shorter run"
+        )
+    probe_env(config, spec, agent)
+    if kind in ("baseline", "factory", "object"):
+        return spec, warning
+    why = policy_env_problem(spec, agent, config.env_id, config.gain_levels, config.sensor_layout)
+    if why is not None:
+        raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
+    text = (
+        f"{agent_display_name(spec)} (learned policy: {spec if kind == 'path' else 'shipped'}, "
+        f"{getattr(agent, 'env_kwargs', {}).get('observation', '?')} observation)"
+    )
+    return text, warning
 
 
 def _lost_text(exc: WorkerLost) -> str:
