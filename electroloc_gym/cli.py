@@ -3,12 +3,20 @@
 Sub-commands are small; heavy modules (the benchmark runner, training with torch) are imported only
 when their sub-command runs, so ``electroloc detect`` starts fast and never imports torch. Help texts
 are plain text and show every option's default.
+
+Exit statuses: 0 done; 2 with one ``electroloc CMD: error: …`` line for bad input (refused before any work)
+and for a run that cannot go on (an agent that raises, a file system that refuses a write); 130
+interrupted. A file system's refusal (a full disk, a quota, a read-only or failing disk: any ``OSError``
+out of a command) is reported at one place, :func:`main`: the file and the system's reason, and for the
+commands that keep their records (``bench``, ``dataset``) that they are kept and ``--resume`` continues.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import math
+import os
 import sys
 import textwrap
 from collections.abc import Sequence
@@ -28,7 +36,15 @@ from electroloc_gym.world.conditions import (
 )
 from electroloc_gym.world.sensor import zero_crossing_mm
 
-__all__ = ["main", "detection_table", "quiet_tank_table", "parse_noise_factor", "build_parser", "HelpFormatter"]
+__all__ = [
+    "main",
+    "os_error_line",
+    "detection_table",
+    "quiet_tank_table",
+    "parse_noise_factor",
+    "build_parser",
+    "HelpFormatter",
+]
 
 DESCRIPTION = (
     "Gymnasium environments of the active-electrolocation robot of Solberg, Lynch & MacIver (IJRR 2008): "
@@ -244,11 +260,7 @@ def _cmd_detect(args: argparse.Namespace) -> int:
     if factor is not None:
         _quiet_tank_report(factor, args.json)
         if args.plot is not None:
-            try:
-                _plot_quiet_tank(args.plot, factor)
-            except OSError as exc:
-                print(f"electroloc detect: error: cannot write --plot {args.plot}: {exc}", file=sys.stderr)
-                return 2
+            _plot_quiet_tank(args.plot, factor)  # a refused write: one line from main()
             if not args.json:
                 print(f"wrote {args.plot}")
         return 0
@@ -321,7 +333,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
     try:
         ep = demo(condition=args.condition, sensor_model=args.sensor_model, seed=args.seed, out=args.out, gif=args.gif)
-    except (ValueError, OSError) as exc:
+    except ValueError as exc:
         print(f"electroloc demo: error: {exc}", file=sys.stderr)
         return 2
     info = ep.final_info
@@ -439,14 +451,48 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:  # a bad $ELECTROLOC_THREADS
         print(f"electroloc: error: {exc}", file=sys.stderr)
         return 2
-    if argv and argv[0] == "train":  # its own parser; it names the zoo extra when rl-zoo3 is missing
-        from electroloc_gym.train.__main__ import main as train_main
+    args: argparse.Namespace | None = None
+    try:
+        if argv and argv[0] == "train":  # its own parser; it names the zoo extra when rl-zoo3 is missing
+            from electroloc_gym.train.__main__ import main as train_main
 
-        return int(train_main(argv[1:]) or 0)
-    args = build_parser().parse_args(argv)
-    if getattr(args, "threads", None) is not None:
-        pin_threads(args.threads)
-    return int(args.func(args) or 0)
+            return int(train_main(argv[1:]) or 0)
+        args = build_parser().parse_args(argv)
+        if getattr(args, "threads", None) is not None:
+            pin_threads(args.threads)
+        return int(args.func(args) or 0)
+    except OSError as exc:  # the one place a file system's refusal is reported, for every command
+        command = args.command if args is not None else (argv[0] if argv else "")
+        print(os_error_line(command, exc, args), file=sys.stderr)
+        return 2
+
+
+#: The errors of a write the file system refused (the others are reported as the system words them).
+WRITE_ERRNOS = frozenset(
+    getattr(errno, name) for name in ("ENOSPC", "EDQUOT", "EROFS", "EFBIG", "EIO") if hasattr(errno, name)
+)
+
+
+def os_error_line(command: str, exc: OSError, args: argparse.Namespace | None = None) -> str:
+    """The one line of an ``OSError`` out of ``command``: the file and the system's reason; for a command
+    that keeps its records as it goes (``bench``: ``OUT/trials.jsonl``; ``dataset``: its episodes), that
+    they are kept and ``--resume`` continues once the cause is fixed.
+    """
+    prog = f"electroloc {command}".strip()
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    if exc.filename is not None:
+        where = f"{'cannot write ' if exc.errno in WRITE_ERRNOS else ''}{os.fsdecode(exc.filename)}: "
+    else:
+        where = "cannot write: " if exc.errno in WRITE_ERRNOS else ""
+    kept = ""
+    if command == "bench" and args is not None:
+        records = os.path.join(os.fspath(args.out), "trials.jsonl")
+        kept = f"; the finished trials are kept in {records} (a line cut short is set aside)"
+    elif command == "dataset":
+        kept = "; the episodes collected so far are kept (one cut short is set aside)"
+    if kept:
+        kept += ": free space or fix the cause, then run the same command with --resume"
+    return f"{prog}: error: {where}{reason}{kept}"
 
 
 if __name__ == "__main__":

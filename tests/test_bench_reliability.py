@@ -3,6 +3,8 @@ killed at random points then resumed."""
 
 from __future__ import annotations
 
+import errno
+import io
 import json
 import os
 import random
@@ -57,6 +59,90 @@ def test_read_only_out_folder(tmp_path) -> None:
             prepare_out_dir(ro / "sub")
     finally:
         ro.chmod(0o755)
+
+
+# ---- a full disk ------------------------------------------------------------------------------------------
+class _FullDisk(io.FileIO):
+    """A file on a disk with ``room`` bytes left: the write that reaches it is cut short, the next one fails
+    with ENOSPC — what the kernel does (no file name in the error, as Python's buffered writes raise it)."""
+
+    def __init__(self, file, mode: str, room: int) -> None:
+        super().__init__(file, mode)
+        self.room = room
+
+    def write(self, b) -> int:
+        if self.room <= 0:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        part = bytes(b)[: self.room]
+        self.room -= len(part)
+        return super().write(part)
+
+
+def _fill_disk(monkeypatch, name: str, room: int) -> None:
+    """Writes to the file ``name`` (or to its temporary file, ``.name.*.tmp``) get ``room`` bytes, then ENOSPC:
+    trials.jsonl's appends through the records writer's open(), the atomic writes through os.fdopen."""
+    import builtins
+
+    import electroloc_gym.bench.records as records
+
+    def fd_name(fd: int) -> str:
+        return Path(os.readlink(f"/proc/self/fd/{fd}")).name
+
+    real_open, real_fdopen = builtins.open, os.fdopen
+
+    def fake_open(file, mode="r", *args, **kwargs):
+        if Path(file).name == name and "a" in mode:
+            return io.TextIOWrapper(io.BufferedWriter(_FullDisk(file, "a", room)), encoding=kwargs.get("encoding"))
+        return real_open(file, mode, *args, **kwargs)
+
+    def fake_fdopen(fd, mode="r", *args, **kwargs):
+        if fd_name(fd).startswith(f".{name}.") and "w" in mode:
+            return io.BufferedWriter(_FullDisk(fd, "w", room))
+        return real_fdopen(fd, mode, *args, **kwargs)
+
+    monkeypatch.setattr(records, "open", fake_open, raising=False)
+    monkeypatch.setattr(os, "fdopen", fake_fdopen)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/fd")
+@pytest.mark.parametrize("name, room", [("trials.jsonl", 1500), ("summary.json", 100)])
+def test_a_full_disk_is_one_line_and_resume_gives_the_uninterrupted_records(tmp_path, capsys, monkeypatch, name, room):
+    """A disk that fills while the records (a line torn half-way) or the summary are written: one line naming
+    the file and the system's reason, saying the finished trials are kept and --resume continues; exit 2, no
+    traceback. Once space is free, --resume ends with the records of an uninterrupted run."""
+    out = tmp_path / "out"
+    argv = ["bench", *TINY_CLI, "--backend", "serial", "--out", str(out)]
+    with monkeypatch.context() as m:
+        _fill_disk(m, name, room)
+        code = cli_main(argv)
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("electroloc bench: error: cannot write ") and name in lines[0], lines
+    for words in ("No space left on device", f"{out / 'trials.jsonl'}", "kept", "--resume"):
+        assert words in lines[0], (words, lines[0])
+    assert cli_main([*argv, "--resume"]) == 0
+    reference = tmp_path / "reference"
+    run_tiny(reference)
+    assert strip_timing(read_trials(out / "trials.jsonl")) == strip_timing(read_trials(reference / "trials.jsonl"))
+    assert (out / "table.md").exists() and (out / "summary.json").exists()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/fd")
+def test_a_full_disk_under_a_figure_is_one_line(tmp_path, capsys, monkeypatch) -> None:
+    """A command without records (electroloc eev): one line naming the file and the reason, exit 2, and the
+    file it would have replaced left as it was (atomic writes)."""
+    png = tmp_path / "eev.png"
+    png.write_bytes(b"old")
+    with monkeypatch.context() as m:
+        _fill_disk(m, "eev.png", 100)
+        code = cli_main(["eev", "--out", str(png)])
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith(f"electroloc eev: error: cannot write {png}: No space left on device"), lines
+    assert "--resume" not in lines[0] and png.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["eev.png"]  # no temporary file left
 
 
 # ---- the lock ----------------------------------------------------------------------------------------------

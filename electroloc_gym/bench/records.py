@@ -50,6 +50,7 @@ from electroloc_gym.utils.fileio import (
     FolderLock,
     atomic_write_text,
     check_output_folder,
+    naming_file,
     probe_write,
     strict_json,
 )
@@ -404,12 +405,14 @@ class RecordWriter:
         self._fh = open(self.path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()/__exit__
 
     def write(self, rec: dict[str, Any]) -> None:
-        self._fh.write(strict_json(rec, indent=None))
-        self._fh.flush()
-        os.fsync(self._fh.fileno())
+        with naming_file(self.path):  # a full disk names the file (the CLI reports it in one line)
+            self._fh.write(strict_json(rec, indent=None))
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
 
     def close(self) -> None:
-        self._fh.close()
+        with naming_file(self.path):
+            self._fh.close()
 
     def __enter__(self) -> RecordWriter:
         return self

@@ -21,7 +21,8 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from stat import S_ISLNK
 from typing import Any
@@ -34,6 +35,7 @@ __all__ = [
     "check_output_folder",
     "check_output_options",
     "probe_write",
+    "naming_file",
     "atomic_write_bytes",
     "atomic_write_text",
     "save_figure_atomic",
@@ -207,13 +209,36 @@ def probe_write(folder: str | os.PathLike[str]) -> None:
     os.unlink(probe)
 
 
+@contextmanager
+def naming_file(path: str | os.PathLike[str]) -> Iterator[None]:
+    """An ``OSError`` raised inside names ``path`` when it names no file (a full disk reported by a buffered
+    write or an fsync carries none), so the one place that reports it can say which file it was.
+    """
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename is None:
+            exc.filename = os.fspath(path)
+        raise
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, durable: bool = True) -> None:
-    """Write ``data`` to ``path`` atomically (parent folders are created).
+    """Write ``data`` to ``path`` atomically (parent folders are created); an ``OSError`` names ``path``
+    (rather than its temporary file).
 
     ``durable=False`` skips the fsync: the replacement is as atomic for a killed process; only a crash of
     the machine can lose it.
     """
     p = Path(path)
+    try:
+        _atomic_write_bytes(p, data, durable)
+    except OSError as exc:  # the target's name, not its temporary file's
+        if exc.filename is None or Path(os.fspath(exc.filename)).name.startswith(f".{p.name}."):
+            exc.filename, exc.filename2 = os.fspath(path), None
+        raise
+
+
+def _atomic_write_bytes(p: Path, data: bytes, durable: bool) -> None:
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
     try:
