@@ -5,7 +5,8 @@
   the raw observation);
 * :mod:`.motion` — how an action becomes the carriage's move and how the walls stop it;
 * :mod:`.belief_summary` — the belief observation's scalars (declared as data) and the info's error and spread;
-* :mod:`.capabilities` — for each engine, each env option: implemented, or refused with its reason.
+* :mod:`.capabilities` — for each engine, each env option: implemented, or refused with its reason;
+* :mod:`.task_spec` — the declaration types of a task (its options, its per-env arrays).
 
 The engines (:mod:`electroloc_gym.engines`) read it; ``tests/test_engine_conformance.py`` checks that they keep it.
 """
