@@ -28,6 +28,7 @@ from torch.distributions import Normal
 
 import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0)
 from electroloc_gym.cli import HelpFormatter
+from electroloc_gym.utils.fileio import check_output_options
 from electroloc_gym.utils.runtime import pin_threads
 
 
@@ -67,6 +68,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     args = p.parse_args(argv)
     if args.num_envs < 1 or args.num_steps < 1 or args.total_timesteps < args.num_envs * args.num_steps:
         p.error("need num_envs ≥ 1, num_steps ≥ 1 and total_timesteps ≥ num_envs × num_steps")
+    check_output_options(p, files={"--save": args.save})  # before training, not after
     return args
 
 

@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import electroloc_gym.train.rllib as erl
+from electroloc_gym.utils.fileio import check_output_options
 from electroloc_gym.utils.runtime import pin_threads
 
 ENV_ID = "ElectroLoc-v0"
@@ -52,6 +53,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             p.error(f"--{name.replace('_', '-')} must be ≥ 1, got {getattr(args, name)}")
     if args.num_env_runners < 0:
         p.error(f"--num-env-runners must be ≥ 0, got {args.num_env_runners}")
+    check_output_options(p, folders={"--out": args.out})
     return args
 
 

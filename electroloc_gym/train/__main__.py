@@ -17,6 +17,7 @@ from typing import Any
 from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.train.run import ALGO_FILES, check_zoo_installed, train, zoo_argv
 from electroloc_gym.utils.agentspec import parse_options
+from electroloc_gym.utils.fileio import check_output_folder
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
 
 EPILOG = """examples:
@@ -59,6 +60,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     add_threads_argument(p)
     a = p.parse_args(argv)
     try:
+        for option, folder in (("--log-folder", a.log_folder), ("--out", a.out)):  # before training
+            if folder is not None:
+                check_output_folder(option, folder)
         kw: dict[str, Any] = dict(
             threads=pin_threads(a.threads),
             timesteps=a.timesteps,

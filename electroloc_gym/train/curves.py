@@ -127,6 +127,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="horizontal reference lines, e.g. min-var=0.58,7",
     )
     a = p.parse_args(argv)
+    from electroloc_gym.utils.fileio import check_output_options
+
+    check_output_options(p, files={"--out": a.out})
     refs = {}
     for item in a.reference:
         name, _, vals = item.partition("=")

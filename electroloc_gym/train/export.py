@@ -32,7 +32,7 @@ import yaml
 
 from electroloc_gym.policy.format import read_export, read_weights, write_export
 from electroloc_gym.policy.load import agent_from_export
-from electroloc_gym.utils.fileio import atomic_write_text, write_json_atomic
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_options, write_json_atomic
 
 __all__ = ["export_run", "main"]
 
@@ -193,6 +193,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--zip", default=None, help="convert this SB3 zip of the run instead of best/ (unpickles)")
     p.add_argument("--trust-pickle", action="store_true", help="allow --zip (only for runs you trust)")
     a = p.parse_args(argv)
+    check_output_options(p, folders={"--out": a.out})
     try:
         dest = export_run(a.run, a.out, zip_path=a.zip, trust_pickle=a.trust_pickle)
     except (ValueError, OSError) as exc:

@@ -44,6 +44,7 @@ from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.agents import bench_env_kwargs, make_bench_agent  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
 from electroloc_gym.world.sensor_array import SensorLayout, named_layout  # noqa: E402
@@ -268,6 +269,10 @@ def main() -> None:
     q.add_argument("--table", default="array_tradeoff.md")
     q.add_argument("--figure", default=None)
     args = p.parse_args()
+    if args.cmd == "run":
+        check_output_options(p, files={"--out": args.out})
+    else:
+        check_output_options(p, files={"--table": args.table, "--figure": args.figure})
     run(args) if args.cmd == "run" else report(args)
 
 

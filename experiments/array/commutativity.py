@@ -36,7 +36,7 @@ from scipy import stats  # noqa: E402
 from electroloc_gym.kernels.fusion import assimilate_readings, grid_posterior  # noqa: E402
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 from electroloc_gym.sensor_models.pairs import ArrayAnalyticSensorModel  # noqa: E402
-from electroloc_gym.utils.fileio import write_json_atomic  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options, write_json_atomic  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES, SIGNAL_CHOICES, get_condition  # noqa: E402
 from electroloc_gym.world.sensor_array import array_noisy_reading, named_layout  # noqa: E402
 
@@ -142,6 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--signal", default="fitted", choices=SIGNAL_CHOICES, help="the conditions' signal scale")
     ap.add_argument("--out", default=None, help="JSON file of the results")
     args = ap.parse_args(argv)
+    check_output_options(ap, files={"--out": args.out})
     report: dict[str, object] = {
         "seed": args.seed,
         "trials": args.trials,

@@ -37,6 +37,7 @@ from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.protocol import FAR_ERROR_MM, SUCCESS_SPREAD_MM  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES, get_condition  # noqa: E402
 
@@ -104,6 +105,7 @@ def main() -> None:
     p.add_argument("--budget", type=int, default=15)
     p.add_argument("--out", default=None, help="JSON of the traces and the summary")
     a = p.parse_args()
+    check_output_options(p, files={"--out": a.out})
     traces = [
         trace(agent, c, a.distractors, a.seed, k, a.budget)
         for k in range(a.trials)

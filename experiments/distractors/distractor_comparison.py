@@ -43,6 +43,7 @@ from electroloc_gym.bench.agents import shipped_models  # noqa: E402
 from electroloc_gym.bench.runner import BenchConfig, run_benchmark  # noqa: E402
 from electroloc_gym.protocol import FAR_ERROR_MM  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES  # noqa: E402
 
@@ -264,6 +265,7 @@ def main() -> None:
     p.add_argument("--plot", default=None)
     p.add_argument("--report-only", action="store_true", help="only summarise what is in --out")
     a = p.parse_args()
+    check_output_options(p, files={"--table": a.table, "--plot": a.plot}, folders={"--out": a.out})
     agents = [s for s in a.agents.split(",") if s]
     ds = [int(s) for s in a.distractors.split(",")]
     rounds = sorted({int(s) for s in a.rounds.split(",") if int(s) <= a.trials} | {a.trials})

@@ -17,6 +17,7 @@ import argparse
 
 import numpy as np
 
+from electroloc_gym.utils.fileio import check_output_options
 from electroloc_gym.world.conditions import get_condition
 from electroloc_gym.world.distractors import MAX_DISTRACTORS, DistractorDraw, DistractorSet, superposed_reading_V
 
@@ -28,6 +29,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=101)
     parser.add_argument("--out", default="docs/distractor_eev.png")
     args = parser.parse_args()
+    check_output_options(parser, files={"--out": args.out})
     if not 1 <= args.distractors <= MAX_DISTRACTORS:
         parser.error(f"--distractors must be in [1, {MAX_DISTRACTORS}]")
     import matplotlib

@@ -27,6 +27,7 @@ from electroloc_gym.baselines.agent import make_agent  # noqa: E402
 from electroloc_gym.baselines.eedi import EEDIAgent  # noqa: E402
 from electroloc_gym.protocol import MAX_STEP_MM  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options  # noqa: E402
 
 
 def main() -> None:
@@ -36,6 +37,7 @@ def main() -> None:
     parser.add_argument("--panels", type=int, default=4, help="readings shown (one panel each), 1–8")
     parser.add_argument("--out", default="docs/eedi_map.png")
     args = parser.parse_args()
+    check_output_options(parser, files={"--out": args.out})
     if not 1 <= args.panels <= 8:
         parser.error("--panels must be in [1, 8]")
     import matplotlib

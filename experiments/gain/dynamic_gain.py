@@ -39,6 +39,7 @@ from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
 from electroloc_gym.bench.config import trial_seeds  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import PRESET_NAMES, Condition, get_condition  # noqa: E402
 
@@ -84,6 +85,7 @@ def main() -> None:
     p.add_argument("--settings", nargs="+", default=["paper", "quiet", "quiet+daq"])
     p.add_argument("--plot", default=None, help="write a figure of the median readings per condition")
     args = p.parse_args()
+    check_output_options(p, files={"--plot": args.plot})
     levels = tuple(args.levels)
     results = {}
     with tqdm(total=len(args.settings) * len(PRESET_NAMES) * len(AGENTS) * args.trials, desc="episodes") as bar:

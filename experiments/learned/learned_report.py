@@ -420,6 +420,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--seed must be in [0, 2**32), got {args.seed}")
     if not args.results.is_dir():
         parser.error(f"results folder {str(args.results)!r} does not exist")
+    from electroloc_gym.utils.fileio import check_output_options
+
+    check_output_options(parser, folders={"results": args.results})  # report.md, report.json, figures
 
     envs = sorted(p.name for p in args.results.iterdir() if (p / BASELINES_DIR / "bench" / "summary.json").is_file())
     if not envs:

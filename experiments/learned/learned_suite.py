@@ -249,6 +249,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--list", action="store_true", help="print the plan and exit")
     args = parser.parse_args(argv)
+    from electroloc_gym.utils.fileio import check_output_options
+
+    check_output_options(parser, folders={"--out": args.out})
     try:
         seeds = tuple(int(s) for s in args.seeds.split(",") if s.strip())
     except ValueError:

@@ -26,7 +26,10 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from electroloc_gym.utils.fileio import atomic_write_text, check_output_path  # noqa: E402
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_options  # noqa: E402
+
+#: device_throughput.py's default --budget-s, seconds.
+DEFAULT_BUDGET_S = 420.0
 
 
 def extract(commit: str, folder: Path) -> str:
@@ -84,12 +87,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--numba-n", type=int, default=256, help="N of the numba row")
     ap.add_argument("--out", type=Path, required=True, help="the summary JSON")
     args = ap.parse_args(argv)
-    if args.reps < 1 or not args.seconds > 0:
-        ap.error("--reps must be ≥ 1 and --seconds > 0")
-    try:
-        check_output_path("--out", args.out)
-    except ValueError as exc:
-        ap.error(f"argument {exc}")
+    high = DEFAULT_BUDGET_S / 2  # the benchmark's own bound at its default --budget-s
+    if args.reps < 1 or not 0 < args.seconds <= high:
+        ap.error(f"--reps must be ≥ 1 and --seconds in (0, {high:g}], got {args.reps} and {args.seconds}")
+    check_output_options(ap, files={"--out": args.out})
     runs: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
         before = Path(tmp) / "before"

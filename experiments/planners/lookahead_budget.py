@@ -49,6 +49,7 @@ from electroloc_gym.registry import PAPER_ENV_ID, env_entry, task_entry  # noqa:
 GLOBAL_ENV_ID = task_entry("global").env_id
 GLOBAL_CONDITION = env_entry(GLOBAL_ENV_ID).map_condition
 from electroloc_gym.baselines.rollout import run_episode  # noqa: E402
+from electroloc_gym.utils.fileio import check_output_options  # noqa: E402
 from electroloc_gym.utils.markdown import markdown_table  # noqa: E402
 from electroloc_gym.world.conditions import DEFAULT_SIGNAL, get_condition  # noqa: E402
 
@@ -124,6 +125,8 @@ def main() -> None:
     p.add_argument("--out", default="lookahead_budget.png", help="figure path (default lookahead_budget.png)")
     p.add_argument("--replot", metavar="JSON", help="only redraw the figure from a run's saved numbers")
     args = p.parse_args()
+    numbers = None if args.replot else os.path.splitext(args.out)[0] + ".json"
+    check_output_options(p, files={"--out": args.out, "--out (its .json)": numbers})
     if args.replot:
         with open(args.replot, encoding="utf-8") as f:
             plot(json.load(f), args.out)

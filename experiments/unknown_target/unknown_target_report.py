@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from electroloc_gym.utils.fileio import check_output_options
 from electroloc_gym.world.conditions import PRESET_NAMES
 
 
@@ -23,6 +24,7 @@ def main() -> None:
     p.add_argument("run", help="the bench output folder (its trials.jsonl)")
     p.add_argument("--out", default="unknown_target.png", help="the PNG to write")
     args = p.parse_args()
+    check_output_options(p, files={"--out": args.out})
     recs = [json.loads(line) for line in Path(args.run, "trials.jsonl").read_text().splitlines() if line.strip()]
     agents = list(dict.fromkeys(r["agent"] for r in recs if r.get("table_layout", "table4") == "table4"))
     import matplotlib
