@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from electroloc_gym.contract.observation import INFO_KEYS
 from electroloc_gym.contract.observation import condition_index as _condition_index
 from electroloc_gym.contract.params import MAX_STEP_MM, EnvParams
+from electroloc_gym.contract.reset import SINGLE_RESET_OPTIONS, check_reset_options
 from electroloc_gym.engines.numba_core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.registry import EnvEntry, entry_of_class
@@ -258,6 +259,10 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """Start an episode; ``options`` must be None or empty (a single env takes no reset options:
+        :mod:`electroloc_gym.contract.reset`), checked before anything changes.
+        """
+        check_reset_options(options, SINGLE_RESET_OPTIONS)
         super().reset(seed=seed)
         self._sim.set_generator(0, self.np_random)
         self._sim.reset()

@@ -62,13 +62,14 @@ from gymnasium.vector.utils import batch_space
 from electroloc_gym.contract.capabilities import check_engine, params_options
 from electroloc_gym.contract.observation import BELIEF_OBS_DIM, RAW_OBS_DIM
 from electroloc_gym.contract.params import DISCRETE_MOVES_MM, EnvParams
+from electroloc_gym.contract.reset import VECTOR_RESET_OPTIONS, check_first_reset, check_reset_options, reset_mask_error
 from electroloc_gym.engines.torch_core import sim
 from electroloc_gym.engines.torch_core.consts import TorchConsts, torch_entry
 from electroloc_gym.engines.torch_core.device import check_fits, estimate_bytes, resolve_device
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.envs.agent_view import AgentView, agent_view
 from electroloc_gym.envs.torch_sub_env import TorchSubEnv
-from electroloc_gym.utils.checks import check_bool, check_choice, check_int, check_options, check_seeds
+from electroloc_gym.utils.checks import check_bool, check_choice, check_int, check_seeds
 
 __all__ = [
     "TorchElectroLocVectorEnv",
@@ -89,8 +90,8 @@ OWN_IN_PLACE = ("table",)
 MAX_NUM_ENVS = 2**31 - 1
 #: ``action_check``'s values: where the actions' values are checked (module docstring).
 ACTION_CHECKS = ("auto", "host", "device")
-#: ``reset``'s options (the numba vector env's).
-RESET_OPTIONS = ("reset_mask",)
+#: ``reset``'s options (the numba vector env's: :mod:`electroloc_gym.contract.reset`).
+RESET_OPTIONS = VECTOR_RESET_OPTIONS
 #: The discrete action that does not move: what an invalid action becomes on the device.
 STAY = int(np.flatnonzero(np.all(DISCRETE_MOVES_MM == 0.0, axis=1))[0])
 #: Float dtypes numpy holds (a bfloat16 or float8 tensor is widened to float32 for the host check).
@@ -282,15 +283,18 @@ class TorchElectroLocVectorEnv(VectorEnv):
         self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[torch.Tensor, dict[str, Any]]:
         """Reset every sub-env (or those of ``options["reset_mask"]``, a bool (N,) array or tensor with a True
-        entry; ``options`` takes :data:`RESET_OPTIONS` only). Everything is checked before any sub-env
-        changes; then the invalid actions the device check saw since the last reset, if any, are one
-        ValueError (module docstring).
+        entry, after a first full reset; ``options`` takes :data:`RESET_OPTIONS` only: the numba engine's
+        check, :mod:`electroloc_gym.contract.reset`). Everything is checked before any sub-env changes; then
+        the invalid actions the device check saw since the last reset, if any, are one ValueError (module
+        docstring).
         """
         self._check_open("reset()")
         n = self.num_envs
         words = _key_words(seed, n)
-        opts = check_options("options", options, RESET_OPTIONS)
+        opts = check_reset_options(options, RESET_OPTIONS)
         mask = self._reset_mask(opts["reset_mask"]) if "reset_mask" in opts else None
+        if not self._started:  # reading the mask back is a synchronisation: only before the first reset
+            check_first_reset(False, mask is not None and not bool(mask.all()))
         if self.action_check == "device":
             self._raise_invalid_actions()
         if mask is None:
@@ -320,7 +324,7 @@ class TorchElectroLocVectorEnv(VectorEnv):
         numba vector env's ValueError (None included).
         """
         n = self.num_envs
-        what = f"options['reset_mask'] must be a bool array of shape ({n},) with a True entry"
+        what = reset_mask_error(n)
         if isinstance(value, np.ndarray):
             if value.dtype != np.bool_ or value.shape != (n,) or not value.any():
                 raise ValueError(what)

@@ -20,7 +20,7 @@ sub-env within its last step and returns the final observation and info in ``inf
 (N, obs_dim) float32 array, zero rows for the sub-envs that did not end) / ``info["final_info"]`` (masks
 ``info["_final_obs"]`` / ``info["_final_info"]``) — what the SB3 adapter
 (``electroloc_gym.train.native_vec``) uses. ``reset(options={"reset_mask": mask})`` resets only the
-masked sub-envs.
+masked sub-envs (after a first full reset; the options are checked as :mod:`electroloc_gym.contract.reset` says).
 
 Info: a dict of arrays over the N envs (Gymnasium's vector convention), each key with an all-true
 ``"_key"`` mask: ``position_mm`` (N, 2), ``estimate_mm`` (N, 2), ``error_mm``, ``spread_mm``,
@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 from electroloc_gym.contract.observation import condition_index
 from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.reset import VECTOR_RESET_OPTIONS, check_first_reset, check_reset_options, reset_mask_error
 from electroloc_gym.engines.numba_core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.envs.adapter import ParamAccessors
@@ -99,7 +100,7 @@ def _numeric_info(info: dict[str, Any]) -> dict[str, Any]:
 
 def _reset_mask(value: object, n: int) -> NDArray[np.bool_]:
     """``options["reset_mask"]``: a bool array (n,) with a True entry, or a ValueError."""
-    what = f"options['reset_mask'] must be a bool array of shape ({n},) with a True entry"
+    what = reset_mask_error(n)
     if not isinstance(value, np.ndarray):
         raise ValueError(what)
     mask = cast("NDArray[Any]", value)  # an ndarray (isinstance above); its dtype and shape are checked next
@@ -242,18 +243,21 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
     def reset(
         self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        """Reset all sub-envs (or those in ``options["reset_mask"]``); an int seed as :func:`sub_env_seeds`."""
+        """Reset all sub-envs (or those in ``options["reset_mask"]``, after a first full reset; ``options`` takes
+        :data:`~electroloc_gym.contract.reset.VECTOR_RESET_OPTIONS` only, :mod:`electroloc_gym.contract.reset`);
+        an int seed as :func:`sub_env_seeds`.
+        """
         n = self.num_envs
         check_seeds(seed, n)  # everything is checked before any sub-env changes
+        opts = check_reset_options(options, VECTOR_RESET_OPTIONS)
+        mask = _reset_mask(opts["reset_mask"], n) if "reset_mask" in opts else np.ones(n, dtype=bool)
+        check_first_reset(self._state.started, not bool(mask.all()))
         if seed is None:
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, (Sequence, np.ndarray)):  # checked: one entry per sub-env
             seeds = [None if s is None else int(s) for s in seed]
         else:  # checked: an integer ≥ 0
             seeds = list(sub_env_seeds(int(seed), n))
-        mask = np.ones(n, dtype=bool)
-        if options is not None and "reset_mask" in options:
-            mask = _reset_mask(options["reset_mask"], n)
         ids = np.flatnonzero(mask)
         reset_ids: list[int] = ids.tolist()
         for i in reset_ids:
