@@ -95,7 +95,7 @@ def table3() -> list[str]:
 def coverage() -> list[str]:
     # Built by hand, not by markdown_table: the **mean** row's empty cell is "| |", one space, not the helper's "|  |".
     out = [
-        "| Condition | paper signal | fitted | coverage (default) | peak \\|Φ\\| at coverage (V) "
+        "| Condition | paper signal | fitted | coverage | peak \\|Φ\\| at coverage (V) "
         "| saturated share of the start box at coverage |",
         "|---|---|---|---|---|---|",
     ]
