@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The torch backend's figures on one accelerator: the GPU machine's one command (under 8 minutes, code
-# generation included; rows that would start after --budget-s are listed as skipped).
+# generation included: every row, the numba one first, checks the time left, and one that would pass
+# --budget-s is listed as skipped; an extra --seconds above half the budget is refused before any work).
 #
 # On a bare machine (torch, numpy, numba, scipy and gymnasium installed; no internet needed after that):
 #     pip install --no-deps -e .        # the package, nothing else
