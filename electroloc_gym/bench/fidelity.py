@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import math
 
+from electroloc_gym.utils.intervals import wilson_interval as _wilson
+
 __all__ = [
     "PAPER_TRIALS",
     "UNTESTED",
@@ -37,13 +39,10 @@ UNTESTED = "–"
 
 
 def wilson_interval(successes: int, trials: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """Wilson score interval (lo, hi) of a binomial success probability (scipy's ``binomtest``)."""
-    if trials <= 0 or not 0 <= successes <= trials:
-        raise ValueError(f"need 0 ≤ successes ≤ trials and trials > 0, got {successes}/{trials}")
-    from scipy.stats import binomtest
-
-    ci = binomtest(int(successes), int(trials)).proportion_ci(confidence_level=confidence, method="wilson")
-    return float(ci.low), float(ci.high)
+    """Wilson score interval (lo, hi) of a binomial success probability (scipy's ``binomtest``; the paper's
+    90 % by default; :func:`electroloc_gym.utils.intervals.wilson_interval`).
+    """
+    return _wilson(successes, trials, confidence)
 
 
 def paper_count_interval(paper_successes: int, n_trials: int, paper_trials: int = PAPER_TRIALS) -> tuple[int, int]:

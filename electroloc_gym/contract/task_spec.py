@@ -13,6 +13,11 @@ A task (:class:`electroloc_gym.engines.numba_core.task.Task`) declares next to i
   and the engine's generic code copies, gathers and resets rows over :func:`dataclasses.fields` without
   naming them.
 
+* **its metrics** — a :class:`TaskMetrics` (the class attribute ``Task.metrics``): the fields of a benchmark
+  record's task results (:class:`RecordField`), the statistics over a group of records, the benchmark
+  table's columns (:class:`Column`, :class:`Table`), the score that ranks agents (:class:`Score`), an
+  episode's outcome in words and the learning curves' panels (:class:`CurvePanel`).
+
 A check is a small declarative spec (:class:`Choice`, :class:`Real`, :class:`Integer`, :class:`Boolean`,
 :class:`Numbers`, :class:`Optional`) or any callable ``(name, value) -> normalised value`` that raises
 ``ValueError``. This module imports nothing above :mod:`electroloc_gym.contract`.
@@ -21,7 +26,9 @@ A check is a small declarative spec (:class:`Choice`, :class:`Real`, :class:`Int
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterable
+import math
+import string
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -42,6 +49,14 @@ __all__ = [
     "Optional",
     "TaskState",
     "state_array",
+    "DIRECTIONS",
+    "RecordField",
+    "Column",
+    "Table",
+    "format_config_text",
+    "Score",
+    "CurvePanel",
+    "TaskMetrics",
 ]
 
 #: A check: ``(name, value) -> normalised value``, raising one ``ValueError`` naming ``name``.
@@ -255,3 +270,290 @@ class TaskState:
         """Rows ``rows`` of every array set back to the field's fill value."""
         for f in dataclasses.fields(self):
             getattr(self, f.name)[rows] = f.metadata["fill"]
+
+
+# ---- metrics: what the layers above the engine report of a task ----------------------------------------
+#
+# A task declares its metrics once (:class:`TaskMetrics`, the class attribute ``Task.metrics``); the
+# benchmark's record schema, statistics and table, the training callback's validation score and checkpoint
+# rule, the datasets' reference scores, the learning curves and the episode pictures read the declaration
+# and never name a task's fields. The default, the paper's localisation metrics (readings to success,
+# success rate), is declared beside the shared ``Task`` base.
+
+#: The word of a direction: which way of a number is better.
+DIRECTIONS = ("lower", "higher")
+
+
+@dataclass(frozen=True)
+class RecordField:
+    """One entry of a benchmark record's task results (the record's ``shape`` object), copied from the episode's
+    final info under the same name.
+
+    Attributes:
+        name: the final info's key and the record's.
+        doc: what it is (one line).
+        unit: its unit (``"mm"``; empty for none).
+        kind: ``"real"`` (a finite number in [low, high]), ``"bool"`` (true or false) or ``"choice"`` (one of
+            ``choices``).
+        low, high: a real's range.
+        choices: a choice's strings.
+        nullable: null is accepted too (an estimate the belief could not make).
+    """
+
+    name: str
+    doc: str = ""
+    unit: str = ""
+    kind: str = "real"
+    low: float = -math.inf
+    high: float = math.inf
+    choices: tuple[str, ...] = ()
+    nullable: bool = False
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("real", "bool", "choice"):
+            raise ValueError(f"kind must be one of ['real', 'bool', 'choice'], got {self.kind!r}")
+
+    def accepts(self, value: Any) -> bool:
+        """Whether ``value`` (a JSON value read back) is one this field may hold."""
+        if value is None:
+            return self.nullable
+        if self.kind == "bool":
+            return isinstance(value, bool)
+        if self.kind == "choice":
+            return isinstance(value, str) and value in self.choices
+        return (
+            isinstance(value, (int, float))
+            and not isinstance(value, bool)
+            and math.isfinite(value)
+            and self.low <= value <= self.high
+        )
+
+    @property
+    def what(self) -> str:
+        """What a value must be, for messages."""
+        if self.kind == "bool":
+            text = "true or false"
+        elif self.kind == "choice":
+            text = f"one of {list(self.choices)}"
+        else:
+            text = f"a number in [{self.low:g}, {self.high:g}]" + (f" {self.unit}" if self.unit else "")
+        return text + (" or null" if self.nullable and self.kind != "bool" else "")
+
+
+class _CellFormatter(string.Formatter):
+    """``str.format`` over a statistics row: a missing or null value is ``–``; ``!p`` a fraction as a percentage."""
+
+    def get_value(self, key: int | str, args: Any, kwargs: Any) -> Any:
+        return kwargs.get(key) if isinstance(key, str) else args[key]
+
+    def convert_field(self, value: Any, conversion: str | None) -> Any:
+        if conversion == "p":
+            return None if value is None else 100 * value
+        return super().convert_field(value, conversion)
+
+    def format_field(self, value: Any, format_spec: str) -> str:
+        return "–" if value is None else format(value, format_spec)
+
+
+_CELLS = _CellFormatter()
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of the benchmark table of a task's own statistics.
+
+    Attributes:
+        key: the statistic the column shows (a key of the statistics row).
+        header: the column's title.
+        better: ``"lower"``, ``"higher"`` or None (a count, no direction).
+        format: the cell, a ``str.format`` string over the row's keys (``"{key:.1f}"`` when empty); a null
+            value is written ``–``; ``{key!p:.0f}`` writes a fraction as a percentage.
+        interval: the keys of the statistic's interval (lo, hi), where it has one.
+    """
+
+    key: str
+    header: str
+    better: str | None = None
+    format: str = ""
+    interval: tuple[str, str] | None = None
+
+    def __post_init__(self) -> None:
+        if self.better is not None and self.better not in DIRECTIONS:
+            raise ValueError(f"better must be one of {list(DIRECTIONS)} or None, got {self.better!r}")
+
+    def cell(self, row: Mapping[str, Any]) -> str:
+        """The column's cell of a statistics row."""
+        return _CELLS.vformat(self.format or "{" + self.key + ":.1f}", (), row)
+
+    def keys(self) -> tuple[str, ...]:
+        """The row keys the cell reads."""
+        return tuple(dict.fromkeys(f for _, f, _, _ in _CELLS.parse(self.format or "{" + self.key + "}") if f))
+
+
+@dataclass(frozen=True)
+class Table:
+    """How a task's columns are laid out in the benchmark's table.md.
+
+    Attributes:
+        title: the section's title (``replaces``: the document is titled by the env id instead).
+        text: the paragraph under the title; ``{name}`` fields are the run's config entries (``{trials}``).
+        count: the statistic that says a row holds the task's results (rows without it are left out).
+        replaces: the task's table replaces the localisation tables (a task without a success criterion);
+            otherwise it follows the Table-4 layout, over its rows.
+        pooled: what follows the aggregate row's label (``" (pooled)"``).
+    """
+
+    title: str
+    text: str
+    count: str
+    replaces: bool = False
+    pooled: str = ""
+
+
+def _trial_config(config: Mapping[str, Any]) -> dict[str, Any]:
+    class _Missing(dict):  # a config entry it lacks reads None, as ``config.get`` does
+        def __missing__(self, key: str) -> None:
+            return None
+
+    return _Missing(config)
+
+
+def format_config_text(text: str, config: Mapping[str, Any]) -> str:
+    """``text`` with its ``{name}`` fields set from a run's config (a missing entry: ``None``)."""
+    return text.format_map(_trial_config(config))
+
+
+@dataclass(frozen=True)
+class Score:
+    """A per-episode number that ranks agents: the validation score of training and its checkpoint rule, the
+    datasets' reference scores, the offline trainers' checkpoint choice, the learned report's score.
+
+    Attributes:
+        key: the value's name: a key of the episode's final info or of a benchmark record (top level or its
+            task results, ``shape``).
+        better: ``"lower"`` or ``"higher"``.
+        label: a few words for it (``"tracking error"``).
+        unit: its unit (``"mm"``; empty for none).
+        name: its short name in reports' statistics (default: ``key``).
+        episode: the value from an episode's final info, or None: ``float(info[key])``.
+        record: the value from a benchmark record, or None: ``float(record[key])`` (the record's top level),
+            else ``float(record["shape"][key])`` (the task's results).
+    """
+
+    key: str
+    better: str
+    label: str
+    unit: str = ""
+    name: str = ""
+    episode: Callable[[Mapping[str, Any]], float] | None = None
+    record: Callable[[Mapping[str, Any]], float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.better not in DIRECTIONS:
+            raise ValueError(f"better must be one of {list(DIRECTIONS)}, got {self.better!r}")
+        if not self.name:
+            object.__setattr__(self, "name", self.key)
+
+    def of_info(self, info: Mapping[str, Any]) -> float:
+        """The score of an episode from its final info."""
+        return float(self.episode(info)) if self.episode is not None else float(info[self.key])
+
+    def of_record(self, record: Mapping[str, Any]) -> float:
+        """The score of a benchmark trial from its record."""
+        if self.record is not None:
+            return float(self.record(record))
+        return float(record[self.key] if self.key in record else record["shape"][self.key])
+
+    def beats(self, a: float, b: float) -> bool:
+        """Whether ``a`` is strictly better than ``b``."""
+        return a < b if self.better == "lower" else a > b
+
+    @property
+    def title(self) -> str:
+        """The label with its unit (``"tracking error (mm)"``)."""
+        return f"{self.label} ({self.unit})" if self.unit else self.label
+
+
+@dataclass(frozen=True)
+class CurvePanel:
+    """One panel of a training run's learning curves: an evaluation column (``eval.csv``) over timesteps.
+
+    Attributes:
+        key: the column plotted.
+        label: the panel's y label.
+        ylim: the y axis's limits, or None: automatic.
+        percent: the column is a fraction, plotted as a percentage.
+    """
+
+    key: str
+    label: str
+    ylim: tuple[float, float] | None = None
+    percent: bool = False
+
+
+def _no_statistics(records: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    return {}
+
+
+@dataclass(frozen=True)
+class TaskMetrics:
+    """What a task reports (the section comment above): declared once, read by every layer above the engine.
+
+    Attributes:
+        record: the fields of a benchmark record's task results (empty: the record has none, ``shape`` null).
+        statistics: a group of trial records (one condition and agent, or an agent's pooled trials) → the
+            task's own statistics (keys :attr:`statistic_keys`; an empty dict when the records hold no task
+            results), added to the benchmark's Appendix-B row.
+        statistic_keys: the keys ``statistics`` returns.
+        columns: the benchmark table's columns of the task's statistics.
+        table: their layout in table.md (None: no table of the task's own).
+        score: what ranks agents on the task (:class:`Score`).
+        rate: the per-episode yes/no rate reported beside it (success; a capture), a :class:`Score` with
+            ``better="higher"``.
+        outcome: an episode's final info → the words of how it ended (``"success"``).
+        curves: the panels of the learning curves, beside the return.
+        eval_columns: the training evaluation's columns of the task's own, beside the shared ones: name →
+            a function of the evaluation episodes' final infos (their mean, rate, median).
+        success_criterion: the task's episodes end on a success criterion (False: every episode runs to its
+            cap, and the records' success is false).
+        dataset_info: final-info keys a dataset keeps per step (float64) beside the shared ones.
+    """
+
+    score: Score
+    rate: Score
+    outcome: Callable[[Mapping[str, Any]], str]
+    record: tuple[RecordField, ...] = ()
+    statistics: Callable[[Sequence[Mapping[str, Any]]], dict[str, Any]] = _no_statistics
+    statistic_keys: tuple[str, ...] = ()
+    columns: tuple[Column, ...] = ()
+    table: Table | None = None
+    curves: tuple[CurvePanel, ...] = ()
+    eval_columns: Mapping[str, Callable[[Sequence[Mapping[str, Any]]], float]] = dataclasses.field(default_factory=dict)
+    success_criterion: bool = True
+    dataset_info: tuple[str, ...] = ()
+
+    @property
+    def record_keys(self) -> tuple[str, ...]:
+        """The names of the record's task results, in declaration order."""
+        return tuple(f.name for f in self.record)
+
+    def record_field(self, name: str) -> RecordField:
+        """The record field ``name`` (KeyError when the task has none)."""
+        for f in self.record:
+            if f.name == name:
+                return f
+        raise KeyError(name)
+
+    def accepts_record(self, results: Any) -> bool:
+        """Whether a record's task results (its ``shape`` object) hold exactly :attr:`record_keys`, each in range."""
+        return (
+            isinstance(results, dict)
+            and set(results) == set(self.record_keys)
+            and all(f.accepts(results[f.name]) for f in self.record)
+        )
+
+    def metric_keys(self) -> tuple[str, ...]:
+        """Every name the task owns: record fields, statistics, its score's and rate's keys and curves' columns."""
+        names = [*self.record_keys, *self.statistic_keys, *self.eval_columns, *(p.key for p in self.curves)]
+        names += [self.score.key, self.rate.key]
+        return tuple(dict.fromkeys(names))
