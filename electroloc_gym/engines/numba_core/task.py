@@ -33,7 +33,8 @@ state's ``reading_V`` then carry (k, K) readings); distractors only change :meth
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,6 +52,7 @@ from electroloc_gym.contract.observation import (
     raw_observation,
 )
 from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.task_spec import CurvePanel, Score, TaskMetrics
 from electroloc_gym.engines.numba_core.state import State
 from electroloc_gym.engines.numba_core.worlds import SEED_BOUND, cells, descriptor, group_by_world, with_gain_factor
 from electroloc_gym.kernels import calibrated_assimilate, egocentric_counts, loglik_assimilate, mean_cov_rows
@@ -58,7 +60,7 @@ from electroloc_gym.kernels.streams import uniform_in_box
 from electroloc_gym.sensor_models import CalibrationProtocol
 from electroloc_gym.world.conditions import Condition
 
-__all__ = ["Task"]
+__all__ = ["Task", "LOCALIZATION_METRICS"]
 
 
 class Task(ABC):
@@ -82,6 +84,9 @@ class Task(ABC):
     belief_frame = "target"
     #: The names of the hidden state's entries (:meth:`hidden_state`), units in the names.
     hidden_keys: tuple[str, ...] = ("target_x_mm", "target_y_mm")
+    #: What the layers above the engine report of the task: a
+    #: :class:`~electroloc_gym.contract.task_spec.TaskMetrics` (default :data:`LOCALIZATION_METRICS`).
+    metrics: ClassVar[TaskMetrics]
 
     def __init__(self, params: EnvParams) -> None:
         self.params = params
@@ -432,3 +437,48 @@ class Task(ABC):
         )
         state.n_observations[i] = 0
         state.elapsed[i] = 0
+
+
+# ---- what the layers above the engine report: the paper's localisation metrics ---------------------------
+# Every task's unless it declares its own (``metrics``, a class attribute): readings to success (a failure
+# counted as the cap; lower better), the success rate, "success"/"failure" (contract/task_spec.py).
+
+
+def _readings_of_info(info: Mapping[str, Any]) -> float:
+    return float(info["n_observations"])
+
+
+def _readings_of_record(record: Mapping[str, Any]) -> float:
+    return float(record["readings"] if record["success"] else record["max_observations"])
+
+
+def _success_of_info(info: Mapping[str, Any]) -> float:
+    return float(bool(info["success"]))
+
+
+def _success_of_record(record: Mapping[str, Any]) -> float:
+    return float(bool(record["success"]))
+
+
+def _localisation_outcome(info: Mapping[str, Any]) -> str:
+    return "success (spread ≤ threshold)" if bool(info["success"]) else "failure (observation cap)"
+
+
+#: The paper's localisation metrics (Appendix B): the default :attr:`Task.metrics`.
+LOCALIZATION_METRICS = TaskMetrics(
+    score=Score(
+        "readings",
+        "lower",
+        "readings to success (a failure counted as the cap)",
+        episode=_readings_of_info,
+        record=_readings_of_record,
+    ),
+    rate=Score("success", "higher", "success rate", episode=_success_of_info, record=_success_of_record),
+    outcome=_localisation_outcome,
+    curves=(
+        CurvePanel("success_rate", "success rate (spread ≤ 10 mm within 35 obs.)", ylim=(0.0, 1.02)),
+        CurvePanel("median_readings", "median readings to localise", ylim=(0.0, 36.0)),
+    ),
+)
+#: What the task reports (:class:`~electroloc_gym.contract.task_spec.TaskMetrics`; a task declares its own).
+Task.metrics = LOCALIZATION_METRICS

@@ -53,14 +53,17 @@ truth, as the info's error: for learning and evaluation, never for the agent's d
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.task_spec import Column, CurvePanel, RecordField, Score, Table, TaskMetrics
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
 from electroloc_gym.engines.numba_core.state import State
+from electroloc_gym.utils.intervals import wilson_interval
 
 __all__ = [
     "TrackTask",
@@ -68,6 +71,9 @@ __all__ = [
     "TRACK_EPISODE_READINGS",
     "TRACK_INFO_KEYS",
     "TRACK_RECORD_KEYS",
+    "TRACK_METRICS",
+    "CAPTURE_CONFIDENCE",
+    "tracking_statistics",
     "reflect",
     "PAPER_JITTER_STD_MM",
 ]
@@ -212,3 +218,143 @@ class TrackTask(LocalizeTask):
             "carriage_distance_mm": dist,
             "captured": dist <= CAPTURE_DISTANCE_MM,
         }
+
+
+# ---- what the layers above the engine report of the moving target ----------------------------------------
+#: The capture rate's interval: a 95 % Wilson score interval.
+CAPTURE_CONFIDENCE = 0.95
+_DISTANCE_BOUND_MM = 2000.0  # the largest distance a record holds (the tank is well under a metre across)
+
+
+def _values(values: Any) -> NDArray[np.float64]:
+    return np.asarray([float(v) for v in values if v is not None], dtype=float)
+
+
+def tracking_statistics(records: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The tracking over a group of trial records (empty when none holds tracking results): the tracking
+    error's median, interquartile range and mean, the carriage's median distance at the end, and the capture
+    rate with its 95 % Wilson interval (:data:`CAPTURE_CONFIDENCE`).
+    """
+    results = [r["shape"] for r in records if r.get("shape") and "tracking_error_mm" in r["shape"]]
+    if not results:
+        return {}
+    err = _values(s["tracking_error_mm"] for s in results)
+    captures = sum(bool(s["captured"]) for s in results)
+    lo, hi = wilson_interval(captures, len(results), CAPTURE_CONFIDENCE)
+    q25, q50, q75 = (float(q) for q in np.quantile(err, [0.25, 0.5, 0.75]))
+    distance = _values(s["carriage_distance_mm"] for s in results)
+    return {
+        "tracking_trials": len(results),
+        "tracking_error_median_mm": q50,
+        "tracking_error_q25_mm": q25,
+        "tracking_error_q75_mm": q75,
+        "tracking_error_mean_mm": float(err.mean()),
+        "carriage_distance_median_mm": float(np.median(distance)) if distance.size else None,
+        "captures": captures,
+        "capture_rate": captures / len(results),
+        "capture_rate_lo": lo,
+        "capture_rate_hi": hi,
+    }
+
+
+def _captured_of_info(info: Mapping[str, Any]) -> float:
+    return float(bool(info["captured"]))
+
+
+def _captured_of_record(record: Mapping[str, Any]) -> float:
+    return float(bool(record["shape"]["captured"]))
+
+
+def _tracking_outcome(info: Mapping[str, Any]) -> str:
+    what = "captured" if bool(info["captured"]) else "not captured"
+    return f"{what}, tracking error {float(info['tracking_error_mm']):.1f} mm"
+
+
+def _tracking_errors(infos: Sequence[Mapping[str, Any]]) -> NDArray[np.float64]:
+    return np.asarray([float(i["tracking_error_mm"]) for i in infos], dtype=float)
+
+
+#: What ElectroLocTrack-v0 reports (:class:`~electroloc_gym.contract.task_spec.TaskMetrics`): no success
+#: criterion (every trial runs its readings); ranked by the mean tracking error, with the capture rate.
+TRACK_METRICS = TaskMetrics(
+    record=(
+        RecordField(
+            "tracking_error_mm",
+            "the belief mean's mean distance to the target over the second half",
+            "mm",
+            low=0.0,
+            high=_DISTANCE_BOUND_MM,
+        ),
+        RecordField(
+            "carriage_distance_mm",
+            "the carriage's distance to the target at the end",
+            "mm",
+            low=0.0,
+            high=_DISTANCE_BOUND_MM,
+        ),
+        RecordField("captured", "the carriage within the capture distance at the end", kind="bool"),
+    ),
+    statistics=tracking_statistics,
+    statistic_keys=(
+        "tracking_trials",
+        "tracking_error_median_mm",
+        "tracking_error_q25_mm",
+        "tracking_error_q75_mm",
+        "tracking_error_mean_mm",
+        "carriage_distance_median_mm",
+        "captures",
+        "capture_rate",
+        "capture_rate_lo",
+        "capture_rate_hi",
+    ),
+    columns=(
+        Column("tracking_trials", "Trials", format="{tracking_trials}"),
+        Column("tracking_error_median_mm", "Tracking error median (mm)", better="lower"),
+        Column(
+            "tracking_error_median_mm",
+            "IQR (mm)",
+            format="{tracking_error_q25_mm:.1f}–{tracking_error_q75_mm:.1f}",
+            interval=("tracking_error_q25_mm", "tracking_error_q75_mm"),
+        ),
+        Column("captures", "Captures", better="higher", format="{captures} ({capture_rate!p:.0f} %)"),
+        Column(
+            "capture_rate",
+            "Capture rate 95 % CI",
+            better="higher",
+            format="{capture_rate_lo!p:.0f}–{capture_rate_hi!p:.0f} %",
+            interval=("capture_rate_lo", "capture_rate_hi"),
+        ),
+        Column("decision_ms_median", "Decision ms", format="{decision_ms_median:.2f}"),
+    ),
+    table=Table(
+        title="Tracking (moving target)",
+        text=(
+            "A target sphere that swims during the episode: {trials} trials per condition and agent, seed {seed}, "
+            "sensor model `{sensor_model}`, signal `{signal}`, {n_particles} particles, {max_observations} "
+            "readings per episode. *Tracking error*: the mean distance from the belief's mean to the true target "
+            "over the episode's second half, per trial; its median and interquartile range over the trials. "
+            f"*Capture*: the carriage within {CAPTURE_DISTANCE_MM:g} mm of the target after the last reading; the "
+            "rate with its 95 % Wilson interval. The *All conditions* rows pool the trials."
+        ),
+        count="tracking_trials",
+        replaces=True,
+    ),
+    score=Score("tracking_error_mm", "lower", "tracking error", "mm", name="tracking_error"),
+    rate=Score(
+        "captured", "higher", "capture rate", name="capture", episode=_captured_of_info, record=_captured_of_record
+    ),
+    outcome=_tracking_outcome,
+    curves=(
+        CurvePanel(
+            "capture_rate", f"capture rate (carriage within {CAPTURE_DISTANCE_MM:g} mm at the end)", ylim=(0.0, 1.02)
+        ),
+        CurvePanel("mean_tracking_error_mm", "mean tracking error (mm)"),
+    ),
+    eval_columns={
+        "mean_tracking_error_mm": lambda infos: float(_tracking_errors(infos).mean()),
+        "median_tracking_error_mm": lambda infos: float(np.median(_tracking_errors(infos))),
+        "capture_rate": lambda infos: float(np.mean([_captured_of_info(i) for i in infos])),
+    },
+    success_criterion=False,
+)
+TrackTask.metrics = TRACK_METRICS

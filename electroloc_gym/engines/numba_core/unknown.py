@@ -36,6 +36,8 @@ Success stays the position criterion (√trace Σ of x–y ≤ 10 mm).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -43,8 +45,10 @@ from numpy.typing import NDArray
 
 from electroloc_gym.contract.observation import HIST_BINS
 from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.task_spec import Column, RecordField, Table
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
 from electroloc_gym.engines.numba_core.state import State
+from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
 from electroloc_gym.engines.numba_core.worlds import group_by_world
 from electroloc_gym.kernels import egocentric_counts, jitter_resampled, mean_cov_rows, resample_indices, row_sums
 from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
@@ -59,6 +63,8 @@ __all__ = [
     "CHI_JITTER",
     "SHAPE_INFO_KEYS",
     "SHAPE_RECORD_KEYS",
+    "SHAPE_METRICS",
+    "identification_statistics",
 ]
 
 #: The contrasts of a perfect conductor and a perfect insulator (Eq. 4).
@@ -284,3 +290,78 @@ class UnknownTargetTask(LocalizeTask):
             "radius_error_frac": np.abs(est_r - true_r) / true_r,
             "material_correct": material == _material(s.target_shape[sel, 1]),
         }
+
+
+# ---- what the layers above the engine report of the unknown target ----------------------------------------
+_LENGTH_BOUND_MM = 1000.0  # the largest length a record holds (the tank is well under a metre across)
+
+
+def identification_statistics(records: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The identification over a group of trial records' successes (empty when none holds identification
+    results): the fraction whose material estimate is right and the median relative error of the radius.
+    """
+    results = [r["shape"] for r in records if r["success"] and r.get("shape") and "material_correct" in r["shape"]]
+    if not results:
+        return {}
+    radius = np.asarray([float(s["radius_error_frac"]) for s in results if s["radius_error_frac"] is not None])
+    return {
+        "identified_trials": len(results),
+        "material_correct_frac": float(np.mean([float(s["material_correct"]) for s in results])),
+        "radius_error_median_frac": float(np.median(radius)) if radius.size else None,
+    }
+
+
+def _length(name: str, doc: str, nullable: bool = True) -> RecordField:
+    return RecordField(name, doc, "mm", low=0.0, high=_LENGTH_BOUND_MM, nullable=nullable)
+
+
+def _contrast(name: str, doc: str, nullable: bool = True) -> RecordField:
+    return RecordField(name, doc, low=-1.0, high=1.0, nullable=nullable)
+
+
+_RECORD_FIELDS = {
+    f.name: f
+    for f in (
+        _length("radius_estimate_mm", "the particles' median radius"),
+        _length("radius_mean_mm", "the particles' mean radius"),
+        _length("radius_spread_mm", "the particles' radius std"),
+        _contrast("chi_estimate", "the particles' mean contrast χ"),
+        RecordField("p_conductor", "the fraction of particles with χ > 0", low=0.0, high=1.0, nullable=True),
+        RecordField("material_estimate", "conductor or insulator", kind="choice", choices=("conductor", "insulator")),
+        _length("target_radius_mm", "the true radius", nullable=False),
+        _contrast("target_chi", "the true contrast χ", nullable=False),
+        RecordField("radius_error_frac", "|estimate − true radius| / true radius", low=0.0, high=1e6, nullable=True),
+        RecordField("material_correct", "the material estimate is the true material", kind="bool"),
+    )
+}
+
+#: What ElectroLocUnknownTarget-v0 reports (:class:`~electroloc_gym.contract.task_spec.TaskMetrics`): the
+#: paper's localisation metrics, and the size and material identification over the successes.
+SHAPE_METRICS = replace(
+    LOCALIZATION_METRICS,
+    record=tuple(_RECORD_FIELDS[k] for k in SHAPE_RECORD_KEYS),
+    statistics=identification_statistics,
+    statistic_keys=("identified_trials", "material_correct_frac", "radius_error_median_frac"),
+    columns=(
+        Column("successes", "Successes", format="{successes}"),
+        Column("material_correct_frac", "Material correct", better="higher", format="{material_correct_frac!p:.1f} %"),
+        Column(
+            "radius_error_median_frac",
+            "Radius error median",
+            better="lower",
+            format="{radius_error_median_frac!p:.1f} %",
+        ),
+    ),
+    table=Table(
+        title="Identification (unknown target, §7)",
+        text=(
+            "Over each agent's successful trials: the material estimate (conductor when more than half the "
+            "particles have χ > 0) against the true one, and the median relative error of the radius estimate "
+            "(the particles' median radius). The paper has no such numbers."
+        ),
+        count="identified_trials",
+        pooled=" (pooled)",
+    ),
+    dataset_info=("radius_estimate_mm", "p_conductor"),
+)
+UnknownTargetTask.metrics = SHAPE_METRICS
