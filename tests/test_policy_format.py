@@ -127,6 +127,62 @@ def test_qrdqn_and_recurrent_ppo_act_as_sb3(tmp_path):
     assert agent.recurrent and _rollout_check(model, venv, agent, steps=60) >= 1  # the LSTM state resets per episode
 
 
+_BOX = {"type": "Box", "shape": [3], "dtype": "float32", "low": [-1.0] * 3, "high": [1.0] * 3}
+_DISCRETE = {"type": "Discrete", "n": 5, "start": 0}
+_LSTM = {"lstm_hidden_size": 6, "n_lstm_layers": 1, "shared_lstm": False, "enable_critic_lstm": True}
+
+
+@pytest.mark.parametrize(
+    "algo, policy_class, action, policy_kwargs, recurrent",
+    [
+        ("ppo", "ActorCriticPolicy", _BOX, {"net_arch": [16, 8]}, None),
+        ("ppo", "ActorCriticPolicy", _DISCRETE, {"net_arch": {"pi": [16], "vf": [8, 4]}}, None),
+        (
+            "a2c",
+            "ActorCriticPolicy",
+            _BOX,
+            {"net_arch": {"pi": [], "vf": [5]}, "share_features_extractor": False},
+            None,
+        ),
+        ("recurrentppo", "RecurrentActorCriticPolicy", _BOX, {"net_arch": [6]}, _LSTM),
+        ("recurrentppo", "RecurrentActorCriticPolicy", _DISCRETE, {"net_arch": [6]}, {**_LSTM, "n_lstm_layers": 2}),
+        (
+            "recurrentppo",
+            "RecurrentActorCriticPolicy",
+            _BOX,
+            {"net_arch": {"pi": [3], "vf": [4]}},
+            {**_LSTM, "shared_lstm": True, "enable_critic_lstm": False},
+        ),
+        ("recurrentppo", "RecurrentActorCriticPolicy", _BOX, {"net_arch": []}, {**_LSTM, "enable_critic_lstm": False}),
+        ("sac", "SACPolicy", _BOX, {"net_arch": [16, 8]}, None),
+        ("sac", "SACPolicy", _BOX, {"net_arch": {"pi": [9], "qf": [6, 5]}, "n_critics": 3}, None),
+        ("dqn", "DQNPolicy", _DISCRETE, {"net_arch": [12]}, None),
+        ("dqn", "DQNPolicy", _DISCRETE, {"net_arch": []}, None),
+        ("qrdqn", "QRDQNPolicy", _DISCRETE, {"net_arch": [12], "n_quantiles": 7}, None),
+    ],
+)
+def test_the_format_knows_each_policy_class_tensors(algo, policy_class, action, policy_kwargs, recurrent):
+    """expected_tensors (what a file's tensors are checked against at load) is the SB3 / sb3-contrib class's own
+    state_dict for each architecture: names and shapes."""
+    import importlib
+
+    from electroloc_gym.policy.format import POLICY_CLASSES, expected_tensors, space_from_json
+
+    if policy_class in ("RecurrentActorCriticPolicy", "QRDQNPolicy"):
+        pytest.importorskip("sb3_contrib")
+    obs = {"type": "Box", "shape": [7], "dtype": "float32", "low": [-1.0] * 7, "high": [1.0] * 7}
+    meta = {
+        "algo": algo,
+        "architecture": {"policy_class": policy_class, "policy_kwargs": policy_kwargs, "recurrent": recurrent},
+        "observation": {"shape": [7], "space": obs},
+        "action": {"space": action},
+    }
+    module, attr = POLICY_CLASSES[policy_class].split(":")
+    cls = getattr(importlib.import_module(module), attr)
+    policy = cls(space_from_json(obs), space_from_json(action), lambda _: 0.0, **policy_kwargs, **(recurrent or {}))
+    assert expected_tensors(meta) == {k: tuple(v.shape) for k, v in policy.state_dict().items()}
+
+
 @needs_numpy2_pickles
 def test_shipped_models_act_as_their_sb3_zip():
     checked = 0

@@ -5,32 +5,43 @@ A policy folder holds::
     policy.json          architecture, observation layout and normalisation, action space, provenance
     policy.safetensors   the policy network's tensors (torch ``state_dict`` names and dtypes)
 
-``policy.json`` (``format`` = ``"electroloc-gym-policy"``, ``format_version`` 1):
+``policy.json`` (``format`` = ``"electroloc-gym-policy"``, ``format_version`` 1) holds exactly these keys,
+all required but the last three:
 
 * ``weights``: ``{"file": "policy.safetensors", "sha256": hex, "tensors": n}`` — a weights file that
-  does not belong to the JSON is refused.
-* ``algo`` (``"ppo"``, ``"sac"``, …) and ``architecture``: ``{"policy_class": one of POLICY_CLASSES,
-  "policy_kwargs": {net_arch, activation_fn (a name in ACTIVATIONS), …}, "recurrent": null |
-  {lstm_hidden_size, n_lstm_layers, shared_lstm, enable_critic_lstm}}``.
-* ``observation``: ``{"env_id", "mode" ("belief"/"raw"), "frame_stack", "frame_dim", "shape" (network
-  input), "space"}``; ``action``: ``{"action_type" ("continuous"/"discrete"), "space"}``.
-* ``normalization``: null or VecNormalize's frozen statistics (``norm_obs``, ``obs_mean``, ``obs_var``,
-  ``clip_obs``, ``epsilon``, …). Statistics of ``frame_dim`` values normalise each frame before
-  stacking (rl-zoo3's order: ``VecNormalize`` inside ``VecFrameStack``); statistics of the stacked
-  vector normalise after stacking (files written before the rl-zoo3 path).
-* ``env_kwargs`` (training env kwargs, for reference), ``provenance`` and ``evaluation`` (plain data).
+  does not belong to the JSON is refused, and it holds exactly ``n`` tensors.
+* ``algo``, one of :data:`ALGOS`, and ``architecture``: ``{"policy_class": the algo's class (of
+  POLICY_CLASSES), "policy_kwargs": {net_arch (required), activation_fn (a name in ACTIVATIONS), …},
+  "recurrent": null | {lstm_hidden_size, n_lstm_layers, shared_lstm, enable_critic_lstm}}``.
+* ``observation``: ``{"env_id", "mode" (OBSERVATION_MODES), "frame_stack", "frame_dim", "shape" (the
+  network input, one integer), "space"}``; ``action``: ``{"action_type" ("continuous"/"discrete"), "space"}``.
+* ``normalization``: ``null`` (the policy reads raw observations: said explicitly, never by leaving the key
+  out) or VecNormalize's frozen statistics: ``norm_obs`` (required; false: no normalisation) and, when it is
+  true, ``obs_mean``, ``obs_var``, ``clip_obs`` and ``epsilon`` (``obs_count``, ``norm_reward``, … optional).
+  Statistics of ``frame_dim`` values normalise each frame before stacking (rl-zoo3's order:
+  ``VecNormalize`` inside ``VecFrameStack``); statistics of the stacked vector normalise after stacking
+  (files written before the rl-zoo3 path).
+* ``env_kwargs`` (training env kwargs, for reference), ``provenance`` and ``evaluation`` (plain data; optional).
 
 Every field is read with its JSON type checked (:func:`read_export`): a number where a number goes (finite,
 never a boolean), a boolean where a flag goes (``"norm_obs": "yes"`` is refused, not read as true),
 integers ≥ 1 for sizes, ``policy_kwargs`` only with the keys :data:`POLICY_KWARGS` lists (they are passed to
-SB3's policy class for stochastic actions), ``recurrent`` exactly for the recurrent policy class, and the
-``action_type`` the action space's type (:data:`ACTION_SPACE_TYPES`).
+SB3's policy class for stochastic actions), ``recurrent`` exactly for the recurrent policy class (and the
+LSTM keys of ``policy_kwargs``, if there, equal to it), ``net_arch`` of the form the class builds, the
+``action_type`` the action space's type (:data:`ACTION_SPACE_TYPES`) and the one the class acts in
+(:data:`CLASS_ACTION_TYPES`); no object has a key the format does not define (``normalization`` may keep
+VecNormalize's other keys).
+
+The tensors are checked against what the declared architecture builds (:func:`expected_tensors`: the
+``state_dict`` names and shapes of the policy class with that ``net_arch``, LSTM, observation size and
+action space): none missing, none extra, every shape and the count in ``weights.tensors`` as declared,
+floating-point — at load, so a file whose parts disagree is refused before it acts, never half-read.
 
 Reading never unpickles or executes anything: JSON is parsed, spaces are rebuilt from plain values,
 and the safetensors file is read and written by the reference library's numpy interface
 (``safetensors.numpy``: no torch needed). What this module adds is what the format does not say:
-the SHA-256 that ties the weights to their JSON, finite weights, and one :class:`PolicyFormatError`
-naming the file for any damage.
+the SHA-256 that ties the weights to their JSON, finite weights, tensors that fit the architecture, and one
+:class:`PolicyFormatError` naming the file and the field for any damage.
 """
 
 from __future__ import annotations
@@ -47,11 +58,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.contract.observation import OBSERVATION_MODES
 from electroloc_gym.utils.fileio import atomic_write_bytes, write_json_atomic
 
 __all__ = [
     "ACTION_SPACE_TYPES",
     "ACTIVATIONS",
+    "ALGOS",
+    "CLASS_ACTION_TYPES",
     "POLICY_KWARGS",
     "FORMAT",
     "FORMAT_VERSION",
@@ -61,6 +75,7 @@ __all__ = [
     "ObsNormalization",
     "PolicyExport",
     "PolicyFormatError",
+    "expected_tensors",
     "read_export",
     "read_weights",
     "space_from_json",
@@ -81,6 +96,23 @@ POLICY_CLASSES: dict[str, str] = {
     "DQNPolicy": "stable_baselines3.dqn.policies:DQNPolicy",
     "QRDQNPolicy": "sb3_contrib.qrdqn.policies:QRDQNPolicy",
 }
+
+#: ``algo`` → (the policy class its files hold, which tensors they hold: ``"policy"`` the class's whole
+#: ``state_dict`` — what an export of an SB3 / sb3-contrib model or an RLlib PPO writes — or ``"actor"`` the
+#: deterministic actor's alone: the offline trainers' files, which have no stochastic actions).
+ALGOS: dict[str, tuple[str, str]] = {
+    "ppo": ("ActorCriticPolicy", "policy"),
+    "a2c": ("ActorCriticPolicy", "policy"),
+    "trpo": ("ActorCriticPolicy", "policy"),
+    "recurrentppo": ("RecurrentActorCriticPolicy", "policy"),
+    "sac": ("SACPolicy", "policy"),
+    "dqn": ("DQNPolicy", "policy"),
+    "qrdqn": ("QRDQNPolicy", "policy"),
+    "bc": ("SACPolicy", "actor"),
+    "td3_bc": ("SACPolicy", "actor"),
+}
+#: The action type a policy class acts in (a class not listed acts in either).
+CLASS_ACTION_TYPES: dict[str, str] = {"SACPolicy": "continuous", "DQNPolicy": "discrete", "QRDQNPolicy": "discrete"}
 
 #: Activation name (as written in policy.json) → ``torch.nn`` class name.
 ACTIVATIONS: dict[str, str] = {
@@ -126,7 +158,8 @@ RECURRENT_CLASS = "RecurrentActorCriticPolicy"
 #: ``action.action_type`` → the type of ``action.space`` it needs.
 ACTION_SPACE_TYPES: dict[str, str] = {"continuous": "Box", "discrete": "Discrete"}
 #: ``normalization``'s keys by kind (``"stats"``: a list of numbers or null; the others as above, ``"number?"``
-#: a number or null). Keys beyond these are VecNormalize's and unused.
+#: a number or null). Keys beyond these are VecNormalize's and unused. ``norm_obs`` is required; with it true,
+#: :data:`NORMALIZATION_NEEDED` too.
 NORMALIZATION_KEYS: dict[str, str] = {
     "norm_obs": "flag",
     "norm_reward": "flag",
@@ -141,6 +174,15 @@ NORMALIZATION_KEYS: dict[str, str] = {
     "return_var": "number?",
     "return_count": "number?",
 }
+#: The ``normalization`` keys a file with ``norm_obs`` true must hold.
+NORMALIZATION_NEEDED = ("obs_mean", "obs_var", "clip_obs", "epsilon")
+#: ``policy.json``'s keys (required, then optional), and those of its objects (all required).
+TOP_KEYS = ("format", "format_version", "weights", "algo", "architecture", "observation", "action", "normalization")
+OPTIONAL_TOP_KEYS = ("env_kwargs", "provenance", "evaluation")
+WEIGHTS_KEYS = ("file", "sha256", "tensors")
+ARCHITECTURE_KEYS = ("policy_class", "policy_kwargs", "recurrent")
+OBSERVATION_KEYS = ("env_id", "mode", "frame_stack", "frame_dim", "shape", "space")
+ACTION_KEYS = ("action_type", "space")
 
 
 class PolicyFormatError(ValueError):
@@ -321,8 +363,9 @@ def read_weights(export: PolicyExport) -> dict[str, np.ndarray]:
     """The tensors of ``policy.safetensors`` as numpy arrays, after checking the SHA-256 in ``policy.json``.
 
     Raises:
-        PolicyFormatError: a missing or altered file, one that is not a safetensors file, or weights that
-            are not all finite (a NaN or infinite weight makes every action NaN).
+        PolicyFormatError: a missing or altered file, one that is not a safetensors file, weights that
+            are not all finite (a NaN or infinite weight makes every action NaN), or tensors that are not
+            those the declared architecture builds (:func:`check_tensors`).
     """
     import safetensors.numpy as st
 
@@ -339,14 +382,152 @@ def read_weights(export: PolicyExport) -> dict[str, np.ndarray]:
     for name, a in out.items():
         if a.dtype.kind == "f" and not np.isfinite(a).all():
             raise PolicyFormatError(f"{path}: tensor {name!r} holds non-finite weights (NaN or infinity)")
+    check_tensors(export.meta, out, str(export.folder / POLICY_JSON))
     return out
+
+
+def _linear(name: str, n_in: int, n_out: int) -> dict[str, tuple[int, ...]]:
+    return {f"{name}.weight": (n_out, n_in), f"{name}.bias": (n_out,)}
+
+
+def _mlp(prefix: str, n_in: int, layers: list[int], n_out: int | None = None) -> tuple[dict[str, tuple[int, ...]], int]:
+    """SB3's MLP ``prefix``: an ``nn.Linear`` per layer (indices 0, 2, …: an activation after each), then one to
+    ``n_out`` if given. Returns the shapes and the last width.
+    """
+    shapes: dict[str, tuple[int, ...]] = {}
+    width = n_in
+    for i, size in enumerate(layers):
+        shapes.update(_linear(f"{prefix}.{2 * i}", width, size))
+        width = size
+    if n_out is not None:
+        shapes.update(_linear(f"{prefix}.{2 * len(layers)}", width, n_out))
+        width = n_out
+    return shapes, width
+
+
+def _lstm(name: str, n_in: int, hidden: int, layers: int) -> dict[str, tuple[int, ...]]:
+    shapes: dict[str, tuple[int, ...]] = {}
+    for k in range(layers):
+        shapes.update(
+            {
+                f"{name}.weight_ih_l{k}": (4 * hidden, n_in if k == 0 else hidden),
+                f"{name}.weight_hh_l{k}": (4 * hidden, hidden),
+                f"{name}.bias_ih_l{k}": (4 * hidden,),
+                f"{name}.bias_hh_l{k}": (4 * hidden,),
+            }
+        )
+    return shapes
+
+
+def _arch_parts(net_arch: Any, critic: str) -> tuple[list[int], list[int]]:
+    """(actor layers, critic layers) of a ``net_arch``: one list for both, or ``{"pi": [...], critic: [...]}``."""
+    if isinstance(net_arch, dict):
+        return list(net_arch.get("pi", [])), list(net_arch.get(critic, []))
+    return list(net_arch), list(net_arch)
+
+
+def expected_tensors(meta: Mapping[str, Any]) -> dict[str, tuple[int, ...]]:
+    """The tensor names and shapes the architecture of a validated ``policy.json`` builds.
+
+    SB3's / sb3-contrib's ``state_dict`` of the policy class with its ``net_arch``, LSTM and activation, the
+    observation size (``observation.shape``) and the action space (a Box's size, a Discrete's n); for an
+    ``"actor"`` algo (:data:`ALGOS`) the deterministic actor's tensors alone (``actor.latent_pi``, ``actor.mu``).
+    The flat features extractor has no tensors.
+    """
+    arch = meta["architecture"]
+    kind, pk = arch["policy_class"], arch["policy_kwargs"]
+    n_obs = int(np.prod(meta["observation"]["shape"]))
+    space = meta["action"]["space"]
+    n_act = int(space["n"]) if space["type"] == "Discrete" else int(np.prod(space["shape"]))
+    out: dict[str, tuple[int, ...]] = {}
+    if kind in ("ActorCriticPolicy", "RecurrentActorCriticPolicy"):
+        pi, vf = _arch_parts(pk["net_arch"], "vf")
+        features = n_obs
+        if kind == "RecurrentActorCriticPolicy":
+            rec = arch["recurrent"]
+            hidden, layers = int(rec["lstm_hidden_size"]), int(rec["n_lstm_layers"])
+            out.update(_lstm("lstm_actor", n_obs, hidden, layers))
+            if rec["enable_critic_lstm"]:
+                out.update(_lstm("lstm_critic", n_obs, hidden, layers))
+            elif not rec["shared_lstm"]:
+                out.update(_linear("critic", n_obs, hidden))
+            features = hidden
+        shapes, latent_pi = _mlp("mlp_extractor.policy_net", features, pi)
+        out.update(shapes)
+        shapes, latent_vf = _mlp("mlp_extractor.value_net", features, vf)
+        out.update(shapes)
+        out.update(_linear("action_net", latent_pi, n_act))
+        if space["type"] == "Box":
+            out["log_std"] = (n_act,)
+        out.update(_linear("value_net", latent_vf, 1))
+    elif kind == "SACPolicy":
+        pi, qf = _arch_parts(pk["net_arch"], "qf")
+        shapes, latent = _mlp("actor.latent_pi", n_obs, pi)
+        out.update(shapes)
+        out.update(_linear("actor.mu", latent, n_act))
+        if ALGOS[meta["algo"]][1] == "policy":
+            out.update(_linear("actor.log_std", latent, n_act))
+            for net in ("critic", "critic_target"):
+                for i in range(int(pk.get("n_critics", 2))):
+                    out.update(_mlp(f"{net}.qf{i}", n_obs + n_act, qf, 1)[0])
+    elif kind == "DQNPolicy":
+        for net in ("q_net", "q_net_target"):
+            out.update(_mlp(f"{net}.q_net", n_obs, list(pk["net_arch"]), n_act)[0])
+    else:  # QRDQNPolicy
+        n_out = n_act * int(pk["n_quantiles"])
+        for net in ("quantile_net", "quantile_net_target"):
+            out.update(_mlp(f"{net}.quantile_net", n_obs, list(pk["net_arch"]), n_out)[0])
+    return out
+
+
+def check_tensors(meta: Mapping[str, Any], tensors: Mapping[str, np.ndarray], where: str) -> None:
+    """Refuse ``tensors`` unless they are exactly those :func:`expected_tensors` names, of those shapes,
+    floating-point, and as many as ``weights.tensors`` says (when the file records it).
+
+    Raises:
+        PolicyFormatError: one line starting with ``where``, naming the fields the tensors contradict.
+    """
+    declared = meta.get("weights", {}).get("tensors") if isinstance(meta.get("weights"), dict) else None
+    if declared is not None and declared != len(tensors):
+        raise PolicyFormatError(
+            f"{where}: weights.tensors is {declared}, but {WEIGHTS_FILE} holds {len(tensors)} tensors"
+        )
+    want = expected_tensors(meta)
+    problems = []
+    missing = sorted(set(want) - set(tensors))
+    extra = sorted(set(tensors) - set(want))
+    if missing:
+        problems.append(f"missing {missing[:6]}{' …' if len(missing) > 6 else ''}")
+    if extra:
+        problems.append(f"not of this architecture {extra[:6]}{' …' if len(extra) > 6 else ''}")
+    for name in sorted(set(want) & set(tensors)):
+        a = tensors[name]
+        if tuple(a.shape) != want[name]:
+            problems.append(f"{name!r} has shape {tuple(a.shape)}, the architecture's is {want[name]}")
+        elif a.dtype.kind != "f":
+            problems.append(f"{name!r} is {a.dtype}, not floating-point")
+    if problems:
+        arch, obs, act = meta["architecture"], meta["observation"], meta["action"]["space"]
+        declared_as = (
+            f"algo {meta['algo']!r}, architecture.policy_class {arch['policy_class']!r}, "
+            f"architecture.policy_kwargs.net_arch {arch['policy_kwargs']['net_arch']}"
+            + (f", architecture.recurrent {arch['recurrent']}" if arch.get("recurrent") else "")
+            + f", observation.shape {obs['shape']}, action.space "
+            + (f"Discrete({act['n']})" if act["type"] == "Discrete" else f"Box{tuple(act['shape'])}")
+        )
+        shown = "; ".join(problems[:4]) + (f"; … ({len(problems) - 4} more)" if len(problems) > 4 else "")
+        raise PolicyFormatError(f"{where}: the tensors of {WEIGHTS_FILE} do not fit {declared_as}: {shown}")
 
 
 def write_export(folder: str | Path, meta: Mapping[str, Any], tensors: Mapping[str, np.ndarray]) -> Path:
     """Write ``policy.safetensors`` then ``policy.json`` (both atomically); ``meta`` without ``weights``.
 
     The JSON is written last and names the SHA-256 of the weights, so a reader never pairs a new
-    JSON with old weights.
+    JSON with old weights. Both are checked as :func:`read_export` and :func:`read_weights` check them
+    before anything is written: no writer leaves a policy that does not load.
+
+    Raises:
+        PolicyFormatError: ``meta`` or ``tensors`` are not a policy of the format (nothing is written).
     """
     d = Path(folder)
     blob = _safetensors_bytes(tensors)
@@ -356,6 +537,12 @@ def write_export(folder: str | Path, meta: Mapping[str, Any], tensors: Mapping[s
         "weights": {"file": WEIGHTS_FILE, "sha256": hashlib.sha256(blob).hexdigest(), "tensors": len(tensors)},
         **json_value(dict(meta), "policy"),
     }
+    where = str(d / POLICY_JSON)
+    try:
+        _checked(d, full, where)
+        check_tensors(full, {name: np.asarray(a) for name, a in tensors.items()}, where)
+    except PolicyFormatError as exc:
+        raise PolicyFormatError(f"refusing to write a policy that would not load: {exc}") from None
     atomic_write_bytes(d / WEIGHTS_FILE, blob)
     write_json_atomic(d / POLICY_JSON, full)
     return d
@@ -418,25 +605,34 @@ def _check_fields(d: Mapping[str, Any], kinds: Mapping[str, str], where: str, *,
 def normalization_from_json(norm: Any, obs: Mapping[str, Any], where: str) -> ObsNormalization | None:
     """The validated observation statistics of a ``normalization`` entry (None: no normalisation).
 
-    Every key of :data:`NORMALIZATION_KEYS` present must be of its type (``norm_obs`` a boolean, not ``"yes"``).
+    ``null`` and ``{"norm_obs": false, …}`` say "no normalisation"; an object needs ``norm_obs``, and with it
+    true every key of :data:`NORMALIZATION_NEEDED`. Every key of :data:`NORMALIZATION_KEYS` present must be of
+    its type (``norm_obs`` a boolean, not ``"yes"``).
     """
     if norm is None:
         return None
     if not isinstance(norm, dict):
         raise PolicyFormatError(f"{where}: normalization must be null or an object")
     _check_fields(norm, NORMALIZATION_KEYS, f"{where}: normalization", closed=False)
-    if not norm.get("norm_obs", False):
+    if "norm_obs" not in norm:
+        raise PolicyFormatError(
+            f"{where}: normalization.norm_obs is missing (true with the statistics, or false; normalization null: none)"
+        )
+    if not norm["norm_obs"]:
         return None
     if norm.get("obs_mean") is None or norm.get("obs_var") is None:
         raise PolicyFormatError(
             f"{where}: normalization.norm_obs is true but the observation statistics "
             f"(obs_mean, obs_var) are missing — refusing to run on raw observations"
         )
+    for key in NORMALIZATION_NEEDED:
+        if key not in norm:
+            raise PolicyFormatError(f"{where}: normalization.{key} is missing (needed when norm_obs is true)")
     stats = ObsNormalization(
         floats_from_json(norm["obs_mean"], f"{where} obs_mean"),
         floats_from_json(norm["obs_var"], f"{where} obs_var"),
-        clip_obs=norm.get("clip_obs", 10.0),
-        epsilon=norm.get("epsilon", 1e-8),
+        clip_obs=norm["clip_obs"],
+        epsilon=norm["epsilon"],
     )
     if stats.mean.shape[0] not in (obs["shape"][0], obs["frame_dim"]):
         raise PolicyFormatError(
@@ -463,7 +659,11 @@ def read_export(folder: str | Path) -> PolicyExport:
         raise PolicyFormatError(f"{path} is not valid JSON: {exc}") from exc
     except RecursionError as exc:
         raise PolicyFormatError(f"{path} is nested too deeply to be a policy file") from exc
-    where = str(path)
+    return _checked(d, meta, str(path))
+
+
+def _checked(d: Path, meta: Any, where: str) -> PolicyExport:
+    """:func:`_validated`, whatever it meets: one :class:`PolicyFormatError` starting with ``where``."""
     try:
         return _validated(d, meta, where)
     except PolicyFormatError as exc:
@@ -475,6 +675,33 @@ def read_export(folder: str | Path) -> PolicyExport:
         raise PolicyFormatError(f"{where} does not describe a loadable policy: {one_line(exc)}") from exc
 
 
+def _keys(d: Mapping[str, Any], required: tuple[str, ...], optional: tuple[str, ...], where: str) -> None:
+    """``d`` holds every key of ``required`` and no key beyond ``required`` and ``optional``."""
+    unknown = sorted(str(k) for k in d if k not in required and k not in optional)
+    if unknown:
+        raise PolicyFormatError(f"{where} has unknown key(s) {unknown}; the format defines {[*required, *optional]}")
+    missing = [k for k in required if k not in d]
+    if missing:
+        raise PolicyFormatError(
+            f"{where}: missing key {missing[0]!r}" + (f" (and {missing[1:]})" if missing[1:] else "")
+        )
+
+
+def _check_net_arch(kind: str, net_arch: Any, where: str) -> None:
+    """``net_arch`` of the form ``kind`` builds: a list for the DQN classes, ``pi``/``vf`` or ``pi`` and ``qf``."""
+    if not isinstance(net_arch, dict):
+        return
+    allowed = {"ActorCriticPolicy": {"pi", "vf"}, "RecurrentActorCriticPolicy": {"pi", "vf"}, "SACPolicy": {"pi", "qf"}}
+    keys = allowed.get(kind)
+    if keys is None or not set(net_arch) <= keys or (kind == "SACPolicy" and set(net_arch) != keys):
+        form = "a list of layer sizes" + (
+            "" if keys is None else f" or {{{', '.join(repr(k) for k in sorted(keys))}: [...]}}"
+        )
+        raise PolicyFormatError(
+            f"{where}: architecture.policy_kwargs.net_arch of a {kind} must be {form}, got {net_arch!r}"
+        )
+
+
 def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise PolicyFormatError(f"{where} is not an {FORMAT} file")
@@ -483,21 +710,31 @@ def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
         raise PolicyFormatError(
             f"{where}: format_version {version!r} is not supported (this version reads {FORMAT_VERSION})"
         )
+    _keys(meta, TOP_KEYS, OPTIONAL_TOP_KEYS, where)
     weights = _need(meta, "weights", dict, where)
-    if weights.get("file") != WEIGHTS_FILE or not isinstance(weights.get("sha256"), str):
+    _keys(weights, WEIGHTS_KEYS, (), f"{where}: weights")
+    if weights["file"] != WEIGHTS_FILE or not isinstance(weights["sha256"], str):
         raise PolicyFormatError(f"{where}: weights must name {WEIGHTS_FILE!r} and its sha256")
     if not re.fullmatch(r"[0-9a-f]{64}", weights["sha256"]):
         raise PolicyFormatError(f"{where}: weights.sha256 must be 64 lowercase hex digits, got {weights['sha256']!r}")
-    tensors = weights.get("tensors", 0)
-    if not (isinstance(tensors, int) and not isinstance(tensors, bool) and tensors >= 0):
-        raise PolicyFormatError(f"{where}: weights.tensors must be an integer ≥ 0, got {tensors!r}")
-    if not _need(meta, "algo", str, where):
+    if not _is_count(weights["tensors"]):
+        raise PolicyFormatError(f"{where}: weights.tensors must be an integer ≥ 1, got {weights['tensors']!r}")
+    algo = _need(meta, "algo", str, where)
+    if not algo:
         raise PolicyFormatError(f"{where}: algo must be a non-empty string")
+    if algo not in ALGOS:
+        raise PolicyFormatError(f"{where}: algo must be one of {sorted(ALGOS)}, got {algo!r}")
     arch = _need(meta, "architecture", dict, where)
     if not isinstance(arch.get("policy_class"), str) or arch["policy_class"] not in POLICY_CLASSES:
         raise PolicyFormatError(
             f"{where}: architecture.policy_class must be one of {sorted(POLICY_CLASSES)}, "
             f"got {arch.get('policy_class')!r}"
+        )
+    _keys(arch, ARCHITECTURE_KEYS, (), f"{where}: architecture")
+    kind = arch["policy_class"]
+    if ALGOS[algo][0] != kind:
+        raise PolicyFormatError(
+            f"{where}: algo {algo!r} goes with architecture.policy_class {ALGOS[algo][0]!r}, got {kind!r}"
         )
     pk = _need(arch, "policy_kwargs", dict, f"{where} architecture")
     if "activation_fn" in pk and (not isinstance(pk["activation_fn"], str) or pk["activation_fn"] not in ACTIVATIONS):
@@ -505,35 +742,64 @@ def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
             f"{where}: activation_fn must be one of {list(ACTIVATIONS)}, got {pk['activation_fn']!r}"
         )
     _check_fields(pk, POLICY_KWARGS, f"{where}: architecture.policy_kwargs", closed=True)
-    recurrent = arch.get("recurrent")
-    if arch["policy_class"] == RECURRENT_CLASS:
+    needed = ("net_arch", "n_quantiles") if kind == "QRDQNPolicy" else ("net_arch",)
+    for key in needed:
+        if key not in pk:
+            raise PolicyFormatError(f"{where}: architecture.policy_kwargs.{key} is missing (a {kind} needs it)")
+    _check_net_arch(kind, pk["net_arch"], where)
+    if pk.get("use_sde"):
+        raise PolicyFormatError(f"{where}: architecture.policy_kwargs.use_sde must be false (gSDE is not supported)")
+    recurrent = arch["recurrent"]
+    if kind == RECURRENT_CLASS:
         if not isinstance(recurrent, dict) or set(recurrent) != set(RECURRENT_KEYS):
             raise PolicyFormatError(
                 f"{where}: architecture.recurrent of a {RECURRENT_CLASS} must be an object with exactly "
                 f"{sorted(RECURRENT_KEYS)}, got {recurrent!r}"
             )
         _check_fields(recurrent, RECURRENT_KEYS, f"{where}: architecture.recurrent", closed=True)
+        if recurrent["shared_lstm"] and recurrent["enable_critic_lstm"]:
+            raise PolicyFormatError(
+                f"{where}: architecture.recurrent: shared_lstm and enable_critic_lstm exclude each other"
+            )
+        for key in RECURRENT_KEYS:
+            if key in pk and pk[key] != recurrent[key]:
+                raise PolicyFormatError(
+                    f"{where}: architecture.policy_kwargs.{key} is {pk[key]!r}, architecture.recurrent.{key} "
+                    f"is {recurrent[key]!r}"
+                )
     elif recurrent is not None:
-        raise PolicyFormatError(f"{where}: architecture.recurrent must be null for a {arch['policy_class']}")
+        raise PolicyFormatError(f"{where}: architecture.recurrent must be null for a {kind}")
+    elif any(key in pk for key in RECURRENT_KEYS):
+        raise PolicyFormatError(
+            f"{where}: architecture.policy_kwargs holds LSTM keys {sorted(k for k in RECURRENT_KEYS if k in pk)}, "
+            f"but a {kind} has no LSTM"
+        )
     obs = _need(meta, "observation", dict, where)
+    _keys(obs, OBSERVATION_KEYS, (), f"{where}: observation")
     for key, types in (("env_id", str), ("mode", str), ("frame_stack", int), ("frame_dim", int), ("shape", list)):
         _need(obs, key, types, f"{where} observation")
     for key in ("env_id", "mode"):
         if not obs[key]:
             raise PolicyFormatError(f"{where}: observation.{key} must be a non-empty string")
+    if obs["mode"] not in OBSERVATION_MODES:
+        raise PolicyFormatError(
+            f"{where}: observation.mode must be one of {list(OBSERVATION_MODES)}, got {obs['mode']!r}"
+        )
     if obs["frame_dim"] < 1:
         raise PolicyFormatError(f"{where}: observation.frame_dim must be an integer ≥ 1, got {obs['frame_dim']!r}")
     space = space_from_json(obs.get("space"), f"{where} observation.space")
     if (
         list(space.shape) != obs["shape"]
+        or len(obs["shape"]) != 1
         or obs["frame_stack"] < 1
         or obs["frame_dim"] * obs["frame_stack"] != obs["shape"][0]
     ):
         raise PolicyFormatError(
             f"{where}: observation shape {obs['shape']} does not match its space, frame_stack "
-            f"{obs['frame_stack']} and frame_dim {obs['frame_dim']}"
+            f"{obs['frame_stack']} and frame_dim {obs['frame_dim']} (a flat vector of frame_stack frames)"
         )
     act = _need(meta, "action", dict, where)
+    _keys(act, ACTION_KEYS, (), f"{where}: action")
     action_type = _need(act, "action_type", str, f"{where} action")
     action_space = space_from_json(act.get("space"), f"{where} action.space")
     if ACTION_SPACE_TYPES.get(action_type) != type(action_space).__name__:
@@ -541,10 +807,12 @@ def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
             f"{where}: action.action_type must be one of {list(ACTION_SPACE_TYPES)} and match the action space "
             f"({ACTION_SPACE_TYPES}), got {action_type!r} with a {type(action_space).__name__}"
         )
+    if CLASS_ACTION_TYPES.get(kind, action_type) != action_type:
+        raise PolicyFormatError(
+            f"{where}: a {kind} acts in {CLASS_ACTION_TYPES[kind]} actions, action.action_type is {action_type!r}"
+        )
     for key, allow_null in (("env_kwargs", False), ("provenance", False), ("evaluation", True)):
         if key in meta and not (isinstance(meta[key], dict) or (allow_null and meta[key] is None)):
-            kind = "an object or null" if allow_null else "an object"
-            raise PolicyFormatError(f"{where}: {key} must be {kind}, got {type(meta[key]).__name__}")
-    return PolicyExport(
-        folder=d, meta=meta, normalization=normalization_from_json(meta.get("normalization"), obs, where)
-    )
+            kind_text = "an object or null" if allow_null else "an object"
+            raise PolicyFormatError(f"{where}: {key} must be {kind_text}, got {type(meta[key]).__name__}")
+    return PolicyExport(folder=d, meta=meta, normalization=normalization_from_json(meta["normalization"], obs, where))

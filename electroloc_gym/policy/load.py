@@ -12,7 +12,9 @@ statistics say, :mod:`electroloc_gym.policy.format`). A recurrent policy keeps i
 across ``predict`` calls; ``reset(env)`` clears it.
 
 :func:`load_policy` reads the pickle-free format only: nothing in the folder is unpickled or
-executed, and deterministic actions need numpy alone (:mod:`electroloc_gym.policy.networks`).
+executed, and deterministic actions need numpy alone (:mod:`electroloc_gym.policy.networks`). Every field
+of ``policy.json`` and every tensor is checked when the folder is read (:mod:`electroloc_gym.policy.format`),
+so a damaged folder is one ``PolicyFormatError`` at load, never a policy that acts otherwise.
 Stochastic actions rebuild the SB3 policy (torch and SB3: the ``train`` extra). SB3's own zip and
 ``vecnormalize.pkl`` contain pickles — loading a file made by someone else runs their code — so they
 are read only with ``trust_pickle=True`` (SB3 needed), with a logged warning.
@@ -29,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.policy.format import (
+    ALGOS,
     POLICY_JSON,
     ObsNormalization,
     PolicyExport,
@@ -153,6 +156,12 @@ class LearnedAgent:
     def _stochastic(
         self, x: NDArray[np.float32], state: Any, episode_start: NDArray[Any] | None
     ) -> tuple[NDArray[Any], Any]:
+        algo = self.meta.get("algo")
+        if ALGOS.get(algo, ("", "policy"))[1] == "actor":
+            raise ValueError(
+                f"a {algo} policy file holds the deterministic actor alone: it has no stochastic actions "
+                f"(use deterministic=True)"
+            )
         if self._sb3_policy is None:
             try:
                 from electroloc_gym.policy.sb3 import sb3_policy
