@@ -5,7 +5,8 @@
 * :func:`electroloc_gym.register_env` adds an entry and registers its id with Gymnasium (the built-in
   entries are in :mod:`electroloc_gym.envs.table`);
 * the simulation core builds an entry's task from ``task_class`` (:func:`task_entry`) and validates its
-  arguments against ``arguments`` and ``sensor_models`` (:mod:`electroloc_gym.contract.params`);
+  arguments against ``arguments`` (the fields of the task class's ``Options``) and ``sensor_models``
+  (:mod:`electroloc_gym.contract.params`);
 * the single and native vector envs find their entry by class (:func:`entry_of_class`);
 * ``electroloc bench`` takes its ``--env`` names, conditions, default particle counts, sensor models,
   default agents and table layout from the entries (:mod:`electroloc_gym.bench.config`); RLlib's creator
@@ -19,6 +20,7 @@ added later is seen by every reader.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -102,10 +104,10 @@ class EnvEntry:
     Attributes:
         env_id: the Gymnasium id.
         task: the core's task name (``EnvParams.task``).
-        task_class: the task (a :class:`electroloc_gym.engines.numba_core.task.Task` subclass, built with the params).
+        task_class: the task (a :class:`electroloc_gym.engines.numba_core.task.Task` subclass, built with the params;
+            its ``Options`` declare the env's own arguments, :attr:`arguments`).
         env_class: the single env (a ``CoreEnv`` subclass; Gymnasium's ``entry_point``).
         vector_class: the native vector env (a ``CoreVectorEnv`` subclass; ``vector_entry_point``).
-        arguments: the task's own arguments (the env also takes :data:`COMMON_ARGUMENTS`).
         sensor_models: the sensor models the task implements (the first is the env's and the benchmark's
             default).
         defaults: the env's defaults that differ from ``EnvParams``' (the benchmark's too: its particle
@@ -127,7 +129,6 @@ class EnvEntry:
     task_class: type
     env_class: type
     vector_class: type
-    arguments: tuple[str, ...]
     sensor_models: tuple[str, ...]
     defaults: Mapping[str, Any] = field(default_factory=frozen)
     bench: tuple[BenchEnv, ...] = ()
@@ -139,6 +140,11 @@ class EnvEntry:
     summary: str = ""
 
     def __post_init__(self) -> None:
+        options = getattr(self.task_class, "Options", None)
+        if not (isinstance(options, type) and dataclasses.is_dataclass(options)):
+            raise ValueError(
+                f"task_class must be a Task subclass whose Options is a TaskOptions dataclass, got {self.task_class!r}"
+            )
         if self.paper_table not in PAPER_TABLES:
             raise ValueError(f"paper_table must be one of {list(PAPER_TABLES)}, got {self.paper_table!r}")
         if (self.map_condition is None) != ("condition" in self.arguments):
@@ -149,6 +155,19 @@ class EnvEntry:
             )
         for name in ("defaults", "bench_kwargs", "backends"):
             object.__setattr__(self, name, frozen(getattr(self, name)))
+
+    @property
+    def options_class(self) -> type[Any]:
+        """The task class's ``Options``: the dataclass of the env's own arguments (a ``TaskOptions``)."""
+        options: type[Any] = getattr(self.task_class, "Options", None)  # a dataclass: checked on construction
+        return options
+
+    @property
+    def arguments(self) -> tuple[str, ...]:
+        """The task's own arguments: the fields of its task class's ``Options`` (the env also takes
+        :data:`COMMON_ARGUMENTS`).
+        """
+        return tuple(f.name for f in dataclasses.fields(self.options_class))
 
     @property
     def all_arguments(self) -> tuple[str, ...]:

@@ -10,8 +10,8 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.engines.numba_core import step as core_step
+from electroloc_gym.engines.numba_core.electroloc import ElectroLocOptions
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
 from electroloc_gym.kernels import loglik_assimilate
 from electroloc_gym.kernels.streams import normal_table, table_normal_indices
@@ -186,7 +186,7 @@ def test_bad_combinations() -> None:
         gym.make(ID, sensor_layout="ring-8", gain_levels=(0.5, 1.0))
     with pytest.raises(ValueError, match="unexpected argument.*sensor_layout"):
         gym.make("ElectroLocGlobal-v0", sensor_layout="ring-8")
-    assert isinstance(EnvParams(sensor_layout=PAPER_PAIR).sensor_layout, SensorLayout)
+    assert isinstance(ElectroLocOptions(sensor_layout=PAPER_PAIR).sensor_layout, SensorLayout)
 
 
 def test_native_vector_env_equals_single_envs() -> None:

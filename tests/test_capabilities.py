@@ -22,13 +22,16 @@ from electroloc_gym.contract.capabilities import (  # noqa: E402
     Limit,
     capability_table_markdown,
     check_engine,
+    option_names,
+    params_options,
 )
 from electroloc_gym.contract.params import EnvParams  # noqa: E402
+from electroloc_gym.engines.numba_core.electroloc import ElectroLocOptions  # noqa: E402
 from electroloc_gym.engines.torch_core.consts import TorchConsts  # noqa: E402
 from electroloc_gym.envs.sim_backends import backends_of  # noqa: E402
 from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.envs.vector import CoreVectorEnv, ElectroLocVectorEnv  # noqa: E402
-from electroloc_gym.registry import env_entry  # noqa: E402
+from electroloc_gym.registry import ENVS, env_entry  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 VECTOR_ENVS = {"numba": CoreVectorEnv, "torch": TorchElectroLocVectorEnv}
@@ -45,21 +48,36 @@ def missing_entries(fields: list[str], arguments: list[str], table=CAPABILITIES)
     return [name for name in fields + arguments if name not in table or set(table[name]) != set(ENGINES)]
 
 
-def test_every_envparams_field_and_constructor_argument_has_an_entry_for_every_engine():
-    fields = [f.name for f in dataclasses.fields(EnvParams)]
+def test_every_option_and_constructor_argument_has_an_entry_for_every_engine():
+    fields = list(option_names())
     arguments = sorted({a for cls in VECTOR_ENVS.values() for a in constructor_arguments(cls)})
     assert missing_entries(fields, arguments) == []
     assert set(arguments) == set(CONSTRUCTOR_OPTIONS)  # declared once: the table's list is the signatures'
     assert set(CAPABILITIES) == set(fields) | set(CONSTRUCTOR_OPTIONS)  # and no entry for nothing
 
 
-def test_a_new_field_without_an_entry_fails_the_walk():
+def test_the_walk_sees_the_shared_fields_and_every_tasks_options():
+    """The options walked are the shared fields and each registered task's ``Options`` fields, once each."""
+    names = option_names()
+    assert len(names) == len(set(names)) and "options" not in names
+    assert set(EnvParams.shared_names()) <= set(names)
+    for e in ENVS:
+        assert set(e.arguments) <= set(names)
+    assert {"target_motion", "layout", "contrast", "sensor_layout", "gain_levels"} <= set(names)
+
+
+def test_a_new_field_or_option_without_an_entry_fails_the_walk():
     @dataclasses.dataclass(frozen=True)
     class Grown(EnvParams):
         tank_temperature_K: float = 293.0
 
-    fields = [f.name for f in dataclasses.fields(Grown)]
-    assert missing_entries(fields, []) == ["tank_temperature_K"]
+    assert missing_entries(["task", *Grown.shared_names()], []) == ["tank_temperature_K"]
+
+    @dataclasses.dataclass(frozen=True)
+    class GrownOptions(ElectroLocOptions):
+        prey_count: int = 1
+
+    assert missing_entries([f.name for f in dataclasses.fields(GrownOptions)], []) == ["prey_count"]
     short = {k: v for k, v in CAPABILITIES.items() if k != "gain_levels"} | {"gain_levels": {"numba": Implemented()}}
     assert missing_entries(["gain_levels"], [], short) == ["gain_levels"]
 
@@ -103,7 +121,7 @@ def test_each_absent_option_is_an_unknown_argument_of_its_engine(name, engine, r
 
 def test_limits_hold_for_the_defaults():
     """The torch engine implements every option at its default: the table refuses nothing of a plain env."""
-    options = {f.name: getattr(EnvParams(), f.name) for f in dataclasses.fields(EnvParams)}
+    options = params_options(EnvParams())
     for engine in ENGINES:
         check_engine(engine, {**options, "render_mode": None, "autoreset_mode": "next_step"})
 

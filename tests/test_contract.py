@@ -16,17 +16,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import electroloc_gym  # noqa: F401
-from electroloc_gym.contract.params import (
-    GAIN_FACTOR_LIMITS,
-    MAX_POSITION_BLUR_MM,
+from electroloc_gym.contract.params import GAIN_FACTOR_LIMITS, MIN_OBSERVATION_CAP, SIGNAL_LIMITS
+from electroloc_gym.engines.numba_core.global_task import MAX_POSITION_BLUR_MM
+from electroloc_gym.engines.numba_core.track_task import (
     MAX_TARGET_SPEED_MM,
-    MIN_OBSERVATION_CAP,
     MOTION_MODELS,
     MOTION_OPTION_SCOPES,
-    RADIUS_LIMITS_MM,
-    SIGNAL_LIMITS,
     TARGET_MOTIONS,
 )
+from electroloc_gym.engines.numba_core.unknown import RADIUS_LIMITS_MM
 from electroloc_gym.envs.vector import sub_env_seeds
 from electroloc_gym.world.conditions import PRESET_NAMES
 

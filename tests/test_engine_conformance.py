@@ -162,6 +162,9 @@ class NumbaHarness:
         for f in dataclasses.fields(State):
             if f.name in scratch:
                 continue
+            if f.name == "task":  # the task's own arrays: row i of each, over the task's fields
+                dst.task.put([0], src.task.take([i]))
+                continue
             v = getattr(src, f.name)
             getattr(dst, f.name)[0] = list(v[i]) if isinstance(v[i], list) else v[i]
         rows = src.table.shape[0] // N

@@ -39,7 +39,6 @@ ENTRY = EnvEntry(
     task_class=FewReadingsTask,
     env_class=FewReadingsEnv,
     vector_class=FewReadingsVectorEnv,
-    arguments=BASE.arguments,
     sensor_models=BASE.sensor_models,
     defaults={"n_particles": 300, "max_observations": 6},
     bench=(BenchEnv("few-readings", agents=("rnd-wlk",)),),

@@ -15,6 +15,7 @@ from electroloc_gym.engines.numba_core.step import make_task
 from electroloc_gym.engines.numba_core.task import Task
 from electroloc_gym.registry import (
     BENCH_ENVS,
+    COMMON_ARGUMENTS,
     ENV_IDS,
     ENVS,
     add_entry,
@@ -64,8 +65,10 @@ def test_an_entry_is_refused_when_it_clashes() -> None:
 def test_defaults_and_arguments_come_from_the_entry(entry) -> None:
     params = EnvParams.from_kwargs(entry.task, {}, entry.env_id)
     assert params.sensor_model == entry.sensor_models[0]
+    assert type(params.options) is entry.task_class.Options
+    assert entry.arguments == entry.task_class.Options.names()  # derived from the task's options, not restated
     for key, value in entry.defaults.items():
-        assert getattr(params, key) == value
+        assert getattr(params.options if key in entry.arguments else params, key) == value
     task = make_task(params)
     assert type(task) is entry.task_class
     assert not hasattr(task, "name")  # the step cannot ask a task its name
@@ -97,3 +100,16 @@ def test_unknown_names_are_one_clear_error() -> None:
         task_entry("map")
     with pytest.raises(ValueError, match=r"--env must be one of"):
         bench_env("tank")
+
+
+def test_the_shared_arguments_are_the_shared_fields_and_the_options_are_the_tasks() -> None:
+    """``COMMON_ARGUMENTS`` (the data layer's list) is ``EnvParams``' shared fields; gym.make's kwargs split into
+    them and the task's ``Options``; options of another task are refused naming the class."""
+    assert COMMON_ARGUMENTS == EnvParams.shared_names()
+    params = EnvParams.from_kwargs("track", {"target_speed_mm": 3, "n_particles": 50}, "ElectroLocTrack-v0")
+    assert params.n_particles == 50 and params.options.target_speed_mm == 3.0
+    assert not hasattr(params, "target_speed_mm") and params.gain_levels is None
+    glob = EnvParams.from_kwargs("global", {}, "ElectroLocGlobal-v0")
+    with pytest.raises(ValueError, match=r"^options must be a TrackOptions \(the 'track' task's options\), got"):
+        EnvParams(task="track", options=glob.options)
+    assert EnvParams(task="unknown", sensor_model="analytic").options == task_entry("unknown").task_class.Options()

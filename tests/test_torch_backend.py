@@ -134,7 +134,7 @@ def test_true_reading_matches_physics():
     s["target_mm"] = torch.tensor(rng.uniform(-40, 40, (8, 2)))
     s["position_mm"] = torch.tensor(rng.uniform(-40, 40, (8, 2)))
     got = sim.true_reading_V(k, s).numpy()
-    pool = EnvParams.from_kwargs("localize", {"condition": "random"}, "ElectroLoc-v0").conditions()
+    pool = EnvParams.from_kwargs("localize", {"condition": "random"}, "ElectroLoc-v0").options.conditions()
     off = s["target_mm"].numpy() - s["position_mm"].numpy()
     want = np.array([expected_reading(pool[i], off[i], saturate=False) for i in range(8)])
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)

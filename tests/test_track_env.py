@@ -15,9 +15,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import electroloc_gym  # noqa: F401  (registers the ids)
-from electroloc_gym.contract.params import MAX_TARGET_SPEED_MM, MOTION_MODELS, TARGET_MOTIONS, EnvParams
+from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.engines.numba_core.step import Simulation
-from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM, reflect
+from electroloc_gym.engines.numba_core.track_task import (
+    CAPTURE_DISTANCE_MM,
+    MAX_TARGET_SPEED_MM,
+    MOTION_MODELS,
+    TARGET_MOTIONS,
+    reflect,
+)
 from electroloc_gym.kernels.streams import normal_table, table_normal_indices
 from electroloc_gym.world.conditions import Condition, get_condition
 from tests.vector_equivalence import assert_native_equals_sync

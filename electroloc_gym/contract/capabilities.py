@@ -2,8 +2,9 @@
 
 Two engines step the envs: ``"numba"`` (:mod:`electroloc_gym.engines.numba_core`, every env, the reference) and
 ``"torch"`` (:mod:`electroloc_gym.engines.torch_core`, ElectroLoc-v0 on any ``torch.device``). For each engine and
-each env option — every field of :class:`~electroloc_gym.contract.params.EnvParams` and every argument of
-the engines' vector-env constructors (:data:`CONSTRUCTOR_OPTIONS`) — :data:`CAPABILITIES` says one of:
+each env option — every shared field of :class:`~electroloc_gym.contract.params.EnvParams`, every option of
+every registered task (its ``Options``, :func:`option_names`) and every argument of the engines' vector-env
+constructors (:data:`CONSTRUCTOR_OPTIONS`) — :data:`CAPABILITIES` says one of:
 
 * implemented (:data:`IMPLEMENTED`): every valid value works;
 * limited (:class:`Limit`): only some values are implemented; any other is refused at construction
@@ -13,8 +14,8 @@ the engines' vector-env constructors (:data:`CONSTRUCTOR_OPTIONS`) — :data:`CA
 
 The torch engine's constructor refuses what it does not implement by reading this table; the docs'
 table of the engines' support (docs/design.md, "Two engines") is :func:`capability_table_markdown`;
-and ``tests/test_capabilities.py`` fails on an ``EnvParams`` field or a constructor argument with no
-entry, and builds each engine with each limit's refused example to see the refusal.
+and ``tests/test_capabilities.py`` fails on an env option (:func:`option_names`) or a constructor argument
+with no entry, and builds each engine with each limit's refused example to see the refusal.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ __all__ = [
     "support",
     "check_engine",
     "params_options",
+    "option_names",
     "capability_table_markdown",
 ]
 
@@ -79,7 +81,7 @@ class Limit:
         allowed: the values it takes, as written in Python (``"None"``, ``"'single'"``).
         reason: why the others are not, a clause after the engine's name ("has no dynamic gain").
         holds: whether a value is implemented: ``holds(value, options)``, ``options`` every option's value
-            (the ``EnvParams`` fields and the constructor's arguments), for a limit that depends on another.
+            (:func:`params_options` and the constructor's arguments), for a limit that depends on another.
         refused: a value the engine refuses (with ``refused_with``: the other options that make it so),
             the tests' example.
         refused_with: options given beside ``refused`` for it to be refused.
@@ -138,7 +140,7 @@ CAPABILITIES: Mapping[str, Mapping[str, Support]] = MappingProxyType(
     {
         name: MappingProxyType(engines)
         for name, engines in {
-            # ---- the EnvParams fields ----------------------------------------------------------------
+            # ---- the shared EnvParams fields and the tasks' options ------------------------------------------
             "task": {
                 "numba": IMPLEMENTED,
                 "torch": Limit(
@@ -236,7 +238,7 @@ def check_engine(engine: str, options: Mapping[str, Any]) -> None:
 
     Args:
         engine: one of :data:`ENGINES`.
-        options: the option values to check (the ``EnvParams`` fields, the constructor's arguments); an
+        options: the option values to check (:func:`params_options`, the constructor's arguments); an
             option not given is not checked.
     """
     for name, engines in CAPABILITIES.items():
@@ -249,8 +251,21 @@ def check_engine(engine: str, options: Mapping[str, Any]) -> None:
 
 
 def params_options(params: EnvParams) -> dict[str, Any]:
-    """Every ``EnvParams`` field's value, by name (the options :func:`check_engine` reads)."""
-    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params)}
+    """Every option's value, by name (the options :func:`check_engine` reads): the task, the shared fields
+    of ``params`` and its task's own options.
+    """
+    shared = {name: getattr(params, name) for name in ("task", *params.shared_names())}
+    return {**shared, **{f.name: getattr(params.options, f.name) for f in dataclasses.fields(params.options)}}
+
+
+def option_names() -> tuple[str, ...]:
+    """Every env option, once: the task, the shared ``EnvParams`` fields, then each registered task's own
+    options (its ``Options`` fields, the env table's order).
+    """
+    names = ["task", *EnvParams.shared_names()]
+    for e in ENVS:
+        names += [n for n in e.arguments if n not in names]
+    return tuple(names)
 
 
 def _cell(rule: Support) -> str:

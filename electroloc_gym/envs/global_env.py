@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.contract.params import MAX_STEP_MM
-from electroloc_gym.engines.numba_core.global_task import GlobalTask
+from electroloc_gym.engines.numba_core.global_task import GlobalOptions, GlobalTask
 from electroloc_gym.envs.adapter import CoreEnv
 from electroloc_gym.world.scene import Scene
 
@@ -127,12 +127,13 @@ class GlobalEnv(CoreEnv):
     @property
     def layout(self) -> str:
         """``"benchmark"``, ``"random"`` or ``"custom"`` (a Scene)."""
-        return self.params.layout if isinstance(self.params.layout, str) else "custom"
+        layout = self.params.options_as(GlobalOptions).layout
+        return layout if isinstance(layout, str) else "custom"
 
     @property
     def position_blur_mm(self) -> float:
         """The map sensor models' position blur b, mm."""
-        return self.params.position_blur_mm
+        return self.params.options_as(GlobalOptions).position_blur_mm
 
     @property
     def calibration_seed(self) -> int | None:

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.contract.params import MAX_STEP_MM
+from electroloc_gym.contract.params import MAX_STEP_MM, LocalizeOptions
 from electroloc_gym.engines.numba_core.array import ArrayLocalizeTask
 from electroloc_gym.envs.adapter import CoreEnv
 from electroloc_gym.world.sensor_array import SensorLayout
@@ -137,7 +137,7 @@ class ElectroLocEnv(CoreEnv):
     @property
     def randomize_target(self) -> bool:
         """Whether the target is drawn uniformly in the start box per episode."""
-        return self.params.randomize_target
+        return self.params.options_as(LocalizeOptions).randomize_target
 
     @property
     def calibration_seed(self) -> int | None:
@@ -160,14 +160,15 @@ class ElectroLocEnv(CoreEnv):
     @property
     def fixed_carriage(self) -> bool:
         """Whether the carriage never moves (the stationary array: every move is ignored)."""
-        return self.params.fixed_carriage
+        task = self._task
+        return isinstance(task, ArrayLocalizeTask) and task.fixed_carriage
 
     @property
     def move_bounds_mm(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(lo, hi) moves, mm, within ±10 mm that keep the carriage in the allowed box (0 always inside; both 0
         with ``fixed_carriage``).
         """
-        if self.params.fixed_carriage:
+        if self.fixed_carriage:
             return np.zeros(2), np.zeros(2)
         low, high = self.allowed_box_mm
         p = self._state.position_mm[0]

@@ -33,15 +33,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         task_class=ElectroLocTask,
         env_class=ElectroLocEnv,
         vector_class=ElectroLocVectorEnv,
-        arguments=(
-            "condition",
-            "signal",
-            "randomize_target",
-            "gain_levels",
-            "sensor_layout",
-            "fixed_carriage",
-            "distractors",
-        ),
         sensor_models=SENSOR_MODEL_NAMES,
         bench=(
             BenchEnv("target", summary="on the presets (Tables 4 and 1)"),
@@ -60,7 +51,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         task_class=GlobalTask,
         env_class=GlobalEnv,
         vector_class=GlobalVectorEnv,
-        arguments=("layout", "position_blur_mm"),
         sensor_models=SENSOR_MODEL_NAMES,
         bench=(
             BenchEnv(
@@ -80,16 +70,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         task_class=UnknownTargetTask,
         env_class=UnknownTargetEnv,
         vector_class=UnknownTargetVectorEnv,
-        arguments=(
-            "condition",
-            "signal",
-            "randomize_target",
-            "target_draw",
-            "radius_range_mm",
-            "contrast",
-            "eev_radii_mm",
-            "gain_levels",
-        ),
         sensor_models=SHAPE_SENSOR_MODELS,
         # the eight tanks, the theoretical EEV, and 5000 particles for the 4-D belief (with the paper's 2500
         # one success in seven was more than 10 mm off, measured on validation seeds, docs/extensions.md)
@@ -112,16 +92,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         task_class=TrackTask,
         env_class=TrackEnv,
         vector_class=TrackVectorEnv,
-        arguments=(
-            "condition",
-            "signal",
-            "randomize_target",
-            "target_motion",
-            "target_speed_mm",
-            "turn_std_rad",
-            "motion_model",
-            "motion_step_mm",
-        ),
         sensor_models=SENSOR_MODEL_NAMES,
         # 70 readings: the paper's cap of 35 to localise, then 35 scored readings of tracking
         defaults=frozen({"max_observations": TRACK_EPISODE_READINGS}),

@@ -25,6 +25,7 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 
 from electroloc_gym.contract.motion import carriage_after_move_mm
+from electroloc_gym.contract.params import LocalizeOptions
 from electroloc_gym.engines.torch_core import belief_update as F
 from electroloc_gym.engines.torch_core import sim
 from electroloc_gym.protocol import MAX_STEP_MM
@@ -93,7 +94,7 @@ class TorchSubEnv:
         self._env = env
         self._index = int(index)
         self._belief = TorchBeliefView(env, self._index)
-        self._conditions: list[Condition] = list(env.params.conditions())
+        self._conditions: list[Condition] = list(env.params.options_as(LocalizeOptions).conditions())
 
     @property
     def unwrapped(self) -> TorchSubEnv:

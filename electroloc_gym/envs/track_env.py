@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.engines.numba_core.track_task import TrackOptions
 from electroloc_gym.envs.localize import ElectroLocEnv
 from electroloc_gym.envs.vector import CoreVectorEnv
 
@@ -98,22 +99,22 @@ class TrackEnv(ElectroLocEnv):
     @property
     def target_motion(self) -> str:
         """The target's true motion, ``"random_walk"`` or ``"swimmer"`` (a setting, not the state)."""
-        return self.params.target_motion
+        return self.params.options_as(TrackOptions).target_motion
 
     @property
     def target_speed_mm(self) -> float:
         """The target's speed, mm per reading (a setting)."""
-        return self.params.target_speed_mm
+        return self.params.options_as(TrackOptions).target_speed_mm
 
     @property
     def motion_model(self) -> str:
         """The filter's motion model, ``"random_walk"`` or ``"static"``."""
-        return self.params.motion_model
+        return self.params.options_as(TrackOptions).motion_model
 
     @property
     def motion_step_mm(self) -> float:
         """The filter's RMS step per reading, mm (``target_speed_mm`` unless given; 0 with ``"static"``)."""
-        p = self.params
+        p = self.params.options_as(TrackOptions)
         if p.motion_model == "static":
             return 0.0
         return p.target_speed_mm if p.motion_step_mm is None else p.motion_step_mm

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from electroloc_gym.engines.numba_core.unknown import UnknownTargetTask
+from electroloc_gym.engines.numba_core.unknown import UnknownTargetOptions, UnknownTargetTask
 from electroloc_gym.envs.localize import ElectroLocEnv
 from electroloc_gym.world.conditions import Condition
 
@@ -101,17 +101,17 @@ class UnknownTargetEnv(ElectroLocEnv):
     @property
     def target_draw(self) -> str:
         """``"prior"`` or ``"condition"``."""
-        return self.params.target_draw
+        return self.params.options_as(UnknownTargetOptions).target_draw
 
     @property
     def radius_range_mm(self) -> tuple[float, float]:
         """The radius prior's range, mm."""
-        return self.params.radius_range_mm
+        return self.params.options_as(UnknownTargetOptions).radius_range_mm
 
     @property
     def contrast(self) -> str:
         """``"binary"`` or ``"continuous"``."""
-        return self.params.contrast
+        return self.params.options_as(UnknownTargetOptions).contrast
 
     def _make_renderer(self, render_mode: str) -> Any:
         from electroloc_gym.views.render import EpisodeRenderer

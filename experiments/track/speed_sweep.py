@@ -39,9 +39,8 @@ from electroloc_gym.bench.agents import agent_kind, cached_agent
 from electroloc_gym.bench.bench_command import MAX_PARTICLES, MAX_TRIALS, ascii_int
 from electroloc_gym.bench.config import BenchConfig
 from electroloc_gym.bench.runner import _check_agents as check_bench_agents  # the bench's own agent checks
-from electroloc_gym.contract.params import MAX_TARGET_SPEED_MM
 from electroloc_gym.demo import figure_suffixes
-from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM
+from electroloc_gym.engines.numba_core.track_task import CAPTURE_DISTANCE_MM, MAX_TARGET_SPEED_MM
 from electroloc_gym.registry import bench_env
 from electroloc_gym.utils.agentspec import split_specs
 from electroloc_gym.utils.checks import check_float, check_int

@@ -35,22 +35,56 @@ carriage that does not move. Dynamic gain (``gain_levels``) is for the paper's p
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.contract.observation import BELIEF_OBS_DIM, HIST_BINS, RAW_OBS_DIM, belief_observation
-from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.params import EnvParams, LocalizeOptions
+from electroloc_gym.contract.task_spec import Boolean, option
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
 from electroloc_gym.engines.numba_core.state import State
 from electroloc_gym.engines.numba_core.worlds import group_by_world
 from electroloc_gym.kernels import loglik_assimilate
 from electroloc_gym.kernels.streams import table_normal_indices
 from electroloc_gym.sensor_models.pairs import ArrayAnalyticSensorModel, ArrayCalibratedSensorModel
-from electroloc_gym.world.sensor_array import SensorLayout, array_reading, make_sensor_layout
+from electroloc_gym.world.sensor_array import SensorLayout, array_reading, make_sensor_layout, named_layout
 
-__all__ = ["ArrayLocalizeTask", "is_paper_pair"]
+__all__ = ["ArrayLocalizeTask", "ArrayOptions", "is_paper_pair"]
+
+
+def _sensor_layout(name: str, value: Any) -> Any:
+    """A layout name (``"single"`` or a known one) as it is; anything else as a ``SensorLayout`` (one error
+    naming ``sensor_layout``).
+    """
+    if not isinstance(value, str):
+        return make_sensor_layout(value)
+    if value != "single":
+        named_layout(value)  # an unknown name: one error naming sensor_layout
+    return value
+
+
+@dataclass(frozen=True)
+class ArrayOptions(LocalizeOptions):
+    """The sensor array's options (ElectroLoc-v0's), beside the tank's.
+
+    Attributes:
+        sensor_layout: the carriage's sensing pairs (§7), a name of
+            :data:`electroloc_gym.world.sensor_array.LAYOUT_NAMES`, a
+            :class:`~electroloc_gym.world.sensor_array.SensorLayout`, or (K, 2, 2) electrode offsets in mm
+            (stored as a ``SensorLayout``); ``"single"``: the paper's one pair.
+        fixed_carriage: the carriage never moves (the stationary array); the action space is unchanged and
+            its moves are ignored.
+    """
+
+    sensor_layout: Any = option(
+        "single",
+        doc="the carriage's sensing pairs: a layout name, a SensorLayout or (K, 2, 2) offsets",
+        check=_sensor_layout,
+    )
+    fixed_carriage: bool = option(False, doc="the carriage never moves (the stationary array)", check=Boolean())
 
 
 def is_paper_pair(layout: SensorLayout) -> bool:
@@ -66,10 +100,14 @@ class ArrayLocalizeTask(LocalizeTask):
             (one error naming ``sensor_layout``).
     """
 
+    Options = ArrayOptions
+    options: ArrayOptions
+
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
-        self.fixed_carriage = params.fixed_carriage
-        self.sensor_layout = make_sensor_layout(params.sensor_layout, self.pool[0].geometry)
+        self.options = params.options_as(ArrayOptions)
+        self.fixed_carriage = self.options.fixed_carriage
+        self.sensor_layout = make_sensor_layout(self.options.sensor_layout, self.pool[0].geometry)
         for c in self.pool:
             if c.geometry != self.sensor_layout.geometry:
                 raise ValueError(
@@ -105,7 +143,7 @@ class ArrayLocalizeTask(LocalizeTask):
         state.cal_seed[i] = self._cal_seed(g)
         state.model[i] = [None] if self.calibrated else [self._array_analytic[int(state.world_key[i])]]
         s = c.start_half_width_mm
-        state.target_mm[i] = g.uniform(-s, s, size=2) if self.params.randomize_target else c.target_xy_mm
+        state.target_mm[i] = g.uniform(-s, s, size=2) if self.options.randomize_target else c.target_xy_mm
         self._place(state, i, g, s)
 
     def move(self, state: State, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:

@@ -34,17 +34,19 @@ so that every episode's draw finishes.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.params import EnvParams, LocalizeOptions
+from electroloc_gym.contract.task_spec import option
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
 from electroloc_gym.engines.numba_core.state import State
-from electroloc_gym.world.distractors import DistractorDraw, DistractorSet
+from electroloc_gym.world.distractors import DistractorDraw, DistractorSet, resolve_distractors
 
-__all__ = ["LocalizeDistractorsTask", "DISTRACTOR_INFO_KEY", "DISTRACTOR_COUNT_INFO_KEY"]
+__all__ = ["LocalizeDistractorsTask", "DistractorOptions", "DISTRACTOR_INFO_KEY", "DISTRACTOR_COUNT_INFO_KEY"]
 
 #: The info key of the distractors' centres ((D, 2) per env, mm; zero rows past the episode's count).
 DISTRACTOR_INFO_KEY = "distractors_mm"
@@ -52,8 +54,28 @@ DISTRACTOR_INFO_KEY = "distractors_mm"
 DISTRACTOR_COUNT_INFO_KEY = "distractors_count"
 
 
+def _distractors(name: str, value: Any) -> DistractorDraw | DistractorSet:
+    """The distractors resolved (a draw or a layout; one error naming ``distractors``)."""
+    return resolve_distractors(value)
+
+
+@dataclass(frozen=True)
+class DistractorOptions(LocalizeOptions):
+    """The distractors' option (ElectroLoc-v0's), beside the tank's.
+
+    Attributes:
+        distractors: objects that are not the target, in the true reading only: a count D drawn per episode,
+            a ``DistractorDraw``, a dict of its fields, or an explicit layout (a ``DistractorSet`` or a sequence
+            of ``SceneObject``); stored resolved (0: none, the plain env).
+    """
+
+    distractors: Any = option(
+        0, doc="objects that are not the target: a count, a DistractorDraw or a layout", check=_distractors
+    )
+
+
 class LocalizeDistractorsTask(LocalizeTask):
-    """ElectroLoc-v0: the localize task, with ``params.distractors`` in the true reading (module docstring).
+    """ElectroLoc-v0: the localize task, with ``distractors`` in the true reading (module docstring).
 
     Raises:
         ValueError: an explicit layout with ``randomize_target=True``, or one that leaves a condition's
@@ -61,12 +83,16 @@ class LocalizeDistractorsTask(LocalizeTask):
             cannot always fit beside the targets the env draws.
     """
 
+    Options = DistractorOptions
+    options: DistractorOptions
+
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
-        spec = params.distractors
+        self.options = params.options_as(DistractorOptions)
+        spec = self.options.distractors
         self.spec: DistractorDraw | DistractorSet = spec
         if isinstance(spec, DistractorSet) and len(spec):
-            if params.randomize_target:
+            if self.options.randomize_target:
                 raise ValueError(
                     "distractors: an explicit layout needs randomize_target=False (a drawn target "
                     "could overlap it); pass a count or a DistractorDraw to draw them per episode"
@@ -79,7 +105,7 @@ class LocalizeDistractorsTask(LocalizeTask):
         if isinstance(spec, DistractorDraw):  # every target the env can draw must leave room for the draw
             for c in self.pool:
                 try:
-                    spec.check_fits(c, c.start_half_width_mm if params.randomize_target else None)
+                    spec.check_fits(c, c.start_half_width_mm if self.options.randomize_target else None)
                 except ValueError as exc:
                     raise ValueError(f"distractors: {exc}") from None
         #: D, the most distractors an episode has (0: the plain task).

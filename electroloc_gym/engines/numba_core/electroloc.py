@@ -14,11 +14,20 @@ distractors is refused: the distractors' perturbation is computed for the paper'
 
 from __future__ import annotations
 
-from electroloc_gym.contract.params import EnvParams
-from electroloc_gym.engines.numba_core.array import ArrayLocalizeTask
-from electroloc_gym.engines.numba_core.distractor_task import LocalizeDistractorsTask
+from dataclasses import dataclass
 
-__all__ = ["ElectroLocTask"]
+from electroloc_gym.contract.params import EnvParams, GainOptions, LocalizeOptions
+from electroloc_gym.engines.numba_core.array import ArrayLocalizeTask, ArrayOptions
+from electroloc_gym.engines.numba_core.distractor_task import DistractorOptions, LocalizeDistractorsTask
+
+__all__ = ["ElectroLocTask", "ElectroLocOptions"]
+
+
+@dataclass(frozen=True)
+class ElectroLocOptions(DistractorOptions, ArrayOptions, GainOptions, LocalizeOptions):
+    """ElectroLoc-v0's options: the tank's (``condition``, ``signal``, ``randomize_target``), the dynamic gain
+    (``gain_levels``), the sensor array's (``sensor_layout``, ``fixed_carriage``) and ``distractors``.
+    """
 
 
 class ElectroLocTask(LocalizeDistractorsTask, ArrayLocalizeTask):
@@ -28,6 +37,9 @@ class ElectroLocTask(LocalizeDistractorsTask, ArrayLocalizeTask):
         ValueError: ``distractors`` with a sensor array (one error naming both arguments), and each
             variant's own errors.
     """
+
+    Options = ElectroLocOptions
+    options: ElectroLocOptions
 
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)

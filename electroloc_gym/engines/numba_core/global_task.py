@@ -13,6 +13,7 @@ class and ``electroloc bench --env`` all say "global".)
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,7 @@ from numpy.typing import NDArray
 
 from electroloc_gym.contract.motion import carriage_after_move_mm
 from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.task_spec import Choice, Real, TaskOptions, option
 from electroloc_gym.engines.numba_core.state import State
 from electroloc_gym.engines.numba_core.task import Task
 from electroloc_gym.engines.numba_core.worlds import (
@@ -32,11 +34,40 @@ from electroloc_gym.engines.numba_core.worlds import (
 from electroloc_gym.kernels import bilinear_coefficients
 from electroloc_gym.sensor_models import calibration_grid_for
 from electroloc_gym.sensor_models.calibrated import CalibratedSensorModel
-from electroloc_gym.sensor_models.map import make_map_sensor_model
+from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM, make_map_sensor_model
 from electroloc_gym.world.conditions import Condition
 from electroloc_gym.world.scene import BENCHMARK_SCENE, Scene, random_cylinder_layout
 
-__all__ = ["GlobalTask"]
+__all__ = ["GlobalTask", "GlobalOptions", "LAYOUTS", "MAX_POSITION_BLUR_MM"]
+
+#: Named maps: the fixed benchmark map, or a new seeded six-cylinder map per episode.
+LAYOUTS = ("benchmark", "random")
+#: The map sensor models' largest position blur, mm (the map's box is ±80 mm).
+MAX_POSITION_BLUR_MM = 100.0
+
+
+def _layout(name: str, value: Any) -> Any:
+    """A :class:`~electroloc_gym.world.scene.Scene` as it is, else one of :data:`LAYOUTS`."""
+    return value if isinstance(value, Scene) else Choice(LAYOUTS)(name, value)
+
+
+@dataclass(frozen=True)
+class GlobalOptions(TaskOptions):
+    """ElectroLocGlobal-v0's own options.
+
+    Attributes:
+        layout: ``"benchmark"`` (the fixed map), ``"random"`` (a new six-cylinder map per episode) or a
+            :class:`~electroloc_gym.world.scene.Scene`.
+        position_blur_mm: the map sensor models' position blur b, mm (in [0, :data:`MAX_POSITION_BLUR_MM`]).
+    """
+
+    layout: Any = option("benchmark", doc="the map: 'benchmark', 'random' (one per episode) or a Scene", check=_layout)
+    position_blur_mm: float = option(
+        DEFAULT_POSITION_BLUR_MM,
+        doc="the map sensor models' position blur",
+        check=Real(0.0, MAX_POSITION_BLUR_MM, inclusive=True),
+        unit="mm",
+    )
 
 
 def _shift_in_box(points: NDArray, shift: NDArray, half: Any) -> NDArray:
@@ -53,15 +84,18 @@ class GlobalTask(Task):
     hidden_keys = ("true_x_mm", "true_y_mm")
 
     offset_sign = np.float32(-1.0)
+    Options = GlobalOptions
+    options: GlobalOptions
 
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
-        layout = params.layout
+        self.options = params.options_as(GlobalOptions)
+        layout = self.options.layout
         self.fixed_scene: Scene | None = (
             layout if isinstance(layout, Scene) else (BENCHMARK_SCENE if layout == "benchmark" else None)
         )
         self.scene_template = self.fixed_scene if self.fixed_scene is not None else BENCHMARK_SCENE
-        self.blur_mm = params.position_blur_mm
+        self.blur_mm = self.options.position_blur_mm
 
     def default_world(self) -> Scene:
         """The world before the first reset: the fixed map (the benchmark map for random layouts)."""

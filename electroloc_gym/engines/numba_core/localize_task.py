@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from electroloc_gym.contract.motion import carriage_after_move_mm
 from electroloc_gym.contract.observation import condition_descriptor
-from electroloc_gym.contract.params import EnvParams
+from electroloc_gym.contract.params import EnvParams, LocalizeOptions
 from electroloc_gym.engines.numba_core.state import State
 from electroloc_gym.engines.numba_core.task import Task
 from electroloc_gym.engines.numba_core.worlds import cells, fixed_coefficients, grid_points_bound, group_by_world
@@ -33,9 +33,13 @@ __all__ = ["LocalizeTask"]
 class LocalizeTask(Task):
     """ElectroLoc-v0: a target sphere (or a pool of conditions) whose position the particles estimate."""
 
+    Options = LocalizeOptions
+    options: LocalizeOptions
+
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
-        self.pool: tuple[Condition, ...] = params.conditions()
+        self.options = params.options_as(LocalizeOptions)
+        self.pool: tuple[Condition, ...] = self.options.conditions()
         self._analytic = [[AnalyticSensorModel(self.at_gain(c, j)) for j in range(len(self.gains))] for c in self.pool]
         self._descriptors = [condition_descriptor(c) for c in self.pool]
         self._grids: list[NDArray[np.float64]] = []  # built after the memory check (table_cells)
@@ -84,7 +88,7 @@ class LocalizeTask(Task):
                 else:
                     calibration_coefficients(cj, sj, self.protocol, out=rows)
         s = c.start_half_width_mm
-        if self.params.randomize_target:
+        if self.options.randomize_target:
             state.target_mm[i] = g.uniform(-s, s, size=2)
         else:
             state.target_mm[i] = c.target_xy_mm

@@ -1,6 +1,7 @@
 """The simulation's explicit state: N envs as arrays (units in the field names).
 
-Everything that changes during an episode lives in one :class:`State`; the parameters
+Everything that changes during an episode lives in one :class:`State` (a task's own arrays in its
+``task`` field, declared by the task); the parameters
 (:class:`~electroloc_gym.contract.params.EnvParams`) and the task
 (:class:`~electroloc_gym.engines.numba_core.task.Task`)
 never change. Particles are stored coordinate-major, (N, 2, M), so that every kernel's inner loop runs over
@@ -16,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.contract.observation import HIST_BINS
+from electroloc_gym.contract.task_spec import TaskState
 
 __all__ = ["State"]
 
@@ -54,18 +56,12 @@ class State:
         table_row: (N,) int64 first row of each env's coefficients in ``table``.
         table: (N·cells + …, 8) float32 stacked bilinear coefficients of the calibrated models.
         jitter_idx: (N, D·M) uint16 scratch: each step's jitter draws (D = 2, or 4 with shapes).
-        shape_particles: (N, S, M) float32: each particle's shape (unknown target, S = 2: radius mm, χ;
-            S = 0 elsewhere).
-        target_shape: (N, 2) the true sphere's radius (mm) and χ (unknown target).
-        shape_mean: (N, 2) the belief's mean radius (mm) and mean χ (unknown target).
-        shape_std: (N, 2) their standard deviations (mm, —).
-        radius_median_mm: (N,) the belief's median radius, mm (unknown target: the reported estimate).
-        p_conductor: (N,) the belief's fraction of particles with χ > 0 (unknown target).
+        shape_particles: (N, S, M) float32: each particle's coordinates beyond x, y (``Task.shape_dims`` = S;
+            the unknown target's radius mm and χ, S = 2; S = 0 elsewhere): part of the belief, which the
+            step's jitter draws, the agents' hypotheses and the belief views size by ``Task.particle_dims``.
         gain_index: (N,) the gain level of each env's last reading (dynamic gain; 0 without).
-        target_heading_rad: (N,) the moving target's heading, rad (the swimmer;
-            :mod:`electroloc_gym.engines.numba_core.track_task`).
-        track_error_sum_mm: (N,) the moving target's tracking errors summed over the episode's second half, mm.
-        track_error_count: (N,) the readings in that sum.
+        task: the task's own per-env arrays (its ``Task.State``, a
+            :class:`~electroloc_gym.contract.task_spec.TaskState`; e.g. the moving target's heading).
         worlds_drawn: worlds drawn per episode so far (the global task's random maps: each new map's
             ``world_key``).
         distractor_scenes: each env's episode distractors as a ``Scene`` in its world's water (None: none;
@@ -101,26 +97,26 @@ class State:
     table: NDArray[np.float32]
     jitter_idx: NDArray[np.uint16]
     shape_particles: NDArray[np.float32]
-    target_shape: NDArray[np.float64]
-    shape_mean: NDArray[np.float64]
-    shape_std: NDArray[np.float64]
-    radius_median_mm: NDArray[np.float64]
-    p_conductor: NDArray[np.float64]
     gain_index: NDArray[np.int64]
-    target_heading_rad: NDArray[np.float64]
-    track_error_sum_mm: NDArray[np.float64]
-    track_error_count: NDArray[np.int64]
+    task: TaskState
     started: bool = field(default=False)
     worlds_drawn: int = field(default=0)
     distractor_scenes: list[Any] = field(default_factory=list)
 
     @classmethod
     def empty(
-        cls, num_envs: int, n_particles: int, table_cells: int, shape_dims: int = 0, n_readings: int = 1
+        cls,
+        num_envs: int,
+        n_particles: int,
+        table_cells: int,
+        shape_dims: int = 0,
+        n_readings: int = 1,
+        task: TaskState | None = None,
     ) -> State:
         """A state of ``num_envs`` envs of ``n_particles`` particles, room for ``table_cells`` calibration
-        rows per env (0: no calibrated model), ``shape_dims`` shape coordinates per particle and
-        ``n_readings`` readings per step (``reading_V`` is (N,) for one, (N, K) for K).
+        rows per env (0: no calibrated model), ``shape_dims`` shape coordinates per particle,
+        ``n_readings`` readings per step (``reading_V`` is (N,) for one, (N, K) for K) and the task's own
+        arrays ``task`` (None: none).
         """
         n, m = num_envs, n_particles
         return cls(
@@ -153,15 +149,8 @@ class State:
             table=np.zeros((max(n * table_cells, 1), 8), dtype=np.float32),
             jitter_idx=np.empty((n, (2 + shape_dims) * m), dtype=np.uint16),
             shape_particles=np.zeros((n, shape_dims, m), dtype=np.float32),
-            target_shape=np.zeros((n, 2)),
-            shape_mean=np.zeros((n, 2)),
-            shape_std=np.zeros((n, 2)),
-            radius_median_mm=np.zeros(n),
-            p_conductor=np.zeros(n),
             gain_index=np.zeros(n, dtype=np.int64),
-            target_heading_rad=np.zeros(n),
-            track_error_sum_mm=np.zeros(n),
-            track_error_count=np.zeros(n, dtype=np.int64),
+            task=TaskState() if task is None else task,
         )
 
     @property

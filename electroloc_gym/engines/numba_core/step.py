@@ -74,7 +74,12 @@ class Simulation:
         self.task = make_task(params)
         params.check_memory(self.num_envs, self.task.calibration_points())
         self.state = State.empty(
-            self.num_envs, params.n_particles, self.task.table_cells(), self.task.shape_dims, self.task.n_readings
+            self.num_envs,
+            params.n_particles,
+            self.task.table_cells(),
+            self.task.shape_dims,
+            self.task.n_readings,
+            self.task.State.empty(self.num_envs, params),
         )
         self.obs_dim = self.task.obs_dim
         self._normal_table = normal_table()

@@ -52,8 +52,8 @@ from electroloc_gym.contract.observation import (
     raw_observation,
 )
 from electroloc_gym.contract.params import EnvParams
-from electroloc_gym.contract.task_spec import CurvePanel, Score, TaskMetrics
-from electroloc_gym.engines.numba_core.state import State
+from electroloc_gym.contract.task_spec import CurvePanel, Score, TaskMetrics, TaskOptions, TaskState
+from electroloc_gym.engines.numba_core.state import State as SimState
 from electroloc_gym.engines.numba_core.worlds import SEED_BOUND, cells, descriptor, group_by_world, with_gain_factor
 from electroloc_gym.kernels import calibrated_assimilate, egocentric_counts, loglik_assimilate, mean_cov_rows
 from electroloc_gym.kernels.streams import uniform_in_box
@@ -87,9 +87,17 @@ class Task(ABC):
     #: What the layers above the engine report of the task: a
     #: :class:`~electroloc_gym.contract.task_spec.TaskMetrics` (default :data:`LOCALIZATION_METRICS`).
     metrics: ClassVar[TaskMetrics]
+    #: The task's own options: a :class:`~electroloc_gym.contract.task_spec.TaskOptions` dataclass whose fields
+    #: are the env's own keyword arguments (``EnvParams.options`` holds an instance; none by default).
+    Options: ClassVar[type[TaskOptions]] = TaskOptions
+    #: The task's own per-env arrays: a :class:`~electroloc_gym.contract.task_spec.TaskState` dataclass
+    #: (the engine's ``State.task``; none by default).
+    State: ClassVar[type[TaskState]] = TaskState
 
     def __init__(self, params: EnvParams) -> None:
         self.params = params
+        #: The task's own options (``params.options``, an instance of :attr:`Options`).
+        self.options: TaskOptions = params.options
         self.protocol: CalibrationProtocol = params.calibration
         self.calibrated = params.sensor_model == "calibrated"
         #: The gain factors of the readings (dynamic gain; (1,) without).
@@ -125,12 +133,12 @@ class Task(ABC):
         return world
 
     @abstractmethod
-    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+    def begin_episode(self, state: SimState, i: int, g: np.random.Generator) -> None:
         """Env ``i``'s reset draws from its generator ``g`` (in the task's documented order): its world,
         calibration, hidden truth, start position and particles.
         """
 
-    def set_gain(self, state: State, ids: NDArray[np.intp], levels: NDArray[np.intp] | int) -> None:
+    def set_gain(self, state: SimState, ids: NDArray[np.intp], levels: NDArray[np.intp] | int) -> None:
         """Envs ``ids`` read at gain level(s) ``levels`` from now on: the reading noise and the
         observation's amplifier entries (78–79) follow the level's gain.
         """
@@ -155,7 +163,7 @@ class Task(ABC):
         return seed if level == preset else (seed + 7919 * (level + 1)) % SEED_BOUND
 
     # ---- one step ---------------------------------------------------------------------------------
-    def move(self, state: State, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
+    def move(self, state: SimState, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
         """The carriage moves by the commanded moves (k, 2), kept inside the allowed box (truncated at the walls;
         the rule both engines share, :func:`~electroloc_gym.contract.motion.carriage_after_move_mm`).
         """
@@ -163,12 +171,12 @@ class Task(ABC):
         state.position_mm[ids] = carriage_after_move_mm(np, state.position_mm[ids], moves_mm, h)
 
     @abstractmethod
-    def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
+    def true_mean_V(self, state: SimState, ids: NDArray[np.intp]) -> NDArray[np.float64]:
         """(k,) noise-free, unsaturated true readings of envs ``ids``, V (float64; (k, K) for K readings)."""
 
     def assimilate(
         self,
-        state: State,
+        state: SimState,
         ids: NDArray[np.intp],
         reading: NDArray[np.float64],
         u0: NDArray[np.float64],
@@ -233,7 +241,7 @@ class Task(ABC):
 
     def _analytic_log_likelihood(
         self,
-        state: State,
+        state: SimState,
         ids: NDArray[np.intp],
         src: NDArray[np.float32],
         origin: NDArray[np.float32],
@@ -253,7 +261,7 @@ class Task(ABC):
             ll[rows] = model.log_likelihood(reading[rows][:, None], off[rows])
         return ll
 
-    def update_statistics(self, state: State, ids: NDArray[np.intp] | slice) -> None:
+    def update_statistics(self, state: SimState, ids: NDArray[np.intp] | slice) -> None:
         """Recompute envs ``ids``' belief statistics from their particles (after the particles were set)."""
         s = state
         x, y = s.particles_mm[ids, 0], s.particles_mm[ids, 1]
@@ -263,11 +271,11 @@ class Task(ABC):
         egocentric_counts(x, y, self.histogram_origin(s, ids), 2 * s.half_mm[ids].astype(np.float32), HIST_BINS, counts)
         s.mean_mm[ids], s.cov_mm2[ids], s.counts[ids] = mean, cov, counts
 
-    def rewards(self, state: State) -> NDArray[np.float64]:
+    def rewards(self, state: SimState) -> NDArray[np.float64]:
         """(N,) every env's reward for this step's reading (the paper's tasks: ``STEP_REWARD``, −1 per reading)."""
         return np.full(state.num_envs, STEP_REWARD)
 
-    def flags(self, state: State) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    def flags(self, state: SimState) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """(terminated, truncated) of every env after a step: the shared rule
         (:func:`~electroloc_gym.contract.observation.episode_flags`).
         """
@@ -283,28 +291,28 @@ class Task(ABC):
 
     # ---- what is reported -------------------------------------------------------------------------
     @abstractmethod
-    def truth_mm(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
+    def truth_mm(self, state: SimState, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
         """(k, 2) what the belief estimates (ground truth, for the info's error), mm."""
 
-    def hidden_state(self, state: State, i: int) -> NDArray[np.float64]:
+    def hidden_state(self, state: SimState, i: int) -> NDArray[np.float64]:
         """Env ``i``'s hidden state (:attr:`hidden_keys`), float64: ground truth, for evaluation and
         privileged critics only.
         """
         return np.asarray(self.truth_mm(state, np.array([i]))[0], dtype=np.float64).copy()
 
-    def belief_origin_mm(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
+    def belief_origin_mm(self, state: SimState, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
         """(k, 2) the belief's frame origin, mm: the offsets' origin, the histogram's centre (the carriage)."""
         return state.position_mm[ids]
 
-    def histogram_origin(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float32]:
+    def histogram_origin(self, state: SimState, ids: NDArray[np.intp] | slice) -> NDArray[np.float32]:
         """(k, 2) float32 :meth:`belief_origin_mm` (the kernels' argument)."""
         return self.belief_origin_mm(state, ids).astype(np.float32)
 
-    def reference_mm(self, state: State, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
+    def reference_mm(self, state: SimState, ids: NDArray[np.intp] | slice) -> NDArray[np.float64]:
         """(k, 2) what the robot knows of its own position (observation entries 0–1): the carriage, mm."""
         return state.position_mm[ids]
 
-    def observation(self, state: State, ids: NDArray[np.intp] | None = None) -> NDArray[np.float32]:
+    def observation(self, state: SimState, ids: NDArray[np.intp] | None = None) -> NDArray[np.float32]:
         """(k, obs_dim) float32 observations of envs ``ids`` (all if None), layouts of
         :mod:`electroloc_gym.contract.observation`.
         """
@@ -332,7 +340,7 @@ class Task(ABC):
             s.descriptor[sel],
         )
 
-    def info(self, state: State, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray[Any]]:
+    def info(self, state: SimState, ids: NDArray[np.intp] | None = None) -> dict[str, NDArray[Any]]:
         """The info arrays of envs ``ids`` (all if None): :data:`~electroloc_gym.contract.observation.INFO_KEYS`,
         the task's :attr:`info_keys`, and ``gain`` with dynamic gain (the amplifier gain G of the last reading);
         the belief's error, spread and success by the rule both engines share
@@ -362,27 +370,27 @@ class Task(ABC):
             )
         return out
 
-    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
+    def task_info(self, state: SimState, sel: Any) -> dict[str, NDArray[Any]]:
         """The task's own info arrays (keys :attr:`info_keys`) of envs ``sel``."""
         return {}
 
     # ---- what agents predict ----------------------------------------------------------------------
     @abstractmethod
-    def sensor_model(self, state: State, i: int, level: int | None = None) -> Any:
+    def sensor_model(self, state: SimState, i: int, level: int | None = None) -> Any:
         """Env ``i``'s sensor model object for the agent at gain level ``level`` (default: the current one)."""
 
     @abstractmethod
-    def particles_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+    def particles_after_move(self, state: SimState, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
         """Env ``i``'s hypotheses (…, M, particle_dims) after commanded moves (2,) or (C, 2), mm."""
 
     @abstractmethod
-    def offsets_after_move(self, state: State, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
+    def offsets_after_move(self, state: SimState, i: int, particles: NDArray, moves_mm: NDArray) -> NDArray:
         """Sensor-model offsets (…, M, 2) of env ``i``'s hypotheses after commanded moves (2,) or (C, 2),
         mm, by the env's own motion rule (what an agent predicts, paper Algorithm 1).
         """
 
     def predicted_mean_std(
-        self, state: State, i: int, particles: NDArray, moves_mm: NDArray, level: int | None = None
+        self, state: SimState, i: int, particles: NDArray, moves_mm: NDArray, level: int | None = None
     ) -> tuple[NDArray, NDArray]:
         """Sensor-model mean and std (V) of the reading each hypothesis predicts after the moves (at gain
         level ``level``; default the current one).
@@ -391,7 +399,7 @@ class Task(ABC):
 
     # ---- shared helpers of the episode draws ------------------------------------------------------
     def _set_world(
-        self, state: State, i: int, world: Any, key: int, condition: Condition, world_descriptor: NDArray[np.float32]
+        self, state: SimState, i: int, world: Any, key: int, condition: Condition, world_descriptor: NDArray[np.float32]
     ) -> None:
         state.world[i] = world
         state.world_key[i] = key
@@ -406,7 +414,7 @@ class Task(ABC):
         return s if s is not None else int(g.integers(SEED_BOUND))
 
     def _set_grid(
-        self, state: State, i: int, grid_mm: NDArray[np.float64], step_mm: float, level: int = 0
+        self, state: SimState, i: int, grid_mm: NDArray[np.float64], step_mm: float, level: int = 0
     ) -> NDArray[np.float32]:
         """Env ``i``'s grid arguments of the lookup kernel; returns its rows of the coefficient table
         (those of gain level ``level``).
@@ -417,13 +425,13 @@ class Task(ABC):
         start = int(state.table_row[i]) + level * self.cells_per_gain
         return state.table[start : start + cells(grid_mm)]
 
-    def table_rows(self, state: State, sel: Any) -> NDArray[np.int64]:
+    def table_rows(self, state: SimState, sel: Any) -> NDArray[np.int64]:
         """(k,) first coefficient row of each env's current gain level (the lookup kernel's ``base``)."""
         if len(self.gains) == 1:
             return state.table_row[sel]
         return state.table_row[sel] + state.gain_index[sel] * self.cells_per_gain
 
-    def _place(self, state: State, i: int, g: np.random.Generator, start_half_mm: float) -> None:
+    def _place(self, state: SimState, i: int, g: np.random.Generator, start_half_mm: float) -> None:
         """The start position (2 uniforms) and the uniform particle cloud (M·2 uniforms)."""
         state.position_mm[i] = g.uniform(-start_half_mm, start_half_mm, size=2)
         state.odometry_mm[i] = 0.0
@@ -472,6 +480,7 @@ LOCALIZATION_METRICS = TaskMetrics(
         "readings to success (a failure counted as the cap)",
         episode=_readings_of_info,
         record=_readings_of_record,
+        best="fewest mean readings to localise (failures count as the cap)",
     ),
     rate=Score("success", "higher", "success rate", episode=_success_of_info, record=_success_of_record),
     outcome=_localisation_outcome,

@@ -52,21 +52,42 @@ truth, as the info's error: for learning and evaluation, never for the agent's d
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from electroloc_gym.contract.params import EnvParams
-from electroloc_gym.contract.task_spec import Column, CurvePanel, RecordField, Score, Table, TaskMetrics
+from electroloc_gym.contract.params import EnvParams, LocalizeOptions
+from electroloc_gym.contract.task_spec import (
+    Choice,
+    Column,
+    CurvePanel,
+    Optional,
+    Real,
+    RecordField,
+    Score,
+    Table,
+    TaskMetrics,
+    TaskState,
+    option,
+    state_array,
+)
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
-from electroloc_gym.engines.numba_core.state import State
+from electroloc_gym.engines.numba_core.state import State as SimState
 from electroloc_gym.utils.intervals import wilson_interval
 
 __all__ = [
     "TrackTask",
+    "TrackOptions",
+    "TrackState",
+    "TARGET_MOTIONS",
+    "MOTION_MODELS",
+    "MAX_TARGET_SPEED_MM",
+    "MOTION_OPTION_SCOPES",
     "CAPTURE_DISTANCE_MM",
     "TRACK_EPISODE_READINGS",
     "TRACK_INFO_KEYS",
@@ -90,6 +111,82 @@ TRACK_RECORD_KEYS = ("tracking_error_mm", "carriage_distance_mm", "captured")
 #: The paper's jitter after resampling, per axis, mm (§4.1.2; the kernels' normal table has unit std).
 PAPER_JITTER_STD_MM = 1.0
 _SQRT_HALF = np.sqrt(0.5)
+
+#: The moving target's true motion: Gaussian steps, or a constant-speed swimmer whose heading turns by
+#: Gaussian increments.
+TARGET_MOTIONS = ("random_walk", "swimmer")
+#: The motion model the moving target's filter is told (its prediction before every update): a random walk,
+#: or none (a static target, the paper's filter).
+MOTION_MODELS = ("random_walk", "static")
+#: The largest target speed and filter step, mm per reading: twice the carriage's largest move per axis.
+MAX_TARGET_SPEED_MM = 20.0
+#: The moving target's options that act under one value of another option only: (option, the other option,
+#: the value it acts under, why it does not under the other). Such an option set away from its default
+#: while the other option has another value would be silently ignored: one ValueError names both.
+MOTION_OPTION_SCOPES = (
+    ("turn_std_rad", "target_motion", "swimmer", "the random walk has no heading"),
+    ("motion_step_mm", "motion_model", "random_walk", "the static filter takes no step"),
+)
+_SPEED = Real(0.0, MAX_TARGET_SPEED_MM, inclusive=True)
+
+
+@dataclass(frozen=True)
+class TrackOptions(LocalizeOptions):
+    """ElectroLocTrack-v0's own options, beside the tank's (:class:`~electroloc_gym.contract.params.LocalizeOptions`).
+
+    Attributes:
+        target_motion: the target's true motion, ``"random_walk"`` or ``"swimmer"`` (:data:`TARGET_MOTIONS`).
+        target_speed_mm: its speed, mm per reading, in [0, 20]: the random walk's RMS step (per-axis std
+            ``target_speed_mm``/√2), the swimmer's constant step length.
+        turn_std_rad: ``"swimmer"``: std of the heading's change per reading, rad, in [0, π] (another value
+            than the default 0.5 with ``target_motion="random_walk"`` is refused: :data:`MOTION_OPTION_SCOPES`).
+        motion_model: the filter's motion model, ``"random_walk"`` (every particle takes a Gaussian step
+            before each update) or ``"static"`` (none: the paper's filter) (:data:`MOTION_MODELS`).
+        motion_step_mm: the filter's random-walk RMS step, mm per reading, in [0, 20], or None: the target's
+            ``target_speed_mm`` (a different value is a model mismatch); a number with ``motion_model="static"``
+            is refused (:data:`MOTION_OPTION_SCOPES`).
+    """
+
+    target_motion: str = option("swimmer", doc="the target's true motion", check=Choice(TARGET_MOTIONS))
+    target_speed_mm: float = option(1.0, doc="the target's speed per reading", check=_SPEED, unit="mm")
+    turn_std_rad: float = option(
+        0.5, doc="the swimmer's turn per reading (std)", check=Real(0.0, math.pi, inclusive=True), unit="rad"
+    )
+    motion_model: str = option("random_walk", doc="the filter's motion model", check=Choice(MOTION_MODELS))
+    motion_step_mm: float | None = option(
+        None, doc="the filter's RMS step per reading (None: the target's speed)", check=Optional(_SPEED), unit="mm"
+    )
+
+    def check(self) -> None:
+        """The tank's checks, then refuse an option of :data:`MOTION_OPTION_SCOPES` set away from its default
+        while the option it depends on has a value under which it does nothing (one ValueError naming both and
+        what is allowed).
+        """
+        super().check()
+        defaults = {f.name: f.default for f in dataclasses.fields(self)}
+        for name, mode, acts_under, why in MOTION_OPTION_SCOPES:
+            value, default, mode_value = getattr(self, name), defaults[name], getattr(self, mode)
+            if mode_value != acts_under and value != default:
+                keep = "None" if default is None else f"at its default {default!r}"
+                raise ValueError(
+                    f"{name} applies only when {mode} is {acts_under!r} ({why}); got {mode}={mode_value!r} "
+                    f"with {name}={value!r}: leave {name} {keep} or choose {mode}={acts_under!r}"
+                )
+
+
+@dataclass
+class TrackState(TaskState):
+    """The moving target's per-env arrays.
+
+    Attributes:
+        target_heading_rad: (N,) the swimmer's heading, rad.
+        track_error_sum_mm: (N,) the tracking errors summed over the episode's second half, mm.
+        track_error_count: (N,) the readings in that sum.
+    """
+
+    target_heading_rad: NDArray[np.float64] = state_array(np.float64)
+    track_error_sum_mm: NDArray[np.float64] = state_array(np.float64)
+    track_error_count: NDArray[np.int64] = state_array(np.int64)
 
 
 def reflect(x: NDArray, half: Any) -> tuple[NDArray, NDArray[np.bool_]]:
@@ -115,29 +212,34 @@ class TrackTask(LocalizeTask):
     """ElectroLocTrack-v0: a target sphere that moves, and a filter told a motion model (module docstring)."""
 
     info_keys = TRACK_INFO_KEYS
+    Options = TrackOptions
+    State = TrackState
+    options: TrackOptions
 
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
-        self.swimmer = params.target_motion == "swimmer"
+        o = self.options = params.options_as(TrackOptions)
+        self.swimmer = o.target_motion == "swimmer"
         #: The random walk's per-axis std of the target's step, mm.
-        self.target_std_mm = params.target_speed_mm * _SQRT_HALF
-        step = params.target_speed_mm if params.motion_step_mm is None else params.motion_step_mm
+        self.target_std_mm = o.target_speed_mm * _SQRT_HALF
+        step = o.target_speed_mm if o.motion_step_mm is None else o.motion_step_mm
         #: The filter's per-axis step std σ_f, mm (0: the particles do not move).
-        self.filter_std_mm = 0.0 if params.motion_model == "static" else step * _SQRT_HALF
+        self.filter_std_mm = 0.0 if o.motion_model == "static" else step * _SQRT_HALF
         #: The jitter's per-axis std after resampling: √(1 mm² + σ_f²), mm (module docstring).
         self.jitter_std_mm = float(np.hypot(PAPER_JITTER_STD_MM, self.filter_std_mm))
         self._half_readings = params.max_observations // 2
         self._jitter_table: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
 
     # ---- the episode ------------------------------------------------------------------------------
-    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+    def begin_episode(self, state: SimState, i: int, g: np.random.Generator) -> None:
         """ElectroLoc-v0's reset draws, then the swimmer's heading (1 uniform in [0, 2π))."""
         super().begin_episode(state, i, g)
-        state.target_heading_rad[i] = g.uniform(0.0, 2 * np.pi) if self.swimmer else 0.0
-        state.track_error_sum_mm[i] = 0.0
-        state.track_error_count[i] = 0
+        own = TrackState.of(state)
+        own.target_heading_rad[i] = g.uniform(0.0, 2 * np.pi) if self.swimmer else 0.0
+        own.track_error_sum_mm[i] = 0.0
+        own.track_error_count[i] = 0
 
-    def move(self, state: State, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
+    def move(self, state: SimState, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
         """The carriage moves (truncated at the walls), then the target takes its step (reflected at the
         walls), from each env's generator.
         """
@@ -145,14 +247,15 @@ class TrackTask(LocalizeTask):
         idx = np.arange(state.num_envs)[ids]
         if idx.size == 0:
             return
-        speed = self.params.target_speed_mm
+        speed = self.options.target_speed_mm
+        own = TrackState.of(state)
         steps = np.empty((idx.size, 2))
         for j, i in enumerate(idx.tolist()):
             g = state.gens[i]
             assert g is not None  # reset made every env's generator
             if self.swimmer:  # scalar libm per env (docs/design.md, "Results that do not depend on the CPU")
-                h = float(state.target_heading_rad[i]) + float(g.normal(0.0, self.params.turn_std_rad))
-                state.target_heading_rad[i] = h
+                h = float(own.target_heading_rad[i]) + float(g.normal(0.0, self.options.turn_std_rad))
+                own.target_heading_rad[i] = h
                 steps[j] = speed * math.cos(h), speed * math.sin(h)
             else:
                 steps[j] = g.normal(0.0, self.target_std_mm, 2)
@@ -160,13 +263,13 @@ class TrackTask(LocalizeTask):
         target, flipped = reflect(state.target_mm[idx] + steps, half)
         state.target_mm[idx] = target
         if self.swimmer:  # a reflection mirrors the heading: x wall θ → π − θ, y wall θ → −θ
-            h = state.target_heading_rad[idx]
+            h = own.target_heading_rad[idx]
             h = np.where(flipped[:, 0], np.pi - h, h)
-            state.target_heading_rad[idx] = np.where(flipped[:, 1], -h, h)
+            own.target_heading_rad[idx] = np.where(flipped[:, 1], -h, h)
 
     def assimilate(
         self,
-        state: State,
+        state: SimState,
         ids: NDArray[np.intp],
         reading: NDArray[np.float64],
         u0: NDArray[np.float64],
@@ -182,22 +285,23 @@ class TrackTask(LocalizeTask):
             normal_table = self._jitter_table[1]
         bad = super().assimilate(state, ids, reading, u0, jitter, normal_table)
         if bad < 0:
+            own = TrackState.of(state)
             second = state.n_observations[ids] > self._half_readings
-            state.track_error_sum_mm[ids] += np.where(second, self._error_mm(state, ids), 0.0)
-            state.track_error_count[ids] += second
+            own.track_error_sum_mm[ids] += np.where(second, self._error_mm(state, ids), 0.0)
+            own.track_error_count[ids] += second
         return bad
 
     # ---- reward, flags, info ----------------------------------------------------------------------
     @staticmethod
-    def _error_mm(state: State, sel: Any) -> NDArray[np.float64]:
+    def _error_mm(state: SimState, sel: Any) -> NDArray[np.float64]:
         d = state.mean_mm[sel] - state.target_mm[sel]
         return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
 
-    def rewards(self, state: State) -> NDArray[np.float64]:
+    def rewards(self, state: SimState) -> NDArray[np.float64]:
         """(N,) −(belief mean's distance to the target)/:data:`CAPTURE_DISTANCE_MM` after this step's reading."""
         return -self._error_mm(state, slice(None)) / CAPTURE_DISTANCE_MM
 
-    def flags(self, state: State) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    def flags(self, state: SimState) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """Never terminated; truncated after ``max_observations`` readings (or ``max_episode_steps`` steps)."""
         p = self.params
         truncated = state.n_observations >= p.max_observations
@@ -205,11 +309,12 @@ class TrackTask(LocalizeTask):
             truncated = truncated | (state.elapsed >= p.max_episode_steps)
         return np.zeros(state.num_envs, dtype=bool), truncated
 
-    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
+    def task_info(self, state: SimState, sel: Any) -> dict[str, NDArray[Any]]:
         """:data:`TRACK_INFO_KEYS` of envs ``sel``."""
-        count = state.track_error_count[sel]
+        own = TrackState.of(state)
+        count = own.track_error_count[sel]
         now = self._error_mm(state, sel)
-        mean = np.where(count > 0, state.track_error_sum_mm[sel] / np.maximum(count, 1), now)
+        mean = np.where(count > 0, own.track_error_sum_mm[sel] / np.maximum(count, 1), now)
         d = state.position_mm[sel] - state.target_mm[sel]
         dist = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
         return {

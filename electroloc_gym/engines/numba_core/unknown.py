@@ -37,26 +37,41 @@ Success stays the position criterion (√trace Σ of x–y ≤ 10 mm).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.contract.observation import HIST_BINS
-from electroloc_gym.contract.params import EnvParams
-from electroloc_gym.contract.task_spec import Column, RecordField, Table
+from electroloc_gym.contract.params import EnvParams, GainOptions, LocalizeOptions
+from electroloc_gym.contract.task_spec import (
+    Choice,
+    Column,
+    Numbers,
+    RecordField,
+    Table,
+    TaskState,
+    option,
+    state_array,
+)
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
-from electroloc_gym.engines.numba_core.state import State
+from electroloc_gym.engines.numba_core.state import State as SimState
 from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
 from electroloc_gym.engines.numba_core.worlds import group_by_world
 from electroloc_gym.kernels import egocentric_counts, jitter_resampled, mean_cov_rows, resample_indices, row_sums
-from electroloc_gym.sensor_models.shape import InterpolatedShapeModel, TheoreticalShapeModel
+from electroloc_gym.sensor_models.shape import DEFAULT_EEV_RADII_MM, InterpolatedShapeModel, TheoreticalShapeModel
 from electroloc_gym.world.conditions import Condition, Target
 from electroloc_gym.world.sensor import sphere_reading
 
 __all__ = [
     "UnknownTargetTask",
+    "UnknownTargetOptions",
+    "UnknownTargetState",
+    "TARGET_DRAWS",
+    "CONTRASTS",
+    "DEFAULT_RADIUS_RANGE_MM",
+    "RADIUS_LIMITS_MM",
     "CONDUCTOR_CHI",
     "INSULATOR_CHI",
     "RADIUS_JITTER_MM",
@@ -92,6 +107,76 @@ SHAPE_INFO_KEYS = (
 SHAPE_RECORD_KEYS = tuple(k for k in SHAPE_INFO_KEYS if k != "chi_spread")
 
 
+#: How the episode's sphere is drawn (``"prior"``: radius uniform in ``radius_range_mm``, material or
+#: contrast from ``contrast``; ``"condition"``: the condition's own sphere).
+TARGET_DRAWS = ("prior", "condition")
+#: ``"binary"``: a conductor (χ = +1) or an insulator (χ = −½); ``"continuous"``: χ uniform in [−½, 1].
+CONTRASTS = ("binary", "continuous")
+#: The default radius range (prior of the belief and of the draws), mm.
+DEFAULT_RADIUS_RANGE_MM = (5.0, 20.0)
+#: The sphere radii the env may hypothesise or calibrate (``radius_range_mm``, ``eev_radii_mm``), mm: from a
+#: 1 mm bead to a 100 mm ball, as large as the paper's smallest allowed box (±50 mm) allows.
+RADIUS_LIMITS_MM = (1.0, 50.0)
+
+
+def _radius_range(name: str, value: Any) -> tuple[float, ...]:
+    """(low, high) radii in :data:`RADIUS_LIMITS_MM`, low < high."""
+    r = Numbers(2, *RADIUS_LIMITS_MM, " mm")(name, value)
+    if r[0] >= r[1]:
+        raise ValueError(f"{name} must be (low, high) with low < high, got {r!r}")
+    return r
+
+
+def _eev_radii(name: str, value: Any) -> tuple[float, ...]:
+    """Distinct radii in :data:`RADIUS_LIMITS_MM`, sorted."""
+    r = tuple(sorted(Numbers(None, *RADIUS_LIMITS_MM, " mm")(name, value)))
+    if len(set(r)) != len(r):
+        raise ValueError(f"{name} must be distinct, got {r!r}")
+    return r
+
+
+@dataclass(frozen=True)
+class UnknownTargetOptions(GainOptions, LocalizeOptions):
+    """ElectroLocUnknownTarget-v0's own options, beside the tank's and the dynamic gain.
+
+    Attributes:
+        target_draw: ``"prior"`` (the sphere drawn from the prior) or ``"condition"`` (the condition's own
+            sphere, hidden from the agent: the benchmark over the paper's pairs).
+        radius_range_mm: (low, high) radius range of the prior, mm (in :data:`RADIUS_LIMITS_MM`, low < high).
+        contrast: ``"binary"`` (conductor or insulator) or ``"continuous"`` (χ ∈ [−½, 1]).
+        eev_radii_mm: ``sensor_model="interpolated"``: the radii of the calibrated EEVs (mm, in
+            :data:`RADIUS_LIMITS_MM`, distinct; stored sorted) the model interpolates between.
+    """
+
+    target_draw: str = option("prior", doc="how the episode's sphere is drawn", check=Choice(TARGET_DRAWS))
+    radius_range_mm: Any = option(
+        DEFAULT_RADIUS_RANGE_MM, doc="(low, high) radius range of the prior", check=_radius_range, unit="mm"
+    )
+    contrast: str = option("binary", doc="the sphere's contrast: binary or continuous", check=Choice(CONTRASTS))
+    eev_radii_mm: Any = option(
+        DEFAULT_EEV_RADII_MM, doc="the interpolated model's calibrated radii", check=_eev_radii, unit="mm"
+    )
+
+
+@dataclass
+class UnknownTargetState(TaskState):
+    """The unknown target's per-env arrays (the hidden sphere and the belief's shape statistics).
+
+    Attributes:
+        target_shape: (N, 2) the true sphere's radius (mm) and χ.
+        shape_mean: (N, 2) the belief's mean radius (mm) and mean χ.
+        shape_std: (N, 2) their standard deviations (mm, —).
+        radius_median_mm: (N,) the belief's median radius, mm (the reported estimate).
+        p_conductor: (N,) the belief's fraction of particles with χ > 0.
+    """
+
+    target_shape: NDArray[np.float64] = state_array(np.float64, (2,))
+    shape_mean: NDArray[np.float64] = state_array(np.float64, (2,))
+    shape_std: NDArray[np.float64] = state_array(np.float64, (2,))
+    radius_median_mm: NDArray[np.float64] = state_array(np.float64)
+    p_conductor: NDArray[np.float64] = state_array(np.float64)
+
+
 def _material(chi: NDArray) -> NDArray[np.object_]:
     return np.where(np.asarray(chi) > 0, "conductor", "insulator").astype(object)
 
@@ -103,11 +188,15 @@ class UnknownTargetTask(LocalizeTask):
     particle_dims = 4
     info_keys = SHAPE_INFO_KEYS
     hidden_keys = ("target_x_mm", "target_y_mm", "target_radius_mm", "target_chi")
+    Options = UnknownTargetOptions
+    State = UnknownTargetState
+    options: UnknownTargetOptions
 
     def __init__(self, params: EnvParams) -> None:
         super().__init__(params)
-        self.radius_range_mm = params.radius_range_mm
-        self.continuous = params.contrast == "continuous"
+        self.options = params.options_as(UnknownTargetOptions)
+        self.radius_range_mm = self.options.radius_range_mm
+        self.continuous = self.options.contrast == "continuous"
         #: The jitter's std per coordinate (x, y mm; radius mm; χ, none for a binary contrast).
         self._jitter_scale = np.array(
             [1.0, 1.0, RADIUS_JITTER_MM, CHI_JITTER if self.continuous else 0.0], dtype=np.float32
@@ -126,7 +215,7 @@ class UnknownTargetTask(LocalizeTask):
         lo, hi = self.radius_range_mm
         return g.uniform(lo, hi, size=size)
 
-    def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:
+    def begin_episode(self, state: SimState, i: int, g: np.random.Generator) -> None:
         """Env ``i``'s reset draws, in order: condition (pool of several), calibration seed (unless fixed),
         the sphere (``target_draw="prior"``: radius, then material or χ), target position
         (``randomize_target``), start position, particle positions, particle radii, particle χ.
@@ -134,28 +223,29 @@ class UnknownTargetTask(LocalizeTask):
         c = self._draw_condition(state, i, g)
         state.cal_seed[i] = self._cal_seed(g)
         state.model[i] = [None] * len(self.gains)
-        if self.params.target_draw == "prior":
+        own = UnknownTargetState.of(state)
+        if self.options.target_draw == "prior":
             radius = float(self._draw_radius(g))
-            state.target_shape[i] = (radius, float(self._draw_chi(g)))
+            own.target_shape[i] = (radius, float(self._draw_chi(g)))
         else:
-            state.target_shape[i] = (c.target.radius_mm, c.chi)
+            own.target_shape[i] = (c.target.radius_mm, c.chi)
         s = c.start_half_width_mm
-        state.target_mm[i] = g.uniform(-s, s, size=2) if self.params.randomize_target else c.target_xy_mm
+        state.target_mm[i] = g.uniform(-s, s, size=2) if self.options.randomize_target else c.target_xy_mm
         self._place(state, i, g, s)
         m = state.n_particles
         state.shape_particles[i, 0] = self._draw_radius(g, m)
         state.shape_particles[i, 1] = self._draw_chi(g, m)
 
-    def true_mean_V(self, state: State, ids: NDArray[np.intp]) -> NDArray[np.float64]:
+    def true_mean_V(self, state: SimState, ids: NDArray[np.intp]) -> NDArray[np.float64]:
         """(k,) noise-free, unsaturated true readings of the hidden spheres, V (float64)."""
         offsets = state.target_mm[ids] - state.position_mm[ids]
-        shape = state.target_shape[ids]
+        shape = UnknownTargetState.of(state).target_shape[ids]
         out = np.empty(len(ids))
         for c, rows in group_by_world(state, ids):
             out[rows] = sphere_reading(c, offsets[rows], shape[rows, 0], shape[rows, 1], saturate=False)
         return out if len(self.gains) == 1 else out * self._gain_array[state.gain_index[ids]]
 
-    def sensor_model(self, state: State, i: int, level: int | None = None) -> Any:
+    def sensor_model(self, state: SimState, i: int, level: int | None = None) -> Any:
         """Env ``i``'s shape sensor model (``mean_std(offsets, radius_mm, chi)``) at gain level ``level``
         (default: the current one; interpolated: built on first use).
         """
@@ -167,16 +257,16 @@ class UnknownTargetTask(LocalizeTask):
             else:
                 models[j] = InterpolatedShapeModel(
                     self.at_gain(state.world[i], j),
-                    self.params.eev_radii_mm,
+                    self.options.eev_radii_mm,
                     self.gain_seed(int(state.cal_seed[i]), j),
                     self.protocol,
                 )
         return models[j]
 
-    def true_condition(self, state: State, i: int) -> Condition:
+    def true_condition(self, state: SimState, i: int) -> Condition:
         """Env ``i``'s tank with its hidden sphere (ground truth, for evaluation only)."""
         c: Condition = state.world[i]
-        radius, chi = state.target_shape[i]
+        radius, chi = UnknownTargetState.of(state).target_shape[i]
         if c.target.radius_mm == radius and c.chi == chi:
             return c
         # χ = (σ_t − σ_w)/(σ_t + 2σ_w)  ⇔  σ_t = σ_w (1 + 2χ)/(1 − χ) (χ = 1: a perfect conductor)
@@ -189,7 +279,7 @@ class UnknownTargetTask(LocalizeTask):
 
     # ---- predictions for agents ------------------------------------------------------------------
     def predicted_mean_std(
-        self, state: State, i: int, particles: NDArray, moves_mm: NDArray, level: int | None = None
+        self, state: SimState, i: int, particles: NDArray, moves_mm: NDArray, level: int | None = None
     ) -> tuple[NDArray, NDArray]:
         """Sensor-model mean and std (V) of each (x, y, a, χ) hypothesis' reading after the moves (the
         offsets from columns 0–1, :meth:`LocalizeTask.offsets_after_move`).
@@ -200,7 +290,7 @@ class UnknownTargetTask(LocalizeTask):
     # ---- the measurement update ------------------------------------------------------------------
     def assimilate(
         self,
-        state: State,
+        state: SimState,
         ids: NDArray[np.intp],
         reading: NDArray[np.float64],
         u0: NDArray[np.float64],
@@ -242,14 +332,15 @@ class UnknownTargetTask(LocalizeTask):
         self._shape_statistics(s, ids)
         return -1
 
-    def update_statistics(self, state: State, ids: NDArray[np.intp] | slice) -> None:
+    def update_statistics(self, state: SimState, ids: NDArray[np.intp] | slice) -> None:
         """The x–y statistics and the shape's (:meth:`_shape_statistics`)."""
         super().update_statistics(state, ids)
         self._shape_statistics(state, np.arange(state.num_envs)[ids])
 
-    def _shape_statistics(self, s: State, ids: NDArray[np.intp]) -> None:
+    def _shape_statistics(self, s: SimState, ids: NDArray[np.intp]) -> None:
         """The shape's means and stds (fixed-order sums) and the conductor fraction of envs ``ids``."""
         m = s.n_particles
+        own = UnknownTargetState.of(s)
         for d in range(2):
             v = s.shape_particles[ids, d].astype(np.float64)
             total = np.empty(len(ids))
@@ -257,24 +348,24 @@ class UnknownTargetTask(LocalizeTask):
             mu = total / m
             dev = v - mu[:, None]
             row_sums(dev * dev, total)
-            s.shape_mean[ids, d] = mu
-            s.shape_std[ids, d] = np.sqrt(total / m)
+            own.shape_mean[ids, d] = mu
+            own.shape_std[ids, d] = np.sqrt(total / m)
         # the median radius: the two middle values of the exact order (float64), no rounding but one mean
         v = np.partition(s.shape_particles[ids, 0].astype(np.float64), (m - 1) // 2 + np.arange(2 - m % 2), axis=1)
-        s.radius_median_mm[ids] = 0.5 * (v[:, (m - 1) // 2] + v[:, m // 2])
-        s.p_conductor[ids] = np.count_nonzero(s.shape_particles[ids, 1] > 0, axis=1) / m
+        own.radius_median_mm[ids] = 0.5 * (v[:, (m - 1) // 2] + v[:, m // 2])
+        own.p_conductor[ids] = np.count_nonzero(s.shape_particles[ids, 1] > 0, axis=1) / m
         # the observation's condition entries 76–77: the belief's radius / 25 mm (clipped to 1, as the condition
         # descriptor's: radii above 25 mm read 1) and χ instead of the truth
-        s.descriptor[ids, 0] = np.minimum(s.shape_mean[ids, 0] / 25.0, 1.0).astype(np.float32)
-        s.descriptor[ids, 1] = s.shape_mean[ids, 1].astype(np.float32)
+        s.descriptor[ids, 0] = np.minimum(own.shape_mean[ids, 0] / 25.0, 1.0).astype(np.float32)
+        s.descriptor[ids, 1] = own.shape_mean[ids, 1].astype(np.float32)
 
-    def hidden_state(self, state: State, i: int) -> NDArray[np.float64]:
+    def hidden_state(self, state: SimState, i: int) -> NDArray[np.float64]:
         """Env ``i``'s target centre (mm), radius (mm) and contrast χ, float64 (ground truth)."""
-        return np.array([*state.target_mm[i], *state.target_shape[i, :2]], dtype=np.float64)
+        return np.array([*state.target_mm[i], *UnknownTargetState.of(state).target_shape[i, :2]], dtype=np.float64)
 
-    def task_info(self, state: State, sel: Any) -> dict[str, NDArray[Any]]:
+    def task_info(self, state: SimState, sel: Any) -> dict[str, NDArray[Any]]:
         """The info arrays :data:`SHAPE_INFO_KEYS` of envs ``sel``."""
-        s = state
+        s = UnknownTargetState.of(state)
         est_r, true_r = s.radius_median_mm[sel], s.target_shape[sel, 0]
         material = _material(s.p_conductor[sel] - 0.5)
         return {

@@ -18,7 +18,7 @@ import torch
 
 from electroloc_gym.contract.capabilities import check_engine, params_options
 from electroloc_gym.contract.observation import condition_descriptor, condition_index
-from electroloc_gym.contract.params import DISCRETE_MOVES_MM, EnvParams, memory_limit_bytes
+from electroloc_gym.contract.params import DISCRETE_MOVES_MM, EnvParams, LocalizeOptions, memory_limit_bytes
 from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
 from electroloc_gym.engines.numba_core.worlds import fixed_coefficients, grid_points_bound
 from electroloc_gym.kernels.streams import normal_table
@@ -129,7 +129,8 @@ class TorchConsts:
     def build(cls, params: EnvParams, device: torch.device) -> TorchConsts:
         """The constants of ``params`` on ``device`` (ValueError: what the torch core does not implement)."""
         check_supported(params)
-        pool = params.conditions()
+        options = params.options_as(LocalizeOptions)
+        pool = options.conditions()
         proto = params.calibration
         if params.sensor_model == "calibrated":
             _check_host_calibration(proto, max(grid_points_bound(proto, c.allowed_half_width_mm) for c in pool))
@@ -166,7 +167,7 @@ class TorchConsts:
             fixed_calibration_seed=params.calibration_seed,
             belief_obs=params.observation == "belief",
             discrete=params.action_type == "discrete",
-            randomize_target=params.randomize_target,
+            randomize_target=options.randomize_target,
             max_observations=params.max_observations,
             max_episode_steps=params.max_episode_steps,
             success_spread_mm=float(params.success_spread_mm),
