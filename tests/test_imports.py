@@ -177,6 +177,19 @@ def test_the_core_imports_no_upper_layer(graph: dict[str, set[str]]) -> None:
     assert not bad, "the core imports an upper layer: " + "; ".join(bad)
 
 
+def test_the_torch_engine_imports_nothing_of_the_numba_engine(graph: dict[str, set[str]]) -> None:
+    """engines/torch_core/ reads what both engines need from the layers below them (contract/, sensor_models/,
+    the env table), never a module of engines/numba_core/: either engine can change without the other."""
+    bad = sorted(
+        f"{m} → {t}"
+        for m, ts in graph.items()
+        if m.startswith("electroloc_gym.engines.torch_core")
+        for t in ts
+        if t.startswith("electroloc_gym.engines.numba_core")
+    )
+    assert not bad, "the torch engine imports the numba engine: " + "; ".join(bad)
+
+
 def test_no_import_cycle_anywhere(graph: dict[str, set[str]]) -> None:
     found = cycles(graph)
     assert not found, "import cycles (none may remain):\n" + "\n".join(describe(c, graph) for c in found)

@@ -45,6 +45,9 @@ __all__ = [
     "calibration_statistics",
     "calibration_coefficients",
     "noise_free_calibration_grid",
+    "coefficient_rows",
+    "fixed_coefficients",
+    "grid_points_bound",
 ]
 
 #: The sensor models of a target's (or a map's) x–y position: the paper's calibrated model first (the envs'
@@ -300,6 +303,30 @@ class CalibratedSensorModel:
     def log_likelihood(self, reading_V: ArrayLike, offsets_mm: ArrayLike) -> NDArray:
         mean, std = self.mean_std(offsets_mm)
         return gaussian_log_likelihood(reading_V, mean, std)
+
+
+def coefficient_rows(grid_mm: NDArray[np.float64]) -> int:
+    """Coefficient rows of a calibration grid's bilinear table (its cells plus one, the outside row)."""
+    return (grid_mm.size - 1) ** 2 + 1
+
+
+@functools.lru_cache(maxsize=64)
+def fixed_coefficients(condition: Condition, seed: int, protocol: CalibrationProtocol) -> NDArray[np.float32]:
+    """The (read-only) float32 bilinear coefficients of a fixed calibration seed (cached; both engines'
+    table of ``calibration_seed``).
+    """
+    n = coefficient_rows(calibration_grid_for(condition, protocol))
+    coef = calibration_coefficients(condition, seed, protocol, out=np.empty((n, 8), dtype=np.float32))
+    coef.flags.writeable = False
+    return coef
+
+
+def grid_points_bound(protocol: CalibrationProtocol, allowed_half_width_mm: float) -> int:
+    """An upper bound of a calibration grid's points per axis, computed without building the grid (any
+    ``grid_extent`` covers at most twice the allowed box; the engines' memory checks).
+    """
+    half = 2.0 * allowed_half_width_mm if protocol.half_span_mm is None else protocol.half_span_mm
+    return int(min(2.0 * half / protocol.grid_step_mm, 2.0**62)) + 2
 
 
 @functools.lru_cache(maxsize=64)

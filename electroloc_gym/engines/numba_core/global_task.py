@@ -24,15 +24,9 @@ from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.contract.task_spec import Choice, Real, TaskOptions, option
 from electroloc_gym.engines.numba_core.state import State
 from electroloc_gym.engines.numba_core.task import Task
-from electroloc_gym.engines.numba_core.worlds import (
-    cells,
-    descriptor,
-    grid_points_bound,
-    group_by_world,
-    scene_condition,
-)
+from electroloc_gym.engines.numba_core.worlds import descriptor, group_by_world, scene_condition
 from electroloc_gym.kernels import bilinear_coefficients
-from electroloc_gym.sensor_models import calibration_grid_for
+from electroloc_gym.sensor_models import calibration_grid_for, coefficient_rows, grid_points_bound
 from electroloc_gym.sensor_models.calibrated import CalibratedSensorModel
 from electroloc_gym.sensor_models.map import DEFAULT_POSITION_BLUR_MM, make_map_sensor_model
 from electroloc_gym.world.conditions import Condition
@@ -111,7 +105,9 @@ class GlobalTask(Task):
         """Coefficient rows per env (0 without a calibrated model)."""
         if not self.calibrated:
             return 0
-        self.cells_per_gain = cells(calibration_grid_for(scene_condition(self.scene_template), self.protocol))
+        self.cells_per_gain = coefficient_rows(
+            calibration_grid_for(scene_condition(self.scene_template), self.protocol)
+        )
         return self.cells_per_gain
 
     def begin_episode(self, state: State, i: int, g: np.random.Generator) -> None:

@@ -17,11 +17,14 @@ from electroloc_gym.contract.observation import condition_descriptor
 from electroloc_gym.contract.params import EnvParams, LocalizeOptions
 from electroloc_gym.engines.numba_core.state import State
 from electroloc_gym.engines.numba_core.task import Task
-from electroloc_gym.engines.numba_core.worlds import cells, fixed_coefficients, grid_points_bound, group_by_world
+from electroloc_gym.engines.numba_core.worlds import group_by_world
 from electroloc_gym.sensor_models import (
     AnalyticSensorModel,
     calibration_coefficients,
     calibration_grid_for,
+    coefficient_rows,
+    fixed_coefficients,
+    grid_points_bound,
     make_sensor_model,
 )
 from electroloc_gym.world.conditions import Condition
@@ -59,7 +62,7 @@ class LocalizeTask(Task):
         if not self.calibrated:
             return 0
         self._grids = [calibration_grid_for(c, self.protocol) for c in self.pool]
-        self.cells_per_gain = max(cells(g) for g in self._grids)
+        self.cells_per_gain = max(coefficient_rows(g) for g in self._grids)
         return self.cells_per_gain * len(self.gains)
 
     def _draw_condition(self, state: State, i: int, g: np.random.Generator) -> Condition:

@@ -54,10 +54,10 @@ from electroloc_gym.contract.observation import (
 from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.contract.task_spec import CurvePanel, Score, TaskMetrics, TaskOptions, TaskState
 from electroloc_gym.engines.numba_core.state import State as SimState
-from electroloc_gym.engines.numba_core.worlds import SEED_BOUND, cells, descriptor, group_by_world, with_gain_factor
+from electroloc_gym.engines.numba_core.worlds import SEED_BOUND, descriptor, group_by_world, with_gain_factor
 from electroloc_gym.kernels import calibrated_assimilate, egocentric_counts, loglik_assimilate, mean_cov_rows
 from electroloc_gym.kernels.streams import uniform_in_box
-from electroloc_gym.sensor_models import CalibrationProtocol
+from electroloc_gym.sensor_models import CalibrationProtocol, coefficient_rows
 from electroloc_gym.world.conditions import Condition
 
 __all__ = ["Task", "LOCALIZATION_METRICS"]
@@ -423,7 +423,7 @@ class Task(ABC):
         state.grid_inv_mm[i] = np.float32(1.0 / step_mm)
         state.grid_cells[i] = grid_mm.size - 1
         start = int(state.table_row[i]) + level * self.cells_per_gain
-        return state.table[start : start + cells(grid_mm)]
+        return state.table[start : start + coefficient_rows(grid_mm)]
 
     def table_rows(self, state: SimState, sel: Any) -> NDArray[np.int64]:
         """(k,) first coefficient row of each env's current gain level (the lookup kernel's ``base``)."""

@@ -19,13 +19,13 @@ import torch
 from electroloc_gym.contract.capabilities import check_engine, params_options
 from electroloc_gym.contract.observation import condition_descriptor, condition_index
 from electroloc_gym.contract.params import DISCRETE_MOVES_MM, EnvParams, LocalizeOptions, memory_limit_bytes
-from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
-from electroloc_gym.engines.numba_core.worlds import fixed_coefficients, grid_points_bound
 from electroloc_gym.kernels.streams import normal_table
 from electroloc_gym.registry import ENVS, EnvEntry
 from electroloc_gym.sensor_models.calibrated import (
     CalibrationProtocol,
     calibration_grid_for,
+    fixed_coefficients,
+    grid_points_bound,
     noise_free_calibration_grid,
 )
 
@@ -33,8 +33,10 @@ __all__ = ["TorchConsts", "check_supported", "torch_entry"]
 
 
 def torch_entry() -> EnvEntry:
-    """The env table's entry of the task the torch core implements (:class:`ElectroLocTask`)."""
-    return next(e for e in ENVS if e.task_class is ElectroLocTask)
+    """The env table's entry of the task the torch core implements (ElectroLoc-v0's): the first entry whose
+    ``backends`` name ``"torch"`` (read from the table, so the engine imports no task of the numba engine).
+    """
+    return next(e for e in ENVS if "torch" in e.backends)
 
 
 def check_supported(params: EnvParams) -> None:
@@ -86,7 +88,7 @@ class TorchConsts:
         normal_table: (65536,) float32 the normal quantile table.
         moves_mm: (9, 2) float64 the discrete moves, mm.
         fixed_table: with a fixed ``calibration_seed``, (P, (n − 1)² + 1, 8) float32 the numba core's own
-            coefficients of each condition (:func:`~electroloc_gym.engines.numba_core.worlds.fixed_coefficients`) in the
+            coefficients of each condition (:func:`~electroloc_gym.sensor_models.calibrated.fixed_coefficients`) in the
             torch core's row layout (row a·(n − 1) + b; the last row: outside the grid); else None.
     """
 
