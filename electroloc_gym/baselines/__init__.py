@@ -9,7 +9,8 @@ The controllers are those of Solberg, Lynch & MacIver 2008 (§4.1.3, §4.2, Algo
   :mod:`~electroloc_gym.baselines.infotaxis`, :mod:`~electroloc_gym.baselines.eedi`
 
 All follow the protocol of :mod:`electroloc_gym.baselines.base`; the names are declared once in
-:mod:`electroloc_gym.baselines.agent` (:data:`AGENT_NAMES`); build them with :func:`make_agent`.
+:mod:`electroloc_gym.baselines.agent` (:data:`AGENT_NAMES`); build them with :func:`make_agent` (a shipped
+learned policy by its name too) and run them with :func:`run_agent` (:mod:`electroloc_gym.baselines.rollout`).
 """
 
 from electroloc_gym.baselines.agent import (
@@ -24,6 +25,7 @@ from electroloc_gym.baselines.agent import (
 )
 from electroloc_gym.baselines.min_variance import MinVarianceAgent
 from electroloc_gym.baselines.random_walk import RandomWalkAgent
+from electroloc_gym.baselines.rollout import Episode, run_agent
 from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
 
 __all__ = [
@@ -34,6 +36,8 @@ __all__ = [
     "Agent",
     "BaselineAgent",
     "make_agent",
+    "run_agent",
+    "Episode",
     "parse_agent_spec",
     "RandomWalkAgent",
     "MinVarianceAgent",

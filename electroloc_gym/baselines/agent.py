@@ -13,6 +13,8 @@ never this one, so the registry → controllers imports run one way.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from electroloc_gym.baselines.base import (
@@ -23,6 +25,7 @@ from electroloc_gym.baselines.base import (
     sample_options_mm,
 )
 from electroloc_gym.utils.agentspec import AgentSpec, parse_agent_spec
+from electroloc_gym.models import shipped_models
 
 __all__ = [
     "Agent",
@@ -90,7 +93,9 @@ def agent_class(name: str) -> type:
     """
     registry = _registry()
     if name not in registry:
-        raise ValueError(f"unknown agent {name!r}; choose from {list(AGENT_NAMES)}")
+        raise ValueError(
+            f"unknown agent {name!r}; choose from {list(AGENT_NAMES)} or a shipped policy {sorted(shipped_models())}"
+        )
     return registry[name]
 
 
@@ -101,18 +106,25 @@ def belief_agents() -> tuple[str, ...]:
     return tuple(name for name, cls in _registry().items() if getattr(cls, "table_layout", "table4") == "table4")
 
 
-def make_agent(spec: str | AgentSpec, seed: int | np.random.Generator | None = None) -> BaselineAgent:
+def make_agent(spec: str | AgentSpec, seed: int | np.random.Generator | None = None) -> Any:
     """Build one of the registered controllers from its spec.
 
     Args:
         spec: ``"rnd-wlk"``, ``"min-var"``, ``"zero-crossing"``, ``"lookahead"`` or e.g.
-            ``"min-var[n_voters=2500]"`` (or a parsed :class:`~electroloc_gym.utils.agentspec.AgentSpec`).
+            ``"min-var[n_voters=2500]"`` (or a parsed :class:`~electroloc_gym.utils.agentspec.AgentSpec`), or
+            the name of a shipped learned policy (``"ppo-belief"``: :func:`electroloc_gym.policy.load_policy`).
         seed: seed of the agent's own generator.
 
     Raises:
         ValueError: an unknown name or bad options (the message lists the names).
     """
     parsed = spec if isinstance(spec, AgentSpec) else parse_agent_spec(spec)
+    if parsed.name not in _registry() and parsed.name in shipped_models():
+        if parsed.options:
+            raise ValueError(f"the shipped policy {parsed.name!r} takes no options, got {parsed.text!r}")
+        from electroloc_gym.policy import load_policy  # the agents' layer: numpy only
+
+        return load_policy(parsed.name)
     cls = agent_class(parsed.name)
     try:
         return cls(seed=seed, **parsed.options)

@@ -11,7 +11,9 @@ The loop is the agent protocol of :mod:`electroloc_gym.baselines.agent` and noth
     until terminated or truncated
 
 so an episode counted by ``electroloc bench``, one recorded into a dataset and one counted by the
-training's seeded evaluation are the same episode. The agent is handed the env's agent view
+training's seeded evaluation are the same episode. :func:`run_agent` is the public way to run an agent:
+it builds the env with the agent's ``env_kwargs`` (what the agent needs of it: zero-crossing's own
+budget, a policy's observation mode) and runs one seeded episode or a batch of them through this loop. The agent is handed the env's agent view
 (:func:`electroloc_gym.envs.agent_view.agent_view`: the documented agent accessors, never the ground
 truth), not the env. Whatever an agent's ``seed``, ``reset`` or ``predict`` raises (any exception,
 ``SystemExit`` included) comes out as one :class:`AgentCallError` naming the method, so a caller can
@@ -21,7 +23,7 @@ tell the agent's failure from the env's.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,7 +31,7 @@ import numpy as np
 
 from electroloc_gym.envs.agent_view import agent_view
 
-__all__ = ["Episode", "run_episode", "AgentCallError"]
+__all__ = ["Episode", "run_episode", "run_agent", "AgentCallError"]
 
 
 class AgentCallError(Exception):
@@ -142,3 +144,70 @@ def run_episode(
             episode.terminated, episode.truncated = bool(terminated), bool(truncated)
             episode.ended_by = "success" if terminated else "cap"
             return episode
+
+
+def run_agent(
+    agent: Any,
+    env_id: str = "ElectroLoc-v0",
+    seeds: int | Sequence[int] = 0,
+    *,
+    env_kwargs: Mapping[str, Any] | None = None,
+    agent_seed: int | None = None,
+    deterministic: bool = True,
+) -> Episode | list[Episode]:
+    """Run an agent for one seeded episode, or for each of a batch of seeds, in a new env of ``env_id``.
+
+    The env is ``gym.make(env_id, **agent.env_kwargs, **env_kwargs)``: what the agent needs of its env (its
+    ``env_kwargs``, e.g. zero-crossing's own budget of readings or a learned policy's observation mode)
+    applied, so an episode is the one ``electroloc bench`` runs. An episode ends when the env terminates or
+    truncates, or when the agent says it is done (``agent.done``: an agent that ends the trial itself).
+
+    Args:
+        agent: an agent object (``reset(env)`` and SB3's ``predict``), or the spec of a built-in controller
+            or the name of a shipped policy (:func:`electroloc_gym.baselines.make_agent`: ``"min-var"``,
+            ``"zero-crossing"``, ``"ppo-belief"``).
+        env_id: a registered env id.
+        seeds: an ``env.reset`` seed (one :class:`Episode`), or a sequence of them (a list, in order).
+        env_kwargs: more env arguments (the condition, ...); one that contradicts the agent's own is a
+            ``ValueError`` naming it.
+        agent_seed: re-seeds the agent's own generator before every episode; None: the episode's seed.
+        deterministic: passed to ``predict``.
+
+    Returns:
+        The :class:`Episode` of an int seed, or the list of a sequence's episodes.
+
+    Raises:
+        ValueError: a bad seed, an unknown agent or env id, or env arguments the agent contradicts.
+        AgentCallError: the agent's ``seed``, ``reset`` or ``predict`` raised (one line naming the method).
+    """
+    import gymnasium as gym
+
+    from electroloc_gym.baselines.agent import make_agent
+    from electroloc_gym.utils.checks import check_int
+
+    one = not isinstance(seeds, Sequence) or isinstance(seeds, (str, bytes))
+    seed_list = [seeds] if one else list(seeds)
+    if not seed_list:
+        raise ValueError("seeds must be an int ≥ 0 or a non-empty sequence of them, got an empty sequence")
+    seed_list = [check_int("seeds", s, 0, 2**63 - 1) for s in seed_list]
+    if agent_seed is not None:
+        agent_seed = check_int("agent_seed", agent_seed, 0, 2**63 - 1)
+    if isinstance(agent, str):
+        agent = make_agent(agent)
+    own = dict(getattr(agent, "env_kwargs", None) or {})
+    extra = dict(env_kwargs or {})
+    for key in sorted(set(own) & set(extra)):
+        if extra[key] != own[key]:
+            raise ValueError(
+                f"env_kwargs[{key!r}]={extra[key]!r} contradicts the agent's own env_kwargs[{key!r}]={own[key]!r} "
+                f"(what the agent needs of its env)"
+            )
+    env = gym.make(env_id, **{**own, **extra})
+    try:
+        episodes = [
+            run_episode(env, agent, s, agent_seed=s if agent_seed is None else agent_seed, deterministic=deterministic)
+            for s in seed_list
+        ]
+    finally:
+        env.close()
+    return episodes[0] if one else episodes

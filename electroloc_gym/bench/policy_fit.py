@@ -12,19 +12,9 @@ import json
 from pathlib import Path
 from typing import Any
 
+from electroloc_gym.models import shipped_models
 from electroloc_gym.registry import env_entry
 from electroloc_gym.world.conditions import get_condition
-
-
-def shipped_models() -> dict[str, Path]:
-    """Name → folder of every shipped learned policy (a folder of ``electroloc_gym.models``)."""
-    from electroloc_gym.models import MODELS_DIR
-
-    return {
-        p.name: p
-        for p in sorted(MODELS_DIR.iterdir())
-        if p.is_dir() and not p.name.startswith((".", "_")) and any(p.iterdir())
-    }
 
 
 # The bench owns these env kwargs; no agent's env_kwargs override them.

@@ -24,12 +24,14 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from electroloc_gym.models import shipped_models
 from electroloc_gym.policy.format import (
     ALGOS,
     POLICY_JSON,
@@ -43,7 +45,7 @@ from electroloc_gym.policy.format import (
 )
 from electroloc_gym.policy.networks import build_actor
 
-__all__ = ["LearnedAgent", "load_policy"]
+__all__ = ["LearnedAgent", "load_policy", "ShippedPolicy", "shipped_policies"]
 
 logger = logging.getLogger(__name__)
 
@@ -195,8 +197,42 @@ def agent_from_export(export: PolicyExport, name: str | None = None) -> LearnedA
         ) from exc
 
 
+@dataclass(frozen=True)
+class ShippedPolicy:
+    """One shipped learned policy and the env it was trained for.
+
+    Attributes:
+        name: its name (``load_policy(name)``, ``make_agent(name)``, ``electroloc bench --agents NAME``).
+        folder: its folder in the installed package.
+        env_id: the env id it was trained on.
+        env_kwargs: the training env's keyword arguments (the benchmark runs it where they hold).
+        algo: the training algorithm (``"ppo"``, ...).
+    """
+
+    name: str
+    folder: Path
+    env_id: str
+    env_kwargs: Mapping[str, Any]
+    algo: str
+
+
+def shipped_policies() -> dict[str, ShippedPolicy]:
+    """Every shipped policy by name, with the env it was trained for (read from its checked ``policy.json``)."""
+    out = {}
+    for name, folder in shipped_models().items():
+        meta = read_export(folder).meta
+        out[name] = ShippedPolicy(
+            name=name,
+            folder=folder,
+            env_id=str(meta["observation"]["env_id"]),
+            env_kwargs=dict(meta.get("env_kwargs") or {}),
+            algo=str(meta["algo"]),
+        )
+    return out
+
+
 def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
-    """Load a trained policy as a :class:`LearnedAgent`.
+    """Load a trained policy as a :class:`LearnedAgent`: a shipped policy by name, or a file or folder.
 
     By default only the pickle-free format is read: a folder holding ``policy.json`` and
     ``policy.safetensors`` (or the ``policy.json`` file). Nothing is unpickled. An SB3 ``.zip`` (e.g.
@@ -204,8 +240,9 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
     memory (:func:`electroloc_gym.policy.sb3.model_from_sb3_zip`) and a warning is logged.
 
     Args:
-        path: a policy folder, its ``policy.json``, an rl-zoo3 run folder of this path (its ``best/``), or
-            (with ``trust_pickle``) an SB3 ``.zip``.
+        path: the name of a shipped policy (:func:`shipped_policies`, e.g. ``"ppo-belief"``; a file or folder
+            of that name in the working directory is read instead), a policy folder, its ``policy.json``, an
+            rl-zoo3 run folder of this path (its ``best/``), or (with ``trust_pickle``) an SB3 ``.zip``.
         trust_pickle: allow SB3's pickle-based files (only for files you trust: loading runs their code).
 
     Raises:
@@ -213,6 +250,9 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
             ``policy.json`` or weights file (the message names the file).
     """
     p = Path(path)
+    shipped = shipped_models()
+    if not p.exists() and str(path) in shipped:
+        p = shipped[str(path)]
     if p.is_file() and p.name == POLICY_JSON:
         p = p.parent
     if p.is_dir() and not (p / POLICY_JSON).is_file() and (p / "best" / POLICY_JSON).is_file():
@@ -220,7 +260,10 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
     if p.is_dir() and (p / POLICY_JSON).is_file():
         return agent_from_export(read_export(p))
     if not p.exists():
-        raise ValueError(f"policy path {str(path)!r} does not exist (expected a folder with {POLICY_JSON})")
+        raise ValueError(
+            f"policy path {str(path)!r} does not exist (expected a folder with {POLICY_JSON}, or the name of a "
+            f"shipped policy: {sorted(shipped)})"
+        )
     if not trust_pickle:
         raise ValueError(
             f"refusing to load {str(path)!r}: it has no {POLICY_JSON} (the pickle-free policy format). "
