@@ -668,6 +668,22 @@ def test_an_unusable_datasets_path_is_one_line(tmp_path, monkeypatch, capsys, se
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"] and (tmp_path / "a-file").read_text() == "mine"
 
 
+@pytest.mark.parametrize(
+    ("make", "words"),
+    [
+        (lambda tmp: tmp / ("d" * 300), "is 300 bytes long; at most 255 bytes are allowed"),
+        (lambda tmp: (tmp / "dangling").symlink_to(tmp / "nowhere") or tmp / "dangling", "a dangling link or a loop"),
+    ],
+)
+def test_a_datasets_path_the_output_rule_refuses_is_one_line(tmp_path, monkeypatch, capsys, make, words):
+    """A name the file system refuses and a link that leads nowhere: named by the output folders' one rule."""
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(make(tmp_path)))
+    assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("electroloc dataset: error: MINARI_DATASETS_PATH") and words in err[0], err
+    assert not (tmp_path / "nowhere").exists()
+
+
 @pytest.mark.parametrize("setting", ["rel", "./rel/", "sub/../rel"])
 def test_a_relative_datasets_path_holds_the_same_dataset(tmp_path, monkeypatch, uninterrupted, setting):
     (tmp_path / "sub").mkdir()

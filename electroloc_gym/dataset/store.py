@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from electroloc_gym.utils.fileio import FolderLock, atomic_write_text, probe_write
+from electroloc_gym.utils.fileio import FolderLock, atomic_write_text, check_output_folder, probe_write
 
 __all__ = [
     "MAX_ID_CHARS",
@@ -171,22 +171,34 @@ def datasets_root() -> Path:
                 "it to a folder"
             )
         root = Path(raw).absolute()  # Minari's storage mislays episodes under a relative folder
-        if root.exists() and not root.is_dir():
-            raise ValueError(f"{what} is not a folder")
-        if not root.exists():
-            parent = root.absolute().parent
-            if not parent.is_dir():
-                tilde = " (a leading ~ is not expanded: give the full path)" if raw.startswith("~") else ""
-                raise ValueError(f"{what} does not exist and neither does its parent folder {str(parent)!r}{tilde}")
-            try:
-                root.mkdir()
-            except OSError as exc:
-                raise ValueError(f"{what} does not exist and cannot be created: {exc.strerror or exc}") from None
+        try:
+            _check_datasets_folder(what, root)
+        except OSError:  # a name too long, a link that leads nowhere: the output folders' one rule names it
+            check_output_folder("MINARI_DATASETS_PATH", root)
+            raise
     try:
         probe_write(root)
     except OSError as exc:
         raise ValueError(f"{what} is not writable: {exc.strerror or exc}") from None
     return root
+
+
+def _check_datasets_folder(what: str, root: Path) -> None:
+    """A set ``MINARI_DATASETS_PATH`` (``what``): a folder, or one that can be created in an existing folder
+    (created here). A path the file system refuses to look at (a name too long) raises its ``OSError``.
+    """
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"{what} is not a folder")
+    if not root.exists():
+        parent = root.parent
+        if not parent.is_dir():
+            tilde = " (a leading ~ is not expanded: give the full path)" if "~" in root.parts else ""
+            raise ValueError(f"{what} does not exist and neither does its parent folder {str(parent)!r}{tilde}")
+        try:
+            root.mkdir()
+        except OSError as exc:
+            check_output_folder("MINARI_DATASETS_PATH", root)  # a link that leads nowhere: named by the one rule
+            raise ValueError(f"{what} does not exist and cannot be created: {exc.strerror or exc}") from None
 
 
 def _is_dataset(folder: Path) -> bool:
