@@ -472,3 +472,36 @@ def test_a_bad_tracking_record_is_refused() -> None:
     assert not check({**good, "captured": "no"})
     assert not check({**good, "tracking_error_mm": -1.0})
     assert not check({**good, "radius_estimate_mm": 3.0})
+
+
+def test_a_reset_sets_the_tasks_own_arrays_back_over_their_declared_fields(monkeypatch) -> None:
+    """Reset and autoreset put every field of the task's ``State`` (``State.task``) back to its fill value,
+    row by row, before the task's draws: a field a task adds is reset without the step naming it."""
+    import dataclasses
+
+    from electroloc_gym.contract.task_spec import state_array
+    from electroloc_gym.engines.numba_core import step as numba_step
+    from electroloc_gym.engines.numba_core.track_task import TrackState, TrackTask
+
+    @dataclasses.dataclass
+    class Grown(TrackState):
+        misses: np.ndarray = state_array(np.int64, fill=-7)
+
+    class GrownTask(TrackTask):
+        State = Grown
+
+    monkeypatch.setattr(numba_step, "make_task", GrownTask)
+    sim = _sim(3, max_observations=3)
+    own = Grown.of(sim.state)
+    assert own.misses.tolist() == [-7, -7, -7]
+    own.misses[:] = 5
+    own.track_error_count[:] = 9
+    sim.reset(np.array([1]))
+    assert own.misses.tolist() == [5, -7, 5] and own.track_error_count.tolist() == [9, 0, 9]
+    own.misses[:] = 5
+    moves = np.zeros((3, 2))
+    for _ in range(2):
+        sim.step(moves)  # the third reading ends every episode
+    assert sim.state.done.all()
+    sim.step(moves)  # next_step autoreset of all three
+    assert own.misses.tolist() == [-7, -7, -7]

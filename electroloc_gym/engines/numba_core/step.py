@@ -18,7 +18,8 @@ One step of env i (paper §4.1, Algorithm 1):
    ``max_episode_steps`` steps));
 6. the task's observation (:mod:`electroloc_gym.contract.observation`) and info arrays.
 
-A reset draws the episode (the task's ``begin_episode``) and takes the first reading (steps 2–4),
+A reset sets the task's own arrays (``State.task``) back to their declared fill values, draws the episode
+(the task's ``begin_episode``) and takes the first reading (steps 2–4),
 so an episode starts with one observation. Autoreset follows Gymnasium's modes: ``"next_step"`` (the
 step after an episode ends resets that env: reward 0, not done, the action ignored), ``"same_step"``
 (reset within the ending step; the final observation and info returned beside) or ``"disabled"``
@@ -119,6 +120,7 @@ class Simulation:
     def reset(self, ids: NDArray[np.intp] | None = None) -> None:
         """Start a new episode in envs ``ids`` (all if None): the episode's draws and the first reading."""
         ids = self._all_ids if ids is None else np.asarray(ids, dtype=np.intp)
+        self.state.task.reset_rows(ids)  # the task's own arrays back to their fill values, then its draws
         for i in ids.tolist():
             self.task.begin_episode(self.state, i, self.generator(i))
         self.task.set_gain(self.state, ids, self.params.reset_gain_index)
@@ -147,6 +149,7 @@ class Simulation:
             if autoreset == "next_step":
                 reset_ids = np.flatnonzero(s.done)
                 step_ids = np.flatnonzero(~s.done)
+                s.task.reset_rows(reset_ids)
                 for i in reset_ids.tolist():
                     self.task.begin_episode(s, i, self.generator(i))
                 self.task.set_gain(s, reset_ids, self.params.reset_gain_index)

@@ -234,10 +234,8 @@ class TrackTask(LocalizeTask):
     def begin_episode(self, state: SimState, i: int, g: np.random.Generator) -> None:
         """ElectroLoc-v0's reset draws, then the swimmer's heading (1 uniform in [0, 2π))."""
         super().begin_episode(state, i, g)
-        own = TrackState.of(state)
+        own = TrackState.of(state)  # the step set its rows to 0 (TaskState.reset_rows): no error summed yet
         own.target_heading_rad[i] = g.uniform(0.0, 2 * np.pi) if self.swimmer else 0.0
-        own.track_error_sum_mm[i] = 0.0
-        own.track_error_count[i] = 0
 
     def move(self, state: SimState, ids: NDArray[np.intp] | slice, moves_mm: NDArray[np.float64]) -> None:
         """The carriage moves (truncated at the walls), then the target takes its step (reflected at the
