@@ -51,6 +51,7 @@ def _registry() -> dict[str, type]:
     each class's ``name`` is its registry name.
     """
     from electroloc_gym.baselines.eedi import EEDIAgent
+    from electroloc_gym.baselines.hybrid import HybridAgent
     from electroloc_gym.baselines.infotaxis import InfotaxisAgent
     from electroloc_gym.baselines.lookahead import LookaheadAgent
     from electroloc_gym.baselines.min_variance import MinVarianceAgent
@@ -66,6 +67,7 @@ def _registry() -> dict[str, type]:
         InfotaxisAgent,
         EEDIAgent,
         PursuitAgent,
+        HybridAgent,
     )
     return {cls.name: cls for cls in classes}
 
@@ -78,7 +80,7 @@ PAPER_AGENTS: tuple[str, ...] = (RANDOM_AGENT, "min-var", "zero-crossing")
 #: The paper's controllers under their older name.
 AGENT_REGISTRY = PAPER_AGENTS
 #: Agents beyond the paper's controllers, built by :func:`make_agent` but not in default benchmark runs.
-EXTRA_AGENTS: tuple[str, ...] = ("lookahead", "infotaxis", "eedi", "pursuit")
+EXTRA_AGENTS: tuple[str, ...] = ("lookahead", "infotaxis", "eedi", "pursuit", "hybrid")
 #: Every built-in agent's name.
 AGENT_NAMES: tuple[str, ...] = PAPER_AGENTS + EXTRA_AGENTS
 #: The non-learned planners that choose moves by the belief: the best of them is the normalised scores' 1.
