@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import io
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.baselines.rollout import run_episode
+from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
 from electroloc_gym.protocol import SUCCESS_SPREAD_MM
 from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.utils.fileio import atomic_write_bytes, check_output_path, save_figure_atomic
@@ -50,6 +52,7 @@ class Episode:
         frames: the env's ``rgb_array`` frames, one per observation (empty unless recorded).
         label: what ran (agent and seed), for titles.
         success_spread_mm: the env's success threshold on the spread, mm.
+        outcome: the final info → how the episode ended, in words (the env's task's ``metrics.outcome``).
     """
 
     snapshots: list[Snapshot] = field(default_factory=list)
@@ -57,11 +60,21 @@ class Episode:
     frames: list[NDArray[np.uint8]] = field(default_factory=list)
     label: str = ""
     success_spread_mm: float = SUCCESS_SPREAD_MM
+    outcome: Callable[[dict[str, Any]], str] = LOCALIZATION_METRICS.outcome
 
     @property
     def final_info(self) -> dict[str, Any]:
         """The last info dict."""
         return self.infos[-1]
+
+
+def _task_metrics(env: Any) -> Any:
+    """The metrics of ``env``'s task (its env-table entry's; an env of no entry: the localisation metrics)."""
+    entry = getattr(env.unwrapped, "entry", None)
+    try:
+        return entry().task_class.metrics if callable(entry) else LOCALIZATION_METRICS
+    except (LookupError, ValueError):
+        return LOCALIZATION_METRICS
 
 
 def record_episode(
@@ -90,6 +103,7 @@ def record_episode(
     ep = Episode(
         label=label if label is not None else f"{name}, seed {seed}",
         success_spread_mm=float(env.unwrapped.success_spread_mm),
+        outcome=_task_metrics(env).outcome,
     )
     if agent is None:
         agent = _RandomMoves(seed)  # the random walk is part of the seeded episode
@@ -193,7 +207,7 @@ def plot_episode(episode: Episode, max_panels: int = MAX_PANELS) -> Any:
     first = snaps[0]
     info = episode.final_info
     name = first.scene.name if first.is_global else first.condition.name
-    outcome = "success (spread ≤ threshold)" if info["success"] else "failure (observation cap)"
+    outcome = episode.outcome(info)
     fig.suptitle(
         f"{name}, {episode.label}: {outcome} after {info['n_observations']} observations, "
         f"final error {info['error_mm']:.1f} mm",

@@ -118,7 +118,6 @@ class EnvEntry:
         paper_table: the paper's table the benchmark's results are laid out like (:data:`PAPER_TABLES`).
         bench_kwargs: arguments every benchmark trial on this env passes (part of the benchmark's protocol
             there, e.g. the unknown target drawn from the condition's sphere).
-        record_keys: the task's info keys a benchmark record keeps under ``"shape"`` (empty: none).
         backends: other simulation backends of the native vector env: name → ``"module:Class"`` (imported
             only when asked for, so an optional dependency such as torch stays optional).
         summary: one line for the package docstring and the docs.
@@ -135,7 +134,6 @@ class EnvEntry:
     map_condition: str | None = None
     paper_table: str = "table4"
     bench_kwargs: Mapping[str, Any] = field(default_factory=frozen)
-    record_keys: tuple[str, ...] = ()
     backends: Mapping[str, str] = field(default_factory=frozen)
     summary: str = ""
 
@@ -159,8 +157,7 @@ class EnvEntry:
     @property
     def options_class(self) -> type[Any]:
         """The task class's ``Options``: the dataclass of the env's own arguments (a ``TaskOptions``)."""
-        options: type[Any] = getattr(self.task_class, "Options", None)  # a dataclass: checked on construction
-        return options
+        return cast("type[Any]", getattr(self.task_class, "Options", None))  # a dataclass: checked on construction
 
     @property
     def arguments(self) -> tuple[str, ...]:
@@ -168,6 +165,13 @@ class EnvEntry:
         :data:`COMMON_ARGUMENTS`).
         """
         return tuple(f.name for f in dataclasses.fields(self.options_class))
+
+    @property
+    def record_keys(self) -> tuple[str, ...]:
+        """The task's info keys a benchmark record keeps under ``"shape"`` (empty: none): the record fields its
+        task class's ``metrics`` declare (:class:`~electroloc_gym.contract.task_spec.TaskMetrics`).
+        """
+        return self.task_class.metrics.record_keys
 
     @property
     def all_arguments(self) -> tuple[str, ...]:

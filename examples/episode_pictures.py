@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> dict:
         save_gif(episode.frames, args.gif, fps=args.fps)
     info = episode.final_info
     print(
-        f"{args.agent}: {info['n_observations']} observations, success={info['success']}, "
+        f"{args.agent}: {info['n_observations']} observations, {episode.outcome(info)}, "
         f"error {info['error_mm']:.1f} mm; wrote {args.out}" + (f" and {args.gif}" if args.gif else "")
     )
     return info

@@ -28,6 +28,7 @@ from torch.distributions import Normal
 
 import electroloc_gym  # noqa: F401  (registers ElectroLoc-v0)
 from electroloc_gym.cli import HelpFormatter
+from electroloc_gym.registry import env_entry
 from electroloc_gym.utils.fileio import check_output_options
 from electroloc_gym.utils.runtime import pin_threads
 
@@ -177,8 +178,9 @@ def train(args: argparse.Namespace) -> Agent:
     next_obs = torch.as_tensor(envs.reset(seed=args.seed)[0])
     next_done = torch.zeros(N)  # did the previous step end an episode (so this step only resets it)?
     n_updates = args.total_timesteps // (T * N)
+    rate = env_entry(args.env_id).task_class.metrics.rate  # the task's rate: success (capture, moving target)
     lengths: list[int] = []
-    successes: list[bool] = []
+    rates: list[float] = []
     t0 = time.time()
     for update in range(1, n_updates + 1):
         for g in optim.param_groups:  # linear learning-rate decay
@@ -193,7 +195,7 @@ def train(args: argparse.Namespace) -> Agent:
             rew_buf[t], done_buf[t] = torch.as_tensor(reward, dtype=torch.float32), torch.as_tensor(done).float()
             for i in np.flatnonzero(done & (next_done.numpy() == 0)):  # episodes that just ended
                 lengths.append(int(info["n_observations"][i]))
-                successes.append(bool(info["success"][i]))
+                rates.append(rate.of_info(final_info(info, i)))
             next_obs, next_done = torch.as_tensor(obs), done_buf[t].clone()
 
         with torch.no_grad():
@@ -204,7 +206,7 @@ def train(args: argparse.Namespace) -> Agent:
             recent = slice(-100, None)
             print(
                 f"update {update}/{n_updates}  steps {update * T * N}  "
-                f"episodes {len(lengths)}  last-100 success {np.mean(successes[recent]):.2f}  "
+                f"episodes {len(lengths)}  last-100 {rate.name} {np.mean(rates[recent]):.2f}  "
                 f"median observations {np.median(lengths[recent]):.1f}  "
                 f"{update * T * N / (time.time() - t0):.0f} steps/s",
                 flush=True,
@@ -213,12 +215,22 @@ def train(args: argparse.Namespace) -> Agent:
     return agent
 
 
-def evaluate(agent: Agent, args: argparse.Namespace) -> tuple[float, float]:
-    """Success rate and median observations of the mean action over ``eval_episodes`` fresh episodes."""
+def final_info(info: dict, i: int) -> dict:
+    """Sub-env ``i``'s entries of a vector env's info (its final info on the step that ends its episode)."""
+    return {k: v[i] for k, v in info.items() if not k.startswith("_")}
+
+
+def evaluate(agent: Agent, args: argparse.Namespace) -> dict[str, float]:
+    """The task's own rate and score (its declared metrics: success rate and readings; capture rate and
+    tracking error on the moving target) and the median observations of the mean action over
+    ``eval_episodes`` fresh episodes.
+    """
+    metrics = env_entry(args.env_id).task_class.metrics
     envs = make_envs(args, min(args.num_envs, args.eval_episodes), randomize_target=False)
     obs, _ = envs.reset(seed=10_000 + args.seed)  # seeds disjoint from training's
     lengths: list[int] = []
-    successes: list[bool] = []
+    rates: list[float] = []
+    scores: list[float] = []
     prev_done = np.zeros(envs.num_envs, dtype=bool)
     while len(lengths) < args.eval_episodes:
         with torch.no_grad():
@@ -227,10 +239,16 @@ def evaluate(agent: Agent, args: argparse.Namespace) -> tuple[float, float]:
         done = np.logical_or(term, trunc)
         for i in np.flatnonzero(done & ~prev_done):
             lengths.append(int(info["n_observations"][i]))
-            successes.append(bool(info["success"][i]))
+            rates.append(metrics.rate.of_info(final_info(info, i)))
+            scores.append(metrics.score.of_info(final_info(info, i)))
         prev_done = done
     envs.close()
-    return float(np.mean(successes[: args.eval_episodes])), float(np.median(lengths[: args.eval_episodes]))
+    n = args.eval_episodes
+    return {
+        f"{metrics.rate.name}_rate": float(np.mean(rates[:n])),
+        f"mean_{metrics.score.key}": float(np.mean(scores[:n])),
+        "median_observations": float(np.median(lengths[:n])),
+    }
 
 
 def main(argv: list[str] | None = None) -> dict[str, float]:
@@ -238,15 +256,15 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     pin_threads()  # small networks: one thread (unless $ELECTROLOC_THREADS) is fastest and leaves the cores free
     args = parse_args(argv)
     agent = train(args)
-    success, median_obs = evaluate(agent, args)
+    result = evaluate(agent, args)
     print(
-        f"evaluation ({args.eval_episodes} episodes, mean action): success {success:.2f}, "
-        f"median observations {median_obs:.1f}"
+        f"evaluation ({args.eval_episodes} episodes, mean action): "
+        + ", ".join(f"{k} {v:.2f}" for k, v in result.items())
     )
     if args.save:
         torch.save(agent.state_dict(), args.save)  # reload with torch.load(path, weights_only=True)
         print(f"wrote {args.save}")
-    return {"success_rate": success, "median_observations": median_obs}
+    return result
 
 
 if __name__ == "__main__":

@@ -127,7 +127,7 @@ def test_an_unknown_target_record_without_shape_is_set_aside(reference, tmp_path
     if reference[0] is not UNKNOWN:
         pytest.skip("the unknown-target env's records")
     run = _crafted(reference, tmp_path, 0, _edit(reference[2][0], shape=_DROP))
-    _resume_and_check(reference, run, capsys, "'shape' must be the identification results")
+    _resume_and_check(reference, run, capsys, "'shape' must be the task's results, exactly the keys")
 
 
 @pytest.mark.parametrize(

@@ -87,7 +87,7 @@ def test_bad_shaping_arguments_are_one_line(coef, gamma, pattern):
         ({"eval_freq": 0}, "eval_freq must be an integer ≥ 1"),
         ({"n_episodes": 1.5}, "n_episodes must be"),
         ({"seed": -1}, "seed must be an integer ≥ 0"),
-        ({"select": "success"}, r"select must be one of \['mean_readings', 'mean_return'\]"),
+        ({"select": "success"}, r"select must be one of \['score', 'mean_readings', 'mean_return'\]"),
     ],
 )
 def test_bad_callback_arguments_are_one_line(kwargs, pattern):

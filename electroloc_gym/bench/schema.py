@@ -21,11 +21,12 @@ Consistency, for every record:
   no error.
 * ``far_success`` ⇔ a success whose estimate is more than :data:`FAR_ERROR_MM` from the target
   (:func:`is_far_success`; a tight belief on the wrong object, e.g. a distractor).
-* A moving-target trial (its ``shape`` holds the tracking results) has no success criterion: it ends by
-  the cap, ``success`` false, whatever its spread.
-* ``shape`` (the task's own results): the unknown-target env's identification, exactly
-  :data:`SHAPE_RECORD_KEYS`, or the moving target's tracking, exactly :data:`TRACK_RECORD_KEYS`; on
-  those envs only.
+* ``shape`` (the task's own results): exactly the record fields a registered task declares
+  (``Task.metrics.record``, :class:`~electroloc_gym.contract.task_spec.RecordField`), each in its range;
+  null on an env whose task declares none. Read into a run (:meth:`TrialRecord.problem`), they are the
+  run's own task's (:attr:`RecordRules.metrics`).
+* A trial of a task without a success criterion (``TaskMetrics.success_criterion`` false, e.g. the moving
+  target) ends by the cap, whatever its spread.
 * ``start`` is the start the trial's seed draws (checked on resume, :attr:`RecordRules.start_of`).
 
 Keys added to the schema later (:data:`OPTIONAL_RECORD_KEYS`) may be absent from an older record; they
@@ -42,8 +43,7 @@ from dataclasses import asdict, dataclass, field, fields
 from types import MappingProxyType
 from typing import Any
 
-from electroloc_gym.engines.numba_core.track_task import TRACK_RECORD_KEYS
-from electroloc_gym.engines.numba_core.unknown import SHAPE_RECORD_KEYS
+from electroloc_gym.contract.task_spec import TaskMetrics
 from electroloc_gym.protocol import FAR_ERROR_MM
 from electroloc_gym.utils.agentspec import is_path_like, parse_agent_spec
 from electroloc_gym.world.distractors import MAX_DISTRACTORS
@@ -57,8 +57,6 @@ __all__ = [
     "RECORD_KEYS",
     "OPTIONAL_RECORD_KEYS",
     "TIMING_KEYS",
-    "SHAPE_RECORD_KEYS",
-    "TRACK_RECORD_KEYS",
     "OLD_KEY_NAMES",
     "POSITION_BOUND_MM",
     "MAX_TEXT_CHARS",
@@ -121,40 +119,30 @@ def _gains(v: Any) -> bool:
     )
 
 
-_SHAPE_CHECKS: dict[str, tuple[Check, str]] = {
-    "radius_estimate_mm": (_num(0.0, POSITION_BOUND_MM), "a length in [0, 1000] mm or null"),
-    "radius_mean_mm": (_num(0.0, POSITION_BOUND_MM), "a length in [0, 1000] mm or null"),
-    "radius_spread_mm": (_num(0.0, POSITION_BOUND_MM), "a length in [0, 1000] mm or null"),
-    "target_radius_mm": (_num(0.0, POSITION_BOUND_MM, none=False), "a length in [0, 1000] mm"),
-    "radius_error_frac": (_num(0.0, 1e6), "a fraction ≥ 0 or null"),
-    "p_conductor": (_num(0.0, 1.0), "a probability in [0, 1] or null"),
-    "material_estimate": (lambda v: v in _MATERIALS, f"one of {list(_MATERIALS)}"),
-    "material_correct": (lambda v: isinstance(v, bool), "true or false"),
-    "chi_estimate": (_num(-1.0, 1.0), "a contrast in [-1, 1] or null"),
-    "target_chi": (_num(-1.0, 1.0, none=False), "a contrast in [-1, 1]"),
-}
+def _task_metrics() -> list[TaskMetrics]:
+    """The metrics of every registered task that declares record fields (the table as it is now)."""
+    from electroloc_gym.registry import ENVS
 
-
-_TRACK_CHECKS: dict[str, tuple[Check, str]] = {
-    "tracking_error_mm": (_num(0.0, 2 * POSITION_BOUND_MM, none=False), "a distance in [0, 2000] mm"),
-    "carriage_distance_mm": (_num(0.0, 2 * POSITION_BOUND_MM, none=False), "a distance in [0, 2000] mm"),
-    "captured": (lambda v: isinstance(v, bool), "true or false"),
-}
+    out: list[TaskMetrics] = []
+    for e in ENVS:
+        m = e.task_class.metrics
+        if m.record and m not in out:
+            out.append(m)
+    return out
 
 
 def _shape(v: Any) -> bool:
-    return v is None or (
-        isinstance(v, dict)
-        and any(
-            set(v) == set(keys) and all(ok(v[k]) for k, (ok, _) in checks.items())
-            for keys, checks in ((SHAPE_RECORD_KEYS, _SHAPE_CHECKS), (TRACK_RECORD_KEYS, _TRACK_CHECKS))
-        )
-    )
+    return v is None or any(m.accepts_record(v) for m in _task_metrics())
 
 
-def _f(check: Check, what: str, optional: bool = False, timing: bool = False) -> Any:
-    """A schema field: its check, what the check wants (for messages), whether old records may lack it,
-    whether it is a timing (varies run to run).
+def _shape_what() -> str:
+    keys = " or ".join(str(list(m.record_keys)) for m in _task_metrics())
+    return f"null or an object with exactly the keys of one task's results ({keys}), each in its range"
+
+
+def _f(check: Check, what: str | Callable[[], str], optional: bool = False, timing: bool = False) -> Any:
+    """A schema field: its check, what the check wants (for messages; a callable: computed when said), whether
+    old records may lack it, whether it is a timing (varies run to run).
     """
     return field(metadata={"check": check, "what": what, "optional": optional, "timing": timing})
 
@@ -189,12 +177,7 @@ class TrialRecord:
     n_particles: int = _f(_int(1), "an integer ≥ 1")
     env_id: str = _f(_text, "an env id")
     wall_s: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 s or null", timing=True)
-    shape: dict[str, Any] | None = _f(
-        _shape,
-        f"null or an object with exactly the keys {list(SHAPE_RECORD_KEYS)} or {list(TRACK_RECORD_KEYS)} in their "
-        "ranges",
-        optional=True,
-    )
+    shape: dict[str, Any] | None = _f(_shape, _shape_what, optional=True)
     gain_levels: list[float] | None = _f(_gains, "null or a list of positive gain factors", optional=True)
     sensor_layout: str | None = _f(
         lambda v: v is None or v in LAYOUT_NAMES, f"null or one of {list(LAYOUT_NAMES)}", optional=True
@@ -223,7 +206,8 @@ class TrialRecord:
                 continue
             value = obj[f.name]
             if not f.metadata["check"](value):
-                raise ValueError(f"{f.name!r} must be {f.metadata['what']}, got {_short(value)}")
+                what = f.metadata["what"]
+                raise ValueError(f"{f.name!r} must be {what() if callable(what) else what}, got {_short(value)}")
         values = {k: obj.get(k) for k in RECORD_KEYS}
         if "distractors" not in obj:
             values["distractors"] = 0
@@ -292,19 +276,20 @@ class TrialRecord:
             return f"'readings' {self.readings} exceeds the cap of {cap}"
         if self.ended_by == "cap" and self.readings != cap:
             return f"ended by the cap of {cap} after {self.readings} readings"
-        tracking = self.shape is not None and "tracking_error_mm" in self.shape
-        if tracking and self.ended_by != "cap":  # the moving target: no success criterion, every trial runs to the cap
-            return f"a moving-target trial runs to the cap, got 'ended_by' {self.ended_by!r}"
-        if self.ended_by != "agent" and self.table_layout == "table4" and not tracking:
+        criterion_free = not rules.metrics.success_criterion
+        if criterion_free and self.ended_by != "cap":  # no success criterion: every trial runs to the cap
+            return f"a trial of a task without a success criterion runs to the cap, got 'ended_by' {self.ended_by!r}"
+        if self.ended_by != "agent" and self.table_layout == "table4" and not criterion_free:
             criterion = rules.criteria.get(self.agent, rules.success_spread_mm)
             assert self.spread_mm is not None  # checked by from_json
             if (self.spread_mm <= criterion) != self.success:
                 return f"'success' {self.success} but 'spread_mm' {self.spread_mm} vs the criterion {criterion} mm"
-        if (self.shape is not None) != rules.shape:
+        keys = rules.metrics.record_keys
+        if (self.shape is not None) != bool(keys) or (keys and not rules.metrics.accepts_record(self.shape)):
             return "'shape' must be " + (
-                "the identification results (unknown-target env) or the tracking results (moving target)"
-                if rules.shape
-                else "null (only the unknown-target and moving-target envs report their own results)"
+                f"the task's results, exactly the keys {list(keys)}"
+                if keys
+                else "null (the run's task declares no results of its own)"
             )
         if rules.start_of is not None:
             want = rules.start_of(self.condition, self.agent, self.seed)
@@ -351,6 +336,12 @@ OPTIONAL_RECORD_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord
 TIMING_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord) if f.metadata["timing"])
 
 
+def _localisation_metrics() -> TaskMetrics:
+    from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
+
+    return LOCALIZATION_METRICS
+
+
 @dataclass(frozen=True)
 class RecordRules:
     """What a record of one run may hold (built by the runner from its config and the stored run).
@@ -360,7 +351,8 @@ class RecordRules:
         agents: the run's agent specs (and those of the stored run).
         trials: trial indices run from 0 to ``trials − 1``.
         success_spread_mm: the env's success criterion, mm.
-        shape: the env identifies the target (records carry ``shape``).
+        metrics: the run's task's metrics (its record fields: what ``shape`` holds; whether it has a success
+            criterion); default: the paper's localisation metrics (``shape`` null).
         caps: each agent's observation cap (default: the record's ``max_observations``).
         criteria: each agent's success criterion, where it sets its own (default: ``success_spread_mm``).
         table_layouts: each agent's table layout (``"table4"`` or ``"table1"``), where known.
@@ -372,7 +364,7 @@ class RecordRules:
     agents: frozenset[str]
     trials: int
     success_spread_mm: float
-    shape: bool = False
+    metrics: TaskMetrics = field(default_factory=_localisation_metrics)
     caps: Mapping[str, int] = field(default_factory=dict)
     criteria: Mapping[str, float] = field(default_factory=dict)
     table_layouts: Mapping[str, str] = field(default_factory=dict)

@@ -19,15 +19,10 @@ Appendix B (Table 4):
 ``readings_mean``: over the agent's own successful trials, App. B item 3's wording for steps), which do
 not change when other agents join the run.
 
-The moving target (ElectroLocTrack-v0, no success criterion: every trial runs its readings): the
-tracking error's median and interquartile range over all trials (``tracking_error_median_mm``,
-``tracking_error_q25_mm``, ``tracking_error_q75_mm``) and the capture rate with its 95 % Wilson interval
-(``captures``, ``capture_rate``, ``capture_rate_lo``, ``capture_rate_hi``); the "all" rows pool the trials.
-
-What ranks agents on an env (:func:`env_score`): the tracking error on a tracking env (lower better; its
-records' ``shape`` carries :data:`TRACKING_KEY`), elsewhere the readings to success (a failure counted
-as the cap; lower better) — the score the offline trainers choose a checkpoint by and the datasets'
-reference scores compare rnd-wlk with the planners by.
+A task's own statistics (``Task.metrics.statistics``, :mod:`electroloc_gym.contract.task_spec`: e.g. the
+moving target's tracking error and capture rate, the unknown target's identification) follow in every
+row: per condition over the condition's trials, in the "all" rows over the agent's pooled trials. The
+run's task is its records' env's (:func:`records_metrics`).
 
 Table 1 (zero-crossing): mean absolute error in x and in y of the final estimates
 (``error_x_mean_abs_mm``, ``error_y_mean_abs_mm``, successful trials), and the repeatability the
@@ -41,11 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from electroloc_gym.bench.fidelity import wilson_interval
 from electroloc_gym.bench.schema import is_far_success
+from electroloc_gym.contract.task_spec import TaskMetrics
 from electroloc_gym.utils.agentspec import is_path_like
 
-__all__ = ["summarize", "agent_label", "env_score", "RULES", "TRACKING_KEY"]
+__all__ = ["summarize", "agent_label", "records_metrics", "RULES"]
 
 RULES = (
     "Appendix B: success (failure) counts; mean error and mean steps over the start positions on which every "
@@ -78,7 +73,9 @@ def agent_label(agent: str, recs: Sequence[dict[str, Any]]) -> str:
     return str(recs[0].get("agent_label", agent)) if (is_path_like(agent) and recs) else agent
 
 
-def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int]) -> dict[str, Any]:
+def _row(
+    condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int], metrics: TaskMetrics
+) -> dict[str, Any]:
     ok = [r for r in recs if r["success"]]
     pair = [r for r in recs if int(r["trial"]) in paired]
     row: dict[str, Any] = {
@@ -107,72 +104,36 @@ def _row(condition: str, agent: str, recs: list[dict[str, Any]], paired: set[int
         row["error_y_repeatability_mm"] = float(dev[:, 1].mean())
     else:
         row["error_x_repeatability_mm"] = row["error_y_repeatability_mm"] = None
-    row.update(_identification(ok))
-    row.update(_tracking(recs))
+    row.update(metrics.statistics(recs))
     return row
 
 
-def _identification(successes: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """The unknown-target env's identification over successful trials (empty for the other envs)."""
-    shapes = [r["shape"] for r in successes if r.get("shape") and "material_correct" in r["shape"]]
-    if not shapes:
-        return {}
-    return {
-        "identified_trials": len(shapes),
-        "material_correct_frac": _mean(float(s["material_correct"]) for s in shapes),
-        "radius_error_median_frac": _median(s["radius_error_frac"] for s in shapes),
-    }
-
-
-#: The record key (of a trial record's ``shape``, and the env's info) that makes an env a tracking env.
-TRACKING_KEY = "tracking_error_mm"
-
-
-def env_score(env_id: str) -> tuple[str, str]:
-    """``(score, direction)``: what ranks agents on ``env_id`` and which way is better (module docstring).
-
-    ``("tracking_error_mm", "lower")`` on an env whose env-table entry's ``record_keys`` hold
-    :data:`TRACKING_KEY` (the moving target: every trial runs to its cap, so the readings tie), the
-    episode's mean tracking error over its second half, mm; ``("readings", "lower")`` elsewhere, the
-    readings to success with a failure counted as the cap.
-
-    Raises:
-        ValueError: an env id the env table does not hold.
+def records_metrics(records: Sequence[dict[str, Any]]) -> TaskMetrics:
+    """The metrics of the task the records were run on: their env's (the first record's ``env_id``); an env id
+    the table does not hold: the registered task whose record fields the records' ``shape`` holds, else the
+    paper's localisation metrics.
     """
-    from electroloc_gym.registry import env_entry
+    from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
+    from electroloc_gym.registry import ENVS
 
-    return (TRACKING_KEY, "lower") if TRACKING_KEY in env_entry(env_id).record_keys else ("readings", "lower")
-
-
-#: The capture rate's interval: a 95 % Wilson score interval.
-CAPTURE_CONFIDENCE = 0.95
-
-
-def _tracking(recs: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """The moving target's tracking over all trials (empty for the other envs; module docstring)."""
-    shapes = [r["shape"] for r in recs if r.get("shape") and TRACKING_KEY in r["shape"]]
-    if not shapes:
-        return {}
-    err = _num(s[TRACKING_KEY] for s in shapes)
-    captures = sum(bool(s["captured"]) for s in shapes)
-    lo, hi = wilson_interval(captures, len(shapes), CAPTURE_CONFIDENCE)
-    q25, q50, q75 = (float(q) for q in np.quantile(err, [0.25, 0.5, 0.75]))
-    return {
-        "tracking_trials": len(shapes),
-        "tracking_error_median_mm": q50,
-        "tracking_error_q25_mm": q25,
-        "tracking_error_q75_mm": q75,
-        "tracking_error_mean_mm": float(err.mean()),
-        "carriage_distance_median_mm": _median(s["carriage_distance_mm"] for s in shapes),
-        "captures": captures,
-        "capture_rate": captures / len(shapes),
-        "capture_rate_lo": lo,
-        "capture_rate_hi": hi,
-    }
+    if not records:
+        return LOCALIZATION_METRICS
+    env_id = records[0].get("env_id")
+    for e in ENVS:
+        if e.env_id == env_id:
+            return e.task_class.metrics
+    shape = records[0].get("shape")
+    return next(
+        (e.task_class.metrics for e in ENVS if shape and e.task_class.metrics.accepts_record(shape)),
+        LOCALIZATION_METRICS,
+    )
 
 
 def summarize(
-    records: Sequence[dict[str, Any]], agents: Sequence[str] | None = None, conditions: Sequence[str] | None = None
+    records: Sequence[dict[str, Any]],
+    agents: Sequence[str] | None = None,
+    conditions: Sequence[str] | None = None,
+    metrics: TaskMetrics | None = None,
 ) -> dict[str, Any]:
     """Rows per condition × agent plus ``"condition": "all"`` rows (see the module docstring).
 
@@ -180,12 +141,14 @@ def summarize(
         records: trial records (``run_trial`` output / trials.jsonl lines).
         agents: agent order (default: order of first appearance).
         conditions: condition order (default: order of first appearance).
+        metrics: the task's metrics (default: :func:`records_metrics`), whose statistics every row adds.
 
     Returns:
         ``{"rules": ..., "rows": [...]}``; every row has the keys condition, agent, trials, successes,
         failures, error_mean_mm, error_median_mm, readings_mean, readings_median, decision_ms_median (and
         more, see the module docstring). Missing statistics are None (JSON null), never NaN.
     """
+    metrics = records_metrics(records) if metrics is None else metrics
     agents = list(dict.fromkeys(agents if agents is not None else [r["agent"] for r in records]))
     conditions = list(dict.fromkeys(conditions if conditions is not None else [r["condition"] for r in records]))
     by: dict[tuple[str, str], list[dict[str, Any]]] = {}
@@ -208,7 +171,7 @@ def summarize(
             if not recs:
                 continue
             paired = paired_t4 if table_layout[a] == "table4" else {int(r["trial"]) for r in recs if r["success"]}
-            row = _row(c, a, recs, paired)
+            row = _row(c, a, recs, paired, metrics)
             rows.append(row)
             per_agent[a].append(row)
     for a in agents:
@@ -239,8 +202,7 @@ def summarize(
                 "far_successes": sum(is_far_success(r["success"], r["error_mm"]) for r in recs),
                 "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
                 "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),
-                **_identification([r for r in recs if r["success"]]),  # pooled over the conditions' successes
-                **_tracking(recs),  # pooled over the conditions' trials
+                **metrics.statistics(recs),  # pooled over the conditions' trials
             }
         )
     return {"rules": RULES, "agents": agents, "conditions": conditions, "rows": rows}

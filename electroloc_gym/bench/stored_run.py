@@ -140,7 +140,7 @@ def record_rules(
         agents=agents,
         trials=trials,
         success_spread_mm=float(config.success_spread_mm),
-        shape=bool(env_entry(config.env_id).record_keys),
+        metrics=env_entry(config.env_id).task_class.metrics,
         caps=caps,
         criteria=criteria,
         table_layouts=table_layouts,

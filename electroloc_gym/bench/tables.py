@@ -3,6 +3,10 @@
 The aggregate row of an agent is the paper's *All conditions* row (with the paper's totals beside
 it) only when the agent ran all eight of the paper's conditions; over fewer it is labelled
 *Subset (k conditions)* and has no paper values, since the paper's totals are over all eight.
+
+A task's own statistics are laid out by its declaration (``Task.metrics``: its :class:`Column` s and
+:class:`Table`, :mod:`electroloc_gym.contract.task_spec`) in one renderer (:func:`task_table_lines`): a
+section after the Table-4 layout, or the whole document for a task without a success criterion.
 """
 
 from __future__ import annotations
@@ -12,6 +16,8 @@ from typing import Any
 from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.bench.fidelity import PAPER_TRIALS, UNTESTED, interval_mark
 from electroloc_gym.bench.schema import FAR_ERROR_MM
+from electroloc_gym.bench.stats import records_metrics
+from electroloc_gym.contract.task_spec import TaskMetrics, format_config_text
 from electroloc_gym.registry import ENVS
 from electroloc_gym.utils.agentspec import parse_agent_spec
 from electroloc_gym.utils.markdown import markdown_table
@@ -26,6 +32,7 @@ __all__ = [
     "paper_agent_key",
     "aggregate_label",
     "is_all_conditions",
+    "task_table_lines",
 ]
 
 # Table 4 (App. B): (successes, failures, error mean, error median (mm), steps mean, steps median).
@@ -181,6 +188,40 @@ def _paper_table(env_id: Any) -> str:
     return next((e.paper_table for e in ENVS if e.env_id == env_id), "table4")
 
 
+def _summary_metrics(summary: dict[str, Any]) -> TaskMetrics:
+    """The metrics of a summary's task: its env's (an id no longer registered: the paper's localisation metrics)."""
+    env_id = summary.get("config", {}).get("env_id")
+    return records_metrics([{"env_id": env_id}])
+
+
+def _has_task_rows(metrics: TaskMetrics, rows: list[dict[str, Any]]) -> bool:
+    table = metrics.table
+    return table is not None and any(r.get(table.count) and r["condition"] != "all" for r in rows)
+
+
+def task_table_lines(metrics: TaskMetrics, rows: list[dict[str, Any]], config: dict[str, Any]) -> list[str]:
+    """The table of a task's own statistics, from its declaration (module docstring): the title (a task without
+    a success criterion's table is the document, titled by the env id), the paragraph, then one line per row
+    holding the task's results (condition, agent, the declared columns).
+    """
+    table = metrics.table
+    assert table is not None
+    title = f"# electroloc bench — {config.get('env_id')}" if table.replaces else f"## {table.title}"
+    out = [title, "", format_config_text(table.text, config), ""]
+    cells = []
+    for r in rows:
+        if not r.get(table.count):
+            continue
+        if r["condition"] == "all":
+            water, sphere = aggregate_label(r) + table.pooled, ""
+        else:
+            water, sphere = _cond_label(r["condition"])
+        cells.append((water, sphere, r.get("label", r["agent"]), *(c.cell(r) for c in metrics.columns)))
+    out.extend(markdown_table(("Water", "Sphere (mm)/material", "Agent", *(c.header for c in metrics.columns)), cells))
+    out.append("")
+    return out
+
+
 def render_table_md(summary: dict[str, Any]) -> str:
     """table.md: Table 4 layout for the belief agents, Table 1 layout for zero-crossing agents."""
     rows = summary["rows"]
@@ -189,8 +230,9 @@ def render_table_md(summary: dict[str, Any]) -> str:
     t1 = [r for r in rows if r.get("table_layout") == "table1"]
     if _paper_table(cfg.get("env_id")) == "table2":
         return _render_table2(summary)
-    if any(r.get("tracking_trials") for r in rows):
-        return _render_tracking(summary)
+    metrics = _summary_metrics(summary)
+    if metrics.table is not None and metrics.table.replaces and _has_task_rows(metrics, rows):
+        return "\n".join(task_table_lines(metrics, rows, cfg))
     out: list[str] = []
     out.append(f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}")
     out.append("")
@@ -287,9 +329,8 @@ def render_table_md(summary: dict[str, Any]) -> str:
                 + "."
             )
             out.append("")
-    ident = [r for r in t4 if r.get("identified_trials") and r["condition"] != "all"]
-    if ident:
-        out.extend(_identification_rows(t4))
+    if metrics.table is not None and not metrics.table.replaces and _has_task_rows(metrics, t4):
+        out.extend(task_table_lines(metrics, t4, cfg))
     if t1:
         out.append("## Table 1 layout (zero-crossing)")
         out.append("")
@@ -346,42 +387,6 @@ def render_table_md(summary: dict[str, Any]) -> str:
     return "\n".join(out)
 
 
-def _identification_rows(t4: list[dict[str, Any]]) -> list[str]:
-    """The unknown-target env's size and material identification, over each agent's successes."""
-    out = [
-        "## Identification (unknown target, §7)",
-        "",
-        "Over each agent's successful trials: the material estimate (conductor when more than half the particles "
-        "have χ > 0) against the true one, and the median relative error of the radius estimate (the particles' "
-        "median radius). The paper has no such numbers.",
-        "",
-    ]
-    cells = []
-    for r in t4:
-        if not r.get("identified_trials"):
-            continue
-        pooled = r["condition"] == "all"
-        water, sphere = (f"{aggregate_label(r)} (pooled)", "") if pooled else _cond_label(r["condition"])
-        frac, rad = (r.get(k) for k in ("material_correct_frac", "radius_error_median_frac"))
-        cells.append(
-            (
-                water,
-                sphere,
-                r.get("label", r["agent"]),
-                r["successes"],
-                f"{_f(None if frac is None else 100 * frac)} %",
-                f"{_f(None if rad is None else 100 * rad)} %",
-            )
-        )
-    out.extend(
-        markdown_table(
-            ("Water", "Sphere (mm)/material", "Agent", "Successes", "Material correct", "Radius error median"), cells
-        )
-    )
-    out.append("")
-    return out
-
-
 def _render_table2(summary: dict[str, Any]) -> str:
     """table.md for ElectroLocGlobal-v0: the paper's Table 2 layout (§6.5), same Appendix-B rules."""
     cfg = summary.get("config", {})
@@ -429,64 +434,4 @@ def _render_table2(summary: dict[str, Any]) -> str:
     out.append("")
     if note:
         out += [note, ""]
-    return "\n".join(out)
-
-
-def _render_tracking(summary: dict[str, Any]) -> str:
-    """table.md for the moving target (ElectroLocTrack-v0): tracking error and capture rate per condition and
-    agent (the paper has no such table).
-    """
-    cfg = summary.get("config", {})
-    out = [
-        f"# electroloc bench — {cfg.get('env_id')}",
-        "",
-        (
-            f"A target sphere that swims during the episode: {cfg.get('trials')} trials per condition and agent, "
-            f"seed {cfg.get('seed')}, sensor model `{cfg.get('sensor_model')}`, signal `{cfg.get('signal')}`, "
-            f"{cfg.get('n_particles')} particles, {cfg.get('max_observations')} readings per episode. *Tracking "
-            "error*: the mean distance from the belief's mean to the true target over the episode's second half, "
-            "per trial; its median and interquartile range over the trials. *Capture*: the carriage within 10 mm "
-            "of the target after the last reading; the rate with its 95 % Wilson interval. The *All conditions* "
-            "rows pool the trials."
-        ),
-        "",
-    ]
-    cells = []
-    for r in summary["rows"]:
-        if not r.get("tracking_trials"):
-            continue
-        if r["condition"] == "all":
-            water, sphere = aggregate_label(r), ""
-        else:
-            water, sphere = _cond_label(r["condition"])
-        cells.append(
-            (
-                water,
-                sphere,
-                r.get("label", r["agent"]),
-                r["tracking_trials"],
-                _f(r["tracking_error_median_mm"]),
-                f"{_f(r['tracking_error_q25_mm'])}–{_f(r['tracking_error_q75_mm'])}",
-                f"{r['captures']} ({_f(100 * r['capture_rate'], 0)} %)",
-                f"{_f(100 * r['capture_rate_lo'], 0)}–{_f(100 * r['capture_rate_hi'], 0)} %",
-                _f(r["decision_ms_median"], 2),
-            )
-        )
-    out.extend(
-        markdown_table(
-            (
-                "Water",
-                "Sphere (mm)/material",
-                "Agent",
-                "Trials",
-                "Tracking error median (mm)",
-                "IQR (mm)",
-                "Captures",
-                "Capture rate 95 % CI",
-                "Decision ms",
-            ),
-            cells,
-        )
-    )
-    out.append("")
     return "\n".join(out)

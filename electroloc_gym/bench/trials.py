@@ -122,7 +122,7 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
             "decision_ms_median": float(np.median(dms)) if dms.size else None,
             "decision_ms_mean": float(np.mean(dms)) if dms.size else None,
             "wall_s": time.perf_counter() - t_start,
-            "shape": _shape_record(info, core.entry().record_keys) or None,
+            "shape": _shape_record(info, core.entry().task_class.metrics.record_keys) or None,
             **spec.config.record_settings(),
             "far_success": is_far_success(success, error),
         }
@@ -130,8 +130,8 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
 
 
 def _shape_record(info: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
-    """The task's identification results ``keys`` of the final info (the unknown target's size and material
-    estimates and their truth), as JSON values.
+    """The task's own results ``keys`` (its declared record fields, ``Task.metrics.record``) of the final info,
+    as JSON values.
     """
     out: dict[str, Any] = {}
     for k in keys:

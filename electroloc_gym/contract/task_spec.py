@@ -438,6 +438,8 @@ class Score:
         episode: the value from an episode's final info, or None: ``float(info[key])``.
         record: the value from a benchmark record, or None: ``float(record[key])`` (the record's top level),
             else ``float(record["shape"][key])`` (the task's results).
+        best: the words of the best checkpoint's choice (``"fewest mean readings …"``; default: lowest or
+            highest mean ``label`` (``key``, ``unit``)), followed by "on the validation episodes".
     """
 
     key: str
@@ -447,12 +449,17 @@ class Score:
     name: str = ""
     episode: Callable[[Mapping[str, Any]], float] | None = None
     record: Callable[[Mapping[str, Any]], float] | None = None
+    best: str = ""
 
     def __post_init__(self) -> None:
         if self.better not in DIRECTIONS:
             raise ValueError(f"better must be one of {list(DIRECTIONS)}, got {self.better!r}")
         if not self.name:
             object.__setattr__(self, "name", self.key)
+        if not self.best:
+            what = f"{self.key}, {self.unit}" if self.unit else self.key
+            words = "lowest" if self.better == "lower" else "highest"
+            object.__setattr__(self, "best", f"{words} mean {self.label} ({what})")
 
     def of_info(self, info: Mapping[str, Any]) -> float:
         """The score of an episode from its final info."""

@@ -160,8 +160,9 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
     ``estimate_mm`` (2,), ``covariance_mm2`` (xx, xy, yy), ``spread_mm``, ``n_observations``, ``reading_V``,
     ``success``: the belief and what the agent saw; ``condition_index``: the preset's index in
     ``PRESET_NAMES`` (−1: the global map); ``truth_mm`` (2,) the hidden position (the target, or the robot's
-    own in the mapped tank) and ``error_mm``; for the unknown target ``truth_radius_mm``, ``truth_chi``,
-    ``radius_estimate_mm``, ``p_conductor``. Read from the env's documented evaluation accessors.
+    own in the mapped tank) and ``error_mm``; the hidden shape beyond the position (``truth_radius_mm``,
+    ``truth_chi`` for the unknown target) and the task's own estimates its metrics name
+    (``Task.metrics.dataset_info``). Read from the env's documented evaluation accessors.
     """
     from electroloc_gym.world.conditions import PRESET_NAMES
 
@@ -183,10 +184,8 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
     hidden = core.hidden_state()
     for key, value in zip(core.hidden_keys[2:], hidden[2:]):  # the hidden shape beyond the position
         out["truth_" + key.removeprefix("target_")] = np.float64(value)
-    if "radius_estimate_mm" in core.entry().record_keys:  # the unknown target's estimates
-        out.update(
-            radius_estimate_mm=np.float64(info["radius_estimate_mm"]), p_conductor=np.float64(info["p_conductor"])
-        )
+    for key in core.entry().task_class.metrics.dataset_info:  # the task's own estimates (its declaration)
+        out[key] = np.float64(info[key])
     return out
 
 

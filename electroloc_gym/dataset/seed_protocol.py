@@ -18,11 +18,11 @@ same env (the committed baseline run of the learned suite, ``<results>/<env-id>/
 rnd-wlk and 1 at the best planner, as in the learned table (whose score averages per-condition ratios;
 the dataset's uses the means over the same conditions).
 
-On a tracking env (the moving target, :func:`electroloc_gym.bench.stats.env_score`) every episode reads its
-cap, so the readings say nothing; agents are compared by the env's own score, the tracking error (the
-mean over conditions of each condition's mean ``tracking_error_mm``, mm; lower better), and the reference
+On an env whose task declares its own score (``Task.metrics.score``, e.g. the moving target, where every
+episode reads its cap and the readings say nothing) agents are compared by that score (the mean over
+conditions of each condition's mean, e.g. the tracking error in mm, lower better), and the reference
 scores are its negatives: ``ref_min_score = −E_rnd``, ``ref_max_score = −E_best``, the block's ``score``
-saying so. An episode's score on that scale is −(its tracking error): the mean of the dataset's per-step
+naming it. An episode's score on that scale is −(its tracking error): the mean of the dataset's per-step
 ``error_mm`` info over the scored second half (``n_observations`` above half the cap), the env's final
 ``tracking_error_mm`` — not the return, which sums the error over every reading.
 """
@@ -92,11 +92,6 @@ def _evaluation_seeds() -> frozenset[int]:
     return frozenset(trials | set(range(100_000, 100_064)))
 
 
-def _mean_readings(rows: list[dict[str, Any]]) -> float:
-    """Mean over conditions of the per-condition mean readings, a failure counted as the cap."""
-    return _mean_over_conditions(rows, lambda r: r["readings"] if r["success"] else r["max_observations"])
-
-
 def _mean_over_conditions(rows: list[dict[str, Any]], value: Any) -> float:
     """Mean over conditions of the per-condition mean of ``value(record)``."""
     conditions = sorted({r["condition"] for r in rows})
@@ -115,7 +110,7 @@ def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str
             best planner by the env's score — one line.
     """
     from electroloc_gym.bench.records import TRIALS_FILE, read_trials, stored_trials
-    from electroloc_gym.bench.stats import env_score
+    from electroloc_gym.registry import env_entry
 
     path = Path(bench_dir)
     path = stored_trials(path / TRIALS_FILE if path.is_dir() else path)  # a kept run's .gz where it is absent
@@ -132,11 +127,9 @@ def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str
             f"reference {str(path)!r} must hold {RND_AGENT} and one of {list(PLANNERS)} on {env_id}; "
             f"it holds {sorted(agents)}"
         )
-    key, direction = env_score(env_id)
-    if key == "readings":
-        score = _mean_readings
-    else:  # the task's own result, kept in the record's shape
-        score = functools.partial(_mean_over_conditions, value=lambda r: float(r["shape"][key]))
+    declared = env_entry(env_id).task_class.metrics.score  # what ranks agents on the env
+    key, direction = declared.key, declared.better
+    score = functools.partial(_mean_over_conditions, value=declared.of_record)
     sign = 1.0 if direction == "lower" else -1.0  # sign · score: lower is better
     rnd = score([r for r in rows if r["agent"] == RND_AGENT])
     scores = {p: score([r for r in rows if r["agent"] == p]) for p in planners}

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
 from electroloc_gym.engines.numba_core.global_task import GlobalTask
-from electroloc_gym.engines.numba_core.track_task import TRACK_EPISODE_READINGS, TRACK_RECORD_KEYS, TrackTask
-from electroloc_gym.engines.numba_core.unknown import SHAPE_RECORD_KEYS, UnknownTargetTask
+from electroloc_gym.engines.numba_core.track_task import TRACK_EPISODE_READINGS, TrackTask
+from electroloc_gym.engines.numba_core.unknown import UnknownTargetTask
 from electroloc_gym.envs.global_env import GlobalEnv
 from electroloc_gym.envs.localize import ElectroLocEnv
 from electroloc_gym.envs.track_env import TrackEnv, TrackVectorEnv
@@ -83,7 +83,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         ),
         # the paper's sphere/water pairs, the sphere hidden from the agent
         bench_kwargs=frozen({"target_draw": "condition"}),
-        record_keys=SHAPE_RECORD_KEYS,
         summary="localise a sphere of unknown size and material (§7)",
     ),
     EnvEntry(
@@ -103,7 +102,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
                 "default agents rnd-wlk,min-var,pursuit)",
             ),
         ),
-        record_keys=TRACK_RECORD_KEYS,
         summary="follow a target sphere that swims during the episode (the prey-capture task)",
     ),
 )

@@ -6,13 +6,16 @@ the way the benchmark runs a policy — exported in memory to the pickle-free fo
 benchmark's agent (:mod:`electroloc_gym.policy`), one seeded episode per validation seed through
 :func:`electroloc_gym.baselines.rollout.run_episode` — and records what the benchmark reports:
 successes, readings to localise (``info["n_observations"]``; a failure counts as the cap) and the
-final error, plus the task's own (unshaped) return. It also switches on the reward shaping of the
-training env (:func:`electroloc_gym.train.wrappers.activate_shaping`).
+final error, plus the task's own (unshaped) return and the task's own metrics (``Task.metrics.eval_columns``:
+the moving target's mean and median tracking error and capture rate). It also switches on the reward
+shaping of the training env (:func:`electroloc_gym.train.wrappers.activate_shaping`).
 
 In the run folder rl-zoo3 made (``logs/<algo>/<env>_<n>/``, found from the training monitor's file)
-it writes, each atomically: ``eval.csv`` (one row per evaluation), ``best/`` (the pickle-free export
-of the checkpoint with the fewest mean readings on the validation episodes — the checkpoint the
-export ships) and ``summary.json`` (wall time, fps, the chosen row). The run folder is locked while
+it writes, each atomically: ``eval.csv`` (one row per evaluation: :data:`EVAL_FIELDS`, then the task's
+own columns), ``best/`` (the pickle-free export of the checkpoint with the best mean validation score —
+the task's declared score, ``Task.metrics.score``: the fewest mean readings, the lowest mean tracking error
+on the moving target — the checkpoint the export ships) and ``summary.json`` (wall time, fps, the chosen
+row). The run folder is locked while
 the run writes, and a folder that already holds another run's ``eval.csv`` is refused.
 
 Why not SB3's ``EvalCallback`` (with ``callback_after_eval``): it scores a policy by the mean return of
@@ -50,7 +53,7 @@ from electroloc_gym.train.native_vec import NativeVecEnv
 from electroloc_gym.train.wrappers import activate_shaping
 from electroloc_gym.utils.fileio import FolderLock, atomic_write_text, write_json_atomic
 
-__all__ = ["BenchEvalCallback", "EVAL_FIELDS", "evaluate_agent"]
+__all__ = ["BenchEvalCallback", "EVAL_FIELDS", "evaluate_agent", "eval_fields", "score_column"]
 
 EVAL_FIELDS = (
     "timesteps",
@@ -64,17 +67,40 @@ EVAL_FIELDS = (
     "mean_return",
 )
 
+
+def _metrics(env_id: str) -> Any:
+    from electroloc_gym.registry import env_entry
+
+    return env_entry(env_id).task_class.metrics
+
+
+def eval_fields(env_id: str) -> tuple[str, ...]:
+    """The columns of ``env_id``'s ``eval.csv``: :data:`EVAL_FIELDS`, then its task's own (``eval_columns``)."""
+    return EVAL_FIELDS + tuple(k for k in _metrics(env_id).eval_columns if k not in EVAL_FIELDS)
+
+
+def score_column(env_id: str) -> tuple[str, bool]:
+    """(column, smaller is better) of ``env_id``'s validation score: ``mean_<key>`` of its task's declared score
+    (``Task.metrics.score``; ``mean_readings`` by default, ``mean_tracking_error_mm`` on the moving target).
+    """
+    score = _metrics(env_id).score
+    return f"mean_{score.key}", score.better == "lower"
+
+
 #: First reset seed of the validation episodes (the benchmark's trials are drawn from seed 0's stream).
 VALIDATION_SEED = 100_000
 
 
 def evaluate_agent(agent: Any, env_id: str, env_kwargs: Mapping[str, Any], seeds: Sequence[int]) -> dict[str, float]:
-    """One deterministic benchmark episode per seed; the aggregate row (readings = ``n_observations``)."""
+    """One deterministic benchmark episode per seed; the aggregate row (readings = ``n_observations``), then the
+    task's own columns (``Task.metrics.eval_columns``, from the episodes' final infos).
+    """
     env = gym.wrappers.RecordEpisodeStatistics(gym.make(env_id, **{**dict(env_kwargs), **agent.env_kwargs}))
-    readings, errors, success, returns = [], [], [], []
+    readings, errors, success, returns, infos = [], [], [], [], []
     try:
         for s in seeds:
             ep = run_episode(env, agent, int(s), deterministic=True)
+            infos.append(ep.info)
             readings.append(int(ep.info["n_observations"]))
             errors.append(float(ep.info["error_mm"]))
             success.append(bool(ep.info["success"]))
@@ -90,6 +116,7 @@ def evaluate_agent(agent: Any, env_id: str, env_kwargs: Mapping[str, Any], seeds
         "median_error_mm": float(np.median(e)),
         "mean_error_mm": float(e.mean()),
         "mean_return": float(np.mean(returns)),
+        **{k: float(f(infos)) for k, f in _metrics(env_id).eval_columns.items()},
     }
 
 
@@ -142,15 +169,16 @@ class BenchEvalCallback(BaseCallback):
         n_episodes: validation episodes (reset seeds ``seed``, ``seed + 1``, …; ≥ 1).
         seed: first validation reset seed (keep it away from the benchmark's seed-0 trials).
         env_kwargs: evaluation env kwargs on top of the training env's (e.g. ``randomize_target: false``).
-        select: what makes a checkpoint the best: ``"mean_readings"`` (fewest readings to localise; the
-            envs that end when the belief is tight) or ``"mean_return"`` (highest validation return; an env
-            of fixed length such as ElectroLocTrack-v0, whose reward is the tracking error). Ties: the later.
+        select: what makes a checkpoint the best: ``"score"`` (default: the task's declared score,
+            ``Task.metrics.score``, e.g. the fewest mean readings to localise, the lowest mean tracking error
+            on the moving target; :func:`score_column`), ``"mean_readings"`` or ``"mean_return"`` (highest
+            validation return, unshaped). Ties: the later.
         verbose: 1 prints one line per evaluation.
     """
 
-    #: The selection rules: the row's key and whether a smaller value is better.
-    SELECT: Mapping[str, bool] = {"mean_readings": True, "mean_return": False}
-    #: What each rule is, as the run's summary and the export's provenance say it.
+    #: The selection rules besides ``"score"`` (the task's): the row's key and whether a smaller value is better.
+    SELECT: Mapping[str, bool] = {"score": True, "mean_readings": True, "mean_return": False}
+    #: What each rule is, as the run's summary and the export's provenance say it (``"score"``: the task's words).
     CHOSEN_BY: Mapping[str, str] = {
         "mean_readings": "fewest mean readings to localise (failures count as the cap) on the validation episodes",
         "mean_return": "highest mean return (unshaped) on the validation episodes",
@@ -162,7 +190,7 @@ class BenchEvalCallback(BaseCallback):
         n_episodes: int = 64,
         seed: int = VALIDATION_SEED,
         env_kwargs: Mapping[str, Any] | None = None,
-        select: str = "mean_readings",
+        select: str = "score",
         verbose: int = 1,
     ) -> None:
         super().__init__(verbose)
@@ -188,6 +216,13 @@ class BenchEvalCallback(BaseCallback):
     def _on_training_start(self) -> None:
         n = activate_shaping(self.training_env)
         self.env_id, self.env_kwargs, self.frame_stack, self.run_dir = env_of(self.training_env)
+        self.fields = eval_fields(self.env_id)
+        if self.select == "score":
+            self.select_key, self.smaller = score_column(self.env_id)
+            self.chosen_by = f"{_metrics(self.env_id).score.best} on the validation episodes"
+        else:
+            self.select_key, self.smaller = self.select, self.SELECT[self.select]
+            self.chosen_by = self.CHOSEN_BY[self.select]
         if self.verbose:
             print(
                 f"[bench-eval] {self.env_id}: reward shaping {'on' if n else 'absent'}; evaluating every "
@@ -250,17 +285,23 @@ class BenchEvalCallback(BaseCallback):
         self._eval_s += time.perf_counter() - t
         row = {"timesteps": int(self.num_timesteps), "wall_time_s": round(time.perf_counter() - self._t0, 1), **res}
         self.history.append(row)
-        for k in ("success_rate", "mean_readings", "median_readings", "median_error_mm", "mean_return"):
+        own = self.fields[len(EVAL_FIELDS) :]  # the task's own columns
+        for k in ("success_rate", "mean_readings", "median_readings", "median_error_mm", "mean_return", *own):
             self.logger.record(f"bench_eval/{k}", row[k])
         if self.verbose:
+            metrics = (
+                "  ".join(f"{k} {res[k]:.4g}" for k in own)
+                if own
+                else f"success {res['success_rate']:6.1%}  readings mean {res['mean_readings']:5.2f} median "
+                f"{res['median_readings']:4.1f}"
+            )
             print(
-                f"[bench-eval] t={row['timesteps']:>8d}  success {res['success_rate']:6.1%}  readings mean "
-                f"{res['mean_readings']:5.2f} median {res['median_readings']:4.1f}  error median "
+                f"[bench-eval] t={row['timesteps']:>8d}  {metrics}  error median "
                 f"{res['median_error_mm']:4.1f} mm  return {res['mean_return']:6.2f} (unshaped)  "
                 f"({row['wall_time_s']:.0f} s)",
                 flush=True,
             )
-        key, smaller = self.select, self.SELECT[self.select]
+        key, smaller = self.select_key, self.smaller
         new_best = self.best is None or (  # ties: the later checkpoint
             res[key] <= self.best[key] if smaller else res[key] >= self.best[key]
         )
@@ -269,8 +310,8 @@ class BenchEvalCallback(BaseCallback):
         if self.run_dir is not None:
             buf = io.StringIO()
             w = csv.writer(buf)
-            w.writerow(EVAL_FIELDS)
-            w.writerows([[r[k] for k in EVAL_FIELDS] for r in self.history])
+            w.writerow(self.fields)
+            w.writerows([[r[k] for k in self.fields] for r in self.history])
             atomic_write_text(self.run_dir / "eval.csv", buf.getvalue())
             if new_best:
                 write_export(self.run_dir / "best", self._meta(row), model_weights(self.model))
@@ -301,7 +342,7 @@ class BenchEvalCallback(BaseCallback):
                     "first_seed": self.seed,
                     "env_kwargs": self.eval_env_kwargs,
                 },
-                "chosen_by": self.CHOSEN_BY[self.select],
+                "chosen_by": self.chosen_by,
                 "best": self.best,
                 "evaluations": len(self.history),
             },

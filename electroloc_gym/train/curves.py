@@ -1,4 +1,8 @@
-r"""Learning curves from run directories' ``eval.csv``: success rate and median steps vs timesteps.
+r"""Learning curves from run directories' ``eval.csv``: the task's panels vs timesteps.
+
+The panels are the run's task's (``Task.metrics.curves``: the success rate and median steps on the
+localisation tasks, the capture rate and mean tracking error on the moving target), the run's env read from
+the ``summary.json`` the training callback writes beside ``eval.csv``; the title names the env.
 
 Each run is one line (no interval: one seed per run); ``rl_zoo3.plots`` draws the training monitor's
 returns, not the benchmark's readings on seeded validation episodes that ``eval.csv`` holds, hence this
@@ -19,8 +23,9 @@ import math
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
-__all__ = ["REQUIRED_COLUMNS", "read_eval_csv", "plot_learning_curves", "main"]
+__all__ = ["REQUIRED_COLUMNS", "read_eval_csv", "run_env_id", "plot_learning_curves", "main"]
 
 
 #: The columns every reader of an ``eval.csv`` needs (the callback writes ``EVAL_FIELDS``, a superset).
@@ -62,19 +67,47 @@ def read_eval_csv(path: str | Path) -> dict[str, list[float]]:
     return cols
 
 
+def run_env_id(run: str | Path) -> str | None:
+    """The env id of a run (a run directory or its eval.csv) from the callback's ``summary.json`` beside it
+    (None: no readable one).
+    """
+    import json
+
+    p = Path(run)
+    summary = (p if p.is_dir() else p.parent) / "summary.json"
+    try:
+        env_id = json.loads(summary.read_text(encoding="utf-8")).get("env_id")
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError, RecursionError):
+        return None
+    return env_id if isinstance(env_id, str) else None
+
+
+def _panels(env_ids: Sequence[str]) -> Any:
+    """The curve panels of the runs' task (one env: its task's; none known: the localisation panels)."""
+    from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
+    from electroloc_gym.registry import ENVS
+
+    if len(set(env_ids)) > 1:
+        raise ValueError(f"the runs are of different envs {sorted(set(env_ids))}; plot one env's runs at a time")
+    metrics = next((e.task_class.metrics for e in ENVS if e.env_id in env_ids), LOCALIZATION_METRICS)
+    return metrics.curves
+
+
 def plot_learning_curves(
     runs: Sequence[str | Path],
     labels: Sequence[str] | None,
     out: str | Path,
-    references: Mapping[str, tuple[float, float]] | None = None,
+    references: Mapping[str, Sequence[float]] | None = None,
 ) -> Path:
-    """Two panels (success rate, median steps) vs env steps for each run; written atomically as PNG.
+    """The task's panels (module docstring; two on the built-in tasks) vs env steps for each run; written
+    atomically as PNG.
 
     Args:
         runs: run directories (or eval.csv files).
         labels: one label per run (default: the directory names).
         out: the PNG path.
-        references: optional horizontal lines, name → (success rate, median steps).
+        references: optional horizontal lines, name → one value per panel (the localisation tasks: success
+            rate, median steps).
     """
     import matplotlib
 
@@ -86,21 +119,33 @@ def plot_learning_curves(
     labels = list(labels) if labels else [Path(r).name for r in runs]
     if len(labels) != len(runs):
         raise ValueError(f"--labels needs one label per run ({len(runs)}), got {len(labels)}")
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.8))
-    for run, label in zip(runs, labels):
-        d = read_eval_csv(run)
-        ax1.plot(d["timesteps"], d["success_rate"], marker=".", label=label)
-        ax2.plot(d["timesteps"], d["median_readings"], marker=".", label=label)
-    for i, (name, (succ, steps)) in enumerate((references or {}).items()):
+    env_ids = [e for e in (run_env_id(r) for r in runs) if e is not None]
+    panels = _panels(env_ids)
+    for name, values in (references or {}).items():
+        if len(values) != len(panels):
+            raise ValueError(f"reference {name!r} needs one value per panel ({len(panels)}), got {len(values)}")
+    data = [read_eval_csv(run) for run in runs]
+    for run, d in zip(runs, data):
+        absent = [p.key for p in panels if p.key not in d]
+        if absent:
+            raise ValueError(f"{run}: the evaluation log has no column(s) {absent} (written by an older callback?)")
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 3.8), squeeze=False)
+    axes = list(axes[0])
+    for d, label in zip(data, labels):
+        for ax, panel in zip(axes, panels):
+            ax.plot(d["timesteps"], d[panel.key], marker=".", label=label)
+    for i, (name, values) in enumerate((references or {}).items()):
         style = dict(color=f"C{7 + i % 3}", ls="--", lw=1)
-        ax1.axhline(succ, **style, label=name)
-        ax2.axhline(steps, **style, label=name)
-    ax1.set(xlabel="env steps", ylabel="success rate (spread ≤ 10 mm within 35 obs.)", ylim=(0, 1.02))
-    ax2.set(xlabel="env steps", ylabel="median readings to localise", ylim=(0, 36))
-    for ax in (ax1, ax2):
+        for ax, v in zip(axes, values):
+            ax.axhline(v, **style, label=name)
+    for ax, panel in zip(axes, panels):
+        ax.set(xlabel="env steps", ylabel=panel.label)
+        if panel.ylim is not None:
+            ax.set_ylim(*panel.ylim)
         ax.grid(alpha=0.3)
-    ax2.legend(fontsize=8)
-    fig.suptitle("Seeded evaluation during training (ElectroLoc-v0, 8 conditions)", fontsize=10)
+    axes[-1].legend(fontsize=8)
+    title = ", ".join(dict.fromkeys(env_ids)) or "env unknown: no summary.json beside eval.csv"
+    fig.suptitle(f"Seeded evaluation during training ({title})", fontsize=10)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
@@ -123,8 +168,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--reference",
         nargs="*",
         default=[],
-        metavar="NAME=SUCCESS,STEPS",
-        help="horizontal reference lines, e.g. min-var=0.58,7",
+        metavar="NAME=V1,V2",
+        help="horizontal reference lines, one value per panel (localisation: success rate, median steps), "
+        "e.g. min-var=0.58,7",
     )
     a = p.parse_args(argv)
     from electroloc_gym.utils.fileio import check_output_options
@@ -134,11 +180,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     for item in a.reference:
         name, _, vals = item.partition("=")
         try:
-            s, st = (float(v) for v in vals.split(","))
+            refs[name] = tuple(float(v) for v in vals.split(","))
         except ValueError:
-            print(f"error: --reference expects NAME=SUCCESS,STEPS, got {item!r}", file=sys.stderr)
+            print(f"error: --reference expects NAME=V1,V2 (one number per panel), got {item!r}", file=sys.stderr)
             return 2
-        refs[name] = (s, st)
     try:
         path = plot_learning_curves(a.runs, a.labels, a.out, refs)
     except ValueError as exc:

@@ -163,13 +163,29 @@ def export_run(
             f"{summary.get('fps_training_only')} steps/s "
             f"training only), CPU, torch 1 thread\n"
             f"# checkpoint: {chosen}: the evaluation at {best_row.get('timesteps')} steps "
-            f"({best_row.get('success_rate')} success rate, {best_row.get('mean_readings')} mean and "
-            f"{best_row.get('median_readings')} median readings, median error {best_row.get('median_error_mm')} mm) on "
+            f"({_row_words(best_row, meta['observation']['env_id'])}) on "
             f"{(summary.get('validation') or {}).get('episodes')} validation episodes (reset seeds from "
             f"{(summary.get('validation') or {}).get('first_seed')}; the benchmark's trials are seed 0's)\n"
         ),
     )
     return dest
+
+
+def _row_words(row: dict[str, Any], env_id: str) -> str:
+    """An evaluation row's metrics in words: the task's own evaluation columns where it declares them
+    (``Task.metrics.eval_columns``), else the success rate and readings; then the median error.
+    """
+    from electroloc_gym.registry import env_entry
+
+    own = list(env_entry(env_id).task_class.metrics.eval_columns)
+    if own:
+        words = ", ".join(f"{k} {row.get(k)}" for k in own)
+    else:
+        words = (
+            f"{row.get('success_rate')} success rate, {row.get('mean_readings')} mean and "
+            f"{row.get('median_readings')} median readings"
+        )
+    return f"{words}, median error {row.get('median_error_mm')} mm"
 
 
 def _plain(d: Any) -> Any:

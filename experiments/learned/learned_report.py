@@ -56,7 +56,6 @@ from learned_scores import (  # noqa: E402
     MAX_REPS,
     REFERENCES,
     TRACK_COMPARISONS,
-    TRACKING_KEY,
     NoLearnedRuns,
     ReportError,
     analyse,
@@ -70,8 +69,8 @@ def _fmt(v: Sequence[float], digits: int = 2) -> str:
 
 
 def _tracking(a: dict[str, Any]) -> bool:
-    """Whether an analysis is a tracking env's (scored by tracking error and capture)."""
-    return a.get("metric") == TRACKING_KEY
+    """Whether an analysis is a tracking env's (scored by its task's own score and rate: it names the score)."""
+    return "metric" in a
 
 
 def table(analyses: Sequence[dict[str, Any]]) -> str:

@@ -8,14 +8,14 @@ computes every aggregate and interval; this module only arranges the records and
 reproducible from a seed (:func:`bootstrap` says why that needs doing). :mod:`learned_report` turns the
 result into tables and figures; the offline report (``experiments/offline/report.py``) reuses it.
 
-A **tracking env** — one whose records carry the moving target's results (:data:`TRACKING_KEY` among its
-env-table entry's ``record_keys``: ElectroLocTrack-v0) — runs every trial to its reading cap, so readings
-and successes say nothing there. Its scores, one per (run, condition), are the **tracking error** (the
-mean over the condition's trials of ``tracking_error_mm``, the belief mean's mean distance to the
-swimming target over the episode's second half, mm; lower is better) and the **capture** fraction
-(trials ending with the carriage within 10 mm of the target); the normalised score, the probabilities of
-improvement and the learned pairs (:data:`TRACK_COMPARISONS`) are computed on the tracking error exactly
-as on the readings elsewhere (:func:`analyse`).
+A **tracking env** — one whose task has no success criterion (``Task.metrics.success_criterion`` false:
+ElectroLocTrack-v0, :func:`tracks`) — runs every trial to its reading cap, so readings and successes say
+nothing there. Its scores, one per (run, condition), are the task's declared score and rate
+(``Task.metrics.score``, ``.rate``; the moving target's **tracking error**, the mean over the condition's
+trials of the belief mean's mean distance to the swimming target over the episode's second half, mm, lower
+better, and its **capture** fraction); the normalised score, the probabilities of improvement and the
+learned pairs (:data:`TRACK_COMPARISONS`) are computed on that score exactly as on the readings elsewhere
+(:func:`analyse`).
 """
 
 from __future__ import annotations
@@ -44,8 +44,6 @@ REFERENCES = (MinVarianceAgent.name, LookaheadAgent.name)
 #: Pairs of learned configurations (suite labels) whose P(A better than B) the report states when both
 #: ran on an env: memory against stacked frames on the raw reading, and the belief given against memory.
 COMPARISONS = (("ppo_lstm-raw", "ppo-framestack-raw"), ("ppo", "ppo_lstm-raw"))
-#: The record key (of a benchmark record's ``shape``) that marks a tracking env (module docstring).
-TRACKING_KEY = "tracking_error_mm"
 #: The pairs stated by default on a tracking env: the belief given against stacked raw readings.
 TRACK_COMPARISONS = (("ppo", "ppo-framestack-raw"),)
 
@@ -58,16 +56,22 @@ class ReportError(ValueError):
 MAX_REPS = 100_000
 
 
-def tracks(env_id: str) -> bool:
-    """Whether ``env_id`` is a tracking env: its env-table entry's records carry :data:`TRACKING_KEY`
-    (an id the table does not know is not one; its benchmark config is refused when read).
+def env_metrics(env_id: str) -> Any:
+    """The metrics ``env_id``'s task declares (``Task.metrics``); an id the table does not know: the paper's
+    localisation metrics (its benchmark config is refused when read).
     """
+    from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
     from electroloc_gym.registry import env_entry
 
     try:
-        return TRACKING_KEY in env_entry(env_id).record_keys
+        return env_entry(env_id).task_class.metrics
     except ValueError:
-        return False
+        return LOCALIZATION_METRICS
+
+
+def tracks(env_id: str) -> bool:
+    """Whether ``env_id`` is a tracking env: its task has no success criterion (module docstring)."""
+    return not env_metrics(env_id).success_criterion
 
 
 def _config(bench: Path) -> dict[str, Any]:
@@ -106,38 +110,29 @@ def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str
     if not stored_trials(path).is_file():
         raise ReportError(f"{path} is missing")
     cfg = _config(path.parent)
-    keys = env_entry(cfg["env_id"]).record_keys
+    metrics = env_entry(cfg["env_id"]).task_class.metrics
     rules = RecordRules(
         conditions=frozenset(c for c in cfg["conditions"] if isinstance(c, str)),
         agents=frozenset(a for a in cfg["agents"] if isinstance(a, str)),
         trials=cfg["trials"],
         success_spread_mm=SUCCESS_SPREAD_MM,
-        shape=bool(keys),
+        metrics=metrics,
     )
     loaded = load_records(path, rules=rules)
     if set_aside is not None:
         set_aside.extend(loaded.messages())
-    rows = list(loaded.records.values())
-    if keys:  # the schema takes either task's results; this env's records carry its own
-        odd = [r for r in rows if set(r["shape"]) != set(keys)]
-        if set_aside is not None:
-            set_aside.extend(
-                f"{path}: trial {r['trial']} of {r['agent']!r} on {r['condition']!r}: 'shape' holds another "
-                f"task's results, not {cfg['env_id']}'s {sorted(keys)}"
-                for r in odd
-            )
-        rows = [r for r in rows if set(r["shape"]) == set(keys)]
+    rows = list(loaded.records.values())  # the schema sets aside another task's results (the rules' metrics)
     if not rows:
         raise ReportError(f"{path} holds no valid trial record")
     return rows
 
 
 def condition_scores(
-    records: Sequence[dict[str, Any]], conditions: Sequence[str], tracking: bool = False
+    records: Sequence[dict[str, Any]], conditions: Sequence[str], metrics: Any = None
 ) -> dict[str, np.ndarray]:
-    """``{"readings", "success"}`` → (conditions,) scores of one run of one agent; ``tracking`` (a tracking
-    env's records) adds ``"tracking_error"`` (mean ``tracking_error_mm``, mm) and ``"capture"`` (the
-    fraction captured).
+    """``{"readings", "success"}`` → (conditions,) scores of one run of one agent; a tracking env's ``metrics``
+    (its task's, :func:`tracks`) add its score and rate under their names (the moving target's
+    ``"tracking_error"``, mean ``tracking_error_mm`` in mm, and ``"capture"``, the fraction captured).
     """
     readings, success, error, capture = [], [], [], []
     for cond in conditions:
@@ -147,12 +142,12 @@ def condition_scores(
         cap = [int(r["max_observations"]) for r in rows]
         readings.append(float(np.mean([r["readings"] if r["success"] else c for r, c in zip(rows, cap)])))
         success.append(float(np.mean([bool(r["success"]) for r in rows])))
-        if tracking:
-            error.append(float(np.mean([float(r["shape"][TRACKING_KEY]) for r in rows])))
-            capture.append(float(np.mean([bool(r["shape"]["captured"]) for r in rows])))
+        if metrics is not None:
+            error.append(float(np.mean([metrics.score.of_record(r) for r in rows])))
+            capture.append(float(np.mean([metrics.rate.of_record(r) for r in rows])))
     out = {"readings": np.array(readings), "success": np.array(success)}
-    if tracking:
-        out.update(tracking_error=np.array(error), capture=np.array(capture))
+    if metrics is not None:
+        out.update({metrics.score.name: np.array(error), metrics.rate.name: np.array(capture)})
     return out
 
 
@@ -169,7 +164,7 @@ def collect(
     ``"tracking_error"`` and ``"capture"`` (:func:`condition_scores`).
     """
     set_aside = [] if set_aside is None else set_aside
-    tracking = tracks(env_id)
+    own = env_metrics(env_id) if tracks(env_id) else None  # a tracking env's own score and rate
     env_dir = results / env_id
     base_path = env_dir / BASELINES_DIR / "bench" / "trials.jsonl"
     base_rows = read_trials(base_path, set_aside)
@@ -177,7 +172,7 @@ def collect(
     base_keys = {(r["condition"], int(r["trial"])) for r in base_rows}
     baselines: dict[str, dict[str, np.ndarray]] = {}
     for agent in sorted({r["agent"] for r in base_rows}):
-        s = condition_scores([r for r in base_rows if r["agent"] == agent], conditions, tracking)
+        s = condition_scores([r for r in base_rows if r["agent"] == agent], conditions, own)
         baselines[agent] = {k: v[None, :] for k, v in s.items()}
     learned: dict[str, dict[str, np.ndarray]] = {}
     seeds: dict[str, list[str]] = {}
@@ -200,7 +195,7 @@ def collect(
             for p, rows in zip(runs, records):
                 if {(r["condition"], int(r["trial"])) for r in rows} != base_keys:
                     raise ReportError(f"{p}: its benchmark ran other trials than {base_path} (run it on the same)")
-        per_run = [condition_scores(rows, conditions, tracking) for rows in records]
+        per_run = [condition_scores(rows, conditions, own) for rows in records]
         learned[algo_dir.name] = {k: np.stack([s[k] for s in per_run]) for k in per_run[0]}
         seeds[algo_dir.name] = [p.name for p in runs]
     return conditions, learned, baselines, seeds
@@ -277,7 +272,7 @@ def analyse(
     (A, B) pairs of learned labels whose P(A better than B) is stated, where both ran on the env (None:
     :data:`COMPARISONS`, on a tracking env :data:`TRACK_COMPARISONS`); ``extra``: more results folders
     whose labels join the table (:func:`collect`). A tracking env is scored by its tracking error and
-    capture (:func:`statistics`), and its analysis has ``"metric": "tracking_error_mm"``.
+    capture (:func:`statistics`), and its analysis has ``"metric"``: its score's key (``"tracking_error_mm"``).
     """
     set_aside: list[str] = []
     conditions, learned, baselines, seeds = collect(results, env_id, set_aside, extra)
@@ -286,10 +281,11 @@ def analyse(
     tracking = tracks(env_id)
     if comparisons is None:
         comparisons = TRACK_COMPARISONS if tracking else COMPARISONS
-    score, share = ("tracking_error", "capture") if tracking else ("readings", "success")
+    metrics = env_metrics(env_id)
+    score, share = metrics.score.name, metrics.rate.name  # readings and success unless the task declares its own
     out: dict[str, Any] = {
         "env_id": env_id,
-        **({"metric": TRACKING_KEY} if tracking else {}),
+        **({"metric": metrics.score.key} if tracking else {}),
         "conditions": conditions,
         "seeds": seeds,
         "reps": reps,

@@ -483,7 +483,7 @@ def test_another_tasks_results_in_a_tracking_run_are_set_aside(tmp_path):
     rows[1]["spread_mm"] = 20.0  # not tight: a consistent failure to the schema
     path.write_text("".join(json.dumps(r) + "\n" for r in rows))
     a = scores.analyse(res, TRACK_ID, reps=200)
-    assert len(a["set_aside"]) == 1 and "another task's results" in a["set_aside"][0]
+    assert len(a["set_aside"]) == 1 and "'shape' must be the task's results" in a["set_aside"][0]
     np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])
 
 

@@ -18,12 +18,12 @@
   :func:`main_of` is the trainers' command line (every field of their config an option).
 * :func:`validate` runs the torch actor on validation episodes (reset seeds 100000+, the training
   callback's, never the benchmark's seed 0) through the benchmark's rollout loop: mean readings (a failure
-  counted as the cap) and success rate; on a tracking env also the mean tracking error (mm) and the capture
-  rate, read from each episode's final info as the benchmark's records read them — the learning curve.
-* The checkpoint is chosen by the env's own score (:func:`checkpoint_score`, the benchmark's
-  :func:`~electroloc_gym.bench.stats.env_score`; :func:`improves`): the fewest mean validation readings, and
-  on a tracking env, where every episode runs all its readings, the lowest mean tracking error; of equal
-  scores the first is kept.
+  counted as the cap) and success rate, and the task's own score and rate where it declares its own
+  (``Task.metrics``: on the moving target the mean tracking error, mm, and the capture rate), read from each
+  episode's final info as the benchmark's records read them — the learning curve.
+* The checkpoint is chosen by the env's own score (:func:`checkpoint_score`: its task's declared
+  ``metrics.score``; :func:`improves`): the fewest mean validation readings, and on the moving target, where
+  every episode runs all its readings, the lowest mean tracking error; of equal scores the first is kept.
 
 The trainers are written by hand in the single-file style of CORL (Tarasov et al., 2022): the maintained
 offline-RL libraries pin gymnasium or SB3 versions this package cannot install beside it (imitation 1.0.1:
@@ -393,14 +393,19 @@ class _TorchAgent:
         return self.actor.act(self.norm(np.asarray(observation, dtype=np.float32)[None])[0]), None
 
 
-def checkpoint_score(env_id: str) -> tuple[str, str]:
-    """``(key, direction)`` of the validation row that chooses the checkpoint on ``env_id``: the env's own
-    score (:func:`electroloc_gym.bench.stats.env_score`), ``("readings", "lower")`` or, on a tracking env,
-    ``("tracking_error_mm", "lower")``.
-    """
-    from electroloc_gym.bench.stats import env_score
+def _metrics(env_id: str) -> Any:
+    from electroloc_gym.registry import env_entry
 
-    return env_score(env_id)
+    return env_entry(env_id).task_class.metrics
+
+
+def checkpoint_score(env_id: str) -> tuple[str, str]:
+    """``(key, direction)`` of the validation row that chooses the checkpoint on ``env_id``: its task's declared
+    score (``Task.metrics.score``), ``("readings", "lower")`` by default, ``("tracking_error_mm", "lower")`` on
+    the moving target.
+    """
+    score = _metrics(env_id).score
+    return score.key, score.better
 
 
 def improves(row: dict[str, Any], best: dict[str, Any] | None, score: tuple[str, str]) -> bool:
@@ -415,14 +420,15 @@ def improves(row: dict[str, Any], best: dict[str, Any] | None, score: tuple[str,
 
 def validate(actor: Actor, norm: Normalizer, env: Any, episodes: int) -> dict[str, float]:
     """Mean readings (a failure counted as the cap), success rate and ms per decision on validation episodes;
-    on a tracking env (:func:`checkpoint_score`) also ``tracking_error_mm``, the mean over the episodes of the
-    final info's tracking error (mm), and ``capture``, the fraction of episodes ending captured.
+    where the task declares its own score and rate (``Task.metrics``), also their means over the episodes'
+    final infos under the score's key and the rate's name (the moving target: ``tracking_error_mm``, mm, and
+    ``capture``, the fraction of episodes ending captured).
     """
     from electroloc_gym.baselines.rollout import run_episode
 
-    key, _ = checkpoint_score(env.spec.id)
+    metrics = _metrics(env.spec.id)
     agent = _TorchAgent(actor, norm)
-    readings, success, decision, scores, captures = [], [], [], [], []
+    readings, success, decision, scores, rates = [], [], [], [], []
     for k in range(episodes):
         ep = run_episode(env, agent, VALIDATION_SEED + k)
         ok = bool(ep.terminated and ep.info["success"])
@@ -430,24 +436,26 @@ def validate(actor: Actor, norm: Normalizer, env: Any, episodes: int) -> dict[st
         readings.append(int(ep.info["n_observations"]) if ok else cap)
         success.append(ok)
         decision += ep.decision_s
-        if key != "readings":  # the env's own score, from the episode's final info (the benchmark's record)
-            scores.append(float(ep.info[key]))
-            captures.append(bool(ep.info["captured"]))
+        scores.append(metrics.score.of_info(ep.info))  # the env's own, from the final info (as the records)
+        rates.append(metrics.rate.of_info(ep.info))
     out = {
         "readings": float(np.mean(readings)),
         "success": float(np.mean(success)),
         "decision_ms": float(np.median(decision) * 1e3),
     }
-    if scores:
-        out.update({key: float(np.mean(scores)), "capture": float(np.mean(captures))})
+    out.setdefault(metrics.score.key, float(np.mean(scores)))  # a task's own score and rate beside the shared
+    out.setdefault(metrics.rate.name, float(np.mean(rates)))
     return out
 
 
 def describe(row: dict[str, Any]) -> str:
-    """A validation row in a few words for the trainers' progress lines."""
+    """A validation row in a few words for the trainers' progress lines (a task's own score and rate after the
+    shared readings and success).
+    """
     text = f"readings {row['readings']:.2f} success {row['success']:.2f}"
-    if "tracking_error_mm" in row:
-        text += f" tracking error {row['tracking_error_mm']:.2f} mm capture {row['capture']:.2f}"
+    for key, value in row.items():
+        if key not in ("step", "readings", "success", "decision_ms"):
+            text += f" {key} {value:.2f}"
     return text
 
 
@@ -475,14 +483,9 @@ def read_json(path: Path) -> Any:
     return json.loads(Path(path).read_text(encoding="utf-8"))
 
 
-def _chosen_by(score: tuple[str, str]) -> str:
-    """The provenance's words for the checkpoint choice."""
-    key, direction = score
-    if key == "readings":
-        return "fewest mean readings (failures as the cap) on the validation episodes"
-    if key == "tracking_error_mm":
-        return "lowest mean tracking error (tracking_error_mm, mm) on the validation episodes"
-    return f"{'lowest' if direction == 'lower' else 'highest'} mean {key} on the validation episodes"
+def _chosen_by(env_id: str) -> str:
+    """The provenance's words for the checkpoint choice (the task's declared score's)."""
+    return f"{_metrics(env_id).score.best} on the validation episodes"
 
 
 def finish(
@@ -511,7 +514,7 @@ def finish(
         "datasets": list(datasets),
         "transitions": int(transitions),
         "wall_time_s": round(timer() - t0, 1),
-        "checkpoint_chosen_by": _chosen_by(checkpoint_score(config.env_id)),
+        "checkpoint_chosen_by": _chosen_by(config.env_id),
         "validation": {"episodes": config.eval_episodes, "first_seed": VALIDATION_SEED},
     }
     export_actor(actor, norm, out / "policy", algo=algo, env_id=config.env_id, provenance=provenance, evaluation=best)
