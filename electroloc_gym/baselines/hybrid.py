@@ -30,13 +30,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from electroloc_gym.baselines.base import BaselineAgent, require_target_belief
+from electroloc_gym.baselines.infotaxis import InfotaxisAgent
+from electroloc_gym.baselines.min_variance import MinVarianceAgent
 from electroloc_gym.baselines.pursuit import PursuitAgent
 from electroloc_gym.utils.checks import check_choice, check_float
 
 __all__ = ["HybridAgent", "EXPLORERS"]
 
-#: The information-gain controllers the hybrid searches with.
-EXPLORERS = ("min-var", "infotaxis")
+#: The information-gain controllers the hybrid searches with, by name.
+EXPLORERS: dict[str, type] = {cls.name: cls for cls in (MinVarianceAgent, InfotaxisAgent)}
 
 
 class HybridAgent(BaselineAgent):
@@ -60,13 +62,11 @@ class HybridAgent(BaselineAgent):
         switch_spread_mm: float | None = None,
     ) -> None:
         super().__init__(seed)
-        from electroloc_gym.baselines.agent import agent_class
-
-        self.explore = check_choice("explore", explore, EXPLORERS)
+        self.explore = check_choice("explore", explore, tuple(EXPLORERS))
         self.switch_spread_mm = (
             None if switch_spread_mm is None else check_float("switch_spread_mm", switch_spread_mm, 0.0)
         )
-        self.explorer: Any = agent_class(self.explore)(seed=self.rng)
+        self.explorer: Any = EXPLORERS[self.explore](seed=self.rng)
         self.pursuer = PursuitAgent()
         #: How many decisions each controller made this episode: (explorer, pursuit).
         self.decisions = [0, 0]
