@@ -421,3 +421,19 @@ def test_an_agent_object_whose_attribute_raises_is_one_value_error(
         )
     text = str(info.value)
     assert "\n" not in text and says in text, text
+
+
+#: The attributes ``electroloc dataset`` reads of its agent before any episode (its checks and env arguments).
+DATASET_READS = [r for r in PROTOCOL_FAILURES if r[0] in ("factory", "env_kwargs", "table_layout")]
+
+
+@pytest.mark.parametrize("attr,how,says,extra", DATASET_READS, ids=[f"{r[0]}-{r[2][:20]}" for r in DATASET_READS])
+def test_the_dataset_command_reads_a_plug_in_through_the_same_guard(
+    plug_module, tmp_path, monkeypatch, capsys, attr, how, says, extra
+) -> None:
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "datasets"))
+    spec = f"{plug_module}:make[{_options(attr, how, extra)}]"
+    code = cli_main(["dataset", "--agent", spec, "--episodes", "1", "--id", "mine/plug-v0", "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert says in err and not (tmp_path / "datasets" / "mine").exists(), err

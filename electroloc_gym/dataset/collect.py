@@ -359,20 +359,23 @@ def build_dataset(
     notify = notify or _notify_stderr
     ds_id = request.id
     agent = make_bench_agent(request.agent, trust_pickle=request.trust_pickle)
-    why = policy_env_problem(request.agent, agent, request.env_id, None)
-    if why is not None:
-        raise ValueError(f"agent {request.agent!r} cannot run on {request.env_id}: {why}")
-    if getattr(agent, "table_layout", None) == "table1":  # the agent reports its own estimate and stops (Table 1)
-        raise ValueError(
-            f"agent {request.agent!r} ends episodes itself (zero-crossing's Table 1 layout); a dataset "
-            f"needs episodes the env ends"
-        )
+    try:  # every read of a plug-in's attributes goes through the benchmark's guard: what raises is one line
+        why = policy_env_problem(request.agent, agent, request.env_id, None)
+        if why is not None:
+            raise ValueError(f"agent {request.agent!r} cannot run on {request.env_id}: {why}")
+        if getattr(agent, "table_layout", None) == "table1":  # it reports its own estimate and stops (Table 1)
+            raise ValueError(
+                f"agent {request.agent!r} ends episodes itself (zero-crossing's Table 1 layout); a dataset "
+                f"needs episodes the env ends"
+            )
+        kwargs = dataset_env_kwargs(request.env_id, agent, request.condition)
+    except AgentCallError as exc:
+        raise ValueError(f"agent {request.agent!r}: {exc}") from None
     if request.dataset_id is None:  # the default id, from the agent's name
         try:
             store.check_dataset_id(ds_id)
         except ValueError as exc:
             raise ValueError(f"the default {exc}; pass a shorter --id") from None
-    kwargs = dataset_env_kwargs(request.env_id, agent, request.condition)
     refs = None if request.reference is None else reference_scores(request.reference, request.env_id)
     seeds = [episode_seeds(request.seed, k)[0] for k in range(request.episodes)]
     clash = evaluation_overlap(seeds)
