@@ -32,6 +32,7 @@ from electroloc_gym.protocol import MAX_OBSERVATIONS, MAX_STEP_MM, N_PARTICLES, 
 from electroloc_gym.registry import TASKS, task_entry
 from electroloc_gym.sensor_models import DEFAULT_CALIBRATION, SENSOR_MODEL_NAMES, CalibrationProtocol
 from electroloc_gym.utils.checks import check_bool, check_choice, check_float, check_int
+from electroloc_gym.utils.moved_paths import moved_name_error
 from electroloc_gym.world.conditions import Condition, get_condition
 
 __all__ = [
@@ -309,3 +310,8 @@ class EnvParams:
                 f"calibration tables of {num_envs} envs × {(n - 1) ** 2 + 1} cells exceed the "
                 f"kernels' int32 row index (2**31 rows): fewer envs or a coarser grid_step_mm"
             )
+
+
+def __getattr__(name: str) -> Any:
+    """A name that moved out of this module: one ImportError naming its new place (``utils.moved_paths``)."""
+    raise moved_name_error(__name__, name)

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from electroloc_gym.contract.observation import condition_descriptor
 from electroloc_gym.engines.numba_core.state import State
+from electroloc_gym.utils.moved_paths import moved_name_error
 from electroloc_gym.world.conditions import Condition
 from electroloc_gym.world.scene import Scene
 
@@ -65,3 +66,8 @@ def with_gain_factor(condition: Condition, factor: float) -> Condition:
 def scene_condition(scene: Scene) -> Condition:
     """The scene's amplifier, water and boxes as a ``Condition`` (cached)."""
     return scene.as_condition()
+
+
+def __getattr__(name: str) -> Any:
+    """A name that moved out of this module: one ImportError naming its new place (``utils.moved_paths``)."""
+    raise moved_name_error(__name__, name)
