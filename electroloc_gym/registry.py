@@ -21,6 +21,8 @@ added later is seen by every reader.
 from __future__ import annotations
 
 import dataclasses
+import importlib
+import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -45,6 +47,9 @@ __all__ = [
     "frozen",
     "LiveMapping",
     "LiveSequence",
+    "resolve_env_name",
+    "plugin_modules",
+    "import_plugin_modules",
 ]
 
 #: The arguments every env takes (the fields of ``EnvParams`` shared by all tasks).
@@ -106,10 +111,13 @@ class EnvEntry:
         task: the core's task name (``EnvParams.task``).
         task_class: the task (a :class:`electroloc_gym.engines.numba_core.task.Task` subclass, built with the params;
             its ``Options`` declare the env's own arguments, :attr:`arguments`).
-        env_class: the single env (a ``CoreEnv`` subclass; Gymnasium's ``entry_point``).
-        vector_class: the native vector env (a ``CoreVectorEnv`` subclass; ``vector_entry_point``).
         sensor_models: the sensor models the task implements (the first is the env's and the benchmark's
             default).
+        env_class: the single env (a ``CoreEnv`` subclass; Gymnasium's ``entry_point``), or None:
+            :func:`electroloc_gym.register_env` builds a generic one for the entry
+            (:mod:`electroloc_gym.envs.generic`).
+        vector_class: the native vector env (a ``CoreVectorEnv`` subclass; ``vector_entry_point``), or None:
+            built as ``env_class`` is.
         defaults: the env's defaults that differ from ``EnvParams``' (the benchmark's too: its particle
             count and sensor model).
         bench: the ``electroloc bench --env`` choices on this env.
@@ -126,9 +134,9 @@ class EnvEntry:
     env_id: str
     task: str
     task_class: type
-    env_class: type
-    vector_class: type
     sensor_models: tuple[str, ...]
+    env_class: type | None = None
+    vector_class: type | None = None
     defaults: Mapping[str, Any] = field(default_factory=frozen)
     bench: tuple[BenchEnv, ...] = ()
     map_condition: str | None = None
@@ -262,6 +270,11 @@ def add_entry(entry: EnvEntry) -> bool:
         ValueError: another entry with the same id, task, class or bench name.
     """
     _check_is_entry(entry)
+    if entry.env_class is None or entry.vector_class is None:
+        raise ValueError(
+            f"{entry.env_id}: env_class and vector_class must be env classes here "
+            "(electroloc_gym.register_env builds generic ones for an entry without them)"
+        )
     if entry in _TABLE:
         return False
     for e in _TABLE:
@@ -316,3 +329,52 @@ def bench_env(name: str) -> tuple[EnvEntry, BenchEnv]:
     if name not in rows:
         raise ValueError(f"--env must be one of {list(rows)}, got {name!r}")
     return rows[name]
+
+
+# ---- envs of a researcher's own module: ``MODULE:NAME`` -----------------------------------------------
+# Gymnasium's convention: ``gym.make("my_module:MyTask-v0")`` imports ``my_module`` (whose import registers
+# the id) and makes ``MyTask-v0``. The command lines take the same form wherever they take an env
+# (``electroloc bench --env``, ``electroloc dataset --env``, ``electroloc train --env``); the modules
+# imported so are remembered (:func:`plugin_modules`), so that a process that runs trials (the benchmark's
+# spawned workers) imports them again before it makes the env.
+
+_MODULE_RE = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*")
+_PLUGIN_MODULES: list[str] = []
+
+
+def plugin_modules() -> tuple[str, ...]:
+    """The modules imported for their envs so far (:func:`resolve_env_name`), in import order."""
+    return tuple(_PLUGIN_MODULES)
+
+
+def import_plugin_modules(modules: Sequence[str]) -> None:
+    """Import ``modules`` (a worker process: the envs its parent's modules registered)."""
+    for name in modules:
+        importlib.import_module(name)
+
+
+def resolve_env_name(name: str, option: str = "--env") -> str:
+    """The env name ``name`` with its module imported: ``"my_module:NAME"`` imports ``my_module`` (running its
+    code, which registers its envs, as Gymnasium's ``gym.make("my_module:Id")`` does) and returns ``NAME``; a
+    name without a colon is returned as it is. ``NAME`` is an env id or a benchmark name, as the caller takes.
+
+    Raises:
+        ValueError: one line starting with ``option``: a malformed ``MODULE:NAME`` or a module that does not
+            import (its exception in a few words).
+    """
+    if not isinstance(name, str) or ":" not in name:
+        return name
+    module, _, rest = name.partition(":")
+    module, rest = module.strip(), rest.strip()
+    if not _MODULE_RE.fullmatch(module) or not rest or ":" in rest:
+        raise ValueError(f"{option} {name!r} is malformed: expected NAME or package.module:NAME")
+    try:
+        importlib.import_module(module)
+    except Exception as exc:  # noqa: BLE001 - any failure of the user's module is reported in one line
+        what = f"{type(exc).__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}".rstrip(": ")
+        raise ValueError(
+            f"{option} {name!r}: cannot import module {module!r} ({what}); it must be installed or on PYTHONPATH"
+        ) from None
+    if module not in _PLUGIN_MODULES:
+        _PLUGIN_MODULES.append(module)
+    return rest
