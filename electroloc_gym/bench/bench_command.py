@@ -31,7 +31,7 @@ from electroloc_gym.bench.ray_backend import check_ray_address
 from electroloc_gym.bench.runner import MAX_PLANNED_TRIALS, run_benchmark
 from electroloc_gym.contract.params import MIN_OBSERVATION_CAP
 from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES
-from electroloc_gym.registry import BENCH_ENVS, PAPER_ENV_ID, BenchEnv, bench_env
+from electroloc_gym.registry import BENCH_ENVS, PAPER_ENV_ID, BenchEnv, bench_env, resolve_env_name
 from electroloc_gym.utils.agentspec import split_specs
 from electroloc_gym.utils.fileio import check_output_folder
 from electroloc_gym.world.conditions import DEFAULT_SIGNAL
@@ -98,8 +98,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--env",
         default=DEFAULT_ENV,
-        choices=list(ENV_CHOICES),
-        help="; ".join(f"{name}: {entry.env_id} {row.summary}".rstrip() for name, (entry, row) in BENCH_ENVS.items()),
+        help="; ".join(f"{name}: {entry.env_id} {row.summary}".rstrip() for name, (entry, row) in BENCH_ENVS.items())
+        + "; or package.module:NAME, a bench name your own module registers (a task of your own, "
+        "electroloc_gym.tasks): imported like any module, it runs your code (default: %(default)s)",
     )
     parser.add_argument(
         "--trials",
@@ -283,7 +284,7 @@ def run(args: argparse.Namespace) -> int:
         _check_ranges(args)
         if args.backend == "ray":  # Ray installed and the cluster reachable, before --out is touched
             check_ray_address(args.address)
-        env_name = getattr(args, "env", DEFAULT_ENV)
+        env_name = resolve_env_name(getattr(args, "env", DEFAULT_ENV), "--env")  # MODULE:NAME imports MODULE
         entry, row = bench_env(env_name)
         env_id = entry.env_id
         agents, notes = _agents(args, env_id, row)
