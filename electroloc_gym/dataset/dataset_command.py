@@ -31,7 +31,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from electroloc_gym.bench.bench_command import ascii_int
     from electroloc_gym.registry import ENV_IDS, PAPER_ENV_ID
 
-    parser.add_argument("--env", default=PAPER_ENV_ID, choices=list(ENV_IDS), help="the registered env id")
+    parser.add_argument(
+        "--env",
+        default=PAPER_ENV_ID,
+        help=f"a registered env id ({', '.join(ENV_IDS)}), or package.module:ENV_ID, an env your own module "
+        "registers (a task of your own, electroloc_gym.tasks): imported like any module, it runs your code "
+        "(default: %(default)s)",
+    )
     parser.add_argument("--agent", required=True, help="an agent spec as electroloc bench --agents takes one")
     parser.add_argument("--episodes", type=ascii_int, required=True, help="episodes to collect (≥ 1)")
     parser.add_argument(
@@ -84,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
     """Build the dataset ``args`` describe; print its id, size and path. 0 on success, 2 on bad input."""
     from electroloc_gym.dataset.collect import DatasetRequest, build_dataset
     from electroloc_gym.dataset.seed_protocol import DEFAULT_DATASET_SEED
+    from electroloc_gym.registry import resolve_env_name
 
     def notify(message: str) -> None:
         print(f"{PROG}: {message}", file=sys.stderr)
@@ -94,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         if args.dataset_id is not None and args.version is not None:
             raise ValueError("--version sets the default id's version; an --id carries its own -vN")
         request = DatasetRequest(
-            env_id=args.env,
+            env_id=resolve_env_name(args.env, "--env"),  # MODULE:ENV_ID imports MODULE
             agent=args.agent,
             episodes=args.episodes,
             seed=DEFAULT_DATASET_SEED if args.seed is None else args.seed,
