@@ -33,6 +33,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, ClassVar
 
+from electroloc_gym.registry import import_plugin_modules, plugin_modules
 from electroloc_gym.utils.runtime import chosen_threads, pin_threads, thread_env
 
 __all__ = [
@@ -88,10 +89,14 @@ def exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-def _init_worker(parent_pid: int, threads: int) -> None:
-    """Initializer of a process-pool worker: it exits with ``parent_pid`` and runs ``threads`` numeric threads."""
+def _init_worker(parent_pid: int, threads: int, modules: tuple[str, ...] = ()) -> None:
+    """Initializer of a process-pool worker: it exits with ``parent_pid``, runs ``threads`` numeric threads and
+    imports ``modules`` (those the parent imported for their envs, ``--env MODULE:NAME``: a spawned worker
+    registers them as its parent did, :func:`~electroloc_gym.registry.plugin_modules`).
+    """
     exit_with_parent(parent_pid)
     pin_threads(threads)
+    import_plugin_modules(modules)
 
 
 def default_workers() -> int:
@@ -165,7 +170,7 @@ class ProcessBackend(Backend):
                 max_workers=min(self.workers, len(specs)),
                 mp_context=ctx,
                 initializer=_init_worker,
-                initargs=(os.getpid(), threads),
+                initargs=(os.getpid(), threads, plugin_modules()),
             ) as pool:
                 todo = iter(specs)
                 futures: dict[cf.Future, Any] = {}

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from electroloc_gym.registry import PAPER_ENV_ID
+from electroloc_gym.registry import PAPER_ENV_ID, plugin_modules, resolve_env_name
 from electroloc_gym.train.run import ALGO_FILES, check_zoo_installed, train, zoo_argv
 from electroloc_gym.utils.agentspec import parse_options
 from electroloc_gym.utils.fileio import check_output_folder
@@ -42,7 +42,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--algo", required=True, choices=sorted(ALGO_FILES), help="rl-zoo3 algorithm")
-    p.add_argument("--env", default=PAPER_ENV_ID, help="env id (a section of the algorithm's file)")
+    p.add_argument(
+        "--env",
+        default=PAPER_ENV_ID,
+        help="env id (a section of the algorithm's file, or of --conf-file), or package.module:ENV_ID, an env "
+        "your own module registers (a task of your own, electroloc_gym.tasks): imported like any module, it "
+        "runs your code, here and in the rl-zoo3 run (--gym-packages)",
+    )
+    p.add_argument(
+        "--conf-file",
+        default=None,
+        help="another hyper-parameter file in rl-zoo3's format (default: the algorithm's shipped file)",
+    )
     p.add_argument("--seed", type=int, required=True, help="the run's seed")
     p.add_argument("--timesteps", type=int, default=None, help="env-step budget (default: the file's)")
     p.add_argument("--log-folder", default="logs", help="rl-zoo3's log folder (default logs)")
@@ -63,21 +74,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         for option, folder in (("--log-folder", a.log_folder), ("--out", a.out)):  # before training
             if folder is not None:
                 check_output_folder(option, folder)
+        env_id = resolve_env_name(a.env, "--env")  # MODULE:ENV_ID imports MODULE (registering ENV_ID)
         kw: dict[str, Any] = dict(
             threads=pin_threads(a.threads),
+            conf_file=a.conf_file,
+            gym_packages=plugin_modules(),
             timesteps=a.timesteps,
             log_folder=a.log_folder,
             native=not a.dummy,
             env_kwargs=parse_options(a.env_kwargs, "--env-kwargs"),
             hyperparams=parse_options(a.hyperparams, "--hyperparams"),
         )
-        args = zoo_argv(a.algo, a.env, a.seed, **kw)
+        args = zoo_argv(a.algo, env_id, a.seed, **kw)
         if not a.print_command:
             check_zoo_installed()
         print(shlex.join(["python", *args]), flush=True)
         if a.print_command:
             return 0
-        run = train(a.algo, a.env, a.seed, out=a.out, **kw)
+        run = train(a.algo, env_id, a.seed, out=a.out, **kw)
     except (ValueError, ModuleNotFoundError) as exc:
         print(f"electroloc train: error: {exc}", file=sys.stderr)
         return 2

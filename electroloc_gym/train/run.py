@@ -118,6 +118,7 @@ def zoo_argv(
     hyperparams: Mapping[str, Any] | None = None,
     native: bool = True,
     threads: int | None = None,
+    gym_packages: Sequence[str] = (),
 ) -> list[str]:
     """The ``python -m rl_zoo3.train`` arguments (without the interpreter) for one run.
 
@@ -133,6 +134,8 @@ def zoo_argv(
         native: train on the native vector env (False: rl-zoo3's default DummyVecEnv).
         threads: torch's threads in the run (rl-zoo3's ``--num-threads``; default
             :func:`~electroloc_gym.utils.runtime.chosen_threads`: ``$ELECTROLOC_THREADS`` or 1).
+        gym_packages: modules rl-zoo3 imports too (``--gym-packages``): a researcher's module that registers
+            ``env_id`` at import (``electroloc train --env my_module:MyTask-v0``).
     """
     n_threads = chosen_threads(threads)
     conf = Path(conf_file) if conf_file is not None else hyperparams_file(algo)
@@ -163,6 +166,7 @@ def zoo_argv(
         env_id,
         "--gym-packages",
         "electroloc_gym.train.zoo" if native else "electroloc_gym",
+        *gym_packages,
         "--conf-file",
         str(conf),
         "--seed",
@@ -210,6 +214,7 @@ def train(
     native: bool = True,
     quiet: bool = False,
     threads: int | None = None,
+    gym_packages: Sequence[str] = (),
 ) -> Path:
     """Train (or find the finished run of) one configuration; export it to ``out``; return the run folder.
 
@@ -230,6 +235,7 @@ def train(
         hyperparams=hyperparams,
         native=native,
         threads=threads,
+        gym_packages=gym_packages,
     )
     run = find_finished_run(log_folder, algo, env_id, argv)
     if run is None:
