@@ -324,7 +324,10 @@ def entry_of_class(cls: type) -> EnvEntry:
 
 
 def bench_env(name: str) -> tuple[EnvEntry, BenchEnv]:
-    """(entry, bench row) of ``electroloc bench --env NAME`` (a ValueError listing the names otherwise)."""
+    """(entry, bench row) of ``electroloc bench --env NAME`` (a ValueError listing the names otherwise); a
+    ``package.module:NAME`` imports the module first (:func:`resolve_env_name`), the row is then ``NAME``'s.
+    """
+    name = resolve_env_name(name, "--env")
     rows = dict(BENCH_ENVS)
     if name not in rows:
         raise ValueError(f"--env must be one of {list(rows)}, got {name!r}")
