@@ -52,7 +52,7 @@ FAST = [
 def test_shipped_models_are_found_by_name() -> None:
     models = shipped_models()
     assert {"ppo-belief", "ppo-raw-framestack"} <= set(models)
-    assert all(p.is_dir() and (p / "model.zip").is_file() for p in models.values())
+    assert all(p.is_dir() and (p / "policy.safetensors").is_file() for p in models.values())
     assert agent_kind("ppo-belief") == "shipped"
     assert agent_kind("min-var[n_voters=16]") == "baseline"
     assert agent_kind("runs/x") == "path" and agent_kind("x.zip") == "path" and agent_kind("./x") == "path"
