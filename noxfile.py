@@ -12,8 +12,9 @@
   checks on every module, strict on the public API), every import resolved; it fails on any error.
 * ``wheel``  — sdist and wheel built once (``python -m build``, by tests/test_wheel.py, marker ``wheel``, which
   checks what they hold) and checked (``twine check``); the wheel installed alone into an empty venv
-  outside the checkout, then every registered id made, a shipped policy benchmarked, and the CLI's help
-  printed.
+  outside the checkout, then every registered id made, a shipped policy benchmarked, the CLI's help
+  printed, and a researcher's task of their own (examples/own_task.py, copied outside the checkout) run and
+  benchmarked by ``--env own_task:frugal``.
 
 Installs are shared: each session's venv is reused (``.nox/``), pip's download cache serves every session,
 and pip does not byte-compile what it installs (``--no-compile``: Python compiles the modules a test
@@ -222,4 +223,28 @@ def wheel(session: nox.Session) -> None:
         "--no-progress",
         external=True,
         env=ONE_THREAD,
+    )
+    # a researcher's own task from a module outside the package (examples/own_task.py copied away from the
+    # checkout): its main block, then the benchmark on it by MODULE:NAME, with the installed package only
+    mine = work / "mine"
+    mine.mkdir()
+    shutil.copy2(ROOT / "examples" / "own_task.py", mine / "own_task.py")
+    session.chdir(mine)
+    session.run(py, "own_task.py", external=True, env=ONE_THREAD)
+    session.run(
+        electroloc,
+        "bench",
+        "--env",
+        "own_task:frugal",
+        "--agents",
+        "rnd-wlk",
+        "--conditions",
+        "fresh-steel-12.7",
+        "--trials",
+        "1",
+        "--out",
+        str(work / "bench-own"),
+        "--no-progress",
+        external=True,
+        env={**ONE_THREAD, "PYTHONPATH": str(mine)},
     )

@@ -1,9 +1,13 @@
-"""docs/design.md's "how to add an environment", followed: one entry and one task module (here, in this
-test) make a new env that Gymnasium, the native vector env, ``electroloc bench`` and the RLlib creator accept."""
+"""The env table with an entry that names its own env classes: a subclass of ElectroLoc-v0's task with nothing
+new, under another id, registered with its single and vector env classes, reaches Gymnasium, the native vector
+env, ``electroloc bench`` (its entry's defaults and default agents) and the RLlib creator; an entry without env
+classes gets generic ones of its own. A task that is new in kind (its own options, per-env arrays and metrics,
+from a module outside the package) is tests/test_own_task.py's."""
 
 from __future__ import annotations
 
 import json
+import sys
 
 import gymnasium as gym
 import numpy as np
@@ -88,6 +92,34 @@ def test_one_entry_makes_a_new_env(registered, tmp_path, capsys) -> None:
     assert len(rows) == 2 and all(r["readings"] <= 6 for r in rows)
     assert np.isfinite([r["target"][0] for r in rows]).all()
     assert {r["agent"] for r in rows} == {"rnd-wlk"}  # the bench row's default agents
+
+
+def test_entries_without_env_classes_get_generic_classes_of_their_own(registered) -> None:
+    """Two entries of one task class without env classes: each gets its own pair (the table finds an entry by
+    its classes, and refuses two entries sharing one)."""
+    from electroloc_gym.envs.generic import env_classes
+
+    a = env_classes("ElectroLocFewA-v0", FewReadingsTask)
+    b = env_classes("ElectroLocFewB-v0", FewReadingsTask)
+    assert a[0] is not b[0] and a[1] is not b[1]
+    assert issubclass(a[0], ElectroLocEnv) and issubclass(a[1], CoreVectorEnv)
+    with pytest.raises(ValueError, match="env_class .* is already in the env table"):
+        registry.add_entry(
+            EnvEntry(
+                env_id="ElectroLocFewShared-v0",
+                task="few-shared",
+                task_class=FewReadingsTask,
+                sensor_models=BASE.sensor_models,
+                env_class=FewReadingsEnv,
+                vector_class=a[1],
+            )
+        )
+    with pytest.raises(ValueError, match="env_class and vector_class must be env classes"):
+        registry.add_entry(
+            EnvEntry(env_id="X-v0", task="x", task_class=FewReadingsTask, sensor_models=BASE.sensor_models)
+        )
+    for cls in (*a, *b):  # generated into this module by name; leave it as it was
+        delattr(sys.modules[__name__], cls.__name__)
 
 
 def test_the_rllib_creator_makes_the_new_env(registered) -> None:

@@ -131,3 +131,42 @@ def test_sdist_holds_the_sources_not_the_results(built: tuple[Path, Path]) -> No
         assert needed in names, needed
     assert not [n for n in names if n.startswith(("results/", "build/", "experiments/")) or "leftover" in n]
     assert sdist.stat().st_size / 1e6 < MAX_WHEEL_MB
+
+
+def test_a_researchers_own_task_runs_on_the_installed_wheel(built: tuple[Path, Path], tmp_path: Path) -> None:
+    """examples/own_task.py copied to a folder outside the checkout runs on the wheel's package (installed with
+    ``pip --target``, first on the path; nox's ``wheel`` session runs the same in an empty venv): its main block,
+    then ``electroloc bench --env own_task:frugal`` with PYTHONPATH set to that folder.
+    """
+    _, wheel = built
+    site, mine = tmp_path / "site", tmp_path / "mine"
+    mine.mkdir()
+    pip = [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-compile", "--target", str(site), str(wheel)]
+    proc = subprocess.run(pip, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    shutil.copy2(ROOT / "examples" / "own_task.py", mine / "own_task.py")
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "PYTHONPATH": f"{site}{os.pathsep}{mine}"}
+    where = subprocess.run(
+        [sys.executable, "-c", "import electroloc_gym; print(electroloc_gym.__file__)"],
+        capture_output=True,
+        text=True,
+        cwd=mine,
+        env=env,
+        timeout=300,
+    )
+    assert where.stdout.strip().startswith(str(site)), where.stdout + where.stderr  # the wheel, not the checkout
+    run = subprocess.run(
+        [sys.executable, "own_task.py"], capture_output=True, text=True, cwd=mine, env=env, timeout=600
+    )
+    assert run.returncode == 0 and run.stdout.startswith("FrugalLoc-v0: "), run.stdout + run.stderr[-3000:]
+    argv = ["--env", "own_task:frugal", "--agents", "rnd-wlk", "--conditions", "fresh-steel-12.7", "--trials", "1"]
+    bench = subprocess.run(
+        [str(site / "bin" / "electroloc"), "bench", *argv, "--out", str(tmp_path / "bench"), "--no-progress"],
+        capture_output=True,
+        text=True,
+        cwd=mine,
+        env=env,
+        timeout=600,
+    )
+    assert bench.returncode == 0, bench.stderr[-3000:]
+    assert "Travel median (mm)" in (tmp_path / "bench" / "table.md").read_text(encoding="utf-8")
