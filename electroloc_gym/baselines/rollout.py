@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -186,7 +186,7 @@ def run_agent(
     from electroloc_gym.utils.checks import check_int
 
     one = not isinstance(seeds, Sequence) or isinstance(seeds, (str, bytes))
-    seed_list = [seeds] if one else list(seeds)
+    seed_list: list[Any] = [seeds] if one else list(cast("Sequence[Any]", seeds))
     if not seed_list:
         raise ValueError("seeds must be an int ≥ 0 or a non-empty sequence of them, got an empty sequence")
     seed_list = [check_int("seeds", s, 0, 2**63 - 1) for s in seed_list]

@@ -218,7 +218,7 @@ class ShippedPolicy:
 
 def shipped_policies() -> dict[str, ShippedPolicy]:
     """Every shipped policy by name, with the env it was trained for (read from its checked ``policy.json``)."""
-    out = {}
+    out: dict[str, ShippedPolicy] = {}
     for name, folder in shipped_models().items():
         meta = read_export(folder).meta
         out[name] = ShippedPolicy(
