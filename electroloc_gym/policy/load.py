@@ -158,7 +158,7 @@ class LearnedAgent:
     def _stochastic(
         self, x: NDArray[np.float32], state: Any, episode_start: NDArray[Any] | None
     ) -> tuple[NDArray[Any], Any]:
-        algo = self.meta.get("algo")
+        algo = str(self.meta.get("algo"))
         if ALGOS.get(algo, ("", "policy"))[1] == "actor":
             raise ValueError(
                 f"a {algo} policy file holds the deterministic actor alone: it has no stochastic actions "
