@@ -20,6 +20,7 @@ import torch
 import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.envs.torch_vector import numpy_view
 from electroloc_gym.registry import ENV_IDS, env_entry
+from electroloc_gym.world.conditions import PRESET_NAMES
 
 torch.set_num_threads(1)
 HAS_ARRAY_CONVERSION = hasattr(gym.wrappers.vector, "ArrayConversion")
@@ -130,9 +131,21 @@ def test_the_torch_backend_id_list_is_not_empty() -> None:
     assert _torch_backend_ids() == ["ElectroLoc-v0"]
 
 
+def _single_to_torch_wrappers() -> list[Any]:
+    wrappers: list[Any] = [pytest.param(gym.wrappers.NumpyToTorch, id="NumpyToTorch")]
+    if HAS_ARRAY_CONVERSION:
+        wrappers.append(
+            pytest.param(
+                lambda env: gym.wrappers.ArrayConversion(env, env_xp=np, target_xp=torch), id="ArrayConversion"
+            )
+        )
+    return wrappers
+
+
+@pytest.mark.parametrize("wrap", _single_to_torch_wrappers())
 @pytest.mark.parametrize("env_id", list(ENV_IDS))
-def test_single_envs_through_torch(env_id: str) -> None:
-    raw, wrapped = gym.make(env_id, **SMALL), gym.wrappers.NumpyToTorch(gym.make(env_id, **SMALL))
+def test_single_envs_through_torch(env_id: str, wrap) -> None:
+    raw, wrapped = gym.make(env_id, **SMALL), wrap(gym.make(env_id, **SMALL))
     obs, info = wrapped.reset(seed=2)
     raw_obs, raw_info = raw.reset(seed=2)
     _assert_same(obs, raw_obs, torch.Tensor, "reset obs")
@@ -143,6 +156,7 @@ def test_single_envs_through_torch(env_id: str) -> None:
     raw_obs, raw_reward, *_ = raw.step(action)
     _assert_same(obs, raw_obs, torch.Tensor, "step obs")
     assert float(reward) == raw_reward and isinstance(info["spread_mm"], torch.Tensor)
+    assert all(isinstance(v, torch.Tensor) for v in info.values()), {k: type(v).__name__ for k, v in info.items()}
 
 
 def test_numpy_view_names_what_is_missing(monkeypatch) -> None:
@@ -160,3 +174,57 @@ def test_numpy_view_names_what_is_missing(monkeypatch) -> None:
         )
     else:  # gymnasium 1.1: no wrapper to import
         assert "numpy_view needs gymnasium >= 1.2" in str(info.value)
+
+
+#: Gymnasium's three ways to build a vector env of an id.
+VECTOR_MODES = ("sync", "async", "vector_entry_point")
+
+
+def _close(*envs: Any) -> None:
+    for env in envs:
+        env.close()
+
+
+@pytest.mark.parametrize("wrap", _to_torch_wrappers())
+@pytest.mark.parametrize("mode", VECTOR_MODES)
+@pytest.mark.parametrize("env_id", list(ENV_IDS))
+def test_every_vector_mode_through_torch(env_id: str, mode: str, wrap) -> None:
+    """Every id in every vector mode under the numpy → torch wrappers: the info is numeric (the condition and
+    any other name as an index into ``metadata["info_names"]``), so every entry converts, equal to the
+    unwrapped env's (async compared with sync: the same sub-envs on the same seeds).
+    """
+    make = lambda m: gym.make_vec(env_id, num_envs=2, vectorization_mode=m, **SMALL)  # noqa: E731
+    raw, wrapped = make("sync" if mode == "async" else mode), wrap(make(mode))
+    try:
+        obs, info = wrapped.reset(seed=3)
+        raw_obs, raw_info = raw.reset(seed=3)
+        _assert_same(obs, raw_obs, torch.Tensor, "reset obs")
+        _assert_same(info, raw_info, torch.Tensor, "reset info")
+        names = wrapped.metadata["info_names"]
+        assert names["condition_index"] == PRESET_NAMES and info["condition_index"].dtype == torch.int64
+        assert all(key in info for key in names), (sorted(names), sorted(info))
+        raw.action_space.seed(0)
+        for t in range(2):
+            action = raw.action_space.sample()
+            out = wrapped.step(torch.as_tensor(action))
+            want = raw.step(action)
+            for name, got, ref in zip(("obs", "reward", "terminated", "truncated", "info"), out, want, strict=True):
+                _assert_same(got, ref, torch.Tensor, f"step {t} {name}")
+    finally:
+        _close(raw, wrapped)
+
+
+@pytest.mark.parametrize("env_id", list(ENV_IDS))
+def test_single_env_info_is_numeric_with_names_by_index(env_id: str) -> None:
+    """The single env's info holds numbers and arrays only; a name is an index into ``metadata["info_names"]``."""
+    env = gym.make(env_id, **SMALL)
+    _, info = env.reset(seed=1)
+    _, _, _, _, step_info = env.step(env.action_space.sample())
+    for got in (info, step_info):
+        odd = {k: type(v).__name__ for k, v in got.items() if not isinstance(v, (int, float, np.ndarray, np.generic))}
+        assert not odd, odd
+    names = env.unwrapped.metadata["info_names"]
+    index, name = info["condition_index"], env.unwrapped.condition.name
+    assert (names["condition_index"][index] if index >= 0 else name not in names["condition_index"]) in (name, True)
+    for key, choices in names.items():
+        assert 0 <= info[key] < len(choices) or (key == "condition_index" and info[key] == -1)

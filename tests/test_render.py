@@ -96,7 +96,7 @@ def test_record_episode_is_seeded_and_complete() -> None:
     assert len(a.snapshots) == len(a.infos) == n
     assert [s.n_observations for s in a.snapshots] == list(range(1, n + 1))
     assert a.final_info["success"] or n == 5
-    assert [i["position_mm"] for i in a.infos] == [i["position_mm"] for i in b.infos]
+    assert [tuple(i["position_mm"]) for i in a.infos] == [tuple(i["position_mm"]) for i in b.infos]
     assert a.frames == []
 
 
@@ -118,7 +118,7 @@ def test_record_episode_with_an_agent() -> None:
     ep = record_episode(env, seed=0, agent=agent)
     assert agent.bound is not env and not hasattr(agent.bound, "unwrapped")  # bound to the env's agent view
     assert agent.bound.n_observations == env.unwrapped.n_observations
-    assert len({i["position_mm"] for i in ep.infos}) == 1  # it never moved
+    assert len({tuple(i["position_mm"]) for i in ep.infos}) == 1  # it never moved
     assert ep.label == "stay, seed 0"
 
 

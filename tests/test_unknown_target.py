@@ -132,8 +132,9 @@ def test_info_reports_the_estimates_and_the_truth() -> None:
     assert info["radius_mean_mm"] == pytest.approx(float(np.mean(p[:, 2].astype(np.float64))), rel=1e-9)
     assert info["radius_estimate_mm"] == float(np.median(p[:, 2].astype(np.float64)))
     assert info["p_conductor"] == np.count_nonzero(p[:, 3] > 0) / 400
-    assert info["material_estimate"] == ("conductor" if info["p_conductor"] > 0.5 else "insulator")
-    assert info["material_correct"] == (info["material_estimate"] == "insulator")
+    materials = env.unwrapped.metadata["info_names"]["material_index"]
+    assert materials[info["material_index"]] == ("conductor" if info["p_conductor"] > 0.5 else "insulator")
+    assert info["material_correct"] == (materials[info["material_index"]] == "insulator")
     assert info["radius_error_frac"] == pytest.approx(abs(info["radius_estimate_mm"] - 19.05) / 19.05)
     assert core.condition.name == "salt-delrin-38.1" and core.condition.target.radius_mm == 19.05
     for _ in range(3):
@@ -149,7 +150,7 @@ def test_prior_draws_cover_the_range_and_both_materials() -> None:
         _, info = env.reset(seed=s)
         radii.append(info["target_radius_mm"])
         chis.append(info["target_chi"])
-        conditions.add(info["condition"])
+        conditions.add(env.unwrapped.condition.name)
     assert min(radii) >= 6.0 and max(radii) <= 18.0 and max(radii) - min(radii) > 8.0
     assert set(chis) == {CONDUCTOR_CHI, INSULATOR_CHI} and len(conditions) >= 6
     env = gym.make(ENV_ID, n_particles=50, contrast="continuous")

@@ -22,6 +22,7 @@ from electroloc_gym.baselines.rollout import AgentCallError, exception_line, run
 from electroloc_gym.bench.agents import cached_agent, resolve_agent
 from electroloc_gym.bench.config import TrialSpec
 from electroloc_gym.bench.schema import TrialRecord, is_far_success
+from electroloc_gym.contract.task_spec import RecordField
 from electroloc_gym.utils.fileio import to_json_data
 
 __all__ = ["run_trial", "TrialFailed", "describe_trial"]
@@ -122,19 +123,19 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
             "decision_ms_median": float(np.median(dms)) if dms.size else None,
             "decision_ms_mean": float(np.mean(dms)) if dms.size else None,
             "wall_s": time.perf_counter() - t_start,
-            "shape": _shape_record(info, core.entry().task_class.metrics.record_keys) or None,
+            "shape": _shape_record(info, core.entry().task_class.metrics.record) or None,
             **spec.config.record_settings(),
             "far_success": is_far_success(success, error),
         }
     ).to_json()
 
 
-def _shape_record(info: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
-    """The task's own results ``keys`` (its declared record fields, ``Task.metrics.record``) of the final info,
-    as JSON values.
+def _shape_record(info: dict[str, Any], fields: tuple[RecordField, ...]) -> dict[str, Any]:
+    """The task's own results (its declared record fields, ``Task.metrics.record``) of the final info, as JSON
+    values (a choice by its string).
     """
     out: dict[str, Any] = {}
-    for k in keys:
-        v = info[k]
-        out[k] = str(v) if isinstance(v, str) else to_json_data(v if isinstance(v, (bool, np.bool_)) else float(v))
+    for f in fields:
+        v = f.from_info(info)
+        out[f.name] = str(v) if isinstance(v, str) else to_json_data(v if isinstance(v, (bool, np.bool_)) else float(v))
     return out

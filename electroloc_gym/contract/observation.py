@@ -32,6 +32,7 @@ entries 4–5 and the histogram are relative to the belief's frame origin
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -57,6 +58,8 @@ STEP_REWARD = -1.0
 RESET_REWARD = 0.0
 #: The info keys of every step and reset, in order (a task adds its own after them, ``Task.info_keys``);
 #: ``error_mm``, ``spread_mm`` and ``success`` are :func:`~electroloc_gym.contract.belief_summary.belief_info_values`.
+#: Every value is a number or a numeric array (so Gymnasium's vector envs stack it and its array wrappers convert
+#: it): a name is given as its index into the env's ``metadata["info_names"]`` (:func:`info_names`).
 INFO_KEYS = (
     "position_mm",
     "estimate_mm",
@@ -65,7 +68,7 @@ INFO_KEYS = (
     "reading_V",
     "n_observations",
     "success",
-    "condition",
+    "condition_index",
 )
 
 __all__ = [
@@ -73,6 +76,8 @@ __all__ = [
     "RAW_OBS_DIM",
     "OBSERVATION_MODES",
     "INFO_KEYS",
+    "info_names",
+    "condition_index",
     "HIST_BINS",
     "STEP_REWARD",
     "RESET_REWARD",
@@ -197,6 +202,15 @@ def belief_observation(
 
 
 _PRESET_INDEX = {name: i for i, name in enumerate(PRESET_NAMES)}
+
+
+def info_names(task_names: Mapping[str, tuple[str, ...]]) -> dict[str, tuple[str, ...]]:
+    """An env's ``metadata["info_names"]``: for each integer-coded info key, the name of each code (indexed by
+    the code). ``condition_index``: :data:`~electroloc_gym.world.conditions.PRESET_NAMES` (−1, a world that is
+    not a preset, has no entry: its name is the env's ``condition.name``, the vector env's ``condition_names``);
+    then the task's own (``Task.info_names``, e.g. the unknown target's ``material_index``).
+    """
+    return {"condition_index": tuple(PRESET_NAMES), **{k: tuple(v) for k, v in task_names.items()}}
 
 
 def condition_index(names: Any) -> NDArray[np.int64]:

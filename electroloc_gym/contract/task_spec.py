@@ -298,6 +298,8 @@ class RecordField:
         low, high: a real's range.
         choices: a choice's strings.
         nullable: null is accepted too (an estimate the belief could not make).
+        info_key: the final info's key when it is not ``name`` (empty: ``name``). A choice's info value is the
+            index of its choice (the info holds numbers only); the record holds the choice's string.
     """
 
     name: str
@@ -308,6 +310,14 @@ class RecordField:
     high: float = math.inf
     choices: tuple[str, ...] = ()
     nullable: bool = False
+    info_key: str = ""
+
+    def from_info(self, info: Mapping[str, Any]) -> Any:
+        """This field's value in a final info, as the record holds it (a choice: its string)."""
+        value = info[self.info_key or self.name]
+        if self.kind == "choice" and not isinstance(value, str):
+            return self.choices[int(value)]
+        return value
 
     def __post_init__(self) -> None:
         if self.kind not in ("real", "bool", "choice"):

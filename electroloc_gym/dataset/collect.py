@@ -164,12 +164,9 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
     ``truth_chi`` for the unknown target) and the task's own estimates its metrics name
     (``Task.metrics.dataset_info``). Read from the env's documented evaluation accessors.
     """
-    from electroloc_gym.world.conditions import PRESET_NAMES
-
     core = env.unwrapped
     cov = np.asarray(core.belief.covariance(), dtype=np.float64)
     truth = core.truth_mm
-    name = str(info.get("condition", ""))
     out: dict[str, Any] = {
         "estimate_mm": np.asarray(info["estimate_mm"], dtype=np.float64),
         "covariance_mm2": np.array([cov[0, 0], cov[0, 1], cov[1, 1]]),
@@ -177,7 +174,7 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
         "n_observations": np.int64(info["n_observations"]),
         "reading_V": np.float64(np.ravel(info["reading_V"])[0]),
         "success": np.bool_(info["success"]),
-        "condition_index": np.int64(PRESET_NAMES.index(name) if name in PRESET_NAMES else -1),
+        "condition_index": np.int64(info["condition_index"]),
         "truth_mm": np.asarray(truth, dtype=np.float64).reshape(2),
         "error_mm": np.float64(info["error_mm"]),
     }

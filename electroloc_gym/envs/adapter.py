@@ -12,10 +12,13 @@ rendering, and the read-only accessors agents use (``belief``, ``sensor_model``,
 ``ElectroLocGlobal-v0`` (:mod:`.global_env`), ``ElectroLocUnknownTarget-v0`` (:mod:`.unknown_target`).
 Actions are parsed and checked here (:mod:`.actions`), before the core sees them.
 
-Info: the core's keys as Python values, plus ``condition_index``
-(:func:`~electroloc_gym.contract.observation.condition_index`: the condition's
-index in ``PRESET_NAMES``, −1 for any other world), the numeric form of the ``condition`` name that the
-native vector env's info carries instead of names.
+Info: row 0 of the core's info, numbers as Python scalars and vectors (``position_mm``, ``estimate_mm``, mm) as
+numpy arrays: numeric only, so Gymnasium's sync and async vector envs stack it into numeric arrays and its array
+wrappers (``NumpyToTorch``, ``ArrayConversion``) convert it. A name is given by its index: ``condition_index``
+(:func:`~electroloc_gym.contract.observation.condition_index`: the condition's index in ``PRESET_NAMES``, −1 for
+any other world, whose name is :attr:`CoreEnv.condition`'s) and a task's own coded keys (the unknown target's
+``material_index``); ``metadata["info_names"]`` maps each such key to its names
+(:func:`~electroloc_gym.contract.observation.info_names`).
 """
 
 from __future__ import annotations
@@ -26,8 +29,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from electroloc_gym.contract.observation import INFO_KEYS
-from electroloc_gym.contract.observation import condition_index as _condition_index
+from electroloc_gym.contract.observation import info_names
 from electroloc_gym.contract.params import MAX_STEP_MM, EnvParams
 from electroloc_gym.contract.reset import SINGLE_RESET_OPTIONS, check_reset_options
 from electroloc_gym.engines.numba_core.step import Simulation
@@ -121,6 +123,8 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         self._sim = Simulation(self.params, 1)
         self._state = self._sim.state
         self._task = self._sim.task
+        #: The class's metadata and ``info_names``: the names of the info's integer-coded keys.
+        self.metadata = {**type(self).metadata, "info_names": info_names(self._task.info_names)}
         self._actions = ActionParser(self.params, 1)
         self.action_space, self.observation_space = spaces_of(self.params, self._sim.obs_dim)
         self._belief = BeliefView(self._state, 0)
@@ -283,24 +287,11 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
 
     @staticmethod
     def _info_row(info: dict[str, NDArray]) -> dict[str, Any]:
-        """Row 0 of the core's info arrays as Python values (positions as tuples of float)."""
-        extra = (
-            {k: v[0].item() if isinstance(v[0], np.generic) else v[0] for k, v in info.items() if k not in INFO_KEYS}
-            if len(info) > len(INFO_KEYS)
-            else {}
-        )
-        return {
-            "position_mm": tuple(info["position_mm"][0].tolist()),
-            "estimate_mm": tuple(info["estimate_mm"][0].tolist()),
-            "error_mm": float(info["error_mm"][0]),
-            "spread_mm": float(info["spread_mm"][0]),
-            "reading_V": float(info["reading_V"][0]),
-            "n_observations": int(info["n_observations"][0]),
-            "success": bool(info["success"][0]),
-            "condition": str(info["condition"][0]),
-            "condition_index": int(_condition_index(info["condition"][:1])[0]),
-            **extra,
-        }
+        """Row 0 of the core's info arrays: numbers as Python scalars, vectors (positions, mm) as numpy arrays —
+        numeric only, as Gymnasium's vector envs stack and its array wrappers convert (names are indices into
+        ``metadata["info_names"]``).
+        """
+        return {k: v[0].item() if isinstance(v[0], np.generic) else v[0].copy() for k, v in info.items()}
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:

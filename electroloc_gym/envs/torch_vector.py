@@ -60,7 +60,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from electroloc_gym.contract.capabilities import check_engine, params_options
-from electroloc_gym.contract.observation import BELIEF_OBS_DIM, RAW_OBS_DIM
+from electroloc_gym.contract.observation import BELIEF_OBS_DIM, RAW_OBS_DIM, info_names
 from electroloc_gym.contract.params import DISCRETE_MOVES_MM, EnvParams
 from electroloc_gym.contract.reset import VECTOR_RESET_OPTIONS, check_first_reset, check_reset_options, reset_mask_error
 from electroloc_gym.engines.torch_core import sim
@@ -202,7 +202,11 @@ class TorchElectroLocVectorEnv(VectorEnv):
         self.num_envs = n
         self.render_mode = None
         self.autoreset_mode = AutoresetMode.NEXT_STEP
-        self.metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+        self.metadata = {
+            "autoreset_mode": AutoresetMode.NEXT_STEP,
+            "render_modes": [],
+            "info_names": info_names(entry.task_class.info_names),
+        }
         auto = "host" if self.device.type == "cpu" else "device"
         #: "host" or "device": where a tensor on the env's device has its values checked
         self.action_check = auto if action_check == "auto" else action_check

@@ -26,11 +26,12 @@ Info: a dict of arrays over the N envs (Gymnasium's vector convention), each key
 ``"_key"`` mask: ``position_mm`` (N, 2), ``estimate_mm`` (N, 2), ``error_mm``, ``spread_mm``,
 ``reading_V`` (N,) float64, ``n_observations`` (N,) int64, ``success`` (N,) bool, ``condition_index`` (N,)
 int64 (:func:`~electroloc_gym.contract.observation.condition_index`: the index in ``PRESET_NAMES``, −1 for another
-world). Every entry is a numeric array, so Gymnasium's array wrappers (``NumpyToTorch``,
-``ArrayConversion``) convert it: the single env's name-valued keys (:data:`NAME_INFO_KEYS`) are left out —
-the condition's name is :attr:`CoreVectorEnv.condition_names`, the unknown target's ``material_estimate``
-is ``p_conductor > ½``. ``SyncVectorEnv`` stores the tuple-valued keys as object arrays of tuples; here they
-are plain float arrays. Rendering is not supported (``render_mode`` must be None): render a single env.
+world), then the task's own keys. Every entry is a numeric array — the single env's keys, as Gymnasium's
+``SyncVectorEnv`` and ``AsyncVectorEnv`` stack them —, so Gymnasium's array wrappers (``NumpyToTorch``,
+``ArrayConversion``) convert it in every vectorization mode. A name is an index: ``metadata["info_names"]``
+maps ``condition_index`` and the task's coded keys (the unknown target's ``material_index``) to their names;
+the condition of any world, a preset or not, is :attr:`CoreVectorEnv.condition_names`. Rendering is not
+supported (``render_mode`` must be None): render a single env.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from electroloc_gym.contract.observation import condition_index
+from electroloc_gym.contract.observation import info_names
 from electroloc_gym.contract.params import EnvParams
 from electroloc_gym.contract.reset import VECTOR_RESET_OPTIONS, check_first_reset, check_reset_options, reset_mask_error
 from electroloc_gym.engines.numba_core.step import Simulation
@@ -59,14 +60,8 @@ __all__ = [
     "ElectroLocVectorEnv",
     "GlobalVectorEnv",
     "UnknownTargetVectorEnv",
-    "NAME_INFO_KEYS",
     "sub_env_seeds",
 ]
-
-#: The single env's name-valued info keys, which the vector info leaves out (its entries are numeric arrays):
-#: ``condition`` is given as ``condition_index``, the unknown target's ``material_estimate`` is
-#: ``p_conductor > ½``.
-NAME_INFO_KEYS = ("condition", "material_estimate")
 
 _AUTORESET_MODES: dict[Any, AutoresetMode] = {
     AutoresetMode.NEXT_STEP: AutoresetMode.NEXT_STEP,
@@ -83,19 +78,6 @@ _CORE_MODE = {AutoresetMode.NEXT_STEP: "next_step", AutoresetMode.SAME_STEP: "sa
 def _autoreset_mode(value: object) -> AutoresetMode | None:
     """The mode of an ``autoreset_mode`` argument (None: not a mode; unhashable values included)."""
     return _AUTORESET_MODES.get(value if isinstance(value, (str, AutoresetMode)) else None)
-
-
-def _numeric_info(info: dict[str, Any]) -> dict[str, Any]:
-    """The core's info without its name-valued arrays (:data:`NAME_INFO_KEYS`); ``condition`` becomes
-    ``condition_index`` in its place.
-    """
-    out: dict[str, Any] = {}
-    for key, value in info.items():
-        if key == "condition":
-            out["condition_index"] = condition_index(value)
-        elif key not in NAME_INFO_KEYS:
-            out[key] = value
-    return out
 
 
 def _reset_mask(value: object, n: int) -> NDArray[np.bool_]:
@@ -175,7 +157,11 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
         self.num_envs = n
         self.autoreset_mode = mode
         self._mode = _CORE_MODE[mode]
-        self.metadata = {"autoreset_mode": mode, "render_modes": []}
+        self.metadata = {
+            "autoreset_mode": mode,
+            "render_modes": [],
+            "info_names": info_names(self._sim.task.info_names),
+        }
         self.render_mode = None
         action_space, observation_space = spaces_of(self.params, self._sim.obs_dim)
         self.single_action_space, self.single_observation_space = action_space, observation_space
@@ -212,7 +198,9 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
 
     @property
     def condition_names(self) -> tuple[str, ...]:
-        """Each sub-env's current condition name (the single env's ``info["condition"]``)."""
+        """Each sub-env's current condition name (a preset's is ``metadata["info_names"]["condition_index"]`` at
+        the info's ``condition_index``; another world's, index −1, only here).
+        """
         if not self._state.started:
             raise RuntimeError("call reset() first")
         return tuple(str(n) for n in self._state.names)
@@ -265,7 +253,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
             if seed_i is not None:
                 self._sim.seed(i, seed_i)
         self._sim.reset(ids)
-        return self._sim.observation(), self._with_masks(_numeric_info(self._sim.info()))
+        return self._sim.observation(), self._with_masks(self._sim.info())
 
     def step(
         self, actions: Any
@@ -274,13 +262,12 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
             raise RuntimeError("call reset() before step()")
         moves, gains = self._actions(actions)
         obs, rewards, terminated, truncated, info = self._sim.step(moves, self._mode, gains)
-        info = _numeric_info(info)
         if "done" in info:
             done = info.pop("done")
             final_obs = np.zeros_like(obs)  # numeric, as every info entry: zero rows where the mask is False
             final_obs[done] = np.stack(list(info["final_obs"][done]))
             info["final_obs"] = final_obs
-            info["final_info"] = self._with_masks(_numeric_info(info["final_info"]), done)
+            info["final_info"] = self._with_masks(info["final_info"], done)
             info["_final_obs"], info["_final_info"] = done, done.copy()
         return obs, rewards, terminated, truncated, self._with_masks(info)
 

@@ -30,19 +30,18 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvO
 
 from electroloc_gym.contract.observation import INFO_KEYS  # the info keys copied into every per-env info dict
 from electroloc_gym.train.wrappers import VecPotentialShaping
-from electroloc_gym.world.conditions import PRESET_NAMES
 
 __all__ = ["NativeVecEnv", "VecEpisodeReport", "make_native_vec_env", "zoo_vec_env"]
 
-#: The vector info's keys behind the per-env info dicts: the single env's, the condition as its index (the
-#: vector info is numeric; the name is rebuilt from the index, :meth:`NativeVecEnv._split_info`).
-_VECTOR_KEYS = (*(k for k in INFO_KEYS if k != "condition"), "condition_index")
+#: The vector info's keys behind the per-env info dicts: the single env's (numeric; the condition as its index).
+_VECTOR_KEYS = INFO_KEYS
 
 
 class NativeVecEnv(VecEnv):
     """SB3 ``VecEnv`` over a native Gymnasium vector env that autoresets in the same step.
 
-    Per-env infos hold the single env's keys (``condition`` and ``condition_index`` included),
+    Per-env infos hold the single env's keys (the condition as ``condition_index``: its name is the vector
+    env's ``condition_names`` or ``metadata["info_names"]["condition_index"]``),
     ``"TimeLimit.truncated"`` and, for the envs that
     finished this step, ``"terminal_observation"`` and ``"is_success"``; ``reset_infos[i]`` is the
     info of env ``i``'s latest reset. Seeds set with :meth:`seed` apply at the next :meth:`reset`
@@ -132,22 +131,14 @@ class NativeVecEnv(VecEnv):
         return [None for _ in range(self.num_envs)]
 
     def _split_info(self, info: dict[str, Any]) -> list[dict[str, Any]]:
-        """The vector env's dict of arrays as SB3's list of per-env dicts.
-
-        The condition's name is the preset's of ``condition_index``, or (−1: another world) the sub-env's
-        current one: such a world is the env's only one, the same in every episode.
+        """The vector env's dict of arrays as SB3's list of per-env dicts (positions as (2,) arrays, the single
+        env's).
         """
         cols = {
-            k: ([tuple(r) for r in info[k].tolist()] if info[k].ndim == 2 else info[k].tolist())
+            k: ([r.copy() for r in info[k]] if info[k].ndim == 2 else info[k].tolist())
             for k in _VECTOR_KEYS
             if k in info
         }
-        if "condition_index" in info:
-            current = self.venv.unwrapped.condition_names  # pyright: ignore[reportAttributeAccessIssue]  # a native vector env (CoreVectorEnv)
-            index: list[int] = info["condition_index"].tolist()
-            del cols["condition_index"]
-            cols["condition"] = [PRESET_NAMES[k] if k >= 0 else current[i] for i, k in enumerate(index)]
-            cols["condition_index"] = index
         return [dict(zip(cols, row, strict=True)) for row in zip(*cols.values(), strict=True)]
 
 

@@ -77,7 +77,7 @@ def run_cell(agent: str, speed_mm: float, seeds: list[tuple[int, int]], env_kwar
         ep = run_episode(env, controller, env_seed, agent_seed=agent_seed)
         out["tracking_error_mm"].append(float(ep.info["tracking_error_mm"]))
         out["captured"].append(bool(ep.info["captured"]))
-        out["condition"].append(str(ep.info["condition"]))
+        out["condition"].append(env.unwrapped.condition.name)
     out["wall_s"] = time.perf_counter() - t0
     env.close()
     return out

@@ -48,6 +48,7 @@ from electroloc_gym.contract.observation import (
     RAW_OBS_DIM,
     STEP_REWARD,
     belief_observation,
+    condition_index,
     episode_flags,
     raw_observation,
 )
@@ -75,8 +76,12 @@ class Task(ABC):
     particle_dims = 2
     #: Readings per step (1: the paper's one electrode pair; K for an array of K pairs).
     n_readings = 1
-    #: The info keys the task adds to :data:`~electroloc_gym.contract.observation.INFO_KEYS`.
+    #: The info keys the task adds to :data:`~electroloc_gym.contract.observation.INFO_KEYS` (numbers or numeric
+    #: arrays only).
     info_keys: tuple[str, ...] = ()
+    #: The names of the task's integer-coded info keys: key → the name of each code, indexed by the code (the
+    #: env's ``metadata["info_names"]``, :func:`~electroloc_gym.contract.observation.info_names`).
+    info_names: ClassVar[Mapping[str, tuple[str, ...]]] = {}
     #: Offsets = sign · (particle − origin): +1 target hypothesis − carriage, −1 −(carriage hypothesis).
     offset_sign = np.float32(1.0)
     #: What the belief's hypotheses are: ``"target"`` (a static target's position: they stay put when the
@@ -359,7 +364,7 @@ class Task(ABC):
             s.reading_V[sel].copy(),
             s.n_observations[sel].copy(),
             success,
-            s.names[sel].copy(),
+            condition_index(s.names[sel]),
         )
         out: dict[str, NDArray[Any]] = dict(zip(INFO_KEYS, values, strict=True))
         out.update(self.task_info(s, sel))

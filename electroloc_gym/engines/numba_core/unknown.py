@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,6 +77,7 @@ __all__ = [
     "RADIUS_JITTER_MM",
     "CHI_JITTER",
     "SHAPE_INFO_KEYS",
+    "MATERIALS",
     "SHAPE_RECORD_KEYS",
     "SHAPE_METRICS",
     "identification_statistics",
@@ -89,6 +90,9 @@ INSULATOR_CHI = -0.5
 #: validation seeds 101 and 102 over 0.25 mm with 2500 and 10 000 particles, docs/extensions.md.)
 RADIUS_JITTER_MM = 0.5
 CHI_JITTER = 0.02
+#: The material estimate's names, indexed by the info's ``material_index`` (0: a conductor, χ > 0; 1: an
+#: insulator) — the task's ``info_names``, the env's ``metadata["info_names"]["material_index"]``.
+MATERIALS = ("conductor", "insulator")
 #: The info keys the unknown-target env adds.
 SHAPE_INFO_KEYS = (
     "radius_estimate_mm",
@@ -97,14 +101,17 @@ SHAPE_INFO_KEYS = (
     "chi_estimate",
     "chi_spread",
     "p_conductor",
-    "material_estimate",
+    "material_index",
     "target_radius_mm",
     "target_chi",
     "radius_error_frac",
     "material_correct",
 )
-#: The identification results a benchmark record keeps (``"shape"``): the info keys but the χ spread.
-SHAPE_RECORD_KEYS = tuple(k for k in SHAPE_INFO_KEYS if k != "chi_spread")
+#: The identification results a benchmark record keeps (``"shape"``): the info keys but the χ spread, the
+#: material by its name (``material_estimate``, from the info's ``material_index``).
+SHAPE_RECORD_KEYS = tuple(
+    "material_estimate" if k == "material_index" else k for k in SHAPE_INFO_KEYS if k != "chi_spread"
+)
 
 
 #: How the episode's sphere is drawn (``"prior"``: radius uniform in ``radius_range_mm``, material or
@@ -177,8 +184,9 @@ class UnknownTargetState(TaskState):
     p_conductor: NDArray[np.float64] = state_array(np.float64)
 
 
-def _material(chi: NDArray) -> NDArray[np.object_]:
-    return np.where(np.asarray(chi) > 0, "conductor", "insulator").astype(object)
+def _material(chi: NDArray) -> NDArray[np.int64]:
+    """The material index (:data:`MATERIALS`) of contrasts ``chi``: 0 (conductor) where χ > 0, else 1."""
+    return np.where(np.asarray(chi) > 0, 0, 1).astype(np.int64)
 
 
 class UnknownTargetTask(LocalizeTask):
@@ -187,6 +195,7 @@ class UnknownTargetTask(LocalizeTask):
     #: A hypothesis is (x, y, a, χ): two shape coordinates (radius, χ) per particle.
     particle_dims = 4
     info_keys = SHAPE_INFO_KEYS
+    info_names: ClassVar[Mapping[str, tuple[str, ...]]] = {"material_index": MATERIALS}
     hidden_keys = ("target_x_mm", "target_y_mm", "target_radius_mm", "target_chi")
     Options = UnknownTargetOptions
     State = UnknownTargetState
@@ -375,7 +384,7 @@ class UnknownTargetTask(LocalizeTask):
             "chi_estimate": s.shape_mean[sel, 1].copy(),
             "chi_spread": s.shape_std[sel, 1].copy(),
             "p_conductor": s.p_conductor[sel].copy(),
-            "material_estimate": material,
+            "material_index": material,
             "target_radius_mm": true_r.copy(),
             "target_chi": s.target_shape[sel, 1].copy(),
             "radius_error_frac": np.abs(est_r - true_r) / true_r,
@@ -418,7 +427,13 @@ _RECORD_FIELDS = {
         _length("radius_spread_mm", "the particles' radius std"),
         _contrast("chi_estimate", "the particles' mean contrast χ"),
         RecordField("p_conductor", "the fraction of particles with χ > 0", low=0.0, high=1.0, nullable=True),
-        RecordField("material_estimate", "conductor or insulator", kind="choice", choices=("conductor", "insulator")),
+        RecordField(
+            "material_estimate",
+            "conductor or insulator",
+            kind="choice",
+            choices=MATERIALS,
+            info_key="material_index",
+        ),
         _length("target_radius_mm", "the true radius", nullable=False),
         _contrast("target_chi", "the true contrast χ", nullable=False),
         RecordField("radius_error_frac", "|estimate − true radius| / true radius", low=0.0, high=1e6, nullable=True),
