@@ -14,7 +14,7 @@ from __future__ import annotations
 from typing import Any
 
 from electroloc_gym.baselines.agent import PAPER_AGENTS
-from electroloc_gym.bench.fidelity import PAPER_TRIALS, UNTESTED, interval_mark
+from electroloc_gym.bench.fidelity import PAPER_TRIALS, UNTESTED, interval_mark, wilson_interval
 from electroloc_gym.bench.schema import FAR_ERROR_MM
 from electroloc_gym.bench.stats import records_metrics
 from electroloc_gym.contract.task_spec import TaskMetrics, format_config_text
@@ -118,43 +118,86 @@ def _paper_cells(paper: tuple | None, row: dict[str, Any] | None = None) -> tupl
     return success, _pair(paper[2], paper[3]), f"{paper[4]:g}/{paper[5]:g}"
 
 
+def _decisive_trials(paper_successes: int, paper_trials: int) -> int:
+    """The fewest trials N at which some count of N has its own 90 % Wilson interval disjoint from the paper's
+    90 % interval of ``paper_successes`` of ``paper_trials``: with fewer, no outcome of the run can disagree
+    with the paper beyond the run's own sampling noise, and a ✓/✗ against the paper's interval decides nothing.
+    """
+    lo, hi = wilson_interval(paper_successes, paper_trials)
+    n = 1
+    while not any(own[1] < lo or own[0] > hi for own in (wilson_interval(k, n) for k in range(n + 1))):
+        n += 1
+    return n
+
+
+def verdict_min_trials() -> int:
+    """The fewest trials per cell for a ✓/✗ against the paper's interval: :func:`_decisive_trials` of every
+    paper count the tables mark (Tables 2 and 4), the largest (3: the paper's 31 and 32 of 50 need three).
+    """
+    global _VERDICT_MIN_TRIALS
+    if _VERDICT_MIN_TRIALS is None:
+        papers = {(int(p[0]), int(p[0]) + int(p[1])) for p in (*PAPER_TABLE4.values(), *PAPER_TABLE2.values())}
+        _VERDICT_MIN_TRIALS = max(_decisive_trials(s, n) for s, n in papers)
+    return _VERDICT_MIN_TRIALS
+
+
+_VERDICT_MIN_TRIALS: int | None = None
+
+
 def _interval_mark(paper: tuple, row: dict[str, Any]) -> str:
     """The mark "[lo–hi] ✓/✗": the paper's 90 % interval as counts of the run's trials, and whether the run is
     in it ("[none of N] –" when no count of the run's trials is: :func:`~electroloc_gym.bench.fidelity.interval_mark`).
+    Below :func:`verdict_min_trials` trials the mark gives the interval and no verdict ("[lo–hi] –").
     """
     n = int(row["successes"]) + int(row["failures"])
     paper_n = int(paper[0]) + int(paper[1])
     if n <= 0 or paper_n <= 0:
         return ""
-    return interval_mark(int(row["successes"]), n, int(paper[0]), paper_n)
+    mark = interval_mark(int(row["successes"]), n, int(paper[0]), paper_n)
+    if n < verdict_min_trials() and not mark.endswith(UNTESTED):
+        mark = f"{mark[:-1]}{UNTESTED}"
+    return mark
 
 
-def _untested_note(marks: list[str]) -> str:
-    """The sentence under a table with untestable marks ("" when every mark tests something)."""
-    untested = [m for m in marks if m.endswith(UNTESTED)]
+def _untested_note(marks: list[str], trials: list[int]) -> str:
+    """The sentence under a table with marks that decide nothing ("" when every mark decides): ``trials`` the
+    trial count of each mark's cell.
+    """
+    untested = [n for m, n in zip(marks, trials, strict=True) if m.endswith(UNTESTED)]
     if not untested:
         return ""
+    few = sum(n < verdict_min_trials() for n in untested)
+    parts = []
+    if few:
+        parts.append(
+            f"no verdict below {verdict_min_trials()} trials per cell, the fewest at which some count of the run "
+            "has its own 90 % interval (Wilson) outside the paper's, for every paper count of Tables 2 and 4 "
+            "(with fewer, no outcome could disagree with the paper beyond the run's own noise)"
+        )
+    if few < len(untested):
+        parts.append("no count of this run's trials lies inside the paper's interval (too few trials to compare)")
     return (
-        f"{UNTESTED}: no count of this run's trials lies inside the paper's interval (too few trials to compare); "
-        f"{len(untested)} such cell{'' if len(untested) == 1 else 's'}, not counted."
+        f"{UNTESTED}: {'; or '.join(parts)}; {len(untested)} such cell{'' if len(untested) == 1 else 's'}, not counted."
     )
+
+
+def _trials(row: dict[str, Any]) -> int:
+    return int(row["successes"]) + int(row["failures"])
 
 
 def _inside_counts(rows: list[dict[str, Any]]) -> str:
     """One line: per paper controller, in how many conditions the run's count is inside the paper's interval."""
-    parts, marks = [], []
+    parts, marks, trials = [], [], []
     for agent in dict.fromkeys(r["agent"] for r in rows if r["condition"] != "all"):
         key = paper_agent_key(agent) or ""
-        cells = [
-            _interval_mark(PAPER_TABLE4[(r["condition"], key)], r)
-            for r in rows
-            if r["agent"] == agent and (r["condition"], key) in PAPER_TABLE4
-        ]
+        mine = [r for r in rows if r["agent"] == agent and (r["condition"], key) in PAPER_TABLE4]
+        cells = [_interval_mark(PAPER_TABLE4[(r["condition"], key)], r) for r in mine]
         tested = [m for m in cells if not m.endswith(UNTESTED)]
         marks += cells
+        trials += [_trials(r) for r in mine]
         if cells:
             parts.append(f"{agent} {sum(m.endswith('✓') for m in tested)} of {len(tested)}")
-    note = _untested_note(marks)
+    note = _untested_note(marks, trials)
     return (
         "Success counts inside the paper's 90 % binomial interval (Wilson, of its "
         f"{PAPER_TRIALS} trials; [lo–hi] = that interval in this run's trials): "
@@ -415,7 +458,7 @@ def _render_table2(summary: dict[str, Any]) -> str:
         )
         for r in rows
     ]
-    note = _untested_note([str(c[5]) for c in cells])
+    note = _untested_note([str(c[5]) for c in cells], [_trials(r) for r in rows])
     out.extend(
         markdown_table(
             (
