@@ -210,7 +210,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("agents", ("baselines", "policy")),
     ("benchmark", ("bench",)),
     ("tools", ("dataset", "train", "demo")),
-    ("entry points", ("cli", "")),  # "" is the package's __init__ (registers the table's envs)
+    ("entry points", ("cli", "tasks", "")),  # "" is the package's __init__ (registers the table's envs)
 )
 
 
