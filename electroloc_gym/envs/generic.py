@@ -8,7 +8,7 @@ task. :func:`env_classes` builds the two for an entry: subclasses of the family'
 family's :class:`~electroloc_gym.envs.global_env.GlobalEnv`; else ``CoreEnv``) and of ``CoreVectorEnv``,
 one pair per entry (the env table finds an entry by its classes).
 
-The classes are set as attributes of the task class's module (``FrugalLoc_v0Env`` for ``FrugalLoc-v0``), so
+The classes are set as attributes of the task class's module (``MyTask_v0Env`` for ``MyTask-v0``), so
 that Gymnasium's entry-point strings and pickling find them by name wherever that module imports (a worker
 process, a subprocess vector env).
 """
