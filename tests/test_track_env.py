@@ -94,7 +94,7 @@ def test_vector_env_type_and_info_shapes() -> None:
         ({"target_speed_mm": True}, r"target_speed_mm must be a finite number"),
         ({"turn_std_rad": -1.0}, r"turn_std_rad must be a finite number ≥ 0 and ≤ 3.14159"),
         ({"turn_std_rad": 4.0}, r"turn_std_rad must be a finite number ≥ 0 and ≤ 3.14159"),
-        ({"motion_model": "kalman"}, r"motion_model must be one of \['random_walk', 'static'\]"),
+        ({"motion_model": "kalman"}, r"motion_model must be one of \['random_walk', 'static', 'swimmer'\]"),
         ({"motion_step_mm": 21.0}, r"motion_step_mm must be a finite number ≥ 0 and ≤ 20"),
         ({"motion_step_mm": "big"}, r"motion_step_mm must be a finite number"),
         # options that contradict each other: one set to a value that has no effect under the other
@@ -106,9 +106,46 @@ def test_vector_env_type_and_info_shapes() -> None:
         ),
         (
             {"motion_model": "static", "motion_step_mm": 5.0},
-            r"^motion_step_mm applies only when motion_model is 'random_walk' \(the static filter takes no step\); "
-            r"got motion_model='static' with motion_step_mm=5\.0: leave motion_step_mm None or choose "
-            r"motion_model='random_walk'$",
+            r"^motion_step_mm applies only when motion_model is 'random_walk' \(only the random-walk filter takes a "
+            r"Gaussian step\); got motion_model='static' with motion_step_mm=5\.0: leave motion_step_mm None or "
+            r"choose motion_model='random_walk'$",
+        ),
+        (
+            {"motion_model": "swimmer", "motion_step_mm": 2.0},
+            r"^motion_step_mm applies only when motion_model is 'random_walk' .*got motion_model='swimmer'",
+        ),
+        # the swimmer filter's own options: their ranges, and only under motion_model="swimmer"
+        (
+            {"motion_turn_std_rad": 0.3},
+            r"^motion_turn_std_rad applies only when motion_model is 'swimmer' \(only the swimmer filter's particles "
+            r"have a heading\); got motion_model='random_walk' with motion_turn_std_rad=0\.3: leave "
+            r"motion_turn_std_rad None or choose motion_model='swimmer'$",
+        ),
+        (
+            {"motion_model": "static", "motion_speed_mm": (0.5, 2.0)},
+            r"^motion_speed_mm applies only when motion_model is 'swimmer' \(only the swimmer filter's particles have "
+            r"a speed\); got motion_model='static' with motion_speed_mm=\(0\.5, 2\.0\)",
+        ),
+        (
+            {"motion_model": "swimmer", "motion_turn_std_rad": 4.0},
+            r"^motion_turn_std_rad must be a finite number ≥ 0 and ≤ 3.14159",
+        ),
+        ({"motion_model": "swimmer", "motion_turn_std_rad": "wide"}, r"^motion_turn_std_rad must be a finite number"),
+        (
+            {"motion_model": "swimmer", "motion_speed_mm": (2.0, 1.0)},
+            r"^motion_speed_mm must be \(low, high\) with low ≤ high, got \(2\.0, 1\.0\)$",
+        ),
+        (
+            {"motion_model": "swimmer", "motion_speed_mm": (0.0, 25.0)},
+            r"^motion_speed_mm must be a finite number ≥ 0 and ≤ 20, got 25\.0$",
+        ),
+        (
+            {"motion_model": "swimmer", "motion_speed_mm": 1.0},
+            r"^motion_speed_mm must be a tuple of 2 numbers in \[0, 20\] mm, got 1\.0$",
+        ),
+        (
+            {"motion_model": "swimmer", "motion_speed_mm": (1.0, float("nan"))},
+            r"^motion_speed_mm must be a finite number",
         ),
         ({"motion_model": "static", "motion_step_mm": 0.0}, r"^motion_step_mm applies only when motion_model is"),
         (
@@ -134,6 +171,10 @@ def test_every_bad_motion_option_is_one_clear_error(kwargs: dict[str, Any], matc
         {"target_motion": "swimmer", "turn_std_rad": 2.0, "motion_model": "random_walk", "motion_step_mm": 5.0},
         {"target_motion": "random_walk", "motion_step_mm": 5.0},  # a model mismatch, allowed
         {"target_speed_mm": 0.0, "turn_std_rad": 1.0},  # a still swimmer: the speed sweep's end, allowed
+        {"motion_model": "swimmer"},
+        {"motion_model": "swimmer", "motion_turn_std_rad": None, "motion_speed_mm": None},
+        {"motion_model": "swimmer", "motion_turn_std_rad": 0.0, "motion_speed_mm": [1.0, 1.0]},  # one speed
+        {"motion_model": "swimmer", "target_motion": "random_walk", "motion_speed_mm": (0.0, 20.0)},  # a mismatch
     ],
 )
 def test_options_that_do_not_contradict_each_other_are_taken(kwargs: dict[str, Any]) -> None:
@@ -505,3 +546,165 @@ def test_a_reset_sets_the_tasks_own_arrays_back_over_their_declared_fields(monke
     assert sim.state.done.all()
     sim.step(moves)  # next_step autoreset of all three
     assert own.misses.tolist() == [-7, -7, -7]
+
+
+# ---- the swimmer filter: a belief over the target's position and velocity -----------------------------------
+SWIM: dict[str, Any] = {"motion_model": "swimmer"}
+
+
+def test_check_env_on_the_swimmer_filter_both_observations() -> None:
+    for observation, dim in (("belief", 85), ("raw", 3)):
+        env = gym.make(ID, **SMALL, **SWIM, observation=observation)
+        check_env(env.unwrapped)
+        assert env.observation_space.shape == (dim,)
+        obs, info = env.reset(seed=0)
+        assert obs.shape == (dim,) and env.unwrapped.belief.particles.shape == (200, 4)
+        assert info["velocity_mean_mm"].shape == (2,) and float(info["velocity_spread_mm"]) > 0
+    plain = gym.make(ID, **SMALL)
+    _, info = plain.reset(seed=0)
+    assert plain.observation_space.shape == (81,) and "velocity_mean_mm" not in info  # the other models: as before
+
+
+def test_the_swimmer_filter_same_seed_same_episode() -> None:
+    def run(seed: int) -> list[Any]:
+        env = gym.make(ID, **SMALL, **SWIM, motion_speed_mm=(0.5, 3.0), target_speed_mm=2.0)
+        env.action_space.seed(7)
+        obs, info = env.reset(seed=seed)
+        out = [obs, info["velocity_mean_mm"], env.unwrapped.belief.particles.copy()]
+        for _ in range(11):
+            obs, r, te, tr, info = env.step(env.action_space.sample())
+            out += [obs, r, info["target_mm"], info["velocity_mean_mm"], info["velocity_spread_mm"]]
+        return [*out, env.unwrapped.belief.particles.copy()]
+
+    a, b, c = run(3), run(3), run(4)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert not all(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+@pytest.mark.parametrize("sensor_model", ["analytic", "calibrated"])
+def test_the_swimmer_filter_vector_env_equals_single_envs(mode: AutoresetMode, sensor_model: str) -> None:
+    kwargs = {**SMALL, **SWIM, "max_observations": 6, "target_speed_mm": 4.0, "condition": "random"}
+    kwargs.update(sensor_model=sensor_model, motion_speed_mm=(1.0, 6.0), motion_turn_std_rad=0.3)
+    keys = (*TRACK_KEYS, "velocity_mean_mm", "velocity_spread_mm")
+    assert_native_equals_sync(ID, kwargs, mode, keys, n=3, steps=14, min_ended=3)
+
+
+def _swimmer_sim(n: int, half_mm: float = 50.0, **kw: Any) -> Simulation:
+    return _sim(n, condition=_box_condition(half_mm), **SWIM, **kw)
+
+
+def test_a_particle_steps_by_its_velocity_in_closed_form() -> None:
+    """Without noise a particle at p with speed s and heading θ is at p + k·s·(cos θ, sin θ) after k steps, and
+    a particle that meets a wall is folded back (the triangle wave), its heading mirrored; the agents'
+    prediction is the engine's step bit for bit.
+    """
+    sim = _swimmer_sim(1, max_observations=400)
+    s, m = sim.state, sim.state.n_particles
+    rng = np.random.default_rng(0)
+    x0 = rng.uniform(-5, 5, (2, m)).astype(np.float32)
+    speed = rng.uniform(0.0, 1.5, m).astype(np.float32)
+    heading = rng.uniform(-np.pi, np.pi, m).astype(np.float32)
+    s.particles_mm[0], s.shape_particles[0, 0], s.shape_particles[0, 1] = x0, speed, heading
+    before = np.concatenate([s.particles_mm[0], s.shape_particles[0]]).T.copy()
+    predicted = sim.task.particles_after_move(s, 0, before, np.zeros((3, 2)))
+    k = 20  # at most 30 mm from within ±5 mm: no wall of the ±50 mm box
+    for step in range(k):
+        sim.task.move(s, slice(None), np.zeros((1, 2)))
+        if step == 0:
+            after = np.concatenate([s.particles_mm[0], s.shape_particles[0]]).T
+            assert all(np.array_equal(p, after) for p in predicted)  # the prediction is the engine's step
+    v = speed.astype(float) * np.stack([np.cos(heading.astype(float)), np.sin(heading.astype(float))])
+    np.testing.assert_allclose(s.particles_mm[0], x0 + k * v, atol=2e-5 * k)
+    np.testing.assert_array_equal(s.shape_particles[0, 0], speed)  # the step changes no speed
+    # toward the east wall: 3 mm per step from x = 40 mm, heading 0; after 7 steps x = 61 → 2·50 − 61 = 39 mm
+    s.particles_mm[0, 0], s.particles_mm[0, 1] = 40.0, 0.0
+    s.shape_particles[0, 0], s.shape_particles[0, 1] = 3.0, 0.0
+    for _ in range(7):
+        sim.task.move(s, slice(None), np.zeros((1, 2)))
+    np.testing.assert_allclose(s.particles_mm[0, 0], 39.0, atol=1e-5)
+    np.testing.assert_allclose(np.abs(s.shape_particles[0, 1]), np.pi, atol=1e-6)  # mirrored: heading west
+
+
+def test_the_swimmer_filter_particles_stay_in_the_box_and_their_speeds_in_the_prior() -> None:
+    for half, speed in ((3.0, 20.0), (12.0, 7.0), (50.0, 1.0)):
+        sim = _swimmer_sim(3, half, target_speed_mm=speed, motion_speed_mm=(0.0, 20.0), max_observations=400)
+        assert _widest_excursion(sim, 150) <= 1.0  # the target and every particle, every reading
+        v = sim.state.shape_particles
+        assert np.all((v[:, 0] >= 0.0) & (v[:, 0] <= 20.0)) and np.all(np.isfinite(v))
+
+
+def test_the_swimmer_filters_jitter_turns_the_heading_by_its_turn_std() -> None:
+    """After one update of identical hypotheses the spread is the jitter's: 1 mm per position axis, the turn
+    std on the heading, :data:`SPEED_JITTER_MM` on a speed drawn from a range (none for one speed).
+    """
+    from electroloc_gym.engines.numba_core.track_task import SPEED_JITTER_MM
+
+    def spreads(**kw: Any) -> np.ndarray:
+        sim = _sim(2, n_particles=4000, **SWIM, **kw)
+        s = sim.state
+        s.particles_mm[:] = 0.0
+        s.shape_particles[:, 0], s.shape_particles[:, 1] = 1.0, 0.5
+        g = np.random.default_rng(0)
+        jitter = np.stack([table_normal_indices(g, 4 * 4000) for _ in range(2)])
+        assert sim.task.assimilate(s, np.arange(2), np.zeros(2), np.full(2, 0.5), jitter, normal_table()) < 0
+        cloud = np.concatenate([s.particles_mm, s.shape_particles], axis=1).astype(float)
+        return cloud.std(axis=2).mean(axis=0)
+
+    got = spreads(motion_turn_std_rad=0.3, motion_speed_mm=(0.0, 2.0))
+    np.testing.assert_allclose(got, [1.0, 1.0, SPEED_JITTER_MM, 0.3], rtol=0.03)
+    got = spreads()  # one speed (the target's), the target's turn std (0.5 rad)
+    np.testing.assert_allclose(got[[0, 1, 3]], [1.0, 1.0, 0.5], rtol=0.03)
+    assert got[2] == 0.0
+
+
+def test_the_velocity_info_and_observation_are_the_particles() -> None:
+    from electroloc_gym.engines.numba_core.track_task import sin_cos
+
+    env = gym.make(ID, **SMALL, **SWIM, motion_speed_mm=(0.0, 4.0))
+    env.reset(seed=5)
+    for _ in range(4):
+        obs, _, _, _, info = env.step(np.array([0.3, -0.2], dtype=np.float32))
+    p = env.unwrapped.belief.particles.astype(float)
+    v = p[:, 2:3] * np.stack([np.cos(p[:, 3]), np.sin(p[:, 3])], axis=1)
+    np.testing.assert_allclose(info["velocity_mean_mm"], v.mean(axis=0), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(info["velocity_spread_mm"], math.sqrt(v.var(axis=0).sum()), rtol=1e-9)
+    np.testing.assert_allclose(obs[81:85], np.clip([*v.mean(axis=0), *v.std(axis=0)], -1, 1) / 4.0, rtol=1e-5)
+    a = np.linspace(-40.0, 40.0, 10001)
+    s, c = sin_cos(a)
+    assert np.abs(s - np.sin(a)).max() < 1e-14 and np.abs(c - np.cos(a)).max() < 1e-14
+
+
+def test_the_swimmer_filter_learns_a_persistent_targets_velocity() -> None:
+    """A swimmer that barely turns (0.05 rad per reading, 3 mm per reading) followed by pursuit: at the end the
+    belief's mean velocity points along the target's true heading (fixed seeds: cosines 0.95, 0.96, 0.45, 0.45;
+    a belief that had learnt nothing would point anywhere).
+    """
+    from electroloc_gym.baselines.agent import make_agent
+    from electroloc_gym.baselines.rollout import run_episode
+
+    kw = {"n_particles": 1000, "sensor_model": "analytic", "max_observations": 40, "condition": "fresh-steel-38.1"}
+    env = gym.make(ID, **kw, **SWIM, target_speed_mm=3.0, turn_std_rad=0.05)
+    cosines = []
+    for seed in range(4):
+        ep = run_episode(env, make_agent("pursuit"), seed, agent_seed=seed)
+        h = float(env.unwrapped._state.task.target_heading_rad[0])
+        v = np.asarray(ep.info["velocity_mean_mm"])
+        cosines.append(float(v @ [math.cos(h), math.sin(h)] / np.linalg.norm(v)))
+    assert min(cosines) > 0.3 and np.mean(cosines) > 0.6, cosines
+
+
+def test_the_agent_view_shows_the_sphere_whose_velocity_the_belief_carries() -> None:
+    """The swimmer filter's hypotheses carry a velocity, not the sphere: the agent still sees the condition's
+    sphere (the unknown target, whose hypotheses carry it, still hides it).
+    """
+    from electroloc_gym.envs.agent_view import agent_view
+
+    env = gym.make(ID, **SMALL, **SWIM)
+    env.reset(seed=0)
+    view = agent_view(env)
+    assert view.condition.target.radius_mm == env.unwrapped.condition.target.radius_mm
+    unknown = gym.make("ElectroLocUnknownTarget-v0", n_particles=50)
+    unknown.reset(seed=0)
+    with pytest.raises(AttributeError):
+        _ = agent_view(unknown).condition.target

@@ -202,6 +202,8 @@ CAPABILITIES: Mapping[str, Mapping[str, Support]] = MappingProxyType(
             "turn_std_rad": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
             "motion_model": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
             "motion_step_mm": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
+            "motion_turn_std_rad": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
+            "motion_speed_mm": {"numba": IMPLEMENTED, "torch": _TRACK_ONLY},
             # ---- the vector envs' constructor arguments ------------------------------------------------
             "num_envs": {"numba": IMPLEMENTED, "torch": IMPLEMENTED},
             "render_mode": {

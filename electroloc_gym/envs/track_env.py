@@ -29,7 +29,10 @@ class TrackEnv(ElectroLocEnv):
     ## Action Space, Observation Space
 
     As ElectroLoc-v0 (``Box(-1, 1, (2,))`` × 10 mm or ``Discrete(9)``; 81 belief features or 3 raw).
-    Entry 11 (readings used / cap) tells the agent how far the episode has run.
+    Entry 11 (readings used / cap) tells the agent how far the episode has run. With
+    ``motion_model="swimmer"`` the belief observation has 85 entries: 81–82 the belief's mean velocity
+    (x, y), 83–84 its std per axis, each over the speed prior's upper end (1 mm per reading when that is
+    0), clipped to [−1, 1] (the raw observation is unchanged).
 
     ## Rewards
 
@@ -40,7 +43,8 @@ class TrackEnv(ElectroLocEnv):
 
     As ElectroLoc-v0 (the target at the condition's ``target_xy_mm`` or, with ``randomize_target``,
     uniform in the start box; the carriage uniform in the start box; the particles uniform over the
-    allowed box); the swimmer's heading uniform in [0, 2π).
+    allowed box); the swimmer's heading uniform in [0, 2π); with ``motion_model="swimmer"`` each particle's
+    speed uniform in ``motion_speed_mm`` (or the target's speed) and its heading uniform in [−π, π).
 
     ## Episode End
 
@@ -54,20 +58,25 @@ class TrackEnv(ElectroLocEnv):
     target now), ``tracking_error_mm`` (mean error over the second half's readings so far: at the end,
     the episode's tracking metric; before the second half, the current error),
     ``carriage_distance_mm`` (carriage to target) and ``captured`` (that distance ≤ 10 mm) — ground
-    truth, for evaluation.
+    truth, for evaluation. With ``motion_model="swimmer"`` also ``velocity_mean_mm`` (the particles' mean
+    velocity (vx, vy), mm per reading) and ``velocity_spread_mm`` (√(var vx + var vy), mm per reading):
+    the belief's, not the truth.
 
     ## Accessors
 
-    As ElectroLoc-v0. The belief between steps is already the predicted belief of the next reading (the
-    motion model's step is taken in the filter's jitter after resampling), so ``predicted_particles_mm``
-    returns the hypotheses unchanged and min-var votes on the predicted belief. ``target_mm`` is the
-    target now (ground truth).
+    As ElectroLoc-v0. With the random walk the belief between steps is already the predicted belief of the
+    next reading (the motion model's step is taken in the filter's jitter after resampling), so
+    ``predicted_particles_mm`` returns the hypotheses unchanged and min-var votes on the predicted belief.
+    With ``motion_model="swimmer"`` ``belief.particles`` is (M, 4) — x, y (mm), speed (mm per reading),
+    heading (rad) — and ``predicted_particles_mm`` steps each (M, 4) hypothesis by its velocity, as the
+    engine does before the next reading. ``target_mm`` is the target now (ground truth).
 
     ## Arguments
 
     ```python
     gym.make("ElectroLocTrack-v0", condition="fresh-steel-12.7", target_motion="swimmer",
              target_speed_mm=1.0, turn_std_rad=0.5, motion_model="random_walk", motion_step_mm=None,
+             motion_turn_std_rad=None, motion_speed_mm=None,
              observation="belief", sensor_model="calibrated", n_particles=2500, max_observations=70,
              success_spread_mm=10.0, signal=<get_condition's default>, action_type="continuous",
              randomize_target=False, calibration_seed=None, calibration=DEFAULT_CALIBRATION,
@@ -83,9 +92,16 @@ class TrackEnv(ElectroLocEnv):
       another value than 0.5 with ``target_motion="random_walk"`` is refused).
     * ``motion_model``: what the filter is told: ``"random_walk"`` (each particle a Gaussian step of RMS
       ``motion_step_mm`` before each update: the jitter after resampling grows from the paper's 1 mm to
-      √(1 mm² + ``motion_step_mm``²/2) per axis) or ``"static"`` (the paper's filter).
+      √(1 mm² + ``motion_step_mm``²/2) per axis), ``"static"`` (the paper's filter) or ``"swimmer"`` (the
+      swimmer's own model: each particle carries a speed and a heading, steps by them before each update,
+      reflected at the walls, and the jitter after resampling turns its heading by N(0, σ_turn²)).
     * ``motion_step_mm``: the filter's RMS step, mm per reading, [0, 20], or None: ``target_speed_mm``
-      (another value is a model mismatch; a number with ``motion_model="static"`` is refused).
+      (another value is a model mismatch; a number with another ``motion_model`` is refused).
+    * ``motion_turn_std_rad``: the swimmer filter's σ_turn, rad, [0, π], or None: ``turn_std_rad``
+      (``motion_model="swimmer"`` only).
+    * ``motion_speed_mm``: the swimmer filter's speed prior, (low, high) mm per reading in [0, 20] with
+      low ≤ high (uniform at reset; jittered by 0.05 mm after resampling), or None: every particle has
+      ``target_speed_mm`` (``motion_model="swimmer"`` only).
 
     Every argument is a field of :class:`electroloc_gym.contract.params.EnvParams`; any other argument, a
     value out of range, or two arguments that contradict each other, is one ValueError naming them and what
@@ -108,14 +124,16 @@ class TrackEnv(ElectroLocEnv):
 
     @property
     def motion_model(self) -> str:
-        """The filter's motion model, ``"random_walk"`` or ``"static"``."""
+        """The filter's motion model, ``"random_walk"``, ``"static"`` or ``"swimmer"``."""
         return self.params.options_as(TrackOptions).motion_model
 
     @property
     def motion_step_mm(self) -> float:
-        """The filter's RMS step per reading, mm (``target_speed_mm`` unless given; 0 with ``"static"``)."""
+        """The filter's RMS Gaussian step per reading, mm (``target_speed_mm`` unless given; 0 with ``"static"``
+        and ``"swimmer"``, whose particles step by their velocities).
+        """
         p = self.params.options_as(TrackOptions)
-        if p.motion_model == "static":
+        if p.motion_model != "random_walk":
             return 0.0
         return p.target_speed_mm if p.motion_step_mm is None else p.motion_step_mm
 

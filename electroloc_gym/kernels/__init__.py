@@ -18,7 +18,13 @@ not depend on the CPU"). Compiled on first use and cached on disk (a few seconds
 
 from electroloc_gym.kernels.belief_rows import belief_observation_rows
 from electroloc_gym.kernels.draws import box_affine, noisy_saturated
-from electroloc_gym.kernels.filter import calibrated_assimilate, jitter_resampled, loglik_assimilate, resample_indices
+from electroloc_gym.kernels.filter import (
+    calibrated_assimilate,
+    calibrated_log_likelihood,
+    jitter_resampled,
+    loglik_assimilate,
+    resample_indices,
+)
 from electroloc_gym.kernels.lookup import bilinear_coefficients, calibration_tables, pooled_calibration_tables
 from electroloc_gym.kernels.mathf32 import exp32, exp_f32, log32, log_f32, row_sums
 from electroloc_gym.kernels.moments import egocentric_counts, mean_cov_rows
@@ -31,6 +37,7 @@ __all__ = [
     "row_sums",
     "calibrated_assimilate",
     "loglik_assimilate",
+    "calibrated_log_likelihood",
     "resample_indices",
     "jitter_resampled",
     "box_affine",

@@ -5,7 +5,8 @@ One env at a time, in a few passes over its particles while they are in cache, i
 * :func:`calibrated_assimilate`: the calibrated model's lookup (:mod:`.lookup`) and the update;
 * :func:`loglik_assimilate`: the update from given float32 log-likelihoods (the analytic models);
 * :func:`resample_indices` and :func:`jitter_resampled`: the same update of clouds with more coordinates
-  than x, y (the unknown target's radius and contrast), in two passes.
+  than x, y (the unknown target's radius and contrast, the moving target's speed and heading), in two
+  passes; :func:`calibrated_log_likelihood` gives such a cloud's calibrated log-likelihoods.
 
 Each ends with the new cloud's mean, covariance and histogram counts (:mod:`.moments`).
 """
@@ -19,7 +20,13 @@ from electroloc_gym.kernels.lookup import _calibrated_ll_one
 from electroloc_gym.kernels.mathf32 import JIT, exp32, sum8
 from electroloc_gym.kernels.moments import _counts_one, _cov_about
 
-__all__ = ["calibrated_assimilate", "loglik_assimilate", "resample_indices", "jitter_resampled"]
+__all__ = [
+    "calibrated_assimilate",
+    "loglik_assimilate",
+    "calibrated_log_likelihood",
+    "resample_indices",
+    "jitter_resampled",
+]
 
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
@@ -341,6 +348,45 @@ def loglik_assimilate(
             *scratch,
         )
     return -1
+
+
+@njit(**JIT)
+def calibrated_log_likelihood(src, origin, sign, lo, inv, n1, base, table, reading, ll):  # pragma: no cover - compiled
+    """The calibrated model's float32 log-likelihoods ``ll`` (k, M) of k clouds' positions, one env at a time:
+    :func:`calibrated_assimilate`'s first pass (the same ``_calibrated_ll_one``, so the same values), for
+    clouds resampled by :func:`resample_indices` and :func:`jitter_resampled` (more coordinates than x, y).
+
+    Arguments as :func:`calibrated_assimilate` (``src`` (k, ≥ 2, M) float32: rows 0–1 are x, y, mm).
+    """
+    k = src.shape[0]
+    m = src.shape[2]
+    px = np.empty(m, dtype=np.float32)
+    py = np.empty(m, dtype=np.float32)
+    sd = np.empty(m, dtype=np.float32)
+    rows = np.empty(m, dtype=np.int32)
+    txs = np.empty(m, dtype=np.float32)
+    tys = np.empty(m, dtype=np.float32)
+    for e in range(k):
+        px[:] = src[e, 0]
+        py[:] = src[e, 1]
+        _calibrated_ll_one(
+            px,
+            py,
+            origin[e, 0],
+            origin[e, 1],
+            sign,
+            lo[e],
+            inv[e],
+            n1[e],
+            base[e],
+            table,
+            reading[e],
+            ll[e],
+            sd,
+            rows,
+            txs,
+            tys,
+        )
 
 
 @njit(**JIT)
