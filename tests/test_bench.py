@@ -169,7 +169,7 @@ def test_run_writes_all_files(serial_run) -> None:
     assert {r["agent"] for r in rows} == set(cfg.agents)
     table = (out / "table.md").read_text()
     assert "Table 4 layout" in table and "Table 1 layout" in table and "Appendix B" in table
-    assert (out / "steps.png").stat().st_size > 1000
+    assert (out / "steps.png").stat().st_size > 1000 and (out / "conditions.png").stat().st_size > 1000
     assert json.loads((out / "config.json").read_text())["seed"] == cfg.seed
 
 

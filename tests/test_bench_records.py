@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from electroloc_gym.bench.config import BenchConfig
 from electroloc_gym.bench.records import REJECTED_FILE, load_records
-from electroloc_gym.bench.runner import record_rules, run_benchmark
+from electroloc_gym.bench.runner import OUTPUT_FILES, record_rules, run_benchmark
 from electroloc_gym.bench.schema import RECORD_KEYS, TIMING_KEYS, TrialRecord
 from electroloc_gym.cli import main as cli_main
 
@@ -197,7 +197,7 @@ def test_summary_and_table_are_written_together_or_not_at_all(reference, tmp_pat
     monkeypatch.setattr(tables, "render_table_md", broken)
     with pytest.raises(RuntimeError, match="table failed"):
         run_benchmark(BenchConfig(**cfg), run, backend="serial", progress=False, log=None, resume=True)
-    assert not any((run / name).exists() for name in ("summary.json", "table.md", "steps.png"))
+    assert not any((run / name).exists() for name in OUTPUT_FILES)
 
 
 # ---- properties --------------------------------------------------------------------------------------------

@@ -23,9 +23,6 @@ ALLOWED = {
     # the envs of one task each: their docstrings and info-key tables document the task's info
     "electroloc_gym/envs/track_env.py": "the moving target's env (its info keys)",
     "electroloc_gym/envs/unknown_target.py": "the unknown target's env (its info keys)",
-    # the vector env's list of the info's name-valued keys, left out of its numeric info (an info key's type, named
-    # where the info is converted; to be derived from the info's dtypes)
-    "electroloc_gym/envs/vector.py": "the vector info's name-valued keys",
     # experiments about one task: their subject is that task's own results
     "experiments/track/speed_sweep.py": "the moving target's speed sweep (its tracking error by speed)",
     "experiments/unknown_target/unknown_target_report.py": "the unknown target's identification report",

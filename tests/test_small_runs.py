@@ -129,4 +129,5 @@ def test_a_bench_run_of_few_trials_prints_no_impossible_interval(trials: int, tm
     assert f"50(0) [{trials}–{trials}] –" in md and not re.search(r"\] [✓✗]", md)
     assert re.search(r"rnd-wlk 0 of 0; min-var 0 of 0\. –: no verdict below 3 trials per cell", md)
     assert "4 such cells, not counted" in md
-    capsys.readouterr()
+    assert (out / "conditions.png").read_bytes().startswith(b"\x89PNG")  # the figures of a small run too
+    assert "conditions.png" in capsys.readouterr().out

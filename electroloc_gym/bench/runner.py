@@ -1,4 +1,4 @@
-"""The benchmark run: agents × conditions × seeded trials → trials.jsonl, summary.json, table.md, steps.png.
+"""The benchmark run: agents × conditions × seeded trials → trials.jsonl, summary.json, table.md and the figures.
 
 :func:`run_benchmark` checks everything before any trial runs — the output folder
 (:func:`~electroloc_gym.bench.records.prepare_out_dir`), its lock (a second run on the same folder
@@ -7,8 +7,8 @@ refuses), the stored run when resuming (``config.json`` and every record's own s
 (:mod:`electroloc_gym.bench.config`) over a backend (:mod:`electroloc_gym.bench.backends`) with the
 worker function :func:`~electroloc_gym.bench.trials.run_trial`, appending each record as it arrives.
 The summary and tables are computed from the records keyed by (condition, agent, trial), so a trial
-is never counted twice; ``config.json``, ``summary.json``, ``table.md`` and ``steps.png`` are
-written atomically.
+is never counted twice; ``config.json``, ``summary.json``, ``table.md`` and the figures ``steps.png`` and
+``conditions.png`` (:mod:`electroloc_gym.bench.plots`) are written atomically.
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ _Log = Callable[[str], None] | None
 #: Most trials a run plans (agents × conditions × trials; the plan is held in memory, ≈1 KB a trial).
 MAX_PLANNED_TRIALS = 1_000_000
 #: The files a run derives from its records, written together (:func:`_write_outputs`).
-OUTPUT_FILES = ("summary.json", "table.md", "steps.png")
+OUTPUT_FILES = ("summary.json", "table.md", "steps.png", "conditions.png")
 #: An agent whose own estimate of one decision exceeds this is announced before the run, s.
 SLOW_DECISION_S = 10.0
 
@@ -219,12 +219,13 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
 
 
 def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
-    """summary.json, table.md and steps.png, all rendered before any is written: together or not at all.
+    """summary.json, table.md, steps.png and conditions.png, all rendered before any is written: together or not
+    at all.
 
     If writing fails part-way, the files already replaced are removed, so no folder holds a summary and a
     table of different records.
     """
-    from electroloc_gym.bench.plots import steps_png
+    from electroloc_gym.bench.plots import conditions_png, steps_png
     from electroloc_gym.bench.tables import render_table_md
 
     try:
@@ -232,6 +233,7 @@ def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
             "summary.json": strict_json(summary).encode("utf-8"),
             "table.md": render_table_md(summary).encode("utf-8"),
             "steps.png": steps_png(summary),
+            "conditions.png": conditions_png(summary),
         }
     except BaseException:  # the old files describe other records: none stays beside trials.jsonl
         for name in OUTPUT_FILES:
@@ -354,5 +356,5 @@ def run_benchmark(
         summary["trials_run_this_time"] = len(specs)
         _write_outputs(out, summary)
     if log is not None:
-        log(f"{len(specs)} trials in {wall:.1f} s; wrote {trials_path}, summary.json, table.md, steps.png")
+        log(f"{len(specs)} trials in {wall:.1f} s; wrote {trials_path}, {', '.join(OUTPUT_FILES)}")
     return summary
