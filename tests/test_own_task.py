@@ -6,6 +6,7 @@ validation score, and its options' errors. The package names nothing of it.
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import subprocess
@@ -27,10 +28,7 @@ from tests.vector_equivalence import assert_native_equals_sync
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
-sys.path.insert(0, str(EXAMPLES))  # the researcher's module, outside the package: ``import own_task``
-import own_task  # noqa: E402
-
-ID = own_task.ENV_ID
+ID = "FrugalLoc-v0"
 SMALL = {"n_particles": 200}
 ENV = {
     **os.environ,
@@ -38,6 +36,27 @@ ENV = {
     "OMP_NUM_THREADS": "1",
     "NUMBA_NUM_THREADS": "1",
 }
+
+
+@pytest.fixture(scope="module", autouse=True)
+def own_task():
+    """The researcher's module, outside the package (``import own_task`` with examples/ on the path), registered
+    for this module's tests, then removed (the other test modules see the built-in table).
+    """
+    from electroloc_gym import registry
+
+    sys.path.insert(0, str(EXAMPLES))
+    try:
+        module = importlib.import_module("own_task")
+        yield module
+    finally:
+        sys.path.remove(str(EXAMPLES))
+        module = sys.modules.pop("own_task", None)
+        if module is not None:
+            registry._TABLE[:] = [e for e in registry._TABLE if e.env_id != ID]
+            gym.registry.pop(ID, None)
+        if "own_task" in registry._PLUGIN_MODULES:
+            registry._PLUGIN_MODULES.remove("own_task")
 
 
 def test_the_package_names_nothing_of_the_task() -> None:
@@ -51,7 +70,7 @@ def test_the_package_names_nothing_of_the_task() -> None:
     assert hits == []
 
 
-def test_the_entry_gets_generic_env_classes_of_its_own() -> None:
+def test_the_entry_gets_generic_env_classes_of_its_own(own_task) -> None:
     entry = env_entry(ID)
     assert entry is own_task.ENTRY and entry.task_class is own_task.FrugalTask
     assert issubclass(entry.env_class, ElectroLocEnv) and issubclass(entry.env_class, CoreEnv)
@@ -74,7 +93,7 @@ def test_the_entry_gets_generic_env_classes_of_its_own() -> None:
     assert electroloc_gym.register_env(bare) is entry
 
 
-def test_gym_make_steps_charge_travel_and_the_budget_truncates() -> None:
+def test_gym_make_steps_charge_travel_and_the_budget_truncates(own_task) -> None:
     # a success criterion out of reach (0.5 mm), so that the budget ends the episode: back and forth, 10 mm a step
     env = gym.make(ID, **SMALL, success_spread_mm=0.5, travel_cost_per_mm=0.1, travel_budget_mm=40.0)
     _, info = env.reset(seed=3)
@@ -124,7 +143,7 @@ def test_bad_options_are_one_line_naming_the_option(kwargs, words) -> None:
     assert words in text and "\n" not in text
 
 
-def test_native_vector_env_equals_a_sync_vector_env_of_single_envs() -> None:
+def test_native_vector_env_equals_a_sync_vector_env_of_single_envs(own_task) -> None:
     vec = gym.make_vec(ID, num_envs=2, vectorization_mode="vector_entry_point", **SMALL)
     assert type(vec.unwrapped) is own_task.ENTRY.vector_class
     vec.close()
@@ -215,7 +234,7 @@ def test_resolve_env_name_imports_the_module_and_remembers_it() -> None:
     assert "own_task" in plugin_modules()
 
 
-def test_a_dataset_of_the_task_keeps_its_info(tmp_path, monkeypatch) -> None:
+def test_a_dataset_of_the_task_keeps_its_info(tmp_path, monkeypatch, own_task) -> None:
     pytest.importorskip("minari")
     from electroloc_gym.cli import main
 
