@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import re
 import sys
-from typing import Any
+from typing import Any, cast
 
 from electroloc_gym.engines.numba_core.global_task import GlobalTask
 from electroloc_gym.engines.numba_core.localize_task import LocalizeTask
@@ -67,7 +67,7 @@ def env_classes(env_id: str, task_class: type) -> tuple[type[CoreEnv], type[Core
     doc = (task_class.__doc__ or "").strip()
     base = single_base(task_class)
     attrs: dict[str, Any] = {"__module__": module, _GENERATED: env_id}
-    single = type(
+    single = type(  # a subclass of ``base`` (a CoreEnv)
         _class_name(env_id, "Env"),
         (base,),
         {**attrs, "__doc__": f"{env_id}: the single env of the task {task_class.__qualname__}. {doc}".strip()},
@@ -80,4 +80,4 @@ def env_classes(env_id: str, task_class: type) -> tuple[type[CoreEnv], type[Core
     for cls in (single, vector):
         cls.__qualname__ = cls.__name__
         _place(cls, module)
-    return single, vector
+    return cast("type[CoreEnv]", single), cast("type[CoreVectorEnv]", vector)
