@@ -23,6 +23,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from electroloc_gym.bench.backends import Backend, WorkerLost, register_backend
+from electroloc_gym.registry import import_plugin_modules, plugin_modules
 from electroloc_gym.utils.runtime import pin_threads, thread_env
 
 __all__ = ["RayBackend", "check_ray_address"]
@@ -128,9 +129,12 @@ def _probe(address: str, ray: Any) -> None:
         )
 
 
-def _run_in_worker(worker_fn: Callable[[Any], Any], spec: Any) -> Any:
-    """What a Ray task runs: set up the worker process like the process pool's initializer, then the trial."""
+def _run_in_worker(worker_fn: Callable[[Any], Any], spec: Any, modules: tuple[str, ...] = ()) -> Any:
+    """What a Ray task runs: set up the worker process like the process pool's initializer (threads, and the
+    modules the driver imported for their envs, :func:`~electroloc_gym.registry.plugin_modules`), then the trial.
+    """
     pin_threads()
+    import_plugin_modules(modules)
 
     return worker_fn(spec)
 
@@ -194,7 +198,8 @@ class RayBackend(Backend):
         try:
             task = ray.remote(num_cpus=1)(_run_in_worker)
             fn_ref = ray.put(worker_fn)
-            refs = {task.remote(fn_ref, spec): spec for spec in specs}
+            modules = plugin_modules()  # a worker imports them (on its own PYTHONPATH) before its trial
+            refs = {task.remote(fn_ref, spec, modules): spec for spec in specs}
             pending = list(refs)
             try:
                 while pending:
