@@ -34,7 +34,10 @@ aggregate and interval; this script only arranges the records into its (runs × 
 imitation baselines of ``experiments/offline/results`` — to the same table, scored against this folder's
 non-learned run (their benchmarks must use the same trials).
 
-Run: ``python experiments/learned/learned_report.py RESULTS [--reps 2000] [--extra experiments/offline/results]``.
+Run: ``python experiments/learned/learned_report.py RESULTS [--reps 2000] [--extra experiments/offline/results]
+[--out DIR]``. The outputs go to ``--out`` (default: ``RESULTS`` itself, beside the runs); a line on stderr says
+each env's and section's progress as it starts (the bootstrap takes minutes), and the last lines list every file
+written.
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -313,12 +317,13 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
     return out
 
 
-def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) -> Path | None:
+def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]], out: Path | None = None) -> Path | None:
     """Success rate and mean readings on validation episodes against env steps: the mean over seeds and its
     95 % t-interval (scipy) clipped to the metric's range (a rate in [0, 1], readings in [0, the episode
     cap]: with five seeds an early, bimodal step's t-interval reaches past both), every algorithm of the env
-    in one figure, drawn by rliable's ``plot_sample_efficiency_curve``; saved atomically. A tracking env
-    shows its validation episodes' mean return (≤ 0) and mean final error (mm, ≥ 0) instead.
+    in one figure, drawn by rliable's ``plot_sample_efficiency_curve``; saved atomically in ``out`` (default
+    ``results``). A tracking env shows its validation episodes' mean return (≤ 0) and mean final error (mm,
+    ≥ 0) instead.
     """
     if not curves:
         return None
@@ -374,7 +379,7 @@ def curve_figure(results: Path, env_id: str, curves: dict[str, dict[str, Any]]) 
         ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x / 1000:g}"))
     axes[0].legend(fontsize=8)
     fig.suptitle(f"{env_id}: learning curves, mean and 95 % interval over training seeds")
-    path = results / f"curves_{env_id}.png"
+    path = (results if out is None else out) / f"curves_{env_id}.png"
     save_figure_atomic(fig, path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
@@ -403,6 +408,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="DIR",
         help="another results folder (DIR/<env-id>/<label>/seed-<k>/bench/) whose labels join the table (repeatable)",
     )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="where report.md, report.json and the figures go (default: the results folder; created if missing)",
+    )
     args = parser.parse_args(argv)
     missing = [str(d) for d in args.extra if not d.is_dir()]
     if missing:
@@ -421,7 +433,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"results folder {str(args.results)!r} does not exist")
     from electroloc_gym.utils.fileio import check_output_options
 
-    check_output_options(parser, folders={"results": args.results})  # report.md, report.json, figures
+    option = "results" if args.out is None else "--out"  # the folder the outputs go to, by the name it was given
+    args.out = args.results if args.out is None else args.out
+    check_output_options(parser, folders={option: args.out})  # report.md, report.json, figures
 
     envs = sorted(p.name for p in args.results.iterdir() if (p / BASELINES_DIR / "bench" / "summary.json").is_file())
     if not envs:
@@ -434,12 +448,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
 
 
+def _progress(t0: float, text: str) -> None:
+    """One progress line on stderr, with the seconds since the start."""
+    print(f"learned_report: [{time.perf_counter() - t0:6.1f} s] {text}", file=sys.stderr, flush=True)
+
+
 def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tuple[str, str]] | None) -> int:
     from electroloc_gym.utils.fileio import atomic_write_text, write_json_atomic
     from electroloc_gym.utils.markdown import markdown_table
 
+    t0 = time.perf_counter()
+    out: Path = args.out
     analyses = []
-    for env in list(envs):  # a suite still running: an env without a benchmarked learned run is left out
+    for k, env in enumerate(
+        list(envs), 1
+    ):  # a suite still running: an env without a benchmarked learned run is left out
+        _progress(t0, f"{env} ({k} of {len(envs)}): scores and {args.reps} bootstrap replications")
         try:
             analyses.append(analyse(args.results, env, args.reps, args.seed, comparisons, args.extra))
         except NoLearnedRuns as exc:
@@ -454,11 +478,16 @@ def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tup
     if aside:
         text += f"\n{len(aside)} record(s) or folder(s) set aside (impossible or not this run's):\n\n"
         text += "".join(f"* {m}\n" for m in aside)
-    figures(analyses, args.results)
+    out.mkdir(parents=True, exist_ok=True)
+    _progress(t0, f"performance profiles of {len(analyses)} env(s)")
+    written = figures(analyses, out)
     compute = []
     for env in envs:
+        _progress(t0, f"{env}: learning curves")
         curves = eval_curves(args.results, env)
-        curve_figure(args.results, env, curves)
+        path = curve_figure(args.results, env, curves, out)
+        if path is not None:
+            written.append(path)
         for algo, c in curves.items():
             walls = [w for w in c["wall_time_s"] if w is not None]
             compute.append((env, algo, ", ".join(f"{w:.0f}" for w in walls) or "–"))
@@ -466,12 +495,16 @@ def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tup
         "\n".join(["", *markdown_table(("env", "algorithm", "training wall time per seed, s (2-core CPU)"), compute)])
         + "\n"
     )
-    atomic_write_text(args.results / "report.md", text)
+    atomic_write_text(out / "report.md", text)
     write_json_atomic(
-        args.results / "report.json",
+        out / "report.json",
         [{k: v for k, v in a.items() if not k.startswith("_") and not (k == "set_aside" and not v)} for a in analyses],
     )
+    written = [out / "report.md", out / "report.json", *written]
     print(text)
+    _progress(t0, f"wrote {len(written)} files:")
+    for path in written:
+        print(f"wrote: {path}", file=sys.stderr)
     return 0
 
 

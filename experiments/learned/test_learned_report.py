@@ -140,6 +140,31 @@ def test_main_writes_report_and_figure(tmp_path):
     assert (res / "profile_ElectroLoc-v0.png").stat().st_size > 0
 
 
+def test_main_says_its_progress_and_every_file_it_wrote_into_out(tmp_path, capsys):
+    res = _results(tmp_path / "runs")
+    before = sorted(p.name for p in res.iterdir())
+    out = tmp_path / "elsewhere" / "report"
+    assert report.main([str(res), "--reps", "200", "--out", str(out)]) == 0
+    assert sorted(p.name for p in res.iterdir()) == before  # nothing written beside the runs
+    err = capsys.readouterr().err.splitlines()
+    progress = [line for line in err if line.startswith("learned_report: [")]
+    assert any("ElectroLoc-v0 (1 of 1)" in line for line in progress), err
+    wrote = [Path(line.removeprefix("wrote: ")) for line in err if line.startswith("wrote: ")]
+    assert {p.name for p in wrote} >= {"report.md", "report.json", "profile_ElectroLoc-v0.png"}
+    assert all(p.parent == out and p.is_file() for p in wrote) and len(wrote) == len(list(out.iterdir()))
+
+
+def test_out_is_checked_before_any_work(tmp_path, capsys):
+    res = _results(tmp_path)
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    with pytest.raises(SystemExit) as exc:
+        report.main([str(res), "--out", str(a_file)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and "--out" in err[-1] and "is a file" in err[-1] and "Traceback" not in "\n".join(err)
+    assert not any(line.startswith("learned_report: [") for line in err)  # refused before any work
+
+
 def test_pairs_of_learned_configurations_are_compared(tmp_path, capsys):
     res = _results(tmp_path)
     for k in range(2):  # a2c needs more readings than every ppo run on both conditions
@@ -268,7 +293,7 @@ def test_a_damaged_file_is_one_line(tmp_path, damage, capsys):
     else:
         (zoo / "summary.json").write_text("[[[garbage")
     assert report.main([str(res), "--reps", "200"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if not line.startswith("learned_report: [")]
     assert len(err) == 1 and err[0].startswith("learned_report: error:") and "Traceback" not in err[0]
 
 
