@@ -21,12 +21,14 @@ from __future__ import annotations
 
 import argparse
 import csv
+import importlib.util
 import json
 import sys
 import time
 from pathlib import Path
 
 import electroloc_gym.train.rllib as erl
+from electroloc_gym.bench.ray_backend import ray_missing
 from electroloc_gym.utils.fileio import check_output_options
 from electroloc_gym.utils.runtime import pin_threads
 
@@ -54,6 +56,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.num_env_runners < 0:
         p.error(f"--num-env-runners must be ≥ 0, got {args.num_env_runners}")
     check_output_options(p, folders={"--out": args.out})
+    if importlib.util.find_spec("ray") is None:  # before any work: one line, as `electroloc bench --backend ray`
+        p.error(ray_missing("examples/rllib_ppo.py", extra="rllib"))
     return args
 
 

@@ -289,3 +289,28 @@ def test_the_gpu_script_refuses_seconds_beyond_its_budget():
     last = proc.stderr.strip().splitlines()[-1]
     assert "--seconds" in last and "--budget-s" in last and "Traceback" not in proc.stderr, proc.stderr
     assert sorted(p.name for p in results.iterdir()) == before
+
+
+# ---- examples/rllib_ppo.py without Ray ----------------------------------------------------------------------
+def test_rllib_ppo_without_ray_is_one_line_before_any_work(tmp_path):
+    """Where Ray is not installed the RLlib example refuses in one ``prog: error: …`` line, the wording of
+    ``electroloc bench --backend ray`` (exit 2, no traceback, nothing created), not a traceback from ``import ray``.
+    """
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    code = (
+        "import sys; sys.modules['ray'] = None; import runpy; sys.argv = ['rllib_ppo.py', '--out', sys.argv[1]]; "
+        f"runpy.run_path({str(ROOT / 'examples' / 'rllib_ppo.py')!r}, run_name='__main__')"
+    )
+    out = tmp_path / "run"
+    done = subprocess.run([sys.executable, "-c", code, str(out)], capture_output=True, text=True, env=env, timeout=120)
+    err = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert err[-1].endswith(
+        "error: examples/rllib_ppo.py needs Ray, which is not installed here: pip install 'electroloc-gym[rllib]'"
+    )
+    assert not out.exists()
+    from electroloc_gym.bench.ray_backend import ray_missing
+
+    assert ray_missing("--backend ray") == (
+        "--backend ray needs Ray, which is not installed here: pip install 'electroloc-gym[ray]' (or pip install ray)"
+    )

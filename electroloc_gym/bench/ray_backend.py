@@ -26,7 +26,7 @@ from electroloc_gym.bench.backends import Backend, WorkerLost, register_backend
 from electroloc_gym.registry import import_plugin_modules, plugin_modules
 from electroloc_gym.utils.runtime import pin_threads, thread_env
 
-__all__ = ["RayBackend", "check_ray_address"]
+__all__ = ["RayBackend", "check_ray_address", "ray_missing"]
 
 #: Seconds to wait for a cluster's port to accept a connection.
 CONNECT_TIMEOUT_S = 3.0
@@ -41,11 +41,19 @@ _PROBE = (
 _INSTALL = "pip install 'electroloc-gym[ray]' (or pip install ray)"
 
 
+def ray_missing(what: str, extra: str = "ray") -> str:
+    """The one line for ``what`` (an option, a script) run where Ray is not installed: the install command of the
+    package's ``extra`` that brings it (``"ray"``: the benchmark's backend; ``"rllib"``: RLlib training).
+    """
+    install = _INSTALL if extra == "ray" else f"pip install 'electroloc-gym[{extra}]'"
+    return f"{what} needs Ray, which is not installed here: {install}"
+
+
 def _import_ray() -> Any:
     try:
         import ray
     except ImportError as exc:
-        raise ValueError(f"--backend ray needs Ray, which is not installed here: {_INSTALL}") from exc
+        raise ValueError(ray_missing("--backend ray")) from exc
     return ray
 
 
