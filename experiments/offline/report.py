@@ -13,7 +13,10 @@ the best controller of the mix (offline RL). The controllers are compared on exa
 methods ran (the first trials of each condition of the benchmark's seed 0). Decision time: the median over
 trials of each trial's median ms per ``predict``.
 
-    python experiments/offline/report.py experiments/offline/results --learned experiments/learned/results
+    python experiments/offline/report.py experiments/offline/results --learned experiments/learned/results [--out DIR]
+
+The outputs go to ``--out`` (default: ``RESULTS`` itself); a line on stderr says each env's progress as it
+starts, and the last lines list every file written.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -159,8 +163,10 @@ def table(a: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def curves(results: Path, env_id: str) -> Path | None:
-    """Validation readings against gradient steps, mean and min–max over seeds, per method."""
+def curves(results: Path, env_id: str, out: Path | None = None) -> Path | None:
+    """Validation readings against gradient steps, mean and min–max over seeds, per method; saved in ``out``
+    (default ``results``).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -188,7 +194,7 @@ def curves(results: Path, env_id: str) -> Path | None:
     ax.set_ylabel("validation readings (failure = 35)")
     ax.set_title(f"{env_id}: offline learning curves (mean, min–max over seeds)", fontsize=9)
     ax.legend(fontsize=8)
-    path = results / f"curves_{env_id}.png"
+    path = (results if out is None else out) / f"curves_{env_id}.png"
     save_figure_atomic(fig, path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
@@ -208,6 +214,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--reps", type=ascii_int, default=2000, help="bootstrap replications (100 … 10**6)")
     parser.add_argument("--seed", type=ascii_int, default=0, help="the bootstrap's seed (0 … 2**32 − 1)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="where report.md, report.json and the figures go (default: the results folder; created if missing)",
+    )
     args = parser.parse_args(argv)
     if not 100 <= args.reps <= 10**6:
         parser.error(f"--reps must be an integer in [100, 1000000], got {args.reps}")
@@ -215,7 +228,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--seed must be in [0, 2**32 − 1], got {args.seed}")
     if not args.results.is_dir():
         parser.error(f"{args.results} is not a folder")
-    from electroloc_gym.utils.fileio import atomic_write_text, write_json_atomic
+    from electroloc_gym.utils.fileio import atomic_write_text, check_output_options, write_json_atomic
+
+    out: Path = args.results if args.out is None else args.out
+    check_output_options(parser, folders={"results" if args.out is None else "--out": out})
 
     envs = sorted(
         p.name
@@ -224,13 +240,27 @@ def main(argv: list[str] | None = None) -> int:
     )
     if not envs:
         parser.error(f"{args.results} holds no benchmarked offline runs")
-    analyses = [analyse(args.results, args.learned, e, args.reps, args.seed) for e in envs]
-    figs = [curves(args.results, e) for e in envs]
+    t0 = time.perf_counter()
+
+    def progress(text: str) -> None:
+        print(f"offline report: [{time.perf_counter() - t0:6.1f} s] {text}", file=sys.stderr, flush=True)
+
+    analyses = []
+    for k, e in enumerate(envs, 1):
+        progress(f"{e} ({k} of {len(envs)}): scores and {args.reps} bootstrap replications")
+        analyses.append(analyse(args.results, args.learned, e, args.reps, args.seed))
+    out.mkdir(parents=True, exist_ok=True)
+    progress("learning curves")
+    figs = [p for p in (curves(args.results, e, out) for e in envs) if p is not None]
     text = "\n\n".join(table(a) for a in analyses)
-    text += "\n\n" + "\n".join(f"![curves]({p.name})" for p in figs if p is not None) + "\n"
-    atomic_write_text(args.results / "report.md", text)
-    write_json_atomic(args.results / "report.json", analyses)
+    text += "\n\n" + "\n".join(f"![curves]({p.name})" for p in figs) + "\n"
+    atomic_write_text(out / "report.md", text)
+    write_json_atomic(out / "report.json", analyses)
     print(text)
+    written = [out / "report.md", out / "report.json", *figs]
+    progress(f"wrote {len(written)} files:")
+    for path in written:
+        print(f"wrote: {path}", file=sys.stderr)
     return 0
 
 

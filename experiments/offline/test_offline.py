@@ -154,3 +154,23 @@ def test_a_tiny_tracking_run_validates_by_tracking_error_and_capture(offline, tr
     curve = result["curve"]
     assert all(r["readings"] == 70 and 0 <= r["capture"] <= 1 and r["tracking_error_mm"] >= 0 for r in curve)
     assert result["best"] == min(curve, key=lambda r: r["tracking_error_mm"])
+
+
+def test_the_report_says_its_progress_and_every_file_it_wrote_into_out(tmp_path, capsys):
+    """The report of the committed runs into ``--out``: a progress line per env on stderr, then one ``wrote:``
+    line per file, every file in ``--out``; the committed report beside the runs is left as it is.
+    """
+    sys.path.insert(0, str(ROOT / "experiments" / "offline"))
+    try:
+        import report
+    finally:
+        sys.path.remove(str(ROOT / "experiments" / "offline"))
+    results = ROOT / "experiments" / "offline" / "results"
+    kept = (results / "report.md").read_bytes()
+    out = tmp_path / "report"
+    assert report.main([str(results), "--reps", "100", "--out", str(out)]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert sum(line.startswith("offline report: [") and "bootstrap" in line for line in err) == 2, err
+    wrote = [Path(line.removeprefix("wrote: ")) for line in err if line.startswith("wrote: ")]
+    assert {p.name for p in wrote} >= {"report.md", "report.json"} and all(p.parent == out for p in wrote)
+    assert sorted(wrote) == sorted(out.iterdir()) and (results / "report.md").read_bytes() == kept
