@@ -127,6 +127,52 @@ def test_qrdqn_and_recurrent_ppo_act_as_sb3(tmp_path):
     assert agent.recurrent and _rollout_check(model, venv, agent, steps=60) >= 1  # the LSTM state resets per episode
 
 
+def _renormed(model, rng):
+    """The CrossQ model with Batch Renorm statistics, scales and biases far from their initial identity (running
+    mean/var as after training), so that the numpy forward pass is checked on every term of the layer."""
+    import torch
+
+    with torch.no_grad():
+        for name, t in model.policy.state_dict().items():
+            if name.endswith((".ra_mean", ".bias")) and t.dtype.is_floating_point:
+                t.copy_(torch.as_tensor(rng.normal(0, 0.5, t.shape)))
+            elif name.endswith((".ra_var", ".scale")):
+                t.copy_(torch.as_tensor(rng.uniform(0.3, 2.0, t.shape)))
+            elif name.endswith(".steps"):
+                t.fill_(12345)
+    return model
+
+
+@pytest.mark.parametrize(
+    "policy_kwargs",
+    [
+        {"net_arch": [16, 16]},
+        {"net_arch": {"pi": [8], "qf": [12]}},
+        {"net_arch": [16], "batch_norm": False},
+        {"net_arch": [16, 8], "batch_norm_eps": 0.05},
+    ],
+)
+def test_the_numpy_crossq_actor_acts_as_sb3_contrib_predict(tmp_path, policy_kwargs):
+    """CrossQ's actor has Batch Renorm layers (before each linear layer and after the last hidden one); the numpy
+    forward pass uses their running statistics, as sb3-contrib's predict does in evaluation mode."""
+    contrib = pytest.importorskip("sb3_contrib")
+    venv = _venv()
+    model = contrib.CrossQ("MlpPolicy", venv, policy_kwargs=policy_kwargs, seed=0, learning_starts=10**6, device="cpu")
+    _renormed(model, np.random.default_rng(5))
+    agent = _export(model, venv, tmp_path / "c")
+    assert read_export(tmp_path / "c").meta["algo"] == "crossq"
+    assert _rollout_check(model, venv, agent) >= 1
+    if policy_kwargs.get("batch_norm", True):  # the statistics matter: the identity statistics act differently
+        w = read_weights(read_export(tmp_path / "c"))
+        w = {k: (np.zeros_like(v) if k.endswith(".ra_mean") else v) for k, v in w.items()}
+        from electroloc_gym.policy.networks import build_actor
+
+        x = np.random.default_rng(0).normal(size=(4, agent.obs_dim))
+        a0, _ = agent.actor(x)
+        a1, _ = build_actor(agent.meta, w)(x)
+        assert not np.allclose(a0, a1)
+
+
 _BOX = {"type": "Box", "shape": [3], "dtype": "float32", "low": [-1.0] * 3, "high": [1.0] * 3}
 _DISCRETE = {"type": "Discrete", "n": 5, "start": 0}
 _LSTM = {"lstm_hidden_size": 6, "n_lstm_layers": 1, "shared_lstm": False, "enable_critic_lstm": True}
@@ -159,6 +205,10 @@ _LSTM = {"lstm_hidden_size": 6, "n_lstm_layers": 1, "shared_lstm": False, "enabl
         ("dqn", "DQNPolicy", _DISCRETE, {"net_arch": [12]}, None),
         ("dqn", "DQNPolicy", _DISCRETE, {"net_arch": []}, None),
         ("qrdqn", "QRDQNPolicy", _DISCRETE, {"net_arch": [12], "n_quantiles": 7}, None),
+        ("crossq", "CrossQPolicy", _BOX, {"net_arch": [16, 8]}, None),
+        ("crossq", "CrossQPolicy", _BOX, {"net_arch": {"pi": [9], "qf": [6, 5]}, "n_critics": 3}, None),
+        ("crossq", "CrossQPolicy", _BOX, {"net_arch": [7], "batch_norm": False}, None),
+        ("crossq", "CrossQPolicy", _BOX, {"net_arch": {"pi": [], "qf": [4]}}, None),
     ],
 )
 def test_the_format_knows_each_policy_class_tensors(algo, policy_class, action, policy_kwargs, recurrent):
@@ -168,7 +218,7 @@ def test_the_format_knows_each_policy_class_tensors(algo, policy_class, action, 
 
     from electroloc_gym.policy.format import POLICY_CLASSES, expected_tensors, space_from_json
 
-    if policy_class in ("RecurrentActorCriticPolicy", "QRDQNPolicy"):
+    if policy_class in ("RecurrentActorCriticPolicy", "QRDQNPolicy", "CrossQPolicy"):
         pytest.importorskip("sb3_contrib")
     obs = {"type": "Box", "shape": [7], "dtype": "float32", "low": [-1.0] * 7, "high": [1.0] * 7}
     meta = {

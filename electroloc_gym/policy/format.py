@@ -35,7 +35,8 @@ VecNormalize's other keys).
 The tensors are checked against what the declared architecture builds (:func:`expected_tensors`: the
 ``state_dict`` names and shapes of the policy class with that ``net_arch``, LSTM, observation size and
 action space): none missing, none extra, every shape and the count in ``weights.tensors`` as declared,
-floating-point — at load, so a file whose parts disagree is refused before it acts, never half-read.
+floating-point (CrossQ's Batch Renorm update counters, ``….steps``, integers) — at load, so a file whose
+parts disagree is refused before it acts, never half-read.
 
 Reading never unpickles or executes anything: JSON is parsed, spaces are rebuilt from plain values,
 and the safetensors file is read and written by the reference library's numpy interface
@@ -95,6 +96,7 @@ POLICY_CLASSES: dict[str, str] = {
     "SACPolicy": "stable_baselines3.sac.policies:SACPolicy",
     "DQNPolicy": "stable_baselines3.dqn.policies:DQNPolicy",
     "QRDQNPolicy": "sb3_contrib.qrdqn.policies:QRDQNPolicy",
+    "CrossQPolicy": "sb3_contrib.crossq.policies:CrossQPolicy",
 }
 
 #: ``algo`` → (the policy class its files hold, which tensors they hold: ``"policy"`` the class's whole
@@ -108,11 +110,17 @@ ALGOS: dict[str, tuple[str, str]] = {
     "sac": ("SACPolicy", "policy"),
     "dqn": ("DQNPolicy", "policy"),
     "qrdqn": ("QRDQNPolicy", "policy"),
+    "crossq": ("CrossQPolicy", "policy"),
     "bc": ("SACPolicy", "actor"),
     "td3_bc": ("SACPolicy", "actor"),
 }
 #: The action type a policy class acts in (a class not listed acts in either).
-CLASS_ACTION_TYPES: dict[str, str] = {"SACPolicy": "continuous", "DQNPolicy": "discrete", "QRDQNPolicy": "discrete"}
+CLASS_ACTION_TYPES: dict[str, str] = {
+    "SACPolicy": "continuous",
+    "CrossQPolicy": "continuous",
+    "DQNPolicy": "discrete",
+    "QRDQNPolicy": "discrete",
+}
 
 #: Activation name (as written in policy.json) → ``torch.nn`` class name.
 ACTIVATIONS: dict[str, str] = {
@@ -145,6 +153,11 @@ POLICY_KWARGS: dict[str, str] = {
     "n_lstm_layers": "count",
     "shared_lstm": "flag",
     "enable_critic_lstm": "flag",
+    "batch_norm": "flag",
+    "batch_norm_momentum": "number",
+    "batch_norm_eps": "number",
+    "renorm_warmup_steps": "number",
+    "clip_mean": "number",
 }
 #: ``architecture.recurrent``'s keys (the recurrent policy class's LSTM), by kind as above.
 RECURRENT_KEYS: dict[str, str] = {
@@ -354,7 +367,8 @@ def _safetensors_bytes(tensors: Mapping[str, np.ndarray]) -> bytes:
     import safetensors.numpy as st
 
     try:
-        return st.save({name: np.ascontiguousarray(a) for name, a in tensors.items()}, metadata={"format": FORMAT})
+        # np.asarray(order="C"), not np.ascontiguousarray: that one makes a 0-d tensor (a counter) 1-d
+        return st.save({name: np.asarray(a, order="C") for name, a in tensors.items()}, metadata={"format": FORMAT})
     except Exception as exc:  # the library raises its own error types for dtypes it cannot hold
         raise PolicyFormatError(f"cannot write the policy tensors: {one_line(exc)}") from exc
 
@@ -419,6 +433,46 @@ def _lstm(name: str, n_in: int, hidden: int, layers: int) -> dict[str, tuple[int
     return shapes
 
 
+#: The tensors of one Batch Renorm layer (sb3-contrib's ``BatchRenorm1d``, CrossQ): four of ``n`` features, and
+#: ``steps``, the layer's update counter (a 0-d int64 tensor; the one integer tensor the format holds).
+_RENORM = ("scale", "bias", "ra_mean", "ra_var")
+
+
+def _renorm(name: str, n: int) -> dict[str, tuple[int, ...]]:
+    return {**{f"{name}.{k}": (n,) for k in _RENORM}, f"{name}.steps": ()}
+
+
+def _crossq_mlp(
+    prefix: str, n_in: int, layers: list[int], n_out: int | None, renorm: bool
+) -> tuple[dict[str, Any], int]:
+    """sb3-contrib's CrossQ MLP ``prefix`` (``create_mlp`` with a Batch Renorm layer before each ``nn.Linear``):
+    per layer [renorm,] linear, activation; then a linear to ``n_out`` (after a renorm layer) if given, else a final
+    renorm layer after the last hidden one (the actor's ``latent_pi``). Returns the shapes and the last width.
+    """
+    shapes: dict[str, tuple[int, ...]] = {}
+    width, i = n_in, 0
+    for size in layers:
+        if renorm:
+            shapes.update(_renorm(f"{prefix}.{i}", width))
+            i += 1
+        shapes.update(_linear(f"{prefix}.{i}", width, size))
+        width, i = size, i + 2
+    if n_out is not None:
+        if renorm:
+            shapes.update(_renorm(f"{prefix}.{i}", width))
+            i += 1
+        shapes.update(_linear(f"{prefix}.{i}", width, n_out))
+        width = n_out
+    elif renorm and layers:
+        shapes.update(_renorm(f"{prefix}.{i}", width))
+    return shapes, width
+
+
+def integer_tensor(meta: Mapping[str, Any], name: str) -> bool:
+    """Whether tensor ``name`` of a file is an integer one: a CrossQ Batch Renorm layer's ``steps`` counter."""
+    return meta["architecture"]["policy_class"] == "CrossQPolicy" and name.endswith(".steps")
+
+
 def _arch_parts(net_arch: Any, critic: str) -> tuple[list[int], list[int]]:
     """(actor layers, critic layers) of a ``net_arch``: one list for both, or ``{"pi": [...], critic: [...]}``."""
     if isinstance(net_arch, dict):
@@ -470,6 +524,15 @@ def expected_tensors(meta: Mapping[str, Any]) -> dict[str, tuple[int, ...]]:
             for net in ("critic", "critic_target"):
                 for i in range(int(pk.get("n_critics", 2))):
                     out.update(_mlp(f"{net}.qf{i}", n_obs + n_act, qf, 1)[0])
+    elif kind == "CrossQPolicy":  # Batch Renorm layers in actor and critics; no target network
+        pi, qf = _arch_parts(pk["net_arch"], "qf")
+        renorm = bool(pk.get("batch_norm", True))
+        shapes, latent = _crossq_mlp("actor.latent_pi", n_obs, pi, None, renorm)
+        out.update(shapes)
+        out.update(_linear("actor.mu", latent, n_act))
+        out.update(_linear("actor.log_std", latent, n_act))
+        for i in range(int(pk.get("n_critics", 2))):
+            out.update(_crossq_mlp(f"critic.qf{i}", n_obs + n_act, qf, 1, renorm)[0])
     elif kind == "DQNPolicy":
         for net in ("q_net", "q_net_target"):
             out.update(_mlp(f"{net}.q_net", n_obs, list(pk["net_arch"]), n_act)[0])
@@ -482,7 +545,8 @@ def expected_tensors(meta: Mapping[str, Any]) -> dict[str, tuple[int, ...]]:
 
 def check_tensors(meta: Mapping[str, Any], tensors: Mapping[str, np.ndarray], where: str) -> None:
     """Refuse ``tensors`` unless they are exactly those :func:`expected_tensors` names, of those shapes,
-    floating-point, and as many as ``weights.tensors`` says (when the file records it).
+    floating-point (:func:`integer_tensor`: integers), and as many as ``weights.tensors`` says (when the file
+    records it).
 
     Raises:
         PolicyFormatError: one line starting with ``where``, naming the fields the tensors contradict.
@@ -504,7 +568,9 @@ def check_tensors(meta: Mapping[str, Any], tensors: Mapping[str, np.ndarray], wh
         a = tensors[name]
         if tuple(a.shape) != want[name]:
             problems.append(f"{name!r} has shape {tuple(a.shape)}, the architecture's is {want[name]}")
-        elif a.dtype.kind != "f":
+        elif integer_tensor(meta, name) and a.dtype.kind not in "iu":
+            problems.append(f"{name!r} is {a.dtype}, not an integer counter")
+        elif not integer_tensor(meta, name) and a.dtype.kind != "f":
             problems.append(f"{name!r} is {a.dtype}, not floating-point")
     if problems:
         arch, obs, act = meta["architecture"], meta["observation"], meta["action"]["space"]
@@ -691,9 +757,15 @@ def _check_net_arch(kind: str, net_arch: Any, where: str) -> None:
     """``net_arch`` of the form ``kind`` builds: a list for the DQN classes, ``pi``/``vf`` or ``pi`` and ``qf``."""
     if not isinstance(net_arch, dict):
         return
-    allowed = {"ActorCriticPolicy": {"pi", "vf"}, "RecurrentActorCriticPolicy": {"pi", "vf"}, "SACPolicy": {"pi", "qf"}}
+    allowed = {
+        "ActorCriticPolicy": {"pi", "vf"},
+        "RecurrentActorCriticPolicy": {"pi", "vf"},
+        "SACPolicy": {"pi", "qf"},
+        "CrossQPolicy": {"pi", "qf"},
+    }
     keys = allowed.get(kind)
-    if keys is None or not set(net_arch) <= keys or (kind == "SACPolicy" and set(net_arch) != keys):
+    both = kind in ("SACPolicy", "CrossQPolicy")
+    if keys is None or not set(net_arch) <= keys or (both and set(net_arch) != keys):
         form = "a list of layer sizes" + (
             "" if keys is None else f" or {{{', '.join(repr(k) for k in sorted(keys))}: [...]}}"
         )

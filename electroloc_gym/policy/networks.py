@@ -8,6 +8,9 @@ arithmetic as SB3's ``policy.predict(obs, deterministic=True)``, read off the ``
 * ``RecurrentActorCriticPolicy`` (RecurrentPPO): the actor LSTM (``lstm_actor``, torch's gate order
   i, f, g, o; the state is zeroed where an episode starts) before the same head.
 * ``SACPolicy``: ``actor.latent_pi`` → ``actor.mu`` → tanh, rescaled to the Box.
+* ``CrossQPolicy`` (sb3-contrib): the same, its ``latent_pi`` with a Batch Renorm layer before each linear layer
+  and after the last hidden one, applied as in evaluation mode (the running statistics:
+  ``scale · (x − ra_mean) / sqrt(ra_var + eps) + bias``, ``eps`` = ``batch_norm_eps``).
 * ``DQNPolicy``: arg-max of ``q_net.q_net``; ``QRDQNPolicy``: arg-max of the quantile mean.
 
 Written by hand (no torch, no SB3) so that the benchmark runs a shipped policy with the core
@@ -44,6 +47,7 @@ _DEFAULT_ACT = {
     "ActorCriticPolicy": "tanh",
     "RecurrentActorCriticPolicy": "tanh",
     "SACPolicy": "relu",
+    "CrossQPolicy": "relu",
     "DQNPolicy": "relu",
     "QRDQNPolicy": "relu",
 }
@@ -72,6 +76,33 @@ class _Mlp:
             x = x @ wt + b
             if not (self.last_linear and j == len(self.layers) - 1):
                 x = self.act(x)
+        return x
+
+
+class _RenormMlp:
+    """sb3-contrib's CrossQ ``latent_pi``: its modules ``prefix.<i>`` in index order, each a Batch Renorm layer in
+    evaluation mode (it has ``ra_mean``) or an ``nn.Linear`` followed by the activation.
+    """
+
+    def __init__(self, w: Mapping[str, NDArray[Any]], prefix: str, act: str, eps: float) -> None:
+        pat = re.compile(re.escape(prefix) + r"\.(\d+)\.(weight|ra_mean)$")
+        found = sorted((int(m.group(1)), m.group(2)) for k in w if (m := pat.match(k)))
+        if act not in _ACT:
+            raise PolicyFormatError(f"activation {act!r} has no numpy forward pass; supported: {sorted(_ACT)}")
+        self.act = _ACT[act]
+        self.steps: list[tuple[str, _F64, _F64]] = []
+        for i, kind in found:
+            p = f"{prefix}.{i}"
+            if kind == "weight":
+                self.steps.append(("linear", w[f"{p}.weight"].astype(np.float64).T, w[f"{p}.bias"].astype(np.float64)))
+            else:  # (x − mean) / sqrt(var + eps) · scale + bias  ==  x · a + b
+                inv = 1.0 / np.sqrt(w[f"{p}.ra_var"].astype(np.float64) + eps)
+                a = w[f"{p}.scale"].astype(np.float64) * inv
+                self.steps.append(("renorm", a, w[f"{p}.bias"].astype(np.float64) - w[f"{p}.ra_mean"] * a))
+
+    def __call__(self, x: _F64) -> _F64:
+        for kind, a, b in self.steps:
+            x = self.act(x @ a + b) if kind == "linear" else x * a + b
         return x
 
 
@@ -105,6 +136,10 @@ class Actor:
             elif self.kind == "SACPolicy":
                 body, head = _Mlp(w, "actor.latent_pi", act, False), _linear(w, "actor.mu")
                 self._net = lambda x: np.tanh(head(body(x)))
+            elif self.kind == "CrossQPolicy":
+                eps = float(arch["policy_kwargs"].get("batch_norm_eps", 0.001))
+                renorm, head = _RenormMlp(w, "actor.latent_pi", act, eps), _linear(w, "actor.mu")
+                self._net = lambda x: np.tanh(head(renorm(x)))
             elif self.kind == "DQNPolicy":
                 self._net = _Mlp(w, "q_net.q_net", act, True)
             else:  # QRDQNPolicy: (n, n_quantiles · n_actions) viewed as (n, n_quantiles, n_actions)
@@ -153,7 +188,7 @@ class Actor:
         low, high = self.low, self.high
         if low is None or high is None:
             raise PolicyFormatError(f"a {self.kind} with continuous actions needs a Box action space")
-        if self.kind == "SACPolicy":  # SB3 unscale_action of the tanh-squashed mean
+        if self.kind in ("SACPolicy", "CrossQPolicy"):  # SB3 unscale_action of the tanh-squashed mean
             return (low + 0.5 * (out + 1.0) * (high - low)).astype(np.float32), state
         return np.clip(out, low, high).astype(np.float32), state
 

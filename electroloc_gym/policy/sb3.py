@@ -122,6 +122,7 @@ def _architecture(model: Any) -> dict[str, Any]:
             kwargs[attr] = getattr(policy, attr)
     if isinstance(model, OnPolicyAlgorithm):
         kwargs["use_sde"] = False
+    kwargs.update(getattr(policy, "batch_norm_params", {}))  # CrossQ's Batch Renorm settings, written out
     recurrent = None
     if name == "RecurrentActorCriticPolicy":
         recurrent = {
