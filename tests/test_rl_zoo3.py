@@ -16,7 +16,7 @@ from electroloc_gym.policy import load_policy  # noqa: E402
 from electroloc_gym.train.export import export_run  # noqa: E402
 
 
-@pytest.mark.parametrize("algo", ["ppo", "a2c", "sac", "ppo_lstm", "qrdqn"])
+@pytest.mark.parametrize("algo", ["ppo", "a2c", "sac", "crossq", "ppo_lstm", "qrdqn"])
 def test_each_algorithm_file_trains_exports_and_benches(algo, tmp_path, monkeypatch, capsys):
     run = run_zoo(zoo_argv(algo, tmp_path / "logs"), monkeypatch)
     out = capsys.readouterr().out
@@ -59,6 +59,27 @@ def test_each_algorithm_file_trains_exports_and_benches(algo, tmp_path, monkeypa
     )
     table = json.loads((bench / "summary.json").read_text())
     assert "policy" in json.dumps(table)
+
+
+@pytest.mark.parametrize("algo", ["sac", "crossq"])
+def test_the_off_policy_learners_train_validate_and_bench_on_the_moving_target(algo, tmp_path, monkeypatch):
+    """SAC and CrossQ on ElectroLocTrack-v0 through the shipped files: validated by the task's own score (the
+    mean tracking error), the chosen checkpoint in best/ pickle-free, exported, and run by `electroloc bench
+    --env track`."""
+    run = run_zoo(zoo_argv(algo, tmp_path / "logs", env_id="ElectroLocTrack-v0"), monkeypatch)
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["finished"] and summary["env_id"] == "ElectroLocTrack-v0" and summary["algo"] == algo
+    assert "tracking error" in summary["chosen_by"]
+    header = (run / "eval.csv").read_text().splitlines()[0].split(",")
+    assert "wall_time_s" in header and "mean_tracking_error_mm" in header
+    assert summary["best"]["mean_tracking_error_mm"] > 0
+    assert json.loads((run / "best" / "policy.json").read_text())["algo"] == algo
+    dest = export_run(run, tmp_path / "policy")
+    assert load_policy(dest).meta["observation"]["env_id"] == "ElectroLocTrack-v0"
+    bench = tmp_path / "bench"
+    argv = ["bench", "--env", "track", "--agents", str(dest), "--trials", "1", "--n-particles", "300"]
+    assert cli_main([*argv, "--backend", "serial", "--no-progress", "--out", str(bench)]) == 0
+    assert "policy" in (bench / "summary.json").read_text()
 
 
 def test_a_frame_stacked_raw_policy_trains_and_benches_as_trained(tmp_path, monkeypatch):

@@ -24,6 +24,13 @@ TINY_HYPER: dict[str, dict[str, Any]] = {
         "buffer_size": 1000,
         "policy_kwargs": "dict(net_arch=[16])",
     },
+    "crossq": {
+        "n_envs": 2,
+        "learning_starts": 64,
+        "batch_size": 32,
+        "buffer_size": 1000,
+        "policy_kwargs": "dict(net_arch=dict(pi=[16], qf=[16]))",
+    },
     "ppo_lstm": {
         "n_envs": 4,
         "n_steps": 32,
@@ -51,17 +58,18 @@ def zoo_argv(
     native: bool = True,
     env_kwargs: dict[str, Any] | None = None,
     hyper: dict[str, Any] | None = None,
+    env_id: str = "ElectroLoc-v0",
 ) -> list[str]:
-    """The argv of a tiny ``rl_zoo3.train`` run of ``algo``'s shipped file (its ElectroLoc-v0 section)."""
+    """The argv of a tiny ``rl_zoo3.train`` run of ``algo``'s shipped file (its ``env_id`` section)."""
     import yaml
 
     from electroloc_gym.train.run import hyperparams_file
     from electroloc_gym.train.run import zoo_argv as argv_of
 
-    file_kw = yaml.safe_load(hyperparams_file(algo).read_text())["ElectroLoc-v0"]["env_kwargs"]
+    file_kw = yaml.safe_load(hyperparams_file(algo).read_text())[env_id]["env_kwargs"]
     argv = argv_of(
         algo,
-        "ElectroLoc-v0",
+        env_id,
         7,
         timesteps=timesteps,
         log_folder=log_folder,

@@ -44,7 +44,14 @@ __all__ = [
 ]
 
 #: rl-zoo3 algorithm name → the project's hyper-parameter file (electroloc_gym/train/hyperparams/, keyed by env id).
-ALGO_FILES = {"ppo": "ppo.yml", "a2c": "a2c.yml", "sac": "sac.yml", "ppo_lstm": "ppo_lstm.yml", "qrdqn": "qrdqn.yml"}
+ALGO_FILES = {
+    "ppo": "ppo.yml",
+    "a2c": "a2c.yml",
+    "sac": "sac.yml",
+    "crossq": "crossq.yml",
+    "ppo_lstm": "ppo_lstm.yml",
+    "qrdqn": "qrdqn.yml",
+}
 
 
 #: What a training run imports beyond the package's own dependencies (rl-zoo3 brings SB3 and torch).
