@@ -8,8 +8,10 @@ import pytest
 
 from electroloc_gym.baselines.agent import AGENT_NAMES, agent_class, belief_agents
 from electroloc_gym.bench import bench_command as bench_cli
+from electroloc_gym.bench.api import prepare
 from electroloc_gym.bench.config import (
     BENCH_ENVS,
+    BENCH_OPTIONS,
     ENV_MAX_OBSERVATIONS,
     ENV_N_PARTICLES,
     ENV_SENSOR_MODELS,
@@ -26,6 +28,12 @@ def _cli_args(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     bench_cli.add_arguments(parser)
     return parser.parse_args(argv)
+
+
+def _cli_config(args: argparse.Namespace) -> BenchConfig:
+    """The run the command line prepares (agents rnd-wlk): the front end's own path."""
+    values = {o.name: getattr(args, o.name) for o in BENCH_OPTIONS} | {"agents": "rnd-wlk", "out": None}
+    return prepare(values, lambda o: o.option, lambda line: None)[0]
 
 
 @pytest.mark.parametrize("env", list(BENCH_ENVS))
@@ -52,7 +60,7 @@ def test_the_defaults_are_the_env_tables(env) -> None:
 )
 def test_the_command_line_builds_what_python_builds(argv) -> None:
     args = _cli_args(argv)
-    from_cli = bench_cli._config(args, args.env, ["rnd-wlk"])
+    from_cli = _cli_config(args)
     from_python = BenchConfig.build(
         ["rnd-wlk"],
         env=args.env,
@@ -78,7 +86,7 @@ def test_the_cap_is_checked_once_and_named_by_each_front_end(cap) -> None:
     if isinstance(cap, int) and not isinstance(cap, bool):
         args = _cli_args(["--max-observations", str(cap)])
         with pytest.raises(ValueError) as cli_exc:
-            bench_cli._config(args, args.env, ["rnd-wlk"])
+            _cli_config(args)
         want = f"--max-observations must be an integer in [{MIN_OBSERVATION_CAP}, {MAX_READINGS}], got {cap}"
         assert str(cli_exc.value) == want
 

@@ -132,7 +132,7 @@ def test_dataset_ids():
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"env_id": "Nope-v0"}, "env must be one of"),
+        ({"env_id": "Nope-v0"}, "env_id must be one of"),
         ({"episodes": 0}, r"episodes must be an integer in \[1, "),
         ({"episodes": True}, "episodes must be"),
         ({"seed": 0}, "evaluation seed"),

@@ -17,20 +17,31 @@ worker; a spec — ``package.module:factory[...]`` — runs on any backend, sinc
 
 from __future__ import annotations
 
-import os
+import inspect
 import re
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from electroloc_gym.baselines.rollout import AgentCallError
-from electroloc_gym.bench.agents import PluginAgent, register_object_agent, shipped_models
-from electroloc_gym.bench.config import ENV_CHOICES, BenchConfig
+from electroloc_gym.bench.agents import (
+    PluginAgent,
+    agent_kind,
+    cached_agent,
+    policy_meta,
+    register_object_agent,
+    shipped_model_env,
+    shipped_models,
+)
+from electroloc_gym.bench.config import BENCH_OPTIONS, CONFIG_OPTIONS, BenchConfig
 from electroloc_gym.bench.runner import run_benchmark
-from electroloc_gym.world.conditions import DEFAULT_SIGNAL
+from electroloc_gym.options import Option, SettingError, api_signature
+from electroloc_gym.registry import BENCH_ENVS, bench_env
+from electroloc_gym.utils.agentspec import split_specs
 
-__all__ = ["run", "BenchResult"]
+__all__ = ["run", "BenchResult", "prepare"]
 
 
 @dataclass(frozen=True)
@@ -63,70 +74,106 @@ def _object_name(agent: Any, taken: set[str]) -> str:
     return name
 
 
-def _check_agents(agents: object) -> None:
-    """``run``'s ``agents``: a non-empty list (or tuple), else a ValueError."""
-    if not isinstance(agents, (list, tuple)) or not agents:
-        raise ValueError(f"agents must be a non-empty list of agent objects or specs, got {agents!r}")
+def _runs_on_map_env(spec: str, env_id: str) -> bool:
+    """On an env of one fixed map: a particle-filter controller, a user's factory agent, or a policy (shipped
+    or a path) trained on that env.
+    """
+    kind = agent_kind(spec)
+    if kind == "baseline":
+        return getattr(cached_agent(spec), "table_layout", "table4") == "table4"
+    if kind == "shipped":
+        return shipped_model_env(shipped_models()[spec]) == (env_id, None)
+    if kind == "path":
+        obs: Any = (policy_meta(spec) or {}).get("observation")
+        return isinstance(obs, dict) and cast(dict[str, Any], obs).get("env_id") == env_id
+    return kind in ("factory", "object")
 
 
-def run(
-    agents: list[Any],
-    *,
-    env: str = "target",
-    conditions: str | list[str] = "all",
-    trials: int = 50,
-    seed: int = 0,
-    out: str | os.PathLike[str] | None = None,
-    sensor_model: str | None = None,
-    signal: str = DEFAULT_SIGNAL,
-    max_observations: int | None = None,
-    n_particles: int | None = None,
-    backend: str | None = None,
-    workers: int | None = None,
-    resume: bool = False,
-    progress: bool = False,
-    trust_pickle: bool = False,
-    log: Any = None,
-) -> BenchResult:
-    """Benchmark ``agents`` (objects and/or specs) as ``electroloc bench`` does.
+def _agent_specs(agents: Any, values: dict[str, Any], note: Callable[[str], None]) -> tuple[list[str], bool]:
+    """The run's agent specs and whether an agent is an object (registered here under a free name)."""
+    from electroloc_gym.bench.default_run import default_agents
 
-    Args:
-        agents: agent objects (the agent protocol) and/or agent specs (strings, as ``--agents`` takes).
-        env: ``"target"``, ``"global"``, ``"unknown-target"`` or ``"dynamic-gain"`` (``--env``).
-        conditions: ``"all"``, comma-separated preset names, or a list of them.
-        trials: trials per condition and agent.
-        seed: root seed of the per-trial seeds.
-        out: output folder (None: a new temporary folder).
-        sensor_model: the filter's sensor model (None: the env's default).
-        signal: the presets' signal scale.
-        max_observations: the cap of readings of a trial (None: the env's, 35 as the paper).
-        n_particles: particles of the belief (None: the env's default).
-        backend: ``"serial"``, ``"process"``, ``"ray"`` (None: serial with agent objects, else process).
-        workers: parallel workers of the backend.
-        resume: continue the run in ``out``.
-        progress: show a progress bar.
-        trust_pickle: allow learned policies stored as a bare SB3 zip.
-        log: where one-line notes go (None: silent; ``print`` to see them).
+    if isinstance(agents, str):
+        return [s.strip() for s in split_specs(agents)], False
+    if agents is not None:
+        taken = {a for a in agents if isinstance(a, str)} | set(shipped_models())
+        specs: list[str] = []
+        for agent in agents:
+            if isinstance(agent, str):
+                specs.append(agent.strip())
+                continue
+            name = _object_name(agent, taken)
+            taken.add(name)
+            register_object_agent(name, agent)
+            specs.append(name)
+        return specs, len(specs) > sum(isinstance(a, str) for a in agents)
+    entry, row = bench_env(values["env"])
+    choices = default_agents(
+        names=row.agents,
+        trust_pickle=values["trust_pickle"],
+        env_id=entry.env_id,
+        gain_levels=row.env_kwargs.get("gain_levels"),
+        sensor_layout=values["sensor_layout"],
+    )
+    elsewhere = [f"{c.spec} ({c.runs_with})" for c in choices if c.skipped and c.runs_with]
+    if elsewhere:  # expected, not a warning: the policy belongs to another run
+        note(f"the shipped policies trained for other settings run there: {', '.join(elsewhere)}")
+    for c in choices:
+        if c.skipped and not c.runs_with:
+            note(f"skipping {c.spec}: {c.skipped}")
+    return [c.spec for c in choices if not c.skipped], False
+
+
+def prepare(
+    values: dict[str, Any], spell: Callable[[Option], str], note: Callable[[str], None]
+) -> tuple[BenchConfig, dict[str, Any]]:
+    """The run ``values`` (every :data:`~electroloc_gym.bench.config.BENCH_OPTIONS` setting) describe, checked
+    before anything is written: its :class:`BenchConfig` and :func:`run_benchmark`'s keywords. Both front
+    ends run it; a refused setting is named as ``spell`` spells its option (``--max-observations`` or
+    ``max_observations``); ``note`` gets what a default agent list skipped, once the settings are valid.
 
     Raises:
-        ValueError: a bad argument, an object without the agent protocol, a non-serial ``backend``
-            with agent objects, or anything ``electroloc bench`` refuses.
+        ValueError: one line naming the setting.
     """
-    _check_agents(agents)
-    if env not in ENV_CHOICES:
-        raise ValueError(f"env must be one of {list(ENV_CHOICES)}, got {env!r}")
-    taken = {a for a in agents if isinstance(a, str)} | set(shipped_models())
-    specs: list[str] = []
-    objects = False
-    for agent in agents:
-        if isinstance(agent, str):
-            specs.append(agent.strip())
-            continue
-        name = _object_name(agent, taken)
-        taken.add(name)
-        register_object_agent(name, agent)
-        specs.append(name)
-        objects = True
+    name = {opt.name: spell(opt) for opt in BENCH_OPTIONS}
+    for opt in BENCH_OPTIONS:
+        opt.check_value(name[opt.name], values[opt.name])
+    env, backend = values["env"], values["backend"]
+    if values["address"] is not None and backend != "ray":
+        raise ValueError(
+            f"{name['address']} applies to {name['backend']} ray only (got {name['backend']} {backend or 'process'})"
+        )
+    if backend == "ray":  # Ray installed and the cluster reachable, before the output folder is touched
+        from electroloc_gym.bench.ray_backend import check_ray_address
+
+        check_ray_address(values["address"])
+    notes: list[str] = []
+    specs, objects = _agent_specs(values["agents"], values, notes.append)
+    if not specs:  # every default skipped: the notes say why
+        for line in notes:
+            note(line)
+        raise ValueError(f"{name['agents']} names no agent")
+    layout_rows = [n for n, (e, r) in BENCH_ENVS.items() if e.takes("sensor_layout") and not r.env_kwargs]
+    if values["sensor_layout"] is not None and env not in layout_rows:
+        raise ValueError(
+            f"{name['sensor_layout']} applies to {name['env']} {' or '.join(layout_rows)}, got {name['env']} {env}"
+        )
+    try:
+        config = BenchConfig.build(
+            specs, env=env, **{o.name: values[o.name] for o in CONFIG_OPTIONS if o.name != "agents"}
+        )
+    except SettingError as exc:
+        raise ValueError(f"{name.get(exc.setting, exc.setting)} must be {exc.allowed}, got {exc.got!r}") from None
+    for line in notes:
+        note(line)
+    entry = bench_env(env)[0]
+    if entry.map_condition is not None:  # zero-crossing looks for one sphere; a policy must know the map
+        bad = [a for a in specs if not _runs_on_map_env(a, entry.env_id)]
+        if bad:
+            raise ValueError(
+                f"{name['env']} {env} runs the particle-filter controllers (Table 2), policies "
+                f"trained on {entry.env_id} and users' factory agents; not applicable: {bad}"
+            )
     if backend is None:
         backend = "serial" if objects else "process"
     elif objects and backend != "serial":
@@ -134,26 +181,40 @@ def run(
             f"agent objects run in this process, so backend must be 'serial' (got {backend!r}); "
             f"pass a spec (package.module:factory[...]) to run on {backend!r}"
         )
-    config = BenchConfig.build(
-        specs,
-        env=env,
-        conditions=conditions,
-        trials=trials,
-        seed=seed,
-        sensor_model=sensor_model,
-        signal=signal,
-        max_observations=max_observations,
-        n_particles=n_particles,
-    )
+    run_options = {k: values[k] for k in ("workers", "resume", "progress", "trust_pickle")}
+    options = {} if values["address"] is None else {"address": values["address"]}
+    return config, {**run_options, "backend": backend, "backend_options": options}
+
+
+def run(agents: Any = None, **settings: Any) -> BenchResult:
+    """Benchmark ``agents`` (objects and/or specs) as ``electroloc bench`` does.
+
+    ``agents``: agent objects (the agent protocol) and/or agent specs (strings, as ``--agents`` takes), a
+    comma-separated string of specs, or None: the command's default set. Every other keyword is an option
+    of ``electroloc bench`` (:data:`~electroloc_gym.bench.config.BENCH_OPTIONS`: the same names, checks and
+    defaults, except ``out``: None, a new temporary folder, and ``progress``: False), and ``log``: where
+    one-line notes go (None: silent; ``print`` to see them). The signature lists them.
+
+    Raises:
+        ValueError: a bad argument (one line naming it), an object without the agent protocol, a non-serial
+            ``backend`` with agent objects, or anything ``electroloc bench`` refuses.
+        TypeError: a keyword that is no setting.
+    """
+    log = settings.pop("log", None)
+    unknown = sorted(set(settings) - {o.name for o in BENCH_OPTIONS} - {"agents"})
+    if unknown:
+        raise TypeError(f"run() got unexpected keyword(s) {unknown}")
+    values = {o.name: settings.get(o.name, o.api_default) for o in BENCH_OPTIONS}
+    values["agents"] = agents
+    config, options = prepare(values, lambda opt: opt.name, log or (lambda line: None))
+    out = values["out"]
     folder = Path(tempfile.mkdtemp(prefix="electroloc-bench-")) if out is None else Path(out)
-    summary = run_benchmark(
-        config,
-        folder,
-        workers=workers,
-        backend=backend,
-        resume=resume,
-        progress=progress,
-        trust_pickle=trust_pickle,
-        log=log,
-    )
+    summary = run_benchmark(config, folder, **options, log=log)
     return BenchResult(summary=summary, table=(folder / "table.md").read_text(encoding="utf-8"), out=folder)
+
+
+run.__signature__ = api_signature(
+    [o for o in BENCH_OPTIONS if o.name != "agents"],
+    inspect.Parameter("agents", inspect.Parameter.POSITIONAL_OR_KEYWORD, default=None),
+    last=[inspect.Parameter("log", inspect.Parameter.KEYWORD_ONLY, default=None)],
+)

@@ -1,5 +1,11 @@
 """What a benchmark run is: its settings (:class:`BenchConfig`), its trials (:class:`TrialSpec`), their seeds.
 
+Every setting of ``electroloc bench`` is declared once, here: a :class:`BenchConfig` field (what the run is,
+stored in ``config.json``) or a :data:`RUN_OPTIONS` entry (how and where it runs), each with its
+:class:`~electroloc_gym.options.Option` — flag, help, check, the front ends' default. The command's parser,
+the Python API's keywords (:func:`electroloc_gym.bench.run`), their checks (one message, spelled with each
+front end's name) and ``config.json`` (the fields) all come from :data:`BENCH_OPTIONS`.
+
 A run's settings are one object, built and validated once (:meth:`BenchConfig.build`, from the command
 line or from Python; the defaults read from the env table there) and carried unchanged: stored in
 ``config.json``, held by every :class:`TrialSpec`, written into every record
@@ -18,6 +24,7 @@ condition ``c`` gets its seeds from ``numpy.random.SeedSequence(seed).spawn(...)
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -26,10 +33,13 @@ import numpy as np
 
 from electroloc_gym.baselines.agent import PAPER_AGENTS
 from electroloc_gym.contract.params import MIN_OBSERVATION_CAP, EnvParams
+from electroloc_gym.options import Option, SettingError, int_in, is_bool, one_of, options_of, setting
 from electroloc_gym.protocol import MAX_OBSERVATIONS, N_PARTICLES, SUCCESS_SPREAD_MM
-from electroloc_gym.registry import BENCH_ENVS, ENVS, LiveMapping, LiveSequence, env_entry
+from electroloc_gym.registry import BENCH_ENVS, ENVS, PAPER_ENV_ID, LiveMapping, LiveSequence, bench_env, env_entry
+from electroloc_gym.utils.fileio import check_output_folder
 from electroloc_gym.world.conditions import DEFAULT_SIGNAL, PRESET_NAMES, SIGNAL_CHOICES
 from electroloc_gym.world.distractors import MAX_DISTRACTORS
+from electroloc_gym.world.sensor_array import LAYOUT_NAMES
 
 __all__ = [
     "BenchConfig",
@@ -53,11 +63,25 @@ __all__ = [
     "MAX_READINGS",
     "SettingError",
     "DEFAULT_ENV",
+    "BENCH_OPTIONS",
+    "CONFIG_OPTIONS",
+    "RUN_OPTIONS",
+    "MAX_TRIALS",
+    "MAX_WORKERS",
+    "MAX_PARTICLES",
+    "MAX_PLANNED_TRIALS",
 ]
 
 #: Most readings a trial may be capped at (``max_observations``): far beyond the paper's 35, short of a
 #: trial that cannot run.
 MAX_READINGS = 100_000
+#: Bounds of the other numeric settings: far beyond the paper (50 trials, 2500 particles), short of what cannot
+#: run (the plan is held in memory: at most :data:`MAX_PLANNED_TRIALS` trials in all).
+MAX_TRIALS = 100_000
+MAX_WORKERS = 1024
+MAX_PARTICLES = 1_000_000
+#: Most trials a run plans (agents × conditions × trials; the plan is held in memory, ≈1 KB a trial).
+MAX_PLANNED_TRIALS = 1_000_000
 
 #: The paper's three controllers (the baselines' registry's :data:`~electroloc_gym.baselines.agent.PAPER_AGENTS`).
 DEFAULT_AGENTS: tuple[str, ...] = PAPER_AGENTS
@@ -107,19 +131,47 @@ IDENTITY_KEYS = (
 )
 
 
-class SettingError(ValueError):
-    """A run setting out of its range: ``setting`` names the field, ``allowed`` the range, ``got`` the value.
+def _bench_row(name: str, value: Any) -> None:
+    """``env``: a bench row (:func:`~electroloc_gym.registry.bench_env`, the one resolution of ``--env``)."""
+    try:
+        bench_env(value)
+    except ValueError as exc:
+        raise ValueError(re.sub(r"^--env\b", name, str(exc))) from None
 
-    ``str()`` names the field as Python spells it; a front end names it its own way (``--max-observations``)
-    from the same three parts, so the check and its words live here once.
-    """
 
-    def __init__(self, setting: str, allowed: str, got: Any) -> None:
-        super().__init__(f"{setting} must be {allowed}, got {got!r}")
-        self.setting, self.allowed, self.got = setting, allowed, got
+def _conditions(name: str, value: Any) -> None:
+    if not isinstance(value, (str, list, tuple)):
+        raise SettingError(name, "'all', comma-separated preset names or a list of them", value)
+    resolve_conditions(value)
 
-    def __reduce__(self) -> tuple[Any, ...]:
-        return (SettingError, (self.setting, self.allowed, self.got))
+
+def _agents(name: str, value: Any) -> None:
+    """``agents``: comma-separated specs (a string) or a list of specs and agent objects."""
+    from electroloc_gym.bench.agents import agent_kind
+    from electroloc_gym.utils.agentspec import split_specs
+
+    if isinstance(value, str):
+        try:
+            specs = split_specs(value)
+        except ValueError as exc:
+            raise ValueError(f"{name}: {exc}") from None
+        if not any(specs):
+            raise ValueError(f"{name} names no agent (got {value!r}); leave it out for the default set")
+        if not all(specs):
+            raise ValueError(f"{name} has an empty item in {value!r}")
+    elif isinstance(value, (list, tuple)) and value:
+        specs = [a.strip() for a in value if isinstance(a, str)]
+    else:
+        raise SettingError(name, "comma-separated agent specs or a non-empty list of specs and agent objects", value)
+    for spec in specs:
+        try:
+            agent_kind(spec)
+        except ValueError as exc:
+            raise ValueError(f"{name}: {exc}") from None
+
+
+def _out_folder(name: str, value: Any) -> None:
+    check_output_folder(name, value)  # the rule of every command's outputs, before any work
 
 
 @dataclass(frozen=True)
@@ -150,60 +202,115 @@ class BenchConfig:
         distractors: D, distractors drawn per trial in ElectroLoc-v0's tank (``distractors=D``; 0: none).
     """
 
-    agents: tuple[str, ...] = DEFAULT_AGENTS
-    conditions: tuple[str, ...] = PRESET_NAMES
-    trials: int = 50
-    seed: int = 0
-    sensor_model: str = "calibrated"
-    signal: str = DEFAULT_SIGNAL
-    max_observations: int = MAX_OBSERVATIONS
-    n_particles: int = N_PARTICLES
+    agents: tuple[str, ...] = setting(
+        DEFAULT_AGENTS,
+        default=None,
+        check=_agents,
+        bad=("", "nope", []),
+        help=f"comma-separated agents: {', '.join(PAPER_AGENTS)}, NAME[key=value,...] "
+        "(e.g. min-var[n_voters=2500]), a shipped model by name (e.g. ppo-belief), or a "
+        "path to a model folder, or package.module:factory[key=value,...] (a factory of your "
+        "own, imported like any module: it runs your code) (default: the three controllers "
+        "plus every shipped model that runs here; the run says which and why one is skipped)",
+    )
+    conditions: tuple[str, ...] = setting(
+        PRESET_NAMES,
+        default="all",
+        check=_conditions,
+        bad=("nope", "", 3),
+        help="'all' or comma-separated preset names",
+    )
+    trials: int = setting(
+        50,
+        kind="int",
+        check=int_in(1, MAX_TRIALS),
+        bad=(0, MAX_TRIALS + 1),
+        help=f"trials per condition and agent (paper: 50; at most {MAX_TRIALS:,}, and {MAX_PLANNED_TRIALS:,} in all)",
+    )
+    seed: int = setting(
+        0, kind="int", check=int_in(0, 2**63 - 1), bad=(-1, 2**63), help="root seed of the per-trial seeds"
+    )
+    sensor_model: str = setting(
+        "calibrated",
+        default=None,
+        check=one_of(lambda: SENSOR_MODELS),
+        choices=lambda: SENSOR_MODELS,
+        from_env=lambda env_id: ENV_SENSOR_MODELS[env_id][0],
+        bad=("exact",),
+        help="the particle filter's sensor model (default: calibrated, the paper's; "
+        "unknown-target: analytic, the theoretical EEV, or interpolated)",
+    )
+    signal: str = setting(
+        DEFAULT_SIGNAL,
+        check=one_of(lambda: SIGNALS),
+        choices=lambda: SIGNALS,
+        bad=("loud",),
+        help="signal scale of the presets: fitted to Table 3's measured detection distances, "
+        "coverage (fitted × one factor matching §6.3's 78%% of starts inside the detection "
+        "region), or the paper's equations (scale 1); docs/fidelity.md compares them",
+    )
+    max_observations: int = setting(
+        MAX_OBSERVATIONS,
+        default=None,
+        kind="int",
+        check=int_in(MIN_OBSERVATION_CAP, MAX_READINGS),
+        from_env=lambda env_id: ENV_MAX_OBSERVATIONS[env_id],
+        bad=(MIN_OBSERVATION_CAP - 1, MAX_READINGS + 1),
+        help=f"the cap of readings of a trial, the reset's included: {MIN_OBSERVATION_CAP}–{MAX_READINGS} "
+        f"(default: the env's, {MAX_OBSERVATIONS} as the paper)",
+    )
+    n_particles: int = setting(
+        N_PARTICLES,
+        default=None,
+        kind="int",
+        check=int_in(2, MAX_PARTICLES),
+        from_env=lambda env_id: ENV_N_PARTICLES[env_id],
+        bad=(1, MAX_PARTICLES + 1),
+        help=lambda: (
+            f"particles of the belief (default: the env's, {N_PARTICLES} as the paper; unknown-target: "
+            f"{ENV_N_PARTICLES[ENV_CHOICES['unknown-target']]})"
+        ),
+    )
     env_id: str = field(default_factory=lambda: ENV_CHOICES[DEFAULT_ENV])
     gain_levels: tuple[float, ...] | None = None
-    sensor_layout: str | None = None
-    distractors: int = 0
+    sensor_layout: str | None = setting(
+        None,
+        check=one_of(lambda: LAYOUT_NAMES),
+        choices=lambda: LAYOUT_NAMES,
+        bad=("ring-99",),
+        help=f"{PAPER_ENV_ID}'s sensing pairs (§7; observations = snapshots, K readings each)",
+    )
+    distractors: int = setting(
+        0,
+        kind="int",
+        check=int_in(0, MAX_DISTRACTORS),
+        bad=(-1, MAX_DISTRACTORS + 1),
+        help=f"D objects that are not the target drawn per trial in the tank (ElectroLoc-v0's "
+        f"distractors=D, 0–{MAX_DISTRACTORS}; in the true reading only)",
+    )
     success_spread_mm: float = SUCCESS_SPREAD_MM
 
     @classmethod
-    def build(
-        cls,
-        agents: Sequence[str],
-        *,
-        env: str = "target",
-        conditions: str | Sequence[str] = "all",
-        trials: int = 50,
-        seed: int = 0,
-        sensor_model: str | None = None,
-        signal: str = DEFAULT_SIGNAL,
-        max_observations: int | None = None,
-        n_particles: int | None = None,
-        sensor_layout: str | None = None,
-        distractors: int = 0,
-    ) -> BenchConfig:
+    def build(cls, agents: Sequence[str], *, env: str = DEFAULT_ENV, **settings: Any) -> BenchConfig:
         """The run ``electroloc bench`` (and :func:`electroloc_gym.bench.run`) describe: ``env`` is a bench row
-        (``--env``), and every setting left None is the env's own default, read from the env table here.
+        (``--env``), ``settings`` the fields' front-end values (:data:`CONFIG_OPTIONS`); a setting left out is
+        its option's default, and one None is the env's own, read from the env table here.
 
         Raises:
             ValueError: an unknown ``env`` or a setting out of its range (:class:`SettingError`).
+            TypeError: a keyword that is no setting.
         """
-        if env not in ENV_CHOICES:
-            raise ValueError(f"env must be one of {list(ENV_CHOICES)}, got {env!r}")
-        entry, row = BENCH_ENVS[env]
-        env_id = entry.env_id
-        return cls(
-            agents=tuple(agents),
-            conditions=run_conditions(env_id, conditions),
-            trials=trials,
-            seed=seed,
-            sensor_model=sensor_model or ENV_SENSOR_MODELS[env_id][0],
-            signal=signal,
-            max_observations=ENV_MAX_OBSERVATIONS[env_id] if max_observations is None else max_observations,
-            n_particles=ENV_N_PARTICLES[env_id] if n_particles is None else n_particles,
-            env_id=env_id,
-            gain_levels=row.env_kwargs.get("gain_levels"),
-            sensor_layout=sensor_layout,
-            distractors=distractors,
-        )
+        _bench_row("env", env)
+        entry, row = bench_env(env)
+        values: dict[str, Any] = {}
+        for opt in CONFIG_OPTIONS:
+            if opt.name == "agents":  # the first argument
+                continue
+            value = settings.pop(opt.name, opt.default)
+            values[opt.name] = opt.from_env(entry.env_id) if value is None and opt.from_env else value
+        if settings:
+            raise TypeError(f"BenchConfig.build() got unexpected keyword(s) {sorted(settings)}")
+        return cls(agents=tuple(agents), env_id=entry.env_id, gain_levels=row.env_kwargs.get("gain_levels"), **values)
 
     def env_kwargs(self, agent: Any = None, condition: str | None = None, *, builtin: bool = False) -> dict[str, Any]:
         """The ``gym.make(self.env_id, ...)`` kwargs of this run's trial of ``agent`` in ``condition``: the run's
@@ -238,10 +345,10 @@ class BenchConfig:
     def __post_init__(self) -> None:
         if self.env_id not in ENV_SENSOR_MODELS:
             raise ValueError(f"env_id must be one of {list(ENV_SENSOR_MODELS)}, got {self.env_id!r}")
-        d = self.distractors
-        if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d <= MAX_DISTRACTORS:
-            raise ValueError(f"distractors must be an integer in [0, {MAX_DISTRACTORS}], got {d!r}")
-        if d and not ENV_TAKES_DISTRACTORS.get(self.env_id, False):
+        for opt in CONFIG_OPTIONS:
+            if opt.name not in ("agents", "conditions"):  # these two are resolved below
+                opt.check_value(opt.name, getattr(self, opt.name))
+        if self.distractors and not ENV_TAKES_DISTRACTORS.get(self.env_id, False):
             raise ValueError(
                 f"distractors apply to {[k for k, v in ENV_TAKES_DISTRACTORS.items() if v]} only, not {self.env_id}"
             )
@@ -252,21 +359,9 @@ class BenchConfig:
         if len(set(self.agents)) != len(self.agents):
             raise ValueError(f"agents must be distinct, got {list(self.agents)}")
         object.__setattr__(self, "conditions", run_conditions(self.env_id, self.conditions))
-        for name, val, low in (
-            ("trials", self.trials, 1),
-            ("seed", self.seed, 0),
-            ("n_particles", self.n_particles, 1),
-        ):
-            if isinstance(val, bool) or not isinstance(val, int) or val < low:
-                raise ValueError(f"{name} must be an integer ≥ {low}, got {val!r}")
-        cap = self.max_observations
-        if isinstance(cap, bool) or not isinstance(cap, int) or not MIN_OBSERVATION_CAP <= cap <= MAX_READINGS:
-            raise SettingError("max_observations", f"an integer in [{MIN_OBSERVATION_CAP}, {MAX_READINGS}]", cap)
         allowed = ENV_SENSOR_MODELS[self.env_id]
         if self.sensor_model not in allowed:
             raise ValueError(f"sensor_model of {self.env_id} must be one of {list(allowed)}, got {self.sensor_model!r}")
-        if self.signal not in SIGNALS:
-            raise ValueError(f"signal must be one of {list(SIGNALS)}, got {self.signal!r}")
         spread = self.success_spread_mm
         if isinstance(spread, bool) or not isinstance(spread, (int, float)) or not 0 < spread < float("inf"):
             raise ValueError(f"success_spread_mm must be a finite number of mm > 0, got {spread!r}")
@@ -275,6 +370,84 @@ class BenchConfig:
     def identity(self) -> dict[str, Any]:
         """The fields that must match for ``--resume`` to append to an existing run."""
         return {"seed": self.seed, **self.record_settings(), "success_spread_mm": self.success_spread_mm}
+
+
+#: The settings a run is (what ``config.json`` stores), as the front ends take them.
+CONFIG_OPTIONS: tuple[Option, ...] = options_of(BenchConfig)
+
+
+def _workers_help() -> str:
+    from electroloc_gym.bench.backends import default_workers
+
+    return f"parallel worker processes (default: all cores, here {default_workers()})"
+
+
+def _backends() -> list[str]:
+    from electroloc_gym.bench.backends import BACKENDS
+
+    return sorted(BACKENDS)
+
+
+#: How and where a run runs (not the run: not in ``config.json``, free to change on ``--resume``).
+RUN_OPTIONS: tuple[Option, ...] = (
+    Option(
+        "env",
+        default=DEFAULT_ENV,
+        check=_bench_row,
+        choices=lambda: ENV_CHOICES,
+        bad=("nowhere",),
+        help=lambda: "; ".join(f"{n}: {entry.env_id} {row.summary}".rstrip() for n, (entry, row) in BENCH_ENVS.items()),
+    ),
+    Option("workers", kind="int", check=int_in(1, MAX_WORKERS), bad=(0, MAX_WORKERS + 1), help=_workers_help),
+    Option(
+        "backend",
+        check=one_of(_backends),
+        choices=_backends,
+        bad=("cloud",),
+        help="where trials run: a local process pool, in-process (serial), or Ray; from Python, serial when an "
+        "agent is an object (default: process)",
+    ),
+    Option("address", help="cluster address for a distributed backend (e.g. --backend ray --address auto)"),
+    Option(
+        "out",
+        default="bench_out",
+        python_default=None,
+        check=_out_folder,
+        bad=("",),
+        help="output folder (locked while the run writes to it; from Python, None: a new temporary folder)",
+    ),
+    Option(
+        "resume",
+        default=False,
+        kind="switch",
+        check=is_bool,
+        bad=("yes",),
+        help="continue the run in --out: run only the trials not yet in its trials.jsonl (each "
+        "record's seeds and settings are checked; damaged lines are set aside and re-run)",
+    ),
+    Option(
+        "trust_pickle",
+        default=False,
+        kind="switch",
+        check=is_bool,
+        bad=("yes",),
+        help="also load learned policies stored as a bare SB3 .zip, which unpickles code from "
+        "the file: only for files you trust",
+    ),
+    Option(
+        "progress",
+        default=True,
+        python_default=False,
+        kind="negated",
+        flag="--no-progress",
+        check=is_bool,
+        bad=("yes",),
+        help="no progress bar (from Python: progress=True draws one)",
+    ),
+)
+
+#: Every setting of ``electroloc bench`` and :func:`electroloc_gym.bench.run`, in the order ``--help`` lists them.
+BENCH_OPTIONS: tuple[Option, ...] = CONFIG_OPTIONS + RUN_OPTIONS
 
 
 @dataclass(frozen=True)

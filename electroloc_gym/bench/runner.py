@@ -38,6 +38,7 @@ from electroloc_gym.bench.config import (
     DEFAULT_AGENTS,
     IDENTITY_DEFAULTS,
     MAP_CONDITIONS,
+    MAX_PLANNED_TRIALS,
     BenchConfig,
     TrialSpec,
     make_trial_specs,
@@ -81,8 +82,6 @@ __all__ = [
 ]
 
 _Log = Callable[[str], None] | None
-#: Most trials a run plans (agents × conditions × trials; the plan is held in memory, ≈1 KB a trial).
-MAX_PLANNED_TRIALS = 1_000_000
 #: The files a run derives from its records, written together (:func:`_write_outputs`).
 OUTPUT_FILES = ("summary.json", "table.md", "steps.png", "conditions.png")
 #: An agent whose own estimate of one decision exceeds this is announced before the run, s.

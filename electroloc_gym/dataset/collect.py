@@ -36,7 +36,7 @@ import re
 import shutil
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -50,10 +50,13 @@ from electroloc_gym.dataset.seed_protocol import (
     evaluation_overlap,
     reference_scores,
 )
-from electroloc_gym.utils.checks import check_bool
+from electroloc_gym.options import Option, SettingError, int_in, is_bool, one_of, options_of, setting
+from electroloc_gym.registry import PAPER_ENV_ID
 
 __all__ = [
     "DatasetRequest",
+    "DATASET_OPTIONS",
+    "check_settings",
     "build_dataset",
     "dataset_id",
     "step_infos",
@@ -78,67 +81,164 @@ def dataset_id(env_id: str, agent: str, version: int = 0) -> str:
     return f"electroloc/{env_id}/{name}-v{int(version)}"
 
 
+def _agent_spec(name: str, value: Any) -> None:
+    if not isinstance(value, str) or not value.strip():
+        raise SettingError(name, "a non-empty agent spec", value)
+
+
+def _reference(name: str, value: Any) -> None:
+    if not isinstance(value, (str, os.PathLike)) or not str(value):
+        raise SettingError(name, "None or a benchmark folder or trials.jsonl path", value)
+
+
+def _condition(name: str, value: Any) -> None:
+    from electroloc_gym.world.conditions import PRESET_NAMES
+
+    if value != "random" and value not in PRESET_NAMES:
+        raise SettingError(name, f"'random' or one of {list(PRESET_NAMES)}", value)
+
+
+def _id(name: str, value: Any) -> None:
+    store.check_dataset_id(value)
+
+
+def _env_ids() -> Any:
+    from electroloc_gym.registry import ENV_IDS
+
+    return ENV_IDS
+
+
 @dataclass(frozen=True)
 class DatasetRequest:
     """What one dataset is (validated on construction; every error one line naming the argument).
 
-    Attributes:
-        env_id: a registered env id (``electroloc_gym.registry.ENV_IDS``).
-        agent: an agent spec ``electroloc bench --agents`` takes.
-        episodes: episodes to collect (1 … :data:`MAX_EPISODES`).
-        seed: root seed of the episodes' seeds (≥ 1; 0 is the benchmark's evaluation seed).
-        reference: a benchmark folder or trials.jsonl with rnd-wlk and a planner on ``env_id`` (the
-            reference scores), or None: no reference scores.
-        version: the id's version N.
-        dataset_id: the id (``NAMESPACE/NAME-vN``, at most :data:`~.store.MAX_ID_CHARS` characters), or
-            None: :func:`dataset_id`.
-        condition: localize and unknown-target envs: ``"random"`` (a preset per episode) or a preset name.
-        trust_pickle: let a learned policy whose files need unpickling load (SB3's bare zip).
+    Its fields are the settings of ``electroloc dataset``, each declared with its flag, help (what it is),
+    check and default (:class:`~electroloc_gym.options.Option`); ``version`` None is 0, and is not given with
+    ``dataset_id``. The command's other options are :data:`BUILD_OPTIONS` (:func:`build_dataset`'s).
     """
 
-    env_id: str
-    agent: str
-    episodes: int
-    seed: int = DEFAULT_DATASET_SEED
-    reference: str | os.PathLike[str] | None = None
-    version: int = 0
-    dataset_id: str | None = None
-    condition: str = "random"
-    trust_pickle: bool = False
+    env_id: str = setting(
+        MISSING,
+        default=PAPER_ENV_ID,
+        python_default=MISSING,
+        flag="--env",
+        check=one_of(_env_ids),
+        choices=_env_ids,
+        bad=("Nope-v0",),
+        help="the registered env id",
+    )
+    agent: str = setting(
+        MISSING, check=_agent_spec, bad=(" ",), help="an agent spec as electroloc bench --agents takes one"
+    )
+    episodes: int = setting(
+        MISSING, kind="int", check=int_in(1, MAX_EPISODES), bad=(0, True), help="episodes to collect (≥ 1)"
+    )
+    seed: int = setting(
+        DEFAULT_DATASET_SEED,
+        kind="int",
+        check=int_in(1, 2**63 - 1, " (0 is the benchmark's evaluation seed)"),
+        bad=(0, -3),
+        help="root seed of the episodes (≥ 1; 0 is the benchmark's evaluation seed)",
+    )
+    reference: str | os.PathLike[str] | None = setting(
+        None,
+        check=_reference,
+        bad=("", 5),
+        help="a benchmark folder (or trials.jsonl) with rnd-wlk and a planner on the env: "
+        "ref_min_score / ref_max_score "
+        "(e.g. experiments/learned/results/<env-id>/_baselines/bench); without it the dataset has no "
+        "reference scores (the command says so)",
+    )
+    version: int | None = setting(
+        None,
+        kind="int",
+        check=int_in(0, 10**6),
+        bad=(-1,),
+        help="the default id's version N (≥ 0; default 0; not with --id)",
+    )
+    dataset_id: str | None = setting(
+        None,
+        flag="--id",
+        check=_id,
+        bad=("no namespace",),
+        help="the dataset id, NAMESPACE/NAME-vN, at most 200 characters "
+        "(default electroloc/<env-id>/<agent>-v<version>)",
+    )
+    condition: str = setting(
+        "random",
+        check=_condition,
+        bad=("mud",),
+        help="'random' (a preset per episode) or a preset name",
+    )
+    trust_pickle: bool = setting(
+        False,
+        kind="switch",
+        check=is_bool,
+        bad=("yes",),
+        help="let an SB3 .zip policy load (unpickling runs code: only files you trust)",
+    )
 
     def __post_init__(self) -> None:
-        from electroloc_gym.registry import ENV_IDS
-        from electroloc_gym.world.conditions import PRESET_NAMES
-
-        if self.env_id not in ENV_IDS:
-            raise ValueError(f"env must be one of {list(ENV_IDS)}, got {self.env_id!r}")
-        for name, val, low, high in (
-            ("episodes", self.episodes, 1, MAX_EPISODES),
-            ("seed", self.seed, 1, 2**63 - 1),
-            ("version", self.version, 0, 10**6),
-        ):
-            whole = isinstance(val, (int, np.integer)) and not isinstance(val, (bool, np.bool_))
-            if not whole or not low <= val <= high:
-                extra = " (0 is the benchmark's evaluation seed)" if name == "seed" else ""
-                raise ValueError(f"{name} must be an integer in [{low}, {high}]{extra}, got {val!r}")
-            object.__setattr__(self, name, int(val))  # a numpy integer as the int the metadata records
-        if self.reference is not None and (
-            not isinstance(self.reference, (str, os.PathLike)) or not str(self.reference)
-        ):
-            raise ValueError(
-                f"reference must be None or a benchmark folder or trials.jsonl path, got {self.reference!r}"
-            )
-        check_bool("trust_pickle", self.trust_pickle)
-        if self.condition != "random" and self.condition not in PRESET_NAMES:
-            raise ValueError(f"condition must be 'random' or one of {list(PRESET_NAMES)}, got {self.condition!r}")
-        if not isinstance(self.agent, str) or not self.agent.strip():
-            raise ValueError(f"agent must be a non-empty agent spec, got {self.agent!r}")
-        if self.dataset_id is not None:
-            store.check_dataset_id(self.dataset_id)
+        check_settings({f.name: getattr(self, f.name) for f in fields(self)}, lambda o: o.name)
+        for opt in REQUEST_OPTIONS:  # a numpy integer as the int the metadata records
+            if opt.kind == "int" and getattr(self, opt.name) is not None:
+                object.__setattr__(self, opt.name, int(getattr(self, opt.name)))
+        if self.version is None:
+            object.__setattr__(self, "version", 0)
 
     @property
     def id(self) -> str:
-        return self.dataset_id or dataset_id(self.env_id, self.agent, self.version)
+        return self.dataset_id or dataset_id(self.env_id, self.agent, self.version or 0)
+
+
+#: The settings a dataset is (:class:`DatasetRequest`'s fields).
+REQUEST_OPTIONS: tuple[Option, ...] = options_of(DatasetRequest)
+#: How it is built (:func:`build_dataset`'s keywords).
+BUILD_OPTIONS: tuple[Option, ...] = (
+    Option(
+        "resume",
+        default=False,
+        kind="switch",
+        check=is_bool,
+        bad=("yes",),
+        help="continue an unfinished dataset of the same settings, or check a complete one (every kept episode "
+        "checked; a damaged one set aside in the dataset's quarantine/ folder and collected again)",
+    ),
+    Option(
+        "force",
+        default=False,
+        kind="switch",
+        check=is_bool,
+        bad=(1,),
+        help="replace the existing dataset of this id, once the new one is complete (a failed or killed run "
+        "leaves the old one as it was)",
+    ),
+    Option(
+        "progress",
+        default=True,
+        kind="negated",
+        flag="--no-progress",
+        check=is_bool,
+        bad=("yes",),
+        help="no progress bar",
+    ),
+)
+#: Every setting of ``electroloc dataset`` (and of :class:`DatasetRequest` with :func:`build_dataset`).
+DATASET_OPTIONS: tuple[Option, ...] = REQUEST_OPTIONS + BUILD_OPTIONS
+
+
+def check_settings(values: dict[str, Any], spell: Callable[[Option], str]) -> None:
+    """The dataset settings in ``values`` checked, each refusal one line naming the setting as ``spell`` spells
+    it (both front ends; :data:`DATASET_OPTIONS`).
+    """
+    name = {opt.name: spell(opt) for opt in DATASET_OPTIONS}
+    for opt in DATASET_OPTIONS:
+        if opt.name in values:
+            opt.check_value(name[opt.name], values[opt.name])
+    if values.get("resume") and values.get("force"):
+        raise ValueError(f"{name['resume']} and {name['force']} exclude each other")
+    if values.get("dataset_id") is not None and values.get("version") is not None:
+        raise ValueError(f"{name['version']} sets the default id's version; {name['dataset_id']} carries its own -vN")
 
 
 def dataset_env_kwargs(env_id: str, agent: Any, condition: str = "random") -> dict[str, Any]:
@@ -347,10 +447,7 @@ def build_dataset(
     from electroloc_gym.baselines.rollout import AgentCallError
     from electroloc_gym.bench.agents import make_bench_agent, policy_env_problem
 
-    check_bool("resume", resume)
-    check_bool("force", force)
-    if resume and force:
-        raise ValueError("resume and force exclude each other")
+    check_settings({"resume": resume, "force": force, "progress": progress}, lambda o: o.name)
     if notify is not None and not callable(notify):
         raise ValueError(f"notify must be None or a callable taking one line, got {notify!r}")
     notify = notify or _notify_stderr

@@ -1,0 +1,167 @@
+"""The command line and the Python API take the same settings: one declaration per command, read by both.
+
+Table-driven over the declarations themselves (:data:`~electroloc_gym.bench.config.BENCH_OPTIONS`,
+:data:`~electroloc_gym.dataset.collect.DATASET_OPTIONS`): a setting added to one is checked here without a
+new line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+from collections.abc import Callable
+from dataclasses import MISSING
+from typing import Any, NamedTuple
+
+import pytest
+
+from electroloc_gym.bench import run as bench_run
+from electroloc_gym.bench.config import BENCH_OPTIONS
+from electroloc_gym.cli import build_parser, main
+from electroloc_gym.dataset.collect import BUILD_OPTIONS, DATASET_OPTIONS, DatasetRequest, build_dataset
+from electroloc_gym.options import Option
+
+#: Options every sub-command gets from the console script (the process's thread count), not a setting.
+PROCESS_OPTIONS = {"help", "threads"}
+#: Python-only keywords that are no setting (where notes go).
+PYTHON_ONLY = {"log"}
+
+
+class Command(NamedTuple):
+    options: tuple[Option, ...]  # its declaration
+    params: Callable[[], dict[str, inspect.Parameter]]  # its Python API's keywords
+    call: Callable[[str, Any], None]  # the Python API given one setting
+    argv: list[str]  # what the command line needs besides the setting
+    python_differs: set[str]  # the settings whose Python default is declared to differ
+
+
+def _bench_call(name: str, value: Any) -> None:
+    bench_run(**{name: value})
+
+
+_REQUEST = {"env_id": "ElectroLoc-v0", "agent": "rnd-wlk", "episodes": 1}
+
+
+def _dataset_params() -> dict[str, inspect.Parameter]:
+    build = dict(inspect.signature(build_dataset).parameters)
+    del build["request"], build["notify"]
+    return {**inspect.signature(DatasetRequest).parameters, **build}
+
+
+def _dataset_call(name: str, value: Any) -> None:
+    if name in {o.name for o in BUILD_OPTIONS}:
+        build_dataset(DatasetRequest(**_REQUEST), **{name: value})
+    else:
+        DatasetRequest(**{**_REQUEST, name: value})
+
+
+COMMANDS = {
+    "bench": Command(
+        BENCH_OPTIONS, lambda: dict(inspect.signature(bench_run).parameters), _bench_call, [], {"out", "progress"}
+    ),
+    "dataset": Command(
+        DATASET_OPTIONS, _dataset_params, _dataset_call, ["--agent", "rnd-wlk", "--episodes", "1"], {"env_id"}
+    ),
+}
+
+
+@pytest.fixture(autouse=True)
+def _datasets_elsewhere(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "datasets"))
+
+
+def _subparser(command: str) -> argparse.ArgumentParser:
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[command]
+
+
+def _parser_options(command: str) -> dict[str, argparse.Action]:
+    return {a.dest: a for a in _subparser(command)._actions if a.dest not in PROCESS_OPTIONS}
+
+
+def _cases() -> list[tuple[str, Option, Any]]:
+    return [(cmd, opt, bad) for cmd, c in COMMANDS.items() for opt in c.options for bad in opt.bad]
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_the_command_line_and_python_take_the_same_settings_with_the_same_defaults(command) -> None:
+    c = COMMANDS[command]
+    declared = {o.name: o for o in c.options}
+    parsed = _parser_options(command)
+    assert set(parsed) == set(declared)
+    for name, action in parsed.items():
+        opt = declared[name]
+        assert action.option_strings == [opt.option], name
+        if opt.default is MISSING:
+            assert action.required, name
+        else:
+            assert action.default == opt.default and not action.required, name
+    params = c.params()
+    assert set(params) - PYTHON_ONLY == set(declared)
+    for name, opt in declared.items():
+        want = inspect.Parameter.empty if opt.api_default is MISSING else opt.api_default
+        assert params[name].default == want, name
+    # Where Python's default differs, the declaration says so (an output folder, a progress bar, a required env).
+    assert {n for n, o in declared.items() if o.api_default is not o.default} == c.python_differs
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_every_checked_setting_declares_values_it_refuses(command) -> None:
+    assert [o.name for o in COMMANDS[command].options if o.check is not None and not o.bad] == []
+
+
+def _cli_text(opt: Option, value: Any) -> str | None:
+    """``value`` as the command line writes it (None: the command line cannot write it)."""
+    if opt.kind in ("switch", "negated") or isinstance(value, bool):
+        return None
+    if opt.kind == "int":
+        return str(value) if isinstance(value, int) else None
+    return value if isinstance(value, str) else None
+
+
+@pytest.mark.parametrize("command,opt,bad", _cases(), ids=[f"{c}-{o.name}-{b!r}" for c, o, b in _cases()])
+def test_a_bad_value_is_the_same_one_line_error_from_both(command, opt, bad, capsys, tmp_path) -> None:
+    with pytest.raises(ValueError) as exc:
+        COMMANDS[command].call(opt.name, bad)
+    python_line = str(exc.value)
+    assert "\n" not in python_line
+    text = _cli_text(opt, bad)
+    if text is None:  # a value the command line cannot write (a switch's, a list)
+        return
+    argv = [command, *COMMANDS[command].argv, f"{opt.option}={text}"]
+    if command == "bench" and opt.name != "out":
+        argv += ["--out", str(tmp_path / "never")]
+    capsys.readouterr()
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, (argv, err)
+    prefix = f"electroloc {command}: error: "
+    assert err.startswith(prefix), err
+    assert err[len(prefix) :].rstrip("\n").replace(opt.option, opt.name) == python_line
+    assert not (tmp_path / "never").exists()
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_a_switch_given_a_value_is_one_line(command, capsys) -> None:
+    for opt in COMMANDS[command].options:
+        if opt.kind in ("switch", "negated"):
+            with pytest.raises(SystemExit) as exc:
+                main([command, *COMMANDS[command].argv, f"{opt.option}=x"])
+            assert exc.value.code == 2
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and opt.option in err, err
+
+
+@pytest.mark.parametrize("extra", [{"sensor_layout": "line-4"}, {"distractors": 1}])
+def test_python_runs_what_the_command_line_runs(extra, tmp_path, capsys) -> None:
+    """The settings the Python API lacked reach the run: both front ends store the same config.json."""
+    import json
+
+    settings = {"conditions": "fresh-steel-12.7", "trials": 1, "n_particles": 100, "max_observations": 4, **extra}
+    settings["backend"] = "serial"
+    bench_run("rnd-wlk", out=tmp_path / "py", **settings)
+    flags = {o.name: o.option for o in BENCH_OPTIONS}
+    argv = ["bench", "--agents", "rnd-wlk", "--out", str(tmp_path / "cli"), "--no-progress"]
+    assert main(argv + [a for k, v in settings.items() for a in (flags[k], str(v))]) == 0, capsys.readouterr().err
+    stored = [json.loads((tmp_path / d / "config.json").read_text()) for d in ("py", "cli")]
+    assert stored[0] == stored[1] and all(stored[0][k] == v for k, v in extra.items())
