@@ -29,6 +29,7 @@ CASES = [
         "ElectroLocTrack-v0",
         {"n_particles": 300, "sensor_model": "analytic", "condition": "random", "target_motion": "random_walk"},
     ),
+    ("ElectroLocTrack-v0", {"n_particles": 300, "motion_model": "swimmer", "motion_speed_mm": (0.5, 3.0)}),
 ]
 
 
