@@ -165,3 +165,13 @@ def test_python_runs_what_the_command_line_runs(extra, tmp_path, capsys) -> None
     assert main(argv + [a for k, v in settings.items() for a in (flags[k], str(v))]) == 0, capsys.readouterr().err
     stored = [json.loads((tmp_path / d / "config.json").read_text()) for d in ("py", "cli")]
     assert stored[0] == stored[1] and all(stored[0][k] == v for k, v in extra.items())
+
+
+def test_a_request_rebuilt_with_replace_keeps_its_checks() -> None:
+    """``version`` None stays None (0 in the id), so ``dataclasses.replace`` with an id is not refused."""
+    from dataclasses import replace
+
+    request = DatasetRequest(**_REQUEST)
+    assert request.id.endswith("-v0") and replace(request, dataset_id="test/x-v3").id == "test/x-v3"
+    with pytest.raises(ValueError, match="version sets the default id's version; dataset_id carries its own -vN"):
+        DatasetRequest(**_REQUEST, version=1, dataset_id="test/x-v3")

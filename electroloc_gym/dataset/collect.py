@@ -113,8 +113,9 @@ class DatasetRequest:
     """What one dataset is (validated on construction; every error one line naming the argument).
 
     Its fields are the settings of ``electroloc dataset``, each declared with its flag, help (what it is),
-    check and default (:class:`~electroloc_gym.options.Option`); ``version`` None is 0, and is not given with
-    ``dataset_id``. The command's other options are :data:`BUILD_OPTIONS` (:func:`build_dataset`'s).
+    check and default (:class:`~electroloc_gym.options.Option`); ``version`` None is 0 (the default id's
+    version, so not given with ``dataset_id``). The command's other options are :data:`BUILD_OPTIONS`
+    (:func:`build_dataset`'s).
     """
 
     env_id: str = setting(
@@ -183,8 +184,6 @@ class DatasetRequest:
         for opt in REQUEST_OPTIONS:  # a numpy integer as the int the metadata records
             if opt.kind == "int" and getattr(self, opt.name) is not None:
                 object.__setattr__(self, opt.name, int(getattr(self, opt.name)))
-        if self.version is None:
-            object.__setattr__(self, "version", 0)
 
     @property
     def id(self) -> str:
