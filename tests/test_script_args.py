@@ -314,3 +314,71 @@ def test_rllib_ppo_without_ray_is_one_line_before_any_work(tmp_path):
     assert ray_missing("--backend ray") == (
         "--backend ray needs Ray, which is not installed here: pip install 'electroloc-gym[ray]' (or pip install ray)"
     )
+
+
+# ---- the experiments' long scripts say what they wrote ------------------------------------------------------
+#: (script, its argv with {tmp} for the test's folder, the files it writes) — each run as small as it goes.
+WRITERS = [
+    (
+        "experiments/distractors/distractor_comparison.py",
+        ["--report-only", "--out", "{tmp}/dc", "--table", "{tmp}/dc.md"],
+        ["dc/comparison.json", "dc.md"],
+    ),
+    (
+        "experiments/array/commutativity.py",
+        ["--trials", "2", "--particles", "50", "--conditions", "fresh-steel-12.7", "--out", "{tmp}/c.json"],
+        ["c.json"],
+    ),
+    (
+        "experiments/distractors/distractor_budget.py",
+        ["--agents", "rnd-wlk", "--trials", "1", "--budget", "3", "--out", "{tmp}/b.json"],
+        ["b.json"],
+    ),
+    (
+        "experiments/planners/lookahead_budget.py",
+        ["--trials", "1", "--global-trials", "0", "--conditions", "fresh-steel-12.7", "--n-particles", "100"]
+        + ["--max-observations", "3", "--out", "{tmp}/l.png"],
+        ["l.json", "l.png"],
+    ),
+    (
+        "experiments/gain/dynamic_gain.py",
+        ["--trials", "1", "--settings", "paper", "--plot", "{tmp}/g.png"],
+        ["g.png"],
+    ),
+]
+
+
+def _run_script(script: str, argv: list[str], tmp_path: Path) -> subprocess.CompletedProcess:
+    args = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
+    return subprocess.run(
+        [sys.executable, str(ROOT / script), *args], capture_output=True, text=True, env=env, timeout=300, cwd=ROOT
+    )
+
+
+def _wrote(stderr: str) -> list[str]:
+    return [line.removeprefix("wrote: ") for line in stderr.splitlines() if line.startswith("wrote: ")]
+
+
+@pytest.mark.parametrize(("script", "argv", "files"), WRITERS, ids=[w[0].split("/")[-1] for w in WRITERS])
+def test_an_experiment_script_lists_every_file_it_wrote(script, argv, files, tmp_path):
+    done = _run_script(script, argv, tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    wrote = _wrote(done.stderr)
+    assert sorted(wrote) == sorted(str(tmp_path / f) for f in files), done.stderr[-2000:]
+    assert all(Path(p).is_file() for p in wrote)
+
+
+def test_the_array_tradeoff_run_and_report_list_what_they_wrote(tmp_path):
+    run = _run_script(
+        "experiments/array/array_tradeoff.py",
+        ["run", "--trials", "1", "--layouts", "single", "--agents", "rnd-wlk", "--out", "{tmp}/r.jsonl"],
+        tmp_path,
+    )
+    assert run.returncode == 0 and _wrote(run.stderr) == [str(tmp_path / "r.jsonl")], run.stderr[-2000:]
+    report = _run_script(
+        "experiments/array/array_tradeoff.py",
+        ["report", "{tmp}/r.jsonl", "--table", "{tmp}/a.md", "--figure", "{tmp}/a.png"],
+        tmp_path,
+    )
+    assert report.returncode == 0 and _wrote(report.stderr) == [str(tmp_path / "a.md"), str(tmp_path / "a.png")]

@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -118,6 +119,7 @@ def run(args: argparse.Namespace) -> None:
                 f.write(json.dumps(rec) + "\n")
                 f.flush()
             print(f"trial {t} done ({time.strftime('%H:%M:%S')})", flush=True)
+    print(f"wrote: {args.out}", file=sys.stderr)
 
 
 def _load(path: str) -> list[dict]:
@@ -252,6 +254,9 @@ def report(args: argparse.Namespace) -> None:
         fig.suptitle(f"Motion traded for sensing: eight conditions × {n_trials} trials, seed 0", fontsize=10)
         fig.tight_layout()
         fig.savefig(args.figure, dpi=110)
+    for path in (args.table, args.figure):
+        if path:
+            print(f"wrote: {path}", file=sys.stderr)
 
 
 def main() -> None:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
@@ -172,6 +173,7 @@ def main(argv: list[str] | None = None) -> int:
         report["conditions"][name] = {"exact_max_abs_diff": res["exact_max_abs_diff"], "tests": rows}
     if args.out:
         write_json_atomic(args.out, report)
+        print(f"wrote: {args.out}", file=sys.stderr)
     return 0
 
 

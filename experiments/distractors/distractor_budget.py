@@ -21,6 +21,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
+import time
 
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
@@ -106,12 +108,12 @@ def main() -> None:
     p.add_argument("--out", default=None, help="JSON of the traces and the summary")
     a = p.parse_args()
     check_output_options(p, files={"--out": a.out})
-    traces = [
-        trace(agent, c, a.distractors, a.seed, k, a.budget)
-        for k in range(a.trials)
-        for c in PRESET_NAMES
-        for agent in a.agents.split(",")
-    ]
+    traces = []
+    for k in range(a.trials):
+        print(f"distractor_budget: trial {k + 1} of {a.trials} ({time.strftime('%H:%M:%S')})", file=sys.stderr)
+        traces += [
+            trace(agent, c, a.distractors, a.seed, k, a.budget) for c in PRESET_NAMES for agent in a.agents.split(",")
+        ]
     rows = summarize(traces)
     for line in markdown_table(
         (
@@ -142,6 +144,7 @@ def main() -> None:
     if a.out:
         with open(a.out, "w", encoding="utf-8") as fh:
             json.dump({"args": vars(a), "summary": rows, "traces": traces}, fh)
+        print(f"wrote: {a.out}", file=sys.stderr)
 
 
 if __name__ == "__main__":

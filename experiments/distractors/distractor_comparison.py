@@ -27,6 +27,7 @@ import argparse
 import calendar
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -284,10 +285,15 @@ def main() -> None:
     print(text)
     out.mkdir(parents=True, exist_ok=True)
     (out / "comparison.json").write_text(json.dumps({"trials_per_condition": n, "rows": rows}, indent=1))
+    written = [out / "comparison.json"]
     if a.table:
         Path(a.table).write_text(text, encoding="utf-8")
+        written.append(Path(a.table))
     if a.plot and n:
         plot(rows, n, Path(a.plot))
+        written.append(Path(a.plot))
+    for path in written:
+        print(f"wrote: {path}", file=sys.stderr)
 
 
 if __name__ == "__main__":

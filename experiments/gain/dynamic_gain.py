@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import sys
 
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
@@ -131,7 +132,7 @@ def main() -> None:
         fig.suptitle(f"min-var choosing the gain (× {', '.join(f'{g:g}' for g in levels)}) vs the preset gain")
         fig.tight_layout()
         fig.savefig(args.plot, dpi=120)
-        print(f"\nwrote {args.plot}")
+        print(f"wrote: {args.plot}", file=sys.stderr)
 
 
 if __name__ == "__main__":

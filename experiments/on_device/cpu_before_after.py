@@ -133,6 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(args.out, json.dumps(result, indent=2) + "\n")
+    print(f"wrote: {args.out}", file=sys.stderr)
     return 0
 
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from typing import Any
 
@@ -130,7 +131,7 @@ def main() -> None:
     if args.replot:
         with open(args.replot, encoding="utf-8") as f:
             plot(json.load(f), args.out)
-        print(f"figure: {args.out}")
+        print(f"wrote: {args.out}", file=sys.stderr)
         return
     if args.trials < 0 or args.global_trials < 0 or args.trials + args.global_trials == 0:
         p.error("--trials and --global-trials must be ≥ 0, and one of them ≥ 1")
@@ -171,7 +172,7 @@ def main() -> None:
     }
     write_json(os.path.splitext(args.out)[0] + ".json", summary)
     plot(summary, args.out)
-    print(f"\nfigure: {args.out} (numbers: {os.path.splitext(args.out)[0]}.json)")
+    print(f"wrote: {os.path.splitext(args.out)[0]}.json\nwrote: {args.out}", file=sys.stderr)
 
 
 def summarise(res: dict[str, dict[str, list[float]]]) -> dict[str, dict[str, float]]:

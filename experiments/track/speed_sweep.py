@@ -396,6 +396,9 @@ def sweep(args: argparse.Namespace) -> dict[str, Any]:
         print(verdict(rows, a))
     if args.figure:
         draw(rows, args.figure, f"{ENV_ID}, {args.motion}, {args.trials} episodes per point (8 conditions)")
+    for path in (args.out, args.figure):
+        if path:
+            print(f"wrote: {path}", file=sys.stderr)
     return result
 
 

@@ -11,7 +11,7 @@ import pytest
 import speed_sweep
 
 
-def test_a_small_sweep_summarises_and_resumes(tmp_path) -> None:
+def test_a_small_sweep_summarises_and_resumes(tmp_path, capsys) -> None:
     out = tmp_path / "sweep.json"
     argv = ["--speeds", "1", "12", "--agents", "pursuit", "--trials", "2", "--sensor-model", "analytic"]
     argv += ["--n-particles", "200", "--out", str(out), "--figure", str(tmp_path / "fig.png")]
@@ -21,6 +21,8 @@ def test_a_small_sweep_summarises_and_resumes(tmp_path) -> None:
     for r, c in zip(rows, result["cells"], strict=True):
         assert r["median_mm"] == np.median(c["tracking_error_mm"]) and r["capture_rate"] == np.mean(c["captured"])
     assert (tmp_path / "fig.png").stat().st_size > 0
+    wrote = [line for line in capsys.readouterr().err.splitlines() if line.startswith("wrote: ")]
+    assert wrote == [f"wrote: {out}", f"wrote: {tmp_path / 'fig.png'}"]  # what it wrote, said at the end
     kept = json.loads(out.read_text())
     again = speed_sweep.main([*argv, "--resume", "--speeds", "1", "12", "20"])
     assert again["cells"][:2] == kept["cells"] and len(again["cells"]) == 3  # only the new speed ran
