@@ -61,7 +61,7 @@ def own_task():
 
 def test_the_package_names_nothing_of_the_task() -> None:
     """The task occupies no file of the package: its id, class, options and metrics are the example's only."""
-    names = ("FrugalLoc", "frugal", "travel_mm", "travel_cost_per_mm", "travel_budget_mm")
+    names = ("FrugalLoc", "FrugalTask", "FrugalOptions", "FrugalState", "FRUGAL_METRICS", "travel_mm", "travel_budget")
     hits = [
         str(p.relative_to(ROOT))
         for p in (ROOT / "electroloc_gym").rglob("*.py")
