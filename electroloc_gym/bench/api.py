@@ -38,7 +38,7 @@ from electroloc_gym.bench.agents import (
 from electroloc_gym.bench.config import BENCH_OPTIONS, CONFIG_OPTIONS, BenchConfig
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.options import Option, SettingError, api_signature
-from electroloc_gym.registry import BENCH_ENVS, bench_env
+from electroloc_gym.registry import BENCH_ENVS, bench_env, resolve_env_name
 from electroloc_gym.utils.agentspec import split_specs
 
 __all__ = ["run", "BenchResult", "prepare"]
@@ -136,6 +136,7 @@ def prepare(
         ValueError: one line naming the setting.
     """
     name = {opt.name: spell(opt) for opt in BENCH_OPTIONS}
+    values = {**values, "env": resolve_env_name(values["env"], name["env"])}  # MODULE:NAME imports MODULE
     for opt in BENCH_OPTIONS:
         opt.check_value(name[opt.name], values[opt.name])
     env, backend = values["env"], values["backend"]

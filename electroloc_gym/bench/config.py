@@ -110,7 +110,7 @@ ENV_DEFAULT_AGENTS: LiveMapping[tuple[str, ...] | None] = LiveMapping(
     lambda: {name: bench.agents for name, (_, bench) in BENCH_ENVS.items()}
 )
 #: The single "conditions" of the envs with one fixed map (e.g. ElectroLocGlobal-v0's six-cylinder map,
-#: paper §6.5, = info["condition"]); their trial seeds use condition index 8.
+#: paper §6.5, = env.unwrapped.condition.name); their trial seeds use condition index 8.
 MAP_CONDITIONS: LiveSequence[str] = LiveSequence(
     lambda: tuple(dict.fromkeys(e.map_condition for e in ENVS if e.map_condition is not None))
 )
@@ -132,7 +132,9 @@ IDENTITY_KEYS = (
 
 
 def _bench_row(name: str, value: Any) -> None:
-    """``env``: a bench row (:func:`~electroloc_gym.registry.bench_env`, the one resolution of ``--env``)."""
+    """``env``: a bench row, or ``package.module:NAME`` (:func:`~electroloc_gym.registry.bench_env`, the one
+    resolution of ``--env``: it imports the module).
+    """
     try:
         bench_env(value)
     except ValueError as exc:
@@ -394,9 +396,12 @@ RUN_OPTIONS: tuple[Option, ...] = (
         "env",
         default=DEFAULT_ENV,
         check=_bench_row,
-        choices=lambda: ENV_CHOICES,
-        bad=("nowhere",),
-        help=lambda: "; ".join(f"{n}: {entry.env_id} {row.summary}".rstrip() for n, (entry, row) in BENCH_ENVS.items()),
+        bad=("nowhere", "no_such_module_xyz:nowhere"),
+        help=lambda: (
+            "; ".join(f"{n}: {entry.env_id} {row.summary}".rstrip() for n, (entry, row) in BENCH_ENVS.items())
+            + "; or package.module:NAME, a bench name your own module registers (a task of your own, "
+            "electroloc_gym.tasks): imported like any module, it runs your code (default: %(default)s)"
+        ),
     ),
     Option("workers", kind="int", check=int_in(1, MAX_WORKERS), bad=(0, MAX_WORKERS + 1), help=_workers_help),
     Option(

@@ -51,7 +51,7 @@ from electroloc_gym.dataset.seed_protocol import (
     reference_scores,
 )
 from electroloc_gym.options import Option, SettingError, int_in, is_bool, one_of, options_of, setting
-from electroloc_gym.registry import PAPER_ENV_ID
+from electroloc_gym.registry import PAPER_ENV_ID, resolve_env_name
 
 __all__ = [
     "DatasetRequest",
@@ -124,9 +124,12 @@ class DatasetRequest:
         python_default=MISSING,
         flag="--env",
         check=one_of(_env_ids),
-        choices=_env_ids,
-        bad=("Nope-v0",),
-        help="the registered env id",
+        bad=("Nope-v0", "no_such_module_xyz:Nope-v0"),
+        help=lambda: (
+            f"a registered env id ({', '.join(_env_ids())}), or package.module:ENV_ID, an env your own "
+            "module registers (a task of your own, electroloc_gym.tasks): imported like any module, it runs your code "
+            "(default: %(default)s)"
+        ),
     )
     agent: str = setting(
         MISSING, check=_agent_spec, bad=(" ",), help="an agent spec as electroloc bench --agents takes one"
@@ -180,6 +183,7 @@ class DatasetRequest:
     )
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "env_id", resolve_env_name(self.env_id, "env_id"))  # MODULE:ENV_ID imports MODULE
         check_settings({f.name: getattr(self, f.name) for f in fields(self)}, lambda o: o.name)
         for opt in REQUEST_OPTIONS:  # a numpy integer as the int the metadata records
             if opt.kind == "int" and getattr(self, opt.name) is not None:

@@ -45,12 +45,14 @@ def run(args: argparse.Namespace) -> int:
         build_dataset,
         check_settings,
     )
+    from electroloc_gym.registry import resolve_env_name
 
     def notify(message: str) -> None:
         print(f"{PROG}: {message}", file=sys.stderr)
 
     values = {o.name: getattr(args, o.name) for o in DATASET_OPTIONS}
     try:
+        values["env_id"] = resolve_env_name(values["env_id"], "--env")  # MODULE:ENV_ID imports MODULE
         check_settings(values, lambda o: o.option)  # named by their flags, before the request names them
         request = DatasetRequest(**{o.name: values[o.name] for o in REQUEST_OPTIONS})
         ds = build_dataset(request, resume=args.resume, force=args.force, progress=args.progress, notify=notify)
