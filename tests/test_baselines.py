@@ -125,9 +125,13 @@ def test_make_agent_bad_names(spec: str, match: str) -> None:
         make_agent(spec)
 
 
-def test_make_agent_builds_only_the_papers_controllers() -> None:
-    # Learned policies load through the benchmark's registry (electroloc_gym.bench.agents), not here.
-    for spec in ("electroloc_gym/models/ppo-belief", "ppo-belief", "run/model.zip"):
+def test_make_agent_builds_controllers_and_shipped_policies_by_name_only() -> None:
+    # a shipped policy by its name (electroloc_gym.policy.load_policy); paths and files go through load_policy or
+    # the benchmark's registry (electroloc_gym.bench.agents), never through make_agent
+    from electroloc_gym.policy import LearnedAgent
+
+    assert isinstance(make_agent("ppo-belief"), LearnedAgent)
+    for spec in ("electroloc_gym/models/ppo-belief", "run/model.zip", "ppo-nope"):
         with pytest.raises(ValueError, match="unknown agent|malformed"):
             make_agent(spec)
 
