@@ -54,6 +54,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the scores beside this script
 
+from learned_level import reach, reach_table  # noqa: E402
 from learned_scores import (  # noqa: E402
     BASELINES_DIR,
     COMPARISONS,
@@ -415,6 +416,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="DIR",
         help="where report.md, report.json and the figures go (default: the results folder; created if missing)",
     )
+    parser.add_argument(
+        "--min-var-level",
+        action="store_true",
+        help="run min-var on the runs' validation episodes where its score is not cached yet (once per env and "
+        "setting, cached in RESULTS/<env-id>/_baselines/validation/; minutes: 64 episodes), for the env steps and "
+        "wall time each run took to reach it; without it only cached levels are used",
+    )
     args = parser.parse_args(argv)
     missing = [str(d) for d in args.extra if not d.is_dir()]
     if missing:
@@ -495,6 +503,15 @@ def _report(args: argparse.Namespace, envs: list[str], comparisons: Sequence[tup
         "\n".join(["", *markdown_table(("env", "algorithm", "training wall time per seed, s (2-core CPU)"), compute)])
         + "\n"
     )
+    levels = {}
+    for env in envs:
+        _progress(t0, f"{env}: env steps and wall time to min-var's validation level")
+        rows = reach(args.results, env, lambda line: _progress(t0, line), compute=args.min_var_level)
+        if rows:
+            levels[env] = rows
+    text += reach_table(levels)
+    for a in analyses:
+        a["min_var_level"] = levels.get(a["env_id"])
     atomic_write_text(out / "report.md", text)
     write_json_atomic(
         out / "report.json",

@@ -95,6 +95,7 @@ SUITE: tuple[Config, ...] = (
     Config(PAPER_ENV_ID, "sac", "sac", note="belief observation, continuous moves"),
     Config(PAPER_ENV_ID, "a2c", "a2c", note="belief observation, continuous moves"),
     Config(PAPER_ENV_ID, "qrdqn", "qrdqn", note="belief observation, the discrete action mode (9 moves)"),
+    Config(PAPER_ENV_ID, "crossq", "crossq", note="CrossQ (sb3-contrib): off-policy, batch renorm, no target network"),
     Config(
         PAPER_ENV_ID,
         "ppo_lstm-raw",
@@ -121,6 +122,8 @@ SUITE: tuple[Config, ...] = (
         hyperparams={"frame_stack": 16, "n_envs": 8},
         note="a target that swims: PPO on the last 16 raw readings",
     ),
+    Config(_TRACK, "sac", "sac", note="a target that swims: SAC on the belief observation"),
+    Config(_TRACK, "crossq", "crossq", note="a target that swims: CrossQ (sb3-contrib) on the belief observation"),
 )
 
 #: ``electroloc bench --env`` of each env id, and the non-learned agents benchmarked beside the learned ones.

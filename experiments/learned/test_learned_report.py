@@ -521,3 +521,33 @@ def test_a_damaged_tracking_line_is_set_aside(tmp_path, damage):
     a = scores.analyse(res, TRACK_ID, reps=200)
     assert len(a["set_aside"]) == 1
     np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])
+
+
+def test_the_report_says_when_each_run_reached_min_vars_validation_level(tmp_path, capsys):
+    """Env steps and wall time to min-var's level on the validation episodes (eval.csv against min-var's cached
+    evaluation on the same episodes); "not within the budget" where a run never reached it; computed only with
+    --min-var-level when not cached."""
+    res = _results(tmp_path)
+    head = "timesteps,wall_time_s,episodes,success_rate,mean_readings,median_readings,median_error_mm,mean_error_mm"
+    for k, readings in enumerate(([30, 11, 9, 8], [30, 20, 11, 10], [30, 25, 20, 15])):
+        run = res / "ElectroLoc-v0" / "ppo" / f"seed-{k}" / "zoo" / "ppo" / "ElectroLoc-v0_1"
+        (run / "ElectroLoc-v0").mkdir(parents=True)
+        rows = [f"{i * 500},{12.5 * i},2,1,{r},{r},2,2" for i, r in enumerate(readings)]
+        (run / "eval.csv").write_text("\n".join([head, *rows]) + "\n")
+        validation = {"episodes": 2, "first_seed": 100000, "env_kwargs": {"randomize_target": False}}
+        (run / "summary.json").write_text(json.dumps({"env_id": "ElectroLoc-v0", "validation": validation}))
+        (run / "ElectroLoc-v0" / "config.yml").write_text("env_kwargs: {condition: random, randomize_target: true}\n")
+    assert report.main([str(res), "--reps", "200"]) == 0
+    text = (res / "report.md").read_text()
+    assert "seed 0: min-var's level not computed (--min-var-level)" in text
+    cache = res / "ElectroLoc-v0" / "_baselines" / "validation" / "min-var.json"
+    entry = {"env_id": "ElectroLoc-v0", "env_kwargs": {"condition": "random", "randomize_target": False}}
+    cache.parent.mkdir(parents=True)
+    cache.write_text(json.dumps([{**entry, "first_seed": 100000, "episodes": 2, "row": {"mean_readings": 11.0}}]))
+    assert report.main([str(res), "--reps", "200", "--min-var-level"]) == 0
+    text = (res / "report.md").read_text()
+    assert "| ElectroLoc-v0 | ppo | mean_readings 11 | 2 of 3 |" in text
+    assert "seed 0: 500; seed 1: 1 000; seed 2: not within the budget (1 500)" in text
+    assert "seed 0: 12; seed 1: 25; seed 2: not within the budget" in text
+    level = json.loads((res / "report.json").read_text())[0]["min_var_level"]
+    assert [s["timesteps"] for s in level[0]["seeds"]] == [500, 1000, None]

@@ -114,6 +114,20 @@ def test_suite_lists_every_configuration():
     assert all(e.env_id in proc.stdout for e in ENVS)  # every env of the table has a configuration
 
 
+def test_the_off_policy_rows_are_in_the_suite():
+    """SAC and CrossQ on the moving target and CrossQ on the still one: five seeds each, picked by --only."""
+    only = "ElectroLocTrack-v0/sac,ElectroLocTrack-v0/crossq,ElectroLoc-v0/crossq"
+    proc = _run("experiments/learned/learned_suite.py", "--list", "--only", only)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 3 and all("seeds [1, 2, 3, 4, 5]" in line for line in lines)
+    assert [line.split()[:3] for line in lines] == [
+        ["ElectroLoc-v0", "crossq", "crossq"],
+        ["ElectroLocTrack-v0", "sac", "sac"],
+        ["ElectroLocTrack-v0", "crossq", "crossq"],
+    ]
+
+
 def test_every_env_takes_its_baseline_agents(tmp_path):
     """The suite's non-learned agents of each env run on that env's benchmark (one trial of one condition),
     so a long reference run cannot end on an agent its env refuses."""
