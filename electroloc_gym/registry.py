@@ -122,7 +122,8 @@ class EnvEntry:
             count and sensor model).
         bench: the ``electroloc bench --env`` choices on this env.
         map_condition: the one condition of an env without ``condition`` presets (its fixed map's name, =
-            ``info["condition"]``; its trial seeds use condition index 8), or None: the paper's eight presets.
+            ``env.unwrapped.condition.name``; its trial seeds use condition index 8), or None: the paper's eight
+            presets.
         paper_table: the paper's table the benchmark's results are laid out like (:data:`PAPER_TABLES`).
         bench_kwargs: arguments every benchmark trial on this env passes (part of the benchmark's protocol
             there, e.g. the unknown target drawn from the condition's sphere).
