@@ -384,7 +384,8 @@ def changelog_moves() -> dict[str, str]:
     import re
 
     text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
-    section = text.split("### Moved", 1)[1].split("\n### ", 1)[0]
+    # every release section's "Moved" table (a section ends at the next "### " or "## " heading)
+    section = "\n".join(re.split(r"\n##+ ", part, maxsplit=1)[0] for part in text.split("### Moved")[1:])
 
     def items(cell: str) -> list[tuple[str, list[str] | None]]:
         out: list[tuple[str, list[str] | None]] = []

@@ -25,6 +25,8 @@ from types import ModuleType
 __all__ = [
     "MOVED",
     "MOVED_IN",
+    "MOVES_BY_RELEASE",
+    "UNRELEASED",
     "MovedModuleError",
     "MovedNameError",
     "MovedPathFinder",
@@ -33,13 +35,15 @@ __all__ = [
     "moved_name_error",
 ]
 
-#: The release whose tree the moves below made (the CHANGELOG's section holding the "Moved" table).
+#: The release whose tree made the first moves (0.3.0's "Moved" table); later moves name their own section.
 MOVED_IN = "0.3.0"
+#: The CHANGELOG section of moves not yet in a release.
+UNRELEASED = "Unreleased"
 
 _P = "electroloc_gym"
 
-#: Old path → new path, one row per module or name (the CHANGELOG's "Moved" table, expanded).
-MOVED: dict[str, str] = {
+#: Old path → new path of 0.3.0's moves, one row per module or name (its "Moved" table, expanded).
+_MOVED_0_3_0: dict[str, str] = {
     **{f"{_P}.{m}": f"{_P}.utils.{m}" for m in ("checks", "fileio", "markdown", "runtime", "agentspec")},
     **{
         f"{_P}.{m}": f"{_P}.world.{m}"
@@ -82,7 +86,38 @@ MOVED: dict[str, str] = {
     f"{_P}.envs.adapter.condition_index": f"{_P}.contract.observation.condition_index",
 }
 
-_WHEN = f'in electroloc-gym {MOVED_IN} (the CHANGELOG\'s "Moved" table)'
+#: The names a task took with its options, and the calibration helpers both engines share (the Unreleased
+#: section's "Moved" table, expanded).
+_MOVED_UNRELEASED: dict[str, str] = {
+    **{
+        f"{_P}.contract.params.{n}": f"{_P}.engines.numba_core.track_task.{n}"
+        for n in ("TARGET_MOTIONS", "MOTION_MODELS", "MAX_TARGET_SPEED_MM", "MOTION_OPTION_SCOPES")
+    },
+    **{
+        f"{_P}.contract.params.{n}": f"{_P}.engines.numba_core.unknown.{n}"
+        for n in ("TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM", "RADIUS_LIMITS_MM")
+    },
+    **{f"{_P}.contract.params.{n}": f"{_P}.engines.numba_core.global_task.{n}" for n in ("LAYOUTS", "MAX_POSITION_BLUR_MM")},
+    **{
+        f"{_P}.engines.numba_core.worlds.{n}": f"{_P}.sensor_models.calibrated.{n}"
+        for n in ("fixed_coefficients", "grid_points_bound")
+    },
+    f"{_P}.engines.numba_core.worlds.cells": f"{_P}.sensor_models.calibrated.coefficient_rows",
+}
+
+#: The moves of each CHANGELOG section that has a "Moved" table.
+MOVES_BY_RELEASE: dict[str, dict[str, str]] = {MOVED_IN: _MOVED_0_3_0, UNRELEASED: _MOVED_UNRELEASED}
+#: Old path → new path, one row per module or name (every "Moved" table of the CHANGELOG, expanded).
+MOVED: dict[str, str] = {old: new for moves in MOVES_BY_RELEASE.values() for old, new in moves.items()}
+
+
+def _when(old: str) -> str:
+    """When ``old`` (a path or an old package's prefix) moved, with where it is said."""
+    release = next((r for r, m in MOVES_BY_RELEASE.items() if any(k == old or k.startswith(old + ".") for k in m)), MOVED_IN)
+    where = f'the CHANGELOG\'s "Moved" table of {release}'
+    if release == UNRELEASED:
+        return f"after electroloc-gym {MOVED_IN} ({where})"
+    return f"in electroloc-gym {release} ({where.replace(' of ' + release, '')})"
 
 
 class MovedModuleError(ModuleNotFoundError):
@@ -107,13 +142,14 @@ def _package_text(package: str) -> str | None:
         else:
             renamed.append(f"{leaf} to {new}")
     kept = [f"{', '.join(leaves)} to {parent} (the same names)" for parent, leaves in same.items()]
-    return f"its modules moved {_WHEN}: {'; '.join(kept + renamed)}"
+    return f"its modules moved {_when(package)}: {'; '.join(kept + renamed)}"
 
 
 def moved_module_error(fullname: str) -> MovedModuleError | None:
     """The error for importing ``fullname`` when no module of that name exists (None: it never moved)."""
     if fullname in MOVED:
-        return MovedModuleError(f"No module named {fullname!r}: it moved to {MOVED[fullname]} {_WHEN}", name=fullname)
+        new = MOVED[fullname]
+        return MovedModuleError(f"No module named {fullname!r}: it moved to {new} {_when(fullname)}", name=fullname)
     text = _package_text(fullname)
     if text is None:
         return None
@@ -127,7 +163,7 @@ def moved_name_error(module: str, name: str) -> ImportError | AttributeError:
     new = MOVED.get(f"{module}.{name}")
     if new is None:
         return AttributeError(f"module {module!r} has no attribute {name!r}")
-    return MovedNameError(f"{module}.{name} moved to {new} {_WHEN}; import it from there", name=module)
+    return MovedNameError(f"{module}.{name} moved to {new} {_when(f'{module}.{name}')}; import it from there", name=module)
 
 
 class MovedPathFinder:
