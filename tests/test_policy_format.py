@@ -173,6 +173,29 @@ def test_the_numpy_crossq_actor_acts_as_sb3_contrib_predict(tmp_path, policy_kwa
         assert not np.allclose(a0, a1)
 
 
+def test_a_crossq_file_rebuilds_sb3_contribs_policy_and_its_counters_must_be_integers(tmp_path):
+    """Stochastic actions load the file into sb3-contrib's CrossQPolicy strictly (its 0-d int64 step counters
+    included); a counter written as a float, or a weight as an integer, is refused in one line."""
+    contrib = pytest.importorskip("sb3_contrib")
+    venv = _venv()
+    model = contrib.CrossQ("MlpPolicy", venv, policy_kwargs={"net_arch": [8]}, seed=0, device="cpu")
+    agent = _export(model, venv, tmp_path / "c")
+    venv.reset()
+    action, _ = agent.predict(venv.get_original_obs(), deterministic=False)
+    assert action.shape == (2, 2) and np.all(np.abs(action) <= 1)
+    weights = read_weights(read_export(tmp_path / "c"))
+    assert weights["actor.latent_pi.0.steps"].shape == () and weights["actor.latent_pi.0.steps"].dtype == np.int64
+    meta = {
+        k: v for k, v in read_export(tmp_path / "c").meta.items() if k not in ("format", "format_version", "weights")
+    }
+    bad = dict(weights, **{"actor.latent_pi.0.steps": np.float32(3.0).reshape(())})
+    with pytest.raises(PolicyFormatError, match="'actor.latent_pi.0.steps' is float32, not an integer counter"):
+        write_export(tmp_path / "bad", meta, bad)
+    bad = dict(weights, **{"actor.mu.bias": np.zeros(2, dtype=np.int64)})
+    with pytest.raises(PolicyFormatError, match="'actor.mu.bias' is int64, not floating-point"):
+        write_export(tmp_path / "bad", meta, bad)
+
+
 _BOX = {"type": "Box", "shape": [3], "dtype": "float32", "low": [-1.0] * 3, "high": [1.0] * 3}
 _DISCRETE = {"type": "Discrete", "n": 5, "start": 0}
 _LSTM = {"lstm_hidden_size": 6, "n_lstm_layers": 1, "shared_lstm": False, "enable_critic_lstm": True}
