@@ -183,6 +183,11 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
         """The names of :meth:`hidden_state`'s entries (units in the names)."""
         return tuple(self._task.hidden_keys)
 
+    @property
+    def hides_sphere(self) -> bool:
+        """The sphere's size and material are hidden from agents (the task's declaration; the unknown target)."""
+        return bool(self._task.hides_sphere)
+
     def hidden_state(self) -> NDArray[np.float64]:
         """The episode's hidden state (:attr:`hidden_keys`), float64: ground truth, for evaluation and
         privileged critics (:class:`electroloc_gym.envs.privileged.PrivilegedInfo`), never for agents.

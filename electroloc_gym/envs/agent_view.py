@@ -347,13 +347,13 @@ def agent_view(env: Any) -> AgentView:
     belief_view: list[tuple[Any, AgentView]] = []  # (the env's belief object, its view): built once
 
     def sphere_hidden() -> bool:
-        """The belief estimates the sphere: the env's hidden state names it (its ``hidden_keys``: a radius or a
-        contrast), or, for a core that declares none, its hypotheses carry more than (x, y). (The moving
-        target's swimmer filter carries a velocity beside (x, y), not the sphere.)
+        """The belief estimates the sphere: the env's task says so (``hides_sphere``), or, for a core that
+        declares nothing, its hypotheses carry more than (x, y). (The moving target's swimmer filter carries a
+        velocity beside (x, y), not the sphere, and declares it shown.)
         """
-        keys = getattr(core, "hidden_keys", None)
-        if keys is not None:
-            return bool({"target_radius_mm", "target_chi"} & set(keys))
+        hides = getattr(core, "hides_sphere", None)
+        if hides is not None:
+            return bool(hides)
         return bool(np.shape(core.belief.particles)[-1] > 2) if _has(core, "belief") else False
 
     def wrap(name: str, value: Any) -> Any:

@@ -89,6 +89,9 @@ class Task(ABC):
     belief_frame = "target"
     #: The names of the hidden state's entries (:meth:`hidden_state`), units in the names.
     hidden_keys: tuple[str, ...] = ("target_x_mm", "target_y_mm")
+    #: The sphere's size and material are hidden from the agent (the belief estimates them): its agent view shows
+    #: the episode's condition without them.
+    hides_sphere = False
     #: What the layers above the engine report of the task: a
     #: :class:`~electroloc_gym.contract.task_spec.TaskMetrics` (default :data:`LOCALIZATION_METRICS`).
     metrics: ClassVar[TaskMetrics]

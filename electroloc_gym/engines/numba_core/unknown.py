@@ -197,6 +197,7 @@ class UnknownTargetTask(LocalizeTask):
     info_keys = SHAPE_INFO_KEYS
     info_names: ClassVar[Mapping[str, tuple[str, ...]]] = {"material_index": MATERIALS}
     hidden_keys = ("target_x_mm", "target_y_mm", "target_radius_mm", "target_chi")
+    hides_sphere = True
     Options = UnknownTargetOptions
     State = UnknownTargetState
     options: UnknownTargetOptions
