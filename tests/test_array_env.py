@@ -141,7 +141,7 @@ def test_fixed_carriage_never_moves_and_agents_predict_it() -> None:
     np.testing.assert_array_equal(moved[0][1], still[0])
     for _ in range(5):
         _, _, te, tr, info = env.step(np.ones(2, np.float32))
-        assert info["position_mm"] == start
+        assert np.array_equal(info["position_mm"], start)
     assert tr and not te and info["n_observations"] == 6
     # a moving carriage predicts from the moved position
     mov = gym.make(ID, sensor_layout="ring-8", n_particles=200, sensor_model="analytic")
