@@ -24,7 +24,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -70,9 +70,9 @@ class Episode:
 
 def _task_metrics(env: Any) -> Any:
     """The metrics of ``env``'s task (its env-table entry's; an env of no entry: the localisation metrics)."""
-    entry = getattr(env.unwrapped, "entry", None)
+    entry: Any = getattr(env.unwrapped, "entry", None)
     try:
-        return entry().task_class.metrics if callable(entry) else LOCALIZATION_METRICS
+        return cast("Any", entry()).task_class.metrics if callable(entry) else LOCALIZATION_METRICS
     except (LookupError, ValueError):
         return LOCALIZATION_METRICS
 

@@ -180,7 +180,7 @@ class EnvEntry:
         """The task's info keys a benchmark record keeps under ``"shape"`` (empty: none): the record fields its
         task class's ``metrics`` declare (:class:`~electroloc_gym.contract.task_spec.TaskMetrics`).
         """
-        return self.task_class.metrics.record_keys
+        return tuple(cast("Any", self.task_class).metrics.record_keys)
 
     @property
     def all_arguments(self) -> tuple[str, ...]:
@@ -357,7 +357,7 @@ def import_plugin_modules(modules: Sequence[str]) -> None:
         importlib.import_module(name)
 
 
-def resolve_env_name(name: str, option: str = "--env") -> str:
+def resolve_env_name(name: Any, option: str = "--env") -> Any:
     """The env name ``name`` with its module imported: ``"my_module:NAME"`` imports ``my_module`` (running its
     code, which registers its envs, as Gymnasium's ``gym.make("my_module:Id")`` does) and returns ``NAME``; a
     name without a colon is returned as it is. ``NAME`` is an env id or a benchmark name, as the caller takes.

@@ -680,7 +680,8 @@ def test_a_datasets_path_the_output_rule_refuses_is_one_line(tmp_path, monkeypat
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(make(tmp_path)))
     assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", "1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("electroloc dataset: error: MINARI_DATASETS_PATH") and words in err[0], err
+    assert len(err) == 1 and words in err[0], err
+    assert err[0].startswith("electroloc dataset: error: MINARI_DATASETS_PATH"), err
     assert not (tmp_path / "nowhere").exists()
 
 

@@ -16,8 +16,6 @@ pattern) or bash (which would expand a matching file name) runs as written.
 
 from __future__ import annotations
 
-import os
-import re
 from pathlib import Path
 
 import pytest
@@ -106,10 +104,7 @@ def _unquoted_patterns(line: str) -> list[str]:
 def test_the_readmes_shell_commands_quote_what_a_shell_would_expand() -> None:
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     bad = [
-        line
-        for block in grab_code_blocks(text, lang="bash")
-        for line in block.splitlines()
-        if _unquoted_patterns(line)
+        line for block in grab_code_blocks(text, lang="bash") for line in block.splitlines() if _unquoted_patterns(line)
     ]
     assert not bad, bad
     assert _unquoted_patterns("electroloc bench --agents min-var,mypkg:make_agent[depth=2]") == ["["]

@@ -24,8 +24,8 @@ from electroloc_gym.baselines.base import (
     move_bounds_mm,
     sample_options_mm,
 )
-from electroloc_gym.utils.agentspec import AgentSpec, parse_agent_spec
 from electroloc_gym.models import shipped_models
+from electroloc_gym.utils.agentspec import AgentSpec, parse_agent_spec
 
 __all__ = [
     "Agent",

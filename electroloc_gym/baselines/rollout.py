@@ -13,11 +13,11 @@ The loop is the agent protocol of :mod:`electroloc_gym.baselines.agent` and noth
 so an episode counted by ``electroloc bench``, one recorded into a dataset and one counted by the
 training's seeded evaluation are the same episode. :func:`run_agent` is the public way to run an agent:
 it builds the env with the agent's ``env_kwargs`` (what the agent needs of it: zero-crossing's own
-budget, a policy's observation mode) and runs one seeded episode or a batch of them through this loop. The agent is handed the env's agent view
-(:func:`electroloc_gym.envs.agent_view.agent_view`: the documented agent accessors, never the ground
-truth), not the env. Whatever an agent's ``seed``, ``reset`` or ``predict`` raises (any exception,
-``SystemExit`` included) comes out as one :class:`AgentCallError` naming the method, so a caller can
-tell the agent's failure from the env's.
+budget, a policy's observation mode) and runs one seeded episode or a batch of them through this loop.
+The agent is handed the env's agent view (:func:`electroloc_gym.envs.agent_view.agent_view`: the
+documented agent accessors, never the ground truth), not the env. Whatever an agent's ``seed``,
+``reset`` or ``predict`` raises (any exception, ``SystemExit`` included) comes out as one
+:class:`AgentCallError` naming the method, so a caller can tell the agent's failure from the env's.
 """
 
 from __future__ import annotations

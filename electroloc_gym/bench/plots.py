@@ -241,7 +241,7 @@ def conditions_png(summary: dict[str, Any]) -> bytes:
             else:
                 ax.plot(xs, ys, "o", color=color, ms=5, label=labels[agent])
             key = paper_agent_key(agent)
-            if panel.key == SUCCESS_KEY and any((c, key) in PAPER_TABLE4 for c in conditions):
+            if key is not None and panel.key == SUCCESS_KEY and any((c, key) in PAPER_TABLE4 for c in conditions):
                 paper = [PAPER_TABLE4.get((c, key)) for c in conditions]
                 py = [np.nan if p is None else 100.0 * p[0] / (p[0] + p[1]) for p in paper]
                 ax.plot(xs, py, "_", color="k", ms=12, mew=2, label=None if paper_ticks else "paper (Table 4)")

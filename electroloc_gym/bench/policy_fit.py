@@ -16,7 +16,6 @@ from electroloc_gym.models import shipped_models
 from electroloc_gym.registry import env_entry
 from electroloc_gym.world.conditions import get_condition
 
-
 # The bench owns these env kwargs; no agent's env_kwargs override them.
 _BENCH_ONLY_KWARGS = (
     "condition",

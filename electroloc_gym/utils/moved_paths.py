@@ -97,7 +97,10 @@ _MOVED_UNRELEASED: dict[str, str] = {
         f"{_P}.contract.params.{n}": f"{_P}.engines.numba_core.unknown.{n}"
         for n in ("TARGET_DRAWS", "CONTRASTS", "DEFAULT_RADIUS_RANGE_MM", "RADIUS_LIMITS_MM")
     },
-    **{f"{_P}.contract.params.{n}": f"{_P}.engines.numba_core.global_task.{n}" for n in ("LAYOUTS", "MAX_POSITION_BLUR_MM")},
+    **{
+        f"{_P}.contract.params.{n}": f"{_P}.engines.numba_core.global_task.{n}"
+        for n in ("LAYOUTS", "MAX_POSITION_BLUR_MM")
+    },
     **{
         f"{_P}.engines.numba_core.worlds.{n}": f"{_P}.sensor_models.calibrated.{n}"
         for n in ("fixed_coefficients", "grid_points_bound")
@@ -113,7 +116,9 @@ MOVED: dict[str, str] = {old: new for moves in MOVES_BY_RELEASE.values() for old
 
 def _when(old: str) -> str:
     """When ``old`` (a path or an old package's prefix) moved, with where it is said."""
-    release = next((r for r, m in MOVES_BY_RELEASE.items() if any(k == old or k.startswith(old + ".") for k in m)), MOVED_IN)
+    release = next(
+        (r for r, m in MOVES_BY_RELEASE.items() if any(k == old or k.startswith(old + ".") for k in m)), MOVED_IN
+    )
     where = f'the CHANGELOG\'s "Moved" table of {release}'
     if release == UNRELEASED:
         return f"after electroloc-gym {MOVED_IN} ({where})"
@@ -163,7 +168,9 @@ def moved_name_error(module: str, name: str) -> ImportError | AttributeError:
     new = MOVED.get(f"{module}.{name}")
     if new is None:
         return AttributeError(f"module {module!r} has no attribute {name!r}")
-    return MovedNameError(f"{module}.{name} moved to {new} {_when(f'{module}.{name}')}; import it from there", name=module)
+    return MovedNameError(
+        f"{module}.{name} moved to {new} {_when(f'{module}.{name}')}; import it from there", name=module
+    )
 
 
 class MovedPathFinder:
