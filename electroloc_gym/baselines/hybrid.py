@@ -58,7 +58,7 @@ class HybridAgent(BaselineAgent):
     def __init__(
         self,
         seed: int | np.random.Generator | None = None,
-        explore: str = "min-var",
+        explore: str = MinVarianceAgent.name,
         switch_spread_mm: float | None = None,
     ) -> None:
         super().__init__(seed)

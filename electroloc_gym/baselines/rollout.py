@@ -30,6 +30,7 @@ from typing import Any, cast
 import numpy as np
 
 from electroloc_gym.envs.agent_view import agent_view
+from electroloc_gym.registry import PAPER_ENV_ID
 
 __all__ = ["Episode", "run_episode", "run_agent", "AgentCallError"]
 
@@ -148,7 +149,7 @@ def run_episode(
 
 def run_agent(
     agent: Any,
-    env_id: str = "ElectroLoc-v0",
+    env_id: str = PAPER_ENV_ID,
     seeds: int | Sequence[int] = 0,
     *,
     env_kwargs: Mapping[str, Any] | None = None,
