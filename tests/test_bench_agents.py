@@ -427,6 +427,7 @@ def test_an_agent_object_whose_attribute_raises_is_one_value_error(
 DATASET_READS = [r for r in PROTOCOL_FAILURES if r[0] in ("factory", "env_kwargs", "table_layout")]
 
 
+@pytest.mark.minari
 @pytest.mark.parametrize("attr,how,says,extra", DATASET_READS, ids=[f"{r[0]}-{r[2][:20]}" for r in DATASET_READS])
 def test_the_dataset_command_reads_a_plug_in_through_the_same_guard(
     plug_module, tmp_path, monkeypatch, capsys, attr, how, says, extra
