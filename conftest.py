@@ -1,5 +1,6 @@
 """Test configuration: one numeric thread per process (docs/performance.md), headless matplotlib, property
-tests with fixed examples, the files of long tests first."""
+tests with fixed examples, the files of long tests first, the checks of the project's own text and plumbing
+marked to run once."""
 
 import os
 import re
@@ -55,8 +56,37 @@ def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool 
     return True if not Expression.compile(config.option.markexpr).evaluate(matches) else None
 
 
+#: The test files that check the project's own text and plumbing — its docs and their snippets' references, the
+#: import graph, the literal and metric-name scans, the command lines' and scripts' option handling, the output
+#: path rule, the kept result files: what they check reads the package's own code and files, the same at any
+#: version of its dependencies. They are marked ``once``: the tests session runs them, the lowest session
+#: (the suite again on the declared minimum versions) does not.
+ONCE_FILES = frozenset(
+    {
+        "test_docs_links.py",
+        "test_docs_agree.py",
+        "test_doc_blocks.py",
+        "test_readme.py",
+        "test_markdown.py",
+        "test_table_literals.py",
+        "test_imports.py",
+        "test_metric_names.py",
+        "test_env_names.py",
+        "test_settings_parity.py",
+        "test_output_paths.py",
+        "test_script_args.py",
+        "test_results_page.py",
+        "test_stored_summaries.py",
+        "test_kept_records.py",
+        "test_smoke.py",
+    }
+)
+
+
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """The files holding a ``long`` test run first, the rest in collection order.
+    """Files of :data:`ONCE_FILES` are marked ``once`` (before ``-m`` selects); the files holding a ``long``
+    test run first, the rest in collection order.
 
     pytest-xdist's file scheduling (``--dist loadfile --no-loadscope-reorder``, the nox sessions) hands
     files to the workers in collection order. A two-minute file handed out late runs alone on one worker
@@ -64,6 +94,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     116 s file of six tests out near the end, and the other worker sat idle for the last 85 s of a 254 s
     run. Started first, it runs beside the rest. The order within a file is kept.
     """
+    for item in items:
+        if item.path.name in ONCE_FILES:
+            item.add_marker(pytest.mark.once)
     long_files = {item.path for item in items if item.get_closest_marker("long")}
     if long_files:
         items.sort(key=lambda item: item.path not in long_files)

@@ -6,7 +6,8 @@
   reference fails it).
 * ``lowest`` — the suite on every declared minimum (``constraints-lowest.txt``); the tests of extras that
   cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker, and
-  so are the ``long`` tests (minutes of episodes, version-independent: the tests session runs them).
+  so are the ``long`` tests (minutes of episodes, version-independent: the tests session runs them) and the
+  ``once`` tests (the project's own text and plumbing, conftest.py's ``ONCE_FILES``).
 * ``rllib``  — every extra at once, with RLlib's gymnasium pin: exactly the Ray/RLlib tests (marker
   ``rllib``), and pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml: basic
   checks on every module, strict on the public API), every import resolved; it fails on any error.
@@ -64,7 +65,7 @@ ONE_THREAD = {
 }
 #: What the default sessions leave out (the fast suite's ``not slow`` plus the extras they do not install).
 NOT_RLLIB = "not slow and not rllib and not wheel"
-NOT_LOWEST = "not slow and not rllib and not wheel and not zoo and not minari and not long"
+NOT_LOWEST = "not slow and not rllib and not wheel and not zoo and not minari and not long and not once"
 #: Where tests/test_wheel.py copies the sdist and the wheel it built (the wheel session installs that wheel).
 WHEEL_DIST = "ELECTROLOC_WHEEL_DIST"
 #: pytest-xdist: one worker per core, each test module on one worker (its module fixtures built once), the
