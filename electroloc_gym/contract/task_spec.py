@@ -450,6 +450,9 @@ class Score:
             else ``float(record["shape"][key])`` (the task's results).
         best: the words of the best checkpoint's choice (``"fewest mean readings …"``; default: lowest or
             highest mean ``label`` (``key``, ``unit``)), followed by "on the validation episodes".
+        reference: a value on the datasets' normalised-score scale (Minari's ``ref_min_score`` and
+            ``ref_max_score``, higher better), or None: the value itself when higher is better, its negative
+            when lower is.
     """
 
     key: str
@@ -460,6 +463,7 @@ class Score:
     episode: Callable[[Mapping[str, Any]], float] | None = None
     record: Callable[[Mapping[str, Any]], float] | None = None
     best: str = ""
+    reference: Callable[[float], float] | None = None
 
     def __post_init__(self) -> None:
         if self.better not in DIRECTIONS:
@@ -474,6 +478,12 @@ class Score:
     def of_info(self, info: Mapping[str, Any]) -> float:
         """The score of an episode from its final info."""
         return float(self.episode(info)) if self.episode is not None else float(info[self.key])
+
+    def on_reference_scale(self, value: float) -> float:
+        """``value`` on the datasets' normalised-score scale (higher better; :attr:`reference`)."""
+        if self.reference is not None:
+            return float(self.reference(value))
+        return float(value) if self.better == "higher" else -float(value)
 
     def of_record(self, record: Mapping[str, Any]) -> float:
         """The score of a benchmark trial from its record."""

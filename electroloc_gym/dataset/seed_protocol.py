@@ -21,10 +21,12 @@ the dataset's uses the means over the same conditions).
 On an env whose task declares its own score (``Task.metrics.score``, e.g. the moving target, where every
 episode reads its cap and the readings say nothing) agents are compared by that score (the mean over
 conditions of each condition's mean, e.g. the tracking error in mm, lower better), and the reference
-scores are its negatives: ``ref_min_score = −E_rnd``, ``ref_max_score = −E_best``, the block's ``score``
-naming it. An episode's score on that scale is −(its tracking error): the mean of the dataset's per-step
-``error_mm`` info over the scored second half (``n_observations`` above half the cap), the env's final
-``tracking_error_mm`` — not the return, which sums the error over every reading.
+scores are its negatives: ``ref_min_score = −E_rnd``, ``ref_max_score = −E_best``. Each task declares
+that scale with its score (``Score.reference``: the return 1 − R for the readings; the negated value by
+default), and the block's ``score`` names the score. An episode's score on that scale is −(its tracking
+error): the mean of the dataset's per-step ``error_mm`` info over the scored second half
+(``n_observations`` above half the cap), the env's final ``tracking_error_mm`` — not the return, which sums
+the error over every reading.
 """
 
 from __future__ import annotations
@@ -100,10 +102,10 @@ def _mean_over_conditions(rows: list[dict[str, Any]], value: Any) -> float:
 
 
 def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str, Any]:
-    """``{"ref_min_score", "ref_max_score", "rnd_readings", "best_planner", "best_readings", "source"}`` from
-    a benchmark run's ``trials.jsonl`` holding rnd-wlk and at least one planner on ``env_id``; on a tracking env
-    (module docstring) ``{"ref_min_score", "ref_max_score", "score": "tracking_error_mm",
-    "rnd_tracking_error_mm", "best_planner", "best_tracking_error_mm", "source"}``.
+    """``{"ref_min_score", "ref_max_score", "score": KEY, "rnd_KEY", "best_planner", "best_KEY", "source"}`` from
+    a benchmark run's ``trials.jsonl`` holding rnd-wlk and at least one planner on ``env_id``: KEY the env task's
+    declared score (``readings``, ``tracking_error_mm``), the reference scores that score on its declared
+    reference scale (``Score.on_reference_scale``; module docstring).
 
     Raises:
         ValueError: no such file, another env, rnd-wlk or every planner missing, or rnd-wlk not worse than the
@@ -127,32 +129,20 @@ def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str
             f"reference {str(path)!r} must hold {RND_AGENT} and one of {list(PLANNERS)} on {env_id}; "
             f"it holds {sorted(agents)}"
         )
-    declared = env_entry(env_id).task_class.metrics.score  # what ranks agents on the env
+    declared = env_entry(env_id).task_class.metrics.score  # what ranks agents on the env, and its reference scale
     key, direction = declared.key, declared.better
     score = functools.partial(_mean_over_conditions, value=declared.of_record)
-    sign = 1.0 if direction == "lower" else -1.0  # sign · score: lower is better
     rnd = score([r for r in rows if r["agent"] == RND_AGENT])
     scores = {p: score([r for r in rows if r["agent"] == p]) for p in planners}
-    best = min(scores, key=lambda p: sign * scores[p])
-    if sign * scores[best] >= sign * rnd:
-        if key == "readings":
-            raise ValueError(f"reference {str(path)!r}: rnd-wlk is not worse than the best planner; no score scale")
+    best = max(scores, key=lambda p: declared.on_reference_scale(scores[p]))
+    if declared.on_reference_scale(scores[best]) <= declared.on_reference_scale(rnd):
         raise ValueError(
             f"reference {str(path)!r}: rnd-wlk is not worse than the best planner by the env's own score, the "
             f"mean {key} ({RND_AGENT} {rnd:.4g}, {best} {scores[best]:.4g}; {direction} is better); no score scale"
         )
-    if key == "readings":
-        return {
-            "ref_min_score": 1.0 - rnd,
-            "ref_max_score": 1.0 - scores[best],
-            "rnd_readings": rnd,
-            "best_planner": best,
-            "best_readings": scores[best],
-            "source": str(path),
-        }
     return {
-        "ref_min_score": -sign * rnd,
-        "ref_max_score": -sign * scores[best],
+        "ref_min_score": declared.on_reference_scale(rnd),
+        "ref_max_score": declared.on_reference_scale(scores[best]),
         "score": key,
         f"rnd_{key}": rnd,
         "best_planner": best,

@@ -468,6 +468,13 @@ def _readings_of_record(record: Mapping[str, Any]) -> float:
     return float(record["readings"] if record["success"] else record["max_observations"])
 
 
+def _return_of_readings(readings: float) -> float:
+    """An episode's return for its readings: 1 − R (reward −1 per reading after the reset's first one); the
+    datasets' reference scores are on this scale (:mod:`electroloc_gym.dataset.seed_protocol`).
+    """
+    return 1.0 - float(readings)
+
+
 def _success_of_info(info: Mapping[str, Any]) -> float:
     return float(bool(info["success"]))
 
@@ -489,6 +496,7 @@ LOCALIZATION_METRICS = TaskMetrics(
         episode=_readings_of_info,
         record=_readings_of_record,
         best="fewest mean readings to localise (failures count as the cap)",
+        reference=_return_of_readings,
     ),
     rate=Score("success", "higher", "success rate", episode=_success_of_info, record=_success_of_record),
     outcome=_localisation_outcome,
