@@ -234,8 +234,8 @@ def test_resolve_env_name_imports_the_module_and_remembers_it() -> None:
     assert "own_task" in plugin_modules()
 
 
+@pytest.mark.minari
 def test_a_dataset_of_the_task_keeps_its_info(tmp_path, monkeypatch, own_task) -> None:
-    pytest.importorskip("minari")
     from electroloc_gym.cli import main
 
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
