@@ -176,6 +176,14 @@ class EnvEntry:
         return tuple(f.name for f in dataclasses.fields(self.options_class))
 
     @property
+    def agent_arguments(self) -> tuple[str, ...]:
+        """The task's arguments declared the agent's own (``option(..., agent=True)``: how the agent observes,
+        e.g. the filter's model of the target), which an agent's ``env_kwargs`` may set where the benchmark
+        fixes the others.
+        """
+        return tuple(f.name for f in dataclasses.fields(self.options_class) if f.metadata.get("agent"))
+
+    @property
     def record_keys(self) -> tuple[str, ...]:
         """The task's info keys a benchmark record keeps under ``"shape"`` (empty: none): the record fields its
         task class's ``metrics`` declare (:class:`~electroloc_gym.contract.task_spec.TaskMetrics`).

@@ -438,3 +438,26 @@ def test_the_dataset_command_reads_a_plug_in_through_the_same_guard(
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
     assert says in err and not (tmp_path / "datasets" / "mine").exists(), err
+
+
+def test_a_learned_policy_keeps_the_agent_options_it_was_trained_with(tmp_path) -> None:
+    """A track policy trained with the velocity belief is run with it (its policy.json's ``motion_model``, an
+    option the task declares the agent's own); the protocol's options in the same record are not taken."""
+    import json
+    import shutil
+
+    from electroloc_gym.models import shipped_models
+    from electroloc_gym.policy import load_policy
+
+    src = shipped_models()["ppo-belief-track"]
+    dst = tmp_path / "swimmer-policy"
+    shutil.copytree(src, dst)
+    meta = json.loads((dst / "policy.json").read_text(encoding="utf-8"))
+    assert "motion_model" not in load_policy(src).env_kwargs
+    meta["env_kwargs"] = {**meta["env_kwargs"], "motion_model": "swimmer", "max_observations": 9}
+    (dst / "policy.json").write_text(json.dumps(meta), encoding="utf-8")
+    assert load_policy(dst).env_kwargs == {
+        "observation": "belief",
+        "action_type": "continuous",
+        "motion_model": "swimmer",
+    }

@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from electroloc_gym.bench.agents import AGENT_ENV_KWARGS, bench_env_kwargs, plug_in_problem
+from electroloc_gym.baselines.agent import make_agent
+from electroloc_gym.bench.agents import agent_env_kwargs, bench_env_kwargs, plug_in_problem
 from electroloc_gym.bench.config import BenchConfig
 from electroloc_gym.cli import main as cli_main
 from electroloc_gym.registry import ENVS
@@ -134,8 +135,31 @@ def test_no_env_kwargs_of_a_plug_in_agent_change_the_protocol(kwargs, env) -> No
     )
     honest = bench_env_kwargs(env, None, None, **run)
     got = bench_env_kwargs(env, Plug(), None, **run)
-    assert {k: v for k, v in got.items() if k not in AGENT_ENV_KWARGS} == honest
-    assert (plug_in_problem(Plug()) is None) == all(k in AGENT_ENV_KWARGS for k in kwargs)
+    own = agent_env_kwargs(env)
+    assert {k: v for k, v in got.items() if k not in own} == honest
+    assert (plug_in_problem(Plug(), env) is None) == all(k in own for k in kwargs)
+
+
+def test_a_task_declares_which_of_its_options_are_the_agents_own(tmp_path, capsys) -> None:
+    """The moving target's filter options are the agent's (how it observes): a plug-in agent may set them on
+    that env only; a controller takes them in its spec; a learned policy keeps them from its training."""
+    track = {e.env_id: e for e in ENVS}["ElectroLocTrack-v0"]
+    assert track.agent_arguments == ("motion_model", "motion_step_mm", "motion_turn_std_rad", "motion_speed_mm")
+    assert {e.env_id: e.agent_arguments for e in ENVS if e.env_id != track.env_id} == {
+        e.env_id: () for e in ENVS if e.env_id != track.env_id
+    }
+
+    class Swimmer:
+        env_kwargs = {"motion_model": "swimmer"}
+
+    assert plug_in_problem(Swimmer(), "ElectroLocTrack-v0") is None
+    assert "fixes for every agent" in (plug_in_problem(Swimmer(), "ElectroLoc-v0") or "")
+    kw = bench_env_kwargs("ElectroLocTrack-v0", Swimmer(), None, condition="fresh-steel-12.7", signal="fitted")
+    assert kw["motion_model"] == "swimmer"
+    assert make_agent("min-var[motion_model=swimmer]").env_kwargs == {"motion_model": "swimmer"}
+    code, err = _bench(capsys, tmp_path / "bad", "--env", "track", "--agents", "min-var[motion_model=fish]")
+    assert code == 2 and err.count("\n") == 1 and "motion_model" in err and "Traceback" not in err
+    assert not (tmp_path / "bad").exists()
 
 
 def test_plug_in_hooks_that_change_the_trial_are_refused() -> None:

@@ -113,7 +113,8 @@ def make_agent(spec: str | AgentSpec, seed: int | np.random.Generator | None = N
 
     Args:
         spec: ``"rnd-wlk"``, ``"min-var"``, ``"zero-crossing"``, ``"lookahead"`` or e.g.
-            ``"min-var[n_voters=2500]"`` (or a parsed :class:`~electroloc_gym.utils.agentspec.AgentSpec`), or
+            ``"min-var[n_voters=2500]"`` (an option a task declares the agent's own, e.g. the moving target's
+            ``motion_model``, goes to the agent's ``env_kwargs``) (or a parsed :class:`~electroloc_gym.utils.agentspec.AgentSpec`), or
             the name of a shipped learned policy (``"ppo-belief"``: :func:`electroloc_gym.policy.load_policy`).
         seed: seed of the agent's own generator.
 
@@ -128,7 +129,21 @@ def make_agent(spec: str | AgentSpec, seed: int | np.random.Generator | None = N
 
         return load_policy(parsed.name)
     cls = agent_class(parsed.name)
+    own_env = _agent_env_options()
+    env_options = {k: v for k, v in parsed.options.items() if k in own_env}
     try:
-        return cls(seed=seed, **parsed.options)
+        agent = cls(seed=seed, **{k: v for k, v in parsed.options.items() if k not in env_options})
     except TypeError as exc:
         raise ValueError(f"bad options for agent {parsed.name!r} in {parsed.text!r}: {exc}") from exc
+    agent.env_kwargs = {**agent.env_kwargs, **env_options}
+    return agent
+
+
+def _agent_env_options() -> frozenset[str]:
+    """The env options some registered task declares the agent's own (``EnvEntry.agent_arguments``): in a
+    controller's spec they go to its ``env_kwargs`` (``min-var[motion_model=swimmer]``: min-var with the
+    moving target's velocity belief), the env checking their values when it is made.
+    """
+    from electroloc_gym.registry import ENVS
+
+    return frozenset(name for entry in ENVS for name in entry.agent_arguments)

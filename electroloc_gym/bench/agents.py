@@ -52,6 +52,7 @@ from electroloc_gym.baselines.base import layout_problem  # the agents' layout r
 from electroloc_gym.baselines.rollout import AgentCallError, exception_line
 from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
     AGENT_ENV_KWARGS,
+    agent_env_kwargs,
     bench_env_kwargs,
     plug_in_problem,
     policy_env_problem,
@@ -73,6 +74,7 @@ __all__ = [
     "layout_problem",
     "decision_seconds",
     "AGENT_ENV_KWARGS",
+    "agent_env_kwargs",
     "shipped_models",
     "is_policy_path",
     "agent_kind",

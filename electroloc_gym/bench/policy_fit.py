@@ -31,22 +31,33 @@ _BENCH_ONLY_KWARGS = (
 #: criterion, sensor model, tank, target draw, ...) and is the run's alone; only the built-in controllers,
 #: whose options are part of their spec, set more (zero-crossing: the paper's Table-1 protocol).
 AGENT_ENV_KWARGS = ("observation", "action_type")
+
+
+def agent_env_kwargs(env_id: str | None) -> tuple[str, ...]:
+    """The env kwargs an agent may set on ``env_id``: :data:`AGENT_ENV_KWARGS`, then the options its task
+    declares the agent's own (``EnvEntry.agent_arguments``: the filter's model of the target, say); None: the
+    first only.
+    """
+    return AGENT_ENV_KWARGS + (env_entry(env_id).agent_arguments if env_id is not None else ())
+
+
 #: Hooks of the agent protocol that change what a trial is, honoured for the built-in controllers only.
 BUILTIN_HOOKS = ("adapt_condition",)
 
 
-def plug_in_problem(agent: Any) -> str | None:
-    """Why a plug-in agent would change the run's protocol (None: it does not): ``env_kwargs`` beyond
-    :data:`AGENT_ENV_KWARGS`, a :data:`BUILTIN_HOOKS` hook, or a table layout other than Table 4's.
+def plug_in_problem(agent: Any, env_id: str | None = None) -> str | None:
+    """Why a plug-in agent would change the run's protocol on ``env_id`` (None: it does not): ``env_kwargs``
+    beyond :func:`agent_env_kwargs`, a :data:`BUILTIN_HOOKS` hook, or a table layout other than Table 4's.
     """
     kwargs = getattr(agent, "env_kwargs", None) or {}
     if not isinstance(kwargs, dict):
         return f"env_kwargs must be a dict, got {type(kwargs).__name__}"
-    extra = sorted(str(k) for k in kwargs if k not in AGENT_ENV_KWARGS)
+    allowed = agent_env_kwargs(env_id)
+    extra = sorted(str(k) for k in kwargs if k not in allowed)
     if extra:
         return (
             f"its env_kwargs set {extra[:6]}{' …' if len(extra) > 6 else ''}, which the benchmark fixes for "
-            f"every agent (an agent's env_kwargs may set only {list(AGENT_ENV_KWARGS)})"
+            f"every agent (an agent's env_kwargs may set only {list(allowed)})"
         )
     hooks = [h for h in BUILTIN_HOOKS if callable(getattr(agent, h, None))]
     if hooks:
@@ -77,7 +88,7 @@ def bench_env_kwargs(
 ) -> dict[str, Any]:
     """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``.
 
-    A plug-in agent (``builtin`` false) adds only :data:`AGENT_ENV_KWARGS` and its hooks are not called
+    A plug-in agent (``builtin`` false) adds only :func:`agent_env_kwargs` and its hooks are not called
     (the runner refuses such an agent beforehand, :func:`plug_in_problem`); a built-in controller's
     ``env_kwargs`` and ``adapt_condition`` apply, never overriding what the bench owns (the tank, the
     layout, the distractors). ``agent`` may be None (no agent kwargs).
@@ -110,9 +121,8 @@ def bench_env_kwargs(
         kwargs["distractors"] = int(distractors)
     own = getattr(agent, "env_kwargs", None) or {}
     if isinstance(own, dict):
-        kwargs.update(
-            {k: v for k, v in own.items() if k not in _BENCH_ONLY_KWARGS and (builtin or k in AGENT_ENV_KWARGS)}
-        )
+        allowed = agent_env_kwargs(env_id)
+        kwargs.update({k: v for k, v in own.items() if k not in _BENCH_ONLY_KWARGS and (builtin or k in allowed)})
     return kwargs
 
 

@@ -147,7 +147,7 @@ def _check_agent(config: BenchConfig, ref: AgentRef, agent: Any) -> tuple[str, s
     """
     spec, kind, warning = ref.text, ref.kind, None
     if not ref.builtin:
-        why = plug_in_problem(agent)
+        why = plug_in_problem(agent, config.env_id)
         if why is not None:
             raise ValueError(f"agent {spec!r} cannot run on this benchmark: {why}")
     why = layout_problem(agent, config.sensor_layout)

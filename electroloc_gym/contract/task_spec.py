@@ -172,11 +172,16 @@ class Optional:
         return f"None or {getattr(self.spec, 'range', 'a valid value')}"
 
 
-def option(default: Any, *, doc: str, check: Check | None = None, unit: str = "") -> Any:
+def option(default: Any, *, doc: str, check: Check | None = None, unit: str = "", agent: bool = False) -> Any:
     """A field of a :class:`TaskOptions` dataclass: its default, its doc (one line), its check (None: any
     value) and its unit (``"mm"``; empty for none).
+
+    ``agent`` true declares the option the agent's own: it says how the agent observes (the filter's model of
+    the target, say), not what a trial is, so an agent may set it in its ``env_kwargs`` (a learned policy
+    keeps what it was trained with, a controller takes it in its spec, ``min-var[motion_model=swimmer]``)
+    while the benchmark fixes every other option for every agent.
     """
-    return dataclasses.field(default=default, metadata={"doc": doc, "check": check, "unit": unit})
+    return dataclasses.field(default=default, metadata={"doc": doc, "check": check, "unit": unit, "agent": agent})
 
 
 def option_fields(options: type[TaskOptions] | TaskOptions) -> tuple[dataclasses.Field[Any], ...]:
@@ -206,6 +211,11 @@ class TaskOptions:
     def names(cls) -> tuple[str, ...]:
         """The options' names (the env's own keyword arguments), in declaration order."""
         return tuple(f.name for f in dataclasses.fields(cls))
+
+    @classmethod
+    def agent_names(cls) -> tuple[str, ...]:
+        """The options declared the agent's own (:func:`option`'s ``agent``), in declaration order."""
+        return tuple(f.name for f in dataclasses.fields(cls) if f.metadata.get("agent"))
 
     @classmethod
     def describe(cls) -> list[tuple[str, Any, str, str, str]]:

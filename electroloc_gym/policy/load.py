@@ -52,6 +52,19 @@ logger = logging.getLogger(__name__)
 TRAIN_EXTRA = "pip install 'electroloc-gym[train]'"
 
 
+def _agent_own(env_id: Any, env_kwargs: Any) -> dict[str, Any]:
+    """The training env kwargs that are the agent's own on ``env_id`` (options its task declares so, e.g. the
+    moving target's ``motion_model``: the policy keeps the belief it was trained with); none for an env that is
+    not registered here or kwargs that are not a mapping.
+    """
+    from electroloc_gym.registry import ENV_IDS, env_entry
+
+    if not isinstance(env_id, str) or env_id not in ENV_IDS or not isinstance(env_kwargs, Mapping):
+        return {}
+    own = env_entry(env_id).agent_arguments
+    return {k: v for k, v in env_kwargs.items() if k in own}
+
+
 class LearnedAgent:
     """An exported policy + its frozen observation pre-processing, behind the benchmark's agent protocol.
 
@@ -74,7 +87,11 @@ class LearnedAgent:
         self.name = name
         obs = meta["observation"]
         self.frame_stack, self.obs_dim = int(obs["frame_stack"]), int(obs["frame_dim"])
-        self.env_kwargs: dict[str, Any] = {"observation": obs["mode"], "action_type": meta["action"]["action_type"]}
+        self.env_kwargs: dict[str, Any] = {
+            "observation": obs["mode"],
+            "action_type": meta["action"]["action_type"],
+            **_agent_own(obs.get("env_id"), meta.get("env_kwargs")),
+        }
         self.normalization = normalization
         self.normalize_frames = (
             normalization is not None and normalization.mean.shape[0] == self.obs_dim and self.frame_stack > 1
