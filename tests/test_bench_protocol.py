@@ -160,6 +160,10 @@ def test_a_task_declares_which_of_its_options_are_the_agents_own(tmp_path, capsy
     code, err = _bench(capsys, tmp_path / "bad", "--env", "track", "--agents", "min-var[motion_model=fish]")
     assert code == 2 and err.count("\n") == 1 and "motion_model" in err and "Traceback" not in err
     assert not (tmp_path / "bad").exists()
+    # a controller that cannot read the velocity belief is refused before the folder, not at its first trial
+    code, err = _bench(capsys, tmp_path / "la", "--env", "track", "--agents", "lookahead[motion_model=swimmer]")
+    assert code == 2 and err.count("\n") == 1 and "plans over position hypotheses" in err and "(200, 4)" in err
+    assert not (tmp_path / "la").exists()
 
 
 def test_plug_in_hooks_that_change_the_trial_are_refused() -> None:

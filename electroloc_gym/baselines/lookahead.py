@@ -196,7 +196,8 @@ class LookaheadAgent(BaselineAgent):
         if len(shape) != 2 or shape[1] != 2:
             raise ValueError(
                 f"lookahead plans over position hypotheses (M, 2); this env's are {shape} "
-                "(ElectroLocUnknownTarget-v0 carries a radius and a contrast): use min-var there"
+                "(ElectroLocUnknownTarget-v0's carry a radius and a contrast, ElectroLocTrack-v0's with "
+                "motion_model='swimmer' a speed and a heading): use min-var there"
             )
 
     def _success_spread_mm(self) -> float:

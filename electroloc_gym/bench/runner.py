@@ -203,18 +203,31 @@ def _memory_budget() -> int:
 
 def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
     """Build the env a trial of ``spec`` runs in (first condition), so the env's own argument checks
-    (particle count, cap, sensor model, the agent's env_kwargs) fail before any trial.
+    (particle count, cap, sensor model, the agent's env_kwargs) fail before any trial; a built-in controller
+    is also bound to it once (``reset``), so a controller that cannot read that env's belief (look-ahead on
+    the moving target's velocity belief, say) is refused before any trial too. A plug-in agent's code is not
+    run here.
 
     Raises:
-        ValueError: the env refuses the run's settings with this agent (the message names the agent).
+        ValueError: the env refuses the run's settings with this agent, or the controller refuses the env (the
+            message names the agent).
     """
     import gymnasium as gym
 
-    kwargs = config.env_kwargs(agent, config.conditions[0], builtin=resolve_agent(spec).builtin)
+    builtin = resolve_agent(spec).builtin
+    kwargs = config.env_kwargs(agent, config.conditions[0], builtin=builtin)
     try:
-        gym.make(config.env_id, **kwargs).close()
+        env = gym.make(config.env_id, **kwargs)
     except (TypeError, ValueError, MemoryError) as exc:
         raise ValueError(f"agent {spec!r}: {config.env_id} refuses this run's settings: {exc}") from None
+    try:
+        if builtin:
+            env.reset(seed=0)
+            agent.reset(env)
+    except ValueError as exc:
+        raise ValueError(f"agent {spec!r} cannot run on {config.env_id} with these settings: {exc}") from None
+    finally:
+        env.close()
 
 
 def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
