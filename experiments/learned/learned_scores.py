@@ -39,8 +39,9 @@ class NoLearnedRuns(ValueError):
 
 
 RND = RANDOM_AGENT
-#: The non-learned agents the probability of improvement is stated against (when they were benched).
-REFERENCES = (MinVarianceAgent.name, LookaheadAgent.name)
+#: The non-learned agents the probability of improvement is stated against (when they were benched): on the moving
+#: target also min-var with the velocity belief, the belief the off-policy rows train with.
+REFERENCES = (MinVarianceAgent.name, LookaheadAgent.name, f"{MinVarianceAgent.name}[motion_model=swimmer]")
 #: Pairs of learned configurations (suite labels) whose P(A better than B) the report states when both
 #: ran on an env: memory against stacked frames on the raw reading, and the belief given against memory.
 COMPARISONS = (("ppo_lstm-raw", "ppo-framestack-raw"), ("ppo", "ppo_lstm-raw"))

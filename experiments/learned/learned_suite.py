@@ -132,8 +132,22 @@ BASELINE_AGENTS = {
     PAPER_ENV_ID: ",".join(belief_agents()),
     _GLOBAL: ",".join((RANDOM_AGENT, MinVarianceAgent.name, LookaheadAgent.name)),
     _UNKNOWN: ",".join((RANDOM_AGENT, MinVarianceAgent.name, InfotaxisAgent.name)),
-    _TRACK: ",".join(env_entry(_TRACK).bench[0].agents),  # rnd-wlk, min-var with the motion model, pursuit
-}  # lookahead plans over positions only
+    # the track's bench agents (rnd-wlk, min-var, pursuit), then the searchers and the hybrid, each that can with
+    # the velocity belief too (the off-policy rows train with it); look-ahead plans over positions only
+    _TRACK: ",".join(
+        (
+            RANDOM_AGENT,
+            "pursuit",
+            MinVarianceAgent.name,
+            f"{MinVarianceAgent.name}[motion_model=swimmer]",
+            "hybrid",
+            "hybrid[motion_model=swimmer]",
+            InfotaxisAgent.name,
+            f"{InfotaxisAgent.name}[motion_model=swimmer]",
+            LookaheadAgent.name,
+        )
+    ),
+}
 
 
 @dataclass
