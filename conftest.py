@@ -56,11 +56,16 @@ def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool 
     return True if not Expression.compile(config.option.markexpr).evaluate(matches) else None
 
 
-#: The test files that check the project's own text and plumbing — its docs and their snippets' references, the
-#: import graph, the literal and metric-name scans, the command lines' and scripts' option handling, the output
-#: path rule, the kept result files: what they check reads the package's own code and files, the same at any
-#: version of its dependencies. They are marked ``once``: the tests session runs them, the lowest session
-#: (the suite again on the declared minimum versions) does not.
+#: The test files whose outcome no declared minimum can change, marked ``once``: the tests session runs them, the
+#: lowest session (the suite again on the declared minimum versions) does not. Three kinds:
+#:
+#: * the project's own text and plumbing — its docs and their snippets' references, the import graph, the literal
+#:   and metric-name scans, the command lines' and scripts' option handling, the output path rule, the kept
+#:   result files: they read the package's own code and files;
+#: * the package tree and the operating system's side of a run — the installed tree, the benchmark's lock, its
+#:   worker processes, kill-and-resume, the resume's record checks: files, signals and processes;
+#: * the torch engine's graphs (the static gather under ``torch.cond``, ``torch.compile`` without graph breaks):
+#:   torch is pinned to one release in both constraints files, so the lowest session would run the same torch.
 ONCE_FILES = frozenset(
     {
         "test_docs_links.py",
@@ -79,6 +84,11 @@ ONCE_FILES = frozenset(
         "test_stored_summaries.py",
         "test_kept_records.py",
         "test_smoke.py",
+        "test_packaging.py",
+        "test_bench_reliability.py",
+        "test_bench_resume.py",
+        "test_torch_gather.py",
+        "test_torch_compile.py",
     }
 )
 

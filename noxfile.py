@@ -7,7 +7,8 @@
 * ``lowest`` — the suite on every declared minimum (``constraints-lowest.txt``); the tests of extras that
   cannot install there (``zoo``: rl-zoo3 needs SB3 2.9; ``minari``: numpy 2) are deselected by marker, and
   so are the ``long`` tests (minutes of episodes, version-independent: the tests session runs them) and the
-  ``once`` tests (the project's own text and plumbing, conftest.py's ``ONCE_FILES``).
+  ``once`` tests (what no minimum version can change: the project's own text and plumbing, the OS side of a run,
+  the torch engine's graphs on the one pinned torch; conftest.py's ``ONCE_FILES``).
 * ``rllib``  — every extra at once, with RLlib's gymnasium pin: exactly the Ray/RLlib tests (marker
   ``rllib``), and pyright over the package (its settings: ``[tool.pyright]`` in pyproject.toml: basic
   checks on every module, strict on the public API), every import resolved; it fails on any error.

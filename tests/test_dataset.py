@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 minari = pytest.importorskip("minari")  # the dev extra installs it; the numpy lower-bound session deselects these
+
+from cli_inproc import run_cli  # noqa: E402  (the command in this process)
 
 from electroloc_gym.bench.config import MAP_CONDITIONS, trial_seeds  # noqa: E402
 from electroloc_gym.dataset import (  # noqa: E402
@@ -161,12 +161,7 @@ def test_bad_requests_one_line(kwargs, match):
     ],
 )
 def test_cli_bad_input_is_one_line(store, argv, match):
-    proc = subprocess.run(
-        [sys.executable, "-m", "electroloc_gym.cli", "dataset", "--no-progress", *argv],
-        capture_output=True,
-        text=True,
-        env={**__import__("os").environ},
-    )
+    proc = run_cli("dataset", "--no-progress", *argv)
     assert proc.returncode == 2
     err = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(err) == 1 and match in err[0] and "Traceback" not in proc.stderr

@@ -247,19 +247,10 @@ def test_rgb_render_returns_frame() -> None:
 
 
 def test_cli_eev_global_writes_a_png(tmp_path) -> None:
-    import os
-    import subprocess
-    import sys
+    from cli_inproc import run_cli  # the command in this process
 
     out = tmp_path / "fig14.png"
-    env = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    res = subprocess.run(
-        [sys.executable, "-m", "electroloc_gym.cli", "eev", "--env", "global", "--out", str(out)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
+    res = run_cli("eev", "--env", "global", "--out", str(out))
     assert res.returncode == 0, res.stderr
     assert out.stat().st_size > 10_000 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -5,12 +5,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import subprocess
-import sys
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from cli_inproc import run_cli  # the command in this process
 
 import electroloc_gym  # noqa: F401  (registers the envs)
 from electroloc_gym.cli import parse_noise_factor, quiet_tank_table, zero_crossing_mm
@@ -124,12 +123,6 @@ def test_presets_at_one_thirty_second() -> None:
 )
 def test_parse_noise_factor(text: str, value: float) -> None:
     assert parse_noise_factor(text) == pytest.approx(value)
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "electroloc_gym.cli", *args], capture_output=True, text=True, env=ENV, timeout=120
-    )
 
 
 def test_cli_detect_noise_factor_one_thirty_second() -> None:
