@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from electroloc_gym.utils.agentspec import parse_options
+
 __all__ = [
     "SettingError",
     "Check",
@@ -28,6 +30,7 @@ __all__ = [
     "ascii_int",
     "add_options",
     "api_signature",
+    "pairs_value",
     "int_in",
     "one_of",
     "is_bool",
@@ -71,8 +74,9 @@ class Option:
         check: :data:`Check` (None: any value). A None value passes where a default is None (it means
             "derived": the env's own, all cores, …).
         default: what both front ends take when the setting is left out (``dataclasses.MISSING``: required).
-        kind: ``"int"`` (ASCII digits on the command line), ``"text"``, ``"switch"`` (a flag: True when given)
-            or ``"negated"`` (a ``--no-…`` flag: False when given).
+        kind: ``"int"`` (ASCII digits on the command line), ``"text"``, ``"switch"`` (a flag: True when given),
+            ``"negated"`` (a ``--no-…`` flag: False when given) or ``"pairs"`` (``KEY=VALUE`` words on the command
+            line, :func:`pairs_value` makes them the mapping Python takes).
         flag: the command line's flag (default ``--`` and the name with dashes).
         choices: the valid values shown in the usage (``{a,b}``; the check refuses the others).
         from_env: env id → the value a None default stands for (the env table's).
@@ -141,6 +145,11 @@ def add_options(parser: argparse.ArgumentParser, options: Iterable[Option]) -> N
             action = "store_true" if opt.kind == "switch" else "store_false"
             parser.add_argument(opt.option, dest=opt.name, action=action, help=text)
             continue
+        if opt.kind == "pairs":
+            parser.add_argument(
+                opt.option, dest=opt.name, nargs="*", metavar="KEY=VALUE", default=opt.default, help=text
+            )
+            continue
         kwargs: dict[str, Any] = {"dest": opt.name, "help": text}
         kwargs.update({"required": True} if opt.default is MISSING else {"default": opt.default})
         if opt.kind == "int":
@@ -148,6 +157,15 @@ def add_options(parser: argparse.ArgumentParser, options: Iterable[Option]) -> N
         if opt.choices is not None:
             kwargs["metavar"] = "{" + ",".join(opt.choices()) + "}"
         parser.add_argument(opt.option, **kwargs)
+
+
+def pairs_value(opt: Option, words: Sequence[str] | None) -> dict[str, Any] | None:
+    """A ``"pairs"`` option's command-line words as the mapping Python takes (None: the option was not given).
+
+    Raises:
+        ValueError: a word that is not ``KEY=VALUE`` (one line naming the flag).
+    """
+    return None if words is None else parse_options(list(words), opt.option)
 
 
 def api_signature(options: Iterable[Option], *first: inspect.Parameter, last: Sequence[inspect.Parameter] = ()) -> Any:

@@ -98,10 +98,13 @@ def test_bad_callback_arguments_are_one_line(kwargs, pattern):
 @pytest.mark.parametrize(
     "argv, pattern",
     [
-        (["--algo", "td3", "--seed", "1"], "argument --algo: invalid choice: 'td3'"),
-        (["--algo", "ppo", "--seed", "-1"], "seed must be an integer in [0, 2**32)"),
-        (["--algo", "ppo", "--seed", str(2**64)], "seed must be an integer in [0, 2**32)"),
-        (["--algo", "ppo", "--seed", "1", "--env", "Nope-v0"], "env_id 'Nope-v0' is not registered"),
+        (
+            ["--algo", "td3", "--seed", "1"],
+            "--algo must be one of ['a2c', 'crossq', 'ppo', 'ppo_lstm', 'qrdqn', 'sac'], got 'td3'",
+        ),
+        (["--algo", "ppo", "--seed", "-1"], "--seed must be an integer in [0, 4294967295] (NumPy's seed range)"),
+        (["--algo", "ppo", "--seed", str(2**64)], "--seed must be an integer in [0, 4294967295] (NumPy's seed range)"),
+        (["--algo", "ppo", "--seed", "1", "--env", "Nope-v0"], "--env must be a registered env id (ElectroLoc-v0,"),
         (["--algo", "ppo", "--seed", "1", "--timesteps", "0"], "timesteps must be an integer in [1,"),
         (["--algo", "ppo", "--seed", "1", "--timesteps", str(10**30)], "timesteps must be an integer in [1,"),
         (
@@ -111,7 +114,7 @@ def test_bad_callback_arguments_are_one_line(kwargs, pattern):
         (["--algo", "ppo", "--seed", "1", "--env-kwargs", "distractors=9"], "refused by ElectroLoc-v0"),
         (["--algo", "ppo", "--seed", "1", "--env-kwargs", "fixed_carriage='yes'"], "fixed_carriage must be"),
         (["--algo", "ppo"], "the following arguments are required: --seed"),
-        (["--algo", "ppo", "--seed", "x"], "argument --seed: invalid int value"),
+        (["--algo", "ppo", "--seed", "x"], "argument --seed: must be an integer in ASCII digits, got 'x'"),
     ],
 )
 def test_the_front_door_names_each_bad_argument_in_one_line(argv, pattern, capsys):

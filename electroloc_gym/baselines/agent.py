@@ -113,10 +113,12 @@ def make_agent(spec: str | AgentSpec, seed: int | np.random.Generator | None = N
 
     Args:
         spec: ``"rnd-wlk"``, ``"min-var"``, ``"zero-crossing"``, ``"lookahead"`` or e.g.
-            ``"min-var[n_voters=2500]"`` (an option a task declares the agent's own, e.g. the moving target's
-            ``motion_model``, goes to the agent's ``env_kwargs``) (or a parsed :class:`~electroloc_gym.utils.agentspec.AgentSpec`), or
+            ``"min-var[n_voters=2500]"`` (or a parsed :class:`~electroloc_gym.utils.agentspec.AgentSpec`), or
             the name of a shipped learned policy (``"ppo-belief"``: :func:`electroloc_gym.policy.load_policy`).
         seed: seed of the agent's own generator.
+
+    An option a task declares the agent's own (the moving target's ``motion_model``, say) goes to the agent's
+    ``env_kwargs``, not to its constructor.
 
     Raises:
         ValueError: an unknown name or bad options (the message lists the names).

@@ -2,8 +2,10 @@
 
 Builds the ``python -m rl_zoo3.train`` command of :func:`electroloc_gym.train.run.zoo_argv`, prints
 it, runs it (or finds the finished run with the same command) and exports the chosen checkpoint with
-``--out``. Everything else — hyper-parameters, run folders, checkpoints, resuming with
-``--trained-agent`` — is rl-zoo3's; run its command directly for any option not listed here.
+``--out``. Its options are the run's settings, declared once with the Python API's
+(:data:`~electroloc_gym.train.settings.TRAIN_OPTIONS`), and ``--print-command``. Everything else —
+hyper-parameters, run folders, checkpoints, resuming with ``--trained-agent`` — is rl-zoo3's; run its
+command directly for any option not listed here.
 """
 
 from __future__ import annotations
@@ -14,10 +16,10 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from electroloc_gym.registry import PAPER_ENV_ID, plugin_modules, resolve_env_name
-from electroloc_gym.train.run import ALGO_FILES, check_zoo_installed, train, zoo_argv
-from electroloc_gym.utils.agentspec import parse_options
-from electroloc_gym.utils.fileio import check_output_folder
+from electroloc_gym.options import add_options, pairs_value
+from electroloc_gym.registry import plugin_modules, resolve_env_name
+from electroloc_gym.train.run import check_zoo_installed, train, zoo_argv
+from electroloc_gym.train.settings import TRAIN_OPTIONS, check_train_settings
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
 
 EPILOG = """examples:
@@ -33,65 +35,41 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point; returns the exit status (2 with one line on stderr for a bad argument)."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command's parser: the run's settings (declared once, :data:`TRAIN_OPTIONS`), ``--print-command``
+    and the process's ``--threads``.
+    """
     p = _Parser(
         prog="electroloc train",
         description=__doc__,
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--algo", required=True, choices=sorted(ALGO_FILES), help="rl-zoo3 algorithm")
-    p.add_argument(
-        "--env",
-        default=PAPER_ENV_ID,
-        help="env id (a section of the algorithm's file, or of --conf-file), or package.module:ENV_ID, an env "
-        "your own module registers (a task of your own, electroloc_gym.tasks): imported like any module, it "
-        "runs your code, here and in the rl-zoo3 run (--gym-packages)",
-    )
-    p.add_argument(
-        "--conf-file",
-        default=None,
-        help="another hyper-parameter file in rl-zoo3's format (default: the algorithm's shipped file)",
-    )
-    p.add_argument("--seed", type=int, required=True, help="the run's seed")
-    p.add_argument("--timesteps", type=int, default=None, help="env-step budget (default: the file's)")
-    p.add_argument("--log-folder", default="logs", help="rl-zoo3's log folder (default logs)")
-    p.add_argument("--out", default=None, help="export the chosen checkpoint to this policy folder")
-    p.add_argument(
-        "--env-kwargs",
-        nargs="*",
-        default=[],
-        metavar="KEY=VALUE",
-        help="replace the file's env_kwargs (rl-zoo3's rule)",
-    )
-    p.add_argument("--hyperparams", nargs="*", default=[], metavar="KEY=VALUE", help="override hyper-parameters")
-    p.add_argument("--dummy", action="store_true", help="rl-zoo3's default DummyVecEnv instead of the native env")
+    add_options(p, TRAIN_OPTIONS)
     p.add_argument("--print-command", action="store_true", help="print the rl-zoo3 command and exit")
     add_threads_argument(p)
-    a = p.parse_args(argv)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit status (2 with one line on stderr for a bad argument)."""
+    a = build_parser().parse_args(argv)
     try:
-        for option, folder in (("--log-folder", a.log_folder), ("--out", a.out)):  # before training
-            if folder is not None:
-                check_output_folder(option, folder)
-        env_id = resolve_env_name(a.env, "--env")  # MODULE:ENV_ID imports MODULE (registering ENV_ID)
-        kw: dict[str, Any] = dict(
-            threads=pin_threads(a.threads),
-            conf_file=a.conf_file,
-            gym_packages=plugin_modules(),
-            timesteps=a.timesteps,
-            log_folder=a.log_folder,
-            native=not a.dummy,
-            env_kwargs=parse_options(a.env_kwargs, "--env-kwargs"),
-            hyperparams=parse_options(a.hyperparams, "--hyperparams"),
-        )
-        args = zoo_argv(a.algo, env_id, a.seed, **kw)
+        values = {o.name: getattr(a, o.name) for o in TRAIN_OPTIONS}
+        for opt in TRAIN_OPTIONS:
+            if opt.kind == "pairs":
+                values[opt.name] = pairs_value(opt, values[opt.name])
+        check_train_settings(values, lambda o: o.option)  # named by their flags, before training
+        values["env_id"] = resolve_env_name(values["env_id"], "--env")  # MODULE:ENV_ID imports MODULE
+        kw: dict[str, Any] = {k: v for k, v in values.items() if k not in ("algo", "env_id", "seed", "out")}
+        kw.update(threads=pin_threads(a.threads), gym_packages=plugin_modules())
+        args = zoo_argv(a.algo, values["env_id"], a.seed, **kw)
         if not a.print_command:
             check_zoo_installed()
         print(shlex.join(["python", *args]), flush=True)
         if a.print_command:
             return 0
-        run = train(a.algo, env_id, a.seed, out=a.out, **kw)
+        run = train(a.algo, values["env_id"], a.seed, out=a.out, **kw)
     except (ValueError, ModuleNotFoundError) as exc:
         print(f"electroloc train: error: {exc}", file=sys.stderr)
         return 2

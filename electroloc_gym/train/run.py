@@ -31,6 +31,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from electroloc_gym.registry import plugin_modules, resolve_env_name
+from electroloc_gym.train.settings import ALGO_FILES, check_train_settings
 from electroloc_gym.utils.runtime import chosen_threads, thread_env
 
 __all__ = [
@@ -42,17 +44,6 @@ __all__ = [
     "train",
     "zoo_argv",
 ]
-
-#: rl-zoo3 algorithm name → the project's hyper-parameter file (electroloc_gym/train/hyperparams/, keyed by env id).
-ALGO_FILES = {
-    "ppo": "ppo.yml",
-    "a2c": "a2c.yml",
-    "sac": "sac.yml",
-    "crossq": "crossq.yml",
-    "ppo_lstm": "ppo_lstm.yml",
-    "qrdqn": "qrdqn.yml",
-}
-
 
 #: What a training run imports beyond the package's own dependencies (rl-zoo3 brings SB3 and torch).
 ZOO_MODULES = ("rl_zoo3", "stable_baselines3", "sb3_contrib", "torch")
@@ -80,21 +71,6 @@ def hyperparams_file(algo: str) -> Path:
 
 def _py_literal(v: Any) -> str:
     return repr(v)  # rl-zoo3's StoreDict evaluates each value as a Python literal
-
-
-#: Seeds rl-zoo3 hands to ``np.random.seed`` (which takes [0, 2**32)).
-SEED_LIMIT = 2**32
-#: The largest env-step budget accepted (a trillion steps: far past any run, well inside SB3's int counters).
-MAX_TIMESTEPS = 10**12
-
-
-def _check_log_folder(folder: Path) -> None:
-    """``folder`` can be a folder: nothing on its way is a file."""
-    for part in (folder, *folder.parents):
-        if part.exists():
-            if not part.is_dir():
-                raise ValueError(f"log_folder {str(folder)!r} cannot be made: {str(part)!r} is a file")
-            return
 
 
 def check_env_kwargs(env_id: str, env_kwargs: Mapping[str, Any]) -> None:
@@ -131,7 +107,8 @@ def zoo_argv(
 
     Args:
         algo: an rl-zoo3 algorithm with a file in :data:`ALGO_FILES`.
-        env_id: a registered id the file has a section for.
+        env_id: a registered id the file has a section for, or ``MODULE:ENV_ID`` (an env of your own module,
+            imported here and in the run).
         seed: the run's seed (≥ 0).
         timesteps: env-step budget (None: the file's ``n_timesteps``).
         log_folder: rl-zoo3's ``--log-folder`` (runs go to ``<log_folder>/<algo>/<env>_<n>``).
@@ -144,24 +121,26 @@ def zoo_argv(
         gym_packages: modules rl-zoo3 imports too (``--gym-packages``): a researcher's module that registers
             ``env_id`` at import (``electroloc train --env my_module:MyTask-v0``).
     """
+    check_train_settings(
+        dict(
+            algo=algo,
+            env_id=env_id,
+            seed=seed,
+            timesteps=timesteps,
+            log_folder=log_folder,
+            conf_file=conf_file,
+            env_kwargs=env_kwargs,
+            hyperparams=hyperparams,
+            native=native,
+        ),
+        lambda o: o.name,
+    )
+    env_id = resolve_env_name(env_id, "env_id")  # MODULE:ENV_ID imports MODULE, which registers ENV_ID
+    gym_packages = tuple(dict.fromkeys((*gym_packages, *plugin_modules())))
     n_threads = chosen_threads(threads)
     conf = Path(conf_file) if conf_file is not None else hyperparams_file(algo)
     if conf.is_absolute() and conf.is_relative_to(Path.cwd()):
         conf = conf.relative_to(Path.cwd())  # the command as typed from the repository root
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < SEED_LIMIT:
-        raise ValueError(f"seed must be an integer in [0, 2**32) (NumPy's seed range), got {seed!r}")
-    if timesteps is not None and (
-        isinstance(timesteps, bool) or not isinstance(timesteps, int) or not 1 <= timesteps <= MAX_TIMESTEPS
-    ):
-        raise ValueError(f"timesteps must be an integer in [1, {MAX_TIMESTEPS:.0e}], got {timesteps!r}")
-    _check_log_folder(Path(log_folder))
-    import gymnasium as gym
-
-    if env_id not in gym.registry:
-        raise ValueError(
-            f"env_id {env_id!r} is not registered (electroloc ids: "
-            f"{sorted(k for k in gym.registry if k.startswith('ElectroLoc'))})"
-        )
     if env_kwargs:
         check_env_kwargs(env_id, env_kwargs)
     argv = [
@@ -225,12 +204,16 @@ def train(
 ) -> Path:
     """Train (or find the finished run of) one configuration; export it to ``out``; return the run folder.
 
-    The run's process starts with ``threads`` threads per numeric library (:func:`zoo_argv`).
+    Its settings are ``electroloc train``'s, declared once (:data:`~.settings.TRAIN_OPTIONS`: the same
+    defaults, checks and one-line refusals; :func:`zoo_argv` says what each is). ``quiet`` keeps the run's
+    output to its log only, ``gym_packages`` adds modules the run imports. The run's process starts with
+    ``threads`` threads per numeric library.
 
     Raises:
         ValueError: a bad argument (one line naming it), or a run that fails (its log named).
         ModuleNotFoundError: rl-zoo3 or its stack missing (:func:`check_zoo_installed`: the zoo extra).
     """
+    check_train_settings({"out": out}, lambda o: o.name)
     argv = zoo_argv(
         algo,
         env_id,
@@ -244,6 +227,7 @@ def train(
         threads=threads,
         gym_packages=gym_packages,
     )
+    env_id = argv[argv.index("--env") + 1]  # MODULE:ENV_ID resolved
     run = find_finished_run(log_folder, algo, env_id, argv)
     if run is None:
         check_zoo_installed()

@@ -223,9 +223,7 @@ class TrackOptions(LocalizeOptions):
     target_motion: str = option("swimmer", doc="the target's true motion", check=Choice(TARGET_MOTIONS))
     target_speed_mm: float = option(1.0, doc="the target's speed per reading", check=_SPEED, unit="mm")
     turn_std_rad: float = option(0.5, doc="the swimmer's turn per reading (std)", check=_TURN, unit="rad")
-    motion_model: str = option(
-        "random_walk", doc="the filter's motion model", check=Choice(MOTION_MODELS), agent=True
-    )
+    motion_model: str = option("random_walk", doc="the filter's motion model", check=Choice(MOTION_MODELS), agent=True)
     motion_step_mm: float | None = option(
         None,
         doc="the filter's RMS step per reading (None: the target's speed)",
