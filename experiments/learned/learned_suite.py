@@ -138,6 +138,7 @@ BASELINE_AGENTS = {
         (
             RANDOM_AGENT,
             "pursuit",
+            "pursuit[motion_model=swimmer]",
             MinVarianceAgent.name,
             f"{MinVarianceAgent.name}[motion_model=swimmer]",
             "hybrid",
