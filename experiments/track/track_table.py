@@ -37,10 +37,15 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+import electroloc_gym  # noqa: F401  (registers the ids)
 from electroloc_gym.bench.records import read_trials
+from electroloc_gym.registry import env_entry
 from electroloc_gym.utils.fileio import atomic_write_text, check_output_options
 
 REPS = 2000
+#: The moving target's declared score (the tracking error, mm) and rate (the capture), read from its task.
+SCORE = env_entry("ElectroLocTrack-v0").task_class.metrics.score
+RATE = env_entry("ElectroLocTrack-v0").task_class.metrics.rate
 
 
 def _trials_file(folder: Path) -> Path:
@@ -56,11 +61,11 @@ def load(folders: Sequence[Path], label: str | None = None) -> dict[str, dict[st
     for folder in folders:
         for r in read_trials(_trials_file(folder)):
             shape = r.get("shape") or {}
-            if "tracking_error_mm" not in shape:
-                raise ValueError(f"{folder}: a record without a tracking error (not a moving-target run)")
+            if SCORE.key not in shape:
+                raise ValueError(f"{folder}: a record without a {SCORE.label} (not a moving-target run)")
             agent = label or str(r["agent"])
             out.setdefault(agent, {}).setdefault(r["condition"], []).append(
-                (float(shape["tracking_error_mm"]), bool(shape["captured"]))
+                (float(shape[SCORE.key]), bool(shape[RATE.key]))
             )
     return {a: {c: np.asarray(v, dtype=float) for c, v in by.items()} for a, by in out.items()}
 
@@ -79,7 +84,9 @@ def _p_lower(x: np.ndarray, y: np.ndarray) -> float:
 def row(
     agent: dict[str, np.ndarray], reference: dict[str, np.ndarray] | None, rng: np.random.Generator
 ) -> dict[str, Any]:
-    """The statistics of one agent (module docstring)."""
+    """The statistics of one agent (module docstring): ``iqm``, ``iqm_ci`` and ``median`` of its score, ``count``,
+    ``share`` and ``share_ci`` of its rate, ``p_improvement`` and its ``p_improvement_ci`` against ``reference``.
+    """
     conditions = sorted(agent)
     err = np.concatenate([agent[c][:, 0] for c in conditions])
     cap = np.concatenate([agent[c][:, 1] for c in conditions])
@@ -100,12 +107,12 @@ def row(
             boot_p.append(float(np.mean([_p_lower(draw[c], ref[c]) for c in conditions])))
     out: dict[str, Any] = {
         "trials": n,
-        "tracking_error_iqm_mm": _iqm(err),
-        "tracking_error_iqm_ci_mm": [float(v) for v in np.percentile(boot_iqm, [2.5, 97.5])],
-        "tracking_error_median_mm": float(np.median(err)),
-        "captures": k,
-        "capture_rate": k / n,
-        "capture_ci": [float(ci.low), float(ci.high)],
+        "iqm": _iqm(err),
+        "iqm_ci": [float(v) for v in np.percentile(boot_iqm, [2.5, 97.5])],
+        "median": float(np.median(err)),
+        "count": k,
+        "share": k / n,
+        "share_ci": [float(ci.low), float(ci.high)],
     }
     p = p_of({c: agent[c][:, 0] for c in conditions})
     if p is not None:
@@ -116,21 +123,21 @@ def row(
 
 def markdown(rows: dict[str, dict[str, Any]], reference: str) -> str:
     lines = [
-        f"| agent | trials | tracking error IQM, mm [95 % CI] | median, mm | capture [95 % CI] | "
-        f"P(lower error than {reference}) [95 % CI] |",
+        f"| agent | trials | {SCORE.label} IQM, {SCORE.unit} [95 % CI] | median, {SCORE.unit} | "
+        f"{RATE.label} [95 % CI] | P(lower {SCORE.label} than {reference}) [95 % CI] |",
         "|---|---|---|---|---|---|",
     ]
     for agent, r in rows.items():
-        lo, hi = r["tracking_error_iqm_ci_mm"]
-        clo, chi = r["capture_ci"]
+        lo, hi = r["iqm_ci"]
+        clo, chi = r["share_ci"]
         p = (
             f"{r['p_improvement']:.2f} [{r['p_improvement_ci'][0]:.2f}, {r['p_improvement_ci'][1]:.2f}]"
             if "p_improvement" in r
             else "–"
         )
         lines.append(
-            f"| {agent} | {r['trials']} | {r['tracking_error_iqm_mm']:.2f} [{lo:.2f}, {hi:.2f}] | "
-            f"{r['tracking_error_median_mm']:.2f} | {r['capture_rate']:.2f} [{clo:.2f}, {chi:.2f}] | {p} |"
+            f"| {agent} | {r['trials']} | {r['iqm']:.2f} [{lo:.2f}, {hi:.2f}] | "
+            f"{r['median']:.2f} | {r['share']:.2f} [{clo:.2f}, {chi:.2f}] | {p} |"
         )
     return "\n".join(lines) + "\n"
 
