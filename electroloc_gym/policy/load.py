@@ -26,7 +26,7 @@ import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -62,7 +62,8 @@ def _agent_own(env_id: Any, env_kwargs: Any) -> dict[str, Any]:
     if not isinstance(env_id, str) or env_id not in ENV_IDS or not isinstance(env_kwargs, Mapping):
         return {}
     own = env_entry(env_id).agent_arguments
-    return {k: v for k, v in env_kwargs.items() if k in own}
+    kwargs = cast("Mapping[str, Any]", env_kwargs)
+    return {k: v for k, v in kwargs.items() if k in own}
 
 
 class LearnedAgent:
