@@ -164,7 +164,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             folders = sorted(Path(f) for f in glob.glob(pattern))
             if not sep or not label or not folders:
                 raise ValueError(f"--learned {spec!r}: expected LABEL=GLOB matching bench folders")
-            agents.update(load(folders, f"{label} ({len(folders)} seeds)"))
+            agents.update(load(folders, f"{label} ({len(folders)} seed{'s' if len(folders) > 1 else ''})"))
         if a.reference not in agents:
             raise ValueError(f"--reference {a.reference!r} is not among the agents: {sorted(agents)}")
     except ValueError as exc:
