@@ -45,8 +45,9 @@ REFERENCES = (MinVarianceAgent.name, LookaheadAgent.name, f"{MinVarianceAgent.na
 #: Pairs of learned configurations (suite labels) whose P(A better than B) the report states when both
 #: ran on an env: memory against stacked frames on the raw reading, and the belief given against memory.
 COMPARISONS = (("ppo_lstm-raw", "ppo-framestack-raw"), ("ppo", "ppo_lstm-raw"))
-#: The pairs stated by default on a tracking env: the belief given against stacked raw readings.
-TRACK_COMPARISONS = (("ppo", "ppo-framestack-raw"),)
+#: The pairs stated by default on a tracking env: the belief given against stacked raw readings, and the off-policy
+#: learners (on the velocity belief) against PPO and each other.
+TRACK_COMPARISONS = (("ppo", "ppo-framestack-raw"), ("sac", "ppo"), ("crossq", "ppo"), ("crossq", "sac"))
 
 
 class ReportError(ValueError):
