@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from electroloc_gym.options import add_options, pairs_value
-from electroloc_gym.registry import plugin_modules, resolve_env_name
+from electroloc_gym.registry import resolve_env_name
 from electroloc_gym.train.run import check_zoo_installed, train, zoo_argv
 from electroloc_gym.train.settings import TRAIN_OPTIONS, check_train_settings
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
@@ -62,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         check_train_settings(values, lambda o: o.option)  # named by their flags, before training
         values["env_id"] = resolve_env_name(values["env_id"], "--env")  # MODULE:ENV_ID imports MODULE
         kw: dict[str, Any] = {k: v for k, v in values.items() if k not in ("algo", "env_id", "seed", "out")}
-        kw.update(threads=pin_threads(a.threads), gym_packages=plugin_modules())
+        kw["threads"] = pin_threads(a.threads)  # zoo_argv adds the MODULE:ENV_ID modules to --gym-packages
         args = zoo_argv(a.algo, values["env_id"], a.seed, **kw)
         if not a.print_command:
             check_zoo_installed()
