@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -244,13 +245,15 @@ def test_dataset_reference_on_the_moving_target_is_accepted_or_refused_by_tracki
 
 
 def test_the_files_are_minaris_own(store):
-    """The episode files equal those minari.create_dataset_from_buffers writes for the same episodes, and
-    the header its header (but for the counts, the size and the electroloc block).
+    """The episode files equal those minari.create_dataset_from_buffers writes for the same episodes (each
+    episode's metadata with its two checksums added), and the header its header (but for the counts, the
+    size and the electroloc block).
     """
     import gymnasium as gym
 
     from electroloc_gym.bench.agents import make_bench_agent
     from electroloc_gym.dataset.collect import _episode_buffer, dataset_env_kwargs
+    from electroloc_gym.dataset.store import settings_digest
 
     ours = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 2, reference=REFERENCE), progress=False)
     refs = reference_scores(REFERENCE, "ElectroLoc-v0")
@@ -273,9 +276,15 @@ def test_the_files_are_minaris_own(store):
             ref_max_score=refs["ref_max_score"],
         )
     a, b = ours.storage.data_path, theirs.storage.data_path
+    settings = ours.storage.metadata["electroloc"]
+    digest = settings_digest({key: settings[key] for key in ("agent", "env_id", "env_kwargs", "seed")})
     for k in range(2):
-        for name in ("part-0.arrow", "metadata.json"):
-            assert (a / str(k) / name).read_bytes() == (b / str(k) / name).read_bytes()
+        arrow = (a / str(k) / "part-0.arrow").read_bytes()
+        assert arrow == (b / str(k) / "part-0.arrow").read_bytes()
+        meta = json.loads((a / str(k) / "metadata.json").read_text(encoding="utf-8"))
+        theirs_meta = json.loads((b / str(k) / "metadata.json").read_text(encoding="utf-8"))
+        # Minari's episode metadata, with what makes each episode say what it is
+        assert meta == {**theirs_meta, "sha256": hashlib.sha256(arrow).hexdigest(), "settings_sha256": digest}
     skip = {"dataset_id", "dataset_size", "electroloc", "num_episodes_average_score"}
     mine = json.loads((a / "metadata.json").read_text(encoding="utf-8"))
     minaris = json.loads((b / "metadata.json").read_text(encoding="utf-8"))

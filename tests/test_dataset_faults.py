@@ -1,10 +1,10 @@
 """Datasets under faults: killed runs resume to the uninterrupted dataset, damaged files are set aside and
 re-collected, --force replaces exactly the dataset it names, and bad input is one line before any write.
 
-The kills are real SIGKILLs: most in a forked copy of this process (no interpreter start, so each takes
-a fraction of a second) stopped by the writer's own test hook at a named point
-(``ELECTROLOC_DATASET_KILL_AT``, :mod:`electroloc_gym.dataset.store`), two of the command itself in a
-subprocess (one at a hook point, one at whatever moment a poll finds three episodes written).
+The kills are real SIGKILLs of a running writer, with no hook in the package: a forked copy of this
+process (no interpreter start) killed when the test sees a moment of the write on disk (the partial's
+header, an episode staged, moved in, the header marked complete) or after a fraction of an uninterrupted
+run's time, and the command itself killed in a subprocess.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "experiments" / "learned" / "results" / "ElectroLoc-v0" / "_baselines" / "bench"
 ID = "electroloc/ElectroLoc-v0/rnd-wlk-v0"
 N = 4  # episodes of the datasets below (rnd-wlk: about 0.01 s each)
+LONG = 30  # episodes of the runs killed at a moment
 THREADS = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
@@ -59,19 +61,20 @@ def _tree(folder: Path) -> dict[str, str]:
 @pytest.fixture()
 def root(tmp_path, monkeypatch) -> Path:
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
-    monkeypatch.delenv(st.KILL_ENV, raising=False)
     return tmp_path / "minari"
 
 
 @pytest.fixture(scope="module")
-def uninterrupted(tmp_path_factory) -> dict[int, dict[str, str]]:
-    """The files of uninterrupted runs: episodes → their data/ tree."""
-    out = {}
+def uninterrupted(tmp_path_factory) -> dict:
+    """The files of uninterrupted runs (episodes → their data/ tree), and the long run's wall time (s)."""
+    out: dict = {}
     with pytest.MonkeyPatch.context() as mp:
-        for episodes in (N, 30):
+        for episodes in (N, LONG):
             base = tmp_path_factory.mktemp(f"uninterrupted{episodes}")
             mp.setenv("MINARI_DATASETS_PATH", str(base))
+            start = time.perf_counter()
             _build(episodes)
+            out["seconds"] = time.perf_counter() - start
             out[episodes] = _tree(base.joinpath(*ID.split("/")))
     return out
 
@@ -80,100 +83,121 @@ def _folder(root: Path, ds_id: str = ID) -> Path:
     return root.joinpath(*ds_id.split("/"))
 
 
-def _forked_kill(point: str, **build_kwargs) -> None:
-    """Run ``_build(**build_kwargs)`` in a forked copy of this process that SIGKILLs itself at ``point``."""
+def _partial(root: Path, ds_id: str = ID) -> Path:
+    return st.DatasetFolder(root, ds_id).partial
+
+
+def _unpublish(root: Path) -> Path:
+    """What a run killed before its last rename leaves: the dataset as the partial folder."""
+    _folder(root).rename(_partial(root))
+    return _partial(root)
+
+
+def _siblings(root: Path) -> list[str]:
+    return sorted(p.name for p in _folder(root).parent.iterdir())
+
+
+def _kill_when(moment: Callable[[Path], bool] | float, root: Path, episodes: int = LONG, **build_kwargs) -> bool:
+    """Run ``_build`` in a forked copy of this process and SIGKILL it when ``moment(root)`` first holds (polled
+    every 0.2 ms) or after ``moment`` seconds; True when the kill landed before the run ended.
+    """
     pid = os.fork()
     if pid == 0:  # the child: never returns into pytest
-        code = 3
+        code = 4
         try:
-            os.environ[st.KILL_ENV] = point
-            _build(**build_kwargs)
-            code = 0  # the point was not reached
-        except BaseException:  # noqa: BLE001 - any failure is the child's exit code
-            code = 4
+            _build(episodes, **build_kwargs)
+            code = 0
         finally:
             os._exit(code)
+    if isinstance(moment, float):
+        time.sleep(moment)
+    else:
+        deadline = time.monotonic() + 120
+        while not moment(root) and time.monotonic() < deadline:
+            done, status = os.waitpid(pid, os.WNOHANG)
+            if done:
+                assert os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0, status
+                return False
+            time.sleep(0.0002)
+    os.kill(pid, signal.SIGKILL)
     _, status = os.waitpid(pid, 0)
-    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (point, status)
-
-
-def _mark_unfinished(folder: Path) -> None:
-    header, _ = st.read_header(folder)
-    header["electroloc"]["complete"] = False
-    st.write_header(folder, header)
+    if os.WIFEXITED(status):
+        assert os.WEXITSTATUS(status) == 0, status
+        return False
+    assert os.WTERMSIG(status) == signal.SIGKILL, status
+    return True
 
 
 # ---- kills -----------------------------------------------------------------------------------------------
-FRESH_POINTS = ["created", "staged", "staged:3", "journaled:2", "moved:2", "moved:4", "header", "header:3", "final"]
+def _complete(root: Path) -> bool:
+    return _partial(root).is_dir() and st.is_complete(_partial(root))
 
 
-@pytest.mark.parametrize("point", FRESH_POINTS)
-def test_a_run_killed_at_any_point_resumes_to_the_uninterrupted_dataset(root, uninterrupted, point):
-    _forked_kill(point)
+# (what the test waits to see on disk, whether the run may finish before the kill lands)
+MOMENTS = {
+    "the partial's header": (lambda r: st.header_path(_partial(r)).exists(), False),
+    "the first episode staged": (lambda r: (_partial(r) / st.STAGING / "0").exists(), False),
+    "episode 9 moved in": (lambda r: (_partial(r) / "data" / "9").exists(), False),
+    "episode 20 staged": (lambda r: (_partial(r) / st.STAGING / "20").exists(), False),
+    "the last episode moved in": (lambda r: (_partial(r) / "data" / str(LONG - 1)).exists(), True),
+    "the header marked complete": (_complete, True),
+}
+FRACTIONS = (0.15, 0.35, 0.55, 0.75, 0.95)
+
+
+@pytest.mark.parametrize("moment", [*MOMENTS, *FRACTIONS], ids=str)
+def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_dataset(root, uninterrupted, moment):
+    if isinstance(moment, str):
+        seen, late = MOMENTS[moment]
+        killed = _kill_when(seen, root)
+        assert killed or late, f"the run ended before {moment}"
+    else:
+        _kill_when(moment * uninterrupted["seconds"], root)
     notes: list[str] = []
-    ds = _build(resume=True, notes=notes)
-    assert ds.total_episodes == N and ds.storage.metadata["electroloc"]["complete"]
-    assert _tree(_folder(root)) == uninterrupted[N]
-    assert notes == []  # a kill leaves nothing damaged to report
+    ds = _build(LONG, resume=True, notes=notes)
+    assert ds.total_episodes == LONG and ds.storage.metadata["electroloc"]["complete"]
+    assert _tree(_folder(root)) == uninterrupted[LONG]
+    assert notes == [] or notes[0].endswith("nothing to collect")  # a kill leaves nothing damaged to report
     assert not (_folder(root) / st.QUARANTINE).exists() and not (_folder(root) / st.STAGING).exists()
-    assert not _folder(root).with_name("." + _folder(root).name + ".electroloc-new").exists()
+    assert _siblings(root) == ["namespace_metadata.json", "rnd-wlk-v0"]  # no partial, no old copy left
 
 
-def test_a_torn_header_of_a_killed_run_is_rebuilt_on_resume(root, uninterrupted):
-    """What a kill inside a non-atomic rewrite of data/metadata.json leaves: an empty header, a temporary."""
-    _forked_kill("header:2")
+def test_a_run_killed_while_a_resume_sets_files_aside_resumes_again(root, uninterrupted):
+    _build(LONG)
     folder = _folder(root)
-    (folder / "data" / "metadata.json").write_bytes(b"")
-    (folder / "data" / ".metadata.json.x1y2.tmp").write_text('{"total_ep', encoding="utf-8")
-    notes: list[str] = []
-    _build(resume=True, notes=notes)
-    assert _tree(folder) == uninterrupted[N]
-    assert len(notes) == 1 and "data/metadata.json" in notes[0] and "rebuilt" in notes[0]
-    assert (folder / "quarantine" / "1" / "data" / "metadata.json").read_bytes() == b""
-
-
-def test_a_resume_killed_while_setting_aside_resumes_again(root, uninterrupted):
-    _build()
-    folder = _folder(root)
-    _mark_unfinished(folder)
-    for k in (1, 2):
+    for k in range(5, 25):
         (folder / "data" / str(k) / "part-0.arrow").write_bytes(b"damaged")
-    _forked_kill("quarantined", resume=True)
+    assert _kill_when(lambda r: (_partial(r) / st.QUARANTINE / "1").exists(), root, resume=True)
     notes: list[str] = []
-    _build(resume=True, notes=notes)
-    assert _tree(folder) == uninterrupted[N]
-    quarantine = folder / "quarantine"
-    moved = sorted(p.relative_to(quarantine).as_posix() for p in quarantine.rglob("part-0.arrow"))
-    assert moved == ["1/data/1/part-0.arrow", "2/data/2/part-0.arrow"]  # both kept, one per resume
-
-
-def test_the_command_killed_by_sigkill_at_a_hook_point_resumes(root, uninterrupted):
-    env = {**os.environ, **THREADS, "MINARI_DATASETS_PATH": str(root), st.KILL_ENV: "moved:2"}
-    argv = [sys.executable, "-m", "electroloc_gym.cli", "dataset", "--no-progress", "--agent", "rnd-wlk"]
-    proc = subprocess.run([*argv, "--episodes", str(N)], env=env, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == -signal.SIGKILL, proc.stderr
-    env.pop(st.KILL_ENV)
-    proc = subprocess.run(
-        [*argv, "--episodes", str(N), "--resume"], env=env, capture_output=True, text=True, timeout=300
-    )
-    assert proc.returncode == 0, proc.stderr
-    assert f"{ID}: {N} episodes" in proc.stdout
-    assert _tree(_folder(root)) == uninterrupted[N]
+    _build(LONG, resume=True, notes=notes)
+    assert _tree(folder) == uninterrupted[LONG]
+    moved = sorted(int(p.parent.name) for p in (folder / st.QUARANTINE).rglob("part-0.arrow"))
+    assert moved == list(range(5, 25))  # every damaged file kept, in one set-aside folder or two
 
 
 def test_the_command_killed_at_an_arbitrary_moment_resumes(root, uninterrupted):
     env = {**os.environ, **THREADS, "MINARI_DATASETS_PATH": str(root)}
     argv = [sys.executable, "-m", "electroloc_gym.cli", "dataset", "--no-progress", "--agent", "rnd-wlk"]
-    proc = subprocess.Popen([*argv, "--episodes", "30"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    data = _folder(root) / "data"
+    proc = subprocess.Popen(
+        [*argv, "--episodes", str(LONG)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+    data = _partial(root) / "data"
     deadline = time.monotonic() + 300
     while not (data / "2").exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.001)
     proc.send_signal(signal.SIGKILL)
     proc.communicate(timeout=60)
     assert proc.returncode == -signal.SIGKILL  # killed mid-run, not finished
-    _build(30, resume=True)
-    assert _tree(_folder(root)) == uninterrupted[30]
+    with pytest.raises(
+        ValueError, match=r"exists \(an unfinished one at .*electroloc-partial\); .*--resume to continue"
+    ):
+        _build(LONG)
+    proc = subprocess.run(
+        [*argv, "--episodes", str(LONG), "--resume"], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert f"{ID}: {LONG} episodes" in proc.stdout
+    assert _tree(_folder(root)) == uninterrupted[LONG]
 
 
 # ---- damaged files ---------------------------------------------------------------------------------------
@@ -188,28 +212,14 @@ def _truncate(path: Path) -> None:
     path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
 
 
-def _rewrite_header(folder: Path, **changes) -> None:
-    header = json.loads((folder / "data" / "metadata.json").read_text(encoding="utf-8"))
-    header.update(changes)
-    (folder / "data" / "metadata.json").write_text(json.dumps(header), encoding="utf-8")
+def _rewrite_json(path: Path, **changes) -> None:
+    meta = json.loads(path.read_text(encoding="utf-8"))
+    meta.update(changes)
+    path.write_text(json.dumps(meta), encoding="utf-8")
 
 
-def _journal_lines(folder: Path) -> list[str]:
-    return (folder / st.JOURNAL).read_text(encoding="utf-8").splitlines()
-
-
-def _tear_last_journal_line(folder: Path) -> None:
-    text = (folder / st.JOURNAL).read_text(encoding="utf-8")
-    (folder / st.JOURNAL).write_text(text[: len(text) - 40], encoding="utf-8")
-
-
-def _flip_journal_digest(folder: Path) -> None:
-    lines = _journal_lines(folder)
-    row = json.loads(lines[2])  # episode 1
-    digest = row["sha256"]["part-0.arrow"]
-    row["sha256"]["part-0.arrow"] = ("0" if digest[0] != "0" else "1") + digest[1:]
-    lines[2] = json.dumps(row)
-    (folder / st.JOURNAL).write_text("\n".join(lines) + "\n", encoding="utf-8")
+def _zeros(key: str) -> Callable[[Path], None]:
+    return lambda f: _rewrite_json(f / "data/1/metadata.json", **{key: "0" * 64})
 
 
 # (damage, what is set aside under quarantine/1, words of the one line)
@@ -231,18 +241,21 @@ DAMAGES = {
     "another episode's metadata": (
         lambda f: shutil.copy(f / "data/2/metadata.json", f / "data/1/metadata.json"),
         ["data/1/metadata.json"],
-        "1: metadata.json does not match",
+        "1: metadata.json does not name this episode",
+    ),
+    "an altered checksum": (_zeros("sha256"), ["data/1"], "1: part-0.arrow does not match its checksum"),
+    "another run's episode": (_zeros("settings_sha256"), ["data/1"], "1: written with other settings"),
+    "a length the arrow file does not hold": (
+        lambda f: _rewrite_json(f / "data/1/metadata.json", total_steps=2),
+        ["data/1"],
+        "1: part-0.arrow holds",
     ),
     "junk file in data": (
         lambda f: (f / "data/junk.bin").write_bytes(b"\0junk"),
         ["data/junk.bin"],
         "data/junk.bin: not part of the dataset",
     ),
-    "junk folder in data": (
-        lambda f: (f / "data/tmp").mkdir(),
-        ["data/tmp"],
-        "data/tmp: not part of the dataset",
-    ),
+    "junk folder in data": (lambda f: (f / "data/tmp").mkdir(), ["data/tmp"], "data/tmp: not part of the dataset"),
     "an episode that is a file": (
         lambda f: (shutil.rmtree(f / "data/3"), (f / "data/3").write_text("x")),
         ["data/3"],
@@ -265,34 +278,23 @@ DAMAGES = {
         "not a JSON object",
     ),
     "altered header": (
-        lambda f: _rewrite_header(f, env_spec="{}"),
+        lambda f: _rewrite_json(f / "data/metadata.json", env_spec="{}"),
         ["data/metadata.json"],
         "differs from the header of these settings",
     ),
     "miscounted header": (
-        lambda f: _rewrite_header(f, total_steps=3, total_episodes=1),
+        lambda f: _rewrite_json(f / "data/metadata.json", total_steps=3, total_episodes=1),
         [],
         None,  # the counts are rewritten from the kept episodes; nothing is damaged
     ),
     "missing header": (lambda f: (f / "data/metadata.json").unlink(), [], "data/metadata.json missing"),
-    "torn journal line": (_tear_last_journal_line, ["data/3"], "3: no recorded checksum"),
-    "flipped journal digest": (_flip_journal_digest, ["data/1"], "1: part-0.arrow does not match its checksum"),
-    "missing journal": (
-        lambda f: (f / st.JOURNAL).unlink(),
-        ["data/0", "data/1", "data/2", "data/3"],
-        "4 damaged episodes (0: no recorded checksum",
-    ),
-    "missing journal and header": (
-        lambda f: ((f / st.JOURNAL).unlink(), (f / "data/metadata.json").unlink()),
-        ["data/0", "data/3"],
-        "4 damaged episodes",
+    "a journal of the earlier layout": (
+        lambda f: (f / "checksums.jsonl").write_text("{}\n"),
+        ["checksums.jsonl"],
+        "checksums.jsonl: not part of the dataset",
     ),
     "leftover temporaries": (
-        lambda f: (
-            (f / "data/.metadata.json.ab12.tmp").write_text("{"),
-            (f / ".checksums.jsonl.cd34.tmp").write_text("{"),
-            (f / ".staging" / "1").mkdir(parents=True),
-        ),
+        lambda f: ((f / "data/.metadata.json.ab12.tmp").write_text("{"), (f / st.STAGING / "1").mkdir(parents=True)),
         [],
         None,  # this package's own leftovers: deleted, nothing to say
     ),
@@ -303,14 +305,14 @@ DAMAGES = {
 def test_resume_sets_aside_every_damaged_file_and_recollects(root, uninterrupted, damage):
     spoil, set_aside, words = DAMAGES[damage]
     _build()
-    folder = _folder(root)
-    _mark_unfinished(folder)
-    spoil(folder)
+    spoil(_unpublish(root))
     notes: list[str] = []
     ds = _build(resume=True, notes=notes)
+    folder = _folder(root)
     assert _tree(folder) == uninterrupted[N]  # the uninterrupted dataset, every byte
     assert ds.total_episodes == N and len(list(ds.iterate_episodes())) == N
     assert not list(folder.rglob("*.tmp")) and not (folder / st.STAGING).exists()
+    assert _siblings(root) == ["namespace_metadata.json", "rnd-wlk-v0"]
     if words is None:
         assert notes == [] and not (folder / "quarantine").exists()
         return
@@ -319,14 +321,12 @@ def test_resume_sets_aside_every_damaged_file_and_recollects(root, uninterrupted
     for rel in set_aside:
         assert (quarantine / rel).exists(), (rel, sorted(quarantine.rglob("*")))  # moved, not deleted
     if set_aside:
-        assert str(quarantine) in notes[0]
+        assert str(_partial(root) / "quarantine" / "1") in notes[0]
 
 
 def test_the_command_says_what_it_set_aside_in_one_line(root, capsys):
     _build()
-    folder = _folder(root)
-    _mark_unfinished(folder)
-    _truncate(folder / "data/1/part-0.arrow")
+    _truncate(_unpublish(root) / "data/1/part-0.arrow")
     assert cli_main(["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", str(N), "--resume"]) == 0
     err = [line for line in capsys.readouterr().err.splitlines() if "set aside" in line]
     assert len(err) == 1 and err[0].startswith("electroloc dataset: ") and "1 damaged episode" in err[0]
@@ -334,9 +334,7 @@ def test_the_command_says_what_it_set_aside_in_one_line(root, capsys):
 
 def test_resume_refuses_before_moving_anything(root):
     _build()
-    folder = _folder(root)
-    _mark_unfinished(folder)
-    (folder / "data/metadata.json").write_bytes(b"")  # header unreadable: the journal's settings decide
+    folder = _unpublish(root)
     (folder / "data/9").mkdir()
     snapshot = sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
     with pytest.raises(ValueError, match="holds episode 9; resume it with --episodes 10 or more"):
@@ -353,7 +351,7 @@ COMPLETE_DAMAGES = {
     "deleted arrow": (lambda f: (f / "data/2/part-0.arrow").unlink(), "data/2"),
     "deleted episode": (lambda f: shutil.rmtree(f / "data/3"), None),
     "flipped episode metadata": (lambda f: _flip(f / "data/2/metadata.json", (0.5,)), "data/2"),
-    "journal made a folder": (lambda f: ((f / st.JOURNAL).unlink(), (f / st.JOURNAL).mkdir()), st.JOURNAL),
+    "altered header": (lambda f: _rewrite_json(f / "data/metadata.json", env_spec="{}"), "data/metadata.json"),
 }
 
 
@@ -376,12 +374,12 @@ def test_resume_repairs_a_damaged_complete_dataset(root, uninterrupted, damage):
 def test_resume_of_an_intact_complete_dataset_changes_no_episode(root, uninterrupted, capsys):
     _build()
     folder = _folder(root)
-    journal = (folder / st.JOURNAL).read_bytes()
+    header = st.header_path(folder).read_bytes()
     argv = ["dataset", "--no-progress", "--agent", "rnd-wlk", "--episodes", str(N), "--resume"]
     assert cli_main(argv) == 0
     err = capsys.readouterr().err
     assert "complete; all 4 episodes match their checksums and read back: nothing to collect" in err
-    assert _tree(folder) == uninterrupted[N] and (folder / st.JOURNAL).read_bytes() == journal
+    assert _tree(folder) == uninterrupted[N] and st.header_path(folder).read_bytes() == header
     assert not (folder / "quarantine").exists()
 
 
@@ -455,7 +453,6 @@ def test_force_refuses_an_id_that_is_not_exactly_a_dataset(root, capsys, ds_id, 
 def test_a_file_where_the_set_aside_folder_goes_is_refused_before_anything_moves(root):
     _build()
     folder = _folder(root)
-    _mark_unfinished(folder)
     _flip(folder / "data/1/part-0.arrow")
     (folder / st.QUARANTINE).write_text("mine")
     before = sorted(str(p.relative_to(folder)) for p in folder.rglob("*"))
@@ -509,13 +506,12 @@ def test_force_replaces_a_linked_dataset_by_a_folder_and_leaves_the_link_target(
 
 def test_deeply_nested_json_is_damage_not_a_crash(root, uninterrupted):
     _build()
-    folder = _folder(root)
-    _mark_unfinished(folder)
+    folder = _unpublish(root)
     (folder / "data/metadata.json").write_text("[" * 100_000 + "]" * 100_000)
     (folder / "data/1/metadata.json").write_text("[" * 100_000)
     notes: list[str] = []
     _build(resume=True, notes=notes)
-    assert _tree(folder) == uninterrupted[N] and len(notes) == 1 and "1 damaged episode" in notes[0]
+    assert _tree(_folder(root)) == uninterrupted[N] and len(notes) == 1 and "1 damaged episode" in notes[0]
 
 
 def test_force_replaces_exactly_the_dataset_it_names(root, uninterrupted):
@@ -579,27 +575,43 @@ def test_force_with_an_agent_that_fails_at_once_keeps_the_old_dataset(root, caps
     assert sorted(p.name for p in _folder(root).parent.iterdir()) == ["namespace_metadata.json", "rnd-wlk-v0"]
 
 
-@pytest.mark.parametrize("point", ["created", "staged:2", "final"])
-def test_force_killed_before_the_swap_leaves_the_old_dataset(root, uninterrupted, point):
+@pytest.mark.parametrize("moment", ["the partial's header", "the first episode staged", "episode 20 staged"])
+def test_force_killed_before_the_swap_leaves_the_old_dataset(root, uninterrupted, moment):
     _build(2, seed=5)
     before = _tree(_folder(root))
-    _forked_kill(point, force=True)
+    assert _kill_when(MOMENTS[moment][0], root, force=True)
     assert _tree(_folder(root)) == before and minari.load_dataset(ID).total_episodes == 2
-    with pytest.raises(ValueError, match=r"was started with other settings .*'seed': 5"):
-        _build(resume=True)  # the dataset of the id is the old one
-    _build(force=True)  # a new --force starts again, the killed run's leftovers discarded
-    assert _tree(_folder(root)) == uninterrupted[N]
-    assert sorted(p.name for p in _folder(root).parent.iterdir()) == ["namespace_metadata.json", "rnd-wlk-v0"]
+    with pytest.raises(ValueError, match=r"has an unfinished replacement at .*; pass --force to continue it"):
+        _build(LONG, resume=True)  # a resume never replaces the dataset the id names
+    _build(LONG, force=True)  # the replacement continued: what the killed run wrote is kept
+    assert _tree(_folder(root)) == uninterrupted[LONG]
+    assert _siblings(root) == ["namespace_metadata.json", "rnd-wlk-v0"]
 
 
-@pytest.mark.parametrize("point", ["swap", "swapped"])
-def test_force_killed_during_the_swap_is_finished_by_the_next_run(root, uninterrupted, point):
+def test_force_over_a_killed_replacement_of_other_settings_starts_again(root, uninterrupted):
     _build(2, seed=5)
-    _forked_kill(point, force=True)
+    assert _kill_when(MOMENTS["episode 9 moved in"][0], root, force=True, seed=7)
+    _build(force=True)  # another run's partial: discarded, the dataset built afresh
+    assert _tree(_folder(root)) == uninterrupted[N]
+    assert _siblings(root) == ["namespace_metadata.json", "rnd-wlk-v0"]
+
+
+@pytest.mark.parametrize("between", ["the renames", "the last rename and the deletion"])
+def test_force_killed_during_the_swap_is_finished_by_the_next_run(root, tmp_path, monkeypatch, uninterrupted, between):
+    """The two states a kill inside the swap's few microseconds leaves, made on disk as it leaves them."""
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "new"))
+    _build()
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    _build(2, seed=5)
+    paths = st.DatasetFolder(root, ID)
+    shutil.copytree(_folder(tmp_path / "new"), paths.partial)  # the complete replacement
+    paths.path.rename(paths.old)
+    if between != "the renames":
+        paths.partial.rename(paths.path)
     with pytest.raises(ValueError, match=r"exists \(a complete one"):
         _build()  # any run on the id finishes the swap first
     assert _tree(_folder(root)) == uninterrupted[N] and minari.load_dataset(ID).total_episodes == N
-    assert sorted(p.name for p in _folder(root).parent.iterdir()) == ["namespace_metadata.json", "rnd-wlk-v0"]
+    assert _siblings(root) == ["namespace_metadata.json", "rnd-wlk-v0"]
 
 
 # ---- one-line errors -------------------------------------------------------------------------------------
@@ -690,7 +702,6 @@ def test_a_relative_datasets_path_holds_the_same_dataset(tmp_path, monkeypatch, 
     (tmp_path / "sub").mkdir()
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MINARI_DATASETS_PATH", setting)
-    monkeypatch.delenv(st.KILL_ENV, raising=False)
     ds = _build()  # the episodes were written to a doubled relative path before
     assert ds.total_episodes == N and _tree(_folder(tmp_path / "rel")) == uninterrupted[N]
     assert minari.load_dataset(ID).total_episodes == N
@@ -715,7 +726,7 @@ def test_a_dataset_without_reference_scores_says_so(root, capsys):
 
 def test_a_resume_without_reference_keeps_the_one_it_started_with(root):
     first = _build(2, reference=REFERENCE).storage.metadata
-    _mark_unfinished(_folder(root))
+    _unpublish(root)
     ds = _build(3, resume=True)
     meta = ds.storage.metadata
     assert meta["ref_min_score"] is not None and meta["ref_min_score"] == first["ref_min_score"]

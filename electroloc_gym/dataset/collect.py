@@ -16,13 +16,14 @@ under ``MINARI_DATASETS_PATH`` (Minari's default folder when unset), with the id
   :func:`~electroloc_gym.dataset.seed_protocol.reference_scores`; absent without a reference), the agent spec
   (its options included) as ``algorithm_name``, and an ``electroloc`` block: agent, env kwargs, root seed,
   the planned episode count, the reference's provenance, and ``complete``;
-* beside ``data/``, ``checksums.jsonl``: the sha256 of every episode's files.
+* in each episode's ``metadata.json``: the sha256 of its ``part-0.arrow`` and of the settings it was
+  collected with.
 
 The episodes are the benchmark's rollout loop (:func:`electroloc_gym.baselines.rollout.run_episode`) with the
 agent built by the benchmark's own constructor (:func:`electroloc_gym.bench.agents.make_bench_agent`):
-every spec ``electroloc bench --agents`` takes works here. How the files are written — nothing rewritten
-in place, a kill at any moment resumable, every kept episode checked on resume, a replacement swapped in
-only when complete — is :mod:`electroloc_gym.dataset.store`. An existing id is refused unless ``resume``
+every spec ``electroloc bench --agents`` takes works here. How the files are written — beside the dataset,
+published with one rename when complete, a kill at any moment resumable, every kept episode checked on
+resume — is :mod:`electroloc_gym.dataset.store`. An existing id is refused unless ``resume``
 (continue an unfinished dataset of the same settings from the episodes that pass the checks: the same
 seeds, so the same episodes; on a complete dataset it checks every episode and re-collects the damaged
 ones, or says there is nothing to collect) or ``force`` (replace it).
@@ -33,7 +34,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import sys
 from collections.abc import Callable
 from dataclasses import MISSING, dataclass, fields
@@ -386,28 +386,25 @@ def _staging_storage(folder: Path, env: Any) -> Any:
     from minari.dataset.minari_storage import MinariStorage
 
     staging = folder / store.STAGING
-    if staging.exists():
-        shutil.rmtree(staging)
+    store.remove(staging)
     staging.mkdir()
     return MinariStorage.new(
         staging, observation_space=env.observation_space, action_space=env.action_space, data_format="arrow"
     )
 
 
-def _write_episode(folder: Path, staging: Any, buffer: Any) -> dict[str, Any]:
-    """Write ``buffer`` into ``folder/data/<id>``: by Minari's ``staging`` storage, its checksums journaled,
-    then moved in whole (see :mod:`.store`); returns its journal record.
+def _write_episode(folder: Path, staging: Any, buffer: Any, digest: str) -> int:
+    """Write ``buffer`` into ``folder/data/<id>``: by Minari's ``staging`` storage, its metadata given the
+    sha256 of its arrow file and the settings' ``digest``, then moved in whole (one rename; see
+    :mod:`.store`); returns its step count.
     """
     k = int(buffer.id)
     staging.update_episodes([buffer])
     staged = Path(staging.data_path) / str(k)
-    record = store.episode_record(staged, k, int(buffer.seed), len(buffer.rewards))
-    store.kill_point("staged")
-    store.append_journal(folder, record)
-    store.kill_point("journaled")
+    sha = store.file_sha256(staged / "part-0.arrow")
+    staging.update_episode_metadata([{"sha256": sha, "settings_sha256": digest}], [k])
     os.rename(staged, folder / "data" / str(k))
-    store.kill_point("moved")
-    return record
+    return len(buffer.rewards)
 
 
 def _notify_stderr(message: str) -> None:
@@ -487,32 +484,30 @@ def build_dataset(
         env = gym.make(request.env_id, **kwargs)
         try:
             run = _Run(request, paths, env, settings, refs, seeds, notify)
-            run.prepare(resume=resume, force=force)
-            bar = tqdm(total=request.episodes, initial=len(run.kept), desc=ds_id, unit="episode", disable=not progress)
-            try:
-                for k in range(request.episodes):
-                    if k in run.kept:
-                        continue
-                    try:
-                        buffer = _episode_buffer(env, agent, k, request.seed)
-                    except (AgentCallError, ValueError) as exc:  # a method raised, or the env refused an action
-                        raise ValueError(f"agent {request.agent!r} in episode {k} of {ds_id}: {exc}") from None
-                    run.write(buffer)
-                    bar.update(1)
+            if run.prepare(resume=resume, force=force):
+                bar = tqdm(
+                    total=request.episodes, initial=len(run.kept), desc=ds_id, unit="episode", disable=not progress
+                )
+                try:
+                    for k in range(request.episodes):
+                        if k in run.kept:
+                            continue
+                        try:
+                            buffer = _episode_buffer(env, agent, k, request.seed)
+                        except (AgentCallError, ValueError) as exc:  # a method raised, or the env refused an action
+                            raise ValueError(f"agent {request.agent!r} in episode {k} of {ds_id}: {exc}") from None
+                        run.write(buffer)
+                        bar.update(1)
+                finally:
+                    bar.close()
                 run.finish()
-            except BaseException:
-                run.discard()
-                raise
-            finally:
-                bar.close()
-            run.swap()
         finally:
             env.close()
     return minari.load_dataset(ds_id)
 
 
 class _Run:
-    """One run's writing: where the episodes go, the header and journal it keeps, the episodes kept."""
+    """One run's writing: the partial folder it fills, its header, the episodes kept (index → steps)."""
 
     def __init__(
         self,
@@ -526,11 +521,11 @@ class _Run:
     ) -> None:
         self.request, self.paths, self.env, self.settings, self.seeds = request, paths, env, settings, seeds
         self.refs, self.notify = refs, notify
+        self.digest = store.settings_digest(settings)
         self.storage_fields = _storage_fields(env)
-        self.kept: dict[int, dict[str, Any]] = {}
-        self.folder: Path | None = None  # where the episodes go (None until the first one is ready)
-        self.staging: Any = None  # Minari's storage in the folder's staging folder
-        self.replacing = False
+        self.kept: dict[int, int] = {}
+        self.started = False  # the partial folder holds this run's header
+        self.staging: Any = None  # Minari's storage in the partial's staging folder
 
     def header(self, *, complete: bool = False, size: float | None = None) -> dict[str, Any]:
         """The header of the episodes kept so far (Minari counts only the unbroken run 0, 1, …)."""
@@ -544,12 +539,12 @@ class _Run:
             "complete": complete,
             "reference": self.refs,
             "seed_protocol": _SEED_PROTOCOL,
-            "checksums": f"{store.JOURNAL} beside data/: sha256 of each episode's files",
+            "checksums": "each episode's metadata.json: the sha256 of its part-0.arrow and of these settings",
         }
         header = {
             **self.storage_fields,
             "total_episodes": n,
-            "total_steps": sum(self.kept[k]["steps"] for k in range(n)),
+            "total_steps": sum(self.kept[k] for k in range(n)),
             **_dataset_fields(self.request, self.refs),
         }
         if size is not None:
@@ -557,102 +552,81 @@ class _Run:
         header["electroloc"] = block
         return header
 
-    def prepare(self, *, resume: bool, force: bool) -> None:
-        """Decide where the episodes go; on resume, check the kept ones and set the damaged ones aside."""
-        path, ds_id = self.paths.path, self.request.id
-        if not path.exists():
-            return
-        if force:
-            self.replacing = True
-            return
-        if not resume:
-            header, _ = store.read_header(path)
-            old = header.get("electroloc") if header is not None else None
-            complete = isinstance(old, dict) and old.get("complete") is True
-            state = "a complete" if complete else "an unfinished"
+    def prepare(self, *, resume: bool, force: bool) -> bool:
+        """Decide what is kept: on resume (or a --force run's own partial of these settings) check every
+        episode and set the damaged ones aside. False: a complete, intact dataset with nothing to collect.
+        """
+        path, partial, ds_id = self.paths.path, self.paths.partial, self.request.id
+        published, started = os.path.lexists(path), os.path.lexists(partial)
+        if not resume and not force and (published or started):
+            where = f"a complete one at {path}" if published else f"an unfinished one at {partial}"
+            hint = "check its episodes and re-collect damaged ones" if published else "continue it"
+            raise ValueError(f"dataset {ds_id!r} exists ({where}); pass --force to replace it or --resume to {hint}")
+        if resume and started and published:
             raise ValueError(
-                f"dataset {ds_id!r} exists ({state} one at {path}); pass --force to replace it"
-                + (
-                    " or --resume to check its episodes and re-collect damaged ones"
-                    if complete
-                    else " or --resume to continue it"
-                )
+                f"dataset {ds_id!r} has an unfinished replacement at {partial}; pass --force to continue it"
             )
-        found = store.inspect_dataset(ds_id, path, self.settings, self.seeds, self.header())
+        if (
+            force
+            and started
+            and store.settings_of((store.read_header(partial)[0] or {}).get("electroloc")) != (self.settings)
+        ):
+            store.remove(partial)  # an earlier --force run's leftovers, of other settings
+            started = False
+        folder = partial if started else path if resume and published else None
+        if folder is None:
+            return True
+        found = store.inspect_dataset(ds_id, folder, self.settings, self.seeds, self.header())
         if self.refs is None and found.header is not None:  # the reference it was started with
             old_refs = found.header["electroloc"].get("reference")
             self.refs = old_refs if isinstance(old_refs, dict) and _REF_KEYS <= old_refs.keys() else None
-        if found.complete and found.intact(self.request.episodes):  # nothing to repair: written as it is
-            self.kept, self.folder = found.kept, path
-            self.notify(
-                f"{ds_id}: complete; all {len(self.kept)} episodes match their checksums and read back: "
-                "nothing to collect"
-            )
-            return
-        moved_to = store.set_aside(path, found)
         self.kept = found.kept
+        if folder == path:
+            if found.intact(self.request.episodes):
+                self.notify(
+                    f"{ds_id}: complete; all {len(self.kept)} episodes match their checksums and read back: "
+                    "nothing to collect"
+                )
+                return False
+            os.rename(path, partial)  # continued as a partial, published again when complete
+        moved_to = store.set_aside(partial, found)
         line = found.report(moved_to, self.request.episodes - len(self.kept))
         if line is not None:
             self.notify(f"{ds_id}: {line}")
-        store.write_journal(path, ds_id, self.settings, [self.kept[k] for k in sorted(self.kept)])
-        store.write_header(path, self.header())
-        self.folder = path
-
-    def _create(self) -> Path:
-        """A new dataset with no episode yet: header and journal built aside, then moved in (or, replacing,
-        left aside until complete).
-        """
-        from minari.namespace import create_namespace, list_local_namespaces
-
-        namespace = self.request.id.rsplit("/", 1)[0]
-        if namespace not in list_local_namespaces():
-            try:
-                create_namespace(namespace)
-            except ValueError:  # another id's run created it meanwhile
-                if namespace not in list_local_namespaces():
-                    raise
-        new = self.paths.new
-        store.remove(new)
-        (new / "data").mkdir(parents=True)
-        store.write_header(new, self.header())
-        store.write_journal(new, self.request.id, self.settings, [])
-        store.kill_point("created")
-        if self.replacing:
-            return new
-        os.rename(new, self.paths.path)
-        return self.paths.path
+        store.write_header(partial, self.header())
+        self.started = True
+        return True
 
     def write(self, buffer: Any) -> None:
-        """Write one episode and count it in the header."""
-        if self.folder is None:
-            self.folder = self._create()
+        """Write one episode into the partial folder (made, with its header, before the first one)."""
+        partial = self.paths.partial
+        if not self.started:
+            from minari.namespace import create_namespace, list_local_namespaces
+
+            namespace = self.request.id.rsplit("/", 1)[0]
+            if namespace not in list_local_namespaces():
+                try:
+                    create_namespace(namespace)
+                except ValueError:  # another id's run created it meanwhile
+                    if namespace not in list_local_namespaces():
+                        raise
+            (partial / "data").mkdir(parents=True)
+            store.write_header(partial, self.header())
+            self.started = True
         if self.staging is None:
-            self.staging = _staging_storage(self.folder, self.env)
-        self.kept[int(buffer.id)] = _write_episode(self.folder, self.staging, buffer)
-        store.write_header(self.folder, self.header(), durable=False)
-        store.kill_point("header")
+            self.staging = _staging_storage(partial, self.env)
+        self.kept[int(buffer.id)] = _write_episode(partial, self.staging, buffer, self.digest)
 
     def finish(self) -> None:
-        """Flush every file to the disk, then mark the dataset complete (with its size)."""
+        """Flush every file to the disk, write the complete header (with its counts and size), publish."""
         from minari.dataset.minari_storage import MinariStorage
 
-        folder = self.folder or self.paths.path
-        store.kill_point("final")
-        if (folder / store.STAGING).exists():
-            shutil.rmtree(folder / store.STAGING)
-        store.flush_to_disk(folder)
-        size = MinariStorage.read(folder / "data").get_size()
-        store.write_header(folder, self.header(complete=True, size=size))
-        self.folder = folder
-
-    def discard(self) -> None:
-        """A failed replacement: delete it (the old dataset stays as it was)."""
-        if self.replacing:
-            store.remove(self.paths.new)
-
-    def swap(self) -> None:
-        if self.replacing:
-            store.swap_in(self.paths)
+        partial = self.paths.partial
+        store.remove(partial / store.STAGING)
+        store.flush_to_disk(partial)
+        size = MinariStorage.read(partial / "data").get_size()
+        store.write_header(partial, self.header(complete=True, size=size))
+        store.publish(self.paths)
 
 
 _REF_KEYS = {"ref_min_score", "ref_max_score"}

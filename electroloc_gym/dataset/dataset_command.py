@@ -23,7 +23,7 @@ DESCRIPTION = (
     "as a local Minari dataset electroloc/<env-id>/<agent>-vN under MINARI_DATASETS_PATH (no hub). "
     "Episodes use training seeds, disjoint from the benchmark's evaluation seeds; the infos hold the "
     "belief summary and the truth. Resumable after any interruption (--resume checks every episode it keeps "
-    "against its recorded checksums and re-collects a damaged one); an existing id is refused unless --force, "
+    "against the checksum it carries and re-collects a damaged one); an existing id is refused unless --force, "
     "which replaces exactly that dataset once its replacement is complete."
 )
 

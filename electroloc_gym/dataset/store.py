@@ -1,43 +1,39 @@
-"""A dataset's folder on disk while it is written.
+"""A dataset's folders on disk: where a run writes, how it publishes, and what a resume keeps.
 
-Its ids, the datasets root, the atomic header, the checksum journal, the check of every kept episode, the
-set-aside folder and the replacement of a dataset.
+Its ids, the datasets root, the check of every kept episode, the set-aside folder and the publication of a
+dataset by rename.
 
 Layout, under the datasets root (``MINARI_DATASETS_PATH``, Minari's default ``~/.minari/datasets`` when
 unset; :func:`datasets_root`)::
 
-    <namespace>/<name>-vN/                      the dataset (what the id names; Minari reads data/)
-        data/metadata.json                      Minari's header and the "electroloc" block
-        data/<k>/part-0.arrow, data/<k>/metadata.json    episode k, Minari's arrow storage
-        checksums.jsonl                         the journal: the settings, then one line per episode
-        quarantine/<n>/...                      what the n-th resume set aside (moved, never deleted)
-    <namespace>/.<name>-vN.electroloc-new/      a --force replacement while it is built
-    <namespace>/.<name>-vN.electroloc-old/      the replaced dataset during the swap
-    .electroloc-locks/<id>.lock                 one writer per id
+    <namespace>/<name>-vN/                          the dataset (what the id names; Minari reads data/)
+        data/metadata.json                          Minari's header and the "electroloc" block
+        data/<k>/part-0.arrow, data/<k>/metadata.json     episode k, Minari's arrow storage
+        quarantine/<n>/...                          what the n-th resume set aside (moved, never deleted)
+    <namespace>/.<name>-vN.electroloc-partial/      the run's output while it is written (the same layout)
+    <namespace>/.<name>-vN.electroloc-old/          --force: the replaced dataset between two renames
+    .electroloc-locks/<id>.lock                     one writer per id
 
-**Writes.** Nothing of a dataset is rewritten in place. ``data/metadata.json`` is replaced atomically (a
-temporary file in the same folder, then ``os.replace``: :func:`electroloc_gym.utils.fileio.atomic_write_text`)
-after every episode, fsynced when the dataset is created and when it is complete. An episode is written by
-Minari's own arrow storage into a staging folder (``<dataset>/.staging``), its files' sha256 appended to the
-journal, and then moved into ``data/`` whole (one ``rename``). A SIGKILL at any moment therefore leaves old
-or new files, never torn ones, except a half-appended last journal line (its episode is then re-collected);
-a torn file left by a crash of the machine is caught by the checksums. Before the header says ``complete``
-every file is fsynced.
+**Sized to data that regenerates.** Every episode of a dataset is a function of its settings and its seed,
+so a run needs no journal: it writes beside the dataset, in the partial folder, and publishes with one
+rename. The partial's header is written first (its settings, ``complete`` false); each episode is written
+by Minari's own arrow storage into the partial's ``.staging/`` and moved into ``data/<k>`` whole (one
+rename), its own ``metadata.json`` carrying the sha256 of its ``part-0.arrow`` and of the run's settings
+(:func:`settings_digest`), so that every episode says what it is. When all are there, the files are
+flushed to the disk, the header gets its counts and ``complete``, and the partial is renamed to the
+dataset's name. A kill at any moment leaves whole episodes in the partial, or the published dataset.
 
-**Resume** (:func:`inspect_dataset`, :func:`set_aside`) checks every episode folder against the journal:
-both files present and nothing else, their sha256 the recorded ones, the episode's own metadata naming
-its index, its seed and its length, the arrow file readable with one row per observation. A damaged
-episode is moved to ``quarantine/<n>/`` and re-collected (the same seed, so the same episode); an
-unreadable or altered header is moved there too and rebuilt from the settings and the kept episodes.
+**Resume** (:func:`inspect_dataset`, :func:`set_aside`) keeps each episode that is exactly one of these
+settings — its two files and nothing else, its index, seed and settings digest, its arrow file's sha256
+and row count — and regenerates the rest from their seeds. Anything else in ``data/`` is moved to
+``quarantine/<n>/`` (never deleted) and named in one line; an unreadable or altered header is set aside
+there too and rebuilt. A published dataset is checked the same way: intact and as long as asked, it is
+left as it is; otherwise it is moved back to the partial (one rename) and continued.
 
-**Replacement** (``--force``): the new dataset is built beside the old one (``.<name>-vN.electroloc-new``)
-and swapped in only when complete (two renames, the old one deleted last); a run killed between the
-renames is finished by the next run on that id (:func:`recover_swap`). Only a folder that is exactly a
-dataset (``data/`` and this module's own files) is ever replaced.
-
-**Kill points** (tests only): ``ELECTROLOC_DATASET_KILL_AT=<point>[:<n>]`` makes the process SIGKILL
-itself the n-th time (default 1) it reaches ``<point>``, one of :data:`KILL_POINTS`, so a test can stop a
-run at each step of a write and check that ``--resume`` continues it. Unset, it costs one dict lookup.
+**Replacement** (``--force``): the partial is published over the dataset by two renames (the dataset to
+``.<name>-vN.electroloc-old``, the partial to its name) and the old one deleted last; a run killed between
+the renames is finished by the next run on the id (:func:`recover_swap`). Only a folder that is exactly a
+dataset (``data/`` and this module's own names) is ever replaced.
 """
 
 from __future__ import annotations
@@ -47,9 +43,7 @@ import json
 import os
 import re
 import shutil
-import signal
-from collections import Counter
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -58,9 +52,6 @@ from electroloc_gym.utils.fileio import FolderLock, atomic_write_text, check_out
 
 __all__ = [
     "MAX_ID_CHARS",
-    "KILL_POINTS",
-    "KILL_ENV",
-    "JOURNAL",
     "QUARANTINE",
     "EPISODE_FILES",
     "STAGING",
@@ -71,52 +62,27 @@ __all__ = [
     "inspect_dataset",
     "set_aside",
     "recover_swap",
-    "kill_point",
+    "settings_digest",
 ]
 
 #: Longest dataset id (characters): the folder name plus this module's suffixes stays within a file
 #: system's 255-byte name limit.
 MAX_ID_CHARS = 200
-#: The checksum journal, beside ``data/``.
-JOURNAL = "checksums.jsonl"
 #: Where a resume sets damaged files aside, beside ``data/``.
 QUARANTINE = "quarantine"
 #: The files of one episode folder (Minari's arrow storage).
 EPISODE_FILES = ("metadata.json", "part-0.arrow")
-#: The test hook's environment variable and its points, in the order a run reaches them.
-KILL_ENV = "ELECTROLOC_DATASET_KILL_AT"
-KILL_POINTS = (
-    "quarantined",  # a resume moved its first damaged file aside
-    "created",  # the header and journal of a new dataset exist, not yet in place
-    "staged",  # an episode's files are in the staging folder
-    "journaled",  # its checksums are in the journal, the episode not yet in data/
-    "moved",  # the episode is in data/, the header not yet updated
-    "header",  # the header counts the episode
-    "final",  # every episode is written, the header not yet complete
-    "swap",  # --force: the old dataset moved aside, the new one not yet in place
-    "swapped",  # --force: the new one in place, the old one not yet deleted
-)
 #: Where episodes are written before they are moved into ``data/``, beside it.
 STAGING = ".staging"
+#: The names a dataset folder may hold besides ``data/`` (``checksums.jsonl``: the journal of the layout
+#: before episodes carried their own checksums; a resume sets it aside).
+OWN_NAMES = frozenset({"data", QUARANTINE, STAGING, "checksums.jsonl"})
 _HEADER_REL = "data/metadata.json"
-_NEW, _OLD = ".electroloc-new", ".electroloc-old"
+_PARTIAL, _OLD = ".electroloc-partial", ".electroloc-old"
 _LOCKS = ".electroloc-locks"
 _ID_RE = re.compile(r"(?P<namespace>[A-Za-z0-9_-]+(?:/[A-Za-z0-9_-]+)*)/(?P<name>[A-Za-z0-9_-]+)-v(?P<version>[0-9]+)")
 _SETTINGS = ("agent", "env_id", "env_kwargs", "seed")
-_kill_counts: Counter[str] = Counter()
-
-
-def kill_point(name: str) -> None:
-    """The test hook: SIGKILL this process at the n-th arrival at ``name`` when :data:`KILL_ENV` asks."""
-    spec = os.environ.get(KILL_ENV)
-    if not spec:
-        return
-    point, _, count = spec.partition(":")
-    if point != name:
-        return
-    _kill_counts[name] += 1
-    if _kill_counts[name] >= int(count or 1):
-        os.kill(os.getpid(), getattr(signal, "SIGKILL", signal.SIGTERM))
+_SHA_RE = re.compile(r"[0-9a-f]{64}")
 
 
 def check_dataset_id(text: Any) -> str:
@@ -207,7 +173,7 @@ def _is_dataset(folder: Path) -> bool:
 
 @dataclass(frozen=True)
 class DatasetFolder:
-    """The folders of dataset ``ds_id`` under ``root``: the dataset, its replacement, the swap's old copy."""
+    """The folders of dataset ``ds_id`` under ``root``: the dataset, the run's partial, the swap's old copy."""
 
     root: Path
     ds_id: str
@@ -217,8 +183,8 @@ class DatasetFolder:
         return self.root.joinpath(*self.ds_id.split("/"))
 
     @property
-    def new(self) -> Path:
-        return self.path.with_name("." + self.path.name + _NEW)
+    def partial(self) -> Path:
+        return self.path.with_name("." + self.path.name + _PARTIAL)
 
     @property
     def old(self) -> Path:
@@ -273,8 +239,7 @@ class DatasetFolder:
                 f"dataset folder {path} holds a file {QUARANTINE!r} where its set-aside folder goes; nothing was "
                 "changed: move it out first"
             )
-        own = {"data", JOURNAL, QUARANTINE, STAGING}
-        others = sorted(p.name for p in path.iterdir() if p.name not in own and not _is_temporary(p.name, JOURNAL))
+        others = sorted(p.name for p in path.iterdir() if p.name not in OWN_NAMES)
         if others:
             raise ValueError(
                 f"dataset folder {path} holds {others[:3]} besides the dataset; nothing was changed: move "
@@ -301,22 +266,14 @@ class DatasetFolder:
         return None
 
 
-def _is_temporary(name: str, of: str) -> bool:
-    """``name`` is a temporary file of an atomic write of ``of`` (:func:`electroloc_gym.utils.fileio.atomic_write_bytes`
-    and :func:`write_header` name them ``.<of>.<random>.tmp``) that a kill left behind.
-    """
-    return name.startswith(f".{of}.") and name.endswith(".tmp")
-
-
 def header_path(folder: Path) -> Path:
     return folder / "data" / "metadata.json"
 
 
 def read_header(folder: Path) -> tuple[dict[str, Any] | None, str | None]:
     """(the header, None) or (None, why it is unreadable)."""
-    path = header_path(folder)
     try:
-        header = json.loads(path.read_bytes())
+        header = json.loads(header_path(folder).read_bytes())
     except FileNotFoundError:
         return None, "missing"
     except (OSError, ValueError, RecursionError) as exc:
@@ -326,14 +283,9 @@ def read_header(folder: Path) -> tuple[dict[str, Any] | None, str | None]:
     return header, None
 
 
-def write_header(folder: Path, header: Mapping[str, Any], *, durable: bool = True) -> None:
-    """Replace ``data/metadata.json`` atomically (Minari's JSON: sets written as lists).
-
-    ``durable=False`` (the count after each episode) skips the fsync: the replacement is as atomic for a
-    killed process, and a header a machine crash loses is rebuilt on resume.
-    """
-    text = json.dumps(header, default=_json_default, allow_nan=False)
-    atomic_write_text(header_path(folder), text, durable=durable)
+def write_header(folder: Path, header: Mapping[str, Any]) -> None:
+    """Replace ``data/metadata.json`` atomically (Minari's JSON: sets written as lists)."""
+    atomic_write_text(header_path(folder), json.dumps(header, default=_json_default, allow_nan=False))
 
 
 def _json_default(obj: Any) -> Any:
@@ -349,50 +301,9 @@ def settings_of(block: Any) -> dict[str, Any] | None:
     return {k: block[k] for k in _SETTINGS}
 
 
-def write_journal(folder: Path, ds_id: str, settings: Mapping[str, Any], records: Iterable[Mapping[str, Any]]) -> None:
-    """Write the journal afresh (atomically): the settings line, then ``records`` (one per episode)."""
-    lines = [json.dumps({"dataset_id": ds_id, "settings": dict(settings)}, sort_keys=True)]
-    lines += [json.dumps(dict(r), sort_keys=True) for r in records]
-    atomic_write_text(folder / JOURNAL, "\n".join(lines) + "\n")
-
-
-def append_journal(folder: Path, record: Mapping[str, Any]) -> None:
-    """Append one episode's record (one ``write``; a line torn by a kill is ignored on resume)."""
-    with open(folder / JOURNAL, "a", encoding="utf-8") as fh:
-        fh.write(json.dumps(dict(record), sort_keys=True) + "\n")
-
-
-def read_journal(folder: Path) -> tuple[dict[str, Any] | None, dict[int, dict[str, Any]], int]:
-    """(its settings or None, the last good record of each episode, unreadable lines)."""
-    try:
-        text = (folder / JOURNAL).read_bytes().decode("utf-8", errors="replace")
-    except OSError:
-        return None, {}, 0
-    settings, records, bad = None, {}, 0
-    for i, line in enumerate(text.splitlines()):
-        try:
-            row = json.loads(line)
-        except (ValueError, RecursionError):
-            bad += 1
-            continue
-        if i == 0 and isinstance(row, dict) and isinstance(row.get("settings"), dict):
-            settings = row["settings"]
-        elif _good_record(row):
-            records[row["episode"]] = row
-        else:
-            bad += 1
-    return settings, records, bad
-
-
-def _good_record(row: Any) -> bool:
-    return (
-        isinstance(row, dict)
-        and type(row.get("episode")) is int
-        and type(row.get("steps")) is int
-        and type(row.get("seed")) is int
-        and isinstance(row.get("sha256"), dict)
-        and all(isinstance(row["sha256"].get(name), str) for name in EPISODE_FILES)
-    )
+def settings_digest(settings: Mapping[str, Any]) -> str:
+    """The sha256 of the settings an episode depends on (their sorted JSON): what each episode records."""
+    return hashlib.sha256(json.dumps(dict(settings), sort_keys=True).encode()).hexdigest()
 
 
 def file_sha256(path: Path) -> str:
@@ -403,52 +314,42 @@ def file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def episode_record(folder: Path, k: int, seed: int, steps: int) -> dict[str, Any]:
-    """The journal record of episode folder ``folder`` (episode ``k``)."""
-    return {
-        "episode": k,
-        "seed": seed,
-        "steps": steps,
-        "sha256": {name: file_sha256(folder / name) for name in EPISODE_FILES},
-    }
-
-
-def _episode_problem(folder: Path, k: int, seed: int, record: dict[str, Any] | None) -> str | None:
-    """Why episode folder ``folder`` cannot be kept (None: it can)."""
+def episode_problem(folder: Path, k: int, seed: int, digest: str) -> tuple[int | None, str | None]:
+    """(its step count, None) if episode folder ``folder`` is exactly episode ``k`` of the settings whose
+    digest is ``digest``, reset with ``seed``; else (None, why not).
+    """
+    names = sorted(p.name for p in folder.iterdir())
     for name in EPISODE_FILES:
-        if not (folder / name).is_file():
-            return f"no {name}"
-    if record is None:
-        return "no recorded checksum"
-    for name in EPISODE_FILES:
-        try:
-            digest = file_sha256(folder / name)
-        except OSError as exc:
-            return f"{name} unreadable ({exc.strerror or type(exc).__name__})"
-        if digest != record["sha256"][name]:
-            return f"{name} does not match its checksum"
+        if name not in names or not (folder / name).is_file():
+            return None, f"no {name}"
     try:
         meta = json.loads((folder / "metadata.json").read_bytes())
     except (OSError, ValueError, RecursionError):
-        return "metadata.json unreadable"
-    if not isinstance(meta, dict) or (meta.get("id"), meta.get("seed"), meta.get("total_steps")) != (
-        k,
-        seed,
-        record["steps"],
+        return None, "metadata.json unreadable"
+    steps = meta.get("total_steps") if isinstance(meta, dict) else None
+    if (
+        not isinstance(meta, dict)
+        or set(meta) != {"id", "seed", "total_steps", "sha256", "settings_sha256"}
+        or (meta["id"], meta["seed"]) != (k, seed)
+        or type(steps) is not int
+        or not isinstance(meta["sha256"], str)
+        or not _SHA_RE.fullmatch(meta["sha256"])
     ):
-        return "metadata.json names another episode"
-    if record["seed"] != seed:
-        return "recorded with another seed"
+        return None, "metadata.json does not name this episode"
+    if meta["settings_sha256"] != digest:
+        return None, "written with other settings"
     try:
+        if file_sha256(folder / "part-0.arrow") != meta["sha256"]:
+            return None, "part-0.arrow does not match its checksum"
         import pyarrow.ipc as ipc
 
         with ipc.open_file(folder / "part-0.arrow") as reader:
             rows = sum(reader.get_batch(i).num_rows for i in range(reader.num_record_batches))
-    except Exception as exc:  # noqa: BLE001 - any arrow failure means the file cannot be read
-        return f"part-0.arrow unreadable ({type(exc).__name__})"
-    if rows != record["steps"] + 1:
-        return f"part-0.arrow holds {rows} rows, not {record['steps'] + 1}"
-    return None
+    except Exception as exc:  # noqa: BLE001 - any read failure means the file cannot be kept
+        return None, f"part-0.arrow unreadable ({type(exc).__name__})"
+    if rows != steps + 1:
+        return None, f"part-0.arrow holds {rows} rows, not {steps + 1}"
+    return steps, None
 
 
 @dataclass
@@ -458,33 +359,23 @@ class Inspection:
     Attributes:
         header: the readable header, or None.
         header_problem: why the header is set aside and rebuilt (None: kept).
-        kept: episode index → its journal record, for the episodes that pass every check.
+        kept: episode index → its step count, for the episodes that pass every check.
         damaged: (path relative to the dataset folder, why) of what is set aside.
-        temporaries: this module's own leftovers of a killed run (deleted).
         missing: episodes the header counted that are not there.
-        journal_lines_bad: unreadable journal lines.
-        complete: the (kept) header says the dataset is complete.
+        temporaries: this package's own leftovers of a killed run (the staging folder, a header's
+            temporary file): deleted.
     """
 
     header: dict[str, Any] | None
     header_problem: str | None
-    kept: dict[int, dict[str, Any]] = field(default_factory=dict)
+    kept: dict[int, int] = field(default_factory=dict)
     damaged: list[tuple[str, str]] = field(default_factory=list)
-    temporaries: list[Path] = field(default_factory=list)
     missing: list[int] = field(default_factory=list)
-    journal_lines_bad: int = 0
-    complete: bool = False
+    temporaries: list[Path] = field(default_factory=list)
 
     def intact(self, planned: int) -> bool:
-        """Nothing to set aside, rebuild or collect: every one of ``planned`` episodes kept, header and journal good."""
-        return (
-            not self.damaged
-            and not self.temporaries
-            and not self.missing
-            and not self.journal_lines_bad
-            and self.header_problem is None
-            and sorted(self.kept) == list(range(planned))
-        )
+        """Nothing to set aside, rebuild or collect: every one of ``planned`` episodes kept, the header good."""
+        return not self.damaged and not self.missing and self.header_problem is None and len(self.kept) == planned
 
     def report(self, moved_to: Path | None, recollect: int) -> str | None:
         """One line saying what was set aside, where, and what is re-collected (None: nothing to say)."""
@@ -499,13 +390,11 @@ class Inspection:
             shown = "; ".join(f"{rel}: {why}" for rel, why in others[:3])
             parts.append(f"{len(others)} other file{'s' if len(others) > 1 else ''} ({_clip(shown)})")
         if self.header_problem is not None and moved_to is not None and not parts:
-            parts.append(f"{_HEADER_REL}")
+            parts.append(_HEADER_REL)
         line = f"set aside {' and '.join(parts)} in {moved_to}" if parts else ""
         extra = []
         if self.missing:
             extra.append(f"episode{'s' if len(self.missing) > 1 else ''} {_ranges(self.missing)} missing")
-        if self.journal_lines_bad:
-            extra.append(f"{self.journal_lines_bad} unreadable line(s) in {JOURNAL}")
         if self.header_problem is not None:
             extra.append(f"{_HEADER_REL} {self.header_problem}: rebuilt from the settings and the kept episodes")
         if not line and not extra:
@@ -532,6 +421,11 @@ def _episode_index(name: str) -> int | None:
     return int(name) if name.isascii() and name.isdigit() and str(int(name)) == name else None
 
 
+#: Header keys a run rewrites (counts, size, the block) and those a resume may change (the reference).
+_COUNTED = {"total_episodes", "total_steps", "dataset_size", "electroloc"}
+_REFERENCE = {"ref_min_score", "ref_max_score"}
+
+
 def inspect_dataset(
     ds_id: str,
     folder: Path,
@@ -539,17 +433,15 @@ def inspect_dataset(
     episode_seeds: list[int],
     expected_header: Mapping[str, Any],
 ) -> Inspection:
-    """Check a dataset folder for resuming with ``settings`` and ``len(episode_seeds)`` episodes (read only).
+    """Check a dataset folder (published or partial) for resuming with ``settings`` (read only).
 
     Args:
         ds_id: its id.
         folder: the dataset folder.
         settings: agent, env_id, env_kwargs, seed of the run.
         episode_seeds: reset seed of each planned episode.
-        expected_header: the header these settings give, without counts; a readable header whose
-            fields differ from it is set aside and rebuilt.
-
-    A complete dataset is checked the same way (a resume repairs it: its damaged episodes are re-collected).
+        expected_header: the header these settings give; a readable header whose fixed fields differ from
+            it is set aside and rebuilt.
 
     Raises:
         ValueError: a dataset of other settings, one not written by this package, or one holding episodes
@@ -557,8 +449,7 @@ def inspect_dataset(
     """
     header, problem = read_header(folder)
     if header is not None:
-        block = header.get("electroloc")
-        old = settings_of(block)
+        old = settings_of(header.get("electroloc"))
         if old is None:
             raise ValueError(
                 f"dataset {ds_id!r} ({folder}) was not written by electroloc dataset (its metadata has no "
@@ -566,30 +457,13 @@ def inspect_dataset(
             )
         if old != dict(settings):
             raise ValueError(f"dataset {ds_id!r} was started with other settings {old}; pass --force to replace it")
-        fixed = {k: v for k, v in header.items() if k not in _COUNTED}
-        want = {k: v for k, v in expected_header.items() if k not in _COUNTED}
-        # what a run may change: the reference, planned count, counts
-        if {k: v for k, v in fixed.items() if k not in _REFERENCE} != {
-            k: v for k, v in want.items() if k not in _REFERENCE
-        }:
+        fixed = {k: v for k, v in header.items() if k not in _COUNTED | _REFERENCE}
+        if fixed != {k: v for k, v in expected_header.items() if k not in _COUNTED | _REFERENCE}:
             problem = "differs from the header of these settings"
-    journal_settings, records, bad = read_journal(folder)
-    if journal_settings is not None and journal_settings != dict(settings):
-        if header is None:
-            raise ValueError(
-                f"dataset {ds_id!r} was started with other settings {journal_settings}; pass --force to replace it"
-            )
-        records, bad = {}, bad + 1  # a journal of other settings beside this header: not this dataset's
-    if journal_settings is None and header is None:
-        records = {}  # nothing says which settings these episodes were written with
-    complete = header is not None and header["electroloc"].get("complete") is True
-    found = Inspection(header=header, header_problem=problem, journal_lines_bad=bad, complete=complete)
-    if problem is not None and header_path(folder).exists():
+    found = Inspection(header=header, header_problem=problem)
+    if problem is not None and os.path.lexists(header_path(folder)):
         found.damaged.append((_HEADER_REL, problem))
-    journal = folder / JOURNAL
-    if os.path.lexists(journal) and (journal.is_symlink() or not journal.is_file()):
-        found.damaged.append((JOURNAL, "not a file"))
-    planned = len(episode_seeds)
+    planned, digest = len(episode_seeds), settings_digest(settings)
     data = folder / "data"
     beyond = sorted(
         k for k in (_episode_index(p.name) for p in data.iterdir() if p.is_dir()) if k is not None and k >= planned
@@ -599,24 +473,24 @@ def inspect_dataset(
             f"dataset {ds_id!r} holds episode {beyond[-1]}; resume it with --episodes {beyond[-1] + 1} or more"
         )
     for entry in sorted(data.iterdir(), key=lambda p: p.name):
-        name = entry.name
-        if name == "metadata.json":
+        k = _episode_index(entry.name)
+        if entry.name == "metadata.json":
             continue
-        if _is_temporary(name, "metadata.json"):
+        if entry.name.startswith(".metadata.json.") and entry.name.endswith(".tmp"):  # a header write's own
             found.temporaries.append(entry)
             continue
-        k = _episode_index(name)
-        if k is None or not entry.is_dir():
-            found.damaged.append((f"data/{name}", "not part of the dataset"))
+        if k is None or not entry.is_dir() or entry.is_symlink():
+            found.damaged.append((f"data/{entry.name}", "not part of the dataset"))
             continue
-        why = _episode_problem(entry, k, episode_seeds[k], records.get(k))
-        if why is not None:
-            found.damaged.append((f"data/{name}", why))
+        steps, why = episode_problem(entry, k, episode_seeds[k], digest)
+        if steps is None:
+            found.damaged.append((f"data/{entry.name}", why or "damaged"))
             continue
-        found.kept[k] = records[k]
+        found.kept[k] = steps
         for extra in sorted(p.name for p in entry.iterdir() if p.name not in EPISODE_FILES):
-            found.damaged.append((f"data/{name}/{extra}", f"not a file of episode {k}"))
-    found.temporaries += [p for p in folder.iterdir() if p.name == STAGING or _is_temporary(p.name, JOURNAL)]
+            found.damaged.append((f"data/{entry.name}/{extra}", f"not a file of episode {k}"))
+    if os.path.lexists(folder / "checksums.jsonl"):
+        found.damaged.append(("checksums.jsonl", "not part of the dataset"))
     counted = header.get("total_episodes") if header is not None else None
     if type(counted) is int:
         present = {int(p.name) for p in data.iterdir() if _episode_index(p.name) is not None}
@@ -624,16 +498,12 @@ def inspect_dataset(
     return found
 
 
-#: Header keys a run rewrites (counts, size, the block) and those a resume may change (the reference).
-_COUNTED = {"total_episodes", "total_steps", "dataset_size", "electroloc"}
-_REFERENCE = {"ref_min_score", "ref_max_score"}
-
-
 def set_aside(folder: Path, found: Inspection) -> Path | None:
-    """Delete this module's temporaries and move what ``found`` marks damaged to ``quarantine/<n>/`` (the
-    first unused n); returns that folder (None: nothing moved).
+    """Delete this module's own leftovers (the staging folder, ``found``'s temporaries) and move what
+    ``found`` marks damaged to ``quarantine/<n>/`` (the first unused n); returns that folder (None: nothing
+    moved).
     """
-    for tmp in found.temporaries:
+    for tmp in [folder / STAGING, *found.temporaries]:
         remove(tmp)
     if not found.damaged:
         return None
@@ -646,7 +516,6 @@ def set_aside(folder: Path, found: Inspection) -> Path | None:
         dest = target / rel
         dest.parent.mkdir(parents=True, exist_ok=True)
         os.rename(folder / rel, dest)
-        kill_point("quarantined")
     return target
 
 
@@ -687,18 +556,14 @@ def is_complete(folder: Path) -> bool:
 
 
 def recover_swap(paths: DatasetFolder) -> None:
-    """Finish a replacement a kill interrupted, and delete a replacement a kill left unfinished.
-
-    The swap renames the dataset to ``.old``, the complete replacement ``.new`` to the dataset, and then
-    deletes ``.old``; killed between the renames, the replacement is moved in now (or, were it not
-    complete, the old dataset moved back).
+    """Finish a replacement a kill interrupted between its two renames: the complete partial is moved in
+    (or, were it not complete, the old dataset moved back), and the old one deleted.
     """
-    path, new, old = paths.path, paths.new, paths.old
+    path, partial, old = paths.path, paths.partial, paths.old
     if os.path.lexists(old):
         if not os.path.lexists(path):
-            os.rename(new if new.is_dir() and is_complete(new) else old, path)
+            os.rename(partial if partial.is_dir() and is_complete(partial) else old, path)
         remove(old)
-    remove(new)
 
 
 def remove(path: Path) -> None:
@@ -711,12 +576,13 @@ def remove(path: Path) -> None:
         shutil.rmtree(path)
 
 
-def swap_in(paths: DatasetFolder) -> None:
-    """Replace the dataset by its complete replacement: rename, rename, then delete the old one."""
-    os.rename(paths.path, paths.old)
+def publish(paths: DatasetFolder) -> None:
+    """Move the complete partial to the dataset's name: one rename, or, replacing a dataset, rename, rename,
+    then delete the old one.
+    """
+    if os.path.lexists(paths.path):
+        os.rename(paths.path, paths.old)
+        _fsync_dir(paths.path.parent)
+    os.rename(paths.partial, paths.path)
     _fsync_dir(paths.path.parent)
-    kill_point("swap")
-    os.rename(paths.new, paths.path)
-    _fsync_dir(paths.path.parent)
-    kill_point("swapped")
     remove(paths.old)
