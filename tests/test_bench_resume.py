@@ -125,13 +125,13 @@ def _damage(lines: list[str]) -> dict[str, tuple[list[bytes], int, str]]:
         "torn-last": ([*b[:3], *b[4:], b[3][:40]], len(b), "last line torn"),
         "garbage": ([*b[:3], b"\x00\x01 garbage }{\n", *b[3:]], 4, "not JSON"),
         "non-utf8": ([*b[:3], b"\xff\xfe" + b[3], *b[4:]], 4, "not UTF-8"),
-        "null-trial": ([*b[:3], json.dumps(null_trial).encode() + b"\n", *b[4:]], 4, "'trial' must be an integer"),
-        "missing-keys": ([*b[:3], json.dumps(no_keys).encode() + b"\n", *b[4:]], 4, "missing key(s)"),
-        "not-object": ([*b[:3], b"[1, 2, 3]\n", *b[3:]], 4, "not a JSON object"),
+        "null-trial": ([*b[:3], json.dumps(null_trial).encode() + b"\n", *b[4:]], 4, "got `null` - at `$.trial`"),
+        "missing-keys": ([*b[:3], json.dumps(no_keys).encode() + b"\n", *b[4:]], 4, "missing required field `success`"),
+        "not-object": ([*b[:3], b"[1, 2, 3]\n", *b[3:]], 4, "Expected `object`, got `array`"),
         "bad-type": (
             [*b[:3], json.dumps({**rec, "success": "yes"}).encode() + b"\n", *b[4:]],
             4,
-            "'success' must be true or false",
+            "Expected `bool`, got `str` - at `$.success`",
         ),
     }
 

@@ -1,11 +1,16 @@
-"""The trial record: one dataclass that is the schema of every line of ``trials.jsonl``.
+"""The trial record: one msgspec ``Struct`` that is the schema of every line of ``trials.jsonl``.
 
-:class:`TrialRecord` declares each field once with its type and range; :func:`~TrialRecord.from_json`
-checks a line read back field by field (types, ranges, finiteness, the consistency of the fields
-with each other), and :meth:`TrialRecord.problem` checks it against the run it is read into
-(:class:`RecordRules`: the run's conditions, agents, trial index range, each agent's observation
-cap and success criterion, the env's own keys). The worker (:func:`~electroloc_gym.bench.trials.run_trial`)
-builds a record through the same class, so what is written and what is accepted are one declaration.
+:class:`TrialRecord` declares each field once with its type and range (``msgspec.Meta``); msgspec decodes a
+line straight into it (:meth:`TrialRecord.from_line`, or a parsed object with :meth:`TrialRecord.from_json`),
+refusing a wrong type, a value out of range, a missing or unknown key, a non-finite number or malformed JSON
+in one line naming the field (``Expected `int` >= 1 - at `$.readings```), and its ``__post_init__`` checks
+what no type can say: the consistency of the fields with each other. :meth:`TrialRecord.problem` checks a
+record against the run it is read into (:class:`RecordRules`: the run's conditions, agents, trial index
+range, each agent's observation cap and success criterion, the env's own keys). The worker
+(:func:`~electroloc_gym.bench.trials.run_trial`) builds a record through the same class, so what is written
+and what is accepted are one declaration. msgspec is the project's one validation library for the files it
+reads (chosen by the load time of the reference run, ``benchmarks/record_load.py``, and by its one-line
+errors).
 
 Consistency, for every record:
 
@@ -21,10 +26,11 @@ Consistency, for every record:
   no error.
 * ``far_success`` ⇔ a success whose estimate is more than :data:`FAR_ERROR_MM` from the target
   (:func:`is_far_success`; a tight belief on the wrong object, e.g. a distractor).
-* ``shape`` (the task's own results): exactly the record fields a registered task declares
-  (``Task.metrics.record``, :class:`~electroloc_gym.contract.task_spec.RecordField`), each in its range;
-  null on an env whose task declares none. Read into a run (:meth:`TrialRecord.problem`), they are the
-  run's own task's (:attr:`RecordRules.metrics`).
+* ``agent`` is an agent spec or a policy path; ``shape`` (the task's own results) is exactly the record
+  fields a registered task declares (``Task.metrics.record``,
+  :class:`~electroloc_gym.contract.task_spec.RecordField`), each in its range; null on an env whose task
+  declares none. Read into a run (:meth:`TrialRecord.problem`), they are the run's own task's
+  (:attr:`RecordRules.metrics`).
 * A trial of a task without a success criterion (``TaskMetrics.success_criterion`` false, e.g. the moving
   target) ends by the cap, whatever its spread.
 * ``start`` is the start the trial's seed draws (checked on resume, :attr:`RecordRules.start_of`).
@@ -39,9 +45,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import Annotated, Any, Literal
+
+import msgspec
+from msgspec import UNSET, Meta, Struct, UnsetType
 
 from electroloc_gym.contract.task_spec import TaskMetrics
 from electroloc_gym.protocol import FAR_ERROR_MM
@@ -74,49 +83,19 @@ POSITION_BOUND_MM = 1000.0
 MAX_TEXT_CHARS = 2000
 #: Largest per-decision or per-trial time accepted, ms / s (a day).
 _MAX_TIME = 86_400e3
-_CONDITION_CHARS = 64
-_MATERIALS = ("conductor", "insulator")
-Check = Callable[[Any], bool]
+#: Largest count or index (a signed 64-bit integer).
+_MAX_INT = 2**63 - 1
+_P = POSITION_BOUND_MM
 
-
-def _int(low: int, high: int | None = None) -> Check:
-    return lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= low and (high is None or v <= high)
-
-
-def _num(low: float = -math.inf, high: float = math.inf, none: bool = True) -> Check:
-    def ok(v: Any) -> bool:
-        if v is None:
-            return none
-        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and low <= v <= high
-
-    return ok
-
-
-def _text(v: Any) -> bool:
-    return isinstance(v, str) and 0 < len(v) <= MAX_TEXT_CHARS
-
-
-def _agent(v: Any) -> bool:
-    if not _text(v):
-        return False
-    if is_path_like(v):
-        return True
-    try:
-        parse_agent_spec(v)
-    except ValueError:
-        return False
-    return True
-
-
-def _xy(none: bool) -> Check:
-    coord = _num(-POSITION_BOUND_MM, POSITION_BOUND_MM, none=False)
-    return lambda v: (none and v is None) or (isinstance(v, list) and len(v) == 2 and all(coord(x) for x in v))
-
-
-def _gains(v: Any) -> bool:
-    return v is None or (
-        isinstance(v, list) and 0 < len(v) <= 64 and all(_num(0.0, 1e12, none=False)(g) and g > 0 for g in v)
-    )
+Text = Annotated[str, Meta(min_length=1, max_length=MAX_TEXT_CHARS)]
+Seed = Annotated[int, Meta(ge=0, le=2**32 - 1)]
+Index = Annotated[int, Meta(ge=0, le=_MAX_INT)]
+Count = Annotated[int, Meta(ge=1, le=_MAX_INT)]
+Coord = Annotated[float, Meta(ge=-_P, le=_P)]
+XY = Annotated[list[Coord], Meta(min_length=2, max_length=2)]  # [x, y] mm
+Offset = Annotated[float, Meta(ge=-2 * _P, le=2 * _P)]
+Duration = Annotated[float, Meta(ge=0.0, le=_MAX_TIME)]
+Gain = Annotated[float, Meta(gt=0.0, le=1e12)]
 
 
 def _task_metrics() -> list[TaskMetrics]:
@@ -131,99 +110,115 @@ def _task_metrics() -> list[TaskMetrics]:
     return out
 
 
-def _shape(v: Any) -> bool:
-    return v is None or any(m.accepts_record(v) for m in _task_metrics())
+def _agent_problem(spec: str) -> str | None:
+    if is_path_like(spec):
+        return None
+    try:
+        parse_agent_spec(spec)
+    except ValueError as exc:
+        return f"'agent' must be an agent spec: {exc}"
+    return None
 
 
-def _shape_what() -> str:
+def _shape_problem(shape: dict[str, Any] | None) -> str | None:
+    if shape is None or any(m.accepts_record(shape) for m in _task_metrics()):
+        return None
     keys = " or ".join(str(list(m.record_keys)) for m in _task_metrics())
-    return f"null or an object with exactly the keys of one task's results ({keys}), each in its range"
+    return f"'shape' must be null or an object with exactly the keys of one task's results ({keys}), each in its range"
 
 
-def _f(check: Check, what: str | Callable[[], str], optional: bool = False, timing: bool = False) -> Any:
-    """A schema field: its check, what the check wants (for messages; a callable: computed when said), whether
-    old records may lack it, whether it is a timing (varies run to run).
-    """
-    return field(metadata={"check": check, "what": what, "optional": optional, "timing": timing})
-
-
-@dataclass(frozen=True)
-class TrialRecord:
+class TrialRecord(Struct, frozen=True, forbid_unknown_fields=True):
     """One trial's result: a line of trials.jsonl (JSON types; positions ``[x, y]`` in mm)."""
 
-    condition: str = _f(lambda v: isinstance(v, str) and 0 < len(v) <= _CONDITION_CHARS, "a condition name")
-    agent: str = _f(_agent, "an agent spec")
-    agent_label: str = _f(_text, "a non-empty string")
-    table_layout: str = _f(lambda v: v in ("table4", "table1"), "'table4' or 'table1'")
-    trial: int = _f(_int(0), "an integer ≥ 0")
-    seed: int = _f(_int(0, 2**32 - 1), "an integer in [0, 2³²)")
-    agent_seed: int = _f(_int(0, 2**32 - 1), "an integer in [0, 2³²)")
-    success: bool = _f(lambda v: isinstance(v, bool), "true or false")
-    ended_by: str = _f(lambda v: v in ("success", "cap", "agent"), "'success', 'cap' or 'agent'")
-    readings: int = _f(_int(1), "an integer ≥ 1")
-    error_mm: float | None = _f(_num(0.0, 2 * POSITION_BOUND_MM), "a distance in [0, 2000] mm or null")
-    error_x_mm: float | None = _f(_num(-2 * POSITION_BOUND_MM, 2 * POSITION_BOUND_MM), "a number (mm) or null")
-    error_y_mm: float | None = _f(_num(-2 * POSITION_BOUND_MM, 2 * POSITION_BOUND_MM), "a number (mm) or null")
-    estimate: list[float] | None = _f(_xy(none=True), "[x, y] in ±1000 mm or null")
-    target: list[float] = _f(_xy(none=False), "[x, y] in ±1000 mm")
-    start: list[float] = _f(_xy(none=False), "[x, y] in ±1000 mm")
-    spread_mm: float | None = _f(_num(0.0, 1e6), "a spread ≥ 0 mm or null")
-    decisions: int = _f(_int(0), "an integer ≥ 0")
-    decision_ms_median: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 ms or null", timing=True)
-    decision_ms_mean: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 ms or null", timing=True)
-    sensor_model: str = _f(_text, "a sensor-model name")
-    signal: str = _f(_text, "a signal name")
-    max_observations: int = _f(_int(1), "an integer ≥ 1")
-    n_particles: int = _f(_int(1), "an integer ≥ 1")
-    env_id: str = _f(_text, "an env id")
-    wall_s: float | None = _f(_num(0.0, _MAX_TIME), "a time ≥ 0 s or null", timing=True)
-    shape: dict[str, Any] | None = _f(_shape, _shape_what, optional=True)
-    gain_levels: list[float] | None = _f(_gains, "null or a list of positive gain factors", optional=True)
-    sensor_layout: str | None = _f(
-        lambda v: v is None or v in LAYOUT_NAMES, f"null or one of {list(LAYOUT_NAMES)}", optional=True
-    )
-    distractors: int = _f(_int(0, MAX_DISTRACTORS), f"an integer in [0, {MAX_DISTRACTORS}]", optional=True)
-    far_success: bool = _f(lambda v: isinstance(v, bool), "true or false", optional=True)
+    condition: Annotated[str, Meta(min_length=1, max_length=64)]
+    agent: Text
+    agent_label: Text
+    table_layout: Literal["table4", "table1"]
+    trial: Index
+    seed: Seed
+    agent_seed: Seed
+    success: bool
+    ended_by: Literal["success", "cap", "agent"]
+    readings: Count
+    error_mm: Annotated[float, Meta(ge=0.0, le=2 * _P)] | None
+    error_x_mm: Offset | None
+    error_y_mm: Offset | None
+    estimate: XY | None
+    target: XY
+    start: XY
+    spread_mm: Annotated[float, Meta(ge=0.0, le=1e6)] | None
+    decisions: Index
+    decision_ms_median: Duration | None  # a timing
+    decision_ms_mean: Duration | None  # a timing
+    sensor_model: Text
+    signal: Text
+    max_observations: Count
+    n_particles: Count
+    env_id: Text
+    wall_s: Duration | None  # a timing
+    # keys added later: an older record may lack them
+    shape: dict[str, Any] | None = None
+    gain_levels: Annotated[list[Gain], Meta(min_length=1, max_length=64)] | None = None
+    sensor_layout: Text | None = None  # one of LAYOUT_NAMES (checked with the fields' consistency)
+    distractors: Annotated[int, Meta(ge=0, le=MAX_DISTRACTORS)] = 0
+    far_success: bool | UnsetType = UNSET  # absent: computed from success and error_mm
+
+    def __post_init__(self) -> None:
+        why = self._inconsistency()
+        if why is not None:
+            raise ValueError(why)
+
+    @classmethod
+    def from_line(cls, line: bytes | str) -> TrialRecord:
+        """Decode one JSON line into a record (old key names read as the current ones).
+
+        Raises:
+            ValueError: not JSON, a wrong type, a value out of range, a missing or unknown key, nested too
+                deep, fields that contradict each other — one line naming the field.
+        """
+        try:
+            rec = _DECODER.decode(line)
+        except msgspec.ValidationError as exc:
+            raw = _raw(line)
+            if isinstance(raw, dict) and any(old in raw for old in OLD_KEY_NAMES):
+                return cls.from_json(raw)
+            raise ValueError(str(exc)) from None
+        except msgspec.DecodeError as exc:
+            raise ValueError(f"not JSON ({exc})") from None
+        except RecursionError:
+            raise ValueError("nested too deep") from None
+        return rec._completed()
 
     @classmethod
     def from_json(cls, obj: Any) -> TrialRecord:
-        """Check a parsed line field by field and build the record.
+        """Check a parsed object (old key names read as the current ones) and build the record.
 
         Raises:
-            ValueError: the first problem found, naming the field and what it must be.
+            ValueError: what :meth:`from_line` refuses — one line naming the field.
         """
-        if not isinstance(obj, dict):
-            raise ValueError(f"not a JSON object ({type(obj).__name__})")
-        obj = _current_names(obj)
-        unknown = sorted(set(obj) - set(RECORD_KEYS))
-        if unknown:
-            raise ValueError(f"unknown key(s) {unknown[:5]}")
-        missing = [k for k in RECORD_KEYS if k not in obj and k not in OPTIONAL_RECORD_KEYS]
-        if missing:
-            raise ValueError(f"missing key(s) {missing}")
-        for f in fields(cls):
-            if f.name not in obj:  # a key added later, absent from an older record: what such a record means
-                continue
-            value = obj[f.name]
-            if not f.metadata["check"](value):
-                what = f.metadata["what"]
-                raise ValueError(f"{f.name!r} must be {what() if callable(what) else what}, got {_short(value)}")
-        values = {k: obj.get(k) for k in RECORD_KEYS}
-        if "distractors" not in obj:
-            values["distractors"] = 0
-        if "far_success" not in obj:
-            values["far_success"] = is_far_success(obj["success"], obj["error_mm"])
-        rec = cls(**values)
-        why = rec._inconsistency()
-        if why is not None:
-            raise ValueError(why)
-        return rec
+        if isinstance(obj, dict):
+            obj = _current_names(obj)
+        try:
+            return msgspec.convert(obj, cls)._completed()
+        except msgspec.ValidationError as exc:
+            raise ValueError(str(exc)) from None
+
+    def _completed(self) -> TrialRecord:
+        if self.far_success is UNSET:  # a record written before the key: what such a record means
+            return msgspec.structs.replace(self, far_success=is_far_success(self.success, self.error_mm))
+        return self
 
     def to_json(self) -> dict[str, Any]:
         """The record as the JSON object written to trials.jsonl."""
-        return asdict(self)
+        return msgspec.structs.asdict(self._completed())
 
     def _inconsistency(self) -> str | None:
+        """What no field's type says: the fields against each other, the agent spec, the task's results."""
+        why = _agent_problem(self.agent) or _shape_problem(self.shape)
+        if why is not None:
+            return why
+        if self.sensor_layout is not None and self.sensor_layout not in LAYOUT_NAMES:
+            return f"'sensor_layout' must be null or one of {list(LAYOUT_NAMES)}, got {self.sensor_layout!r}"
         if self.estimate is None:
             if (self.error_mm, self.error_x_mm, self.error_y_mm) != (None, None, None):
                 return "an error without an estimate"
@@ -236,7 +231,7 @@ class TrialRecord:
             ):
                 if got is None or not math.isclose(got, want, rel_tol=1e-9, abs_tol=1e-9):
                     return f"{name!r} is {got!r}, but estimate − target gives {want!r}"
-        if self.far_success != is_far_success(self.success, self.error_mm):
+        if self.far_success is not UNSET and self.far_success != is_far_success(self.success, self.error_mm):
             return (
                 f"'far_success' {self.far_success} contradicts 'success' {self.success} and 'error_mm' "
                 f"{self.error_mm} (far: a success more than {FAR_ERROR_MM} mm off)"
@@ -320,20 +315,23 @@ def _current_names(obj: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
-
-
 #: Old key names still read (old → current): the count of readings was written ``observations``, the
 #: paper table a record reports to ``layout``.
 OLD_KEY_NAMES: Mapping[str, str] = MappingProxyType({"observations": "readings", "layout": "table_layout"})
 #: Every key of a trial record, in the order written.
-RECORD_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord))
-#: Keys a record may lack (records written before the key existed read as None).
-OPTIONAL_RECORD_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord) if f.metadata["optional"])
+RECORD_KEYS: tuple[str, ...] = TrialRecord.__struct_fields__
+#: Keys a record may lack (records written before the key existed read as what such a record means).
+OPTIONAL_RECORD_KEYS: tuple[str, ...] = RECORD_KEYS[RECORD_KEYS.index("shape") :]
 #: Keys of a trial record that vary run to run (timings); everything else is deterministic.
-TIMING_KEYS: tuple[str, ...] = tuple(f.name for f in fields(TrialRecord) if f.metadata["timing"])
+TIMING_KEYS: tuple[str, ...] = ("decision_ms_median", "decision_ms_mean", "wall_s")
+_DECODER = msgspec.json.Decoder(TrialRecord)
+
+
+def _raw(line: bytes | str) -> Any:
+    try:
+        return msgspec.json.decode(line)
+    except (msgspec.DecodeError, RecursionError):
+        return None
 
 
 def _localisation_metrics() -> TaskMetrics:
