@@ -275,16 +275,22 @@ def _edit(folder: Path, fn) -> None:
     "edit, pattern",
     [
         (lambda m: m.update(format="other"), "not an electroloc-gym-policy"),
-        (lambda m: m.update(format_version=99), "format_version 99"),
-        (lambda m: m["architecture"].update(policy_class="os.system"), "policy_class must be one of"),
-        (lambda m: m["architecture"]["policy_kwargs"].update(activation_fn="evil"), "activation_fn must be one of"),
+        (lambda m: m.update(format_version=99), r"Invalid enum value 99 - at `\$\.format_version`"),
+        (
+            lambda m: m["architecture"].update(policy_class="os.system"),
+            r"architecture\.policy_class must be one of \[.*\], got 'os\.system'",
+        ),
+        (
+            lambda m: m["architecture"]["policy_kwargs"].update(activation_fn="evil"),
+            r"architecture\.policy_kwargs\.activation_fn must be one of \[.*\], got 'evil'",
+        ),
         (lambda m: m["observation"].update(frame_stack=2), "does not match"),
-        (lambda m: m["normalization"].update(obs_mean=None), "statistics .* are missing"),
+        (lambda m: m["normalization"].update(obs_mean=None), r"norm_obs is true but \['obs_mean'\] are missing"),
         (
             lambda m: m["normalization"].update(obs_mean=[0.0], obs_var=[1.0]),
             "normalisation statistics have 1 features",
         ),
-        (lambda m: m.pop("action"), "missing key 'action'"),
+        (lambda m: m.pop("action"), "Object missing required field `action`"),
     ],
 )
 def test_malformed_policy_json_is_refused_with_one_clear_error(saved, edit, pattern):

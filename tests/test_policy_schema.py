@@ -45,35 +45,73 @@ def _set(*path_and_value):
 @pytest.mark.parametrize(
     "edit,pattern",
     [
-        (_set("normalization", "norm_obs", "yes"), r"normalization\.norm_obs must be true or false, got 'yes'"),
-        (_set("normalization", "norm_obs", 1), r"normalization\.norm_obs must be true or false, got 1"),
-        (_set("normalization", "norm_reward", "no"), r"normalization\.norm_reward must be true or false"),
-        (_set("normalization", "clip_obs", "10"), r"normalization\.clip_obs must be a finite number"),
-        (_set("normalization", "clip_reward", True), r"normalization\.clip_reward must be a finite number"),
-        (_set("normalization", "gamma", [0.99]), r"normalization\.gamma must be a finite number"),
-        (_set("normalization", "obs_count", "many"), r"normalization\.obs_count must be a finite number or null"),
-        (_set("normalization", "obs_mean", "0"), r"normalization\.obs_mean must be a list of numbers or null"),
-        (_set("format_version", True), "format_version True is not supported"),
-        (_set("format_version", 1.0), "format_version 1.0 is not supported"),
-        (_set("weights", "sha256", "ABC"), "weights.sha256 must be 64 lowercase hex digits"),
-        (_set("weights", "tensors", "8"), r"weights\.tensors must be an integer ≥ 1"),
-        (_set("algo", ""), "algo must be a non-empty string"),
-        (_set("architecture", "policy_kwargs", "net_arch", ["128"]), r"policy_kwargs\.net_arch must be a list"),
-        (_set("architecture", "policy_kwargs", "net_arch", {"pi": [0]}), r"policy_kwargs\.net_arch must be"),
-        (_set("architecture", "policy_kwargs", "log_std_init", "low"), r"policy_kwargs\.log_std_init must be a"),
-        (_set("architecture", "policy_kwargs", "use_sde", "false"), r"policy_kwargs\.use_sde must be true or false"),
+        (_set("normalization", "norm_obs", "yes"), r"Expected `bool`, got `str` - at `\$\.normalization\.norm_obs`"),
+        (_set("normalization", "norm_obs", 1), r"Expected `bool`, got `int` - at `\$\.normalization\.norm_obs`"),
+        (
+            _set("normalization", "norm_reward", "no"),
+            r"Expected `bool`, got `str` - at `\$\.normalization\.norm_reward`",
+        ),
+        (_set("normalization", "clip_obs", "10"), r"Expected `float`, got `str` - at `\$\.normalization\.clip_obs`"),
+        (
+            _set("normalization", "clip_reward", True),
+            r"Expected `float`, got `bool` - at `\$\.normalization\.clip_reward`",
+        ),
+        (_set("normalization", "gamma", [0.99]), r"Expected `float`, got `array` - at `\$\.normalization\.gamma`"),
+        (
+            _set("normalization", "obs_count", "many"),
+            r"Expected `float \| null`, got `str` - at `\$\.normalization\.obs_count`",
+        ),
+        (
+            _set("normalization", "obs_mean", "0"),
+            r"Expected `array \| null`, got `str` - at `\$\.normalization\.obs_mean`",
+        ),
+        (_set("format_version", True), r"Expected `int`, got `bool` - at `\$\.format_version`"),
+        (_set("format_version", 1.0), r"Expected `int`, got `float` - at `\$\.format_version`"),
+        (
+            _set("weights", "sha256", "ABC"),
+            r"Expected `str` matching regex '\^\[0-9a-f\]\{64\}\$' - at `\$\.weights\.sha256`",
+        ),
+        (_set("weights", "tensors", "8"), r"Expected `int`, got `str` - at `\$\.weights\.tensors`"),
+        (_set("algo", ""), r"Expected `str` of length >= 1 - at `\$\.algo`"),
+        (
+            _set("architecture", "policy_kwargs", "net_arch", ["128"]),
+            r"Expected `int`, got `str` - at `\$\.architecture\.policy_kwargs\.net_arch\[0\]`",
+        ),
+        (
+            _set("architecture", "policy_kwargs", "net_arch", {"pi": [0]}),
+            r"Expected `int` >= 1 - at `\$\.architecture\.policy_kwargs\.net_arch\.pi\[0\]`",
+        ),
+        (
+            _set("architecture", "policy_kwargs", "log_std_init", "low"),
+            r"Expected `float`, got `str` - at `\$\.architecture\.policy_kwargs\.log_std_init`",
+        ),
+        (
+            _set("architecture", "policy_kwargs", "use_sde", "false"),
+            r"Expected `bool`, got `str` - at `\$\.architecture\.policy_kwargs\.use_sde`",
+        ),
         (
             _set("architecture", "policy_kwargs", "optimizer_class", "os.system"),
-            r"unknown key\(s\) \['optimizer_class'\]",
+            r"Object contains unknown field `optimizer_class` - at `\$\.architecture\.policy_kwargs`",
         ),
-        (_set("architecture", "recurrent", {"lstm_hidden_size": 8}), "recurrent must be null for a ActorCriticPolicy"),
-        (_set("observation", "env_id", ""), "observation.env_id must be a non-empty string"),
-        (_set("observation", "frame_stack", True), "'frame_stack' has the wrong type"),
-        (_set("action", "action_type", "discrete"), "action.action_type must be one of"),
-        (_set("action", "action_type", "yes"), "action.action_type must be one of"),
-        (_set("env_kwargs", ["observation"]), "env_kwargs must be an object"),
-        (_set("provenance", "trained"), "provenance must be an object"),
-        (_set("evaluation", 3), "evaluation must be an object or null"),
+        (
+            _set(
+                "architecture",
+                "recurrent",
+                {"lstm_hidden_size": 8, "n_lstm_layers": 1, "shared_lstm": False, "enable_critic_lstm": True},
+            ),
+            "recurrent must be null for a ActorCriticPolicy",
+        ),
+        (_set("architecture", "recurrent", {"lstm_hidden_size": 8}), r"missing required field `n_lstm_layers`"),
+        (_set("observation", "env_id", ""), r"Expected `str` of length >= 1 - at `\$\.observation\.env_id`"),
+        (_set("observation", "frame_stack", True), r"Expected `int`, got `bool` - at `\$\.observation\.frame_stack`"),
+        (_set("action", "action_type", "discrete"), "action.action_type must match the action space"),
+        (
+            _set("action", "action_type", "yes"),
+            r"action\.action_type must be one of \['continuous', 'discrete'\], got 'yes'",
+        ),
+        (_set("env_kwargs", ["observation"]), r"Expected `object`, got `array` - at `\$\.env_kwargs`"),
+        (_set("provenance", "trained"), r"Expected `object`, got `str` - at `\$\.provenance`"),
+        (_set("evaluation", 3), r"Expected `object \| null`, got `int` - at `\$\.evaluation`"),
     ],
 )
 def test_a_field_of_the_wrong_type_is_one_error_naming_the_file(tmp_path, edit, pattern):
@@ -92,7 +130,9 @@ def test_a_recurrent_policy_class_needs_its_lstm_fields(tmp_path):
         load_policy(d)
     lstm = {"lstm_hidden_size": 8, "n_lstm_layers": "1", "shared_lstm": False, "enable_critic_lstm": True}
     d = _copy(tmp_path / "b", lambda m: (recurrent(m), m["architecture"].update(recurrent=lstm)))
-    with pytest.raises(PolicyFormatError, match=r"recurrent\.n_lstm_layers must be an integer ≥ 1"):
+    with pytest.raises(
+        PolicyFormatError, match=r"Expected `int`, got `str` - at `\$\.architecture\.recurrent\.n_lstm_layers`"
+    ):
         load_policy(d)
 
 
@@ -151,17 +191,29 @@ def _copy_damaged(tmp_path: Path, damage) -> Path:
 
 #: One row per damage of a shipped policy's folder: (the damage, what the one error names).
 DAMAGES = {
-    "missing normalization": (_drop("normalization"), r"missing key 'normalization'"),
-    "normalization without norm_obs": (_drop("normalization", "norm_obs"), r"normalization\.norm_obs is missing"),
-    "norm_obs without clip_obs": (_drop("normalization", "clip_obs"), r"normalization\.clip_obs is missing"),
-    "norm_obs without epsilon": (_drop("normalization", "epsilon"), r"normalization\.epsilon is missing"),
+    "missing normalization": (_drop("normalization"), r"Object missing required field `normalization`"),
+    "normalization without norm_obs": (
+        _drop("normalization", "norm_obs"),
+        r"missing required field `norm_obs` - at `\$\.normalization`",
+    ),
+    "norm_obs without clip_obs": (
+        _drop("normalization", "clip_obs"),
+        r"norm_obs is true but \['clip_obs'\] are missing",
+    ),
+    "norm_obs without epsilon": (_drop("normalization", "epsilon"), r"norm_obs is true but \['epsilon'\] are missing"),
     "a misspelt top-level key": (
         lambda m: m.update(normalisation=m.pop("normalization")),
-        r"unknown key\(s\) \['normalisation'\]",
+        r"Object contains unknown field `normalisation`",
     ),
     "wrong tensor count": (_set("weights", "tensors", 12), r"weights\.tensors is 12, but policy\.safetensors holds 13"),
-    "missing tensor count": (_drop("weights", "tensors"), r"weights: missing key 'tensors'"),
-    "unknown weights key": (_set("weights", "dtype", "float32"), r"weights has unknown key\(s\) \['dtype'\]"),
+    "missing tensor count": (
+        _drop("weights", "tensors"),
+        r"Object missing required field `tensors` - at `\$\.weights`",
+    ),
+    "unknown weights key": (
+        _set("weights", "dtype", "float32"),
+        r"Object contains unknown field `dtype` - at `\$\.weights`",
+    ),
     "wrong net_arch": (
         _set("architecture", "policy_kwargs", "net_arch", [64, 64]),
         r"net_arch \[64, 64\].*'mlp_extractor\.policy_net\.0\.weight' has shape \(128, 81\), "
@@ -186,10 +238,19 @@ DAMAGES = {
         _set("architecture", "policy_kwargs", "lstm_hidden_size", 8),
         r"policy_kwargs holds LSTM keys \['lstm_hidden_size'\]",
     ),
-    "missing recurrent": (_drop("architecture", "recurrent"), r"architecture: missing key 'recurrent'"),
-    "unknown observation mode": (_set("observation", "mode", "image"), r"observation\.mode must be one of"),
-    "unknown observation key": (_set("observation", "dtype", "float32"), r"observation has unknown key\(s\)"),
-    "unknown action key": (_set("action", "n", 2), r"action has unknown key\(s\) \['n'\]"),
+    "missing recurrent": (
+        _drop("architecture", "recurrent"),
+        r"Object missing required field `recurrent` - at `\$\.architecture`",
+    ),
+    "unknown observation mode": (
+        _set("observation", "mode", "image"),
+        r"observation\.mode must be one of \['belief', 'raw'\], got 'image'",
+    ),
+    "unknown observation key": (
+        _set("observation", "dtype", "float32"),
+        r"Object contains unknown field `dtype` - at `\$\.observation`",
+    ),
+    "unknown action key": (_set("action", "n", 2), r"Object contains unknown field `n` - at `\$\.action`"),
     "missing value-net tensor": (
         _tensors(lambda t: t.pop("value_net.weight")),
         r"tensors of policy\.safetensors do not fit .*: missing \['value_net\.weight'\]",
@@ -273,7 +334,7 @@ def test_a_writer_cannot_leave_a_policy_that_does_not_load(tmp_path):
     write_export(tmp_path / "ok", meta, tensors)
     assert load_policy(tmp_path / "ok").normalization is not None
     for name, (m, t, says) in {
-        "no normalization": ({k: v for k, v in meta.items() if k != "normalization"}, tensors, "'normalization'"),
+        "no normalization": ({k: v for k, v in meta.items() if k != "normalization"}, tensors, "`normalization`"),
         "no value net": (meta, {k: v for k, v in tensors.items() if k != "value_net.bias"}, "value_net.bias"),
     }.items():
         with pytest.raises(PolicyFormatError, match=f"refusing to write a policy that would not load: .*{says}"):

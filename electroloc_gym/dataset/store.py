@@ -46,7 +46,10 @@ import shutil
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
+
+import msgspec
+from msgspec import Meta, Struct
 
 from electroloc_gym.utils.fileio import FolderLock, atomic_write_text, check_output_folder, probe_write
 
@@ -82,7 +85,20 @@ _PARTIAL, _OLD = ".electroloc-partial", ".electroloc-old"
 _LOCKS = ".electroloc-locks"
 _ID_RE = re.compile(r"(?P<namespace>[A-Za-z0-9_-]+(?:/[A-Za-z0-9_-]+)*)/(?P<name>[A-Za-z0-9_-]+)-v(?P<version>[0-9]+)")
 _SETTINGS = ("agent", "env_id", "env_kwargs", "seed")
-_SHA_RE = re.compile(r"[0-9a-f]{64}")
+Sha256 = Annotated[str, Meta(pattern="^[0-9a-f]{64}$")]
+
+
+class EpisodeMeta(Struct, forbid_unknown_fields=True):
+    """An episode's ``metadata.json``: Minari's keys and the two checksums this package adds."""
+
+    id: Annotated[int, Meta(ge=0)]
+    seed: Annotated[int, Meta(ge=0)]
+    total_steps: Annotated[int, Meta(ge=1)]
+    sha256: Sha256  # of its part-0.arrow
+    settings_sha256: Sha256  # of the settings it was collected with (settings_digest)
+
+
+_EPISODE_META = msgspec.json.Decoder(EpisodeMeta)
 
 
 def check_dataset_id(text: Any) -> str:
@@ -323,23 +339,17 @@ def episode_problem(folder: Path, k: int, seed: int, digest: str) -> tuple[int |
         if name not in names or not (folder / name).is_file():
             return None, f"no {name}"
     try:
-        meta = json.loads((folder / "metadata.json").read_bytes())
-    except (OSError, ValueError, RecursionError):
+        meta = _EPISODE_META.decode((folder / "metadata.json").read_bytes())
+    except OSError:
         return None, "metadata.json unreadable"
-    steps = meta.get("total_steps") if isinstance(meta, dict) else None
-    if (
-        not isinstance(meta, dict)
-        or set(meta) != {"id", "seed", "total_steps", "sha256", "settings_sha256"}
-        or (meta["id"], meta["seed"]) != (k, seed)
-        or type(steps) is not int
-        or not isinstance(meta["sha256"], str)
-        or not _SHA_RE.fullmatch(meta["sha256"])
-    ):
+    except (msgspec.MsgspecError, RecursionError) as exc:
+        return None, f"metadata.json: {str(exc)[:120]}"
+    if (meta.id, meta.seed) != (k, seed):
         return None, "metadata.json does not name this episode"
-    if meta["settings_sha256"] != digest:
+    if meta.settings_sha256 != digest:
         return None, "written with other settings"
     try:
-        if file_sha256(folder / "part-0.arrow") != meta["sha256"]:
+        if file_sha256(folder / "part-0.arrow") != meta.sha256:
             return None, "part-0.arrow does not match its checksum"
         import pyarrow.ipc as ipc
 
@@ -347,9 +357,9 @@ def episode_problem(folder: Path, k: int, seed: int, digest: str) -> tuple[int |
             rows = sum(reader.get_batch(i).num_rows for i in range(reader.num_record_batches))
     except Exception as exc:  # noqa: BLE001 - any read failure means the file cannot be kept
         return None, f"part-0.arrow unreadable ({type(exc).__name__})"
-    if rows != steps + 1:
-        return None, f"part-0.arrow holds {rows} rows, not {steps + 1}"
-    return steps, None
+    if rows != meta.total_steps + 1:
+        return None, f"part-0.arrow holds {rows} rows, not {meta.total_steps + 1}"
+    return meta.total_steps, None
 
 
 @dataclass

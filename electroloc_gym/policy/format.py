@@ -23,14 +23,17 @@ all required but the last three:
   (files written before the rl-zoo3 path).
 * ``env_kwargs`` (training env kwargs, for reference), ``provenance`` and ``evaluation`` (plain data; optional).
 
-Every field is read with its JSON type checked (:func:`read_export`): a number where a number goes (finite,
-never a boolean), a boolean where a flag goes (``"norm_obs": "yes"`` is refused, not read as true),
-integers ≥ 1 for sizes, ``policy_kwargs`` only with the keys :data:`POLICY_KWARGS` lists (they are passed to
-SB3's policy class for stochastic actions), ``recurrent`` exactly for the recurrent policy class (and the
+``policy.json`` is decoded by msgspec into :class:`PolicyFile`, one ``Struct`` per object with each key's JSON
+type and range declared once: a number where a number goes (never a boolean), a boolean where a flag goes
+(``"norm_obs": "yes"`` is refused, not read as true), integers ≥ 1 for sizes, ``policy_kwargs`` only with the
+keys :class:`PolicyKwargs` declares (they are passed to SB3's policy class for stochastic actions), no object
+with a key the format does not define (``normalization`` may keep VecNormalize's other keys); each refusal is
+msgspec's one line with the field's path (``Expected `bool`, got `str` - at `$.normalization.norm_obs```).
+What no type says is checked after (:func:`_cross_checks`): every name one of its table's keys
+(:data:`ALGOS`, :data:`POLICY_CLASSES`, :data:`ACTIVATIONS`, the observation modes,
+:data:`ACTION_SPACE_TYPES`), the algo's class, ``recurrent`` exactly for the recurrent policy class (and the
 LSTM keys of ``policy_kwargs``, if there, equal to it), ``net_arch`` of the form the class builds, the
-``action_type`` the action space's type (:data:`ACTION_SPACE_TYPES`) and the one the class acts in
-(:data:`CLASS_ACTION_TYPES`); no object has a key the format does not define (``normalization`` may keep
-VecNormalize's other keys).
+``action_type`` the action space's type and the one the class acts in (:data:`CLASS_ACTION_TYPES`).
 
 The tensors are checked against what the declared architecture builds (:func:`expected_tensors`: the
 ``state_dict`` names and shapes of the policy class with that ``net_arch``, LSTM, observation size and
@@ -48,15 +51,15 @@ the SHA-256 that ties the weights to their JSON, finite weights, tensors that fi
 from __future__ import annotations
 
 import hashlib
-import json
 import math
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
+import msgspec
 import numpy as np
+from msgspec import UNSET, Meta, Struct, UnsetType
 from numpy.typing import NDArray
 
 from electroloc_gym.contract.observation import OBSERVATION_MODES
@@ -133,69 +136,12 @@ ACTIVATIONS: dict[str, str] = {
 }
 
 
-#: ``policy_kwargs`` keys a policy file may hold, by the JSON value each takes: ``"arch"`` a network layout
-#: (a list of layer sizes, or ``{"pi": [...], "vf" | "qf": [...]}``), ``"activation"`` a name of
-#: :data:`ACTIVATIONS`, ``"flag"`` a boolean, ``"count"`` an integer ≥ 1, ``"number"`` a finite number.
-POLICY_KWARGS: dict[str, str] = {
-    "net_arch": "arch",
-    "activation_fn": "activation",
-    "log_std_init": "number",
-    "ortho_init": "flag",
-    "share_features_extractor": "flag",
-    "use_sde": "flag",
-    "squash_output": "flag",
-    "full_std": "flag",
-    "use_expln": "flag",
-    "normalize_images": "flag",
-    "n_quantiles": "count",
-    "n_critics": "count",
-    "lstm_hidden_size": "count",
-    "n_lstm_layers": "count",
-    "shared_lstm": "flag",
-    "enable_critic_lstm": "flag",
-    "batch_norm": "flag",
-    "batch_norm_momentum": "number",
-    "batch_norm_eps": "number",
-    "renorm_warmup_steps": "number",
-    "clip_mean": "number",
-}
-#: ``architecture.recurrent``'s keys (the recurrent policy class's LSTM), by kind as above.
-RECURRENT_KEYS: dict[str, str] = {
-    "lstm_hidden_size": "count",
-    "n_lstm_layers": "count",
-    "shared_lstm": "flag",
-    "enable_critic_lstm": "flag",
-}
 #: The policy class whose file holds ``recurrent`` (null for every other class).
 RECURRENT_CLASS = "RecurrentActorCriticPolicy"
 #: ``action.action_type`` → the type of ``action.space`` it needs.
 ACTION_SPACE_TYPES: dict[str, str] = {"continuous": "Box", "discrete": "Discrete"}
-#: ``normalization``'s keys by kind (``"stats"``: a list of numbers or null; the others as above, ``"number?"``
-#: a number or null). Keys beyond these are VecNormalize's and unused. ``norm_obs`` is required; with it true,
-#: :data:`NORMALIZATION_NEEDED` too.
-NORMALIZATION_KEYS: dict[str, str] = {
-    "norm_obs": "flag",
-    "norm_reward": "flag",
-    "clip_obs": "number",
-    "clip_reward": "number",
-    "epsilon": "number",
-    "gamma": "number",
-    "obs_mean": "stats",
-    "obs_var": "stats",
-    "obs_count": "number?",
-    "return_mean": "number?",
-    "return_var": "number?",
-    "return_count": "number?",
-}
 #: The ``normalization`` keys a file with ``norm_obs`` true must hold.
 NORMALIZATION_NEEDED = ("obs_mean", "obs_var", "clip_obs", "epsilon")
-#: ``policy.json``'s keys (required, then optional), and those of its objects (all required).
-TOP_KEYS = ("format", "format_version", "weights", "algo", "architecture", "observation", "action", "normalization")
-OPTIONAL_TOP_KEYS = ("env_kwargs", "provenance", "evaluation")
-WEIGHTS_KEYS = ("file", "sha256", "tensors")
-ARCHITECTURE_KEYS = ("policy_class", "policy_kwargs", "recurrent")
-OBSERVATION_KEYS = ("env_id", "mode", "frame_stack", "frame_dim", "shape", "space")
-ACTION_KEYS = ("action_type", "space")
 
 
 class PolicyFormatError(ValueError):
@@ -615,90 +561,171 @@ def write_export(folder: str | Path, meta: Mapping[str, Any], tensors: Mapping[s
 
 
 # ------------------------------------------------------------------------------------- reading
-def _need(d: Mapping[str, Any], key: str, types: type | tuple[type, ...], where: str) -> Any:
-    if key not in d:
-        raise PolicyFormatError(f"{where}: missing key {key!r}")
-    v = d[key]
-    allowed = types if isinstance(types, tuple) else (types,)
-    if not isinstance(v, allowed) or (isinstance(v, bool) and bool not in allowed):
-        raise PolicyFormatError(f"{where}: {key!r} has the wrong type ({type(v).__name__})")
-    return v
+#: The schema of ``policy.json``: one msgspec ``Struct`` per object, each key's JSON type and range declared
+#: once; what no type says (fields against each other) is in :func:`_cross_checks`.
+Count = Annotated[int, Meta(ge=1)]
+Layers = list[Count]
+Name = Annotated[str, Meta(min_length=1)]
+Floats = list[float | Literal["inf", "-inf"]]
 
 
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+class _Strict(Struct, forbid_unknown_fields=True, omit_defaults=True):
+    """An object of the format: no key it does not define."""
 
 
-def _is_count(v: Any) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool) and v >= 1
+class SplitArch(_Strict):
+    """The actor's and the critic's layers: ``{"pi": [...], "vf" | "qf": [...]}``."""
+
+    pi: Layers | UnsetType = UNSET
+    vf: Layers | UnsetType = UNSET
+    qf: Layers | UnsetType = UNSET
 
 
-def _is_layers(v: Any) -> bool:
-    return isinstance(v, list) and all(_is_count(x) for x in v)
+class PolicyKwargs(_Strict):
+    """``architecture.policy_kwargs``: the keys passed to SB3's policy class (:data:`POLICY_KWARGS`)."""
+
+    net_arch: Layers | SplitArch | UnsetType = UNSET
+    activation_fn: Name | UnsetType = UNSET  # a key of ACTIVATIONS
+    log_std_init: float | UnsetType = UNSET
+    ortho_init: bool | UnsetType = UNSET
+    share_features_extractor: bool | UnsetType = UNSET
+    use_sde: bool | UnsetType = UNSET
+    squash_output: bool | UnsetType = UNSET
+    full_std: bool | UnsetType = UNSET
+    use_expln: bool | UnsetType = UNSET
+    normalize_images: bool | UnsetType = UNSET
+    n_quantiles: Count | UnsetType = UNSET
+    n_critics: Count | UnsetType = UNSET
+    lstm_hidden_size: Count | UnsetType = UNSET
+    n_lstm_layers: Count | UnsetType = UNSET
+    shared_lstm: bool | UnsetType = UNSET
+    enable_critic_lstm: bool | UnsetType = UNSET
+    batch_norm: bool | UnsetType = UNSET
+    batch_norm_momentum: float | UnsetType = UNSET
+    batch_norm_eps: float | UnsetType = UNSET
+    renorm_warmup_steps: float | UnsetType = UNSET
+    clip_mean: float | UnsetType = UNSET
 
 
-def _is_arch(v: Any) -> bool:
-    """A list of layer sizes, or the actor's and critic's: ``{"pi": [...], "vf" | "qf": [...]}``."""
-    if isinstance(v, dict):
-        return bool(v) and set(v) <= {"pi", "vf", "qf"} and all(_is_layers(x) for x in v.values())
-    return _is_layers(v)
+class Recurrent(_Strict):
+    """``architecture.recurrent``: the recurrent policy class's LSTM (:data:`RECURRENT_KEYS`)."""
+
+    lstm_hidden_size: Count
+    n_lstm_layers: Count
+    shared_lstm: bool
+    enable_critic_lstm: bool
 
 
-_KINDS: dict[str, tuple[Any, str]] = {
-    "flag": (lambda v: isinstance(v, bool), "true or false"),
-    "number": (_is_number, "a finite number"),
-    "number?": (lambda v: v is None or _is_number(v), "a finite number or null"),
-    "count": (_is_count, "an integer ≥ 1"),
-    "stats": (lambda v: v is None or isinstance(v, list), "a list of numbers or null"),
-    "activation": (lambda v: isinstance(v, str) and v in ACTIVATIONS, f"one of {list(ACTIVATIONS)}"),
-    "arch": (_is_arch, 'a list of layer sizes (integers ≥ 1) or {"pi": [...], "vf"/"qf": [...]}'),
-}
+class Architecture(_Strict):
+    policy_class: Name  # a key of POLICY_CLASSES
+    policy_kwargs: PolicyKwargs
+    recurrent: Recurrent | None
 
 
-def _check_fields(d: Mapping[str, Any], kinds: Mapping[str, str], where: str, *, closed: bool) -> None:
-    """Each key of ``d`` listed in ``kinds`` holds a value of its kind; with ``closed`` no other key is allowed."""
-    if closed:
-        unknown = sorted(str(k) for k in d if k not in kinds)
-        if unknown:
-            raise PolicyFormatError(f"{where} has unknown key(s) {unknown}; allowed: {sorted(kinds)}")
-    for key, kind in kinds.items():
-        if key in d:
-            ok, what = _KINDS[kind]
-            if not ok(d[key]):
-                raise PolicyFormatError(f"{where}.{key} must be {what}, got {d[key]!r}")
+class Weights(_Strict):
+    file: Literal["policy.safetensors"]
+    sha256: Annotated[str, Meta(pattern="^[0-9a-f]{64}$")]
+    tensors: Count
+
+
+class BoxSpace(_Strict, tag="Box", tag_field="type"):
+    shape: Annotated[list[Count], Meta(min_length=1)]
+    dtype: Literal["float32", "float64"]
+    low: Floats
+    high: Floats
+
+
+class DiscreteSpace(_Strict, tag="Discrete", tag_field="type"):
+    n: Count
+    start: int = 0
+
+
+class Observation(_Strict):
+    env_id: Name
+    mode: Name  # one of OBSERVATION_MODES
+    frame_stack: Count
+    frame_dim: Count
+    shape: Annotated[list[Count], Meta(min_length=1, max_length=1)]
+    space: BoxSpace | DiscreteSpace
+
+
+class Action(_Strict):
+    action_type: Name  # a key of ACTION_SPACE_TYPES
+    space: BoxSpace | DiscreteSpace
+
+
+class Normalization(Struct, omit_defaults=True):
+    """VecNormalize's frozen statistics (its other keys kept and unused); ``norm_obs`` false: none."""
+
+    norm_obs: bool
+    norm_reward: bool | UnsetType = UNSET
+    clip_obs: float | UnsetType = UNSET
+    clip_reward: float | UnsetType = UNSET
+    epsilon: float | UnsetType = UNSET
+    gamma: float | UnsetType = UNSET
+    obs_mean: Floats | None | UnsetType = UNSET
+    obs_var: Floats | None | UnsetType = UNSET
+    obs_count: float | None | UnsetType = UNSET
+    return_mean: float | None | UnsetType = UNSET
+    return_var: float | None | UnsetType = UNSET
+    return_count: float | None | UnsetType = UNSET
+
+
+class PolicyFile(_Strict):
+    """``policy.json`` (the module docstring says what each key means)."""
+
+    format: Literal["electroloc-gym-policy"]
+    format_version: Literal[1]
+    weights: Weights
+    algo: Name  # a key of ALGOS
+    architecture: Architecture
+    observation: Observation
+    action: Action
+    normalization: Normalization | None
+    env_kwargs: dict[str, Any] | UnsetType = UNSET
+    provenance: dict[str, Any] | UnsetType = UNSET
+    evaluation: dict[str, Any] | None | UnsetType = UNSET
+
+
+#: ``policy_kwargs`` keys a policy file may hold (passed to SB3's policy class for stochastic actions).
+POLICY_KWARGS: tuple[str, ...] = PolicyKwargs.__struct_fields__
+#: ``architecture.recurrent``'s keys (the recurrent policy class's LSTM).
+RECURRENT_KEYS: tuple[str, ...] = Recurrent.__struct_fields__
+#: Where a name of the format must be one of a table's keys (checked after decoding: the tables are the
+#: declaration).
+_NAMED: tuple[tuple[str, Any], ...] = (
+    ("algo", ALGOS),
+    ("architecture.policy_class", POLICY_CLASSES),
+    ("architecture.policy_kwargs.activation_fn", ACTIVATIONS),
+    ("observation.mode", OBSERVATION_MODES),
+    ("action.action_type", ACTION_SPACE_TYPES),
+)
 
 
 def normalization_from_json(norm: Any, obs: Mapping[str, Any], where: str) -> ObsNormalization | None:
     """The validated observation statistics of a ``normalization`` entry (None: no normalisation).
 
-    ``null`` and ``{"norm_obs": false, …}`` say "no normalisation"; an object needs ``norm_obs``, and with it
-    true every key of :data:`NORMALIZATION_NEEDED`. Every key of :data:`NORMALIZATION_KEYS` present must be of
-    its type (``norm_obs`` a boolean, not ``"yes"``).
+    ``null`` and ``{"norm_obs": false, …}`` say "no normalisation"; with ``norm_obs`` true every key of
+    :data:`NORMALIZATION_NEEDED` is needed and the statistics fit the observation (per frame or stacked).
     """
     if norm is None:
         return None
-    if not isinstance(norm, dict):
-        raise PolicyFormatError(f"{where}: normalization must be null or an object")
-    _check_fields(norm, NORMALIZATION_KEYS, f"{where}: normalization", closed=False)
-    if "norm_obs" not in norm:
-        raise PolicyFormatError(
-            f"{where}: normalization.norm_obs is missing (true with the statistics, or false; normalization null: none)"
-        )
-    if not norm["norm_obs"]:
+    try:
+        n = msgspec.convert(norm, Normalization)
+    except msgspec.ValidationError as exc:
+        raise PolicyFormatError(f"{where}: normalization: {exc}") from None
+    if not n.norm_obs:
         return None
-    if norm.get("obs_mean") is None or norm.get("obs_var") is None:
+    missing = [k for k in NORMALIZATION_NEEDED if getattr(n, k) in (UNSET, None)]
+    if missing:
         raise PolicyFormatError(
-            f"{where}: normalization.norm_obs is true but the observation statistics "
-            f"(obs_mean, obs_var) are missing — refusing to run on raw observations"
+            f"{where}: normalization.norm_obs is true but {missing} are missing — refusing to run on raw observations"
         )
-    for key in NORMALIZATION_NEEDED:
-        if key not in norm:
-            raise PolicyFormatError(f"{where}: normalization.{key} is missing (needed when norm_obs is true)")
     stats = ObsNormalization(
-        floats_from_json(norm["obs_mean"], f"{where} obs_mean"),
-        floats_from_json(norm["obs_var"], f"{where} obs_var"),
-        clip_obs=norm["clip_obs"],
-        epsilon=norm["epsilon"],
+        floats_from_json(n.obs_mean, f"{where} obs_mean"),
+        floats_from_json(n.obs_var, f"{where} obs_var"),
+        clip_obs=n.clip_obs,  # type: ignore[arg-type]  # set: checked above
+        epsilon=n.epsilon,  # type: ignore[arg-type]
     )
     if stats.mean.shape[0] not in (obs["shape"][0], obs["frame_dim"]):
         raise PolicyFormatError(
@@ -720,42 +747,89 @@ def read_export(folder: str | Path) -> PolicyExport:
     if not path.is_file():
         raise PolicyFormatError(f"{d} has no {POLICY_JSON}")
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PolicyFormatError(f"{path} is not valid JSON: {exc}") from exc
-    except RecursionError as exc:
-        raise PolicyFormatError(f"{path} is nested too deeply to be a policy file") from exc
+        meta = msgspec.json.decode(path.read_bytes())
+    except msgspec.DecodeError as exc:
+        raise PolicyFormatError(f"{path} is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise PolicyFormatError(f"{path} is nested too deeply to be a policy file") from None
     return _checked(d, meta, str(path))
 
 
 def _checked(d: Path, meta: Any, where: str) -> PolicyExport:
-    """:func:`_validated`, whatever it meets: one :class:`PolicyFormatError` starting with ``where``."""
+    """``meta`` decoded into :class:`PolicyFile` and cross-checked: one :class:`PolicyFormatError` naming ``where``."""
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise PolicyFormatError(f"{where} is not an {FORMAT} file")
     try:
-        return _validated(d, meta, where)
+        spec = msgspec.convert(meta, PolicyFile)
+    except msgspec.ValidationError as exc:
+        raise PolicyFormatError(f"{where}: {exc}") from None
+    try:
+        _cross_checks(spec)
+        spaces = space_from_json(meta["observation"]["space"]), space_from_json(meta["action"]["space"])
+        normalization = normalization_from_json(meta["normalization"], meta["observation"], where)
     except PolicyFormatError as exc:
-        if where in str(exc):
-            raise
-        raise PolicyFormatError(f"{where}: {exc}") from exc
-    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RecursionError) as exc:
-        # a field of a legal JSON type in a place no check above foresaw (e.g. a list where a name goes)
-        raise PolicyFormatError(f"{where} does not describe a loadable policy: {one_line(exc)}") from exc
-
-
-def _keys(d: Mapping[str, Any], required: tuple[str, ...], optional: tuple[str, ...], where: str) -> None:
-    """``d`` holds every key of ``required`` and no key beyond ``required`` and ``optional``."""
-    unknown = sorted(str(k) for k in d if k not in required and k not in optional)
-    if unknown:
-        raise PolicyFormatError(f"{where} has unknown key(s) {unknown}; the format defines {[*required, *optional]}")
-    missing = [k for k in required if k not in d]
-    if missing:
+        raise PolicyFormatError(str(exc) if str(exc).startswith(where) else f"{where}: {exc}") from None
+    obs, act = spec.observation, spec.action
+    if list(spaces[0].shape) != obs.shape or obs.frame_dim * obs.frame_stack != obs.shape[0]:
         raise PolicyFormatError(
-            f"{where}: missing key {missing[0]!r}" + (f" (and {missing[1:]})" if missing[1:] else "")
+            f"{where}: observation shape {obs.shape} does not match its space, frame_stack "
+            f"{obs.frame_stack} and frame_dim {obs.frame_dim} (a flat vector of frame_stack frames)"
+        )
+    if ACTION_SPACE_TYPES[act.action_type] != type(spaces[1]).__name__:
+        raise PolicyFormatError(
+            f"{where}: action.action_type must match the action space ({ACTION_SPACE_TYPES}), got "
+            f"{act.action_type!r} with a {type(spaces[1]).__name__}"
+        )
+    return PolicyExport(folder=d, meta=meta, normalization=normalization)
+
+
+def _cross_checks(spec: PolicyFile) -> None:
+    """What no key's type says: the algo's class, the class's ``net_arch`` form, its LSTM and action type."""
+    for path, table in _NAMED:
+        value: Any = spec
+        for part in path.split("."):
+            value = getattr(value, part)
+        if value is not UNSET and value not in table:
+            raise PolicyFormatError(f"{path} must be one of {list(table)}, got {value!r}")
+    arch, kind = spec.architecture, spec.architecture.policy_class
+    pk = arch.policy_kwargs
+    if ALGOS[spec.algo][0] != kind:
+        raise PolicyFormatError(
+            f"algo {spec.algo!r} goes with architecture.policy_class {ALGOS[spec.algo][0]!r}, got {kind!r}"
+        )
+    for key in ("net_arch", "n_quantiles") if kind == "QRDQNPolicy" else ("net_arch",):
+        if getattr(pk, key) is UNSET:
+            raise PolicyFormatError(f"architecture.policy_kwargs.{key} is missing (a {kind} needs it)")
+    _check_net_arch(kind, pk.net_arch)
+    if pk.use_sde is True:
+        raise PolicyFormatError("architecture.policy_kwargs.use_sde must be false (gSDE is not supported)")
+    lstm = [k for k in RECURRENT_KEYS if getattr(pk, k) is not UNSET]
+    if kind == RECURRENT_CLASS:
+        if arch.recurrent is None:
+            raise PolicyFormatError(
+                f"architecture.recurrent of a {RECURRENT_CLASS} must be an object with exactly {sorted(RECURRENT_KEYS)}"
+            )
+        if arch.recurrent.shared_lstm and arch.recurrent.enable_critic_lstm:
+            raise PolicyFormatError("architecture.recurrent: shared_lstm and enable_critic_lstm exclude each other")
+        for key in lstm:
+            if getattr(pk, key) != getattr(arch.recurrent, key):
+                raise PolicyFormatError(
+                    f"architecture.policy_kwargs.{key} is {getattr(pk, key)!r}, architecture.recurrent.{key} is "
+                    f"{getattr(arch.recurrent, key)!r}"
+                )
+    elif arch.recurrent is not None:
+        raise PolicyFormatError(f"architecture.recurrent must be null for a {kind}")
+    elif lstm:
+        raise PolicyFormatError(f"architecture.policy_kwargs holds LSTM keys {sorted(lstm)}, but a {kind} has no LSTM")
+    if CLASS_ACTION_TYPES.get(kind, spec.action.action_type) != spec.action.action_type:
+        raise PolicyFormatError(
+            f"a {kind} acts in {CLASS_ACTION_TYPES[kind]} actions, action.action_type is {spec.action.action_type!r}"
         )
 
 
-def _check_net_arch(kind: str, net_arch: Any, where: str) -> None:
+def _check_net_arch(kind: str, net_arch: Any) -> None:
     """``net_arch`` of the form ``kind`` builds: a list for the DQN classes, ``pi``/``vf`` or ``pi`` and ``qf``."""
-    if not isinstance(net_arch, dict):
+    if not isinstance(net_arch, SplitArch):
         return
     allowed = {
         "ActorCriticPolicy": {"pi", "vf"},
@@ -763,128 +837,12 @@ def _check_net_arch(kind: str, net_arch: Any, where: str) -> None:
         "SACPolicy": {"pi", "qf"},
         "CrossQPolicy": {"pi", "qf"},
     }
+    given = {k for k in ("pi", "vf", "qf") if getattr(net_arch, k) is not UNSET}
     keys = allowed.get(kind)
     both = kind in ("SACPolicy", "CrossQPolicy")
-    if keys is None or not set(net_arch) <= keys or (both and set(net_arch) != keys):
+    if keys is None or not given or not given <= keys or (both and given != keys):
         form = "a list of layer sizes" + (
             "" if keys is None else f" or {{{', '.join(repr(k) for k in sorted(keys))}: [...]}}"
         )
-        raise PolicyFormatError(
-            f"{where}: architecture.policy_kwargs.net_arch of a {kind} must be {form}, got {net_arch!r}"
-        )
-
-
-def _validated(d: Path, meta: Any, where: str) -> PolicyExport:
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise PolicyFormatError(f"{where} is not an {FORMAT} file")
-    version = meta.get("format_version")
-    if not (isinstance(version, int) and not isinstance(version, bool) and version == FORMAT_VERSION):
-        raise PolicyFormatError(
-            f"{where}: format_version {version!r} is not supported (this version reads {FORMAT_VERSION})"
-        )
-    _keys(meta, TOP_KEYS, OPTIONAL_TOP_KEYS, where)
-    weights = _need(meta, "weights", dict, where)
-    _keys(weights, WEIGHTS_KEYS, (), f"{where}: weights")
-    if weights["file"] != WEIGHTS_FILE or not isinstance(weights["sha256"], str):
-        raise PolicyFormatError(f"{where}: weights must name {WEIGHTS_FILE!r} and its sha256")
-    if not re.fullmatch(r"[0-9a-f]{64}", weights["sha256"]):
-        raise PolicyFormatError(f"{where}: weights.sha256 must be 64 lowercase hex digits, got {weights['sha256']!r}")
-    if not _is_count(weights["tensors"]):
-        raise PolicyFormatError(f"{where}: weights.tensors must be an integer ≥ 1, got {weights['tensors']!r}")
-    algo = _need(meta, "algo", str, where)
-    if not algo:
-        raise PolicyFormatError(f"{where}: algo must be a non-empty string")
-    if algo not in ALGOS:
-        raise PolicyFormatError(f"{where}: algo must be one of {sorted(ALGOS)}, got {algo!r}")
-    arch = _need(meta, "architecture", dict, where)
-    if not isinstance(arch.get("policy_class"), str) or arch["policy_class"] not in POLICY_CLASSES:
-        raise PolicyFormatError(
-            f"{where}: architecture.policy_class must be one of {sorted(POLICY_CLASSES)}, "
-            f"got {arch.get('policy_class')!r}"
-        )
-    _keys(arch, ARCHITECTURE_KEYS, (), f"{where}: architecture")
-    kind = arch["policy_class"]
-    if ALGOS[algo][0] != kind:
-        raise PolicyFormatError(
-            f"{where}: algo {algo!r} goes with architecture.policy_class {ALGOS[algo][0]!r}, got {kind!r}"
-        )
-    pk = _need(arch, "policy_kwargs", dict, f"{where} architecture")
-    if "activation_fn" in pk and (not isinstance(pk["activation_fn"], str) or pk["activation_fn"] not in ACTIVATIONS):
-        raise PolicyFormatError(
-            f"{where}: activation_fn must be one of {list(ACTIVATIONS)}, got {pk['activation_fn']!r}"
-        )
-    _check_fields(pk, POLICY_KWARGS, f"{where}: architecture.policy_kwargs", closed=True)
-    needed = ("net_arch", "n_quantiles") if kind == "QRDQNPolicy" else ("net_arch",)
-    for key in needed:
-        if key not in pk:
-            raise PolicyFormatError(f"{where}: architecture.policy_kwargs.{key} is missing (a {kind} needs it)")
-    _check_net_arch(kind, pk["net_arch"], where)
-    if pk.get("use_sde"):
-        raise PolicyFormatError(f"{where}: architecture.policy_kwargs.use_sde must be false (gSDE is not supported)")
-    recurrent = arch["recurrent"]
-    if kind == RECURRENT_CLASS:
-        if not isinstance(recurrent, dict) or set(recurrent) != set(RECURRENT_KEYS):
-            raise PolicyFormatError(
-                f"{where}: architecture.recurrent of a {RECURRENT_CLASS} must be an object with exactly "
-                f"{sorted(RECURRENT_KEYS)}, got {recurrent!r}"
-            )
-        _check_fields(recurrent, RECURRENT_KEYS, f"{where}: architecture.recurrent", closed=True)
-        if recurrent["shared_lstm"] and recurrent["enable_critic_lstm"]:
-            raise PolicyFormatError(
-                f"{where}: architecture.recurrent: shared_lstm and enable_critic_lstm exclude each other"
-            )
-        for key in RECURRENT_KEYS:
-            if key in pk and pk[key] != recurrent[key]:
-                raise PolicyFormatError(
-                    f"{where}: architecture.policy_kwargs.{key} is {pk[key]!r}, architecture.recurrent.{key} "
-                    f"is {recurrent[key]!r}"
-                )
-    elif recurrent is not None:
-        raise PolicyFormatError(f"{where}: architecture.recurrent must be null for a {kind}")
-    elif any(key in pk for key in RECURRENT_KEYS):
-        raise PolicyFormatError(
-            f"{where}: architecture.policy_kwargs holds LSTM keys {sorted(k for k in RECURRENT_KEYS if k in pk)}, "
-            f"but a {kind} has no LSTM"
-        )
-    obs = _need(meta, "observation", dict, where)
-    _keys(obs, OBSERVATION_KEYS, (), f"{where}: observation")
-    for key, types in (("env_id", str), ("mode", str), ("frame_stack", int), ("frame_dim", int), ("shape", list)):
-        _need(obs, key, types, f"{where} observation")
-    for key in ("env_id", "mode"):
-        if not obs[key]:
-            raise PolicyFormatError(f"{where}: observation.{key} must be a non-empty string")
-    if obs["mode"] not in OBSERVATION_MODES:
-        raise PolicyFormatError(
-            f"{where}: observation.mode must be one of {list(OBSERVATION_MODES)}, got {obs['mode']!r}"
-        )
-    if obs["frame_dim"] < 1:
-        raise PolicyFormatError(f"{where}: observation.frame_dim must be an integer ≥ 1, got {obs['frame_dim']!r}")
-    space = space_from_json(obs.get("space"), f"{where} observation.space")
-    if (
-        list(space.shape) != obs["shape"]
-        or len(obs["shape"]) != 1
-        or obs["frame_stack"] < 1
-        or obs["frame_dim"] * obs["frame_stack"] != obs["shape"][0]
-    ):
-        raise PolicyFormatError(
-            f"{where}: observation shape {obs['shape']} does not match its space, frame_stack "
-            f"{obs['frame_stack']} and frame_dim {obs['frame_dim']} (a flat vector of frame_stack frames)"
-        )
-    act = _need(meta, "action", dict, where)
-    _keys(act, ACTION_KEYS, (), f"{where}: action")
-    action_type = _need(act, "action_type", str, f"{where} action")
-    action_space = space_from_json(act.get("space"), f"{where} action.space")
-    if ACTION_SPACE_TYPES.get(action_type) != type(action_space).__name__:
-        raise PolicyFormatError(
-            f"{where}: action.action_type must be one of {list(ACTION_SPACE_TYPES)} and match the action space "
-            f"({ACTION_SPACE_TYPES}), got {action_type!r} with a {type(action_space).__name__}"
-        )
-    if CLASS_ACTION_TYPES.get(kind, action_type) != action_type:
-        raise PolicyFormatError(
-            f"{where}: a {kind} acts in {CLASS_ACTION_TYPES[kind]} actions, action.action_type is {action_type!r}"
-        )
-    for key, allow_null in (("env_kwargs", False), ("provenance", False), ("evaluation", True)):
-        if key in meta and not (isinstance(meta[key], dict) or (allow_null and meta[key] is None)):
-            kind_text = "an object or null" if allow_null else "an object"
-            raise PolicyFormatError(f"{where}: {key} must be {kind_text}, got {type(meta[key]).__name__}")
-    return PolicyExport(folder=d, meta=meta, normalization=normalization_from_json(meta["normalization"], obs, where))
+        shown = msgspec.to_builtins(net_arch)
+        raise PolicyFormatError(f"architecture.policy_kwargs.net_arch of a {kind} must be {form}, got {shown!r}")
