@@ -12,12 +12,13 @@
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import msgspec
 
 from electroloc_gym.bench.config import IDENTITY_KEYS, BenchConfig
 from electroloc_gym.bench.records import CONFIG_FILE, TRIALS_FILE, LoadedRecords, load_records, stored_trials
@@ -27,20 +28,27 @@ from electroloc_gym.registry import env_entry
 __all__ = ["RunRecords", "read_run_records", "record_rules", "read_config", "config_from_json"]
 
 
-def _config_problem(stored: Any) -> str | None:
-    """Why a parsed config.json cannot describe a run (None: it can)."""
-    if not isinstance(stored, dict):
-        return f"not a JSON object ({type(stored).__name__})"
-    later = ("gain_levels", "sensor_layout", "distractors", "success_spread_mm")  # keys added later
-    missing = [k for k in ("seed", *IDENTITY_KEYS) if k not in stored and k not in later]
-    if missing:
-        return f"missing key(s) {missing}"
-    if isinstance(stored["seed"], bool) or not isinstance(stored["seed"], int):
-        return f"'seed' must be an integer, got {stored['seed']!r}"
-    for key, kind in (("agents", list), ("conditions", list), ("trials", int)):
-        if key in stored and not isinstance(stored[key], kind):
-            return f"{key!r} must be a {kind.__name__}, got {stored[key]!r}"
-    return None
+#: Keys every config.json holds (those added later read as their defaults when absent).
+_REQUIRED = tuple(
+    k for k in ("seed", *IDENTITY_KEYS) if k not in ("gain_levels", "sensor_layout", "distractors", "success_spread_mm")
+)
+
+
+def _config(stored: Any) -> BenchConfig:
+    """``stored`` (a parsed config.json) decoded by msgspec into the one declaration of a run, :class:`BenchConfig`
+    (its field types, then its settings' checks in ``__post_init__``; keys beyond its fields are the record's).
+
+    Raises:
+        ValueError: not a run's config — one line naming the field.
+    """
+    if isinstance(stored, dict):
+        missing = [k for k in _REQUIRED if k not in stored]
+        if missing:
+            raise ValueError(f"missing key(s) {missing}")
+    try:
+        return msgspec.convert(stored, BenchConfig)
+    except msgspec.ValidationError as exc:
+        raise ValueError(str(exc)) from None
 
 
 def read_config(path: Path, log: Callable[[str], None] | None) -> dict[str, Any] | None:
@@ -48,13 +56,14 @@ def read_config(path: Path, log: Callable[[str], None] | None) -> dict[str, Any]
     if not path.exists():
         return None
     try:
-        stored = json.loads(path.read_bytes().decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        stored = msgspec.json.decode(path.read_bytes())
+        _config(stored)
+    except (msgspec.DecodeError, RecursionError) as exc:
         why = f"not valid UTF-8 JSON ({type(exc).__name__}: {exc})"
+    except ValueError as exc:
+        why = str(exc)
     else:
-        why = _config_problem(stored)
-        if why is None:
-            return stored
+        return stored
     aside = path.with_name("config.rejected.json")
     os.replace(path, aside)
     if log is not None:
@@ -68,15 +77,10 @@ def config_from_json(stored: Any, where: str = CONFIG_FILE) -> BenchConfig:
     Raises:
         ValueError: not a run's config (one line naming ``where`` and the problem).
     """
-    why = _config_problem(stored)
-    if why is None:
-        names = {f.name for f in fields(BenchConfig)}
-        kwargs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in stored.items() if k in names}
-        try:
-            return BenchConfig(**kwargs)
-        except (TypeError, ValueError) as exc:
-            why = str(exc)
-    raise ValueError(f"{where}: not a benchmark run's config: {why}")
+    try:
+        return _config(stored)
+    except ValueError as exc:
+        raise ValueError(f"{where}: not a benchmark run's config: {exc}") from None
 
 
 class _StartReplay:
@@ -204,8 +208,8 @@ def read_run_records(out_dir: str | os.PathLike[str]) -> RunRecords:
         raw = config_path.read_bytes()
         if len(raw) > 1 << 20:
             raise ValueError(f"{len(raw)} bytes (a config is a few hundred)")
-        stored = json.loads(raw.decode("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError, ValueError) as exc:
+        stored = msgspec.json.decode(raw)
+    except (OSError, msgspec.DecodeError, RecursionError, ValueError) as exc:
         raise ValueError(f"{config_path}: not readable as a run's config ({type(exc).__name__}: {exc})") from None
     config = config_from_json(stored, str(config_path))
     loaded = load_records(trials_path, config, record_rules(config, stored))
