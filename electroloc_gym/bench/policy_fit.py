@@ -8,7 +8,6 @@ whose record does not fit that env (:func:`policy_env_problem`). Everything here
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -130,16 +129,26 @@ def shipped_model_env(folder: Path) -> tuple[str, tuple[float, ...] | None] | No
     """(env id, gain levels) a shipped policy was trained on (its policy.json's ``observation.env_id``
     and ``env_kwargs.gain_levels``; plain JSON), or None if the file does not say.
     """
+    meta = _read_meta(folder)
+    if meta is None:
+        return None
+    gains = (meta.get("env_kwargs") or {}).get("gain_levels")
     try:
-        with open(folder / "policy.json", encoding="utf-8") as f:
-            meta = json.load(f)
-        env_id = meta["observation"]["env_id"]
-        gains = (meta.get("env_kwargs") or {}).get("gain_levels")
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return meta["observation"]["env_id"], None if gains is None else tuple(float(g) for g in gains)
+    except (TypeError, ValueError):  # env_kwargs are the training run's record: plain data, not a schema
         return None
-    if not isinstance(env_id, str):
+
+
+def _read_meta(folder: Path) -> dict[str, Any] | None:
+    """``folder``'s policy.json read through its one schema (:func:`~electroloc_gym.policy.format.read_export`);
+    None where it is missing or refused (loading the policy says why).
+    """
+    from electroloc_gym.policy.format import PolicyFormatError, read_export
+
+    try:
+        return read_export(folder).meta
+    except (PolicyFormatError, OSError):
         return None
-    return env_id, None if gains is None else tuple(float(g) for g in gains)
 
 
 def trained_sensor_layout(meta: Any) -> str | None:
@@ -153,19 +162,14 @@ def trained_sensor_layout(meta: Any) -> str | None:
 
 
 def policy_meta(spec: str) -> dict[str, Any] | None:
-    """The ``policy.json`` of a shipped model or a policy path (None: none, or not readable as JSON)."""
+    """The ``policy.json`` of a shipped model or a policy path (None: none, or refused by its schema)."""
     if spec in shipped_models():
         path = shipped_models()[spec]
     else:
         path = Path(spec).expanduser()
     if path.is_file():
         path = path if path.name == "policy.json" else path.parent
-    try:
-        with open(path / "policy.json", encoding="utf-8") as f:
-            meta = json.load(f)
-    except (OSError, ValueError):
-        return None
-    return meta if isinstance(meta, dict) else None
+    return _read_meta(path)
 
 
 def _space_text(space: Any) -> str:
