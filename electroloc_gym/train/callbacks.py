@@ -50,8 +50,9 @@ from electroloc_gym.policy.format import write_export
 from electroloc_gym.policy.load import agent_from_model
 from electroloc_gym.policy.sb3 import export_meta, model_weights
 from electroloc_gym.train.native_vec import NativeVecEnv
+from electroloc_gym.train.summary import TrainSummary, Validation, write_summary
 from electroloc_gym.train.wrappers import activate_shaping
-from electroloc_gym.utils.fileio import FolderLock, atomic_write_text, write_json_atomic
+from electroloc_gym.utils.fileio import FolderLock, atomic_write_text
 
 __all__ = ["BenchEvalCallback", "EVAL_FIELDS", "evaluate_agent", "eval_fields", "score_column"]
 
@@ -323,27 +324,23 @@ class BenchEvalCallback(BaseCallback):
             return
         wall = time.perf_counter() - self._t0
         steps = int(self.num_timesteps)
-        write_json_atomic(
+        write_summary(
             self.run_dir / "summary.json",
-            {
-                "env_id": self.env_id,
-                "algo": type(self.model).__name__.lower(),
-                "seed": self.model.seed,
-                "command": shlex.join(["python", *_zoo_argv()]),
-                "argv": _zoo_argv(),
-                "finished": finished,
-                "timesteps": steps,
-                "wall_time_s": round(wall, 3),
-                "evaluation_time_s": round(self._eval_s, 3),
-                "fps_with_evaluation": round(steps / wall, 1) if wall > 0 else None,
-                "fps_training_only": round(steps / (wall - self._eval_s), 1) if wall > self._eval_s else None,
-                "validation": {
-                    "episodes": self.n_episodes,
-                    "first_seed": self.seed,
-                    "env_kwargs": self.eval_env_kwargs,
-                },
-                "chosen_by": self.chosen_by,
-                "best": self.best,
-                "evaluations": len(self.history),
-            },
+            TrainSummary(
+                env_id=self.env_id,
+                algo=type(self.model).__name__.lower(),
+                seed=self.model.seed,
+                command=shlex.join(["python", *_zoo_argv()]),
+                argv=_zoo_argv(),
+                finished=finished,
+                timesteps=steps,
+                wall_time_s=round(wall, 3),
+                evaluation_time_s=round(self._eval_s, 3),
+                fps_with_evaluation=round(steps / wall, 1) if wall > 0 else None,
+                fps_training_only=round(steps / (wall - self._eval_s), 1) if wall > self._eval_s else None,
+                validation=Validation(episodes=self.n_episodes, first_seed=self.seed, env_kwargs=self.eval_env_kwargs),
+                chosen_by=self.chosen_by,
+                best=self.best,
+                evaluations=len(self.history),
+            ),
         )

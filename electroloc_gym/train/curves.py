@@ -71,15 +71,13 @@ def run_env_id(run: str | Path) -> str | None:
     """The env id of a run (a run directory or its eval.csv) from the callback's ``summary.json`` beside it
     (None: no readable one).
     """
-    import json
+    from electroloc_gym.train.summary import read_summary
 
     p = Path(run)
-    summary = (p if p.is_dir() else p.parent) / "summary.json"
     try:
-        env_id = json.loads(summary.read_text(encoding="utf-8")).get("env_id")
-    except (OSError, UnicodeDecodeError, ValueError, AttributeError, RecursionError):
+        return read_summary((p if p.is_dir() else p.parent) / "summary.json").env_id
+    except ValueError:
         return None
-    return env_id if isinstance(env_id, str) else None
 
 
 def _panels(env_ids: Sequence[str]) -> Any:

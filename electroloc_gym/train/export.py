@@ -20,24 +20,25 @@ wall time, how the checkpoint was chosen), ``policy.safetensors``, ``eval.csv``,
 from __future__ import annotations
 
 import argparse
-import json
 import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import numpy as np
 import yaml
 
 from electroloc_gym.policy.format import read_export, read_weights, write_export
 from electroloc_gym.policy.load import agent_from_export
-from electroloc_gym.utils.fileio import atomic_write_text, check_output_options, write_json_atomic
+from electroloc_gym.train.summary import TrainSummary, read_summary, write_summary
+from electroloc_gym.utils.fileio import atomic_write_text, check_output_options
 
 __all__ = ["export_run", "main"]
 
 
-def _run_files(run: Path) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+def _run_files(run: Path) -> tuple[TrainSummary, dict[str, Any], dict[str, Any]]:
     """(summary.json, config.yml, args.yml) of an rl-zoo3 run folder made through the project's hook."""
     from electroloc_gym.policy.sb3 import read_zoo_yaml
 
@@ -46,7 +47,7 @@ def _run_files(run: Path) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any
     summary_path = run / "summary.json"
     if not summary_path.is_file():
         raise ValueError(f"run folder {run} has no summary.json (not trained with BenchEvalCallback)")
-    summary = json.loads(summary_path.read_text(encoding="utf-8"))
+    summary = read_summary(summary_path)
     env_dirs = [d for d in run.iterdir() if d.is_dir() and (d / "config.yml").is_file()]
     if len(env_dirs) != 1:
         raise ValueError(f"run folder {run} must hold exactly one <env>/config.yml (rl-zoo3's layout)")
@@ -69,13 +70,13 @@ def _sample_observations(env_id: str, env_kwargs: dict[str, Any], n: int = 64, s
     return np.stack(out)
 
 
-def _from_zip(zip_path: Path, out: Path, summary: dict[str, Any]) -> dict[str, Any]:
+def _from_zip(zip_path: Path, out: Path, summary: TrainSummary) -> dict[str, Any]:
     """Convert a TRUSTED SB3 zip (unpickles) and check the numpy policy against SB3's predict."""
     from electroloc_gym.policy.sb3 import export_meta, load_zoo_run, model_weights
 
     model, vn, run = load_zoo_run(zip_path)
     cfg, args = run["config"], run["args"]
-    env_id = str(args.get("env", summary.get("env_id")))
+    env_id = str(args.get("env", summary.env_id))
     env_kwargs = dict(args.get("env_kwargs") or cfg.get("env_kwargs") or {})
     stack = int(cfg.get("frame_stack") or 1)
     meta = export_meta(
@@ -127,45 +128,45 @@ def export_run(
             {k: v for k, v in best.meta.items() if k not in ("format", "format_version", "weights")},
             read_weights(best),
         )
-        chosen = summary.get("chosen_by", "")
+        chosen = summary.chosen_by
     export = read_export(dest)
     meta = {k: v for k, v in export.meta.items() if k not in ("format", "format_version", "weights")}
-    argv = summary.get("argv") or shlex.split(summary.get("command", ""))[1:]  # without the interpreter
+    argv = summary.argv or shlex.split(summary.command)[1:]  # without the interpreter
     command = shlex.join(["python", *argv]) if argv else ""
     meta["provenance"] = {
         **dict(meta.get("provenance") or {}),
         "command": command,
-        "seed": summary.get("seed"),
-        "run_timesteps": summary.get("timesteps"),
-        "wall_time_s": summary.get("wall_time_s"),
-        "evaluation_time_s": summary.get("evaluation_time_s"),
-        "fps_training_only": summary.get("fps_training_only"),
+        "seed": summary.seed,
+        "run_timesteps": summary.timesteps,
+        "wall_time_s": summary.wall_time_s,
+        "evaluation_time_s": summary.evaluation_time_s,
+        "fps_training_only": summary.fps_training_only,
         "checkpoint_chosen_by": chosen,
-        "validation": summary.get("validation"),
+        "validation": msgspec.to_builtins(summary.validation),
     }
     write_export(dest, meta, read_weights(export))
     agent_from_export(read_export(dest))  # loads as the benchmark loads it
     if (run / "eval.csv").is_file():
         atomic_write_text(dest / "eval.csv", (run / "eval.csv").read_text(encoding="utf-8"))
-    write_json_atomic(dest / "summary.json", summary)
+    write_summary(dest / "summary.json", summary)
     atomic_write_text(
         dest / "config.yml", yaml.safe_dump({"args": _plain(args), "hyperparams": _plain(config)}, sort_keys=False)
     )
-    best_row = summary.get("best") or {}
+    best_row = summary.best or {}
     atomic_write_text(
         dest / "command.txt",
         (
             f"# {dest.name}: {meta['algo']} on {meta['observation']['env_id']} ({meta['observation']['mode']} "
             f"observation), trained by rl-zoo3 through electroloc_gym.train.zoo. Exact command (repository root):\n"
             f"{command}\n"
-            f"# seed: {summary.get('seed')}; {summary.get('timesteps')} env steps in "
-            f"{summary.get('wall_time_s')} s wall time ({summary.get('evaluation_time_s')} s of it validation; "
-            f"{summary.get('fps_training_only')} steps/s "
+            f"# seed: {summary.seed}; {summary.timesteps} env steps in "
+            f"{summary.wall_time_s} s wall time ({summary.evaluation_time_s} s of it validation; "
+            f"{summary.fps_training_only} steps/s "
             f"training only), CPU, torch 1 thread\n"
             f"# checkpoint: {chosen}: the evaluation at {best_row.get('timesteps')} steps "
             f"({_row_words(best_row, meta['observation']['env_id'])}) on "
-            f"{(summary.get('validation') or {}).get('episodes')} validation episodes (reset seeds from "
-            f"{(summary.get('validation') or {}).get('first_seed')}; the benchmark's trials are seed 0's)\n"
+            f"{summary.validation.episodes} validation episodes (reset seeds from "
+            f"{summary.validation.first_seed}; the benchmark's trials are seed 0's)\n"
         ),
     )
     return dest

@@ -23,7 +23,6 @@ fps).
 from __future__ import annotations
 
 import importlib.util
-import json
 import os
 import subprocess
 import sys
@@ -33,6 +32,7 @@ from typing import Any
 
 from electroloc_gym.registry import plugin_modules, resolve_env_name
 from electroloc_gym.train.settings import ALGO_FILES, check_train_settings
+from electroloc_gym.train.summary import read_summary
 from electroloc_gym.utils.runtime import chosen_threads, thread_env
 
 __all__ = [
@@ -178,10 +178,10 @@ def find_finished_run(log_folder: str | Path, algo: str, env_id: str, argv: Sequ
     found = []
     for summary in Path(log_folder, algo).glob(f"{env_id}_*/summary.json"):
         try:
-            s = json.loads(summary.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+            s = read_summary(summary)
+        except ValueError:
             continue
-        if s.get("finished") and list(s.get("argv", [])) == list(argv):
+        if s.finished and s.argv == list(argv):
             found.append(summary.parent)
     return max(found, key=lambda p: p.stat().st_mtime) if found else None
 
@@ -262,9 +262,7 @@ def train(
 
         dest = Path(out)
         done = dest / "summary.json"
-        same = done.is_file() and json.loads(done.read_text(encoding="utf-8")).get("argv") == json.loads(
-            (run / "summary.json").read_text(encoding="utf-8")
-        ).get("argv")
+        same = done.is_file() and read_summary(done).argv == read_summary(run / "summary.json").argv
         if not same:
             export_run(run, dest)
     return run

@@ -57,15 +57,11 @@ def validation_settings(run: Path) -> tuple[str, dict[str, Any], int, int]:
         ValueError: one line naming the file that is missing or unreadable.
     """
     from electroloc_gym.policy.sb3 import read_zoo_yaml
+    from electroloc_gym.train.summary import read_summary
 
-    path = run / "summary.json"
-    try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
-        env_id = str(summary["env_id"])
-        val = summary["validation"]
-        first, episodes, val_kwargs = int(val["first_seed"]), int(val["episodes"]), dict(val["env_kwargs"] or {})
-    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError, RecursionError) as exc:
-        raise ValueError(f"{path}: not a readable training summary ({type(exc).__name__}: {exc})") from None
+    summary = read_summary(run / "summary.json")  # one line naming the file and the field
+    env_id, val = summary.env_id, summary.validation
+    first, episodes, val_kwargs = val.first_seed, val.episodes, dict(val.env_kwargs)
     zoo = [d for d in run.iterdir() if d.is_dir() and (d / "config.yml").is_file()]
     if not zoo:
         raise ValueError(f"{run}: no rl-zoo3 config.yml (the run's env kwargs)")

@@ -50,6 +50,7 @@ from electroloc_gym.baselines.infotaxis import InfotaxisAgent
 from electroloc_gym.baselines.lookahead import LookaheadAgent
 from electroloc_gym.baselines.min_variance import MinVarianceAgent
 from electroloc_gym.registry import PAPER_ENV_ID, env_entry, task_entry
+from electroloc_gym.train.summary import read_summary
 from electroloc_gym.utils.agentspec import parse_options
 from electroloc_gym.utils.runtime import thread_env
 
@@ -235,15 +236,15 @@ def run_config(plan: Plan, cfg: Config, seed: int) -> dict[str, Any]:
     )
     trained = time.time() - t0
     _bench(plan, cfg.env_id, str(folder / "policy"), folder / "bench")
-    summary = json.loads((run / "summary.json").read_text(encoding="utf-8"))
+    summary = read_summary(run / "summary.json")
     return {
         "env_id": cfg.env_id,
         "label": cfg.label,
         "algo": cfg.algo,
         "seed": seed,
         "run": str(run),
-        "train_wall_time_s": summary.get("wall_time_s"),
-        "fps_training_only": summary.get("fps_training_only"),
+        "train_wall_time_s": summary.wall_time_s,
+        "fps_training_only": summary.fps_training_only,
         "this_call_s": round(trained, 1),
     }
 

@@ -6,6 +6,7 @@ import json
 import sys
 from pathlib import Path
 
+import msgspec
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -23,7 +24,7 @@ def _run(results: Path, env_id: str, label: str, seed: int, csv_text: str, val_k
     (run / env_id).mkdir(parents=True)
     (run / "eval.csv").write_text(csv_text)
     validation = {"episodes": 2, "first_seed": 100000, "env_kwargs": val_kwargs or {"randomize_target": False}}
-    (run / "summary.json").write_text(json.dumps({"env_id": env_id, "validation": validation}))
+    (run / "summary.json").write_text(_train_summary(env_id, validation))
     kwargs = "{condition: random, observation: belief, randomize_target: true, n_particles: 300}"
     (run / env_id / "config.yml").write_text(f"env_kwargs: {kwargs}\n")
     (seed_dir / "bench").mkdir(parents=True)
@@ -122,3 +123,27 @@ def test_a_damaged_cache_is_one_error(tmp_path):
     path.write_text("{not json")
     with pytest.raises(ValueError, match="not a readable cache"):
         lv.level(tmp_path, "ElectroLoc-v0", {}, 100000, 2)
+
+
+def _train_summary(env_id: str, validation: dict) -> str:
+    """A finished training run's summary.json (its one schema, electroloc_gym.train.summary), for ``env_id``."""
+    from electroloc_gym.train.summary import TrainSummary, Validation
+
+    s = TrainSummary(
+        env_id,
+        "ppo",
+        1,
+        "python -m rl_zoo3.train",
+        [],
+        True,
+        0,
+        0.0,
+        0.0,
+        None,
+        None,
+        Validation(**validation),
+        "",
+        None,
+        0,
+    )
+    return msgspec.json.encode(s).decode()

@@ -4,6 +4,7 @@ import importlib.util
 import json
 from pathlib import Path
 
+import msgspec
 import numpy as np
 import pytest
 import rliable.library  # noqa: F401  (the zoo extra installs it; rliable 1.2 needs pandas<3 for arch)
@@ -535,7 +536,7 @@ def test_the_report_says_when_each_run_reached_min_vars_validation_level(tmp_pat
         rows = [f"{i * 500},{12.5 * i},2,1,{r},{r},2,2" for i, r in enumerate(readings)]
         (run / "eval.csv").write_text("\n".join([head, *rows]) + "\n")
         validation = {"episodes": 2, "first_seed": 100000, "env_kwargs": {"randomize_target": False}}
-        (run / "summary.json").write_text(json.dumps({"env_id": "ElectroLoc-v0", "validation": validation}))
+        (run / "summary.json").write_text(_train_summary("ElectroLoc-v0", validation))
         (run / "ElectroLoc-v0" / "config.yml").write_text("env_kwargs: {condition: random, randomize_target: true}\n")
     assert report.main([str(res), "--reps", "200"]) == 0
     text = (res / "report.md").read_text()
@@ -551,3 +552,27 @@ def test_the_report_says_when_each_run_reached_min_vars_validation_level(tmp_pat
     assert "seed 0: 12; seed 1: 25; seed 2: not within the budget" in text
     level = json.loads((res / "report.json").read_text())[0]["min_var_level"]
     assert [s["timesteps"] for s in level[0]["seeds"]] == [500, 1000, None]
+
+
+def _train_summary(env_id: str, validation: dict) -> str:
+    """A finished training run's summary.json (its one schema, electroloc_gym.train.summary), for ``env_id``."""
+    from electroloc_gym.train.summary import TrainSummary, Validation
+
+    s = TrainSummary(
+        env_id,
+        "ppo",
+        1,
+        "python -m rl_zoo3.train",
+        [],
+        True,
+        0,
+        0.0,
+        0.0,
+        None,
+        None,
+        Validation(**validation),
+        "",
+        None,
+        0,
+    )
+    return msgspec.json.encode(s).decode()
