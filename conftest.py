@@ -110,3 +110,19 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     long_files = {item.path for item in items if item.get_closest_marker("long")}
     if long_files:
         items.sort(key=lambda item: item.path not in long_files)
+
+
+@pytest.fixture()
+def train_summary_json():
+    """Write a finished training run's ``summary.json`` (its one schema, ``electroloc_gym.train.summary``) for an env
+    and its validation block: ``write(path, env_id, validation)``."""
+
+    def write(path: Path, env_id: str, validation: dict) -> None:
+        import msgspec
+
+        from electroloc_gym.train.summary import TrainSummary, Validation
+
+        run = (env_id, "ppo", 1, "python -m rl_zoo3.train", [], True, 0, 0.0, 0.0, None, None, Validation(**validation))
+        path.write_bytes(msgspec.json.encode(TrainSummary(*run, chosen_by="", best=None, evaluations=0)))
+
+    return write

@@ -8,7 +8,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import gymnasium as gym
-import msgspec
 import pytest
 
 import electroloc_gym  # noqa: F401  (registers the env ids)
@@ -62,14 +61,14 @@ def test_training_evaluation_reports_and_selects_by_the_tasks_score() -> None:
     assert set(eval_fields(TRACK)) - {"timesteps", "wall_time_s"} == set(row)
 
 
-def test_learning_curves_take_the_runs_env_and_its_panels(tmp_path: Path) -> None:
+def test_learning_curves_take_the_runs_env_and_its_panels(tmp_path: Path, train_summary_json) -> None:
     pytest.importorskip("matplotlib")
     from electroloc_gym.train import curves
 
     run = tmp_path / "run"
     run.mkdir()
     validation = {"episodes": 1, "first_seed": 1, "env_kwargs": {}}
-    (run / "summary.json").write_text(_train_summary(TRACK, validation))
+    train_summary_json(run / "summary.json", TRACK, validation)
     (run / "eval.csv").write_text("timesteps,success_rate,mean_readings,median_readings\n0,0,70,70\n")
     assert curves.run_env_id(run) == TRACK and curves.run_env_id(run / "eval.csv") == TRACK
     assert [p.key for p in curves._panels([TRACK])] == ["capture_rate", "mean_tracking_error_mm"]
@@ -106,27 +105,3 @@ def test_ppo_minimal_reports_the_tasks_score_on_the_track_env(capsys) -> None:
     result = ppo.main([*argv, "--update-epochs", "1", "--eval-episodes", "2"])
     assert set(result) == {"capture_rate", "mean_tracking_error_mm", "median_observations"}
     assert "capture_rate" in capsys.readouterr().out
-
-
-def _train_summary(env_id: str, validation: dict) -> str:
-    """A finished training run's summary.json (its one schema, electroloc_gym.train.summary), for ``env_id``."""
-    from electroloc_gym.train.summary import TrainSummary, Validation
-
-    s = TrainSummary(
-        env_id,
-        "ppo",
-        1,
-        "python -m rl_zoo3.train",
-        [],
-        True,
-        0,
-        0.0,
-        0.0,
-        None,
-        None,
-        Validation(**validation),
-        "",
-        None,
-        0,
-    )
-    return msgspec.json.encode(s).decode()

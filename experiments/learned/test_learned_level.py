@@ -6,7 +6,6 @@ import json
 import sys
 from pathlib import Path
 
-import msgspec
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -17,14 +16,14 @@ TRACK = "ElectroLocTrack-v0"
 HEAD = "timesteps,wall_time_s,episodes,success_rate,mean_readings,median_readings,median_error_mm,mean_error_mm"
 
 
-def _run(results: Path, env_id: str, label: str, seed: int, csv_text: str, val_kwargs=None) -> Path:
+def _run(results: Path, env_id: str, label: str, seed: int, csv_text: str, val_kwargs=None, *, summary) -> Path:
     """A finished, benchmarked rl-zoo3 run folder as the suite lays it out, with this eval.csv."""
     seed_dir = results / env_id / label / f"seed-{seed}"
     run = seed_dir / "zoo" / label / f"{env_id}_1"
     (run / env_id).mkdir(parents=True)
     (run / "eval.csv").write_text(csv_text)
     validation = {"episodes": 2, "first_seed": 100000, "env_kwargs": val_kwargs or {"randomize_target": False}}
-    (run / "summary.json").write_text(_train_summary(env_id, validation))
+    summary(run / "summary.json", env_id, validation)
     kwargs = "{condition: random, observation: belief, randomize_target: true, n_particles: 300}"
     (run / env_id / "config.yml").write_text(f"env_kwargs: {kwargs}\n")
     (seed_dir / "bench").mkdir(parents=True)
@@ -62,13 +61,14 @@ def test_first_reach_finds_the_first_evaluation_at_the_level():
     assert lv.first_reach(cols, "m", 1.6, True) == (2000, None)
 
 
-def test_the_report_section_on_synthetic_logs(tmp_path):
+def test_the_report_section_on_synthetic_logs(tmp_path, train_summary_json):
     results = tmp_path / "results"
-    _run(results, TRACK, "sac", 1, _track_csv([9.0, 4.0, 1.5, 1.2]))
-    _run(results, TRACK, "sac", 2, _track_csv([9.0, 4.0, 3.0, 2.0]))  # never at min-var's level
-    _run(results, TRACK, "sac", 3, _track_csv([9.0, 1.0], walls=False))  # an old log without wall times
+    w = train_summary_json
+    _run(results, TRACK, "sac", 1, _track_csv([9.0, 4.0, 1.5, 1.2]), summary=w)
+    _run(results, TRACK, "sac", 2, _track_csv([9.0, 4.0, 3.0, 2.0]), summary=w)  # never at min-var's level
+    _run(results, TRACK, "sac", 3, _track_csv([9.0, 1.0], walls=False), summary=w)  # an old log without wall times
     old = HEAD + ",mean_return\n0,1.0,2,0,70,70,5,5,-100\n"
-    _run(results, TRACK, "ppo", 1, old)  # written before the task's score column
+    _run(results, TRACK, "ppo", 1, old, summary=w)  # written before the task's score column
     _cache(results, TRACK, {"mean_tracking_error_mm": 1.6})
     rows = lv.reach(results, TRACK)
     by = {r["label"]: r for r in rows}
@@ -89,9 +89,18 @@ def test_the_report_section_on_synthetic_logs(tmp_path):
     assert "seed 1: min-var's level not computed (--min-var-level)" in text
 
 
-def test_min_var_level_is_computed_once_through_the_training_evaluation_and_cached(tmp_path, monkeypatch):
+def test_min_var_level_is_computed_once_through_the_training_evaluation_and_cached(
+    tmp_path, monkeypatch, train_summary_json
+):
     results = tmp_path / "results"
-    run = _run(results, "ElectroLoc-v0", "crossq", 1, "\n".join([HEAD + ",mean_return", "0,1.0,2,1,4,4,2,2,-3"]))
+    run = _run(
+        results,
+        "ElectroLoc-v0",
+        "crossq",
+        1,
+        "\n".join([HEAD + ",mean_return", "0,1.0,2,1,4,4,2,2,-3"]),
+        summary=train_summary_json,
+    )
     env_id, kwargs, first, episodes = lv.validation_settings(run)
     assert (env_id, first, episodes) == ("ElectroLoc-v0", 100000, 2)
     assert kwargs == {"condition": "random", "randomize_target": False, "n_particles": 300}  # no observation
@@ -123,27 +132,3 @@ def test_a_damaged_cache_is_one_error(tmp_path):
     path.write_text("{not json")
     with pytest.raises(ValueError, match="not a readable cache"):
         lv.level(tmp_path, "ElectroLoc-v0", {}, 100000, 2)
-
-
-def _train_summary(env_id: str, validation: dict) -> str:
-    """A finished training run's summary.json (its one schema, electroloc_gym.train.summary), for ``env_id``."""
-    from electroloc_gym.train.summary import TrainSummary, Validation
-
-    s = TrainSummary(
-        env_id,
-        "ppo",
-        1,
-        "python -m rl_zoo3.train",
-        [],
-        True,
-        0,
-        0.0,
-        0.0,
-        None,
-        None,
-        Validation(**validation),
-        "",
-        None,
-        0,
-    )
-    return msgspec.json.encode(s).decode()

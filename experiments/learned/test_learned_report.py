@@ -4,7 +4,6 @@ import importlib.util
 import json
 from pathlib import Path
 
-import msgspec
 import numpy as np
 import pytest
 import rliable.library  # noqa: F401  (the zoo extra installs it; rliable 1.2 needs pandas<3 for arch)
@@ -524,7 +523,7 @@ def test_a_damaged_tracking_line_is_set_aside(tmp_path, damage):
     np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])
 
 
-def test_the_report_says_when_each_run_reached_min_vars_validation_level(tmp_path, capsys):
+def test_the_report_says_when_each_run_reached_min_vars_validation_level(tmp_path, capsys, train_summary_json):
     """Env steps and wall time to min-var's level on the validation episodes (eval.csv against min-var's cached
     evaluation on the same episodes); "not within the budget" where a run never reached it; computed only with
     --min-var-level when not cached."""
@@ -536,7 +535,7 @@ def test_the_report_says_when_each_run_reached_min_vars_validation_level(tmp_pat
         rows = [f"{i * 500},{12.5 * i},2,1,{r},{r},2,2" for i, r in enumerate(readings)]
         (run / "eval.csv").write_text("\n".join([head, *rows]) + "\n")
         validation = {"episodes": 2, "first_seed": 100000, "env_kwargs": {"randomize_target": False}}
-        (run / "summary.json").write_text(_train_summary("ElectroLoc-v0", validation))
+        train_summary_json(run / "summary.json", "ElectroLoc-v0", validation)
         (run / "ElectroLoc-v0" / "config.yml").write_text("env_kwargs: {condition: random, randomize_target: true}\n")
     assert report.main([str(res), "--reps", "200"]) == 0
     text = (res / "report.md").read_text()
@@ -552,27 +551,3 @@ def test_the_report_says_when_each_run_reached_min_vars_validation_level(tmp_pat
     assert "seed 0: 12; seed 1: 25; seed 2: not within the budget" in text
     level = json.loads((res / "report.json").read_text())[0]["min_var_level"]
     assert [s["timesteps"] for s in level[0]["seeds"]] == [500, 1000, None]
-
-
-def _train_summary(env_id: str, validation: dict) -> str:
-    """A finished training run's summary.json (its one schema, electroloc_gym.train.summary), for ``env_id``."""
-    from electroloc_gym.train.summary import TrainSummary, Validation
-
-    s = TrainSummary(
-        env_id,
-        "ppo",
-        1,
-        "python -m rl_zoo3.train",
-        [],
-        True,
-        0,
-        0.0,
-        0.0,
-        None,
-        None,
-        Validation(**validation),
-        "",
-        None,
-        0,
-    )
-    return msgspec.json.encode(s).decode()
