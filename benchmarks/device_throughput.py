@@ -5,7 +5,7 @@ One command, the same on an accelerator and on the CPU (the GPU's: ``experiments
     python benchmarks/device_throughput.py --device cuda --compile --profile --out results/cuda.json
     python benchmarks/device_throughput.py --device cpu --n-envs 64 256 1024 --compile --ppo-n 64 --out /tmp/cpu.json
 
-It needs only torch, numpy, numba, scipy and gymnasium (the package installed with ``pip install
+It needs only torch, numpy, numba, scipy, gymnasium and msgspec (the package installed with ``pip install
 --no-deps``; no SB3, no internet). For each N of ``--n-envs`` (on an accelerator 1024 … 524288 by
 default; a size the device cannot hold is reported as such and skipped), the torch backend's env-steps
 per second (every sub-env step counts; random actions, so episodes end and reset as in training), eager

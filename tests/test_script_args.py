@@ -1,7 +1,7 @@
 """The torch backend's scripts: examples/ppo_torch.py and benchmarks/device_throughput.py refuse bad input
 with one ``prog: error: …`` line naming the option (exit 2) before any work, say every option's help and
 default, choose their threads; and the benchmark — the GPU machine's one command — runs where only torch,
-numpy, numba, scipy and gymnasium are installed (everything else blocked at import), writing its JSON and
+numpy, numba, scipy, gymnasium and msgspec are installed (everything else blocked at import), writing its JSON and
 markdown.
 """
 
@@ -24,7 +24,7 @@ torch = pytest.importorskip("torch")
 from electroloc_gym.utils.runtime import user_numba_cache_dir  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-GPU_MACHINE = ("torch", "numpy", "numba", "scipy", "gymnasium")
+GPU_MACHINE = ("torch", "numpy", "numba", "scipy", "gymnasium", "msgspec")
 
 
 def _load(path: Path, name: str):

@@ -3,7 +3,7 @@
 # generation included: every row, the numba one first, checks the time left, and one that would pass
 # --budget-s is listed as skipped; an extra --seconds above half the budget is refused before any work).
 #
-# On a bare machine (torch, numpy, numba, scipy and gymnasium installed; no internet needed after that):
+# On a bare machine (torch, numpy, numba, scipy, gymnasium and msgspec installed; no internet needed after that):
 #     pip install --no-deps -e .        # the package, nothing else
 #     bash experiments/on_device/run_gpu.sh
 # Writes experiments/on_device/results/device_throughput_<device>.json and .md (the table names the GPU,
