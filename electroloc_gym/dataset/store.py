@@ -84,7 +84,6 @@ _HEADER_REL = "data/metadata.json"
 _PARTIAL, _OLD = ".electroloc-partial", ".electroloc-old"
 _LOCKS = ".electroloc-locks"
 _ID_RE = re.compile(r"(?P<namespace>[A-Za-z0-9_-]+(?:/[A-Za-z0-9_-]+)*)/(?P<name>[A-Za-z0-9_-]+)-v(?P<version>[0-9]+)")
-_SETTINGS = ("agent", "env_id", "env_kwargs", "seed")
 Sha256 = Annotated[str, Meta(pattern="^[0-9a-f]{64}$")]
 
 
@@ -289,10 +288,10 @@ def header_path(folder: Path) -> Path:
 def read_header(folder: Path) -> tuple[dict[str, Any] | None, str | None]:
     """(the header, None) or (None, why it is unreadable)."""
     try:
-        header = json.loads(header_path(folder).read_bytes())
+        header = msgspec.json.decode(header_path(folder).read_bytes())
     except FileNotFoundError:
         return None, "missing"
-    except (OSError, ValueError, RecursionError) as exc:
+    except (OSError, msgspec.DecodeError, RecursionError) as exc:
         return None, f"unreadable ({type(exc).__name__})"
     if not isinstance(header, dict):
         return None, "not a JSON object"
@@ -310,11 +309,23 @@ def _json_default(obj: Any) -> Any:
     raise TypeError(f"{type(obj).__name__} is not JSON data")
 
 
+class Settings(Struct):
+    """What every episode of a dataset depends on: the agent spec, the env, its kwargs and the root seed (the
+    header's ``electroloc`` block holds them beside the run's record, which is not checked here).
+    """
+
+    agent: Annotated[str, Meta(min_length=1)]
+    env_id: Annotated[str, Meta(min_length=1)]
+    env_kwargs: dict[str, Any]
+    seed: Annotated[int, Meta(ge=1)]
+
+
 def settings_of(block: Any) -> dict[str, Any] | None:
-    """The settings an episode depends on (agent, env, its kwargs, root seed) from a block, or None."""
-    if not isinstance(block, dict) or not all(k in block for k in _SETTINGS):
+    """The :class:`Settings` of a header's ``electroloc`` block as plain data, or None where it holds none."""
+    try:
+        return msgspec.to_builtins(msgspec.convert(block, Settings))
+    except msgspec.ValidationError:
         return None
-    return {k: block[k] for k in _SETTINGS}
 
 
 def settings_digest(settings: Mapping[str, Any]) -> str:
