@@ -569,7 +569,7 @@ class _Run:
         if (
             force
             and started
-            and store.settings_of((store.read_header(partial)[0] or {}).get("electroloc")) != (self.settings)
+            and store.settings_of((store.read_header(partial)[0] or {}).get("electroloc")) != self.settings
         ):
             store.remove(partial)  # an earlier --force run's leftovers, of other settings
             started = False
