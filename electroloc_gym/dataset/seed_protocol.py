@@ -23,10 +23,10 @@ episode reads its cap and the readings say nothing) agents are compared by that 
 conditions of each condition's mean, e.g. the tracking error in mm, lower better), and the reference
 scores are its negatives: ``ref_min_score = −E_rnd``, ``ref_max_score = −E_best``. Each task declares
 that scale with its score (``Score.reference``: the return 1 − R for the readings; the negated value by
-default), and the block's ``score`` names the score. An episode's score on that scale is −(its tracking
-error): the mean of the dataset's per-step ``error_mm`` info over the scored second half
-(``n_observations`` above half the cap), the env's final ``tracking_error_mm`` — not the return, which sums
-the error over every reading.
+default), and the block's ``score`` names the score. On a task whose score is an error (the moving target's),
+an episode's score on that scale is −(its error): the mean of the dataset's per-step ``error_mm`` info over the
+scored second half (``n_observations`` above half the cap), the episode's value of the task's declared score
+— not the return, which sums the error over every reading.
 """
 
 from __future__ import annotations
@@ -104,7 +104,7 @@ def _mean_over_conditions(rows: list[dict[str, Any]], value: Any) -> float:
 def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str, Any]:
     """``{"ref_min_score", "ref_max_score", "score": KEY, "rnd_KEY", "best_planner", "best_KEY", "source"}`` from
     a benchmark run's ``trials.jsonl`` holding rnd-wlk and at least one planner on ``env_id``: KEY the env task's
-    declared score (``readings``, ``tracking_error_mm``), the reference scores that score on its declared
+    declared score (``Task.metrics.score``), the reference scores that score on its declared
     reference scale (``Score.on_reference_scale``; module docstring).
 
     Raises:

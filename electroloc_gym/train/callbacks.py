@@ -6,8 +6,8 @@ the way the benchmark runs a policy — exported in memory to the pickle-free fo
 benchmark's agent (:mod:`electroloc_gym.policy`), one seeded episode per validation seed through
 :func:`electroloc_gym.baselines.rollout.run_episode` — and records what the benchmark reports:
 successes, readings to localise (``info["n_observations"]``; a failure counts as the cap) and the
-final error, plus the task's own (unshaped) return and the task's own metrics (``Task.metrics.eval_columns``:
-the moving target's mean and median tracking error and capture rate). It also switches on the reward
+final error, plus the task's own (unshaped) return and the task's own metrics (the columns its
+``Task.metrics.eval_columns`` declares). It also switches on the reward
 shaping of the training env (:func:`electroloc_gym.train.wrappers.activate_shaping`).
 
 In the run folder rl-zoo3 made (``logs/<algo>/<env>_<n>/``, found from the training monitor's file)
@@ -82,7 +82,7 @@ def eval_fields(env_id: str) -> tuple[str, ...]:
 
 def score_column(env_id: str) -> tuple[str, bool]:
     """(column, smaller is better) of ``env_id``'s validation score: ``mean_<key>`` of its task's declared score
-    (``Task.metrics.score``; ``mean_readings`` by default, ``mean_tracking_error_mm`` on the moving target).
+    (``Task.metrics.score``; ``mean_readings`` by default).
     """
     score = _metrics(env_id).score
     return f"mean_{score.key}", score.better == "lower"
