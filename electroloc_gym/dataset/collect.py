@@ -610,8 +610,7 @@ class _Run:
                 except ValueError:  # another id's run created it meanwhile
                     if namespace not in list_local_namespaces():
                         raise
-            (partial / "data").mkdir(parents=True)
-            store.write_header(partial, self.header())
+            store.start_partial(self.paths, self.header())
             self.started = True
         if self.staging is None:
             self.staging = _staging_storage(partial, self.env)

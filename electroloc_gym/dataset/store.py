@@ -11,12 +11,14 @@ unset; :func:`datasets_root`)::
         data/<k>/part-0.arrow, data/<k>/metadata.json     episode k, Minari's arrow storage
         quarantine/<n>/...                          what the n-th resume set aside (moved, never deleted)
     <namespace>/.<name>-vN.electroloc-partial/      the run's output while it is written (the same layout)
+    <namespace>/.<name>-vN.electroloc-partial.new/  the partial while its header is written (then renamed)
     <namespace>/.<name>-vN.electroloc-old/          --force: the replaced dataset between two renames
     .electroloc-locks/<id>.lock                     one writer per id
 
 **Sized to data that regenerates.** Every episode of a dataset is a function of its settings and its seed,
 so a run needs no journal: it writes beside the dataset, in the partial folder, and publishes with one
-rename. The partial's header is written first (its settings, ``complete`` false); each episode is written
+rename. The partial starts with its header (its settings, ``complete`` false), written in a folder of its own
+that is then renamed to the partial's name (:func:`start_partial`), so a partial always has one; each episode is written
 by Minari's own arrow storage into the partial's ``.staging/`` and moved into ``data/<k>`` whole (one
 rename), its own ``metadata.json`` carrying the sha256 of its ``part-0.arrow`` and of the run's settings
 (:func:`settings_digest`), so that every episode says what it is. When all are there, the files are
@@ -594,6 +596,17 @@ def remove(path: Path) -> None:
         path.unlink()
     elif path.is_dir():
         shutil.rmtree(path)
+
+
+def start_partial(paths: DatasetFolder, header: Mapping[str, Any]) -> None:
+    """Make the partial folder with ``header`` and an empty ``data/``, whole: built under ``<partial>.new`` (this
+    module's own name: a leftover of a killed start is replaced) and renamed to the partial's name.
+    """
+    fresh = paths.partial.with_name(paths.partial.name + ".new")
+    remove(fresh)
+    (fresh / "data").mkdir(parents=True)
+    write_header(fresh, header)
+    os.rename(fresh, paths.partial)
 
 
 def publish(paths: DatasetFolder) -> None:
