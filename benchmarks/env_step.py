@@ -19,7 +19,8 @@ pin_threads()  # one thread per numeric library unless $ELECTROLOC_THREADS says 
 
 import numpy as np  # noqa: E402
 
-from electroloc_gym.envs.localize import ElectroLocEnv  # noqa: E402
+from electroloc_gym.envs import ElectroLocEnv  # noqa: E402
+from electroloc_gym.envs.localize import LocalizeEnv  # noqa: E402
 from electroloc_gym.protocol import N_PARTICLES  # noqa: E402
 
 
@@ -34,14 +35,14 @@ def best_of(fn, n: int, repeats: int = 5) -> float:
     return best
 
 
-def bare_update_cost(env: ElectroLocEnv, n: int) -> float:
+def bare_update_cost(env: LocalizeEnv, n: int) -> float:
     """Seconds for the core's reading and belief update of the env (no motion, observation or info)."""
     sim = env._sim
     ids = np.arange(1)
     return best_of(lambda: sim._observe(ids), n)
 
 
-def env_step_cost(env: ElectroLocEnv, n: int) -> float:
+def env_step_cost(env: LocalizeEnv, n: int) -> float:
     env.reset(seed=0)
     rng = np.random.default_rng(1)
     actions = rng.uniform(-1, 1, size=(n, 2)).astype(np.float32)

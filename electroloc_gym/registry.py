@@ -32,6 +32,7 @@ __all__ = [
     "EnvEntry",
     "BenchEnv",
     "ENVS",
+    "env_class_named",
     "ENV_IDS",
     "TASKS",
     "BENCH_ENVS",
@@ -330,6 +331,18 @@ def entry_of_class(cls: type) -> EnvEntry:
         f"{cls.__qualname__} is no env of the env table; its entry's env_class or vector_class "
         f"names the class (ids: {list(ENV_IDS)})"
     )
+
+
+def env_class_named(name: str) -> type | None:
+    """The single or native vector env class of an entry by its class name (None: no entry's), so that the
+    modules that held the built-in env classes before they were built per entry still give them by name
+    (``electroloc_gym.envs.localize:<Stem>Env``: the entry points a 0.3.0 Minari dataset or pickle recorded).
+    """
+    for e in _TABLE:
+        for cls in (e.env_class, e.vector_class):
+            if cls is not None and cls.__name__ == name:
+                return cls
+    return None
 
 
 def bench_env(name: str) -> tuple[EnvEntry, BenchEnv]:

@@ -28,9 +28,10 @@ from electroloc_gym.contract.capabilities import (  # noqa: E402
 from electroloc_gym.contract.params import EnvParams  # noqa: E402
 from electroloc_gym.engines.numba_core.electroloc import ElectroLocOptions  # noqa: E402
 from electroloc_gym.engines.torch_core.consts import TorchConsts  # noqa: E402
+from electroloc_gym.envs import ElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.envs.sim_backends import backends_of  # noqa: E402
 from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv  # noqa: E402
-from electroloc_gym.envs.vector import CoreVectorEnv, ElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.envs.vector import CoreVectorEnv  # noqa: E402
 from electroloc_gym.registry import ENVS, env_entry  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -60,11 +60,10 @@ from electroloc_gym.engines.numba_core.worlds import SEED_BOUND  # noqa: E402
 from electroloc_gym.engines.torch_core import sim  # noqa: E402
 from electroloc_gym.engines.torch_core.calibration import grids_from_draws  # noqa: E402
 from electroloc_gym.engines.torch_core.rng import STREAMS  # noqa: E402
+from electroloc_gym.envs import ElectroLocEnv, ElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.envs.agent_view import agent_view  # noqa: E402
-from electroloc_gym.envs.localize import ElectroLocEnv  # noqa: E402
 from electroloc_gym.envs.sim_backends import backends_of  # noqa: E402
 from electroloc_gym.envs.torch_vector import TorchElectroLocVectorEnv  # noqa: E402
-from electroloc_gym.envs.vector import ElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.kernels.streams import normal_table, table_normal_indices  # noqa: E402
 from electroloc_gym.protocol import MAX_STEP_MM  # noqa: E402
 from electroloc_gym.registry import env_entry  # noqa: E402

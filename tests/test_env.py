@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import electroloc_gym
-from electroloc_gym.envs.localize import ElectroLocEnv
+from electroloc_gym.envs import ElectroLocEnv
 from electroloc_gym.world.conditions import Amplifier, Condition, Target, Water
 
 # Warnings we accept from the checkers, and why:

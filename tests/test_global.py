@@ -10,7 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import electroloc_gym
-from electroloc_gym.envs.global_env import GlobalEnv
+from electroloc_gym.envs import GlobalEnv
 from electroloc_gym.world.scene import BENCHMARK_SCENE
 
 GLOBAL_ID = "ElectroLocGlobal-v0"

@@ -20,9 +20,6 @@ ALLOWED = {
     # the torch engine's twin of the moving target's and unknown target's tasks (the same info keys, computed on
     # the device; the engines' conformance tests hold them equal)
     "electroloc_gym/engines/torch_core/sim.py": "the torch engine's version of the tasks' info",
-    # the envs of one task each: their docstrings and info-key tables document the task's info
-    "electroloc_gym/envs/track_env.py": "the moving target's env (its info keys)",
-    "electroloc_gym/envs/unknown_target.py": "the unknown target's env (its info keys)",
     # experiments about one task: their subject is that task's own results
     "experiments/track/speed_sweep.py": "the moving target's speed sweep (its tracking error by speed)",
     "experiments/unknown_target/unknown_target_report.py": "the unknown target's identification report",

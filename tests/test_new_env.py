@@ -18,7 +18,7 @@ import electroloc_gym
 from electroloc_gym import registry
 from electroloc_gym.bench import bench_command as bench_cli
 from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
-from electroloc_gym.envs.localize import ElectroLocEnv
+from electroloc_gym.envs.localize import LocalizeEnv
 from electroloc_gym.envs.vector import CoreVectorEnv
 from electroloc_gym.registry import BenchEnv, EnvEntry, env_entry
 from electroloc_gym.train import rllib
@@ -28,7 +28,7 @@ class FewReadingsTask(ElectroLocTask):
     """The tank of ElectroLoc-v0 under another id (a variant to register)."""
 
 
-class FewReadingsEnv(ElectroLocEnv):
+class FewReadingsEnv(LocalizeEnv):
     """The single env of the variant."""
 
 
@@ -102,7 +102,7 @@ def test_entries_without_env_classes_get_generic_classes_of_their_own(registered
     a = env_classes("ElectroLocFewA-v0", FewReadingsTask)
     b = env_classes("ElectroLocFewB-v0", FewReadingsTask)
     assert a[0] is not b[0] and a[1] is not b[1]
-    assert issubclass(a[0], ElectroLocEnv) and issubclass(a[1], CoreVectorEnv)
+    assert issubclass(a[0], LocalizeEnv) and issubclass(a[1], CoreVectorEnv)
     with pytest.raises(ValueError, match="env_class .* is already in the env table"):
         registry.add_entry(
             EnvEntry(

@@ -21,7 +21,7 @@ from gymnasium.vector import AutoresetMode
 
 import electroloc_gym
 from electroloc_gym.envs.adapter import CoreEnv
-from electroloc_gym.envs.localize import ElectroLocEnv
+from electroloc_gym.envs.localize import LocalizeEnv
 from electroloc_gym.envs.vector import CoreVectorEnv
 from electroloc_gym.registry import env_entry, resolve_env_name
 from tests.vector_equivalence import assert_native_equals_sync
@@ -73,7 +73,7 @@ def test_the_package_names_nothing_of_the_task() -> None:
 def test_the_entry_gets_generic_env_classes_of_its_own(own_task) -> None:
     entry = env_entry(ID)
     assert entry is own_task.ENTRY and entry.task_class is own_task.FrugalTask
-    assert issubclass(entry.env_class, ElectroLocEnv) and issubclass(entry.env_class, CoreEnv)
+    assert issubclass(entry.env_class, LocalizeEnv) and issubclass(entry.env_class, CoreEnv)
     assert issubclass(entry.vector_class, CoreVectorEnv)
     # set in the task's module, so that Gymnasium's entry points and pickling find them by name
     assert getattr(own_task, entry.env_class.__name__) is entry.env_class

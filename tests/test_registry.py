@@ -41,6 +41,54 @@ def test_every_entry_is_registered_with_its_classes(entry) -> None:
     assert electroloc_gym.ENV_IDS is ENV_IDS
 
 
+def test_an_entrys_env_classes_are_its_familys_with_its_task_doc_and_options() -> None:
+    """No built-in task writes an env class: each entry's pair is built on its family's, named after the task,
+    documented by the task class, with a read-only accessor per option of the task's own."""
+    from electroloc_gym.envs import TrackEnv, TrackVectorEnv
+    from electroloc_gym.envs.localize import LocalizeEnv, LocalizeVectorEnv
+    from electroloc_gym.envs.self_localize import SelfLocalizeEnv, SelfLocalizeVectorEnv
+
+    track, glob = env_entry("ElectroLocTrack-v0"), env_entry("ElectroLocGlobal-v0")
+    assert (track.env_class, track.vector_class) == (TrackEnv, TrackVectorEnv)
+    assert issubclass(TrackEnv, LocalizeEnv) and issubclass(TrackVectorEnv, LocalizeVectorEnv)
+    assert issubclass(glob.env_class, SelfLocalizeEnv) and issubclass(glob.vector_class, SelfLocalizeVectorEnv)
+    assert TrackEnv.__doc__ == track.task_class.__doc__ and "## Episode End" in (TrackEnv.__doc__ or "")
+    env = gym.make("ElectroLocTrack-v0", n_particles=50, target_speed_mm=2.5, motion_model="static").unwrapped
+    assert (env.target_speed_mm, env.motion_model, env.motion_step_mm) == (2.5, "static", None)
+    with pytest.raises(AttributeError):
+        env.target_speed_mm = 1.0  # read-only: the env was made with it
+    assert not hasattr(env_entry("ElectroLoc-v0").env_class, "target_speed_mm")  # another task's option
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        "electroloc_gym.envs.localize:ElectroLocEnv",
+        "electroloc_gym.envs.vector:ElectroLocVectorEnv",
+        "electroloc_gym.envs.vector:UnknownTargetVectorEnv",
+        "electroloc_gym.envs:GlobalEnv",
+    ],
+)
+def test_the_entry_points_0_3_0_recorded_still_resolve(path: str) -> None:
+    """A Minari dataset's spec (tests/data/minari) and a pickle name the module that held the class in 0.3.0."""
+    from gymnasium.envs.registration import load_env_creator
+
+    cls = load_env_creator(path)
+    assert cls.__name__ == path.rpartition(":")[2] and cls.entry().env_id in ENV_IDS
+
+
+def test_the_minari_fixture_recorded_an_entry_point_that_resolves() -> None:
+    import json
+    from pathlib import Path
+
+    from gymnasium.envs.registration import load_env_creator
+
+    meta = Path(__file__).parent / "data/minari/electroloc/ElectroLoc-v0/lookahead-v0/data/metadata.json"
+    spec = json.loads(json.loads(meta.read_text(encoding="utf-8"))["env_spec"])
+    assert spec["entry_point"] == "electroloc_gym.envs.localize:ElectroLocEnv"
+    assert load_env_creator(spec["entry_point"]) is env_entry("ElectroLoc-v0").env_class
+
+
 def test_a_subclass_of_a_registered_env_is_that_env() -> None:
     sub = type("MyEnv", (env_entry("ElectroLoc-v0").env_class,), {})
     assert entry_of_class(sub).env_id == "ElectroLoc-v0"

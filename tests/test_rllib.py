@@ -15,7 +15,8 @@ import pytest
 pytestmark = pytest.mark.rllib  # the rllib extra; the nox session rllib runs these
 
 import electroloc_gym.train.rllib as erl  # noqa: E402
-from electroloc_gym.envs.vector import ElectroLocVectorEnv, sub_env_seeds  # noqa: E402
+from electroloc_gym.envs import ElectroLocVectorEnv  # noqa: E402
+from electroloc_gym.envs.vector import sub_env_seeds  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = {"n_particles": 60, "max_observations": 6}

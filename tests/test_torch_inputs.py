@@ -17,8 +17,8 @@ from torch.utils._python_dispatch import TorchDispatchMode  # noqa: E402
 
 import electroloc_gym  # noqa: E402,F401 - registers the ids
 from electroloc_gym.engines.torch_core import device as D  # noqa: E402
+from electroloc_gym.envs import ElectroLocVectorEnv  # noqa: E402
 from electroloc_gym.envs.torch_vector import MAX_NUM_ENVS, TorchElectroLocVectorEnv, numpy_view  # noqa: E402
-from electroloc_gym.envs.vector import ElectroLocVectorEnv  # noqa: E402
 
 torch.set_num_threads(1)
 NAN, INF = float("nan"), float("inf")

@@ -12,7 +12,8 @@ from reference_filter import ParticleBelief, egocentric_histogram
 
 import electroloc_gym  # noqa: F401
 from electroloc_gym.contract.observation import HIST_BINS, INFO_KEYS
-from electroloc_gym.envs.vector import ElectroLocVectorEnv, sub_env_seeds
+from electroloc_gym.envs import ElectroLocVectorEnv
+from electroloc_gym.envs.vector import sub_env_seeds
 from electroloc_gym.kernels import loglik_assimilate
 from electroloc_gym.kernels.streams import normal_table
 from electroloc_gym.sensor_models import CalibratedSensorModel

@@ -1,21 +1,24 @@
 """Gymnasium environments of electroloc-gym: thin adapters over the simulation engines.
 
 Each env of the table (:mod:`electroloc_gym.registry`) is a :class:`~.adapter.CoreEnv` (single) and a
-:class:`~.vector.CoreVectorEnv` (native vector) with its id; :mod:`.actions` parses the actions.
+:class:`~.vector.CoreVectorEnv` (native vector) of its task's family (:mod:`.localize`, :mod:`.self_localize`),
+built for its entry (:mod:`.generic`); :mod:`.actions` parses the actions. Every entry's classes are this
+package's attributes by name (``from electroloc_gym.envs import <Stem>Env``, :mod:`.generic`).
 """
 
 from __future__ import annotations
 
-from electroloc_gym.envs.global_env import GlobalEnv
-from electroloc_gym.envs.localize import ElectroLocEnv
-from electroloc_gym.envs.unknown_target import UnknownTargetEnv
-from electroloc_gym.envs.vector import ElectroLocVectorEnv, GlobalVectorEnv, UnknownTargetVectorEnv
+from typing import Any
 
-__all__ = [
-    "ElectroLocEnv",
-    "GlobalEnv",
-    "UnknownTargetEnv",
-    "ElectroLocVectorEnv",
-    "GlobalVectorEnv",
-    "UnknownTargetVectorEnv",
-]
+from electroloc_gym.registry import env_class_named
+from electroloc_gym.utils.moved_paths import moved_name_error
+
+__all__: list[str] = []
+
+
+def __getattr__(name: str) -> Any:
+    """An entry's single or native vector env class by its name (the table's, registered at import)."""
+    cls = env_class_named(name)
+    if cls is None:
+        raise moved_name_error(__name__, name)
+    return cls

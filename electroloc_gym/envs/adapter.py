@@ -8,8 +8,8 @@ scalars. It adds only what a single env has and a batch has not: the carriage pa
 rendering, and the read-only accessors agents use (``belief``, ``sensor_model``, ``condition``,
 ``position_mm``, ``allowed_box_mm``, ``move_bounds_mm``, ``n_observations``, ``last_reading_V``,
 ``path_mm``, ``predicted_reading_model``, ``predicted_particles_mm``). Every env of the table
-(:mod:`electroloc_gym.registry`) is this class with its id: ``ElectroLoc-v0`` (:mod:`.localize`),
-``ElectroLocGlobal-v0`` (:mod:`.global_env`), ``ElectroLocUnknownTarget-v0`` (:mod:`.unknown_target`).
+(:mod:`electroloc_gym.registry`) is this class with its entry's task, through its family's subclass
+(:mod:`.localize`, :mod:`.self_localize`) and the accessors of its options (:mod:`.generic`).
 Actions are parsed and checked here (:mod:`.actions`), before the core sees them.
 
 Info: row 0 of the core's info, numbers as Python scalars and vectors (``position_mm``, ``estimate_mm``, mm) as
@@ -150,9 +150,10 @@ class CoreEnv(ParamAccessors, gym.Env[NDArray[np.float32], NDArray[np.float32] |
 
     @property
     def condition(self) -> Condition:
-        """The current episode's condition (before the first reset: the first of the pool)."""
-        w = self._state.world[0]
-        return self._task.world_condition(self._task.default_world() if w is None else w)
+        """The current episode's condition (before the first reset: the first of the pool; the task says what
+        it shows, ``Task.episode_condition``).
+        """
+        return self._task.episode_condition(self._state, 0)
 
     @property
     def position_mm(self) -> NDArray[np.float64]:

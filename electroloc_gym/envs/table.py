@@ -1,7 +1,8 @@
 """The built-in entries of the env table (:mod:`electroloc_gym.registry`): the paper's three envs and the moving target.
 
-Each entry names its task class (the core), its single and native vector env classes (this package)
-and every fact the layers above read from it; ``electroloc_gym/__init__.py`` registers them.
+Each entry names its task class (the core) and every fact the layers above read from it; its env classes are
+built for it (:mod:`.generic`: its family's, with its task's documentation and options), as for a researcher's
+own entry, and ``electroloc_gym/__init__.py`` registers them.
 """
 
 from __future__ import annotations
@@ -10,11 +11,6 @@ from electroloc_gym.engines.numba_core.electroloc import ElectroLocTask
 from electroloc_gym.engines.numba_core.global_task import GlobalTask
 from electroloc_gym.engines.numba_core.track_task import TRACK_EPISODE_READINGS, TrackTask
 from electroloc_gym.engines.numba_core.unknown import UnknownTargetTask
-from electroloc_gym.envs.global_env import GlobalEnv
-from electroloc_gym.envs.localize import ElectroLocEnv
-from electroloc_gym.envs.track_env import TrackEnv, TrackVectorEnv
-from electroloc_gym.envs.unknown_target import UnknownTargetEnv
-from electroloc_gym.envs.vector import ElectroLocVectorEnv, GlobalVectorEnv, UnknownTargetVectorEnv
 from electroloc_gym.registry import PAPER_ENV_ID, BenchEnv, EnvEntry, frozen
 from electroloc_gym.sensor_models.calibrated import SENSOR_MODEL_NAMES
 from electroloc_gym.sensor_models.shape import SHAPE_SENSOR_MODELS
@@ -31,8 +27,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         env_id=PAPER_ENV_ID,
         task="localize",
         task_class=ElectroLocTask,
-        env_class=ElectroLocEnv,
-        vector_class=ElectroLocVectorEnv,
         sensor_models=SENSOR_MODEL_NAMES,
         bench=(
             BenchEnv("target", summary="on the presets (Tables 4 and 1)"),
@@ -49,8 +43,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         env_id="ElectroLocGlobal-v0",
         task="global",
         task_class=GlobalTask,
-        env_class=GlobalEnv,
-        vector_class=GlobalVectorEnv,
         sensor_models=SENSOR_MODEL_NAMES,
         bench=(
             BenchEnv(
@@ -68,8 +60,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         env_id="ElectroLocUnknownTarget-v0",
         task="unknown",
         task_class=UnknownTargetTask,
-        env_class=UnknownTargetEnv,
-        vector_class=UnknownTargetVectorEnv,
         sensor_models=SHAPE_SENSOR_MODELS,
         # the eight tanks, the theoretical EEV, and 5000 particles for the 4-D belief (with the paper's 2500
         # one success in seven was more than 10 mm off, measured on validation seeds, docs/extensions.md)
@@ -89,8 +79,6 @@ BUILTIN_ENVS: tuple[EnvEntry, ...] = (
         env_id="ElectroLocTrack-v0",
         task="track",
         task_class=TrackTask,
-        env_class=TrackEnv,
-        vector_class=TrackVectorEnv,
         sensor_models=SENSOR_MODEL_NAMES,
         # 70 readings: the paper's cap of 35 to localise, then 35 scored readings of tracking
         defaults=frozen({"max_observations": TRACK_EPISODE_READINGS}),

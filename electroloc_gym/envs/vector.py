@@ -1,8 +1,8 @@
 """The native vector envs: the simulation core with N envs behind Gymnasium's ``VectorEnv``.
 
-``gym.make_vec("ElectroLoc-v0", num_envs=N, vectorization_mode="vector_entry_point")`` builds an
-:class:`ElectroLocVectorEnv`, ``"ElectroLocGlobal-v0"`` a :class:`GlobalVectorEnv` (each entry's
-``vector_entry_point`` in :mod:`electroloc_gym.registry`): one
+``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")`` builds the entry's native vector
+env (its ``vector_entry_point`` in :mod:`electroloc_gym.registry`: a :class:`CoreVectorEnv` of its family,
+:mod:`.generic`): one
 :class:`~electroloc_gym.engines.numba_core.step.Simulation` of N envs, whose every step is one batched core step —
 the same code, with the same per-env arithmetic, as the single env (:mod:`.adapter`, N = 1). Sub-env
 ``i`` reset with seed ``t`` (the i-th of ``reset(seed=[...])``, or ``t = sub_env_seeds(s, N)[i]`` for
@@ -51,15 +51,13 @@ from electroloc_gym.engines.numba_core.step import Simulation
 from electroloc_gym.envs.actions import ActionParser, spaces_of
 from electroloc_gym.envs.adapter import ParamAccessors
 from electroloc_gym.envs.sim_backends import make_backend_vector_env
-from electroloc_gym.registry import EnvEntry, entry_of_class
+from electroloc_gym.registry import EnvEntry, entry_of_class, env_class_named
 from electroloc_gym.utils.checks import check_int, check_seeds
+from electroloc_gym.utils.moved_paths import moved_name_error
 from electroloc_gym.world.conditions import Condition
 
 __all__ = [
     "CoreVectorEnv",
-    "ElectroLocVectorEnv",
-    "GlobalVectorEnv",
-    "UnknownTargetVectorEnv",
     "sub_env_seeds",
 ]
 
@@ -110,8 +108,8 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
         num_envs: N (≥ 1).
         render_mode: must be None.
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` / ``SAME_STEP`` or their values.
-        backend: ``"numba"`` (this class) or ``"torch"`` (ElectroLoc-v0 only: the torch core on ``device``,
-            :mod:`electroloc_gym.envs.torch_vector`).
+        backend: ``"numba"`` (this class) or another the entry declares (its ``backends``: ``"torch"``, the torch
+            core on ``device``, :mod:`electroloc_gym.envs.torch_vector`).
         **kwargs: the single env's arguments (:class:`~electroloc_gym.contract.params.EnvParams`).
     """
 
@@ -285,28 +283,11 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
         """Nothing to release (no subprocesses, no renderer)."""
 
 
-class ElectroLocVectorEnv(CoreVectorEnv):
-    """``num_envs`` copies of ElectroLoc-v0 stepped as one core (module docstring).
-
-    Spaces: the single env's batched, ``Box(-1, 1, (N, 2))`` (continuous) or ``MultiDiscrete([9] * N)``
-    actions, ``Box(-1, 1, (N, 81))`` ("belief") or ``(N, 3)`` ("raw") observations. Arguments: the
-    single env's (``condition``, ``observation``, ``sensor_model``, …, ``max_episode_steps``) plus
-    ``num_envs`` and ``autoreset_mode``.
+def __getattr__(name: str) -> Any:
+    """An entry's env class by its name (this module held the built-in ones: their recorded entry points still
+    resolve, ``registry.env_class_named``), else a name that moved out: one ImportError naming its new place.
     """
-
-
-class GlobalVectorEnv(CoreVectorEnv):
-    """``num_envs`` copies of ElectroLocGlobal-v0 stepped as one core (module docstring); any layout,
-    ``"random"`` included (every sub-env draws its own map per episode).
-    """
-
-    @property
-    def odometry_mm(self) -> NDArray[np.float64]:
-        """Sum of the commanded moves since each sub-env's reset (N, 2), mm (a copy)."""
-        return np.copy(self._state.odometry_mm, order="C")
-
-
-class UnknownTargetVectorEnv(CoreVectorEnv):
-    """``num_envs`` copies of ElectroLocUnknownTarget-v0 stepped as one core (module docstring); the info
-    adds the unknown-target keys (size and material estimates, their truth) as (N,) arrays.
-    """
+    cls = env_class_named(name)
+    if cls is None:
+        raise moved_name_error(__name__, name)
+    return cls

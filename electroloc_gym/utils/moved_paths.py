@@ -106,6 +106,7 @@ _MOVED_UNRELEASED: dict[str, str] = {
         for n in ("fixed_coefficients", "grid_points_bound")
     },
     f"{_P}.engines.numba_core.worlds.cells": f"{_P}.sensor_models.calibrated.coefficient_rows",
+    **{f"{_P}.envs.{m}": f"{_P}.envs" for m in ("global_env", "unknown_target", "track_env")},
 }
 
 #: The moves of each CHANGELOG section that has a "Moved" table.

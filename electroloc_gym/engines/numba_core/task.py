@@ -140,6 +140,13 @@ class Task(ABC):
         """A world as a ``Condition`` (amplifier, water, boxes; what the adapters' ``condition`` shows)."""
         return world
 
+    def episode_condition(self, state: SimState, i: int) -> Condition:
+        """Env ``i``'s episode as the single env's ``condition`` shows it: its world's condition (before the
+        first reset: the default world's).
+        """
+        w = state.world[i]
+        return self.world_condition(self.default_world() if w is None else w)
+
     @abstractmethod
     def begin_episode(self, state: SimState, i: int, g: np.random.Generator) -> None:
         """Env ``i``'s reset draws from its generator ``g`` (in the task's documented order): its world,
