@@ -25,6 +25,7 @@ from typing import Any
 
 from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.train.run import zoo_argv
+from electroloc_gym.train.summary import read_summary
 from electroloc_gym.utils.fileio import atomic_write_text, check_output_options
 from electroloc_gym.utils.runtime import thread_env
 
@@ -33,7 +34,9 @@ CALLBACK = "callback:[{'electroloc_gym.train.callbacks.BenchEvalCallback':{'eval
 
 
 def one_run(native: bool, timesteps: int, log_folder: Path, n_envs: int = 16) -> dict[str, Any]:
-    """Run rl-zoo3 once in a fresh log folder; its summary.json's timing."""
+    """Run rl-zoo3 once in a fresh log folder; its summary.json's timing (read by
+    :func:`~electroloc_gym.train.summary.read_summary`).
+    """
     argv = zoo_argv("ppo", PAPER_ENV_ID, 0, timesteps=timesteps, log_folder=log_folder, native=native)
     env = {**os.environ, **thread_env()}
     subprocess.run(
@@ -44,8 +47,8 @@ def one_run(native: bool, timesteps: int, log_folder: Path, n_envs: int = 16) ->
         check=True,
     )
     (summary,) = Path(log_folder).glob("ppo/ElectroLoc-v0_*/summary.json")  # the folder is this run's alone
-    s = json.loads(summary.read_text())
-    return {"timesteps": s["timesteps"], "fps": s["fps_training_only"], "wall_time_s": s["wall_time_s"]}
+    s = read_summary(summary)  # its one schema
+    return {"timesteps": s.timesteps, "fps": s.fps_training_only, "wall_time_s": s.wall_time_s}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:

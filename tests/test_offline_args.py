@@ -236,3 +236,61 @@ def test_the_suite_refuses_an_out_under_a_file(trainers, capsys, tmp_path):
     blocker.write_text("", encoding="utf-8")
     msg = _error(capsys, run_suite.main, ["--out", str(blocker / "results")])
     assert "which is a file" in msg
+
+
+#: (the edit of a stored benchmark's config.json, the one line the suite prints: None where the run is kept or
+#: resumed; any line means the folder is removed and the benchmark run again from nothing)
+BENCH_CONFIGS = [
+    ("finished", None),  # the same trials and a summary.json: kept, nothing run
+    ("unfinished", None),  # the same trials, no summary.json: resumed
+    ("other-trials", "its benchmark ran another number of trials; running it again with 3"),
+    ("garbage", "config.json: not valid UTF-8 JSON (DecodeError: JSON is malformed"),
+    ("utf8", "config.json: not valid UTF-8 JSON (DecodeError"),
+    ("nested", "config.json: not valid UTF-8 JSON (RecursionError"),
+    ("list", "config.json: not a benchmark run's config: Expected `object`, got `array`"),
+    ("missing-key", "config.json: not a benchmark run's config: missing key(s) ['seed']"),
+    ("trials-text", "config.json: not a benchmark run's config: Expected `int`, got `str` - at `$.trials`"),
+    ("unknown-env", "config.json: not a benchmark run's config: env_id must be one of"),
+]
+
+
+@pytest.mark.parametrize("edit, said", BENCH_CONFIGS, ids=[e for e, _ in BENCH_CONFIGS])
+def test_the_suite_reads_a_bench_config_through_its_schema(trainers, capsys, tmp_path, monkeypatch, edit, said):
+    """A stored benchmark's config.json is read as a run's config (its one schema): one that is not is named in
+    one line and its benchmark is run again from nothing, like one of another trial count."""
+    import msgspec
+    import run_suite
+
+    from electroloc_gym.bench.config import BenchConfig
+
+    out = tmp_path / "bench"
+    out.mkdir()
+    config = msgspec.to_builtins(BenchConfig(agents=("ppo-belief",), trials=2 if edit == "other-trials" else 3))
+    raw = {
+        "garbage": b"[[[garbage",
+        "utf8": b"\xff\xfe",
+        "nested": b"[" * 50_000,
+        "list": b"[1, 2]",
+        "missing-key": json.dumps({k: v for k, v in config.items() if k != "seed"}).encode(),
+        "trials-text": json.dumps({**config, "trials": "3"}).encode(),
+        "unknown-env": json.dumps({**config, "env_id": "Nope-v0"}).encode(),
+    }.get(edit, json.dumps(config).encode())
+    (out / "config.json").write_bytes(raw)
+    (out / "trials.jsonl").write_text("", encoding="utf-8")
+    if edit == "finished":
+        (out / "summary.json").write_text("{}", encoding="utf-8")
+    runs: list[list[str]] = []
+    monkeypatch.setattr(run_suite.subprocess, "run", lambda argv, **kwargs: runs.append(argv))
+    capsys.readouterr()
+    run_suite._bench("ppo-belief", out, 3)
+    lines = capsys.readouterr().out.strip().splitlines()
+    if said is None:  # kept (nothing run) or resumed
+        assert lines == [] and out.is_dir()
+        assert len(runs) == (edit == "unfinished") and all("--resume" in argv for argv in runs)
+        return
+    assert len(lines) == 1 and said in lines[0] and "Traceback" not in lines[0], lines
+    if edit != "other-trials":  # the line names the file, then what the suite does
+        assert lines[0].startswith(f"{out / 'config.json'}: ")
+        assert lines[0].endswith("; running its benchmark again from nothing")
+    assert not out.exists() and len(runs) == 1 and "--resume" not in runs[0]
+    assert runs[0][runs[0].index("--trials") + 1] == "3"

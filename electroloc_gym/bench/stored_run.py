@@ -25,7 +25,7 @@ from electroloc_gym.bench.records import CONFIG_FILE, TRIALS_FILE, LoadedRecords
 from electroloc_gym.bench.schema import RecordRules
 from electroloc_gym.registry import env_entry
 
-__all__ = ["RunRecords", "read_run_records", "record_rules", "read_config", "config_from_json"]
+__all__ = ["RunRecords", "read_run_records", "record_rules", "read_config", "config_from_json", "load_config"]
 
 
 #: Keys every config.json holds (those added later read as their defaults when absent).
@@ -81,6 +81,23 @@ def config_from_json(stored: Any, where: str = CONFIG_FILE) -> BenchConfig:
         return _config(stored)
     except ValueError as exc:
         raise ValueError(f"{where}: not a benchmark run's config: {exc}") from None
+
+
+def load_config(path: str | os.PathLike[str]) -> BenchConfig:
+    """The :class:`BenchConfig` of the config.json at ``path``, read strictly (a report's or a script's read:
+    nothing is set aside, unlike :func:`read_config`'s on ``--resume``).
+
+    Raises:
+        ValueError: unreadable, not JSON, or not a run's config — one line naming the file.
+    """
+    path = Path(path)
+    try:
+        stored = msgspec.json.decode(path.read_bytes())
+    except OSError as exc:
+        raise ValueError(f"{path}: not readable ({exc.strerror or type(exc).__name__})") from None
+    except (msgspec.DecodeError, RecursionError) as exc:
+        raise ValueError(f"{path}: not valid UTF-8 JSON ({type(exc).__name__}: {exc})") from None
+    return config_from_json(stored, str(path))
 
 
 class _StartReplay:

@@ -41,6 +41,7 @@ from electroloc_gym.baselines.eedi import EEDIAgent  # noqa: E402
 from electroloc_gym.baselines.infotaxis import InfotaxisAgent  # noqa: E402
 from electroloc_gym.baselines.min_variance import MinVarianceAgent  # noqa: E402
 from electroloc_gym.bench.agents import shipped_models  # noqa: E402
+from electroloc_gym.bench.records import TRIALS_FILE, read_trials  # noqa: E402
 from electroloc_gym.bench.runner import BenchConfig, run_benchmark  # noqa: E402
 from electroloc_gym.protocol import FAR_ERROR_MM  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID  # noqa: E402
@@ -75,10 +76,10 @@ def run(agents: list[str], ds: list[int], rounds: list[int], seed: int, out: Pat
 
 
 def _records(out: Path, d: int, agent: str) -> list[dict]:
-    path = out / f"D{d}" / agent / "trials.jsonl"
-    if not path.is_file():
-        return []
-    return [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line.strip()]
+    """The (D, agent) folder's valid records, read through the benchmark's record schema in the current key names
+    (:func:`electroloc_gym.bench.records.read_trials`; none where the folder has no records yet).
+    """
+    return read_trials(out / f"D{d}" / agent / TRIALS_FILE)
 
 
 def summarize(agents: list[str], ds: list[int], out: Path) -> tuple[int, list[dict]]:
@@ -92,8 +93,8 @@ def summarize(agents: list[str], ds: list[int], out: Path) -> tuple[int, list[di
             continue
         rs = [r for r in rs if r["trial"] < min(n, have[(d, a)])]
         ok = [r for r in rs if r["success"]]
-        obs = np.array([r.get("readings", r.get("observations")) for r in rs], dtype=float)
-        ok_obs = np.array([r.get("readings", r.get("observations")) for r in ok], dtype=float)
+        obs = np.array([r["readings"] for r in rs], dtype=float)
+        ok_obs = np.array([r["readings"] for r in ok], dtype=float)
         err = np.array([r["error_mm"] for r in ok], dtype=float)
         dms = np.array([r["decision_ms_median"] for r in rs if r["decision_ms_median"] is not None], dtype=float)
         rows.append(

@@ -13,27 +13,30 @@ reading at the start exceeded 2σ (the paper's §6.3 criterion).
 A folder is read as ``electroloc bench --resume`` reads it (:func:`electroloc_gym.bench.stored_run.read_run_records`:
 its config, its records in the current key names, damaged or foreign lines set aside and named on stderr),
 and its rows are the package's summary (:func:`electroloc_gym.bench.stats.summarize`) of the records of the
-agents and conditions its ``summary.json`` was written for, so a folder written by any version reads the same;
-a folder without ``summary.json`` (an unfinished run) is left out.
+agents and conditions its ``summary.json`` was written for (its ``config``, read as a run's config:
+:func:`electroloc_gym.bench.stored_run.config_from_json`), so a folder written by any version reads the same;
+a folder without ``summary.json`` (an unfinished run) is left out, and one whose config, records file or summary
+cannot be read ends the report with one line naming the file.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import numpy as np
 
 from electroloc_gym.baselines.agent import RANDOM_AGENT
 from electroloc_gym.baselines.min_variance import MinVarianceAgent
+from electroloc_gym.bench.config import BenchConfig
 from electroloc_gym.bench.fidelity import interval_mark
 from electroloc_gym.bench.stats import summarize
-from electroloc_gym.bench.stored_run import read_run_records
+from electroloc_gym.bench.stored_run import config_from_json, read_run_records
 from electroloc_gym.bench.tables import PAPER_TABLE1, PAPER_TABLE2, PAPER_TABLE4, PAPER_TABLE4_ALL
 from electroloc_gym.utils.markdown import markdown_table
 from electroloc_gym.world import detection
@@ -133,17 +136,45 @@ def fig5_slopes() -> list[str]:
     )
 
 
+class _Summarised(msgspec.Struct):
+    """What the report reads of a bench ``summary.json``: the run it was written for (``config``, the runner's
+    :class:`~electroloc_gym.bench.config.BenchConfig`; absent: the folder's config.json); its rows are summarised
+    again from the records.
+    """
+
+    config: dict[str, Any] | None = None
+
+
+def _summarised(path: Path) -> BenchConfig | None:
+    """The run the bench ``summary.json`` at ``path`` was written for, read through the run's schema
+    (:func:`~electroloc_gym.bench.stored_run.config_from_json`); None where it names none.
+
+    Raises:
+        ValueError: unreadable, not JSON, or its config not a run's — one line naming the file.
+    """
+    try:
+        block = msgspec.json.decode(path.read_bytes(), type=_Summarised).config
+    except OSError as exc:
+        raise ValueError(f"{path}: not readable ({exc.strerror or exc})") from None
+    except (msgspec.MsgspecError, RecursionError) as exc:
+        raise ValueError(f"{path}: not a benchmark summary ({type(exc).__name__}: {exc})") from None
+    return None if block is None else config_from_json(block, f"{path} (its config)")
+
+
 def _load(folder: str | None) -> tuple[list[dict[str, Any]], list[dict[str, Any]], dict[str, Any]] | None:
-    """A finished run's summary rows, records and config (None: no folder given, or the run is unfinished)."""
+    """A finished run's summary rows, records and config (None: no folder given, or the run is unfinished).
+
+    Raises:
+        ValueError: the folder's config.json, records or summary.json unreadable — one line naming the file.
+    """
     if not folder or not (Path(folder) / "summary.json").is_file():
         return None
     run = read_run_records(folder)
     for line in run.messages():
         print(f"fidelity_report: set aside {line}", file=sys.stderr)
     # the agents and conditions the summary was written for (config.json holds every one ever asked for)
-    summarised = json.loads((Path(folder) / "summary.json").read_text(encoding="utf-8")).get("config", {})
-    agents = [a for a in summarised.get("agents", run.config.agents) if isinstance(a, str)]
-    conditions = [c for c in summarised.get("conditions", run.config.conditions) if isinstance(c, str)]
+    summarised = _summarised(Path(folder) / "summary.json") or run.config
+    agents, conditions = list(summarised.agents), list(summarised.conditions)
     records = [r for r in run.records if r["agent"] in agents and r["condition"] in conditions]
     rows = summarize(records, agents=agents, conditions=conditions)["rows"]
     return rows, records, asdict(run.config)
@@ -306,6 +337,14 @@ def table2(rows: list[dict[str, Any]]) -> list[str]:
     )
 
 
+def _read(ap: argparse.ArgumentParser, folder: str | None) -> Any:
+    """:func:`_load`; a folder it cannot read ends the command with one line naming the file (exit status 2)."""
+    try:
+        return _load(folder)
+    except ValueError as exc:
+        ap.exit(2, f"fidelity_report: error: {exc}\n")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bench", default="results/bench", help="the default main-job run")
@@ -321,7 +360,7 @@ def main(argv: list[str] | None = None) -> None:
     runs = [(args.bench, "default simulation"), (args.expected, "min-var with the expected-variance vote")]
     runs += [(folder, "other settings") for folder in args.other]
     for folder, label in runs:
-        loaded = _load(folder)
+        loaded = _read(ap, folder)
         if loaded is None:
             continue
         rows, records, cfg = loaded
@@ -346,7 +385,7 @@ def main(argv: list[str] | None = None) -> None:
         )
         if any(r.get("table_layout") == "table1" for r in rows):
             sections.append((f"Table 1 (zero-crossing), {label}", table1(rows)))
-    loaded = _load(args.global_)
+    loaded = _read(ap, args.global_)
     if loaded is not None:
         sections.append((f"Table 2 (`{args.global_}`)", table2(loaded[0])))
     for title, lines in sections:

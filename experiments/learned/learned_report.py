@@ -43,7 +43,6 @@ written.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections.abc import Sequence
@@ -268,7 +267,8 @@ TRACK_CURVE_KEYS = ("mean_return", "mean_error_mm")
 
 def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
     """Per algorithm: the validation evaluations of its seeds (``eval.csv`` of each rl-zoo3 run) on a common
-    step grid, and the training wall times (``summary.json``).
+    step grid, and the training wall times (each run's ``summary.json``, read through its schema by
+    :func:`~electroloc_gym.train.summary.read_summary`).
 
     Returns:
         ``{algo: {"timesteps": (T,), "success_rate": (seeds, T), "mean_readings": (seeds, T),
@@ -276,6 +276,7 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
         the success rate and readings); the grid is the steps every seed evaluated at.
     """
     from electroloc_gym.train.curves import read_eval_csv
+    from electroloc_gym.train.summary import read_summary
 
     keys = TRACK_CURVE_KEYS if tracks(env_id) else CURVE_KEYS
     out: dict[str, dict[str, Any]] = {}
@@ -298,14 +299,9 @@ def eval_curves(results: Path, env_id: str) -> dict[str, dict[str, Any]]:
             wall = None
             if summary.is_file():
                 try:
-                    data = json.loads(summary.read_text(encoding="utf-8"))
-                    wall = data.get("wall_time_s")
-                    if wall is not None and (
-                        isinstance(wall, bool) or not isinstance(wall, (int, float)) or not np.isfinite(wall)
-                    ):
-                        raise ValueError("wall_time_s is not a finite number")
-                except (AttributeError, ValueError, UnicodeDecodeError, RecursionError) as exc:
-                    raise ReportError(f"{summary}: not a readable training summary ({exc})") from None
+                    wall = read_summary(summary).wall_time_s  # its one schema: a finite number of seconds ≥ 0
+                except ValueError as exc:  # one line naming the file and the field
+                    raise ReportError(str(exc)) from None
             runs.append((rows, wall))
         if not runs:
             continue

@@ -20,16 +20,18 @@ learned pairs (:data:`TRACK_COMPARISONS`) are computed on that score exactly as 
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from electroloc_gym.baselines.agent import RANDOM_AGENT
 from electroloc_gym.baselines.lookahead import LookaheadAgent
 from electroloc_gym.baselines.min_variance import MinVarianceAgent
+
+if TYPE_CHECKING:
+    from electroloc_gym.bench.config import BenchConfig
 
 BASELINES_DIR = "_baselines"
 
@@ -76,49 +78,48 @@ def tracks(env_id: str) -> bool:
     return not env_metrics(env_id).success_criterion
 
 
-def _config(bench: Path) -> dict[str, Any]:
-    path = bench / "config.json"
+def _config(bench: Path) -> BenchConfig:
+    """The run ``bench/config.json`` holds, decoded by msgspec into the package's one declaration of a run
+    (:func:`~electroloc_gym.bench.stored_run.load_config`: a
+    :class:`~electroloc_gym.bench.config.BenchConfig`, its field types and its settings' checks).
+
+    Raises:
+        ReportError: the file is unreadable, not JSON or not a run's config — one line naming it.
+    """
+    from electroloc_gym.bench.records import CONFIG_FILE
+    from electroloc_gym.bench.stored_run import load_config
+
     try:
-        cfg = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
-        raise ReportError(f"{path}: not a readable benchmark config ({type(exc).__name__})") from None
-    if not (
-        isinstance(cfg, dict)
-        and isinstance(cfg.get("conditions"), list)
-        and isinstance(cfg.get("agents"), list)
-        and isinstance(cfg.get("trials"), int)
-        and isinstance(cfg.get("env_id"), str)
-    ):
-        raise ReportError(f"{path}: a benchmark config names its conditions, agents, trials and env_id")
-    return cfg
+        return load_config(bench / CONFIG_FILE)
+    except ValueError as exc:  # names the file and the field
+        raise ReportError(str(exc)) from None
 
 
 def read_trials(path: Path, set_aside: list[str] | None = None) -> list[dict[str, Any]]:
     """The valid trial records of one benchmark run's ``trials.jsonl`` (or its kept ``trials.jsonl.gz``),
     read through the bench's own record schema (:func:`electroloc_gym.bench.records.load_records` with the
-    run's :class:`~electroloc_gym.bench.schema.RecordRules` from its ``config.json``): a damaged or impossible
-    line — out of range, inconsistent, another run's agent or condition, a duplicate, or (an env whose
-    records carry their task's results) a ``shape`` with other keys than the env's ``record_keys`` — is
-    left out and named in ``set_aside``.
+    run's :class:`~electroloc_gym.bench.schema.RecordRules` from its ``config.json``, read by :func:`_config`:
+    its conditions, agents, trial range, success criterion and task): a damaged or impossible line — out of
+    range, inconsistent, another run's agent or condition, a duplicate, or (an env whose records carry their
+    task's results) a ``shape`` with other keys than the env's ``record_keys`` — is left out and named in
+    ``set_aside``.
 
     Raises:
-        ReportError: the file is missing or holds no valid record.
+        ReportError: the file is missing or holds no valid record, or the run's config.json is not one (one line).
     """
     from electroloc_gym.bench.records import load_records, stored_trials
     from electroloc_gym.bench.schema import RecordRules
-    from electroloc_gym.protocol import SUCCESS_SPREAD_MM
     from electroloc_gym.registry import env_entry
 
     if not stored_trials(path).is_file():
         raise ReportError(f"{path} is missing")
-    cfg = _config(path.parent)
-    metrics = env_entry(cfg["env_id"]).task_class.metrics
+    config = _config(path.parent)
     rules = RecordRules(
-        conditions=frozenset(c for c in cfg["conditions"] if isinstance(c, str)),
-        agents=frozenset(a for a in cfg["agents"] if isinstance(a, str)),
-        trials=cfg["trials"],
-        success_spread_mm=SUCCESS_SPREAD_MM,
-        metrics=metrics,
+        conditions=frozenset(config.conditions),
+        agents=frozenset(config.agents),
+        trials=config.trials,
+        success_spread_mm=config.success_spread_mm,
+        metrics=env_entry(config.env_id).task_class.metrics,
     )
     loaded = load_records(path, rules=rules)
     if set_aside is not None:

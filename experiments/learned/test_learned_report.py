@@ -4,6 +4,7 @@ import importlib.util
 import json
 from pathlib import Path
 
+import msgspec
 import numpy as np
 import pytest
 import rliable.library  # noqa: F401  (the zoo extra installs it; rliable 1.2 needs pandas<3 for arch)
@@ -16,12 +17,20 @@ report = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(report)
 import learned_scores as scores  # noqa: E402  (beside the report, which put its folder on sys.path)
 
+from electroloc_gym.bench.config import (  # noqa: E402
+    ENV_MAX_OBSERVATIONS,
+    ENV_N_PARTICLES,
+    ENV_SENSOR_MODELS,
+    BenchConfig,
+)
 from electroloc_gym.bench.records import open_trials  # noqa: E402
 from electroloc_gym.registry import bench_env, task_entry  # noqa: E402
 
 TARGET_ID, GLOBAL_ID = bench_env("target")[0].env_id, bench_env("global")[0].env_id
 
-CONDS = ("a", "b")
+#: The tests' short condition names → the conditions their records and config.json hold (in the same order).
+NAMES = {"a": "fresh-delrin-12.7", "b": "fresh-steel-12.7", "g": task_entry("global").map_condition}
+CONDS = (NAMES["a"], NAMES["b"])
 
 
 RESULTS = ROOT / "experiments" / "learned" / "results"
@@ -31,7 +40,7 @@ with open_trials(RESULTS / "ElectroLoc-v0" / "ppo" / "seed-1" / "bench" / "trial
 
 def _record(cond: str, agent: str, trial: int, n: int) -> dict:
     """A schema-valid record: a success after n readings, or (n > 35) a failure at the cap."""
-    rec = {**TEMPLATE, "condition": cond, "agent": agent, "trial": trial}
+    rec = {**TEMPLATE, "condition": NAMES[cond], "agent": agent, "trial": trial}
     rec.pop("far_success", None)  # absent: computed from success and error (null is refused)
     if n <= 35:
         rec.update(success=True, ended_by="success", observations=n, decisions=n - 1, spread_mm=2.0)
@@ -40,24 +49,34 @@ def _record(cond: str, agent: str, trial: int, n: int) -> dict:
     return rec
 
 
+def _config_json(env_id: str, conditions: list[str]) -> dict:
+    """A run's config.json: three trials of ``conditions`` (short names) with the env's default settings."""
+    config = BenchConfig(
+        agents=("-",),
+        conditions=tuple(sorted(NAMES[c] for c in conditions)),
+        trials=3,
+        env_id=env_id,
+        sensor_model=ENV_SENSOR_MODELS[env_id][0],
+        n_particles=ENV_N_PARTICLES[env_id],
+        max_observations=ENV_MAX_OBSERVATIONS[env_id],
+    )
+    return {**msgspec.to_builtins(config), "agents": []}
+
+
 def _append_run(path: Path, agent: str, rows: list[dict], conditions: list[str], env_id: str) -> None:
     """Append ``agent``'s trial records to the run's trials file and add the agent to its config.json."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "a", encoding="utf-8") as fh:
         fh.write("".join(json.dumps(r) + "\n" for r in rows))
     cfg_path = path.parent / "config.json"
-    cfg = (
-        json.loads(cfg_path.read_text())
-        if cfg_path.is_file()
-        else {"agents": [], "conditions": sorted(conditions), "trials": 3, "env_id": env_id}
-    )
+    cfg = json.loads(cfg_path.read_text()) if cfg_path.is_file() else _config_json(env_id, conditions)
     cfg["agents"] = sorted(set(cfg["agents"]) | {agent})
     cfg_path.write_text(json.dumps(cfg))
 
 
-def _write(path: Path, agent: str, readings: dict[str, list[int]]) -> None:
+def _write(path: Path, agent: str, readings: dict[str, list[int]], env_id: str = TARGET_ID) -> None:
     rows = [_record(cond, agent, t, n) for cond, obs in readings.items() for t, n in enumerate(obs)]
-    _append_run(path, agent, rows, list(readings), "ElectroLoc-v0")
+    _append_run(path, agent, rows, list(readings), env_id)
     (path.parent / "summary.json").write_text("{}")  # the benchmark finished
 
 
@@ -187,7 +206,7 @@ def test_a_suite_still_running_reports_what_is_finished(tmp_path, capsys):
     res = _results(tmp_path)
     _write(res / "ElectroLoc-v0" / "ppo" / "seed-9" / "bench" / "trials.jsonl", "ppo", {"a": [1] * 3, "b": [1] * 3})
     (res / "ElectroLoc-v0" / "ppo" / "seed-9" / "bench" / "summary.json").unlink()  # its benchmark still running
-    _write(res / "ElectroLocGlobal-v0" / "_baselines" / "bench" / "trials.jsonl", "rnd-wlk", {"g": [9] * 3})
+    _write(res / GLOBAL_ID / "_baselines" / "bench" / "trials.jsonl", "rnd-wlk", {"g": [9] * 3}, GLOBAL_ID)
     assert report.main([str(res), "--reps", "200"]) == 0
     text = (res / "report.md").read_text()
     assert "| ElectroLoc-v0 | ppo | 3 |" in text and GLOBAL_ID not in text
@@ -277,24 +296,82 @@ def test_a_damaged_line_is_set_aside(tmp_path, damage):
     )
 
 
-@pytest.mark.parametrize("damage", ["empty", "missing", "eval-nan", "summary-garbage"])
-def test_a_damaged_file_is_one_line(tmp_path, damage, capsys):
+def _edit_json(path: Path, edit) -> None:
+    data = json.loads(path.read_text())
+    edit(data)
+    path.write_text(json.dumps(data))
+
+
+#: (damage, the file the one line names): a results file the report cannot read, each through its own reader —
+#: the records, the evaluation log, a training run's summary.json (``read_summary``) and a benchmark's
+#: config.json (``config_from_json``).
+DAMAGED_FILES = [
+    ("none", None),  # the folder undamaged: the report is written
+    ("empty", "trials.jsonl"),
+    ("missing", "trials.jsonl"),
+    ("eval-nan", "eval.csv"),
+    ("summary-garbage", "summary.json"),
+    ("summary-list", "summary.json"),
+    ("summary-utf8", "summary.json"),
+    ("summary-missing-field", "summary.json"),
+    ("summary-negative-wall-time", "summary.json"),
+    ("summary-wall-time-text", "summary.json"),
+    ("config-garbage", "config.json"),
+    ("config-utf8", "config.json"),
+    ("config-nested", "config.json"),
+    ("config-list", "config.json"),
+    ("config-missing-key", "config.json"),
+    ("config-trials-text", "config.json"),
+    ("config-no-trials", "config.json"),
+    ("config-unknown-env", "config.json"),
+    ("config-unknown-condition", "config.json"),
+    ("config-no-agents", "config.json"),
+]
+
+
+@pytest.mark.parametrize("damage, named", DAMAGED_FILES, ids=[d for d, _ in DAMAGED_FILES])
+def test_a_damaged_file_is_one_line(tmp_path, damage, named, capsys, train_summary_json):
     res = _results(tmp_path)
     base = res / "ElectroLoc-v0" / "_baselines" / "bench" / "trials.jsonl"
+    config = base.parent / "config.json"
     zoo = res / "ElectroLoc-v0" / "ppo" / "seed-0" / "zoo" / "ppo" / "ElectroLoc-v0_1"
     zoo.mkdir(parents=True)
-    (zoo / "eval.csv").write_text("timesteps,success_rate,mean_readings\n100,0.5,9.0\n")
-    if damage == "empty":
-        base.write_text("")
-    elif damage == "missing":
-        base.unlink()
-    elif damage == "eval-nan":
-        (zoo / "eval.csv").write_text("timesteps,success_rate,mean_readings\n100,nan,9.0\n")
-    else:
-        (zoo / "summary.json").write_text("[[[garbage")
-    assert report.main([str(res), "--reps", "200"]) == 2
+    head = "timesteps,wall_time_s,episodes,success_rate,mean_readings,median_readings,median_error_mm,mean_error_mm"
+    (zoo / "eval.csv").write_text(f"{head}\n100,12.5,2,0.5,9.0,9.0,2,2\n")
+    summary = zoo / "summary.json"
+    train_summary_json(summary, "ElectroLoc-v0", {"episodes": 2, "first_seed": 100000, "env_kwargs": {}})
+    (zoo / "ElectroLoc-v0").mkdir()
+    (zoo / "ElectroLoc-v0" / "config.yml").write_text("env_kwargs: {condition: random}\n")
+    damages = {
+        "none": lambda: None,
+        "empty": lambda: base.write_text(""),
+        "missing": base.unlink,
+        "eval-nan": lambda: (zoo / "eval.csv").write_text(f"{head}\n100,12.5,2,nan,9.0,9.0,2,2\n"),
+        "summary-garbage": lambda: summary.write_text("[[[garbage"),
+        "summary-list": lambda: summary.write_text("[1, 2]"),
+        "summary-utf8": lambda: summary.write_bytes(b"\xff\xfe"),
+        "summary-missing-field": lambda: _edit_json(summary, lambda d: d.pop("wall_time_s")),
+        "summary-negative-wall-time": lambda: _edit_json(summary, lambda d: d.update(wall_time_s=-1.0)),
+        "summary-wall-time-text": lambda: _edit_json(summary, lambda d: d.update(wall_time_s="12 s")),
+        "config-garbage": lambda: config.write_text("[[[garbage"),
+        "config-utf8": lambda: config.write_bytes(b"\xff\xfe"),
+        "config-nested": lambda: config.write_text("[" * 50_000),
+        "config-list": lambda: config.write_text("[1, 2]"),
+        "config-missing-key": lambda: _edit_json(config, lambda d: d.pop("seed")),
+        "config-trials-text": lambda: _edit_json(config, lambda d: d.update(trials="3")),
+        "config-no-trials": lambda: _edit_json(config, lambda d: d.update(trials=0)),
+        "config-unknown-env": lambda: _edit_json(config, lambda d: d.update(env_id="Nope-v0")),
+        "config-unknown-condition": lambda: _edit_json(config, lambda d: d.update(conditions=["nowhere"])),
+        "config-no-agents": lambda: _edit_json(config, lambda d: d.update(agents=[])),
+    }
+    damages[damage]()
+    assert report.main([str(res), "--reps", "200"]) == (0 if named is None else 2)
     err = [line for line in capsys.readouterr().err.strip().splitlines() if not line.startswith("learned_report: [")]
-    assert len(err) == 1 and err[0].startswith("learned_report: error:") and "Traceback" not in err[0]
+    if named is None:
+        assert not [line for line in err if "error" in line], err
+        return
+    assert len(err) == 1 and err[0].startswith("learned_report: error:") and "Traceback" not in err[0], err
+    assert named in err[0], err
 
 
 def test_reps_are_bounded(tmp_path, capsys):
@@ -348,7 +425,7 @@ TRACK_CAP = 70  # every moving-target trial runs to its 70 readings
 
 def _track_record(cond: str, agent: str, trial: int, err: float, captured: bool) -> dict:
     """A schema-valid moving-target record: run to the cap, its tracking error ``err`` mm and capture."""
-    rec = {**TEMPLATE, "condition": cond, "agent": agent, "trial": trial, "env_id": TRACK_ID}
+    rec = {**TEMPLATE, "condition": NAMES[cond], "agent": agent, "trial": trial, "env_id": TRACK_ID}
     rec.pop("far_success", None)
     rec.update(
         success=False,

@@ -32,7 +32,6 @@ gymnasium~=0.29; d3rlpy 2.8.1: gymnasium==1.0.0).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -476,11 +475,6 @@ def write_curve(path: Path, rows: list[dict[str, Any]]) -> None:
 def timer() -> float:
     """Monotonic seconds."""
     return time.perf_counter()
-
-
-def read_json(path: Path) -> Any:
-    """A JSON file's content."""
-    return json.loads(Path(path).read_text(encoding="utf-8"))
 
 
 def _chosen_by(env_id: str) -> str:

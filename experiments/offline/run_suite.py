@@ -15,7 +15,6 @@ learned suite's (``experiments/learned/results/<env-id>/_baselines/bench``). The
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import shutil
@@ -27,6 +26,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 
+from electroloc_gym.bench.stored_run import load_config  # noqa: E402
 from electroloc_gym.registry import PAPER_ENV_ID, task_entry  # noqa: E402
 
 TARGET, GLOBAL = PAPER_ENV_ID, task_entry("global").env_id
@@ -55,12 +55,20 @@ def _bench_name(env_id: str) -> str:
 
 def _bench(agent: str, out: Path, trials: int, env_id: str = TARGET) -> None:
     """``electroloc bench`` of ``agent`` into ``out``: kept when finished with ``trials``, resumed, or (finished
-    with another trial count) run again from nothing.
+    with another trial count, or its ``config.json`` not a run's config: one line says which) run again from
+    nothing.
     """
     config = out / "config.json"
-    if config.is_file() and json.loads(config.read_text(encoding="utf-8")).get("trials") != trials:
-        print(f"{out}: its benchmark ran another number of trials; running it again with {trials}", flush=True)
-        shutil.rmtree(out)
+    if config.is_file():
+        try:
+            stored = load_config(config).trials
+        except ValueError as exc:  # one line naming the file
+            print(f"{exc}; running its benchmark again from nothing", flush=True)
+            shutil.rmtree(out)
+        else:
+            if stored != trials:
+                print(f"{out}: its benchmark ran another number of trials; running it again with {trials}", flush=True)
+                shutil.rmtree(out)
     if (out / "summary.json").is_file():
         return
     argv = [

@@ -117,6 +117,8 @@ def test_a_tracking_trainer_keeps_a_later_checkpoint_when_it_tracks_better(
     common, _ = offline
     import importlib
 
+    from electroloc_gym.policy.format import read_export
+
     module = importlib.import_module(trainer)
     errors = iter([9.0, 3.0, 5.0])
 
@@ -132,7 +134,7 @@ def test_a_tracking_trainer_keeps_a_later_checkpoint_when_it_tracks_better(
     )
     assert [r["tracking_error_mm"] for r in result["curve"]] == [9.0, 3.0, 5.0]
     assert result["best"]["step"] == 2
-    meta = common.read_json(out / "policy" / "policy.json")
+    meta = read_export(out / "policy").meta  # the policy.json its one reader accepts
     assert (
         meta["evaluation"]["tracking_error_mm"] == 3.0
         and "tracking error" in meta["provenance"]["checkpoint_chosen_by"]

@@ -10,22 +10,28 @@ Right: the radius estimate of every successful trial against the true radius (th
 from __future__ import annotations
 
 import argparse
-import json
-from pathlib import Path
+import sys
 
 import numpy as np
 
+from electroloc_gym.bench.stored_run import read_run_records
 from electroloc_gym.utils.fileio import check_output_options
 from electroloc_gym.world.conditions import PRESET_NAMES
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("run", help="the bench output folder (its trials.jsonl)")
+    p.add_argument("run", help="the bench output folder (its config.json and trials.jsonl)")
     p.add_argument("--out", default="unknown_target.png", help="the PNG to write")
     args = p.parse_args()
     check_output_options(p, files={"--out": args.out})
-    recs = [json.loads(line) for line in Path(args.run, "trials.jsonl").read_text().splitlines() if line.strip()]
+    try:  # the folder as ``--resume`` reads it: its config, its records through their schema, current key names
+        run = read_run_records(args.run)
+    except ValueError as exc:  # one line naming the file
+        p.exit(2, f"unknown_target_report: error: {exc}\n")
+    for line in run.messages():
+        print(f"unknown_target_report: set aside {line}", file=sys.stderr)
+    recs = run.records
     agents = list(dict.fromkeys(r["agent"] for r in recs if r.get("table_layout", "table4") == "table4"))
     import matplotlib
 
@@ -37,10 +43,7 @@ def main() -> None:
     width = 0.8 / max(len(agents), 1)
     for j, a in enumerate(agents):
         med = [
-            np.median(
-                [r.get("readings", r.get("observations")) for r in recs if r["agent"] == a and r["condition"] == c]
-                or [np.nan]
-            )
+            np.median([r["readings"] for r in recs if r["agent"] == a and r["condition"] == c] or [np.nan])
             for c in PRESET_NAMES
         ]
         ax.bar(x + (j - (len(agents) - 1) / 2) * width, med, width, label=a)
