@@ -333,16 +333,23 @@ def entry_of_class(cls: type) -> EnvEntry:
     )
 
 
-def env_class_named(name: str) -> type | None:
-    """The single or native vector env class of an entry by its class name (None: no entry's), so that the
-    modules that held the built-in env classes before they were built per entry still give them by name
-    (``electroloc_gym.envs.localize:<Stem>Env``: the entry points a 0.3.0 Minari dataset or pickle recorded).
+def env_class_named(module: str, name: str) -> type:
+    """The single or native vector env class of an entry by its class name: the module attribute ``name`` of
+    :mod:`electroloc_gym.envs` and of the modules that held the built-in env classes before they were built per
+    entry, so that their recorded entry points still resolve (``electroloc_gym.envs.localize:<Stem>Env``: a
+    0.3.0 Minari dataset's or pickle's).
+
+    Raises:
+        ImportError: no entry's class, and ``name`` moved out of ``module``: one line naming its new place.
+        AttributeError: no entry's class, and never ``module``'s.
     """
     for e in _TABLE:
         for cls in (e.env_class, e.vector_class):
             if cls is not None and cls.__name__ == name:
                 return cls
-    return None
+    from electroloc_gym.utils.moved_paths import moved_name_error
+
+    raise moved_name_error(module, name)
 
 
 def bench_env(name: str) -> tuple[EnvEntry, BenchEnv]:

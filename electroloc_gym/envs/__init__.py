@@ -11,14 +11,10 @@ from __future__ import annotations
 from typing import Any
 
 from electroloc_gym.registry import env_class_named
-from electroloc_gym.utils.moved_paths import moved_name_error
 
 __all__: list[str] = []
 
 
 def __getattr__(name: str) -> Any:
     """An entry's single or native vector env class by its name (the table's, registered at import)."""
-    cls = env_class_named(name)
-    if cls is None:
-        raise moved_name_error(__name__, name)
-    return cls
+    return env_class_named(__name__, name)

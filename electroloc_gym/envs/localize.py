@@ -20,7 +20,6 @@ from electroloc_gym.engines.numba_core.array import ArrayLocalizeTask
 from electroloc_gym.envs.adapter import CoreEnv
 from electroloc_gym.envs.vector import CoreVectorEnv
 from electroloc_gym.registry import env_class_named
-from electroloc_gym.utils.moved_paths import moved_name_error
 from electroloc_gym.world.sensor_array import SensorLayout
 
 __all__ = ["LocalizeEnv", "LocalizeVectorEnv"]
@@ -94,10 +93,7 @@ class LocalizeVectorEnv(CoreVectorEnv):
 
 
 def __getattr__(name: str) -> Any:
-    """An entry's env class by its name (this module held the built-in ones: their recorded entry points still
-    resolve, ``registry.env_class_named``), else a name that moved out: one ImportError naming its new place.
+    """An entry's env class by its name (this module held the built-in ones), else a name that moved out
+    (``registry.env_class_named``).
     """
-    cls = env_class_named(name)
-    if cls is None:
-        raise moved_name_error(__name__, name)
-    return cls
+    return env_class_named(__name__, name)

@@ -53,7 +53,6 @@ from electroloc_gym.envs.adapter import ParamAccessors
 from electroloc_gym.envs.sim_backends import make_backend_vector_env
 from electroloc_gym.registry import EnvEntry, entry_of_class, env_class_named
 from electroloc_gym.utils.checks import check_int, check_seeds
-from electroloc_gym.utils.moved_paths import moved_name_error
 from electroloc_gym.world.conditions import Condition
 
 __all__ = [
@@ -284,10 +283,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
 
 
 def __getattr__(name: str) -> Any:
-    """An entry's env class by its name (this module held the built-in ones: their recorded entry points still
-    resolve, ``registry.env_class_named``), else a name that moved out: one ImportError naming its new place.
+    """An entry's env class by its name (this module held the built-in ones), else a name that moved out
+    (``registry.env_class_named``).
     """
-    cls = env_class_named(name)
-    if cls is None:
-        raise moved_name_error(__name__, name)
-    return cls
+    return env_class_named(__name__, name)
