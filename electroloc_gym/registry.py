@@ -335,9 +335,9 @@ def entry_of_class(cls: type) -> EnvEntry:
 
 def env_class_named(module: str, name: str) -> type:
     """The single or native vector env class of an entry by its class name: the module attribute ``name`` of
-    :mod:`electroloc_gym.envs` and of the modules that held the built-in env classes before they were built per
-    entry, so that their recorded entry points still resolve (``electroloc_gym.envs.localize:<Stem>Env``: a
-    0.3.0 Minari dataset's or pickle's).
+    :mod:`electroloc_gym.envs` and of the modules that recorded entry points name (a Minari dataset's spec or a
+    pickle may say ``electroloc_gym.envs.localize:<Stem>Env`` or ``electroloc_gym.envs.vector:<Stem>VectorEnv``),
+    so that every such entry point resolves to the entry's class.
 
     Raises:
         ImportError: no entry's class, and ``name`` moved out of ``module``: one line naming its new place.

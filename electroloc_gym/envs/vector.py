@@ -283,7 +283,7 @@ class CoreVectorEnv(ParamAccessors, VectorEnv[NDArray[np.float32], Any, NDArray[
 
 
 def __getattr__(name: str) -> Any:
-    """An entry's env class by its name (this module held the built-in ones), else a name that moved out
+    """An entry's env class by its name (recorded entry points name this module), else a name that moved out
     (``registry.env_class_named``).
     """
     return env_class_named(__name__, name)
