@@ -51,15 +51,21 @@ def _config(stored: Any) -> BenchConfig:
         raise ValueError(str(exc)) from None
 
 
+def _decode(data: bytes) -> Any:
+    """A config.json's bytes as JSON (a ValueError saying why they are not: malformed, not UTF-8, nested too deep)."""
+    try:
+        return msgspec.json.decode(data)
+    except (msgspec.DecodeError, RecursionError) as exc:
+        raise ValueError(f"not valid UTF-8 JSON ({type(exc).__name__}: {exc})") from None
+
+
 def read_config(path: Path, log: Callable[[str], None] | None) -> dict[str, Any] | None:
     """config.json of a stored run; a damaged one is reported, set aside (renamed) and ignored."""
     if not path.exists():
         return None
     try:
-        stored = msgspec.json.decode(path.read_bytes())
+        stored = _decode(path.read_bytes())
         _config(stored)
-    except (msgspec.DecodeError, RecursionError) as exc:
-        why = f"not valid UTF-8 JSON ({type(exc).__name__}: {exc})"
     except ValueError as exc:
         why = str(exc)
     else:
@@ -92,11 +98,11 @@ def load_config(path: str | os.PathLike[str]) -> BenchConfig:
     """
     path = Path(path)
     try:
-        stored = msgspec.json.decode(path.read_bytes())
+        stored = _decode(path.read_bytes())
     except OSError as exc:
         raise ValueError(f"{path}: not readable ({exc.strerror or type(exc).__name__})") from None
-    except (msgspec.DecodeError, RecursionError) as exc:
-        raise ValueError(f"{path}: not valid UTF-8 JSON ({type(exc).__name__}: {exc})") from None
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
     return config_from_json(stored, str(path))
 
 
