@@ -1,51 +1,23 @@
 """The pickle-free policy format: weights in safetensors, everything else in JSON.
 
-A policy folder holds::
+A policy folder holds ``policy.json`` (architecture, observation layout and normalisation, action space,
+provenance) and ``policy.safetensors`` (the policy network's tensors: torch ``state_dict`` names and dtypes).
 
-    policy.json          architecture, observation layout and normalisation, action space, provenance
-    policy.safetensors   the policy network's tensors (torch ``state_dict`` names and dtypes)
+``policy.json`` is decoded by msgspec into :class:`PolicyFile`, one ``Struct`` per object declaring each key's
+JSON type and range (no key the format does not define; ``normalization`` may keep VecNormalize's other keys);
+each refusal is msgspec's one line with the field's path. What no type says is checked after
+(:func:`_cross_checks`): each name one of its table's keys, the algo's class, ``recurrent`` exactly for the
+recurrent class, ``net_arch`` of the form the class builds, the action type the class acts in.
 
-``policy.json`` (``format`` = ``"electroloc-gym-policy"``, ``format_version`` 1) holds exactly these keys,
-all required but the last three:
+``normalization`` is ``null`` (raw observations: said explicitly, never by leaving the key out) or VecNormalize's
+frozen statistics. Statistics of ``frame_dim`` values normalise each frame before stacking (rl-zoo3's order:
+``VecNormalize`` inside ``VecFrameStack``); statistics of the stacked vector normalise after stacking.
 
-* ``weights``: ``{"file": "policy.safetensors", "sha256": hex, "tensors": n}`` — a weights file that
-  does not belong to the JSON is refused, and it holds exactly ``n`` tensors.
-* ``algo``, one of :data:`ALGOS`, and ``architecture``: ``{"policy_class": the algo's class (of
-  POLICY_CLASSES), "policy_kwargs": {net_arch (required), activation_fn (a name in ACTIVATIONS), …},
-  "recurrent": null | {lstm_hidden_size, n_lstm_layers, shared_lstm, enable_critic_lstm}}``.
-* ``observation``: ``{"env_id", "mode" (OBSERVATION_MODES), "frame_stack", "frame_dim", "shape" (the
-  network input, one integer), "space"}``; ``action``: ``{"action_type" ("continuous"/"discrete"), "space"}``.
-* ``normalization``: ``null`` (the policy reads raw observations: said explicitly, never by leaving the key
-  out) or VecNormalize's frozen statistics: ``norm_obs`` (required; false: no normalisation) and, when it is
-  true, ``obs_mean``, ``obs_var``, ``clip_obs`` and ``epsilon`` (``obs_count``, ``norm_reward``, … optional).
-  Statistics of ``frame_dim`` values normalise each frame before stacking (rl-zoo3's order:
-  ``VecNormalize`` inside ``VecFrameStack``); statistics of the stacked vector normalise after stacking
-  (files written before the rl-zoo3 path).
-* ``env_kwargs`` (training env kwargs, for reference), ``provenance`` and ``evaluation`` (plain data; optional).
-
-``policy.json`` is decoded by msgspec into :class:`PolicyFile`, one ``Struct`` per object with each key's JSON
-type and range declared once: a number where a number goes (never a boolean), a boolean where a flag goes
-(``"norm_obs": "yes"`` is refused, not read as true), integers ≥ 1 for sizes, ``policy_kwargs`` only with the
-keys :class:`PolicyKwargs` declares (they are passed to SB3's policy class for stochastic actions), no object
-with a key the format does not define (``normalization`` may keep VecNormalize's other keys); each refusal is
-msgspec's one line with the field's path (``Expected `bool`, got `str` - at `$.normalization.norm_obs```).
-What no type says is checked after (:func:`_cross_checks`): every name one of its table's keys
-(:data:`ALGOS`, :data:`POLICY_CLASSES`, :data:`ACTIVATIONS`, the observation modes,
-:data:`ACTION_SPACE_TYPES`), the algo's class, ``recurrent`` exactly for the recurrent policy class (and the
-LSTM keys of ``policy_kwargs``, if there, equal to it), ``net_arch`` of the form the class builds, the
-``action_type`` the action space's type and the one the class acts in (:data:`CLASS_ACTION_TYPES`).
-
-The tensors are checked against what the declared architecture builds (:func:`expected_tensors`: the
-``state_dict`` names and shapes of the policy class with that ``net_arch``, LSTM, observation size and
-action space): none missing, none extra, every shape and the count in ``weights.tensors`` as declared,
-floating-point (CrossQ's Batch Renorm update counters, ``….steps``, integers) — at load, so a file whose
-parts disagree is refused before it acts, never half-read.
-
-Reading never unpickles or executes anything: JSON is parsed, spaces are rebuilt from plain values,
-and the safetensors file is read and written by the reference library's numpy interface
-(``safetensors.numpy``: no torch needed). What this module adds is what the format does not say:
-the SHA-256 that ties the weights to their JSON, finite weights, tensors that fit the architecture, and one
-:class:`PolicyFormatError` naming the file and the field for any damage.
+At load the tensors must be exactly those the declared architecture builds (:func:`expected_tensors`), of those
+shapes, as many as ``weights.tensors`` says, floating-point (CrossQ's ``….steps`` counters: integers), finite,
+and tied to the JSON by its SHA-256: a folder whose parts disagree is one :class:`PolicyFormatError` naming the
+file and the field, never half-read. Nothing is unpickled or executed: the safetensors file is read and written
+by the library's numpy interface (no torch).
 """
 
 from __future__ import annotations
@@ -179,13 +151,7 @@ class ObsNormalization:
                 f"normalisation mean and var must be equal-length 1-D arrays, got shapes {mean.shape} and {var.shape}"
             )
         big = float(np.finfo(np.float32).max)  # the observations are float32: statistics beyond it describe none
-        if not (
-            np.isfinite(mean).all()
-            and np.isfinite(var).all()
-            and (var >= 0).all()
-            and (np.abs(mean) <= big).all()
-            and (var <= big).all()
-        ):
+        if not ((np.abs(mean) <= big).all() and ((var >= 0) & (var <= big)).all()):  # NaN compares false
             raise PolicyFormatError(f"normalisation mean/var must be finite, within ±{big:.3g} and var ≥ 0")
         for name in ("clip_obs", "epsilon"):
             v = getattr(self, name)
@@ -233,21 +199,6 @@ def floats_to_json(a: Any) -> list[Any]:
     return out
 
 
-def floats_from_json(values: Any, where: str) -> np.ndarray:
-    """Inverse of :func:`floats_to_json` (``where`` names the field in errors)."""
-    if not isinstance(values, list):
-        raise PolicyFormatError(f"{where} must be a list of numbers")
-    out = []
-    for v in values:
-        if isinstance(v, str) and v in ("inf", "-inf"):
-            out.append(float(v))
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            out.append(float(v))
-        else:
-            raise PolicyFormatError(f"{where} must hold numbers, got {v!r}")
-    return np.asarray(out, dtype=np.float64)
-
-
 def space_to_json(space: Any) -> dict[str, Any]:
     """A Gymnasium ``Box`` or ``Discrete`` as plain JSON."""
     from gymnasium import spaces
@@ -266,28 +217,22 @@ def space_to_json(space: Any) -> dict[str, Any]:
 
 
 def space_from_json(d: Any, where: str = "space") -> Any:
-    """Inverse of :func:`space_to_json`."""
+    """Inverse of :func:`space_to_json`: ``d`` decoded as :class:`BoxSpace` or :class:`DiscreteSpace`."""
     from gymnasium import spaces
 
-    if not isinstance(d, dict) or d.get("type") not in ("Box", "Discrete"):
-        raise PolicyFormatError(f"{where} must be an object with type 'Box' or 'Discrete', got {d!r}")
-    if d["type"] == "Discrete":
-        n, start = d.get("n"), d.get("start", 0)
-        if not (isinstance(n, int) and not isinstance(n, bool) and n >= 1 and isinstance(start, int)):
-            raise PolicyFormatError(f"{where}: Discrete needs an integer n ≥ 1 and an integer start")
-        return spaces.Discrete(n, start=start)
-    shape = d.get("shape")
-    if not (isinstance(shape, list) and shape and all(isinstance(s, int) and s >= 1 for s in shape)):
-        raise PolicyFormatError(f"{where}: Box shape must be a list of positive integers, got {shape!r}")
-    if d.get("dtype") not in ("float32", "float64"):
-        raise PolicyFormatError(f"{where}: Box dtype must be float32 or float64, got {d.get('dtype')!r}")
-    low, high = floats_from_json(d.get("low"), f"{where}.low"), floats_from_json(d.get("high"), f"{where}.high")
-    size = int(np.prod(shape))
+    try:
+        space = msgspec.convert(d, BoxSpace | DiscreteSpace)
+    except msgspec.ValidationError as exc:
+        raise PolicyFormatError(f"{where}: {exc}") from None
+    if isinstance(space, DiscreteSpace):
+        return spaces.Discrete(space.n, start=space.start)
+    shape, dtype = space.shape, np.float32 if space.dtype == "float32" else np.float64
+    low, high = np.asarray(space.low, dtype=np.float64), np.asarray(space.high, dtype=np.float64)
+    size = math.prod(shape)
     if low.size != size or high.size != size:
         raise PolicyFormatError(f"{where}: low/high must have {size} values for shape {shape}")
     if not (low <= high).all():
         raise PolicyFormatError(f"{where}: Box low must not exceed high")
-    dtype = np.float32 if d["dtype"] == "float32" else np.float64
     return spaces.Box(low.reshape(shape).astype(dtype), high.reshape(shape).astype(dtype), dtype=dtype)
 
 
@@ -350,21 +295,6 @@ def _linear(name: str, n_in: int, n_out: int) -> dict[str, tuple[int, ...]]:
     return {f"{name}.weight": (n_out, n_in), f"{name}.bias": (n_out,)}
 
 
-def _mlp(prefix: str, n_in: int, layers: list[int], n_out: int | None = None) -> tuple[dict[str, tuple[int, ...]], int]:
-    """SB3's MLP ``prefix``: an ``nn.Linear`` per layer (indices 0, 2, …: an activation after each), then one to
-    ``n_out`` if given. Returns the shapes and the last width.
-    """
-    shapes: dict[str, tuple[int, ...]] = {}
-    width = n_in
-    for i, size in enumerate(layers):
-        shapes.update(_linear(f"{prefix}.{2 * i}", width, size))
-        width = size
-    if n_out is not None:
-        shapes.update(_linear(f"{prefix}.{2 * len(layers)}", width, n_out))
-        width = n_out
-    return shapes, width
-
-
 def _lstm(name: str, n_in: int, hidden: int, layers: int) -> dict[str, tuple[int, ...]]:
     shapes: dict[str, tuple[int, ...]] = {}
     for k in range(layers):
@@ -388,28 +318,24 @@ def _renorm(name: str, n: int) -> dict[str, tuple[int, ...]]:
     return {**{f"{name}.{k}": (n,) for k in _RENORM}, f"{name}.steps": ()}
 
 
-def _crossq_mlp(
-    prefix: str, n_in: int, layers: list[int], n_out: int | None, renorm: bool
-) -> tuple[dict[str, Any], int]:
-    """sb3-contrib's CrossQ MLP ``prefix`` (``create_mlp`` with a Batch Renorm layer before each ``nn.Linear``):
-    per layer [renorm,] linear, activation; then a linear to ``n_out`` (after a renorm layer) if given, else a final
-    renorm layer after the last hidden one (the actor's ``latent_pi``). Returns the shapes and the last width.
+def _mlp(
+    prefix: str, n_in: int, layers: list[int], n_out: int | None = None, renorm: bool = False
+) -> tuple[dict[str, tuple[int, ...]], int]:
+    """SB3's MLP ``prefix`` (``create_mlp``): per layer an ``nn.Linear`` and an activation (indices 0, 2, …), then
+    one ``nn.Linear`` to ``n_out`` if given. Returns the shapes and the last width.
+
+    ``renorm``: sb3-contrib's CrossQ MLP, a Batch Renorm layer before each ``nn.Linear``, and without ``n_out`` one
+    after the last hidden layer (the actor's ``latent_pi``).
     """
     shapes: dict[str, tuple[int, ...]] = {}
     width, i = n_in, 0
-    for size in layers:
+    for size in layers if n_out is None else [*layers, n_out]:
         if renorm:
             shapes.update(_renorm(f"{prefix}.{i}", width))
             i += 1
         shapes.update(_linear(f"{prefix}.{i}", width, size))
         width, i = size, i + 2
-    if n_out is not None:
-        if renorm:
-            shapes.update(_renorm(f"{prefix}.{i}", width))
-            i += 1
-        shapes.update(_linear(f"{prefix}.{i}", width, n_out))
-        width = n_out
-    elif renorm and layers:
+    if renorm and n_out is None and layers:
         shapes.update(_renorm(f"{prefix}.{i}", width))
     return shapes, width
 
@@ -460,56 +386,43 @@ def expected_tensors(meta: Mapping[str, Any]) -> dict[str, tuple[int, ...]]:
         if space["type"] == "Box":
             out["log_std"] = (n_act,)
         out.update(_linear("value_net", latent_vf, 1))
-    elif kind == "SACPolicy":
+    elif kind in ("SACPolicy", "CrossQPolicy"):  # CrossQ: Batch Renorm layers in actor and critics, no target
         pi, qf = _arch_parts(pk["net_arch"], "qf")
-        shapes, latent = _mlp("actor.latent_pi", n_obs, pi)
+        crossq = kind == "CrossQPolicy"
+        renorm = crossq and bool(pk.get("batch_norm", True))
+        shapes, latent = _mlp("actor.latent_pi", n_obs, pi, None, renorm)
         out.update(shapes)
         out.update(_linear("actor.mu", latent, n_act))
         if ALGOS[meta["algo"]][1] == "policy":
             out.update(_linear("actor.log_std", latent, n_act))
-            for net in ("critic", "critic_target"):
+            for net in ("critic",) if crossq else ("critic", "critic_target"):
                 for i in range(int(pk.get("n_critics", 2))):
-                    out.update(_mlp(f"{net}.qf{i}", n_obs + n_act, qf, 1)[0])
-    elif kind == "CrossQPolicy":  # Batch Renorm layers in actor and critics; no target network
-        pi, qf = _arch_parts(pk["net_arch"], "qf")
-        renorm = bool(pk.get("batch_norm", True))
-        shapes, latent = _crossq_mlp("actor.latent_pi", n_obs, pi, None, renorm)
-        out.update(shapes)
-        out.update(_linear("actor.mu", latent, n_act))
-        out.update(_linear("actor.log_std", latent, n_act))
-        for i in range(int(pk.get("n_critics", 2))):
-            out.update(_crossq_mlp(f"critic.qf{i}", n_obs + n_act, qf, 1, renorm)[0])
-    elif kind == "DQNPolicy":
-        for net in ("q_net", "q_net_target"):
-            out.update(_mlp(f"{net}.q_net", n_obs, list(pk["net_arch"]), n_act)[0])
-    else:  # QRDQNPolicy
-        n_out = n_act * int(pk["n_quantiles"])
-        for net in ("quantile_net", "quantile_net_target"):
-            out.update(_mlp(f"{net}.quantile_net", n_obs, list(pk["net_arch"]), n_out)[0])
+                    out.update(_mlp(f"{net}.qf{i}", n_obs + n_act, qf, 1, renorm)[0])
+    else:  # DQNPolicy; QRDQNPolicy: n_quantiles outputs per action
+        net = "quantile_net" if kind == "QRDQNPolicy" else "q_net"
+        n_out = n_act * int(pk["n_quantiles"]) if kind == "QRDQNPolicy" else n_act
+        for prefix in (net, f"{net}_target"):
+            out.update(_mlp(f"{prefix}.{net}", n_obs, list(pk["net_arch"]), n_out)[0])
     return out
 
 
 def check_tensors(meta: Mapping[str, Any], tensors: Mapping[str, np.ndarray], where: str) -> None:
     """Refuse ``tensors`` unless they are exactly those :func:`expected_tensors` names, of those shapes,
-    floating-point (:func:`integer_tensor`: integers), and as many as ``weights.tensors`` says (when the file
-    records it).
+    floating-point (:func:`integer_tensor`: integers), and as many as ``weights.tensors`` says.
 
     Raises:
         PolicyFormatError: one line starting with ``where``, naming the fields the tensors contradict.
     """
-    declared = meta.get("weights", {}).get("tensors") if isinstance(meta.get("weights"), dict) else None
-    if declared is not None and declared != len(tensors):
+    declared = meta["weights"]["tensors"]
+    if declared != len(tensors):
         raise PolicyFormatError(
             f"{where}: weights.tensors is {declared}, but {WEIGHTS_FILE} holds {len(tensors)} tensors"
         )
     want = expected_tensors(meta)
     problems = []
-    missing = sorted(set(want) - set(tensors))
-    extra = sorted(set(tensors) - set(want))
-    if missing:
-        problems.append(f"missing {missing[:6]}{' …' if len(missing) > 6 else ''}")
-    if extra:
-        problems.append(f"not of this architecture {extra[:6]}{' …' if len(extra) > 6 else ''}")
+    for label, names in (("missing", set(want) - set(tensors)), ("not of this architecture", set(tensors) - set(want))):
+        if names:
+            problems.append(f"{label} {sorted(names)[:6]}{' …' if len(names) > 6 else ''}")
     for name in sorted(set(want) & set(tensors)):
         a = tensors[name]
         if tuple(a.shape) != want[name]:
@@ -561,8 +474,7 @@ def write_export(folder: str | Path, meta: Mapping[str, Any], tensors: Mapping[s
 
 
 # ------------------------------------------------------------------------------------- reading
-#: The schema of ``policy.json``: one msgspec ``Struct`` per object, each key's JSON type and range declared
-#: once; what no type says (fields against each other) is in :func:`_cross_checks`.
+#: The schema of ``policy.json`` (what no type says is in :func:`_cross_checks`).
 Count = Annotated[int, Meta(ge=1)]
 Layers = list[Count]
 Name = Annotated[str, Meta(min_length=1)]
@@ -722,8 +634,8 @@ def normalization_from_json(norm: Any, obs: Mapping[str, Any], where: str) -> Ob
             f"{where}: normalization.norm_obs is true but {missing} are missing — refusing to run on raw observations"
         )
     stats = ObsNormalization(
-        floats_from_json(n.obs_mean, f"{where} obs_mean"),
-        floats_from_json(n.obs_var, f"{where} obs_var"),
+        np.asarray(n.obs_mean, dtype=np.float64),
+        np.asarray(n.obs_var, dtype=np.float64),
         clip_obs=n.clip_obs,  # type: ignore[arg-type]  # set: checked above
         epsilon=n.epsilon,  # type: ignore[arg-type]
     )
