@@ -107,7 +107,6 @@ ACTIVATIONS: dict[str, str] = {
     "silu": "SiLU",
 }
 
-
 #: The policy class whose file holds ``recurrent`` (null for every other class).
 RECURRENT_CLASS = "RecurrentActorCriticPolicy"
 #: ``action.action_type`` → the type of ``action.space`` it needs.
@@ -131,11 +130,7 @@ def one_line(exc: BaseException, limit: int = 200) -> str:
 class ObsNormalization:
     """Frozen observation statistics: ``clip((x − mean) / sqrt(var + epsilon), −clip_obs, clip_obs)``.
 
-    Attributes:
-        mean: per-feature mean, shape (d,).
-        var: per-feature variance, shape (d,), ≥ 0.
-        clip_obs: clip of the normalised value (> 0).
-        epsilon: added to the variance (> 0).
+    ``mean`` and ``var`` are per feature, shape (d,).
     """
 
     mean: np.ndarray

@@ -42,15 +42,8 @@ _ACT: dict[str, Callable[[_F64], _F64]] = {
     "silu": lambda h: h / (1.0 + np.exp(-h)),
 }
 
-#: SB3's default activation of each policy class.
-_DEFAULT_ACT = {
-    "ActorCriticPolicy": "tanh",
-    "RecurrentActorCriticPolicy": "tanh",
-    "SACPolicy": "relu",
-    "CrossQPolicy": "relu",
-    "DQNPolicy": "relu",
-    "QRDQNPolicy": "relu",
-}
+#: The policy classes whose SB3 default activation is tanh (the others': ReLU).
+_TANH_DEFAULT = ("ActorCriticPolicy", "RecurrentActorCriticPolicy")
 
 
 def _sigmoid(x: _F64) -> _F64:
@@ -58,51 +51,34 @@ def _sigmoid(x: _F64) -> _F64:
 
 
 class _Mlp:
-    """The ``nn.Linear`` layers ``prefix.<i>`` in index order; the activation after each (or all but the last)."""
-
-    def __init__(self, w: Mapping[str, NDArray[Any]], prefix: str, act: str, last_linear: bool) -> None:
-        pat = re.compile(re.escape(prefix) + r"\.(\d+)\.weight$")
-        idx = sorted(int(m.group(1)) for k in w if (m := pat.match(k)))
-        self.layers = [
-            (w[f"{prefix}.{i}.weight"].astype(np.float64).T, w[f"{prefix}.{i}.bias"].astype(np.float64)) for i in idx
-        ]
-        if act not in _ACT:
-            raise PolicyFormatError(f"activation {act!r} has no numpy forward pass; supported: {sorted(_ACT)}")
-        self.act = _ACT[act]
-        self.last_linear = last_linear
-
-    def __call__(self, x: _F64) -> _F64:
-        for j, (wt, b) in enumerate(self.layers):
-            x = x @ wt + b
-            if not (self.last_linear and j == len(self.layers) - 1):
-                x = self.act(x)
-        return x
-
-
-class _RenormMlp:
-    """sb3-contrib's CrossQ ``latent_pi``: its modules ``prefix.<i>`` in index order, each a Batch Renorm layer in
-    evaluation mode (it has ``ra_mean``) or an ``nn.Linear`` followed by the activation.
+    """The modules ``prefix.<i>`` in index order: each an ``nn.Linear`` and the activation (not after the last one
+    with ``last_linear``), or, in CrossQ's ``latent_pi``, a Batch Renorm layer in evaluation mode (it has
+    ``ra_mean``) of epsilon ``eps``.
     """
 
-    def __init__(self, w: Mapping[str, NDArray[Any]], prefix: str, act: str, eps: float) -> None:
+    def __init__(
+        self, w: Mapping[str, NDArray[Any]], prefix: str, act: str, last_linear: bool, eps: float = 0.0
+    ) -> None:
         pat = re.compile(re.escape(prefix) + r"\.(\d+)\.(weight|ra_mean)$")
-        found = sorted((int(m.group(1)), m.group(2)) for k in w if (m := pat.match(k)))
-        if act not in _ACT:
-            raise PolicyFormatError(f"activation {act!r} has no numpy forward pass; supported: {sorted(_ACT)}")
-        self.act = _ACT[act]
-        self.steps: list[tuple[str, _F64, _F64]] = []
-        for i, kind in found:
+        self.act, self.last_linear = _ACT[act], last_linear
+        self.steps: list[tuple[bool, _F64, _F64]] = []
+        for i, kind in sorted((int(m.group(1)), m.group(2)) for k in w if (m := pat.match(k))):
             p = f"{prefix}.{i}"
             if kind == "weight":
-                self.steps.append(("linear", w[f"{p}.weight"].astype(np.float64).T, w[f"{p}.bias"].astype(np.float64)))
+                self.steps.append((True, w[f"{p}.weight"].astype(np.float64).T, w[f"{p}.bias"].astype(np.float64)))
             else:  # (x − mean) / sqrt(var + eps) · scale + bias  ==  x · a + b
                 inv = 1.0 / np.sqrt(w[f"{p}.ra_var"].astype(np.float64) + eps)
                 a = w[f"{p}.scale"].astype(np.float64) * inv
-                self.steps.append(("renorm", a, w[f"{p}.bias"].astype(np.float64) - w[f"{p}.ra_mean"] * a))
+                self.steps.append((False, a, w[f"{p}.bias"].astype(np.float64) - w[f"{p}.ra_mean"] * a))
 
     def __call__(self, x: _F64) -> _F64:
-        for kind, a, b in self.steps:
-            x = self.act(x @ a + b) if kind == "linear" else x * a + b
+        for j, (linear, a, b) in enumerate(self.steps):
+            if not linear:
+                x = x * a + b
+            elif self.last_linear and j == len(self.steps) - 1:
+                x = x @ a + b
+            else:
+                x = self.act(x @ a + b)
         return x
 
 
@@ -123,7 +99,9 @@ class Actor:
 
         arch = meta["architecture"]
         self.kind = arch["policy_class"]
-        act = arch["policy_kwargs"].get("activation_fn") or _DEFAULT_ACT[self.kind]
+        act = arch["policy_kwargs"].get("activation_fn") or ("tanh" if self.kind in _TANH_DEFAULT else "relu")
+        if act not in _ACT:
+            raise PolicyFormatError(f"activation {act!r} has no numpy forward pass; supported: {sorted(_ACT)}")
         space = space_from_json(meta["action"]["space"])
         self.low = getattr(space, "low", None)
         self.high = getattr(space, "high", None)
@@ -133,13 +111,10 @@ class Actor:
             if self.kind in ("ActorCriticPolicy", "RecurrentActorCriticPolicy"):
                 body, head = _Mlp(w, "mlp_extractor.policy_net", act, False), _linear(w, "action_net")
                 self._net = lambda x: head(body(x))
-            elif self.kind == "SACPolicy":
-                body, head = _Mlp(w, "actor.latent_pi", act, False), _linear(w, "actor.mu")
-                self._net = lambda x: np.tanh(head(body(x)))
-            elif self.kind == "CrossQPolicy":
+            elif self.kind in ("SACPolicy", "CrossQPolicy"):  # CrossQ's eps: its Batch Renorm layers'
                 eps = float(arch["policy_kwargs"].get("batch_norm_eps", 0.001))
-                renorm, head = _RenormMlp(w, "actor.latent_pi", act, eps), _linear(w, "actor.mu")
-                self._net = lambda x: np.tanh(head(renorm(x)))
+                body, head = _Mlp(w, "actor.latent_pi", act, False, eps), _linear(w, "actor.mu")
+                self._net = lambda x: np.tanh(head(body(x)))
             elif self.kind == "DQNPolicy":
                 self._net = _Mlp(w, "q_net.q_net", act, True)
             else:  # QRDQNPolicy: (n, n_quantiles · n_actions) viewed as (n, n_quantiles, n_actions)
