@@ -1,10 +1,7 @@
 """Learned policies in the pickle-free format: ``policy.json`` + ``policy.safetensors``.
 
-``format`` (the files, read and written without pickle), ``networks`` (the deterministic action in
-numpy), ``load`` (:func:`load_policy`: a shipped policy by name or a policy folder as a benchmark agent;
-:func:`shipped_policies`: the shipped ones with the env each was trained for), ``sb3`` (from a live
-or trusted SB3 model; needs the ``train`` extra). Running a shipped policy needs the core
-dependencies only; stochastic actions and SB3 zips need torch and SB3.
+Running a shipped policy (:func:`load_policy`, :func:`shipped_policies`) needs the core dependencies only;
+stochastic actions and SB3 zips need torch and SB3 (the ``train`` extra, :mod:`electroloc_gym.policy.sb3`).
 """
 
 from electroloc_gym.policy.format import PolicyFormatError

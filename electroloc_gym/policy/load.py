@@ -1,23 +1,15 @@
 """A trained policy as an agent the benchmark runs beside the paper's controllers.
 
-The agent protocol (shared with the baseline controllers in ``electroloc_gym.baselines.agent``)::
+:class:`LearnedAgent` implements the agent protocol (:class:`electroloc_gym.baselines.base.Agent`) on raw env
+observations: it applies what training put between the env and the network, the frozen normalisation statistics
+and the frame stack (in the order the statistics say, :mod:`electroloc_gym.policy.format`). A recurrent policy
+keeps its LSTM state across ``predict`` calls; ``reset(env)`` clears it.
 
-    agent.env_kwargs                       # kwargs the policy needs in gym.make (observation, action_type)
-    agent.reset(env)                       # after env.reset(), at each trial start
-    action, state = agent.predict(obs, state=None, episode_start=None, deterministic=True)
-
-The benchmark passes raw env observations, so the agent applies what training put between the env
-and the network: the frozen normalisation statistics and the frame stack (in the order the
-statistics say, :mod:`electroloc_gym.policy.format`). A recurrent policy keeps its LSTM state
-across ``predict`` calls; ``reset(env)`` clears it.
-
-:func:`load_policy` reads the pickle-free format only: nothing in the folder is unpickled or
-executed, and deterministic actions need numpy alone (:mod:`electroloc_gym.policy.networks`). Every field
-of ``policy.json`` and every tensor is checked when the folder is read (:mod:`electroloc_gym.policy.format`),
-so a damaged folder is one ``PolicyFormatError`` at load, never a policy that acts otherwise.
-Stochastic actions rebuild the SB3 policy (torch and SB3: the ``train`` extra). SB3's own zip and
-``vecnormalize.pkl`` contain pickles — loading a file made by someone else runs their code — so they
-are read only with ``trust_pickle=True`` (SB3 needed), with a logged warning.
+:func:`load_policy` reads the pickle-free format only, every field and tensor checked when the folder is read,
+so a damaged folder is one ``PolicyFormatError`` at load, never a policy that acts otherwise. Deterministic
+actions need numpy alone (:mod:`electroloc_gym.policy.networks`); stochastic ones rebuild the SB3 policy (the
+``train`` extra). SB3's own zip and ``vecnormalize.pkl`` contain pickles, which run code when loaded: they are
+read only with ``trust_pickle=True``, with a logged warning.
 """
 
 from __future__ import annotations
@@ -69,11 +61,8 @@ def _agent_own(env_id: Any, env_kwargs: Any) -> dict[str, Any]:
 class LearnedAgent:
     """An exported policy + its frozen observation pre-processing, behind the benchmark's agent protocol.
 
-    Args:
-        meta: the validated ``policy.json`` content.
-        weights: its tensors (numpy arrays by ``state_dict`` name).
-        normalization: frozen observation statistics, or None.
-        name: a label for tables.
+    ``meta`` is a validated ``policy.json``'s content, ``weights`` its tensors by ``state_dict`` name; ``name``
+    labels tables.
     """
 
     def __init__(
@@ -130,7 +119,9 @@ class LearnedAgent:
         if self.normalize_frames and norm is not None:  # normalize_frames implies statistics
             obs = norm.apply(obs).astype(np.float32)
         n: int = obs.shape[0]
-        stack = self._stack_of(n)
+        stack = self._stack  # zeros at a trial start or a new batch size
+        if stack is None or stack.shape[0] != n:
+            stack = np.zeros((n, self.frame_stack, self.obs_dim), dtype=np.float32)
         if episode_start is not None:
             stack[np.reshape(np.asarray(episode_start, dtype=bool), n)] = 0.0
         stack = np.roll(stack, -1, axis=1)
@@ -140,12 +131,6 @@ class LearnedAgent:
         if norm is not None and not self.normalize_frames:
             return norm.apply(x).astype(np.float32)
         return x.astype(np.float32)
-
-    def _stack_of(self, n: int) -> NDArray[np.float32]:
-        """The frame stack (n, k, d): the current one, or zeros at a trial start or a new batch size."""
-        if self._stack is None or self._stack.shape[0] != n:
-            return np.zeros((n, self.frame_stack, self.obs_dim), dtype=np.float32)
-        return self._stack
 
     def predict(
         self,
