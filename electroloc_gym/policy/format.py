@@ -552,7 +552,7 @@ class Observation(_Strict):
     mode: Name  # one of OBSERVATION_MODES
     frame_stack: Count
     frame_dim: Count
-    shape: Annotated[list[Count], Meta(min_length=1, max_length=1)]
+    shape: Annotated[list[Count], Meta(min_length=1, max_length=1)]  # the network input: frame_stack · frame_dim
     space: BoxSpace | DiscreteSpace
 
 
@@ -579,7 +579,7 @@ class Normalization(Struct, omit_defaults=True):
 
 
 class PolicyFile(_Strict):
-    """``policy.json`` (the module docstring says what each key means)."""
+    """``policy.json``; ``env_kwargs`` (the training env's), ``provenance`` and ``evaluation`` are plain data."""
 
     format: Literal["electroloc-gym-policy"]
     format_version: Literal[1]

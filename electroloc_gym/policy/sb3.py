@@ -80,13 +80,8 @@ def normalization_from_vecnormalize(vn: Any) -> dict[str, Any] | None:
     out: dict[str, Any] = {
         "norm_obs": bool(vn.norm_obs),
         "norm_reward": bool(vn.norm_reward),
-        "clip_obs": float(vn.clip_obs),
-        "clip_reward": float(vn.clip_reward),
-        "epsilon": float(vn.epsilon),
-        "gamma": float(vn.gamma),
-        "obs_mean": None,
-        "obs_var": None,
-        "obs_count": None,
+        **{k: float(getattr(vn, k)) for k in ("clip_obs", "clip_reward", "epsilon", "gamma")},
+        **dict.fromkeys(("obs_mean", "obs_var", "obs_count")),
     }
     if vn.norm_obs:
         if isinstance(vn.obs_rms, dict):
