@@ -18,7 +18,7 @@ import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,18 +44,17 @@ logger = logging.getLogger(__name__)
 TRAIN_EXTRA = "pip install 'electroloc-gym[train]'"
 
 
-def _agent_own(env_id: Any, env_kwargs: Any) -> dict[str, Any]:
+def _agent_own(env_id: Any, env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:
     """The training env kwargs that are the agent's own on ``env_id`` (options its task declares so, e.g. the
     moving target's ``motion_model``: the policy keeps the belief it was trained with); none for an env that is
-    not registered here or kwargs that are not a mapping.
+    not registered here.
     """
     from electroloc_gym.registry import ENV_IDS, env_entry
 
-    if not isinstance(env_id, str) or env_id not in ENV_IDS or not isinstance(env_kwargs, Mapping):
+    if env_id not in ENV_IDS or env_kwargs is None:
         return {}
     own = env_entry(env_id).agent_arguments
-    kwargs = cast("Mapping[str, Any]", env_kwargs)
-    return {k: v for k, v in kwargs.items() if k in own}
+    return {k: v for k, v in env_kwargs.items() if k in own}
 
 
 class LearnedAgent:
