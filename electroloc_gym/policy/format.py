@@ -7,7 +7,7 @@ provenance) and ``policy.safetensors`` (the policy network's tensors: torch ``st
 JSON type and range (no key the format does not define; ``normalization`` may keep VecNormalize's other keys);
 each refusal is msgspec's one line with the field's path. What no type says is checked after
 (:func:`_cross_checks`): each name one of its table's keys, the algo's class, ``recurrent`` exactly for the
-recurrent class, ``net_arch`` of the form the class builds, the action type the class acts in.
+recurrent class, ``net_arch`` of the form the class builds, an action type the class acts in and the space fits.
 
 ``normalization`` is ``null`` (raw observations: said explicitly, never by leaving the key out) or VecNormalize's
 frozen statistics. Statistics of ``frame_dim`` values normalise each frame before stacking (rl-zoo3's order:
