@@ -1,9 +1,6 @@
 """Minari datasets of the benchmark's agents: collection, seed protocol, reference scores and the command.
 
-The datasets (:mod:`electroloc_gym.dataset.collect`), their seed protocol and reference scores
-(:mod:`electroloc_gym.dataset.seed_protocol`), and the ``electroloc dataset`` command
-(:mod:`electroloc_gym.dataset.dataset_command`). Minari is the optional ``minari`` extra; importing this package does
-not import it.
+Minari is the optional ``minari`` extra; importing this package does not import it.
 """
 
 from electroloc_gym.dataset.collect import DatasetRequest, build_dataset, dataset_env_kwargs, dataset_id, step_infos

@@ -1,32 +1,16 @@
 """Minari datasets of any benchmark agent: ``electroloc dataset`` and :func:`build_dataset`.
 
-A dataset is the episodes of one agent on one env in Minari's own format (its arrow storage and header)
-under ``MINARI_DATASETS_PATH`` (Minari's default folder when unset), with the id
-``electroloc/<env-id>/<agent>-v<N>``. Nothing goes to a hub. What it holds:
-
-* the env spec of the episodes' env (``minari.load_dataset(id).recover_environment()`` rebuilds it:
-  the benchmark's env kwargs for the agent — its sensor model, particles, cap, observation mode — with
-  ``condition="random"``, one of the paper's eight presets drawn per episode from the reset seed);
-* per episode the reset seed (:func:`~electroloc_gym.dataset.seed_protocol.episode_seeds`: training seeds,
-  disjoint from the benchmark's evaluation seeds), the observations, actions, rewards, flags;
-* per step (reset included) the infos of :func:`step_infos`: the belief summary (estimate, covariance,
-  spread, readings fused), the reading, the condition's index and the truth (the hidden position; for the
-  unknown target its radius and contrast) — for analysis and privileged critics, never an agent's input;
-* in the metadata: ``ref_min_score`` / ``ref_max_score`` (rnd-wlk and the best planner,
-  :func:`~electroloc_gym.dataset.seed_protocol.reference_scores`; absent without a reference), the agent spec
-  (its options included) as ``algorithm_name``, and an ``electroloc`` block: agent, env kwargs, root seed,
-  the planned episode count, the reference's provenance, and ``complete``;
-* in each episode's ``metadata.json``: the sha256 of its ``part-0.arrow`` and of the settings it was
-  collected with.
+A dataset ``electroloc/<env-id>/<agent>-v<N>`` is one agent's episodes on one env in Minari's own format under
+``MINARI_DATASETS_PATH`` (docs/learned.md). Its env spec is the benchmark's env kwargs for the agent with
+``condition="random"`` (a preset drawn per episode from the reset seed); each episode is reset with its training
+seed (:func:`~electroloc_gym.dataset.seed_protocol.episode_seeds`) and stores per step the infos of
+:func:`step_infos` — for analysis and privileged critics, never an agent's input. The header holds the reference
+scores (:func:`~electroloc_gym.dataset.seed_protocol.reference_scores`), the agent spec as ``algorithm_name`` and
+an ``electroloc`` block (the settings, the planned count, the reference's provenance, ``complete``).
 
 The episodes are the benchmark's rollout loop (:func:`electroloc_gym.baselines.rollout.run_episode`) with the
-agent built by the benchmark's own constructor (:func:`electroloc_gym.bench.agents.make_bench_agent`):
-every spec ``electroloc bench --agents`` takes works here. How the files are written — beside the dataset,
-published with one rename when complete, a kill at any moment resumable, every kept episode checked on
-resume — is :mod:`electroloc_gym.dataset.store`. An existing id is refused unless ``resume``
-(continue an unfinished dataset of the same settings from the episodes that pass the checks: the same
-seeds, so the same episodes; on a complete dataset it checks every episode and re-collects the damaged
-ones, or says there is nothing to collect) or ``force`` (replace it).
+agent built by :func:`electroloc_gym.bench.agents.make_bench_agent`: every spec ``electroloc bench --agents``
+takes works here. How the files are written, resumed and replaced is :mod:`electroloc_gym.dataset.store`.
 """
 
 from __future__ import annotations
@@ -110,12 +94,8 @@ def _env_ids() -> Any:
 
 @dataclass(frozen=True)
 class DatasetRequest:
-    """What one dataset is (validated on construction; every error one line naming the argument).
-
-    Its fields are the settings of ``electroloc dataset``, each declared with its flag, help (what it is),
-    check and default (:class:`~electroloc_gym.options.Option`); ``version`` None is 0 (the default id's
-    version, so not given with ``dataset_id``). The command's other options are :data:`BUILD_OPTIONS`
-    (:func:`build_dataset`'s).
+    """What one dataset is: the settings of ``electroloc dataset``, each declared once as an
+    :class:`~electroloc_gym.options.Option` (checked on construction, every error one line naming the argument).
     """
 
     env_id: str = setting(
@@ -379,24 +359,9 @@ def _storage_fields(env: Any) -> dict[str, Any]:
             return json.load(fh)
 
 
-def _staging_storage(folder: Path, env: Any) -> Any:
-    """Minari's arrow storage in ``folder``'s staging folder (made afresh), where episodes are written
-    before they are moved into ``data/``.
-    """
-    from minari.dataset.minari_storage import MinariStorage
-
-    staging = folder / store.STAGING
-    store.remove(staging)
-    staging.mkdir()
-    return MinariStorage.new(
-        staging, observation_space=env.observation_space, action_space=env.action_space, data_format="arrow"
-    )
-
-
 def _write_episode(folder: Path, staging: Any, buffer: Any, digest: str) -> int:
-    """Write ``buffer`` into ``folder/data/<id>``: by Minari's ``staging`` storage, its metadata given the
-    sha256 of its arrow file and the settings' ``digest``, then moved in whole (one rename; see
-    :mod:`.store`); returns its step count.
+    """Write ``buffer`` by Minari's ``staging`` storage, add the sha256 of its arrow file and the settings'
+    ``digest`` to its metadata, and move it into ``folder/data/<id>`` whole; returns its step count.
     """
     k = int(buffer.id)
     staging.update_episodes([buffer])
@@ -421,15 +386,8 @@ def build_dataset(
 ) -> Any:
     """Collect ``request`` into a local Minari dataset; returns the loaded ``MinariDataset``.
 
-    Args:
-        request: the dataset.
-        resume: continue an unfinished dataset of the same settings, checking every episode it keeps;
-            a damaged one is set aside (``quarantine/<n>/`` in the dataset's folder) and re-collected. A
-            complete dataset is checked the same way (repaired, or left as it is when every episode passes).
-        force: replace an existing dataset of the id, once the new one is complete (the old one is
-            kept if the run fails or is killed).
-        progress: show a progress bar.
-        notify: called with one line when a resume sets something aside (default: printed to stderr).
+    ``resume``, ``force`` and ``progress`` are :data:`BUILD_OPTIONS`; ``notify`` is called with one line when a
+    resume sets something aside (default: printed to stderr).
 
     Raises:
         ValueError: bad input, an existing id without ``resume``/``force``, a resumed dataset of other
@@ -579,7 +537,7 @@ class _Run:
         found = store.inspect_dataset(ds_id, folder, self.settings, self.seeds, self.header())
         if self.refs is None and found.header is not None:  # the reference it was started with
             old_refs = found.header["electroloc"].get("reference")
-            self.refs = old_refs if isinstance(old_refs, dict) and _REF_KEYS <= old_refs.keys() else None
+            self.refs = old_refs if isinstance(old_refs, dict) and store.REFERENCE_KEYS <= old_refs.keys() else None
         self.kept = found.kept
         if folder == path:
             if found.intact(self.request.episodes):
@@ -612,8 +570,16 @@ class _Run:
                         raise
             store.start_partial(self.paths, self.header())
             self.started = True
-        if self.staging is None:
-            self.staging = _staging_storage(partial, self.env)
+        if self.staging is None:  # Minari's arrow storage in a fresh staging folder
+            from minari.dataset.minari_storage import MinariStorage
+
+            staging = partial / store.STAGING
+            store.remove(staging)
+            staging.mkdir()
+            env = self.env
+            self.staging = MinariStorage.new(
+                staging, observation_space=env.observation_space, action_space=env.action_space, data_format="arrow"
+            )
         self.kept[int(buffer.id)] = _write_episode(partial, self.staging, buffer, self.digest)
 
     def finish(self) -> None:
@@ -628,5 +594,4 @@ class _Run:
         store.publish(self.paths)
 
 
-_REF_KEYS = {"ref_min_score", "ref_max_score"}
 _SEED_PROTOCOL = "SeedSequence(seed, spawn_key=(9, episode)); benchmark trials use root seed 0, streams 0-8"

@@ -1,11 +1,9 @@
 """``electroloc dataset``: one agent's episodes on one env as a local Minari dataset (:mod:`.collect`).
 
-Its options are :data:`~electroloc_gym.dataset.collect.DATASET_OPTIONS` (declared once with
-:class:`~electroloc_gym.dataset.collect.DatasetRequest`, the Python API). Bad input is one line
-(``electroloc dataset: error: …``, exit 2) before anything is written: the integer options take ASCII digits
-only (the benchmark's own parser), an agent whose ``predict`` raises is named
-with its episode as ``electroloc bench`` names it with its trial, and a file-system failure names the file.
-A dataset without reference scores is said to be one.
+Its options are :data:`~electroloc_gym.dataset.collect.DATASET_OPTIONS`. Bad input is one line
+(``electroloc dataset: error: …``, exit 2) before anything is written; an agent whose ``predict`` raises is
+named with its episode as ``electroloc bench`` names it with its trial. A dataset without reference scores is
+said to be one.
 """
 
 from __future__ import annotations
@@ -29,7 +27,7 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``electroloc dataset`` (:data:`~electroloc_gym.dataset.collect.DATASET_OPTIONS`)."""
+    """The options of ``electroloc dataset``."""
     from electroloc_gym.dataset.collect import DATASET_OPTIONS
     from electroloc_gym.options import add_options
 

@@ -10,23 +10,17 @@ seed other than the evaluation seed 0 (refused), so no dataset episode is a benc
 :func:`evaluation_overlap` checks it against the evaluation seeds themselves.
 
 **Reference scores.** Minari's normalised score is ``(return − ref_min_score) / (ref_max_score −
-ref_min_score)``. An episode's return is ``1 − R`` (reward −1 per reading after the reset's first one; a
-failed episode reads the cap), with R the readings the learned table counts (a failure counted as the
-cap). So ``ref_min_score = 1 − R_rnd`` and ``ref_max_score = 1 − R_best``, with ``R_rnd`` the mean
-readings of rnd-wlk and ``R_best`` those of the best non-learned planner on the benchmark's trials of the
-same env (the committed baseline run of the learned suite, ``<results>/<env-id>/_baselines/bench``): 0 at
-rnd-wlk and 1 at the best planner, as in the learned table (whose score averages per-condition ratios;
-the dataset's uses the means over the same conditions).
-
-On an env whose task declares its own score (``Task.metrics.score``, e.g. the moving target, where every
-episode reads its cap and the readings say nothing) agents are compared by that score (the mean over
-conditions of each condition's mean, e.g. the tracking error in mm, lower better), and the reference
-scores are its negatives: ``ref_min_score = −E_rnd``, ``ref_max_score = −E_best``. Each task declares
-that scale with its score (``Score.reference``: the return 1 − R for the readings; the negated value by
-default), and the block's ``score`` names the score. On a task whose score is an error (the moving target's),
-an episode's score on that scale is −(its error): the mean of the dataset's per-step ``error_mm`` info over the
-scored second half (``n_observations`` above half the cap), the episode's value of the task's declared score
-— not the return, which sums the error over every reading.
+ref_min_score)``: 0 at rnd-wlk and 1 at the best non-learned planner on the benchmark's trials of the same env
+(the learned suite's committed baseline run, ``<results>/<env-id>/_baselines/bench``), an agent's score the mean
+over conditions of its per-condition means of the env task's declared score (``Task.metrics.score``, which the
+reference block's ``score`` names; the learned table averages per-condition ratios instead). The task puts that
+score on the return's scale (``Score.reference``; by default negated where lower is better). For the readings
+R the learned table counts (a failure counted as the cap) it is ``1 − R``, an episode's return (reward −1 per
+reading after the reset's first one), so ``ref_min_score = 1 − R_rnd`` and ``ref_max_score = 1 − R_best``.
+For an error, e.g. the moving target's tracking error in mm, where every episode reads its cap and the readings
+say nothing, they are ``−E_rnd`` and ``−E_best``, and an episode's score is −(the mean of its per-step
+``error_mm`` info over the scored second half, ``n_observations`` above half the cap): the episode's value of
+the declared score, not the return, which sums the error over every reading.
 """
 
 from __future__ import annotations

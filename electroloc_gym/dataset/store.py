@@ -1,10 +1,6 @@
 """A dataset's folders on disk: where a run writes, how it publishes, and what a resume keeps.
 
-Its ids, the datasets root, the check of every kept episode, the set-aside folder and the publication of a
-dataset by rename.
-
-Layout, under the datasets root (``MINARI_DATASETS_PATH``, Minari's default ``~/.minari/datasets`` when
-unset; :func:`datasets_root`)::
+Layout, under the datasets root (:func:`datasets_root`)::
 
     <namespace>/<name>-vN/                          the dataset (what the id names; Minari reads data/)
         data/metadata.json                          Minari's header and the "electroloc" block
@@ -17,25 +13,24 @@ unset; :func:`datasets_root`)::
 
 **Sized to data that regenerates.** Every episode of a dataset is a function of its settings and its seed,
 so a run needs no journal: it writes beside the dataset, in the partial folder, and publishes with one
-rename. The partial starts with its header (its settings, ``complete`` false), written in a folder of its own
-that is then renamed to the partial's name (:func:`start_partial`), so a partial always has one; each episode is written
-by Minari's own arrow storage into the partial's ``.staging/`` and moved into ``data/<k>`` whole (one
-rename), its own ``metadata.json`` carrying the sha256 of its ``part-0.arrow`` and of the run's settings
-(:func:`settings_digest`), so that every episode says what it is. When all are there, the files are
-flushed to the disk, the header gets its counts and ``complete``, and the partial is renamed to the
-dataset's name. A kill at any moment leaves whole episodes in the partial, or the published dataset.
+rename. The partial is made whole with its header (its settings, ``complete`` false; :func:`start_partial`);
+each episode is written by Minari's own arrow storage into the partial's ``.staging/`` and moved into
+``data/<k>`` whole (one rename), its ``metadata.json`` carrying the sha256 of its ``part-0.arrow`` and of the
+run's settings (:func:`settings_digest`). When all are there, the files are flushed to the disk, the header
+gets its counts and ``complete``, and the partial is renamed to the dataset's name. A kill at any moment
+leaves whole episodes in the partial, or the published dataset.
 
 **Resume** (:func:`inspect_dataset`, :func:`set_aside`) keeps each episode that is exactly one of these
 settings — its two files and nothing else, its index, seed and settings digest, its arrow file's sha256
-and row count — and regenerates the rest from their seeds. Anything else in ``data/`` is moved to
-``quarantine/<n>/`` (never deleted) and named in one line; an unreadable or altered header is set aside
-there too and rebuilt. A published dataset is checked the same way: intact and as long as asked, it is
-left as it is; otherwise it is moved back to the partial (one rename) and continued.
+and row count — and regenerates the rest from their seeds. Anything else in ``data/``, and an unreadable or
+altered header (then rebuilt), is moved to ``quarantine/<n>/`` and named in one line. A published dataset is
+checked the same way: intact and as long as asked, it is left as it is; otherwise it is moved back to the
+partial (one rename) and continued.
 
-**Replacement** (``--force``): the partial is published over the dataset by two renames (the dataset to
-``.<name>-vN.electroloc-old``, the partial to its name) and the old one deleted last; a run killed between
-the renames is finished by the next run on the id (:func:`recover_swap`). Only a folder that is exactly a
-dataset (``data/`` and this module's own names) is ever replaced.
+**Replacement** (``--force``): the dataset is renamed to ``.<name>-vN.electroloc-old``, the partial to its
+name, and the old one deleted last; a run killed between the renames is finished by the next run on the id
+(:func:`recover_swap`). Only a folder that is exactly a dataset (``data/`` and this module's own names) is
+ever replaced.
 """
 
 from __future__ import annotations
@@ -445,7 +440,7 @@ def _episode_index(name: str) -> int | None:
 
 #: Header keys a run rewrites (counts, size, the block) and those a resume may change (the reference).
 _COUNTED = {"total_episodes", "total_steps", "dataset_size", "electroloc"}
-_REFERENCE = {"ref_min_score", "ref_max_score"}
+REFERENCE_KEYS = {"ref_min_score", "ref_max_score"}
 
 
 def inspect_dataset(
@@ -455,15 +450,9 @@ def inspect_dataset(
     episode_seeds: list[int],
     expected_header: Mapping[str, Any],
 ) -> Inspection:
-    """Check a dataset folder (published or partial) for resuming with ``settings`` (read only).
-
-    Args:
-        ds_id: its id.
-        folder: the dataset folder.
-        settings: agent, env_id, env_kwargs, seed of the run.
-        episode_seeds: reset seed of each planned episode.
-        expected_header: the header these settings give; a readable header whose fixed fields differ from
-            it is set aside and rebuilt.
+    """Check dataset ``ds_id``'s ``folder`` (published or partial) for resuming with ``settings`` (read only):
+    ``episode_seeds`` the reset seed of each planned episode, ``expected_header`` the header these settings give
+    (a readable header whose fixed fields differ from it is set aside and rebuilt).
 
     Raises:
         ValueError: a dataset of other settings, one not written by this package, or one holding episodes
@@ -479,8 +468,8 @@ def inspect_dataset(
             )
         if old != dict(settings):
             raise ValueError(f"dataset {ds_id!r} was started with other settings {old}; pass --force to replace it")
-        fixed = {k: v for k, v in header.items() if k not in _COUNTED | _REFERENCE}
-        if fixed != {k: v for k, v in expected_header.items() if k not in _COUNTED | _REFERENCE}:
+        fixed = {k: v for k, v in header.items() if k not in _COUNTED | REFERENCE_KEYS}
+        if fixed != {k: v for k, v in expected_header.items() if k not in _COUNTED | REFERENCE_KEYS}:
             problem = "differs from the header of these settings"
     found = Inspection(header=header, header_problem=problem)
     if problem is not None and os.path.lexists(header_path(folder)):
