@@ -249,7 +249,6 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
     """
     core = env.unwrapped
     cov = np.asarray(core.belief.covariance(), dtype=np.float64)
-    truth = core.truth_mm
     out: dict[str, Any] = {
         "estimate_mm": np.asarray(info["estimate_mm"], dtype=np.float64),
         "covariance_mm2": np.array([cov[0, 0], cov[0, 1], cov[1, 1]]),
@@ -258,11 +257,10 @@ def step_infos(env: Any, info: dict[str, Any]) -> dict[str, Any]:
         "reading_V": np.float64(np.ravel(info["reading_V"])[0]),
         "success": np.bool_(info["success"]),
         "condition_index": np.int64(info["condition_index"]),
-        "truth_mm": np.asarray(truth, dtype=np.float64).reshape(2),
+        "truth_mm": np.asarray(core.truth_mm, dtype=np.float64).reshape(2),
         "error_mm": np.float64(info["error_mm"]),
     }
-    hidden = core.hidden_state()
-    for key, value in zip(core.hidden_keys[2:], hidden[2:]):  # the hidden shape beyond the position
+    for key, value in zip(core.hidden_keys[2:], core.hidden_state()[2:]):  # the hidden shape beyond the position
         out["truth_" + key.removeprefix("target_")] = np.float64(value)
     for key in core.entry().task_class.metrics.dataset_info:  # the task's own estimates (its declaration)
         out[key] = np.float64(info[key])
@@ -355,8 +353,7 @@ def _storage_fields(env: Any) -> dict[str, Any]:
             env_spec=env.spec,
             data_format="arrow",
         )
-        with open(Path(tmp) / "metadata.json", encoding="utf-8") as fh:
-            return json.load(fh)
+        return json.loads((Path(tmp) / "metadata.json").read_text(encoding="utf-8"))
 
 
 def _write_episode(folder: Path, staging: Any, buffer: Any, digest: str) -> int:
@@ -487,9 +484,7 @@ class _Run:
 
     def header(self, *, complete: bool = False, size: float | None = None) -> dict[str, Any]:
         """The header of the episodes kept so far (Minari counts only the unbroken run 0, 1, …)."""
-        n = 0
-        while n in self.kept:
-            n += 1
+        n = min(set(range(len(self.kept) + 1)) - self.kept.keys())
         block = {
             **self.settings,
             "evaluation_seed": EVALUATION_SEED,

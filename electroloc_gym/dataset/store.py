@@ -399,13 +399,10 @@ class Inspection:
         parts = []
         episodes = [(rel.split("/")[1], why) for rel, why in self.damaged if _is_episode_path(rel)]
         others = [(rel, why) for rel, why in self.damaged if not _is_episode_path(rel) and rel != _HEADER_REL]
-        if episodes:
-            n = len(episodes)
-            shown = "; ".join(f"{k}: {why}" for k, why in episodes)
-            parts.append(f"{n} damaged episode{'s' if n > 1 else ''} ({_clip(shown)})")
-        if others:
-            shown = "; ".join(f"{rel}: {why}" for rel, why in others[:3])
-            parts.append(f"{len(others)} other file{'s' if len(others) > 1 else ''} ({_clip(shown)})")
+        for noun, items, listed in (("damaged episode", episodes, episodes), ("other file", others, others[:3])):
+            if items:
+                shown = "; ".join(f"{name}: {why}" for name, why in listed)
+                parts.append(f"{len(items)} {noun}{'s' if len(items) > 1 else ''} ({_clip(shown)})")
         if self.header_problem is not None and moved_to is not None and not parts:
             parts.append(_HEADER_REL)
         line = f"set aside {' and '.join(parts)} in {moved_to}" if parts else ""
