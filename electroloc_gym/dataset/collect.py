@@ -53,6 +53,7 @@ MINARI_HINT = "pip install 'electroloc-gym[minari]'"
 #: Most episodes one dataset may plan.
 MAX_EPISODES = 1_000_000
 _NAME_RE = re.compile(r"[^A-Za-z0-9_-]+")
+_ENDS_ITSELF = "ends episodes itself (zero-crossing's Table 1 layout); a dataset needs episodes the env ends"
 
 
 def dataset_id(env_id: str, agent: str, version: int = 0) -> str:
@@ -302,10 +303,7 @@ def _episode_buffer(env: Any, agent: Any, k: int, root_seed: int) -> Any:
 
     episode = run_episode(_Recorder(env), agent, env_seed, agent_seed=agent_seed)
     if episode.ended_by == "agent" or not acts:
-        raise ValueError(
-            f"agent {getattr(agent, 'name', agent)!r} ends episodes itself (zero-crossing's Table 1 "
-            f"layout); a dataset needs episodes the env ends"
-        )
+        raise ValueError(f"agent {getattr(agent, 'name', agent)!r} {_ENDS_ITSELF}")
     stacked = {key: [i[key] for i in infos] for key in infos[0]}
     return EpisodeBuffer(
         id=k,
@@ -413,10 +411,7 @@ def build_dataset(
         if why is not None:
             raise ValueError(f"agent {request.agent!r} cannot run on {request.env_id}: {why}")
         if getattr(agent, "table_layout", None) == "table1":  # it reports its own estimate and stops (Table 1)
-            raise ValueError(
-                f"agent {request.agent!r} ends episodes itself (zero-crossing's Table 1 layout); a dataset "
-                f"needs episodes the env ends"
-            )
+            raise ValueError(f"agent {request.agent!r} {_ENDS_ITSELF}")
         kwargs = dataset_env_kwargs(request.env_id, agent, request.condition)
     except AgentCallError as exc:
         raise ValueError(f"agent {request.agent!r}: {exc}") from None
@@ -557,12 +552,11 @@ class _Run:
             from minari.namespace import create_namespace, list_local_namespaces
 
             namespace = self.request.id.rsplit("/", 1)[0]
-            if namespace not in list_local_namespaces():
-                try:
-                    create_namespace(namespace)
-                except ValueError:  # another id's run created it meanwhile
-                    if namespace not in list_local_namespaces():
-                        raise
+            try:
+                create_namespace(namespace)
+            except ValueError:  # it exists (another id's run may have made it meanwhile)
+                if namespace not in list_local_namespaces():
+                    raise
             store.start_partial(self.paths, self.header())
             self.started = True
         if self.staging is None:  # Minari's arrow storage in a fresh staging folder

@@ -124,14 +124,12 @@ def check_dataset_id(text: Any) -> str:
 
 
 def datasets_root() -> Path:
-    """The datasets root: ``MINARI_DATASETS_PATH``, or Minari's default when unset; writable.
-
-    A set but empty ``MINARI_DATASETS_PATH`` is refused (Minari's loaders cannot use it either); a missing
-    folder is created when its parent folder exists (Minari's default is created with its parents).
+    """The datasets root: ``MINARI_DATASETS_PATH``, or Minari's default when unset; writable. A missing folder
+    is created when its parent folder exists (Minari's default with its parents).
 
     Raises:
-        ValueError: set to an empty string, a file, a folder whose parent does not exist, or a place
-            this process cannot write — one line naming the variable.
+        ValueError: set to an empty string (Minari's loaders cannot use it either), a file, a folder whose
+            parent does not exist, or a place this process cannot write — one line naming the variable.
     """
     raw = os.environ.get("MINARI_DATASETS_PATH")
     if raw is None:
