@@ -38,13 +38,6 @@ def eta_s(done_at_s: list[float], total: int, warm: int) -> float | None:
     return (total - len(done_at_s)) * (t1 - t0) / n
 
 
-def _fmt(seconds: float) -> str:
-    s = int(round(seconds))
-    h, rem = divmod(s, 3600)
-    m, s = divmod(rem, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m:02d}:{s:02d}"
-
-
 class TrialProgress:
     """A tqdm bar over a run's trials (or nothing, when ``enabled`` is False).
 
@@ -76,7 +69,7 @@ class TrialProgress:
         if self._bar is None:
             return
         eta = eta_s(self._done, self.total, self.warm)
-        when = "ETA after warm-up" if eta is None else f"ETA {_fmt(eta)}"
+        when = "ETA after warm-up" if eta is None else f"ETA {self._bar.format_interval(round(eta))}"
         self._bar.set_postfix_str(
             f"{when}, last: {agent_display_name(record['agent'])} on {record['condition']}", refresh=False
         )
