@@ -49,12 +49,12 @@ def _bench_options_of(env_id: str, gain_levels: tuple[float, ...] | None) -> str
 
 def _training_extra_missing() -> str | None:
     """Why learned policies cannot run here (None: they can)."""
-    for module in ("electroloc_gym.policy",):
-        try:
-            if importlib.util.find_spec(module) is None:
-                return f"the training extra is not installed ({module} missing; {TRAIN_EXTRA_HINT})"
-        except (ImportError, ValueError) as exc:
-            return f"the training extra is not importable ({module}: {exc})"
+    module = "electroloc_gym.policy"
+    try:
+        if importlib.util.find_spec(module) is None:
+            return f"the training extra is not installed ({module} missing; {TRAIN_EXTRA_HINT})"
+    except (ImportError, ValueError) as exc:
+        return f"the training extra is not importable ({module}: {exc})"
     return None
 
 
@@ -67,10 +67,7 @@ def default_agents(
     sensor_layout: str | None = None,
 ) -> list[AgentChoice]:
     """What a run without ``--agents`` considers: the paper's controllers, then every shipped model
-    trained on ``env_id``.
-
-    A shipped model that cannot run here is listed with the reason it is skipped (the training
-    extra missing, its files not loading, or another env).
+    trained on ``env_id`` (the others listed as skipped, with the reason).
 
     Args:
         names: the controllers to run first (a bench row's ``agents``; None: the paper's three), then the
@@ -92,30 +89,20 @@ def default_agents(
         if trained_on is not None and trained_on != (env_id, gain_levels):
             what = trained_on[0] + ("" if trained_on[1] is None else f" with gain_levels={list(trained_on[1])}")
             here = env_id + ("" if gain_levels is None else f" with gain_levels={list(gain_levels)}")
-            levels = None if trained_on[1] is None else tuple(trained_on[1])
-            choices.append(
-                AgentChoice(
-                    name, skipped=f"trained on {what}, not {here}", runs_with=_bench_options_of(trained_on[0], levels)
-                )
+            choice = AgentChoice(name, f"trained on {what}, not {here}", _bench_options_of(*trained_on))
+        elif (layout := trained_sensor_layout(policy_meta(name))) is not None and layout != (sensor_layout or "single"):
+            choice = AgentChoice(
+                name,
+                f"trained with sensor_layout={layout!r}, not {sensor_layout or 'single'!r}",
+                f"--sensor-layout {layout}",
             )
-            continue
-        layout = trained_sensor_layout(policy_meta(name))
-        if layout is not None and layout != (sensor_layout or "single"):
-            choices.append(
-                AgentChoice(
-                    name,
-                    skipped=f"trained with sensor_layout={layout!r}, not {sensor_layout or 'single'!r}",
-                    runs_with=f"--sensor-layout {layout}",
-                )
-            )
-            continue
-        if missing:
-            choices.append(AgentChoice(name, skipped=missing))
-            continue
-        try:
-            cached_agent(name, trust_pickle=trust_pickle)
-        except ValueError as exc:
-            choices.append(AgentChoice(name, skipped=str(exc)))
+        elif missing:
+            choice = AgentChoice(name, missing)
         else:
-            choices.append(AgentChoice(name))
+            try:
+                cached_agent(name, trust_pickle=trust_pickle)
+                choice = AgentChoice(name)
+            except ValueError as exc:
+                choice = AgentChoice(name, str(exc))
+        choices.append(choice)
     return choices
