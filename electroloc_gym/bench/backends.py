@@ -6,11 +6,8 @@ worker count: every trial carries its own seeds (``numpy.random.SeedSequence`` i
 and trial, see :mod:`electroloc_gym.bench.config`), and workers build their envs and agents
 themselves.
 
-Built in: ``"process"`` (default; a local ``concurrent.futures`` process pool, ``spawn`` start
-method, every worker pinned to the calling process's thread count —
-:func:`~electroloc_gym.utils.runtime.chosen_threads`, one unless chosen — and every worker exits when the process that
-started it dies — :func:`exit_with_parent`) and ``"serial"`` (in-process, for
-debugging and tests). More backends (e.g. Ray) register with :func:`register_backend`::
+Built in: ``"process"`` (default, :class:`ProcessBackend`) and ``"serial"`` (in-process, for debugging and
+tests). More backends (e.g. Ray) register with :func:`register_backend`::
 
     class RayBackend(Backend):
         name = "ray"
@@ -23,6 +20,8 @@ from __future__ import annotations
 
 import abc
 import concurrent.futures as cf
+import contextlib
+import itertools
 import multiprocessing as mp
 import os
 import signal
@@ -71,20 +70,17 @@ def exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
     re-parented when its parent dies). A worker whose parent died before this ran exits at once.
     """
     if sys.platform.startswith("linux"):
-        try:
+        with contextlib.suppress(OSError, AttributeError):  # an exotic libc: the poller still works
             import ctypes
 
             ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
-        except (OSError, AttributeError):  # pragma: no cover - exotic libc; the poller still works
-            pass
     if os.getppid() != parent_pid:
         os._exit(1)
 
     def watch() -> None:
-        while True:
+        while os.getppid() == parent_pid:
             time.sleep(poll_s)
-            if os.getppid() != parent_pid:
-                os._exit(1)
+        os._exit(1)
 
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
@@ -143,9 +139,13 @@ class SerialBackend(Backend):
             yield spec, worker_fn(spec)
 
 
+_POOL_BROKE = "the process pool broke: a worker exited or was killed"
+
+
 class ProcessBackend(Backend):
     """A local process pool (``concurrent.futures.ProcessPoolExecutor``, spawn); every worker runs
-    :func:`~electroloc_gym.utils.runtime.chosen_threads` numeric threads (one unless chosen).
+    :func:`~electroloc_gym.utils.runtime.chosen_threads` numeric threads (one unless chosen) and exits when the
+    process that started it dies (:func:`exit_with_parent`).
 
     At most one trial per worker is in flight, so a worker that dies (the pool breaks) is known to have
     been running one of those few (:class:`WorkerLost` lists them).
@@ -173,19 +173,12 @@ class ProcessBackend(Backend):
                 initargs=(os.getpid(), threads, plugin_modules()),
             ) as pool:
                 todo = iter(specs)
-                futures: dict[cf.Future, Any] = {}
-                for spec in todo:
-                    futures[pool.submit(worker_fn, spec)] = spec
-                    if len(futures) >= self.workers:
-                        break
+                futures = {pool.submit(worker_fn, spec): spec for spec in itertools.islice(todo, self.workers)}
                 try:
                     while futures:
                         done, _ = cf.wait(futures, return_when=cf.FIRST_COMPLETED)
-                        broken = [f for f in done if isinstance(f.exception(), BrokenProcessPool)]
-                        if broken:
-                            raise WorkerLost(
-                                list(futures.values()), "the process pool broke: a worker exited or was killed"
-                            )
+                        if any(isinstance(f.exception(), BrokenProcessPool) for f in done):
+                            raise WorkerLost(list(futures.values()), _POOL_BROKE)
                         for fut in done:
                             spec = futures.pop(fut)
                             yield spec, fut.result()
@@ -194,10 +187,7 @@ class ProcessBackend(Backend):
                                 try:
                                     futures[pool.submit(worker_fn, nxt)] = nxt
                                 except BrokenProcessPool:  # a worker died while this trial's result was kept
-                                    raise WorkerLost(
-                                        list(futures.values()) or [nxt],
-                                        "the process pool broke: a worker exited or was killed",
-                                    ) from None
+                                    raise WorkerLost(list(futures.values()) or [nxt], _POOL_BROKE) from None
                 finally:
                     for fut in futures:
                         fut.cancel()
