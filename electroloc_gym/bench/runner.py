@@ -117,11 +117,8 @@ def _resume(
 
 def _check_agents(config: BenchConfig, trust_pickle: bool) -> tuple[str, list[str]]:
     """Fail fast (before any worker starts and before the output folder is touched) on bad agent names,
-    paths, factories or policy files; on a plug-in agent that would change the run's protocol
-    (:func:`~electroloc_gym.bench.agents.plug_in_problem`); on an agent that cannot run on the run's
-    sensor layout or whose decisions do not fit in memory; and on a learned policy recorded for another
-    env, observation layout or action space. Returns what runs, and a warning per agent whose own
-    estimate of a decision exceeds :data:`SLOW_DECISION_S`.
+    paths, factories or policy files, and on an agent that cannot run (:func:`_check_agent`). Returns what
+    runs, and the warnings.
     """
     described, warnings = [], []
     for spec in config.agents:
@@ -138,10 +135,14 @@ def _check_agents(config: BenchConfig, trust_pickle: bool) -> tuple[str, list[st
 
 
 def _check_agent(config: BenchConfig, ref: AgentRef, agent: Any) -> tuple[str, str | None]:
-    """:func:`_check_agents` for one agent: what runs, and a warning (or None).
+    """What runs, and a warning (or None) when the agent's own estimate of a decision exceeds
+    :data:`SLOW_DECISION_S`.
 
     Raises:
-        ValueError: the agent cannot run on this benchmark.
+        ValueError: a plug-in agent that would change the run's protocol
+            (:func:`~electroloc_gym.bench.agents.plug_in_problem`), an agent that cannot run on the run's sensor
+            layout or whose decisions do not fit in memory, or a learned policy recorded for another env,
+            observation layout or action space.
         AgentCallError: the agent's own code raised (a plug-in agent's attributes are read through
             :class:`~electroloc_gym.bench.agents.PluginAgent`).
     """
@@ -231,11 +232,8 @@ def probe_env(config: BenchConfig, spec: str, agent: Any) -> None:
 
 
 def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
-    """summary.json, table.md, steps.png and conditions.png, all rendered before any is written: together or not
-    at all.
-
-    If writing fails part-way, the files already replaced are removed, so no folder holds a summary and a
-    table of different records.
+    """The :data:`OUTPUT_FILES`, all rendered before any is written: together or not at all (on a failure none
+    stays, so no folder holds a summary and a table of different records).
     """
     from electroloc_gym.bench.plots import conditions_png, steps_png
     from electroloc_gym.bench.tables import render_table_md
@@ -247,14 +245,9 @@ def _write_outputs(out: Path, summary: dict[str, Any]) -> None:
             "steps.png": steps_png(summary),
             "conditions.png": conditions_png(summary),
         }
-    except BaseException:  # the old files describe other records: none stays beside trials.jsonl
-        for name in OUTPUT_FILES:
-            (out / name).unlink(missing_ok=True)
-        raise
-    try:
         for name in OUTPUT_FILES:
             atomic_write_bytes(out / name, content[name])
-    except BaseException:
+    except BaseException:  # the old files describe other records: none stays beside trials.jsonl
         for name in OUTPUT_FILES:
             (out / name).unlink(missing_ok=True)
         raise
