@@ -7,11 +7,10 @@ Without an address a local Ray runtime with ``workers`` CPUs is started (and shu
 one, the run joins that cluster, which must have electroloc-gym installed on every node (or ship it with a
 Ray ``runtime_env``).
 
-Results do not depend on the backend: every trial spec carries its own seeds
-(``numpy.random.SeedSequence``, :mod:`electroloc_gym.bench.config`), and each Ray worker imports
-``electroloc_gym`` itself — which registers the env ids in that worker — and pins its numeric
-libraries to one thread before running the trial. Ray is imported only when a run
-starts, so registering this backend costs nothing when Ray is absent.
+Results do not depend on the backend (:mod:`electroloc_gym.bench.backends`): each Ray worker imports
+``electroloc_gym`` itself — which registers the env ids in that worker — and pins its numeric libraries'
+threads before running the trial. Ray is imported only when a run starts, so registering this backend costs
+nothing when Ray is absent.
 """
 
 from __future__ import annotations
@@ -38,14 +37,13 @@ _PROBE = (
     "import logging, sys\nimport ray\n"
     "ray.init(address=sys.argv[1], logging_level=logging.ERROR, log_to_driver=False)\nray.shutdown()\n"
 )
-_INSTALL = "pip install 'electroloc-gym[ray]' (or pip install ray)"
 
 
 def ray_missing(what: str, extra: str = "ray") -> str:
     """The one line for ``what`` (an option, a script) run where Ray is not installed: the install command of the
     package's ``extra`` that brings it (``"ray"``: the benchmark's backend; ``"rllib"``: RLlib training).
     """
-    install = _INSTALL if extra == "ray" else f"pip install 'electroloc-gym[{extra}]'"
+    install = f"pip install 'electroloc-gym[{extra}]'" + (" (or pip install ray)" if extra == "ray" else "")
     return f"{what} needs Ray, which is not installed here: {install}"
 
 
@@ -190,16 +188,14 @@ class RayBackend(Backend):
         ray = _import_ray()
         started = False
         if not ray.is_initialized():
-            env_vars = thread_env()  # workers read these at numpy import; pin_threads reads the count
-            kwargs: dict[str, Any] = {
-                "runtime_env": {"env_vars": env_vars},
-                "log_to_driver": False,
-                "include_dashboard": False,
-            }
-            if self.address is None:
-                kwargs["num_cpus"] = self.workers
             try:
-                ray.init(address=self.address, **kwargs)
+                ray.init(
+                    address=self.address,
+                    num_cpus=self.workers if self.address is None else None,  # a cluster has its own CPUs
+                    runtime_env={"env_vars": thread_env()},  # read at numpy import, and by pin_threads
+                    log_to_driver=False,
+                    include_dashboard=False,
+                )
             except ConnectionError as exc:
                 raise ValueError(f"--address {self.address!r}: {str(exc).splitlines()[0]}") from None
             started = True
