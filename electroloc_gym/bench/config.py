@@ -75,8 +75,7 @@ __all__ = [
 #: Most readings a trial may be capped at (``max_observations``): far beyond the paper's 35, short of a
 #: trial that cannot run.
 MAX_READINGS = 100_000
-#: Bounds of the other numeric settings: far beyond the paper (50 trials, 2500 particles), short of what cannot
-#: run (the plan is held in memory: at most :data:`MAX_PLANNED_TRIALS` trials in all).
+#: Bounds of the other numeric settings: far beyond the paper (50 trials, 2500 particles), short of what cannot run.
 MAX_TRIALS = 100_000
 MAX_WORKERS = 1024
 MAX_PARTICLES = 1_000_000
@@ -535,10 +534,7 @@ def trial_seeds(seed: int, condition: str, trial: int) -> tuple[int, int]:
 
 def make_trial_specs(config: BenchConfig, *, trust_pickle: bool = False) -> list[TrialSpec]:
     """All trials of a run, condition-major."""
-    specs = []
-    for cond in config.conditions:
-        for k in range(config.trials):
-            env_seed, agent_seed = trial_seeds(config.seed, cond, k)
-            for agent in config.agents:
-                specs.append(TrialSpec(cond, agent, k, env_seed, agent_seed, config, trust_pickle=trust_pickle))
-    return specs
+    seeds = {(c, k): trial_seeds(config.seed, c, k) for c in config.conditions for k in range(config.trials)}
+    return [
+        TrialSpec(c, a, k, *seeds[c, k], config, trust_pickle=trust_pickle) for c, k in seeds for a in config.agents
+    ]
