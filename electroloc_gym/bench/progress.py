@@ -17,34 +17,21 @@ __all__ = ["eta_s", "TrialProgress"]
 
 
 def eta_s(done_at_s: list[float], total: int, warm: int) -> float | None:
-    """Seconds left, from the completion times (s, increasing) of the trials done so far.
+    """Seconds left of ``total`` trials, from the completion times ``done_at_s`` (s, increasing) of those done.
 
-    Args:
-        done_at_s: when each finished trial finished.
-        total: trials of the run.
-        warm: how many first results include start-up (the worker count); the rate is measured
-            after the ``warm``-th result.
-
-    Returns:
-        None until at least one trial finished after the ``warm``-th.
+    The first ``warm`` results (the worker count) include start-up: the rate is measured after the ``warm``-th,
+    and None returned until a trial finished after it.
     """
     warm = max(1, min(warm, total))
     if len(done_at_s) <= warm:
         return None
     t0, t1 = done_at_s[warm - 1], done_at_s[-1]
-    n = len(done_at_s) - warm
-    if t1 <= t0:
-        return None
-    return (total - len(done_at_s)) * (t1 - t0) / n
+    return None if t1 <= t0 else (total - len(done_at_s)) * (t1 - t0) / (len(done_at_s) - warm)
 
 
 class TrialProgress:
-    """A tqdm bar over a run's trials (or nothing, when ``enabled`` is False).
-
-    Args:
-        total: trials to run.
-        workers: parallel workers (their first results are the warm-up).
-        enabled: show the bar.
+    """A tqdm bar over a run's ``total`` trials (or nothing, when ``enabled`` is False); the first results of
+    the ``workers`` are the warm-up.
     """
 
     def __init__(self, total: int, workers: int, enabled: bool = True) -> None:
