@@ -92,13 +92,8 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
     else:
         success = bool(ep.terminated and info["success"])
         estimate = [float(info["estimate_mm"][0]), float(info["estimate_mm"][1])]
-    if estimate is not None:
-        err_xy = np.asarray(estimate) - target
-        error: float | None = float(np.hypot(*err_xy))
-        error_x: float | None = float(err_xy[0])
-        error_y: float | None = float(err_xy[1])
-    else:
-        error = error_x = error_y = None
+    err_xy = None if estimate is None else np.asarray(estimate) - target
+    error = None if err_xy is None else float(np.hypot(*err_xy))
     dms = np.asarray(ep.decision_s) * 1e3
     return TrialRecord.from_json(
         {
@@ -113,8 +108,8 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
             "ended_by": ep.ended_by,
             "readings": int(info["n_observations"]),
             "error_mm": to_json_data(error),
-            "error_x_mm": to_json_data(error_x),
-            "error_y_mm": to_json_data(error_y),
+            "error_x_mm": to_json_data(None if err_xy is None else float(err_xy[0])),
+            "error_y_mm": to_json_data(None if err_xy is None else float(err_xy[1])),
             "estimate": estimate,
             "target": [float(target[0]), float(target[1])],
             "start": [float(start[0]), float(start[1])],
