@@ -11,6 +11,7 @@ section after the Table-4 layout, or the whole document for a task without a suc
 
 from __future__ import annotations
 
+from functools import cache
 from typing import Any
 
 from electroloc_gym.baselines.agent import PAPER_AGENTS
@@ -102,19 +103,15 @@ def _f(x: Any, digits: int = 1) -> str:
     return "–" if x is None else f"{x:.{digits}f}"
 
 
-def _paper_cells(paper: tuple | None, row: dict[str, Any] | None = None) -> tuple[str, str, str]:
-    """The paper's success (failure), error mean/median and steps mean/median cells ("" when absent).
-
-    With the run's ``row``, the success cell also gives the counts (of the run's trials) inside the
-    paper's 90 % binomial interval and marks the run's count ✓ (inside) or ✗ (outside).
+def _paper_cells(paper: tuple | None, row: dict[str, Any]) -> tuple[str, str, str]:
+    """The paper's success (failure), error mean/median and steps mean/median cells ("" when absent); the
+    success cell also gives the paper's 90 % binomial interval as counts of the run's trials and marks the
+    run's count ✓ (inside) or ✗ (outside).
     """
     if not paper:
         return "", "", ""
-    success = f"{paper[0]}({paper[1]})"
-    if row is not None:
-        mark = _interval_mark(paper, row)
-        if mark:
-            success += f" {mark}"
+    mark = _interval_mark(paper, row)
+    success = f"{paper[0]}({paper[1]}) {mark}" if mark else f"{paper[0]}({paper[1]})"
     return success, _pair(paper[2], paper[3]), f"{paper[4]:g}/{paper[5]:g}"
 
 
@@ -130,18 +127,13 @@ def _decisive_trials(paper_successes: int, paper_trials: int) -> int:
     return n
 
 
+@cache
 def verdict_min_trials() -> int:
     """The fewest trials per cell for a ✓/✗ against the paper's interval: :func:`_decisive_trials` of every
     paper count the tables mark (Tables 2 and 4), the largest (3: the paper's 31 and 32 of 50 need three).
     """
-    global _VERDICT_MIN_TRIALS
-    if _VERDICT_MIN_TRIALS is None:
-        papers = {(int(p[0]), int(p[0]) + int(p[1])) for p in (*PAPER_TABLE4.values(), *PAPER_TABLE2.values())}
-        _VERDICT_MIN_TRIALS = max(_decisive_trials(s, n) for s, n in papers)
-    return _VERDICT_MIN_TRIALS
-
-
-_VERDICT_MIN_TRIALS: int | None = None
+    papers = {(int(p[0]), int(p[0]) + int(p[1])) for p in (*PAPER_TABLE4.values(), *PAPER_TABLE2.values())}
+    return max(_decisive_trials(s, n) for s, n in papers)
 
 
 def _interval_mark(paper: tuple, row: dict[str, Any]) -> str:
@@ -149,8 +141,7 @@ def _interval_mark(paper: tuple, row: dict[str, Any]) -> str:
     in it ("[none of N] –" when no count of the run's trials is: :func:`~electroloc_gym.bench.fidelity.interval_mark`).
     Below :func:`verdict_min_trials` trials the mark gives the interval and no verdict ("[lo–hi] –").
     """
-    n = int(row["successes"]) + int(row["failures"])
-    paper_n = int(paper[0]) + int(paper[1])
+    n, paper_n = _trials(row), int(paper[0]) + int(paper[1])
     if n <= 0 or paper_n <= 0:
         return ""
     mark = interval_mark(int(row["successes"]), n, int(paper[0]), paper_n)
@@ -197,16 +188,13 @@ def _inside_counts(rows: list[dict[str, Any]]) -> str:
         trials += [_trials(r) for r in mine]
         if cells:
             parts.append(f"{agent} {sum(m.endswith('✓') for m in tested)} of {len(tested)}")
+    if not parts:
+        return ""
     note = _untested_note(marks, trials)
     return (
         "Success counts inside the paper's 90 % binomial interval (Wilson, of its "
-        f"{PAPER_TRIALS} trials; [lo–hi] = that interval in this run's trials): "
-        + "; ".join(parts)
-        + "."
-        + (f" {note}" if note else "")
-        if parts
-        else ""
-    )
+        f"{PAPER_TRIALS} trials; [lo–hi] = that interval in this run's trials): {'; '.join(parts)}."
+    ) + (f" {note}" if note else "")
 
 
 def is_all_conditions(row: dict[str, Any]) -> bool:
@@ -276,9 +264,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
     metrics = _summary_metrics(summary)
     if metrics.table is not None and metrics.table.replaces and _has_task_rows(metrics, rows):
         return "\n".join(task_table_lines(metrics, rows, cfg))
-    out: list[str] = []
-    out.append(f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}")
-    out.append("")
+    out = [f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}", ""]
     if cfg:
         out.append(
             f"{cfg.get('trials')} trials per condition and agent, seed {cfg.get('seed')}, sensor model "
@@ -295,8 +281,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
             )
             out.append("")
     if t4:
-        out.append("## Table 4 layout (particle-filter agents)")
-        out.append("")
+        out += ["## Table 4 layout (particle-filter agents)", ""]
         subset = any(r["condition"] == "all" and not is_all_conditions(r) for r in t4)
         aggregate = (
             "the *Subset* row averages the per-condition values over this run's conditions (as the paper's "
@@ -352,8 +337,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
         out.append("")
         inside = _inside_counts(t4)
         if inside:
-            out.append(inside)
-            out.append("")
+            out += [inside, ""]
         alls = [r for r in t4 if r["condition"] == "all"]
         if alls:
             out.append(
@@ -375,8 +359,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
     if metrics.table is not None and not metrics.table.replaces and _has_task_rows(metrics, t4):
         out.extend(task_table_lines(metrics, t4, cfg))
     if t1:
-        out.append("## Table 1 layout (zero-crossing)")
-        out.append("")
+        out += ["## Table 1 layout (zero-crossing)", ""]
         out.append(
             "Workspace 160 × 160 mm centred at a random point within ±75 mm (paper §6.4); mean absolute error "
             "of the final estimate in x and y over successful trials. *Repeatability* is the mean distance "
@@ -389,9 +372,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
             if r["condition"] == "all":
                 label, paper, rep = f"{aggregate_label(r)} (average)", None, ""
                 if is_all_conditions(r):
-                    xs = [PAPER_TABLE1[c][0] for c in PAPER_TABLE1]
-                    ys = [PAPER_TABLE1[c][1] for c in PAPER_TABLE1]
-                    paper = (sum(xs) / len(xs), sum(ys) / len(ys))
+                    paper = tuple(sum(axis) / len(axis) for axis in zip(*PAPER_TABLE1.values()))
             else:
                 water, sphere = _cond_label(r["condition"])
                 label = f"{water} {sphere}"
