@@ -1,25 +1,13 @@
 """The benchmark's output folder: checked before any work, locked while a run writes, records keyed.
 
-* :func:`prepare_out_dir` — ``--out`` must be a folder that can be created and written (an empty
-  path, an existing file, a path under a file or an unwritable folder is one clear error).
-* :func:`run_lock` — an exclusive lock on ``OUT/.bench.lock`` (``filelock``, through
-  :class:`electroloc_gym.utils.fileio.FolderLock`) held for the whole run: a second run on the same folder
-  refuses at once (the lock goes with the process that holds it).
-* :func:`load_records` — reads ``trials.jsonl`` keyed by (condition, agent, trial), each line parsed
-  (or, where it is absent, the ``trials.jsonl.gz`` of a kept run stored compressed: :func:`stored_trials`)
-  decoded by msgspec into the one schema (:class:`~electroloc_gym.bench.schema.TrialRecord`) and checked
-  against the run (:class:`~electroloc_gym.bench.schema.RecordRules`): a damaged or impossible line (not
-  UTF-8, not JSON, longer than any record, a missing key, a wrong type, a value out of range, fields that
-  contradict each other or the run) and a second line for a key already present are reported by file and line and
-  *set aside* (moved to ``trials.rejected.jsonl``, so those trials run again); a record whose seeds
-  or settings are not the run's is *foreign* (the runner refuses to resume). No record is ever
-  counted twice. A kept record is returned in the current key names
-  (:data:`~electroloc_gym.bench.schema.OLD_KEY_NAMES`).
-* :func:`compress_trials` — stores a finished run's ``trials.jsonl`` as ``trials.jsonl.gz`` (gzip, level 9,
-  mtime 0 and no file name: the same records give the same bytes); every reader reads it where
-  ``trials.jsonl`` is absent, and a run never appends to it (``--resume`` on such a folder is refused).
-* :class:`RecordWriter` — appends one line per finished trial, flushed and fsync'ed at once (a killed
-  run loses no finished trial).
+A run holds an exclusive lock on ``OUT/.bench.lock`` (:func:`run_lock`) for its whole length.
+:func:`load_records` decodes each line of ``trials.jsonl`` (or of a kept run's ``trials.jsonl.gz``,
+:func:`compress_trials`) into the one schema (:class:`~electroloc_gym.bench.schema.TrialRecord`) and checks it
+against the run (:class:`~electroloc_gym.bench.schema.RecordRules`): a damaged or impossible line, or a second
+line for a (condition, agent, trial) already read, is reported by file and line and *set aside* (moved to
+``trials.rejected.jsonl`` by :func:`set_aside`, so its trial runs again); a record of another run's seeds or
+settings is *foreign* (the runner refuses to resume). No record is counted twice; a kept record is returned
+in the current key names.
 """
 
 from __future__ import annotations

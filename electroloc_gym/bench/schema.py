@@ -1,16 +1,11 @@
 """The trial record: one msgspec ``Struct`` that is the schema of every line of ``trials.jsonl``.
 
-:class:`TrialRecord` declares each field once with its type and range (``msgspec.Meta``); msgspec decodes a
-line straight into it (:meth:`TrialRecord.from_line`, or a parsed object with :meth:`TrialRecord.from_json`),
-refusing a wrong type, a value out of range, a missing or unknown key, a non-finite number or malformed JSON
-in one line naming the field (``Expected `int` >= 1 - at `$.readings```), and its ``__post_init__`` checks
-what no type can say: the consistency of the fields with each other. :meth:`TrialRecord.problem` checks a
-record against the run it is read into (:class:`RecordRules`: the run's conditions, agents, trial index
-range, each agent's observation cap and success criterion, the env's own keys). The worker
-(:func:`~electroloc_gym.bench.trials.run_trial`) builds a record through the same class, so what is written
-and what is accepted are one declaration. msgspec is the project's one validation library for the files it
-reads (chosen by the load time of the reference run, ``benchmarks/record_load.py``, and by its one-line
-errors).
+:class:`TrialRecord` declares each field once with its type and range (``msgspec.Meta``): msgspec's decode
+(:meth:`TrialRecord.from_line`, :meth:`TrialRecord.from_json`) refuses what a type can say in one line naming
+the field (``Expected `int` >= 1 - at `$.readings```), and ``__post_init__`` checks what none can (below).
+:meth:`TrialRecord.problem` checks a record against the run it is read into (:class:`RecordRules`). The
+worker (:func:`~electroloc_gym.bench.trials.run_trial`) builds its records through the same class. Why
+msgspec: docs/design.md, "The files the project reads".
 
 Consistency, for every record:
 
@@ -304,8 +299,6 @@ def _current_names(obj: dict[str, Any]) -> dict[str, Any]:
     Raises:
         ValueError: a record holding both a key and its old name.
     """
-    if not any(old in obj for old in OLD_KEY_NAMES):
-        return obj
     out = dict(obj)
     for old, new in OLD_KEY_NAMES.items():
         if old in out:

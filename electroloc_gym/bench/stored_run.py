@@ -1,13 +1,9 @@
 """A stored run read back: its config.json, the rules its records obey, and the one public reader.
 
-* :func:`read_run_records` — the public reader of a finished or partial run's folder
-  (``electroloc bench --out``): its ``config.json`` (the run, a
-  :class:`~electroloc_gym.bench.config.BenchConfig`) and its ``trials.jsonl`` through
-  :func:`~electroloc_gym.bench.records.load_records` with the run's own rules (:func:`record_rules`),
-  so every reader of benchmark records (``--resume``, the reports) keeps and sets aside the same records.
-* :func:`record_rules` — what a record of a run may hold (:class:`~electroloc_gym.bench.schema.RecordRules`),
-  the start each trial's seed draws included.
-* :func:`read_config` — ``config.json`` for ``--resume``: a damaged one is set aside.
+:func:`read_run_records` reads a run's folder (``electroloc bench --out``) with the run's own rules
+(:func:`record_rules`), so every reader of benchmark records (``--resume``, the reports) keeps and sets aside
+the same records; :func:`read_config` is ``--resume``'s read of ``config.json`` (a damaged one is set aside),
+:func:`load_config` the strict one.
 """
 
 from __future__ import annotations
@@ -208,13 +204,11 @@ class RunRecords:
 
 
 def read_run_records(out_dir: str | os.PathLike[str]) -> RunRecords:
-    """Read a benchmark run's folder (``electroloc bench --out``) as ``--resume`` reads it.
+    """Read a benchmark run's folder (``electroloc bench --out``) as ``--resume`` reads it, writing nothing.
 
     ``OUT/config.json`` gives the run; every line of ``OUT/trials.jsonl`` (or of a kept run's
-    ``trials.jsonl.gz``) is parsed within bounds and checked through the record schema and the run's
-    rules (:func:`record_rules`: its conditions, agents, trial range, cap, success criterion, the start
-    each seed draws); a line that fails is set aside and counted, a valid record of another run (other
-    seeds or settings) is counted as foreign. Nothing is written.
+    ``trials.jsonl.gz``) is checked through the record schema and the run's rules (:func:`record_rules`); a
+    line that fails is set aside and counted, a valid record of another run counted as foreign.
 
     Raises:
         ValueError: one line naming the file: the folder, its config.json or its trials.jsonl missing or
