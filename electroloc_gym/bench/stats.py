@@ -186,22 +186,18 @@ def summarize(
                 "label": crow[0]["label"],
                 "table_layout": table_layout[a],
                 "conditions": len(crow),
-                "trials": sum(r["trials"] for r in crow),
-                "successes": sum(r["successes"] for r in crow),
-                "failures": sum(r["failures"] for r in crow),
-                "error_mean_mm": _avg_of(crow, "error_mean_mm"),
-                "error_median_mm": _avg_of(crow, "error_median_mm"),
-                "readings_mean": _avg_of(crow, "readings_mean"),
-                "readings_median": _avg_of(crow, "readings_median"),
+                **{k: sum(r[k] for r in crow) for k in ("trials", "successes", "failures")},
+                **{
+                    k: _avg_of(crow, k)
+                    for k in ("error_mean_mm", "error_median_mm", "readings_mean", "readings_median")
+                },
                 "decision_ms_median": _median(r.get("decision_ms_median") for r in recs),
                 "paired_trials": sum(r["paired_trials"] for r in crow),
-                "error_mean_paired_mm": _avg_of(crow, "error_mean_paired_mm"),
-                "readings_mean_paired": _avg_of(crow, "readings_mean_paired"),
+                **{k: _avg_of(crow, k) for k in ("error_mean_paired_mm", "readings_mean_paired")},
                 "error_median_pooled_mm": _median(r["error_mm"] for r in recs),
                 "readings_median_pooled": _median(r["readings"] for r in recs),
                 "far_successes": sum(is_far_success(r["success"], r["error_mm"]) for r in recs),
-                "error_x_mean_abs_mm": _avg_of(crow, "error_x_mean_abs_mm"),
-                "error_y_mean_abs_mm": _avg_of(crow, "error_y_mean_abs_mm"),
+                **{k: _avg_of(crow, k) for k in ("error_x_mean_abs_mm", "error_y_mean_abs_mm")},
                 **metrics.statistics(recs),  # pooled over the conditions' trials
             }
         )
