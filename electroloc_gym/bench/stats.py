@@ -15,18 +15,10 @@ Appendix B (Table 4):
   (5 + 6 + 6.5 + 5 + 7 + 5 + 6.5 + 12.5)/8 = 6.7 — the paper's 12.4 and 6.7), with summed counts.
   Pooled medians over all trials are given too (``*_pooled`` keys).
 
-``summary.json`` rows also carry the per-agent versions of the means (``error_mean_mm``,
-``readings_mean``: over the agent's own successful trials, App. B item 3's wording for steps), which do
-not change when other agents join the run.
-
-A task's own statistics (``Task.metrics.statistics``, :mod:`electroloc_gym.contract.task_spec`: e.g. the
-moving target's tracking error and capture rate, the unknown target's identification) follow in every
-row: per condition over the condition's trials, in the "all" rows over the agent's pooled trials. The
-run's task is its records' env's (:func:`records_metrics`).
-
-Table 1 (zero-crossing): mean absolute error in x and in y of the final estimates
-(``error_x_mean_abs_mm``, ``error_y_mean_abs_mm``, successful trials), and the repeatability the
-paper's text describes (mean distance of the estimates from their own mean, ``*_repeatability_mm``).
+A task's own statistics (``Task.metrics.statistics``, :mod:`electroloc_gym.contract.task_spec`) follow in
+every row: per condition over the condition's trials, in the "all" rows over the agent's pooled trials. The
+row keys, the per-agent means and Table 1's (zero-crossing) included: docs/benchmark.md, ``summary.json``
+schema.
 """
 
 from __future__ import annotations
