@@ -214,6 +214,30 @@ def _pair(a: Any, b: Any, digits: int = 1) -> str:
     return f"{_f(a, digits)}/{_f(b, digits)}"
 
 
+#: The columns of a particle-filter agent's row (Tables 4 and 2) after the row's own label columns.
+_BELIEF_HEADERS = (
+    "Success (failure)",
+    "Error (mm) mean/median",
+    "No. steps mean/median",
+    "Decision ms",
+    "Paper success (failure)",
+    "Paper error",
+    "Paper steps",
+)
+
+
+def _belief_cells(r: dict[str, Any], paper: tuple | None) -> tuple[str, ...]:
+    """A particle-filter agent's row under :data:`_BELIEF_HEADERS`, its label first."""
+    return (
+        r.get("label", r["agent"]),
+        f"{r['successes']}({r['failures']})",
+        _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
+        _pair(r["readings_mean_paired"], r["readings_median"]),
+        _f(r["decision_ms_median"], 2),
+        *_paper_cells(paper, r),
+    )
+
+
 def _paper_table(env_id: Any) -> str:
     """The paper's table a run's env is laid out like (an id no longer registered: Table 4's layout)."""
     return next((e.paper_table for e in ENVS if e.env_id == env_id), "table4")
@@ -305,35 +329,8 @@ def render_table_md(summary: dict[str, Any]) -> str:
             else:
                 water, sphere = _cond_label(r["condition"])
                 paper = PAPER_TABLE4.get((r["condition"], paper_agent_key(r["agent"]) or ""))
-            cells.append(
-                (
-                    water,
-                    sphere,
-                    r.get("label", r["agent"]),
-                    f"{r['successes']}({r['failures']})",
-                    _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
-                    _pair(r["readings_mean_paired"], r["readings_median"]),
-                    _f(r["decision_ms_median"], 2),
-                    *_paper_cells(paper, r),
-                )
-            )
-        out.extend(
-            markdown_table(
-                (
-                    "Water",
-                    "Sphere (mm)/material",
-                    "Agent",
-                    "Success (failure)",
-                    "Error (mm) mean/median",
-                    "No. steps mean/median",
-                    "Decision ms",
-                    "Paper success (failure)",
-                    "Paper error",
-                    "Paper steps",
-                ),
-                cells,
-            )
-        )
+            cells.append((water, sphere, *_belief_cells(r, paper)))
+        out.extend(markdown_table(("Water", "Sphere (mm)/material", "Agent", *_BELIEF_HEADERS), cells))
         out.append("")
         inside = _inside_counts(t4)
         if inside:
@@ -428,33 +425,9 @@ def _render_table2(summary: dict[str, Any]) -> str:
         ),
         "",
     ]
-    cells = [
-        (
-            r.get("label", r["agent"]),
-            f"{r['successes']}({r['failures']})",
-            _pair(r["error_mean_paired_mm"], r["error_median_mm"]),
-            _pair(r["readings_mean_paired"], r["readings_median"]),
-            _f(r["decision_ms_median"], 2),
-            *_paper_cells(PAPER_TABLE2.get(paper_agent_key(r["agent"]) or ""), r),
-        )
-        for r in rows
-    ]
+    cells = [_belief_cells(r, PAPER_TABLE2.get(paper_agent_key(r["agent"]) or "")) for r in rows]
     note = _untested_note([str(c[5]) for c in cells], [_trials(r) for r in rows])
-    out.extend(
-        markdown_table(
-            (
-                "Control type",
-                "Success (failure)",
-                "Error (mm) mean/median",
-                "No. steps mean/median",
-                "Decision ms",
-                "Paper success (failure)",
-                "Paper error",
-                "Paper steps",
-            ),
-            cells,
-        )
-    )
+    out.extend(markdown_table(("Control type", *_BELIEF_HEADERS), cells))
     out.append("")
     if note:
         out += [note, ""]
