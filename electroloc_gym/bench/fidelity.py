@@ -39,9 +39,7 @@ UNTESTED = "–"
 
 
 def wilson_interval(successes: int, trials: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """Wilson score interval (lo, hi) of a binomial success probability (scipy's ``binomtest``; the paper's
-    90 % by default; :func:`electroloc_gym.utils.intervals.wilson_interval`).
-    """
+    """The Wilson interval (lo, hi), 90 % by default: :func:`electroloc_gym.utils.intervals.wilson_interval`."""
     return _wilson(successes, trials, confidence)
 
 

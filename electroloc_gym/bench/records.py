@@ -236,11 +236,9 @@ def load_records(
 
     Args:
         path: the file; where it is absent, the ``trials.jsonl.gz`` beside it (:func:`stored_trials`).
-        config: if given, every valid record is also checked against the run (seeds, settings);
-            those that do not match are listed in ``foreign`` (and not in ``records``).
-        rules: if given, every record is also checked against what the run allows (conditions,
-            agents, trial range, caps, success criterion, the env's keys); a record that breaks them
-            is rejected (set aside and run again), like a damaged line.
+        config: if given, a valid record of other seeds or settings (:func:`foreign_reason`) is listed in
+            ``foreign`` (and not in ``records``).
+        rules: if given, a record that breaks them (:meth:`TrialRecord.problem`) is rejected like a damaged line.
     """
     out = LoadedRecords(stored_trials(path))
     if not out.path.exists():
