@@ -177,10 +177,7 @@ class RunRecords:
 
     Attributes:
         config: the run (its ``config.json``).
-        loaded: its records: ``loaded.records`` the kept ones by (condition, agent, trial), in the current
-            key names; ``loaded.rejected`` the lines set aside (damaged or impossible) and
-            ``loaded.foreign`` the valid records of another run (another seed or settings), each with its
-            line number and reason.
+        loaded: its records, kept, rejected and foreign (:class:`~electroloc_gym.bench.records.LoadedRecords`).
     """
 
     config: BenchConfig
