@@ -30,10 +30,8 @@ Consistency, for every record:
   target) ends by the cap, whatever its spread.
 * ``start`` is the start the trial's seed draws (checked on resume, :attr:`RecordRules.start_of`).
 
-Keys added to the schema later (:data:`OPTIONAL_RECORD_KEYS`) may be absent from an older record; they
-then read as what such a record means (``distractors`` 0, ``far_success`` computed from ``success`` and
-``error_mm``), never as ``null``. The count of readings was once written ``observations``
-(:data:`OLD_KEY_NAMES`): such a record reads as ``readings``.
+An older record may lack the keys added later (:data:`OPTIONAL_RECORD_KEYS`: their defaults, ``far_success``
+computed) or hold old key names (:data:`OLD_KEY_NAMES`).
 """
 
 from __future__ import annotations
