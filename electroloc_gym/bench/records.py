@@ -77,9 +77,8 @@ def prepare_out_dir(out: str | os.PathLike[str] | None) -> Path:
     """Create the output folder (parents too) and check that files can be written in it.
 
     Raises:
-        ValueError: what :func:`~electroloc_gym.utils.fileio.check_output_folder` refuses (empty, an existing
-            file, under a file, a dangling link, a name too long, not writable), or a folder that cannot be
-            created.
+        ValueError: what :func:`~electroloc_gym.utils.fileio.check_output_folder` refuses, or a folder that
+            cannot be created or written.
     """
     path = check_output_folder("--out", out)
     text = os.fspath(out)  # type: ignore[arg-type]  # check_output_folder refused None
