@@ -2,9 +2,10 @@
 
 A run holds an exclusive lock on ``OUT/.bench.lock`` (:func:`run_lock`) for its whole length.
 :func:`load_records` decodes each line of ``trials.jsonl`` (or of a kept run's ``trials.jsonl.gz``,
-:func:`compress_trials`) into the one schema (:class:`~electroloc_gym.bench.schema.TrialRecord`) and checks it
-against the run (:class:`~electroloc_gym.bench.schema.RecordRules`): a damaged or impossible line, or a second
-line for a (condition, agent, trial) already read, is reported by file and line and *set aside* (moved to
+:func:`compress_trials`, which a run never appends to) into the one schema
+(:class:`~electroloc_gym.bench.schema.TrialRecord`) and checks it against the run
+(:class:`~electroloc_gym.bench.schema.RecordRules`): a damaged or impossible line, or a second line for a
+(condition, agent, trial) already read, is reported by file and line and *set aside* (moved to
 ``trials.rejected.jsonl`` by :func:`set_aside`, so its trial runs again); a record of another run's seeds or
 settings is *foreign* (the runner refuses to resume). No record is counted twice; a kept record is returned
 in the current key names.
@@ -323,7 +324,7 @@ def set_aside(loaded: LoadedRecords) -> Path | None:
 
 
 class RecordWriter:
-    """Append records to trials.jsonl, one line each, flushed and fsync'ed before the next."""
+    """Append records to trials.jsonl, one line each, flushed and fsync'ed before the next (a kill loses none)."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
