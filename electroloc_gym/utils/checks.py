@@ -1,12 +1,8 @@
 """The package's argument checks: one clear ValueError naming the argument and the allowed range.
 
-Every frozen parameter dataclass (the apparatus, the conditions, the scenes, the sensor arrays, the
-envs' :class:`~electroloc_gym.contract.params.EnvParams`) and every agent's options check their numbers
-here, so a bad value reads the same wherever it is given: ``radius_mm must be a finite number > 0,
-got -1.0``. Booleans are refused where a number is asked for (``True`` is an ``int`` to Python), and
-numpy scalars are accepted (a value read from an array).
-
-This module is data-layer: it imports nothing of the package, so every layer may use it.
+Every parameter dataclass and agent option checks its numbers here, so a bad value reads the same wherever
+it is given: ``radius_mm must be a finite number > 0, got -1.0``. Booleans are refused where a number is
+asked for (``True`` is an ``int`` to Python); numpy scalars are accepted. It imports nothing of the package.
 """
 
 from __future__ import annotations
@@ -31,10 +27,14 @@ __all__ = [
 ]
 
 
+def _is_int(value: Any) -> bool:
+    """A Python or numpy integer, not a bool."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
 def check_int(name: str, value: Any, low: int, high: int | None = None) -> int:
     """``value`` as an int in [low, high] (or ≥ low), else a ValueError naming ``name`` and the range."""
-    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
-    if not ok or value < low or (high is not None and value > high):
+    if not _is_int(value) or value < low or (high is not None and value > high):
         rng = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
         raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
     return int(value)
@@ -89,8 +89,7 @@ def check_options(name: str, value: Any, allowed: Sequence[str]) -> dict[str, An
 
 
 def _is_seed(value: Any) -> bool:
-    """A seed: an integer ≥ 0 (Python or numpy; not a bool)."""
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and bool(value >= 0)
+    return _is_int(value) and bool(value >= 0)
 
 
 def check_seeds(seed: Any, n: int) -> None:
@@ -106,7 +105,7 @@ def check_seeds(seed: Any, n: int) -> None:
         or (isinstance(seed, np.ndarray) and seed.ndim != 1)
     ):
         raise ValueError(f"{what}, got {seed!r}")
-    seq = cast("Sequence[Any] | NDArray[Any]", seed)  # the isinstance checks above: a sequence or a 1-D array
+    seq = cast("Sequence[Any] | NDArray[Any]", seed)
     if len(seq) != n:
         raise ValueError(f"{what}, got {len(seq)} seeds")
     bad = [s for s in seq if not (s is None or _is_seed(s))]
@@ -118,27 +117,20 @@ def check_prediction_args(
     particles_mm: Any, moves_mm: Any, particle_dims: int, max_step_mm: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The arguments of the envs' ``predicted_*`` accessors: (M, ``particle_dims``) hypotheses (float32 kept,
-    other dtypes as float64) and (2,) or (C, 2) finite moves, clipped to ±``max_step_mm`` as a step clips
-    them (float64); else one ValueError naming the argument and the shape (or the values: not real numbers,
-    not finite).
+    other dtypes as float64) and (2,) or (C, 2) moves, clipped to ±``max_step_mm`` as a step clips them
+    (float64); else one ValueError naming the argument.
     """
-    p = _real_array("particles_mm", particles_mm, f"(M, {particle_dims})")
+    p = _real_array("particles_mm", particles_mm, f"(M, {particle_dims})", 2, particle_dims)
     if p.dtype not in (np.float32, np.float64):
         p = p.astype(np.float64)
-    if p.ndim != 2 or p.shape[-1] != particle_dims:
-        raise ValueError(f"particles_mm must have shape (M, {particle_dims}), got {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise ValueError("particles_mm must be finite")
-    u = _real_array("moves_mm", moves_mm, "(2,) or (C, 2)").astype(np.float64)
-    if u.ndim not in (1, 2) or u.shape[-1] != 2:
-        raise ValueError(f"moves_mm must have shape (2,) or (C, 2), got {u.shape}")
-    if not np.all(np.isfinite(u)):
-        raise ValueError("moves_mm must be finite")
+    u = _real_array("moves_mm", moves_mm, "(2,) or (C, 2)", 1, 2).astype(np.float64)
     return p, np.clip(u, -max_step_mm, max_step_mm)
 
 
-def _real_array(name: str, value: Any, shape: str) -> np.ndarray:
-    """``value`` as a numpy array of real numbers (integers or floats), else one ValueError naming ``name``."""
+def _real_array(name: str, value: Any, shape: str, min_ndim: int, last: int) -> np.ndarray:
+    """``value`` as a finite numpy array of real numbers of ``shape`` (``min_ndim`` to 2 axes, the last of
+    ``last`` entries), else one ValueError naming ``name``.
+    """
     try:
         arr = np.asarray(value)
     except (TypeError, ValueError):  # ragged nesting
@@ -148,4 +140,8 @@ def _real_array(name: str, value: Any, shape: str) -> np.ndarray:
         shown = " ".join(repr(value).split())
         shown = shown if len(shown) <= 80 else shown[:77] + "..."
         raise ValueError(f"{name} must be a real number array of shape {shape}, got {kind}: {shown}")
+    if not min_ndim <= arr.ndim <= 2 or arr.shape[-1] != last:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite")
     return arr
