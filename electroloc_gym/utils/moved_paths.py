@@ -1,18 +1,15 @@
 """The table of import paths that left their place, and the import hook that says where each one went.
 
-:data:`MOVED` maps every old path to its new one: a module (``electroloc_gym.rollout``) or a name in a
-module that still exists (``electroloc_gym.envs.adapter.condition_index``). It is the CHANGELOG's "Moved"
-table written out one path a row (``tests/test_imports.py`` checks that the two agree).
+:data:`MOVED` is the CHANGELOG's "Moved" tables written out one path a row (``tests/test_imports.py`` checks
+that they agree): a module, or a name in a module that still exists.
 
-* Importing an old module path raises :class:`MovedModuleError` (a ``ModuleNotFoundError``) naming the new
-  one: :class:`MovedPathFinder`, put at the end of ``sys.meta_path`` by :func:`install` (the package's
-  ``__init__`` calls it), is asked only about modules no other finder found, so it never shadows a module
-  that exists. An old package whose modules went to several places (``electroloc_gym.core``) is named with
-  where each of its modules went: Python imports the package before its module, so the error is raised at
-  the package.
+* Importing an old module path raises :class:`MovedModuleError` naming the new one. :class:`MovedPathFinder`
+  sits at the end of ``sys.meta_path``, so it is asked only about modules no other finder found. Python
+  imports a package before its module, so an old package whose modules went to several places
+  (``electroloc_gym.core``) raises, at the package, where each of them went.
 * An old name in a module that still exists is refused by that module's ``__getattr__``
-  (:func:`moved_name_error`): :class:`MovedNameError`, an ``ImportError``, so that ``from module import
-  name`` reports it too (Python replaces an ``AttributeError`` there with its own message).
+  (:func:`moved_name_error`) with an ``ImportError``, so that ``from module import name`` reports it too
+  (Python replaces an ``AttributeError`` there with its own message).
 """
 
 from __future__ import annotations
@@ -120,10 +117,9 @@ def _when(old: str) -> str:
     release = next(
         (r for r, m in MOVES_BY_RELEASE.items() if any(k == old or k.startswith(old + ".") for k in m)), MOVED_IN
     )
-    where = f'the CHANGELOG\'s "Moved" table of {release}'
     if release == UNRELEASED:
-        return f"after electroloc-gym {MOVED_IN} ({where})"
-    return f"in electroloc-gym {release} ({where.replace(' of ' + release, '')})"
+        return f'after electroloc-gym {MOVED_IN} (the CHANGELOG\'s "Moved" table of {UNRELEASED})'
+    return f'in electroloc-gym {release} (the CHANGELOG\'s "Moved" table)'
 
 
 class MovedModuleError(ModuleNotFoundError):
@@ -153,10 +149,7 @@ def _package_text(package: str) -> str | None:
 
 def moved_module_error(fullname: str) -> MovedModuleError | None:
     """The error for importing ``fullname`` when no module of that name exists (None: it never moved)."""
-    if fullname in MOVED:
-        new = MOVED[fullname]
-        return MovedModuleError(f"No module named {fullname!r}: it moved to {new} {_when(fullname)}", name=fullname)
-    text = _package_text(fullname)
+    text = f"it moved to {MOVED[fullname]} {_when(fullname)}" if fullname in MOVED else _package_text(fullname)
     if text is None:
         return None
     return MovedModuleError(f"No module named {fullname!r}: {text}", name=fullname)
@@ -175,19 +168,15 @@ def moved_name_error(module: str, name: str) -> ImportError | AttributeError:
 
 
 class MovedPathFinder:
-    """A ``sys.meta_path`` finder that raises :class:`MovedModuleError` for an old module path of the package.
-
-    It sits at the end of ``sys.meta_path``: Python asks it only about a module the other finders did not
-    find, and it finds nothing itself (None for every other name).
+    """A ``sys.meta_path`` finder that raises :class:`MovedModuleError` for an old module path of the package
+    and finds nothing itself.
     """
 
     @classmethod
     def find_spec(
         cls, fullname: str, path: Sequence[str] | None = None, target: ModuleType | None = None
     ) -> ModuleSpec | None:
-        if not fullname.startswith(_P + "."):
-            return None
-        error = moved_module_error(fullname)
+        error = moved_module_error(fullname) if fullname.startswith(_P + ".") else None
         if error is not None:
             raise error
         return None
