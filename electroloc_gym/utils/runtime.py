@@ -1,17 +1,14 @@
 """Process set-up shared by the CLI, the benchmark workers, the training path, RLlib runners and the scripts.
 
-:func:`pin_threads` sizes every numeric library's thread pool of the process — torch's intra-op pool,
-the BLAS and OpenMP pools (``threadpoolctl``), numba's — to one chosen count, and writes that count into
-the environment (:func:`thread_env`) so that the child processes the package starts (benchmark workers,
-the training run, Ray workers) start with it. The count is :func:`chosen_threads`: an explicit argument
-(the CLI's ``--threads``), else ``$ELECTROLOC_THREADS``, else :data:`DEFAULT_THREADS` = 1.
+:func:`pin_threads` sizes every numeric library's thread pool (torch, BLAS/OpenMP, numba) to one count and
+writes it into the environment, so that the child processes the package starts inherit it.
 
-Why one: the package parallelises by process (``electroloc bench --workers``, the vector envs' batches),
-and the processes already fill the cores. Library threads on top of them oversubscribe the CPU: on a busy
-2-core machine the torch backend ran 10–25× slower with torch's default threads than with one, and SB3's
-PPO 3.6–10× slower (docs/performance.md). The generic variables (``OMP_NUM_THREADS`` …) are overwritten
-with the chosen count rather than read: a cluster job sets them to its cores for one process, which is
-exactly the oversubscription above once the package starts a process per core.
+Why one by default: the package parallelises by process (``electroloc bench --workers``, the vector envs'
+batches), and the processes already fill the cores. Library threads on top of them oversubscribe the CPU:
+on a busy 2-core machine the torch backend ran 10–25× slower with torch's default threads than with one,
+and SB3's PPO 3.6–10× slower. The generic variables (``OMP_NUM_THREADS`` …) are overwritten rather than
+read: a cluster job sets them to its cores for one process, which is exactly that oversubscription once the
+package starts a process per core.
 """
 
 from __future__ import annotations
@@ -54,16 +51,10 @@ MAX_THREADS = 1024
 
 
 def _check_threads(name: str, value: object, from_text: bool = False) -> int:
-    """``value`` (an int; with ``from_text`` a string of digits) as a thread count in [1, MAX_THREADS], else one
-    ValueError naming ``name``.
-    """
-    if from_text and isinstance(value, str):
-        text = value.strip()
-        number = int(text) if text.isdigit() else None
-    elif isinstance(value, int) and not isinstance(value, bool):
-        number = value
-    else:
-        number = None
+    """``value`` (an int; with ``from_text`` a string of digits) as a thread count, else a ValueError."""
+    number = value if isinstance(value, int) and not isinstance(value, bool) else None
+    if from_text and isinstance(value, str) and value.strip().isdigit():
+        number = int(value)
     if number is None or not 1 <= number <= MAX_THREADS:
         raise ValueError(f"{name} must be an integer in [1, {MAX_THREADS}], got {value!r}")
     return number
@@ -71,10 +62,7 @@ def _check_threads(name: str, value: object, from_text: bool = False) -> int:
 
 def chosen_threads(threads: int | None = None) -> int:
     """The thread count of this process's numeric libraries: ``threads`` if given, else ``$ELECTROLOC_THREADS``,
-    else :data:`DEFAULT_THREADS`.
-
-    Raises:
-        ValueError: ``threads`` or ``$ELECTROLOC_THREADS`` not an integer in [1, :data:`MAX_THREADS`].
+    else :data:`DEFAULT_THREADS` (a ValueError when the one given is not an integer in [1, MAX_THREADS]).
     """
     if threads is not None:
         return _check_threads("threads", threads)
@@ -117,11 +105,8 @@ def pin_threads(threads: int | None = None) -> int:
     """Pin every numeric library of this process to :func:`chosen_threads` ``(threads)`` threads; return it.
 
     Writes :func:`thread_env` into ``os.environ`` (for libraries loaded later and for child processes),
-    limits the BLAS/OpenMP pools already loaded (``threadpoolctl``, when installed), sets torch's intra-op
-    pool if torch is already imported (this never imports torch) and numba's pool if numba is loaded.
-
-    Raises:
-        ValueError: a bad ``threads`` or ``$ELECTROLOC_THREADS`` (one line naming it and the range).
+    limits the BLAS/OpenMP pools already loaded (``threadpoolctl``) and the pools of torch and numba when
+    they are loaded (this never imports them).
     """
     n = chosen_threads(threads)
     env = thread_env(n)
@@ -148,7 +133,7 @@ def _numba_threads_started() -> bool:
 
 
 def _pin_numba(n: int) -> None:
-    """Numba's pool: its configured size before its threads start, its active threads after. The package's
+    """Numba's pool (its configured size before its threads start, its active threads after): the package's
     kernels are serial; this pins what user code compiles with ``parallel=True``.
     """
     config = sys.modules.get("numba.core.config")
