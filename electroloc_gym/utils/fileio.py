@@ -1,16 +1,11 @@
-"""The package's one I/O layer: atomic writes, strict JSON and exclusive folder locks.
+"""The package's one I/O layer: output-path checks, atomic writes, strict JSON and exclusive folder locks.
 
-* :func:`check_output_path`, :func:`check_output_folder`: an output file or folder refused before any work
-  when it cannot be written (:func:`check_output_options`: a script's options, through its parser).
-* Atomic writes: a temp file in the target's folder, fsync, then ``os.replace`` — results, models and
-  figures are never left half-written: a reader sees the old file or the new one.
-* Strict JSON (:func:`to_json_data`, :func:`strict_json`, :func:`write_json_atomic`): NaN and ±inf
-  become ``null``, numpy scalars and arrays become plain numbers and lists, so every JSON reader
-  accepts what the package writes.
-* :class:`FolderLock`: an exclusive, non-blocking lock on a file inside a folder (``filelock``, so it
-  works on POSIX and Windows alike), held while a run writes into that folder.
-
-Used by the benchmark, the training path, the figures and the CLI.
+* An output file or folder that cannot be written is refused before any work.
+* Atomic writes: a temp file in the target's folder, fsync, then ``os.replace`` — a reader sees the old
+  file or the new one, never half of one.
+* Strict JSON: NaN and ±inf become ``null``, numpy scalars and arrays plain numbers and lists, so every JSON
+  reader accepts what the package writes.
+* :class:`FolderLock`: held while a run writes into a folder (``filelock``: POSIX and Windows alike).
 """
 
 from __future__ import annotations
@@ -127,16 +122,11 @@ def _probe(folder: Path, message: str) -> None:
 def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[str, ...] | None = None) -> None:
     """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``).
 
-    The rule every command's output files follow (:func:`check_output_folder` is the folders'): not empty,
-    not a folder, no symbolic link in the path that leads nowhere, no component that is a file, every name
-    within the file system's limit (``PC_NAME_MAX``, else 255 bytes; the file's own name leaves room for the
-    temporary file of :func:`atomic_write_bytes`), and a real write succeeds in the nearest existing folder
-    (:func:`probe_write`). Nothing is created.
-
-    Args:
-        name: the option or argument, for the message.
-        path: the file to write.
-        suffixes: the allowed suffixes without the dot (None: any); a path without a suffix is refused too.
+    The rule every command's output files follow: not empty, not a folder, no symbolic link in the path that
+    leads nowhere, no component that is a file, every name within the file system's limit (the file's own
+    name leaves room for the temporary file of :func:`atomic_write_bytes`), and a real write succeeds in the
+    nearest existing folder. Nothing is created. ``suffixes``: the allowed suffixes without the dot (None:
+    any; a path without one is refused too).
     """
     text = os.fspath(path)
     if not str(text).strip():
@@ -156,12 +146,8 @@ def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[s
 
 def check_output_folder(name: str, folder: str | os.PathLike[str] | None) -> Path:
     """Refuse, before any work, an output folder that cannot be created or written (ValueError naming ``name``);
-    return it as a path (``~`` expanded). Nothing is created.
-
-    The rule of :func:`check_output_path` for a folder: not empty, not a file, no symbolic link in the path
-    that leads nowhere, no component that is a file, every name within the file system's limit, and a real
-    write succeeds in it (or, when it does not exist yet, in its nearest existing folder, where it would be
-    created).
+    return it as a path (``~`` expanded). The rule of :func:`check_output_path` for a folder (a real write in
+    it, or in the nearest existing folder where it would be created). Nothing is created.
     """
     text = "" if folder is None else os.fspath(folder)
     if not str(text).strip():
@@ -184,10 +170,8 @@ def check_output_options(
     folders: Mapping[str, str | os.PathLike[str] | None] | None = None,
     suffixes: Mapping[str, tuple[str, ...]] | None = None,
 ) -> None:
-    """A script's output options checked by :func:`check_output_path` (``files``: option → path) and
-    :func:`check_output_folder` (``folders``), before any work; a refusal is ``parser.error`` (argparse: one
-    ``prog: error: …`` line, exit 2). None values (an option not given) are skipped; ``suffixes``: an
-    option's allowed file suffixes.
+    """A script's output options (option → path; None: not given) checked by :func:`check_output_path` and
+    :func:`check_output_folder`; a refusal is ``parser.error`` (argparse: one line, exit 2).
     """
     try:
         for option, path in (files or {}).items():
@@ -224,36 +208,30 @@ def naming_file(path: str | os.PathLike[str]) -> Iterator[None]:
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, durable: bool = True) -> None:
     """Write ``data`` to ``path`` atomically (parent folders are created); an ``OSError`` names ``path``
-    (rather than its temporary file).
-
-    ``durable=False`` skips the fsync: the replacement is as atomic for a killed process; only a crash of
-    the machine can lose it.
+    (rather than its temporary file). ``durable=False`` skips the fsync: only a crash of the machine, not a
+    killed process, can then lose the write.
     """
     p = Path(path)
     try:
-        _atomic_write_bytes(p, data, durable)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+                if durable:
+                    fh.flush()
+                    os.fsync(fh.fileno())
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; results are meant to be shared like any file
+            os.replace(tmp, p)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
     except OSError as exc:  # the target's name, not its temporary file's
         if exc.filename is None or Path(os.fspath(exc.filename)).name.startswith(f".{p.name}."):
             exc.filename, exc.filename2 = os.fspath(path), None
-        raise
-
-
-def _atomic_write_bytes(p: Path, data: bytes, durable: bool) -> None:
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            if durable:
-                fh.flush()
-                os.fsync(fh.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; results are meant to be shared like any file
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
         raise
 
 
@@ -305,15 +283,8 @@ class FolderBusyError(ValueError):
 
 
 class FolderLock:
-    """Exclusive, non-blocking lock on ``folder/name`` (a context manager; ``filelock`` underneath).
-
-    Args:
-        folder: the folder the run writes into (created if missing).
-        name: the lock file's name inside it.
-        busy_message: the :class:`FolderBusyError` message when another process holds the lock.
-
-    Raises:
-        FolderBusyError: on :meth:`acquire` when another process holds the lock.
+    """Exclusive, non-blocking lock on ``folder/name`` (a context manager; the folder is created if missing):
+    :meth:`acquire` raises :class:`FolderBusyError` with ``busy_message`` when another process holds it.
     """
 
     def __init__(self, folder: str | os.PathLike[str], name: str, busy_message: str) -> None:
