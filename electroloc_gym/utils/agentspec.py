@@ -7,16 +7,10 @@ Grammar (whitespace around names, keys and values is ignored)::
               | MODULE ":" FACTORY        a user's factory:        mypkg.agents:make_policy
     options  := key "=" value ("," key "=" value)*
 
-A value is a Python literal (``ast.literal_eval``: numbers, strings, ``None``, tuples, lists,
-dicts) or else a bare word kept as a string (``vote=expected``). Commas, brackets and quotes
-nest: ``lookahead[objective=(a,b)]``, ``x[weights=[1,2,3],name='a,b']`` split where a reader
-expects. A key given twice (``lookahead[depth=2,depth=3]``) is refused, as is an option without
-``=``, an empty key or unbalanced brackets.
-
-A policy path (a model folder or file) is not a spec with options; :func:`is_path_like` tells them
-apart. No library parses this small grammar (argparse and ``ast`` see only parts of it), hence a
-hand-written scanner — one, used by the baselines' registry, the benchmark's CLI, its agent registry
-and its statistics.
+A value is a Python literal (``ast.literal_eval``) or else a bare word kept as a string (``vote=expected``).
+Commas, brackets and quotes nest: ``lookahead[objective=(a,b)]``, ``x[weights=[1,2,3],name='a,b']`` split
+where a reader expects. No library parses this small grammar (argparse and ``ast`` see only parts of it),
+hence a hand-written scanner. A policy path is not a spec; :func:`is_path_like` tells them apart.
 """
 
 from __future__ import annotations
@@ -39,12 +33,8 @@ _OPEN, _CLOSE = "([{", ")]}"
 
 @dataclass(frozen=True)
 class AgentSpec:
-    """A parsed agent spec.
-
-    Attributes:
-        text: the spec as written (stripped): the key of trial records.
-        name: the agent's name, or ``module:factory``.
-        options: keyword options in the order given.
+    """A parsed agent spec: ``text`` as written (stripped, the key of trial records), ``name`` (an agent's
+    name or ``module:factory``) and the ``options`` in the order given.
     """
 
     text: str
@@ -68,11 +58,7 @@ class AgentSpec:
 
     @classmethod
     def parse(cls, text: str) -> AgentSpec:
-        """Parse ``text`` (see the module docstring).
-
-        Raises:
-            ValueError: malformed spec (the message quotes it and says what is wrong).
-        """
+        """:func:`parse_agent_spec`."""
         return parse_agent_spec(text)
 
 
@@ -82,11 +68,7 @@ def is_path_like(text: str) -> bool:
 
 
 def _scan(text: str, what: str) -> list[tuple[int, int]]:
-    """Spans of ``text`` split at commas outside brackets and quotes.
-
-    Raises:
-        ValueError: unbalanced brackets or an unclosed quote.
-    """
+    """Spans of ``text`` split at commas outside brackets and quotes (a ValueError when they do not close)."""
     spans, stack, start, quote, i = [], [], 0, "", 0
     while i < len(text):
         ch = text[i]
@@ -115,13 +97,7 @@ def _scan(text: str, what: str) -> list[tuple[int, int]]:
 
 
 def split_specs(text: str) -> list[str]:
-    """A comma-separated list of specs split at the commas outside brackets and quotes (items stripped).
-
-    ``"lookahead[depth=3,branches=16],min-var"`` → ``["lookahead[depth=3,branches=16]", "min-var"]``.
-
-    Raises:
-        ValueError: unbalanced brackets or quotes.
-    """
+    """A comma-separated list of specs split at the commas outside brackets and quotes (items stripped)."""
     if not isinstance(text, str):
         raise ValueError(f"agents must be a string of comma-separated specs, got {text!r}")
     return [text[a:b].strip() for a, b in _scan(text, "agents")]
@@ -158,13 +134,9 @@ def _option(item: str, where: str, options: dict[str, Any]) -> None:
 
 
 def parse_options(items: Sequence[str], where: str) -> dict[str, Any]:
-    """``["key=value", ...]`` → a dict, by the agent spec's rule for a value (a Python literal, else a bare
-    word, else a bracketed sequence of such values); the one KEY=VALUE syntax of the command lines
-    (``electroloc train --env-kwargs/--hyperparams``, the learned suite's ``--hyperparams``).
-
-    Raises:
-        ValueError: one line starting with ``where``: an item without ``=``, a key that is not an
-            identifier or given twice, or a value that is neither a literal nor a bare word.
+    """``["key=value", ...]`` → a dict, each value read as an agent spec's option; the one KEY=VALUE syntax of
+    the command lines (``electroloc train --env-kwargs/--hyperparams``). A refusal is one line starting with
+    ``where``.
     """
     options: dict[str, Any] = {}
     for item in items:
@@ -173,11 +145,7 @@ def parse_options(items: Sequence[str], where: str) -> dict[str, Any]:
 
 
 def parse_agent_spec(text: str) -> AgentSpec:
-    """Parse an agent spec (see the module docstring).
-
-    Raises:
-        ValueError: not a string, empty, too long, a malformed name or option, or a key given twice.
-    """
+    """Parse an agent spec (the module docstring); a malformed one is a ValueError quoting it."""
     if not isinstance(text, str) or not text.strip():
         raise ValueError(f"agent spec must be a non-empty string, got {text!r}")
     spec = text.strip()

@@ -1,9 +1,4 @@
-"""Confidence intervals shared by every layer (the engines' task declarations, the benchmark's statistics).
-
-:func:`wilson_interval` is the Wilson score interval of a binomial proportion, scipy's
-(``scipy.stats.binomtest(k, n).proportion_ci(confidence_level, method="wilson")``; scipy is imported
-when it is first called).
-"""
+"""Confidence intervals shared by every layer (the engines' task declarations, the benchmark's statistics)."""
 
 from __future__ import annotations
 
@@ -11,10 +6,8 @@ __all__ = ["wilson_interval"]
 
 
 def wilson_interval(successes: int, trials: int, confidence: float) -> tuple[float, float]:
-    """Wilson score interval (lo, hi) of a binomial success probability at two-sided ``confidence``.
-
-    Raises:
-        ValueError: ``trials`` ≤ 0 or ``successes`` outside [0, trials].
+    """Wilson score interval (lo, hi) of a binomial success probability at two-sided ``confidence`` (scipy's,
+    imported on the first call); a ValueError for ``trials`` ≤ 0 or ``successes`` outside [0, trials].
     """
     if trials <= 0 or not 0 <= successes <= trials:
         raise ValueError(f"need 0 ≤ successes ≤ trials and trials > 0, got {successes}/{trials}")

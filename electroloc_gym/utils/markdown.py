@@ -21,20 +21,10 @@ def _line(cells: Sequence[object]) -> str:
 
 
 def markdown_table(header: Sequence[str], rows: Iterable[Sequence[object]], align: str | None = None) -> list[str]:
-    """A markdown table's lines: the header, the separator, then one line per row.
+    """A markdown table's lines (without line ends): the header, the separator, then one line per row.
 
-    Args:
-        header: the column titles.
-        rows: the rows, each with one cell per column; a cell is written as ``str(cell)``.
-        align: one letter per column, ``l`` (left, ``---``), ``r`` (right, ``---:``) or ``c`` (centre,
-            ``:---:``); None: every column ``---``.
-
-    Returns:
-        The lines, without line ends.
-
-    Raises:
-        ValueError: an empty ``header``, ``align`` not one letter of ``lrc`` per column, or a row whose
-            number of cells is not the header's.
+    A cell is written as ``str(cell)``; ``align`` is one letter of ``lrc`` per column (None: every column
+    left). A ValueError refuses an empty header, a bad ``align`` or a row of another length than the header.
     """
     n = len(header)
     if n == 0:
