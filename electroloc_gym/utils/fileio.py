@@ -110,9 +110,7 @@ def _check_names(name: str, path: Path, folder: Path, extra_last: int) -> None:
 
 
 def _probe(folder: Path, message: str) -> None:
-    """A real write in ``folder`` (:func:`probe_write`): permission bits say nothing for root, a read-only
-    file system or ``/proc``. Refused: a ValueError of ``message`` and the system's reason.
-    """
+    """:func:`probe_write` in ``folder``; refused: a ValueError of ``message`` and the system's reason."""
     try:
         probe_write(folder)
     except OSError as exc:
@@ -186,7 +184,7 @@ def check_output_options(
 
 def probe_write(folder: str | os.PathLike[str]) -> None:
     """Create and remove a temporary file in ``folder``: a real write, since permission bits say nothing for
-    root or a read-only file system. Raises the ``OSError`` of a folder that cannot be written.
+    root, a read-only file system or ``/proc``. Raises the ``OSError`` of a folder that cannot be written.
     """
     fd, probe = tempfile.mkstemp(dir=folder, prefix=".electroloc-probe-")
     os.close(fd)
