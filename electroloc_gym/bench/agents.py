@@ -2,40 +2,21 @@
 
 An agent *spec* (what ``--agents`` takes, and the ``agent`` key of every trial record) is one of
 
-* a controller of the paper, optionally with options: ``rnd-wlk``, ``min-var``, ``zero-crossing``,
-  ``min-var[n_voters=2500]`` — built by :func:`electroloc_gym.baselines.make_agent`;
-* the name of a shipped learned policy, ``ppo-belief`` — a folder of ``electroloc_gym.models``
-  (the repository's ``electroloc_gym/models/``, installed with the package);
-* a path to a model folder or a policy file (anything with a ``/``, starting with ``.`` or ``~``,
-  ending in ``.zip``, or an existing folder);
-* a user's factory, ``package.module:factory[key=value,...]``: the module is imported (it must be
-  importable: installed, or on ``PYTHONPATH`` — nothing is picked up from the working directory), the
-  factory called with the options, and the object it returns must have the agent protocol
-  (:func:`protocol_problem`). Importing the module runs its code, as ``import`` would.
+* a built-in controller, optionally with options: ``min-var[n_voters=2500]``
+  (:func:`electroloc_gym.baselines.make_agent`);
+* the name of a shipped learned policy, ``ppo-belief`` (a folder of ``electroloc_gym.models``);
+* a path to a model folder or a policy file (:func:`is_policy_path`);
+* a user's factory, ``package.module:factory[key=value,...]``: the module is imported (installed, or on
+  ``PYTHONPATH``; nothing is picked up from the working directory) and the factory called with the options.
 
 A plug-in agent (a factory's object, or an object handed to the Python API) runs behind
-:class:`PluginAgent`: every attribute the benchmark reads of it — ``env_kwargs``, ``name``, ``reset``,
-``predict``, ``seed``, ``done``, ``table_layout``, ``sensor_layouts``, ``estimate_mm``, the cost estimates,
-whatever a check or a trial reads — goes through one guard, so an exception in its code (a property that
-raises, any exception type, ``SystemExit`` included) is one :class:`AgentAttributeError` naming the
-attribute, as a method that raises is one :class:`~electroloc_gym.baselines.rollout.AgentCallError` naming
-the method; the checks before a run (:func:`make_factory_agent`, :func:`register_object_agent`, the runner's)
-turn either into one ``ValueError`` naming the spec, a trial into one line naming the spec and the trial.
+:class:`PluginAgent`: every attribute the benchmark reads of it goes through one guard, so an exception in
+its code (``SystemExit`` included) is one :class:`AgentAttributeError` naming the attribute, as a method
+that raises is one :class:`~electroloc_gym.baselines.rollout.AgentCallError` naming the method. Every
+failure to build an agent is one ``ValueError`` naming the spec, raised before any trial runs.
 
-Specs are parsed by the package's one parser (:mod:`electroloc_gym.utils.agentspec`), once per process:
-:func:`resolve_agent` turns a spec's text into an :class:`AgentRef` (its kind and parsed form) that
-everything else here reads. The built-in controllers' names are the baselines' registry's
-(:data:`electroloc_gym.baselines.agent.AGENT_NAMES`). Every failure —
-an unknown name, a bad option, a module that does not import, a factory that raises or returns
-something without ``reset``/``predict``, a policy recorded for another env, observation layout or
-action space (:func:`policy_env_problem`) — is one ``ValueError`` naming the spec, raised before any
-trial runs.
-
-Learned policies load through :func:`electroloc_gym.policy.load.load_policy`, which reads the
-project's pickle-free policy files; a bare SB3 ``.zip`` (pickle inside) loads only with
-``trust_pickle=True`` (``--trust-pickle``). The paper's controllers never import the training package.
-Nothing is picked up from the working directory: a default run uses the shipped models only (which ones,
-and why the others are skipped: :mod:`electroloc_gym.bench.default_run`).
+Learned policies load through :func:`electroloc_gym.policy.load.load_policy` (a bare SB3 ``.zip``, pickle
+inside, only with ``trust_pickle=True``); the paper's controllers never import the training package.
 """
 
 from __future__ import annotations
@@ -102,11 +83,7 @@ def is_policy_path(spec: str) -> bool:
 
 
 class AgentAttributeError(AgentCallError):
-    """Reading an attribute of a plug-in agent raised: ``reading its ATTRIBUTE raised Type: first line``.
-
-    An :class:`~electroloc_gym.baselines.rollout.AgentCallError` (``method`` holds the attribute's name), so
-    whatever reports an agent's failing method reports it the same way.
-    """
+    """Reading an attribute of a plug-in agent raised: an ``AgentCallError`` whose ``method`` is the attribute."""
 
     def __init__(self, method: str, error: str) -> None:
         Exception.__init__(self, f"reading its {method} raised {error}")
@@ -128,14 +105,12 @@ def _declared(agent: Any, name: str) -> bool:
 
 
 class PluginAgent:
-    """A plug-in agent behind the benchmark's guard: attribute reads forwarded, their exceptions one line.
+    """A plug-in agent behind the benchmark's guard: attribute reads and writes forwarded to the agent.
 
-    Reading ``proxy.x`` reads ``agent.x``. An absent attribute is an ``AttributeError`` as usual (so
-    ``getattr(agent, "done", False)`` and ``hasattr`` keep their meaning); anything else the read raises —
-    a property's exception of any type, an ``AttributeError`` raised inside a declared property,
-    ``SystemExit`` — is one :class:`AgentAttributeError` naming the attribute (``KeyboardInterrupt`` passes).
-    Methods are the agent's own bound methods: what they raise is reported where they are called
-    (:func:`call_agent`, the rollout loop's guard). Attribute writes go to the agent.
+    An absent attribute is an ``AttributeError`` as usual (so ``getattr(agent, "done", False)`` and
+    ``hasattr`` keep their meaning); anything else the read raises — an ``AttributeError`` raised inside a
+    declared property included — is one :class:`AgentAttributeError` (``KeyboardInterrupt`` passes).
+    Methods are the agent's own bound methods: what they raise is reported where they are called.
     """
 
     __slots__ = ("_agent",)
@@ -187,12 +162,9 @@ _OBJECTS: dict[str, Any] = {}
 
 @dataclass(frozen=True)
 class AgentRef:
-    """An agent spec resolved once: what it names and how it was parsed.
-
-    Attributes:
-        text: the spec as written (stripped): the ``agent`` key of trial records.
-        kind: ``"baseline"`` (a built-in controller), ``"factory"``, ``"object"``, ``"shipped"`` or ``"path"``.
-        parsed: the parsed spec (None for a path or a shipped model's name).
+    """An agent spec resolved once: its ``text`` (stripped), its ``kind`` (``"baseline"``, a built-in
+    controller, ``"factory"``, ``"object"``, ``"shipped"`` or ``"path"``) and its ``parsed`` form (None for a
+    path or a shipped model).
     """
 
     text: str
@@ -209,11 +181,7 @@ _REFS: dict[str, AgentRef] = {}
 
 
 def resolve_agent(spec: str | AgentRef) -> AgentRef:
-    """The :class:`AgentRef` of a spec (parsed once per process).
-
-    Raises:
-        ValueError: a spec that names nothing (the message lists the choices), or a malformed one.
-    """
+    """The :class:`AgentRef` of a spec, parsed once per process (a ValueError names the choices)."""
     if isinstance(spec, AgentRef):
         return spec
     if not isinstance(spec, str) or not spec.strip():
@@ -245,11 +213,8 @@ def _resolve(spec: str) -> AgentRef:
 
 
 def register_object_agent(name: str, agent: Any) -> None:
-    """Make ``agent`` (an object with the agent protocol) the agent named ``name`` in this process.
-
-    Raises:
-        ValueError: ``name`` not a plain agent name, taken by a built-in agent or shipped model, or the
-            object lacks the protocol.
+    """Make ``agent`` (an object with the agent protocol) the agent named ``name`` in this process (a ValueError
+    when ``name`` is not a plain, free agent name or the object lacks the protocol).
     """
     parsed = parse_agent_spec(name)
     if parsed.options or parsed.is_factory or parsed.name in AGENT_NAMES or name in shipped_models():
@@ -257,34 +222,20 @@ def register_object_agent(name: str, agent: Any) -> None:
             f"agent object name {name!r} must be a plain name other than the built-in agents' and shipped models'"
         )
     guarded = agent if isinstance(agent, PluginAgent) else PluginAgent(agent)
-    try:
-        why = protocol_problem(guarded)
-    except AgentCallError as exc:
-        raise ValueError(f"agent object {name!r} ({type(guarded.wrapped).__name__}): {exc}") from None
-    if why is not None:
-        raise ValueError(f"agent object {name!r} ({type(guarded.wrapped).__name__}) is not an agent: it lacks {why}")
-    _OBJECTS[name] = guarded
+    where = f"agent object {name!r} ({type(guarded.wrapped).__name__})"
+    _OBJECTS[name] = _checked(guarded, where, where)
     _REFS.pop(name, None)
     for key in [k for k in _CACHE if k[0] == name]:
         del _CACHE[key]
 
 
 def agent_kind(spec: str | AgentRef) -> str:
-    """``"baseline"``, ``"factory"``, ``"object"``, ``"shipped"`` or ``"path"`` (:func:`resolve_agent`).
-
-    Raises:
-        ValueError: a spec that is none of them (the message lists the choices), or a malformed one.
-    """
+    """The kind of :func:`resolve_agent`'s :class:`AgentRef`."""
     return resolve_agent(spec).kind
 
 
 def protocol_problem(agent: Any) -> str | None:
-    """What ``agent`` lacks of the agent protocol (None: nothing).
-
-    The protocol (:mod:`electroloc_gym.baselines.base`): ``reset(env)`` and
-    ``predict(observation, state=..., episode_start=..., deterministic=...)`` returning ``(action, state)``;
-    optional ``env_kwargs``, ``seed(int)``, ``done``/``estimate_mm``.
-    """
+    """What ``agent`` lacks of the agent protocol of :mod:`electroloc_gym.baselines.base` (None: nothing)."""
     missing = []
     for name, args, kwargs in (
         ("reset", (None,), {}),
@@ -308,14 +259,8 @@ def protocol_problem(agent: Any) -> str | None:
 
 
 def make_factory_agent(spec: str | AgentSpec) -> Any:
-    """Import ``package.module``, call ``factory(**options)`` and check the agent protocol.
-
-    Returns:
-        the object, behind the guard (:class:`PluginAgent`).
-
-    Raises:
-        ValueError: the module does not import, has no such callable, the factory raises, or its
-            object lacks the protocol (or reading it raises) — one line naming the spec.
+    """Import ``package.module``, call ``factory(**options)`` and check the agent protocol: the object behind
+    the guard (:class:`PluginAgent`), or one ValueError naming the spec.
     """
     parsed = spec if isinstance(spec, AgentSpec) else parse_agent_spec(spec)
     try:
@@ -335,16 +280,18 @@ def make_factory_agent(spec: str | AgentSpec) -> Any:
     except BaseException as exc:  # noqa: BLE001 - the user's factory: any failure is reported in one line
         call = f"{parsed.name}({', '.join(f'{k}={v!r}' for k, v in parsed.options.items())})"
         raise ValueError(f"agent {parsed.text!r}: {call} raised {exception_line(exc)}") from None
-    guarded = PluginAgent(agent)
+    what = f"agent {parsed.text!r}: the {type(agent).__name__} object {parsed.name} returned"
+    return _checked(PluginAgent(agent), f"agent {parsed.text!r}", what)
+
+
+def _checked(guarded: PluginAgent, where: str, what: str) -> PluginAgent:
+    """``guarded`` if it has the agent protocol, else a ValueError of ``where`` (reading it raised) or ``what``."""
     try:
         why = protocol_problem(guarded)
     except AgentCallError as exc:
-        raise ValueError(f"agent {parsed.text!r}: {exc}") from None
+        raise ValueError(f"{where}: {exc}") from None
     if why is not None:
-        raise ValueError(
-            f"agent {parsed.text!r}: the {type(agent).__name__} object {parsed.name} returned is not an "
-            f"agent: it lacks {why}"
-        )
+        raise ValueError(f"{what} is not an agent: it lacks {why}")
     return guarded
 
 
@@ -366,17 +313,13 @@ def _policy_path(ref: AgentRef) -> Path:
 
 
 def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pickle: bool = False) -> Any:
-    """Build the agent a spec names.
+    """Build the agent a spec names (one ValueError when it cannot).
 
     Args:
         spec: see the module docstring.
         seed: seed of a controller's own generator (the runner re-seeds before each trial anyway).
         trust_pickle: allow a learned policy whose files need unpickling (SB3's bare zip). Only for
             files you trust: unpickling runs code.
-
-    Raises:
-        ValueError: an unknown name, bad options, a missing path, the training extra not installed, or
-            a policy that does not load (the message names the path).
     """
     ref = resolve_agent(spec)
     kind, spec = ref.kind, ref.text
@@ -416,15 +359,11 @@ def planner_memory_bytes(agent: Any, n_particles: int) -> int:
     ``n_options`` K, ``continuations`` C, ``branches`` B, ``n_particles`` attributes) holds its T·C·K·S
     predicted readings (float32 (x, y) pairs, float64 means and deviations: ≈ 24 bytes each) and about
     four (C·K, B, S) float64 arrays of the futures' weights (``lookahead_objectives.sequence_costs``),
-    with S its subsample of the run's particles.
-
-    Raises:
-        AgentCallError: the agent's ``memory_bytes`` raised, or reading one of those attributes did.
+    with S its subsample of the run's particles. What the agent's code raises is an ``AgentCallError``.
     """
     own = getattr(agent, "memory_bytes", None)
     if callable(own):
-        bytes_: Any = call_agent("memory_bytes", own, n_particles)  # the agent's own figure, any int-like
-        return int(bytes_)
+        return int(call_agent("memory_bytes", own, n_particles))  # the agent's own figure, any int-like
     try:
         depth, k, c, b = int(agent.depth), int(agent.n_options), int(agent.continuations), int(agent.branches)
         s = min(int(agent.n_particles), int(n_particles))
@@ -458,10 +397,7 @@ def builtin_agent(spec: str) -> Any | None:
 
 def decision_seconds(agent: Any, n_particles: int) -> float:
     """The agent's own estimate of one decision's time, s (``decision_seconds(n_particles)``; 0: none, or
-    not a number).
-
-    Raises:
-        AgentCallError: the agent's ``decision_seconds`` raised.
+    not a number). What the agent's code raises is an ``AgentCallError``.
     """
     own = getattr(agent, "decision_seconds", None)
     seconds: Any = call_agent("decision_seconds", own, n_particles) if callable(own) else 0.0
