@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import string
 from dataclasses import dataclass
@@ -21,14 +22,31 @@ import numpy as np
 from electroloc_gym.bench.fidelity import CONFIDENCE, wilson_interval
 from electroloc_gym.bench.tables import PAPER_TABLE4, _cond_label, _summary_metrics, paper_agent_key
 from electroloc_gym.contract.task_spec import Column, TaskMetrics
+from electroloc_gym.utils.fileio import atomic_write_bytes
 
 __all__ = ["plot_steps", "steps_png", "plot_conditions", "conditions_png", "condition_panels"]
 
 
+def _pyplot() -> Any:
+    """``matplotlib.pyplot`` on the Agg backend (no display)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _png(fig: Any) -> bytes:
+    """``fig`` as PNG bytes; the figure is closed."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    _pyplot().close(fig)
+    return buf.getvalue()
+
+
 def plot_steps(summary: dict[str, Any], path: str | os.PathLike[str]) -> None:
     """:func:`steps_png` written atomically to ``path``."""
-    from electroloc_gym.utils.fileio import atomic_write_bytes
-
     atomic_write_bytes(path, steps_png(summary))
 
 
@@ -38,14 +56,7 @@ def steps_png(summary: dict[str, Any]) -> bytes:
     The paper's Fig. 12 values (rnd-wlk, min-var) are drawn as black ticks on the matching bars (its
     failure counts, out of 50 trials, scaled to this run's trial count).
     """
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
+    plt = _pyplot()
     rows = [r for r in summary["rows"] if r.get("table_layout", "table4") == "table4" and r["condition"] != "all"]
     conditions = list(dict.fromkeys(r["condition"] for r in rows))
     agents = list(dict.fromkeys(r["agent"] for r in rows))
@@ -53,20 +64,16 @@ def steps_png(summary: dict[str, Any]) -> bytes:
     if not rows:
         for ax in axes:
             ax.text(0.5, 0.5, "no Table-4 agents in this run", ha="center", va="center", transform=ax.transAxes)
-        fig.savefig(buf, format="png", dpi=110)
-        plt.close(fig)
-        return buf.getvalue()
+        return _png(fig)
     x = np.arange(len(conditions))
     width = 0.8 / max(1, len(agents))
     lookup = {(r["condition"], r["agent"]): r for r in rows}
     table4_agents = {a for _, a in PAPER_TABLE4}  # the paper's agents with Table-4 (Fig. 12) values
     for j, agent in enumerate(agents):
         label = next((r.get("label", agent) for r in rows if r["agent"] == agent), agent)
-        fails = [lookup.get((c, agent), {}).get("failures", np.nan) for c in conditions]
-        med = [lookup.get((c, agent), {}).get("readings_median", np.nan) for c in conditions]
         xs = x - 0.4 + width * (j + 0.5)
-        axes[0].bar(xs, [np.nan if v is None else v for v in fails], width, label=label)
-        axes[1].bar(xs, [np.nan if v is None else v for v in med], width, label=label)
+        for ax, stat in zip(axes, ("failures", "readings_median"), strict=True):
+            ax.bar(xs, [_value(lookup.get((c, agent)), stat) for c in conditions], width, label=label)
         key = paper_agent_key(agent)
         if key in table4_agents:
             n_trials = summary.get("config", {}).get("trials") or 50
@@ -90,9 +97,7 @@ def steps_png(summary: dict[str, Any]) -> bytes:
     for ax in axes:
         ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
+    return _png(fig)
 
 
 @dataclass(frozen=True)
@@ -141,20 +146,20 @@ def condition_panels(metrics: TaskMetrics) -> tuple[Panel, ...]:
         if (set(column.keys()) - {column.key}) & keys:  # a restatement of another plotted statistic
             continue
         same = [c for c in metrics.columns if c.key == column.key]
-        interval = next((c.interval for c in same if c.interval), None)
+        lo_hi = next((c for c in same if c.interval), None)
         percent = any(
             column.key in _percent_fields(c) or (c.interval and set(c.interval) & _percent_fields(c)) for c in same
         )
         label = column.header + (" (%)" if percent and "%" not in column.header else "")
-        if interval:
-            lo_hi = next(c for c in same if c.interval)
-            label += f", {lo_hi.header}" if lo_hi.header != column.header else ""
+        if lo_hi is not None and lo_hi.header != column.header:
+            label += f", {lo_hi.header}"
+        interval = None if lo_hi is None else lo_hi.interval
         panels.append(Panel(column.key, label, interval, bool(percent), table.count))
     return tuple(panels)
 
 
 def _success(row: dict[str, Any]) -> dict[str, Any]:
-    """A localisation row with its success rate and the rate's Wilson interval (the paper's confidence)."""
+    """A localisation row with its success rate and the rate's Wilson interval."""
     n = int(row.get("successes") or 0) + int(row.get("failures") or 0)
     if n <= 0:
         return row
@@ -169,8 +174,6 @@ def _value(row: dict[str, Any] | None, key: str) -> float:
 
 def plot_conditions(summary: dict[str, Any], path: str | os.PathLike[str]) -> None:
     """:func:`conditions_png` written atomically to ``path``."""
-    from electroloc_gym.utils.fileio import atomic_write_bytes
-
     atomic_write_bytes(path, conditions_png(summary))
 
 
@@ -178,13 +181,7 @@ def conditions_png(summary: dict[str, Any]) -> bytes:
     """conditions.png (module docstring) as PNG bytes: one panel per statistic, conditions along x (the pooled
     *all* rows last), one marker per agent with its interval as an error bar.
     """
-    import io
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = _pyplot()
     metrics = _summary_metrics(summary)
     panels = condition_panels(metrics)
     all_rows = [_success(r) for r in summary["rows"]]
@@ -198,15 +195,12 @@ def conditions_png(summary: dict[str, Any]) -> bytes:
 
     drawn = [(p, rows_of(p)) for p in panels]
     drawn = [(p, rows) for p, rows in drawn if rows]
-    buf = io.BytesIO()
     cfg = summary.get("config", {})
     if not drawn:
         fig, ax = plt.subplots(figsize=(6.0, 2.5))
         ax.text(0.5, 0.5, "no per-condition statistics in this run", ha="center", va="center", transform=ax.transAxes)
         ax.set_axis_off()
-        fig.savefig(buf, format="png", dpi=110)
-        plt.close(fig)
-        return buf.getvalue()
+        return _png(fig)
     conditions = list(dict.fromkeys(r["condition"] for _, rows in drawn for r in rows if r["condition"] != "all"))
     if any(r["condition"] == "all" for _, rows in drawn for r in rows):
         conditions.append("all")
@@ -260,6 +254,4 @@ def conditions_png(summary: dict[str, Any]) -> bytes:
         ["all (pooled)" if c == "all" else " ".join(_cond_label(c)) for c in conditions], rotation=30, ha="right"
     )
     fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
+    return _png(fig)
