@@ -34,8 +34,7 @@ AGENT_ENV_KWARGS = ("observation", "action_type")
 
 def agent_env_kwargs(env_id: str | None) -> tuple[str, ...]:
     """The env kwargs an agent may set on ``env_id``: :data:`AGENT_ENV_KWARGS`, then the options its task
-    declares the agent's own (``EnvEntry.agent_arguments``: the filter's model of the target, say); None: the
-    first only.
+    declares the agent's own (``EnvEntry.agent_arguments``); None: the first only.
     """
     return AGENT_ENV_KWARGS + (env_entry(env_id).agent_arguments if env_id is not None else ())
 
@@ -85,12 +84,10 @@ def bench_env_kwargs(
     success_spread_mm: float | None = None,
     builtin: bool = False,
 ) -> dict[str, Any]:
-    """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs``.
-
-    A plug-in agent (``builtin`` false) adds only :func:`agent_env_kwargs` and its hooks are not called
-    (the runner refuses such an agent beforehand, :func:`plug_in_problem`); a built-in controller's
-    ``env_kwargs`` and ``adapt_condition`` apply, never overriding what the bench owns (the tank, the
-    layout, the distractors). ``agent`` may be None (no agent kwargs).
+    """The ``gym.make`` kwargs of a trial: the run's settings, then the agent's own ``env_kwargs`` (``agent``
+    None: none). A plug-in agent (``builtin`` false) adds only :func:`agent_env_kwargs` and its hooks are not
+    called; a built-in controller's ``env_kwargs`` and ``adapt_condition`` apply, never overriding what the
+    bench owns (the tank, the layout, the distractors).
     """
     kwargs: dict[str, Any] = {
         k: v
@@ -127,7 +124,7 @@ def bench_env_kwargs(
 
 def shipped_model_env(folder: Path) -> tuple[str, tuple[float, ...] | None] | None:
     """(env id, gain levels) a shipped policy was trained on (its policy.json's ``observation.env_id``
-    and ``env_kwargs.gain_levels``; plain JSON), or None if the file does not say.
+    and ``env_kwargs.gain_levels``), or None if the file does not say.
     """
     meta = _read_meta(folder)
     if meta is None:
@@ -163,10 +160,7 @@ def trained_sensor_layout(meta: Any) -> str | None:
 
 def policy_meta(spec: str) -> dict[str, Any] | None:
     """The ``policy.json`` of a shipped model or a policy path (None: none, or refused by its schema)."""
-    if spec in shipped_models():
-        path = shipped_models()[spec]
-    else:
-        path = Path(spec).expanduser()
+    path = shipped_models().get(spec) or Path(spec).expanduser()
     if path.is_file():
         path = path if path.name == "policy.json" else path.parent
     return _read_meta(path)
@@ -184,22 +178,17 @@ def policy_env_problem(
     """Why a learned policy cannot run on the run's env (None: it can, or it records nothing to check).
 
     Compares what the policy's ``policy.json`` records — the env id it was trained on, its dynamic-gain
-    levels, its observation frame (``observation.frame_dim``, else the last axis of ``observation.shape``)
-    and its action space — with the run's env built with the policy's own ``env_kwargs`` (its
-    observation mode). A policy trained on one env and benchmarked on another gives meaningless numbers,
-    so this is refused before any trial; there is no override.
+    levels, sensor layout, observation frame (``observation.frame_dim``) and action space — with the run's env
+    built with the policy's own ``env_kwargs``. A policy trained on one env gives meaningless numbers on
+    another: there is no override. The record is read through its schema, so its keys are there.
     """
     meta = policy_meta(spec)
     if meta is None:
         return None
-    obs_entry, act_entry = meta.get("observation"), meta.get("action")
-    obs: dict[str, Any] = obs_entry if isinstance(obs_entry, dict) else {}
-    act: dict[str, Any] = act_entry if isinstance(act_entry, dict) else {}
-    trained = obs.get("env_id")
-    if isinstance(trained, str) and trained != env_id:
-        return f"it was trained on {trained}, this run is on {env_id}"
-    env_kwargs = meta.get("env_kwargs")
-    recorded = (env_kwargs or {}).get("gain_levels") if isinstance(env_kwargs, dict) else None
+    obs, act = meta["observation"], meta["action"]
+    if obs["env_id"] != env_id:
+        return f"it was trained on {obs['env_id']}, this run is on {env_id}"
+    recorded = meta.get("env_kwargs", {}).get("gain_levels")
     mine = None if gain_levels is None else [float(g) for g in gain_levels]
     theirs = None if recorded is None else [float(g) for g in recorded]
     if theirs != mine:
@@ -214,18 +203,16 @@ def policy_env_problem(
     except (TypeError, ValueError) as exc:
         return f"its env_kwargs do not build {env_id}: {exc}"
     try:
-        frame = obs.get("frame_dim") or (obs.get("shape") or [None])[-1]
+        frame = obs["frame_dim"]
         env_frame = env.observation_space.shape[-1] if env.observation_space.shape else None
-        if frame is not None and env_frame is not None and int(frame) != int(env_frame):
+        if env_frame is not None and int(frame) != int(env_frame):
             return (
                 f"its observation frame has {frame} entries, {env_id}'s "
                 f"({getattr(agent, 'env_kwargs', {}).get('observation', 'default')} observation) has {env_frame}"
             )
-        space_entry = act.get("space")
-        space: dict[str, Any] = space_entry if isinstance(space_entry, dict) else {}
+        space, have = act["space"], env.action_space.shape
         want = space.get("shape")
-        have = env.action_space.shape
-        if space.get("type") == "Discrete" or act.get("action_type") == "discrete":
+        if space["type"] == "Discrete" or act["action_type"] == "discrete":
             n = space.get("n")
             if getattr(env.action_space, "n", None) != n:
                 return f"its action space is Discrete({n}), {env_id}'s is {_space_text(env.action_space)}"
