@@ -303,15 +303,6 @@ def agent_display_name(spec: str) -> str:
     return p.parent.name if p.name == "model.zip" and p.parent.name else (p.stem if p.suffix == ".zip" else p.name)
 
 
-def _policy_path(ref: AgentRef) -> Path:
-    if ref.kind == "shipped":
-        return shipped_models()[ref.text]
-    path = Path(ref.text).expanduser()
-    if not path.exists():
-        raise ValueError(f"agent path {ref.text!r} does not exist (expected a model folder or a policy file)")
-    return path
-
-
 def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pickle: bool = False) -> Any:
     """Build the agent a spec names (one ValueError when it cannot).
 
@@ -334,7 +325,9 @@ def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pic
         return make_factory_agent(ref.parsed)
     if kind == "object":
         return _OBJECTS[spec]
-    path = _policy_path(ref)
+    path = shipped_models()[spec] if kind == "shipped" else Path(spec).expanduser()
+    if kind == "path" and not path.exists():
+        raise ValueError(f"agent path {spec!r} does not exist (expected a model folder or a policy file)")
     try:
         from electroloc_gym.policy import load_policy
     except ImportError as exc:
