@@ -226,8 +226,7 @@ def conditions_png(summary: dict[str, Any]) -> bytes:
             ys = np.array([_value(r, panel.key) for r in cells]) * scale
             color = colors[j % len(colors)]
             if panel.interval:
-                lo = np.array([_value(r, panel.interval[0]) for r in cells]) * scale
-                hi = np.array([_value(r, panel.interval[1]) for r in cells]) * scale
+                lo, hi = (np.array([_value(r, k) for r in cells]) * scale for k in panel.interval)
                 err = np.vstack([np.where(np.isnan(lo), 0.0, ys - lo), np.where(np.isnan(hi), 0.0, hi - ys)])
                 ax.errorbar(
                     xs, ys, yerr=np.clip(err, 0.0, None), fmt="o", color=color, capsize=3, ms=5, label=labels[agent]
