@@ -102,14 +102,9 @@ def steps_png(summary: dict[str, Any]) -> bytes:
 
 @dataclass(frozen=True)
 class Panel:
-    """One panel of conditions.png: a statistic per condition and agent, with its interval where it has one.
-
-    Attributes:
-        key: the statistic (a key of the summary's rows).
-        label: the y-axis label.
-        interval: the keys (lo, hi) of its interval, or None.
-        percent: the statistic is a fraction drawn as a percentage.
-        rows: which rows hold it: ``"table4"`` (the localisation table's rows) or the task table's count key.
+    """One panel of conditions.png: the statistic ``key`` of the summary's rows per condition and agent, with
+    its interval's (lo, hi) keys where it has one; ``percent``: a fraction drawn as a percentage; ``rows``:
+    ``"table4"`` (the localisation table's rows) or the task table's count key (the rows that hold it).
     """
 
     key: str
