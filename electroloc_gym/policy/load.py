@@ -25,7 +25,6 @@ from numpy.typing import NDArray
 
 from electroloc_gym.models import shipped_models
 from electroloc_gym.policy.format import (
-    ALGOS,
     POLICY_JSON,
     ObsNormalization,
     PolicyExport,
@@ -36,6 +35,7 @@ from electroloc_gym.policy.format import (
     read_weights,
 )
 from electroloc_gym.policy.networks import build_actor
+from electroloc_gym.policy.tensors import ALGOS
 
 __all__ = ["LearnedAgent", "load_policy", "ShippedPolicy", "shipped_policies"]
 
