@@ -5,7 +5,7 @@ them; each carries an :class:`Option` — flag, help, check, the front ends' def
 argparse options (:func:`add_options`: ASCII integers, choices shown in the usage), a Python API's signature
 (:func:`api_signature`) and the checks both front ends run (:meth:`Option.check_value`: one message, the
 setting named as each front end spells it). ``electroloc bench`` (``bench/config.py``) and ``electroloc
-dataset`` (``dataset/collect.py``) declare theirs with it; docs/design.md says why it is not a library.
+dataset`` (``dataset/request.py``) declare theirs with it; docs/design.md says why it is not a library.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """``electroloc dataset``: one agent's episodes on one env as a local Minari dataset (:mod:`.collect`).
 
-Its options are :data:`~electroloc_gym.dataset.collect.DATASET_OPTIONS`. Bad input is one line
+Its options are :data:`~electroloc_gym.dataset.request.DATASET_OPTIONS`. Bad input is one line
 (``electroloc dataset: error: …``, exit 2) before anything is written; an agent whose ``predict`` raises is
 named with its episode as ``electroloc bench`` names it with its trial. A dataset without reference scores is
 said to be one.
@@ -28,7 +28,7 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``electroloc dataset``."""
-    from electroloc_gym.dataset.collect import DATASET_OPTIONS
+    from electroloc_gym.dataset.request import DATASET_OPTIONS
     from electroloc_gym.options import add_options
 
     add_options(parser, DATASET_OPTIONS)
@@ -36,13 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build the dataset ``args`` describe; print its id, size and path. 0 on success, 2 on bad input."""
-    from electroloc_gym.dataset.collect import (
-        DATASET_OPTIONS,
-        REQUEST_OPTIONS,
-        DatasetRequest,
-        build_dataset,
-        check_settings,
-    )
+    from electroloc_gym.dataset.collect import build_dataset
+    from electroloc_gym.dataset.request import DATASET_OPTIONS, REQUEST_OPTIONS, DatasetRequest, check_settings
     from electroloc_gym.registry import resolve_env_name
 
     def notify(message: str) -> None:
