@@ -122,16 +122,13 @@ def validate_record(rec: Any, rules: RecordRules | None = None) -> str | None:
     return None if rules is None else record.problem(rules)
 
 
-def _plain(value: Any) -> Any:
-    return list(value) if isinstance(value, tuple) else value
-
-
 def foreign_reason(rec: dict[str, Any], config: BenchConfig) -> str | None:
     """Why a valid record does not belong to ``config``'s run (None: it does)."""
+    mine = config.record_settings()
     for key in IDENTITY_KEYS:
-        mine, theirs = _plain(getattr(config, key)), _plain(rec.get(key, IDENTITY_DEFAULTS.get(key)))  # JSON lists
-        if theirs != mine:
-            return f"{key} {theirs!r}, this run {mine!r}"
+        theirs = rec.get(key, IDENTITY_DEFAULTS.get(key))
+        if theirs != mine[key]:
+            return f"{key} {theirs!r}, this run {mine[key]!r}"
     own_map = env_entry(config.env_id).map_condition
     if (rec["condition"] != own_map) if own_map is not None else (rec["condition"] in MAP_CONDITIONS):
         return f"condition {rec['condition']!r} does not belong to env {config.env_id}"
