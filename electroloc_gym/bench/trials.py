@@ -21,7 +21,7 @@ import numpy as np
 from electroloc_gym.baselines.rollout import AgentCallError, exception_line, run_episode
 from electroloc_gym.bench.agents import cached_agent, resolve_agent
 from electroloc_gym.bench.config import TrialSpec
-from electroloc_gym.bench.schema import TrialRecord, is_far_success
+from electroloc_gym.bench.schema import TrialRecord
 from electroloc_gym.contract.task_spec import RecordField
 from electroloc_gym.utils.fileio import to_json_data
 
@@ -120,7 +120,6 @@ def _run_trial(spec: TrialSpec) -> dict[str, Any]:
             "wall_s": time.perf_counter() - t_start,
             "shape": _shape_record(info, core.entry().task_class.metrics.record) or None,
             **spec.config.record_settings(),
-            "far_success": is_far_success(success, error),
         }
     ).to_json()
 
