@@ -90,12 +90,9 @@ def _row(
         "error_y_mean_abs_mm": _mean(abs(r["error_y_mm"]) for r in ok if r.get("error_y_mm") is not None),
     }
     est = np.asarray([r["estimate"] for r in ok if r.get("estimate") is not None], dtype=float).reshape(-1, 2)
-    if est.shape[0]:
-        dev = np.abs(est - est.mean(axis=0))
-        row["error_x_repeatability_mm"] = float(dev[:, 0].mean())
-        row["error_y_repeatability_mm"] = float(dev[:, 1].mean())
-    else:
-        row["error_x_repeatability_mm"] = row["error_y_repeatability_mm"] = None
+    dev = np.abs(est - est.mean(axis=0)) if est.shape[0] else None
+    for i, axis in enumerate("xy"):
+        row[f"error_{axis}_repeatability_mm"] = None if dev is None else float(dev[:, i].mean())
     row.update(metrics.statistics(recs))
     return row
 
