@@ -23,7 +23,7 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 from electroloc_gym.baselines.rollout import AgentCallError
 from electroloc_gym.bench.agents import (
@@ -83,9 +83,9 @@ def _runs_on_map_env(spec: str, env_id: str) -> bool:
         return getattr(cached_agent(spec), "table_layout", "table4") == "table4"
     if kind == "shipped":
         return shipped_model_env(shipped_models()[spec]) == (env_id, None)
-    if kind == "path":
-        obs: Any = (policy_meta(spec) or {}).get("observation")
-        return isinstance(obs, dict) and cast(dict[str, Any], obs).get("env_id") == env_id
+    if kind == "path":  # a policy.json its schema accepted holds observation.env_id
+        meta = policy_meta(spec)
+        return meta is not None and meta["observation"]["env_id"] == env_id
     return kind in ("factory", "object")
 
 
@@ -94,7 +94,7 @@ def _agent_specs(agents: Any, values: dict[str, Any], note: Callable[[str], None
     from electroloc_gym.bench.default_run import default_agents
 
     if isinstance(agents, str):
-        return [s.strip() for s in split_specs(agents)], False
+        return split_specs(agents), False
     if agents is not None:
         taken = {a for a in agents if isinstance(a, str)} | set(shipped_models())
         specs: list[str] = []
