@@ -89,7 +89,7 @@ SLOW_DECISION_S = 10.0
 
 
 def _resume(
-    config: BenchConfig, out: Path, log: _Log, trust_pickle: bool
+    config: BenchConfig, out: Path, log: Callable[[str], None], trust_pickle: bool
 ) -> tuple[LoadedRecords, dict[str, Any] | None]:
     """Check a stored run against ``config``; set damaged lines aside. Returns its records and config."""
     stored = read_config(out / "config.json", log)
@@ -108,10 +108,9 @@ def _resume(
         )
     if loaded.rejected:
         set_aside(loaded)
-        if log is not None:
-            for msg in loaded.messages():
-                log(msg)
-            log(f"set {len(loaded.rejected)} line(s) aside in {out / REJECTED_FILE}; those trials run again")
+        for msg in loaded.messages():
+            log(msg)
+        log(f"set {len(loaded.rejected)} line(s) aside in {out / REJECTED_FILE}; those trials run again")
     return loaded, stored
 
 
@@ -265,19 +264,10 @@ def run_benchmark(
     trust_pickle: bool = False,
     log: _Log = print,
 ) -> dict[str, Any]:
-    """Run (or resume) a benchmark and write its files; returns the summary.
-
-    Args:
-        config: the run.
-        out_dir: output folder (created; locked for the run).
-        workers: parallel workers (None: all cores).
-        backend: backend name (:data:`electroloc_gym.bench.backends.BACKENDS`).
-        resume: run only the trials not yet in ``out_dir/trials.jsonl``; without it an existing
-            non-empty trials.jsonl is an error (never silently mixed).
-        progress: show a progress bar.
-        backend_options: extra options for the backend (e.g. a Ray address).
-        trust_pickle: allow learned policies whose files need unpickling (SB3's bare zip).
-        log: where to print one-line notes (None: silent).
+    """Run (or resume) ``config``'s benchmark in ``out_dir`` (created; locked for the run) and write its files;
+    returns the summary. ``workers``, ``backend``, ``resume``, ``progress`` and ``trust_pickle`` are the
+    :data:`~electroloc_gym.bench.config.RUN_OPTIONS` of those names; ``backend_options``: the backend's own
+    (e.g. a Ray address); ``log``: where one-line notes go (None: silent).
 
     Raises:
         ValueError: a bad output folder, a folder in use by another run, bad agents, an existing
@@ -286,6 +276,7 @@ def run_benchmark(
     """
     from electroloc_gym.bench.stats import summarize
 
+    log = log if log is not None else (lambda line: None)
     planned = len(config.agents) * len(config.conditions) * config.trials
     if planned > MAX_PLANNED_TRIALS:
         raise ValueError(
@@ -300,10 +291,9 @@ def run_benchmark(
         )
     out = prepare_out_dir(out_dir)
     with run_lock(out):
-        if log is not None:
-            log(described)
-            for line in warnings:
-                log(line)
+        log(described)
+        for line in warnings:
+            log(line)
         trials_path, config_path = out / TRIALS_FILE, out / "config.json"
         stored: dict[str, Any] | None = None
         loaded = LoadedRecords(trials_path)
@@ -327,12 +317,11 @@ def run_benchmark(
         # Longest jobs first (min-var, learned policies), so the pool's tail is short.
         cost = {name: agent_class(name).cost_rank for name in AGENT_NAMES}
         specs.sort(key=lambda s: -cost.get(s.agent, BaselineAgent.cost_rank))
-        if log is not None:
-            log(
-                f"electroloc bench: {len(config.agents)} agents × {len(config.conditions)} conditions × "
-                f"{config.trials} trials; {len(records)} already done, {len(specs)} to run on backend {be.name!r} "
-                f"with {be.workers} worker(s) → {out}"
-            )
+        log(
+            f"electroloc bench: {len(config.agents)} agents × {len(config.conditions)} conditions × "
+            f"{config.trials} trials; {len(records)} already done, {len(specs)} to run on backend {be.name!r} "
+            f"with {be.workers} worker(s) → {out}"
+        )
         t0 = time.perf_counter()
         bar = TrialProgress(len(specs), be.workers, enabled=progress)
         done_before = len(records)
@@ -360,6 +349,5 @@ def run_benchmark(
         summary["wall_s_this_run"] = wall
         summary["trials_run_this_time"] = len(specs)
         _write_outputs(out, summary)
-    if log is not None:
-        log(f"{len(specs)} trials in {wall:.1f} s; wrote {trials_path}, {', '.join(OUTPUT_FILES)}")
+    log(f"{len(specs)} trials in {wall:.1f} s; wrote {trials_path}, {', '.join(OUTPUT_FILES)}")
     return summary
