@@ -66,18 +66,9 @@ def default_agents(
     gain_levels: tuple[float, ...] | None = None,
     sensor_layout: str | None = None,
 ) -> list[AgentChoice]:
-    """What a run without ``--agents`` considers: the paper's controllers, then every shipped model
-    trained on ``env_id`` (the others listed as skipped, with the reason).
-
-    Args:
-        names: the controllers to run first (a bench row's ``agents``; None: the paper's three), then the
-            shipped models trained on ``env_id``.
-        trust_pickle: passed to the policy loader.
-        env_id: the run's env.
-        gain_levels: the run's dynamic-gain levels (then min-var runs twice: choosing the gain, and at the
-            preset gain).
-        sensor_layout: the run's named sensor layout (None: the paper's single pair); a shipped model
-            trained with another layout is skipped.
+    """What a run on ``env_id`` with ``gain_levels`` and ``sensor_layout`` (None: the paper's single pair)
+    considers without ``--agents`` (module docstring): ``names``, the controllers (None: the paper's three),
+    then every shipped model, each loaded with ``trust_pickle`` or skipped with the reason.
     """
     choices = [AgentChoice(name) for name in (PAPER_AGENTS if names is None else names)]
     if gain_levels is not None:
