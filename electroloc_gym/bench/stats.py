@@ -133,9 +133,8 @@ def summarize(
         metrics: the task's metrics (default: :func:`records_metrics`), whose statistics every row adds.
 
     Returns:
-        ``{"rules": ..., "rows": [...]}``; every row has the keys condition, agent, trials, successes,
-        failures, error_mean_mm, error_median_mm, readings_mean, readings_median, decision_ms_median (and
-        more, see the module docstring). Missing statistics are None (JSON null), never NaN.
+        ``{"rules", "agents", "conditions", "rows"}``, the rows' keys as docs/benchmark.md lists them; a
+        missing statistic is None (JSON null), never NaN.
     """
     metrics = records_metrics(records) if metrics is None else metrics
     agents = list(dict.fromkeys(agents if agents is not None else [r["agent"] for r in records]))
