@@ -18,16 +18,14 @@ import msgspec
 
 from electroloc_gym.bench.config import IDENTITY_KEYS, BenchConfig
 from electroloc_gym.bench.records import CONFIG_FILE, TRIALS_FILE, LoadedRecords, load_records, stored_trials
-from electroloc_gym.bench.schema import RecordRules
+from electroloc_gym.bench.schema import OPTIONAL_RECORD_KEYS, RecordRules
 from electroloc_gym.registry import env_entry
 
 __all__ = ["RunRecords", "read_run_records", "record_rules", "read_config", "config_from_json", "load_config"]
 
 
-#: Keys every config.json holds (those added later read as their defaults when absent).
-_REQUIRED = tuple(
-    k for k in ("seed", *IDENTITY_KEYS) if k not in ("gain_levels", "sensor_layout", "distractors", "success_spread_mm")
-)
+#: Keys every config.json holds (those added later, as to the records, read as their defaults when absent).
+_REQUIRED = ("seed", *(k for k in IDENTITY_KEYS if k not in OPTIONAL_RECORD_KEYS))
 
 
 def _config(stored: Any) -> BenchConfig:
