@@ -179,28 +179,16 @@ def _out_folder(name: str, value: Any) -> None:
 class BenchConfig:
     """What a benchmark run is (stored in ``config.json``; ``--resume`` checks it).
 
+    A field declared by :func:`~electroloc_gym.options.setting` is an option of ``electroloc bench``: its
+    ``help`` says what it is (docs/benchmark.md lists them). The others:
+
     Attributes:
-        agents: agent specs (names, ``name[opts]``, shipped model names or policy paths).
-        conditions: preset names.
-        trials: trials per condition and agent.
-        seed: root seed of the trial seeds.
-        sensor_model: the filter's sensor model, "calibrated" (the paper's) or "analytic"; the unknown-target
-            env: "analytic" (the theoretical EEV) or "interpolated" (:data:`ENV_SENSOR_MODELS`).
-        signal: the presets' signal scale (:data:`electroloc_gym.world.conditions.DEFAULT_SIGNAL` by default):
-            "fitted" (fitted to Table 3's measured detection distances), "coverage" (fitted × one factor
-            matching the paper's §6.3 start coverage) or "paper" (scale 1); see conditions.get_condition.
-        max_observations: the cap of readings of a trial (paper: 35; the env's smallest cap
-            :data:`~electroloc_gym.contract.params.MIN_OBSERVATION_CAP` to :data:`MAX_READINGS`).
-        n_particles: particles of the belief (paper: 2500).
+        env_id: the environment id (of the ``--env`` row).
+        gain_levels: dynamic gain: the factors of the amplifier gain in the action (None: the preset gain).
         success_spread_mm: the success criterion, mm: a trial succeeds when the belief's spread √trace Σ is
             at most this (paper: 10 mm). With the cap, the particles, the sensor model, the signal, the
             layout and the distractors it is the run's protocol: fixed by the run for every agent (a
             plug-in agent's ``env_kwargs`` cannot change it) and compared by ``--resume``.
-        env_id: the environment id.
-        gain_levels: dynamic gain: the factors of the amplifier gain in the action (None: the preset gain).
-        sensor_layout: ElectroLoc-v0's named sensor layout (``electroloc_gym.world.sensor_array.LAYOUT_NAMES``), or
-            None: the env's default (the paper's pair).
-        distractors: D, distractors drawn per trial in ElectroLoc-v0's tank (``distractors=D``; 0: none).
     """
 
     agents: tuple[str, ...] = setting(
