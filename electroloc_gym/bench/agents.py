@@ -304,13 +304,9 @@ def agent_display_name(spec: str) -> str:
 
 
 def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pickle: bool = False) -> Any:
-    """Build the agent a spec names (one ValueError when it cannot).
-
-    Args:
-        spec: see the module docstring.
-        seed: seed of a controller's own generator (the runner re-seeds before each trial anyway).
-        trust_pickle: allow a learned policy whose files need unpickling (SB3's bare zip). Only for
-            files you trust: unpickling runs code.
+    """Build the agent ``spec`` names (module docstring; one ValueError when it cannot): ``seed`` seeds a
+    controller's own generator (the runner re-seeds before each trial anyway); ``trust_pickle`` is
+    ``--trust-pickle`` (a learned policy stored as a bare SB3 zip: unpickling runs its code).
     """
     ref = resolve_agent(spec)
     kind, spec = ref.kind, ref.text
