@@ -16,6 +16,7 @@ from __future__ import annotations
 import gzip
 import io
 import os
+import tempfile
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,7 +34,6 @@ from electroloc_gym.registry import env_entry
 from electroloc_gym.utils.fileio import (
     FolderBusyError,
     FolderLock,
-    atomic_write_bytes,
     atomic_write_text,
     check_output_folder,
     naming_file,
@@ -209,11 +209,19 @@ def compress_trials(folder: str | os.PathLike[str]) -> Path:
     buf = io.BytesIO()
     with gzip.GzipFile(filename="", mode="wb", fileobj=buf, compresslevel=9, mtime=0) as gz:
         gz.write(data)
-    atomic_write_bytes(packed, buf.getvalue())
-    if gzip.decompress(packed.read_bytes()) != data:
-        packed.unlink()
-        raise ValueError(f"{packed}: the compressed records do not read back equal")
-    os.chmod(packed, plain.stat().st_mode & 0o777)  # the plain file's permissions
+    fd, tmp = tempfile.mkstemp(dir=plain.parent, prefix=".trials-", suffix=".gz")
+    try:
+        os.chmod(tmp, plain.stat().st_mode & 0o777)  # the plain file's permissions, not mkstemp's 0600
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(buf.getvalue())
+            fh.flush()
+            os.fsync(fh.fileno())
+        if gzip.decompress(Path(tmp).read_bytes()) != data:
+            raise ValueError(f"{tmp}: the compressed records do not read back equal")
+        os.replace(tmp, packed)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
     plain.unlink()
     return packed
 
