@@ -4,7 +4,10 @@ re-collected, --force replaces exactly the dataset it names, and bad input is on
 The kills are real SIGKILLs of a running writer, with no hook in the package: a forked copy of this
 process (no interpreter start) killed when the test sees a moment of the write on disk (the partial's
 header, an episode staged, moved in, the header marked complete) or after a fraction of an uninterrupted
-run's time, and the command itself killed in a subprocess.
+run's time, and the command itself killed in a subprocess. A staged episode lasts milliseconds, less than a
+loaded machine may leave the polling test unscheduled, so the forked writer that is killed at a seen moment
+keeps each staged episode staged :data:`HOLD_S` before its move (its own ``os.rename`` waits; the package
+runs unchanged).
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ ID = "electroloc/ElectroLoc-v0/rnd-wlk-v0"
 N = 4  # episodes of the datasets below (rnd-wlk: about 0.01 s each)
 LONG = 30  # episodes of the runs killed at a moment
 THREADS = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+HOLD_S = 0.03  # how long the killed writer keeps a staged episode staged (a poll every 0.2 ms then sees it)
 
 
 def _request(episodes: int = N, **kwargs) -> DatasetRequest:
@@ -97,6 +101,18 @@ def _siblings(root: Path) -> list[str]:
     return sorted(p.name for p in _folder(root).parent.iterdir())
 
 
+def _hold_staged_episodes() -> None:
+    """In the forked writer only: each rename out of the staging folder waits :data:`HOLD_S` first."""
+    rename = os.rename
+
+    def held(src, dst, *args, **kwargs):
+        if Path(src).parent.name == st.STAGING:
+            time.sleep(HOLD_S)
+        return rename(src, dst, *args, **kwargs)
+
+    os.rename = held
+
+
 def _kill_when(moment: Callable[[Path], bool] | float, root: Path, episodes: int = LONG, **build_kwargs) -> bool:
     """Run ``_build`` in a forked copy of this process and SIGKILL it when ``moment(root)`` first holds (polled
     every 0.2 ms) or after ``moment`` seconds; True when the kill landed before the run ended.
@@ -105,6 +121,8 @@ def _kill_when(moment: Callable[[Path], bool] | float, root: Path, episodes: int
     if pid == 0:  # the child: never returns into pytest
         code = 4
         try:
+            if not isinstance(moment, float):
+                _hold_staged_episodes()
             _build(episodes, **build_kwargs)
             code = 0
         finally:
