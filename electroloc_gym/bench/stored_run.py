@@ -33,13 +33,16 @@ def _config(stored: Any) -> BenchConfig:
     (its field types, then its settings' checks in ``__post_init__``; keys beyond its fields are the record's).
 
     Raises:
-        ValueError: not a run's config — one line naming the field (msgspec's ``ValidationError`` is one).
+        ValueError: not a run's config — one line naming the field.
     """
     if isinstance(stored, dict):
         missing = [k for k in _REQUIRED if k not in stored]
         if missing:
             raise ValueError(f"missing key(s) {missing}")
-    return msgspec.convert(stored, BenchConfig)
+    try:
+        return msgspec.convert(stored, BenchConfig)
+    except msgspec.ValidationError as exc:
+        raise ValueError(str(exc)) from None
 
 
 def _decode(data: bytes) -> Any:
@@ -218,7 +221,7 @@ def read_run_records(out_dir: str | os.PathLike[str]) -> RunRecords:
         if len(raw) > 1 << 20:
             raise ValueError(f"{len(raw)} bytes (a config is a few hundred)")
         stored = msgspec.json.decode(raw)
-    except (OSError, RecursionError, ValueError) as exc:  # msgspec's DecodeError is a ValueError
+    except (OSError, msgspec.DecodeError, RecursionError, ValueError) as exc:
         raise ValueError(f"{config_path}: not readable as a run's config ({type(exc).__name__}: {exc})") from None
     config = config_from_json(stored, str(config_path))
     loaded = load_records(trials_path, config, record_rules(config, stored))
