@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.metadata
 import os
 import re
 import subprocess
@@ -105,8 +106,6 @@ def test_every_extra_is_explained() -> None:
 
 
 def test_version_is_declared_once() -> None:
-    import importlib.metadata
-
     import electroloc_gym
 
     assert electroloc_gym.__version__ == importlib.metadata.version("electroloc-gym") == PYPROJECT["project"]["version"]
@@ -129,8 +128,30 @@ def test_numba_caches_per_user(tmp_path, order) -> None:
         [sys.executable, "-c", _CACHE_PROBE, order], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120
     )
     assert proc.returncode == 0, proc.stderr
-    want = str(tmp_path / "electroloc-gym" / "numba")
+    want = str(tmp_path / "electroloc-gym" / "numba" / importlib.metadata.version("numba"))
     assert proc.stdout.split() == [want, want]
+
+
+def test_numba_cache_folder_is_per_numba_version(monkeypatch, tmp_path) -> None:
+    from electroloc_gym.utils import runtime
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    versions = {"numba": "0.60.0"}
+
+    def version(name: str) -> str:
+        if name not in versions:
+            raise importlib.metadata.PackageNotFoundError(name)
+        return versions[name]
+
+    monkeypatch.setattr(runtime.importlib.metadata, "version", version)
+    older = runtime.user_numba_cache_dir()
+    versions["numba"] = "0.68.1"
+    assert (older, runtime.user_numba_cache_dir()) == (
+        tmp_path / "electroloc-gym" / "numba" / "0.60.0",
+        tmp_path / "electroloc-gym" / "numba" / "0.68.1",
+    )
+    versions.clear()  # numba without its metadata
+    assert runtime.user_numba_cache_dir() == tmp_path / "electroloc-gym" / "numba" / "unversioned"
 
 
 def test_numba_cache_set_by_the_user_is_kept(tmp_path) -> None:

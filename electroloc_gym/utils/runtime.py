@@ -14,6 +14,7 @@ package starts a process per core.
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import os
 import sys
 from pathlib import Path
@@ -149,9 +150,21 @@ def _pin_numba(n: int) -> None:
 
 
 def user_numba_cache_dir() -> Path:
-    """The per-user numba cache folder: ``$XDG_CACHE_HOME/electroloc-gym/numba`` (``~/.cache`` without it)."""
+    """The per-user numba cache folder of the installed numba: ``$XDG_CACHE_HOME/electroloc-gym/numba/<numba
+    version>`` (``~/.cache`` without ``XDG_CACHE_HOME``).
+
+    One folder per numba version: numba keeps one index file per kernel and source file, and a version that
+    finds another's index discards it and writes its own, so two environments of different numba versions
+    sharing a folder (a project's lowest-versions venv beside its newest) would compile every kernel again
+    each time the other had run. The version is read from the installed distribution's metadata, without
+    importing numba (this runs before the first numba import).
+    """
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "electroloc-gym" / "numba"
+    try:
+        version = importlib.metadata.version("numba")
+    except importlib.metadata.PackageNotFoundError:  # numba without its metadata (a copied tree)
+        version = "unversioned"
+    return Path(base) / "electroloc-gym" / "numba" / version
 
 
 def use_user_numba_cache() -> str:
