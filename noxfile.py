@@ -18,6 +18,13 @@
   printed, and a researcher's task of their own (examples/own_task.py, copied outside the checkout) run and
   benchmarked by ``--env own_task:frugal``.
 
+``tests`` runs alone; then ``lowest``, ``rllib`` and ``wheel`` run beside each other (nox's ``--parallel``, here
+one session per core, each session's output printed whole when it ends). ``tests`` holds the suite's timing and
+long tests, which the others' load would slow; the other three each leave a core idle much of their time (pip
+installing one package at a time, the kernels compiling in one process, Ray's tests, the wheel's serial steps), and
+beside each other they fill it: on an otherwise idle 2-core machine the four sessions took 678 s one after the
+other.
+
 Installs are shared: each session's venv is reused (``.nox/``), pip's download cache serves every session,
 and pip does not byte-compile what it installs (``--no-compile``: Python compiles the modules a test
 imports, once per venv, not the whole of torch and Ray; the sessions let it write that bytecode even where
@@ -50,6 +57,8 @@ os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 nox.options.reuse_venv = "yes"
 nox.options.default_venv_backend = "virtualenv"  # nox's default: a venv in under a second (venv: 3 s)
 nox.options.sessions = ["tests", "lowest", "rllib", "wheel"]
+#: One session per core at once; a session that does not opt in (``allow_parallel``) runs alone (module docstring).
+nox.options.parallel = "auto"
 
 CONSTRAINTS = ("-c", str(ROOT / "constraints.txt"))
 #: pip: no byte-compiling of every installed module (the tests compile what they import).
@@ -163,7 +172,7 @@ def tests(session: nox.Session) -> None:
     _pytest(session, NOT_RLLIB)
 
 
-@nox.session
+@nox.session(allow_parallel=True)
 def lowest(session: nox.Session) -> None:
     """The default suite on each declared minimum (constraints-lowest.txt), the zoo and minari tests deselected."""
     session.install(NO_COMPILE, "-c", str(ROOT / "constraints-lowest.txt"), "-e", ".[dev,train]")
@@ -172,7 +181,7 @@ def lowest(session: nox.Session) -> None:
     _pytest(session, NOT_LOWEST)
 
 
-@nox.session
+@nox.session(allow_parallel=True)
 def rllib(session: nox.Session) -> None:
     """Every extra at once (the rllib extra pins gymnasium to RLlib's version): the Ray/RLlib tests (marker
     ``rllib``), and pyright over the package, every import it makes resolved (SB3, torch, rl-zoo3, Ray/RLlib,
@@ -201,7 +210,7 @@ print(f"electroloc-gym {electroloc_gym.__version__}: made {len(ENV_IDS)} ids: {'
 """
 
 
-@nox.session
+@nox.session(allow_parallel=True)
 def wheel(session: nox.Session) -> None:
     """Build sdist and wheel once (tests/test_wheel.py, marker ``wheel``: their contents checked), check them
     with twine, install the wheel alone into an empty venv and run it from there.
