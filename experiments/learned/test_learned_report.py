@@ -405,8 +405,8 @@ def test_any_single_field_damage_gives_the_clean_report_or_names_what_it_set_asi
         rows = [json.loads(x) for x in path.read_text().splitlines()]
         rows[which][key] = value
         path.write_text("".join(json.dumps(r) + "\n" for r in rows))
-        try:
-            a = scores.analyse(res, "ElectroLoc-v0", reps=200)
+        try:  # 20 bootstrap draws: the intervals are not what this test checks (0.05 s an example, not 0.35 s)
+            a = scores.analyse(res, "ElectroLoc-v0", reps=20)
         except ValueError as exc:  # a condition left without trials: one line
             assert "\n" not in str(exc)
             return
