@@ -18,12 +18,13 @@
   printed, and a researcher's task of their own (examples/own_task.py, copied outside the checkout) run and
   benchmarked by ``--env own_task:frugal``.
 
-``tests`` runs alone; then ``lowest``, ``rllib`` and ``wheel`` run beside each other (nox's ``--parallel``, here
-one session per core, each session's output printed whole when it ends). ``tests`` holds the suite's timing and
+With ``-j auto`` (nox's ``--parallel``: one session per core; the README's test command and CI pass it), ``tests``
+runs alone, then ``lowest``, ``rllib`` and ``wheel`` run beside each other, each session's output printed whole
+when it ends; a plain ``nox`` runs them one after the other. ``tests`` holds the suite's timing and
 long tests, which the others' load would slow; the other three each leave a core idle much of their time (pip
 installing one package at a time, the kernels compiling in one process, Ray's tests, the wheel's serial steps), and
 beside each other they fill it. On an otherwise idle 2-core machine the three took 242 s beside each other and
-333 s one after the other (``nox --parallel 1``), in two fresh clones run 13 minutes apart.
+333 s one after the other, in two fresh clones run 13 minutes apart.
 
 Installs are shared: each session's venv is reused (``.nox/``), pip's download cache serves every session,
 and pip does not byte-compile what it installs (``--no-compile``: Python compiles the modules a test
@@ -57,8 +58,6 @@ os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 nox.options.reuse_venv = "yes"
 nox.options.default_venv_backend = "virtualenv"  # nox's default: a venv in under a second (venv: 3 s)
 nox.options.sessions = ["tests", "lowest", "rllib", "wheel"]
-#: One session per core at once; a session that does not opt in (``allow_parallel``) runs alone (module docstring).
-nox.options.parallel = "auto"
 
 CONSTRAINTS = ("-c", str(ROOT / "constraints.txt"))
 #: pip: no byte-compiling of every installed module (the tests compile what they import).

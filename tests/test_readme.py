@@ -22,8 +22,8 @@ def _readme_commands() -> list[str]:
 def test_readme_starts_with_two_commands() -> None:
     main_job, tests = _readme_commands()
     assert "electroloc bench" in main_job and "-c constraints.txt" in main_job  # CPU torch pin
-    # noxfile.py sets nox.options.parallel = "auto" (nox 2026.08 runs sessions beside each other; 2026.10.20 was run)
-    assert tests.endswith(".venv/bin/nox") and 'pip install "nox>=2026.10.20"' in tests
+    # -j auto: the sessions that allow it run beside each other (noxfile.py; nox 2026.10.20 was run)
+    assert tests.endswith(".venv/bin/nox -j auto") and 'pip install "nox>=2026.10.20"' in tests
 
 
 def test_ci_runs_the_readme_test_command() -> None:
