@@ -126,3 +126,13 @@ def train_summary_json():
         path.write_bytes(msgspec.json.encode(TrainSummary(*run, chosen_by="", best=None, evaluations=0)))
 
     return write
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _sb3_logger_folder(tmp_path_factory: pytest.TempPathFactory):
+    """SB3's logger, made by any ``learn()`` without one, makes a dated folder in the system's temporary folder
+    even when it writes no file; the tests' loggers use one folder of pytest's own temporary tree instead."""
+    patch = pytest.MonkeyPatch()
+    patch.setenv("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3-logger")))
+    yield
+    patch.undo()

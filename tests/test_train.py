@@ -297,3 +297,29 @@ def test_the_eval_csv_reader_refuses_a_damaged_log_in_one_line(tmp_path, text, w
         "mean_readings": [4.0],
         "median_readings": [4.0],
     }
+
+
+@pytest.mark.parametrize("verbose", [0, 1])
+def test_a_training_process_leaves_no_sb3_folder_in_the_temporary_folder(verbose, tmp_path, monkeypatch):
+    """SB3's logger makes a folder even when it writes no file; the training process's environment points it at
+    the run's log folder (a user's own ``SB3_LOGDIR`` wins), so the system's temporary folder stays as it was."""
+    import tempfile
+
+    from stable_baselines3.common.utils import configure_logger
+
+    from electroloc_gym.train.run import child_env
+
+    system_tmp, logs = tmp_path / "tmp", tmp_path / "logs" / "ppo"
+    system_tmp.mkdir()
+    logs.mkdir(parents=True)
+    monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    for name, value in child_env(logs, 1).items():
+        monkeypatch.setenv(name, value)
+    logger = configure_logger(verbose=verbose)
+    assert logger.dir == str(logs)
+    assert list(system_tmp.iterdir()) == [] and list(logs.iterdir()) == []
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "mine"))
+    assert child_env(logs, 1)["SB3_LOGDIR"] == str(tmp_path / "mine")
+    monkeypatch.delenv("SB3_LOGDIR")  # without it, SB3 makes a dated folder in the temporary folder
+    assert configure_logger(verbose=verbose).dir.startswith(str(system_tmp / "SB3-"))

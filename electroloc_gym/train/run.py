@@ -39,6 +39,7 @@ __all__ = [
     "ALGO_FILES",
     "ZOO_EXTRA_HINT",
     "check_zoo_installed",
+    "child_env",
     "find_finished_run",
     "hyperparams_file",
     "train",
@@ -49,6 +50,15 @@ __all__ = [
 ZOO_MODULES = ("rl_zoo3", "stable_baselines3", "sb3_contrib", "torch")
 #: The one line a missing training dependency gets: the extra that installs all of them.
 ZOO_EXTRA_HINT = 'training needs the zoo extra: pip install -c constraints.txt "electroloc-gym[zoo]"'
+
+
+def child_env(log_folder: str | os.PathLike[str], threads: int | None = None) -> dict[str, str]:
+    """The training process's environment: this one's, its threads pinned (:func:`thread_env`), and SB3's
+    logger folder (``SB3_LOGDIR``, unless set) the run's log folder. SB3 makes that folder for a logger
+    that writes no file (``verbose`` 0 or 1, no tensorboard); left unset, each run would leave an empty
+    ``SB3-<date>`` folder in the system's temporary folder.
+    """
+    return {"SB3_LOGDIR": os.fspath(log_folder), **os.environ, **thread_env(threads)}
 
 
 def check_zoo_installed() -> None:
@@ -233,7 +243,7 @@ def train(
         check_zoo_installed()
         log = Path(log_folder, algo, f"{env_id}_s{seed}.log")
         log.parent.mkdir(parents=True, exist_ok=True)
-        env = {**os.environ, **thread_env(threads)}
+        env = child_env(log.parent, threads)
         lines = []
         with (
             log.open("w", encoding="utf-8") as fh,
