@@ -31,6 +31,9 @@ TARGET_ID, GLOBAL_ID = bench_env("target")[0].env_id, bench_env("global")[0].env
 #: The tests' short condition names → the conditions their records and config.json hold (in the same order).
 NAMES = {"a": "fresh-delrin-12.7", "b": "fresh-steel-12.7", "g": task_entry("global").map_condition}
 CONDS = (NAMES["a"], NAMES["b"])
+#: Bootstrap draws of the tests that check which records are set aside and the scores' matrices, not the intervals
+#: (0.05 s an analysis, not 0.5 s at 200 draws).
+SET_ASIDE_REPS = 20
 
 
 RESULTS = ROOT / "experiments" / "learned" / "results"
@@ -237,7 +240,7 @@ def _damage_line(res: Path, key: str, value) -> None:
 
 
 def _clean_table(res: Path) -> dict:
-    return scores.analyse(res, "ElectroLoc-v0", reps=200)
+    return scores.analyse(res, "ElectroLoc-v0", reps=SET_ASIDE_REPS)
 
 
 @pytest.mark.parametrize(
@@ -254,7 +257,7 @@ def _clean_table(res: Path) -> dict:
 def test_an_impossible_record_is_set_aside_and_named(tmp_path, key, value):
     res = _results(tmp_path)
     _damage_line(res, key, value)
-    a = scores.analyse(res, "ElectroLoc-v0", reps=200)
+    a = scores.analyse(res, "ElectroLoc-v0", reps=SET_ASIDE_REPS)
     assert len(a["set_aside"]) == 1 and "seed-0" in a["set_aside"][0]
 
 
@@ -264,14 +267,14 @@ def test_a_seed_x_folder_and_copied_records_are_set_aside(tmp_path):
     import shutil
 
     shutil.copytree(env / "seed-0", env / "seed-x")
-    a = scores.analyse(res, "ElectroLoc-v0", reps=200)
+    a = scores.analyse(res, "ElectroLoc-v0", reps=SET_ASIDE_REPS)
     assert any("seed-x" in m for m in a["set_aside"]) and a["seeds"]["ppo"] == ["seed-0", "seed-1", "seed-2"]
     res2 = _results(tmp_path / "two")
     other = res2 / "ElectroLoc-v0" / "sac" / "seed-0" / "bench" / "trials.jsonl"
     _write(other, "sac", {"a": [5] * 3, "b": [6] * 3})
     with open(other, "a") as fh:  # the ppo seed's records copied into the sac run
         fh.write(_lines(res2).read_text())
-    a = scores.analyse(res2, "ElectroLoc-v0", reps=200)
+    a = scores.analyse(res2, "ElectroLoc-v0", reps=SET_ASIDE_REPS)
     assert sum("agent 'ppo' is not one of the run's" in m for m in a["set_aside"]) == 6
 
 
@@ -289,7 +292,7 @@ def test_a_damaged_line_is_set_aside(tmp_path, damage):
         "missing-key": json.dumps({"condition": "a"}).encode() + b"\n",
     }[damage]
     path.write_bytes(raw + extra)
-    a = scores.analyse(res, "ElectroLoc-v0", reps=200)
+    a = scores.analyse(res, "ElectroLoc-v0", reps=SET_ASIDE_REPS)
     assert len(a["set_aside"]) == 1
     np.testing.assert_array_equal(
         a["_matrices"]["readings"]["ppo"], _clean_table(_results(tmp_path / "c"))["_matrices"]["readings"]["ppo"]
@@ -365,7 +368,7 @@ def test_a_damaged_file_is_one_line(tmp_path, damage, named, capsys, train_summa
         "config-no-agents": lambda: _edit_json(config, lambda d: d.update(agents=[])),
     }
     damages[damage]()
-    assert report.main([str(res), "--reps", "200"]) == (0 if named is None else 2)
+    assert report.main([str(res), "--reps", "100"]) == (0 if named is None else 2)  # the fewest it takes
     err = [line for line in capsys.readouterr().err.strip().splitlines() if not line.startswith("learned_report: [")]
     if named is None:
         assert not [line for line in err if "error" in line], err
@@ -405,8 +408,8 @@ def test_any_single_field_damage_gives_the_clean_report_or_names_what_it_set_asi
         rows = [json.loads(x) for x in path.read_text().splitlines()]
         rows[which][key] = value
         path.write_text("".join(json.dumps(r) + "\n" for r in rows))
-        try:  # 20 bootstrap draws: the intervals are not what this test checks (0.05 s an example, not 0.35 s)
-            a = scores.analyse(res, "ElectroLoc-v0", reps=20)
+        try:
+            a = scores.analyse(res, "ElectroLoc-v0", reps=SET_ASIDE_REPS)
         except ValueError as exc:  # a condition left without trials: one line
             assert "\n" not in str(exc)
             return
@@ -558,7 +561,7 @@ def test_an_impossible_tracking_record_is_set_aside_and_named(tmp_path, key, val
     rows = [json.loads(x) for x in path.read_text().splitlines()]
     rows[0][key] = value
     path.write_text("".join(json.dumps(r) + "\n" for r in rows))
-    a = scores.analyse(res, TRACK_ID, reps=200)
+    a = scores.analyse(res, TRACK_ID, reps=SET_ASIDE_REPS)
     assert len(a["set_aside"]) == 1 and "seed-0" in a["set_aside"][0]
     np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])  # the other trials: 4 mm
 
@@ -584,7 +587,7 @@ def test_another_tasks_results_in_a_tracking_run_are_set_aside(tmp_path):
     }
     rows[1]["spread_mm"] = 20.0  # not tight: a consistent failure to the schema
     path.write_text("".join(json.dumps(r) + "\n" for r in rows))
-    a = scores.analyse(res, TRACK_ID, reps=200)
+    a = scores.analyse(res, TRACK_ID, reps=SET_ASIDE_REPS)
     assert len(a["set_aside"]) == 1 and "'shape' must be the task's results" in a["set_aside"][0]
     np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])
 
@@ -595,7 +598,7 @@ def test_a_damaged_tracking_line_is_set_aside(tmp_path, damage):
     path = _track_lines(res)
     raw = path.read_bytes()
     path.write_bytes(raw + {"torn": raw[:40], "garbage": b"%%%\n", "missing-key": b'{"condition": "a"}\n'}[damage])
-    a = scores.analyse(res, TRACK_ID, reps=200)
+    a = scores.analyse(res, TRACK_ID, reps=SET_ASIDE_REPS)
     assert len(a["set_aside"]) == 1
     np.testing.assert_allclose(a["_matrices"]["tracking_error"]["ppo"], [[4, 6], [5, 7]])
 
