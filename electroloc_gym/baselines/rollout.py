@@ -32,7 +32,7 @@ import numpy as np
 from electroloc_gym.envs.agent_view import agent_view
 from electroloc_gym.registry import PAPER_ENV_ID
 
-__all__ = ["Episode", "run_episode", "run_agent", "AgentCallError"]
+__all__ = ["Episode", "run_episode", "run_agent", "AgentCallError", "call_agent"]
 
 
 class AgentCallError(Exception):
@@ -62,7 +62,8 @@ def exception_line(exc: BaseException, limit: int = 300) -> str:
     return line if len(line) <= limit else line[: limit - 1] + "…"
 
 
-def _call(method: str, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+def call_agent(method: str, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``fn(*args, **kwargs)``, an agent's method: what it raises is one :class:`AgentCallError` naming ``method``."""
     try:
         return fn(*args, **kwargs)
     except KeyboardInterrupt:
@@ -120,9 +121,9 @@ def run_episode(
     """
     obs, info = env.reset(seed=int(seed))
     if agent_seed is not None and hasattr(agent, "seed"):
-        _call("seed", agent.seed, int(agent_seed))
+        call_agent("seed", agent.seed, int(agent_seed))
     view = agent_view(env)
-    _call("reset", agent.reset, view)
+    call_agent("reset", agent.reset, view)
     episode = Episode(start_info=info, info=info)
     if on_step is not None:
         on_step(info)
@@ -130,7 +131,7 @@ def run_episode(
     episode_start = np.ones((1,), dtype=bool)
     while True:
         t0 = time.perf_counter()
-        action, state = _call(
+        action, state = call_agent(
             "predict", agent.predict, obs, state=state, episode_start=episode_start, deterministic=deterministic
         )
         episode.decision_s.append(time.perf_counter() - t0)

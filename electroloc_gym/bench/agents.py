@@ -23,14 +23,13 @@ from __future__ import annotations
 
 import importlib
 import inspect
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from electroloc_gym.baselines.agent import AGENT_NAMES, make_agent
 from electroloc_gym.baselines.base import layout_problem  # the agents' layout rule (re-exported: the registry's API)
-from electroloc_gym.baselines.rollout import AgentCallError, exception_line
+from electroloc_gym.baselines.rollout import AgentCallError, call_agent, exception_line
 from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (re-exported: the registry's API)
     AGENT_ENV_KWARGS,
     agent_env_kwargs,
@@ -144,16 +143,6 @@ class PluginAgent:
     def wrapped(self) -> Any:
         """The agent object itself."""
         return object.__getattribute__(self, "_agent")
-
-
-def call_agent(method: str, fn: Callable[..., Any], *args: Any) -> Any:
-    """``fn(*args)``, an agent's method: any exception it raises is one :class:`AgentCallError` naming ``method``."""
-    try:
-        return fn(*args)
-    except KeyboardInterrupt:
-        raise
-    except BaseException as exc:  # noqa: BLE001 - the agent's failure, whatever it is, becomes one line
-        raise AgentCallError(method, exception_line(exc)) from None
 
 
 #: Agent objects handed to the Python API (:func:`electroloc_gym.bench.api.run`), by the name they run under.

@@ -18,7 +18,7 @@ from typing import Any
 from electroloc_gym.dataset import store
 from electroloc_gym.dataset.seed_protocol import DEFAULT_DATASET_SEED
 from electroloc_gym.options import Option, SettingError, int_in, is_bool, one_of, options_of, setting
-from electroloc_gym.registry import PAPER_ENV_ID, resolve_env_name
+from electroloc_gym.registry import ENV_IDS, PAPER_ENV_ID, resolve_env_name
 
 __all__ = [
     "DatasetRequest",
@@ -66,12 +66,6 @@ def _id(name: str, value: Any) -> None:
     store.check_dataset_id(value)
 
 
-def _env_ids() -> Any:
-    from electroloc_gym.registry import ENV_IDS
-
-    return ENV_IDS
-
-
 @dataclass(frozen=True)
 class DatasetRequest:
     """One dataset's settings, checked on construction (every error one line naming the argument)."""
@@ -81,10 +75,10 @@ class DatasetRequest:
         default=PAPER_ENV_ID,
         python_default=MISSING,
         flag="--env",
-        check=one_of(_env_ids),
+        check=one_of(lambda: ENV_IDS),
         bad=("Nope-v0", "no_such_module_xyz:Nope-v0"),
         help=lambda: (
-            f"a registered env id ({', '.join(_env_ids())}), or package.module:ENV_ID, an env your own "
+            f"a registered env id ({', '.join(ENV_IDS)}), or package.module:ENV_ID, an env your own "
             "module registers (a task of your own, electroloc_gym.tasks): imported like any module, it runs your code "
             "(default: %(default)s)"
         ),

@@ -294,14 +294,8 @@ def read_header(folder: Path) -> tuple[dict[str, Any] | None, str | None]:
 
 
 def write_header(folder: Path, header: Mapping[str, Any]) -> None:
-    """Replace ``data/metadata.json`` atomically (Minari's JSON: sets written as lists)."""
-    atomic_write_text(header_path(folder), json.dumps(header, default=_json_default, allow_nan=False))
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, (set, frozenset)):
-        return sorted(obj)
-    raise TypeError(f"{type(obj).__name__} is not JSON data")
+    """Replace ``data/metadata.json`` atomically (strict JSON: every field is JSON data already)."""
+    atomic_write_text(header_path(folder), json.dumps(header, allow_nan=False))
 
 
 class Settings(Struct):
