@@ -153,7 +153,7 @@ def test_the_reference_min_var_trials_are_the_numba_cores(tmp_path) -> None:
         assert [r[k] for k in keys] == [ref[k] for k in keys], r["condition"]
 
 
-@pytest.mark.long  # about two minutes: min-var's 4,600 decisions
+@pytest.mark.long  # about a minute and a half: min-var's 4,600 decisions
 def test_min_var_on_the_torch_backend_localises_as_on_the_numba_core() -> None:
     reference = _reference_min_var()
     numba = [reference[(c, k)] for c in PRESET_NAMES for k in range(TRIALS)]
