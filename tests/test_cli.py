@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import pytest
+from cli_inproc import run_cli as run_inproc
 
 from electroloc_gym.contract.params import MIN_OBSERVATION_CAP
 from electroloc_gym.world.conditions import PAPER_TABLE3_THEORY_MM, PRESET_NAMES
@@ -16,13 +17,15 @@ ENV = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_
 
 
 def run_cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    """``python -m electroloc_gym.cli ARGS`` as a real process: the console's smoke tests (eev, demo) and the
+    process-only checks; what a command says and does is checked in this process (``cli_inproc``)."""
     return subprocess.run(
         [sys.executable, "-m", "electroloc_gym.cli", *args], capture_output=True, text=True, env=ENV, timeout=timeout
     )
 
 
 def test_detect_table_prints_paper_columns() -> None:
-    out = run_cli("detect")
+    out = run_inproc("detect")
     assert out.returncode == 0, out.stderr
     for name in PRESET_NAMES:
         assert name in out.stdout
@@ -31,7 +34,7 @@ def test_detect_table_prints_paper_columns() -> None:
 
 
 def test_detect_json_small_spheres_within_1p5_mm() -> None:
-    out = run_cli("detect", "--json")
+    out = run_inproc("detect", "--json")
     assert out.returncode == 0, out.stderr
     rows = {r["condition"]: r for r in json.loads(out.stdout)}
     assert set(rows) == set(PRESET_NAMES)
@@ -60,7 +63,7 @@ def test_demo_writes_png(tmp_path) -> None:
 
 
 def test_bad_condition_is_a_clear_usage_error() -> None:
-    out = run_cli("eev", "--condition", "fresh-gold-12.7")
+    out = run_inproc("eev", "--condition", "fresh-gold-12.7")
     assert out.returncode == 2
     assert "invalid choice" in out.stderr and "--condition" in out.stderr
 
@@ -73,7 +76,7 @@ def test_console_script_entry_point() -> None:
 
 @pytest.mark.parametrize("command", [[], ["bench"], ["detect"], ["eev"], ["demo"]])
 def test_help_is_plain_text_with_defaults(command) -> None:
-    out = run_cli(*command, "--help")
+    out = run_inproc(*command, "--help")
     assert out.returncode == 0, out.stderr
     text = " ".join(out.stdout.split())  # line wrapping depends on the terminal width
     assert "``" not in text and ":func:" not in text and ":mod:" not in text
@@ -155,7 +158,7 @@ def test_issue_reproducers_are_one_line(capsys, tmp_path, argv, option) -> None:
 
 def test_detect_json_is_strict_and_nan_rows_have_no_branch_label() -> None:
     for factor in ("1", "1/10000"):  # the ends of the range: every row computed
-        proc = run_cli("detect", "--noise-factor", factor, "--json")
+        proc = run_inproc("detect", "--noise-factor", factor, "--json")
         assert proc.returncode == 0
 
         def refuse(constant):
