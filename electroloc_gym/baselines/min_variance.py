@@ -174,10 +174,10 @@ def weighted_moments(
     sums = np.empty((n_options, n_vot, n_moments), dtype=f32)
     rows = max(1, min(int(chunk_rows), n_vot))
     buf = np.empty((rows, m), dtype=f32)
-    # the clamp's bound as a block of the buffer's shape: numpy's maximum and minimum against a scalar take
-    # about four times as long as against an array (the result is the same: both are exact)
-    floor = np.full_like(buf, exp_floor)
+    # Each kernel's clamp bound is a block of the buffer's shape: numpy's maximum and minimum against a scalar
+    # take about four times as long as against an array (the result is the same: both are exact).
     if kernel == "expanded":
+        floor = np.full_like(buf, exp_floor)
         # −z²/2 = [a², a, 1] · [−k²/2, k²b, −k²b²/2]ᵀ  (k² = 1/σ²): one sgemm with inner size 3.
         right = np.stack([-half_k2, 2.0 * half_k2 * mu64, -half_k2 * mu64**2], axis=1).astype(f32)  # (C, 3, M)
         a_all = mu64[:, voters]
@@ -197,7 +197,7 @@ def weighted_moments(
         if not pairs:  # one pair: a trailing axis of 1
             k, mu, bk = k[..., None], mu[..., None], bk[..., None]
         k, bk = np.ascontiguousarray(k.transpose(0, 2, 1)), np.ascontiguousarray(bk.transpose(0, 2, 1))  # (C, K, M)
-        cap = -floor
+        cap = np.full_like(buf, -exp_floor)
         term = np.empty_like(buf)
         for c in range(n_options):
             a = mu[c, voters]  # (V, K)
