@@ -4,6 +4,7 @@ marked to run once."""
 
 import os
 import re
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -129,10 +130,14 @@ def train_summary_json():
 
 
 @pytest.fixture(autouse=True, scope="session")
-def _sb3_logger_folder(tmp_path_factory: pytest.TempPathFactory):
-    """SB3's logger, made by any ``learn()`` without one, makes a dated folder in the system's temporary folder
-    even when it writes no file; the tests' loggers use one folder of pytest's own temporary tree instead."""
+def _temporary_folders(tmp_path_factory: pytest.TempPathFactory):
+    """What the tests make in the system's temporary folder goes to pytest's own temporary tree (kept for its
+    last three runs) instead: SB3's logger, made by any ``learn()`` without one, makes a dated folder there
+    even when it writes no file (``SB3_LOGDIR``); ``electroloc_gym.bench.run`` without ``out`` makes a new
+    folder for its results (``tempfile``'s folder, in the test's process; Ray finds its own from ``TMPDIR``,
+    left as it is: its socket paths must stay short)."""
     patch = pytest.MonkeyPatch()
     patch.setenv("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3-logger")))
+    patch.setattr(tempfile, "tempdir", str(tmp_path_factory.mktemp("tempfile")))
     yield
     patch.undo()
