@@ -75,6 +75,7 @@ def test_unknown_agent_lists_every_choice() -> None:
         ("ppo-belief", "ppo-belief"),
         ("/tmp/runs/ppo-s1000/", "ppo-s1000"),
         ("/tmp/runs/ppo-s1000/model.zip", "ppo-s1000"),
+        ("/tmp/runs/ppo-s1000/policy.json", "ppo-s1000"),
         ("a/best.zip", "best"),
     ],
 )
@@ -207,13 +208,18 @@ def test_global_env_refuses_learned_policies_and_zero_crossing(tmp_path, capsys)
         assert f"not applicable: ['{spec}']" in capsys.readouterr().err
 
 
-def test_global_env_takes_a_policy_folder_trained_on_it(tmp_path, capsys) -> None:
+@pytest.mark.parametrize("naming", ["folder", "policy.json", "run folder"])
+def test_global_env_takes_a_policy_folder_trained_on_it(tmp_path, capsys, naming) -> None:
+    """A policy path is read as loading it reads it, however it names the folder: the folder, its
+    ``policy.json``, or an rl-zoo3 run folder holding it as ``best/``."""
     import shutil
 
-    mine = tmp_path / "my-global"  # a user's own export of a global-env policy, named by path
-    shutil.copytree(shipped_models()["ppo-belief-global"], mine)
-    other = tmp_path / "my-target"
-    shutil.copytree(shipped_models()["ppo-belief"], other)
+    def named(model: str, name: str) -> Path:  # a user's own export of a shipped policy, named by path
+        folder = tmp_path / name / "best" if naming == "run folder" else tmp_path / name
+        shutil.copytree(shipped_models()[model], folder)
+        return folder / "policy.json" if naming == "policy.json" else tmp_path / name
+
+    mine, other = named("ppo-belief-global", "my-global"), named("ppo-belief", "my-target")
     assert (
         cli_main(
             [
@@ -231,7 +237,7 @@ def test_global_env_takes_a_policy_folder_trained_on_it(tmp_path, capsys) -> Non
         )
         == 0
     )
-    assert "my-global" in (tmp_path / "ok" / "table.md").read_text()
+    assert f"| {make_bench_agent(str(mine)).name} |" in (tmp_path / "ok" / "table.md").read_text()  # its row
     assert (
         cli_main(
             ["bench", "--env", "global", "--agents", f"rnd-wlk,{other}", *FAST[2:], "--out", str(tmp_path / "refused")]
@@ -239,6 +245,9 @@ def test_global_env_takes_a_policy_folder_trained_on_it(tmp_path, capsys) -> Non
         == 2
     )
     assert f"not applicable: ['{other}']" in capsys.readouterr().err
+    # on the env of the run, the policy's own record decides: refused, naming where it was trained
+    assert cli_main(["bench", "--agents", str(mine), *FAST, "--out", str(tmp_path / "other-env")]) == 2
+    assert "trained on ElectroLocGlobal-v0" in capsys.readouterr().err
 
 
 # ---- one rollout loop -----------------------------------------------------------------------------------------

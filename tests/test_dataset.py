@@ -157,6 +157,17 @@ def test_bad_requests_one_line(kwargs, match):
         (["--agent", "nope", "--episodes", "1"], "unknown agent 'nope'"),
         (["--agent", "zero-crossing", "--episodes", "1"], "ends episodes itself"),
         (["--agent", "ppo-belief", "--episodes", "1", "--env", "ElectroLocGlobal-v0"], "trained on ElectroLoc-v0"),
+        (  # a policy named by its policy.json is read as loading it reads it
+            [
+                "--agent",
+                str(ROOT / "electroloc_gym/models/ppo-belief/policy.json"),
+                "--episodes",
+                "1",
+                "--env",
+                "ElectroLocGlobal-v0",
+            ],
+            "trained on ElectroLoc-v0",
+        ),
         (["--agent", "rnd-wlk", "--episodes", "1", "--reference", "/no/such/bench"], "reference must be"),
         (["--agent", "rnd-wlk", "--episodes", "1", "--resume", "--force"], "exclude each other"),
     ],

@@ -285,11 +285,15 @@ def _checked(guarded: PluginAgent, where: str, what: str) -> PluginAgent:
 
 
 def agent_display_name(spec: str) -> str:
-    """A short name for progress bars and logs: the spec itself, or a path's folder / file name."""
+    """A short name for progress bars and logs: the spec itself, or a path's folder (the folder of its
+    ``model.zip`` or ``policy.json``) or file name.
+    """
     if "/" not in spec and "\\" not in spec:
         return spec
     p = Path(spec.rstrip("/\\"))
-    return p.parent.name if p.name == "model.zip" and p.parent.name else (p.stem if p.suffix == ".zip" else p.name)
+    if p.name in ("model.zip", "policy.json") and p.parent.name:
+        return p.parent.name
+    return p.stem if p.suffix == ".zip" else p.name
 
 
 def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pickle: bool = False) -> Any:

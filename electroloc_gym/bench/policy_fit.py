@@ -136,14 +136,15 @@ def shipped_model_env(folder: Path) -> tuple[str, tuple[float, ...] | None] | No
         return None
 
 
-def _read_meta(folder: Path) -> dict[str, Any] | None:
-    """``folder``'s policy.json read through its one schema (:func:`~electroloc_gym.policy.format.read_export`);
-    None where it is missing or refused (loading the policy says why).
+def _read_meta(path: Path) -> dict[str, Any] | None:
+    """The policy.json a policy path names (:func:`~electroloc_gym.policy.format.policy_folder`, as loading it
+    does) read through its one schema (:func:`~electroloc_gym.policy.format.read_export`); None where it is
+    missing or refused (loading the policy says why).
     """
-    from electroloc_gym.policy.format import PolicyFormatError, read_export
+    from electroloc_gym.policy.format import PolicyFormatError, policy_folder, read_export
 
     try:
-        return read_export(folder).meta
+        return read_export(policy_folder(path)).meta
     except (PolicyFormatError, OSError):
         return None
 
@@ -160,10 +161,7 @@ def trained_sensor_layout(meta: Any) -> str | None:
 
 def policy_meta(spec: str) -> dict[str, Any] | None:
     """The ``policy.json`` of a shipped model or a policy path (None: none, or refused by its schema)."""
-    path = shipped_models().get(spec) or Path(spec).expanduser()
-    if path.is_file():
-        path = path if path.name == "policy.json" else path.parent
-    return _read_meta(path)
+    return _read_meta(shipped_models().get(spec) or Path(spec).expanduser())
 
 
 def _space_text(space: Any) -> str:

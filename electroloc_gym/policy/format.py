@@ -54,6 +54,7 @@ __all__ = [
     "PolicyFormatError",
     "expected_tensors",
     "integer_tensor",
+    "policy_folder",
     "read_export",
     "read_weights",
     "space_from_json",
@@ -469,6 +470,19 @@ def normalization_from_json(norm: Any, obs: Mapping[str, Any], where: str) -> Ob
             f"observation has {obs['frame_dim']} per frame and {obs['shape'][0]} stacked"
         )
     return stats
+
+
+def policy_folder(path: str | Path) -> Path:
+    """The folder whose ``policy.json`` a policy path names: the folder, the ``policy.json`` file's folder, or an
+    rl-zoo3 run folder's chosen checkpoint ``best/``; ``path`` itself where none holds one (e.g. an SB3 ``.zip``).
+    The one resolution of a policy path: loading a policy and checking it against a run's env both read it.
+    """
+    p = Path(path)
+    if p.is_file() and p.name == POLICY_JSON:
+        p = p.parent
+    if p.is_dir() and not (p / POLICY_JSON).is_file() and (p / "best" / POLICY_JSON).is_file():
+        p = p / "best"
+    return p
 
 
 def read_export(folder: str | Path) -> PolicyExport:

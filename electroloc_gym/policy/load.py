@@ -31,6 +31,7 @@ from electroloc_gym.policy.format import (
     PolicyFormatError,
     normalization_from_json,
     one_line,
+    policy_folder,
     read_export,
     read_weights,
 )
@@ -255,10 +256,7 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
     shipped = shipped_models()
     if not p.exists() and str(path) in shipped:
         p = shipped[str(path)]
-    if p.is_file() and p.name == POLICY_JSON:
-        p = p.parent
-    if p.is_dir() and not (p / POLICY_JSON).is_file() and (p / "best" / POLICY_JSON).is_file():
-        p = p / "best"  # an rl-zoo3 run folder of this path: its chosen checkpoint
+    p = policy_folder(p)
     if p.is_dir() and (p / POLICY_JSON).is_file():
         return agent_from_export(read_export(p))
     if not p.exists():
