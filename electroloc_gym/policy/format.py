@@ -458,12 +458,8 @@ def normalization_from_json(norm: Any, obs: Mapping[str, Any], where: str) -> Ob
         raise PolicyFormatError(
             f"{where}: normalization.norm_obs is true but {missing} are missing — refusing to run on raw observations"
         )
-    stats = ObsNormalization(
-        np.asarray(n.obs_mean, dtype=np.float64),
-        np.asarray(n.obs_var, dtype=np.float64),
-        clip_obs=n.clip_obs,  # type: ignore[arg-type]  # set: checked above
-        epsilon=n.epsilon,  # type: ignore[arg-type]
-    )
+    # every one set (checked above); ObsNormalization makes the statistics float64 arrays
+    stats = ObsNormalization(n.obs_mean, n.obs_var, clip_obs=n.clip_obs, epsilon=n.epsilon)  # type: ignore[arg-type]
     if stats.mean.shape[0] not in (obs["shape"][0], obs["frame_dim"]):
         raise PolicyFormatError(
             f"{where}: normalisation statistics have {stats.mean.shape[0]} features, the "
