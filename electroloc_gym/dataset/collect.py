@@ -261,14 +261,12 @@ def build_dataset(
     with paths.lock():
         store.recover_swap(paths)
         paths.check_location()
-        env = gym.make(request.env_id, **kwargs)
-        try:
+        with gym.make(request.env_id, **kwargs) as env:
             run = _Run(request, paths, env, settings, refs, seeds, notify)
             if run.prepare(resume=resume, force=force):
-                bar = tqdm(
+                with tqdm(
                     total=request.episodes, initial=len(run.kept), desc=ds_id, unit="episode", disable=not progress
-                )
-                try:
+                ) as bar:
                     for k in range(request.episodes):
                         if k in run.kept:
                             continue
@@ -278,11 +276,7 @@ def build_dataset(
                             raise ValueError(f"agent {request.agent!r} in episode {k} of {ds_id}: {exc}") from None
                         run.write(buffer)
                         bar.update(1)
-                finally:
-                    bar.close()
                 run.finish()
-        finally:
-            env.close()
     return minari.load_dataset(ds_id)
 
 
