@@ -528,11 +528,8 @@ def flush_to_disk(folder: Path) -> None:
         return
     for dirpath, _dirs, files in os.walk(folder):  # pragma: no cover - systems without sync()
         for name in files:
-            fd = os.open(os.path.join(dirpath, name), os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
+            with open(os.path.join(dirpath, name), "rb") as fh:
+                os.fsync(fh.fileno())
 
 
 def _fsync_dir(path: Path) -> None:
