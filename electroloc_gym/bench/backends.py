@@ -7,13 +7,7 @@ and trial, see :mod:`electroloc_gym.bench.config`), and workers build their envs
 themselves.
 
 Built in: ``"process"`` (default, :class:`ProcessBackend`) and ``"serial"`` (in-process, for debugging and
-tests). More backends (e.g. Ray) register with :func:`register_backend`::
-
-    class RayBackend(Backend):
-        name = "ray"
-        def __init__(self, workers=None, address=None): ...
-        def run_trials(self, specs, worker_fn): ...   # yield (spec, result) as they finish
-    register_backend(RayBackend)
+tests). More register with :func:`register_backend`, as :mod:`~electroloc_gym.bench.ray_backend`'s ``"ray"`` does.
 """
 
 from __future__ import annotations

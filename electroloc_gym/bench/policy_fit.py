@@ -208,14 +208,12 @@ def policy_env_problem(
                 f"its observation frame has {frame} entries, {env_id}'s "
                 f"({getattr(agent, 'env_kwargs', {}).get('observation', 'default')} observation) has {env_frame}"
             )
-        space, have = act["space"], env.action_space.shape
-        want = space.get("shape")
-        if space["type"] == "Discrete" or act["action_type"] == "discrete":
-            n = space.get("n")
-            if getattr(env.action_space, "n", None) != n:
-                return f"its action space is Discrete({n}), {env_id}'s is {_space_text(env.action_space)}"
-        elif want is not None and tuple(want) != tuple(have or ()):
-            return f"its action space has shape {tuple(want)}, {env_id}'s is {_space_text(env.action_space)}"
+        space = act["space"]  # the schema ties action_type "discrete" to a Discrete space, and gives a Box a shape
+        if space["type"] == "Discrete":
+            if getattr(env.action_space, "n", None) != space["n"]:
+                return f"its action space is Discrete({space['n']}), {env_id}'s is {_space_text(env.action_space)}"
+        elif tuple(space["shape"]) != tuple(env.action_space.shape or ()):
+            return f"its action space has shape {tuple(space['shape'])}, {env_id}'s is {_space_text(env.action_space)}"
     finally:
         env.close()
     return None

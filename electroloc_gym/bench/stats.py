@@ -56,10 +56,6 @@ def _median(values: Iterable[Any]) -> float | None:
     return float(np.median(a)) if a.size else None
 
 
-def _avg_of(rows: Sequence[dict[str, Any]], key: str) -> float | None:
-    return _mean(r[key] for r in rows)
-
-
 def agent_label(agent: str, recs: Sequence[dict[str, Any]]) -> str:
     """Table label: the spec for built-in agents (``min-var[n_voters=None]``), the policy's name for paths."""
     return str(recs[0].get("agent_label", agent)) if (is_path_like(agent) and recs) else agent
@@ -176,16 +172,16 @@ def summarize(
                 "conditions": len(crow),
                 **{k: sum(r[k] for r in crow) for k in ("trials", "successes", "failures")},
                 **{
-                    k: _avg_of(crow, k)
+                    k: _mean(r[k] for r in crow)
                     for k in ("error_mean_mm", "error_median_mm", "readings_mean", "readings_median")
                 },
                 "decision_ms_median": _median(r.get("decision_ms_median") for r in recs),
                 "paired_trials": sum(r["paired_trials"] for r in crow),
-                **{k: _avg_of(crow, k) for k in ("error_mean_paired_mm", "readings_mean_paired")},
+                **{k: _mean(r[k] for r in crow) for k in ("error_mean_paired_mm", "readings_mean_paired")},
                 "error_median_pooled_mm": _median(r["error_mm"] for r in recs),
                 "readings_median_pooled": _median(r["readings"] for r in recs),
                 "far_successes": sum(is_far_success(r["success"], r["error_mm"]) for r in recs),
-                **{k: _avg_of(crow, k) for k in ("error_x_mean_abs_mm", "error_y_mean_abs_mm")},
+                **{k: _mean(r[k] for r in crow) for k in ("error_x_mean_abs_mm", "error_y_mean_abs_mm")},
                 **metrics.statistics(recs),  # pooled over the conditions' trials
             }
         )
