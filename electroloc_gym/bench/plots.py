@@ -68,6 +68,7 @@ def steps_png(summary: dict[str, Any]) -> bytes:
     x = np.arange(len(conditions))
     width = 0.8 / max(1, len(agents))
     lookup = {(r["condition"], r["agent"]): r for r in rows}
+    n = summary.get("config", {}).get("trials")
     table4_agents = {a for _, a in PAPER_TABLE4}  # the paper's agents with Table-4 (Fig. 12) values
     for j, agent in enumerate(agents):
         label = next((r.get("label", agent) for r in rows if r["agent"] == agent), agent)
@@ -76,16 +77,14 @@ def steps_png(summary: dict[str, Any]) -> bytes:
             ax.bar(xs, [_value(lookup.get((c, agent)), stat) for c in conditions], width, label=label)
         key = paper_agent_key(agent)
         if key in table4_agents:
-            n_trials = summary.get("config", {}).get("trials") or 50
             # the paper ran 50 trials per condition: scale its failure counts to this run's trial count
-            pf = [PAPER_TABLE4.get((c, key), (None, np.nan))[1] * n_trials / 50 for c in conditions]
+            pf = [PAPER_TABLE4.get((c, key), (None, np.nan))[1] * (n or 50) / 50 for c in conditions]
             pm = [PAPER_TABLE4.get((c, key), (None,) * 5 + (np.nan,))[5] for c in conditions]
             kw = {"marker": "_", "color": "k", "markersize": 14, "linestyle": "none", "markeredgewidth": 2}
             axes[0].plot(xs, pf, **kw, label="paper (Fig. 12)" if j == 0 else None)
             axes[1].plot(xs, pm, **kw)
     axes[0].set_ylabel("failed trials")
     axes[1].set_ylabel("median steps")
-    n = summary.get("config", {}).get("trials")
     axes[0].set_title(
         f"Failed trials and median steps ({n} trials per condition and agent)\n"
         f"black ticks: paper's Fig. 12 (failures scaled to {n} trials)",
