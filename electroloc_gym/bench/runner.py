@@ -81,7 +81,6 @@ __all__ = [
     "run_trial",
 ]
 
-_Log = Callable[[str], None] | None
 #: The files a run derives from its records, written together (:func:`_write_outputs`).
 OUTPUT_FILES = ("summary.json", "table.md", "steps.png", "conditions.png")
 #: An agent whose own estimate of one decision exceeds this is announced before the run, s.
@@ -262,7 +261,7 @@ def run_benchmark(
     progress: bool = True,
     backend_options: dict[str, Any] | None = None,
     trust_pickle: bool = False,
-    log: _Log = print,
+    log: Callable[[str], None] | None = print,
 ) -> dict[str, Any]:
     """Run (or resume) ``config``'s benchmark in ``out_dir`` (created; locked for the run) and write its files;
     returns the summary. ``workers``, ``backend``, ``resume``, ``progress`` and ``trust_pickle`` are the

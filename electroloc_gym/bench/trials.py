@@ -31,9 +31,6 @@ __all__ = ["run_trial", "TrialFailed", "describe_trial"]
 class TrialFailed(ValueError):
     """A trial that could not finish: one line naming the agent, the trial and the exception."""
 
-    def __reduce__(self) -> tuple[Any, ...]:  # picklable across worker processes
-        return (TrialFailed, (str(self),))
-
 
 def describe_trial(spec: TrialSpec) -> str:
     """``agent 'X' in trial K of CONDITION`` (the words of every failure message)."""
