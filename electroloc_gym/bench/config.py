@@ -453,7 +453,6 @@ class TrialSpec:
     trial: int
     env_seed: int
     agent_seed: int
-    #: The run's settings.
     config: BenchConfig
     #: Let the worker load a learned policy whose files need unpickling (SB3's bare zip).
     trust_pickle: bool = False
