@@ -65,9 +65,9 @@ def _host_port(text: str) -> tuple[str, int] | None:
 def check_ray_address(address: str | None) -> None:
     """Check that the ray backend can run: Ray is installed and, for an ``address``, a cluster answers there.
 
-    ``"auto"`` (or None with ``RAY_ADDRESS`` set) is resolved as ``ray.init`` resolves it; a
-    ``"ray://host:port"`` or ``"host:port"`` address must accept a TCP connection within
-    :data:`CONNECT_TIMEOUT_S`. Nothing is started and nothing is written.
+    ``"auto"`` is resolved as ``ray.init`` resolves it; a ``"ray://host:port"`` or ``"host:port"`` address must
+    accept a TCP connection within :data:`CONNECT_TIMEOUT_S`. None (no ``--address``: the run starts a local
+    Ray) checks only that Ray is installed. Nothing is started and nothing is written.
 
     Raises:
         ValueError: one line naming ``--backend ray`` (Ray missing) or ``--address`` (malformed or no
