@@ -116,3 +116,30 @@ def test_an_experiment_script_refuses_before_its_trials(tmp_path, capsys, monkey
         with pytest.raises(SystemExit) as exc:
             script.main(["--out", str(file), "--trials", "2"])
         assert "--out" in _one_line(capsys, exc.value.code, word), kind
+
+
+def test_a_path_under_home_is_one_path_for_the_check_the_writes_and_the_reads(tmp_path, monkeypatch, capsys) -> None:
+    """``~`` in a folder a command takes (a shell leaves ``--out=~/b`` as typed) is the home folder for the check,
+    the writes and what the command reads back: bench's command line and Python API, train's rl-zoo3 command and
+    the dataset's reference run — never a folder named ``~`` in the working directory.
+    """
+    from electroloc_gym.bench import run
+    from electroloc_gym.dataset.seed_protocol import reference_scores
+    from electroloc_gym.train.run import zoo_argv
+
+    home, cwd = tmp_path / "home", tmp_path / "cwd"
+    home.mkdir(), cwd.mkdir()
+    monkeypatch.setenv("HOME", str(home))
+    monkeypatch.chdir(cwd)
+    assert cli_main(["bench", *TINY_CLI, "--backend", "serial", "--out", "~/b"]) == 0
+    assert "| rnd-wlk |" in capsys.readouterr().out  # the table read back and printed
+    assert (home / "b" / "table.md").is_file()
+    result = run(
+        "rnd-wlk", conditions="fresh-steel-12.7", trials=1, n_particles=100, sensor_model="analytic", out="~/c"
+    )
+    assert result.out == home / "c" and (home / "c" / "table.md").is_file()
+    argv = zoo_argv("ppo", "ElectroLoc-v0", 0, log_folder="~/logs")
+    assert argv[argv.index("--log-folder") + 1] == str(home / "logs")
+    with pytest.raises(ValueError, match="must hold rnd-wlk and one of"):  # read: a run without a planner
+        reference_scores("~/b", "ElectroLoc-v0")
+    assert not (cwd / "~").exists()

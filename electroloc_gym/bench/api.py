@@ -40,6 +40,7 @@ from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.options import Option, SettingError, api_signature
 from electroloc_gym.registry import BENCH_ENVS, bench_env, resolve_env_name
 from electroloc_gym.utils.agentspec import split_specs
+from electroloc_gym.utils.fileio import user_path
 
 __all__ = ["run", "BenchResult", "prepare"]
 
@@ -209,7 +210,7 @@ def run(agents: Any = None, **settings: Any) -> BenchResult:
     values["agents"] = agents
     config, options = prepare(values, lambda opt: opt.name, log or (lambda line: None))
     out = values["out"]
-    folder = Path(tempfile.mkdtemp(prefix="electroloc-bench-")) if out is None else Path(out)
+    folder = Path(tempfile.mkdtemp(prefix="electroloc-bench-")) if out is None else user_path(out)
     summary = run_benchmark(config, folder, **options, log=log)
     return BenchResult(summary=summary, table=(folder / "table.md").read_text(encoding="utf-8"), out=folder)
 

@@ -14,6 +14,7 @@ from electroloc_gym.bench.api import _runs_on_map_env, prepare  # noqa: F401  (t
 from electroloc_gym.bench.config import BENCH_OPTIONS, MAX_PARTICLES, MAX_READINGS, MAX_TRIALS, MAX_WORKERS
 from electroloc_gym.bench.runner import run_benchmark
 from electroloc_gym.options import add_options, ascii_int
+from electroloc_gym.utils.fileio import user_path
 
 __all__ = [
     "add_arguments",
@@ -66,6 +67,5 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
-    with open(f"{args.out}/table.md", encoding="utf-8") as f:
-        print(f.read())
+    print((user_path(args.out) / "table.md").read_text(encoding="utf-8"))
     return 0

@@ -20,6 +20,7 @@ from electroloc_gym.bench.config import IDENTITY_KEYS, BenchConfig
 from electroloc_gym.bench.records import CONFIG_FILE, TRIALS_FILE, LoadedRecords, load_records, stored_trials
 from electroloc_gym.bench.schema import OPTIONAL_RECORD_KEYS, RecordRules
 from electroloc_gym.registry import env_entry
+from electroloc_gym.utils.fileio import user_path
 
 __all__ = ["RunRecords", "read_run_records", "record_rules", "read_config", "config_from_json", "load_config"]
 
@@ -209,7 +210,7 @@ def read_run_records(out_dir: str | os.PathLike[str]) -> RunRecords:
         ValueError: one line naming the file: the folder, its config.json or its trials.jsonl missing or
             unreadable, or config.json not a run's config.
     """
-    folder = Path(os.fspath(out_dir)).expanduser()
+    folder = user_path(out_dir)
     if not folder.is_dir():
         raise ValueError(f"{folder}: not a benchmark output folder (no such folder)")
     config_path, trials_path = folder / CONFIG_FILE, stored_trials(folder / TRIALS_FILE)

@@ -28,13 +28,13 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Iterable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from electroloc_gym.baselines.agent import PLANNER_AGENTS, RANDOM_AGENT
 from electroloc_gym.registry import PAPER_ENV_ID
+from electroloc_gym.utils.fileio import user_path
 from electroloc_gym.world.conditions import PRESET_NAMES
 
 __all__ = [
@@ -108,7 +108,7 @@ def reference_scores(bench_dir: str | os.PathLike[str], env_id: str) -> dict[str
     from electroloc_gym.bench.records import TRIALS_FILE, read_trials, stored_trials
     from electroloc_gym.registry import env_entry
 
-    path = Path(bench_dir)
+    path = user_path(bench_dir)
     path = stored_trials(path / TRIALS_FILE if path.is_dir() else path)  # a kept run's .gz where it is absent
     if not path.is_file():
         raise ValueError(

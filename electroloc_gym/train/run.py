@@ -33,6 +33,7 @@ from typing import Any
 from electroloc_gym.registry import plugin_modules, resolve_env_name
 from electroloc_gym.train.settings import ALGO_FILES, check_train_settings
 from electroloc_gym.train.summary import read_summary
+from electroloc_gym.utils.fileio import user_path
 from electroloc_gym.utils.runtime import chosen_threads, thread_env
 
 __all__ = [
@@ -168,7 +169,7 @@ def zoo_argv(
         "--seed",
         str(seed),
         "--log-folder",
-        str(log_folder),
+        str(user_path(log_folder)),
         "--eval-freq",
         "-1",
         "--num-threads",
@@ -238,6 +239,7 @@ def train(
         gym_packages=gym_packages,
     )
     env_id = argv[argv.index("--env") + 1]  # MODULE:ENV_ID resolved
+    log_folder = user_path(log_folder)
     run = find_finished_run(log_folder, algo, env_id, argv)
     if run is None:
         check_zoo_installed()
@@ -270,7 +272,7 @@ def train(
     if out is not None:
         from electroloc_gym.train.export import export_run
 
-        dest = Path(out)
+        dest = user_path(out)
         done = dest / "summary.json"
         same = done.is_file() and read_summary(done).argv == read_summary(run / "summary.json").argv
         if not same:

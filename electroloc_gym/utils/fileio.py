@@ -26,6 +26,7 @@ import numpy as np
 from filelock import FileLock, Timeout
 
 __all__ = [
+    "user_path",
     "check_output_path",
     "check_output_folder",
     "check_output_options",
@@ -142,6 +143,13 @@ def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[s
     _probe(folder, f"{name}: cannot write {str(p)!r}: folder {str(folder)!r} is not writable")
 
 
+def user_path(path: str | os.PathLike[str]) -> Path:
+    """A folder or file path a user gave (a setting, a flag) as every command reads and writes it: ``~`` expanded
+    (a shell leaves ``--out=~/runs`` as typed). The checks and the writes of a command both take it from here.
+    """
+    return Path(os.fspath(path)).expanduser()
+
+
 def check_output_folder(name: str, folder: str | os.PathLike[str] | None) -> Path:
     """Refuse, before any work, an output folder that cannot be created or written (ValueError naming ``name``);
     return it as a path (``~`` expanded). The rule of :func:`check_output_path` for a folder (a real write in
@@ -150,7 +158,7 @@ def check_output_folder(name: str, folder: str | os.PathLike[str] | None) -> Pat
     text = "" if folder is None else os.fspath(folder)
     if not str(text).strip():
         raise ValueError(f"{name} must name a folder, got {text!r}")
-    p = Path(text).expanduser()
+    p = user_path(text)
     existing, is_file = _existing_folder(name, p)
     if is_file:
         raise ValueError(f"{name} {text!r} is a file, not a folder")
