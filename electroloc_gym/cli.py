@@ -24,7 +24,7 @@ from fractions import Fraction
 from typing import Any
 
 from electroloc_gym.registry import BENCH_ENVS, bench_env
-from electroloc_gym.utils.fileio import strict_json
+from electroloc_gym.utils.fileio import strict_json, user_path
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
 from electroloc_gym.world.conditions import (
     DEFAULT_SIGNAL,
@@ -476,7 +476,8 @@ WRITE_ERRNOS = frozenset(
 def os_error_line(command: str, exc: OSError, args: argparse.Namespace | None = None) -> str:
     """The one line of an ``OSError`` out of ``command``: the file and the system's reason; for a command
     that keeps its records as it goes (``bench``: ``OUT/trials.jsonl``; ``dataset``: its episodes), that
-    they are kept and ``--resume`` continues once the cause is fixed.
+    they are kept and how to continue once the cause is fixed: ``--resume``, or the same ``--force`` command
+    (a dataset's replacement continues by ``--force``; ``--resume`` does not take it).
     """
     prog = f"electroloc {command}".strip()
     reason = exc.strerror or str(exc) or type(exc).__name__
@@ -486,12 +487,13 @@ def os_error_line(command: str, exc: OSError, args: argparse.Namespace | None = 
         where = "cannot write: " if exc.errno in WRITE_ERRNOS else ""
     kept = ""
     if command == "bench" and args is not None:
-        records = os.path.join(os.fspath(args.out), "trials.jsonl")
+        records = user_path(args.out) / "trials.jsonl"
         kept = f"; the finished trials are kept in {records} (a line cut short is set aside)"
     elif command == "dataset":
         kept = "; the episodes collected so far are kept (one cut short is set aside)"
     if kept:
-        kept += ": free space or fix the cause, then run the same command with --resume"
+        again = "again" if getattr(args, "force", False) else "with --resume"
+        kept += f": free space or fix the cause, then run the same command {again}"
     return f"{prog}: error: {where}{reason}{kept}"
 
 

@@ -104,6 +104,25 @@ def _fill_disk(monkeypatch, name: str, room: int) -> None:
     monkeypatch.setattr(os, "fdopen", fake_fdopen)
 
 
+@pytest.mark.parametrize(
+    "command, settings, advice",
+    [
+        ("bench", {"out": "runs/b", "resume": False}, "then run the same command with --resume"),
+        ("dataset", {"resume": False, "force": False}, "then run the same command with --resume"),
+        ("dataset", {"resume": True, "force": False}, "then run the same command with --resume"),
+        # a replacement continues by --force: --resume beside it is refused, and --resume alone does not take it
+        ("dataset", {"resume": False, "force": True}, "then run the same command again"),
+    ],
+)
+def test_a_disk_error_says_the_command_that_continues(command, settings, advice) -> None:
+    import argparse
+
+    from electroloc_gym.cli import os_error_line
+
+    line = os_error_line(command, OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)), argparse.Namespace(**settings))
+    assert line.endswith(advice) and "\n" not in line, line
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/fd")
 @pytest.mark.parametrize("name, room", [("trials.jsonl", 1500), ("summary.json", 100)])
 def test_a_full_disk_is_one_line_and_resume_gives_the_uninterrupted_records(tmp_path, capsys, monkeypatch, name, room):
