@@ -237,7 +237,7 @@ def test_global_env_takes_a_policy_folder_trained_on_it(tmp_path, capsys, naming
         )
         == 0
     )
-    assert f"| {make_bench_agent(str(mine)).name} |" in (tmp_path / "ok" / "table.md").read_text()  # its row
+    assert "| my-global |" in (tmp_path / "ok" / "table.md").read_text()  # its row, by the name the path gives
     assert (
         cli_main(
             ["bench", "--env", "global", "--agents", f"rnd-wlk,{other}", *FAST[2:], "--out", str(tmp_path / "refused")]
@@ -248,6 +248,21 @@ def test_global_env_takes_a_policy_folder_trained_on_it(tmp_path, capsys, naming
     # on the env of the run, the policy's own record decides: refused, naming where it was trained
     assert cli_main(["bench", "--agents", str(mine), *FAST, "--out", str(tmp_path / "other-env")]) == 2
     assert "trained on ElectroLocGlobal-v0" in capsys.readouterr().err
+
+
+def test_a_policy_record_whose_gain_levels_are_no_list_is_one_line(tmp_path, capsys) -> None:
+    """``env_kwargs`` is the training run's plain record: a ``gain_levels`` that is no list of numbers is named."""
+    import json
+    import shutil
+
+    mine = tmp_path / "bad-gain"
+    shutil.copytree(shipped_models()["ppo-belief"], mine)
+    meta = json.loads((mine / "policy.json").read_text())
+    meta["env_kwargs"]["gain_levels"] = 4
+    (mine / "policy.json").write_text(json.dumps(meta))
+    assert cli_main(["bench", "--agents", str(mine), *FAST, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "env_kwargs.gain_levels must be a list of numbers, got 4" in err[0], err
 
 
 # ---- one rollout loop -----------------------------------------------------------------------------------------

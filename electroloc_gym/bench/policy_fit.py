@@ -129,11 +129,25 @@ def shipped_model_env(folder: Path) -> tuple[str, tuple[float, ...] | None] | No
     meta = _read_meta(folder)
     if meta is None:
         return None
+    try:
+        return meta["observation"]["env_id"], trained_gain_levels(meta)
+    except ValueError:
+        return None
+
+
+def trained_gain_levels(meta: dict[str, Any]) -> tuple[float, ...] | None:
+    """The dynamic-gain levels a policy was trained with (its policy.json's ``env_kwargs.gain_levels``; None: the
+    preset gain).
+
+    Raises:
+        ValueError: a value that is not a list of numbers (``env_kwargs`` is the training run's record: plain
+            data, which the format's schema does not type).
+    """
     gains = (meta.get("env_kwargs") or {}).get("gain_levels")
     try:
-        return meta["observation"]["env_id"], None if gains is None else tuple(float(g) for g in gains)
-    except (TypeError, ValueError):  # env_kwargs are the training run's record: plain data, not a schema
-        return None
+        return None if gains is None else tuple(float(g) for g in gains)
+    except (TypeError, ValueError):
+        raise ValueError(f"env_kwargs.gain_levels must be a list of numbers, got {gains!r}") from None
 
 
 def _read_meta(path: Path) -> dict[str, Any] | None:
@@ -186,9 +200,12 @@ def policy_env_problem(
     obs, act = meta["observation"], meta["action"]
     if obs["env_id"] != env_id:
         return f"it was trained on {obs['env_id']}, this run is on {env_id}"
-    recorded = meta.get("env_kwargs", {}).get("gain_levels")
+    try:
+        recorded = trained_gain_levels(meta)
+    except ValueError as exc:
+        return f"its policy.json's {exc}"
     mine = None if gain_levels is None else [float(g) for g in gain_levels]
-    theirs = None if recorded is None else [float(g) for g in recorded]
+    theirs = None if recorded is None else list(recorded)
     if theirs != mine:
         return f"it was trained with gain_levels={theirs}, this run has gain_levels={mine}"
     layout, run_layout = trained_sensor_layout(meta), sensor_layout or "single"

@@ -256,9 +256,9 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
     shipped = shipped_models()
     if not p.exists() and str(path) in shipped:
         p = shipped[str(path)]
-    p = policy_folder(p)
-    if p.is_dir() and (p / POLICY_JSON).is_file():
-        return agent_from_export(read_export(p))
+    folder = policy_folder(p)
+    if folder.is_dir() and (folder / POLICY_JSON).is_file():  # an rl-zoo3 run folder's best/: named by its run
+        return agent_from_export(read_export(folder), p.name if folder == p / "best" else None)
     if not p.exists():
         raise ValueError(
             f"policy path {str(path)!r} does not exist (expected a folder with {POLICY_JSON}, or the name of a "
