@@ -106,12 +106,15 @@ class Option:
         """The Python API's default."""
         return self.default if self.python_default is _SAME else self.python_default
 
-    def check_value(self, name: str, value: Any) -> None:
-        """Refuse ``value`` (one line naming the setting as ``name``) unless the declaration allows it."""
+    def check_value(self, name: str, value: Any) -> Any:
+        """Refuse ``value`` (one line naming the setting as ``name``) unless the declaration allows it; return it as
+        the run stores it (an ``"int"`` setting's numpy integer as a Python ``int``, which every record holds).
+        """
         if value is None and (self.default is None or self.python_default is None):
-            return
+            return value
         if self.check is not None:
             self.check(name, value)
+        return int(value) if self.kind == "int" else value
 
 
 def setting(field_default: Any, /, **option: Any) -> Any:

@@ -17,6 +17,7 @@ import pytest
 
 from electroloc_gym.bench import run as bench_run
 from electroloc_gym.bench.config import BENCH_OPTIONS
+from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.cli import build_parser, main
 from electroloc_gym.dataset.collect import BUILD_OPTIONS, DATASET_OPTIONS, DatasetRequest, build_dataset
 from electroloc_gym.options import Option
@@ -189,6 +190,30 @@ def test_python_runs_what_the_command_line_runs(extra, tmp_path, capsys) -> None
     assert main(argv + [a for k, v in settings.items() for a in (flags[k], str(v))]) == 0, capsys.readouterr().err
     stored = [json.loads((tmp_path / d / "config.json").read_text()) for d in ("py", "cli")]
     assert stored[0] == stored[1] and all(stored[0][k] == v for k, v in extra.items())
+
+
+def test_numpy_integers_are_the_integers_they_hold(tmp_path) -> None:
+    """A numpy integer passes an integer setting's check as the int it holds, and the run stores that int: the
+    same records and config.json as plain ints (never a refusal after the folder is made)."""
+    import json
+
+    import numpy as np
+
+    from electroloc_gym.bench.records import read_trials
+
+    ints = {"trials": 1, "seed": 5, "n_particles": 100, "max_observations": 4, "distractors": 1, "workers": 1}
+    for folder, cast in (("np", np.int64), ("int", int)):
+        bench_run(
+            "rnd-wlk", conditions="fresh-steel-12.7", out=tmp_path / folder, **{k: cast(v) for k, v in ints.items()}
+        )
+    stored = [json.loads((tmp_path / d / "config.json").read_text()) for d in ("np", "int")]
+    assert stored[0] == stored[1]
+    records = [read_trials(tmp_path / d / "trials.jsonl") for d in ("np", "int")]
+    assert [{k: v for k, v in r.items() if k not in TIMING_KEYS} for r in records[0]] == [
+        {k: v for k, v in r.items() if k not in TIMING_KEYS} for r in records[1]
+    ]
+    request = DatasetRequest(**{**_REQUEST, "episodes": np.int64(2), "seed": np.int64(3)})
+    assert type(request.episodes) is int and type(request.seed) is int
 
 
 def test_a_request_rebuilt_with_replace_keeps_its_checks() -> None:

@@ -139,7 +139,7 @@ def prepare(
     name = {opt.name: spell(opt) for opt in BENCH_OPTIONS}
     values = {**values, "env": resolve_env_name(values["env"], name["env"])}  # MODULE:NAME imports MODULE
     for opt in BENCH_OPTIONS:
-        opt.check_value(name[opt.name], values[opt.name])
+        values[opt.name] = opt.check_value(name[opt.name], values[opt.name])
     env, backend = values["env"], values["backend"]
     if values["address"] is not None and backend != "ray":
         raise ValueError(

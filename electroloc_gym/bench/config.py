@@ -336,7 +336,7 @@ class BenchConfig:
             raise ValueError(f"env_id must be one of {list(ENV_SENSOR_MODELS)}, got {self.env_id!r}")
         for opt in CONFIG_OPTIONS:
             if opt.name not in ("agents", "conditions"):  # these two are resolved below
-                opt.check_value(opt.name, getattr(self, opt.name))
+                object.__setattr__(self, opt.name, opt.check_value(opt.name, getattr(self, opt.name)))
         if self.distractors and not ENV_TAKES_DISTRACTORS.get(self.env_id, False):
             raise ValueError(
                 f"distractors apply to {[k for k, v in ENV_TAKES_DISTRACTORS.items() if v]} only, not {self.env_id}"

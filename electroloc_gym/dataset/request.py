@@ -138,8 +138,7 @@ class DatasetRequest:
         object.__setattr__(self, "env_id", resolve_env_name(self.env_id, "env_id"))  # MODULE:ENV_ID imports MODULE
         check_settings({f.name: getattr(self, f.name) for f in fields(self)}, lambda o: o.name)
         for opt in REQUEST_OPTIONS:  # a numpy integer as the int the metadata records
-            if opt.kind == "int" and getattr(self, opt.name) is not None:
-                object.__setattr__(self, opt.name, int(getattr(self, opt.name)))
+            object.__setattr__(self, opt.name, opt.check_value(opt.name, getattr(self, opt.name)))
 
     @property
     def id(self) -> str:
