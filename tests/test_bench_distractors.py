@@ -27,7 +27,10 @@ def test_config_and_cli_refuse_bad_counts(tmp_path, capsys) -> None:
     for bad in (-1, 9, True):
         with pytest.raises(ValueError, match=r"distractors must be an integer in \[0, 8\]"):
             BenchConfig(distractors=bad)
-    with pytest.raises(ValueError, match="distractors apply to"):
+    with pytest.raises(
+        ValueError,
+        match=r"distractors must be 0 on ElectroLocGlobal-v0 \(only \['ElectroLoc-v0'\] take distractors\), got 1",
+    ):
         BenchConfig(env_id="ElectroLocGlobal-v0", distractors=1)
     assert cli_main(["bench", "--distractors", "9", "--out", str(tmp_path / "x"), "--no-progress"]) == 2
     err = capsys.readouterr().err

@@ -192,6 +192,29 @@ def test_python_runs_what_the_command_line_runs(extra, tmp_path, capsys) -> None
     assert stored[0] == stored[1] and all(stored[0][k] == v for k, v in extra.items())
 
 
+@pytest.mark.parametrize(
+    "settings, words",
+    [
+        ({"env": "unknown-target", "sensor_model": "calibrated"}, "must be one of ['analytic', 'interpolated'] on"),
+        ({"env": "global", "distractors": 1}, "must be 0 on ElectroLocGlobal-v0"),
+        ({"agents": "rnd-wlk,min-var", "trials": 100_000}, "must be at most 62,500 with 2 agent(s) × 8 condition(s)"),
+    ],
+)
+def test_a_refusal_of_settings_together_names_each_as_its_front_end_does(settings, words, tmp_path, capsys) -> None:
+    """What one setting's check cannot see (the env's sensor models, its distractors, the trials planned in all) is
+    refused by the run's settings together, and still names the setting as the front end spells it."""
+    flags = {o.name: o.option for o in BENCH_OPTIONS}
+    setting = next(k for k in settings if k not in ("env", "agents"))
+    argv = ["bench", "--out", str(tmp_path / "cli"), *(a for k, v in settings.items() for a in (flags[k], str(v)))]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"error: {flags[setting]} {words}" in err, err
+    with pytest.raises(ValueError) as info:
+        bench_run(**{k: v for k, v in settings.items() if k != "agents"}, agents=settings.get("agents"), out=tmp_path)
+    assert str(info.value).startswith(f"{setting} {words}"), info.value
+    assert not (tmp_path / "cli").exists() and not any(tmp_path.iterdir())
+
+
 def test_numpy_integers_are_the_integers_they_hold(tmp_path) -> None:
     """A numpy integer passes an integer setting's check as the int it holds, and the run stores that int: the
     same records and config.json as plain ints (never a refusal after the folder is made)."""

@@ -287,7 +287,9 @@ def test_bench_unknown_target_records_identification_and_prints_its_table(tmp_pa
     table = (tmp_path / "table.md").read_text()
     assert "## Identification (unknown target, §7)" in table or not any(r["success"] for r in recs)
     assert summary["rows"]
-    with pytest.raises(ValueError, match="sensor_model of ElectroLocUnknownTarget-v0"):
+    with pytest.raises(
+        ValueError, match=r"sensor_model must be one of \[.*\] on ElectroLocUnknownTarget-v0, got 'calibrated'"
+    ):
         BenchConfig(env_id=UNKNOWN_ENV_ID, sensor_model="calibrated")
 
 

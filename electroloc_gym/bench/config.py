@@ -338,9 +338,8 @@ class BenchConfig:
             if opt.name not in ("agents", "conditions"):  # these two are resolved below
                 object.__setattr__(self, opt.name, opt.check_value(opt.name, getattr(self, opt.name)))
         if self.distractors and not ENV_TAKES_DISTRACTORS.get(self.env_id, False):
-            raise ValueError(
-                f"distractors apply to {[k for k, v in ENV_TAKES_DISTRACTORS.items() if v]} only, not {self.env_id}"
-            )
+            takes = [k for k, v in ENV_TAKES_DISTRACTORS.items() if v]
+            raise SettingError("distractors", f"0 on {self.env_id} (only {takes} take distractors)", self.distractors)
         if self.gain_levels is not None:
             object.__setattr__(self, "gain_levels", tuple(float(g) for g in self.gain_levels))
         if not self.agents:
@@ -350,7 +349,15 @@ class BenchConfig:
         object.__setattr__(self, "conditions", run_conditions(self.env_id, self.conditions))
         allowed = ENV_SENSOR_MODELS[self.env_id]
         if self.sensor_model not in allowed:
-            raise ValueError(f"sensor_model of {self.env_id} must be one of {list(allowed)}, got {self.sensor_model!r}")
+            raise SettingError("sensor_model", f"one of {list(allowed)} on {self.env_id}", self.sensor_model)
+        per_trial = len(self.agents) * len(self.conditions)  # the plan is held in memory
+        if self.trials * per_trial > MAX_PLANNED_TRIALS:
+            raise SettingError(
+                "trials",
+                f"at most {MAX_PLANNED_TRIALS // per_trial:,} with {len(self.agents)} agent(s) × "
+                f"{len(self.conditions)} condition(s) ({MAX_PLANNED_TRIALS:,} trials in all)",
+                self.trials,
+            )
         spread = self.success_spread_mm
         if isinstance(spread, bool) or not isinstance(spread, (int, float)) or not 0 < spread < float("inf"):
             raise ValueError(f"success_spread_mm must be a finite number of mm > 0, got {spread!r}")

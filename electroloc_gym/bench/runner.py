@@ -38,7 +38,6 @@ from electroloc_gym.bench.config import (
     DEFAULT_AGENTS,
     IDENTITY_DEFAULTS,
     MAP_CONDITIONS,
-    MAX_PLANNED_TRIALS,
     BenchConfig,
     TrialSpec,
     make_trial_specs,
@@ -276,12 +275,6 @@ def run_benchmark(
     from electroloc_gym.bench.stats import summarize
 
     log = log if log is not None else (lambda line: None)
-    planned = len(config.agents) * len(config.conditions) * config.trials
-    if planned > MAX_PLANNED_TRIALS:
-        raise ValueError(
-            f"--trials {config.trials} × {len(config.agents)} agent(s) × {len(config.conditions)} "
-            f"condition(s) = {planned:,} trials; at most {MAX_PLANNED_TRIALS:,} can be planned in one run"
-        )
     described, warnings = _check_agents(config, trust_pickle)  # before the folder is touched: nothing written
     packed = check_output_folder("--out", out_dir) / TRIALS_GZ_FILE
     if packed.is_file():  # a kept run stored compressed is read, never appended to; nothing is written
