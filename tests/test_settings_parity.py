@@ -72,7 +72,11 @@ COMMANDS = {
         BENCH_OPTIONS, lambda: dict(inspect.signature(bench_run).parameters), _bench_call, [], {"out", "progress"}
     ),
     "dataset": Command(
-        DATASET_OPTIONS, _dataset_params, _dataset_call, ["--agent", "rnd-wlk", "--episodes", "1"], {"env_id"}
+        DATASET_OPTIONS,
+        _dataset_params,
+        _dataset_call,
+        ["--agent", "rnd-wlk", "--episodes", "1"],
+        {"env_id", "progress"},
     ),
     "train": Command(
         TRAIN_OPTIONS,

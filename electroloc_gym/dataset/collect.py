@@ -206,7 +206,7 @@ def build_dataset(
     *,
     resume: bool = False,
     force: bool = False,
-    progress: bool = True,
+    progress: bool = False,
     notify: Callable[[str], None] | None = None,
 ) -> Any:
     """Collect ``request`` into a local Minari dataset; returns the loaded ``MinariDataset``.

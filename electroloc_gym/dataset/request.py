@@ -170,11 +170,12 @@ BUILD_OPTIONS: tuple[Option, ...] = (
     Option(
         "progress",
         default=True,
+        python_default=False,
         kind="negated",
         flag="--no-progress",
         check=is_bool,
         bad=("yes",),
-        help="no progress bar",
+        help="no progress bar (from Python: progress=True draws one)",
     ),
 )
 #: Every setting of ``electroloc dataset`` (and of :class:`DatasetRequest` with :func:`build_dataset`).

@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         t0 = time.perf_counter()
         try:
-            ds = build_dataset(request, resume=True)
+            ds = build_dataset(request, resume=True, progress=True)
         except ValueError as exc:
             if "exists (a complete one" not in str(exc):
                 raise
