@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from fractions import Fraction
 from typing import Any
 
+from electroloc_gym.options import ascii_int
 from electroloc_gym.registry import BENCH_ENVS, bench_env
 from electroloc_gym.utils.fileio import strict_json, user_path
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
@@ -60,10 +61,10 @@ class Parser(argparse.ArgumentParser):
 
 
 def seed_int(text: str) -> int:
-    """``--seed``: an integer in [0, 2**63)."""
+    """``--seed``: an integer in [0, 2**63), in ASCII digits as every integer option takes it."""
     try:
-        value = int(text)
-    except ValueError:
+        value = ascii_int(text)
+    except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(f"must be an integer in [0, 2**63), got {text!r}") from None
     if not 0 <= value < 2**63:
         raise argparse.ArgumentTypeError(f"must be an integer in [0, 2**63), got {text}")

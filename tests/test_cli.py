@@ -127,6 +127,7 @@ def _one_line_error(capsys, argv, tmp_path, option: str) -> str:
         (["eev", "--out", "{tmp}/FILE/e.png"], "--out"),
         (["detect", "--plot", "{tmp}/p.xyz"], "--plot"),
         (["demo", "--seed", "-1"], "--seed"),
+        (["demo", "--seed", "1_0"], "--seed"),  # ASCII digits, as every integer option takes them
         (["demo", "--out", "{tmp}/X.gif", "--gif", "{tmp}/X.gif"], "gif"),
         (
             [

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
 import pytest
 import torch
 from threadpoolctl import threadpool_info
@@ -65,7 +66,7 @@ def test_the_count_is_the_argument_then_the_variable_then_one(restore_threads) -
     assert thread_env(2) == {**dict.fromkeys(THREAD_VARS, "2"), "NUMBA_NUM_THREADS": "2", THREADS_VAR: "2"}
 
 
-@pytest.mark.parametrize("bad", ["0", "-1", "two", "1.5", "100000"])
+@pytest.mark.parametrize("bad", ["0", "-1", "two", "1.5", "100000", "²", "٢", "1_0", " 2"])  # ASCII digits only
 def test_a_bad_variable_is_one_error_naming_it(restore_threads, bad) -> None:
     restore_threads.setenv(THREADS_VAR, bad)
     with pytest.raises(ValueError, match=rf"{THREADS_VAR} must be an integer in \[1, 1024\]"):
@@ -76,6 +77,7 @@ def test_a_bad_variable_is_one_error_naming_it(restore_threads, bad) -> None:
 def test_a_bad_argument_is_one_error_naming_it(bad) -> None:
     with pytest.raises(ValueError, match=r"threads must be an integer in \[1, 1024\]"):
         chosen_threads(bad)
+    assert chosen_threads(np.int64(2)) == 2  # a numpy integer is the int it holds, as for every integer setting
 
 
 def test_pin_threads_sets_every_pool_of_the_process(restore_threads) -> None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.metadata
+import numbers
 import os
 import sys
 from pathlib import Path
@@ -52,9 +53,11 @@ MAX_THREADS = 1024
 
 
 def _check_threads(name: str, value: object, from_text: bool = False) -> int:
-    """``value`` (an int; with ``from_text`` a string of digits) as a thread count, else a ValueError."""
-    number = value if isinstance(value, int) and not isinstance(value, bool) else None
-    if from_text and isinstance(value, str) and value.strip().isdigit():
+    """``value`` (an integer, numpy's too; with ``from_text`` a string of ASCII digits, as every integer option
+    takes) as a thread count, else a ValueError naming ``name`` and the range.
+    """
+    number = int(value) if isinstance(value, numbers.Integral) and not isinstance(value, bool) else None
+    if from_text and isinstance(value, str) and value.isascii() and value.isdigit() and len(value) <= 40:
         number = int(value)
     if number is None or not 1 <= number <= MAX_THREADS:
         raise ValueError(f"{name} must be an integer in [1, {MAX_THREADS}], got {value!r}")
