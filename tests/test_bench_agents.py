@@ -77,10 +77,22 @@ def test_unknown_agent_lists_every_choice() -> None:
         ("/tmp/runs/ppo-s1000/model.zip", "ppo-s1000"),
         ("/tmp/runs/ppo-s1000/policy.json", "ppo-s1000"),
         ("a/best.zip", "best"),
+        ("best.zip", "best"),  # a path however it is spelled: ./best.zip too
+        ("./best.zip", "best"),
     ],
 )
 def test_display_names_are_short(spec, name) -> None:
     assert agent_display_name(spec) == name
+
+
+def test_a_model_folder_whose_name_is_no_agent_spec_is_a_path(tmp_path, monkeypatch) -> None:
+    import shutil
+
+    shutil.copytree(shipped_models()["ppo-belief"], tmp_path / "run.v2")
+    monkeypatch.chdir(tmp_path)
+    assert agent_kind("run.v2") == "path" and make_bench_agent("run.v2").name == "run.v2"
+    with pytest.raises(ValueError, match="malformed"):  # no such folder: still the spec's own error
+        agent_kind("run.v3")
 
 
 def test_controllers_do_not_import_the_training_package() -> None:

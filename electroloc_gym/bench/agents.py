@@ -183,7 +183,12 @@ def resolve_agent(spec: str | AgentRef) -> AgentRef:
 def _resolve(spec: str) -> AgentRef:
     if is_path_like(spec):
         return AgentRef(spec, "path")
-    parsed = parse_agent_spec(spec)
+    try:
+        parsed = parse_agent_spec(spec)
+    except ValueError:
+        if Path(spec).is_dir():  # a model folder whose name is no agent spec (``run.v2``)
+            return AgentRef(spec, "path")
+        raise
     if parsed.name in AGENT_NAMES:  # the paper's controllers, and ours
         return AgentRef(spec, "baseline", parsed)
     if parsed.is_factory:
@@ -288,7 +293,7 @@ def agent_display_name(spec: str) -> str:
     """A short name for progress bars and logs: the spec itself, or a path's folder (the folder of its
     ``model.zip`` or ``policy.json``) or file name.
     """
-    if "/" not in spec and "\\" not in spec:
+    if not is_path_like(spec):  # the one rule of a path spec (``ppo.zip`` and ``./ppo.zip`` alike)
         return spec
     p = Path(spec.rstrip("/\\"))
     if p.name in ("model.zip", "policy.json") and p.parent.name:
