@@ -140,6 +140,33 @@ def test_a_log_folder_under_a_file_is_one_line(tmp_path, capsys):
     assert code == 2 and len(err.strip().splitlines()) == 1 and "is a file" in err
 
 
+@pytest.mark.parametrize("entry", ["electroloc train", "python -m electroloc_gym.train"])
+def test_a_file_system_error_of_training_is_one_line_from_either_entry(entry, tmp_path, capsys, monkeypatch):
+    """Both entries are the console script's front end: a disk that refuses a write is its one line, exit 2."""
+    import errno
+    import runpy
+    import sys
+
+    import electroloc_gym.train.run as train_run
+    from electroloc_gym.cli import main
+
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(train_run, "train", full_disk)
+    monkeypatch.delitem(sys.modules, "electroloc_gym.train.__main__", raising=False)  # imported anew: patched
+    argv = ["--algo", "ppo", "--seed", "1", "--log-folder", str(tmp_path / "logs")]
+    if entry == "electroloc train":
+        code = main(["train", *argv])
+    else:
+        monkeypatch.setattr(sys, "argv", ["electroloc_gym.train", *argv])
+        with pytest.raises(SystemExit) as info:
+            runpy.run_module("electroloc_gym.train", run_name="__main__")
+        code = info.value.code
+    err = capsys.readouterr().err
+    assert code == 2 and err.strip().splitlines() == ["electroloc train: error: cannot write: No space left on device"], err
+
+
 def test_the_front_door_prints_the_exact_rl_zoo3_command(capsys, monkeypatch):
     monkeypatch.chdir(ROOT)
     from electroloc_gym.train.__main__ import main

@@ -77,5 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # the console script's entry: its thread pinning and one-line file-system errors
+    from electroloc_gym.cli import main as electroloc_main
+
+    sys.exit(electroloc_main(["train", *sys.argv[1:]]))
