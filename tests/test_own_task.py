@@ -271,10 +271,15 @@ def test_training_chooses_checkpoints_by_the_tasks_own_score(tmp_path) -> None:
     assert "lowest mean readings plus travel cost" in summary["chosen_by"]
 
 
-def test_train_cli_passes_the_module_to_rl_zoo3(capsys) -> None:
+def test_train_cli_passes_the_module_to_rl_zoo3(capsys, tmp_path) -> None:
     from electroloc_gym.train.__main__ import main
 
-    assert main(["--algo", "ppo", "--seed", "1", "--env", "own_task:FrugalLoc-v0", "--print-command"]) == 0
+    argv = ["--algo", "ppo", "--seed", "1", "--env", "own_task:FrugalLoc-v0", "--print-command"]
+    assert main(argv) == 2  # the shipped file has no section for a researcher's env: rl-zoo3 could not run it
+    assert "--env must be an env id with a section in ppo.yml" in capsys.readouterr().err
+    conf = tmp_path / "frugal.yml"  # the researcher's own hyper-parameters
+    conf.write_text("FrugalLoc-v0:\n  policy: MlpPolicy\n  n_timesteps: 1000\n", encoding="utf-8")
+    assert main([*argv, "--conf-file", str(conf)]) == 0
     words = capsys.readouterr().out.split()
     assert words[words.index("--env") + 1] == ID
     assert words[words.index("--gym-packages") + 1 : words.index("--gym-packages") + 3] == [

@@ -105,6 +105,11 @@ def test_bad_callback_arguments_are_one_line(kwargs, pattern):
         (["--algo", "ppo", "--seed", "-1"], "--seed must be an integer in [0, 4294967295] (NumPy's seed range)"),
         (["--algo", "ppo", "--seed", str(2**64)], "--seed must be an integer in [0, 4294967295] (NumPy's seed range)"),
         (["--algo", "ppo", "--seed", "1", "--env", "Nope-v0"], "--env must be a registered env id (ElectroLoc-v0,"),
+        (  # registered, but the algorithm's file has no section for it: rl-zoo3 could not run it
+            ["--algo", "a2c", "--seed", "1", "--env", "ElectroLocTrack-v0", "--print-command"],
+            "--env must be an env id with a section in a2c.yml (['ElectroLoc-v0',",
+        ),
+        (["--algo", "ppo", "--seed", "1", "--env", "CartPole-v1"], "--env must be an env id with a section in ppo.yml"),
         (["--algo", "ppo", "--seed", "1", "--timesteps", "0"], "timesteps must be an integer in [1,"),
         (["--algo", "ppo", "--seed", "1", "--timesteps", str(10**30)], "timesteps must be an integer in [1,"),
         (
@@ -164,7 +169,9 @@ def test_a_file_system_error_of_training_is_one_line_from_either_entry(entry, tm
             runpy.run_module("electroloc_gym.train", run_name="__main__")
         code = info.value.code
     err = capsys.readouterr().err
-    assert code == 2 and err.strip().splitlines() == ["electroloc train: error: cannot write: No space left on device"], err
+    assert code == 2 and err.strip().splitlines() == [
+        "electroloc train: error: cannot write: No space left on device"
+    ], err
 
 
 def test_the_front_door_prints_the_exact_rl_zoo3_command(capsys, monkeypatch):

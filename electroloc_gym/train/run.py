@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from electroloc_gym.registry import plugin_modules, resolve_env_name
-from electroloc_gym.train.settings import ALGO_FILES, check_train_settings
+from electroloc_gym.train.settings import ALGO_FILES, check_train_settings, hyperparams_file
 from electroloc_gym.train.summary import read_summary
 from electroloc_gym.utils.fileio import user_path
 from electroloc_gym.utils.runtime import chosen_threads, thread_env
@@ -71,13 +71,6 @@ def check_zoo_installed() -> None:
     missing = [m for m in ZOO_MODULES if importlib.util.find_spec(m) is None]
     if missing:
         raise ModuleNotFoundError(f"{ZOO_EXTRA_HINT} (missing: {', '.join(missing)})", name=missing[0])
-
-
-def hyperparams_file(algo: str) -> Path:
-    """The shipped hyper-parameter file of ``algo`` (one of :data:`ALGO_FILES`)."""
-    if algo not in ALGO_FILES:
-        raise ValueError(f"algo must be one of {sorted(ALGO_FILES)}, got {algo!r}")
-    return Path(__file__).parent / "hyperparams" / ALGO_FILES[algo]
 
 
 def _py_literal(v: Any) -> str:

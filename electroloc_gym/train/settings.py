@@ -21,7 +21,7 @@ from electroloc_gym.options import Option, SettingError, int_in, is_bool, one_of
 from electroloc_gym.registry import ENV_IDS, PAPER_ENV_ID, resolve_env_name
 from electroloc_gym.utils.fileio import check_output_folder
 
-__all__ = ["ALGO_FILES", "MAX_TIMESTEPS", "SEED_LIMIT", "TRAIN_OPTIONS", "check_train_settings"]
+__all__ = ["ALGO_FILES", "MAX_TIMESTEPS", "SEED_LIMIT", "TRAIN_OPTIONS", "check_train_settings", "hyperparams_file"]
 
 #: rl-zoo3 algorithm name → the project's hyper-parameter file (electroloc_gym/train/hyperparams/, keyed by env id).
 ALGO_FILES = {
@@ -36,6 +36,13 @@ ALGO_FILES = {
 SEED_LIMIT = 2**32
 #: The largest env-step budget accepted (a trillion steps: far past any run, well inside SB3's int counters).
 MAX_TIMESTEPS = 10**12
+
+
+def hyperparams_file(algo: str) -> Path:
+    """The shipped hyper-parameter file of ``algo`` (one of :data:`ALGO_FILES`)."""
+    if algo not in ALGO_FILES:
+        raise ValueError(f"algo must be one of {sorted(ALGO_FILES)}, got {algo!r}")
+    return Path(__file__).parent / "hyperparams" / ALGO_FILES[algo]
 
 
 def _env_name(name: str, value: Any) -> None:
@@ -142,7 +149,27 @@ TRAIN_OPTIONS: tuple[Option, ...] = (
 
 
 def check_train_settings(values: Mapping[str, Any], spell: Callable[[Option], str]) -> None:
-    """The settings in ``values`` checked, each refusal one line naming the setting as ``spell`` spells it."""
+    """The settings in ``values`` checked, each refusal one line naming the setting as ``spell`` spells it; with
+    ``algo`` and ``env_id``, the env has a section in the hyper-parameter file (or the file a ``default`` one), as
+    the rl-zoo3 run needs (a Python file is rl-zoo3's to run: not read here).
+    """
+    name = {opt.name: spell(opt) for opt in TRAIN_OPTIONS}
     for opt in TRAIN_OPTIONS:
         if opt.name in values:
-            opt.check_value(spell(opt), values[opt.name])
+            opt.check_value(name[opt.name], values[opt.name])
+    if values.get("algo") is None or values.get("env_id") is None:
+        return
+    conf = Path(values["conf_file"]) if values.get("conf_file") is not None else hyperparams_file(values["algo"])
+    if conf.suffix not in (".yml", ".yaml"):
+        return
+    import yaml
+
+    try:
+        sections = yaml.safe_load(conf.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise SettingError(name["conf_file"], "a hyper-parameter file in rl-zoo3's format", f"{conf}: {exc}") from None
+    if not isinstance(sections, dict):
+        raise SettingError(name["conf_file"], "a hyper-parameter file keyed by env id (rl-zoo3's format)", str(conf))
+    env_id = str(resolve_env_name(values["env_id"], name["env_id"]))
+    if env_id not in sections and "default" not in sections:
+        raise SettingError(name["env_id"], f"an env id with a section in {conf.name} ({list(sections)})", env_id)
