@@ -277,6 +277,22 @@ def test_a_policy_record_whose_gain_levels_are_no_list_is_one_line(tmp_path, cap
     assert len(err) == 1 and "env_kwargs.gain_levels must be a list of numbers, got 4" in err[0], err
 
 
+def test_a_shipped_name_is_the_shipped_policy_from_every_front_end(tmp_path, monkeypatch) -> None:
+    """``ppo-belief`` is the shipped policy for load_policy, make_agent and the benchmark alike, whatever the
+    working directory holds; a folder of that name there is ``./ppo-belief``."""
+    import shutil
+
+    from electroloc_gym.policy import load_policy
+
+    shutil.copytree(shipped_models()["ppo-raw-framestack"], tmp_path / "ppo-belief")
+    monkeypatch.chdir(tmp_path)
+    for agent in (load_policy("ppo-belief"), load_policy(" ppo-belief "), make_agent("ppo-belief")):
+        assert agent.env_kwargs["observation"] == "belief" and agent.frame_stack == 1
+    assert make_bench_agent("ppo-belief").env_kwargs["observation"] == "belief"
+    for local in (load_policy("./ppo-belief"), make_bench_agent("./ppo-belief")):
+        assert local.env_kwargs["observation"] == "raw"
+
+
 # ---- one rollout loop -----------------------------------------------------------------------------------------
 def test_run_episode_ends_by_env_or_by_agent() -> None:
     env = gym.make(

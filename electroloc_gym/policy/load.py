@@ -243,19 +243,18 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
     memory (:func:`electroloc_gym.policy.sb3.model_from_sb3_zip`) and a warning is logged.
 
     Args:
-        path: the name of a shipped policy (:func:`shipped_policies`, e.g. ``"ppo-belief"``; a file or folder
-            of that name in the working directory is read instead), a policy folder, its ``policy.json``, an
-            rl-zoo3 run folder of this path (its ``best/``), or (with ``trust_pickle``) an SB3 ``.zip``.
+        path: the name of a shipped policy (:func:`shipped_policies`, e.g. ``"ppo-belief"``: always the shipped
+            one, as ``electroloc bench --agents`` and ``make_agent`` read it; a folder of that name in the working
+            directory is ``"./ppo-belief"``), a policy folder, its ``policy.json``, an rl-zoo3 run folder of this
+            path (its ``best/``), or (with ``trust_pickle``) an SB3 ``.zip``.
         trust_pickle: allow SB3's pickle-based files (only for files you trust: loading runs their code).
 
     Raises:
         ValueError: a missing path, a pickle-based model without ``trust_pickle``, or a malformed
             ``policy.json`` or weights file (the message names the file).
     """
-    p = Path(path)
     shipped = shipped_models()
-    if not p.exists() and str(path) in shipped:
-        p = shipped[str(path)]
+    p = shipped[path.strip()] if isinstance(path, str) and path.strip() in shipped else Path(path)
     folder = policy_folder(p)
     if folder.is_dir() and (folder / POLICY_JSON).is_file():  # an rl-zoo3 run folder's best/: named by its run
         return agent_from_export(read_export(folder), p.name if folder == p / "best" else None)
