@@ -199,8 +199,9 @@ class BenchConfig:
         help=f"comma-separated agents: {', '.join(PAPER_AGENTS)}, NAME[key=value,...] "
         "(e.g. min-var[n_voters=2500]), a shipped model by name (e.g. ppo-belief), or a "
         "path to a model folder, or package.module:factory[key=value,...] (a factory of your "
-        "own, imported like any module: it runs your code) (default: the three controllers "
-        "plus every shipped model that runs here; the run says which and why one is skipped)",
+        "own, imported like any module: it runs your code) (default: the --env row's controllers, "
+        "the paper's three on the target, plus every shipped model trained for the run's settings that runs here; "
+        "the run says which and why one is skipped)",
     )
     conditions: tuple[str, ...] = setting(
         PRESET_NAMES,
