@@ -119,9 +119,9 @@ def test_an_experiment_script_refuses_before_its_trials(tmp_path, capsys, monkey
 
 
 def test_a_path_under_home_is_one_path_for_the_check_the_writes_and_the_reads(tmp_path, monkeypatch, capsys) -> None:
-    """``~`` in a folder a command takes (a shell leaves ``--out=~/b`` as typed) is the home folder for the check,
-    the writes and what the command reads back: bench's command line and Python API, train's rl-zoo3 command and
-    the dataset's reference run — never a folder named ``~`` in the working directory.
+    """``~`` in a folder or file a command takes (a shell leaves ``--out=~/b`` as typed) is the home folder for the
+    check, the writes and what the command reads back: bench's command line and Python API, train's rl-zoo3 command,
+    the dataset's reference run, a figure's file — never a folder named ``~`` in the working directory.
     """
     from electroloc_gym.bench import run
     from electroloc_gym.dataset.seed_protocol import reference_scores
@@ -142,4 +142,6 @@ def test_a_path_under_home_is_one_path_for_the_check_the_writes_and_the_reads(tm
     assert argv[argv.index("--log-folder") + 1] == str(home / "logs")
     with pytest.raises(ValueError, match="must hold rnd-wlk and one of"):  # read: a run without a planner
         reference_scores("~/b", "ElectroLoc-v0")
+    assert cli_main(["eev", "--out", "~/eev.png"]) == 0  # an output file: checked and written there too
+    assert (home / "eev.png").is_file()
     assert not (cwd / "~").exists()

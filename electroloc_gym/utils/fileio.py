@@ -118,6 +118,13 @@ def _probe(folder: Path, message: str) -> None:
         raise ValueError(f"{message} ({exc.strerror or exc})") from None
 
 
+def user_path(path: str | os.PathLike[str]) -> Path:
+    """A folder or file path a user gave (a setting, a flag) as every command reads and writes it: ``~`` expanded
+    (a shell leaves ``--out=~/runs`` as typed). The output checks below and the atomic writes take it from here.
+    """
+    return Path(os.fspath(path)).expanduser()
+
+
 def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[str, ...] | None = None) -> None:
     """Refuse, before any work, an output path that cannot be written as a file (ValueError naming ``name``).
 
@@ -130,7 +137,7 @@ def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[s
     text = os.fspath(path)
     if not str(text).strip():
         raise ValueError(f"{name} must be a file path, got an empty string")
-    p = Path(text)
+    p = user_path(text)
     folder, _ = _existing_folder(name, p)
     if folder == p or text.endswith(("/", os.sep)):
         raise ValueError(f"{name} must be a file path, got the directory {text!r}")
@@ -141,13 +148,6 @@ def check_output_path(name: str, path: str | os.PathLike[str], suffixes: tuple[s
             f"use one of {', '.join('.' + x for x in suffixes)}"
         )
     _probe(folder, f"{name}: cannot write {str(p)!r}: folder {str(folder)!r} is not writable")
-
-
-def user_path(path: str | os.PathLike[str]) -> Path:
-    """A folder or file path a user gave (a setting, a flag) as every command reads and writes it: ``~`` expanded
-    (a shell leaves ``--out=~/runs`` as typed). The checks and the writes of a command both take it from here.
-    """
-    return Path(os.fspath(path)).expanduser()
 
 
 def check_output_folder(name: str, folder: str | os.PathLike[str] | None) -> Path:
@@ -215,9 +215,9 @@ def naming_file(path: str | os.PathLike[str]) -> Iterator[None]:
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, durable: bool = True) -> None:
     """Write ``data`` to ``path`` atomically (parent folders are created); an ``OSError`` names ``path``
     (rather than its temporary file). ``durable=False`` skips the fsync: only a crash of the machine, not a
-    killed process, can then lose the write.
+    killed process, can then lose the write. ``path`` is read as :func:`user_path` reads it, as the checks do.
     """
-    p = Path(path)
+    p = user_path(path)
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
