@@ -56,6 +56,9 @@ def test_shipped_models_are_found_by_name() -> None:
     assert agent_kind("ppo-belief") == "shipped"
     assert agent_kind("min-var[n_voters=16]") == "baseline"
     assert agent_kind("runs/x") == "path" and agent_kind("x.zip") == "path" and agent_kind("./x") == "path"
+    # a slash inside an option's value is the value's: the spec is still a factory or a controller
+    assert agent_kind("my_pkg.agents:make[log='runs/a']") == "factory"
+    assert agent_kind("min-var[note='a/b']") == "baseline"
 
 
 def test_unknown_agent_lists_every_choice() -> None:
@@ -65,6 +68,11 @@ def test_unknown_agent_lists_every_choice() -> None:
         agent_kind(" ")
     with pytest.raises(ValueError, match="does not exist"):
         make_bench_agent("runs/missing-model")
+    for build in (make_bench_agent, make_agent):  # one refusal of a shipped policy given options, whichever door
+        with pytest.raises(
+            ValueError, match=r"^the shipped policy 'ppo-belief' takes no options, got 'ppo-belief\[x=1\]'$"
+        ):
+            build("ppo-belief[x=1]")
 
 
 @pytest.mark.parametrize(

@@ -199,6 +199,8 @@ def _resolve(spec: str) -> AgentRef:
         return AgentRef(spec, "shipped")
     if is_policy_path(spec):
         return AgentRef(spec, "path")
+    if parsed.name in shipped_models():  # make_agent's words
+        raise ValueError(f"the shipped policy {parsed.name!r} takes no options, got {spec!r}")
     raise ValueError(
         f"unknown agent {parsed.name!r}; choose from {list(AGENT_NAMES)} (options "
         f"as NAME[key=value]), a shipped model {sorted(shipped_models())}, a path to a model folder / "

@@ -63,8 +63,11 @@ class AgentSpec:
 
 
 def is_path_like(text: str) -> bool:
-    """True when ``text`` is written as a path: a slash or backslash, a leading ``.`` or ``~``, or a ``.zip`` end."""
-    return "/" in text or "\\" in text or text.startswith((".", "~")) or text.endswith(".zip")
+    """True when ``text`` is written as a path: a slash or backslash before any ``[`` (an option's value may hold
+    one: ``pkg.mod:make[log='runs/a']`` is a spec), a leading ``.`` or ``~``, or a ``.zip`` end.
+    """
+    head = text.split("[", 1)[0]
+    return "/" in head or "\\" in head or text.startswith((".", "~")) or text.endswith(".zip")
 
 
 def _scan(text: str, what: str) -> list[tuple[int, int]]:
