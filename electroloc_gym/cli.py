@@ -14,9 +14,7 @@ commands that keep their records (``bench``, ``dataset``) that they are kept and
 from __future__ import annotations
 
 import argparse
-import errno
 import math
-import os
 import sys
 import textwrap
 from collections.abc import Sequence
@@ -25,7 +23,7 @@ from typing import Any
 
 from electroloc_gym.options import ascii_int
 from electroloc_gym.registry import BENCH_ENVS, bench_env
-from electroloc_gym.utils.fileio import strict_json, user_path
+from electroloc_gym.utils.fileio import os_error_line, strict_json
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
 from electroloc_gym.world.conditions import (
     DEFAULT_SIGNAL,
@@ -466,36 +464,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         command = args.command if args is not None else (argv[0] if argv else "")
         print(os_error_line(command, exc, args), file=sys.stderr)
         return 2
-
-
-#: The errors of a write the file system refused (the others are reported as the system words them).
-WRITE_ERRNOS = frozenset(
-    getattr(errno, name) for name in ("ENOSPC", "EDQUOT", "EROFS", "EFBIG", "EIO") if hasattr(errno, name)
-)
-
-
-def os_error_line(command: str, exc: OSError, args: argparse.Namespace | None = None) -> str:
-    """The one line of an ``OSError`` out of ``command``: the file and the system's reason; for a command
-    that keeps its records as it goes (``bench``: ``OUT/trials.jsonl``; ``dataset``: its episodes), that
-    they are kept and how to continue once the cause is fixed: ``--resume``, or the same ``--force`` command
-    (a dataset's replacement continues by ``--force``; ``--resume`` does not take it).
-    """
-    prog = f"electroloc {command}".strip()
-    reason = exc.strerror or str(exc) or type(exc).__name__
-    if exc.filename is not None:
-        where = f"{'cannot write ' if exc.errno in WRITE_ERRNOS else ''}{os.fsdecode(exc.filename)}: "
-    else:
-        where = "cannot write: " if exc.errno in WRITE_ERRNOS else ""
-    kept = ""
-    if command == "bench" and args is not None:
-        records = user_path(args.out) / "trials.jsonl"
-        kept = f"; the finished trials are kept in {records} (a line cut short is set aside)"
-    elif command == "dataset":
-        kept = "; the episodes collected so far are kept (one cut short is set aside)"
-    if kept:
-        again = "again" if getattr(args, "force", False) else "with --resume"
-        kept += f": free space or fix the cause, then run the same command {again}"
-    return f"{prog}: error: {where}{reason}{kept}"
 
 
 if __name__ == "__main__":

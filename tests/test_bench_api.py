@@ -192,6 +192,16 @@ def test_objects_and_specs_give_the_same_trials(user_module, tmp_path) -> None:
     assert ra == rb and len(ra) == 2
 
 
+@pytest.mark.parametrize("name", ["min-var", "ppo-belief"])  # a built-in controller's, a shipped model's
+def test_an_object_named_like_a_built_in_agent_runs_under_a_free_name(name, tmp_path) -> None:
+    from electroloc_gym.bench import run
+
+    agent = make_bench_agent("rnd-wlk")
+    agent.name = name
+    result = run(agents=[agent], conditions="fresh-steel-12.7", trials=1, n_particles=100, out=tmp_path)
+    assert [r["agent"] for r in result.summary["rows"] if r["condition"] == "fresh-steel-12.7"] == [f"{name}-2"]
+
+
 def eval_json(line: str) -> dict:
     import json
 

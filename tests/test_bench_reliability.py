@@ -117,7 +117,7 @@ def _fill_disk(monkeypatch, name: str, room: int) -> None:
 def test_a_disk_error_says_the_command_that_continues(command, settings, advice) -> None:
     import argparse
 
-    from electroloc_gym.cli import os_error_line
+    from electroloc_gym.utils.fileio import os_error_line
 
     line = os_error_line(command, OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)), argparse.Namespace(**settings))
     assert line.endswith(advice) and "\n" not in line, line

@@ -28,11 +28,12 @@ def test_a_shipped_policy_loads_by_name_from_any_folder(tmp_path, monkeypatch) -
     assert np.array_equal(by_name.predict(obs)[0], by_folder.predict(obs)[0])
 
 
-def test_a_folder_of_the_same_name_in_the_working_directory_is_read_instead(tmp_path, monkeypatch) -> None:
+def test_a_folder_of_the_same_name_in_the_working_directory_is_named_as_a_path(tmp_path, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
     (tmp_path / "ppo-belief").mkdir()
-    with pytest.raises(ValueError, match="refusing to load 'ppo-belief': it has no policy.json"):
-        load_policy("ppo-belief")
+    assert load_policy("ppo-belief").env_kwargs["observation"] == "belief"  # the shipped one, as the benchmark's
+    with pytest.raises(ValueError, match="refusing to load './ppo-belief': it has no policy.json"):
+        load_policy("./ppo-belief")
 
 
 def test_the_listing_names_every_shipped_policy_with_its_training_env() -> None:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from electroloc_gym.baselines.agent import AGENT_NAMES
 from electroloc_gym.baselines.rollout import AgentCallError
 from electroloc_gym.bench.agents import (
     PluginAgent,
@@ -97,7 +98,7 @@ def _agent_specs(agents: Any, values: dict[str, Any], note: Callable[[str], None
     if isinstance(agents, str):
         return split_specs(agents), False
     if agents is not None:
-        taken = {a for a in agents if isinstance(a, str)} | set(shipped_models())
+        taken = {a for a in agents if isinstance(a, str)} | set(shipped_models()) | set(AGENT_NAMES)
         specs: list[str] = []
         for agent in agents:
             if isinstance(agent, str):

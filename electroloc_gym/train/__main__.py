@@ -20,6 +20,7 @@ from electroloc_gym.options import add_options, pairs_value
 from electroloc_gym.registry import resolve_env_name
 from electroloc_gym.train.run import check_zoo_installed, train, zoo_argv
 from electroloc_gym.train.settings import TRAIN_OPTIONS, check_train_settings
+from electroloc_gym.utils.fileio import os_error_line
 from electroloc_gym.utils.runtime import add_threads_argument, pin_threads
 
 EPILOG = """examples:
@@ -73,11 +74,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ValueError, ModuleNotFoundError) as exc:
         print(f"electroloc train: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the file system's refusal, in the words of every command (``python -m`` too)
+        print(os_error_line("train", exc, a), file=sys.stderr)
+        return 2
     print(f"run folder: {run}" + (f"; exported to {a.out}" if a.out else ""))
     return 0
 
 
-if __name__ == "__main__":  # the console script's entry: its thread pinning and one-line file-system errors
-    from electroloc_gym.cli import main as electroloc_main
-
-    sys.exit(electroloc_main(["train", *sys.argv[1:]]))
+if __name__ == "__main__":
+    sys.exit(main())

@@ -38,6 +38,8 @@ __all__ = [
     "to_json_data",
     "strict_json",
     "write_json_atomic",
+    "os_error_line",
+    "WRITE_ERRNOS",
     "FolderLock",
     "FolderBusyError",
 ]
@@ -282,6 +284,36 @@ def strict_json(obj: Any, indent: int | None = 2) -> str:
 def write_json_atomic(path: str | os.PathLike[str], obj: Any, indent: int | None = 2) -> None:
     """Write :func:`strict_json` of ``obj`` to ``path`` atomically."""
     atomic_write_text(path, strict_json(obj, indent=indent))
+
+
+#: The errors of a write the file system refused (the others are reported as the system words them).
+WRITE_ERRNOS = frozenset(
+    getattr(errno, name) for name in ("ENOSPC", "EDQUOT", "EROFS", "EFBIG", "EIO") if hasattr(errno, name)
+)
+
+
+def os_error_line(command: str, exc: OSError, args: Any = None) -> str:
+    """The one line of an ``OSError`` out of ``electroloc command`` (``args``: its parsed arguments): the file and
+    the system's reason; for a command that keeps its records as it goes (``bench``: ``OUT/trials.jsonl``;
+    ``dataset``: its episodes), that they are kept and how to continue once the cause is fixed: ``--resume``, or
+    the same ``--force`` command (a dataset's replacement continues by ``--force``; ``--resume`` does not take it).
+    """
+    prog = f"electroloc {command}".strip()
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    if exc.filename is not None:
+        where = f"{'cannot write ' if exc.errno in WRITE_ERRNOS else ''}{os.fsdecode(exc.filename)}: "
+    else:
+        where = "cannot write: " if exc.errno in WRITE_ERRNOS else ""
+    kept = ""
+    if command == "bench" and args is not None:
+        records = user_path(args.out) / "trials.jsonl"
+        kept = f"; the finished trials are kept in {records} (a line cut short is set aside)"
+    elif command == "dataset":
+        kept = "; the episodes collected so far are kept (one cut short is set aside)"
+    if kept:
+        again = "again" if getattr(args, "force", False) else "with --resume"
+        kept += f": free space or fix the cause, then run the same command {again}"
+    return f"{prog}: error: {where}{reason}{kept}"
 
 
 class FolderBusyError(ValueError):
