@@ -114,7 +114,7 @@ class Option:
             return value
         if self.check is not None:
             self.check(name, value)
-        return int(value) if self.kind == "int" else value
+        return int(value) if self.kind == "int" and value is not None else value
 
 
 def setting(field_default: Any, /, **option: Any) -> Any:
