@@ -208,7 +208,7 @@ class BenchConfig:
         default="all",
         check=_conditions,
         bad=("nope", "", 3),
-        help="'all' or comma-separated preset names",
+        help="'all' or comma-separated preset names (an env of one fixed map, --env global, runs its map instead)",
     )
     trials: int = setting(
         50,
