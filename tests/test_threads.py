@@ -130,6 +130,23 @@ def test_bench_workers_run_on_the_callers_count(restore_threads, threads) -> Non
         assert r["env"] == [str(want)], r
 
 
+def test_one_worker_runs_in_this_process_and_gives_back_its_counts(restore_threads) -> None:
+    """One worker runs the trials in this process on the workers' count (results do not depend on the worker
+    count), then gives the caller its own counts back: a library call (``bench.run``) changes no global setting."""
+    from threadpoolctl import threadpool_limits
+
+    from electroloc_gym.bench.backends import ProcessBackend
+
+    threadpool_limits(3)
+    torch.set_num_threads(3)
+    env_before = {v: os.environ.get(v) for v in thread_env(1)}
+    [(_, during)] = list(ProcessBackend(workers=1).run_trials([0], _worker_threads))
+    assert during["pid"] == os.getpid() and during["torch"] == 1 and during["env"] == ["1"], during
+    assert 1 in during["pools"] and 3 not in during["pools"], during
+    assert torch.get_num_threads() == 3 and 3 in {int(p["num_threads"]) for p in threadpool_info()}
+    assert {v: os.environ.get(v) for v in thread_env(1)} == env_before
+
+
 def test_the_training_run_starts_on_the_chosen_count(restore_threads) -> None:
     from electroloc_gym.train.run import zoo_argv
 

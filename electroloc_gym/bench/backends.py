@@ -27,7 +27,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, ClassVar
 
 from electroloc_gym.registry import import_plugin_modules, plugin_modules
-from electroloc_gym.utils.runtime import chosen_threads, pin_threads, thread_env
+from electroloc_gym.utils.runtime import chosen_threads, pin_threads, pinned_threads, thread_env
 
 __all__ = [
     "Backend",
@@ -151,9 +151,9 @@ class ProcessBackend(Backend):
         if not specs:
             return
         threads = chosen_threads()
-        if self.workers == 1:
-            pin_threads(threads)
-            yield from SerialBackend(1).run_trials(specs, worker_fn)
+        if self.workers == 1:  # in this process, on the workers' count; the caller's counts restored after
+            with pinned_threads(threads):
+                yield from SerialBackend(1).run_trials(specs, worker_fn)
             return
         ctx = mp.get_context("spawn")  # no inherited locks/threads (tqdm's monitor, BLAS pools)
         child_env = thread_env(threads)

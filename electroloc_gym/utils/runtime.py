@@ -18,10 +18,13 @@ import importlib.metadata
 import numbers
 import os
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = [
     "pin_threads",
+    "pinned_threads",
     "chosen_threads",
     "thread_env",
     "add_threads_argument",
@@ -128,6 +131,43 @@ def pin_threads(threads: int | None = None) -> int:
         torch.set_num_threads(n)
     _pin_numba(n)
     return n
+
+
+@contextmanager
+def pinned_threads(threads: int | None = None) -> Iterator[int]:
+    """:func:`pin_threads` for a ``with`` block, then this process's thread settings as they were before it: the
+    variables :func:`thread_env` writes, the BLAS/OpenMP pools (``threadpoolctl``'s own restore), torch's and
+    numba's pools. A library call that runs trials in its caller's process leaves the caller's counts alone.
+    """
+    saved_env = {v: os.environ.get(v) for v in thread_env(1)}
+    torch = sys.modules.get("torch")
+    torch_threads = torch.get_num_threads() if torch is not None else None
+    config = sys.modules.get("numba.core.config")
+    numba_threads = None if config is None else int(config.NUMBA_NUM_THREADS)
+    if _numba_threads_started():
+        import numba
+
+        numba_threads = numba.get_num_threads()
+    try:
+        from threadpoolctl import threadpool_limits
+
+        pools = threadpool_limits(limits=None)  # records the pools as they are; restores them below
+    except ImportError:  # pragma: no cover - a dependency; kept optional for a partial install
+        pools = None
+    try:
+        yield pin_threads(threads)
+    finally:
+        for var, value in saved_env.items():
+            if value is None:
+                os.environ.pop(var, None)
+            else:
+                os.environ[var] = value
+        if pools is not None:
+            pools.restore_original_limits()
+        if torch is not None and torch_threads is not None:
+            torch.set_num_threads(torch_threads)
+        if numba_threads is not None:
+            _pin_numba(numba_threads)
 
 
 def _numba_threads_started() -> bool:
