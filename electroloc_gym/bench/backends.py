@@ -27,7 +27,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, ClassVar
 
 from electroloc_gym.registry import import_plugin_modules, plugin_modules
-from electroloc_gym.utils.runtime import chosen_threads, pin_threads, pinned_threads, thread_env
+from electroloc_gym.utils.runtime import chosen_threads, pin_threads, pinned_threads, restore_environ, thread_env
 
 __all__ = [
     "Backend",
@@ -186,11 +186,7 @@ class ProcessBackend(Backend):
                     for fut in futures:
                         fut.cancel()
         finally:
-            for v, val in saved.items():
-                if val is None:
-                    os.environ.pop(v, None)
-                else:
-                    os.environ[v] = val
+            restore_environ(saved)
 
 
 #: Backend name → class. Add more with :func:`register_backend`.

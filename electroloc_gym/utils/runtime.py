@@ -18,13 +18,14 @@ import importlib.metadata
 import numbers
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = [
     "pin_threads",
     "pinned_threads",
+    "restore_environ",
     "chosen_threads",
     "thread_env",
     "add_threads_argument",
@@ -133,6 +134,15 @@ def pin_threads(threads: int | None = None) -> int:
     return n
 
 
+def restore_environ(saved: Mapping[str, str | None]) -> None:
+    """Put back the environment variables ``saved`` recorded (None: the variable was not set)."""
+    for var, value in saved.items():
+        if value is None:
+            os.environ.pop(var, None)
+        else:
+            os.environ[var] = value
+
+
 @contextmanager
 def pinned_threads(threads: int | None = None) -> Iterator[int]:
     """:func:`pin_threads` for a ``with`` block, then this process's thread settings as they were before it: the
@@ -157,11 +167,7 @@ def pinned_threads(threads: int | None = None) -> Iterator[int]:
     try:
         yield pin_threads(threads)
     finally:
-        for var, value in saved_env.items():
-            if value is None:
-                os.environ.pop(var, None)
-            else:
-                os.environ[var] = value
+        restore_environ(saved_env)
         if pools is not None:
             pools.restore_original_limits()
         if torch is not None and torch_threads is not None:
