@@ -42,6 +42,7 @@ from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (r
     trained_sensor_layout,
 )
 from electroloc_gym.utils.agentspec import AgentSpec, is_path_like, parse_agent_spec
+from electroloc_gym.utils.fileio import user_path
 
 __all__ = [
     "AgentAttributeError",
@@ -321,7 +322,7 @@ def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pic
         return make_factory_agent(ref.parsed)
     if kind == "object":
         return _OBJECTS[spec]
-    path = shipped_models()[spec] if kind == "shipped" else Path(spec).expanduser()
+    path = shipped_models()[spec] if kind == "shipped" else user_path(spec)
     if kind == "path" and not path.exists():
         raise ValueError(f"agent path {spec!r} does not exist (expected a model folder or a policy file)")
     try:

@@ -13,6 +13,7 @@ from typing import Any
 
 from electroloc_gym.models import shipped_models
 from electroloc_gym.registry import env_entry
+from electroloc_gym.utils.fileio import user_path
 from electroloc_gym.world.conditions import get_condition
 
 # The bench owns these env kwargs; no agent's env_kwargs override them.
@@ -175,7 +176,7 @@ def trained_sensor_layout(meta: Any) -> str | None:
 
 def policy_meta(spec: str) -> dict[str, Any] | None:
     """The ``policy.json`` of a shipped model or a policy path (None: none, or refused by its schema)."""
-    return _read_meta(shipped_models().get(spec) or Path(spec).expanduser())
+    return _read_meta(shipped_models().get(spec) or user_path(spec))
 
 
 def _space_text(space: Any) -> str:

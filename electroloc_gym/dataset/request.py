@@ -136,9 +136,9 @@ class DatasetRequest:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "env_id", resolve_env_name(self.env_id, "env_id"))  # MODULE:ENV_ID imports MODULE
-        check_settings({f.name: getattr(self, f.name) for f in fields(self)}, lambda o: o.name)
-        for opt in REQUEST_OPTIONS:  # a numpy integer as the int the metadata records
-            object.__setattr__(self, opt.name, opt.check_value(opt.name, getattr(self, opt.name)))
+        checked = check_settings({f.name: getattr(self, f.name) for f in fields(self)}, lambda o: o.name)
+        for key, value in checked.items():  # a numpy integer as the int the metadata records
+            object.__setattr__(self, key, value)
 
     @property
     def id(self) -> str:
@@ -182,15 +182,16 @@ BUILD_OPTIONS: tuple[Option, ...] = (
 DATASET_OPTIONS: tuple[Option, ...] = REQUEST_OPTIONS + BUILD_OPTIONS
 
 
-def check_settings(values: dict[str, Any], spell: Callable[[Option], str]) -> None:
+def check_settings(values: dict[str, Any], spell: Callable[[Option], str]) -> dict[str, Any]:
     """The dataset settings in ``values`` checked, each refusal one line naming the setting as ``spell`` spells
-    it (both front ends; :data:`DATASET_OPTIONS`).
+    it (both front ends; :data:`DATASET_OPTIONS`); returned as the run stores them (:meth:`Option.check_value`).
     """
     name = {opt.name: spell(opt) for opt in DATASET_OPTIONS}
-    for opt in DATASET_OPTIONS:
-        if opt.name in values:
-            opt.check_value(name[opt.name], values[opt.name])
+    checked = {
+        opt.name: opt.check_value(name[opt.name], values[opt.name]) for opt in DATASET_OPTIONS if opt.name in values
+    }
     if values.get("resume") and values.get("force"):
         raise ValueError(f"{name['resume']} and {name['force']} exclude each other")
     if values.get("dataset_id") is not None and values.get("version") is not None:
         raise ValueError(f"{name['version']} sets the default id's version; {name['dataset_id']} carries its own -vN")
+    return checked
