@@ -147,7 +147,7 @@ def test_a_log_folder_under_a_file_is_one_line(tmp_path, capsys):
 
 @pytest.mark.parametrize("entry", ["electroloc train", "python -m electroloc_gym.train"])
 def test_a_file_system_error_of_training_is_one_line_from_either_entry(entry, tmp_path, capsys, monkeypatch):
-    """Both entries are the console script's front end: a disk that refuses a write is its one line, exit 2."""
+    """A disk that refuses a write is the same one line and exit 2 from the console script and from ``python -m``."""
     import errno
     import runpy
     import sys
