@@ -331,7 +331,14 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from electroloc_gym.demo import demo
 
     try:
-        ep = demo(condition=args.condition, sensor_model=args.sensor_model, seed=args.seed, out=args.out, gif=args.gif)
+        ep = demo(
+            condition=args.condition,
+            sensor_model=args.sensor_model,
+            seed=args.seed,
+            out=args.out,
+            gif=args.gif,
+            names={"out": "--out", "gif": "--gif"},
+        )
     except ValueError as exc:
         print(f"electroloc demo: error: {exc}", file=sys.stderr)
         return 2

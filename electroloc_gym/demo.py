@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import io
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
@@ -325,18 +325,25 @@ def demo(
     seed: int = 0,
     out: str | os.PathLike[str] | None = "demo.png",
     gif: str | os.PathLike[str] | None = None,
+    names: Mapping[str, str] | None = None,
 ) -> Episode:
-    """``electroloc demo``: one random-move episode of ElectroLoc-v0 as a snapshot grid and/or a GIF."""
+    """``electroloc demo``: one random-move episode of ElectroLoc-v0 as a snapshot grid and/or a GIF.
+
+    ``names``: how a refusal names ``out`` and ``gif`` (the command line's ``--out``, ``--gif``; None: as here).
+    """
     import gymnasium as gym
 
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise ValueError(f"seed must be an integer in [0, 2**63), got {seed!r}")
+    name = {"out": "out", "gif": "gif", **(names or {})}
     if out is not None:
-        check_output_path("out", out, figure_suffixes())
+        check_output_path(name["out"], out, figure_suffixes())
     if gif is not None:
-        check_output_path("gif", gif, ("gif",))
+        check_output_path(name["gif"], gif, ("gif",))
     if out is not None and gif is not None and Path(out).resolve() == Path(gif).resolve():
-        raise ValueError(f"out and gif name the same file {str(out)!r}; one would overwrite the other")
+        raise ValueError(
+            f"{name['out']} and {name['gif']} name the same file {str(out)!r}; one would overwrite the other"
+        )
     env = gym.make(
         PAPER_ENV_ID,
         condition=condition,

@@ -31,6 +31,7 @@ __all__ = [
     "add_options",
     "api_signature",
     "pairs_value",
+    "message_names",
     "int_in",
     "one_of",
     "is_bool",
@@ -160,6 +161,17 @@ def add_options(parser: argparse.ArgumentParser, options: Iterable[Option]) -> N
         if opt.choices is not None:
             kwargs["metavar"] = "{" + ",".join(opt.choices()) + "}"
         parser.add_argument(opt.option, **kwargs)
+
+
+def message_names(options: Iterable[Option], spell: Callable[[Option], str]) -> dict[str, str]:
+    """How a run's messages name each of ``options`` in the words of the front end ``spell`` spells: a setting
+    by its name (``--out`` / ``out``), a switch as it is turned on (``--resume`` / ``resume=True``).
+    """
+    names = {}
+    for opt in options:
+        spelled = spell(opt)
+        names[opt.name] = f"{spelled}=True" if opt.kind == "switch" and not spelled.startswith("-") else spelled
+    return names
 
 
 def pairs_value(opt: Option, words: Sequence[str] | None) -> dict[str, Any] | None:

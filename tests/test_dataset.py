@@ -91,7 +91,7 @@ def test_resume_continues_with_the_same_episodes(store, monkeypatch):
     full = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, dataset_id="test/full-v0"), progress=False)
     part = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1, dataset_id="test/part-v0"), progress=False)
     part.storage.update_metadata({"electroloc": {**part.storage.metadata["electroloc"], "complete": False}})
-    with pytest.raises(ValueError, match="--resume"):
+    with pytest.raises(ValueError, match="resume=True"):
         build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 3, dataset_id="test/part-v0"), progress=False)
     with pytest.raises(ValueError, match="other settings"):
         build_dataset(
@@ -110,7 +110,7 @@ def test_resume_continues_with_the_same_episodes(store, monkeypatch):
 
 def test_existing_id_refused_unless_forced(store):
     build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1), progress=False)
-    with pytest.raises(ValueError, match="--force"):
+    with pytest.raises(ValueError, match="force=True"):
         build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1), progress=False)
     ds = build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 2), force=True, progress=False)
     assert ds.total_episodes == 2

@@ -207,7 +207,7 @@ def test_the_command_killed_at_an_arbitrary_moment_resumes(root, uninterrupted):
     proc.communicate(timeout=60)
     assert proc.returncode == -signal.SIGKILL  # killed mid-run, not finished
     with pytest.raises(
-        ValueError, match=r"exists \(an unfinished one at .*electroloc-partial\); .*--resume to continue"
+        ValueError, match=r"exists \(an unfinished one at .*electroloc-partial\); .*resume=True to continue"
     ):
         _build(LONG)
     proc = subprocess.run(
@@ -379,7 +379,7 @@ def test_resume_repairs_a_damaged_complete_dataset(root, uninterrupted, damage):
     _build()
     folder = _folder(root)
     spoil(folder)
-    with pytest.raises(ValueError, match=r"exists \(a complete one.*or --resume to check its episodes"):
+    with pytest.raises(ValueError, match=r"exists \(a complete one.*or resume=True to check its episodes"):
         _build()
     notes: list[str] = []
     ds = _build(resume=True, notes=notes)
@@ -599,7 +599,7 @@ def test_force_killed_before_the_swap_leaves_the_old_dataset(root, uninterrupted
     before = _tree(_folder(root))
     assert _kill_when(MOMENTS[moment][0], root, force=True)
     assert _tree(_folder(root)) == before and minari.load_dataset(ID).total_episodes == 2
-    with pytest.raises(ValueError, match=r"has an unfinished replacement at .*; pass --force to continue it"):
+    with pytest.raises(ValueError, match=r"has an unfinished replacement at .*; pass force=True to continue it"):
         _build(LONG, resume=True)  # a resume never replaces the dataset the id names
     _build(LONG, force=True)  # the replacement continued: what the killed run wrote is kept
     assert _tree(_folder(root)) == uninterrupted[LONG]

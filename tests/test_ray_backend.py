@@ -61,9 +61,15 @@ def test_ray_backend_gives_the_process_backends_trials(tmp_path: Path) -> None:
         assert a[key] == b[key], key
 
 
+#: How the command line names the settings the checks name (the Python API's names are the default).
+FLAGS = {"backend": "--backend", "address": "--address"}
+
+
 def test_ray_check_without_ray_names_the_backend(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray → ImportError
-    with pytest.raises(ValueError, match=r"--backend ray needs Ray.*pip install"):
+    with pytest.raises(ValueError, match=r"^--backend ray needs Ray.*pip install"):
+        check_ray_address(None, FLAGS)
+    with pytest.raises(ValueError, match=r"^backend ray needs Ray.*pip install"):
         check_ray_address(None)
 
 
@@ -72,8 +78,10 @@ def test_ray_check_unreachable_address_names_the_option() -> None:
     port = _closed_port()
     for address in (f"127.0.0.1:{port}", f"ray://127.0.0.1:{port}"):
         with pytest.raises(ValueError, match=r"^--address .*no Ray cluster answers at 127\.0\.0\.1"):
-            check_ray_address(address)
-    with pytest.raises(ValueError, match="--address"):
+            check_ray_address(address, FLAGS)
+    with pytest.raises(ValueError, match="^--address"):
+        check_ray_address("no-port-here:abc", FLAGS)
+    with pytest.raises(ValueError, match="^address 'no-port-here:abc'"):
         check_ray_address("no-port-here:abc")
     check_ray_address(None)  # a local Ray: nothing to check beyond the import
 
@@ -120,7 +128,7 @@ def test_ray_check_auto_without_a_cluster_names_the_option(monkeypatch: pytest.M
 
     monkeypatch.setattr(services, "canonicalize_bootstrap_address_or_die", no_cluster)
     with pytest.raises(ValueError, match=r"^--address 'auto': no running Ray cluster found .*ray start --head"):
-        check_ray_address("auto")
+        check_ray_address("auto", FLAGS)
 
 
 def test_ray_check_a_port_that_is_not_ray_names_the_option(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -137,4 +145,4 @@ def test_ray_check_a_port_that_is_not_ray_names_the_option(monkeypatch: pytest.M
             match=r"^--address '127\.0\.0\.1:\d+': (no Ray cluster answered within 3 s|"
             r"could not join a Ray cluster there)",
         ):
-            check_ray_address(address)
+            check_ray_address(address, FLAGS)

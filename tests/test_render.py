@@ -190,10 +190,16 @@ def test_cli_demo_writes_png_and_gif(tmp_path, capsys) -> None:
 
 
 def test_cli_demo_bad_output_is_one_line(tmp_path, capsys) -> None:
+    """One line naming the output as the front end spells it: ``--gif`` on the command line, ``gif`` from Python."""
+    from electroloc_gym.demo import demo
+
     (tmp_path / "file").write_text("x")
     assert main(["demo", "--gif", str(tmp_path / "file" / "x.gif")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("electroloc demo: error: gif") and "Traceback" not in err
+    assert err.startswith("electroloc demo: error: --gif ") and err.count("\n") == 1 and "Traceback" not in err
+    with pytest.raises(ValueError, match=r"^gif ") as info:
+        demo(gif=tmp_path / "file" / "x.gif")
+    assert str(info.value) == err.removeprefix("electroloc demo: error: --").strip()
 
 
 def test_global_frames_and_snapshot() -> None:

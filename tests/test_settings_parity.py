@@ -49,7 +49,7 @@ _REQUEST = {"env_id": "ElectroLoc-v0", "agent": "rnd-wlk", "episodes": 1}
 
 def _dataset_params() -> dict[str, inspect.Parameter]:
     build = dict(inspect.signature(build_dataset).parameters)
-    del build["request"], build["notify"]
+    del build["request"], build["notify"], build["names"]  # where notes go and how messages spell: no settings
     return {**inspect.signature(DatasetRequest).parameters, **build}
 
 
@@ -217,6 +217,60 @@ def test_a_refusal_of_settings_together_names_each_as_its_front_end_does(setting
         bench_run(**{k: v for k, v in settings.items() if k != "agents"}, agents=settings.get("agents"), out=tmp_path)
     assert str(info.value).startswith(f"{setting} {words}"), info.value
     assert not (tmp_path / "cli").exists() and not any(tmp_path.iterdir())
+
+
+def _bench_twice(front: str, out: Any) -> None:
+    for _ in range(2):  # the second run finds the first one's trials
+        if front == "cli":
+            argv = ["bench", "--agents", "rnd-wlk", "--conditions", "fresh-steel-12.7", "--trials", "1"]
+            code = main([*argv, "--max-observations", "2", "--no-progress", "--out", str(out)])
+            if code:
+                raise ValueError(code)
+        else:
+            bench_run("rnd-wlk", conditions="fresh-steel-12.7", trials=1, max_observations=2, out=out)
+
+
+def _dataset_twice(front: str, out: Any) -> None:
+    for _ in range(2):  # the second run finds the first one's dataset
+        if front == "cli":
+            if main(["dataset", "--agent", "rnd-wlk", "--episodes", "1", "--no-progress"]):
+                raise ValueError
+        else:
+            build_dataset(DatasetRequest(**_REQUEST))
+
+
+def _bench_into_a_file(front: str, out: Any) -> None:
+    out.write_text("a file")
+    if front == "cli":
+        if main(["bench", "--agents", "rnd-wlk", "--out", str(out / "sub")]):
+            raise ValueError
+    else:
+        bench_run("rnd-wlk", out=out / "sub")
+
+
+@pytest.mark.parametrize(
+    "act, words",
+    [
+        (_bench_twice, "pass {resume} to continue that run or choose another {out}"),
+        (_dataset_twice, "pass {force} to replace it or {resume} to check its episodes"),
+        (_bench_into_a_file, "{out} '"),
+    ],
+    ids=["bench-existing-run", "dataset-existing-id", "bench-out-under-a-file"],
+)
+def test_a_refusal_during_the_run_names_the_settings_as_its_front_end_does(act, words, tmp_path, capsys) -> None:
+    """A run's own refusals (an existing run, a folder that cannot be made) name the settings that would change it
+    as the front end that took them spells them: ``--resume`` on the command line, ``resume=True`` from Python."""
+    spelled = {
+        "cli": {"resume": "--resume", "force": "--force", "out": "--out"},
+        "python": {"resume": "resume=True", "force": "force=True", "out": "out"},
+    }
+    for front in spelled:
+        with pytest.raises(ValueError) as info:
+            act(front, tmp_path / front)
+        said = capsys.readouterr().err.strip().splitlines()[-1] if front == "cli" else str(info.value)
+        assert words.format(**spelled[front]) in said, (front, said)
+        other = spelled["python" if front == "cli" else "cli"]
+        assert not any(f" {name} " in f" {said} " for name in other.values() if name not in spelled[front].values())
 
 
 def test_numpy_integers_are_the_integers_they_hold(tmp_path) -> None:

@@ -38,7 +38,7 @@ from electroloc_gym.bench.agents import (
 )
 from electroloc_gym.bench.config import BENCH_OPTIONS, CONFIG_OPTIONS, BenchConfig
 from electroloc_gym.bench.runner import run_benchmark
-from electroloc_gym.options import Option, SettingError, api_signature
+from electroloc_gym.options import Option, SettingError, api_signature, message_names
 from electroloc_gym.registry import BENCH_ENVS, bench_env, resolve_env_name
 from electroloc_gym.utils.agentspec import split_specs
 from electroloc_gym.utils.fileio import user_path
@@ -132,7 +132,8 @@ def prepare(
     """The run ``values`` (every :data:`~electroloc_gym.bench.config.BENCH_OPTIONS` setting) describe, checked
     before anything is written: its :class:`BenchConfig` and :func:`run_benchmark`'s keywords. Both front
     ends run it; a refused setting is named as ``spell`` spells its option (``--max-observations`` or
-    ``max_observations``); ``note`` gets what a default agent list skipped, once the settings are valid.
+    ``max_observations``), and so are the settings the run's messages name; ``note`` gets what a default agent
+    list skipped, once the settings are valid.
 
     Raises:
         ValueError: one line naming the setting.
@@ -149,7 +150,7 @@ def prepare(
     if backend == "ray":  # Ray installed and the cluster reachable, before the output folder is touched
         from electroloc_gym.bench.ray_backend import check_ray_address
 
-        check_ray_address(values["address"])
+        check_ray_address(values["address"], name)
     notes: list[str] = []
     specs, objects = _agent_specs(values["agents"], values, notes.append)
     if not specs:  # every default skipped: the notes say why
@@ -186,7 +187,8 @@ def prepare(
         )
     run_options = {k: values[k] for k in ("workers", "resume", "progress", "trust_pickle")}
     options = {} if values["address"] is None else {"address": values["address"]}
-    return config, {**run_options, "backend": backend, "backend_options": options}
+    names = message_names(BENCH_OPTIONS, spell)
+    return config, {**run_options, "backend": backend, "backend_options": options, "names": names}
 
 
 def run(agents: Any = None, **settings: Any) -> BenchResult:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import socket
 import subprocess
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any
 
 from electroloc_gym.bench.backends import Backend, WorkerLost, register_backend
@@ -47,11 +47,11 @@ def ray_missing(what: str, extra: str = "ray") -> str:
     return f"{what} needs Ray, which is not installed here: {install}"
 
 
-def _import_ray() -> Any:
+def _import_ray(backend: str = "backend") -> Any:
     try:
         import ray
     except ImportError as exc:
-        raise ValueError(ray_missing("--backend ray")) from exc
+        raise ValueError(ray_missing(f"{backend} ray")) from exc
     return ray
 
 
@@ -62,23 +62,26 @@ def _host_port(text: str) -> tuple[str, int] | None:
     return host.strip("[]"), int(port)
 
 
-def check_ray_address(address: str | None) -> None:
+def check_ray_address(address: str | None, names: Mapping[str, str] | None = None) -> None:
     """Check that the ray backend can run: Ray is installed and, for an ``address``, a cluster answers there.
 
     ``"auto"`` is resolved as ``ray.init`` resolves it; a ``"ray://host:port"`` or ``"host:port"`` address must
     accept a TCP connection within :data:`CONNECT_TIMEOUT_S`. None (no ``--address``: the run starts a local
-    Ray) checks only that Ray is installed. Nothing is started and nothing is written.
+    Ray) checks only that Ray is installed. Nothing is started and nothing is written. ``names``: how the
+    messages name ``backend`` and ``address`` (the command line's ``--backend``, ``--address``; None: as here).
 
     Raises:
-        ValueError: one line naming ``--backend ray`` (Ray missing) or ``--address`` (malformed or no
-            cluster answers there).
+        ValueError: one line naming the backend (Ray missing) or the address (malformed or no cluster answers
+            there).
     """
-    ray = _import_ray()
+    names = {"backend": "backend", "address": "address", **(names or {})}
+    ray = _import_ray(names["backend"])
+    flag = names["address"]
     if address is None:
         return
     if not isinstance(address, str) or not address.strip():
         raise ValueError(
-            f"--address must be a Ray cluster address ('auto', 'host:6379', 'ray://host:10001'), got {address!r}"
+            f"{flag} must be a Ray cluster address ('auto', 'host:6379', 'ray://host:10001'), got {address!r}"
         )
     target = address.strip()
     if target.startswith("ray://"):
@@ -92,25 +95,25 @@ def check_ray_address(address: str | None) -> None:
             target = canonicalize_bootstrap_address_or_die(None if target == "local" else target)  # pyright: ignore[reportArgumentType]  # Ray annotates addr as str; its docstring and code take None
         except (ConnectionError, ValueError) as exc:
             raise ValueError(
-                f"--address {address!r}: no running Ray cluster found (start one with "
-                f"`ray start --head`, or omit --address for a local Ray); Ray says: "
+                f"{flag} {address!r}: no running Ray cluster found (start one with "
+                f"`ray start --head`, or omit {flag} for a local Ray); Ray says: "
                 f"{str(exc).splitlines()[0]}"
             ) from None
     hp = _host_port(target)
     if hp is None:
-        raise ValueError(f"--address {address!r} is not a Ray address ('auto', 'host:6379', 'ray://host:10001')")
+        raise ValueError(f"{flag} {address!r} is not a Ray address ('auto', 'host:6379', 'ray://host:10001')")
     try:  # a refused or unroutable port: a clear answer within seconds
         with socket.create_connection(hp, timeout=CONNECT_TIMEOUT_S):
             pass
     except OSError as exc:
         raise ValueError(
-            f"--address {address!r}: no Ray cluster answers at {hp[0]}:{hp[1]} "
-            f"({exc.strerror or exc}); start one with `ray start --head` or omit --address"
+            f"{flag} {address!r}: no Ray cluster answers at {hp[0]}:{hp[1]} "
+            f"({exc.strerror or exc}); start one with `ray start --head` or omit {flag}"
         ) from None
-    _probe(address, ray)
+    _probe(address, ray, flag)
 
 
-def _probe(address: str, ray: Any) -> None:
+def _probe(address: str, ray: Any, flag: str) -> None:
     """Join the cluster at ``address`` from a child process (something else may listen on that port)."""
     if ray.is_initialized():
         return
@@ -124,14 +127,14 @@ def _probe(address: str, ray: Any) -> None:
         )
     except subprocess.TimeoutExpired:
         raise ValueError(
-            f"--address {address!r}: no Ray cluster answered within {PROBE_TIMEOUT_S:g} s; start one "
-            f"with `ray start --head` or omit --address"
+            f"{flag} {address!r}: no Ray cluster answered within {PROBE_TIMEOUT_S:g} s; start one "
+            f"with `ray start --head` or omit {flag}"
         ) from None
     if proc.returncode != 0:
         lines = [ln for ln in proc.stderr.splitlines() if "Error" in ln] or proc.stderr.splitlines() or ["no answer"]
         raise ValueError(
-            f"--address {address!r}: could not join a Ray cluster there ({lines[-1].strip()}); "
-            f"start one with `ray start --head` or omit --address"
+            f"{flag} {address!r}: could not join a Ray cluster there ({lines[-1].strip()}); "
+            f"start one with `ray start --head` or omit {flag}"
         )
 
 

@@ -74,28 +74,30 @@ LOCK_FILE = ".bench.lock"
 MAX_LINE_CHARS = 16_384
 
 
-def prepare_out_dir(out: str | os.PathLike[str] | None) -> Path:
-    """Create the output folder (parents too) and check that files can be written in it.
+def prepare_out_dir(out: str | os.PathLike[str] | None, name: str = "out") -> Path:
+    """Create the output folder (parents too) and check that files can be written in it; ``name``: the setting as
+    the caller's front end spells it.
 
     Raises:
         ValueError: what :func:`~electroloc_gym.utils.fileio.check_output_folder` refuses, or a folder that
             cannot be created or written.
     """
-    path = check_output_folder("--out", out)
+    path = check_output_folder(name, out)
     text = os.fspath(out)  # type: ignore[arg-type]  # check_output_folder refused None
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ValueError(f"--out {text!r} cannot be created: {exc.strerror or exc}") from exc
+        raise ValueError(f"{name} {text!r} cannot be created: {exc.strerror or exc}") from exc
     try:
         probe_write(path)
     except OSError as exc:
-        raise ValueError(f"--out {text!r} is not writable: {exc.strerror or exc}") from exc
+        raise ValueError(f"{name} {text!r} is not writable: {exc.strerror or exc}") from exc
     return path
 
 
-def run_lock(folder: str | os.PathLike[str]) -> FolderLock:
-    """The exclusive lock a run holds on its output folder (``OUT/.bench.lock``, a :class:`FolderLock`).
+def run_lock(folder: str | os.PathLike[str], name: str = "out") -> FolderLock:
+    """The exclusive lock a run holds on its output folder (``OUT/.bench.lock``, a :class:`FolderLock`); ``name``:
+    the output setting as the caller's front end spells it.
 
     Raises:
         FolderBusyError: on ``acquire`` when another run holds it.
@@ -103,8 +105,8 @@ def run_lock(folder: str | os.PathLike[str]) -> FolderLock:
     return FolderLock(
         folder,
         LOCK_FILE,
-        f"--out {os.fspath(folder)!r} is in use by another electroloc bench run; "
-        f"wait for it to finish or choose another --out",
+        f"{name} {os.fspath(folder)!r} is in use by another electroloc bench run; "
+        f"wait for it to finish or choose another {name}",
     )
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -35,6 +35,7 @@ from electroloc_gym.bench.agents import (
 )
 from electroloc_gym.bench.backends import WorkerLost, make_backend
 from electroloc_gym.bench.config import (
+    BENCH_OPTIONS,
     DEFAULT_AGENTS,
     IDENTITY_DEFAULTS,
     MAP_CONDITIONS,
@@ -60,6 +61,7 @@ from electroloc_gym.bench.records import (
 from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.bench.stored_run import read_config, record_rules
 from electroloc_gym.bench.trials import TrialFailed, describe_trial, run_trial
+from electroloc_gym.options import message_names
 from electroloc_gym.utils.fileio import atomic_write_bytes, check_output_folder, strict_json, write_json_atomic
 
 # The run, plus the names a caller of the runner needs (defined in config, records and trials).
@@ -87,7 +89,7 @@ SLOW_DECISION_S = 10.0
 
 
 def _resume(
-    config: BenchConfig, out: Path, log: Callable[[str], None], trust_pickle: bool
+    config: BenchConfig, out: Path, log: Callable[[str], None], trust_pickle: bool, names: Mapping[str, str]
 ) -> tuple[LoadedRecords, dict[str, Any] | None]:
     """Check a stored run against ``config``; set damaged lines aside. Returns its records and config."""
     stored = read_config(out / "config.json", log)
@@ -102,7 +104,7 @@ def _resume(
         more = f" (and {len(loaded.foreign) - 1} more)" if len(loaded.foreign) > 1 else ""
         raise ValueError(
             f"cannot resume {out}: {loaded.path}:{n}{more} is not a trial of this run — {why}; "
-            f"resume with that run's settings or choose another --out"
+            f"resume with that run's settings or choose another {names['out']}"
         )
     if loaded.rejected:
         set_aside(loaded)
@@ -261,11 +263,13 @@ def run_benchmark(
     backend_options: dict[str, Any] | None = None,
     trust_pickle: bool = False,
     log: Callable[[str], None] | None = print,
+    names: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """Run (or resume) ``config``'s benchmark in ``out_dir`` (created; locked for the run) and write its files;
     returns the summary. ``workers``, ``backend``, ``resume``, ``progress`` and ``trust_pickle`` are the
     :data:`~electroloc_gym.bench.config.RUN_OPTIONS` of those names; ``backend_options``: the backend's own
-    (e.g. a Ray address); ``log``: where one-line notes go (None: silent).
+    (e.g. a Ray address); ``log``: where one-line notes go (None: silent); ``names``: how its messages name the
+    settings (:func:`~electroloc_gym.options.message_names`; None: as Python spells them, ``resume=True``).
 
     Raises:
         ValueError: a bad output folder, a folder in use by another run, bad agents, an existing
@@ -275,14 +279,16 @@ def run_benchmark(
     from electroloc_gym.bench.stats import summarize
 
     log = log if log is not None else (lambda line: None)
+    names = names or message_names(BENCH_OPTIONS, lambda opt: opt.name)
     described, warnings = _check_agents(config, trust_pickle)  # before the folder is touched: nothing written
-    packed = check_output_folder("--out", out_dir) / TRIALS_GZ_FILE
+    packed = check_output_folder(names["out"], out_dir) / TRIALS_GZ_FILE
     if packed.is_file():  # a kept run stored compressed is read, never appended to; nothing is written
         raise ValueError(
-            f"{packed} holds a kept run's trials (compressed); gunzip it to continue that run, or choose another --out"
+            f"{packed} holds a kept run's trials (compressed); gunzip it to continue that run, or choose another "
+            f"{names['out']}"
         )
-    out = prepare_out_dir(out_dir)
-    with run_lock(out):
+    out = prepare_out_dir(out_dir, names["out"])
+    with run_lock(out, names["out"]):
         log(described)
         for line in warnings:
             log(line)
@@ -292,9 +298,10 @@ def run_benchmark(
         if trials_path.exists() and trials_path.stat().st_size > 0:
             if not resume:
                 raise ValueError(
-                    f"{trials_path} already holds trials; pass --resume to continue that run or choose another --out"
+                    f"{trials_path} already holds trials; pass {names['resume']} to continue that run or choose "
+                    f"another {names['out']}"
                 )
-            loaded, stored = _resume(config, out, log, trust_pickle)
+            loaded, stored = _resume(config, out, log, trust_pickle, names)
         be = make_backend(backend, workers, **(backend_options or {}))
 
         stored_cfg = asdict(config)
@@ -327,7 +334,7 @@ def run_benchmark(
             what = str(exc) if isinstance(exc, TrialFailed) else _lost_text(exc)
             raise ValueError(
                 f"{what}; the {len(records)} finished trial(s) ({len(records) - done_before} this time) "
-                f"are kept in {trials_path}: fix the agent, then run again with --resume"
+                f"are kept in {trials_path}: fix the agent, then run again with {names['resume']}"
             ) from None
         finally:
             bar.close()

@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +36,7 @@ from electroloc_gym.dataset.request import (
     dataset_id,
 )
 from electroloc_gym.dataset.seed_protocol import EVALUATION_SEED, episode_seeds, evaluation_overlap, reference_scores
+from electroloc_gym.options import message_names
 
 __all__ = [
     "DatasetRequest",
@@ -208,11 +209,13 @@ def build_dataset(
     force: bool = False,
     progress: bool = False,
     notify: Callable[[str], None] | None = None,
+    names: Mapping[str, str] | None = None,
 ) -> Any:
     """Collect ``request`` into a local Minari dataset; returns the loaded ``MinariDataset``.
 
     ``resume``, ``force`` and ``progress`` are :data:`BUILD_OPTIONS`; ``notify`` is called with one line when a
-    resume sets something aside (default: printed to stderr).
+    resume sets something aside (default: printed to stderr); ``names``: how its messages name the settings
+    (:func:`~electroloc_gym.options.message_names`; None: as Python spells them, ``force=True``).
 
     Raises:
         ValueError: bad input, an existing id without ``resume``/``force``, a resumed dataset of other
@@ -234,6 +237,7 @@ def build_dataset(
     if notify is not None and not callable(notify):
         raise ValueError(f"notify must be None or a callable taking one line, got {notify!r}")
     notify = notify or _notify_stderr
+    names = names or message_names(DATASET_OPTIONS, lambda opt: opt.name)
     ds_id = request.id
     agent = make_bench_agent(request.agent, trust_pickle=request.trust_pickle)
     try:  # every read of a plug-in's attributes goes through the benchmark's guard: what raises is one line
@@ -249,7 +253,7 @@ def build_dataset(
         try:
             store.check_dataset_id(ds_id)
         except ValueError as exc:
-            raise ValueError(f"the default {exc}; pass a shorter --id") from None
+            raise ValueError(f"the default {exc}; pass a shorter {names['dataset_id']}") from None
     refs = None if request.reference is None else reference_scores(request.reference, request.env_id)
     seeds = [episode_seeds(request.seed, k)[0] for k in range(request.episodes)]
     clash = evaluation_overlap(seeds)
@@ -262,7 +266,7 @@ def build_dataset(
         store.recover_swap(paths)
         paths.check_location()
         with gym.make(request.env_id, **kwargs) as env:
-            run = _Run(request, paths, env, settings, refs, seeds, notify)
+            run = _Run(request, paths, env, settings, refs, seeds, notify, names)
             if run.prepare(resume=resume, force=force):
                 with tqdm(
                     total=request.episodes, initial=len(run.kept), desc=ds_id, unit="episode", disable=not progress
@@ -292,9 +296,10 @@ class _Run:
         refs: dict[str, Any] | None,
         seeds: list[int],
         notify: Callable[[str], None],
+        names: Mapping[str, str],
     ) -> None:
         self.request, self.paths, self.env, self.settings, self.seeds = request, paths, env, settings, seeds
-        self.refs, self.notify = refs, notify
+        self.refs, self.notify, self.names = refs, notify, names
         self.digest = store.settings_digest(settings)
         self.storage_fields = _storage_fields(env)
         self.kept: dict[int, int] = {}
@@ -333,10 +338,14 @@ class _Run:
         if not resume and not force and (published or started):
             where = f"a complete one at {path}" if published else f"an unfinished one at {partial}"
             hint = "check its episodes and re-collect damaged ones" if published else "continue it"
-            raise ValueError(f"dataset {ds_id!r} exists ({where}); pass --force to replace it or --resume to {hint}")
+            raise ValueError(
+                f"dataset {ds_id!r} exists ({where}); pass {self.names['force']} to replace it or "
+                f"{self.names['resume']} to {hint}"
+            )
         if resume and started and published:
             raise ValueError(
-                f"dataset {ds_id!r} has an unfinished replacement at {partial}; pass --force to continue it"
+                f"dataset {ds_id!r} has an unfinished replacement at {partial}; pass {self.names['force']} to "
+                "continue it"
             )
         if (
             force
@@ -348,7 +357,7 @@ class _Run:
         folder = partial if started else path if resume and published else None
         if folder is None:
             return True
-        found = store.inspect_dataset(ds_id, folder, self.settings, self.seeds, self.header())
+        found = store.inspect_dataset(ds_id, folder, self.settings, self.seeds, self.header(), self.names["force"])
         if self.refs is None and found.header is not None:  # the reference it was started with
             old_refs = found.header["electroloc"].get("reference")
             self.refs = old_refs if isinstance(old_refs, dict) and store.REFERENCE_KEYS <= old_refs.keys() else None

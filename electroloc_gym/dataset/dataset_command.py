@@ -38,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     """Build the dataset ``args`` describe; print its id, size and path. 0 on success, 2 on bad input."""
     from electroloc_gym.dataset.collect import build_dataset
     from electroloc_gym.dataset.request import DATASET_OPTIONS, REQUEST_OPTIONS, DatasetRequest, check_settings
+    from electroloc_gym.options import message_names
     from electroloc_gym.registry import resolve_env_name
 
     def notify(message: str) -> None:
@@ -48,7 +49,14 @@ def run(args: argparse.Namespace) -> int:
         values["env_id"] = resolve_env_name(values["env_id"], "--env")  # MODULE:ENV_ID imports MODULE
         check_settings(values, lambda o: o.option)  # named by their flags, before the request names them
         request = DatasetRequest(**{o.name: values[o.name] for o in REQUEST_OPTIONS})
-        ds = build_dataset(request, resume=args.resume, force=args.force, progress=args.progress, notify=notify)
+        ds = build_dataset(
+            request,
+            resume=args.resume,
+            force=args.force,
+            progress=args.progress,
+            notify=notify,
+            names=message_names(DATASET_OPTIONS, lambda o: o.option),
+        )
     except ValueError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2

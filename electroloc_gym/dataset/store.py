@@ -438,10 +438,12 @@ def inspect_dataset(
     settings: Mapping[str, Any],
     episode_seeds: list[int],
     expected_header: Mapping[str, Any],
+    force: str = "force=True",
 ) -> Inspection:
     """Check dataset ``ds_id``'s ``folder`` (published or partial) for resuming with ``settings`` (read only):
     ``episode_seeds`` the reset seed of each planned episode, ``expected_header`` the header these settings give
-    (a readable header whose fixed fields differ from it is set aside and rebuilt).
+    (a readable header whose fixed fields differ from it is set aside and rebuilt); ``force``: how a refusal
+    names the switch that replaces the dataset (``--force`` on the command line).
 
     Raises:
         ValueError: a dataset of other settings, one not written by this package, or one holding episodes
@@ -453,10 +455,10 @@ def inspect_dataset(
         if old is None:
             raise ValueError(
                 f"dataset {ds_id!r} ({folder}) was not written by electroloc dataset (its metadata has no "
-                f"'electroloc' block); pass --force to replace it"
+                f"'electroloc' block); pass {force} to replace it"
             )
         if old != dict(settings):
-            raise ValueError(f"dataset {ds_id!r} was started with other settings {old}; pass --force to replace it")
+            raise ValueError(f"dataset {ds_id!r} was started with other settings {old}; pass {force} to replace it")
         fixed = {k: v for k, v in header.items() if k not in _COUNTED | REFERENCE_KEYS}
         if fixed != {k: v for k, v in expected_header.items() if k not in _COUNTED | REFERENCE_KEYS}:
             problem = "differs from the header of these settings"
