@@ -4,9 +4,10 @@ Each setting is one :class:`~electroloc_gym.options.Option` of :data:`TRAIN_OPTI
 defaults. The command line's parser is built from them (:func:`~electroloc_gym.options.add_options`), the Python
 API checks its keywords with the same checks (:func:`check_train_settings`), and a refusal is the same one line
 from both front ends, the setting named as each spells it (``--env`` / ``env_id``). Two settings are maps
-(``env_kwargs``, ``hyperparams``): ``KEY=VALUE`` words on the command line (values as Python literals, rl-zoo3's
-rule), a mapping in Python. What is not a setting of the run stays with its front end: ``--print-command`` and
-``--threads`` (the process's) on the command line, ``quiet`` and ``gym_packages`` in Python.
+(``env_kwargs``, ``hyperparams``): ``KEY=VALUE`` words on the command line (a value is a Python literal or else a
+bare word, a string: the agent specs' rule), a mapping in Python. What is not a setting of the run stays with its
+front end: ``--print-command`` and ``--threads`` (the process's) on the command line, ``quiet`` and
+``gym_packages`` in Python.
 """
 
 from __future__ import annotations
@@ -126,7 +127,8 @@ TRAIN_OPTIONS: tuple[Option, ...] = (
         kind="pairs",
         check=_mapping,
         bad=(5, {"": 1}),
-        help="replace the file's env_kwargs (rl-zoo3's rule), KEY=VALUE words, values as Python literals",
+        help="replace the file's env_kwargs (rl-zoo3's rule), KEY=VALUE words (a value is a Python literal or "
+        "else a bare word, a string: observation=belief)",
     ),
     Option(
         "hyperparams",
@@ -134,7 +136,8 @@ TRAIN_OPTIONS: tuple[Option, ...] = (
         kind="pairs",
         check=_mapping,
         bad=(["n_envs"],),
-        help="override hyper-parameters, KEY=VALUE words, values as Python literals",
+        help="override hyper-parameters, KEY=VALUE words (a value is a Python literal or else a bare word, a "
+        "string: policy=MlpPolicy)",
     ),
     Option(
         "native",
