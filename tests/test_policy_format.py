@@ -360,6 +360,18 @@ def poisoned(saved, tmp_path) -> tuple[Path, Path, Path]:
 
 
 @needs_numpy2_pickles
+def test_an_sb3_zip_runs_under_the_name_its_path_is_shown_by(saved, tmp_path):
+    """A trusted SB3 zip is named as the progress line and the log name its path (``runs/x/model.zip``: ``x``), so the
+    table's row and the log line agree; another zip by its stem."""
+    from electroloc_gym.bench.agents import agent_display_name
+
+    other = tmp_path / "best_model.zip"
+    shutil.copy(saved / "model.zip", other)
+    for path, name in ((saved / "model.zip", "saved"), (other, "best_model")):
+        assert load_policy(path, trust_pickle=True).name == agent_display_name(str(path)) == name
+
+
+@needs_numpy2_pickles
 def test_the_payloads_are_real(poisoned):
     _, bare, marker = poisoned
     with pytest.raises(Exception):  # noqa: B017 - whatever SB3 raises after running the payload

@@ -41,7 +41,7 @@ from electroloc_gym.bench.policy_fit import (  # what a policy was trained on (r
     shipped_models,
     trained_sensor_layout,
 )
-from electroloc_gym.utils.agentspec import AgentSpec, is_path_like, parse_agent_spec
+from electroloc_gym.utils.agentspec import AgentSpec, is_path_like, parse_agent_spec, path_agent_name
 from electroloc_gym.utils.fileio import user_path
 
 __all__ = [
@@ -296,12 +296,8 @@ def agent_display_name(spec: str) -> str:
     """A short name for progress bars and logs: the spec itself, or a path's folder (the folder of its
     ``model.zip`` or ``policy.json``) or file name.
     """
-    if not is_path_like(spec):  # the one rule of a path spec (``ppo.zip`` and ``./ppo.zip`` alike)
-        return spec
-    p = Path(spec.rstrip("/\\"))
-    if p.name in ("model.zip", "policy.json") and p.parent.name:
-        return p.parent.name
-    return p.stem if p.suffix == ".zip" else p.name
+    # the one rule of a path spec (``ppo.zip`` and ``./ppo.zip`` alike), and of the name it runs under
+    return path_agent_name(spec) if is_path_like(spec) else spec
 
 
 def make_bench_agent(spec: str | AgentRef, *, seed: int | None = None, trust_pickle: bool = False) -> Any:

@@ -37,6 +37,7 @@ from electroloc_gym.policy.format import (
 )
 from electroloc_gym.policy.networks import build_actor
 from electroloc_gym.policy.tensors import ALGOS
+from electroloc_gym.utils.agentspec import path_agent_name
 
 __all__ = ["LearnedAgent", "load_policy", "ShippedPolicy", "shipped_policies"]
 
@@ -280,7 +281,7 @@ def load_policy(path: str | Path, trust_pickle: bool = False) -> LearnedAgent:
         p,
     )
     model, meta = model_from_sb3_zip(p)
-    return agent_from_model(model, meta, p.stem)
+    return agent_from_model(model, meta, path_agent_name(p))
 
 
 def agent_from_model(model: Any, meta: Mapping[str, Any], name: str = "learned") -> LearnedAgent:

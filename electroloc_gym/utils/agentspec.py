@@ -16,12 +16,22 @@ hence a hand-written scanner. A policy path is not a spec; :func:`is_path_like` 
 from __future__ import annotations
 
 import ast
+import os
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
-__all__ = ["AgentSpec", "parse_agent_spec", "split_specs", "is_path_like", "parse_options", "MAX_SPEC_CHARS"]
+__all__ = [
+    "AgentSpec",
+    "parse_agent_spec",
+    "split_specs",
+    "is_path_like",
+    "path_agent_name",
+    "parse_options",
+    "MAX_SPEC_CHARS",
+]
 
 #: Longest spec accepted (characters): a spec is a name and a few options, not a data file.
 MAX_SPEC_CHARS = 2000
@@ -68,6 +78,16 @@ def is_path_like(text: str) -> bool:
     """
     head = text.split("[", 1)[0]
     return "/" in head or "\\" in head or text.startswith((".", "~")) or text.endswith(".zip")
+
+
+def path_agent_name(path: str | os.PathLike[str]) -> str:
+    """The name a policy path runs under: the folder of its ``model.zip`` or ``policy.json``, a ``.zip``'s stem, or
+    the folder's name (the progress line, the log and the table all use it).
+    """
+    p = Path(os.fspath(path).rstrip("/\\"))
+    if p.name in ("model.zip", "policy.json") and p.parent.name:
+        return p.parent.name
+    return p.stem if p.suffix == ".zip" else p.name
 
 
 def _scan(text: str, what: str) -> list[tuple[int, int]]:
