@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from electroloc_gym.baselines.rollout import run_episode
 from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
+from electroloc_gym.options import message_words
 from electroloc_gym.protocol import SUCCESS_SPREAD_MM
 from electroloc_gym.registry import PAPER_ENV_ID
 from electroloc_gym.utils.fileio import atomic_write_bytes, check_output_path, save_figure_atomic
@@ -335,7 +336,7 @@ def demo(
 
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise ValueError(f"seed must be an integer in [0, 2**63), got {seed!r}")
-    name = {"out": "out", "gif": "gif", **(names or {})}
+    name = message_words({"out": "out", "gif": "gif"}, names)
     if out is not None:
         check_output_path(name["out"], out, figure_suffixes())
     if gif is not None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import re
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import MISSING, dataclass, field, fields, replace
 from typing import Any
 
@@ -32,6 +32,7 @@ __all__ = [
     "api_signature",
     "pairs_value",
     "message_names",
+    "message_words",
     "int_in",
     "one_of",
     "is_bool",
@@ -172,6 +173,24 @@ def message_names(options: Iterable[Option], spell: Callable[[Option], str]) -> 
         spelled = spell(opt)
         names[opt.name] = f"{spelled}=True" if opt.kind == "switch" and not spelled.startswith("-") else spelled
     return names
+
+
+def message_words(defaults: Mapping[str, str], names: Any) -> dict[str, str]:
+    """The words a function's messages name its settings with: ``names`` (a front end's, e.g. ``{"out": "--out"}``)
+    over ``defaults`` (the Python API's).
+
+    Raises:
+        ValueError: ``names`` neither None nor a mapping of some of ``defaults``' settings to text (one line).
+    """
+    if names is None:
+        return dict(defaults)
+    if (
+        not isinstance(names, Mapping)
+        or not set(names) <= set(defaults)
+        or not all(isinstance(v, str) and v for v in names.values())
+    ):
+        raise ValueError(f"names must be None or a mapping of settings {sorted(defaults)} to text, got {names!r}")
+    return {**defaults, **names}
 
 
 def pairs_value(opt: Option, words: Sequence[str] | None) -> dict[str, Any] | None:

@@ -273,6 +273,33 @@ def test_a_refusal_during_the_run_names_the_settings_as_its_front_end_does(act, 
         assert not any(f" {name} " in f" {said} " for name in other.values() if name not in spelled[front].values())
 
 
+def _runs_with_names(tmp_path: Any) -> dict[str, Callable[[Any], Any]]:
+    from electroloc_gym.bench.config import BenchConfig
+    from electroloc_gym.bench.ray_backend import check_ray_address
+    from electroloc_gym.bench.runner import run_benchmark
+    from electroloc_gym.demo import demo
+
+    config = BenchConfig(agents=("rnd-wlk",), conditions=("fresh-steel-12.7",), trials=1, max_observations=2)
+    return {
+        "run_benchmark": lambda names: run_benchmark(config, tmp_path / "b", progress=False, log=None, names=names),
+        "build_dataset": lambda names: build_dataset(DatasetRequest(**_REQUEST), names=names),
+        "demo": lambda names: demo(out=tmp_path / "d.png", names=names),
+        "check_ray_address": lambda names: check_ray_address(None, names),
+    }
+
+
+@pytest.mark.parametrize("names", ["--out", {"no_such_setting": "--x"}, {"out": 1}, {"out": ""}])
+@pytest.mark.parametrize("function", ["run_benchmark", "build_dataset", "demo", "check_ray_address"])
+def test_the_words_a_front_end_passes_are_checked_before_anything_runs(function, names, tmp_path) -> None:
+    """``names`` (how a function's messages spell its settings) is None or a mapping of its settings to text: else
+    one line naming it, before anything is written."""
+    if function == "check_ray_address" and names == {"out": 1}:
+        names = {"address": 1}  # its settings are the backend and the address
+    with pytest.raises(ValueError, match=r"^names must be None or a mapping of settings \[.*\] to text, got "):
+        _runs_with_names(tmp_path)[function](names)
+    assert not any(tmp_path.rglob("*")), list(tmp_path.rglob("*"))
+
+
 def test_numpy_integers_are_the_integers_they_hold(tmp_path) -> None:
     """A numpy integer passes an integer setting's check as the int it holds, and the run stores that int: the
     same records and config.json as plain ints (never a refusal after the folder is made)."""

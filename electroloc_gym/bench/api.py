@@ -150,7 +150,7 @@ def prepare(
     if backend == "ray":  # Ray installed and the cluster reachable, before the output folder is touched
         from electroloc_gym.bench.ray_backend import check_ray_address
 
-        check_ray_address(values["address"], name)
+        check_ray_address(values["address"], {k: name[k] for k in ("backend", "address")})
     notes: list[str] = []
     specs, objects = _agent_specs(values["agents"], values, notes.append)
     if not specs:  # every default skipped: the notes say why

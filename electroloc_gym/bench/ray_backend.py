@@ -22,6 +22,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any
 
 from electroloc_gym.bench.backends import Backend, WorkerLost, register_backend
+from electroloc_gym.options import message_words
 from electroloc_gym.registry import import_plugin_modules, plugin_modules
 from electroloc_gym.utils.runtime import pin_threads, thread_env
 
@@ -74,7 +75,7 @@ def check_ray_address(address: str | None, names: Mapping[str, str] | None = Non
         ValueError: one line naming the backend (Ray missing) or the address (malformed or no cluster answers
             there).
     """
-    names = {"backend": "backend", "address": "address", **(names or {})}
+    names = message_words({"backend": "backend", "address": "address"}, names)
     ray = _import_ray(names["backend"])
     flag = names["address"]
     if address is None:

@@ -61,7 +61,7 @@ from electroloc_gym.bench.records import (
 from electroloc_gym.bench.schema import TIMING_KEYS
 from electroloc_gym.bench.stored_run import read_config, record_rules
 from electroloc_gym.bench.trials import TrialFailed, describe_trial, run_trial
-from electroloc_gym.options import message_names
+from electroloc_gym.options import message_names, message_words
 from electroloc_gym.utils.fileio import atomic_write_bytes, check_output_folder, strict_json, write_json_atomic
 
 # The run, plus the names a caller of the runner needs (defined in config, records and trials).
@@ -279,7 +279,7 @@ def run_benchmark(
     from electroloc_gym.bench.stats import summarize
 
     log = log if log is not None else (lambda line: None)
-    names = names or message_names(BENCH_OPTIONS, lambda opt: opt.name)
+    names = message_words(message_names(BENCH_OPTIONS, lambda opt: opt.name), names)
     described, warnings = _check_agents(config, trust_pickle)  # before the folder is touched: nothing written
     packed = check_output_folder(names["out"], out_dir) / TRIALS_GZ_FILE
     if packed.is_file():  # a kept run stored compressed is read, never appended to; nothing is written

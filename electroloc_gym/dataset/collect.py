@@ -36,7 +36,7 @@ from electroloc_gym.dataset.request import (
     dataset_id,
 )
 from electroloc_gym.dataset.seed_protocol import EVALUATION_SEED, episode_seeds, evaluation_overlap, reference_scores
-from electroloc_gym.options import message_names
+from electroloc_gym.options import message_names, message_words
 
 __all__ = [
     "DatasetRequest",
@@ -237,7 +237,7 @@ def build_dataset(
     if notify is not None and not callable(notify):
         raise ValueError(f"notify must be None or a callable taking one line, got {notify!r}")
     notify = notify or _notify_stderr
-    names = names or message_names(DATASET_OPTIONS, lambda opt: opt.name)
+    names = message_words(message_names(DATASET_OPTIONS, lambda opt: opt.name), names)
     ds_id = request.id
     agent = make_bench_agent(request.agent, trust_pickle=request.trust_pickle)
     try:  # every read of a plug-in's attributes goes through the benchmark's guard: what raises is one line
