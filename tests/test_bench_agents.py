@@ -285,6 +285,71 @@ def test_a_policy_record_whose_gain_levels_are_no_list_is_one_line(tmp_path, cap
     assert len(err) == 1 and "env_kwargs.gain_levels must be a list of numbers, got 4" in err[0], err
 
 
+def _edited_policy(folder: Path, edit) -> Path:
+    import json
+    import shutil
+
+    shutil.copytree(shipped_models()["ppo-belief"], folder)
+    meta = json.loads((folder / "policy.json").read_text())
+    edit(meta)
+    (folder / "policy.json").write_text(json.dumps(meta))
+    return folder
+
+
+def _frame_of(n: int):
+    def edit(meta):
+        obs, norm = meta["observation"], meta["normalization"]
+        obs.update(frame_dim=n, shape=[n])
+        obs["space"].update(shape=[n], low=obs["space"]["low"][:n], high=obs["space"]["high"][:n])
+        norm.update(obs_mean=norm["obs_mean"][:n], obs_var=norm["obs_var"][:n])
+
+    return edit
+
+
+def _action_space(action_type: str, space: dict):
+    def edit(meta):
+        meta["action"] = {"action_type": action_type, "space": space}
+
+    return edit
+
+
+@pytest.mark.parametrize(
+    "edit, action_type, says",
+    [
+        (
+            _frame_of(80),
+            "continuous",
+            "its observation frame has 80 entries, ElectroLoc-v0's (belief observation) has 81",
+        ),
+        (
+            _action_space(
+                "continuous", {"type": "Box", "shape": [3], "dtype": "float32", "low": [-1.0] * 3, "high": [1.0] * 3}
+            ),
+            "continuous",
+            "its action space has shape (3,), ElectroLoc-v0's is Box(2,)",
+        ),
+        (
+            _action_space("discrete", {"type": "Discrete", "n": 5}),
+            "discrete",
+            "its action space is Discrete(5), ElectroLoc-v0's is Discrete(9)",
+        ),
+    ],
+    ids=["observation-frame", "box-shape", "discrete-n"],
+)
+def test_a_policy_whose_spaces_do_not_fit_the_env_is_named_by_what_differs(tmp_path, edit, action_type, says) -> None:
+    """The fit check compares the observation frame and the action space a policy records with the run's env built
+    with the policy's own env kwargs, and names the one that differs."""
+    from types import SimpleNamespace
+
+    from electroloc_gym.bench.policy_fit import policy_env_problem
+
+    folder = _edited_policy(tmp_path / "p", edit)
+    agent = SimpleNamespace(env_kwargs={"observation": "belief", "action_type": action_type})
+    assert policy_env_problem(str(folder), agent, "ElectroLoc-v0", None) == says
+    fits = SimpleNamespace(env_kwargs={"observation": "belief", "action_type": "continuous"})
+    assert policy_env_problem(str(shipped_models()["ppo-belief"]), fits, "ElectroLoc-v0", None) is None
+
+
 def test_a_shipped_name_is_the_shipped_policy_from_every_front_end(tmp_path, monkeypatch) -> None:
     """``ppo-belief`` is the shipped policy for load_policy, make_agent and the benchmark alike, whatever the
     working directory holds; a folder of that name there is ``./ppo-belief``."""
@@ -521,3 +586,37 @@ def test_a_learned_policy_keeps_the_agent_options_it_was_trained_with(tmp_path) 
         "action_type": "continuous",
         "motion_model": "swimmer",
     }
+
+
+class _Walker:
+    def reset(self, env):
+        pass
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return np.zeros(2, dtype=np.float32), state
+
+
+def test_the_guard_and_its_error_cross_process_boundaries_and_forward_writes() -> None:
+    """A guarded plug-in agent and the error of a failed read go to worker processes and back by pickle: each comes
+    back as it went (the error's message and parts, the agent's class); a write reaches the agent itself."""
+    from electroloc_gym.bench.agents import AgentAttributeError, PluginAgent
+
+    err = pickle.loads(pickle.dumps(AgentAttributeError("depth", "RuntimeError: boom")))
+    assert type(err) is AgentAttributeError and (err.method, err.error) == ("depth", "RuntimeError: boom")
+    assert str(err) == "reading its depth raised RuntimeError: boom"
+    guarded = PluginAgent(_Walker())
+    guarded.note = "written through"
+    assert guarded.wrapped.note == "written through" and repr(guarded) == "PluginAgent(_Walker)"
+    back = pickle.loads(pickle.dumps(guarded))
+    assert type(back) is PluginAgent and type(back.wrapped) is _Walker and back.note == "written through"
+
+
+def test_a_learned_agent_says_what_it_is() -> None:
+    """``repr`` of a loaded policy: its class, name, frames, normalisation and env kwargs."""
+    from electroloc_gym.policy import load_policy
+
+    text = repr(load_policy("ppo-belief"))
+    assert text == (
+        "LearnedAgent(ActorCriticPolicy, name='ppo-belief', frame_stack=1, normalised=True, "
+        "env_kwargs={'observation': 'belief', 'action_type': 'continuous'})"
+    ), text

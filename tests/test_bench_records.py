@@ -325,3 +325,15 @@ def test_read_run_records_refuses_a_damaged_folder_in_one_line(reference, tmp_pa
     with pytest.raises(ValueError) as info:
         read_run_records(run)
     assert "\n" not in str(info.value) and str(run.name) in str(info.value)
+
+
+def test_rules_built_without_metrics_check_the_localisation_task_s_fields() -> None:
+    """``RecordRules`` made by hand (not from a run's config) check the localisation task's metrics, the task every
+    record of a run without a task of its own has."""
+    from electroloc_gym.bench.schema import RecordRules
+    from electroloc_gym.engines.numba_core.task import LOCALIZATION_METRICS
+
+    rules = RecordRules(
+        conditions=frozenset({"fresh-steel-12.7"}), agents=frozenset({"rnd-wlk"}), trials=1, success_spread_mm=1.0
+    )
+    assert rules.metrics is LOCALIZATION_METRICS

@@ -108,6 +108,19 @@ def test_resume_continues_with_the_same_episodes(store, monkeypatch):
         np.testing.assert_array_equal(a.actions, b.actions)
 
 
+def test_a_build_without_notify_says_its_notes_on_stderr(store, capsys):
+    """``notify`` left out: a note (here, a resume with nothing to collect) is one line on stderr, named by the
+    package."""
+    build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1), progress=False)
+    capsys.readouterr()
+    build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1), resume=True, progress=False)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "electroloc_gym.dataset: electroloc/ElectroLoc-v0/rnd-wlk-v0: complete; all 1 episodes match their "
+        "checksums and read back: nothing to collect"
+    ], err
+
+
 def test_existing_id_refused_unless_forced(store):
     build_dataset(DatasetRequest("ElectroLoc-v0", "rnd-wlk", 1), progress=False)
     with pytest.raises(ValueError, match="force=True"):

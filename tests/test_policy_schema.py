@@ -174,7 +174,10 @@ def _copy_damaged(tmp_path: Path, damage) -> Path:
     d = tmp_path / "policy"
     shutil.copytree(TRACK, d)
     meta = json.loads((d / "policy.json").read_text(encoding="utf-8"))
-    if isinstance(damage, tuple) and damage[0] == "tensors":
+    if isinstance(damage, bytes):  # a weights file that is no safetensors file, its sha256 recorded
+        (d / "policy.safetensors").write_bytes(damage)
+        meta["weights"]["sha256"] = hashlib.sha256(damage).hexdigest()
+    elif isinstance(damage, tuple) and damage[0] == "tensors":
         _, fn, count = damage
         tensors = st.load_file(str(d / "policy.safetensors"))
         fn(tensors)
@@ -251,6 +254,10 @@ DAMAGES = {
         r"Object contains unknown field `dtype` - at `\$\.observation`",
     ),
     "unknown action key": (_set("action", "n", 2), r"Object contains unknown field `n` - at `\$\.action`"),
+    "no safetensors file, with its sha256": (
+        b"\xff" * 64,
+        r"policy\.safetensors is not a readable safetensors file: SafetensorError: .{1,200}$",
+    ),
     "missing value-net tensor": (
         _tensors(lambda t: t.pop("value_net.weight")),
         r"tensors of policy\.safetensors do not fit .*: missing \['value_net\.weight'\]",
@@ -284,7 +291,7 @@ def test_any_damage_is_one_error_at_load_naming_the_file_and_the_field(tmp_path,
     with pytest.raises(PolicyFormatError, match=says) as info:
         load_policy(d)
     text = str(info.value)
-    assert text.startswith(str(d / "policy.json")) and "\n" not in text, text
+    assert text.startswith((str(d / "policy.json"), str(d / "policy.safetensors"))) and "\n" not in text, text
 
 
 def test_no_normalisation_is_said_explicitly(tmp_path):
