@@ -219,6 +219,22 @@ def test_default_agents_say_why_a_model_is_skipped(monkeypatch, tmp_path, capsys
     assert [c.spec for c in default_agents(names=("rnd-wlk", "min-var")) if not c.skipped] == ["rnd-wlk", "min-var"]
 
 
+def test_a_default_model_that_does_not_load_is_skipped_with_the_reason(monkeypatch) -> None:
+    """A shipped model of the run's settings is loaded before it is chosen: one that cannot load (a damaged file,
+    a missing library) is skipped with the loader's words, and the run goes on with the others."""
+
+    def refuse(name, trust_pickle=False):
+        if name == "ppo-belief":
+            raise ValueError("policy.safetensors does not match the sha256 recorded in policy.json")
+        return object()
+
+    monkeypatch.setattr(default_run, "_training_extra_missing", lambda: None)
+    monkeypatch.setattr(default_run, "cached_agent", refuse)
+    skipped = {c.spec: c.skipped for c in default_agents() if c.skipped}
+    assert skipped["ppo-belief"] == "policy.safetensors does not match the sha256 recorded in policy.json"
+    assert "ppo-raw-framestack" not in skipped
+
+
 def test_global_env_refuses_learned_policies_and_zero_crossing(tmp_path, capsys) -> None:
     for spec in ("zero-crossing", "ppo-belief"):
         assert (

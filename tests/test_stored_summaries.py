@@ -44,6 +44,7 @@ def test_every_stored_config_reads_through_the_runs_schema() -> None:
     for path in CONFIGS:
         config = load_config(path)
         assert config.trials >= 1 and config.agents and config.conditions, path
+    assert load_config(str(CONFIGS[0])) == load_config(CONFIGS[0])  # a path as text, as the signature takes
 
 
 @pytest.mark.parametrize(

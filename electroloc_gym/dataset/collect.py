@@ -396,8 +396,7 @@ class _Run:
             from minari.dataset.minari_storage import MinariStorage
 
             staging = partial / store.STAGING
-            store.remove(staging)
-            staging.mkdir()
+            store.remove(staging)  # MinariStorage.new makes the folder
             env = self.env
             self.staging = MinariStorage.new(
                 staging, observation_space=env.observation_space, action_space=env.action_space, data_format="arrow"
