@@ -146,3 +146,48 @@ def test_ray_check_a_port_that_is_not_ray_names_the_option(monkeypatch: pytest.M
             r"could not join a Ray cluster there)",
         ):
             check_ray_address(address, FLAGS)
+
+
+RAISING_AGENT = """
+import numpy as np
+
+
+class Agent:
+    calls = 0
+
+    def reset(self, env):
+        pass
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        Agent.calls += 1
+        if Agent.calls > 1:
+            raise RuntimeError("boom\\nsecond line")
+        return np.array([0.5, 0.0], dtype=np.float32), state
+
+
+def make():
+    return Agent()
+"""
+
+
+def test_ray_a_trial_that_raises_is_its_own_line_and_a_callers_ray_keeps_running(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """On a Ray the caller started, a trial whose agent raises ends the run with the benchmark's one line (the
+    agent's error itself, not Ray's wrapper), and the caller's Ray is left running."""
+    ray = pytest.importorskip("ray")
+    (tmp_path / "rb_user_agents.py").write_text(RAISING_AGENT)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))  # the Ray workers import the agent's module too
+    ray.shutdown()
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    try:
+        argv = ["bench", "--agents", "rb_user_agents:make", "--conditions", "fresh-steel-12.7", "--trials", "1"]
+        argv += ["--max-observations", "4", "--backend", "ray", "--out", str(tmp_path / "o"), "--no-progress"]
+        code = main(argv)
+        err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("electroloc")]  # not Ray's log
+        assert code == 2 and len(err) == 1 and err[0].startswith("electroloc bench: error: "), err
+        assert "its predict() raised RuntimeError: boom" in err[0] and "Ray" not in err[0], err
+        assert ray.is_initialized()
+    finally:
+        ray.shutdown()
