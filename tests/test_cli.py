@@ -290,3 +290,33 @@ def test_every_option_bad_values_are_one_line(capsys, tmp_path) -> None:
         assert name.lstrip("-") in line or option in line or "agent" in line or "condition" in line, (argv, line)
 
     check()
+
+
+@pytest.mark.parametrize(
+    "argv, patch, says",
+    [
+        (
+            ["bench", "--agents", "rnd-wlk", "--out", "{tmp}/b"],
+            "electroloc_gym.bench.bench_command.run_benchmark",
+            "electroloc bench: interrupted; the finished trials are in {tmp}/b/trials.jsonl (--resume continues)",
+        ),
+        (
+            ["dataset", "--agent", "rnd-wlk", "--episodes", "1"],
+            "electroloc_gym.dataset.collect.build_dataset",
+            "electroloc dataset: interrupted; nothing is lost: an unfinished dataset keeps its episodes (--resume "
+            "continues it) and a --force run leaves the dataset it was replacing as it was",
+        ),
+    ],
+    ids=["bench", "dataset"],
+)
+def test_ctrl_c_is_one_line_saying_what_is_kept_and_exit_130(argv, patch, says, tmp_path, capsys, monkeypatch) -> None:
+    """Ctrl-C during a run: exit 130 and one line saying what is kept and how the run continues, no traceback."""
+    from electroloc_gym.cli import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "datasets"))
+    monkeypatch.setattr(patch, interrupted)
+    assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == [says.replace("{tmp}", str(tmp_path))]

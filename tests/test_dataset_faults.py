@@ -340,6 +340,8 @@ def test_resume_sets_aside_every_damaged_file_and_recollects(root, uninterrupted
         assert (quarantine / rel).exists(), (rel, sorted(quarantine.rglob("*")))  # moved, not deleted
     if set_aside:
         assert str(_partial(root) / "quarantine" / "1") in notes[0]
+    else:  # nothing was moved (a missing header is rebuilt): the note names no place and none is made
+        assert "set aside" not in notes[0] and not (folder / "quarantine").exists(), notes
 
 
 def test_the_command_says_what_it_set_aside_in_one_line(root, capsys):

@@ -6,6 +6,7 @@ import base64
 import json
 import os
 import pickle
+import re
 import shutil
 import subprocess
 import sys
@@ -498,3 +499,17 @@ def test_any_single_field_damage_of_a_shipped_policy_is_one_value_error_or_a_wor
         assert np.isfinite(np.asarray(action, dtype=np.float64)).all()
 
     check()
+
+
+def test_a_zoo_zip_that_is_no_model_is_one_line_naming_it(tmp_path):
+    """A trusted rl-zoo3 run whose zip SB3 cannot load (here: not a zip at all) is one ValueError naming the file,
+    the algorithm it was read as and SB3's reason."""
+    pytest.importorskip("rl_zoo3")
+    from electroloc_gym.policy.sb3 import load_zoo_run
+
+    zp = tmp_path / "run" / "ElectroLoc-v0.zip"
+    zp.parent.mkdir()
+    zp.write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match=rf"^cannot load {re.escape(str(zp))} as a ppo model: ") as info:
+        load_zoo_run(zp)
+    assert "\n" not in str(info.value)
