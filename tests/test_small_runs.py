@@ -131,3 +131,23 @@ def test_a_bench_run_of_few_trials_prints_no_impossible_interval(trials: int, tm
     assert "4 such cells, not counted" in md
     assert (out / "conditions.png").read_bytes().startswith(b"\x89PNG")  # the figures of a small run too
     assert "conditions.png" in capsys.readouterr().out
+
+
+def test_the_note_under_the_table_names_each_reason_a_mark_decides_nothing() -> None:
+    """The sentence under a table counts the cells whose mark decides nothing and gives each reason they have:
+    below the verdict threshold, and a trial count none of whose counts lies inside the paper's interval."""
+    from electroloc_gym.bench.tables import _untested_note
+
+    k = verdict_min_trials()
+    none_inside = f"[none of {k}] {UNTESTED}"
+    assert _untested_note(["[1–2] ✓", "[3–4] ✗"], [k, k]) == ""
+    only = _untested_note([none_inside], [k])
+    assert only == (
+        f"{UNTESTED}: no count of this run's trials lies inside the paper's interval (too few trials to compare); "
+        "1 such cell, not counted."
+    )
+    both = _untested_note([none_inside, f"[0–1] {UNTESTED}", "[1–2] ✓"], [k, k - 1, k])
+    assert both.startswith(f"{UNTESTED}: no verdict below {k} trials per cell") and both.endswith(
+        "; or no count of this run's trials lies inside the paper's interval (too few trials to compare); "
+        "2 such cells, not counted."
+    )
