@@ -337,3 +337,9 @@ def test_rules_built_without_metrics_check_the_localisation_task_s_fields() -> N
         conditions=frozenset({"fresh-steel-12.7"}), agents=frozenset({"rnd-wlk"}), trials=1, success_spread_mm=1.0
     )
     assert rules.metrics is LOCALIZATION_METRICS
+
+
+def test_a_run_without_trials_has_no_records(tmp_path: Path) -> None:
+    """No trials.jsonl (and no kept trials.jsonl.gz) is a run with no records yet, not an unreadable file."""
+    loaded = load_records(tmp_path / "trials.jsonl")
+    assert loaded.records == {} and not loaded.rejected and not loaded.foreign
