@@ -47,6 +47,23 @@ def test_bad_out_is_one_clear_error_before_any_work(tmp_path, capsys) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
 
 
+@pytest.mark.parametrize("step, words", [("mkdir", "cannot be created"), ("probe_write", "is not writable")])
+def test_a_folder_the_system_refuses_is_one_line_with_its_reason(tmp_path, monkeypatch, step, words) -> None:
+    """The file system's own refusal (a permission the checks before cannot see, e.g. a root-squashed share) while
+    the output folder is made or probed: one line naming the setting, the folder and the system's reason."""
+    from electroloc_gym.bench import records
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(errno.EACCES, "Permission denied")
+
+    monkeypatch.setattr(Path, "mkdir", refuse) if step == "mkdir" else monkeypatch.setattr(records, step, refuse)
+    out = tmp_path / "out"
+    for name in ("out", "--out"):
+        with pytest.raises(ValueError) as info:
+            prepare_out_dir(out, name)
+        assert str(info.value) == f"{name} {str(out)!r} {words}: Permission denied"
+
+
 @pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root writes into read-only folders")
 def test_read_only_out_folder(tmp_path) -> None:
     ro = tmp_path / "ro"

@@ -140,7 +140,7 @@ def _one_line_error(capsys, argv, tmp_path, option: str) -> str:
             "lookahead[n_options=256",
         ),
         (["bench", "--trials", "1000000000000", "--out", "{tmp}/b"], "--trials"),
-        (["bench", "--agents", "", "--out", "{tmp}/b"], "--agents"),
+        (["bench", "--agents", "", "--out", "{tmp}/b"], "--agents names no agent (got ''); leave it out"),
         (["bench", "--agents", ",", "--out", "{tmp}/b"], "--agents"),
         (["bench", "--agents", "lookahead[depth=2,depth=3]", "--out", "{tmp}/b"], "'depth' given twice"),
         (["bench", "--env", "unknown-target", "--agents", "ppo-belief", "--out", "{tmp}/b"], "ppo-belief"),
