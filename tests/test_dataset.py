@@ -323,3 +323,21 @@ def test_default_ids_of_agents_with_options_are_valid_ids():
         ds_id = dataset_id("ElectroLoc-v0", spec)
         assert check_dataset_id(ds_id) == ds_id
     assert dataset_id("ElectroLoc-v0", "min-var[sigma=0.5]") == "electroloc/ElectroLoc-v0/min-var_sigma_0_5-v0"
+
+
+def test_a_default_id_too_long_names_the_setting_that_shortens_it(store, tmp_path, capsys):
+    """A policy folder whose name makes the default id longer than an id may be: one line saying so and naming the
+    id setting as the front end spells it (``dataset_id`` from Python, ``--id`` on the command line)."""
+    import shutil
+
+    from electroloc_gym.bench.agents import shipped_models
+    from electroloc_gym.cli import main
+
+    folder = tmp_path / ("p" * 200)
+    shutil.copytree(shipped_models()["ppo-belief"], folder)
+    with pytest.raises(ValueError, match=r"^the default dataset id .*; pass a shorter dataset_id$"):
+        build_dataset(DatasetRequest("ElectroLoc-v0", str(folder), 1))
+    assert main(["dataset", "--agent", str(folder), "--episodes", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith("; pass a shorter --id"), err
+    assert not store.exists() or not any(store.rglob("*.arrow"))
