@@ -128,6 +128,30 @@ def test_qrdqn_and_recurrent_ppo_act_as_sb3(tmp_path):
     assert agent.recurrent and _rollout_check(model, venv, agent, steps=60) >= 1  # the LSTM state resets per episode
 
 
+def test_a_recurrent_policy_called_without_episode_start_keeps_its_state_within_an_episode(tmp_path):
+    """Called as the benchmark calls it (``predict(obs)``, no ``episode_start``), a recurrent policy starts its
+    episode at the first call after ``reset`` and carries its LSTM state after: SB3's actions, step by step."""
+    contrib = pytest.importorskip("sb3_contrib")
+    venv = _venv("raw")
+    model = contrib.RecurrentPPO(
+        "MlpLstmPolicy", venv, policy_kwargs={"lstm_hidden_size": 8, "net_arch": [8]}, seed=0, device="cpu"
+    )
+    agent = _export(model, venv, tmp_path / "r", "raw")
+    obs = venv.reset()
+    vn = model.get_vec_normalize_env()
+    raw = vn.get_original_obs()
+    agent.reset()
+    state, starts = None, np.ones(venv.num_envs, dtype=bool)
+    for _ in range(6):
+        expected, state = model.predict(obs, state=state, episode_start=starts, deterministic=True)
+        got, _ = agent.predict(raw)
+        np.testing.assert_allclose(got, expected, atol=1e-5)
+        obs, _, dones, _ = venv.step(expected)
+        raw = vn.get_original_obs()
+        assert not dones.any()  # one episode throughout
+        starts = np.zeros(venv.num_envs, dtype=bool)
+
+
 def _renormed(model, rng):
     """The CrossQ model with Batch Renorm statistics, scales and biases far from their initial identity (running
     mean/var as after training), so that the numpy forward pass is checked on every term of the layer."""
