@@ -636,3 +636,16 @@ def test_a_learned_agent_says_what_it_is() -> None:
         "LearnedAgent(ActorCriticPolicy, name='ppo-belief', frame_stack=1, normalised=True, "
         "env_kwargs={'observation': 'belief', 'action_type': 'continuous'})"
     ), text
+
+
+@pytest.mark.parametrize("own", [lambda n: 2.5, lambda n: "2.5", lambda n: "fast", lambda n: None, None])
+def test_an_agent_s_own_decision_time_is_a_number_or_none_given(own) -> None:
+    """The agent's estimate of one decision (``decision_seconds(n_particles)``), s: taken where it is a number or
+    reads as one; 0 (no estimate, no announcement) where it is not, or where the agent has none."""
+    from types import SimpleNamespace
+
+    from electroloc_gym.bench.agents import decision_seconds
+
+    agent = SimpleNamespace() if own is None else SimpleNamespace(decision_seconds=own)
+    expected = 2.5 if own is not None and own(0) in (2.5, "2.5") else 0.0
+    assert decision_seconds(agent, 2500) == expected

@@ -437,9 +437,14 @@ def test_an_old_path_says_where_it_went(old: str, new: str) -> None:
         module = importlib.import_module(parent)
     except ModuleNotFoundError:  # an old package: its own error is what an import of its module meets
         module = None
+    from electroloc_gym.utils.moved_paths import MOVED_IN, MOVES_BY_RELEASE, UNRELEASED
+
+    release = next(r for r, moves in MOVES_BY_RELEASE.items() if old in moves)
+    when = f"after electroloc-gym {MOVED_IN} " if release == UNRELEASED else f"in electroloc-gym {release} "
     if module is not None and not hasattr(module, "__path__"):  # a name in a module, not a module
-        with pytest.raises(ImportError, match=re.escape(new)):
+        with pytest.raises(ImportError, match=re.escape(new)) as info:
             exec(f"from {parent} import {leaf}", {})  # noqa: S102 - the import statement itself
+        assert when in str(info.value), info.value
         with pytest.raises(ImportError, match=re.escape(new)):
             getattr(module, leaf)
         return
@@ -447,7 +452,7 @@ def test_an_old_path_says_where_it_went(old: str, new: str) -> None:
         importlib.import_module(old)
     text = str(info.value)
     new_parent, _, new_leaf = new.rpartition(".")
-    assert "\n" not in text
+    assert "\n" not in text and when in text, text
     assert new in text or (new_leaf == leaf and re.search(rf"\b{leaf}\b[^;]* to {re.escape(new_parent)} ", text)), text
 
 
