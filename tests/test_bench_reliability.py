@@ -245,6 +245,8 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_workers_exit_when_the_parent_is_killed(tmp_path) -> None:
+    """Workers in the middle of long trials (a decision takes about a second at 100 000 particles) exit within
+    seconds of their parent's SIGKILL: they do not finish their trial first."""
     workers: list[int] = []
     cmd = [
         sys.executable,
@@ -258,7 +260,7 @@ def test_workers_exit_when_the_parent_is_killed(tmp_path) -> None:
         "--conditions",
         "fresh-steel-12.7",
         "--n-particles",
-        "2000",
+        "100000",
         "--workers",
         "2",
         "--no-progress",
@@ -279,9 +281,11 @@ def test_workers_exit_when_the_parent_is_killed(tmp_path) -> None:
             assert parent.poll() is None, "the run ended before its workers started"
             time.sleep(0.2)
         assert len(workers) == 2, "no worker processes found"
+        time.sleep(2.0)
+        assert all(_alive(p) for p in workers), "the workers did not start their trials"
         parent.send_signal(signal.SIGKILL)
         parent.wait()
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 5  # the kernel's parent-death signal at once, the poller within 0.5 s
         while time.monotonic() < deadline and any(_alive(p) for p in workers):
             time.sleep(0.2)
         assert not [p for p in workers if _alive(p)], "workers outlived their parent"
