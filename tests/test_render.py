@@ -202,6 +202,22 @@ def test_cli_demo_bad_output_is_one_line(tmp_path, capsys) -> None:
     assert str(info.value) == err.removeprefix("electroloc demo: error: --").strip()
 
 
+def test_cli_demo_one_file_for_both_outputs_names_both_flags(tmp_path, capsys) -> None:
+    """``--out`` and ``--gif`` naming one file: one line naming both flags (``out and gif`` from Python)."""
+    from electroloc_gym.demo import demo, figure_suffixes
+
+    if "gif" not in figure_suffixes():
+        pytest.skip("this matplotlib writes no GIF figure: --out X.gif is refused by its suffix first")
+    same = str(tmp_path / "x.gif")
+    assert main(["demo", "--out", same, "--gif", same]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"electroloc demo: error: --out and --gif name the same file {same!r}; one would overwrite the other"
+    ]
+    with pytest.raises(ValueError, match=r"^out and gif name the same file"):
+        demo(out=same, gif=same)
+    assert not any(tmp_path.iterdir())
+
+
 def test_global_frames_and_snapshot() -> None:
     env = gym.make("ElectroLocGlobal-v0", render_mode="rgb_array", **SMALL)
     env.reset(seed=0)
