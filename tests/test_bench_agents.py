@@ -649,3 +649,21 @@ def test_an_agent_s_own_decision_time_is_a_number_or_none_given(own) -> None:
     agent = SimpleNamespace() if own is None else SimpleNamespace(decision_seconds=own)
     expected = 2.5 if own is not None and own(0) in (2.5, "2.5") else 0.0
     assert decision_seconds(agent, 2500) == expected
+
+
+def test_a_worker_keeps_a_few_envs_and_closes_them_when_it_lets_them_go(monkeypatch) -> None:
+    """A worker reuses an env per (env, condition, agent, kwargs) and keeps at most 17: beyond, every kept env is
+    closed (its renderer and buffers let go) before a new one is made."""
+    from types import SimpleNamespace
+
+    from electroloc_gym.bench import trials
+    from electroloc_gym.bench.backends import WorkerLost
+
+    closed: list[int] = []
+    kept = {(k,): SimpleNamespace(close=lambda k=k: closed.append(k)) for k in range(17)}
+    monkeypatch.setattr(trials, "_ENVS", dict(kept))
+    spec = make_trial_specs(BenchConfig(agents=("rnd-wlk",), conditions=("fresh-steel-12.7",), trials=1))[0]
+    env = trials._env(spec, make_bench_agent("rnd-wlk"))
+    assert sorted(closed) == list(range(17)) and list(trials._ENVS.values()) == [env]
+    env.close()
+    assert str(WorkerLost([spec], "SIGKILL")) == "a worker process died (SIGKILL)"  # its words, wherever it is shown

@@ -343,3 +343,12 @@ def test_a_run_without_trials_has_no_records(tmp_path: Path) -> None:
     """No trials.jsonl (and no kept trials.jsonl.gz) is a run with no records yet, not an unreadable file."""
     loaded = load_records(tmp_path / "trials.jsonl")
     assert loaded.records == {} and not loaded.rejected and not loaded.foreign
+
+
+def test_the_record_writer_lets_go_of_its_file(tmp_path: Path) -> None:
+    """Leaving ``RecordWriter``'s block closes trials.jsonl (a run leaves no open file behind), its lines kept."""
+    from electroloc_gym.bench.records import RecordWriter
+
+    with RecordWriter(tmp_path / "trials.jsonl") as writer:
+        writer.write({"trial": 0})
+    assert writer._fh.closed and json.loads((tmp_path / "trials.jsonl").read_text()) == {"trial": 0}

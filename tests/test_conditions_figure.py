@@ -58,3 +58,14 @@ def test_a_summary_without_rows_renders_a_note() -> None:
 
 def test_the_figure_is_a_run_output() -> None:
     assert "conditions.png" in OUTPUT_FILES and OUTPUT_FILES[:3] == ("summary.json", "table.md", "steps.png")
+
+
+def test_the_figure_writers_write_the_figures_to_a_path(tmp_path) -> None:
+    """``plot_steps`` and ``plot_conditions`` (the docs' command) write the PNGs ``steps_png`` and
+    ``conditions_png`` make, byte for byte, to the path given."""
+    from electroloc_gym.bench.plots import plot_conditions, plot_steps, steps_png
+
+    summary = _summary("experiments/reference/bench/summary.json")
+    for write, make, name in ((plot_steps, steps_png, "s.png"), (plot_conditions, conditions_png, "c.png")):
+        write(summary, tmp_path / name)
+        assert (tmp_path / name).read_bytes() == make(summary)
