@@ -438,12 +438,12 @@ def inspect_dataset(
     settings: Mapping[str, Any],
     episode_seeds: list[int],
     expected_header: Mapping[str, Any],
-    force: str = "force=True",
+    force: str,
 ) -> Inspection:
     """Check dataset ``ds_id``'s ``folder`` (published or partial) for resuming with ``settings`` (read only):
     ``episode_seeds`` the reset seed of each planned episode, ``expected_header`` the header these settings give
     (a readable header whose fixed fields differ from it is set aside and rebuilt); ``force``: how a refusal
-    names the switch that replaces the dataset (``--force`` on the command line).
+    names the switch that replaces the dataset, in the caller's words (:func:`~electroloc_gym.options.message_names`).
 
     Raises:
         ValueError: a dataset of other settings, one not written by this package, or one holding episodes
