@@ -382,6 +382,17 @@ def test_a_shipped_name_is_the_shipped_policy_from_every_front_end(tmp_path, mon
         assert local.env_kwargs["observation"] == "raw"
 
 
+def test_a_learned_agent_says_what_it_is() -> None:
+    """``repr`` of a loaded policy: its class, name, frames, normalisation and env kwargs."""
+    from electroloc_gym.policy import load_policy
+
+    text = repr(load_policy("ppo-belief"))
+    assert text == (
+        "LearnedAgent(ActorCriticPolicy, name='ppo-belief', frame_stack=1, normalised=True, "
+        "env_kwargs={'observation': 'belief', 'action_type': 'continuous'})"
+    ), text
+
+
 # ---- one rollout loop -----------------------------------------------------------------------------------------
 def test_run_episode_ends_by_env_or_by_agent() -> None:
     env = gym.make(
@@ -448,6 +459,24 @@ def test_global_env_runs_the_policy_trained_on_it() -> None:
 
     assert _runs_on_global("ppo-belief-global") and _runs_on_global("min-var")
     assert not _runs_on_global("ppo-belief") and not _runs_on_global("zero-crossing")
+
+
+def test_a_worker_keeps_a_few_envs_and_closes_them_when_it_lets_them_go(monkeypatch) -> None:
+    """A worker reuses an env per (env, condition, agent, kwargs) and keeps at most 17: beyond, every kept env is
+    closed (its renderer and buffers let go) before a new one is made."""
+    from types import SimpleNamespace
+
+    from electroloc_gym.bench import trials
+    from electroloc_gym.bench.backends import WorkerLost
+
+    closed: list[int] = []
+    kept = {(k,): SimpleNamespace(close=lambda k=k: closed.append(k)) for k in range(17)}
+    monkeypatch.setattr(trials, "_ENVS", dict(kept))
+    spec = make_trial_specs(BenchConfig(agents=("rnd-wlk",), conditions=("fresh-steel-12.7",), trials=1))[0]
+    env = trials._env(spec, make_bench_agent("rnd-wlk"))
+    assert sorted(closed) == list(range(17)) and list(trials._ENVS.values()) == [env]
+    env.close()
+    assert str(WorkerLost([spec], "SIGKILL")) == "a worker process died (SIGKILL)"  # its words, wherever it is shown
 
 
 # ---- a plug-in agent's code, whatever raises: one line naming the agent and the attribute ----------------------
@@ -627,17 +656,6 @@ def test_the_guard_and_its_error_cross_process_boundaries_and_forward_writes() -
     assert type(back) is PluginAgent and type(back.wrapped) is _Walker and back.note == "written through"
 
 
-def test_a_learned_agent_says_what_it_is() -> None:
-    """``repr`` of a loaded policy: its class, name, frames, normalisation and env kwargs."""
-    from electroloc_gym.policy import load_policy
-
-    text = repr(load_policy("ppo-belief"))
-    assert text == (
-        "LearnedAgent(ActorCriticPolicy, name='ppo-belief', frame_stack=1, normalised=True, "
-        "env_kwargs={'observation': 'belief', 'action_type': 'continuous'})"
-    ), text
-
-
 @pytest.mark.parametrize("own", [lambda n: 2.5, lambda n: "2.5", lambda n: "fast", lambda n: None, None])
 def test_an_agent_s_own_decision_time_is_a_number_or_none_given(own) -> None:
     """The agent's estimate of one decision (``decision_seconds(n_particles)``), s: taken where it is a number or
@@ -649,21 +667,3 @@ def test_an_agent_s_own_decision_time_is_a_number_or_none_given(own) -> None:
     agent = SimpleNamespace() if own is None else SimpleNamespace(decision_seconds=own)
     expected = 2.5 if own is not None and own(0) in (2.5, "2.5") else 0.0
     assert decision_seconds(agent, 2500) == expected
-
-
-def test_a_worker_keeps_a_few_envs_and_closes_them_when_it_lets_them_go(monkeypatch) -> None:
-    """A worker reuses an env per (env, condition, agent, kwargs) and keeps at most 17: beyond, every kept env is
-    closed (its renderer and buffers let go) before a new one is made."""
-    from types import SimpleNamespace
-
-    from electroloc_gym.bench import trials
-    from electroloc_gym.bench.backends import WorkerLost
-
-    closed: list[int] = []
-    kept = {(k,): SimpleNamespace(close=lambda k=k: closed.append(k)) for k in range(17)}
-    monkeypatch.setattr(trials, "_ENVS", dict(kept))
-    spec = make_trial_specs(BenchConfig(agents=("rnd-wlk",), conditions=("fresh-steel-12.7",), trials=1))[0]
-    env = trials._env(spec, make_bench_agent("rnd-wlk"))
-    assert sorted(closed) == list(range(17)) and list(trials._ENVS.values()) == [env]
-    env.close()
-    assert str(WorkerLost([spec], "SIGKILL")) == "a worker process died (SIGKILL)"  # its words, wherever it is shown
