@@ -39,6 +39,8 @@ def test_ray_backend_is_registered_and_validates_options() -> None:
         RayBackend(address="")
     with pytest.raises(ValueError, match="workers"):
         RayBackend(workers=0)
+    with pytest.raises(ValueError, match=r"^names must be None or a mapping of settings \['address', 'backend'\]"):
+        RayBackend(names={"out": "--out"})
 
 
 def test_ray_backend_gives_the_process_backends_trials(tmp_path: Path) -> None:
@@ -146,6 +148,46 @@ def test_ray_check_a_port_that_is_not_ray_names_the_option(monkeypatch: pytest.M
             r"could not join a Ray cluster there)",
         ):
             check_ray_address(address, FLAGS)
+
+
+class _RayThatRefuses:
+    """Stands in for Ray where no cluster answers ``ray.init`` (after the address check passed)."""
+
+    @staticmethod
+    def is_initialized() -> bool:
+        return False
+
+    @staticmethod
+    def init(**_kwargs: object) -> None:
+        raise ConnectionError("Could not connect to the cluster at 127.0.0.1:1.\nsecond line")
+
+
+@pytest.mark.parametrize("fault", ["ray missing", "init refused"])
+@pytest.mark.parametrize("door", ["cli", "python"])
+def test_ray_refusals_during_the_run_name_the_settings_as_their_front_end_does(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], door: str, fault: str
+) -> None:
+    import electroloc_gym.bench.ray_backend as rb
+    from electroloc_gym.bench import run
+
+    monkeypatch.setattr(rb, "check_ray_address", lambda *_args: None)  # the check passed; the run meets the fault
+    if fault == "ray missing":
+        monkeypatch.setitem(sys.modules, "ray", None)
+        words = {"cli": "--backend ray needs Ray", "python": "backend ray needs Ray"}[door]
+    else:
+        monkeypatch.setattr(rb, "_import_ray", lambda _backend: _RayThatRefuses)
+        words = {"cli": "--address '127.0.0.1:1': Could not connect", "python": "address '127.0.0.1:1': Could not"}
+        words = words[door]
+    settings = {"conditions": "fresh-steel-12.7", "trials": 1, "backend": "ray", "address": "127.0.0.1:1"}
+    if door == "cli":
+        flags = [w for k, v in settings.items() for w in (f"--{k}", str(v))]
+        code = main(["bench", "--agents", "rnd-wlk", *flags, "--out", str(tmp_path / "out"), "--no-progress"])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and err[0].startswith(f"electroloc bench: error: {words}"), err
+    else:
+        with pytest.raises(ValueError) as caught:
+            run("rnd-wlk", out=tmp_path / "out", **settings)
+        assert str(caught.value).startswith(words) and "\n" not in str(caught.value), caught.value
 
 
 RAISING_AGENT = """

@@ -147,10 +147,11 @@ def prepare(
         raise ValueError(
             f"{name['address']} applies to {name['backend']} ray only (got {name['backend']} {backend or 'process'})"
         )
+    ray_names = {k: name[k] for k in ("backend", "address")}  # how the Ray backend's refusals name them
     if backend == "ray":  # Ray installed and the cluster reachable, before the output folder is touched
         from electroloc_gym.bench.ray_backend import check_ray_address
 
-        check_ray_address(values["address"], {k: name[k] for k in ("backend", "address")})
+        check_ray_address(values["address"], ray_names)
     notes: list[str] = []
     specs, objects = _agent_specs(values["agents"], values, notes.append)
     if not specs:  # every default skipped: the notes say why
@@ -186,7 +187,7 @@ def prepare(
             f"pass a spec (package.module:factory[...]) to run on {backend!r}"
         )
     run_options = {k: values[k] for k in ("workers", "resume", "progress", "trust_pickle")}
-    options = {} if values["address"] is None else {"address": values["address"]}
+    options = {"address": values["address"], "names": ray_names} if backend == "ray" else {}
     names = message_names(BENCH_OPTIONS, spell)
     return config, {**run_options, "backend": backend, "backend_options": options, "names": names}
 

@@ -173,23 +173,28 @@ class RayBackend(Backend):
             ignored when joining a cluster (the cluster's CPUs bound the parallelism).
         address: a Ray cluster address (``"auto"``, ``"ray://host:10001"``, ``"host:6379"``) or None
             for a local runtime.
+        names: how the run's refusals (Ray missing, a cluster that refuses ``ray.init``) name ``backend`` and
+            ``address``, in the words of the front end that took them (:func:`check_ray_address`'s; None: as here).
 
     Raises:
-        ValueError: bad ``workers`` or ``address`` (names the argument).
+        ValueError: bad ``workers``, ``address`` or ``names`` (names the argument).
     """
 
     name = "ray"
 
-    def __init__(self, workers: int | None = None, address: str | None = None) -> None:
+    def __init__(
+        self, workers: int | None = None, address: str | None = None, names: Mapping[str, str] | None = None
+    ) -> None:
         super().__init__(workers)
         if address is not None and (not isinstance(address, str) or not address.strip()):
             raise ValueError(f"address must be None (local Ray) or a non-empty Ray address string, got {address!r}")
         self.address = address
+        self.names = message_words({"backend": "backend", "address": "address"}, names)
 
     def run_trials(self, specs: Sequence[Any], worker_fn: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
         if not specs:
             return
-        ray = _import_ray()
+        ray = _import_ray(self.names["backend"])
         started = False
         if not ray.is_initialized():
             try:
@@ -201,7 +206,7 @@ class RayBackend(Backend):
                     include_dashboard=False,
                 )
             except ConnectionError as exc:
-                raise ValueError(f"--address {self.address!r}: {str(exc).splitlines()[0]}") from None
+                raise ValueError(f"{self.names['address']} {self.address!r}: {str(exc).splitlines()[0]}") from None
             started = True
         try:
             task = ray.remote(num_cpus=1)(_run_in_worker)
