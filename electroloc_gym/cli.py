@@ -337,7 +337,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
             seed=args.seed,
             out=args.out,
             gif=args.gif,
-            names={"out": "--out", "gif": "--gif"},
+            names=args.output_flags,
         )
     except ValueError as exc:
         print(f"electroloc demo: error: {exc}", file=sys.stderr)
@@ -411,14 +411,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="the particle filter's sensor model",
     )
     m.add_argument("--seed", type=seed_int, default=0, help="seed of the episode (an integer ≥ 0)")
-    m.add_argument("--out", default="demo.png", help="the PNG of belief snapshots to write")
-    m.add_argument(
-        "--gif",
-        default=None,
-        metavar="PATH",
-        help="also write the episode as an animated GIF (a .gif path other than --out)",
-    )
-    m.set_defaults(func=_cmd_demo)
+    outputs = [
+        m.add_argument("--out", default="demo.png", help="the PNG of belief snapshots to write"),
+        m.add_argument(
+            "--gif",
+            default=None,
+            metavar="PATH",
+            help="also write the episode as an animated GIF (a .gif path other than --out)",
+        ),
+    ]
+    # demo()'s messages name its outputs by these flags (its `names`)
+    m.set_defaults(func=_cmd_demo, output_flags={a.dest: a.option_strings[0] for a in outputs})
 
     b = command(
         "bench",
