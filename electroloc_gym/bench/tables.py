@@ -214,6 +214,11 @@ def _pair(a: Any, b: Any, digits: int = 1) -> str:
     return f"{_f(a, digits)}/{_f(b, digits)}"
 
 
+def _where(row: dict[str, Any], pooled: str = "") -> tuple[str, str]:
+    """A row's Water and Sphere cells: its condition's, or an aggregate row's label (``pooled`` after it)."""
+    return (aggregate_label(row) + pooled, "") if row["condition"] == "all" else _cond_label(row["condition"])
+
+
 #: The columns of a particle-filter agent's row (Tables 4 and 2) after the row's own label columns.
 _BELIEF_HEADERS = (
     "Success (failure)",
@@ -223,6 +228,18 @@ _BELIEF_HEADERS = (
     "Paper success (failure)",
     "Paper error",
     "Paper steps",
+)
+#: The columns of a zero-crossing agent's row (Table 1).
+_ZERO_CROSSING_HEADERS = (
+    "Condition",
+    "Agent",
+    "Success (failure)",
+    "Mean abs. error x (mm)",
+    "y (mm)",
+    "Repeatability x/y (mm)",
+    "Steps median",
+    "Paper x (mm)",
+    "Paper y (mm)",
 )
 
 
@@ -245,8 +262,7 @@ def _paper_table(env_id: Any) -> str:
 
 def _summary_metrics(summary: dict[str, Any]) -> TaskMetrics:
     """The metrics of a summary's task: its env's (an id no longer registered: the paper's localisation metrics)."""
-    env_id = summary.get("config", {}).get("env_id")
-    return records_metrics([{"env_id": env_id}])
+    return records_metrics([{"env_id": summary.get("config", {}).get("env_id")}])
 
 
 def _has_task_rows(metrics: TaskMetrics, rows: list[dict[str, Any]]) -> bool:
@@ -262,32 +278,36 @@ def task_table_lines(metrics: TaskMetrics, rows: list[dict[str, Any]], config: d
     table = metrics.table
     assert table is not None
     title = f"# electroloc bench — {config.get('env_id')}" if table.replaces else f"## {table.title}"
-    out = [title, "", format_config_text(table.text, config), ""]
-    cells = []
-    for r in rows:
-        if not r.get(table.count):
-            continue
-        if r["condition"] == "all":
-            water, sphere = aggregate_label(r) + table.pooled, ""
-        else:
-            water, sphere = _cond_label(r["condition"])
-        cells.append((water, sphere, r.get("label", r["agent"]), *(c.cell(r) for c in metrics.columns)))
-    out.extend(markdown_table(("Water", "Sphere (mm)/material", "Agent", *(c.header for c in metrics.columns)), cells))
-    out.append("")
-    return out
+    headers = ("Water", "Sphere (mm)/material", "Agent", *(c.header for c in metrics.columns))
+    cells = [
+        (*_where(r, table.pooled), r.get("label", r["agent"]), *(c.cell(r) for c in metrics.columns))
+        for r in rows
+        if r.get(table.count)
+    ]
+    return [title, "", format_config_text(table.text, config), "", *markdown_table(headers, cells), ""]
+
+
+def _pooled_text(row: dict[str, Any]) -> str:
+    """An aggregate row's statistics pooled over all its trials (not the paper's convention)."""
+    far = row.get("far_successes")
+    return (
+        f"{row.get('label', row['agent'])}: median steps {_f(row.get('readings_median_pooled'))}, median error "
+        f"{_f(row.get('error_median_pooled_mm'), 2)} mm, own-success means: error "
+        f"{_f(row.get('error_mean_mm'), 2)} mm, steps {_f(row.get('readings_mean'))}"
+    ) + ("" if far is None else f", far successes (> {FAR_ERROR_MM:g} mm off) {far}")
 
 
 def render_table_md(summary: dict[str, Any]) -> str:
     """table.md: Table 4 layout for the belief agents, Table 1 layout for zero-crossing agents."""
     rows = summary["rows"]
     cfg = summary.get("config", {})
-    t4 = [r for r in rows if r.get("table_layout", "table4") == "table4"]
-    t1 = [r for r in rows if r.get("table_layout") == "table1"]
     if _paper_table(cfg.get("env_id")) == "table2":
         return _render_table2(summary)
     metrics = _summary_metrics(summary)
     if metrics.table is not None and metrics.table.replaces and _has_task_rows(metrics, rows):
         return "\n".join(task_table_lines(metrics, rows, cfg))
+    t4 = [r for r in rows if r.get("table_layout", "table4") == "table4"]
+    t1 = [r for r in rows if r.get("table_layout") == "table1"]
     out = [f"# electroloc bench — {cfg.get('env_id', 'ElectroLoc-v0')}", ""]
     if cfg:
         out.append(
@@ -323,36 +343,17 @@ def render_table_md(summary: dict[str, Any]) -> str:
         out.append("")
         cells = []
         for r in t4:
+            key = paper_agent_key(r["agent"]) or ""
             if r["condition"] == "all":
-                water, sphere = aggregate_label(r), ""
-                paper = PAPER_TABLE4_ALL.get(paper_agent_key(r["agent"]) or "") if is_all_conditions(r) else None
+                paper = PAPER_TABLE4_ALL.get(key) if is_all_conditions(r) else None
             else:
-                water, sphere = _cond_label(r["condition"])
-                paper = PAPER_TABLE4.get((r["condition"], paper_agent_key(r["agent"]) or ""))
-            cells.append((water, sphere, *_belief_cells(r, paper)))
-        out.extend(markdown_table(("Water", "Sphere (mm)/material", "Agent", *_BELIEF_HEADERS), cells))
-        out.append("")
-        inside = _inside_counts(t4)
-        if inside:
+                paper = PAPER_TABLE4.get((r["condition"], key))
+            cells.append((*_where(r), *_belief_cells(r, paper)))
+        out += [*markdown_table(("Water", "Sphere (mm)/material", "Agent", *_BELIEF_HEADERS), cells), ""]
+        if inside := _inside_counts(t4):
             out += [inside, ""]
-        alls = [r for r in t4 if r["condition"] == "all"]
-        if alls:
-            out.append(
-                "Pooled over all trials (not the paper's convention): "
-                + "; ".join(
-                    f"{r.get('label', r['agent'])}: median steps {_f(r.get('readings_median_pooled'))}, median error "
-                    f"{_f(r.get('error_median_pooled_mm'), 2)} mm, own-success means: error "
-                    f"{_f(r.get('error_mean_mm'), 2)} mm, steps {_f(r.get('readings_mean'))}"
-                    + (
-                        ""
-                        if r.get("far_successes") is None
-                        else f", far successes (> {FAR_ERROR_MM:g} mm off) {r['far_successes']}"
-                    )
-                    for r in alls
-                )
-                + "."
-            )
-            out.append("")
+        if alls := [r for r in t4 if r["condition"] == "all"]:
+            out += [f"Pooled over all trials (not the paper's convention): {'; '.join(map(_pooled_text, alls))}.", ""]
     if metrics.table is not None and not metrics.table.replaces and _has_task_rows(metrics, t4):
         out.extend(task_table_lines(metrics, t4, cfg))
     if t1:
@@ -371,8 +372,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
                 if is_all_conditions(r):
                     paper = tuple(sum(axis) / len(axis) for axis in zip(*PAPER_TABLE1.values()))
             else:
-                water, sphere = _cond_label(r["condition"])
-                label = f"{water} {sphere}"
+                label = " ".join(_cond_label(r["condition"]))
                 paper = PAPER_TABLE1.get(r["condition"])
                 rep = _pair(r.get("error_x_repeatability_mm"), r.get("error_y_repeatability_mm"), 2)
             cells.append(
@@ -388,23 +388,7 @@ def render_table_md(summary: dict[str, Any]) -> str:
                     _f(paper[1], 2) if paper else "",
                 )
             )
-        out.extend(
-            markdown_table(
-                (
-                    "Condition",
-                    "Agent",
-                    "Success (failure)",
-                    "Mean abs. error x (mm)",
-                    "y (mm)",
-                    "Repeatability x/y (mm)",
-                    "Steps median",
-                    "Paper x (mm)",
-                    "Paper y (mm)",
-                ),
-                cells,
-            )
-        )
-        out.append("")
+        out += [*markdown_table(_ZERO_CROSSING_HEADERS, cells), ""]
     return "\n".join(out)
 
 
@@ -426,9 +410,7 @@ def _render_table2(summary: dict[str, Any]) -> str:
         "",
     ]
     cells = [_belief_cells(r, PAPER_TABLE2.get(paper_agent_key(r["agent"]) or "")) for r in rows]
-    note = _untested_note([str(c[5]) for c in cells], [_trials(r) for r in rows])
-    out.extend(markdown_table(("Control type", *_BELIEF_HEADERS), cells))
-    out.append("")
-    if note:
+    out += [*markdown_table(("Control type", *_BELIEF_HEADERS), cells), ""]
+    if note := _untested_note([str(c[5]) for c in cells], [_trials(r) for r in rows]):
         out += [note, ""]
     return "\n".join(out)

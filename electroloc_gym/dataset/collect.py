@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -54,6 +55,7 @@ __all__ = [
 
 MINARI_HINT = "pip install 'electroloc-gym[minari]'"
 _ENDS_ITSELF = "ends episodes itself (zero-crossing's Table 1 layout); a dataset needs episodes the env ends"
+_SEED_PROTOCOL = "SeedSequence(seed, spawn_key=(9, episode)); benchmark trials use root seed 0, streams 0-8"
 
 
 def dataset_env_kwargs(env_id: str, agent: Any, condition: str = "random") -> dict[str, Any]:
@@ -168,20 +170,23 @@ def _dataset_fields(request: DatasetRequest, refs: dict[str, Any] | None) -> dic
     return fields
 
 
-def _storage_fields(env: Any) -> dict[str, Any]:
-    """The storage fields of the header (format, spaces, env spec), as Minari's own storage writes them."""
-    import tempfile
-
+def _arrow_storage(folder: Any, env: Any, env_spec: Any = None) -> Any:
+    """A new Minari arrow storage of ``env``'s spaces in ``folder`` (which it makes)."""
     from minari.dataset.minari_storage import MinariStorage
 
+    return MinariStorage.new(
+        folder,
+        observation_space=env.observation_space,
+        action_space=env.action_space,
+        env_spec=env_spec,
+        data_format="arrow",
+    )
+
+
+def _storage_fields(env: Any) -> dict[str, Any]:
+    """The storage fields of the header (format, spaces, env spec), as Minari's own storage writes them."""
     with tempfile.TemporaryDirectory(prefix="electroloc-header-") as tmp:
-        MinariStorage.new(
-            tmp,
-            observation_space=env.observation_space,
-            action_space=env.action_space,
-            env_spec=env.spec,
-            data_format="arrow",
-        )
+        _arrow_storage(tmp, env, env.spec)
         return json.loads((Path(tmp) / "metadata.json").read_text(encoding="utf-8"))
 
 
@@ -393,14 +398,9 @@ class _Run:
             store.start_partial(self.paths, self.header())
             self.started = True
         if self.staging is None:  # Minari's arrow storage in a fresh staging folder
-            from minari.dataset.minari_storage import MinariStorage
-
             staging = partial / store.STAGING
             store.remove(staging)  # MinariStorage.new makes the folder
-            env = self.env
-            self.staging = MinariStorage.new(
-                staging, observation_space=env.observation_space, action_space=env.action_space, data_format="arrow"
-            )
+            self.staging = _arrow_storage(staging, self.env)
         self.kept[int(buffer.id)] = _write_episode(partial, self.staging, buffer, self.digest)
 
     def finish(self) -> None:
@@ -413,6 +413,3 @@ class _Run:
         size = MinariStorage.read(partial / "data").get_size()
         store.write_header(partial, self.header(complete=True, size=size))
         store.publish(self.paths)
-
-
-_SEED_PROTOCOL = "SeedSequence(seed, spawn_key=(9, episode)); benchmark trials use root seed 0, streams 0-8"
