@@ -2,6 +2,13 @@
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+from fractions import Fraction
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -29,7 +36,7 @@ from electroloc_gym.baselines.min_variance_reference import (
     multinomial_resampled_variances,
 )
 from electroloc_gym.baselines.random_walk import RandomWalkAgent
-from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent
+from electroloc_gym.baselines.zero_crossing import ZeroCrossingAgent, _line_zero
 from electroloc_gym.utils.agentspec import AgentSpec
 from electroloc_gym.world.conditions import get_condition
 from electroloc_gym.world.sensor import expected_reading
@@ -402,6 +409,40 @@ def test_zero_crossing_bad_arguments() -> None:
         ZeroCrossingAgent(k_sigma=-1.0)
     with pytest.raises(ValueError, match="refine_offsets_mm"):
         ZeroCrossingAgent(refine_offsets_mm=())
+
+
+def test_zero_crossing_line_zero_is_the_least_squares_zero() -> None:
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        n = int(rng.integers(2, 10))
+        ts = list(rng.uniform(-60.0, 60.0) + np.sort(rng.uniform(-3.0, 3.0, n)))
+        vs = list(rng.normal(0.0, 1e-3) + rng.uniform(-1e-3, 1e-3) * (np.asarray(ts) - ts[0]) + rng.normal(0, 1e-5, n))
+        tq, vq = [Fraction(t) for t in ts], [Fraction(v) for v in vs]  # the exact least-squares zero
+        tm, vm = sum(tq) / n, sum(vq) / n
+        slope = sum((t - tm) * (v - vm) for t, v in zip(tq, vq)) / sum((t - tm) ** 2 for t in tq)
+        exact = float(tm - vm / slope)
+        assert _line_zero(ts, vs) == pytest.approx(exact, rel=1e-12, abs=1e-9)
+        fit = np.polyfit(ts, vs, 1)  # the textbook fit it stands for, up to rounding
+        assert _line_zero(ts, vs) == pytest.approx(-fit[1] / fit[0], rel=1e-7, abs=1e-6)
+    assert _line_zero([1.0], [0.5]) is None  # one point
+    assert _line_zero([2.0, 2.0, 2.0], [0.1, -0.1, 0.3]) is None  # no spread in position: no slope
+    assert _line_zero([1.0, 2.0, 3.0], [0.2, 0.2, 0.2]) is None  # flat: no crossing
+
+
+def test_zero_crossing_estimates_do_not_depend_on_the_blas_kernel(tmp_path: Path) -> None:
+    """The estimate is the same whichever kernels OpenBLAS picks for the CPU (its generic x86-64 ones here)."""
+    estimates = []
+    for kernel in (None, "Prescott"):
+        env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+        env.update({} if kernel is None else {"OPENBLAS_CORETYPE": kernel})
+        out = tmp_path / str(kernel)
+        args = ["--agents", "zero-crossing", "--conditions", "fresh-steel-12.7", "--trials", "8", "--workers", "1"]
+        cli = [sys.executable, "-m", "electroloc_gym.cli", "bench", *args, "--out", str(out), "--no-progress"]
+        subprocess.run(cli, env=env, check=True, capture_output=True, timeout=300)
+        lines = (out / "trials.jsonl").read_text(encoding="utf-8").splitlines()
+        estimates.append(sorted((r["trial"], r["estimate"]) for r in map(json.loads, lines)))
+    assert len(estimates[0]) == 8 and sum(e is not None for _, e in estimates[0]) >= 6
+    assert estimates[0] == estimates[1]  # bit for bit (JSON keeps every digit of a float)
 
 
 def test_zero_crossing_table1_layout() -> None:

@@ -41,7 +41,8 @@ crossing was found in the whole workspace or the observation budget runs out: a 
 
 from __future__ import annotations
 
-from collections.abc import Generator
+import math
+from collections.abc import Generator, Sequence
 from typing import Any
 
 import numpy as np
@@ -62,6 +63,26 @@ _Obs = tuple[NDArray[np.float64], float]
 
 class _GiveUp(Exception):
     """No robust crossing found where one was needed."""
+
+
+def _line_zero(ts: Sequence[float], vs: Sequence[float]) -> float | None:
+    """Where the least-squares line through the points (``ts`` mm, ``vs`` V) crosses 0 V, mm; None where fewer
+    than two points, or no slope, define one.
+
+    Python floats and exactly rounded sums (``math.fsum``), not ``np.polyfit``: its LAPACK solve runs the
+    kernels OpenBLAS picks for the CPU, whose last bits differ between CPUs, and the estimate must not.
+    """
+    ts, vs = [float(t) for t in ts], [float(v) for v in vs]
+    n = len(ts)
+    if n < 2 or len(vs) != n:
+        return None
+    t_mean, v_mean = math.fsum(ts) / n, math.fsum(vs) / n
+    sxx = math.fsum((t - t_mean) * (t - t_mean) for t in ts)
+    sxy = math.fsum((t - t_mean) * (v - v_mean) for t, v in zip(ts, vs))
+    slope = sxy / sxx if sxx > 0 else 0.0
+    if slope == 0 or not math.isfinite(slope):
+        return None
+    return t_mean - v_mean / slope
 
 
 class ZeroCrossingAgent(BaselineAgent):
@@ -405,12 +426,9 @@ class ZeroCrossingAgent(BaselineAgent):
             if abs(mean) < 0.999 * self._saturation:  # a clipped reading carries no slope information
                 ts.append(self._pos[axis])
                 vs.append(mean)
-        if len(ts) < 2:
+        t_zero = _line_zero(ts, vs)
+        if t_zero is None:
             return guess
-        slope, intercept = np.polyfit(np.asarray(ts), np.asarray(vs), 1)
-        if slope == 0 or not np.isfinite(slope):
-            return guess
-        t_zero = -intercept / slope
         span = max(self.refine_offsets_mm)
         # Trust the fit within the pattern (a noisy fit can put the zero far away).
         return float(np.clip(t_zero, guess - 2 * span, guess + 2 * span))
