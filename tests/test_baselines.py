@@ -429,20 +429,31 @@ def test_zero_crossing_line_zero_is_the_least_squares_zero() -> None:
     assert _line_zero([1.0, 2.0, 3.0], [0.2, 0.2, 0.2]) is None  # flat: no crossing
 
 
-def test_zero_crossing_estimates_do_not_depend_on_the_blas_kernel(tmp_path: Path) -> None:
-    """The estimate is the same whichever kernels OpenBLAS picks for the CPU (its generic x86-64 ones here)."""
-    estimates = []
+def test_benchmark_records_do_not_depend_on_the_blas_kernel(tmp_path: Path) -> None:
+    """A trial's record is the same whichever kernels OpenBLAS picks for the CPU (its generic x86-64 ones here):
+    zero-crossing's line fit, the networks' and the planners' matrix products.
+    """
+    from electroloc_gym.bench.schema import TIMING_KEYS
+
+    agents = "zero-crossing,ppo-belief,ppo-raw-framestack,pursuit,infotaxis,eedi"
+    records = []
     for kernel in (None, "Prescott"):
         env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
         env.update({} if kernel is None else {"OPENBLAS_CORETYPE": kernel})
         out = tmp_path / str(kernel)
-        args = ["--agents", "zero-crossing", "--conditions", "fresh-steel-12.7", "--trials", "8", "--workers", "1"]
+        args = ["--agents", agents, "--conditions", "fresh-steel-12.7", "--trials", "6", "--workers", "1"]
         cli = [sys.executable, "-m", "electroloc_gym.cli", "bench", *args, "--out", str(out), "--no-progress"]
         subprocess.run(cli, env=env, check=True, capture_output=True, timeout=300)
         lines = (out / "trials.jsonl").read_text(encoding="utf-8").splitlines()
-        estimates.append(sorted((r["trial"], r["estimate"]) for r in map(json.loads, lines)))
-    assert len(estimates[0]) == 8 and sum(e is not None for _, e in estimates[0]) >= 6
-    assert estimates[0] == estimates[1]  # bit for bit (JSON keeps every digit of a float)
+        records.append(
+            {
+                (r["agent"], r["trial"]): {k: v for k, v in r.items() if k not in TIMING_KEYS}
+                for r in map(json.loads, lines)
+            }
+        )
+    zero_crossing = [r["estimate"] for (agent, _), r in records[0].items() if agent == "zero-crossing"]
+    assert len(records[0]) == 36 and sum(e is not None for e in zero_crossing) >= 4
+    assert records[0] == records[1]  # bit for bit (JSON keeps every digit of a float)
 
 
 def test_zero_crossing_table1_layout() -> None:
