@@ -48,7 +48,11 @@ def ray_missing(what: str, extra: str = "ray") -> str:
     return f"{what} needs Ray, which is not installed here: {install}"
 
 
-def _import_ray(backend: str = "backend") -> Any:
+#: How the Ray refusals name ``backend`` and ``address`` unless a front end gives its own words (Python's spelling).
+_PYTHON_WORDS = {"backend": "backend", "address": "address"}
+
+
+def _import_ray(backend: str) -> Any:
     try:
         import ray
     except ImportError as exc:
@@ -75,7 +79,7 @@ def check_ray_address(address: str | None, names: Mapping[str, str] | None = Non
         ValueError: one line naming the backend (Ray missing) or the address (malformed or no cluster answers
             there).
     """
-    names = message_words({"backend": "backend", "address": "address"}, names)
+    names = message_words(_PYTHON_WORDS, names)
     ray = _import_ray(names["backend"])
     flag = names["address"]
     if address is None:
@@ -189,7 +193,7 @@ class RayBackend(Backend):
         if address is not None and (not isinstance(address, str) or not address.strip()):
             raise ValueError(f"address must be None (local Ray) or a non-empty Ray address string, got {address!r}")
         self.address = address
-        self.names = message_words({"backend": "backend", "address": "address"}, names)
+        self.names = message_words(_PYTHON_WORDS, names)
 
     def run_trials(self, specs: Sequence[Any], worker_fn: Callable[[Any], Any]) -> Iterator[tuple[Any, Any]]:
         if not specs:
